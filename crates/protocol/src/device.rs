@@ -1,0 +1,245 @@
+//! The device side of a bus as a sans-IO endpoint (1.4.2, 1.4.3, Table 3):
+//! what a gimbal's firmware runs, and what the simulator is built on.
+//!
+//! Bytes in -> framer -> address filter (own address or wildcard) ->
+//! ACK on a good checksum, NAK on a bad one -> typed command to a
+//! [`DeviceHandler`] -> NIC for unknown or unsupported commands, or the
+//! result frame with the Table 3 header. All output goes through a
+//! `FnMut(&[u8])` the caller supplies (a UART write, a queue).
+
+use crate::EncodeError;
+use crate::address::{Address, WILDCARD};
+use crate::command::Command;
+use crate::frame::{ACK, Frame, FrameBuf, NAK, NIC};
+use crate::framer::{DEFAULT_CAPACITY, Event, Framer};
+use crate::reply::Reply;
+
+/// Which frames an endpoint takes as its own, and how it answers broadcasts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EndpointConfig {
+    /// Own device address, 1..=254 (changed by `#NN`).
+    pub device: u8,
+    /// Own group, when the device knows it; `None` accepts any group. A
+    /// gimbal on a GCU port usually does not know its GCU's group.
+    pub group: Option<u8>,
+    /// Own port, when known; `None` accepts any port.
+    pub port: Option<u8>,
+    /// Whether frames to device 255 are acknowledged and answered. On a bus
+    /// of one device it should be; on a shared bus it must not, or the
+    /// answers of several devices collide. Such frames are executed either way.
+    pub answer_broadcast: bool,
+}
+
+impl EndpointConfig {
+    /// A device on a bus of its own: any group and port, broadcasts answered.
+    pub const fn single(device: u8) -> Self {
+        Self {
+            device,
+            group: None,
+            port: None,
+            answer_broadcast: true,
+        }
+    }
+
+    /// A device sharing its bus: broadcasts executed silently.
+    pub const fn shared(device: u8) -> Self {
+        Self {
+            device,
+            group: None,
+            port: None,
+            answer_broadcast: false,
+        }
+    }
+
+    fn level_matches(own: Option<u8>, dest: u8) -> bool {
+        dest == WILDCARD || own.is_none_or(|own| own == dest)
+    }
+
+    /// Whether a frame for `dest` is this device's.
+    pub fn accepts(&self, dest: &Address) -> bool {
+        (dest.device == self.device || dest.device == WILDCARD)
+            && Self::level_matches(self.group, dest.group)
+            && Self::level_matches(self.port, dest.port)
+    }
+
+    /// Whether a frame for `dest` gets ACK/NAK, NIC and results.
+    pub fn answers(&self, dest: &Address) -> bool {
+        self.accepts(dest) && (dest.device != WILDCARD || self.answer_broadcast)
+    }
+}
+
+/// The header for a result (Table 3): destination group = the command's
+/// source, port and device unchanged (a wildcard replaced by the endpoint's
+/// own, so that the answer says who answered), source = the command's group.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct ReplyTo {
+    pub dest: Address,
+    pub source: u8,
+}
+
+impl ReplyTo {
+    fn for_command(frame: &Frame<'_>, config: &EndpointConfig) -> Self {
+        let (mut dest, mut source) = frame.reply_header();
+        if dest.device == WILDCARD {
+            dest.device = config.device;
+        }
+        if dest.port == WILDCARD {
+            dest.port = config.port.unwrap_or(WILDCARD);
+        }
+        if source == WILDCARD {
+            source = config.group.unwrap_or(WILDCARD);
+        }
+        Self { dest, source }
+    }
+}
+
+/// A handler's answer to one command.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Response<'r> {
+    /// Executed; the command has no result.
+    Done,
+    /// Executed; send this result.
+    Reply(Reply<'r>),
+    /// Not implemented or not applicable here: answer NIC.
+    Nic,
+    /// The result comes later (e.g. after `IX`): the handler keeps the
+    /// [`ReplyTo`] and calls [`DeviceEndpoint::send_reply`].
+    Deferred,
+}
+
+/// What the device does with its commands.
+pub trait DeviceHandler {
+    /// Executes `command`; `reply_to` is the header any result must carry.
+    fn handle(&mut self, command: Command<'_>, reply_to: ReplyTo, now: u64) -> Response<'_>;
+}
+
+/// Counters of an endpoint.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct EndpointStats {
+    pub frames_accepted: u64,
+    pub naks_sent: u64,
+    pub nics_sent: u64,
+    pub results_sent: u64,
+}
+
+/// A device on a bus: framer, address filter, ACK/NAK/NIC and results.
+#[derive(Debug)]
+pub struct DeviceEndpoint<const N: usize = DEFAULT_CAPACITY> {
+    config: EndpointConfig,
+    framer: Framer<N>,
+    stats: EndpointStats,
+}
+
+impl<const N: usize> DeviceEndpoint<N> {
+    pub const fn new(config: EndpointConfig) -> Self {
+        Self {
+            config,
+            framer: Framer::new(),
+            stats: EndpointStats {
+                frames_accepted: 0,
+                naks_sent: 0,
+                nics_sent: 0,
+                results_sent: 0,
+            },
+        }
+    }
+
+    pub fn config(&self) -> &EndpointConfig {
+        &self.config
+    }
+
+    pub fn stats(&self) -> EndpointStats {
+        self.stats
+    }
+
+    /// The framer's counters (noise, bad checksums).
+    pub fn framer(&self) -> &Framer<N> {
+        &self.framer
+    }
+
+    /// Bytes received from the bus; `out` receives every byte to send back.
+    pub fn receive(&mut self, bytes: &[u8], now: u64, handler: &mut impl DeviceHandler, out: &mut impl FnMut(&[u8])) {
+        let Self { config, framer, stats } = self;
+        framer.feed(bytes, |event| handle_event(config, stats, event, now, handler, out));
+    }
+
+    /// The bus has been silent: abandon a partial frame (the silence hook).
+    pub fn line_idle(&mut self, now: u64, handler: &mut impl DeviceHandler, out: &mut impl FnMut(&[u8])) {
+        let Self { config, framer, stats } = self;
+        framer.flush_idle(|event| handle_event(config, stats, event, now, handler, out));
+    }
+
+    /// Sends a deferred result.
+    pub fn send_reply(
+        &mut self,
+        to: ReplyTo,
+        reply: &Reply<'_>,
+        out: &mut impl FnMut(&[u8]),
+    ) -> Result<(), EncodeError> {
+        let frame = FrameBuf::build(to.dest, to.source, |buf| reply.encode(buf).map(<[u8]>::len))?;
+        self.stats.results_sent += 1;
+        out(frame.as_bytes());
+        Ok(())
+    }
+}
+
+fn handle_event(
+    config: &mut EndpointConfig,
+    stats: &mut EndpointStats,
+    event: Event<'_>,
+    now: u64,
+    handler: &mut impl DeviceHandler,
+    out: &mut impl FnMut(&[u8]),
+) {
+    match event {
+        Event::Frame(frame) if config.accepts(&frame.dest) => {
+            stats.frames_accepted += 1;
+            let answer = config.answers(&frame.dest);
+            let mut send = |bytes: &[u8]| {
+                if answer {
+                    out(bytes);
+                }
+            };
+            send(&[ACK]);
+            let command = Command::parse(frame.payload());
+            if let Command::Unknown(_) = command {
+                stats.nics_sent += u64::from(answer);
+                send(&[NIC]);
+                return;
+            }
+            let reply_to = ReplyTo::for_command(&frame, config);
+            match handler.handle(command, reply_to, now) {
+                Response::Done => {
+                    if let Command::SetDeviceId(id) = command {
+                        config.device = id.get();
+                    }
+                }
+                Response::Deferred => {}
+                Response::Nic => {
+                    stats.nics_sent += u64::from(answer);
+                    send(&[NIC]);
+                }
+                Response::Reply(reply) => {
+                    let encoded =
+                        FrameBuf::build(reply_to.dest, reply_to.source, |buf| reply.encode(buf).map(<[u8]>::len));
+                    match encoded {
+                        Ok(frame) if reply.answers(&command) => {
+                            stats.results_sent += u64::from(answer);
+                            send(frame.as_bytes());
+                        }
+                        // A result the command cannot have: the handler is wrong; say NIC, not garbage.
+                        _ => {
+                            stats.nics_sent += u64::from(answer);
+                            send(&[NIC]);
+                        }
+                    }
+                }
+            }
+        }
+        Event::BadChecksum(bad) if config.answers(&bad.dest) => {
+            stats.naks_sent += 1;
+            out(&[NAK]);
+        }
+        _ => {}
+    }
+}

@@ -1,0 +1,138 @@
+//! ASCII number primitives shared by the command and reply codecs.
+//!
+//! Spec 1.4.1.2: numbers travel as upper-case ASCII hexadecimal. Parsers here
+//! also accept lower case (lenient, NOTES "parse leniently"); the writer always
+//! emits upper case. Decimal is used only by `*xpr`/`*xpn` (NOTES E14) and the
+//! auxiliary port configuration (Table 18).
+
+use nom::IResult;
+use nom::Parser;
+use nom::bytes::complete::take_while_m_n;
+
+/// The value of one ASCII hex digit, either case.
+pub(crate) const fn hex_value(byte: u8) -> Option<u8> {
+    match byte {
+        b'0'..=b'9' => Some(byte - b'0'),
+        b'A'..=b'F' => Some(byte - b'A' + 10),
+        b'a'..=b'f' => Some(byte - b'a' + 10),
+        _ => None,
+    }
+}
+
+pub(crate) const fn is_hex(byte: u8) -> bool {
+    hex_value(byte).is_some()
+}
+
+/// Upper-case ASCII digit for a nibble (`0..=15`).
+pub(crate) const fn hex_digit(nibble: u8) -> u8 {
+    b"0123456789ABCDEF"[(nibble & 0x0F) as usize]
+}
+
+/// Exactly `digits` hex digits (at most 8), as a number.
+pub(crate) fn hex_n(digits: usize) -> impl FnMut(&[u8]) -> IResult<&[u8], u32> {
+    move |input: &[u8]| {
+        let (rest, text) = take_while_m_n(digits, digits, is_hex).parse(input)?;
+        let value = text
+            .iter()
+            .fold(0u32, |acc, &b| (acc << 4) | u32::from(hex_value(b).unwrap_or(0)));
+        Ok((rest, value))
+    }
+}
+
+/// Two hex digits.
+pub(crate) fn hex_u8(input: &[u8]) -> IResult<&[u8], u8> {
+    hex_n(2).map(|v| v as u8).parse(input)
+}
+
+/// Four hex digits.
+pub(crate) fn hex_u16(input: &[u8]) -> IResult<&[u8], u16> {
+    hex_n(4).map(|v| v as u16).parse(input)
+}
+
+/// Three hex digits: a 12-bit value (Tables 10, 17).
+pub(crate) fn hex12(input: &[u8]) -> IResult<&[u8], crate::units::U12> {
+    nom::combinator::map_res(hex_n(3), |v| crate::units::U12::new(v as u16)).parse(input)
+}
+
+/// One to `max` decimal digits.
+pub(crate) fn decimal(max: usize) -> impl FnMut(&[u8]) -> IResult<&[u8], u32> {
+    move |input: &[u8]| {
+        let (rest, text) = take_while_m_n(1, max, |b: u8| b.is_ascii_digit()).parse(input)?;
+        let value = text.iter().fold(0u32, |acc, &b| acc * 10 + u32::from(b - b'0'));
+        Ok((rest, value))
+    }
+}
+
+/// Byte offset of `rest` inside `whole` (both from the same payload).
+pub(crate) fn offset_in(whole: &[u8], rest: &[u8]) -> usize {
+    whole.len() - rest.len()
+}
+
+/// A bounded writer into a caller buffer: every encoder in the crate goes
+/// through it, so none can write past the end or panic on a short buffer.
+#[derive(Debug)]
+pub(crate) struct Writer<'b> {
+    buf: &'b mut [u8],
+    len: usize,
+}
+
+impl<'b> Writer<'b> {
+    pub(crate) fn new(buf: &'b mut [u8]) -> Self {
+        Self { buf, len: 0 }
+    }
+
+    pub(crate) fn put(&mut self, bytes: &[u8]) -> Result<(), crate::EncodeError> {
+        let end = self.len + bytes.len();
+        let capacity = self.buf.len();
+        let dst = self
+            .buf
+            .get_mut(self.len..end)
+            .ok_or(crate::EncodeError::BufferTooSmall { needed: end, capacity })?;
+        dst.copy_from_slice(bytes);
+        self.len = end;
+        Ok(())
+    }
+
+    pub(crate) fn byte(&mut self, byte: u8) -> Result<(), crate::EncodeError> {
+        self.put(&[byte])
+    }
+
+    /// `digits` upper-case hex digits of `value`, most significant first.
+    pub(crate) fn hex(&mut self, value: u32, digits: usize) -> Result<(), crate::EncodeError> {
+        for i in (0..digits).rev() {
+            self.byte(hex_digit((value >> (4 * i)) as u8))?;
+        }
+        Ok(())
+    }
+
+    /// `value` in decimal, at least `min_digits` digits (zero padded).
+    pub(crate) fn decimal(&mut self, value: u32, min_digits: usize) -> Result<(), crate::EncodeError> {
+        let mut digits = [0u8; 10];
+        let mut n = 0;
+        let mut v = value;
+        loop {
+            digits[n] = b'0' + (v % 10) as u8;
+            n += 1;
+            v /= 10;
+            if v == 0 {
+                break;
+            }
+        }
+        for _ in n..min_digits {
+            self.byte(b'0')?;
+        }
+        for i in (0..n).rev() {
+            self.byte(digits[i])?;
+        }
+        Ok(())
+    }
+
+    pub(crate) fn len(&self) -> usize {
+        self.len
+    }
+
+    pub(crate) fn finish(self) -> &'b [u8] {
+        let Writer { buf, len } = self;
+        &buf[..len]
+    }
+}

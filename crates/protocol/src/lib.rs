@@ -1,0 +1,48 @@
+//! Sagebrush pan-tilt gimbal protocol, revision 1.9: everything about bytes
+//! on the wire, for firmware and host alike.
+//!
+//! `no_std`, no `alloc`, no `unsafe`. Layers (DESIGN "Layers"):
+//! - [`frame`]: the frame of Table 1, checksum, ACK/NAK/NIC bytes; [`FrameBuf`]
+//!   for queues.
+//! - [`framer`]: the streaming framer with resynchronisation.
+//! - [`command`], [`reply`], [`units`]: the typed command set (Tables 4, 11,
+//!   16, rev 1.9 list) and results (Tables 4A-17), in physical units.
+//! - [`link`]: the sender side of a link (ACK/NAK, retransmission, result
+//!   wait) as sans-IO state machines; time is a number the caller passes in.
+//! - [`device`]: the device side (address filter, ACK/NAK, NIC, Table 3
+//!   reply header) as a sans-IO endpoint that firmware can use as it is.
+#![no_std]
+#![forbid(unsafe_code)]
+
+pub mod address;
+pub mod command;
+pub mod device;
+pub mod frame;
+pub mod framer;
+mod hex;
+pub mod link;
+pub mod reply;
+pub mod units;
+
+pub use address::{Address, CONTROL_UNIT, LINK_PORT, MCU_GROUP, WILDCARD};
+pub use command::{AuxBytes, Command, CommandError, Extended, ResultKind, ResultTimeout};
+pub use device::{DeviceEndpoint, DeviceHandler, EndpointConfig, ReplyTo, Response};
+pub use frame::{ACK, Frame, FrameBuf, FrameError, MAX_FRAME_LEN, MAX_PAYLOAD, NAK, NIC, START, checksum};
+pub use framer::{BadChecksum, Event, Framer, FramerStats};
+pub use link::{Outcome, RetryPolicy, Transaction, TransactionStep, Transmitter, TxFailure, TxStep};
+pub use reply::{AwakeStatus, ErrorCodes, HomeStatus, Identity, InitResults, RateGains, Reply, ReplyError, StatusBits};
+pub use units::{
+    Acceleration, Angle, AuxConfig, AuxPort, AuxReadLen, Axis, DataRate, DeviceId, DigitalZoom, LensPosition,
+    LensSpeed, Limits, Parity, Position, RangeError, Rate, RateGain, Relay, Speed, U12,
+};
+
+/// Why an encoder could not write.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum EncodeError {
+    #[error("buffer of {capacity} bytes too small: {needed} needed")]
+    BufferTooSmall { needed: usize, capacity: usize },
+    #[error("payload of {len} bytes: a frame carries 1..=256")]
+    PayloadLength { len: usize },
+    #[error("cannot encode: {0}")]
+    OutOfRange(RangeError),
+}

@@ -1,0 +1,353 @@
+//! The sender side of a link as sans-IO state machines (1.4.2, 1.4.3,
+//! Figure 6). Time is a tick count the caller passes in (milliseconds on
+//! the host; whatever the firmware's timer counts), never read here.
+//!
+//! - [`Transmitter`]: send, await ACK/NAK, retransmit on NAK or time-out up
+//!   to a count, then delivered or failed.
+//! - [`Transaction`]: a whole command exchange: the transmitter, then the
+//!   result frame or NIC the command calls for, or the broadcast guard time
+//!   for device 255.
+//!
+//! The caller owns the frame bytes (a [`crate::FrameBuf`]) and writes them
+//! whenever a step says `Send`. It also acknowledges received frames itself
+//! (hop by hop): ACK a result frame, NAK a [`crate::Event::BadChecksum`].
+
+use crate::address::{Address, WILDCARD};
+use crate::command::{Command, ResultKind, ResultTimeout};
+use crate::framer::Event;
+
+/// Retransmission policy (1.4.2: no ACK or NAK within a time-out -> retransmit).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RetryPolicy {
+    /// Ticks to wait for ACK/NAK after a transmission.
+    pub ack_timeout: u64,
+    /// Retransmissions allowed after the first transmission.
+    pub retries: u8,
+}
+
+/// What the caller of a [`Transmitter`] does next.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TxStep {
+    /// Write the frame (again).
+    Send,
+    /// Nothing to do until an event or [`Transmitter::deadline`].
+    Wait,
+    /// ACK received.
+    Delivered,
+    /// Retries exhausted.
+    Failed(TxFailure),
+}
+
+/// Why a transmission failed; the reason of the last attempt.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum TxFailure {
+    /// The last attempt was answered with NAK (bad checksum at the receiver).
+    Nak,
+    /// The last attempt got neither ACK nor NAK in time.
+    NoAck,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum TxState {
+    Idle,
+    AwaitAck { deadline: u64 },
+    Done,
+}
+
+/// Send -> await ACK/NAK -> retransmit -> delivered / failed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Transmitter {
+    policy: RetryPolicy,
+    state: TxState,
+    transmissions: u8,
+}
+
+impl Transmitter {
+    pub const fn new(policy: RetryPolicy) -> Self {
+        Self {
+            policy,
+            state: TxState::Idle,
+            transmissions: 0,
+        }
+    }
+
+    /// Begins: the caller writes the frame.
+    pub fn start(&mut self, now: u64) -> TxStep {
+        self.transmissions = 0;
+        self.transmit(now)
+    }
+
+    fn transmit(&mut self, now: u64) -> TxStep {
+        self.transmissions = self.transmissions.saturating_add(1);
+        self.state = TxState::AwaitAck {
+            deadline: now.saturating_add(self.policy.ack_timeout),
+        };
+        TxStep::Send
+    }
+
+    fn retry_or_fail(&mut self, now: u64, failure: TxFailure) -> TxStep {
+        if self.transmissions <= self.policy.retries {
+            self.transmit(now)
+        } else {
+            self.state = TxState::Done;
+            TxStep::Failed(failure)
+        }
+    }
+
+    /// An ACK arrived.
+    pub fn on_ack(&mut self) -> TxStep {
+        match self.state {
+            TxState::AwaitAck { .. } => {
+                self.state = TxState::Done;
+                TxStep::Delivered
+            }
+            _ => TxStep::Wait,
+        }
+    }
+
+    /// A NAK arrived: retransmit while retries remain.
+    pub fn on_nak(&mut self, now: u64) -> TxStep {
+        match self.state {
+            TxState::AwaitAck { .. } => self.retry_or_fail(now, TxFailure::Nak),
+            _ => TxStep::Wait,
+        }
+    }
+
+    /// Time passed: retransmit or fail once the ACK time-out has run out.
+    pub fn poll(&mut self, now: u64) -> TxStep {
+        match self.state {
+            TxState::AwaitAck { deadline } if now >= deadline => self.retry_or_fail(now, TxFailure::NoAck),
+            _ => TxStep::Wait,
+        }
+    }
+
+    /// When [`Transmitter::poll`] next has something to do.
+    pub fn deadline(&self) -> Option<u64> {
+        match self.state {
+            TxState::AwaitAck { deadline } => Some(deadline),
+            _ => None,
+        }
+    }
+
+    /// Whether an ACK is awaited.
+    pub fn awaiting_ack(&self) -> bool {
+        matches!(self.state, TxState::AwaitAck { .. })
+    }
+
+    /// Transmissions so far, the first included.
+    pub fn transmissions(&self) -> u8 {
+        self.transmissions
+    }
+}
+
+/// Time-outs of a whole exchange, in ticks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TransactionPolicy {
+    pub retry: RetryPolicy,
+    /// Wait for a result after the ACK (ordinary queries).
+    pub result_timeout: u64,
+    /// Wait for a result of the long class (`IX`).
+    pub long_result_timeout: u64,
+    /// After the ACK of a command without result: how long a NIC may follow.
+    pub nic_window: u64,
+    /// After a write to device 255: quiet time before the bus is used again.
+    pub broadcast_guard: u64,
+}
+
+/// How an exchange ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Outcome {
+    /// ACKed; no result was expected (or an optional one did not come).
+    Acknowledged,
+    /// The frame just given to [`Transaction::on_event`] is the result.
+    Result,
+    /// The device answered NIC: not implemented or not applicable.
+    Nic,
+    /// ACKed, but the required result did not arrive in time.
+    NoResult,
+    /// No ACK after all retries.
+    Failed(TxFailure),
+    /// Written once to device 255 (no ACK awaited) and the guard time passed.
+    Broadcast,
+}
+
+/// What the caller of a [`Transaction`] does next.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TransactionStep {
+    /// Write the command frame (again).
+    Send,
+    /// Nothing to do until an event or [`Transaction::deadline`].
+    Wait,
+    /// The exchange is over.
+    Done(Outcome),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Phase {
+    Idle,
+    AwaitAck,
+    AwaitResult { deadline: u64, required: bool },
+    NicWindow { deadline: u64 },
+    Guard { deadline: u64 },
+    Done(Outcome),
+}
+
+/// One command exchange on a bus or link: write, ACK/NAK with
+/// retransmission, then the result or NIC (Figure 6).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Transaction {
+    policy: TransactionPolicy,
+    tx: Transmitter,
+    dest: Address,
+    expect: ResultKind,
+    phase: Phase,
+}
+
+impl Transaction {
+    /// An exchange of `command` with `dest`.
+    pub fn new(dest: Address, command: &Command<'_>, policy: TransactionPolicy) -> Self {
+        Self {
+            policy,
+            tx: Transmitter::new(policy.retry),
+            dest,
+            expect: command.result_kind(),
+            phase: Phase::Idle,
+        }
+    }
+
+    /// Whether this exchange goes to every device of a bus (no ACK awaited).
+    pub fn is_broadcast(&self) -> bool {
+        self.dest.device == WILDCARD
+    }
+
+    /// Begins: the caller writes the frame.
+    pub fn start(&mut self, now: u64) -> TransactionStep {
+        if self.is_broadcast() {
+            self.phase = Phase::Guard {
+                deadline: now.saturating_add(self.policy.broadcast_guard),
+            };
+            return TransactionStep::Send;
+        }
+        self.phase = Phase::AwaitAck;
+        let step = self.tx.start(now);
+        self.advance(step, now)
+    }
+
+    fn finish(&mut self, outcome: Outcome) -> TransactionStep {
+        self.phase = Phase::Done(outcome);
+        TransactionStep::Done(outcome)
+    }
+
+    fn after_ack(&mut self, now: u64) -> TransactionStep {
+        let p = self.policy;
+        self.phase = match self.expect {
+            ResultKind::None => Phase::NicWindow {
+                deadline: now.saturating_add(p.nic_window),
+            },
+            ResultKind::Required(ResultTimeout::Normal) => Phase::AwaitResult {
+                deadline: now.saturating_add(p.result_timeout),
+                required: true,
+            },
+            ResultKind::Required(ResultTimeout::Long) => Phase::AwaitResult {
+                deadline: now.saturating_add(p.long_result_timeout),
+                required: true,
+            },
+            ResultKind::Optional => Phase::AwaitResult {
+                deadline: now.saturating_add(p.result_timeout),
+                required: false,
+            },
+        };
+        TransactionStep::Wait
+    }
+
+    fn advance(&mut self, step: TxStep, now: u64) -> TransactionStep {
+        match step {
+            TxStep::Send => TransactionStep::Send,
+            TxStep::Wait => TransactionStep::Wait,
+            TxStep::Delivered => self.after_ack(now),
+            TxStep::Failed(f) => self.finish(Outcome::Failed(f)),
+        }
+    }
+
+    /// Whether `frame`'s header is that of this exchange's result (Table 3:
+    /// port and device unchanged).
+    pub fn is_result_header(&self, dest: &Address) -> bool {
+        dest.port == self.dest.port && dest.device == self.dest.device
+    }
+
+    /// An event from the framer of the line this exchange runs on.
+    pub fn on_event(&mut self, event: &Event<'_>, now: u64) -> TransactionStep {
+        match (self.phase, event) {
+            (Phase::AwaitAck, Event::Ack) => {
+                let step = self.tx.on_ack();
+                self.advance(step, now)
+            }
+            (Phase::AwaitAck, Event::Nak) => {
+                let step = self.tx.on_nak(now);
+                self.advance(step, now)
+            }
+            // The ACK was lost but what follows it arrived: take both.
+            (Phase::AwaitAck | Phase::AwaitResult { .. } | Phase::NicWindow { .. }, Event::Nic) => {
+                self.finish(Outcome::Nic)
+            }
+            (Phase::AwaitAck | Phase::AwaitResult { .. }, Event::Frame(frame))
+                if self.expect != ResultKind::None && self.is_result_header(&frame.dest) =>
+            {
+                self.finish(Outcome::Result)
+            }
+            _ => TransactionStep::Wait,
+        }
+    }
+
+    /// Time passed.
+    pub fn poll(&mut self, now: u64) -> TransactionStep {
+        match self.phase {
+            Phase::AwaitAck => {
+                let step = self.tx.poll(now);
+                self.advance(step, now)
+            }
+            Phase::AwaitResult { deadline, required } if now >= deadline => self.finish(if required {
+                Outcome::NoResult
+            } else {
+                Outcome::Acknowledged
+            }),
+            Phase::NicWindow { deadline } if now >= deadline => self.finish(Outcome::Acknowledged),
+            Phase::Guard { deadline } if now >= deadline => self.finish(Outcome::Broadcast),
+            Phase::Done(outcome) => TransactionStep::Done(outcome),
+            _ => TransactionStep::Wait,
+        }
+    }
+
+    /// When [`Transaction::poll`] next has something to do.
+    pub fn deadline(&self) -> Option<u64> {
+        match self.phase {
+            Phase::AwaitAck => self.tx.deadline(),
+            Phase::AwaitResult { deadline, .. } | Phase::NicWindow { deadline } | Phase::Guard { deadline } => {
+                Some(deadline)
+            }
+            Phase::Idle | Phase::Done(_) => None,
+        }
+    }
+
+    /// The outcome, once done.
+    pub fn outcome(&self) -> Option<Outcome> {
+        match self.phase {
+            Phase::Done(outcome) => Some(outcome),
+            _ => None,
+        }
+    }
+
+    /// Transmissions so far, the first included (retransmissions = this - 1).
+    pub fn transmissions(&self) -> u8 {
+        if self.is_broadcast() && self.phase != Phase::Idle {
+            1
+        } else {
+            self.tx.transmissions()
+        }
+    }
+
+    /// Whether the ACK has been received (or was not awaited).
+    pub fn acknowledged(&self) -> bool {
+        !matches!(self.phase, Phase::Idle | Phase::AwaitAck)
+    }
+}

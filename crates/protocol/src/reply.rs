@@ -1,0 +1,622 @@
+//! Result replies, parsed *for a given command* because a result carries no
+//! command code (Tables 4A, 5, 6, 6A, 6B, 8, 9, 10, 13, 14, 15, 17, the
+//! `C0..CF` data-rate reply, `*xpn`, `*xpr`).
+//!
+//! NOTES rule: parse leniently (every plausible reading), emit one canonical
+//! form. Each type says both. Generally accepted everywhere except raw
+//! replies: an echo of the command in front of the result (NOTES E6).
+
+use nom::Parser;
+use nom::bytes::complete::take;
+
+use crate::EncodeError;
+use crate::command::{Command, CommandError, ResultKind, found_text, whole};
+use crate::hex::{Writer, decimal, hex_n, hex_u8, hex_u16, hex_value, hex12};
+use crate::units::{Acceleration, Angle, DataRate, LensPosition, Limits, Position, RangeError, Rate, RateGain};
+
+/// Awake status, Table 5: bit 0 pan not initialised, bit 1 tilt not
+/// initialised, bit 2 motors off, bit 3 error. Parsed from one hex digit or a
+/// raw byte 0x00..=0x0F (NOTES E10); emitted as one hex digit.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct AwakeStatus(u8);
+
+impl AwakeStatus {
+    pub const PAN_NOT_INITIALIZED: u8 = 1 << 0;
+    pub const TILT_NOT_INITIALIZED: u8 = 1 << 1;
+    pub const MOTORS_OFF: u8 = 1 << 2;
+    pub const ERROR: u8 = 1 << 3;
+    pub fn new(bits: u8) -> Result<Self, RangeError> {
+        if bits > 0x0F {
+            return Err(RangeError {
+                what: "awake status bits",
+                value: bits.into(),
+                min: 0,
+                max: 15,
+            });
+        }
+        Ok(Self(bits))
+    }
+    pub const fn bits(self) -> u8 {
+        self.0
+    }
+}
+
+/// Identification block, Table 6 (NOTES E5): device ID (2 hex), protocol
+/// revision (2 characters, leading space allowed), name and serial number
+/// (20 characters each, space padded). Parsing trims the padding and accepts
+/// short blocks; encoding pads to the full 44 bytes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Identity<'a> {
+    pub id: u8,
+    pub revision: [u8; 2],
+    name: &'a [u8],
+    serial: &'a [u8],
+}
+
+impl<'a> Identity<'a> {
+    pub const FIELD_LEN: usize = 20;
+    /// Name and serial: at most 20 printable ASCII characters each, without
+    /// trailing spaces (they would be taken for padding).
+    pub fn new(id: u8, revision: [u8; 2], name: &'a [u8], serial: &'a [u8]) -> Result<Self, RangeError> {
+        for (what, field) in [("device name length", name), ("serial number length", serial)] {
+            let ok = field.len() <= Self::FIELD_LEN
+                && field.iter().all(|b| (0x20..=0x7E).contains(b))
+                && field.last() != Some(&b' ');
+            if !ok {
+                return Err(RangeError {
+                    what,
+                    value: field.len() as i64,
+                    min: 0,
+                    max: Self::FIELD_LEN as i64,
+                });
+            }
+        }
+        Ok(Self {
+            id,
+            revision,
+            name,
+            serial,
+        })
+    }
+    pub const fn name(&self) -> &'a [u8] {
+        self.name
+    }
+    pub const fn serial(&self) -> &'a [u8] {
+        self.serial
+    }
+}
+
+/// Error code bits per axis, Table 6A: bit 0 centre reference, bit 4
+/// initialisation, bit 5 motor time-out, bit 6 temperature. 2 + 2 hex.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct ErrorCodes {
+    pub pan: u8,
+    pub tilt: u8,
+}
+
+/// Status bits per axis, Table 6B (NOTES E3): low byte bit 0 not
+/// initialised, 1 + limit, 2 - limit, 3 + centre, 4 - centre, 5 + hard stop,
+/// 6 - hard stop, 7 error present; high byte reserved. Parsed from 2 + 2 or
+/// 4 + 4 hex, emitted as 4 + 4.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct StatusBits {
+    pub pan: u16,
+    pub tilt: u16,
+}
+
+/// Rate gains, Table 8 (NOTES E1, E6): pan and tilt gain x10 as 2 hex each,
+/// then 4 unused characters. Parsed with or without a `G?` echo and with or
+/// without the unused characters; emitted as `pptt0000`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct RateGains {
+    pub pan: RateGain,
+    pub tilt: RateGain,
+}
+
+/// Initialisation results, Table 9 (NOTES E4): per direction, low byte bit 0
+/// centre switch detected, bit 2 hard limit detected (bad), bit 3 limit
+/// switch hit. Parsed from 2 or 4 hex each, emitted as 4 each.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct InitResults {
+    pub pan_ccw: u16,
+    pub pan_cw: u16,
+    pub tilt_ccw: u16,
+    pub tilt_cw: u16,
+}
+
+/// Verify-home result, Table 14: three digits, each bit 0 = pan, bit 1 =
+/// tilt: limit switch found, centre switch found, count correct. Parsed
+/// from hex digits or raw bytes 0..=15; emitted as hex digits.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct HomeStatus {
+    pub limit_switches: u8,
+    pub center_switches: u8,
+    pub count_correct: u8,
+}
+
+/// A typed result.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Reply<'a> {
+    /// `AW`, Table 5.
+    AwakeStatus(AwakeStatus),
+    /// `B?`: `C0..CF` (bare digit accepted); emitted `Cn`.
+    MaxDataRate(DataRate),
+    /// `D?`, Table 6.
+    Identity(Identity<'a>),
+    /// `E?`, Table 6A.
+    Errors(ErrorCodes),
+    /// `I?`, Table 6B.
+    StatusBits(StatusBits),
+    /// `G?`, Table 8.
+    RateGains(RateGains),
+    /// `IX`, Table 9.
+    Initialization(InitResults),
+    /// `L?`, Table 10: 12 hex.
+    Limits(Limits),
+    /// `LR`, Table 4A (NOTES E11): `L` + one hex digit of relay bits (bare
+    /// digit accepted).
+    Relays(u8),
+    /// `A?`: pan then tilt, 4 hex each (Table 13, NOTES E7).
+    Accelerations { pan: Acceleration, tilt: Acceleration },
+    /// `AP?` / `AT?`: 4 hex.
+    Acceleration(Acceleration),
+    /// `R?`: pan then tilt, 4 hex each.
+    Rates { pan: Rate, tilt: Rate },
+    /// `RP?` / `RT?`: 4 hex.
+    Rate(Rate),
+    /// `HV`, Table 14.
+    VerifyHome(HomeStatus),
+    /// `P?`, `P?nn`, `S?nn`, Table 15: 8 hex (a leading `P` accepted).
+    Position(Position),
+    /// `V?`, Table 17: 6 hex (a leading `V` accepted).
+    Lens(LensPosition),
+    /// `*xpn`: decimal count (NOTES E14).
+    AuxCount(u16),
+    /// `*xprnnn`: the bytes read, raw.
+    AuxData(&'a [u8]),
+    /// Rev 1.9 commands: the reply bytes, raw (NOTES E13).
+    Raw(&'a [u8]),
+}
+
+/// Why a payload is not the result of a given command.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ReplyError {
+    #[error("{command} has no result reply")]
+    NoResult { command: &'static str },
+    #[error("result of {command}: at offset {offset} expected {expected}, found {}", found_text(*.found))]
+    Malformed {
+        command: &'static str,
+        offset: usize,
+        found: Option<u8>,
+        expected: &'static str,
+    },
+    #[error("result of {command}: value at offset {offset}: {error}")]
+    OutOfRange {
+        command: &'static str,
+        offset: usize,
+        error: RangeError,
+    },
+}
+
+impl From<CommandError> for ReplyError {
+    fn from(e: CommandError) -> Self {
+        match e {
+            CommandError::BadArgument {
+                command,
+                offset,
+                found,
+                expected,
+            } => ReplyError::Malformed {
+                command,
+                offset,
+                found,
+                expected,
+            },
+            CommandError::OutOfRange { command, offset, error } => ReplyError::OutOfRange { command, offset, error },
+            CommandError::Empty | CommandError::Unknown { .. } => ReplyError::Malformed {
+                command: "?",
+                offset: 0,
+                found: None,
+                expected: "a result",
+            },
+        }
+    }
+}
+
+/// The shape of result a command expects.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Shape {
+    AwakeStatus,
+    MaxDataRate,
+    Identity,
+    Errors,
+    StatusBits,
+    RateGains,
+    Initialization,
+    Limits,
+    Relays,
+    Accelerations,
+    Acceleration,
+    Rates,
+    Rate,
+    VerifyHome,
+    Position,
+    Lens,
+    AuxCount,
+    AuxData,
+    Raw,
+}
+
+fn shape(command: &Command<'_>) -> Option<Shape> {
+    use Command as C;
+    Some(match command {
+        C::AwakeStatus => Shape::AwakeStatus,
+        C::QueryMaxDataRate => Shape::MaxDataRate,
+        C::Identify => Shape::Identity,
+        C::QueryErrors => Shape::Errors,
+        C::QueryStatusBits => Shape::StatusBits,
+        C::QueryRateGains => Shape::RateGains,
+        C::Initialize => Shape::Initialization,
+        C::QueryLimits => Shape::Limits,
+        C::QueryRelays => Shape::Relays,
+        C::QueryAccelerations => Shape::Accelerations,
+        C::QueryAcceleration(_) => Shape::Acceleration,
+        C::QueryRates => Shape::Rates,
+        C::QueryRate(_) => Shape::Rate,
+        C::VerifyHome => Shape::VerifyHome,
+        C::QueryPosition | C::QueryPreset(_) | C::QueryStoredPreset(_) => Shape::Position,
+        C::QueryLens => Shape::Lens,
+        C::AuxCount(_) => Shape::AuxCount,
+        C::AuxReceive(..) => Shape::AuxData,
+        C::Extended(..) if command.result_kind() != ResultKind::None => Shape::Raw,
+        _ => return None,
+    })
+}
+
+fn digit_or_raw(b: u8) -> Option<u8> {
+    hex_value(b).or(if b <= 0x0F { Some(b) } else { None })
+}
+
+impl<'a> Reply<'a> {
+    /// Parses `payload` as the result of `command`.
+    pub fn parse(command: &Command<'_>, payload: &'a [u8]) -> Result<Self, ReplyError> {
+        let name = command.mnemonic();
+        let shape = shape(command).ok_or(ReplyError::NoResult { command: name })?;
+        // An echo of the command in front of the result (NOTES E6).
+        let mut skip = 0;
+        if !matches!(shape, Shape::AuxData | Shape::Raw) {
+            let mut echo = [0u8; 16];
+            if let Ok(echo) = command.encode(&mut echo) {
+                if payload.len() > echo.len() && payload.starts_with(echo) {
+                    skip = echo.len();
+                }
+            }
+        }
+        let body = &payload[skip..];
+        let with_letter = |letter: u8, bare_len: usize| {
+            if body.len() == bare_len + 1 && body.first() == Some(&letter) {
+                skip + 1
+            } else {
+                skip
+            }
+        };
+        Ok(match shape {
+            Shape::AwakeStatus => match body {
+                [b] => match digit_or_raw(*b) {
+                    Some(bits) => Reply::AwakeStatus(AwakeStatus(bits)),
+                    None => return Err(malformed(name, skip, Some(*b), "one hex digit")),
+                },
+                _ => {
+                    return Err(malformed(
+                        name,
+                        skip + body.len().min(1),
+                        body.get(1).copied(),
+                        "one hex digit",
+                    ));
+                }
+            },
+            Shape::MaxDataRate => {
+                let at = with_letter(b'C', 1);
+                let code = whole(name, payload, at, "C and one hex digit", hex_n(1))?;
+                Reply::MaxDataRate(DataRate::from_code(code as u8).unwrap_or(DataRate::Reserved(15)))
+            }
+            Shape::Identity => {
+                if body.len() < 4 || body.len() > 44 {
+                    let (offset, expected) = if body.len() < 4 {
+                        (payload.len(), "ID and revision (4 characters)")
+                    } else {
+                        (skip + 44, "end of the 44-byte identification block")
+                    };
+                    return Err(malformed(name, offset, payload.get(offset).copied(), expected));
+                }
+                let id = whole(name, &payload[..skip + 2], skip, "two hex digits (device ID)", hex_u8)?;
+                let field = |from: usize| {
+                    let raw = body
+                        .get(from..body.len().min(from + Identity::FIELD_LEN))
+                        .unwrap_or(&[]);
+                    let end = raw.iter().rposition(|&b| b != b' ' && b != 0).map_or(0, |i| i + 1);
+                    &raw[..end]
+                };
+                Reply::Identity(Identity {
+                    id,
+                    revision: [body[2], body[3]],
+                    name: field(4),
+                    serial: field(24),
+                })
+            }
+            Shape::Errors => {
+                let (pan, tilt) = whole(name, payload, skip, "four hex digits", |i| (hex_u8, hex_u8).parse(i))?;
+                Reply::Errors(ErrorCodes { pan, tilt })
+            }
+            Shape::StatusBits => {
+                let (pan, tilt) = if body.len() == 4 {
+                    let (p, t) = whole(name, payload, skip, "four or eight hex digits", |i| {
+                        (hex_u8, hex_u8).parse(i)
+                    })?;
+                    (u16::from(p), u16::from(t))
+                } else {
+                    whole(name, payload, skip, "four or eight hex digits", |i| {
+                        (hex_u16, hex_u16).parse(i)
+                    })?
+                };
+                Reply::StatusBits(StatusBits { pan, tilt })
+            }
+            Shape::RateGains => {
+                let (pan, tilt) = if body.len() == 8 {
+                    let (p, t, _) = whole(name, payload, skip, "gains then 4 unused characters", |i| {
+                        (hex_u8, hex_u8, take(4usize)).parse(i)
+                    })?;
+                    (p, t)
+                } else {
+                    whole(name, payload, skip, "two gains of two hex digits", |i| {
+                        (hex_u8, hex_u8).parse(i)
+                    })?
+                };
+                let pan = RateGain::new(pan).map_err(|error| ReplyError::OutOfRange {
+                    command: name,
+                    offset: skip,
+                    error,
+                })?;
+                let tilt = RateGain::new(tilt).map_err(|error| ReplyError::OutOfRange {
+                    command: name,
+                    offset: skip + 2,
+                    error,
+                })?;
+                Reply::RateGains(RateGains { pan, tilt })
+            }
+            Shape::Initialization => {
+                let [a, b, c, d] = if body.len() == 8 {
+                    let (a, b, c, d) = whole(name, payload, skip, "8 or 16 hex digits", |i| {
+                        (hex_u8, hex_u8, hex_u8, hex_u8).parse(i)
+                    })?;
+                    [a, b, c, d].map(u16::from)
+                } else {
+                    let (a, b, c, d) = whole(name, payload, skip, "8 or 16 hex digits", |i| {
+                        (hex_u16, hex_u16, hex_u16, hex_u16).parse(i)
+                    })?;
+                    [a, b, c, d]
+                };
+                Reply::Initialization(InitResults {
+                    pan_ccw: a,
+                    pan_cw: b,
+                    tilt_ccw: c,
+                    tilt_cw: d,
+                })
+            }
+            Shape::Limits => {
+                let (pan_ccw, pan_cw, tilt_ccw, tilt_cw) = whole(name, payload, skip, "twelve hex digits", |i| {
+                    (hex12, hex12, hex12, hex12).parse(i)
+                })?;
+                Reply::Limits(Limits {
+                    pan_ccw,
+                    pan_cw,
+                    tilt_ccw,
+                    tilt_cw,
+                })
+            }
+            Shape::Relays => {
+                let at = with_letter(b'L', 1);
+                Reply::Relays(whole(name, payload, at, "L and one hex digit", hex_n(1))? as u8)
+            }
+            Shape::Accelerations => {
+                let (pan, tilt) = whole(name, payload, skip, "eight hex digits", |i| (hex_u16, hex_u16).parse(i))?;
+                Reply::Accelerations {
+                    pan: Acceleration(pan),
+                    tilt: Acceleration(tilt),
+                }
+            }
+            Shape::Acceleration => {
+                Reply::Acceleration(Acceleration(whole(name, payload, skip, "four hex digits", hex_u16)?))
+            }
+            Shape::Rates => {
+                let (pan, tilt) = whole(name, payload, skip, "eight hex digits", |i| (hex_u16, hex_u16).parse(i))?;
+                Reply::Rates {
+                    pan: Rate(pan),
+                    tilt: Rate(tilt),
+                }
+            }
+            Shape::Rate => Reply::Rate(Rate(whole(name, payload, skip, "four hex digits", hex_u16)?)),
+            Shape::VerifyHome => match body {
+                [a, b, c] => match (digit_or_raw(*a), digit_or_raw(*b), digit_or_raw(*c)) {
+                    (Some(limit_switches), Some(center_switches), Some(count_correct)) => {
+                        Reply::VerifyHome(HomeStatus {
+                            limit_switches,
+                            center_switches,
+                            count_correct,
+                        })
+                    }
+                    _ => {
+                        let i = [a, b, c].iter().position(|x| digit_or_raw(**x).is_none()).unwrap_or(0);
+                        return Err(malformed(name, skip + i, Some(body[i]), "a hex digit"));
+                    }
+                },
+                _ => {
+                    return Err(malformed(
+                        name,
+                        skip + body.len().min(3),
+                        body.get(3).copied(),
+                        "three digits",
+                    ));
+                }
+            },
+            Shape::Position => {
+                let at = with_letter(b'P', 8);
+                let (pan, tilt) = whole(name, payload, at, "eight hex digits", |i| (hex_u16, hex_u16).parse(i))?;
+                Reply::Position(Position::new(Angle(pan as i16), Angle(tilt as i16)))
+            }
+            Shape::Lens => {
+                let at = with_letter(b'V', 6);
+                let (zoom, focus) = whole(name, payload, at, "six hex digits", |i| (hex12, hex12).parse(i))?;
+                Reply::Lens(LensPosition { zoom, focus })
+            }
+            Shape::AuxCount => {
+                let n = whole(name, payload, skip, "a decimal count 0..=65535", |i| {
+                    decimal(5).parse(i)
+                })?;
+                let n = u16::try_from(n).map_err(|_| ReplyError::OutOfRange {
+                    command: name,
+                    offset: skip,
+                    error: RangeError {
+                        what: "character count",
+                        value: n.into(),
+                        min: 0,
+                        max: 65535,
+                    },
+                })?;
+                Reply::AuxCount(n)
+            }
+            Shape::AuxData => Reply::AuxData(payload),
+            Shape::Raw => Reply::Raw(payload),
+        })
+    }
+
+    /// Whether this is the kind of result `command` expects.
+    pub fn answers(&self, command: &Command<'_>) -> bool {
+        let own = match self {
+            Reply::AwakeStatus(_) => Shape::AwakeStatus,
+            Reply::MaxDataRate(_) => Shape::MaxDataRate,
+            Reply::Identity(_) => Shape::Identity,
+            Reply::Errors(_) => Shape::Errors,
+            Reply::StatusBits(_) => Shape::StatusBits,
+            Reply::RateGains(_) => Shape::RateGains,
+            Reply::Initialization(_) => Shape::Initialization,
+            Reply::Limits(_) => Shape::Limits,
+            Reply::Relays(_) => Shape::Relays,
+            Reply::Accelerations { .. } => Shape::Accelerations,
+            Reply::Acceleration(_) => Shape::Acceleration,
+            Reply::Rates { .. } => Shape::Rates,
+            Reply::Rate(_) => Shape::Rate,
+            Reply::VerifyHome(_) => Shape::VerifyHome,
+            Reply::Position(_) => Shape::Position,
+            Reply::Lens(_) => Shape::Lens,
+            Reply::AuxCount(_) => Shape::AuxCount,
+            Reply::AuxData(_) => Shape::AuxData,
+            Reply::Raw(_) => Shape::Raw,
+        };
+        shape(command) == Some(own)
+    }
+
+    /// Writes the canonical payload into `buf`; returns the written prefix.
+    pub fn encode<'b>(&self, buf: &'b mut [u8]) -> Result<&'b [u8], EncodeError> {
+        let mut w = Writer::new(buf);
+        match *self {
+            Reply::AwakeStatus(s) => w.hex(s.0.into(), 1)?,
+            Reply::MaxDataRate(rate) => {
+                w.byte(b'C')?;
+                w.hex(rate.code().into(), 1)?;
+            }
+            Reply::Identity(id) => {
+                w.hex(id.id.into(), 2)?;
+                w.put(&id.revision)?;
+                for field in [id.name, id.serial] {
+                    w.put(field)?;
+                    for _ in field.len()..Identity::FIELD_LEN {
+                        w.byte(b' ')?;
+                    }
+                }
+            }
+            Reply::Errors(e) => {
+                w.hex(e.pan.into(), 2)?;
+                w.hex(e.tilt.into(), 2)?;
+            }
+            Reply::StatusBits(s) => {
+                w.hex(s.pan.into(), 4)?;
+                w.hex(s.tilt.into(), 4)?;
+            }
+            Reply::RateGains(g) => {
+                w.hex(g.pan.get().into(), 2)?;
+                w.hex(g.tilt.get().into(), 2)?;
+                w.put(b"0000")?;
+            }
+            Reply::Initialization(r) => {
+                for v in [r.pan_ccw, r.pan_cw, r.tilt_ccw, r.tilt_cw] {
+                    w.hex(v.into(), 4)?;
+                }
+            }
+            Reply::Limits(l) => {
+                for v in [l.pan_ccw, l.pan_cw, l.tilt_ccw, l.tilt_cw] {
+                    w.hex(v.get().into(), 3)?;
+                }
+            }
+            Reply::Relays(bits) => {
+                nibble("relay bits", bits)?;
+                w.byte(b'L')?;
+                w.hex(bits.into(), 1)?;
+            }
+            Reply::Accelerations { pan, tilt } => {
+                w.hex(pan.0.into(), 4)?;
+                w.hex(tilt.0.into(), 4)?;
+            }
+            Reply::Acceleration(a) => w.hex(a.0.into(), 4)?,
+            Reply::Rates { pan, tilt } => {
+                w.hex(pan.0.into(), 4)?;
+                w.hex(tilt.0.into(), 4)?;
+            }
+            Reply::Rate(r) => w.hex(r.0.into(), 4)?,
+            Reply::VerifyHome(h) => {
+                nibble("limit switch bits", h.limit_switches)?;
+                nibble("centre switch bits", h.center_switches)?;
+                nibble("count-correct bits", h.count_correct)?;
+                w.hex(h.limit_switches.into(), 1)?;
+                w.hex(h.center_switches.into(), 1)?;
+                w.hex(h.count_correct.into(), 1)?;
+            }
+            Reply::Position(p) => {
+                w.hex(u32::from(p.pan.0 as u16), 4)?;
+                w.hex(u32::from(p.tilt.0 as u16), 4)?;
+            }
+            Reply::Lens(l) => {
+                w.hex(l.zoom.get().into(), 3)?;
+                w.hex(l.focus.get().into(), 3)?;
+            }
+            Reply::AuxCount(n) => w.decimal(n.into(), 1)?,
+            Reply::AuxData(bytes) | Reply::Raw(bytes) => w.put(bytes)?,
+        }
+        if w.len() == 0 {
+            return Err(EncodeError::PayloadLength { len: 0 });
+        }
+        Ok(w.finish())
+    }
+}
+
+fn malformed(command: &'static str, offset: usize, found: Option<u8>, expected: &'static str) -> ReplyError {
+    ReplyError::Malformed {
+        command,
+        offset,
+        found,
+        expected,
+    }
+}
+
+/// A field emitted as one hex digit must be 0..=15.
+fn nibble(what: &'static str, value: u8) -> Result<(), EncodeError> {
+    if value > 0x0F {
+        return Err(EncodeError::OutOfRange(RangeError {
+            what,
+            value: value.into(),
+            min: 0,
+            max: 15,
+        }));
+    }
+    Ok(())
+}

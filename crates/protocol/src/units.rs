@@ -1,0 +1,305 @@
+//! Physical quantities at the API, with constructors that reject values the
+//! wire format cannot carry.
+
+/// A value outside the range its field allows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{what} {value} is out of range {min}..={max}")]
+pub struct RangeError {
+    pub what: &'static str,
+    pub value: i64,
+    pub min: i64,
+    pub max: i64,
+}
+
+fn check(what: &'static str, value: i64, min: i64, max: i64) -> Result<(), RangeError> {
+    if (min..=max).contains(&value) {
+        Ok(())
+    } else {
+        Err(RangeError { what, value, min, max })
+    }
+}
+
+/// Pan (azimuth) or tilt (elevation): the `P`/`T` letter of Tables 7, 11, 12.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Axis {
+    Pan,
+    Tilt,
+}
+
+impl Axis {
+    pub(crate) const fn letter(self) -> u8 {
+        match self {
+            Axis::Pan => b'P',
+            Axis::Tilt => b'T',
+        }
+    }
+
+    pub(crate) const fn from_letter(letter: u8) -> Option<Self> {
+        match letter {
+            b'P' => Some(Axis::Pan),
+            b'T' => Some(Axis::Tilt),
+            _ => None,
+        }
+    }
+}
+
+/// An angle in hundredths of a degree, signed 16-bit two's complement,
+/// positive = counter-clockwise (Table 15, NOTES E8, E12).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Angle(pub i16);
+
+impl Angle {
+    pub const fn from_centidegrees(centi: i16) -> Self {
+        Angle(centi)
+    }
+    pub const fn centidegrees(self) -> i16 {
+        self.0
+    }
+    /// From whole and fractional degrees; refuses what 16 bits cannot carry.
+    pub fn from_degrees(degrees: f32) -> Result<Self, RangeError> {
+        let centi = degrees * 100.0;
+        if !(-32768.0..=32767.0).contains(&centi) {
+            let value = if centi.is_nan() { 0 } else { centi as i64 };
+            return Err(RangeError {
+                what: "angle (hundredths of a degree)",
+                value,
+                min: -32768,
+                max: 32767,
+            });
+        }
+        // Round half away from zero without libm.
+        let rounded = if centi >= 0.0 { centi + 0.5 } else { centi - 0.5 };
+        Ok(Angle(rounded as i16))
+    }
+    pub fn degrees(self) -> f32 {
+        f32::from(self.0) / 100.0
+    }
+}
+
+/// A pan/tilt position (Table 15).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct Position {
+    pub pan: Angle,
+    pub tilt: Angle,
+}
+
+impl Position {
+    pub const fn new(pan: Angle, tilt: Angle) -> Self {
+        Self { pan, tilt }
+    }
+}
+
+/// A discrete rate in hundredths of a degree per second (Tables 12, 13).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Rate(pub u16);
+
+/// An acceleration in hundredths of a degree per second squared (Tables 12, 13).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Acceleration(pub u16);
+
+macro_rules! bounded {
+    ($(#[$doc:meta])* $name:ident, $repr:ty, $what:literal, $min:expr, $max:expr) => {
+        $(#[$doc])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        pub struct $name($repr);
+
+        impl $name {
+            pub const MIN: $repr = $min;
+            pub const MAX: $repr = $max;
+            /// Refuses values outside the range the wire format allows.
+            pub fn new(value: $repr) -> Result<Self, RangeError> {
+                check($what, value as i64, $min as i64, $max as i64).map(|()| Self(value))
+            }
+            pub const fn get(self) -> $repr {
+                self.0
+            }
+        }
+
+        impl TryFrom<$repr> for $name {
+            type Error = RangeError;
+            fn try_from(value: $repr) -> Result<Self, RangeError> {
+                Self::new(value)
+            }
+        }
+    };
+}
+
+bounded!(
+    /// Proportional pan/tilt speed `SP0..SPF`, `ST0..STF`: 0 slowest, 15 fastest (Table 11).
+    Speed, u8, "proportional speed", 0, 15
+);
+bounded!(
+    /// Focus or zoom speed `F0..F9`, `Z0..Z9`: 0 slowest, 9 fastest (Table 16).
+    LensSpeed, u8, "lens speed", 0, 9
+);
+bounded!(
+    /// Rate gain times ten, 0.3..=3.0 -> 3..=30 (Table 7, NOTES E1).
+    RateGain, u8, "rate gain (x10)", 3, 30
+);
+bounded!(
+    /// A 12-bit value: lens zoom/focus position (Table 17) or a raw software
+    /// limit (Table 10, NOTES E9: no unit is invented).
+    U12, u16, "12-bit value", 0, 4095
+);
+bounded!(
+    /// A device ID settable with `#NN`: 01..=FE (Table 4).
+    DeviceId, u8, "device ID", 1, 254
+);
+bounded!(
+    /// An auxiliary relay 0..=3 (Table 4 `L0..L3`, `L8..LB`).
+    Relay, u8, "relay", 0, 3
+);
+bounded!(
+    /// An auxiliary serial port, 0 or 1 (Table 16 `*xp..`).
+    AuxPort, u8, "auxiliary port", 0, 1
+);
+bounded!(
+    /// Digital zoom step `ZA..ZF` (Table 16, not implemented by the gimbal).
+    DigitalZoom, u8, "digital zoom", 10, 15
+);
+bounded!(
+    /// Most bytes `*xprnnn` may ask for: a result payload holds at most 256.
+    AuxReadLen, u16, "auxiliary read length", 1, 256
+);
+
+/// Communication data rate `C0..CF` (Table 4, NOTES E15).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum DataRate {
+    Bps1200,
+    Bps2400,
+    Bps4800,
+    Bps9600,
+    Bps19200,
+    Bps38400,
+    Bps57600,
+    Bps115200,
+    /// `C8..CF`, reserved for future rates: never switched to.
+    Reserved(u8),
+}
+
+impl DataRate {
+    /// The rate for code digit `0..=15`.
+    pub const fn from_code(code: u8) -> Option<Self> {
+        Some(match code {
+            0 => DataRate::Bps1200,
+            1 => DataRate::Bps2400,
+            2 => DataRate::Bps4800,
+            3 => DataRate::Bps9600,
+            4 => DataRate::Bps19200,
+            5 => DataRate::Bps38400,
+            6 => DataRate::Bps57600,
+            7 => DataRate::Bps115200,
+            8..=15 => DataRate::Reserved(code),
+            _ => return None,
+        })
+    }
+
+    /// The code digit `0..=15`.
+    pub const fn code(self) -> u8 {
+        match self {
+            DataRate::Bps1200 => 0,
+            DataRate::Bps2400 => 1,
+            DataRate::Bps4800 => 2,
+            DataRate::Bps9600 => 3,
+            DataRate::Bps19200 => 4,
+            DataRate::Bps38400 => 5,
+            DataRate::Bps57600 => 6,
+            DataRate::Bps115200 => 7,
+            DataRate::Reserved(code) => code,
+        }
+    }
+
+    /// Bits per second, `None` for a reserved code.
+    pub const fn bits_per_second(self) -> Option<u32> {
+        Some(match self {
+            DataRate::Bps1200 => 1200,
+            DataRate::Bps2400 => 2400,
+            DataRate::Bps4800 => 4800,
+            DataRate::Bps9600 => 9600,
+            DataRate::Bps19200 => 19200,
+            DataRate::Bps38400 => 38400,
+            DataRate::Bps57600 => 57600,
+            DataRate::Bps115200 => 115200,
+            DataRate::Reserved(_) => return None,
+        })
+    }
+
+    /// The rate for a bits-per-second figure, if the protocol has one.
+    pub const fn from_bits_per_second(bps: u32) -> Option<Self> {
+        Some(match bps {
+            1200 => DataRate::Bps1200,
+            2400 => DataRate::Bps2400,
+            4800 => DataRate::Bps4800,
+            9600 => DataRate::Bps9600,
+            19200 => DataRate::Bps19200,
+            38400 => DataRate::Bps38400,
+            57600 => DataRate::Bps57600,
+            115200 => DataRate::Bps115200,
+            _ => return None,
+        })
+    }
+}
+
+/// Lens zoom and focus positions, 12 bits each (Table 17).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct LensPosition {
+    pub zoom: U12,
+    pub focus: U12,
+}
+
+/// Software limits, raw 12-bit values (Table 10, NOTES E9).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Limits {
+    /// Pan counter-clockwise (+) limit.
+    pub pan_ccw: U12,
+    /// Pan clockwise (-) limit.
+    pub pan_cw: U12,
+    /// Tilt counter-clockwise (+, up) limit.
+    pub tilt_ccw: U12,
+    /// Tilt clockwise (-, down) limit.
+    pub tilt_cw: U12,
+}
+
+/// Parity of an auxiliary serial port (Table 18).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Parity {
+    None,
+    Odd,
+    Even,
+}
+
+/// Auxiliary serial port settings `*xpc,baud,dataBits,stopBits,parity` (Table 18).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct AuxConfig {
+    baud: u32,
+    data_bits: u8,
+    stop_bits: u8,
+    parity: Parity,
+}
+
+impl AuxConfig {
+    /// Checks baud 1..=999999 (decimal on the wire), data bits 5..=8, stop bits 1..=2.
+    pub fn new(baud: u32, data_bits: u8, stop_bits: u8, parity: Parity) -> Result<Self, RangeError> {
+        check("baud", i64::from(baud), 1, 999_999)?;
+        check("data bits", i64::from(data_bits), 5, 8)?;
+        check("stop bits", i64::from(stop_bits), 1, 2)?;
+        Ok(Self {
+            baud,
+            data_bits,
+            stop_bits,
+            parity,
+        })
+    }
+    pub const fn baud(&self) -> u32 {
+        self.baud
+    }
+    pub const fn data_bits(&self) -> u8 {
+        self.data_bits
+    }
+    pub const fn stop_bits(&self) -> u8 {
+        self.stop_bits
+    }
+    pub const fn parity(&self) -> Parity {
+        self.parity
+    }
+}
