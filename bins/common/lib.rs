@@ -1,0 +1,1 @@
+//! Host-side code shared by gcud, gimbalctl and gimbalsim.

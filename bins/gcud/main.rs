@@ -1,0 +1,4 @@
+fn main() {
+    eprintln!("gcud: not built yet");
+    std::process::exit(1);
+}

@@ -1,0 +1,1 @@
+//! Router core (placeholder until issue 4 lands).

@@ -1,0 +1,1 @@
+//! Gimbal simulator model (placeholder until issue 3 lands).
