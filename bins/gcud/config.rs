@@ -1,0 +1,810 @@
+//! `gcud --config FILE`: the TOML configuration, parsed with serde and then
+//! validated. Every error names the file, the line and column, the key and
+//! what was expected (`gcud --check` prints them and exits 2).
+
+use std::collections::BTreeSet;
+use std::fmt;
+use std::net::{IpAddr, SocketAddr};
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use sagebrush_protocol::DataRate;
+use serde::Deserialize;
+use toml::Spanned;
+
+/// A configuration error with its place in the file.
+#[derive(Debug)]
+pub struct ConfigError {
+    pub file: PathBuf,
+    /// 1-based line and column; 0 when the error concerns the whole file.
+    pub line: usize,
+    pub column: usize,
+    /// Dotted key path, e.g. `port[2].baud`; empty for the whole file.
+    pub key: String,
+    pub message: String,
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.file.display())?;
+        if self.line > 0 {
+            write!(f, ":{}:{}", self.line, self.column)?;
+        }
+        if !self.key.is_empty() {
+            write!(f, ": {}", self.key)?;
+        }
+        write!(f, ": {}", self.message)
+    }
+}
+
+impl std::error::Error for ConfigError {}
+
+/// The whole file, as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConfigFile {
+    pub gcu: GcuSection,
+    #[serde(default)]
+    pub log: LogSection,
+    pub metrics: Option<MetricsSection>,
+    #[serde(default)]
+    pub limits: LimitsSection,
+    #[serde(default)]
+    pub port_defaults: PortSettings,
+    #[serde(default)]
+    pub link_defaults: LinkSettings,
+    #[serde(default, rename = "port")]
+    pub ports: Vec<PortSection>,
+    #[serde(default, rename = "link")]
+    pub links: Vec<LinkSection>,
+    #[serde(default, rename = "route")]
+    pub routes: Vec<RouteSection>,
+}
+
+/// `[gcu]`: this GCU.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GcuSection {
+    /// Group address 1..=254 (Table 2).
+    pub group: Spanned<i64>,
+    /// Device name for `D?` (Table 6), at most 20 characters.
+    #[serde(default = "default_name")]
+    pub name: Spanned<String>,
+    /// Serial number for `D?` (Table 6), at most 20 characters.
+    #[serde(default = "default_serial")]
+    pub serial: Spanned<String>,
+    /// Link name that frames for unknown groups go to.
+    pub default_route: Option<Spanned<String>>,
+    /// On SIGTERM: how long in-flight transactions may take to finish.
+    #[serde(default = "default_shutdown_grace_ms")]
+    pub shutdown_grace_ms: u64,
+}
+
+fn default_name() -> Spanned<String> {
+    Spanned::new(0..0, "gcud".to_owned())
+}
+
+fn default_serial() -> Spanned<String> {
+    Spanned::new(0..0, String::new())
+}
+
+fn default_shutdown_grace_ms() -> u64 {
+    3000
+}
+
+/// `[log]`.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LogSection {
+    /// A tracing filter (`info`, `debug`, `gcud=debug,info`); `RUST_LOG` wins.
+    pub level: Option<Spanned<String>>,
+}
+
+/// `[metrics]`: the Prometheus text endpoint.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MetricsSection {
+    /// Address to serve `/metrics` on; loopback unless you mean otherwise.
+    #[serde(default = "default_metrics_listen")]
+    pub listen: Spanned<String>,
+}
+
+fn default_metrics_listen() -> Spanned<String> {
+    Spanned::new(0..0, "127.0.0.1:9187".to_owned())
+}
+
+/// `[limits]`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LimitsSection {
+    /// Commands waiting per port beyond the one in flight; more are dropped and counted.
+    #[serde(default = "default_queue_depth")]
+    pub queue_depth: Spanned<i64>,
+    /// Connections accepted at once over all TCP listeners.
+    #[serde(default = "default_max_connections")]
+    pub max_connections: Spanned<i64>,
+}
+
+impl Default for LimitsSection {
+    fn default() -> Self {
+        Self {
+            queue_depth: default_queue_depth(),
+            max_connections: default_max_connections(),
+        }
+    }
+}
+
+fn default_queue_depth() -> Spanned<i64> {
+    Spanned::new(0..0, 16)
+}
+
+fn default_max_connections() -> Spanned<i64> {
+    Spanned::new(0..0, 32)
+}
+
+/// Per-port line and transaction settings; `[port_defaults]` and each `[[port]]`.
+#[derive(Debug, Default, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PortSettings {
+    pub baud: Option<Spanned<i64>>,
+    pub retries: Option<Spanned<i64>>,
+    pub ack_timeout_ms: Option<Spanned<i64>>,
+    pub result_timeout_ms: Option<Spanned<i64>>,
+    pub long_result_timeout_ms: Option<Spanned<i64>>,
+    pub nic_window_ms: Option<Spanned<i64>>,
+    pub broadcast_guard_ms: Option<Spanned<i64>>,
+}
+
+impl PortSection {
+    fn settings(&self) -> PortSettings {
+        PortSettings {
+            baud: self.baud.clone(),
+            retries: self.retries.clone(),
+            ack_timeout_ms: self.ack_timeout_ms.clone(),
+            result_timeout_ms: self.result_timeout_ms.clone(),
+            long_result_timeout_ms: self.long_result_timeout_ms.clone(),
+            nic_window_ms: self.nic_window_ms.clone(),
+            broadcast_guard_ms: self.broadcast_guard_ms.clone(),
+        }
+    }
+}
+
+/// `[[port]]`: a device bus.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PortSection {
+    /// Port address 1..=254 (Table 2).
+    pub id: Spanned<i64>,
+    /// A serial device, e.g. `/dev/ttyUSB0` or a udev name `/dev/gimbal-bus-1`.
+    pub path: Option<Spanned<String>>,
+    /// A TCP device server (ser2net) `host:port` instead of a local line.
+    pub tcp: Option<Spanned<String>>,
+    /// Simulated gimbals with these device addresses, in-process (demo, tests).
+    pub simulate: Option<Spanned<Vec<i64>>>,
+    // The settings of [`PortSettings`], inline (serde's flatten would lose
+    // the positions that error messages need).
+    pub baud: Option<Spanned<i64>>,
+    pub retries: Option<Spanned<i64>>,
+    pub ack_timeout_ms: Option<Spanned<i64>>,
+    pub result_timeout_ms: Option<Spanned<i64>>,
+    pub long_result_timeout_ms: Option<Spanned<i64>>,
+    pub nic_window_ms: Option<Spanned<i64>>,
+    pub broadcast_guard_ms: Option<Spanned<i64>>,
+}
+
+/// Per-link settings; `[link_defaults]` and each `[[link]]`.
+#[derive(Debug, Default, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LinkSettings {
+    pub retries: Option<Spanned<i64>>,
+    pub ack_timeout_ms: Option<Spanned<i64>>,
+}
+
+/// Which way a link faces (for group-255 flooding and dead-man rules).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LinkRole {
+    /// Toward the MCU or a GCU above.
+    Upstream,
+    /// Toward another GCU below.
+    Downstream,
+    /// An operator tool or application speaking as a client.
+    Client,
+}
+
+/// `[[link]]`: toward the MCU, another GCU or clients.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LinkSection {
+    pub name: Spanned<String>,
+    pub role: Spanned<LinkRole>,
+    /// A serial line.
+    pub serial: Option<Spanned<String>>,
+    pub baud: Option<Spanned<i64>>,
+    /// A TCP listener; each accepted connection is a link.
+    pub listen: Option<Spanned<String>>,
+    /// A TCP client, reconnected with backoff.
+    pub connect: Option<Spanned<String>>,
+    /// Listener: peer addresses allowed to connect (default: loopback only).
+    pub allow_peers: Option<Spanned<Vec<Spanned<String>>>>,
+    /// Source groups frames on this link may carry (default: any).
+    pub allow_source_groups: Option<Spanned<Vec<Spanned<i64>>>>,
+    pub retries: Option<Spanned<i64>>,
+    pub ack_timeout_ms: Option<Spanned<i64>>,
+}
+
+/// `[[route]]`: a static route.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RouteSection {
+    pub group: Spanned<i64>,
+    pub link: Spanned<String>,
+}
+
+// ---- validated configuration -------------------------------------------------
+
+/// Transaction timing of one port, resolved.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PortTiming {
+    pub baud: u32,
+    pub retries: u8,
+    pub ack_timeout_ms: u64,
+    pub result_timeout_ms: u64,
+    pub long_result_timeout_ms: u64,
+    pub nic_window_ms: u64,
+    pub broadcast_guard_ms: u64,
+}
+
+/// Where a port's bytes come from.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum PortTransport {
+    Serial(PathBuf),
+    Tcp(String),
+    Simulated(Vec<u8>),
+}
+
+#[derive(Debug, Clone)]
+pub struct Port {
+    pub id: u8,
+    pub transport: PortTransport,
+    pub timing: PortTiming,
+}
+
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum LinkTransport {
+    Serial { path: PathBuf, baud: u32 },
+    Listen(SocketAddr),
+    Connect(String),
+}
+
+#[derive(Debug, Clone)]
+pub struct Link {
+    pub name: String,
+    pub role: LinkRole,
+    pub transport: LinkTransport,
+    pub allow_peers: Vec<IpAddr>,
+    /// `None`: any source group.
+    pub allow_source_groups: Option<Vec<u8>>,
+    pub retries: u8,
+    pub ack_timeout_ms: u64,
+}
+
+/// The validated configuration.
+#[derive(Debug, Clone)]
+pub struct Config {
+    pub file: PathBuf,
+    pub group: u8,
+    pub name: String,
+    pub serial: String,
+    pub default_route: Option<String>,
+    pub shutdown_grace_ms: u64,
+    pub log_level: Option<String>,
+    pub metrics: Option<SocketAddr>,
+    pub queue_depth: usize,
+    pub max_connections: usize,
+    pub ports: Vec<Port>,
+    pub links: Vec<Link>,
+    pub routes: Vec<(u8, String)>,
+}
+
+/// Time for one frame of `bytes` at `baud` (10 bits a byte), in ms, rounded up.
+fn frame_time_ms(bytes: u64, baud: u32) -> u64 {
+    (bytes * 10 * 1000).div_ceil(u64::from(baud.max(1)))
+}
+
+/// Defaults derived from the line rate: a maximum frame's time plus a margin.
+fn default_timing(baud: u32) -> PortTiming {
+    let max_frame = frame_time_ms(sagebrush_protocol::MAX_FRAME_LEN as u64, baud);
+    PortTiming {
+        baud,
+        retries: 3,
+        ack_timeout_ms: 50 + frame_time_ms(16, baud),
+        result_timeout_ms: 500 + max_frame,
+        long_result_timeout_ms: 60_000,
+        nic_window_ms: 30 + frame_time_ms(4, baud),
+        broadcast_guard_ms: 50 + max_frame,
+    }
+}
+
+struct Checker<'a> {
+    file: &'a Path,
+    text: &'a str,
+}
+
+impl Checker<'_> {
+    fn at(&self, span: Range<usize>, key: impl Into<String>, message: impl Into<String>) -> ConfigError {
+        let (line, column) = if span.start == 0 && span.end == 0 {
+            (0, 0)
+        } else {
+            line_column(self.text, span.start)
+        };
+        ConfigError {
+            file: self.file.to_owned(),
+            line,
+            column,
+            key: key.into(),
+            message: message.into(),
+        }
+    }
+
+    fn int<T: TryFrom<i64>>(&self, v: &Spanned<i64>, key: &str, min: i64, max: i64) -> Result<T, ConfigError> {
+        let value = *v.get_ref();
+        if value < min || value > max {
+            return Err(self.at(
+                v.span(),
+                key,
+                format!("expected an integer {min}..={max}, found {value}"),
+            ));
+        }
+        T::try_from(value).map_err(|_| self.at(v.span(), key, format!("expected an integer {min}..={max}")))
+    }
+
+    fn text20(&self, v: &Spanned<String>, key: &str) -> Result<String, ConfigError> {
+        let s = v.get_ref();
+        if s.len() > 20 || !s.bytes().all(|b| (0x20..=0x7E).contains(&b)) {
+            return Err(self.at(
+                v.span(),
+                key,
+                "expected at most 20 printable ASCII characters (Table 6)",
+            ));
+        }
+        Ok(s.trim_end().to_owned())
+    }
+
+    fn socket(&self, v: &Spanned<String>, key: &str) -> Result<SocketAddr, ConfigError> {
+        v.get_ref().parse().map_err(|_| {
+            self.at(
+                v.span(),
+                key,
+                format!(
+                    "expected an IP address and port like 127.0.0.1:4001, found {:?}",
+                    v.get_ref()
+                ),
+            )
+        })
+    }
+
+    fn baud(&self, v: &Spanned<i64>, key: &str) -> Result<u32, ConfigError> {
+        u32::try_from(*v.get_ref())
+            .ok()
+            .and_then(DataRate::from_bits_per_second)
+            .and_then(DataRate::bits_per_second)
+            .ok_or_else(|| {
+                self.at(
+                    v.span(),
+                    key,
+                    format!(
+                        "expected one of the protocol's rates 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200 (1.5.1), found {}",
+                        v.get_ref()
+                    ),
+                )
+            })
+    }
+
+    fn timing(&self, base: PortTiming, s: &PortSettings, key: &str) -> Result<PortTiming, ConfigError> {
+        let mut t = match &s.baud {
+            Some(b) => {
+                let baud = self.baud(b, &format!("{key}.baud"))?;
+                PortTiming {
+                    baud,
+                    ..default_timing(baud)
+                }
+            }
+            None => base,
+        };
+        if let Some(v) = &s.retries {
+            t.retries = self.int(v, &format!("{key}.retries"), 0, 20)?;
+        }
+        let ms = |field: &Option<Spanned<i64>>, name: &str, target: &mut u64| -> Result<(), ConfigError> {
+            if let Some(v) = field {
+                *target = self.int(v, &format!("{key}.{name}"), 1, 3_600_000)?;
+            }
+            Ok(())
+        };
+        ms(&s.ack_timeout_ms, "ack_timeout_ms", &mut t.ack_timeout_ms)?;
+        ms(&s.result_timeout_ms, "result_timeout_ms", &mut t.result_timeout_ms)?;
+        ms(
+            &s.long_result_timeout_ms,
+            "long_result_timeout_ms",
+            &mut t.long_result_timeout_ms,
+        )?;
+        ms(&s.nic_window_ms, "nic_window_ms", &mut t.nic_window_ms)?;
+        ms(&s.broadcast_guard_ms, "broadcast_guard_ms", &mut t.broadcast_guard_ms)?;
+        Ok(t)
+    }
+}
+
+/// 1-based line and column of byte `offset` in `text`.
+fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, column)
+}
+
+/// Reads and validates `file`.
+pub fn load(file: &Path) -> Result<Config, ConfigError> {
+    let text = std::fs::read_to_string(file).map_err(|e| ConfigError {
+        file: file.to_owned(),
+        line: 0,
+        column: 0,
+        key: String::new(),
+        message: format!("cannot read: {e}"),
+    })?;
+    parse(file, &text)
+}
+
+/// Parses and validates configuration `text` read from `file`.
+pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
+    let c = Checker { file, text };
+    let raw: ConfigFile = {
+        let de = toml::de::Deserializer::parse(text).map_err(|e| {
+            let span = e.span().unwrap_or(0..0);
+            c.at(span, "", e.message().trim().to_owned())
+        })?;
+        serde_path_to_error::deserialize(de).map_err(|e| {
+            // Spanned<T> shows up as an inner private field in the path.
+            let key = e.path().to_string().replace(".$__serde_spanned_private_value", "");
+            let inner = e.inner();
+            let span = inner.span().unwrap_or(0..0);
+            c.at(
+                span,
+                if key == "." { String::new() } else { key },
+                inner.message().trim().to_owned(),
+            )
+        })?
+    };
+    validate(&c, raw)
+}
+
+fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
+    let group: u8 = c.int(&raw.gcu.group, "gcu.group", 1, 254)?;
+    let name = c.text20(&raw.gcu.name, "gcu.name")?;
+    let serial = c.text20(&raw.gcu.serial, "gcu.serial")?;
+    let queue_depth = c.int(&raw.limits.queue_depth, "limits.queue_depth", 1, 4096)?;
+    let max_connections = c.int(&raw.limits.max_connections, "limits.max_connections", 1, 4096)?;
+    let log_level = match &raw.log.level {
+        Some(level) => {
+            tracing_subscriber::EnvFilter::try_new(level.get_ref()).map_err(|e| {
+                c.at(
+                    level.span(),
+                    "log.level",
+                    format!("expected a level or tracing filter like \"info\": {e}"),
+                )
+            })?;
+            Some(level.get_ref().clone())
+        }
+        None => None,
+    };
+    let metrics = match &raw.metrics {
+        Some(m) => Some(c.socket(&m.listen, "metrics.listen")?),
+        None => None,
+    };
+
+    let base = c.timing(default_timing(9600), &raw.port_defaults, "port_defaults")?;
+    if raw.ports.len() > 254 {
+        return Err(c.at(raw.ports[254].id.span(), "port", "a GCU has at most 254 ports (1.3)"));
+    }
+    let mut ports = Vec::with_capacity(raw.ports.len());
+    let mut port_ids = BTreeSet::new();
+    for (i, p) in raw.ports.iter().enumerate() {
+        let key = format!("port[{i}]");
+        let id: u8 = c.int(&p.id, &format!("{key}.id"), 1, 254)?;
+        if !port_ids.insert(id) {
+            return Err(c.at(
+                p.id.span(),
+                format!("{key}.id"),
+                format!("port {id} is configured twice"),
+            ));
+        }
+        let transport = match (&p.path, &p.tcp, &p.simulate) {
+            (Some(path), None, None) => PortTransport::Serial(PathBuf::from(path.get_ref())),
+            (None, Some(addr), None) => {
+                if !addr.get_ref().contains(':') {
+                    return Err(c.at(
+                        addr.span(),
+                        format!("{key}.tcp"),
+                        "expected host:port of a TCP device server",
+                    ));
+                }
+                PortTransport::Tcp(addr.get_ref().clone())
+            }
+            (None, None, Some(devices)) => {
+                let mut ids = Vec::new();
+                for d in devices.get_ref() {
+                    if !(1..=254).contains(d) {
+                        return Err(c.at(
+                            devices.span(),
+                            format!("{key}.simulate"),
+                            format!("device addresses are 1..=254, found {d}"),
+                        ));
+                    }
+                    ids.push(*d as u8);
+                }
+                if ids.is_empty() {
+                    return Err(c.at(
+                        devices.span(),
+                        format!("{key}.simulate"),
+                        "expected at least one device address",
+                    ));
+                }
+                PortTransport::Simulated(ids)
+            }
+            _ => {
+                return Err(c.at(
+                    p.id.span(),
+                    key,
+                    "expected exactly one of `path` (serial device), `tcp` (device server) or `simulate` (device list)",
+                ));
+            }
+        };
+        let timing = c.timing(base, &p.settings(), &key)?;
+        ports.push(Port { id, transport, timing });
+    }
+
+    let link_base_retries: u8 = match &raw.link_defaults.retries {
+        Some(v) => c.int(v, "link_defaults.retries", 0, 20)?,
+        None => 3,
+    };
+    let link_base_ack: u64 = match &raw.link_defaults.ack_timeout_ms {
+        Some(v) => c.int(v, "link_defaults.ack_timeout_ms", 1, 3_600_000)?,
+        None => 200,
+    };
+    let mut links = Vec::with_capacity(raw.links.len());
+    let mut names = BTreeSet::new();
+    for (i, l) in raw.links.iter().enumerate() {
+        let key = format!("link[{i}]");
+        let name = l.name.get_ref().clone();
+        if name.is_empty() || !names.insert(name.clone()) {
+            return Err(c.at(
+                l.name.span(),
+                format!("{key}.name"),
+                format!("link names must be unique and non-empty, found {name:?}"),
+            ));
+        }
+        let transport = match (&l.serial, &l.listen, &l.connect) {
+            (Some(path), None, None) => {
+                let baud = match &l.baud {
+                    Some(b) => c.baud(b, &format!("{key}.baud"))?,
+                    None => 9600,
+                };
+                LinkTransport::Serial {
+                    path: PathBuf::from(path.get_ref()),
+                    baud,
+                }
+            }
+            (None, Some(addr), None) => LinkTransport::Listen(c.socket(addr, &format!("{key}.listen"))?),
+            (None, None, Some(addr)) => {
+                if !addr.get_ref().contains(':') {
+                    return Err(c.at(addr.span(), format!("{key}.connect"), "expected host:port"));
+                }
+                LinkTransport::Connect(addr.get_ref().clone())
+            }
+            _ => {
+                return Err(c.at(
+                    l.name.span(),
+                    key,
+                    "expected exactly one of `serial`, `listen` or `connect`",
+                ));
+            }
+        };
+        if l.baud.is_some() && !matches!(transport, LinkTransport::Serial { .. }) {
+            let b = l.baud.as_ref().map_or(0..0, Spanned::span);
+            return Err(c.at(b, format!("{key}.baud"), "`baud` applies to a `serial` link only"));
+        }
+        let allow_peers = match &l.allow_peers {
+            Some(list) => {
+                if !matches!(transport, LinkTransport::Listen(_)) {
+                    return Err(c.at(
+                        list.span(),
+                        format!("{key}.allow_peers"),
+                        "`allow_peers` applies to a `listen` link only",
+                    ));
+                }
+                let mut peers = Vec::new();
+                for (j, p) in list.get_ref().iter().enumerate() {
+                    peers.push(p.get_ref().parse::<IpAddr>().map_err(|_| {
+                        c.at(
+                            p.span(),
+                            format!("{key}.allow_peers[{j}]"),
+                            format!("expected an IP address, found {:?}", p.get_ref()),
+                        )
+                    })?);
+                }
+                peers
+            }
+            None => vec![
+                IpAddr::from([127, 0, 0, 1]),
+                IpAddr::from(std::net::Ipv6Addr::LOCALHOST),
+            ],
+        };
+        let allow_source_groups = match &l.allow_source_groups {
+            Some(list) => {
+                let mut groups = Vec::new();
+                for (j, g) in list.get_ref().iter().enumerate() {
+                    groups.push(c.int(g, &format!("{key}.allow_source_groups[{j}]"), 0, 254)?);
+                }
+                Some(groups)
+            }
+            None => None,
+        };
+        let retries = match &l.retries {
+            Some(v) => c.int(v, &format!("{key}.retries"), 0, 20)?,
+            None => link_base_retries,
+        };
+        let ack_timeout_ms = match &l.ack_timeout_ms {
+            Some(v) => c.int(v, &format!("{key}.ack_timeout_ms"), 1, 3_600_000)?,
+            None => link_base_ack,
+        };
+        links.push(Link {
+            name,
+            role: *l.role.get_ref(),
+            transport,
+            allow_peers,
+            allow_source_groups,
+            retries,
+            ack_timeout_ms,
+        });
+    }
+
+    let default_route = match &raw.gcu.default_route {
+        Some(r) => {
+            if !names.contains(r.get_ref()) {
+                return Err(c.at(
+                    r.span(),
+                    "gcu.default_route",
+                    format!("no link is named {:?}", r.get_ref()),
+                ));
+            }
+            Some(r.get_ref().clone())
+        }
+        None => None,
+    };
+    let mut routes = Vec::new();
+    let mut routed = BTreeSet::new();
+    for (i, r) in raw.routes.iter().enumerate() {
+        let key = format!("route[{i}]");
+        let g: u8 = c.int(&r.group, &format!("{key}.group"), 0, 254)?;
+        if g == group {
+            return Err(c.at(
+                r.group.span(),
+                format!("{key}.group"),
+                format!("group {g} is this GCU's own group"),
+            ));
+        }
+        if !routed.insert(g) {
+            return Err(c.at(
+                r.group.span(),
+                format!("{key}.group"),
+                format!("group {g} has two routes"),
+            ));
+        }
+        if !names.contains(r.link.get_ref()) {
+            return Err(c.at(
+                r.link.span(),
+                format!("{key}.link"),
+                format!("no link is named {:?}", r.link.get_ref()),
+            ));
+        }
+        routes.push((g, r.link.get_ref().clone()));
+    }
+
+    Ok(Config {
+        file: c.file.to_owned(),
+        group,
+        name,
+        serial,
+        default_route,
+        shutdown_grace_ms: raw.gcu.shutdown_grace_ms,
+        log_level,
+        metrics,
+        queue_depth,
+        max_connections,
+        ports,
+        links,
+        routes,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn err(text: &str) -> ConfigError {
+        parse(Path::new("t.toml"), text).expect_err("config should be refused")
+    }
+
+    const MINIMAL: &str = "[gcu]\ngroup = 5\n";
+
+    #[test]
+    fn minimal_config_gets_defaults_derived_from_the_baud() {
+        let c = parse(Path::new("t.toml"), MINIMAL).unwrap();
+        assert_eq!(c.group, 5);
+        assert_eq!(c.name, "gcud");
+        assert!(c.ports.is_empty());
+        assert_eq!(c.queue_depth, 16);
+        let t = default_timing(1200);
+        assert!(t.ack_timeout_ms > default_timing(115200).ack_timeout_ms);
+    }
+
+    #[test]
+    fn syntax_error_names_line_and_column() {
+        let e = err("[gcu]\ngroup = 5\nname = \n");
+        assert_eq!((e.line, e.file.to_str().unwrap()), (3, "t.toml"), "{e}");
+    }
+
+    #[test]
+    fn unknown_key_is_named_with_its_line() {
+        let e = err("[gcu]\ngroup = 5\n\n[[port]]\nid = 1\npath = \"/dev/x\"\nbauds = 9600\n");
+        assert_eq!(e.line, 7, "{e}");
+        assert!(e.message.contains("bauds"), "{e}");
+    }
+
+    #[test]
+    fn wrong_type_names_the_key_path() {
+        let e = err("[gcu]\ngroup = 5\n[[port]]\nid = 1\npath = \"/dev/x\"\nbaud = \"fast\"\n");
+        assert_eq!(e.key, "port[0].baud", "{e}");
+        assert_eq!(e.line, 6, "{e}");
+    }
+
+    #[test]
+    fn out_of_range_values_say_what_was_expected() {
+        let e = err("[gcu]\ngroup = 255\n");
+        assert_eq!((e.key.as_str(), e.line), ("gcu.group", 2), "{e}");
+        assert!(e.message.contains("1..=254"), "{e}");
+        let e = err("[gcu]\ngroup = 5\n[[port]]\nid = 1\npath = \"/dev/x\"\nbaud = 9601\n");
+        assert_eq!(e.key, "port[0].baud", "{e}");
+        assert!(e.message.contains("115200"), "{e}");
+    }
+
+    #[test]
+    fn duplicate_port_and_missing_transport_are_refused() {
+        let e = err("[gcu]\ngroup = 5\n[[port]]\nid = 1\npath = \"/a\"\n[[port]]\nid = 1\npath = \"/b\"\n");
+        assert_eq!((e.key.as_str(), e.line), ("port[1].id", 7), "{e}");
+        let e = err("[gcu]\ngroup = 5\n[[port]]\nid = 2\n");
+        assert_eq!(e.key, "port[0]", "{e}");
+        assert!(e.message.contains("exactly one of"), "{e}");
+    }
+
+    #[test]
+    fn routes_must_name_links() {
+        let e = err("[gcu]\ngroup = 5\n[[route]]\ngroup = 7\nlink = \"nowhere\"\n");
+        assert_eq!((e.key.as_str(), e.line), ("route[0].link", 5), "{e}");
+        let e = err("[gcu]\ngroup = 5\ndefault_route = \"up\"\n");
+        assert_eq!(e.key, "gcu.default_route", "{e}");
+    }
+
+    #[test]
+    fn listener_defaults_to_loopback_peers_only() {
+        let c = parse(
+            Path::new("t.toml"),
+            "[gcu]\ngroup = 5\n[[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"127.0.0.1:4001\"\n",
+        )
+        .unwrap();
+        assert!(c.links[0].allow_peers.iter().all(IpAddr::is_loopback));
+        let e = err(
+            "[gcu]\ngroup = 5\n[[link]]\nname = \"c\"\nrole = \"client\"\nlisten = \"0.0.0.0:1\"\nallow_peers = [\"10.0.0.300\"]\n",
+        );
+        assert_eq!(e.key, "link[0].allow_peers[0]", "{e}");
+    }
+}
