@@ -667,17 +667,24 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
         });
     }
 
-    let default_route = match &raw.gcu.default_route {
-        Some(r) => {
-            if !names.contains(r.get_ref()) {
-                return Err(c.at(
-                    r.span(),
-                    "gcu.default_route",
-                    format!("no link is named {:?}", r.get_ref()),
-                ));
-            }
-            Some(r.get_ref().clone())
+    // A route needs one peer: a listener's connections come and go.
+    let routable = |name: &Spanned<String>, key: &str| -> Result<String, ConfigError> {
+        match links.iter().find(|l| &l.name == name.get_ref()) {
+            None => Err(c.at(name.span(), key, format!("no link is named {:?}", name.get_ref()))),
+            Some(l) if matches!(l.transport, LinkTransport::Listen(_)) => Err(c.at(
+                name.span(),
+                key,
+                format!(
+                    "link {:?} is a listener; routes go to a `serial` or `connect` link \
+                     (answers to a listener's clients follow the reverse path)",
+                    l.name
+                ),
+            )),
+            Some(l) => Ok(l.name.clone()),
         }
+    };
+    let default_route = match &raw.gcu.default_route {
+        Some(r) => Some(routable(r, "gcu.default_route")?),
         None => None,
     };
     let mut routes = Vec::new();
@@ -699,14 +706,7 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
                 format!("group {g} has two routes"),
             ));
         }
-        if !names.contains(r.link.get_ref()) {
-            return Err(c.at(
-                r.link.span(),
-                format!("{key}.link"),
-                format!("no link is named {:?}", r.link.get_ref()),
-            ));
-        }
-        routes.push((g, r.link.get_ref().clone()));
+        routes.push((g, routable(&r.link, &format!("{key}.link"))?));
     }
 
     Ok(Config {
@@ -792,6 +792,28 @@ mod tests {
         assert_eq!((e.key.as_str(), e.line), ("route[0].link", 5), "{e}");
         let e = err("[gcu]\ngroup = 5\ndefault_route = \"up\"\n");
         assert_eq!(e.key, "gcu.default_route", "{e}");
+    }
+
+    #[test]
+    fn shipped_configs_are_valid() {
+        for name in ["config/gcud.toml", "config/demo.toml"] {
+            let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(name);
+            let c = load(&path).unwrap_or_else(|e| panic!("{e}"));
+            assert_eq!(c.group, 5, "{name}");
+        }
+        let full = load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("config/gcud.toml")).unwrap();
+        assert_eq!(full.ports[1].timing.retries, 5);
+        assert_eq!(full.ports[1].timing.baud, 19200);
+        assert_eq!(full.routes, vec![(7, "gcu7".to_owned())]);
+    }
+
+    #[test]
+    fn routes_to_listeners_are_refused() {
+        let e = err(
+            "[gcu]\ngroup = 5\ndefault_route = \"c\"\n[[link]]\nname = \"c\"\nrole = \"client\"\nlisten = \"127.0.0.1:1\"\n",
+        );
+        assert_eq!((e.key.as_str(), e.line), ("gcu.default_route", 3), "{e}");
+        assert!(e.message.contains("listener"), "{e}");
     }
 
     #[test]

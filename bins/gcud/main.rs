@@ -5,6 +5,8 @@
 // `--check` reads the configuration.
 #[allow(dead_code)]
 mod config;
+#[allow(dead_code)]
+mod metrics;
 
 use std::path::PathBuf;
 use std::process::ExitCode;

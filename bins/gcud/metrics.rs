@@ -1,0 +1,141 @@
+//! The optional Prometheus endpoint (`[metrics] listen`, loopback by
+//! default): `GET /metrics` in the OpenMetrics text format, encoded by
+//! `prometheus-client` from a snapshot of the router core's statistics.
+
+use std::fmt;
+use std::net::SocketAddr;
+
+use prometheus_client::collector::Collector;
+use prometheus_client::encoding::{DescriptorEncoder, EncodeMetric};
+use prometheus_client::metrics::MetricType;
+use prometheus_client::metrics::counter::ConstCounter;
+use prometheus_client::metrics::gauge::ConstGauge;
+use prometheus_client::registry::Registry;
+use tokio::net::TcpListener;
+use tokio::sync::{mpsc, oneshot};
+
+/// Counter or gauge.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    Counter,
+    Gauge,
+}
+
+/// One labelled value.
+#[derive(Debug, Clone)]
+pub struct Sample {
+    pub labels: Vec<(&'static str, String)>,
+    pub value: u64,
+}
+
+/// One metric family.
+#[derive(Debug, Clone)]
+pub struct Family {
+    pub name: &'static str,
+    pub help: &'static str,
+    pub kind: Kind,
+    pub samples: Vec<Sample>,
+}
+
+impl Family {
+    pub fn new(name: &'static str, help: &'static str, kind: Kind) -> Self {
+        Self {
+            name,
+            help,
+            kind,
+            samples: Vec::new(),
+        }
+    }
+
+    pub fn push(&mut self, labels: Vec<(&'static str, String)>, value: u64) {
+        self.samples.push(Sample { labels, value });
+    }
+}
+
+/// A frozen set of families, encoded once.
+#[derive(Debug)]
+struct Snapshot(Vec<Family>);
+
+impl Collector for Snapshot {
+    fn encode(&self, mut encoder: DescriptorEncoder) -> Result<(), fmt::Error> {
+        for family in &self.0 {
+            let kind = match family.kind {
+                Kind::Counter => MetricType::Counter,
+                Kind::Gauge => MetricType::Gauge,
+            };
+            let mut metric = encoder.encode_descriptor(family.name, family.help, None, kind)?;
+            for sample in &family.samples {
+                let labelled = metric.encode_family(&sample.labels)?;
+                match family.kind {
+                    Kind::Counter => ConstCounter::new(sample.value).encode(labelled)?,
+                    Kind::Gauge => ConstGauge::new(i64::try_from(sample.value).unwrap_or(i64::MAX)).encode(labelled)?,
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Encodes `families` in the OpenMetrics text format.
+pub fn render(families: Vec<Family>) -> String {
+    let mut registry = Registry::with_prefix("gcud");
+    registry.register_collector(Box::new(Snapshot(families)));
+    let mut text = String::new();
+    if prometheus_client::encoding::text::encode(&mut text, &registry).is_err() {
+        text = "# gcud: metrics encoding failed\n".to_owned();
+    }
+    text
+}
+
+/// A scrape asks the router task for fresh text through this channel.
+pub type ScrapeRequests = mpsc::Sender<oneshot::Sender<String>>;
+
+/// Binds `addr` (fails at start-up, not later, if it cannot).
+pub async fn bind(addr: SocketAddr) -> std::io::Result<TcpListener> {
+    TcpListener::bind(addr).await
+}
+
+/// Serves `GET /metrics` until the process ends.
+pub async fn serve(listener: TcpListener, scrapes: ScrapeRequests) {
+    let app = axum::Router::new().route(
+        "/metrics",
+        axum::routing::get(move || {
+            let scrapes = scrapes.clone();
+            async move {
+                let (tx, rx) = oneshot::channel();
+                let body = match scrapes.send(tx).await {
+                    Ok(()) => rx.await.unwrap_or_default(),
+                    Err(_) => String::new(),
+                };
+                (
+                    [(
+                        "content-type",
+                        "application/openmetrics-text; version=1.0.0; charset=utf-8",
+                    )],
+                    body,
+                )
+            }
+        }),
+    );
+    if let Err(e) = axum::serve(listener, app).await {
+        tracing::error!(error = %e, "metrics endpoint stopped");
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn renders_counters_and_gauges_with_labels() {
+        let mut frames = Family::new("port_frames_out", "Frames written to a port.", Kind::Counter);
+        frames.push(vec![("port", "1".to_owned())], 7);
+        let mut up = Family::new("port_up", "Whether the port is open.", Kind::Gauge);
+        up.push(vec![("port", "1".to_owned())], 1);
+        let text = render(vec![frames, up]);
+        assert!(text.contains("# TYPE gcud_port_frames_out counter"), "{text}");
+        assert!(text.contains("gcud_port_frames_out_total{port=\"1\"} 7"), "{text}");
+        assert!(text.contains("gcud_port_up{port=\"1\"} 1"), "{text}");
+        assert!(text.ends_with("# EOF\n"), "{text}");
+    }
+}
