@@ -370,7 +370,7 @@ pub(crate) fn whole<'a, T>(
     };
     match parser(input) {
         Ok(([], value)) => Ok(value),
-        Ok((rest, _)) => Err(bad(rest, "end of command")),
+        Ok((rest, _)) => Err(bad(rest, "end of payload")),
         Err(nom::Err::Error(e) | nom::Err::Failure(e)) => Err(bad(e.input, expected)),
         Err(nom::Err::Incomplete(_)) => Err(bad(&[], expected)),
     }
@@ -380,33 +380,66 @@ fn ranged<T>(command: &'static str, offset: usize, value: Result<T, RangeError>)
     value.map_err(|error| CommandError::OutOfRange { command, offset, error })
 }
 
-fn aux_config(input: &[u8]) -> Res<'_, AuxConfig> {
-    let comma = || nom::bytes::complete::tag(&b","[..]);
-    let (rest, (_, baud, _, data, _, stop, _, parity)) = (
-        comma(),
-        decimal(6),
-        comma(),
-        decimal(1),
-        comma(),
-        decimal(1),
-        comma(),
-        decimal(1),
-    )
-        .parse(input)?;
+/// `,baud,dataBits,stopBits,parity` of `*xpc` (Table 18), from offset 4 of
+/// `payload`; every error names the field and the offset where it went wrong.
+fn aux_config(payload: &[u8]) -> Result<AuxConfig, CommandError> {
+    const COMMAND: &str = "*xpc";
+    let mut at = 4;
+    let mut field = |max: usize, expected: &'static str| -> Result<(usize, u32), CommandError> {
+        let bad = |offset: usize, expected| CommandError::BadArgument {
+            command: COMMAND,
+            offset,
+            found: payload.get(offset).copied(),
+            expected,
+        };
+        if payload.get(at) != Some(&b',') {
+            return Err(bad(at, "','"));
+        }
+        let from = at + 1;
+        let rest = payload.get(from..).unwrap_or(&[]);
+        let (rest, value) = decimal(max)(rest).map_err(|_| bad(from, expected))?;
+        at = offset_in(payload, rest);
+        Ok((from, value))
+    };
+    let (baud_at, baud) = field(6, "baud rate, 1 to 6 decimal digits")?;
+    let (data_at, data) = field(1, "data bits 5..=8")?;
+    let (stop_at, stop) = field(1, "stop bits 1 or 2")?;
+    let (parity_at, parity) = field(1, "parity 0, 1 or 2")?;
+    if at != payload.len() {
+        return Err(CommandError::BadArgument {
+            command: COMMAND,
+            offset: at,
+            found: payload.get(at).copied(),
+            expected: "end of command",
+        });
+    }
+    let range = |offset, error| CommandError::OutOfRange {
+        command: COMMAND,
+        offset,
+        error,
+    };
     let parity = match parity {
         0 => Parity::None,
         1 => Parity::Odd,
         2 => Parity::Even,
         _ => {
-            return Err(nom::Err::Error(nom::error::Error::new(
-                input,
-                nom::error::ErrorKind::Verify,
-            )));
+            return Err(range(
+                parity_at,
+                RangeError {
+                    what: "parity",
+                    value: parity.into(),
+                    min: 0,
+                    max: 2,
+                },
+            ));
         }
     };
-    let config = AuxConfig::new(baud, data as u8, stop as u8, parity)
-        .map_err(|_| nom::Err::Error(nom::error::Error::new(input, nom::error::ErrorKind::Verify)))?;
-    Ok((rest, config))
+    // Check field by field so that the error points at the wrong one.
+    let valid = |baud, data, stop| AuxConfig::new(baud, data, stop, parity);
+    valid(baud, 8, 1).map_err(|e| range(baud_at, e))?;
+    valid(9600, data as u8, 1).map_err(|e| range(data_at, e))?;
+    valid(9600, 8, stop as u8).map_err(|e| range(stop_at, e))?;
+    valid(baud, data as u8, stop as u8).map_err(|e| range(baud_at, e))
 }
 
 impl<'a> Command<'a> {
@@ -562,10 +595,10 @@ impl<'a> Command<'a> {
                     }
                 };
                 match op {
-                    b'c' => C::AuxConfigure(
-                        port,
-                        whole("*xpc", payload, 4, ",baud,dataBits,stopBits,parity", aux_config)?,
-                    ),
+                    b'c' => {
+                        let config = aux_config(payload)?;
+                        C::AuxConfigure(port, config)
+                    }
                     b't' => C::AuxTransmit(port, ranged("*xpt", 4, AuxBytes::new(&payload[4..]))?),
                     b'r' => {
                         let n = whole("*xprnnn", payload, 4, "decimal count 1..=256", |i| decimal(3).parse(i))?;
@@ -639,8 +672,9 @@ impl<'a> Command<'a> {
                 w.hex(id.get().into(), 2)?;
             }
             C::SetDataRate(rate) => {
+                let code = rate.encodable_code().map_err(EncodeError::OutOfRange)?;
                 w.byte(b'C')?;
-                w.hex(rate.code().into(), 1)?;
+                w.hex(code.into(), 1)?;
             }
             C::SetRateGain(axis, gain) => {
                 w.put(&[b'G', b'R', axis.letter()])?;

@@ -268,6 +268,11 @@ impl<const N: usize> Framer<N> {
     /// Feeds `input` and calls `on_event` for every event it completes.
     pub fn feed(&mut self, input: &[u8], mut on_event: impl FnMut(Event<'_>)) {
         let mut input = input;
+        if !input.is_empty() {
+            // New bytes end the silence, as in `commit`: a later `next_event`
+            // must not abandon a candidate these bytes may still complete.
+            self.idle = false;
+        }
         // Finish what is buffered first.
         while self.start < self.end && !input.is_empty() {
             let n = self.push(input);

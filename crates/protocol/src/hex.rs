@@ -7,7 +7,7 @@
 
 use nom::IResult;
 use nom::Parser;
-use nom::bytes::complete::take_while_m_n;
+use nom::error::{Error, ErrorKind};
 
 /// The value of one ASCII hex digit, either case.
 pub(crate) const fn hex_value(byte: u8) -> Option<u8> {
@@ -28,14 +28,24 @@ pub(crate) const fn hex_digit(nibble: u8) -> u8 {
     b"0123456789ABCDEF"[(nibble & 0x0F) as usize]
 }
 
-/// Exactly `digits` hex digits (at most 8), as a number.
+/// Exactly `digits` hex digits (at most 8), as a number. A failure points at
+/// the first byte that is not a hex digit (or at the end of the input), so
+/// errors can say exactly where the number went wrong.
 pub(crate) fn hex_n(digits: usize) -> impl FnMut(&[u8]) -> IResult<&[u8], u32> {
     move |input: &[u8]| {
-        let (rest, text) = take_while_m_n(digits, digits, is_hex).parse(input)?;
-        let value = text
-            .iter()
-            .fold(0u32, |acc, &b| (acc << 4) | u32::from(hex_value(b).unwrap_or(0)));
-        Ok((rest, value))
+        let mut value = 0u32;
+        for i in 0..digits {
+            match input.get(i).copied().and_then(hex_value) {
+                Some(v) => value = (value << 4) | u32::from(v),
+                None => {
+                    return Err(nom::Err::Error(Error::new(
+                        &input[i.min(input.len())..],
+                        ErrorKind::HexDigit,
+                    )));
+                }
+            }
+        }
+        Ok((&input[digits..], value))
     }
 }
 
@@ -54,12 +64,15 @@ pub(crate) fn hex12(input: &[u8]) -> IResult<&[u8], crate::units::U12> {
     nom::combinator::map_res(hex_n(3), |v| crate::units::U12::new(v as u16)).parse(input)
 }
 
-/// One to `max` decimal digits.
+/// One to `max` decimal digits (at most 9, so the value fits a `u32`).
 pub(crate) fn decimal(max: usize) -> impl FnMut(&[u8]) -> IResult<&[u8], u32> {
     move |input: &[u8]| {
-        let (rest, text) = take_while_m_n(1, max, |b: u8| b.is_ascii_digit()).parse(input)?;
-        let value = text.iter().fold(0u32, |acc, &b| acc * 10 + u32::from(b - b'0'));
-        Ok((rest, value))
+        let n = input.iter().take(max).take_while(|b| b.is_ascii_digit()).count();
+        if n == 0 {
+            return Err(nom::Err::Error(Error::new(input, ErrorKind::Digit)));
+        }
+        let value = input[..n].iter().fold(0u32, |acc, &b| acc * 10 + u32::from(b - b'0'));
+        Ok((&input[n..], value))
     }
 }
 

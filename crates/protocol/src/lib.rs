@@ -24,12 +24,12 @@ pub mod link;
 pub mod reply;
 pub mod units;
 
-pub use address::{Address, CONTROL_UNIT, LINK_PORT, MCU_GROUP, WILDCARD};
+pub use address::{Address, AddressParseError, CONTROL_UNIT, LINK_PORT, MCU_GROUP, WILDCARD};
 pub use command::{AuxBytes, Command, CommandError, Extended, ResultKind, ResultTimeout};
-pub use device::{DeviceEndpoint, DeviceHandler, EndpointConfig, ReplyTo, Response};
+pub use device::{DeviceEndpoint, DeviceHandler, EndpointConfig, EndpointStats, ReplyTo, Response};
 pub use frame::{ACK, Frame, FrameBuf, FrameError, MAX_FRAME_LEN, MAX_PAYLOAD, NAK, NIC, START, checksum};
 pub use framer::{BadChecksum, Event, Framer, FramerStats};
-pub use link::{Outcome, RetryPolicy, Transaction, TransactionStep, Transmitter, TxFailure, TxStep};
+pub use link::{Outcome, RetryPolicy, Transaction, TransactionPolicy, TransactionStep, Transmitter, TxFailure, TxStep};
 pub use reply::{AwakeStatus, ErrorCodes, HomeStatus, Identity, InitResults, RateGains, Reply, ReplyError, StatusBits};
 pub use units::{
     Acceleration, Angle, AuxConfig, AuxPort, AuxReadLen, Axis, DataRate, DeviceId, DigitalZoom, LensPosition,

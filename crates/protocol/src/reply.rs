@@ -283,6 +283,10 @@ impl<'a> Reply<'a> {
         let name = command.mnemonic();
         let shape = shape(command).ok_or(ReplyError::NoResult { command: name })?;
         // An echo of the command in front of the result (NOTES E6).
+        if payload.is_empty() {
+            // A frame never carries an empty payload (Table 1: 1..=256 bytes).
+            return Err(malformed(name, 0, None, "a result of at least one byte"));
+        }
         let mut skip = 0;
         if !matches!(shape, Shape::AuxData | Shape::Raw) {
             let mut echo = [0u8; 16];
@@ -306,14 +310,8 @@ impl<'a> Reply<'a> {
                     Some(bits) => Reply::AwakeStatus(AwakeStatus(bits)),
                     None => return Err(malformed(name, skip, Some(*b), "one hex digit")),
                 },
-                _ => {
-                    return Err(malformed(
-                        name,
-                        skip + body.len().min(1),
-                        body.get(1).copied(),
-                        "one hex digit",
-                    ));
-                }
+                [] => return Err(malformed(name, skip, None, "one hex digit")),
+                [_, extra, ..] => return Err(malformed(name, skip + 1, Some(*extra), "end of result")),
             },
             Shape::MaxDataRate => {
                 let at = with_letter(b'C', 1);
@@ -450,14 +448,8 @@ impl<'a> Reply<'a> {
                         return Err(malformed(name, skip + i, Some(body[i]), "a hex digit"));
                     }
                 },
-                _ => {
-                    return Err(malformed(
-                        name,
-                        skip + body.len().min(3),
-                        body.get(3).copied(),
-                        "three digits",
-                    ));
-                }
+                [_, _, _, extra, ..] => return Err(malformed(name, skip + 3, Some(*extra), "end of result")),
+                _ => return Err(malformed(name, payload.len(), None, "three digits")),
             },
             Shape::Position => {
                 let at = with_letter(b'P', 8);
@@ -522,8 +514,9 @@ impl<'a> Reply<'a> {
         match *self {
             Reply::AwakeStatus(s) => w.hex(s.0.into(), 1)?,
             Reply::MaxDataRate(rate) => {
+                let code = rate.encodable_code().map_err(EncodeError::OutOfRange)?;
                 w.byte(b'C')?;
-                w.hex(rate.code().into(), 1)?;
+                w.hex(code.into(), 1)?;
             }
             Reply::Identity(id) => {
                 w.hex(id.id.into(), 2)?;

@@ -209,6 +209,17 @@ impl DataRate {
         }
     }
 
+    /// The code digit for encoding. `Reserved` is a public variant that can
+    /// hold any byte, but only `8..=15` are reserved codes: `Reserved(3)`
+    /// would go out as `C3` and come back as 9600 bps, `Reserved(200)` would
+    /// not fit one digit. Both are refused instead of silently re-coded.
+    pub(crate) fn encodable_code(self) -> Result<u8, RangeError> {
+        match self {
+            DataRate::Reserved(code) => check("reserved data rate code", code.into(), 8, 15).map(|()| code),
+            rate => Ok(rate.code()),
+        }
+    }
+
     /// Bits per second, `None` for a reserved code.
     pub const fn bits_per_second(self) -> Option<u32> {
         Some(match self {
