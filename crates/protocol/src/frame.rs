@@ -104,6 +104,10 @@ impl<'a> Frame<'a> {
     pub fn parse(input: &'a [u8]) -> Result<(Self, &'a [u8]), FrameError> {
         let available = input.len();
         let incomplete = |needed| FrameError::Incomplete { needed, available };
+        // A wrong first byte is the error, however short the input.
+        if let Some(&found) = input.first().filter(|&&b| b != START) {
+            return Err(FrameError::BadStart { found });
+        }
         let mut header = (
             any_u8::<_, nom::error::Error<&[u8]>>,
             any_u8,

@@ -348,6 +348,9 @@ impl Transaction {
 
     /// Whether the ACK has been received (or was not awaited).
     pub fn acknowledged(&self) -> bool {
-        !matches!(self.phase, Phase::Idle | Phase::AwaitAck)
+        !matches!(
+            self.phase,
+            Phase::Idle | Phase::AwaitAck | Phase::Done(Outcome::Failed(_))
+        )
     }
 }
