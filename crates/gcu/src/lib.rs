@@ -1,1 +1,111 @@
-//! Router core (placeholder until issue 4 lands).
+//! The GCU router core (DESIGN "Layers" 2): a group control unit of group G
+//! as pure, deterministic logic. No I/O, no clocks, no threads: events go
+//! in with a tick count, actions come out.
+//!
+//! # Driving it (the daemon's side)
+//!
+//! ```
+//! use sagebrush_gcu::{Action, Input, LinkConfig, LinkId, LinkKind, PortConfig, Router, RouterConfig, SourceFilter};
+//!
+//! let mut config = RouterConfig::new(5);
+//! config.ports.push(PortConfig::new(1));
+//! let mut router = Router::new(config).expect("valid config");
+//! let mut actions = Vec::new();
+//! router.handle(0, Input::PortOpened { port: 1 }, &mut actions);
+//! router.handle(0, Input::LinkUp { link: LinkId(1), config: LinkConfig::new(LinkKind::Client, SourceFilter::Any) }, &mut actions);
+//! for action in actions.drain(..) {
+//!     match action {
+//!         Action::WritePort { port, bytes } => { /* write to the serial port */ }
+//!         Action::WriteLink { link, bytes } => { /* write to the TCP/serial link */ }
+//!         Action::SetPortRate { port, bps } => { /* reconfigure the serial port */ }
+//!         Action::Event(event) => { /* log at event.level(), e.g. through tracing */ }
+//!     }
+//! }
+//! // Sleep until router.next_deadline(), or until bytes arrive, then call
+//! // router.handle(now, Input::Tick / Input::PortBytes { .. } / ..).
+//! let _ = router.next_deadline();
+//! let _ = router.stats();
+//! ```
+//!
+//! - One [`Router`] value, [`Router::new`] with a validated [`RouterConfig`].
+//! - [`Router::handle`]`(now, input, &mut actions)` for every [`Input`]:
+//!   bytes read from a port or link (any chunking), port opened/lost, link
+//!   up (with its [`LinkKind`] and [`SourceFilter`]) or down, or a plain
+//!   [`Input::Tick`]. Actions are appended in the order they must be executed.
+//! - Timers: after each call, arm one timer at [`Router::next_deadline`] and
+//!   feed [`Input::Tick`] when it fires. Time is a `u64` tick count (ms).
+//! - Statistics: [`Router::stats`] returns plain structs ([`Stats`]).
+//! - Ports start closed: send [`Input::PortOpened`] once the serial port is
+//!   open; the router answers with [`Action::SetPortRate`].
+//!
+//! # Rules implemented (DESIGN "Routing semantics", "Safety")
+//!
+//! - **Hop by hop** (module `link`, module `port`): every frame received on a link or
+//!   port is ACKed when its checksum holds and NAKed when not (bare bytes).
+//!   Every frame the GCU sends on a link is retransmitted by the protocol
+//!   crate's `Transmitter` on NAK or ACK time-out, up to the configured count
+//!   (one unacknowledged frame per link at a time).
+//! - **Routing** (module `routing`): destination group G or 255 -> port 0 is the
+//!   GCU itself (module `local`: `AW`, `D?`, NIC otherwise), ports 1..=254 one
+//!   port (unknown: dropped, [`DropReason::UnknownPort`]), port 255 every
+//!   port. Group 255 from an upstream or client link is also flooded to every
+//!   downstream link, never back to its origin. Other groups: static route,
+//!   then learned route (source groups seen on links), then the default
+//!   upstream; no route -> dropped, counted, logged. Never back to the link
+//!   the frame came from ([`DropReason::Loop`]).
+//! - **Source filter**: a frame whose source group the link may not speak
+//!   for (or 255, or our own group) is ACKed (its checksum held) and
+//!   dropped ([`DropReason::SourceNotAllowed`]).
+//! - **Per-port transactions** (module `port`): one protocol `Transaction` at a
+//!   time per bus, with result time-out classes, NIC window, device-255
+//!   guard, stops overtaking queued work (and a long `IX` result wait), a
+//!   bounded queue.
+//! - **Answers** go back along the reverse path: a result from a port goes
+//!   to the link the command came from with the Table 3 header
+//!   (destination group = the command's source group, port and device
+//!   unchanged except that a wildcard is replaced by the answering port or
+//!   device, source group = G, checksum recomputed); a NIC as a bare `?`.
+//!   Answers of frames forwarded to another GCU go back to their origin
+//!   through module `reverse`, even when several clients use one source group.
+//! - **Wildcard fan-out**: a port-255 command is one job per port and one
+//!   accepted command. Every result frame is relayed as it comes (so the
+//!   origin may receive several, each naming its port and device). `?` is
+//!   relayed once, when the jobs ended without result or completion and at
+//!   least one NIC. A device-255 command gets no ACK and usually no answer;
+//!   result frames during its guard time (a lone device answering a
+//!   broadcast) are relayed too. A group-255 command also yields whatever
+//!   the downstream GCUs send back.
+//! - **Dead-man** (module `deadman`): a link that goes down has its queued
+//!   continuous motions cancelled and the motions it owns stopped (`PS`,
+//!   `TS`, `FS`, `ZS`), locally or routed to the GCU that owns the device.
+//! - **Rate change**: a `C0`..`C7` acknowledged by every device of a port,
+//!   or written to device 255, switches the port ([`Action::SetPortRate`]).
+//! - **Bounded memory**: port queues, link queues and the reverse-path table
+//!   are bounded; overflow is dropped and counted with a warning event.
+//!
+//! # Outcomes
+//!
+//! Every accepted command (a good frame from an allowed source, or a
+//! dead-man stop) gets a [`CommandId`] ([`Event::Accepted`]) and ends in
+//! exactly one [`Event::Finished`] with an [`Outcome`]: `Result` (queued to
+//! the origin link), `Nic` (`?` written to it), `Completed`, `NoResult`,
+//! `Unreachable` (device never ACKed), `Forwarded` (queued to the next-hop
+//! link) or `Dropped(reason)`. What happens to a frame after it was queued
+//! on a link is counted per link: `queued == delivered + failed + queue_len`.
+
+mod config;
+mod deadman;
+mod line;
+mod link;
+mod local;
+mod port;
+mod reverse;
+mod router;
+mod routing;
+mod stats;
+mod types;
+
+pub use config::{ConfigError, LinkConfig, LinkKind, LinkSettings, PortConfig, RouterConfig, SourceFilter};
+pub use router::Router;
+pub use stats::{DeviceStats, DropCounts, LineStats, LinkStats, PortStats, RouterStats, Stats};
+pub use types::{Action, CommandId, DropReason, Event, Input, Level, LinkId, Origin, Outcome, Place};

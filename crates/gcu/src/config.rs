@@ -1,0 +1,259 @@
+//! Router configuration (DESIGN "Routing semantics"): own group, ports with
+//! their time-outs, link settings, static routes and the default upstream.
+//! All durations are in ticks, the unit of the `now` the daemon passes in
+//! (milliseconds in `gcud`).
+
+use std::collections::BTreeMap;
+
+use sagebrush_protocol::{DataRate, Identity, MCU_GROUP, WILDCARD};
+
+use crate::types::LinkId;
+
+/// Which side of the GCU a link faces. Group-255 frames arriving on an
+/// upstream or client link are flooded to every downstream link, never back
+/// where they came from; frames from a downstream link are not flooded.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum LinkKind {
+    /// Toward the MCU (or a GCU nearer to it).
+    Upstream,
+    /// Toward another GCU further from the MCU.
+    Downstream,
+    /// A local client (operator tool) speaking as an MCU: it sends
+    /// commands and gets answers back, and is never a transit route.
+    Client,
+}
+
+/// Source groups a link may speak for, so that a client cannot speak as
+/// another GCU. Group 255 and the router's own group are refused always.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum SourceFilter {
+    Any,
+    Only(Vec<u8>),
+}
+
+impl SourceFilter {
+    pub fn allows(&self, group: u8) -> bool {
+        match self {
+            SourceFilter::Any => true,
+            SourceFilter::Only(groups) => groups.contains(&group),
+        }
+    }
+}
+
+/// How one link is treated, given when it comes up.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LinkConfig {
+    pub kind: LinkKind,
+    pub allowed_sources: SourceFilter,
+}
+
+impl LinkConfig {
+    pub fn new(kind: LinkKind, allowed_sources: SourceFilter) -> Self {
+        Self { kind, allowed_sources }
+    }
+}
+
+/// One serial port (a bus of devices) and the time-outs of its transactions.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PortConfig {
+    /// Port address 1..=254.
+    pub id: u8,
+    /// Initial line rate; one of the rates of Table 4 (1200..=115200).
+    pub bps: u32,
+    /// Retransmissions after the first write when no ACK (or a NAK) comes.
+    pub retries: u8,
+    /// Ticks to wait for ACK/NAK after a write.
+    pub ack_timeout: u64,
+    /// Ticks to wait for a result after the ACK (ordinary queries).
+    pub result_timeout: u64,
+    /// Ticks to wait for a result of the long class (`IX`).
+    pub long_result_timeout: u64,
+    /// Ticks a NIC may follow the ACK of a command without result.
+    pub nic_window: u64,
+    /// Quiet ticks after a write to device 255 before the bus is used again.
+    pub broadcast_guard: u64,
+    /// Jobs that may wait behind the one in flight.
+    pub queue_bound: usize,
+    /// Silence after which a partial frame on the line is abandoned.
+    pub idle_timeout: u64,
+    /// The devices on this bus, when known: a rate change switches the port
+    /// once all of them acknowledged it. `None`: the devices that answered
+    /// since the port was opened.
+    pub devices: Option<Vec<u8>>,
+}
+
+impl PortConfig {
+    /// A 9600 bps port with time-outs suited to millisecond ticks.
+    pub fn new(id: u8) -> Self {
+        Self {
+            id,
+            bps: 9600,
+            retries: 3,
+            ack_timeout: 100,
+            result_timeout: 500,
+            long_result_timeout: 30_000,
+            nic_window: 50,
+            broadcast_guard: 100,
+            queue_bound: 32,
+            idle_timeout: 50,
+            devices: None,
+        }
+    }
+}
+
+/// Settings shared by all links.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LinkSettings {
+    /// Retransmissions of a frame the GCU sends, after the first.
+    pub retries: u8,
+    /// Ticks to wait for the peer's ACK/NAK.
+    pub ack_timeout: u64,
+    /// Frames that may wait on a link (the one in flight included).
+    pub queue_bound: usize,
+    /// Silence after which a partial frame on the link is abandoned.
+    pub idle_timeout: u64,
+    /// How long after forwarding a command (first transmission) its result
+    /// is routed back along the reverse path; a normal result.
+    pub answer_timeout: u64,
+    /// The same for a long (`IX`) result.
+    pub long_answer_timeout: u64,
+    /// The same for the `?` that may follow a command without result.
+    pub nic_answer_timeout: u64,
+    /// Forwarded commands awaiting answers, over all links.
+    pub max_pending: usize,
+}
+
+impl Default for LinkSettings {
+    fn default() -> Self {
+        Self {
+            retries: 3,
+            ack_timeout: 200,
+            queue_bound: 64,
+            idle_timeout: 100,
+            answer_timeout: 3_000,
+            long_answer_timeout: 35_000,
+            nic_answer_timeout: 1_500,
+            max_pending: 1024,
+        }
+    }
+}
+
+/// Everything a [`crate::Router`] needs.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RouterConfig {
+    /// This GCU's group address G, 1..=254.
+    pub group: u8,
+    /// Device name for `D?` (Table 6): up to 20 printable ASCII characters.
+    pub name: String,
+    /// Serial number for `D?`: up to 20 printable ASCII characters.
+    pub serial: String,
+    pub ports: Vec<PortConfig>,
+    pub links: LinkSettings,
+    /// Destination group -> link, tried before learned routes.
+    pub static_routes: BTreeMap<u8, LinkId>,
+    /// Where frames for unknown groups go. When `None` or down: the up
+    /// link of kind [`LinkKind::Upstream`] with the lowest id.
+    pub default_upstream: Option<LinkId>,
+}
+
+impl RouterConfig {
+    pub fn new(group: u8) -> Self {
+        Self {
+            group,
+            name: "sagebrush gcud".into(),
+            serial: String::new(),
+            ports: Vec::new(),
+            links: LinkSettings::default(),
+            static_routes: BTreeMap::new(),
+            default_upstream: None,
+        }
+    }
+
+    /// Checks every rule the router relies on.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if self.group == MCU_GROUP || self.group == WILDCARD {
+            return Err(ConfigError::Group(self.group));
+        }
+        for (field, text) in [("name", &self.name), ("serial", &self.serial)] {
+            let trimmed = text.trim_end();
+            if Identity::new(self.group, *b"19", trimmed.as_bytes(), b"").is_err() {
+                return Err(ConfigError::IdentityField { field });
+            }
+        }
+        let mut seen = [false; 256];
+        for port in &self.ports {
+            if port.id == 0 || port.id == WILDCARD {
+                return Err(ConfigError::PortId(port.id));
+            }
+            if std::mem::replace(&mut seen[usize::from(port.id)], true) {
+                return Err(ConfigError::DuplicatePort(port.id));
+            }
+            if DataRate::from_bits_per_second(port.bps).is_none() {
+                return Err(ConfigError::Rate {
+                    port: port.id,
+                    bps: port.bps,
+                });
+            }
+            if port.queue_bound == 0 {
+                return Err(ConfigError::Zero("port queue_bound"));
+            }
+            if port.ack_timeout == 0 {
+                return Err(ConfigError::Zero("port ack_timeout"));
+            }
+        }
+        if self.links.queue_bound == 0 {
+            return Err(ConfigError::Zero("link queue_bound"));
+        }
+        if self.links.ack_timeout == 0 {
+            return Err(ConfigError::Zero("link ack_timeout"));
+        }
+        if self.links.max_pending == 0 {
+            return Err(ConfigError::Zero("link max_pending"));
+        }
+        if let Some(&group) = self.static_routes.keys().find(|&&g| g == self.group || g == WILDCARD) {
+            return Err(ConfigError::StaticRoute(group));
+        }
+        Ok(())
+    }
+}
+
+/// Why a [`RouterConfig`] was refused.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ConfigError {
+    /// The GCU group must be 1..=254.
+    Group(u8),
+    /// `name` or `serial` is not up to 20 printable ASCII characters.
+    IdentityField {
+        field: &'static str,
+    },
+    /// Port ids are 1..=254.
+    PortId(u8),
+    DuplicatePort(u8),
+    /// Not a rate of Table 4.
+    Rate {
+        port: u8,
+        bps: u32,
+    },
+    /// A setting that must not be zero.
+    Zero(&'static str),
+    /// A static route for the own group or the wildcard.
+    StaticRoute(u8),
+}
+
+impl std::fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ConfigError::Group(g) => write!(f, "GCU group {g} is not 1..=254"),
+            ConfigError::IdentityField { field } => {
+                write!(f, "{field} must be at most 20 printable ASCII characters")
+            }
+            ConfigError::PortId(p) => write!(f, "port id {p} is not 1..=254"),
+            ConfigError::DuplicatePort(p) => write!(f, "port {p} configured twice"),
+            ConfigError::Rate { port, bps } => write!(f, "port {port}: {bps} bps is not a protocol rate"),
+            ConfigError::Zero(what) => write!(f, "{what} must not be zero"),
+            ConfigError::StaticRoute(g) => write!(f, "static route for group {g} (own group or wildcard)"),
+        }
+    }
+}
+
+impl std::error::Error for ConfigError {}

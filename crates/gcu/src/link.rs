@@ -1,0 +1,311 @@
+//! One link toward the MCU, another GCU or a client (DESIGN "Routing
+//! semantics"): hop-by-hop ACK/NAK of every frame received (ACK on a good
+//! checksum, NAK on a bad one, as bare bytes), and a bounded send queue whose
+//! head is retransmitted by the protocol crate's [`Transmitter`] on NAK or
+//! ACK time-out, up to the configured count. ACK/NAK bytes carry no address,
+//! so a link has one unacknowledged frame at a time (stop and wait).
+
+use std::collections::VecDeque;
+
+use sagebrush_protocol::{ACK, FrameBuf, NAK, NIC, RetryPolicy, Transmitter, TxStep};
+
+use crate::config::{LinkConfig, LinkSettings};
+use crate::line::{Line, RxEvent};
+use crate::stats::LinkStats;
+use crate::types::DropReason;
+
+/// A frame waiting on a link, with the reverse-path entry it belongs to.
+#[derive(Clone, Debug)]
+pub(crate) struct Outgoing {
+    pub frame: FrameBuf,
+    pub pending: Option<u64>,
+}
+
+/// What a link asks the router to do or know.
+#[derive(Debug)]
+pub(crate) enum LinkOut {
+    Write(Vec<u8>),
+    /// The frame of this reverse-path entry was transmitted for the first time.
+    FirstSent(u64),
+    /// The frame was given up.
+    Failed(Box<Outgoing>, DropReason),
+}
+
+/// What arrived on a link for the router to route.
+#[derive(Debug)]
+pub(crate) enum Received {
+    Frame(Box<FrameBuf>),
+    Nic,
+}
+
+#[derive(Debug)]
+pub(crate) struct Link {
+    pub config: LinkConfig,
+    line: Line,
+    queue: VecDeque<Outgoing>,
+    tx: Transmitter,
+    in_flight: bool,
+    bound: usize,
+    pub stats: LinkStats,
+}
+
+impl Link {
+    pub fn new(config: LinkConfig, settings: &LinkSettings, stats: LinkStats) -> Self {
+        let policy = RetryPolicy {
+            ack_timeout: settings.ack_timeout,
+            retries: settings.retries,
+        };
+        Self {
+            config,
+            line: Line::new(settings.idle_timeout),
+            queue: VecDeque::new(),
+            tx: Transmitter::new(policy),
+            in_flight: false,
+            bound: settings.queue_bound,
+            stats,
+        }
+    }
+
+    fn write(&mut self, bytes: Vec<u8>, out: &mut Vec<LinkOut>) {
+        self.stats.line.bytes_out += bytes.len() as u64;
+        out.push(LinkOut::Write(bytes));
+    }
+
+    /// Writes a bare `?` (a relayed NIC).
+    pub fn write_nic(&mut self, out: &mut Vec<LinkOut>) {
+        self.stats.line.nics_out += 1;
+        self.write(vec![NIC], out);
+    }
+
+    /// Queues a frame; false (and counted) when the queue is full.
+    pub fn enqueue(&mut self, now: u64, item: Outgoing, out: &mut Vec<LinkOut>) -> bool {
+        if self.queue.len() >= self.bound {
+            self.stats.line.drops.add(DropReason::QueueFull);
+            return false;
+        }
+        self.queue.push_back(item);
+        self.stats.queued += 1;
+        self.note_queue();
+        self.transmit_next(now, out);
+        true
+    }
+
+    fn note_queue(&mut self) {
+        self.stats.queue_len = self.queue.len();
+        self.stats.queue_high_water = self.stats.queue_high_water.max(self.queue.len());
+    }
+
+    fn transmit_next(&mut self, now: u64, out: &mut Vec<LinkOut>) {
+        if self.in_flight || self.queue.is_empty() {
+            return;
+        }
+        self.in_flight = true;
+        let step = self.tx.start(now);
+        self.step(step, out);
+    }
+
+    fn send_head(&mut self, out: &mut Vec<LinkOut>) {
+        let Some(head) = self.queue.front() else { return };
+        let bytes = head.frame.as_bytes().to_vec();
+        let first = self.tx.transmissions() <= 1;
+        let pending = head.pending;
+        self.stats.line.frames_out += 1;
+        if first {
+            if let Some(key) = pending {
+                out.push(LinkOut::FirstSent(key));
+            }
+        } else {
+            self.stats.line.retransmits += 1;
+        }
+        self.write(bytes, out);
+    }
+
+    fn step(&mut self, step: TxStep, out: &mut Vec<LinkOut>) {
+        match step {
+            TxStep::Send => self.send_head(out),
+            TxStep::Wait => {}
+            TxStep::Delivered => {
+                self.in_flight = false;
+                self.queue.pop_front();
+                self.stats.delivered += 1;
+                self.note_queue();
+            }
+            TxStep::Failed(_) => {
+                self.in_flight = false;
+                if let Some(item) = self.queue.pop_front() {
+                    self.stats.failed += 1;
+                    self.stats.line.drops.add(DropReason::LinkNoAck);
+                    out.push(LinkOut::Failed(Box::new(item), DropReason::LinkNoAck));
+                }
+                self.note_queue();
+            }
+        }
+    }
+
+    /// Bytes from the peer: ACK/NAK what they complete, hand frames and `?` over.
+    pub fn receive(&mut self, now: u64, bytes: &[u8], out: &mut Vec<LinkOut>) -> Vec<Received> {
+        self.stats.line.bytes_in += bytes.len() as u64;
+        if !bytes.is_empty() {
+            self.stats.line.last_seen = Some(now);
+        }
+        let events = self.line.feed(now, bytes);
+        self.on_events(now, events, out)
+    }
+
+    fn on_events(&mut self, now: u64, events: Vec<RxEvent>, out: &mut Vec<LinkOut>) -> Vec<Received> {
+        let mut received = Vec::new();
+        for event in events {
+            match event {
+                RxEvent::Frame(frame) => {
+                    self.stats.line.frames_in += 1;
+                    self.write(vec![ACK], out);
+                    received.push(Received::Frame(frame));
+                }
+                RxEvent::BadChecksum => {
+                    self.stats.line.bad_checksums += 1;
+                    self.stats.line.naks_sent += 1;
+                    self.write(vec![NAK], out);
+                }
+                RxEvent::Ack if self.in_flight => {
+                    let step = self.tx.on_ack();
+                    self.step(step, out);
+                }
+                RxEvent::Nak if self.in_flight => {
+                    self.stats.line.naks_received += 1;
+                    let step = self.tx.on_nak(now);
+                    self.step(step, out);
+                }
+                RxEvent::Ack | RxEvent::Nak => self.stats.line.stray_bytes += 1,
+                RxEvent::Nic => {
+                    self.stats.line.nics_in += 1;
+                    received.push(Received::Nic);
+                }
+            }
+            self.transmit_next(now, out);
+        }
+        self.stats.line.noise_bytes = self.line.noise_bytes();
+        received
+    }
+
+    /// Time passed: retransmit or give up the head, abandon a stale partial frame.
+    pub fn poll(&mut self, now: u64, out: &mut Vec<LinkOut>) -> Vec<Received> {
+        if self.in_flight && self.tx.deadline().is_some_and(|t| now >= t) {
+            self.stats.line.timeouts += 1;
+            let step = self.tx.poll(now);
+            self.step(step, out);
+            self.transmit_next(now, out);
+        }
+        let events = self.line.poll(now);
+        self.on_events(now, events, out)
+    }
+
+    pub fn next_deadline(&self) -> Option<u64> {
+        let tx = if self.in_flight { self.tx.deadline() } else { None };
+        [tx, self.line.idle_deadline()].into_iter().flatten().min()
+    }
+
+    /// The link went down: everything queued is given back.
+    pub fn shut_down(&mut self) -> Vec<Outgoing> {
+        self.in_flight = false;
+        let dropped: Vec<_> = self.queue.drain(..).collect();
+        for _ in &dropped {
+            self.stats.failed += 1;
+            self.stats.line.drops.add(DropReason::LinkDown);
+        }
+        self.stats.up = false;
+        self.note_queue();
+        dropped
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::{LinkKind, SourceFilter};
+    use sagebrush_protocol::Address;
+
+    fn link(settings: &LinkSettings) -> Link {
+        let config = LinkConfig::new(LinkKind::Client, SourceFilter::Any);
+        Link::new(config, settings, LinkStats::new(LinkKind::Client))
+    }
+
+    fn writes(out: &[LinkOut]) -> Vec<Vec<u8>> {
+        out.iter()
+            .filter_map(|o| match o {
+                LinkOut::Write(b) => Some(b.clone()),
+                _ => None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn acks_good_naks_bad() {
+        let settings = LinkSettings::default();
+        let mut l = link(&settings);
+        let frame = FrameBuf::new(Address::new(1, 1, 1), 0, b"AW").unwrap();
+        let mut bad = frame.as_bytes().to_vec();
+        *bad.last_mut().unwrap() ^= 0x01;
+        let mut out = Vec::new();
+        let got = l.receive(0, &[frame.as_bytes(), &bad].concat(), &mut out);
+        assert!(matches!(got.as_slice(), [Received::Frame(f)] if **f == frame));
+        assert_eq!(writes(&out), vec![vec![ACK], vec![NAK]]);
+        assert_eq!(l.stats.line.bad_checksums, 1);
+    }
+
+    #[test]
+    fn retransmits_on_nak_and_timeout_then_gives_up() {
+        let settings = LinkSettings {
+            retries: 2,
+            ack_timeout: 10,
+            ..LinkSettings::default()
+        };
+        let mut l = link(&settings);
+        let frame = FrameBuf::new(Address::new(0, 1, 1), 3, b"1").unwrap();
+        let second = FrameBuf::new(Address::new(0, 1, 2), 3, b"2").unwrap();
+        let mut out = Vec::new();
+        let item = |frame: &FrameBuf, pending| Outgoing {
+            frame: frame.clone(),
+            pending,
+        };
+        assert!(l.enqueue(0, item(&frame, Some(7)), &mut out));
+        assert!(l.enqueue(0, item(&second, None), &mut out));
+        assert!(matches!(out[0], LinkOut::FirstSent(7)));
+        assert_eq!(writes(&out), vec![frame.as_bytes().to_vec()]);
+        out.clear();
+        l.receive(1, &[NAK], &mut out);
+        assert_eq!(writes(&out), vec![frame.as_bytes().to_vec()]);
+        out.clear();
+        assert_eq!(l.next_deadline(), Some(11));
+        l.poll(11, &mut out);
+        assert_eq!(writes(&out), vec![frame.as_bytes().to_vec()]);
+        out.clear();
+        l.poll(21, &mut out);
+        assert!(matches!(&out[0], LinkOut::Failed(item, DropReason::LinkNoAck) if item.frame == frame));
+        assert_eq!(writes(&out), vec![second.as_bytes().to_vec()]);
+        out.clear();
+        l.receive(22, &[ACK], &mut out);
+        assert_eq!(l.stats.delivered, 1);
+        assert_eq!(l.stats.failed, 1);
+        assert_eq!(l.stats.line.retransmits, 2);
+        assert_eq!(l.next_deadline(), None);
+    }
+
+    #[test]
+    fn bounded_queue_refuses_when_full() {
+        let settings = LinkSettings {
+            queue_bound: 1,
+            ..LinkSettings::default()
+        };
+        let mut l = link(&settings);
+        let frame = FrameBuf::new(Address::new(0, 1, 1), 3, b"1").unwrap();
+        let mut out = Vec::new();
+        let item = || Outgoing {
+            frame: frame.clone(),
+            pending: None,
+        };
+        assert!(l.enqueue(0, item(), &mut out));
+        assert!(!l.enqueue(0, item(), &mut out));
+        assert_eq!(l.stats.line.drops.get(DropReason::QueueFull), 1);
+        assert_eq!(l.shut_down().len(), 1);
+    }
+}

@@ -1,0 +1,566 @@
+//! The per-port transaction scheduler (DESIGN "Routing semantics", "On a
+//! port, one transaction at a time"):
+//!
+//! - One [`Transaction`] of the protocol crate at a time on each bus: write,
+//!   await ACK (NAK/time-out -> retransmit), then the result or NIC when the
+//!   command has one (normal or long class, `IX` is long), else a short NIC
+//!   window. Device address 255 is written once, no ACK awaited, then a
+//!   quiet guard time.
+//! - Hop by hop on the bus: every good frame a device sends is ACKed, a bad
+//!   checksum is NAKed so that the device retransmits.
+//! - Stop and halt commands overtake queued work (they queue behind earlier
+//!   stops only). A long result wait (`IX` acknowledged, result pending) is
+//!   set aside when a stop is queued: the stop goes out at once and the
+//!   set-aside exchange still takes its result (matched by port and device,
+//!   Table 3) or times out. The bus is never written while an ACK is awaited.
+//! - The queue is bounded: a job that does not fit is dropped and counted
+//!   ([`DropReason::QueueFull`]); a stop that does not fit evicts the newest
+//!   non-stop job instead.
+//! - Wildcards: a copy of a port-255 command is written with this port's
+//!   address in the header (so that every answer names its port). During a
+//!   device-255 guard time, result frames (from a device alone on its bus
+//!   that answers broadcasts) are acknowledged and relayed.
+//! - A `C0`..`C7` rate change acknowledged by every device of the port
+//!   (configured list, or the devices that answered since the port opened),
+//!   or broadcast to device 255, switches the port's own line rate.
+//!   Reserved rates `C8`..`CF` never do (NOTES E15).
+//! - A lost port fails its in-flight and queued jobs ([`DropReason::PortLost`]).
+
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
+
+use sagebrush_protocol::link::TransactionPolicy;
+use sagebrush_protocol::{
+    ACK, Command, DataRate, Event as FramerEvent, FrameBuf, NAK, RetryPolicy, Transaction, TransactionStep, TxFailure,
+    WILDCARD,
+};
+use sagebrush_protocol::{Outcome as TxOutcome, ResultKind, ResultTimeout};
+
+use crate::config::PortConfig;
+use crate::line::{Line, RxEvent};
+use crate::stats::{DeviceStats, PortStats};
+use crate::types::{CommandId, DropReason, Event, Origin, Outcome};
+
+/// One command exchange waiting for or holding a bus.
+#[derive(Clone, Debug)]
+pub(crate) struct Job {
+    pub id: CommandId,
+    pub origin: Origin,
+    pub frame: FrameBuf,
+    pub stop: bool,
+    /// Starts a continuous motion (cancelled when its origin link goes down).
+    pub motion: bool,
+}
+
+impl Job {
+    pub fn new(id: CommandId, origin: Origin, frame: FrameBuf) -> Self {
+        let command = Command::parse(frame.frame().payload());
+        Self {
+            id,
+            origin,
+            stop: command.is_stop(),
+            motion: command.stopped_by().is_some(),
+            frame,
+        }
+    }
+}
+
+/// What a port asks the router to do.
+#[derive(Debug)]
+pub(crate) enum PortOut {
+    Write(Vec<u8>),
+    /// A result frame for the origin of job `id`, header as the device sent it.
+    Relay {
+        id: CommandId,
+        origin: Origin,
+        reply: Box<FrameBuf>,
+    },
+    /// Job `id` is over.
+    Finished {
+        id: CommandId,
+        outcome: Outcome,
+    },
+    SetRate(u32),
+    Event(Event),
+}
+
+#[derive(Debug)]
+struct Running {
+    job: Job,
+    txn: Transaction,
+    kind: ResultKind,
+    rate: Option<DataRate>,
+}
+
+impl Running {
+    fn device(&self) -> u8 {
+        self.job.frame.frame().dest.device
+    }
+}
+
+#[derive(Debug)]
+pub(crate) struct Port {
+    pub id: u8,
+    policy: TransactionPolicy,
+    bound: usize,
+    devices: Option<Vec<u8>>,
+    line: Line,
+    open: bool,
+    rate: DataRate,
+    queue: VecDeque<Job>,
+    active: Option<Running>,
+    /// Long result waits set aside for a stop, oldest first.
+    detached: Vec<Running>,
+    /// Devices that answered since the port was opened.
+    seen: BTreeSet<u8>,
+    /// Rate changes acknowledged per device, not yet applied to the port.
+    acked_rates: BTreeMap<u8, DataRate>,
+    pub stats: PortStats,
+    pub device_stats: BTreeMap<u8, DeviceStats>,
+}
+
+impl Port {
+    pub fn new(config: &PortConfig) -> Self {
+        let policy = TransactionPolicy {
+            retry: RetryPolicy {
+                ack_timeout: config.ack_timeout,
+                retries: config.retries,
+            },
+            result_timeout: config.result_timeout,
+            long_result_timeout: config.long_result_timeout,
+            nic_window: config.nic_window,
+            broadcast_guard: config.broadcast_guard,
+        };
+        let rate = DataRate::from_bits_per_second(config.bps).unwrap_or(DataRate::Bps9600);
+        Self {
+            id: config.id,
+            policy,
+            bound: config.queue_bound,
+            devices: config.devices.clone(),
+            line: Line::new(config.idle_timeout),
+            open: false,
+            rate,
+            queue: VecDeque::new(),
+            active: None,
+            detached: Vec::new(),
+            seen: BTreeSet::new(),
+            acked_rates: BTreeMap::new(),
+            stats: PortStats {
+                bps: rate.bits_per_second().unwrap_or(9600),
+                ..PortStats::default()
+            },
+            device_stats: BTreeMap::new(),
+        }
+    }
+
+    fn write(&mut self, bytes: Vec<u8>, out: &mut Vec<PortOut>) {
+        self.stats.line.bytes_out += bytes.len() as u64;
+        out.push(PortOut::Write(bytes));
+    }
+
+    fn device(&mut self, device: u8) -> &mut DeviceStats {
+        self.device_stats.entry(device).or_default()
+    }
+
+    fn note_queue(&mut self) {
+        self.stats.queue_len = self.queue.len();
+        self.stats.queue_high_water = self.stats.queue_high_water.max(self.queue.len());
+    }
+
+    fn drop_job(&mut self, job: Job, reason: DropReason, out: &mut Vec<PortOut>) {
+        self.stats.line.drops.add(reason);
+        out.push(PortOut::Finished {
+            id: job.id,
+            outcome: Outcome::Dropped(reason),
+        });
+    }
+
+    /// The port was opened: tell the daemon the rate the bus runs at.
+    pub fn open(&mut self, now: u64, out: &mut Vec<PortOut>) {
+        self.open = true;
+        self.stats.open = true;
+        self.line.reset();
+        out.push(PortOut::SetRate(self.stats.bps));
+        self.start_next(now, out);
+    }
+
+    /// The port vanished: fail everything in flight or queued.
+    pub fn lose(&mut self, out: &mut Vec<PortOut>) {
+        self.open = false;
+        self.stats.open = false;
+        self.line.reset();
+        self.seen.clear();
+        self.acked_rates.clear();
+        let running = self
+            .active
+            .take()
+            .into_iter()
+            .chain(self.detached.drain(..))
+            .collect::<Vec<_>>();
+        for r in running {
+            self.drop_job(r.job, DropReason::PortLost, out);
+        }
+        while let Some(job) = self.queue.pop_front() {
+            self.drop_job(job, DropReason::PortLost, out);
+        }
+        self.note_queue();
+    }
+
+    /// Queues a job: stops ahead of every non-stop job, the rest in order.
+    pub fn enqueue(&mut self, now: u64, mut job: Job, out: &mut Vec<PortOut>) {
+        if !self.open {
+            return self.drop_job(job, DropReason::PortClosed, out);
+        }
+        let dest = job.frame.frame().dest;
+        if dest.port == WILDCARD {
+            let mut port_copy = dest;
+            port_copy.port = self.id;
+            job.frame.set_header(port_copy, job.frame.frame().source);
+        }
+        if self.queue.len() >= self.bound {
+            let victim = if job.stop {
+                self.queue.iter().rposition(|j| !j.stop)
+            } else {
+                None
+            };
+            match victim.and_then(|at| self.queue.remove(at)) {
+                Some(evicted) => self.drop_job(evicted, DropReason::QueueFull, out),
+                None => return self.drop_job(job, DropReason::QueueFull, out),
+            }
+        }
+        let at = if job.stop {
+            self.queue.iter().position(|j| !j.stop).unwrap_or(self.queue.len())
+        } else {
+            self.queue.len()
+        };
+        out.push(PortOut::Event(Event::Queued {
+            id: job.id,
+            port: self.id,
+            stop: job.stop,
+        }));
+        self.queue.insert(at, job);
+        self.note_queue();
+        self.start_next(now, out);
+        self.maybe_detach(now, out);
+    }
+
+    /// The origin link went down: queued motions it started must not run
+    /// after the dead-man stop.
+    pub fn cancel_motions(&mut self, link: crate::LinkId, out: &mut Vec<PortOut>) {
+        let (cancel, keep): (Vec<_>, Vec<_>) = self
+            .queue
+            .drain(..)
+            .partition(|j| j.motion && j.origin.link() == Some(link));
+        self.queue = keep.into();
+        for job in cancel {
+            self.drop_job(job, DropReason::OriginGone, out);
+        }
+        self.note_queue();
+    }
+
+    fn start_next(&mut self, now: u64, out: &mut Vec<PortOut>) {
+        while self.active.is_none() && self.open {
+            let Some(job) = self.queue.pop_front() else { break };
+            self.note_queue();
+            let frame = job.frame.frame();
+            let command = Command::parse(frame.payload());
+            let mut txn = Transaction::new(frame.dest, &command, self.policy);
+            out.push(PortOut::Event(Event::Started {
+                id: job.id,
+                port: self.id,
+                stop: job.stop,
+            }));
+            self.stats.transactions += 1;
+            self.device(frame.dest.device).commands += 1;
+            let step = txn.start(now);
+            self.active = Some(Running {
+                kind: command.result_kind(),
+                rate: command.data_rate_change(),
+                job,
+                txn,
+            });
+            self.active_step(now, step, None, out);
+        }
+    }
+
+    /// A long result wait gives the bus to a queued stop.
+    fn maybe_detach(&mut self, now: u64, out: &mut Vec<PortOut>) {
+        let stop_waiting = self.queue.front().is_some_and(|j| j.stop);
+        let long_wait = self.active.as_ref().is_some_and(|r| {
+            r.kind == ResultKind::Required(ResultTimeout::Long)
+                && !r.txn.is_broadcast()
+                && r.txn.acknowledged()
+                && r.txn.outcome().is_none()
+        });
+        if stop_waiting && long_wait {
+            if let Some(r) = self.active.take() {
+                self.detached.push(r);
+            }
+            self.start_next(now, out);
+        }
+    }
+
+    fn active_step(&mut self, now: u64, step: TransactionStep, frame: Option<Box<FrameBuf>>, out: &mut Vec<PortOut>) {
+        match step {
+            TransactionStep::Send => {
+                let Some(r) = &self.active else { return };
+                let bytes = r.job.frame.as_bytes().to_vec();
+                let retransmit = r.txn.transmissions() > 1;
+                let device = r.device();
+                self.stats.line.frames_out += 1;
+                let d = self.device(device);
+                d.frames_out += 1;
+                if retransmit {
+                    d.retransmits += 1;
+                    self.stats.line.retransmits += 1;
+                }
+                self.write(bytes, out);
+            }
+            TransactionStep::Wait => {}
+            TransactionStep::Done(outcome) => {
+                if let Some(r) = self.active.take() {
+                    self.finish(now, r, outcome, frame, out);
+                }
+                self.start_next(now, out);
+            }
+        }
+    }
+
+    fn finish(
+        &mut self,
+        now: u64,
+        r: Running,
+        outcome: TxOutcome,
+        frame: Option<Box<FrameBuf>>,
+        out: &mut Vec<PortOut>,
+    ) {
+        let device = r.device();
+        let answered = !matches!(outcome, TxOutcome::Failed(_) | TxOutcome::Broadcast);
+        if answered && device != WILDCARD {
+            self.seen.insert(device);
+            self.device(device).last_seen = Some(now);
+        }
+        let outcome = match outcome {
+            TxOutcome::Result => {
+                if let Some(reply) = frame {
+                    self.device(device).frames_in += 1;
+                    out.push(PortOut::Relay {
+                        id: r.job.id,
+                        origin: r.job.origin,
+                        reply,
+                    });
+                }
+                Outcome::Result
+            }
+            TxOutcome::Nic => {
+                self.device(device).nics += 1;
+                Outcome::Nic
+            }
+            TxOutcome::Acknowledged => {
+                self.rate_acknowledged(device, r.rate, out);
+                Outcome::Completed
+            }
+            TxOutcome::Broadcast => {
+                if let Some(rate) = r.rate {
+                    self.switch_rate(rate, out);
+                }
+                Outcome::Completed
+            }
+            TxOutcome::NoResult => {
+                self.stats.line.timeouts += 1;
+                self.device(device).no_result += 1;
+                Outcome::NoResult
+            }
+            TxOutcome::Failed(failure) => {
+                if failure == TxFailure::NoAck {
+                    self.stats.line.timeouts += 1;
+                }
+                self.device(device).unreachable += 1;
+                Outcome::Unreachable
+            }
+        };
+        out.push(PortOut::Finished { id: r.job.id, outcome });
+    }
+
+    fn rate_acknowledged(&mut self, device: u8, rate: Option<DataRate>, out: &mut Vec<PortOut>) {
+        let Some(rate) = rate.filter(|r| r.bits_per_second().is_some()) else {
+            return;
+        };
+        self.acked_rates.insert(device, rate);
+        let everyone = match &self.devices {
+            Some(list) => list.to_vec(),
+            None => self.seen.iter().copied().collect(),
+        };
+        if !everyone.is_empty() && everyone.iter().all(|d| self.acked_rates.get(d) == Some(&rate)) {
+            self.switch_rate(rate, out);
+        }
+    }
+
+    fn switch_rate(&mut self, rate: DataRate, out: &mut Vec<PortOut>) {
+        let Some(bps) = rate.bits_per_second() else { return };
+        self.acked_rates.clear();
+        if self.rate == rate {
+            return;
+        }
+        self.rate = rate;
+        self.stats.bps = bps;
+        self.stats.rate_switches += 1;
+        self.line.reset();
+        out.push(PortOut::SetRate(bps));
+        out.push(PortOut::Event(Event::RateSwitched { port: self.id, bps }));
+    }
+
+    /// Bytes from the bus.
+    pub fn receive(&mut self, now: u64, bytes: &[u8], out: &mut Vec<PortOut>) {
+        if !self.open {
+            // Bytes of a port the router believes closed: noise.
+            self.stats.line.stray_bytes += bytes.len() as u64;
+            return;
+        }
+        self.stats.line.bytes_in += bytes.len() as u64;
+        if !bytes.is_empty() {
+            self.stats.line.last_seen = Some(now);
+        }
+        let events = self.line.feed(now, bytes);
+        for event in events {
+            self.on_event(now, event, out);
+        }
+        self.stats.line.noise_bytes = self.line.noise_bytes();
+        self.maybe_detach(now, out);
+    }
+
+    fn on_event(&mut self, now: u64, event: RxEvent, out: &mut Vec<PortOut>) {
+        match event {
+            RxEvent::Frame(frame) => {
+                self.stats.line.frames_in += 1;
+                self.write(vec![ACK], out);
+                self.on_frame(now, frame, out);
+            }
+            RxEvent::BadChecksum => {
+                self.stats.line.bad_checksums += 1;
+                self.stats.line.naks_sent += 1;
+                self.write(vec![NAK], out);
+            }
+            RxEvent::Ack | RxEvent::Nak => {
+                let (fe, nak) = match event {
+                    RxEvent::Nak => (FramerEvent::Nak, true),
+                    _ => (FramerEvent::Ack, false),
+                };
+                if nak {
+                    self.stats.line.naks_received += 1;
+                }
+                match self
+                    .active
+                    .as_mut()
+                    .filter(|r| !r.txn.is_broadcast() && !r.txn.acknowledged())
+                {
+                    Some(r) => {
+                        let device = r.device();
+                        let step = r.txn.on_event(&fe, now);
+                        self.device(device).last_seen = Some(now);
+                        self.active_step(now, step, None, out);
+                    }
+                    None => self.stats.line.stray_bytes += 1,
+                }
+            }
+            RxEvent::Nic => {
+                self.stats.line.nics_in += 1;
+                if let Some(r) = self.active.as_mut().filter(|r| !r.txn.is_broadcast()) {
+                    let step = r.txn.on_event(&FramerEvent::Nic, now);
+                    if step != TransactionStep::Wait {
+                        return self.active_step(now, step, None, out);
+                    }
+                }
+                if !self.detached.is_empty() {
+                    let mut r = self.detached.remove(0);
+                    if let TransactionStep::Done(outcome) = r.txn.on_event(&FramerEvent::Nic, now) {
+                        return self.finish(now, r, outcome, None, out);
+                    }
+                    self.detached.insert(0, r);
+                }
+                self.stats.line.stray_bytes += 1;
+            }
+        }
+    }
+
+    fn on_frame(&mut self, now: u64, frame: Box<FrameBuf>, out: &mut Vec<PortOut>) {
+        let view = frame.frame();
+        if let Some(r) = self.active.as_mut() {
+            if r.txn.is_broadcast() {
+                let dest = r.job.frame.frame().dest;
+                if view.dest.port == dest.port || view.dest.port == WILDCARD {
+                    // A device alone on its bus answering a broadcast.
+                    let (id, origin) = (r.job.id, r.job.origin);
+                    let d = self.device(view.dest.device);
+                    d.frames_in += 1;
+                    d.last_seen = Some(now);
+                    out.push(PortOut::Relay {
+                        id,
+                        origin,
+                        reply: frame,
+                    });
+                    return;
+                }
+            } else {
+                let step = r.txn.on_event(&FramerEvent::Frame(view), now);
+                if let TransactionStep::Done(_) = step {
+                    return self.active_step(now, step, Some(frame), out);
+                }
+            }
+        }
+        if let Some(at) = self.detached.iter().position(|r| r.txn.is_result_header(&view.dest)) {
+            let mut r = self.detached.remove(at);
+            if let TransactionStep::Done(outcome) = r.txn.on_event(&FramerEvent::Frame(view), now) {
+                return self.finish(now, r, outcome, Some(frame), out);
+            }
+            self.detached.insert(at, r);
+        }
+        self.stats.line.drops.add(DropReason::Unsolicited);
+        out.push(PortOut::Event(Event::Dropped {
+            reason: DropReason::Unsolicited,
+            at: crate::Place::Port(self.id),
+            dest: view.dest,
+            source: view.source,
+        }));
+    }
+
+    /// Time passed.
+    pub fn poll(&mut self, now: u64, out: &mut Vec<PortOut>) {
+        for event in self.line.poll(now) {
+            self.on_event(now, event, out);
+        }
+        self.stats.line.noise_bytes = self.line.noise_bytes();
+        if let Some(r) = self
+            .active
+            .as_mut()
+            .filter(|r| r.txn.deadline().is_some_and(|t| now >= t))
+        {
+            let step = r.txn.poll(now);
+            self.active_step(now, step, None, out);
+        }
+        let mut i = 0;
+        while i < self.detached.len() {
+            if self.detached[i].txn.deadline().is_some_and(|t| now >= t) {
+                let mut r = self.detached.remove(i);
+                match r.txn.poll(now) {
+                    TransactionStep::Done(outcome) => self.finish(now, r, outcome, None, out),
+                    _ => {
+                        self.detached.insert(i, r);
+                        i += 1;
+                    }
+                }
+            } else {
+                i += 1;
+            }
+        }
+        self.maybe_detach(now, out);
+    }
+
+    pub fn next_deadline(&self) -> Option<u64> {
+        let active = self.active.as_ref().and_then(|r| r.txn.deadline());
+        let detached = self.detached.iter().filter_map(|r| r.txn.deadline()).min();
+        [active, detached, self.line.idle_deadline()]
+            .into_iter()
+            .flatten()
+            .min()
+    }
+}

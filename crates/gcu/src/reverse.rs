@@ -1,0 +1,232 @@
+//! The reverse path of forwarded frames (DESIGN "Routing semantics":
+//! results go back along the reverse path to the link the command came
+//! from). When this GCU forwards a frame to another GCU (by route or by a
+//! group-255 flood), it remembers where the frame came from, so that the
+//! answer arriving on the next-hop link goes back to exactly that origin,
+//! even when several clients speak as the same source group.
+//!
+//! Matching a result frame (Table 3: groups exchanged, port and device
+//! unchanged) arriving on link `L`: an entry forwarded on `L`, already
+//! transmitted, whose command source group is the frame's destination
+//! group, whose port/device equal the frame's (or are 255), and whose
+//! destination group is the frame's source group (or 255). Wildcard entries
+//! may be answered several times and stay until they expire; others are
+//! consumed by their result.
+//!
+//! A bare `?` carries no address: it is given to the origin of the
+//! transmitted entries on `L` when they all share one origin; when they do
+//! not, it is dropped and counted ([`DropReason::AmbiguousNic`]) rather than
+//! risk the wrong link.
+//!
+//! [`DropReason::AmbiguousNic`]: crate::DropReason::AmbiguousNic
+
+use std::collections::VecDeque;
+
+use sagebrush_protocol::{Address, Frame, ResultKind, ResultTimeout, WILDCARD};
+
+use crate::config::LinkSettings;
+use crate::types::{LinkId, Origin};
+
+#[derive(Clone, Copy, Debug)]
+struct Pending {
+    key: u64,
+    out_link: LinkId,
+    origin: Origin,
+    /// Source group of the forwarded frame.
+    source: u8,
+    dest: Address,
+    kind: ResultKind,
+    /// Set at the first transmission on `out_link`.
+    expires: Option<u64>,
+}
+
+impl Pending {
+    fn wildcard(&self) -> bool {
+        self.dest.has_wildcard()
+    }
+
+    fn answered_by(&self, frame: &Frame<'_>) -> bool {
+        let level = |want: u8, got: u8| want == WILDCARD || want == got;
+        self.kind != ResultKind::None
+            && frame.dest.group == self.source
+            && level(self.dest.port, frame.dest.port)
+            && level(self.dest.device, frame.dest.device)
+            && level(self.dest.group, frame.source)
+    }
+}
+
+/// What a `?` from a link belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum NicMatch {
+    None,
+    One(Origin),
+    Ambiguous,
+}
+
+#[derive(Debug)]
+pub(crate) struct ReversePath {
+    entries: VecDeque<Pending>,
+    next_key: u64,
+    max: usize,
+}
+
+impl ReversePath {
+    pub fn new(max: usize) -> Self {
+        Self {
+            entries: VecDeque::new(),
+            next_key: 0,
+            max: max.max(1),
+        }
+    }
+
+    /// Remembers a forwarded frame; returns its key and whether the oldest
+    /// entry had to be forgotten to make room.
+    pub fn insert(&mut self, out_link: LinkId, origin: Origin, frame: &Frame<'_>, kind: ResultKind) -> (u64, bool) {
+        let evicted = self.entries.len() >= self.max;
+        if evicted {
+            self.entries.pop_front();
+        }
+        let key = self.next_key;
+        self.next_key += 1;
+        self.entries.push_back(Pending {
+            key,
+            out_link,
+            origin,
+            source: frame.source,
+            dest: frame.dest,
+            kind,
+            expires: None,
+        });
+        (key, evicted)
+    }
+
+    /// The frame of `key` was transmitted for the first time at `now`.
+    pub fn sent(&mut self, key: u64, now: u64, settings: &LinkSettings) {
+        if let Some(e) = self.entries.iter_mut().find(|e| e.key == key) {
+            let wait = match e.kind {
+                ResultKind::None => settings.nic_answer_timeout,
+                ResultKind::Required(ResultTimeout::Long) => settings.long_answer_timeout,
+                ResultKind::Required(ResultTimeout::Normal) | ResultKind::Optional => settings.answer_timeout,
+            };
+            e.expires = Some(now.saturating_add(wait));
+        }
+    }
+
+    /// The frame of `key` never made it (dropped or given up).
+    pub fn cancel(&mut self, key: u64) {
+        self.entries.retain(|e| e.key != key);
+    }
+
+    /// Where a frame arriving on `link` goes back to, if it answers a forwarded one.
+    pub fn match_result(&mut self, link: LinkId, frame: &Frame<'_>) -> Option<Origin> {
+        let at = self
+            .entries
+            .iter()
+            .position(|e| e.out_link == link && e.expires.is_some() && e.answered_by(frame))?;
+        let entry = self.entries[at];
+        if !entry.wildcard() {
+            self.entries.remove(at);
+        }
+        Some(entry.origin)
+    }
+
+    /// Where a `?` arriving on `link` goes back to.
+    pub fn match_nic(&mut self, link: LinkId) -> NicMatch {
+        let mut candidates = self
+            .entries
+            .iter()
+            .filter(|e| e.out_link == link && e.expires.is_some());
+        let Some(first) = candidates.next().copied() else {
+            return NicMatch::None;
+        };
+        if candidates.any(|e| e.origin != first.origin) {
+            return NicMatch::Ambiguous;
+        }
+        if !first.wildcard() {
+            self.entries.retain(|e| e.key != first.key);
+        }
+        NicMatch::One(first.origin)
+    }
+
+    /// Forgets what expired by `now`.
+    pub fn expire(&mut self, now: u64) {
+        self.entries.retain(|e| e.expires.is_none_or(|t| t > now));
+    }
+
+    /// The link went down: entries forwarded on it are gone; entries whose
+    /// origin it was are kept, so that their answers are recognised and
+    /// counted as [`crate::DropReason::OriginGone`] rather than routed on.
+    pub fn link_down(&mut self, link: LinkId) {
+        self.entries.retain(|e| e.out_link != link);
+    }
+
+    pub fn next_deadline(&self) -> Option<u64> {
+        self.entries.iter().filter_map(|e| e.expires).min()
+    }
+
+    pub fn len(&self) -> usize {
+        self.entries.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const L: LinkId = LinkId(1);
+
+    fn origin(link: u32) -> Origin {
+        Origin::Link {
+            link: LinkId(link),
+            source: 2,
+        }
+    }
+
+    #[test]
+    fn result_goes_back_to_the_origin_of_the_forwarded_command() {
+        let settings = LinkSettings::default();
+        let mut rp = ReversePath::new(8);
+        let cmd = Frame::new(Address::new(5, 1, 12), 2, b"P?").unwrap();
+        let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::Required(ResultTimeout::Normal));
+        let (b, _) = rp.insert(L, origin(11), &cmd, ResultKind::Required(ResultTimeout::Normal));
+        let result = Frame::new(Address::new(2, 1, 12), 5, b"00000000").unwrap();
+        // Not transmitted yet: not an answer.
+        assert_eq!(rp.match_result(L, &result), None);
+        rp.sent(a, 0, &settings);
+        rp.sent(b, 1, &settings);
+        assert_eq!(rp.match_result(LinkId(2), &result), None, "wrong link");
+        assert_eq!(rp.match_result(L, &result), Some(origin(10)));
+        assert_eq!(rp.match_result(L, &result), Some(origin(11)));
+        assert_eq!(rp.match_result(L, &result), None);
+    }
+
+    #[test]
+    fn nic_of_two_origins_is_ambiguous_and_entries_expire() {
+        let settings = LinkSettings::default();
+        let mut rp = ReversePath::new(8);
+        let cmd = Frame::new(Address::new(5, 1, 12), 2, b"PL").unwrap();
+        let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::None);
+        rp.sent(a, 0, &settings);
+        let (b, _) = rp.insert(L, origin(11), &cmd, ResultKind::None);
+        rp.sent(b, 0, &settings);
+        assert_eq!(rp.match_nic(L), NicMatch::Ambiguous);
+        rp.cancel(b);
+        assert_eq!(rp.match_nic(L), NicMatch::One(origin(10)));
+        assert_eq!(rp.match_nic(L), NicMatch::None);
+        let (c, _) = rp.insert(L, origin(10), &cmd, ResultKind::None);
+        rp.sent(c, 0, &settings);
+        assert_eq!(rp.next_deadline(), Some(settings.nic_answer_timeout));
+        rp.expire(settings.nic_answer_timeout);
+        assert_eq!(rp.len(), 0);
+    }
+
+    #[test]
+    fn bounded_by_evicting_the_oldest() {
+        let mut rp = ReversePath::new(2);
+        let cmd = Frame::new(Address::new(5, 1, 12), 2, b"PL").unwrap();
+        assert!(!rp.insert(L, origin(1), &cmd, ResultKind::None).1);
+        assert!(!rp.insert(L, origin(1), &cmd, ResultKind::None).1);
+        assert!(rp.insert(L, origin(1), &cmd, ResultKind::None).1);
+        assert_eq!(rp.len(), 2);
+    }
+}

@@ -1,0 +1,654 @@
+//! The [`Router`]: one GCU of group G, as pure logic. It ties together the
+//! links (module `link`), the port schedulers (module `port`), the
+//! routing table (module `routing`), the reverse path of forwarded frames
+//! (module `reverse`), the dead-man (module `deadman`) and the GCU's own
+//! answers (module `local`). See the crate documentation for the rules.
+
+use std::collections::BTreeMap;
+
+use sagebrush_protocol::{Address, Command, FrameBuf, LINK_PORT, WILDCARD};
+
+use crate::config::{ConfigError, LinkKind, LinkSettings, RouterConfig};
+use crate::deadman::DeadMan;
+use crate::link::{Link, LinkOut, Outgoing, Received};
+use crate::local::{SelfAnswer, answer};
+use crate::port::{Job, Port, PortOut};
+use crate::reverse::{NicMatch, ReversePath};
+use crate::routing::RoutingTable;
+use crate::stats::{LinkStats, RouterStats, Stats};
+use crate::types::{Action, CommandId, DropReason, Event, Input, LinkId, Origin, Outcome, Place};
+
+/// Progress of one accepted command executed on local ports (one job per
+/// port; a port-255 command has one per configured port).
+#[derive(Debug)]
+struct Progress {
+    origin: Origin,
+    remaining: usize,
+    results: usize,
+    nics: usize,
+    completed: usize,
+    no_result: usize,
+    unreachable: usize,
+    /// Why a result or `?` could not be handed to the origin, or a job was dropped.
+    dropped: Option<DropReason>,
+}
+
+impl Progress {
+    fn new(origin: Origin, jobs: usize) -> Self {
+        Self {
+            origin,
+            remaining: jobs,
+            results: 0,
+            nics: 0,
+            completed: 0,
+            no_result: 0,
+            unreachable: 0,
+            dropped: None,
+        }
+    }
+
+    /// The one outcome of all jobs: any result relayed wins; then a NIC when
+    /// nothing completed (one `?` is relayed); then completed, no result,
+    /// unreachable, dropped.
+    fn outcome(&self) -> Outcome {
+        if self.results > 0 {
+            Outcome::Result
+        } else if self.nics > 0 && self.completed == 0 {
+            Outcome::Nic
+        } else if self.completed > 0 {
+            Outcome::Completed
+        } else if self.no_result > 0 {
+            Outcome::NoResult
+        } else if self.unreachable > 0 {
+            Outcome::Unreachable
+        } else {
+            Outcome::Dropped(self.dropped.unwrap_or(DropReason::UnknownPort))
+        }
+    }
+}
+
+/// The GCU router core. See the crate documentation for how a daemon drives it.
+#[derive(Debug)]
+pub struct Router {
+    group: u8,
+    name: String,
+    serial: String,
+    settings: LinkSettings,
+    ports: BTreeMap<u8, Port>,
+    links: BTreeMap<LinkId, Link>,
+    retired: BTreeMap<LinkId, LinkStats>,
+    routes: RoutingTable,
+    reverse: ReversePath,
+    deadman: DeadMan,
+    commands: BTreeMap<CommandId, Progress>,
+    next_id: u64,
+    last_now: u64,
+    stats: RouterStats,
+    unknown_inputs: u64,
+}
+
+impl Router {
+    /// A router for `config`; ports start closed until [`Input::PortOpened`].
+    pub fn new(config: RouterConfig) -> Result<Self, ConfigError> {
+        config.validate()?;
+        Ok(Self {
+            group: config.group,
+            ports: config.ports.iter().map(|p| (p.id, Port::new(p))).collect(),
+            links: BTreeMap::new(),
+            retired: BTreeMap::new(),
+            routes: RoutingTable::new(config.static_routes, config.default_upstream),
+            reverse: ReversePath::new(config.links.max_pending),
+            deadman: DeadMan::default(),
+            commands: BTreeMap::new(),
+            next_id: 0,
+            last_now: 0,
+            stats: RouterStats::default(),
+            unknown_inputs: 0,
+            settings: config.links,
+            name: config.name,
+            serial: config.serial,
+        })
+    }
+
+    /// This GCU's group address.
+    pub fn group(&self) -> u8 {
+        self.group
+    }
+
+    /// Feeds one input at tick `now` and appends the actions to execute, in
+    /// order, to `out`. Time-outs due by `now` are processed too, so any
+    /// input doubles as a tick. `now` never goes backwards (an earlier
+    /// value is taken as the latest one seen).
+    pub fn handle(&mut self, now: u64, input: Input<'_>, out: &mut Vec<Action>) {
+        let now = now.max(self.last_now);
+        self.last_now = now;
+        match input {
+            Input::Tick => {}
+            Input::PortOpened { port } => {
+                self.port_state(port, true, out);
+                self.with_port(now, port, out, |p, now, po| p.open(now, po));
+            }
+            Input::PortLost { port } => {
+                self.port_state(port, false, out);
+                self.with_port(now, port, out, |p, _, po| p.lose(po));
+            }
+            Input::PortBytes { port, bytes } => self.with_port(now, port, out, |p, now, po| p.receive(now, bytes, po)),
+            Input::LinkUp { link, config } => {
+                if self.links.contains_key(&link) {
+                    self.link_down(now, link, out);
+                }
+                let stats = match self.retired.remove(&link) {
+                    Some(old) => LinkStats {
+                        up: true,
+                        kind: config.kind,
+                        ..old
+                    },
+                    None => LinkStats::new(config.kind),
+                };
+                self.links.insert(link, Link::new(config, &self.settings, stats));
+                out.push(Action::Event(Event::LinkState { link, up: true }));
+            }
+            Input::LinkDown { link } => self.link_down(now, link, out),
+            Input::LinkBytes { link, bytes } => match self.links.get_mut(&link) {
+                Some(l) => {
+                    let mut lo = Vec::new();
+                    let received = l.receive(now, bytes, &mut lo);
+                    self.link_outs(now, link, lo, out);
+                    for r in received {
+                        self.on_received(now, link, r, out);
+                    }
+                }
+                None => self.unknown_inputs += 1,
+            },
+        }
+        self.poll(now, out);
+    }
+
+    fn port_state(&self, port: u8, open: bool, out: &mut Vec<Action>) {
+        if self.ports.contains_key(&port) {
+            out.push(Action::Event(Event::PortState { port, open }));
+        }
+    }
+
+    /// [`Router::handle`] returning a fresh vector.
+    pub fn handle_vec(&mut self, now: u64, input: Input<'_>) -> Vec<Action> {
+        let mut out = Vec::new();
+        self.handle(now, input, &mut out);
+        out
+    }
+
+    /// When the router next needs [`Input::Tick`], if anything is pending.
+    pub fn next_deadline(&self) -> Option<u64> {
+        let ports = self.ports.values().filter_map(Port::next_deadline);
+        let links = self.links.values().filter_map(Link::next_deadline);
+        ports.chain(links).chain(self.reverse.next_deadline()).min()
+    }
+
+    /// A snapshot of every counter.
+    pub fn stats(&self) -> Stats {
+        let mut router = self.stats;
+        router.in_progress = self.commands.len() as u64;
+        let mut links = self.retired.clone();
+        links.extend(self.links.iter().map(|(&id, l)| (id, l.stats)));
+        Stats {
+            router,
+            ports: self.ports.iter().map(|(&id, p)| (id, p.stats)).collect(),
+            links,
+            devices: self
+                .ports
+                .iter()
+                .flat_map(|(&port, p)| p.device_stats.iter().map(move |(&d, s)| ((port, d), *s)))
+                .collect(),
+        }
+    }
+
+    /// Inputs naming a port that is not configured or a link that is not up.
+    pub fn unknown_inputs(&self) -> u64 {
+        self.unknown_inputs
+    }
+
+    /// Whether `link` is up.
+    pub fn link_is_up(&self, link: LinkId) -> bool {
+        self.links.contains_key(&link)
+    }
+
+    /// Commands accepted and not yet finished.
+    pub fn in_progress(&self) -> usize {
+        self.commands.len()
+    }
+
+    /// Forwarded frames whose answers are still routed back.
+    pub fn pending_answers(&self) -> usize {
+        self.reverse.len()
+    }
+
+    /// Continuous motions owned by links (dead-man records).
+    pub fn owned_motions(&self) -> usize {
+        self.deadman.len()
+    }
+
+    fn with_port(
+        &mut self,
+        now: u64,
+        port: u8,
+        out: &mut Vec<Action>,
+        f: impl FnOnce(&mut Port, u64, &mut Vec<PortOut>),
+    ) {
+        let Some(p) = self.ports.get_mut(&port) else {
+            self.unknown_inputs += 1;
+            return;
+        };
+        let mut po = Vec::new();
+        f(p, now, &mut po);
+        self.port_outs(now, port, po, out);
+    }
+
+    fn poll(&mut self, now: u64, out: &mut Vec<Action>) {
+        self.reverse.expire(now);
+        let due = |d: Option<u64>| d.is_some_and(|t| t <= now);
+        let ports: Vec<u8> = self
+            .ports
+            .iter()
+            .filter(|(_, p)| due(p.next_deadline()))
+            .map(|(&id, _)| id)
+            .collect();
+        for port in ports {
+            self.with_port(now, port, out, |p, now, po| p.poll(now, po));
+        }
+        let links: Vec<LinkId> = self
+            .links
+            .iter()
+            .filter(|(_, l)| due(l.next_deadline()))
+            .map(|(&id, _)| id)
+            .collect();
+        for link in links {
+            let Some(l) = self.links.get_mut(&link) else { continue };
+            let mut lo = Vec::new();
+            let received = l.poll(now, &mut lo);
+            self.link_outs(now, link, lo, out);
+            for r in received {
+                self.on_received(now, link, r, out);
+            }
+        }
+    }
+
+    fn drop_frame(&mut self, reason: DropReason, at: Place, dest: Address, source: u8, out: &mut Vec<Action>) {
+        self.stats.frame_drops.add(reason);
+        out.push(Action::Event(Event::Dropped {
+            reason,
+            at,
+            dest,
+            source,
+        }));
+    }
+
+    fn port_outs(&mut self, now: u64, port: u8, outs: Vec<PortOut>, out: &mut Vec<Action>) {
+        for o in outs {
+            match o {
+                PortOut::Write(bytes) => out.push(Action::WritePort { port, bytes }),
+                PortOut::SetRate(bps) => out.push(Action::SetPortRate { port, bps }),
+                PortOut::Event(e) => out.push(Action::Event(e)),
+                PortOut::Relay { id, origin, reply } => self.relay_result(now, port, id, origin, *reply, out),
+                PortOut::Finished { id, outcome, .. } => self.job_finished(now, id, outcome, out),
+            }
+        }
+    }
+
+    fn link_outs(&mut self, now: u64, link: LinkId, outs: Vec<LinkOut>, out: &mut Vec<Action>) {
+        for o in outs {
+            match o {
+                LinkOut::Write(bytes) => out.push(Action::WriteLink { link, bytes }),
+                LinkOut::FirstSent(key) => self.reverse.sent(key, now, &self.settings),
+                LinkOut::Failed(item, reason) => {
+                    if let Some(key) = item.pending {
+                        self.reverse.cancel(key);
+                    }
+                    let f = item.frame.frame();
+                    out.push(Action::Event(Event::Dropped {
+                        reason,
+                        at: Place::Link(link),
+                        dest: f.dest,
+                        source: f.source,
+                    }));
+                }
+            }
+        }
+    }
+
+    /// Queues `frame` on `link`.
+    fn send_on_link(
+        &mut self,
+        now: u64,
+        link: LinkId,
+        frame: FrameBuf,
+        pending: Option<u64>,
+        out: &mut Vec<Action>,
+    ) -> Result<(), DropReason> {
+        let Some(l) = self.links.get_mut(&link) else {
+            return Err(DropReason::LinkDown);
+        };
+        let mut lo = Vec::new();
+        let queued = l.enqueue(now, Outgoing { frame, pending }, &mut lo);
+        self.link_outs(now, link, lo, out);
+        if queued { Ok(()) } else { Err(DropReason::QueueFull) }
+    }
+
+    /// Writes a bare `?` to the origin (DESIGN: NIC relayed as a bare `?`).
+    fn nic_to(&mut self, now: u64, origin: Origin, out: &mut Vec<Action>) -> Result<(), DropReason> {
+        let Origin::Link { link, .. } = origin else {
+            return Ok(());
+        };
+        let Some(l) = self.links.get_mut(&link) else {
+            return Err(DropReason::OriginGone);
+        };
+        let mut lo = Vec::new();
+        l.write_nic(&mut lo);
+        self.link_outs(now, link, lo, out);
+        Ok(())
+    }
+
+    fn next_command_id(&mut self) -> CommandId {
+        let id = CommandId(self.next_id);
+        self.next_id += 1;
+        id
+    }
+
+    fn finish(&mut self, id: CommandId, outcome: Outcome, out: &mut Vec<Action>) {
+        self.stats.count(outcome);
+        out.push(Action::Event(Event::Finished { id, outcome }));
+    }
+
+    /// A result of job `id` from `port`: back to the origin with the Table 3
+    /// header (destination group = the command's source group, port and
+    /// device as answered, source group = G, checksum recomputed).
+    fn relay_result(
+        &mut self,
+        now: u64,
+        port: u8,
+        id: CommandId,
+        origin: Origin,
+        mut reply: FrameBuf,
+        out: &mut Vec<Action>,
+    ) {
+        let Origin::Link { link, source } = origin else {
+            // The router's own command: the answer is taken, not relayed.
+            if let Some(p) = self.commands.get_mut(&id) {
+                p.results += 1;
+            }
+            return;
+        };
+        let answered = reply.frame().dest;
+        let answered_port = if answered.port == WILDCARD { port } else { answered.port };
+        reply.set_header(Address::new(source, answered_port, answered.device), self.group);
+        let dest = reply.frame().dest;
+        let sent = match self.links.contains_key(&link) {
+            true => self.send_on_link(now, link, reply, None, out),
+            false => Err(DropReason::OriginGone),
+        };
+        let progress = self.commands.get_mut(&id);
+        match sent {
+            Ok(()) => {
+                self.stats.results_relayed += 1;
+                if let Some(p) = progress {
+                    p.results += 1;
+                }
+            }
+            Err(reason) => {
+                if let Some(p) = progress {
+                    p.dropped = Some(reason);
+                }
+                self.drop_frame(reason, Place::Link(link), dest, self.group, out);
+            }
+        }
+    }
+
+    fn job_finished(&mut self, now: u64, id: CommandId, outcome: Outcome, out: &mut Vec<Action>) {
+        let Some(p) = self.commands.get_mut(&id) else { return };
+        match outcome {
+            Outcome::Result | Outcome::Forwarded(_) => {}
+            Outcome::Nic => p.nics += 1,
+            Outcome::Completed => p.completed += 1,
+            Outcome::NoResult => p.no_result += 1,
+            Outcome::Unreachable => p.unreachable += 1,
+            Outcome::Dropped(reason) => p.dropped = Some(reason),
+        }
+        p.remaining = p.remaining.saturating_sub(1);
+        if p.remaining > 0 {
+            return;
+        }
+        let Some(p) = self.commands.remove(&id) else { return };
+        let mut outcome = p.outcome();
+        if outcome == Outcome::Nic {
+            if let Err(reason) = self.nic_to(now, p.origin, out) {
+                outcome = Outcome::Dropped(reason);
+            }
+        }
+        self.finish(id, outcome, out);
+    }
+
+    fn on_received(&mut self, now: u64, link: LinkId, received: Received, out: &mut Vec<Action>) {
+        match received {
+            Received::Frame(frame) => self.on_link_frame(now, link, *frame, out),
+            Received::Nic => match self.reverse.match_nic(link) {
+                NicMatch::One(origin) => {
+                    if self.nic_to(now, origin, out).is_err() {
+                        self.drop_frame(DropReason::OriginGone, Place::Link(link), Address::new(0, 0, 0), 0, out);
+                    }
+                }
+                NicMatch::None => self.drop_frame(
+                    DropReason::Unsolicited,
+                    Place::Link(link),
+                    Address::new(0, 0, 0),
+                    0,
+                    out,
+                ),
+                NicMatch::Ambiguous => self.drop_frame(
+                    DropReason::AmbiguousNic,
+                    Place::Link(link),
+                    Address::new(0, 0, 0),
+                    0,
+                    out,
+                ),
+            },
+        }
+    }
+
+    fn on_link_frame(&mut self, now: u64, link: LinkId, frame: FrameBuf, out: &mut Vec<Action>) {
+        let Some(l) = self.links.get_mut(&link) else { return };
+        let kind = l.config.kind;
+        let f = frame.frame();
+        let (dest, source) = (f.dest, f.source);
+        if source == WILDCARD || source == self.group || !l.config.allowed_sources.allows(source) {
+            l.stats.line.drops.add(DropReason::SourceNotAllowed);
+            return self.drop_frame(DropReason::SourceNotAllowed, Place::Link(link), dest, source, out);
+        }
+        if let Some(origin) = self.reverse.match_result(link, &f) {
+            return self.relay_forwarded(now, link, origin, frame, out);
+        }
+        self.routes.learn(source, link, kind);
+        self.dispatch(now, Origin::Link { link, source }, Some(kind), frame, out);
+    }
+
+    /// An answer from another GCU to a frame we forwarded: back to its origin, unchanged.
+    fn relay_forwarded(&mut self, now: u64, from: LinkId, origin: Origin, frame: FrameBuf, out: &mut Vec<Action>) {
+        let Origin::Link { link, .. } = origin else { return };
+        let f = frame.frame();
+        let (dest, source) = (f.dest, f.source);
+        let sent = match self.links.contains_key(&link) {
+            true => self.send_on_link(now, link, frame, None, out),
+            false => Err(DropReason::OriginGone),
+        };
+        match sent {
+            Ok(()) => self.stats.results_relayed += 1,
+            Err(reason) => self.drop_frame(reason, Place::Link(from), dest, source, out),
+        }
+    }
+
+    /// A command frame accepted from `origin` (a link of `kind`, or the router itself).
+    fn dispatch(&mut self, now: u64, origin: Origin, kind: Option<LinkKind>, frame: FrameBuf, out: &mut Vec<Action>) {
+        let f = frame.frame();
+        let dest = f.dest;
+        let command = Command::parse(f.payload());
+        if let Origin::Link { link, .. } = origin {
+            self.deadman.on_command(link, dest, &command);
+        }
+        let id = self.next_command_id();
+        self.stats.accepted += 1;
+        out.push(Action::Event(Event::Accepted {
+            id,
+            origin,
+            dest,
+            command: command.mnemonic(),
+        }));
+        let result_kind = command.result_kind();
+        if dest.group == self.group || dest.group == WILDCARD {
+            if dest.group == WILDCARD && kind != Some(LinkKind::Downstream) {
+                self.flood(now, origin, &frame, result_kind, out);
+            }
+            return self.execute_local(now, id, origin, frame, out);
+        }
+        let up = |l: LinkId| self.links.get(&l).map(|l| l.config.kind);
+        let any_upstream = self
+            .links
+            .iter()
+            .find(|(_, l)| l.config.kind == LinkKind::Upstream)
+            .map(|(&id, _)| id);
+        let route = self.routes.lookup(dest.group, up, any_upstream).and_then(|next| {
+            if Some(next) == origin.link() {
+                Err(DropReason::Loop)
+            } else {
+                Ok(next)
+            }
+        });
+        let outcome = match route {
+            Ok(next) => {
+                let (key, evicted) = self.reverse.insert(next, origin, &f, result_kind);
+                if evicted {
+                    self.drop_frame(DropReason::PendingFull, Place::Router, dest, f.source, out);
+                }
+                match self.send_on_link(now, next, frame.clone(), Some(key), out) {
+                    Ok(()) => Outcome::Forwarded(next),
+                    Err(reason) => {
+                        self.reverse.cancel(key);
+                        Outcome::Dropped(reason)
+                    }
+                }
+            }
+            Err(reason) => Outcome::Dropped(reason),
+        };
+        if let Outcome::Dropped(reason) = outcome {
+            self.drop_frame(reason, Place::Router, dest, f.source, out);
+        }
+        self.finish(id, outcome, out);
+    }
+
+    /// Group 255 from upstream (or a client, or the router itself) is
+    /// copied to every downstream link, never back where it came from.
+    fn flood(
+        &mut self,
+        now: u64,
+        origin: Origin,
+        frame: &FrameBuf,
+        result_kind: sagebrush_protocol::ResultKind,
+        out: &mut Vec<Action>,
+    ) {
+        let targets: Vec<LinkId> = self
+            .links
+            .iter()
+            .filter(|&(&id, l)| l.config.kind == LinkKind::Downstream && Some(id) != origin.link())
+            .map(|(&id, _)| id)
+            .collect();
+        let f = frame.frame();
+        for link in targets {
+            let (key, evicted) = self.reverse.insert(link, origin, &f, result_kind);
+            if evicted {
+                self.drop_frame(DropReason::PendingFull, Place::Router, f.dest, f.source, out);
+            }
+            match self.send_on_link(now, link, frame.clone(), Some(key), out) {
+                Ok(()) => self.stats.flooded += 1,
+                Err(reason) => {
+                    self.reverse.cancel(key);
+                    self.drop_frame(reason, Place::Link(link), f.dest, f.source, out);
+                }
+            }
+        }
+    }
+
+    /// Destination group G or 255: port 0 is the GCU itself, 1..=254 one
+    /// port, 255 every port.
+    fn execute_local(&mut self, now: u64, id: CommandId, origin: Origin, frame: FrameBuf, out: &mut Vec<Action>) {
+        let f = frame.frame();
+        let dest = f.dest;
+        let targets: Vec<u8> = match dest.port {
+            LINK_PORT => {
+                let outcome = match answer(self.group, &self.name, &self.serial, &f) {
+                    SelfAnswer::Result(reply) => match origin {
+                        Origin::Link { link, .. } => match self.send_on_link(now, link, *reply, None, out) {
+                            Ok(()) => Outcome::Result,
+                            Err(_) => Outcome::Dropped(DropReason::OriginGone),
+                        },
+                        Origin::Internal => Outcome::Completed,
+                    },
+                    SelfAnswer::Nic => match self.nic_to(now, origin, out) {
+                        Ok(()) => Outcome::Nic,
+                        Err(reason) => Outcome::Dropped(reason),
+                    },
+                };
+                return self.finish(id, outcome, out);
+            }
+            WILDCARD => self.ports.keys().copied().collect(),
+            port if self.ports.contains_key(&port) => vec![port],
+            _ => Vec::new(),
+        };
+        if targets.is_empty() {
+            self.drop_frame(DropReason::UnknownPort, Place::Router, dest, f.source, out);
+            return self.finish(id, Outcome::Dropped(DropReason::UnknownPort), out);
+        }
+        self.commands.insert(id, Progress::new(origin, targets.len()));
+        for port in targets {
+            let job = Job::new(id, origin, frame.clone());
+            self.with_port(now, port, out, |p, now, po| p.enqueue(now, job, po));
+        }
+    }
+
+    /// A link went down: drop its queue, forget its routes, cancel the
+    /// motions it queued and stop the motions it owns (dead-man).
+    fn link_down(&mut self, now: u64, link: LinkId, out: &mut Vec<Action>) {
+        let Some(mut l) = self.links.remove(&link) else {
+            self.unknown_inputs += 1;
+            return;
+        };
+        for item in l.shut_down() {
+            if let Some(key) = item.pending {
+                self.reverse.cancel(key);
+            }
+            let f = item.frame.frame();
+            out.push(Action::Event(Event::Dropped {
+                reason: DropReason::LinkDown,
+                at: Place::Link(link),
+                dest: f.dest,
+                source: f.source,
+            }));
+        }
+        self.retired.insert(link, l.stats);
+        self.routes.forget(link);
+        self.reverse.link_down(link);
+        out.push(Action::Event(Event::LinkState { link, up: false }));
+        let ports: Vec<u8> = self.ports.keys().copied().collect();
+        for port in ports {
+            self.with_port(now, port, out, |p, _, po| p.cancel_motions(link, po));
+        }
+        for (dest, stop) in self.deadman.link_down(link) {
+            let Ok(frame) = FrameBuf::build(dest, self.group, |buf| stop.encode(buf).map(<[u8]>::len)) else {
+                continue;
+            };
+            self.stats.dead_man_stops += 1;
+            out.push(Action::Event(Event::DeadManStop {
+                link,
+                dest,
+                stop: stop.mnemonic(),
+            }));
+            self.dispatch(now, Origin::Internal, None, frame, out);
+        }
+    }
+}

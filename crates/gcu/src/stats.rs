@@ -1,0 +1,185 @@
+//! Statistics per port, link and device, and for the router as a whole:
+//! plain structs of `u64` counters (last-seen as the tick), for the daemon
+//! to export as it likes.
+
+use std::collections::BTreeMap;
+
+use crate::config::LinkKind;
+use crate::types::{DropReason, LinkId, Outcome};
+
+/// Drops counted by reason.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DropCounts([u64; DropReason::ALL.len()]);
+
+impl DropCounts {
+    pub fn get(&self, reason: DropReason) -> u64 {
+        self.0[reason.index()]
+    }
+    pub fn total(&self) -> u64 {
+        self.0.iter().sum()
+    }
+    /// Every reason with its count (zeros included).
+    pub fn iter(&self) -> impl Iterator<Item = (DropReason, u64)> + '_ {
+        DropReason::ALL.iter().map(|&r| (r, self.get(r)))
+    }
+    pub(crate) fn add(&mut self, reason: DropReason) {
+        self.0[reason.index()] += 1;
+    }
+}
+
+/// Counters of one line (a serial port or a link).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LineStats {
+    /// Good frames received.
+    pub frames_in: u64,
+    /// Frames written (retransmissions included).
+    pub frames_out: u64,
+    pub bytes_in: u64,
+    pub bytes_out: u64,
+    /// Received frame candidates whose checksum failed (each NAKed).
+    pub bad_checksums: u64,
+    /// NAKs this GCU wrote.
+    pub naks_sent: u64,
+    /// NAKs the other side sent back.
+    pub naks_received: u64,
+    /// ACK/NAK/`?` bytes nobody was waiting for.
+    pub stray_bytes: u64,
+    /// Frames written again after a NAK or ACK time-out.
+    pub retransmits: u64,
+    /// ACK or result time-outs.
+    pub timeouts: u64,
+    /// `?` received.
+    pub nics_in: u64,
+    /// `?` written.
+    pub nics_out: u64,
+    /// Noise bytes the framer skipped.
+    pub noise_bytes: u64,
+    pub drops: DropCounts,
+    /// Tick of the last byte received.
+    pub last_seen: Option<u64>,
+}
+
+/// One serial port.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PortStats {
+    pub line: LineStats,
+    pub open: bool,
+    /// Current line rate.
+    pub bps: u32,
+    /// Jobs waiting now (the one in flight not included).
+    pub queue_len: usize,
+    /// Most jobs ever waiting at once.
+    pub queue_high_water: usize,
+    /// Transactions started.
+    pub transactions: u64,
+    pub rate_switches: u64,
+}
+
+/// One link (kept after it went down, under its id).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LinkStats {
+    pub line: LineStats,
+    pub up: bool,
+    pub kind: LinkKind,
+    /// Frames waiting now, the one in flight included.
+    pub queue_len: usize,
+    pub queue_high_water: usize,
+    /// Frames accepted into the send queue.
+    pub queued: u64,
+    /// Frames the peer acknowledged.
+    pub delivered: u64,
+    /// Frames given up (retries exhausted) or dropped with the link.
+    pub failed: u64,
+}
+
+impl LinkStats {
+    pub(crate) fn new(kind: LinkKind) -> Self {
+        Self {
+            line: LineStats::default(),
+            up: true,
+            kind,
+            queue_len: 0,
+            queue_high_water: 0,
+            queued: 0,
+            delivered: 0,
+            failed: 0,
+        }
+    }
+}
+
+/// One device, keyed by (port, device address).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DeviceStats {
+    /// Transactions addressed to it.
+    pub commands: u64,
+    /// Command frames written to it (retransmissions included).
+    pub frames_out: u64,
+    /// Result frames from it.
+    pub frames_in: u64,
+    pub retransmits: u64,
+    /// Never acknowledged after all retries.
+    pub unreachable: u64,
+    /// Acknowledged, result never came.
+    pub no_result: u64,
+    pub nics: u64,
+    /// Tick of the last answer (ACK, result or `?`).
+    pub last_seen: Option<u64>,
+}
+
+/// Router-wide counters of accepted commands and their outcomes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RouterStats {
+    /// Commands accepted (dead-man stops included).
+    pub accepted: u64,
+    pub results: u64,
+    pub nics: u64,
+    pub completed: u64,
+    pub no_result: u64,
+    pub unreachable: u64,
+    pub forwarded: u64,
+    /// Outcomes [`Outcome::Dropped`], by reason.
+    pub dropped: DropCounts,
+    /// Frames dropped at the router (routing, source filter, stray answers), by reason.
+    pub frame_drops: DropCounts,
+    /// Result frames relayed back to an origin.
+    pub results_relayed: u64,
+    /// Group-255 copies flooded to downstream links.
+    pub flooded: u64,
+    pub dead_man_stops: u64,
+    /// Commands in progress now.
+    pub in_progress: u64,
+}
+
+impl RouterStats {
+    pub(crate) fn count(&mut self, outcome: Outcome) {
+        match outcome {
+            Outcome::Result => self.results += 1,
+            Outcome::Nic => self.nics += 1,
+            Outcome::Completed => self.completed += 1,
+            Outcome::NoResult => self.no_result += 1,
+            Outcome::Unreachable => self.unreachable += 1,
+            Outcome::Forwarded(_) => self.forwarded += 1,
+            Outcome::Dropped(reason) => self.dropped.add(reason),
+        }
+    }
+
+    /// Sum of all outcomes so far.
+    pub fn finished(&self) -> u64 {
+        self.results
+            + self.nics
+            + self.completed
+            + self.no_result
+            + self.unreachable
+            + self.forwarded
+            + self.dropped.total()
+    }
+}
+
+/// A snapshot of everything, from [`crate::Router::stats`].
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Stats {
+    pub router: RouterStats,
+    pub ports: BTreeMap<u8, PortStats>,
+    pub links: BTreeMap<LinkId, LinkStats>,
+    pub devices: BTreeMap<(u8, u8), DeviceStats>,
+}

@@ -1,0 +1,286 @@
+//! What goes in and out of the [`crate::Router`]: inputs, actions, log
+//! events, command outcomes and drop reasons.
+
+use core::fmt;
+
+use sagebrush_protocol::Address;
+
+use crate::config::LinkConfig;
+
+/// A link's identity, assigned by the daemon. Keep it stable for configured
+/// peers (a serial line, an outbound TCP client) so that static routes and
+/// the default upstream survive reconnects; accepted TCP connections may
+/// take fresh ids.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct LinkId(pub u32);
+
+impl fmt::Display for LinkId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "link#{}", self.0)
+    }
+}
+
+/// Sequence number of a command accepted by this router (also given to the
+/// dead-man stops it issues itself). Every id ends in exactly one
+/// [`Event::Finished`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct CommandId(pub u64);
+
+/// Where a command came from, i.e. where its answers go back to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Origin {
+    /// A frame received on a link, with the source group it carried.
+    Link { link: LinkId, source: u8 },
+    /// Issued by the router itself (dead-man stops): answers are discarded.
+    Internal,
+}
+
+impl Origin {
+    pub fn link(&self) -> Option<LinkId> {
+        match self {
+            Origin::Link { link, .. } => Some(*link),
+            Origin::Internal => None,
+        }
+    }
+}
+
+/// One thing that happened outside the router, fed to [`crate::Router::handle`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Input<'a> {
+    /// Only time passed (the timer armed at [`crate::Router::next_deadline`] fired).
+    Tick,
+    /// A serial port was opened (or re-opened after it was lost). The router
+    /// answers with [`Action::SetPortRate`] for the rate it believes the bus runs at.
+    PortOpened { port: u8 },
+    /// A serial port vanished (USB unplugged, I/O error): its in-flight and
+    /// queued transactions fail with [`DropReason::PortLost`].
+    PortLost { port: u8 },
+    /// Bytes read from a serial port, in any chunking.
+    PortBytes { port: u8, bytes: &'a [u8] },
+    /// A link connected. An id that is already up is first taken down.
+    LinkUp { link: LinkId, config: LinkConfig },
+    /// A link disconnected: its queue is dropped, its learned routes
+    /// forgotten, and the continuous motions it started are stopped (dead-man).
+    LinkDown { link: LinkId },
+    /// Bytes read from a link, in any chunking.
+    LinkBytes { link: LinkId, bytes: &'a [u8] },
+}
+
+/// What the daemon does for the router.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Action {
+    /// Write these bytes to the serial port.
+    WritePort { port: u8, bytes: Vec<u8> },
+    /// Write these bytes to the link.
+    WriteLink { link: LinkId, bytes: Vec<u8> },
+    /// Switch the serial port's own line rate (bits per second).
+    SetPortRate { port: u8, bps: u32 },
+    /// Something worth logging or counting; see [`Event::level`].
+    Event(Event),
+}
+
+/// How loud an [`Event`] is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Level {
+    Debug,
+    Info,
+    Warn,
+}
+
+/// Where a frame was when something happened to it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Place {
+    Port(u8),
+    Link(LinkId),
+    /// The router itself (routing decision, the GCU's own port 0).
+    Router,
+}
+
+impl fmt::Display for Place {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Place::Port(p) => write!(f, "port {p}"),
+            Place::Link(l) => write!(f, "{l}"),
+            Place::Router => f.write_str("router"),
+        }
+    }
+}
+
+/// A log/stat event. Counters are kept in [`crate::Stats`] as well; the
+/// events carry the addresses a log line needs.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Event {
+    /// A command frame from a link (or the router's own dead-man stop) was
+    /// accepted for local execution or forwarding.
+    Accepted {
+        id: CommandId,
+        origin: Origin,
+        dest: Address,
+        command: &'static str,
+    },
+    /// A job of command `id` joined the queue of `port`.
+    Queued { id: CommandId, port: u8, stop: bool },
+    /// A job of command `id` began its transaction on `port`.
+    Started { id: CommandId, port: u8, stop: bool },
+    /// The command `id` ended (exactly once per accepted id).
+    Finished { id: CommandId, outcome: Outcome },
+    /// A frame (or job) was dropped.
+    Dropped {
+        reason: DropReason,
+        at: Place,
+        dest: Address,
+        source: u8,
+    },
+    /// A port's line rate was switched after a `C0`..`C7` change.
+    RateSwitched { port: u8, bps: u32 },
+    /// A link went down while owning a continuous motion: this stop was issued.
+    DeadManStop {
+        link: LinkId,
+        dest: Address,
+        stop: &'static str,
+    },
+    /// A link came up or went down.
+    LinkState { link: LinkId, up: bool },
+    /// A port was opened or lost.
+    PortState { port: u8, open: bool },
+}
+
+impl Event {
+    /// Suggested log level.
+    pub fn level(&self) -> Level {
+        match self {
+            Event::Accepted { .. } | Event::Queued { .. } | Event::Started { .. } => Level::Debug,
+            Event::Finished { outcome, .. } => match outcome {
+                Outcome::Dropped(_) | Outcome::Unreachable => Level::Warn,
+                _ => Level::Debug,
+            },
+            Event::Dropped { .. } | Event::DeadManStop { .. } => Level::Warn,
+            Event::RateSwitched { .. } | Event::LinkState { .. } | Event::PortState { .. } => Level::Info,
+        }
+    }
+}
+
+impl fmt::Display for Event {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Event::Accepted {
+                id,
+                origin,
+                dest,
+                command,
+            } => write!(f, "command {} {command} for {dest} accepted from {origin:?}", id.0),
+            Event::Queued { id, port, stop } => write!(f, "command {} queued on port {port} (stop: {stop})", id.0),
+            Event::Started { id, port, stop } => write!(f, "command {} started on port {port} (stop: {stop})", id.0),
+            Event::Finished { id, outcome } => write!(f, "command {} finished: {outcome:?}", id.0),
+            Event::Dropped {
+                reason,
+                at,
+                dest,
+                source,
+            } => write!(f, "dropped frame for {dest} from group {source} at {at}: {reason:?}"),
+            Event::RateSwitched { port, bps } => write!(f, "port {port} switched to {bps} bps"),
+            Event::DeadManStop { link, dest, stop } => write!(f, "{link} down: dead-man {stop} to {dest}"),
+            Event::LinkState { link, up } => write!(f, "{link} {}", if *up { "up" } else { "down" }),
+            Event::PortState { port, open } => write!(f, "port {port} {}", if *open { "opened" } else { "lost" }),
+        }
+    }
+}
+
+/// How an accepted command ended at this router.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Outcome {
+    /// At least one result frame was queued to the origin link (for a
+    /// command to the GCU itself: its own answer).
+    Result,
+    /// The device (or every device of a fan-out) answered NIC; one `?` was
+    /// written to the origin link.
+    Nic,
+    /// Acknowledged with no result due, or a device-255 broadcast written and
+    /// its guard time passed.
+    Completed,
+    /// Acknowledged, but the required result did not come in time.
+    NoResult,
+    /// The device never acknowledged (retries exhausted): device unreachable.
+    Unreachable,
+    /// Handed to the next-hop link toward another group.
+    Forwarded(LinkId),
+    /// Not executed.
+    Dropped(DropReason),
+}
+
+/// Why a frame or job was dropped. Every drop is counted under its reason.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum DropReason {
+    /// No static, learned or default route to the destination group.
+    NoRoute,
+    /// The only route leads back to the link the frame came from.
+    Loop,
+    /// Learned from several client links at once: answering one could reach the wrong one.
+    AmbiguousRoute,
+    /// Destination port not configured on this GCU.
+    UnknownPort,
+    /// Destination port configured but not open.
+    PortClosed,
+    /// The port vanished with the job in flight or queued.
+    PortLost,
+    /// A bounded queue (port or link) was full.
+    QueueFull,
+    /// The link may not speak for this source group (or it is 255 or our own group).
+    SourceNotAllowed,
+    /// The link went down with the frame queued or in flight.
+    LinkDown,
+    /// The link peer never acknowledged the frame (retries exhausted).
+    LinkNoAck,
+    /// The link the answer should go back to is gone.
+    OriginGone,
+    /// A frame nobody was waiting for (a late or stray result).
+    Unsolicited,
+    /// A NIC from a link that could belong to commands of several origins.
+    AmbiguousNic,
+    /// Too many forwarded commands awaiting answers: the oldest was forgotten.
+    PendingFull,
+}
+
+impl DropReason {
+    pub const ALL: [DropReason; 14] = [
+        DropReason::NoRoute,
+        DropReason::Loop,
+        DropReason::AmbiguousRoute,
+        DropReason::UnknownPort,
+        DropReason::PortClosed,
+        DropReason::PortLost,
+        DropReason::QueueFull,
+        DropReason::SourceNotAllowed,
+        DropReason::LinkDown,
+        DropReason::LinkNoAck,
+        DropReason::OriginGone,
+        DropReason::Unsolicited,
+        DropReason::AmbiguousNic,
+        DropReason::PendingFull,
+    ];
+
+    /// Index into [`crate::DropCounts`].
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+
+    /// A short snake_case name, for metric labels.
+    pub const fn name(self) -> &'static str {
+        match self {
+            DropReason::NoRoute => "no_route",
+            DropReason::Loop => "loop",
+            DropReason::AmbiguousRoute => "ambiguous_route",
+            DropReason::UnknownPort => "unknown_port",
+            DropReason::PortClosed => "port_closed",
+            DropReason::PortLost => "port_lost",
+            DropReason::QueueFull => "queue_full",
+            DropReason::SourceNotAllowed => "source_not_allowed",
+            DropReason::LinkDown => "link_down",
+            DropReason::LinkNoAck => "link_no_ack",
+            DropReason::OriginGone => "origin_gone",
+            DropReason::Unsolicited => "unsolicited",
+            DropReason::AmbiguousNic => "ambiguous_nic",
+            DropReason::PendingFull => "pending_full",
+        }
+    }
+}

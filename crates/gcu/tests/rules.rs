@@ -1,0 +1,715 @@
+//! One test per rule of DESIGN "Routing semantics" and "Safety", driving
+//! the public `Router` API with hand-written bytes.
+
+use sagebrush_gcu::{
+    Action, CommandId, DropReason, Event, Input, LinkConfig, LinkId, LinkKind, Outcome, PortConfig, Router,
+    RouterConfig, SourceFilter,
+};
+use sagebrush_protocol::{ACK, Address, FrameBuf, NAK, NIC};
+
+const G: u8 = 5;
+const CLIENT: LinkId = LinkId(1);
+const UP: LinkId = LinkId(2);
+const DOWN: LinkId = LinkId(3);
+const DOWN2: LinkId = LinkId(4);
+
+fn frame(dest: (u8, u8, u8), source: u8, payload: &[u8]) -> Vec<u8> {
+    FrameBuf::new(Address::new(dest.0, dest.1, dest.2), source, payload)
+        .unwrap()
+        .as_bytes()
+        .to_vec()
+}
+
+fn port_config(id: u8) -> PortConfig {
+    PortConfig {
+        retries: 2,
+        ack_timeout: 10,
+        result_timeout: 50,
+        long_result_timeout: 1000,
+        nic_window: 5,
+        broadcast_guard: 20,
+        queue_bound: 4,
+        idle_timeout: 5,
+        ..PortConfig::new(id)
+    }
+}
+
+struct H {
+    r: Router,
+    now: u64,
+}
+
+impl H {
+    fn new(ports: &[u8]) -> Self {
+        Self::with(ports, |_| {})
+    }
+
+    fn with(ports: &[u8], tweak: impl FnOnce(&mut RouterConfig)) -> Self {
+        let mut config = RouterConfig::new(G);
+        config.name = "test gcu".into();
+        config.serial = "SN-5".into();
+        config.ports = ports.iter().map(|&p| port_config(p)).collect();
+        config.links.ack_timeout = 10;
+        config.links.retries = 2;
+        tweak(&mut config);
+        let mut h = Self {
+            r: Router::new(config).unwrap(),
+            now: 0,
+        };
+        for &p in ports {
+            h.go(Input::PortOpened { port: p });
+        }
+        h.up(CLIENT, LinkKind::Client);
+        h
+    }
+
+    fn up(&mut self, link: LinkId, kind: LinkKind) {
+        self.go(Input::LinkUp {
+            link,
+            config: LinkConfig::new(kind, SourceFilter::Any),
+        });
+    }
+
+    fn go(&mut self, input: Input<'_>) -> Vec<Action> {
+        self.r.handle_vec(self.now, input)
+    }
+
+    fn link(&mut self, link: LinkId, bytes: &[u8]) -> Vec<Action> {
+        self.go(Input::LinkBytes { link, bytes })
+    }
+
+    fn port(&mut self, port: u8, bytes: &[u8]) -> Vec<Action> {
+        self.go(Input::PortBytes { port, bytes })
+    }
+
+    /// Advances time by `ticks`, firing every deadline on the way.
+    fn wait(&mut self, ticks: u64) -> Vec<Action> {
+        let end = self.now + ticks;
+        let mut all = Vec::new();
+        while let Some(t) = self.r.next_deadline().filter(|&t| t <= end) {
+            self.now = t.max(self.now);
+            all.extend(self.go(Input::Tick));
+        }
+        self.now = end;
+        all.extend(self.go(Input::Tick));
+        all
+    }
+}
+
+fn port_writes(actions: &[Action], port: u8) -> Vec<Vec<u8>> {
+    actions
+        .iter()
+        .filter_map(|a| match a {
+            Action::WritePort { port: p, bytes } if *p == port => Some(bytes.clone()),
+            _ => None,
+        })
+        .collect()
+}
+
+fn link_writes(actions: &[Action], link: LinkId) -> Vec<Vec<u8>> {
+    actions
+        .iter()
+        .filter_map(|a| match a {
+            Action::WriteLink { link: l, bytes } if *l == link => Some(bytes.clone()),
+            _ => None,
+        })
+        .collect()
+}
+
+fn finished(actions: &[Action]) -> Vec<Outcome> {
+    actions
+        .iter()
+        .filter_map(|a| match a {
+            Action::Event(Event::Finished { outcome, .. }) => Some(*outcome),
+            _ => None,
+        })
+        .collect()
+}
+
+fn accepted(actions: &[Action]) -> Vec<CommandId> {
+    actions
+        .iter()
+        .filter_map(|a| match a {
+            Action::Event(Event::Accepted { id, .. }) => Some(*id),
+            _ => None,
+        })
+        .collect()
+}
+
+fn dropped(actions: &[Action]) -> Vec<DropReason> {
+    actions
+        .iter()
+        .filter_map(|a| match a {
+            Action::Event(Event::Dropped { reason, .. }) => Some(*reason),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn config_is_validated() {
+    assert!(Router::new(RouterConfig::new(0)).is_err());
+    assert!(Router::new(RouterConfig::new(255)).is_err());
+    let mut c = RouterConfig::new(3);
+    c.ports = vec![PortConfig::new(1), PortConfig::new(1)];
+    assert!(Router::new(c).is_err());
+    let mut c = RouterConfig::new(3);
+    c.ports = vec![PortConfig {
+        bps: 1000,
+        ..PortConfig::new(1)
+    }];
+    assert!(Router::new(c).is_err());
+    let mut c = RouterConfig::new(3);
+    c.name = "a name that is longer than twenty".into();
+    assert!(Router::new(c).is_err());
+}
+
+#[test]
+fn port_opened_reports_its_rate_and_unknown_inputs_are_counted() {
+    let mut config = RouterConfig::new(G);
+    config.ports = vec![PortConfig {
+        bps: 38400,
+        ..port_config(1)
+    }];
+    let mut r = Router::new(config).unwrap();
+    let a = r.handle_vec(0, Input::PortOpened { port: 1 });
+    assert!(a.contains(&Action::SetPortRate { port: 1, bps: 38400 }));
+    assert!(r.handle_vec(0, Input::PortBytes { port: 9, bytes: b"x" }).is_empty());
+    assert!(
+        r.handle_vec(
+            0,
+            Input::LinkBytes {
+                link: LinkId(9),
+                bytes: b"x"
+            }
+        )
+        .is_empty()
+    );
+    assert_eq!(r.unknown_inputs(), 2);
+}
+
+#[test]
+fn link_frames_are_acked_and_bad_checksums_naked() {
+    let mut h = H::new(&[1]);
+    let mut bad = frame((G, 1, 3), 2, b"PL");
+    *bad.last_mut().unwrap() ^= 0xFF;
+    let a = h.link(CLIENT, &bad);
+    assert_eq!(link_writes(&a, CLIENT), vec![vec![NAK]]);
+    assert!(accepted(&a).is_empty());
+    let a = h.link(CLIENT, &frame((G, 1, 3), 2, b"PL"));
+    assert_eq!(link_writes(&a, CLIENT)[0], vec![ACK]);
+    assert_eq!(accepted(&a).len(), 1);
+    let s = h.r.stats();
+    assert_eq!(s.links[&CLIENT].line.bad_checksums, 1);
+    assert_eq!(s.links[&CLIENT].line.naks_sent, 1);
+    assert_eq!(s.links[&CLIENT].line.frames_in, 1);
+}
+
+#[test]
+fn gcu_itself_answers_aw_and_id_and_nic_otherwise() {
+    let mut h = H::new(&[1]);
+    let a = h.link(CLIENT, &frame((G, 0, 0), 2, b"AW"));
+    assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK], frame((2, 0, 0), G, b"0")]);
+    assert_eq!(finished(&a), vec![Outcome::Result]);
+    h.link(CLIENT, &[ACK]);
+    let a = h.link(CLIENT, &frame((G, 0, 0), 2, b"D?"));
+    let writes = link_writes(&a, CLIENT);
+    let reply = FrameBuf::new(
+        Address::new(2, 0, 0),
+        G,
+        b"0519test gcu            SN-5                ",
+    )
+    .unwrap();
+    assert_eq!(writes[1], reply.as_bytes());
+    h.link(CLIENT, &[ACK]);
+    let a = h.link(CLIENT, &frame((G, 0, 0), 2, b"PL"));
+    assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK], vec![NIC]]);
+    assert_eq!(finished(&a), vec![Outcome::Nic]);
+    assert!(port_writes(&a, 1).is_empty());
+}
+
+#[test]
+fn result_goes_back_with_table3_header_and_is_acked_on_the_port() {
+    // Table 3: command 5.1.12 from group 2; result 2.1.12 from group 5.
+    let mut h = H::new(&[1]);
+    let cmd = frame((G, 1, 12), 2, b"P?");
+    let a = h.link(CLIENT, &cmd);
+    assert_eq!(
+        port_writes(&a, 1),
+        vec![cmd.clone()],
+        "written with the header unchanged"
+    );
+    h.port(1, &[ACK]);
+    // The device swapped the groups; the GCU rewrites the source group anyway.
+    let a = h.port(1, &frame((2, 1, 12), 255, b"00640000"));
+    assert_eq!(port_writes(&a, 1), vec![vec![ACK]], "hop-by-hop ACK of the result");
+    assert_eq!(link_writes(&a, CLIENT), vec![frame((2, 1, 12), G, b"00640000")]);
+    assert_eq!(finished(&a), vec![Outcome::Result]);
+    let s = h.r.stats();
+    assert_eq!(s.devices[&(1, 12)].frames_in, 1);
+    assert_eq!(s.ports[&1].line.frames_in, 1);
+}
+
+#[test]
+fn bad_checksum_result_is_naked_on_the_port_and_retransmission_accepted() {
+    let mut h = H::new(&[1]);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"AW"));
+    h.port(1, &[ACK]);
+    let mut bad = frame((2, 1, 3), G, b"0");
+    bad[6] = b'1';
+    let a = h.port(1, &bad);
+    assert_eq!(port_writes(&a, 1), vec![vec![NAK]]);
+    assert!(finished(&a).is_empty());
+    let a = h.port(1, &frame((2, 1, 3), G, b"0"));
+    assert_eq!(finished(&a), vec![Outcome::Result]);
+}
+
+#[test]
+fn nic_is_relayed_as_a_bare_question_mark() {
+    let mut h = H::new(&[1]);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"XYZ"));
+    let a = h.port(1, &[ACK, NIC]);
+    assert_eq!(link_writes(&a, CLIENT), vec![vec![NIC]]);
+    assert_eq!(finished(&a), vec![Outcome::Nic]);
+    assert_eq!(h.r.stats().devices[&(1, 3)].nics, 1);
+}
+
+#[test]
+fn no_ack_retransmits_up_to_the_count_then_unreachable() {
+    let mut h = H::new(&[1]);
+    let cmd = frame((G, 1, 3), 2, b"PL");
+    let a = h.link(CLIENT, &cmd);
+    assert_eq!(port_writes(&a, 1), vec![cmd.clone()]);
+    // A NAK is a retransmission too.
+    let a = h.port(1, &[NAK]);
+    assert_eq!(port_writes(&a, 1), vec![cmd.clone()]);
+    let a = h.wait(100);
+    assert_eq!(port_writes(&a, 1), vec![cmd.clone()], "retries = 2");
+    assert_eq!(finished(&a), vec![Outcome::Unreachable]);
+    let s = h.r.stats();
+    assert_eq!(s.devices[&(1, 3)].retransmits, 2);
+    assert_eq!(s.devices[&(1, 3)].unreachable, 1);
+    assert_eq!(s.ports[&1].line.naks_received, 1);
+    assert_eq!(s.router.unreachable, 1);
+}
+
+#[test]
+fn result_time_out_classes_normal_and_long() {
+    let mut h = H::new(&[1]);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"P?"));
+    h.port(1, &[ACK]);
+    assert!(finished(&h.wait(49)).is_empty());
+    assert_eq!(finished(&h.wait(1)), vec![Outcome::NoResult]);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"IX"));
+    h.port(1, &[ACK]);
+    assert!(finished(&h.wait(999)).is_empty(), "IX is long");
+    assert_eq!(finished(&h.wait(1)), vec![Outcome::NoResult]);
+    assert_eq!(h.r.stats().devices[&(1, 3)].no_result, 2);
+}
+
+#[test]
+fn command_without_result_waits_a_short_nic_window() {
+    let mut h = H::new(&[1]);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"PL"));
+    let second = frame((G, 1, 4), 2, b"TU");
+    let a = h.port(1, &[ACK]);
+    assert!(port_writes(&a, 1).is_empty(), "bus held during the NIC window");
+    let a = h.wait(5);
+    assert_eq!(finished(&a), vec![Outcome::Completed]);
+    h.link(CLIENT, &second);
+    let a = h.port(1, &[ACK]);
+    assert!(finished(&a).is_empty());
+    let a = h.port(1, &[NIC]);
+    assert_eq!(finished(&a), vec![Outcome::Nic]);
+}
+
+#[test]
+fn device_255_written_once_without_ack_then_guard() {
+    let mut h = H::new(&[1]);
+    let cmd = frame((G, 1, 255), 2, b"HO");
+    let a = h.link(CLIENT, &cmd);
+    assert_eq!(port_writes(&a, 1), vec![cmd.clone()]);
+    let next = frame((G, 1, 3), 2, b"AW");
+    let a = h.link(CLIENT, &next);
+    assert!(port_writes(&a, 1).is_empty(), "queued behind the guard");
+    let a = h.wait(19);
+    assert!(port_writes(&a, 1).is_empty(), "written once, no retransmission");
+    let a = h.wait(1);
+    assert_eq!(finished(&a), vec![Outcome::Completed]);
+    assert_eq!(port_writes(&a, 1), vec![next]);
+}
+
+#[test]
+fn stop_overtakes_queued_work() {
+    let mut h = H::new(&[1]);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"P?"));
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"HO"));
+    h.link(CLIENT, &frame((G, 1, 4), 2, b"PL"));
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"PS"));
+    h.link(CLIENT, &frame((G, 1, 4), 2, b"HA"));
+    // P? is in flight; after it, the stops in their order, then the rest.
+    h.port(1, &[ACK]);
+    let a = h.port(1, &frame((2, 1, 3), G, b"00000000"));
+    assert_eq!(port_writes(&a, 1), vec![vec![ACK], frame((G, 1, 3), 2, b"PS")]);
+    h.port(1, &[ACK]);
+    let a = h.wait(5);
+    assert_eq!(port_writes(&a, 1), vec![frame((G, 1, 4), 2, b"HA")]);
+    h.port(1, &[ACK]);
+    let a = h.wait(5);
+    assert_eq!(port_writes(&a, 1), vec![frame((G, 1, 3), 2, b"HO")]);
+}
+
+#[test]
+fn stop_is_not_held_behind_a_long_ix_result_wait() {
+    let mut h = H::new(&[1]);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"IX"));
+    h.port(1, &[ACK]);
+    let a = h.link(CLIENT, &frame((G, 1, 3), 2, b"HS"));
+    assert_eq!(port_writes(&a, 1), vec![frame((G, 1, 3), 2, b"HS")]);
+    h.port(1, &[ACK]);
+    let a = h.wait(5);
+    assert_eq!(finished(&a), vec![Outcome::Completed]);
+    // The set-aside IX still takes its result.
+    let a = h.port(1, &frame((2, 1, 3), G, b"0001000100010001"));
+    assert_eq!(finished(&a), vec![Outcome::Result]);
+    assert_eq!(link_writes(&a, CLIENT), vec![frame((2, 1, 3), G, b"0001000100010001")]);
+}
+
+#[test]
+fn bounded_port_queue_drops_with_counter_and_warning_but_keeps_stops() {
+    let mut h = H::new(&[1]);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"P?")); // in flight
+    for _ in 0..4 {
+        h.link(CLIENT, &frame((G, 1, 3), 2, b"HO"));
+    }
+    let a = h.link(CLIENT, &frame((G, 1, 3), 2, b"HO"));
+    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::QueueFull)]);
+    let a = h.link(CLIENT, &frame((G, 1, 3), 2, b"PS"));
+    assert_eq!(
+        finished(&a),
+        vec![Outcome::Dropped(DropReason::QueueFull)],
+        "a non-stop evicted"
+    );
+    let s = h.r.stats();
+    assert_eq!(s.ports[&1].line.drops.get(DropReason::QueueFull), 2);
+    assert_eq!(s.ports[&1].queue_high_water, 4);
+    assert!(
+        a.iter()
+            .any(|x| matches!(x, Action::Event(e) if e.level() == sagebrush_gcu::Level::Warn))
+    );
+}
+
+#[test]
+fn unknown_and_closed_ports_are_dropped_and_counted() {
+    let mut h = H::new(&[1]);
+    let a = h.link(CLIENT, &frame((G, 9, 3), 2, b"AW"));
+    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::UnknownPort)]);
+    h.go(Input::PortLost { port: 1 });
+    let a = h.link(CLIENT, &frame((G, 1, 3), 2, b"AW"));
+    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::PortClosed)]);
+    assert_eq!(h.r.stats().router.dropped.get(DropReason::UnknownPort), 1);
+}
+
+#[test]
+fn lost_port_fails_in_flight_and_queued_then_recovers() {
+    let mut h = H::new(&[1]);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"P?"));
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"HO"));
+    let a = h.go(Input::PortLost { port: 1 });
+    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::PortLost); 2]);
+    assert_eq!(h.r.stats().ports[&1].line.drops.get(DropReason::PortLost), 2);
+    let a = h.go(Input::PortOpened { port: 1 });
+    assert!(a.contains(&Action::SetPortRate { port: 1, bps: 9600 }));
+    let cmd = frame((G, 1, 3), 2, b"AW");
+    let a = h.link(CLIENT, &cmd);
+    assert_eq!(port_writes(&a, 1), vec![cmd]);
+}
+
+#[test]
+fn port_255_goes_to_every_port_and_each_result_names_its_port() {
+    let mut h = H::new(&[1, 2]);
+    let a = h.link(CLIENT, &frame((G, 255, 3), 2, b"AW"));
+    assert_eq!(accepted(&a).len(), 1);
+    assert_eq!(port_writes(&a, 1), vec![frame((G, 1, 3), 2, b"AW")]);
+    assert_eq!(port_writes(&a, 2), vec![frame((G, 2, 3), 2, b"AW")]);
+    h.port(1, &[ACK]);
+    let a = h.port(1, &frame((2, 1, 3), G, b"0"));
+    assert_eq!(link_writes(&a, CLIENT), vec![frame((2, 1, 3), G, b"0")]);
+    assert!(finished(&a).is_empty(), "one outcome once every port is done");
+    h.port(2, &[ACK]);
+    let a = h.port(2, &frame((2, 2, 3), G, b"4"));
+    assert_eq!(finished(&a), vec![Outcome::Result]);
+    assert!(link_writes(&a, CLIENT).is_empty(), "one unacknowledged frame per link");
+    let a = h.link(CLIENT, &[ACK]);
+    assert_eq!(link_writes(&a, CLIENT), vec![frame((2, 2, 3), G, b"4")]);
+}
+
+#[test]
+fn fan_out_relays_one_nic_only_when_no_port_did_better() {
+    let mut h = H::new(&[1, 2]);
+    h.link(CLIENT, &frame((G, 255, 3), 2, b"XX"));
+    let a = h.port(1, &[ACK, NIC]);
+    assert!(link_writes(&a, CLIENT).is_empty());
+    let a = h.port(2, &[ACK, NIC]);
+    assert_eq!(link_writes(&a, CLIENT), vec![vec![NIC]]);
+    assert_eq!(finished(&a), vec![Outcome::Nic]);
+}
+
+#[test]
+fn group_255_from_upstream_floods_downstream_never_back() {
+    let mut h = H::new(&[1]);
+    h.up(UP, LinkKind::Upstream);
+    h.up(DOWN, LinkKind::Downstream);
+    h.up(DOWN2, LinkKind::Downstream);
+    let cmd = frame((255, 1, 3), 0, b"HO");
+    let a = h.link(UP, &cmd);
+    assert_eq!(link_writes(&a, UP), vec![vec![ACK]], "never back where it came from");
+    assert_eq!(link_writes(&a, DOWN), vec![cmd.clone()]);
+    assert_eq!(link_writes(&a, DOWN2), vec![cmd.clone()]);
+    assert!(link_writes(&a, CLIENT).is_empty());
+    assert_eq!(port_writes(&a, 1), vec![cmd.clone()]);
+    // From a downstream GCU: executed here, not flooded.
+    let from_down = frame((255, 1, 3), 7, b"HO");
+    let a = h.link(DOWN, &from_down);
+    assert_eq!(link_writes(&a, DOWN2), Vec::<Vec<u8>>::new());
+    assert_eq!(link_writes(&a, UP), Vec::<Vec<u8>>::new());
+    assert_eq!(h.r.stats().router.flooded, 2);
+}
+
+#[test]
+fn other_groups_follow_static_then_learned_then_default_routes() {
+    let mut h = H::with(&[1], |c| {
+        c.static_routes.insert(7, DOWN2);
+        c.default_upstream = Some(UP);
+    });
+    h.up(UP, LinkKind::Upstream);
+    h.up(DOWN, LinkKind::Downstream);
+    h.up(DOWN2, LinkKind::Downstream);
+    // Learned: group 8 seen on DOWN.
+    h.link(DOWN, &frame((G, 0, 0), 8, b"AW"));
+    h.link(DOWN, &[ACK]);
+    let to7 = frame((7, 1, 1), 2, b"HO");
+    let a = h.link(CLIENT, &to7);
+    assert_eq!(link_writes(&a, DOWN2), vec![to7]);
+    assert_eq!(finished(&a), vec![Outcome::Forwarded(DOWN2)]);
+    let to8 = frame((8, 1, 1), 2, b"HO");
+    let a = h.link(CLIENT, &to8);
+    assert_eq!(link_writes(&a, DOWN), vec![to8]);
+    let to9 = frame((9, 1, 1), 2, b"HO");
+    let a = h.link(CLIENT, &to9);
+    assert_eq!(link_writes(&a, UP), vec![to9.clone()]);
+    // Static route down: learned would be used; default down too: no route.
+    h.go(Input::LinkDown { link: UP });
+    let a = h.link(CLIENT, &to9);
+    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::NoRoute)]);
+    assert_eq!(dropped(&a), vec![DropReason::NoRoute]);
+    assert_eq!(h.r.stats().router.frame_drops.get(DropReason::NoRoute), 1);
+}
+
+#[test]
+fn a_frame_is_never_routed_back_to_its_link() {
+    let mut h = H::new(&[1]);
+    h.up(UP, LinkKind::Upstream);
+    let a = h.link(UP, &frame((9, 1, 1), 0, b"HO"));
+    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::Loop)]);
+    assert_eq!(link_writes(&a, UP), vec![vec![ACK]]);
+}
+
+#[test]
+fn disallowed_source_group_is_dropped_and_counted() {
+    let mut h = H::new(&[1]);
+    h.go(Input::LinkUp {
+        link: LinkId(9),
+        config: LinkConfig::new(LinkKind::Client, SourceFilter::Only(vec![20])),
+    });
+    let a = h.link(LinkId(9), &frame((G, 1, 3), 21, b"PL"));
+    assert_eq!(link_writes(&a, LinkId(9)), vec![vec![ACK]]);
+    assert!(accepted(&a).is_empty());
+    assert_eq!(dropped(&a), vec![DropReason::SourceNotAllowed]);
+    // Our own group and the wildcard are refused on any link.
+    let a = h.link(CLIENT, &frame((G, 1, 3), G, b"PL"));
+    assert!(accepted(&a).is_empty());
+    let a = h.link(CLIENT, &frame((G, 1, 3), 255, b"PL"));
+    assert!(accepted(&a).is_empty());
+    let a = h.link(LinkId(9), &frame((G, 1, 3), 20, b"PL"));
+    assert_eq!(accepted(&a).len(), 1);
+    assert_eq!(
+        h.r.stats().links[&LinkId(9)]
+            .line
+            .drops
+            .get(DropReason::SourceNotAllowed),
+        1
+    );
+}
+
+#[test]
+fn frames_sent_on_links_are_retransmitted_on_nak_and_time_out_up_to_the_count() {
+    let mut h = H::new(&[1]);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"AW"));
+    h.port(1, &[ACK]);
+    let result = frame((2, 1, 3), G, b"0");
+    let a = h.port(1, &result);
+    assert_eq!(link_writes(&a, CLIENT), vec![result.clone()]);
+    let a = h.link(CLIENT, &[NAK]);
+    assert_eq!(link_writes(&a, CLIENT), vec![result.clone()]);
+    let a = h.wait(10);
+    assert_eq!(link_writes(&a, CLIENT), vec![result.clone()]);
+    let a = h.wait(10);
+    assert!(link_writes(&a, CLIENT).is_empty(), "retries = 2: given up");
+    assert_eq!(dropped(&a), vec![DropReason::LinkNoAck]);
+    let s = h.r.stats().links[&CLIENT];
+    assert_eq!((s.line.retransmits, s.failed, s.delivered, s.queued), (2, 1, 0, 1));
+}
+
+#[test]
+fn answers_of_forwarded_commands_reach_the_right_client_even_with_one_group() {
+    let mut h = H::new(&[1]);
+    let other = LinkId(6);
+    h.up(other, LinkKind::Client);
+    h.up(DOWN, LinkKind::Downstream);
+    h.link(DOWN, &frame((G, 0, 0), 7, b"AW"));
+    h.link(DOWN, &[ACK]);
+    // Both clients speak as group 0 and ask GCU 7 the same question.
+    h.link(CLIENT, &frame((7, 1, 3), 0, b"*mu1"));
+    h.link(other, &frame((7, 1, 3), 0, b"*mu2"));
+    h.link(DOWN, &[ACK]);
+    h.link(DOWN, &[ACK]);
+    let a = h.link(DOWN, &frame((0, 1, 3), 7, b"1"));
+    assert_eq!(link_writes(&a, CLIENT), vec![frame((0, 1, 3), 7, b"1")]);
+    assert!(link_writes(&a, other).is_empty());
+    let a = h.link(DOWN, &frame((0, 1, 3), 7, b"2"));
+    assert_eq!(link_writes(&a, other), vec![frame((0, 1, 3), 7, b"2")]);
+    // A `?` that could be either's is dropped, never given to the wrong one.
+    h.link(CLIENT, &frame((7, 1, 3), 0, b"PL"));
+    h.link(other, &frame((7, 1, 3), 0, b"PL"));
+    h.link(DOWN, &[ACK]);
+    h.link(DOWN, &[ACK]);
+    let a = h.link(DOWN, &[NIC]);
+    assert_eq!(dropped(&a), vec![DropReason::AmbiguousNic]);
+    assert!(link_writes(&a, CLIENT).is_empty() && link_writes(&a, other).is_empty());
+}
+
+#[test]
+fn nic_from_another_gcu_is_relayed_to_the_origin() {
+    let mut h = H::new(&[1]);
+    h.up(DOWN, LinkKind::Downstream);
+    h.link(DOWN, &frame((G, 0, 0), 7, b"AW"));
+    h.link(DOWN, &[ACK]);
+    h.link(CLIENT, &frame((7, 1, 3), 2, b"XX"));
+    h.link(DOWN, &[ACK]);
+    let a = h.link(DOWN, &[NIC]);
+    assert_eq!(link_writes(&a, CLIENT), vec![vec![NIC]]);
+}
+
+#[test]
+fn dead_man_stops_the_motions_of_a_link_that_goes_down() {
+    let mut h = H::new(&[1]);
+    h.up(DOWN, LinkKind::Downstream);
+    h.link(DOWN, &frame((G, 0, 0), 7, b"AW"));
+    h.link(DOWN, &[ACK]);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"PL"));
+    h.port(1, &[ACK]);
+    h.wait(5);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"ZI"));
+    h.link(CLIENT, &frame((G, 1, 4), 2, b"TU")); // still queued: cancelled
+    h.link(CLIENT, &frame((7, 2, 2), 2, b"FF")); // on another GCU: stop routed there
+    h.link(DOWN, &[ACK]);
+    let a = h.go(Input::LinkDown { link: CLIENT });
+    assert_eq!(
+        finished(&a).first(),
+        Some(&Outcome::Dropped(DropReason::OriginGone)),
+        "queued TU cancelled"
+    );
+    let stops: Vec<_> = a
+        .iter()
+        .filter_map(|x| match x {
+            Action::Event(Event::DeadManStop { dest, stop, .. }) => Some((*dest, *stop)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(stops.len(), 4, "{stops:?}");
+    assert!(stops.contains(&(Address::new(G, 1, 3), "PS")));
+    assert!(stops.contains(&(Address::new(G, 1, 3), "ZS")));
+    assert!(stops.contains(&(Address::new(7, 2, 2), "FS")));
+    assert!(stops.contains(&(Address::new(G, 1, 4), "TS")));
+    assert_eq!(link_writes(&a, DOWN), vec![frame((7, 2, 2), G, b"FS")]);
+    // ZI in flight; the stops go next, before anything else.
+    h.port(1, &[ACK]);
+    let a = h.wait(5);
+    let w = port_writes(&a, 1);
+    assert!(
+        w[0] == frame((G, 1, 3), G, b"PS") || w[0] == frame((G, 1, 3), G, b"ZS"),
+        "{w:?}"
+    );
+    assert_eq!(h.r.stats().router.dead_man_stops, 4);
+}
+
+#[test]
+fn rate_change_acknowledged_by_every_device_switches_the_port() {
+    let mut h = H::with(&[1], |c| c.ports[0].devices = Some(vec![3, 4]));
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"C5"));
+    h.port(1, &[ACK]);
+    let a = h.wait(5);
+    assert_eq!(finished(&a), vec![Outcome::Completed]);
+    assert!(
+        !a.iter().any(|x| matches!(x, Action::SetPortRate { .. })),
+        "device 4 not yet"
+    );
+    h.link(CLIENT, &frame((G, 1, 4), 2, b"C5"));
+    h.port(1, &[ACK]);
+    let a = h.wait(5);
+    assert!(a.contains(&Action::SetPortRate { port: 1, bps: 38400 }));
+    assert_eq!(h.r.stats().ports[&1].bps, 38400);
+}
+
+#[test]
+fn rate_change_to_device_255_switches_the_port_reserved_rates_never() {
+    let mut h = H::new(&[1]);
+    h.link(CLIENT, &frame((G, 1, 255), 2, b"C7"));
+    let a = h.wait(20);
+    assert!(a.contains(&Action::SetPortRate { port: 1, bps: 115200 }));
+    h.link(CLIENT, &frame((G, 1, 255), 2, b"C9"));
+    let a = h.wait(20);
+    assert_eq!(finished(&a), vec![Outcome::Completed]);
+    assert!(!a.iter().any(|x| matches!(x, Action::SetPortRate { .. })));
+    // Learned devices: the one that answered switches the port alone.
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"AW"));
+    h.port(1, &[ACK]);
+    h.port(1, &frame((2, 1, 3), G, b"0"));
+    h.link(CLIENT, &[ACK]);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"C2"));
+    h.port(1, &[ACK]);
+    let a = h.wait(5);
+    assert!(a.contains(&Action::SetPortRate { port: 1, bps: 4800 }));
+}
+
+#[test]
+fn statistics_count_lines_devices_and_last_seen() {
+    let mut h = H::new(&[1]);
+    h.now = 42;
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"AW"));
+    h.port(1, &[ACK]);
+    h.port(1, &frame((2, 1, 3), G, b"0"));
+    let s = h.r.stats();
+    assert_eq!(s.ports[&1].line.frames_out, 1);
+    assert_eq!(s.ports[&1].line.last_seen, Some(42));
+    assert_eq!(s.links[&CLIENT].line.last_seen, Some(42));
+    assert_eq!(s.devices[&(1, 3)].commands, 1);
+    assert_eq!(s.devices[&(1, 3)].last_seen, Some(42));
+    assert_eq!(s.router.accepted, 1);
+    assert_eq!(s.router.results, 1);
+    assert_eq!(s.router.finished(), 1);
+    assert_eq!(s.ports[&1].transactions, 1);
+}
+
+#[test]
+fn link_going_down_drops_its_queue_and_answers_for_it_count_origin_gone() {
+    let mut h = H::new(&[1]);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"P?"));
+    h.port(1, &[ACK]);
+    h.go(Input::LinkDown { link: CLIENT });
+    let a = h.port(1, &frame((2, 1, 3), G, b"00000000"));
+    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::OriginGone)]);
+    assert!(!h.r.link_is_up(CLIENT));
+    assert!(!h.r.stats().links[&CLIENT].up);
+}
