@@ -1,1 +1,18 @@
-//! Host-side code shared by gcud, gimbalctl and gimbalsim.
+//! Host-side code shared by `gcud`, `gimbalctl` and `gimbalsim`:
+//!
+//! - [`logging`]: `tracing` set-up (stderr, `RUST_LOG`-style filters, JSON).
+//! - [`transport`]: serial ports (tokio-serial) and TCP links as byte
+//!   streams ([`transport::Line`]), with errors that name the device.
+//! - [`pty`]: a fresh pseudo-terminal pair whose master is an async stream
+//!   (the simulator's virtual serial port).
+//! - [`timing`]: time-outs derived from the line rate (1.4.2).
+//! - [`master`]: the bus/link master side of one command exchange (Figure
+//!   6) over any stream, driving the protocol crate's `Transaction`.
+//! - [`hex`]: hex text of wire bytes, as `gimbalctl encode/decode` use it.
+
+pub mod hex;
+pub mod logging;
+pub mod master;
+pub mod pty;
+pub mod timing;
+pub mod transport;

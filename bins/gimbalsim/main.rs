@@ -1,4 +1,39 @@
-fn main() {
-    eprintln!("gimbalsim: not built yet");
-    std::process::exit(1);
+//! `gimbalsim`: a bus of virtual Sagebrush pan-tilt gimbals (protocol rev
+//! 1.9) on a pseudo-terminal, a TCP listener or a serial device. The model
+//! is `sagebrush-sim`; this binary only does I/O around it.
+
+mod cli;
+mod run;
+
+use std::process::ExitCode;
+
+use clap::Parser;
+
+fn main() -> ExitCode {
+    let cli = cli::Cli::parse();
+    if let Err(e) = sagebrush::logging::init(&cli.log, cli.log_json) {
+        eprintln!("gimbalsim: {e}");
+        return ExitCode::from(2);
+    }
+    let config = match cli.bus_config() {
+        Ok(config) => config,
+        Err(e) => {
+            eprintln!("gimbalsim: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let runtime = match tokio::runtime::Builder::new_current_thread().enable_all().build() {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("gimbalsim: cannot start the runtime: {e}");
+            return ExitCode::from(1);
+        }
+    };
+    match runtime.block_on(run::run(cli, config)) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("gimbalsim: {e}");
+            ExitCode::from(1)
+        }
+    }
 }

@@ -1,0 +1,191 @@
+//! The master side of command exchanges (1.4.2, 1.4.3, Figure 6) over any
+//! async byte stream: a bus master on a serial line, or a client of a GCU
+//! over TCP. It drives the protocol crate's [`Transaction`] with a real
+//! clock, acknowledges result frames and NAKs damaged ones (hop by hop), so
+//! that a device can resend.
+
+use std::io;
+use std::time::Duration;
+
+use sagebrush_protocol::link::TransactionPolicy;
+use sagebrush_protocol::{ACK, Address, Command, Event, FrameBuf, Framer, NAK, Outcome, Transaction, TransactionStep};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use tokio::time::Instant;
+use tracing::{debug, info, warn};
+
+/// How one exchange went.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Exchange {
+    pub outcome: Outcome,
+    /// The result frame, when the outcome is [`Outcome::Result`].
+    pub result: Option<FrameBuf>,
+    /// Transmissions of the command, the first included.
+    pub transmissions: u8,
+    /// NAKs received for the command.
+    pub naks_received: u32,
+    /// Damaged result frames we NAKed.
+    pub naks_sent: u32,
+    /// Bytes that were no event (noise) during the exchange.
+    pub noise_bytes: u64,
+    /// Frames that were not our result (another device, a late answer).
+    pub stray_frames: u32,
+    pub elapsed: Duration,
+}
+
+/// An owned framer event.
+enum Owned {
+    Frame(Box<FrameBuf>),
+    Bad(Address),
+    Ack,
+    Nak,
+    Nic,
+}
+
+/// A master on one stream.
+#[derive(Debug)]
+pub struct Master<S> {
+    stream: S,
+    framer: Framer,
+    epoch: Instant,
+    policy: TransactionPolicy,
+}
+
+impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
+    pub fn new(stream: S, policy: TransactionPolicy) -> Self {
+        Self {
+            stream,
+            framer: Framer::new(),
+            epoch: Instant::now(),
+            policy,
+        }
+    }
+
+    pub fn policy(&self) -> &TransactionPolicy {
+        &self.policy
+    }
+
+    pub fn stream_mut(&mut self) -> &mut S {
+        &mut self.stream
+    }
+
+    fn now(&self) -> u64 {
+        self.epoch.elapsed().as_millis() as u64
+    }
+
+    fn instant(&self, tick: u64) -> Instant {
+        self.epoch + Duration::from_millis(tick)
+    }
+
+    async fn write(&mut self, bytes: &[u8]) -> io::Result<()> {
+        self.stream.write_all(bytes).await?;
+        self.stream.flush().await
+    }
+
+    /// Sends `frame` (whose payload is `command`) and waits for the end of
+    /// the exchange. I/O errors (a closed link) are errors; every protocol
+    /// outcome, failures included, is an [`Exchange`].
+    pub async fn transact(&mut self, frame: &FrameBuf, command: &Command<'_>) -> io::Result<Exchange> {
+        let started = Instant::now();
+        let noise_at_start = self.framer.skipped_bytes();
+        let mut tx = Transaction::new(frame.frame().dest, command, self.policy);
+        let mut result = None;
+        let (mut naks_received, mut naks_sent, mut stray_frames) = (0u32, 0u32, 0u32);
+        let mut step = tx.start(self.now());
+        let mut buf = [0u8; 512];
+        let outcome = loop {
+            match step {
+                TransactionStep::Done(outcome) => break outcome,
+                TransactionStep::Send => {
+                    if tx.transmissions() > 1 {
+                        info!(transmission = tx.transmissions(), dest = %frame.frame().dest, "retransmitting");
+                    }
+                    self.write(frame.as_bytes()).await?;
+                    step = tx.poll(self.now());
+                    continue;
+                }
+                TransactionStep::Wait => {}
+            }
+            let deadline = tx.deadline().map(|d| self.instant(d));
+            let read = async {
+                match deadline {
+                    Some(at) => tokio::time::timeout_at(at, self.stream.read(&mut buf)).await.ok(),
+                    None => Some(self.stream.read(&mut buf).await),
+                }
+            };
+            let n = match read.await {
+                None => {
+                    step = tx.poll(self.now());
+                    continue;
+                }
+                Some(Ok(0)) => {
+                    return Err(io::Error::new(
+                        io::ErrorKind::UnexpectedEof,
+                        "the line closed during the exchange",
+                    ));
+                }
+                Some(Ok(n)) => n,
+                Some(Err(e)) => return Err(e),
+            };
+            let mut events = Vec::new();
+            self.framer.feed(&buf[..n], |e| {
+                events.push(match e {
+                    Event::Frame(f) => Owned::Frame(Box::new(FrameBuf::from_frame(&f))),
+                    Event::BadChecksum(b) => Owned::Bad(b.dest),
+                    Event::Ack => Owned::Ack,
+                    Event::Nak => Owned::Nak,
+                    Event::Nic => Owned::Nic,
+                })
+            });
+            for event in events {
+                if matches!(step, TransactionStep::Done(_)) {
+                    debug!("byte after the end of the exchange ignored");
+                    continue;
+                }
+                let now = self.now();
+                step = match event {
+                    Owned::Frame(f) => {
+                        let s = tx.on_event(&Event::Frame(f.frame()), now);
+                        if s == TransactionStep::Done(Outcome::Result) {
+                            // Hop-by-hop acknowledgement of the result.
+                            self.write(&[ACK]).await?;
+                            result = Some(*f);
+                        } else {
+                            stray_frames += 1;
+                            debug!(dest = %f.frame().dest, "frame that is not our result ignored");
+                        }
+                        s
+                    }
+                    Owned::Bad(dest) => {
+                        if tx.is_result_header(&dest) {
+                            warn!(dest = %dest, "damaged result: NAK");
+                            naks_sent += 1;
+                            self.write(&[NAK]).await?;
+                        }
+                        TransactionStep::Wait
+                    }
+                    Owned::Ack => tx.on_event(&Event::Ack, now),
+                    Owned::Nak => {
+                        naks_received += 1;
+                        tx.on_event(&Event::Nak, now)
+                    }
+                    Owned::Nic => tx.on_event(&Event::Nic, now),
+                };
+                if step == TransactionStep::Send {
+                    info!(transmission = tx.transmissions(), "NAK received: retransmitting");
+                    self.write(frame.as_bytes()).await?;
+                    step = tx.poll(self.now());
+                }
+            }
+        };
+        Ok(Exchange {
+            outcome,
+            result,
+            transmissions: tx.transmissions(),
+            naks_received,
+            naks_sent,
+            noise_bytes: self.framer.skipped_bytes() - noise_at_start,
+            stray_frames,
+            elapsed: started.elapsed(),
+        })
+    }
+}

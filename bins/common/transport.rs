@@ -1,0 +1,100 @@
+//! Byte streams to a bus or a link (DESIGN "Layers", 3): serial ports via
+//! tokio-serial (8N1, 1.5.1) and TCP. Errors name the device or address.
+
+use std::io;
+use std::pin::Pin;
+use std::task::{Context, Poll};
+
+use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
+use tokio::net::TcpStream;
+use tokio_serial::{
+    ClearBuffer, DataBits, FlowControl, Parity, SerialPort, SerialPortBuilderExt, SerialStream, StopBits,
+};
+
+/// Opens `path` as a serial line at `baud`, 8 data bits, no parity, one
+/// stop bit (1.5.1), discarding whatever was waiting in its buffers. The
+/// port is opened non-exclusively so that a pseudo-terminal left in use by
+/// a killed client does not lock others out.
+pub fn open_serial(path: &str, baud: u32) -> io::Result<SerialStream> {
+    let port = tokio_serial::new(path, baud)
+        .data_bits(DataBits::Eight)
+        .parity(Parity::None)
+        .stop_bits(StopBits::One)
+        .flow_control(FlowControl::None)
+        .open_native_async()
+        .map_err(|e| io::Error::other(format!("cannot open serial port {path} at {baud} bit/s: {e}")))?;
+    let mut port = port;
+    port.set_exclusive(false)
+        .map_err(|e| io::Error::other(format!("serial port {path}: {e}")))?;
+    port.clear(ClearBuffer::All)
+        .map_err(|e| io::Error::other(format!("serial port {path}: cannot flush: {e}")))?;
+    Ok(port)
+}
+
+/// Changes a serial line's rate (after an acknowledged `C0..C7`, Table 4).
+pub fn set_baud(port: &mut SerialStream, baud: u32) -> io::Result<()> {
+    port.set_baud_rate(baud)
+        .map_err(|e| io::Error::other(format!("cannot switch the serial line to {baud} bit/s: {e}")))
+}
+
+/// Connects to `addr` (`host:port`), with the no-delay option a
+/// request/response protocol wants.
+pub async fn connect_tcp(addr: &str) -> io::Result<TcpStream> {
+    let stream = TcpStream::connect(addr)
+        .await
+        .map_err(|e| io::Error::new(e.kind(), format!("cannot connect to {addr}: {e}")))?;
+    stream.set_nodelay(true)?;
+    Ok(stream)
+}
+
+/// A serial line or a TCP link, as one stream type.
+#[derive(Debug)]
+pub enum Line {
+    Serial(SerialStream),
+    Tcp(TcpStream),
+}
+
+impl Line {
+    /// What the line is, for messages.
+    pub fn describe(&self) -> String {
+        match self {
+            Line::Serial(s) => format!("serial {}", s.name().unwrap_or_default()),
+            Line::Tcp(t) => match t.peer_addr() {
+                Ok(a) => format!("tcp {a}"),
+                Err(_) => "tcp".into(),
+            },
+        }
+    }
+}
+
+impl AsyncRead for Line {
+    fn poll_read(self: Pin<&mut Self>, cx: &mut Context<'_>, buf: &mut ReadBuf<'_>) -> Poll<io::Result<()>> {
+        match self.get_mut() {
+            Line::Serial(s) => Pin::new(s).poll_read(cx, buf),
+            Line::Tcp(t) => Pin::new(t).poll_read(cx, buf),
+        }
+    }
+}
+
+impl AsyncWrite for Line {
+    fn poll_write(self: Pin<&mut Self>, cx: &mut Context<'_>, buf: &[u8]) -> Poll<io::Result<usize>> {
+        match self.get_mut() {
+            Line::Serial(s) => Pin::new(s).poll_write(cx, buf),
+            Line::Tcp(t) => Pin::new(t).poll_write(cx, buf),
+        }
+    }
+
+    fn poll_flush(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        match self.get_mut() {
+            Line::Serial(s) => Pin::new(s).poll_flush(cx),
+            Line::Tcp(t) => Pin::new(t).poll_flush(cx),
+        }
+    }
+
+    fn poll_shutdown(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        match self.get_mut() {
+            Line::Serial(s) => Pin::new(s).poll_shutdown(cx),
+            Line::Tcp(t) => Pin::new(t).poll_shutdown(cx),
+        }
+    }
+}

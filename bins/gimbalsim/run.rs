@@ -1,0 +1,219 @@
+//! The simulator's I/O: a pseudo-terminal, TCP listener or serial device
+//! around the sans-IO [`Bus`], a millisecond clock, optional pacing at the
+//! line rate, data-rate switches (Table 4 `C0..C7`) and shutdown.
+
+use std::collections::VecDeque;
+use std::future::Future;
+use std::io;
+use std::pin::Pin;
+
+use sagebrush::pty::{PtyMaster, Symlink};
+use sagebrush::timing::wire_ms;
+use sagebrush::transport;
+use sagebrush_sim::{Bus, BusConfig, Fault, Outgoing};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use tokio::net::TcpListener;
+use tokio::time::{Duration, Instant};
+use tracing::{info, warn};
+
+use crate::cli::Cli;
+
+type Shutdown = Pin<Box<dyn Future<Output = ()>>>;
+
+/// Resolves on SIGINT or SIGTERM.
+fn shutdown_signal() -> io::Result<Shutdown> {
+    let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())?;
+    Ok(Box::pin(async move {
+        tokio::select! {
+            _ = tokio::signal::ctrl_c() => {}
+            _ = term.recv() => {}
+        }
+    }))
+}
+
+/// How a serving session ended.
+enum End {
+    Eof,
+    Shutdown,
+}
+
+/// The line clock and pacing state.
+struct Line {
+    epoch: Instant,
+    pace: bool,
+    baud: u32,
+}
+
+impl Line {
+    fn now(&self) -> u64 {
+        self.epoch.elapsed().as_millis() as u64
+    }
+}
+
+/// Serves the bus on one stream until it closes or shutdown.
+async fn serve<S: AsyncRead + AsyncWrite + Unpin>(
+    bus: &mut Bus,
+    stream: &mut S,
+    line: &mut Line,
+    set_rate: &mut dyn FnMut(&mut S, u32) -> io::Result<()>,
+    shutdown: &mut Shutdown,
+) -> io::Result<End> {
+    let mut rx_queue: VecDeque<(u64, Vec<u8>)> = VecDeque::new();
+    let (mut rx_free, mut tx_free) = (0u64, 0u64);
+    let mut pending: Option<(u64, Outgoing)> = None;
+    let mut buf = [0u8; 1024];
+    loop {
+        let now = line.now();
+        while rx_queue.front().is_some_and(|(at, _)| *at <= now) {
+            if let Some((_, bytes)) = rx_queue.pop_front() {
+                bus.receive(&bytes, now);
+            }
+        }
+        bus.poll(now);
+        loop {
+            if pending.is_none() {
+                pending = bus.pop_due(now).map(|o| {
+                    let at = if line.pace {
+                        o.due.max(tx_free) + wire_ms(o.bytes.len(), line.baud)
+                    } else {
+                        o.due
+                    };
+                    (at, o)
+                });
+            }
+            match pending.take() {
+                Some((at, out)) if at <= now => {
+                    stream.write_all(&out.bytes).await?;
+                    stream.flush().await?;
+                    tx_free = at;
+                    if let Some(rate) = out.switch_to.and_then(|r| r.bits_per_second()) {
+                        info!(bps = rate, "switching the line rate");
+                        set_rate(stream, rate)?;
+                        line.baud = rate;
+                    }
+                }
+                other => {
+                    pending = other;
+                    break;
+                }
+            }
+        }
+        let deadline = [
+            bus.next_deadline(),
+            pending.as_ref().map(|(at, _)| *at),
+            rx_queue.front().map(|(at, _)| *at),
+        ]
+        .into_iter()
+        .flatten()
+        .min()
+        .map_or(Instant::now() + Duration::from_secs(3600), |t| {
+            line.epoch + Duration::from_millis(t)
+        });
+        tokio::select! {
+            read = stream.read(&mut buf) => match read? {
+                0 => return Ok(End::Eof),
+                n => {
+                    let now = line.now();
+                    if line.pace {
+                        let at = now.max(rx_free) + wire_ms(n, line.baud);
+                        rx_free = at;
+                        rx_queue.push_back((at, buf[..n].to_vec()));
+                    } else {
+                        bus.receive(&buf[..n], now);
+                    }
+                }
+            },
+            _ = tokio::time::sleep_until(deadline) => {}
+            _ = shutdown.as_mut() => return Ok(End::Shutdown),
+        }
+    }
+}
+
+/// Prints the bus counters as one `stats {json}` line on stdout.
+fn print_stats(bus: &Bus) {
+    let s = bus.stats();
+    let faults: serde_json::Map<String, serde_json::Value> = Fault::ALL
+        .iter()
+        .map(|f| (f.name().to_string(), bus.faults_injected(*f).into()))
+        .collect();
+    let stats = serde_json::json!({
+        "frames_in": s.frames_in,
+        "frames_ignored": s.frames_ignored,
+        "bad_checksums_in": s.bad_checksums_in,
+        "naks_sent": s.naks_sent,
+        "naks_in": s.naks_in,
+        "acks_in": s.acks_in,
+        "results_resent": s.results_resent,
+        "noise_bytes": bus.noise_bytes(),
+        "faults": faults,
+    });
+    println!("stats {stats}");
+}
+
+/// Runs the simulator as the command line says.
+pub async fn run(cli: Cli, config: BusConfig) -> Result<(), String> {
+    let epoch = Instant::now();
+    let mut bus = Bus::new(config, 0)?;
+    let mut shutdown = shutdown_signal().map_err(|e| format!("cannot install signal handlers: {e}"))?;
+    let mut line = Line {
+        epoch,
+        pace: cli.pace,
+        baud: cli.baud,
+    };
+    let addresses: Vec<String> = bus.gimbals().map(|g| g.device().to_string()).collect();
+    let result = if let Some(addr) = &cli.tcp {
+        let listener = TcpListener::bind(addr)
+            .await
+            .map_err(|e| format!("cannot listen on {addr}: {e}"))?;
+        let local = listener.local_addr().map_err(|e| e.to_string())?;
+        announce(&local.to_string());
+        info!(%local, devices = ?addresses, "gimbalsim listening");
+        loop {
+            let accepted = tokio::select! {
+                a = listener.accept() => a,
+                _ = shutdown.as_mut() => break Ok(()),
+            };
+            let (mut stream, peer) = accepted.map_err(|e| format!("accept on {local}: {e}"))?;
+            let _ = stream.set_nodelay(true);
+            info!(%peer, "client connected");
+            match serve(&mut bus, &mut stream, &mut line, &mut |_, _| Ok(()), &mut shutdown).await {
+                Ok(End::Eof) => info!(%peer, "client disconnected"),
+                Ok(End::Shutdown) => break Ok(()),
+                Err(e) => warn!(%peer, error = %e, "client connection failed"),
+            }
+        }
+    } else if let Some(path) = &cli.serial {
+        let mut port = transport::open_serial(path, cli.baud).map_err(|e| e.to_string())?;
+        announce(path);
+        info!(path, baud = cli.baud, devices = ?addresses, "gimbalsim on serial device");
+        let mut set_rate = |p: &mut tokio_serial::SerialStream, bps: u32| transport::set_baud(p, bps);
+        match serve(&mut bus, &mut port, &mut line, &mut set_rate, &mut shutdown).await {
+            Ok(End::Eof) => Err(format!("serial device {path} closed")),
+            Ok(End::Shutdown) => Ok(()),
+            Err(e) => Err(format!("serial device {path}: {e}")),
+        }
+    } else {
+        let mut pty = PtyMaster::open().map_err(|e| e.to_string())?;
+        let path = pty.slave_path().to_path_buf();
+        let _link = match &cli.link {
+            Some(link) => Some(Symlink::create(&path, link).map_err(|e| e.to_string())?),
+            None => None,
+        };
+        announce(&path.display().to_string());
+        info!(path = %path.display(), devices = ?addresses, "gimbalsim on pseudo-terminal");
+        match serve(&mut bus, &mut pty, &mut line, &mut |_, _| Ok(()), &mut shutdown).await {
+            Ok(End::Eof) => Err("the pseudo-terminal closed".into()),
+            Ok(End::Shutdown) => Ok(()),
+            Err(e) => Err(format!("pseudo-terminal {}: {e}", path.display())),
+        }
+    };
+    print_stats(&bus);
+    result
+}
+
+/// The first line of standard output: where clients attach.
+fn announce(what: &str) {
+    use std::io::Write;
+    println!("{what}");
+    let _ = io::stdout().flush();
+}
