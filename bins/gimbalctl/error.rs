@@ -1,0 +1,74 @@
+//! Why `gimbalctl` failed, each with its documented exit code (see
+//! [`crate::cli::EXIT_CODES`]).
+
+use std::fmt;
+
+/// A failure, with a message naming what was wrong.
+#[derive(Debug)]
+pub enum CtlError {
+    /// The port or connection failed (exit 1).
+    Io(String),
+    /// The arguments cannot be sent (exit 2).
+    Usage(String),
+    /// NAK after all retries (exit 3).
+    Nak(String),
+    /// No ACK after all retries (exit 4).
+    NoAck(String),
+    /// The device answered NIC (exit 5).
+    Nic(String),
+    /// ACKed but no result in time (exit 6).
+    NoResult(String),
+    /// A result that is not the command's (exit 7).
+    BadReply(String),
+}
+
+impl CtlError {
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            CtlError::Io(_) => 1,
+            CtlError::Usage(_) => 2,
+            CtlError::Nak(_) => 3,
+            CtlError::NoAck(_) => 4,
+            CtlError::Nic(_) => 5,
+            CtlError::NoResult(_) => 6,
+            CtlError::BadReply(_) => 7,
+        }
+    }
+
+    /// The short name used as `outcome` in JSON.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            CtlError::Io(_) => "io",
+            CtlError::Usage(_) => "usage",
+            CtlError::Nak(_) => "nak",
+            CtlError::NoAck(_) => "no_ack",
+            CtlError::Nic(_) => "nic",
+            CtlError::NoResult(_) => "no_result",
+            CtlError::BadReply(_) => "bad_result",
+        }
+    }
+
+    fn message(&self) -> &str {
+        match self {
+            CtlError::Io(m)
+            | CtlError::Usage(m)
+            | CtlError::Nak(m)
+            | CtlError::NoAck(m)
+            | CtlError::Nic(m)
+            | CtlError::NoResult(m)
+            | CtlError::BadReply(m) => m,
+        }
+    }
+}
+
+impl fmt::Display for CtlError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.message())
+    }
+}
+
+impl From<std::io::Error> for CtlError {
+    fn from(e: std::io::Error) -> Self {
+        CtlError::Io(e.to_string())
+    }
+}

@@ -1,0 +1,207 @@
+//! Each subcommand as the typed command of the protocol crate, encoded as
+//! the payload to send (Tables 4, 11, 16 and the rev 1.9 list).
+
+use sagebrush::hex::payload_bytes;
+use sagebrush_protocol::{
+    Acceleration, Angle, AuxBytes, AuxConfig, AuxPort, AuxReadLen, Axis, Command, DataRate, DeviceId, DigitalZoom,
+    Extended, LensPosition, LensSpeed, Limits, MAX_PAYLOAD, Parity, Position, Rate, RateGain, Relay, Speed, U12,
+};
+
+use crate::cli::{
+    AuxCmd, AxisArg, CameraState, Cmd, Direction, FocusCmd, GainsCmd, LensCmd, LimitsCmd, OnOff, ParityArg, PresetCmd,
+    RelayCmd, StopWhat, ZoomCmd,
+};
+use crate::error::CtlError;
+
+fn axis(a: AxisArg) -> Axis {
+    match a {
+        AxisArg::Pan => Axis::Pan,
+        AxisArg::Tilt => Axis::Tilt,
+    }
+}
+
+fn range<T>(what: &str, value: Result<T, sagebrush_protocol::RangeError>) -> Result<T, CtlError> {
+    value.map_err(|e| CtlError::Usage(format!("{what}: {e}")))
+}
+
+/// Degrees (per second) to hundredths, as the wire carries them (Table 12).
+fn hundredths(value: f64) -> u16 {
+    (value * 100.0).round().clamp(0.0, 65535.0) as u16
+}
+
+/// The payload bytes of a command.
+pub fn encode(command: &Command<'_>) -> Result<Vec<u8>, CtlError> {
+    let mut buf = [0u8; MAX_PAYLOAD];
+    command
+        .encode(&mut buf)
+        .map(<[u8]>::to_vec)
+        .map_err(|e| CtlError::Usage(format!("cannot encode {}: {e}", command.mnemonic())))
+}
+
+/// The payload a one-exchange subcommand sends; `None` for the subcommands
+/// that are not one exchange (watch, encode, decode).
+pub fn payload(cmd: &Cmd) -> Result<Option<Vec<u8>>, CtlError> {
+    use Command as C;
+    let command = match cmd {
+        Cmd::Position => C::QueryPosition,
+        Cmd::Goto { pan, tilt, .. } => C::GoTo(Position::new(
+            range("pan", Angle::from_degrees(*pan as f32))?,
+            range("tilt", Angle::from_degrees(*tilt as f32))?,
+        )),
+        Cmd::Preset(PresetCmd::Store { n }) => C::StorePreset(*n),
+        Cmd::Preset(PresetCmd::Recall { n }) => C::GoToPreset(*n),
+        Cmd::Preset(PresetCmd::Query { n }) => C::QueryPreset(*n),
+        Cmd::Preset(PresetCmd::Stored { n }) => C::QueryStoredPreset(*n),
+        Cmd::Slew { direction } => match direction {
+            Direction::Left => C::PanLeft,
+            Direction::Right => C::PanRight,
+            Direction::Up => C::TiltUp,
+            Direction::Down => C::TiltDown,
+        },
+        Cmd::Stop { what } => match what {
+            StopWhat::All => C::StopMotion,
+            StopWhat::Pan => C::PanStop,
+            StopWhat::Tilt => C::TiltStop,
+            StopWhat::Motors => C::Stop,
+        },
+        Cmd::Halt => C::Halt,
+        Cmd::RecallHalt { lens: false } => C::Extended(Extended::GoToHaltPosition, b""),
+        Cmd::RecallHalt { lens: true } => C::Extended(Extended::LensGoToHaltPosition, b""),
+        Cmd::Speed { axis: a, speed } => C::SetSpeed(axis(*a), range("speed", Speed::new(*speed))?),
+        Cmd::Rate { axis: None, .. } => C::QueryRates,
+        Cmd::Rate {
+            axis: Some(a),
+            value: None,
+        } => C::QueryRate(axis(*a)),
+        Cmd::Rate {
+            axis: Some(a),
+            value: Some(v),
+        } => C::SetRate(axis(*a), Rate(hundredths(*v))),
+        Cmd::Accel { axis: None, .. } => C::QueryAccelerations,
+        Cmd::Accel {
+            axis: Some(a),
+            value: None,
+        } => C::QueryAcceleration(axis(*a)),
+        Cmd::Accel {
+            axis: Some(a),
+            value: Some(v),
+        } => C::SetAcceleration(axis(*a), Acceleration(hundredths(*v))),
+        Cmd::Vector { state } => C::SetVectorMode(matches!(state, OnOff::On)),
+        Cmd::Home => C::Home,
+        Cmd::VerifyHome => C::VerifyHome,
+        Cmd::Init => C::Initialize,
+        Cmd::Limits { action: None } => C::QueryLimits,
+        Cmd::Limits {
+            action: Some(LimitsCmd::Clear),
+        } => C::ClearLimits,
+        Cmd::Limits {
+            action:
+                Some(LimitsCmd::Set {
+                    pan_ccw,
+                    pan_cw,
+                    tilt_ccw,
+                    tilt_cw,
+                }),
+        } => C::SetLimits(Limits {
+            pan_ccw: range("pan ccw limit", U12::new(*pan_ccw))?,
+            pan_cw: range("pan cw limit", U12::new(*pan_cw))?,
+            tilt_ccw: range("tilt ccw limit", U12::new(*tilt_ccw))?,
+            tilt_cw: range("tilt cw limit", U12::new(*tilt_cw))?,
+        }),
+        Cmd::Gains { action: None } => C::QueryRateGains,
+        Cmd::Gains {
+            action: Some(GainsCmd::Set { axis: a, gain }),
+        } => C::SetRateGain(axis(*a), range("gain", RateGain::new((gain * 10.0).round() as u8))?),
+        Cmd::Relay { action: None } => C::QueryRelays,
+        Cmd::Relay {
+            action: Some(RelayCmd::Open { n }),
+        } => C::OpenRelay(range("relay", Relay::new(*n))?),
+        Cmd::Relay {
+            action: Some(RelayCmd::Close { n }),
+        } => C::CloseRelay(range("relay", Relay::new(*n))?),
+        Cmd::Lens { action: None } => C::QueryLens,
+        Cmd::Lens {
+            action: Some(LensCmd::Goto { zoom, focus }),
+        } => C::LensGoTo(LensPosition {
+            zoom: range("zoom", U12::new(*zoom))?,
+            focus: range("focus", U12::new(*focus))?,
+        }),
+        Cmd::Camera { state } => match state {
+            CameraState::On => C::CameraOn,
+            CameraState::Off => C::CameraOff,
+            CameraState::Status => C::Extended(Extended::CameraRelayStatus, b""),
+        },
+        Cmd::Focus { action } => match action {
+            FocusCmd::Far => C::FocusFar,
+            FocusCmd::Near => C::FocusNear,
+            FocusCmd::Stop => C::FocusStop,
+            FocusCmd::Speed { n: Some(n) } => C::FocusSpeed(range("focus speed", LensSpeed::new(*n))?),
+            FocusCmd::Speed { n: None } => C::Extended(Extended::FocusSpeedQuery, b""),
+            FocusCmd::AutoOn => C::AutoFocusOn,
+            FocusCmd::AutoOff => C::AutoFocusOff,
+        },
+        Cmd::Zoom { action } => match action {
+            ZoomCmd::In => C::ZoomIn,
+            ZoomCmd::Out => C::ZoomOut,
+            ZoomCmd::Stop => C::ZoomStop,
+            ZoomCmd::Speed { n: Some(n) } => C::ZoomSpeed(range("zoom speed", LensSpeed::new(*n))?),
+            ZoomCmd::Speed { n: None } => C::Extended(Extended::ZoomSpeedQuery, b""),
+            ZoomCmd::Digital { step } => C::DigitalZoom(range("digital zoom", DigitalZoom::new(*step))?),
+        },
+        Cmd::Id => C::Identify,
+        Cmd::Status => C::AwakeStatus,
+        Cmd::Errors => C::QueryErrors,
+        Cmd::StatusBits => C::QueryStatusBits,
+        Cmd::DataRate { bps: None } => C::QueryMaxDataRate,
+        Cmd::DataRate { bps: Some(bps) } => {
+            C::SetDataRate(DataRate::from_bits_per_second(*bps).ok_or_else(|| CtlError::Usage(format!("{bps} bit/s")))?)
+        }
+        Cmd::SetAddress { id } => C::SetDeviceId(range("device ID", DeviceId::new(*id))?),
+        Cmd::Aux { port, action } => {
+            let port = range("auxiliary port", AuxPort::new(*port))?;
+            return aux(port, action).map(Some);
+        }
+        Cmd::Raw { payload } => {
+            let bytes = payload_bytes(payload).map_err(|e| CtlError::Usage(format!("payload {payload:?}: {e}")))?;
+            if bytes.is_empty() || bytes.len() > MAX_PAYLOAD {
+                return Err(CtlError::Usage(format!(
+                    "payload of {} bytes: a frame carries 1..=256",
+                    bytes.len()
+                )));
+            }
+            return Ok(Some(bytes));
+        }
+        Cmd::Watch { .. } | Cmd::Encode { .. } | Cmd::Decode { .. } => return Ok(None),
+    };
+    encode(&command).map(Some)
+}
+
+fn aux(port: AuxPort, action: &AuxCmd) -> Result<Vec<u8>, CtlError> {
+    use Command as C;
+    match action {
+        AuxCmd::Configure {
+            baud,
+            data_bits,
+            stop_bits,
+            parity,
+        } => {
+            let parity = match parity {
+                ParityArg::None => Parity::None,
+                ParityArg::Odd => Parity::Odd,
+                ParityArg::Even => Parity::Even,
+            };
+            let config = range(
+                "auxiliary port settings",
+                AuxConfig::new(*baud, *data_bits, *stop_bits, parity),
+            )?;
+            encode(&C::AuxConfigure(port, config))
+        }
+        AuxCmd::Send { data } => {
+            let bytes = payload_bytes(data).map_err(|e| CtlError::Usage(format!("data {data:?}: {e}")))?;
+            encode(&C::AuxTransmit(port, range("data", AuxBytes::new(&bytes))?))
+        }
+        AuxCmd::Read { max } => encode(&C::AuxReceive(port, range("read length", AuxReadLen::new(*max))?)),
+        AuxCmd::Count => encode(&C::AuxCount(port)),
+        AuxCmd::Flush => encode(&C::AuxFlush(port)),
+    }
+}

@@ -1,0 +1,108 @@
+//! One connection to a bus (serial, as master) or a GCU (TCP, as client)
+//! and the exchanges `gimbalctl` makes over it, with protocol failures
+//! turned into [`CtlError`]s that say what happened.
+
+use sagebrush::master::{Exchange, Master};
+use sagebrush::timing;
+use sagebrush::transport::{self, Line};
+use sagebrush_protocol::{Address, Command, FrameBuf, Outcome, TxFailure};
+
+use crate::cli::Global;
+use crate::error::CtlError;
+
+/// A connection and the addressing of its commands.
+#[derive(Debug)]
+pub struct Session {
+    master: Master<Line>,
+    pub to: Address,
+    pub from: u8,
+}
+
+impl Session {
+    /// Opens the transport the options name, with time-outs derived from
+    /// the baud rate (serial) or the TCP defaults, then the overrides.
+    pub async fn open(g: &Global) -> Result<Self, CtlError> {
+        let (line, mut policy) = match (&g.serial, &g.tcp) {
+            (Some(path), _) => (
+                Line::Serial(transport::open_serial(path, g.baud)?),
+                timing::serial_policy(g.baud),
+            ),
+            (None, Some(addr)) => (Line::Tcp(transport::connect_tcp(addr).await?), timing::tcp_policy()),
+            (None, None) => {
+                return Err(CtlError::Usage(
+                    "no transport: give --serial PATH (bus master) or --tcp HOST:PORT (GCU daemon)".into(),
+                ));
+            }
+        };
+        if let Some(r) = g.retries {
+            policy.retry.retries = r;
+        }
+        if let Some(t) = g.ack_timeout {
+            policy.retry.ack_timeout = t;
+        }
+        if let Some(t) = g.result_timeout {
+            policy.result_timeout = t;
+        }
+        if let Some(t) = g.nic_window {
+            policy.nic_window = t;
+        }
+        if let Some(t) = g.init_timeout {
+            policy.long_result_timeout = t;
+        }
+        tracing::debug!(line = %line.describe(), ?policy, "connected");
+        Ok(Self {
+            master: Master::new(line, policy),
+            to: g.to,
+            from: g.from,
+        })
+    }
+
+    /// One exchange of `payload`; failures become errors naming the device,
+    /// the command and what happened.
+    pub async fn exchange(&mut self, payload: &[u8]) -> Result<Exchange, CtlError> {
+        let frame = FrameBuf::new(self.to, self.from, payload).map_err(|e| CtlError::Usage(format!("payload: {e}")))?;
+        let command = Command::parse(payload);
+        let ex = self.master.transact(&frame, &command).await?;
+        let what = format!("{} ({})", sagebrush::hex::payload_text(payload), command.mnemonic());
+        let to = self.to;
+        let policy = *self.master.policy();
+        match ex.outcome {
+            Outcome::Acknowledged | Outcome::Broadcast | Outcome::Result => Ok(ex),
+            Outcome::Nic => Err(CtlError::Nic(format!(
+                "NIC: {to} does not implement or cannot apply {what}"
+            ))),
+            Outcome::NoResult => Err(CtlError::NoResult(format!(
+                "{to} acknowledged {what} but sent no result within {} ms",
+                if command.result_kind()
+                    == sagebrush_protocol::ResultKind::Required(sagebrush_protocol::ResultTimeout::Long)
+                {
+                    policy.long_result_timeout
+                } else {
+                    policy.result_timeout
+                }
+            ))),
+            Outcome::Failed(TxFailure::Nak) => Err(CtlError::Nak(format!(
+                "{to} answered NAK to {what} on all {} transmissions: the frame keeps arriving damaged (line noise? wrong --baud?)",
+                ex.transmissions
+            ))),
+            Outcome::Failed(TxFailure::NoAck) => Err(CtlError::NoAck(format!(
+                "no ACK from {to} for {what} after {} transmissions ({} ms each): check the address, the cabling and --baud",
+                ex.transmissions, policy.retry.ack_timeout
+            ))),
+        }
+    }
+
+    /// A query: its result payload.
+    pub async fn query(&mut self, command: &Command<'_>) -> Result<Vec<u8>, CtlError> {
+        let payload = crate::request::encode(command)?;
+        let ex = self.exchange(&payload).await?;
+        match ex.result {
+            Some(frame) => Ok(frame.frame().payload().to_vec()),
+            None => Err(CtlError::NoResult(format!(
+                "{} sent no result for {}",
+                self.to,
+                command.mnemonic()
+            ))),
+        }
+    }
+}
