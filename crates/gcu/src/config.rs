@@ -72,8 +72,11 @@ pub struct PortConfig {
     pub nic_window: u64,
     /// Quiet ticks after a write to device 255 before the bus is used again.
     pub broadcast_guard: u64,
-    /// Jobs that may wait behind the one in flight.
+    /// Non-stop jobs that may wait behind the one in flight.
     pub queue_bound: usize,
+    /// Stop and halt jobs that may wait (counted apart, so that work never
+    /// takes a stop's place; identical queued stops are merged).
+    pub stop_queue_bound: usize,
     /// Silence after which a partial frame on the line is abandoned.
     pub idle_timeout: u64,
     /// The devices on this bus, when known: a rate change switches the port
@@ -95,6 +98,7 @@ impl PortConfig {
             nic_window: 50,
             broadcast_guard: 100,
             queue_bound: 32,
+            stop_queue_bound: 64,
             idle_timeout: 50,
             devices: None,
         }
@@ -110,6 +114,8 @@ pub struct LinkSettings {
     pub ack_timeout: u64,
     /// Frames that may wait on a link (the one in flight included).
     pub queue_bound: usize,
+    /// Forwarded stop commands that may wait on a link, apart from the rest.
+    pub stop_queue_bound: usize,
     /// Silence after which a partial frame on the link is abandoned.
     pub idle_timeout: u64,
     /// How long after forwarding a command (first transmission) its result
@@ -129,6 +135,7 @@ impl Default for LinkSettings {
             retries: 3,
             ack_timeout: 200,
             queue_bound: 64,
+            stop_queue_bound: 64,
             idle_timeout: 100,
             answer_timeout: 3_000,
             long_answer_timeout: 35_000,
@@ -197,11 +204,14 @@ impl RouterConfig {
             if port.queue_bound == 0 {
                 return Err(ConfigError::Zero("port queue_bound"));
             }
+            if port.stop_queue_bound == 0 {
+                return Err(ConfigError::Zero("port stop_queue_bound"));
+            }
             if port.ack_timeout == 0 {
                 return Err(ConfigError::Zero("port ack_timeout"));
             }
         }
-        if self.links.queue_bound == 0 {
+        if self.links.queue_bound == 0 || self.links.stop_queue_bound == 0 {
             return Err(ConfigError::Zero("link queue_bound"));
         }
         if self.links.ack_timeout == 0 {

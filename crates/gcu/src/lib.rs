@@ -80,8 +80,9 @@
 //!   `TS`, `FS`, `ZS`), locally or routed to the GCU that owns the device.
 //! - **Rate change**: a `C0`..`C7` acknowledged by every device of a port,
 //!   or written to device 255, switches the port ([`Action::SetPortRate`]).
-//! - **Bounded memory**: port queues, link queues and the reverse-path table
-//!   are bounded; overflow is dropped and counted with a warning event.
+//! - **Bounded memory**: port queues (work and stops apart), link queues
+//!   and the reverse-path table are bounded; overflow is dropped and counted
+//!   with a warning event. A stop identical to one already queued is merged.
 //!
 //! # Outcomes
 //!

@@ -4,6 +4,11 @@
 //! head is retransmitted by the protocol crate's [`Transmitter`] on NAK or
 //! ACK time-out, up to the configured count. ACK/NAK bytes carry no address,
 //! so a link has one unacknowledged frame at a time (stop and wait).
+//!
+//! Forwarded stop commands overtake the frames waiting on the link (not the
+//! one in flight), are bounded apart from them (so that a burst of traffic
+//! never costs a stop its place, DESIGN "Safety"), and a stop identical to
+//! one already waiting is merged into it.
 
 use std::collections::VecDeque;
 
@@ -19,6 +24,8 @@ use crate::types::DropReason;
 pub(crate) struct Outgoing {
     pub frame: FrameBuf,
     pub pending: Option<u64>,
+    /// A forwarded stop command.
+    pub stop: bool,
 }
 
 /// What a link asks the router to do or know.
@@ -46,6 +53,7 @@ pub(crate) struct Link {
     tx: Transmitter,
     in_flight: bool,
     bound: usize,
+    stop_bound: usize,
     pub stats: LinkStats,
 }
 
@@ -62,6 +70,7 @@ impl Link {
             tx: Transmitter::new(policy),
             in_flight: false,
             bound: settings.queue_bound,
+            stop_bound: settings.stop_queue_bound,
             stats,
         }
     }
@@ -77,17 +86,36 @@ impl Link {
         self.write(vec![NIC], out);
     }
 
-    /// Queues a frame; false (and counted) when the queue is full.
-    pub fn enqueue(&mut self, now: u64, item: Outgoing, out: &mut Vec<LinkOut>) -> bool {
-        if self.queue.len() >= self.bound {
-            self.stats.line.drops.add(DropReason::QueueFull);
-            return false;
+    /// Queues a frame, or says (and counts) why not.
+    pub fn enqueue(&mut self, now: u64, item: Outgoing, out: &mut Vec<LinkOut>) -> Result<(), DropReason> {
+        // The head is on the wire while in flight: nothing goes before it.
+        let waiting = usize::from(self.in_flight);
+        let stops = self.queue.iter().skip(waiting).filter(|o| o.stop).count();
+        let refused = if item.stop {
+            if self.queue.iter().skip(waiting).any(|o| o.stop && o.frame == item.frame) {
+                Some(DropReason::DuplicateStop)
+            } else {
+                (stops >= self.stop_bound).then_some(DropReason::QueueFull)
+            }
+        } else {
+            (self.queue.len() - stops >= self.bound).then_some(DropReason::QueueFull)
+        };
+        if let Some(reason) = refused {
+            self.stats.line.drops.add(reason);
+            return Err(reason);
         }
-        self.queue.push_back(item);
+        let at = if item.stop {
+            (waiting..self.queue.len())
+                .find(|&i| !self.queue[i].stop)
+                .unwrap_or(self.queue.len())
+        } else {
+            self.queue.len()
+        };
+        self.queue.insert(at, item);
         self.stats.queued += 1;
         self.note_queue();
         self.transmit_next(now, out);
-        true
+        Ok(())
     }
 
     fn note_queue(&mut self) {
@@ -266,9 +294,10 @@ mod tests {
         let item = |frame: &FrameBuf, pending| Outgoing {
             frame: frame.clone(),
             pending,
+            stop: false,
         };
-        assert!(l.enqueue(0, item(&frame, Some(7)), &mut out));
-        assert!(l.enqueue(0, item(&second, None), &mut out));
+        assert!(l.enqueue(0, item(&frame, Some(7)), &mut out).is_ok());
+        assert!(l.enqueue(0, item(&second, None), &mut out).is_ok());
         assert!(matches!(out[0], LinkOut::FirstSent(7)));
         assert_eq!(writes(&out), vec![frame.as_bytes().to_vec()]);
         out.clear();
@@ -291,21 +320,31 @@ mod tests {
     }
 
     #[test]
-    fn bounded_queue_refuses_when_full() {
+    fn bounded_queue_refuses_when_full_stops_overtake_and_merge() {
         let settings = LinkSettings {
             queue_bound: 1,
+            stop_queue_bound: 1,
             ..LinkSettings::default()
         };
         let mut l = link(&settings);
-        let frame = FrameBuf::new(Address::new(0, 1, 1), 3, b"1").unwrap();
-        let mut out = Vec::new();
-        let item = || Outgoing {
-            frame: frame.clone(),
+        let item = |payload: &[u8], stop| Outgoing {
+            frame: FrameBuf::new(Address::new(7, 1, 1), 3, payload).unwrap(),
             pending: None,
+            stop,
         };
-        assert!(l.enqueue(0, item(), &mut out));
-        assert!(!l.enqueue(0, item(), &mut out));
-        assert_eq!(l.stats.line.drops.get(DropReason::QueueFull), 1);
+        let mut out = Vec::new();
+        assert_eq!(l.enqueue(0, item(b"HO", false), &mut out), Ok(())); // in flight
+        assert_eq!(l.enqueue(0, item(b"P?", false), &mut out), Err(DropReason::QueueFull));
+        assert_eq!(l.enqueue(0, item(b"PS", true), &mut out), Ok(()));
+        assert_eq!(
+            l.enqueue(0, item(b"PS", true), &mut out),
+            Err(DropReason::DuplicateStop)
+        );
+        assert_eq!(l.enqueue(0, item(b"TS", true), &mut out), Err(DropReason::QueueFull));
+        assert_eq!(l.stats.line.drops.get(DropReason::QueueFull), 2);
+        out.clear();
+        l.receive(1, &[ACK], &mut out);
+        assert_eq!(writes(&out), vec![item(b"PS", true).frame.as_bytes().to_vec()]);
         assert_eq!(l.shut_down().len(), 1);
     }
 }

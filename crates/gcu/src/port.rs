@@ -13,9 +13,12 @@
 //!   set aside when a stop is queued: the stop goes out at once and the
 //!   set-aside exchange still takes its result (matched by port and device,
 //!   Table 3) or times out. The bus is never written while an ACK is awaited.
-//! - The queue is bounded: a job that does not fit is dropped and counted
-//!   ([`DropReason::QueueFull`]); a stop that does not fit evicts the newest
-//!   non-stop job instead.
+//! - The queue is bounded, stops and other work separately so that a burst
+//!   of work never costs a stop its place (and a burst of dead-man stops
+//!   never pushes work out): a job that does not fit is dropped and counted
+//!   ([`DropReason::QueueFull`]). A stop identical to one already queued
+//!   (same destination and payload) is merged into it
+//!   ([`DropReason::DuplicateStop`]): the queued one does the job.
 //! - Wildcards: a copy of a port-255 command is written with this port's
 //!   address in the header (so that every answer names its port). During a
 //!   device-255 guard time, result frames (from a device alone on its bus
@@ -102,6 +105,7 @@ pub(crate) struct Port {
     pub id: u8,
     policy: TransactionPolicy,
     bound: usize,
+    stop_bound: usize,
     devices: Option<Vec<u8>>,
     line: Line,
     open: bool,
@@ -135,6 +139,7 @@ impl Port {
             id: config.id,
             policy,
             bound: config.queue_bound,
+            stop_bound: config.stop_queue_bound,
             devices: config.devices.clone(),
             line: Line::new(config.idle_timeout),
             open: false,
@@ -216,16 +221,19 @@ impl Port {
             port_copy.port = self.id;
             job.frame.set_header(port_copy, job.frame.frame().source);
         }
-        if self.queue.len() >= self.bound {
-            let victim = if job.stop {
-                self.queue.iter().rposition(|j| !j.stop)
-            } else {
-                None
+        let stops = self.queue.iter().filter(|j| j.stop).count();
+        if job.stop {
+            let same = |j: &Job| {
+                j.stop && j.frame.frame().dest == dest && j.frame.frame().payload() == job.frame.frame().payload()
             };
-            match victim.and_then(|at| self.queue.remove(at)) {
-                Some(evicted) => self.drop_job(evicted, DropReason::QueueFull, out),
-                None => return self.drop_job(job, DropReason::QueueFull, out),
+            if self.queue.iter().any(same) {
+                return self.drop_job(job, DropReason::DuplicateStop, out);
             }
+            if stops >= self.stop_bound {
+                return self.drop_job(job, DropReason::QueueFull, out);
+            }
+        } else if self.queue.len() - stops >= self.bound {
+            return self.drop_job(job, DropReason::QueueFull, out);
         }
         let at = if job.stop {
             self.queue.iter().position(|j| !j.stop).unwrap_or(self.queue.len())

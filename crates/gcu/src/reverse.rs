@@ -13,12 +13,13 @@
 //! may be answered several times and stay until they expire; others are
 //! consumed by their result.
 //!
-//! A bare `?` carries no address: it is given to the origin of the
-//! transmitted entries on `L` when they all share one origin; when they do
-//! not, it is dropped and counted ([`DropReason::AmbiguousNic`]) rather than
-//! risk the wrong link.
+//! When the matching entries do not all share one origin (clients using the
+//! same source group with overlapping wildcards), the answer is dropped and
+//! counted ([`DropReason::AmbiguousAnswer`]) rather than risk the wrong
+//! link. A bare `?` carries no address: it matches every transmitted entry
+//! on `L`, and goes back only when they all share one origin.
 //!
-//! [`DropReason::AmbiguousNic`]: crate::DropReason::AmbiguousNic
+//! [`DropReason::AmbiguousAnswer`]: crate::DropReason::AmbiguousAnswer
 
 use std::collections::VecDeque;
 
@@ -55,9 +56,9 @@ impl Pending {
     }
 }
 
-/// What a `?` from a link belongs to.
+/// Where an answer (result or `?`) from a link goes back to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum NicMatch {
+pub(crate) enum AnswerMatch {
     None,
     One(Origin),
     Ambiguous,
@@ -118,34 +119,29 @@ impl ReversePath {
     }
 
     /// Where a frame arriving on `link` goes back to, if it answers a forwarded one.
-    pub fn match_result(&mut self, link: LinkId, frame: &Frame<'_>) -> Option<Origin> {
-        let at = self
-            .entries
-            .iter()
-            .position(|e| e.out_link == link && e.expires.is_some() && e.answered_by(frame))?;
-        let entry = self.entries[at];
-        if !entry.wildcard() {
-            self.entries.remove(at);
-        }
-        Some(entry.origin)
+    pub fn match_result(&mut self, link: LinkId, frame: &Frame<'_>) -> AnswerMatch {
+        self.take(|e| e.out_link == link && e.expires.is_some() && e.answered_by(frame))
     }
 
     /// Where a `?` arriving on `link` goes back to.
-    pub fn match_nic(&mut self, link: LinkId) -> NicMatch {
-        let mut candidates = self
-            .entries
-            .iter()
-            .filter(|e| e.out_link == link && e.expires.is_some());
+    pub fn match_nic(&mut self, link: LinkId) -> AnswerMatch {
+        self.take(|e| e.out_link == link && e.expires.is_some())
+    }
+
+    /// The oldest matching entry, when every match shares its origin
+    /// (consumed unless it is a wildcard entry, which may be answered again).
+    fn take(&mut self, matches: impl Fn(&Pending) -> bool) -> AnswerMatch {
+        let mut candidates = self.entries.iter().filter(|e| matches(e));
         let Some(first) = candidates.next().copied() else {
-            return NicMatch::None;
+            return AnswerMatch::None;
         };
         if candidates.any(|e| e.origin != first.origin) {
-            return NicMatch::Ambiguous;
+            return AnswerMatch::Ambiguous;
         }
         if !first.wildcard() {
             self.entries.retain(|e| e.key != first.key);
         }
-        NicMatch::One(first.origin)
+        AnswerMatch::One(first.origin)
     }
 
     /// Forgets what expired by `now`.
@@ -191,13 +187,35 @@ mod tests {
         let (b, _) = rp.insert(L, origin(11), &cmd, ResultKind::Required(ResultTimeout::Normal));
         let result = Frame::new(Address::new(2, 1, 12), 5, b"00000000").unwrap();
         // Not transmitted yet: not an answer.
-        assert_eq!(rp.match_result(L, &result), None);
+        assert_eq!(rp.match_result(L, &result), AnswerMatch::None);
         rp.sent(a, 0, &settings);
+        assert_eq!(rp.match_result(LinkId(2), &result), AnswerMatch::None, "wrong link");
+        assert_eq!(rp.match_result(L, &result), AnswerMatch::One(origin(10)));
         rp.sent(b, 1, &settings);
-        assert_eq!(rp.match_result(LinkId(2), &result), None, "wrong link");
-        assert_eq!(rp.match_result(L, &result), Some(origin(10)));
-        assert_eq!(rp.match_result(L, &result), Some(origin(11)));
-        assert_eq!(rp.match_result(L, &result), None);
+        assert_eq!(rp.match_result(L, &result), AnswerMatch::One(origin(11)));
+        assert_eq!(rp.match_result(L, &result), AnswerMatch::None);
+    }
+
+    #[test]
+    fn answer_that_two_origins_may_own_is_ambiguous() {
+        let settings = LinkSettings::default();
+        let mut rp = ReversePath::new(8);
+        let exact = Frame::new(Address::new(5, 1, 12), 2, b"*mu1").unwrap();
+        let wildcard = Frame::new(Address::new(5, 1, 255), 2, b"*mu2").unwrap();
+        let kind = ResultKind::Optional;
+        let (a, _) = rp.insert(L, origin(10), &wildcard, kind);
+        let (b, _) = rp.insert(L, origin(11), &exact, kind);
+        rp.sent(a, 0, &settings);
+        rp.sent(b, 0, &settings);
+        let result = Frame::new(Address::new(2, 1, 12), 5, b"1").unwrap();
+        assert_eq!(rp.match_result(L, &result), AnswerMatch::Ambiguous);
+        let other = Frame::new(Address::new(2, 1, 13), 5, b"2").unwrap();
+        assert_eq!(rp.match_result(L, &other), AnswerMatch::One(origin(10)));
+        assert_eq!(
+            rp.match_result(L, &other),
+            AnswerMatch::One(origin(10)),
+            "wildcard entries stay"
+        );
     }
 
     #[test]
@@ -209,10 +227,10 @@ mod tests {
         rp.sent(a, 0, &settings);
         let (b, _) = rp.insert(L, origin(11), &cmd, ResultKind::None);
         rp.sent(b, 0, &settings);
-        assert_eq!(rp.match_nic(L), NicMatch::Ambiguous);
+        assert_eq!(rp.match_nic(L), AnswerMatch::Ambiguous);
         rp.cancel(b);
-        assert_eq!(rp.match_nic(L), NicMatch::One(origin(10)));
-        assert_eq!(rp.match_nic(L), NicMatch::None);
+        assert_eq!(rp.match_nic(L), AnswerMatch::One(origin(10)));
+        assert_eq!(rp.match_nic(L), AnswerMatch::None);
         let (c, _) = rp.insert(L, origin(10), &cmd, ResultKind::None);
         rp.sent(c, 0, &settings);
         assert_eq!(rp.next_deadline(), Some(settings.nic_answer_timeout));

@@ -13,7 +13,7 @@ use crate::deadman::DeadMan;
 use crate::link::{Link, LinkOut, Outgoing, Received};
 use crate::local::{SelfAnswer, answer};
 use crate::port::{Job, Port, PortOut};
-use crate::reverse::{NicMatch, ReversePath};
+use crate::reverse::{AnswerMatch, ReversePath};
 use crate::routing::RoutingTable;
 use crate::stats::{LinkStats, RouterStats, Stats};
 use crate::types::{Action, CommandId, DropReason, Event, Input, LinkId, Origin, Outcome, Place};
@@ -327,10 +327,12 @@ impl Router {
         let Some(l) = self.links.get_mut(&link) else {
             return Err(DropReason::LinkDown);
         };
+        // Only forwarded commands carry a reverse-path entry; their stops go first.
+        let stop = pending.is_some() && Command::parse(frame.frame().payload()).is_stop();
         let mut lo = Vec::new();
-        let queued = l.enqueue(now, Outgoing { frame, pending }, &mut lo);
+        let queued = l.enqueue(now, Outgoing { frame, pending, stop }, &mut lo);
         self.link_outs(now, link, lo, out);
-        if queued { Ok(()) } else { Err(DropReason::QueueFull) }
+        queued
     }
 
     /// Writes a bare `?` to the origin (DESIGN: NIC relayed as a bare `?`).
@@ -430,20 +432,20 @@ impl Router {
         match received {
             Received::Frame(frame) => self.on_link_frame(now, link, *frame, out),
             Received::Nic => match self.reverse.match_nic(link) {
-                NicMatch::One(origin) => {
+                AnswerMatch::One(origin) => {
                     if self.nic_to(now, origin, out).is_err() {
                         self.drop_frame(DropReason::OriginGone, Place::Link(link), Address::new(0, 0, 0), 0, out);
                     }
                 }
-                NicMatch::None => self.drop_frame(
+                AnswerMatch::None => self.drop_frame(
                     DropReason::Unsolicited,
                     Place::Link(link),
                     Address::new(0, 0, 0),
                     0,
                     out,
                 ),
-                NicMatch::Ambiguous => self.drop_frame(
-                    DropReason::AmbiguousNic,
+                AnswerMatch::Ambiguous => self.drop_frame(
+                    DropReason::AmbiguousAnswer,
                     Place::Link(link),
                     Address::new(0, 0, 0),
                     0,
@@ -462,8 +464,12 @@ impl Router {
             l.stats.line.drops.add(DropReason::SourceNotAllowed);
             return self.drop_frame(DropReason::SourceNotAllowed, Place::Link(link), dest, source, out);
         }
-        if let Some(origin) = self.reverse.match_result(link, &f) {
-            return self.relay_forwarded(now, link, origin, frame, out);
+        match self.reverse.match_result(link, &f) {
+            AnswerMatch::One(origin) => return self.relay_forwarded(now, link, origin, frame, out),
+            AnswerMatch::Ambiguous => {
+                return self.drop_frame(DropReason::AmbiguousAnswer, Place::Link(link), dest, source, out);
+            }
+            AnswerMatch::None => {}
         }
         self.routes.learn(source, link, kind);
         self.dispatch(now, Origin::Link { link, source }, Some(kind), frame, out);

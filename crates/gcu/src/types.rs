@@ -225,6 +225,8 @@ pub enum DropReason {
     PortLost,
     /// A bounded queue (port or link) was full.
     QueueFull,
+    /// A stop identical to one already queued on the port: merged into it.
+    DuplicateStop,
     /// The link may not speak for this source group (or it is 255 or our own group).
     SourceNotAllowed,
     /// The link went down with the frame queued or in flight.
@@ -235,14 +237,15 @@ pub enum DropReason {
     OriginGone,
     /// A frame nobody was waiting for (a late or stray result).
     Unsolicited,
-    /// A NIC from a link that could belong to commands of several origins.
-    AmbiguousNic,
+    /// An answer (result or `?`) from another GCU that could belong to
+    /// forwarded commands of several origins (clients sharing a source group).
+    AmbiguousAnswer,
     /// Too many forwarded commands awaiting answers: the oldest was forgotten.
     PendingFull,
 }
 
 impl DropReason {
-    pub const ALL: [DropReason; 14] = [
+    pub const ALL: [DropReason; 15] = [
         DropReason::NoRoute,
         DropReason::Loop,
         DropReason::AmbiguousRoute,
@@ -250,12 +253,13 @@ impl DropReason {
         DropReason::PortClosed,
         DropReason::PortLost,
         DropReason::QueueFull,
+        DropReason::DuplicateStop,
         DropReason::SourceNotAllowed,
         DropReason::LinkDown,
         DropReason::LinkNoAck,
         DropReason::OriginGone,
         DropReason::Unsolicited,
-        DropReason::AmbiguousNic,
+        DropReason::AmbiguousAnswer,
         DropReason::PendingFull,
     ];
 
@@ -274,12 +278,13 @@ impl DropReason {
             DropReason::PortClosed => "port_closed",
             DropReason::PortLost => "port_lost",
             DropReason::QueueFull => "queue_full",
+            DropReason::DuplicateStop => "duplicate_stop",
             DropReason::SourceNotAllowed => "source_not_allowed",
             DropReason::LinkDown => "link_down",
             DropReason::LinkNoAck => "link_no_ack",
             DropReason::OriginGone => "origin_gone",
             DropReason::Unsolicited => "unsolicited",
-            DropReason::AmbiguousNic => "ambiguous_nic",
+            DropReason::AmbiguousAnswer => "ambiguous_answer",
             DropReason::PendingFull => "pending_full",
         }
     }

@@ -376,27 +376,38 @@ fn stop_is_not_held_behind_a_long_ix_result_wait() {
 }
 
 #[test]
-fn bounded_port_queue_drops_with_counter_and_warning_but_keeps_stops() {
-    let mut h = H::new(&[1]);
+fn bounded_port_queue_drops_with_counter_and_warning_and_stops_have_their_own_room() {
+    let mut h = H::with(&[1], |c| c.ports[0].stop_queue_bound = 2);
     h.link(CLIENT, &frame((G, 1, 3), 2, b"P?")); // in flight
     for _ in 0..4 {
         h.link(CLIENT, &frame((G, 1, 3), 2, b"HO"));
     }
     let a = h.link(CLIENT, &frame((G, 1, 3), 2, b"HO"));
     assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::QueueFull)]);
-    let a = h.link(CLIENT, &frame((G, 1, 3), 2, b"PS"));
-    assert_eq!(
-        finished(&a),
-        vec![Outcome::Dropped(DropReason::QueueFull)],
-        "a non-stop evicted"
-    );
-    let s = h.r.stats();
-    assert_eq!(s.ports[&1].line.drops.get(DropReason::QueueFull), 2);
-    assert_eq!(s.ports[&1].queue_high_water, 4);
     assert!(
         a.iter()
             .any(|x| matches!(x, Action::Event(e) if e.level() == sagebrush_gcu::Level::Warn))
     );
+    // Work filled its part of the queue; stops still fit.
+    let a = h.link(CLIENT, &frame((G, 1, 3), 2, b"PS"));
+    assert!(finished(&a).is_empty());
+    let a = h.link(CLIENT, &frame((G, 1, 3), 2, b"PS"));
+    assert_eq!(
+        finished(&a),
+        vec![Outcome::Dropped(DropReason::DuplicateStop)],
+        "merged"
+    );
+    let a = h.link(CLIENT, &frame((G, 1, 4), 2, b"PS"));
+    assert!(finished(&a).is_empty());
+    let a = h.link(CLIENT, &frame((G, 1, 5), 2, b"PS"));
+    assert_eq!(
+        finished(&a),
+        vec![Outcome::Dropped(DropReason::QueueFull)],
+        "stops are bounded too"
+    );
+    let s = h.r.stats();
+    assert_eq!(s.ports[&1].line.drops.get(DropReason::QueueFull), 2);
+    assert_eq!(s.ports[&1].queue_high_water, 6);
 }
 
 #[test]
@@ -562,30 +573,37 @@ fn frames_sent_on_links_are_retransmitted_on_nak_and_time_out_up_to_the_count() 
 }
 
 #[test]
-fn answers_of_forwarded_commands_reach_the_right_client_even_with_one_group() {
+fn answers_of_forwarded_commands_go_back_along_the_reverse_path_never_to_a_wrong_client() {
     let mut h = H::new(&[1]);
     let other = LinkId(6);
     h.up(other, LinkKind::Client);
     h.up(DOWN, LinkKind::Downstream);
     h.link(DOWN, &frame((G, 0, 0), 7, b"AW"));
     h.link(DOWN, &[ACK]);
-    // Both clients speak as group 0 and ask GCU 7 the same question.
+    // Two clients (groups 0 and 1) ask GCU 7 the same question.
     h.link(CLIENT, &frame((7, 1, 3), 0, b"*mu1"));
-    h.link(other, &frame((7, 1, 3), 0, b"*mu2"));
+    h.link(other, &frame((7, 1, 3), 1, b"*mu2"));
     h.link(DOWN, &[ACK]);
     h.link(DOWN, &[ACK]);
+    let a = h.link(DOWN, &frame((1, 1, 3), 7, b"2"));
+    assert_eq!(link_writes(&a, other), vec![frame((1, 1, 3), 7, b"2")]);
+    assert!(link_writes(&a, CLIENT).is_empty());
     let a = h.link(DOWN, &frame((0, 1, 3), 7, b"1"));
     assert_eq!(link_writes(&a, CLIENT), vec![frame((0, 1, 3), 7, b"1")]);
-    assert!(link_writes(&a, other).is_empty());
-    let a = h.link(DOWN, &frame((0, 1, 3), 7, b"2"));
-    assert_eq!(link_writes(&a, other), vec![frame((0, 1, 3), 7, b"2")]);
-    // A `?` that could be either's is dropped, never given to the wrong one.
-    h.link(CLIENT, &frame((7, 1, 3), 0, b"PL"));
-    h.link(other, &frame((7, 1, 3), 0, b"PL"));
+    h.link(CLIENT, &[ACK]);
+    h.link(other, &[ACK]);
+    // Sharing one source group, their answers cannot be told apart (the
+    // first command may never get its result): dropped, not guessed.
+    h.link(CLIENT, &frame((7, 1, 3), 0, b"*mu3"));
+    h.link(other, &frame((7, 1, 3), 0, b"*mu4"));
     h.link(DOWN, &[ACK]);
     h.link(DOWN, &[ACK]);
+    let a = h.link(DOWN, &frame((0, 1, 3), 7, b"4"));
+    assert_eq!(dropped(&a), vec![DropReason::AmbiguousAnswer]);
+    assert!(link_writes(&a, CLIENT).is_empty() && link_writes(&a, other).is_empty());
+    // The same for a `?`.
     let a = h.link(DOWN, &[NIC]);
-    assert_eq!(dropped(&a), vec![DropReason::AmbiguousNic]);
+    assert_eq!(dropped(&a), vec![DropReason::AmbiguousAnswer]);
     assert!(link_writes(&a, CLIENT).is_empty() && link_writes(&a, other).is_empty());
 }
 

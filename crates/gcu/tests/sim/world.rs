@@ -1,0 +1,1370 @@
+//! Network, devices, clients, wires and the invariants.
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use sagebrush_gcu::{
+    Action, CommandId, Event, Input, LinkConfig, LinkId, LinkKind, PortConfig, Router, RouterConfig, SourceFilter,
+};
+use sagebrush_protocol::{
+    ACK, Address, AwakeStatus, Command, DeviceEndpoint, DeviceHandler, EndpointConfig, Event as FEvent, Extended,
+    FrameBuf, Framer, Identity, InitResults, NAK, Position, Reply, ReplyTo, Response, ResultKind, RetryPolicy,
+    Transmitter, TxStep, WILDCARD,
+};
+
+use super::Rng;
+
+/// What a run did, summed over seeds (and compared for determinism).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Summary {
+    pub accepted: u64,
+    pub results: u64,
+    pub nics: u64,
+    pub completed: u64,
+    pub no_result: u64,
+    pub unreachable: u64,
+    pub forwarded: u64,
+    pub dropped: u64,
+    pub dead_man_stops: u64,
+    pub rate_switches: u64,
+    pub retransmits: u64,
+    pub client_results: u64,
+    pub nonce_results: u64,
+    pub final_motions_checked: u64,
+    pub end_time: u64,
+}
+
+impl Summary {
+    pub fn add(&mut self, o: &Summary) {
+        self.accepted += o.accepted;
+        self.results += o.results;
+        self.nics += o.nics;
+        self.completed += o.completed;
+        self.no_result += o.no_result;
+        self.unreachable += o.unreachable;
+        self.forwarded += o.forwarded;
+        self.dropped += o.dropped;
+        self.dead_man_stops += o.dead_man_stops;
+        self.rate_switches += o.rate_switches;
+        self.retransmits += o.retransmits;
+        self.client_results += o.client_results;
+        self.nonce_results += o.nonce_results;
+        self.final_motions_checked += o.final_motions_checked;
+        self.end_time = self.end_time.max(o.end_time);
+    }
+}
+
+// ---------------------------------------------------------------- devices
+
+/// Motion axes of a gimbal: pan, tilt, focus, zoom.
+const AXES: usize = 4;
+
+fn motion_axis(c: &Command<'_>) -> Option<usize> {
+    match c {
+        Command::PanLeft | Command::PanRight => Some(0),
+        Command::TiltUp | Command::TiltDown => Some(1),
+        Command::FocusFar | Command::FocusNear => Some(2),
+        Command::ZoomIn | Command::ZoomOut => Some(3),
+        _ => None,
+    }
+}
+
+fn stopped_axes(c: &Command<'_>) -> &'static [usize] {
+    match c {
+        Command::PanStop => &[0],
+        Command::TiltStop => &[1],
+        Command::FocusStop => &[2],
+        Command::ZoomStop => &[3],
+        Command::Halt | Command::Stop | Command::StopMotion => &[0, 1],
+        _ => &[],
+    }
+}
+
+#[derive(Debug, Default)]
+struct Gimbal {
+    id: u8,
+    moving: [bool; AXES],
+    echo: Vec<u8>,
+    pending_rate: Option<u32>,
+    deferred: Option<ReplyTo>,
+}
+
+impl DeviceHandler for Gimbal {
+    fn handle(&mut self, command: Command<'_>, reply_to: ReplyTo, _now: u64) -> Response<'_> {
+        if let Some(axis) = motion_axis(&command) {
+            self.moving[axis] = true;
+            return Response::Done;
+        }
+        for &axis in stopped_axes(&command) {
+            self.moving[axis] = false;
+        }
+        match command {
+            Command::AwakeStatus => Response::Reply(Reply::AwakeStatus(AwakeStatus::new(0).unwrap_or_default())),
+            Command::QueryPosition => Response::Reply(Reply::Position(Position::default())),
+            Command::Identify => match Identity::new(self.id, *b"19", b"sim gimbal", b"SIM") {
+                Ok(id) => Response::Reply(Reply::Identity(id)),
+                Err(_) => Response::Nic,
+            },
+            Command::Initialize => {
+                self.deferred = Some(reply_to);
+                Response::Deferred
+            }
+            Command::SetDataRate(rate) => match rate.bits_per_second() {
+                Some(bps) => {
+                    self.pending_rate = Some(bps);
+                    Response::Done
+                }
+                None => Response::Nic,
+            },
+            Command::Extended(Extended::UserParameters, args) if !args.is_empty() => {
+                self.echo = args.to_vec();
+                Response::Reply(Reply::Raw(&self.echo))
+            }
+            Command::AutoFocusOn | Command::AutoFocusOff => Response::Nic,
+            _ => Response::Done,
+        }
+    }
+}
+
+#[derive(Debug)]
+struct Device {
+    ep: DeviceEndpoint,
+    gimbal: Gimbal,
+    bps: u32,
+    /// Last byte heard: a device abandons a partial frame after silence.
+    last_rx: u64,
+}
+
+#[derive(Debug)]
+struct SimPort {
+    id: u8,
+    /// The GCU side's line rate.
+    bps: u32,
+    open: bool,
+    epoch: u64,
+    bound: usize,
+    stop_bound: usize,
+    devices: Vec<Device>,
+}
+
+// ---------------------------------------------------------------- GCUs, clients
+
+#[derive(Debug, Default)]
+struct Ledger {
+    accepted: BTreeSet<CommandId>,
+    finished: BTreeSet<CommandId>,
+    /// Stops queued and not started, per port.
+    pending_stops: BTreeMap<u8, BTreeSet<CommandId>>,
+}
+
+#[derive(Debug)]
+struct Gcu {
+    group: u8,
+    router: Router,
+    ports: Vec<SimPort>,
+    ledger: Ledger,
+}
+
+#[derive(Debug)]
+struct Pair {
+    parent: (usize, LinkId),
+    child: (usize, LinkId),
+    up: bool,
+    epoch: u64,
+}
+
+enum ClientEvent {
+    Frame(Box<FrameBuf>),
+    Ack,
+    Nak,
+    Bad,
+    Nic,
+}
+
+impl From<FEvent<'_>> for ClientEvent {
+    fn from(e: FEvent<'_>) -> Self {
+        match e {
+            FEvent::Frame(f) => ClientEvent::Frame(Box::new(FrameBuf::from_frame(&f))),
+            FEvent::BadChecksum(_) => ClientEvent::Bad,
+            FEvent::Ack => ClientEvent::Ack,
+            FEvent::Nak => ClientEvent::Nak,
+            FEvent::Nic => ClientEvent::Nic,
+        }
+    }
+}
+
+#[derive(Debug)]
+enum ClientState {
+    Idle,
+    AwaitAck {
+        tx: Transmitter,
+        frame: Box<FrameBuf>,
+        kind: ResultKind,
+    },
+    AwaitAnswer {
+        until: u64,
+    },
+}
+
+#[derive(Debug)]
+struct Client {
+    gcu: usize,
+    link: LinkId,
+    group: u8,
+    filter: SourceFilter,
+    connected: bool,
+    epoch: u64,
+    framer: Framer,
+    state: ClientState,
+    issued: Vec<Address>,
+    nonces: BTreeSet<u16>,
+    counter: u16,
+    to_issue: usize,
+    next_at: u64,
+    forced: Option<(Address, Vec<u8>)>,
+    nics: u64,
+    last_rx: u64,
+}
+
+// ---------------------------------------------------------------- wires
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum Node {
+    Port { g: usize, p: usize },
+    Device { g: usize, p: usize, d: usize },
+    Link { g: usize, link: LinkId },
+    Client { c: usize },
+}
+
+#[derive(Debug)]
+enum Ev {
+    Bytes {
+        to: Node,
+        bytes: Vec<u8>,
+        epoch: u64,
+        bps: u32,
+    },
+    Deferred {
+        g: usize,
+        p: usize,
+        d: usize,
+        to: ReplyTo,
+    },
+    FlapPair(usize),
+    FlapClient(usize),
+    FlapPort {
+        g: usize,
+        p: usize,
+    },
+}
+
+const CLIENT_RETRY: RetryPolicy = RetryPolicy {
+    ack_timeout: 60,
+    retries: 3,
+};
+const RANDOM_PHASE_CAP: u64 = 60_000;
+/// Silence after which devices and clients abandon a partial frame.
+const SILENCE: u64 = 10;
+const DRAIN_CAP: u64 = 100_000;
+
+struct World {
+    rng: Rng,
+    now: u64,
+    seq: u64,
+    events: BTreeMap<(u64, u64), Ev>,
+    fifo: BTreeMap<(Node, Node), u64>,
+    gcus: Vec<Gcu>,
+    pairs: Vec<Pair>,
+    clients: Vec<Client>,
+    quiet: bool,
+    drop_pm: u64,
+    corrupt_pm: u64,
+    jitter: u64,
+    trace: bool,
+    violation: Option<String>,
+    summary: Summary,
+}
+
+/// Runs one seed; `Err` names the first invariant broken.
+pub fn run(seed: u64, trace: bool) -> Result<Summary, String> {
+    let mut w = World::generate(seed, trace);
+    w.random_phase()?;
+    w.final_phase()?;
+    w.check_end()?;
+    Ok(w.finish_summary())
+}
+
+impl World {
+    fn generate(seed: u64, trace: bool) -> Self {
+        let mut rng = Rng::new(seed);
+        let n_gcu = rng.range(1, 3) as usize;
+        let mut groups = Vec::new();
+        while groups.len() < n_gcu {
+            let g = rng.range(1, 60) as u8;
+            if !groups.contains(&g) {
+                groups.push(g);
+            }
+        }
+        let parents: Vec<usize> = (0..n_gcu)
+            .map(|i| if i == 0 { 0 } else { rng.below(i as u64) as usize })
+            .collect();
+        let mut pairs = Vec::new();
+        let mut next_link = vec![10u32; n_gcu];
+        for (child, &parent) in parents.iter().enumerate().skip(1) {
+            let pl = LinkId(next_link[parent]);
+            next_link[parent] += 1;
+            let cl = LinkId(next_link[child]);
+            next_link[child] += 1;
+            pairs.push(Pair {
+                parent: (parent, pl),
+                child: (child, cl),
+                up: true,
+                epoch: 0,
+            });
+        }
+        let devices_configured = rng.chance(500);
+        let mut gcus = Vec::new();
+        for (i, &group) in groups.iter().enumerate() {
+            let mut config = RouterConfig::new(group);
+            config.name = format!("sim gcu {group}");
+            config.serial = format!("SN{seed}").chars().take(20).collect();
+            config.links.ack_timeout = 40;
+            config.links.retries = 3;
+            config.links.queue_bound = rng.range(4, 16) as usize;
+            config.links.stop_queue_bound = 16;
+            config.links.idle_timeout = 20;
+            config.links.answer_timeout = 4_000;
+            config.links.long_answer_timeout = 8_000;
+            config.links.nic_answer_timeout = 1_500;
+            config.links.max_pending = 64;
+            // Child: default upstream. Every GCU: static routes to its descendants.
+            for pair in &pairs {
+                if pair.child.0 == i {
+                    config.default_upstream = Some(pair.child.1);
+                }
+            }
+            for (d, &dg) in groups.iter().enumerate() {
+                let mut hop = d;
+                while hop != 0 && parents[hop] != i {
+                    hop = parents[hop];
+                }
+                if d != i && hop != 0 && parents[hop] == i {
+                    if let Some(pair) = pairs.iter().find(|p| p.child.0 == hop) {
+                        config.static_routes.insert(dg, pair.parent.1);
+                    }
+                }
+            }
+            let n_ports = rng.range(1, 3);
+            let mut ports = Vec::new();
+            let mut port_ids = Vec::new();
+            while port_ids.len() < n_ports as usize {
+                let p = rng.range(1, 8) as u8;
+                if !port_ids.contains(&p) {
+                    port_ids.push(p);
+                }
+            }
+            for &pid in &port_ids {
+                let n_dev = rng.range(1, 3) as usize;
+                let mut ids = Vec::new();
+                while ids.len() < n_dev {
+                    let d = rng.range(1, 9) as u8;
+                    if !ids.contains(&d) {
+                        ids.push(d);
+                    }
+                }
+                let bound = rng.range(2, 8) as usize;
+                let stop_bound = rng.range(8, 32) as usize;
+                config.ports.push(PortConfig {
+                    bps: 9600,
+                    retries: 2,
+                    ack_timeout: 20,
+                    result_timeout: 150,
+                    long_result_timeout: 2_500,
+                    nic_window: 10,
+                    broadcast_guard: 30,
+                    queue_bound: bound,
+                    stop_queue_bound: stop_bound,
+                    idle_timeout: 10,
+                    devices: devices_configured.then(|| ids.clone()),
+                    ..PortConfig::new(pid)
+                });
+                let single = n_dev == 1 && rng.chance(500);
+                let devices = ids
+                    .iter()
+                    .map(|&id| Device {
+                        ep: DeviceEndpoint::new(if single {
+                            EndpointConfig::single(id)
+                        } else {
+                            EndpointConfig::shared(id)
+                        }),
+                        gimbal: Gimbal {
+                            id,
+                            ..Gimbal::default()
+                        },
+                        bps: 9600,
+                        last_rx: 0,
+                    })
+                    .collect();
+                ports.push(SimPort {
+                    id: pid,
+                    bps: 9600,
+                    open: true,
+                    epoch: 0,
+                    bound,
+                    stop_bound,
+                    devices,
+                });
+            }
+            let router = Router::new(config).expect("generated config is valid");
+            gcus.push(Gcu {
+                group,
+                router,
+                ports,
+                ledger: Ledger::default(),
+            });
+        }
+        let n_clients = rng.range(1, 3) as usize;
+        let mut clients = Vec::new();
+        for c in 0..n_clients {
+            let gcu = rng.below(n_gcu as u64) as usize;
+            let group = rng.pick(&[0u8, 100, 101, 102]);
+            let filter = if rng.chance(500) {
+                SourceFilter::Any
+            } else {
+                SourceFilter::Only(vec![group])
+            };
+            clients.push(Client {
+                gcu,
+                link: LinkId(100 + c as u32),
+                group,
+                filter,
+                connected: true,
+                epoch: 0,
+                framer: Framer::new(),
+                state: ClientState::Idle,
+                issued: Vec::new(),
+                nonces: BTreeSet::new(),
+                counter: 0,
+                to_issue: rng.range(3, 10) as usize,
+                next_at: rng.below(50),
+                forced: None,
+                nics: 0,
+                last_rx: 0,
+            });
+        }
+        let level = rng.below(4);
+        let (drop_pm, corrupt_pm) = match level {
+            0 => (0, 0),
+            1 => (10, 10),
+            2 => (30, 20),
+            _ => (60, 50),
+        };
+        let jitter = rng.range(1, 5);
+        let mut w = World {
+            rng,
+            now: 0,
+            seq: 0,
+            events: BTreeMap::new(),
+            fifo: BTreeMap::new(),
+            gcus,
+            pairs,
+            clients,
+            quiet: false,
+            drop_pm,
+            corrupt_pm,
+            jitter,
+            trace,
+            violation: None,
+            summary: Summary::default(),
+        };
+        w.log(format_args!(
+            "seed {seed}: {n_gcu} gcus {groups:?}, parents {parents:?}, {n_clients} clients, drop {drop_pm}‰ corrupt {corrupt_pm}‰"
+        ));
+        w.start();
+        w
+    }
+
+    fn log(&self, args: std::fmt::Arguments<'_>) {
+        if self.trace {
+            println!("[{:>6}] {args}", self.now);
+        }
+    }
+
+    fn schedule(&mut self, at: u64, ev: Ev) {
+        self.seq += 1;
+        self.events.insert((at, self.seq), ev);
+    }
+
+    fn start(&mut self) {
+        for g in 0..self.gcus.len() {
+            for p in 0..self.gcus[g].ports.len() {
+                let port = self.gcus[g].ports[p].id;
+                self.input(g, Input::PortOpened { port });
+            }
+        }
+        for i in 0..self.pairs.len() {
+            self.pair_up(i);
+        }
+        for c in 0..self.clients.len() {
+            self.client_up(c);
+        }
+        // Disconnections during the random phase.
+        if self.rng.chance(600) {
+            for _ in 0..self.rng.range(1, 4) {
+                let at = self.rng.range(100, 6_000);
+                let choice = self.rng.below(3);
+                match choice {
+                    0 if !self.pairs.is_empty() => {
+                        let i = self.rng.below(self.pairs.len() as u64) as usize;
+                        self.schedule(at, Ev::FlapPair(i));
+                    }
+                    1 => {
+                        let c = self.rng.below(self.clients.len() as u64) as usize;
+                        self.schedule(at, Ev::FlapClient(c));
+                    }
+                    _ => {
+                        let g = self.rng.below(self.gcus.len() as u64) as usize;
+                        let p = self.rng.below(self.gcus[g].ports.len() as u64) as usize;
+                        self.schedule(at, Ev::FlapPort { g, p });
+                    }
+                }
+            }
+        }
+    }
+
+    // ------------------------------------------------------------ routers
+
+    fn input(&mut self, g: usize, input: Input<'_>) {
+        let now = self.now;
+        let actions = self.gcus[g].router.handle_vec(now, input);
+        self.apply(g, actions);
+    }
+
+    fn violation(&mut self, message: String) {
+        if self.violation.is_none() {
+            self.log(format_args!("VIOLATION: {message}"));
+            self.violation = Some(format!("t={}: {message}", self.now));
+        }
+    }
+
+    fn apply(&mut self, g: usize, actions: Vec<Action>) {
+        for action in actions {
+            match action {
+                Action::WritePort { port, bytes } => {
+                    let Some(p) = self.gcus[g].ports.iter().position(|sp| sp.id == port) else {
+                        self.violation(format!("gcu {g} wrote to unknown port {port}"));
+                        continue;
+                    };
+                    let sp = &self.gcus[g].ports[p];
+                    let (epoch, bps, n) = (sp.epoch, sp.bps, sp.devices.len());
+                    if !sp.open {
+                        self.violation(format!("gcu {g} wrote to closed port {port}"));
+                        continue;
+                    }
+                    if let Some((at, bytes)) = self.wire(Node::Port { g, p }, Node::Device { g, p, d: 0 }, bytes) {
+                        for d in 0..n {
+                            let to = Node::Device { g, p, d };
+                            self.schedule(
+                                at,
+                                Ev::Bytes {
+                                    to,
+                                    bytes: bytes.clone(),
+                                    epoch,
+                                    bps,
+                                },
+                            );
+                        }
+                    }
+                }
+                Action::WriteLink { link, bytes } => self.write_link(g, link, bytes),
+                Action::SetPortRate { port, bps } => {
+                    if let Some(sp) = self.gcus[g].ports.iter_mut().find(|sp| sp.id == port) {
+                        sp.bps = bps;
+                    }
+                }
+                Action::Event(event) => self.on_event(g, event),
+            }
+        }
+    }
+
+    fn on_event(&mut self, g: usize, event: Event) {
+        if self.trace {
+            self.log(format_args!("gcu {g}: {event}"));
+        }
+        let ledger = &mut self.gcus[g].ledger;
+        let problem = match event {
+            Event::Accepted { id, .. } => {
+                (!ledger.accepted.insert(id)).then(|| format!("gcu {g}: {id:?} accepted twice"))
+            }
+            Event::Finished { id, outcome } => {
+                if !ledger.accepted.contains(&id) {
+                    Some(format!("gcu {g}: {id:?} finished without being accepted"))
+                } else if !ledger.finished.insert(id) {
+                    Some(format!("gcu {g}: {id:?} finished twice ({outcome:?})"))
+                } else {
+                    None
+                }
+            }
+            Event::Queued { id, port, stop } => {
+                if stop {
+                    ledger.pending_stops.entry(port).or_default().insert(id);
+                }
+                None
+            }
+            Event::Started { id, port, stop } => {
+                let pending = ledger.pending_stops.entry(port).or_default();
+                if stop {
+                    pending.remove(&id);
+                    None
+                } else if !pending.is_empty() {
+                    Some(format!(
+                        "gcu {g} port {port}: {id:?} started while stops {pending:?} wait"
+                    ))
+                } else {
+                    None
+                }
+            }
+            _ => None,
+        };
+        if let Some(problem) = problem {
+            self.violation(problem);
+        }
+    }
+
+    fn write_link(&mut self, g: usize, link: LinkId, bytes: Vec<u8>) {
+        if let Some(i) = self
+            .pairs
+            .iter()
+            .position(|p| p.parent == (g, link) || p.child == (g, link))
+        {
+            let pair = &self.pairs[i];
+            if !pair.up {
+                return self.violation(format!("gcu {g} wrote to down {link}"));
+            }
+            let to = if pair.parent == (g, link) {
+                pair.child
+            } else {
+                pair.parent
+            };
+            let epoch = pair.epoch;
+            let to = Node::Link { g: to.0, link: to.1 };
+            if let Some((at, bytes)) = self.wire(Node::Link { g, link }, to, bytes) {
+                self.schedule(
+                    at,
+                    Ev::Bytes {
+                        to,
+                        bytes,
+                        epoch,
+                        bps: 0,
+                    },
+                );
+            }
+            return;
+        }
+        if let Some(c) = self.clients.iter().position(|cl| cl.gcu == g && cl.link == link) {
+            if !self.clients[c].connected {
+                return self.violation(format!("gcu {g} wrote to disconnected client {link}"));
+            }
+            let epoch = self.clients[c].epoch;
+            let to = Node::Client { c };
+            if let Some((at, bytes)) = self.wire(Node::Link { g, link }, to, bytes) {
+                self.schedule(
+                    at,
+                    Ev::Bytes {
+                        to,
+                        bytes,
+                        epoch,
+                        bps: 0,
+                    },
+                );
+            }
+            return;
+        }
+        self.violation(format!("gcu {g} wrote to unknown {link}"));
+    }
+
+    /// Faults of one write: dropped, or delivered at a time (FIFO per wire),
+    /// perhaps with one byte corrupted.
+    fn wire(&mut self, from: Node, to: Node, mut bytes: Vec<u8>) -> Option<(u64, Vec<u8>)> {
+        if !self.quiet {
+            if self.rng.chance(self.drop_pm) {
+                return None;
+            }
+            if !bytes.is_empty() && self.rng.chance(self.corrupt_pm) {
+                let at = self.rng.below(bytes.len() as u64) as usize;
+                bytes[at] ^= self.rng.range(1, 255) as u8;
+            }
+        }
+        let delay = 1 + self.rng.below(self.jitter);
+        let last = self.fifo.entry((from, to)).or_insert(0);
+        let at = (*last).max(self.now + delay);
+        *last = at;
+        Some((at, bytes))
+    }
+
+    // ------------------------------------------------------------ links and flaps
+
+    fn pair_up(&mut self, i: usize) {
+        let (parent, child) = (self.pairs[i].parent, self.pairs[i].child);
+        self.pairs[i].up = true;
+        let any = SourceFilter::Any;
+        self.input(
+            parent.0,
+            Input::LinkUp {
+                link: parent.1,
+                config: LinkConfig::new(LinkKind::Downstream, any.clone()),
+            },
+        );
+        self.input(
+            child.0,
+            Input::LinkUp {
+                link: child.1,
+                config: LinkConfig::new(LinkKind::Upstream, any),
+            },
+        );
+    }
+
+    fn pair_down(&mut self, i: usize) {
+        let (parent, child) = (self.pairs[i].parent, self.pairs[i].child);
+        self.pairs[i].up = false;
+        self.pairs[i].epoch += 1;
+        self.input(parent.0, Input::LinkDown { link: parent.1 });
+        self.input(child.0, Input::LinkDown { link: child.1 });
+    }
+
+    fn client_up(&mut self, c: usize) {
+        let cl = &mut self.clients[c];
+        cl.connected = true;
+        cl.framer = Framer::new();
+        cl.state = ClientState::Idle;
+        let (g, link, filter) = (cl.gcu, cl.link, cl.filter.clone());
+        self.input(
+            g,
+            Input::LinkUp {
+                link,
+                config: LinkConfig::new(LinkKind::Client, filter),
+            },
+        );
+    }
+
+    fn client_down(&mut self, c: usize) {
+        let cl = &mut self.clients[c];
+        cl.connected = false;
+        cl.epoch += 1;
+        cl.state = ClientState::Idle;
+        let (g, link) = (cl.gcu, cl.link);
+        self.input(g, Input::LinkDown { link });
+    }
+
+    fn port_lost(&mut self, g: usize, p: usize) {
+        let sp = &mut self.gcus[g].ports[p];
+        sp.open = false;
+        sp.epoch += 1;
+        let port = sp.id;
+        self.gcus[g].ledger.pending_stops.remove(&port);
+        self.input(g, Input::PortLost { port });
+    }
+
+    fn port_opened(&mut self, g: usize, p: usize) {
+        let sp = &mut self.gcus[g].ports[p];
+        sp.open = true;
+        let port = sp.id;
+        self.input(g, Input::PortOpened { port });
+    }
+
+    fn flap_later(&mut self, ev: Ev) {
+        if !self.quiet {
+            let at = self.now + self.rng.range(50, 1_000);
+            self.schedule(at, ev);
+        }
+    }
+
+    // ------------------------------------------------------------ events
+
+    fn process(&mut self, ev: Ev) {
+        match ev {
+            Ev::Bytes { to, bytes, epoch, bps } => self.deliver(to, bytes, epoch, bps),
+            Ev::Deferred { g, p, d, to } => {
+                let sp = &mut self.gcus[g].ports[p];
+                let (epoch, dev) = (sp.epoch, &mut sp.devices[d]);
+                let mut out = Vec::new();
+                let reply = Reply::Initialization(InitResults::default());
+                if dev
+                    .ep
+                    .send_reply(to, &reply, &mut |b: &[u8]| out.extend_from_slice(b))
+                    .is_err()
+                {
+                    return self.violation("device could not encode an IX result".into());
+                }
+                let bps = dev.bps;
+                self.device_writes(g, p, d, out, epoch, bps);
+            }
+            Ev::FlapPair(i) => {
+                if self.quiet {
+                    return;
+                }
+                if self.pairs[i].up {
+                    self.pair_down(i);
+                } else {
+                    self.pair_up(i);
+                }
+                self.flap_later(Ev::FlapPair(i));
+            }
+            Ev::FlapClient(c) => {
+                if self.quiet {
+                    return;
+                }
+                if self.clients[c].connected {
+                    self.client_down(c);
+                } else {
+                    self.client_up(c);
+                }
+                self.flap_later(Ev::FlapClient(c));
+            }
+            Ev::FlapPort { g, p } => {
+                if self.quiet {
+                    return;
+                }
+                if self.gcus[g].ports[p].open {
+                    self.port_lost(g, p);
+                } else {
+                    self.port_opened(g, p);
+                }
+                self.flap_later(Ev::FlapPort { g, p });
+            }
+        }
+    }
+
+    fn device_writes(&mut self, g: usize, p: usize, d: usize, out: Vec<u8>, epoch: u64, bps: u32) {
+        if out.is_empty() {
+            return;
+        }
+        if let Some((at, bytes)) = self.wire(Node::Device { g, p, d }, Node::Port { g, p }, out) {
+            self.schedule(
+                at,
+                Ev::Bytes {
+                    to: Node::Port { g, p },
+                    bytes,
+                    epoch,
+                    bps,
+                },
+            );
+        }
+    }
+
+    fn deliver(&mut self, to: Node, bytes: Vec<u8>, epoch: u64, bps: u32) {
+        match to {
+            Node::Device { g, p, d } => {
+                let now = self.now;
+                let sp = &mut self.gcus[g].ports[p];
+                if sp.epoch != epoch {
+                    return;
+                }
+                let port_epoch = sp.epoch;
+                let dev = &mut sp.devices[d];
+                if dev.bps != bps {
+                    return; // another line rate: garbage to this device
+                }
+                let mut out = Vec::new();
+                if now.saturating_sub(dev.last_rx) >= SILENCE {
+                    dev.ep
+                        .line_idle(now, &mut dev.gimbal, &mut |b: &[u8]| out.extend_from_slice(b));
+                }
+                dev.last_rx = now;
+                dev.ep
+                    .receive(&bytes, now, &mut dev.gimbal, &mut |b: &[u8]| out.extend_from_slice(b));
+                let sent_at = dev.bps;
+                if let Some(new) = dev.gimbal.pending_rate.take() {
+                    dev.bps = new;
+                }
+                let deferred = dev.gimbal.deferred.take();
+                self.device_writes(g, p, d, out, port_epoch, sent_at);
+                if let Some(reply_to) = deferred {
+                    let at = self.now + self.rng.range(200, 2_000);
+                    self.schedule(at, Ev::Deferred { g, p, d, to: reply_to });
+                }
+            }
+            Node::Port { g, p } => {
+                let sp = &self.gcus[g].ports[p];
+                if sp.epoch != epoch || !sp.open || sp.bps != bps {
+                    return;
+                }
+                let port = sp.id;
+                self.input(g, Input::PortBytes { port, bytes: &bytes });
+            }
+            Node::Link { g, link } => {
+                let Some(pair) = self
+                    .pairs
+                    .iter()
+                    .find(|p| p.parent == (g, link) || p.child == (g, link))
+                else {
+                    // A client's link.
+                    if let Some(c) = self.clients.iter().position(|cl| cl.gcu == g && cl.link == link) {
+                        if self.clients[c].epoch == epoch && self.clients[c].connected {
+                            self.input(g, Input::LinkBytes { link, bytes: &bytes });
+                        }
+                    }
+                    return;
+                };
+                if pair.epoch == epoch && pair.up {
+                    self.input(g, Input::LinkBytes { link, bytes: &bytes });
+                }
+            }
+            Node::Client { c } => {
+                if self.clients[c].epoch == epoch && self.clients[c].connected {
+                    self.client_receive(c, &bytes);
+                }
+            }
+        }
+    }
+
+    // ------------------------------------------------------------ clients
+
+    fn client_write(&mut self, c: usize, bytes: Vec<u8>) {
+        let cl = &self.clients[c];
+        let (from, to, epoch) = (
+            Node::Client { c },
+            Node::Link {
+                g: cl.gcu,
+                link: cl.link,
+            },
+            cl.epoch,
+        );
+        if let Some((at, bytes)) = self.wire(from, to, bytes) {
+            self.schedule(
+                at,
+                Ev::Bytes {
+                    to,
+                    bytes,
+                    epoch,
+                    bps: 0,
+                },
+            );
+        }
+    }
+
+    fn random_command(&mut self, c: usize) -> (Address, Vec<u8>) {
+        let own = self.clients[c].gcu;
+        let g = if self.gcus.len() > 1 && self.rng.chance(400) {
+            self.rng.below(self.gcus.len() as u64) as usize
+        } else {
+            own
+        };
+        let group = match self.rng.below(100) {
+            0..=3 => WILDCARD,
+            4..=6 => self.rng.range(61, 90) as u8, // no such GCU
+            _ => self.gcus[g].group,
+        };
+        let ports: Vec<u8> = self.gcus[g].ports.iter().map(|p| p.id).collect();
+        let pi = self.rng.below(ports.len() as u64) as usize;
+        let port = match self.rng.below(100) {
+            0..=5 => WILDCARD,
+            6..=10 => 0,
+            11..=14 => self.rng.range(9, 20) as u8,
+            _ => ports[pi],
+        };
+        let ids: Vec<u8> = self.gcus[g].ports[pi].devices.iter().map(|d| d.gimbal.id).collect();
+        let device = match self.rng.below(100) {
+            0..=5 => WILDCARD,
+            6..=12 => self.rng.range(10, 30) as u8,
+            _ => self.rng.pick(&ids),
+        };
+        let payload: Vec<u8> = match self.rng.below(100) {
+            0..=9 => b"AW".to_vec(),
+            10..=17 => b"P?".to_vec(),
+            18..=20 => b"D?".to_vec(),
+            21..=34 => {
+                let cl = &mut self.clients[c];
+                cl.counter = cl.counter.wrapping_add(1);
+                cl.nonces.insert(cl.counter);
+                format!("*muN{:02X}{:04X}", c, cl.counter).into_bytes()
+            }
+            35..=37 => b"*mu".to_vec(),
+            38..=40 => b"IX".to_vec(),
+            41..=58 => self
+                .rng
+                .pick(&[&b"PL"[..], b"PR", b"TU", b"TD", b"FF", b"FN", b"ZI", b"ZO"])
+                .to_vec(),
+            59..=74 => self
+                .rng
+                .pick(&[&b"PS"[..], b"TS", b"FS", b"ZS", b"HA", b"HS", b"PT"])
+                .to_vec(),
+            75..=82 => self.rng.pick(&[&b"HO"[..], b"P00640064", b"SP5", b"VM1"]).to_vec(),
+            83..=85 => format!("C{:X}", self.rng.range(3, 15)).into_bytes(),
+            86..=92 => self.rng.pick(&[&b"QQ"[..], b"FA", b"Z?x"]).to_vec(),
+            _ => b"HO".to_vec(),
+        };
+        (Address::new(group, port, device), payload)
+    }
+
+    fn client_issue(&mut self, c: usize, dest: Address, payload: Vec<u8>) {
+        let group = self.clients[c].group;
+        let Ok(frame) = FrameBuf::new(dest, group, &payload) else {
+            return self.violation("generator built an invalid frame".into());
+        };
+        let kind = Command::parse(&payload).result_kind();
+        let mut tx = Transmitter::new(CLIENT_RETRY);
+        let _ = tx.start(self.now);
+        let bytes = frame.as_bytes().to_vec();
+        let cl = &mut self.clients[c];
+        cl.issued.push(dest);
+        cl.state = ClientState::AwaitAck {
+            tx,
+            frame: Box::new(frame),
+            kind,
+        };
+        self.log(format_args!(
+            "client {c} (group {group}) issues {} to {dest}",
+            String::from_utf8_lossy(&payload)
+        ));
+        self.client_write(c, bytes);
+    }
+
+    fn client_deadline(&self, c: usize) -> Option<u64> {
+        let cl = &self.clients[c];
+        if !cl.connected {
+            return None;
+        }
+        match &cl.state {
+            ClientState::Idle if cl.forced.is_some() || (cl.to_issue > 0 && !self.quiet) => Some(cl.next_at),
+            ClientState::Idle => None,
+            ClientState::AwaitAck { tx, .. } => tx.deadline(),
+            ClientState::AwaitAnswer { until } => Some(*until),
+        }
+    }
+
+    fn client_poll(&mut self, c: usize) {
+        let now = self.now;
+        let cl = &mut self.clients[c];
+        match &mut cl.state {
+            ClientState::Idle => {
+                if let Some((dest, payload)) = cl.forced.take() {
+                    return self.client_issue(c, dest, payload);
+                }
+                if cl.to_issue > 0 && now >= cl.next_at && !self.quiet {
+                    cl.to_issue -= 1;
+                    let (dest, payload) = self.random_command(c);
+                    self.client_issue(c, dest, payload);
+                }
+            }
+            ClientState::AwaitAck { tx, frame, .. } => {
+                if tx.deadline().is_some_and(|t| now >= t) {
+                    match tx.poll(now) {
+                        TxStep::Send => {
+                            let bytes = frame.as_bytes().to_vec();
+                            self.client_write(c, bytes);
+                        }
+                        TxStep::Failed(_) => self.client_idle(c),
+                        _ => {}
+                    }
+                }
+            }
+            ClientState::AwaitAnswer { until } => {
+                if now >= *until {
+                    self.client_idle(c);
+                }
+            }
+        }
+    }
+
+    fn client_idle(&mut self, c: usize) {
+        let pause = self.rng.range(0, 40);
+        let cl = &mut self.clients[c];
+        cl.state = ClientState::Idle;
+        cl.next_at = self.now + pause;
+    }
+
+    fn client_receive(&mut self, c: usize, bytes: &[u8]) {
+        let mut events = Vec::new();
+        let now = self.now;
+        let cl = &mut self.clients[c];
+        if now.saturating_sub(cl.last_rx) >= SILENCE {
+            cl.framer.line_idle();
+            while let Some(e) = cl.framer.next_event() {
+                events.push(ClientEvent::from(e));
+            }
+        }
+        cl.last_rx = now;
+        cl.framer.feed(bytes, |e| events.push(ClientEvent::from(e)));
+        for event in events {
+            match event {
+                ClientEvent::Nic => {
+                    self.clients[c].nics += 1;
+                    if !matches!(self.clients[c].state, ClientState::Idle) {
+                        self.client_idle(c);
+                    }
+                }
+                ClientEvent::Bad => self.client_write(c, vec![NAK]),
+                ClientEvent::Ack => self.client_ack(c),
+                ClientEvent::Nak => self.client_nak(c),
+                ClientEvent::Frame(f) => {
+                    self.client_write(c, vec![ACK]);
+                    self.check_reply(c, &f);
+                    if matches!(self.clients[c].state, ClientState::AwaitAnswer { .. }) {
+                        self.client_idle(c);
+                    }
+                }
+            }
+        }
+    }
+
+    fn client_ack(&mut self, c: usize) {
+        let now = self.now;
+        if let ClientState::AwaitAck { tx, kind, .. } = &mut self.clients[c].state {
+            if tx.on_ack() == TxStep::Delivered {
+                let wait = if *kind == ResultKind::None { 60 } else { 3_000 };
+                self.clients[c].state = ClientState::AwaitAnswer { until: now + wait };
+            }
+        }
+    }
+
+    fn client_nak(&mut self, c: usize) {
+        let now = self.now;
+        if let ClientState::AwaitAck { tx, frame, .. } = &mut self.clients[c].state {
+            match tx.on_nak(now) {
+                TxStep::Send => {
+                    let bytes = frame.as_bytes().to_vec();
+                    self.client_write(c, bytes);
+                }
+                TxStep::Failed(_) => self.client_idle(c),
+                _ => {}
+            }
+        }
+    }
+
+    /// No reply reaches a wrong link: the frame is for this client's group,
+    /// a nonce echo is one of its own, any other result matches something
+    /// it asked.
+    fn check_reply(&mut self, c: usize, f: &FrameBuf) {
+        let frame = f.frame();
+        let cl = &self.clients[c];
+        self.summary.client_results += 1;
+        if frame.dest.group != cl.group {
+            return self.violation(format!(
+                "client {c} (group {}) got a frame for group {}",
+                cl.group, frame.dest.group
+            ));
+        }
+        let payload = frame.payload();
+        if payload.len() == 7 && payload[0] == b'N' {
+            let text = String::from_utf8_lossy(&payload[1..]).to_string();
+            let owner = u8::from_str_radix(&text[..2], 16).ok();
+            let nonce = u16::from_str_radix(&text[2..], 16).ok();
+            if owner != Some(c as u8) || !nonce.is_some_and(|n| cl.nonces.contains(&n)) {
+                return self.violation(format!("client {c} got another link's answer {text}"));
+            }
+            self.summary.nonce_results += 1;
+            return;
+        }
+        let level = |want: u8, got: u8| want == WILDCARD || want == got;
+        let asked = cl.issued.iter().any(|d| {
+            level(d.group, frame.source)
+                && level(d.port, frame.dest.port)
+                && (level(d.device, frame.dest.device) || (d.port == 0 && frame.dest.device == 0))
+        });
+        if !asked {
+            self.violation(format!(
+                "client {c} got a result from {}.{}.{} it never asked for",
+                frame.source, frame.dest.port, frame.dest.device
+            ));
+        }
+    }
+
+    // ------------------------------------------------------------ the loop
+
+    fn next_time(&self) -> Option<u64> {
+        let events = self.events.keys().next().map(|k| k.0);
+        let routers = self.gcus.iter().filter_map(|g| g.router.next_deadline()).min();
+        let clients = (0..self.clients.len()).filter_map(|c| self.client_deadline(c)).min();
+        [events, routers, clients].into_iter().flatten().min()
+    }
+
+    /// Runs until nothing is left to do or `until`; Err on a violation.
+    fn run_until(&mut self, until: u64, stop: impl Fn(&World) -> bool) -> Result<(), String> {
+        while let Some(t) = self.next_time() {
+            if t > until || stop(self) {
+                break;
+            }
+            self.now = self.now.max(t);
+            while let Some(entry) = self.events.first_entry() {
+                if entry.key().0 > self.now {
+                    break;
+                }
+                let ev = entry.remove();
+                self.process(ev);
+            }
+            for g in 0..self.gcus.len() {
+                if self.gcus[g].router.next_deadline().is_some_and(|d| d <= self.now) {
+                    self.input(g, Input::Tick);
+                }
+            }
+            for c in 0..self.clients.len() {
+                if self.client_deadline(c).is_some_and(|d| d <= self.now) {
+                    self.client_poll(c);
+                }
+            }
+            if let Some(v) = &self.violation {
+                return Err(v.clone());
+            }
+        }
+        Ok(())
+    }
+
+    fn random_phase(&mut self) -> Result<(), String> {
+        self.run_until(RANDOM_PHASE_CAP, |w| {
+            w.clients
+                .iter()
+                .all(|c| c.to_issue == 0 && matches!(c.state, ClientState::Idle))
+        })
+    }
+
+    fn drain(&mut self) -> Result<(), String> {
+        let cap = self.now + DRAIN_CAP;
+        self.run_until(cap, |_| false)?;
+        if self.next_time().is_some() {
+            return Err(format!("network did not settle by t={cap}"));
+        }
+        Ok(())
+    }
+
+    /// Faults off, everything reconnected; each client starts a motion on a
+    /// reachable device and disconnects: the dead-man must stop them all.
+    fn final_phase(&mut self) -> Result<(), String> {
+        self.quiet = true;
+        self.log(format_args!("final phase"));
+        for c in 0..self.clients.len() {
+            self.clients[c].to_issue = 0;
+        }
+        for i in 0..self.pairs.len() {
+            if !self.pairs[i].up {
+                self.pair_up(i);
+            }
+        }
+        for c in 0..self.clients.len() {
+            if !self.clients[c].connected {
+                self.client_up(c);
+            }
+        }
+        for g in 0..self.gcus.len() {
+            for p in 0..self.gcus[g].ports.len() {
+                if !self.gcus[g].ports[p].open {
+                    self.port_opened(g, p);
+                }
+            }
+        }
+        self.drain()?;
+        let mut targets = Vec::new();
+        for c in 0..self.clients.len() {
+            let reachable: Vec<(usize, usize, usize)> = (0..self.gcus.len())
+                .flat_map(|g| (0..self.gcus[g].ports.len()).map(move |p| (g, p)))
+                .flat_map(|(g, p)| {
+                    let sp = &self.gcus[g].ports[p];
+                    (0..sp.devices.len())
+                        .filter(move |&d| sp.devices[d].bps == sp.bps)
+                        .map(move |d| (g, p, d))
+                })
+                .collect();
+            if reachable.is_empty() {
+                continue;
+            }
+            let (g, p, d) = self.rng.pick(&reachable);
+            let motion = self
+                .rng
+                .pick(&[&b"PL"[..], b"PR", b"TU", b"TD", b"FF", b"FN", b"ZI", b"ZO"]);
+            let axis = motion_axis(&Command::parse(motion)).unwrap_or(0);
+            let dest = Address::new(
+                self.gcus[g].group,
+                self.gcus[g].ports[p].id,
+                self.gcus[g].ports[p].devices[d].gimbal.id,
+            );
+            self.clients[c].forced = Some((dest, motion.to_vec()));
+            self.clients[c].next_at = self.now;
+            targets.push((c, g, p, d, axis));
+        }
+        self.drain()?;
+        for &(c, g, p, d, axis) in &targets {
+            if !self.gcus[g].ports[p].devices[d].gimbal.moving[axis] {
+                return Err(format!(
+                    "quiet network: client {c}'s motion never reached gcu {g} port {} device {}",
+                    self.gcus[g].ports[p].id, self.gcus[g].ports[p].devices[d].gimbal.id
+                ));
+            }
+        }
+        for c in 0..self.clients.len() {
+            self.client_down(c);
+        }
+        self.drain()?;
+        for &(c, g, p, d, axis) in &targets {
+            if self.gcus[g].ports[p].devices[d].gimbal.moving[axis] {
+                return Err(format!(
+                    "dead-man: client {c} gone, gcu {g} port {} device {} still moving on axis {axis}",
+                    self.gcus[g].ports[p].id, self.gcus[g].ports[p].devices[d].gimbal.id
+                ));
+            }
+            self.summary.final_motions_checked += 1;
+        }
+        Ok(())
+    }
+
+    fn check_end(&mut self) -> Result<(), String> {
+        for (g, gcu) in self.gcus.iter().enumerate() {
+            let open: Vec<_> = gcu.ledger.accepted.difference(&gcu.ledger.finished).collect();
+            if !open.is_empty() {
+                return Err(format!("gcu {g}: commands without outcome: {open:?}"));
+            }
+            if gcu.router.in_progress() != 0 {
+                return Err(format!(
+                    "gcu {g}: {} commands still in progress",
+                    gcu.router.in_progress()
+                ));
+            }
+            let stats = gcu.router.stats();
+            if stats.router.accepted != stats.router.finished() {
+                return Err(format!(
+                    "gcu {g}: accepted {} != finished {}",
+                    stats.router.accepted,
+                    stats.router.finished()
+                ));
+            }
+            for sp in &gcu.ports {
+                let ps = &stats.ports[&sp.id];
+                if ps.queue_high_water > sp.bound + sp.stop_bound {
+                    return Err(format!(
+                        "gcu {g} port {}: queue reached {} > {}",
+                        sp.id, ps.queue_high_water, sp.bound
+                    ));
+                }
+            }
+            for (link, ls) in &stats.links {
+                if ls.queued != ls.delivered + ls.failed + ls.queue_len as u64 {
+                    return Err(format!("gcu {g} {link}: frames unaccounted {ls:?}"));
+                }
+                if ls.queue_high_water > 32 {
+                    return Err(format!("gcu {g} {link}: link queue reached {}", ls.queue_high_water));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn finish_summary(&mut self) -> Summary {
+        let mut s = self.summary.clone();
+        for gcu in &self.gcus {
+            let st = gcu.router.stats();
+            let r = st.router;
+            s.accepted += r.accepted;
+            s.results += r.results;
+            s.nics += r.nics;
+            s.completed += r.completed;
+            s.no_result += r.no_result;
+            s.unreachable += r.unreachable;
+            s.forwarded += r.forwarded;
+            s.dropped += r.dropped.total();
+            s.dead_man_stops += r.dead_man_stops;
+            s.rate_switches += st.ports.values().map(|p| p.rate_switches).sum::<u64>();
+            s.retransmits += st.ports.values().map(|p| p.line.retransmits).sum::<u64>()
+                + st.links.values().map(|l| l.line.retransmits).sum::<u64>();
+        }
+        s.end_time = self.now;
+        s
+    }
+}
