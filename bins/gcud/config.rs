@@ -8,6 +8,7 @@ use std::net::{IpAddr, SocketAddr};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
+use sagebrush::timing::wire_ms;
 use sagebrush_protocol::DataRate;
 use serde::Deserialize;
 use toml::Spanned;
@@ -52,7 +53,7 @@ pub struct ConfigFile {
     #[serde(default)]
     pub port_defaults: PortSettings,
     #[serde(default)]
-    pub link_defaults: LinkSettings,
+    pub link_timing: LinkSettings,
     #[serde(default, rename = "port")]
     pub ports: Vec<PortSection>,
     #[serde(default, rename = "link")]
@@ -192,7 +193,7 @@ pub struct PortSection {
     pub broadcast_guard_ms: Option<Spanned<i64>>,
 }
 
-/// Per-link settings; `[link_defaults]` and each `[[link]]`.
+/// `[link_timing]`: retransmission on every link (router-wide).
 #[derive(Debug, Default, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LinkSettings {
@@ -229,8 +230,6 @@ pub struct LinkSection {
     pub allow_peers: Option<Spanned<Vec<Spanned<String>>>>,
     /// Source groups frames on this link may carry (default: any).
     pub allow_source_groups: Option<Spanned<Vec<Spanned<i64>>>>,
-    pub retries: Option<Spanned<i64>>,
-    pub ack_timeout_ms: Option<Spanned<i64>>,
 }
 
 /// `[[route]]`: a static route.
@@ -285,8 +284,6 @@ pub struct Link {
     pub allow_peers: Vec<IpAddr>,
     /// `None`: any source group.
     pub allow_source_groups: Option<Vec<u8>>,
-    pub retries: u8,
-    pub ack_timeout_ms: u64,
 }
 
 /// The validated configuration.
@@ -302,26 +299,23 @@ pub struct Config {
     pub metrics: Option<SocketAddr>,
     pub queue_depth: usize,
     pub max_connections: usize,
+    pub link_retries: u8,
+    pub link_ack_timeout_ms: u64,
     pub ports: Vec<Port>,
     pub links: Vec<Link>,
     pub routes: Vec<(u8, String)>,
 }
 
-/// Time for one frame of `bytes` at `baud` (10 bits a byte), in ms, rounded up.
-fn frame_time_ms(bytes: u64, baud: u32) -> u64 {
-    (bytes * 10 * 1000).div_ceil(u64::from(baud.max(1)))
-}
-
 /// Defaults derived from the line rate: a maximum frame's time plus a margin.
 fn default_timing(baud: u32) -> PortTiming {
-    let max_frame = frame_time_ms(sagebrush_protocol::MAX_FRAME_LEN as u64, baud);
+    let max_frame = wire_ms(sagebrush_protocol::MAX_FRAME_LEN, baud);
     PortTiming {
         baud,
         retries: 3,
-        ack_timeout_ms: 50 + frame_time_ms(16, baud),
+        ack_timeout_ms: 50 + wire_ms(16, baud),
         result_timeout_ms: 500 + max_frame,
         long_result_timeout_ms: 60_000,
-        nic_window_ms: 30 + frame_time_ms(4, baud),
+        nic_window_ms: 30 + wire_ms(4, baud),
         broadcast_guard_ms: 50 + max_frame,
     }
 }
@@ -562,12 +556,12 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
         ports.push(Port { id, transport, timing });
     }
 
-    let link_base_retries: u8 = match &raw.link_defaults.retries {
-        Some(v) => c.int(v, "link_defaults.retries", 0, 20)?,
+    let link_base_retries: u8 = match &raw.link_timing.retries {
+        Some(v) => c.int(v, "link_timing.retries", 0, 20)?,
         None => 3,
     };
-    let link_base_ack: u64 = match &raw.link_defaults.ack_timeout_ms {
-        Some(v) => c.int(v, "link_defaults.ack_timeout_ms", 1, 3_600_000)?,
+    let link_base_ack: u64 = match &raw.link_timing.ack_timeout_ms {
+        Some(v) => c.int(v, "link_timing.ack_timeout_ms", 1, 3_600_000)?,
         None => 200,
     };
     let mut links = Vec::with_capacity(raw.links.len());
@@ -648,22 +642,12 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
             }
             None => None,
         };
-        let retries = match &l.retries {
-            Some(v) => c.int(v, &format!("{key}.retries"), 0, 20)?,
-            None => link_base_retries,
-        };
-        let ack_timeout_ms = match &l.ack_timeout_ms {
-            Some(v) => c.int(v, &format!("{key}.ack_timeout_ms"), 1, 3_600_000)?,
-            None => link_base_ack,
-        };
         links.push(Link {
             name,
             role: *l.role.get_ref(),
             transport,
             allow_peers,
             allow_source_groups,
-            retries,
-            ack_timeout_ms,
         });
     }
 
@@ -720,6 +704,8 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
         metrics,
         queue_depth,
         max_connections,
+        link_retries: link_base_retries,
+        link_ack_timeout_ms: link_base_ack,
         ports,
         links,
         routes,

@@ -1,28 +1,35 @@
-//! `gcud`: the GCU router daemon (issue 5). Routing lives in `sagebrush-gcu`;
-//! this binary wires it to serial ports and TCP links.
+//! `gcud`: the GCU router daemon. The routing logic is the `sagebrush-gcu`
+//! router core; this binary wires it to serial ports and TCP links
+//! (DESIGN "Layers", 3 and 4).
 
-// Wiring to the router core lands with the router (issue 4); until then only
-// `--check` reads the configuration.
-#[allow(dead_code)]
 mod config;
-#[allow(dead_code)]
+mod daemon;
+mod io;
 mod metrics;
+mod simulated;
+mod stats;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::Parser;
 
-/// Exit code for a configuration error.
+/// Exit code for a configuration error (`--check` or start-up).
 const EXIT_CONFIG: u8 = 2;
+/// Exit code for a failure to start (a listener cannot bind, ...).
+const EXIT_START: u8 = 1;
 
 #[derive(Debug, Parser)]
-#[command(name = "gcud", version, about = "Sagebrush GCU router daemon")]
+#[command(
+    name = "gcud",
+    version,
+    about = "Sagebrush GCU router daemon (gimbal protocol rev 1.9)"
+)]
 struct Args {
-    /// Configuration file (TOML).
+    /// Configuration file (TOML); see config/gcud.toml for every option.
     #[arg(long, short = 'c', value_name = "FILE")]
     config: PathBuf,
-    /// Validate the configuration and exit (0 valid, 2 invalid).
+    /// Validate the configuration and exit: 0 valid, 2 invalid.
     #[arg(long)]
     check: bool,
 }
@@ -47,6 +54,23 @@ fn main() -> ExitCode {
         );
         return ExitCode::SUCCESS;
     }
-    eprintln!("gcud: the daemon is not wired to the router core yet");
-    ExitCode::FAILURE
+    if let Err(e) = sagebrush::logging::init(config.log_level.as_deref().unwrap_or("info"), false) {
+        eprintln!("gcud: {e}");
+        return ExitCode::from(EXIT_CONFIG);
+    }
+    let runtime = match tokio::runtime::Builder::new_multi_thread().enable_all().build() {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("gcud: cannot start the async runtime: {e}");
+            return ExitCode::from(EXIT_START);
+        }
+    };
+    match runtime.block_on(daemon::run(config)) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            tracing::error!("{e}");
+            eprintln!("gcud: {e}");
+            ExitCode::from(EXIT_START)
+        }
+    }
 }

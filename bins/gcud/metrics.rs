@@ -31,16 +31,16 @@ pub struct Sample {
 /// One metric family.
 #[derive(Debug, Clone)]
 pub struct Family {
-    pub name: &'static str,
+    pub name: String,
     pub help: &'static str,
     pub kind: Kind,
     pub samples: Vec<Sample>,
 }
 
 impl Family {
-    pub fn new(name: &'static str, help: &'static str, kind: Kind) -> Self {
+    pub fn new(name: impl Into<String>, help: &'static str, kind: Kind) -> Self {
         Self {
-            name,
+            name: name.into(),
             help,
             kind,
             samples: Vec::new(),
@@ -63,16 +63,30 @@ impl Collector for Snapshot {
                 Kind::Counter => MetricType::Counter,
                 Kind::Gauge => MetricType::Gauge,
             };
-            let mut metric = encoder.encode_descriptor(family.name, family.help, None, kind)?;
+            let mut metric = encoder.encode_descriptor(&family.name, family.help, None, kind)?;
+            if let [Sample { labels, value }] = family.samples.as_slice()
+                && labels.is_empty()
+            {
+                // A single unlabelled value: `name value`, not `name{} value`.
+                encode_value(family.kind, *value, metric)?;
+                continue;
+            }
             for sample in &family.samples {
-                let labelled = metric.encode_family(&sample.labels)?;
-                match family.kind {
-                    Kind::Counter => ConstCounter::new(sample.value).encode(labelled)?,
-                    Kind::Gauge => ConstGauge::new(i64::try_from(sample.value).unwrap_or(i64::MAX)).encode(labelled)?,
-                }
+                encode_value(family.kind, sample.value, metric.encode_family(&sample.labels)?)?;
             }
         }
         Ok(())
+    }
+}
+
+fn encode_value(
+    kind: Kind,
+    value: u64,
+    encoder: prometheus_client::encoding::MetricEncoder<'_>,
+) -> Result<(), fmt::Error> {
+    match kind {
+        Kind::Counter => ConstCounter::new(value).encode(encoder),
+        Kind::Gauge => ConstGauge::new(i64::try_from(value).unwrap_or(i64::MAX)).encode(encoder),
     }
 }
 

@@ -1,0 +1,370 @@
+//! Byte pipes between the world and the router task: device ports (serial,
+//! TCP device server, in-process simulator) and links (serial, TCP listener,
+//! TCP client). Every pipe reconnects by itself with backoff when its device
+//! or peer is missing or vanishes, without disturbing any other pipe
+//! (DESIGN "Layers", 3: transport).
+
+use std::io;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::time::Duration;
+
+use sagebrush::transport::open_serial;
+use sagebrush_gcu::LinkId;
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use tokio::net::{TcpListener, TcpStream};
+use tokio::sync::{Semaphore, mpsc, oneshot};
+use tracing::{debug, info, warn};
+
+use crate::config::{Link, LinkTransport, Port, PortTransport};
+
+/// What a pipe tells the router task.
+#[derive(Debug)]
+pub enum IoEvent {
+    PortOpened {
+        port: u8,
+        writer: mpsc::Sender<PortWrite>,
+    },
+    PortBytes {
+        port: u8,
+        bytes: Vec<u8>,
+    },
+    PortClosed {
+        port: u8,
+    },
+    LinkOpened {
+        id: LinkId,
+        link: usize,
+        peer: String,
+        writer: mpsc::Sender<Vec<u8>>,
+    },
+    LinkBytes {
+        id: LinkId,
+        bytes: Vec<u8>,
+    },
+    LinkClosed {
+        id: LinkId,
+    },
+    /// A metrics scrape wants the current statistics as text.
+    Scrape(oneshot::Sender<String>),
+}
+
+/// What the router task asks of a port.
+#[derive(Debug)]
+pub enum PortWrite {
+    Bytes(Vec<u8>),
+    /// Switch the line rate (after an acknowledged `C0..C7`, Table 4).
+    SetBaud(u32),
+}
+
+/// Exponential backoff: 250 ms doubling to 10 s.
+#[derive(Debug)]
+pub struct Backoff(Duration);
+
+impl Backoff {
+    const FIRST: Duration = Duration::from_millis(250);
+    const MAX: Duration = Duration::from_secs(10);
+
+    pub fn new() -> Self {
+        Self(Self::FIRST)
+    }
+
+    pub fn reset(&mut self) {
+        self.0 = Self::FIRST;
+    }
+
+    pub fn next_delay(&mut self) -> Duration {
+        let d = self.0;
+        self.0 = (self.0 * 2).min(Self::MAX);
+        d
+    }
+}
+
+/// A port's byte stream, with a line-rate switch where the medium has one.
+pub trait PortStream: AsyncRead + AsyncWrite + Unpin + Send {
+    fn set_baud(&mut self, baud: u32) -> io::Result<()>;
+}
+
+impl PortStream for tokio_serial::SerialStream {
+    fn set_baud(&mut self, baud: u32) -> io::Result<()> {
+        sagebrush::transport::set_baud(self, baud)
+    }
+}
+
+impl PortStream for TcpStream {
+    fn set_baud(&mut self, baud: u32) -> io::Result<()> {
+        // The device server owns the serial line; its rate is configured there.
+        warn!(
+            baud,
+            "line rate change on a TCP device server port is not applied locally"
+        );
+        Ok(())
+    }
+}
+
+impl PortStream for tokio::io::DuplexStream {
+    fn set_baud(&mut self, _baud: u32) -> io::Result<()> {
+        Ok(())
+    }
+}
+
+/// An open port, whichever its medium.
+enum OpenPort {
+    Serial(tokio_serial::SerialStream),
+    Tcp(TcpStream),
+    Simulated(tokio::io::DuplexStream),
+}
+
+async fn open_port(port: &Port, baud: u32) -> io::Result<OpenPort> {
+    Ok(match &port.transport {
+        PortTransport::Serial(path) => OpenPort::Serial(open_serial(&path.to_string_lossy(), baud)?),
+        PortTransport::Tcp(addr) => {
+            let stream = TcpStream::connect(addr.as_str()).await?;
+            stream.set_nodelay(true)?;
+            OpenPort::Tcp(stream)
+        }
+        PortTransport::Simulated(devices) => OpenPort::Simulated(crate::simulated::spawn(port.id, devices)),
+    })
+}
+
+/// Moves bytes between `stream` and the router until the stream fails.
+/// `baud` follows line-rate switches, so that a reopened port keeps the rate
+/// its devices were switched to.
+async fn pump_port<S: PortStream>(
+    port: u8,
+    mut stream: S,
+    baud: &mut u32,
+    writes: &mut mpsc::Receiver<PortWrite>,
+    events: &mpsc::Sender<IoEvent>,
+) -> String {
+    let mut buf = vec![0u8; 4096];
+    loop {
+        tokio::select! {
+            read = stream.read(&mut buf) => match read {
+                Ok(0) => return "end of stream".to_owned(),
+                Ok(n) => {
+                    if events.send(IoEvent::PortBytes { port, bytes: buf[..n].to_vec() }).await.is_err() {
+                        return "router stopped".to_owned();
+                    }
+                }
+                Err(e) => return format!("read failed: {e}"),
+            },
+            write = writes.recv() => match write {
+                Some(PortWrite::Bytes(bytes)) => {
+                    if let Err(e) = stream.write_all(&bytes).await {
+                        return format!("write failed: {e}");
+                    }
+                }
+                Some(PortWrite::SetBaud(rate)) => {
+                    if let Err(e) = stream.set_baud(rate) {
+                        return format!("cannot switch line rate to {rate}: {e}");
+                    }
+                    *baud = rate;
+                    info!(port, baud = rate, "line rate switched");
+                }
+                None => return "router stopped".to_owned(),
+            },
+        }
+    }
+}
+
+/// Keeps one port open for as long as the daemon runs.
+pub async fn run_port(port: Port, events: mpsc::Sender<IoEvent>) {
+    let mut backoff = Backoff::new();
+    let mut baud = port.timing.baud;
+    let mut last_error = String::new();
+    loop {
+        match open_port(&port, baud).await {
+            Ok(stream) => {
+                backoff.reset();
+                last_error.clear();
+                info!(port = port.id, transport = %describe(&port.transport), baud, "port open");
+                let (writer, mut writes) = mpsc::channel(256);
+                if events
+                    .send(IoEvent::PortOpened { port: port.id, writer })
+                    .await
+                    .is_err()
+                {
+                    return;
+                }
+                let (id, w, e) = (port.id, &mut writes, &events);
+                let reason = match stream {
+                    OpenPort::Serial(s) => pump_port(id, s, &mut baud, w, e).await,
+                    OpenPort::Tcp(s) => pump_port(id, s, &mut baud, w, e).await,
+                    OpenPort::Simulated(s) => pump_port(id, s, &mut baud, w, e).await,
+                };
+                warn!(port = port.id, %reason, "port lost; reopening");
+                if events.send(IoEvent::PortClosed { port: port.id }).await.is_err() {
+                    return;
+                }
+            }
+            Err(e) => {
+                let error = e.to_string();
+                if error != last_error {
+                    warn!(port = port.id, transport = %describe(&port.transport), %error, "cannot open port; retrying with backoff");
+                    last_error = error;
+                } else {
+                    debug!(port = port.id, %error, "port still unavailable");
+                }
+            }
+        }
+        tokio::time::sleep(backoff.next_delay()).await;
+    }
+}
+
+fn describe(t: &PortTransport) -> String {
+    match t {
+        PortTransport::Serial(p) => p.display().to_string(),
+        PortTransport::Tcp(a) => format!("tcp {a}"),
+        PortTransport::Simulated(d) => format!("simulated devices {d:?}"),
+    }
+}
+
+// ---- links ----------------------------------------------------------------
+
+/// Ids of accepted connections start here; a configured serial or TCP
+/// client link keeps `index + 1` across reconnects, so that static routes
+/// and the default upstream survive them.
+const FIRST_ACCEPTED_ID: u32 = 1 << 16;
+static NEXT_LINK_ID: AtomicU32 = AtomicU32::new(FIRST_ACCEPTED_ID);
+
+/// The stable id of configured link `index`.
+pub fn configured_link_id(index: usize) -> LinkId {
+    LinkId(index as u32 + 1)
+}
+
+/// Moves bytes between one link connection and the router until it closes.
+async fn pump_link<S: AsyncRead + AsyncWrite + Unpin>(
+    id: LinkId,
+    index: usize,
+    peer: String,
+    stream: S,
+    events: &mpsc::Sender<IoEvent>,
+) {
+    let (writer, mut writes) = mpsc::channel::<Vec<u8>>(256);
+    if events
+        .send(IoEvent::LinkOpened {
+            id,
+            link: index,
+            peer: peer.clone(),
+            writer,
+        })
+        .await
+        .is_err()
+    {
+        return;
+    }
+    let (mut rd, mut wr) = tokio::io::split(stream);
+    let mut buf = vec![0u8; 4096];
+    let reason = loop {
+        tokio::select! {
+            read = rd.read(&mut buf) => match read {
+                Ok(0) => break "closed by peer".to_owned(),
+                Ok(n) => {
+                    if events.send(IoEvent::LinkBytes { id, bytes: buf[..n].to_vec() }).await.is_err() {
+                        break "router stopped".to_owned();
+                    }
+                }
+                Err(e) => break format!("read failed: {e}"),
+            },
+            write = writes.recv() => match write {
+                Some(bytes) => {
+                    if let Err(e) = wr.write_all(&bytes).await {
+                        break format!("write failed: {e}");
+                    }
+                }
+                None => break "closed by the router".to_owned(),
+            },
+        }
+    };
+    info!(%id, %peer, %reason, "link closed");
+    let _ = events.send(IoEvent::LinkClosed { id }).await;
+}
+
+/// Runs one configured link for as long as the daemon runs.
+pub async fn run_link(index: usize, link: Link, events: mpsc::Sender<IoEvent>) {
+    match link.transport.clone() {
+        // Bound at start-up by the daemon (a bad address is a start failure); see `accept_loop`.
+        LinkTransport::Listen(_) => {}
+        LinkTransport::Connect(addr) => {
+            let mut backoff = Backoff::new();
+            loop {
+                match TcpStream::connect(addr.as_str()).await {
+                    Ok(stream) => {
+                        backoff.reset();
+                        let _ = stream.set_nodelay(true);
+                        info!(link = %link.name, %addr, "link connected");
+                        pump_link(configured_link_id(index), index, addr.clone(), stream, &events).await;
+                    }
+                    Err(e) => warn!(link = %link.name, %addr, error = %e, "cannot connect; retrying with backoff"),
+                }
+                if events.is_closed() {
+                    return;
+                }
+                tokio::time::sleep(backoff.next_delay()).await;
+            }
+        }
+        LinkTransport::Serial { path, baud } => {
+            let mut backoff = Backoff::new();
+            loop {
+                match open_serial(&path.to_string_lossy(), baud) {
+                    Ok(stream) => {
+                        backoff.reset();
+                        info!(link = %link.name, path = %path.display(), "serial link open");
+                        pump_link(
+                            configured_link_id(index),
+                            index,
+                            path.display().to_string(),
+                            stream,
+                            &events,
+                        )
+                        .await;
+                    }
+                    Err(e) => {
+                        warn!(link = %link.name, path = %path.display(), error = %e, "cannot open serial link; retrying")
+                    }
+                }
+                if events.is_closed() {
+                    return;
+                }
+                tokio::time::sleep(backoff.next_delay()).await;
+            }
+        }
+    }
+}
+
+/// Accepts connections: allow-listed peers only, up to the connection limit.
+pub async fn accept_loop(
+    index: usize,
+    link: Link,
+    listener: TcpListener,
+    connections: Arc<Semaphore>,
+    events: mpsc::Sender<IoEvent>,
+) {
+    loop {
+        let (stream, peer) = match listener.accept().await {
+            Ok(c) => c,
+            Err(e) => {
+                warn!(link = %link.name, error = %e, "accept failed");
+                tokio::time::sleep(Duration::from_millis(100)).await;
+                continue;
+            }
+        };
+        if !link.allow_peers.contains(&peer.ip()) {
+            warn!(link = %link.name, %peer, "connection refused: peer not in allow_peers");
+            continue;
+        }
+        let Ok(permit) = connections.clone().try_acquire_owned() else {
+            warn!(link = %link.name, %peer, "connection refused: limits.max_connections reached");
+            continue;
+        };
+        let _ = stream.set_nodelay(true);
+        info!(link = %link.name, %peer, "client connected");
+        let events = events.clone();
+        tokio::spawn(async move {
+            let id = LinkId(NEXT_LINK_ID.fetch_add(1, Ordering::Relaxed));
+            pump_link(id, index, peer.to_string(), stream, &events).await;
+            drop(permit);
+        });
+    }
+}

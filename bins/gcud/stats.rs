@@ -1,0 +1,291 @@
+//! The router core's statistics ([`sagebrush_gcu::Stats`]) as metric
+//! families: per port, link and device, and router-wide outcomes.
+
+use std::collections::BTreeMap;
+
+use sagebrush_gcu::{DropCounts, LineStats, LinkId, LinkKind, Stats};
+
+use crate::daemon::LinkInfo;
+use crate::metrics::{Family, Kind, render as encode};
+
+/// `NoRoute` -> `no_route`, for label values.
+fn snake(name: &str) -> String {
+    let mut out = String::with_capacity(name.len() + 4);
+    for (i, c) in name.chars().enumerate() {
+        if c.is_ascii_uppercase() {
+            if i > 0 {
+                out.push('_');
+            }
+            out.push(c.to_ascii_lowercase());
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// One family per counter of [`LineStats`], shared by ports and links.
+struct LineFamilies {
+    fields: Vec<(Family, fn(&LineStats) -> u64)>,
+    drops: Family,
+    last_seen: Family,
+}
+
+impl LineFamilies {
+    fn new(prefix: &'static str) -> Self {
+        macro_rules! f {
+            ($($field:ident: $help:literal),* $(,)?) => {
+                vec![$((
+                    Family::new(format!("{prefix}_{}", stringify!($field)), $help, Kind::Counter),
+                    (|s: &LineStats| s.$field) as fn(&LineStats) -> u64,
+                )),*]
+            };
+        }
+        Self {
+            fields: f![
+                frames_in: "Good frames received.",
+                frames_out: "Frames written, retransmissions included.",
+                bytes_in: "Bytes received.",
+                bytes_out: "Bytes written.",
+                bad_checksums: "Frames received with a bad checksum (each NAKed).",
+                naks_sent: "NAKs written.",
+                naks_received: "NAKs received.",
+                stray_bytes: "ACK/NAK/NIC bytes nobody was waiting for.",
+                retransmits: "Frames written again after a NAK or ACK time-out.",
+                timeouts: "ACK or result time-outs.",
+                nics_in: "NIC (?) received.",
+                nics_out: "NIC (?) written.",
+                noise_bytes: "Noise bytes skipped by the framer.",
+            ],
+            drops: Family::new(
+                format!("{prefix}_drops"),
+                "Frames or jobs dropped, by reason.",
+                Kind::Counter,
+            ),
+            last_seen: Family::new(
+                format!("{prefix}_last_seen_ms"),
+                "Daemon uptime in ms when the last byte was received.",
+                Kind::Gauge,
+            ),
+        }
+    }
+
+    fn push(&mut self, labels: &[(&'static str, String)], line: &LineStats) {
+        for (family, get) in &mut self.fields {
+            family.push(labels.to_vec(), get(line));
+        }
+        push_drops(&mut self.drops, labels, &line.drops);
+        if let Some(t) = line.last_seen {
+            self.last_seen.push(labels.to_vec(), t);
+        }
+    }
+
+    fn into_families(self, out: &mut Vec<Family>) {
+        out.extend(self.fields.into_iter().map(|(f, _)| f));
+        out.push(self.drops);
+        out.push(self.last_seen);
+    }
+}
+
+fn push_drops(family: &mut Family, labels: &[(&'static str, String)], drops: &DropCounts) {
+    for (reason, n) in drops.iter() {
+        let mut l = labels.to_vec();
+        l.push(("reason", snake(&format!("{reason:?}"))));
+        family.push(l, n);
+    }
+}
+
+/// Renders everything in the OpenMetrics text format.
+pub fn render(stats: &Stats, links: &BTreeMap<LinkId, LinkInfo>, uptime_ms: u64) -> String {
+    let mut out = Vec::new();
+
+    let mut uptime = Family::new("uptime_ms", "Milliseconds since gcud started.", Kind::Gauge);
+    uptime.push(vec![], uptime_ms);
+    out.push(uptime);
+
+    let r = &stats.router;
+    let mut outcomes = Family::new("commands", "Commands accepted from links, by outcome.", Kind::Counter);
+    for (outcome, n) in [
+        ("result", r.results),
+        ("nic", r.nics),
+        ("completed", r.completed),
+        ("no_result", r.no_result),
+        ("unreachable", r.unreachable),
+        ("forwarded", r.forwarded),
+    ] {
+        outcomes.push(vec![("outcome", outcome.to_owned())], n);
+    }
+    out.push(outcomes);
+    let mut accepted = Family::new(
+        "commands_accepted",
+        "Commands accepted (dead-man stops included).",
+        Kind::Counter,
+    );
+    accepted.push(vec![], r.accepted);
+    out.push(accepted);
+    let mut dropped = Family::new("commands_dropped", "Commands not executed, by reason.", Kind::Counter);
+    push_drops(&mut dropped, &[], &r.dropped);
+    out.push(dropped);
+    let mut frame_drops = Family::new(
+        "router_frame_drops",
+        "Frames dropped by the router, by reason.",
+        Kind::Counter,
+    );
+    push_drops(&mut frame_drops, &[], &r.frame_drops);
+    out.push(frame_drops);
+    for (name, help, value) in [
+        (
+            "results_relayed",
+            "Result frames relayed back to their origin.",
+            r.results_relayed,
+        ),
+        (
+            "broadcasts_flooded",
+            "Group-255 copies flooded to downstream links.",
+            r.flooded,
+        ),
+        (
+            "dead_man_stops",
+            "Stops issued for motions of links that went down.",
+            r.dead_man_stops,
+        ),
+    ] {
+        let mut f = Family::new(name, help, Kind::Counter);
+        f.push(vec![], value);
+        out.push(f);
+    }
+    let mut in_progress = Family::new("commands_in_progress", "Commands in progress now.", Kind::Gauge);
+    in_progress.push(vec![], r.in_progress);
+    out.push(in_progress);
+
+    let mut port_lines = LineFamilies::new("port");
+    let mut port_open = Family::new("port_open", "Whether the port is open.", Kind::Gauge);
+    let mut port_bps = Family::new("port_bps", "Current line rate.", Kind::Gauge);
+    let mut port_queue = Family::new(
+        "port_queue_length",
+        "Jobs waiting behind the one in flight.",
+        Kind::Gauge,
+    );
+    let mut port_tx = Family::new("port_transactions", "Transactions started.", Kind::Counter);
+    let mut port_switches = Family::new("port_rate_switches", "Line rate switches.", Kind::Counter);
+    for (id, p) in &stats.ports {
+        let labels = vec![("port", id.to_string())];
+        port_lines.push(&labels, &p.line);
+        port_open.push(labels.clone(), u64::from(p.open));
+        port_bps.push(labels.clone(), u64::from(p.bps));
+        port_queue.push(labels.clone(), p.queue_len as u64);
+        port_tx.push(labels.clone(), p.transactions);
+        port_switches.push(labels, p.rate_switches);
+    }
+    port_lines.into_families(&mut out);
+    out.extend([port_open, port_bps, port_queue, port_tx, port_switches]);
+
+    let mut link_lines = LineFamilies::new("link");
+    let mut link_up = Family::new("link_up", "Whether the link is connected.", Kind::Gauge);
+    let mut link_delivered = Family::new("link_frames_delivered", "Frames the peer acknowledged.", Kind::Counter);
+    let mut link_failed = Family::new(
+        "link_frames_failed",
+        "Frames given up or dropped with the link.",
+        Kind::Counter,
+    );
+    for (id, l) in &stats.links {
+        let info = links.get(id);
+        let kind = match l.kind {
+            LinkKind::Upstream => "upstream",
+            LinkKind::Downstream => "downstream",
+            LinkKind::Client => "client",
+        };
+        let labels = vec![
+            ("link_id", id.0.to_string()),
+            ("link", info.map_or_else(String::new, |i| i.name.clone())),
+            ("peer", info.map_or_else(String::new, |i| i.peer.clone())),
+            ("role", kind.to_owned()),
+        ];
+        link_lines.push(&labels, &l.line);
+        link_up.push(labels.clone(), u64::from(l.up));
+        link_delivered.push(labels.clone(), l.delivered);
+        link_failed.push(labels, l.failed);
+    }
+    link_lines.into_families(&mut out);
+    out.extend([link_up, link_delivered, link_failed]);
+
+    let mut device_families = [
+        Family::new(
+            "device_commands",
+            "Transactions addressed to the device.",
+            Kind::Counter,
+        ),
+        Family::new(
+            "device_frames_out",
+            "Command frames written to the device.",
+            Kind::Counter,
+        ),
+        Family::new("device_frames_in", "Result frames from the device.", Kind::Counter),
+        Family::new("device_retransmits", "Retransmissions to the device.", Kind::Counter),
+        Family::new(
+            "device_unreachable",
+            "Commands never acknowledged after all retries.",
+            Kind::Counter,
+        ),
+        Family::new(
+            "device_no_result",
+            "Acknowledged commands whose result never came.",
+            Kind::Counter,
+        ),
+        Family::new("device_nics", "NIC answers from the device.", Kind::Counter),
+    ];
+    let mut device_seen = Family::new(
+        "device_last_seen_ms",
+        "Uptime in ms of the device's last answer.",
+        Kind::Gauge,
+    );
+    for ((port, device), d) in &stats.devices {
+        let labels = vec![("port", port.to_string()), ("device", device.to_string())];
+        for (family, value) in device_families.iter_mut().zip([
+            d.commands,
+            d.frames_out,
+            d.frames_in,
+            d.retransmits,
+            d.unreachable,
+            d.no_result,
+            d.nics,
+        ]) {
+            family.push(labels.clone(), value);
+        }
+        if let Some(t) = d.last_seen {
+            device_seen.push(labels, t);
+        }
+    }
+    out.extend(device_families);
+    out.push(device_seen);
+
+    encode(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn drop_reasons_become_snake_case_labels() {
+        assert_eq!(snake("NoRoute"), "no_route");
+        assert_eq!(snake("SourceNotAllowed"), "source_not_allowed");
+    }
+
+    #[test]
+    fn renders_a_router_snapshot() {
+        let mut config = sagebrush_gcu::RouterConfig::new(5);
+        config.ports.push(sagebrush_gcu::PortConfig::new(1));
+        let mut router = sagebrush_gcu::Router::new(config).unwrap();
+        let mut actions = Vec::new();
+        router.handle(0, sagebrush_gcu::Input::PortOpened { port: 1 }, &mut actions);
+        let text = render(&router.stats(), &BTreeMap::new(), 42);
+        assert!(text.contains("gcud_uptime_ms 42"), "{text}");
+        assert!(text.contains("gcud_port_open{port=\"1\"} 1"), "{text}");
+        assert!(text.contains("gcud_port_retransmits_total{port=\"1\"} 0"), "{text}");
+        assert!(
+            text.contains("gcud_commands_dropped_total{reason=\"no_route\"} 0"),
+            "{text}"
+        );
+    }
+}
