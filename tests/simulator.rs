@@ -1,0 +1,120 @@
+//! The `gimbalsim` binary: its attachments (pty, symlink, TCP), pacing, a
+//! bus of several devices, statistics and configuration errors.
+
+mod support;
+
+use std::process::Command;
+
+use support::{Sim, eventually};
+
+#[test]
+fn pty_path_is_the_first_line_and_link_is_made_and_removed() {
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("gimbal0");
+    let sim = Sim::pty(&["--link", link.to_str().unwrap()]);
+    assert!(sim.endpoint.starts_with("/dev/"), "{}", sim.endpoint);
+    assert_eq!(std::fs::read_link(&link).unwrap(), sim.endpoint_path());
+    let out = Command::new(support::gimbalctl_bin())
+        .args(["--serial", link.to_str().unwrap(), "--json", "position"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+    let stats = sim.stop();
+    assert_eq!(stats["frames_in"], 1, "{stats}");
+    assert!(std::fs::symlink_metadata(&link).is_err(), "symlink removed on exit");
+}
+
+#[test]
+fn tcp_listener_serves_clients_one_after_another() {
+    let sim = Sim::tcp(&[]);
+    assert!(sim.endpoint.starts_with("127.0.0.1:"), "{}", sim.endpoint);
+    sim.ctl_json(&["goto", "5", "5"]);
+    eventually("the move over TCP", || sim.position() == (5.0, 5.0));
+    let stats = sim.stop();
+    assert!(stats["frames_in"].as_u64().unwrap() >= 2, "{stats}");
+    assert_eq!(
+        stats["acks_in"],
+        stats["frames_in"].as_u64().unwrap() - 1,
+        "every result ACKed: {stats}"
+    );
+}
+
+#[test]
+fn paced_line_at_1200_baud_still_answers() {
+    let sim = Sim::pty(&["--pace", "--baud", "1200"]);
+    let v = sim.ctl_json(&["--baud", "1200", "id"]);
+    assert_eq!(v["transmissions"], 1, "{v}");
+    // 11 bytes out and 51 back at 120 bytes/s: the exchange cannot be instant.
+    assert!(v["elapsed_ms"].as_u64().unwrap() >= 400, "{v}");
+    // After a C-command the simulator paces at the new rate.
+    sim.ctl_json(&["--baud", "1200", "data-rate", "115200"]);
+    let v = sim.ctl_json(&["--baud", "115200", "id"]);
+    assert_eq!(v["result"]["id"], 1);
+}
+
+#[test]
+fn a_bus_of_several_devices() {
+    let sim = Sim::pty(&["--device", "1,2,5", "--serial-number", "BUS"]);
+    for (d, serial) in [(1, "BUS-1"), (2, "BUS-2"), (5, "BUS-5")] {
+        let to = format!("1.1.{d}");
+        let id = sim.result(&["--to", &to, "id"]);
+        assert_eq!((id["id"].as_u64(), id["serial"].as_str()), (Some(d), Some(serial)));
+    }
+    // A broadcast is executed by all, answered by none (a shared bus).
+    let v = sim.ctl_json(&["--to", "1.1.255", "goto", "3", "-3"]);
+    assert_eq!(v["outcome"], "broadcast");
+    for d in ["1.1.1", "1.1.2", "1.1.5"] {
+        eventually("every device to move", || {
+            let r = sim.result(&["--to", d, "position"]);
+            r["pan_deg"] == 3.0 && r["tilt_deg"] == -3.0
+        });
+    }
+    let out = sim.ctl(&["--to", "1.1.3", "--retries", "0", "--ack-timeout", "100", "status"]);
+    assert_eq!(out.code, 4, "{out:?}");
+    let stats = sim.stop();
+    assert_eq!(stats["frames_ignored"], 1, "{stats}");
+}
+
+#[test]
+fn known_group_and_port_filter_frames() {
+    let sim = Sim::pty(&["--group", "4", "--port", "2"]);
+    assert_eq!(sim.result(&["--to", "4.2.1", "position"])["pan_deg"], 0.0);
+    assert_eq!(sim.result(&["--to", "255.255.1", "position"])["pan_deg"], 0.0);
+    let out = sim.ctl(&["--to", "4.3.1", "--retries", "0", "--ack-timeout", "100", "position"]);
+    assert_eq!(out.code, 4, "another port: {out:?}");
+}
+
+#[test]
+fn bad_configuration_is_refused_with_its_name() {
+    for (args, needle) in [
+        (&["--device", "0"][..], "0"),
+        (&["--device", "1,1"], "used twice"),
+        (&["--corrupt", "1.5"], "1.5"),
+        (&["--name", "a name much longer than twenty"], "name"),
+        (&["--baud", "1000"], "1000"),
+        (&["--tcp", "127.0.0.1:0", "--serial", "/dev/null"], "--serial"),
+    ] {
+        let out = Command::new(support::gimbalsim_bin()).args(args).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {out:?}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(stderr.contains(needle), "{args:?} should name {needle:?}: {stderr}");
+    }
+    let out = Command::new(support::gimbalsim_bin())
+        .args(["--serial", "/nonexistent/ttyS9"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent/ttyS9"));
+}
+
+#[test]
+fn every_frame_is_logged() {
+    let sim = Sim::pty(&[]);
+    sim.ctl_json(&["position"]);
+    sim.ctl(&["raw", "QQ"]);
+    let log = sim.log();
+    assert!(
+        log.contains("rx frame") && log.contains("tx result") && log.contains("tx NIC"),
+        "{log}"
+    );
+}

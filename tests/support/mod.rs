@@ -1,0 +1,306 @@
+//! Test support: start the real `gimbalsim` on a fresh pseudo-terminal (or
+//! a TCP port chosen by the system) and run the real `gimbalctl` against it.
+//! Every test gets its own simulator, so tests run in parallel.
+//!
+//! Reusable by other integration tests (`mod support;`): [`Sim::pty`],
+//! [`Sim::tcp`], [`Sim::ctl`] / [`Sim::ctl_json`], [`gimbalctl`],
+//! [`Sim::stop`] (which returns the simulator's final statistics), and
+//! [`eventually`] for polling without wall-clock assertions.
+
+#![allow(dead_code)]
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+
+/// Only to avoid hanging on a broken build: never an assertion on speed.
+pub const HANG_GUARD: Duration = Duration::from_secs(60);
+
+pub fn gimbalsim_bin() -> &'static str {
+    env!("CARGO_BIN_EXE_gimbalsim")
+}
+
+pub fn gimbalctl_bin() -> &'static str {
+    env!("CARGO_BIN_EXE_gimbalctl")
+}
+
+/// What a `gimbalctl` run printed and how it exited.
+#[derive(Debug)]
+pub struct Output {
+    pub code: i32,
+    pub stdout: String,
+    pub stderr: String,
+}
+
+impl Output {
+    /// The stdout as one JSON value (the single object of `--json`).
+    pub fn json(&self) -> Value {
+        serde_json::from_str(self.stdout.trim())
+            .unwrap_or_else(|e| panic!("stdout is not one JSON value ({e}): {self:?}"))
+    }
+
+    /// Every stdout line as JSON.
+    pub fn json_lines(&self) -> Vec<Value> {
+        self.stdout
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("line {l:?} is not JSON: {e}")))
+            .collect()
+    }
+}
+
+/// Runs a child to completion, killing it if it outlives [`HANG_GUARD`].
+fn finish(mut cmd: Command) -> Output {
+    let mut child = cmd
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn gimbalctl");
+    let started = Instant::now();
+    loop {
+        match child.try_wait().expect("wait for gimbalctl") {
+            Some(_) => break,
+            None if started.elapsed() > HANG_GUARD => {
+                let _ = child.kill();
+                panic!("gimbalctl {cmd:?} hung");
+            }
+            None => std::thread::sleep(Duration::from_millis(5)),
+        }
+    }
+    let out = child.wait_with_output().expect("gimbalctl output");
+    Output {
+        code: out.status.code().unwrap_or(-1),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    }
+}
+
+/// `gimbalctl ARGS` with no transport from the environment (encode, decode,
+/// argument errors).
+pub fn gimbalctl(args: &[&str]) -> Output {
+    let mut cmd = Command::new(gimbalctl_bin());
+    cmd.args(args)
+        .env_remove("GIMBALCTL_SERIAL")
+        .env_remove("GIMBALCTL_TCP");
+    finish(cmd)
+}
+
+/// `gimbalctl ARGS` with `input` on stdin.
+pub fn gimbalctl_stdin(args: &[&str], input: &str) -> Output {
+    use std::io::Write;
+    let mut child = Command::new(gimbalctl_bin())
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn gimbalctl");
+    child
+        .stdin
+        .take()
+        .expect("stdin")
+        .write_all(input.as_bytes())
+        .expect("write stdin");
+    let out = child.wait_with_output().expect("gimbalctl output");
+    Output {
+        code: out.status.code().unwrap_or(-1),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    }
+}
+
+/// A running `gimbalsim`, stopped (SIGTERM) on drop.
+#[derive(Debug)]
+pub struct Sim {
+    child: Child,
+    /// The first stdout line: pty path or TCP address.
+    pub endpoint: String,
+    tcp: bool,
+    lines: mpsc::Receiver<String>,
+    dir: tempfile::TempDir,
+}
+
+impl Sim {
+    fn start(tcp: bool, args: &[&str]) -> Self {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let log = std::fs::File::create(dir.path().join("gimbalsim.log")).expect("log file");
+        let mut cmd = Command::new(gimbalsim_bin());
+        if tcp {
+            cmd.args(["--tcp", "127.0.0.1:0"]);
+        }
+        let mut child = cmd
+            .args(args)
+            .env("RUST_LOG", "debug")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::from(log))
+            .spawn()
+            .expect("spawn gimbalsim");
+        let stdout = child.stdout.take().expect("gimbalsim stdout");
+        let (tx, lines) = mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        let endpoint = match lines.recv_timeout(HANG_GUARD) {
+            Ok(line) => line,
+            Err(_) => {
+                let _ = child.kill();
+                let log = std::fs::read_to_string(dir.path().join("gimbalsim.log")).unwrap_or_default();
+                panic!("gimbalsim printed no endpoint; log:\n{log}");
+            }
+        };
+        Self {
+            child,
+            endpoint,
+            tcp,
+            lines,
+            dir,
+        }
+    }
+
+    /// A simulator on a fresh pseudo-terminal with extra `gimbalsim` flags.
+    pub fn pty(args: &[&str]) -> Self {
+        Self::start(false, args)
+    }
+
+    /// A simulator listening on 127.0.0.1 at a port the system picks.
+    pub fn tcp(args: &[&str]) -> Self {
+        Self::start(true, args)
+    }
+
+    /// A path in this simulator's private temporary directory.
+    pub fn temp_path(&self, name: &str) -> PathBuf {
+        self.dir.path().join(name)
+    }
+
+    /// What the simulator logged so far (for failure messages).
+    pub fn log(&self) -> String {
+        std::fs::read_to_string(self.dir.path().join("gimbalsim.log")).unwrap_or_default()
+    }
+
+    /// The `gimbalctl` transport flags for this simulator.
+    pub fn transport(&self) -> Vec<String> {
+        let flag = if self.tcp { "--tcp" } else { "--serial" };
+        vec![flag.to_string(), self.endpoint.clone()]
+    }
+
+    /// `gimbalctl` against this simulator.
+    pub fn ctl(&self, args: &[&str]) -> Output {
+        let mut cmd = Command::new(gimbalctl_bin());
+        cmd.env_remove("GIMBALCTL_SERIAL")
+            .env_remove("GIMBALCTL_TCP")
+            .args(self.transport())
+            .args(args);
+        finish(cmd)
+    }
+
+    /// `gimbalctl --json ARGS`, which must succeed; its JSON object.
+    pub fn ctl_json(&self, args: &[&str]) -> Value {
+        let mut full = vec!["--json"];
+        full.extend_from_slice(args);
+        let out = self.ctl(&full);
+        assert_eq!(
+            out.code,
+            0,
+            "gimbalctl {args:?} failed: {out:?}\nsimulator log:\n{}",
+            self.log()
+        );
+        out.json()
+    }
+
+    /// The JSON result of a successful query.
+    pub fn result(&self, args: &[&str]) -> Value {
+        let v = self.ctl_json(args);
+        assert_eq!(v["outcome"], "result", "{args:?}: {v}");
+        v["result"].clone()
+    }
+
+    /// Current position in degrees.
+    pub fn position(&self) -> (f64, f64) {
+        let r = self.result(&["position"]);
+        (
+            r["pan_deg"].as_f64().expect("pan"),
+            r["tilt_deg"].as_f64().expect("tilt"),
+        )
+    }
+
+    /// Polls the position until two readings 100 ms apart agree.
+    pub fn settled_position(&self) -> (f64, f64) {
+        let mut last = self.position();
+        eventually("the mount to stop", || {
+            std::thread::sleep(Duration::from_millis(100));
+            let now = self.position();
+            let still = now == last;
+            last = now;
+            still
+        });
+        last
+    }
+
+    /// Stops the simulator (SIGTERM) and returns its final statistics.
+    pub fn stop(mut self) -> Value {
+        self.terminate();
+        let started = Instant::now();
+        while started.elapsed() < HANG_GUARD {
+            match self.lines.recv_timeout(Duration::from_millis(100)) {
+                Ok(line) => {
+                    if let Some(json) = line.strip_prefix("stats ") {
+                        return serde_json::from_str(json).expect("stats JSON");
+                    }
+                }
+                Err(mpsc::RecvTimeoutError::Timeout) => {}
+                Err(mpsc::RecvTimeoutError::Disconnected) => break,
+            }
+        }
+        panic!("gimbalsim printed no stats; log:\n{}", self.log());
+    }
+
+    fn terminate(&mut self) {
+        if let Ok(None) = self.child.try_wait() {
+            let pid = nix::unistd::Pid::from_raw(self.child.id() as i32);
+            let _ = nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGTERM);
+            let started = Instant::now();
+            while started.elapsed() < Duration::from_secs(10) {
+                if let Ok(Some(_)) = self.child.try_wait() {
+                    return;
+                }
+                std::thread::sleep(Duration::from_millis(10));
+            }
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+
+    /// Whether the process is still running.
+    pub fn is_running(&mut self) -> bool {
+        matches!(self.child.try_wait(), Ok(None))
+    }
+
+    pub fn endpoint_path(&self) -> &Path {
+        Path::new(&self.endpoint)
+    }
+}
+
+impl Drop for Sim {
+    fn drop(&mut self) {
+        self.terminate();
+    }
+}
+
+/// Polls `condition` (which may sleep) until it holds; panics only after
+/// [`HANG_GUARD`], so a slow machine never fails a test.
+pub fn eventually(what: &str, mut condition: impl FnMut() -> bool) {
+    let started = Instant::now();
+    while !condition() {
+        if started.elapsed() > HANG_GUARD {
+            panic!("gave up waiting for {what}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
