@@ -19,7 +19,8 @@ pub enum LinkKind {
     /// Toward another GCU further from the MCU.
     Downstream,
     /// A local client (operator tool) speaking as an MCU: it sends
-    /// commands and gets answers back, and is never a transit route.
+    /// commands and gets answers back along the reverse path; its source
+    /// group is never a routing destination.
     Client,
 }
 

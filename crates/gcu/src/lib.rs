@@ -50,7 +50,9 @@
 //!   port (unknown: dropped, [`DropReason::UnknownPort`]), port 255 every
 //!   port. Group 255 from an upstream or client link is also flooded to every
 //!   downstream link, never back to its origin. Other groups: static route,
-//!   then learned route (source groups seen on links), then the default
+//!   then learned route (source groups seen on GCU links; groups of
+//!   clients are never destinations, their answers only travel the reverse
+//!   path), then the default
 //!   upstream; no route -> dropped, counted, logged. Never back to the link
 //!   the frame came from ([`DropReason::Loop`]).
 //! - **Source filter**: a frame whose source group the link may not speak
@@ -66,7 +68,11 @@
 //!   unchanged except that a wildcard is replaced by the answering port or
 //!   device, source group = G, checksum recomputed); a NIC as a bare `?`.
 //!   Answers of frames forwarded to another GCU go back to their origin
-//!   through module `reverse`, even when several clients use one source group.
+//!   through module `reverse`. An answer that could belong to commands of
+//!   several origins (clients sharing a source group, concurrently asking
+//!   the same device) is dropped and counted
+//!   ([`DropReason::AmbiguousAnswer`]), never guessed: give clients distinct
+//!   source groups.
 //! - **Wildcard fan-out**: a port-255 command is one job per port and one
 //!   accepted command. Every result frame is relayed as it comes (so the
 //!   origin may receive several, each naming its port and device). `?` is
@@ -93,6 +99,16 @@
 //! `Unreachable` (device never ACKed), `Forwarded` (queued to the next-hop
 //! link) or `Dropped(reason)`. What happens to a frame after it was queued
 //! on a link is counted per link: `queued == delivered + failed + queue_len`.
+//!
+//! # Testing
+//!
+//! `tests/rules.rs` has one test per rule; `tests/simulation.rs` runs a
+//! deterministic network simulation (seeded networks of 1 to 3 GCUs, ports
+//! of `DeviceEndpoint` gimbals, clients, faulty wires). It runs 10,000
+//! seeds by default; `GCU_SIM_SEEDS=1000000 GCU_SIM_START=0 cargo test -p
+//! sagebrush-gcu --release --test simulation` runs more, and a failure
+//! prints its seed and the command replaying it with a trace
+//! (`GCU_SIM_SEED=<seed> ... -- --nocapture`).
 
 mod config;
 mod deadman;

@@ -9,15 +9,25 @@
 //! unchanged) arriving on link `L`: an entry forwarded on `L`, already
 //! transmitted, whose command source group is the frame's destination
 //! group, whose port/device equal the frame's (or are 255), and whose
-//! destination group is the frame's source group (or 255). Wildcard entries
-//! may be answered several times and stay until they expire; others are
-//! consumed by their result.
+//! destination group is the frame's source group (or 255).
 //!
 //! When the matching entries do not all share one origin (clients using the
-//! same source group with overlapping wildcards), the answer is dropped and
+//! same source group for the same device), the answer is dropped and
 //! counted ([`DropReason::AmbiguousAnswer`]) rather than risk the wrong
 //! link. A bare `?` carries no address: it matches every transmitted entry
 //! on `L`, and goes back only when they all share one origin.
+//!
+//! Answered entries are kept until they expire: a lost link ACK makes the
+//! sender retransmit and the next GCU execute the command twice (the
+//! protocol has no sequence numbers), so a second answer may follow. Kept,
+//! the answered entry makes that duplicate ambiguous against another
+//! origin's pending command instead of being taken for its answer. When
+//! the table is full, the oldest answered entry is forgotten first.
+//!
+//! Entries outlive a link going down, either way: the next GCU keeps
+//! executing and answers on the link once it is back (same id), and answers
+//! for an origin that left are recognised and counted
+//! ([`crate::DropReason::OriginGone`]) instead of being routed on.
 //!
 //! [`DropReason::AmbiguousAnswer`]: crate::DropReason::AmbiguousAnswer
 
@@ -39,13 +49,11 @@ struct Pending {
     kind: ResultKind,
     /// Set at the first transmission on `out_link`.
     expires: Option<u64>,
+    /// An answer went back already.
+    answered: bool,
 }
 
 impl Pending {
-    fn wildcard(&self) -> bool {
-        self.dest.has_wildcard()
-    }
-
     fn answered_by(&self, frame: &Frame<'_>) -> bool {
         let level = |want: u8, got: u8| want == WILDCARD || want == got;
         self.kind != ResultKind::None
@@ -85,7 +93,8 @@ impl ReversePath {
     pub fn insert(&mut self, out_link: LinkId, origin: Origin, frame: &Frame<'_>, kind: ResultKind) -> (u64, bool) {
         let evicted = self.entries.len() >= self.max;
         if evicted {
-            self.entries.pop_front();
+            let at = self.entries.iter().position(|e| e.answered).unwrap_or(0);
+            self.entries.remove(at);
         }
         let key = self.next_key;
         self.next_key += 1;
@@ -97,6 +106,7 @@ impl ReversePath {
             dest: frame.dest,
             kind,
             expires: None,
+            answered: false,
         });
         (key, evicted)
     }
@@ -128,32 +138,32 @@ impl ReversePath {
         self.take(|e| e.out_link == link && e.expires.is_some())
     }
 
-    /// The oldest matching entry, when every match shares its origin
-    /// (consumed unless it is a wildcard entry, which may be answered again).
+    /// The origin of the matching entries, when they all share one; the
+    /// oldest unanswered one is marked answered.
     fn take(&mut self, matches: impl Fn(&Pending) -> bool) -> AnswerMatch {
-        let mut candidates = self.entries.iter().filter(|e| matches(e));
-        let Some(first) = candidates.next().copied() else {
+        let mut candidates = self.entries.iter_mut().filter(|e| matches(e));
+        let Some(first) = candidates.next() else {
             return AnswerMatch::None;
         };
-        if candidates.any(|e| e.origin != first.origin) {
-            return AnswerMatch::Ambiguous;
+        let origin = first.origin;
+        let mut fresh = (!first.answered).then_some(first);
+        for e in candidates {
+            if e.origin != origin {
+                return AnswerMatch::Ambiguous;
+            }
+            if fresh.is_none() && !e.answered {
+                fresh = Some(e);
+            }
         }
-        if !first.wildcard() {
-            self.entries.retain(|e| e.key != first.key);
+        if let Some(e) = fresh {
+            e.answered = true;
         }
-        AnswerMatch::One(first.origin)
+        AnswerMatch::One(origin)
     }
 
     /// Forgets what expired by `now`.
     pub fn expire(&mut self, now: u64) {
         self.entries.retain(|e| e.expires.is_none_or(|t| t > now));
-    }
-
-    /// The link went down: entries forwarded on it are gone; entries whose
-    /// origin it was are kept, so that their answers are recognised and
-    /// counted as [`crate::DropReason::OriginGone`] rather than routed on.
-    pub fn link_down(&mut self, link: LinkId) {
-        self.entries.retain(|e| e.out_link != link);
     }
 
     pub fn next_deadline(&self) -> Option<u64> {
@@ -191,8 +201,14 @@ mod tests {
         rp.sent(a, 0, &settings);
         assert_eq!(rp.match_result(LinkId(2), &result), AnswerMatch::None, "wrong link");
         assert_eq!(rp.match_result(L, &result), AnswerMatch::One(origin(10)));
+        // A duplicate of that answer is still recognised as origin 10's.
+        assert_eq!(rp.match_result(L, &result), AnswerMatch::One(origin(10)));
         rp.sent(b, 1, &settings);
+        // Now it could be origin 10's duplicate or origin 11's answer.
+        assert_eq!(rp.match_result(L, &result), AnswerMatch::Ambiguous);
+        rp.expire(settings.answer_timeout);
         assert_eq!(rp.match_result(L, &result), AnswerMatch::One(origin(11)));
+        rp.expire(settings.answer_timeout + 1);
         assert_eq!(rp.match_result(L, &result), AnswerMatch::None);
     }
 
@@ -230,21 +246,33 @@ mod tests {
         assert_eq!(rp.match_nic(L), AnswerMatch::Ambiguous);
         rp.cancel(b);
         assert_eq!(rp.match_nic(L), AnswerMatch::One(origin(10)));
-        assert_eq!(rp.match_nic(L), AnswerMatch::None);
         let (c, _) = rp.insert(L, origin(10), &cmd, ResultKind::None);
-        rp.sent(c, 0, &settings);
+        rp.sent(c, 5, &settings);
         assert_eq!(rp.next_deadline(), Some(settings.nic_answer_timeout));
         rp.expire(settings.nic_answer_timeout);
+        assert_eq!(rp.len(), 1);
+        rp.expire(settings.nic_answer_timeout + 5);
         assert_eq!(rp.len(), 0);
+        assert_eq!(rp.match_nic(L), AnswerMatch::None);
     }
 
     #[test]
-    fn bounded_by_evicting_the_oldest() {
+    fn bounded_by_evicting_the_oldest_answered_first() {
+        let settings = LinkSettings::default();
         let mut rp = ReversePath::new(2);
         let cmd = Frame::new(Address::new(5, 1, 12), 2, b"PL").unwrap();
-        assert!(!rp.insert(L, origin(1), &cmd, ResultKind::None).1);
-        assert!(!rp.insert(L, origin(1), &cmd, ResultKind::None).1);
+        let other = Frame::new(Address::new(5, 1, 13), 2, b"P?").unwrap();
+        let (a, evicted) = rp.insert(L, origin(1), &cmd, ResultKind::None);
+        assert!(!evicted);
+        let (b, evicted) = rp.insert(L, origin(2), &other, ResultKind::Required(ResultTimeout::Normal));
+        assert!(!evicted);
+        rp.sent(a, 0, &settings);
+        rp.sent(b, 0, &settings);
+        let answer = Frame::new(Address::new(2, 1, 13), 5, b"00000000").unwrap();
+        assert_eq!(rp.match_result(L, &answer), AnswerMatch::One(origin(2)));
         assert!(rp.insert(L, origin(1), &cmd, ResultKind::None).1);
         assert_eq!(rp.len(), 2);
+        // The unanswered first entry survived: a `?` still finds origin 1.
+        assert_eq!(rp.match_nic(L), AnswerMatch::One(origin(1)));
     }
 }

@@ -513,7 +513,7 @@ impl Router {
             }
             return self.execute_local(now, id, origin, frame, out);
         }
-        let up = |l: LinkId| self.links.get(&l).map(|l| l.config.kind);
+        let up = |l: LinkId| self.links.contains_key(&l);
         let any_upstream = self
             .links
             .iter()
@@ -638,7 +638,6 @@ impl Router {
         }
         self.retired.insert(link, l.stats);
         self.routes.forget(link);
-        self.reverse.link_down(link);
         out.push(Action::Event(Event::LinkState { link, up: false }));
         let ports: Vec<u8> = self.ports.keys().copied().collect();
         for port in ports {

@@ -215,8 +215,6 @@ pub enum DropReason {
     NoRoute,
     /// The only route leads back to the link the frame came from.
     Loop,
-    /// Learned from several client links at once: answering one could reach the wrong one.
-    AmbiguousRoute,
     /// Destination port not configured on this GCU.
     UnknownPort,
     /// Destination port configured but not open.
@@ -235,7 +233,8 @@ pub enum DropReason {
     LinkNoAck,
     /// The link the answer should go back to is gone.
     OriginGone,
-    /// A frame nobody was waiting for (a late or stray result).
+    /// A frame nobody was waiting for (a late or stray result, or a frame
+    /// for a group that is a local client's).
     Unsolicited,
     /// An answer (result or `?`) from another GCU that could belong to
     /// forwarded commands of several origins (clients sharing a source group).
@@ -245,10 +244,9 @@ pub enum DropReason {
 }
 
 impl DropReason {
-    pub const ALL: [DropReason; 15] = [
+    pub const ALL: [DropReason; 14] = [
         DropReason::NoRoute,
         DropReason::Loop,
-        DropReason::AmbiguousRoute,
         DropReason::UnknownPort,
         DropReason::PortClosed,
         DropReason::PortLost,
@@ -273,7 +271,6 @@ impl DropReason {
         match self {
             DropReason::NoRoute => "no_route",
             DropReason::Loop => "loop",
-            DropReason::AmbiguousRoute => "ambiguous_route",
             DropReason::UnknownPort => "unknown_port",
             DropReason::PortClosed => "port_closed",
             DropReason::PortLost => "port_lost",
