@@ -13,6 +13,13 @@
 //!   set aside when a stop is queued: the stop goes out at once and the
 //!   set-aside exchange still takes its result (matched by port and device,
 //!   Table 3) or times out. The bus is never written while an ACK is awaited.
+//! - A result is taken only when its header is that of the exchange (Table
+//!   3: port and device unchanged, destination group = the command's source
+//!   group), during a device-255 guard time too. After an exchange that
+//!   needed a retransmission, the device may have executed the command
+//!   twice, or answered after the GCU gave up: the bus stays quiet for one
+//!   ACK time-out so that such an answer is not taken for the next
+//!   exchange's (it is ACKed and counted as unsolicited).
 //! - The queue is bounded, stops and other work separately so that a burst
 //!   of work never costs a stop its place (and a burst of dead-man stops
 //!   never pushes work out): a job that does not fit is dropped and counted
@@ -98,6 +105,15 @@ impl Running {
     fn device(&self) -> u8 {
         self.job.frame.frame().dest.device
     }
+
+    /// Whether `frame` can be this exchange's result: port and device
+    /// unchanged (the protocol `Transaction` checks those) and, Table 3, the
+    /// destination group is the command's source group. The protocol
+    /// crate's check alone takes a late duplicate result meant for another
+    /// source group's command to the same device.
+    fn answered_by(&self, frame: &sagebrush_protocol::Frame<'_>) -> bool {
+        frame.dest.group == self.job.frame.frame().source && self.txn.is_result_header(&frame.dest)
+    }
 }
 
 #[derive(Debug)]
@@ -118,6 +134,9 @@ pub(crate) struct Port {
     seen: BTreeSet<u8>,
     /// Rate changes acknowledged per device, not yet applied to the port.
     acked_rates: BTreeMap<u8, DataRate>,
+    /// After an exchange that was retransmitted the device may answer a
+    /// second time: no new exchange starts before this tick.
+    settle_until: Option<u64>,
     pub stats: PortStats,
     pub device_stats: BTreeMap<u8, DeviceStats>,
 }
@@ -149,6 +168,7 @@ impl Port {
             detached: Vec::new(),
             seen: BTreeSet::new(),
             acked_rates: BTreeMap::new(),
+            settle_until: None,
             stats: PortStats {
                 bps: rate.bits_per_second().unwrap_or(9600),
                 ..PortStats::default()
@@ -266,6 +286,10 @@ impl Port {
     }
 
     fn start_next(&mut self, now: u64, out: &mut Vec<PortOut>) {
+        if self.settle_until.is_some_and(|t| now < t) {
+            return;
+        }
+        self.settle_until = None;
         while self.active.is_none() && self.open {
             let Some(job) = self.queue.pop_front() else { break };
             self.note_queue();
@@ -342,6 +366,12 @@ impl Port {
         out: &mut Vec<PortOut>,
     ) {
         let device = r.device();
+        if r.txn.transmissions() > 1 {
+            // The device may have executed the command twice: let its
+            // second answer arrive while nothing can take it for its own.
+            let settle = now.saturating_add(self.policy.retry.ack_timeout);
+            self.settle_until = Some(self.settle_until.map_or(settle, |t| t.max(settle)));
+        }
         let answered = !matches!(outcome, TxOutcome::Failed(_) | TxOutcome::Broadcast);
         if answered && device != WILDCARD {
             self.seen.insert(device);
@@ -494,8 +524,9 @@ impl Port {
         let view = frame.frame();
         if let Some(r) = self.active.as_mut() {
             if r.txn.is_broadcast() {
-                let dest = r.job.frame.frame().dest;
-                if view.dest.port == dest.port || view.dest.port == WILDCARD {
+                let command = r.job.frame.frame();
+                let port_matches = view.dest.port == command.dest.port || view.dest.port == WILDCARD;
+                if port_matches && view.dest.group == command.source {
                     // A device alone on its bus answering a broadcast.
                     let (id, origin) = (r.job.id, r.job.origin);
                     let d = self.device(view.dest.device);
@@ -508,14 +539,14 @@ impl Port {
                     });
                     return;
                 }
-            } else {
+            } else if r.answered_by(&view) {
                 let step = r.txn.on_event(&FramerEvent::Frame(view), now);
                 if let TransactionStep::Done(_) = step {
                     return self.active_step(now, step, Some(frame), out);
                 }
             }
         }
-        if let Some(at) = self.detached.iter().position(|r| r.txn.is_result_header(&view.dest)) {
+        if let Some(at) = self.detached.iter().position(|r| r.answered_by(&view)) {
             let mut r = self.detached.remove(at);
             if let TransactionStep::Done(outcome) = r.txn.on_event(&FramerEvent::Frame(view), now) {
                 return self.finish(now, r, outcome, Some(frame), out);
@@ -560,13 +591,19 @@ impl Port {
                 i += 1;
             }
         }
+        if self.active.is_none() {
+            self.start_next(now, out);
+        }
         self.maybe_detach(now, out);
     }
 
     pub fn next_deadline(&self) -> Option<u64> {
         let active = self.active.as_ref().and_then(|r| r.txn.deadline());
         let detached = self.detached.iter().filter_map(|r| r.txn.deadline()).min();
-        [active, detached, self.line.idle_deadline()]
+        let settle = self
+            .settle_until
+            .filter(|_| self.active.is_none() && !self.queue.is_empty());
+        [active, detached, settle, self.line.idle_deadline()]
             .into_iter()
             .flatten()
             .min()

@@ -340,6 +340,38 @@ fn device_255_written_once_without_ack_then_guard() {
 }
 
 #[test]
+fn a_late_or_duplicate_result_is_never_taken_for_the_next_exchange() {
+    let mut h = H::new(&[1]);
+    let mu = frame((G, 1, 3), 2, b"*mu1");
+    h.link(CLIENT, &mu);
+    let a = h.wait(10);
+    assert_eq!(port_writes(&a, 1), vec![mu], "ACK lost: retransmitted");
+    h.port(1, &[ACK]);
+    let a = h.port(1, &frame((2, 1, 3), G, b"1"));
+    assert_eq!(finished(&a), vec![Outcome::Result]);
+    // The device executed it twice; the bus settles before the next exchange.
+    let query = frame((G, 1, 3), 3, b"P?");
+    let a = h.link(CLIENT, &query);
+    assert!(port_writes(&a, 1).is_empty(), "settling");
+    let a = h.port(1, &frame((2, 1, 3), G, b"1"));
+    assert_eq!(dropped(&a), vec![DropReason::Unsolicited]);
+    let a = h.wait(10);
+    assert_eq!(port_writes(&a, 1), vec![query]);
+    h.port(1, &[ACK]);
+    // Same port and device, but for another source group: not this result.
+    let a = h.port(1, &frame((2, 1, 3), G, b"1"));
+    assert_eq!(dropped(&a), vec![DropReason::Unsolicited]);
+    assert!(finished(&a).is_empty());
+    let a = h.port(1, &frame((3, 1, 3), G, b"00000000"));
+    assert_eq!(finished(&a), vec![Outcome::Result]);
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        Vec::<Vec<u8>>::new(),
+        "behind the first result, awaiting its ACK"
+    );
+}
+
+#[test]
 fn stop_overtakes_queued_work() {
     let mut h = H::new(&[1]);
     h.link(CLIENT, &frame((G, 1, 3), 2, b"P?"));
