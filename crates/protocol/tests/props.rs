@@ -320,7 +320,7 @@ proptest! {
                 prop_assert!(offset <= payload.len());
                 prop_assert_eq!(found, payload.get(offset).copied());
             }
-            Err(CommandError::OutOfRange { offset, .. }) => prop_assert!(offset < payload.len()),
+            Err(CommandError::OutOfRange { offset, .. }) => prop_assert!(offset <= payload.len()),
             Err(CommandError::Unknown { first, len }) => prop_assert_eq!((first, len), (payload[0], payload.len())),
             Err(CommandError::Empty) => prop_assert!(payload.is_empty()),
         }
