@@ -163,6 +163,22 @@ impl<const N: usize> DeviceEndpoint<N> {
         framer.feed(bytes, |event| handle_event(config, stats, event, now, handler, out));
     }
 
+    /// Free space in the endpoint's framer for a DMA transfer or a UART
+    /// driver to write into; then [`DeviceEndpoint::commit`] the count.
+    pub fn spare_capacity_mut(&mut self) -> &mut [u8] {
+        self.framer.spare_capacity_mut()
+    }
+
+    /// `n` bytes were written into [`DeviceEndpoint::spare_capacity_mut`]:
+    /// handles every event they complete, as [`DeviceEndpoint::receive`] does.
+    pub fn commit(&mut self, n: usize, now: u64, handler: &mut impl DeviceHandler, out: &mut impl FnMut(&[u8])) {
+        let Self { config, framer, stats } = self;
+        framer.commit(n);
+        while let Some(event) = framer.next_event() {
+            handle_event(config, stats, event, now, handler, out);
+        }
+    }
+
     /// The bus has been silent: abandon a partial frame (the silence hook).
     pub fn line_idle(&mut self, now: u64, handler: &mut impl DeviceHandler, out: &mut impl FnMut(&[u8])) {
         let Self { config, framer, stats } = self;

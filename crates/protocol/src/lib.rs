@@ -46,3 +46,8 @@ pub enum EncodeError {
     #[error("cannot encode: {0}")]
     OutOfRange(RangeError),
 }
+
+/// The README's examples, compiled and run as doc tests.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

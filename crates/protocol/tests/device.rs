@@ -226,3 +226,32 @@ fn partial_frame_and_silence_hook() {
     assert_eq!(run(&mut ep, &mut g, &wire[..4]), []);
     assert_eq!(run(&mut ep, &mut g, &wire[4..]), [ACK]);
 }
+
+#[test]
+fn dma_path_matches_receive() {
+    let mut stream = frame(Address::new(5, 1, 12), 2, b"P?");
+    stream.extend_from_slice(&[0x00, 0xF8]);
+    stream.extend(frame(Address::new(5, 1, 12), 2, b"QQ"));
+    stream.extend(frame(Address::new(5, 1, 12), 2, b"PL"));
+    let mut ep: DeviceEndpoint = DeviceEndpoint::new(EndpointConfig::single(12));
+    let mut g = Gimbal::default();
+    let mut expected = run(&mut ep, &mut g, &stream);
+    ep.line_idle(0, &mut g, &mut |b: &[u8]| expected.extend_from_slice(b));
+    assert_eq!(expected[..1], [ACK]);
+    for chunk in [1, 3, 16, 300] {
+        let mut ep: DeviceEndpoint = DeviceEndpoint::new(EndpointConfig::single(12));
+        let mut g = Gimbal::default();
+        let mut out = Vec::new();
+        let mut rest = &stream[..];
+        while !rest.is_empty() {
+            let spare = ep.spare_capacity_mut();
+            let n = spare.len().min(chunk).min(rest.len());
+            spare[..n].copy_from_slice(&rest[..n]);
+            rest = &rest[n..];
+            ep.commit(n, 0, &mut g, &mut |b: &[u8]| out.extend_from_slice(b));
+        }
+        ep.line_idle(0, &mut g, &mut |b: &[u8]| out.extend_from_slice(b));
+        assert_eq!(out, expected, "chunk {chunk}");
+        assert_eq!(g.handled.len(), 2);
+    }
+}
