@@ -91,7 +91,7 @@ mod tests {
         assert_eq!(from_hex("F8053F").unwrap(), [0xF8, 0x05, 0x3F]);
         assert!(from_hex("F8 0").unwrap_err().contains("odd"));
         assert!(from_hex("F8 G0").unwrap_err().contains("'G'"));
-        assert_eq!(payload_text(b"*x0t\x01\\"), "*x0t\\x01\\\\");
+        assert_eq!(payload_text(b"*x0t\x01\\"), "*x0t\\x01\\x5C");
         assert_eq!(payload_bytes("*x0t\\x01\\\\").unwrap(), b"*x0t\x01\\");
     }
 }
