@@ -156,7 +156,7 @@ pub async fn run(config: Config) -> Result<(), StartError> {
         let listener = crate::metrics::bind(addr)
             .await
             .map_err(|error| StartError::Metrics { addr, error })?;
-        info!(%addr, "metrics at /metrics");
+        info!(addr = %listener.local_addr().unwrap_or(addr), "metrics at /metrics");
         let (scrape_tx, mut scrape_rx) = mpsc::channel(16);
         let events_tx = events_tx.clone();
         tokio::spawn(async move {
