@@ -1,6 +1,7 @@
 //! `tracing` set-up for the binaries: human or JSON lines on stderr, level
 //! from a filter string (`RUST_LOG` syntax, e.g. `info,sagebrush_sim=debug`);
-//! the `RUST_LOG` environment variable wins when set.
+//! the `RUST_LOG` environment variable wins when set. Under systemd
+//! (`JOURNAL_STREAM` set) lines carry no timestamp: the journal adds its own.
 
 use std::io::IsTerminal;
 
@@ -18,10 +19,11 @@ pub fn init(default_filter: &str, json: bool) -> Result<(), String> {
         .with_writer(std::io::stderr)
         .with_ansi(std::io::stderr().is_terminal())
         .with_target(false);
-    let result = if json {
-        builder.json().try_init()
-    } else {
-        builder.try_init()
+    let journal = std::env::var_os("JOURNAL_STREAM").is_some();
+    let result = match (json, journal) {
+        (true, _) => builder.json().try_init(),
+        (false, true) => builder.without_time().try_init(),
+        (false, false) => builder.try_init(),
     };
     result.map_err(|e| format!("cannot install the logger: {e}"))
 }

@@ -8,9 +8,7 @@ use std::io;
 use std::time::Duration;
 
 use sagebrush_protocol::link::TransactionPolicy;
-use sagebrush_protocol::{
-    ACK, Address, Command, Event, FrameBuf, Framer, NAK, Outcome, Transaction, TransactionStep, WILDCARD,
-};
+use sagebrush_protocol::{ACK, Address, Command, Event, FrameBuf, Framer, NAK, Outcome, Transaction, TransactionStep};
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::time::Instant;
 use tracing::{debug, info, warn};
@@ -32,25 +30,6 @@ pub struct Exchange {
     /// Frames that were not our result (another device, a late answer).
     pub stray_frames: u32,
     pub elapsed: Duration,
-}
-
-/// The result header as [`Transaction::is_result_header`] expects it.
-///
-/// Workaround: the protocol crate's `DeviceEndpoint` puts its own port in
-/// the result of a command sent to port 255 (so the answer says who
-/// answered), but `Transaction::is_result_header` compares the port with the
-/// command's, 255, and so never recognises that result. A frame for our
-/// device whose port differs only where we sent the wildcard is given back
-/// the wildcard before the transaction sees it; the result kept is the frame
-/// as received.
-fn as_addressed(received: &FrameBuf, sent: Address) -> FrameBuf {
-    let got = received.frame();
-    if sent.port == WILDCARD && got.dest.port != WILDCARD && got.dest.device == sent.device {
-        let mut copy = received.clone();
-        copy.set_header(Address::new(got.dest.group, WILDCARD, got.dest.device), got.source);
-        return copy;
-    }
-    received.clone()
 }
 
 /// An owned framer event.
@@ -165,8 +144,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
                 let now = self.now();
                 step = match event {
                     Owned::Frame(f) => {
-                        let seen = as_addressed(&f, frame.frame().dest);
-                        let s = tx.on_event(&Event::Frame(seen.frame()), now);
+                        let s = tx.on_event(&Event::Frame(f.frame()), now);
                         if s == TransactionStep::Done(Outcome::Result) {
                             // Hop-by-hop acknowledgement of the result.
                             self.write(&[ACK]).await?;

@@ -270,9 +270,11 @@ impl Transaction {
     }
 
     /// Whether `frame`'s header is that of this exchange's result (Table 3:
-    /// port and device unchanged).
+    /// port and device unchanged). A command sent to port 255 is answered
+    /// from the device's own port (the endpoint fills in its own address for
+    /// a wildcard, so that the answer says who answered).
     pub fn is_result_header(&self, dest: &Address) -> bool {
-        dest.port == self.dest.port && dest.device == self.dest.device
+        (dest.port == self.dest.port || self.dest.port == WILDCARD) && dest.device == self.dest.device
     }
 
     /// An event from the framer of the line this exchange runs on.

@@ -241,3 +241,29 @@ fn transaction_long_timeout_for_initialization() {
     assert_eq!(t.poll(30_009), TransactionStep::Wait);
     assert_eq!(t.poll(30_010), TransactionStep::Done(Outcome::NoResult));
 }
+
+/// A command to port 255 is answered from the device's own port (the
+/// endpoint names itself in a wildcard's place): that is still its result.
+#[test]
+fn transaction_to_port_255_takes_the_answer_from_the_devices_port() {
+    let mut t = Transaction::new(Address::new(5, WILDCARD, 12), &Command::QueryPosition, POLICY);
+    assert_eq!(t.start(0), TransactionStep::Send);
+    assert_eq!(t.on_event(&Event::Ack, 1), TransactionStep::Wait);
+    let other_device = FrameBuf::new(Address::new(0, 3, 11), 5, b"00000000").unwrap();
+    assert_eq!(
+        t.on_event(&Event::Frame(other_device.frame()), 2),
+        TransactionStep::Wait,
+        "device 11 is not ours"
+    );
+    let answer = FrameBuf::new(Address::new(0, 3, 12), 5, b"00000000").unwrap();
+    assert!(t.is_result_header(&answer.frame().dest));
+    assert_eq!(
+        t.on_event(&Event::Frame(answer.frame()), 3),
+        TransactionStep::Done(Outcome::Result)
+    );
+    let exact = Transaction::new(Address::new(5, 1, 12), &Command::QueryPosition, POLICY);
+    assert!(
+        !exact.is_result_header(&Address::new(0, 3, 12)),
+        "a named port must match"
+    );
+}
