@@ -61,7 +61,11 @@
 //! - **Per-port transactions** (module `port`): one protocol `Transaction` at a
 //!   time per bus, with result time-out classes, NIC window, device-255
 //!   guard, stops overtaking queued work (and a long `IX` result wait), a
-//!   bounded queue.
+//!   bounded queue. A result is taken only with the exchange's Table 3
+//!   header (the command's source group included), and after a
+//!   retransmitted exchange the bus settles for one ACK time-out, so that a
+//!   device's duplicate or late answer is never taken for the next one's.
+//!   Forwarded stops overtake the frames waiting on a link too.
 //! - **Answers** go back along the reverse path: a result from a port goes
 //!   to the link the command came from with the Table 3 header
 //!   (destination group = the command's source group, port and device
@@ -73,13 +77,13 @@
 //!   the same device) is dropped and counted
 //!   ([`DropReason::AmbiguousAnswer`]), never guessed: give clients distinct
 //!   source groups.
-//! - **Wildcard fan-out**: a port-255 command is one job per port and one
-//!   accepted command. Every result frame is relayed as it comes (so the
+//! - **Wildcard fan-out** (what the origin receives): a port-255 command is
+//!   one job per port and one accepted command. Every result frame is relayed as it comes (so the
 //!   origin may receive several, each naming its port and device). `?` is
 //!   relayed once, when the jobs ended without result or completion and at
 //!   least one NIC. A device-255 command gets no ACK and usually no answer;
-//!   result frames during its guard time (a lone device answering a
-//!   broadcast) are relayed too. A group-255 command also yields whatever
+//!   result frames with its header during its guard time (a lone device
+//!   answering a broadcast) are relayed too. A group-255 command also yields whatever
 //!   the downstream GCUs send back.
 //! - **Dead-man** (module `deadman`): a link that goes down has its queued
 //!   continuous motions cancelled and the motions it owns stopped (`PS`,

@@ -11,8 +11,10 @@
 //! - Stop and halt commands overtake queued work (they queue behind earlier
 //!   stops only). A long result wait (`IX` acknowledged, result pending) is
 //!   set aside when a stop is queued: the stop goes out at once and the
-//!   set-aside exchange still takes its result (matched by port and device,
-//!   Table 3) or times out. The bus is never written while an ACK is awaited.
+//!   set-aside exchange still takes its result (matched by its Table 3
+//!   header) or times out. Until it ends, only stops use the bus (another
+//!   exchange could be answered with the same header). The bus is never
+//!   written while an ACK is awaited.
 //! - A result is taken only when its header is that of the exchange (Table
 //!   3: port and device unchanged, destination group = the command's source
 //!   group), during a device-255 guard time too. After an exchange that
@@ -291,6 +293,11 @@ impl Port {
         }
         self.settle_until = None;
         while self.active.is_none() && self.open {
+            // While a long wait is set aside only stops use the bus: another
+            // exchange could take its result (same Table 3 header) or give it theirs.
+            if !self.detached.is_empty() && !self.queue.front().is_some_and(|j| j.stop) {
+                break;
+            }
             let Some(job) = self.queue.pop_front() else { break };
             self.note_queue();
             let frame = job.frame.frame();
@@ -511,7 +518,8 @@ impl Port {
                 if !self.detached.is_empty() {
                     let mut r = self.detached.remove(0);
                     if let TransactionStep::Done(outcome) = r.txn.on_event(&FramerEvent::Nic, now) {
-                        return self.finish(now, r, outcome, None, out);
+                        self.finish(now, r, outcome, None, out);
+                        return self.start_next(now, out);
                     }
                     self.detached.insert(0, r);
                 }
@@ -549,7 +557,8 @@ impl Port {
         if let Some(at) = self.detached.iter().position(|r| r.answered_by(&view)) {
             let mut r = self.detached.remove(at);
             if let TransactionStep::Done(outcome) = r.txn.on_event(&FramerEvent::Frame(view), now) {
-                return self.finish(now, r, outcome, Some(frame), out);
+                self.finish(now, r, outcome, Some(frame), out);
+                return self.start_next(now, out);
             }
             self.detached.insert(at, r);
         }

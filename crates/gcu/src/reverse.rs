@@ -123,9 +123,11 @@ impl ReversePath {
         }
     }
 
-    /// The frame of `key` never made it (dropped or given up).
+    /// The frame of `key` was dropped or given up. Once transmitted, the
+    /// next GCU may have executed it even though no ACK came back (ACKs get
+    /// lost too), so a transmitted entry stays until it expires.
     pub fn cancel(&mut self, key: u64) {
-        self.entries.retain(|e| e.key != key);
+        self.entries.retain(|e| e.key != key || e.expires.is_some());
     }
 
     /// Where a frame arriving on `link` goes back to, if it answers a forwarded one.
@@ -245,6 +247,17 @@ mod tests {
         rp.sent(b, 0, &settings);
         assert_eq!(rp.match_nic(L), AnswerMatch::Ambiguous);
         rp.cancel(b);
+        assert_eq!(
+            rp.match_nic(L),
+            AnswerMatch::Ambiguous,
+            "b was transmitted: its answer may come"
+        );
+        let (d, _) = rp.insert(L, origin(12), &cmd, ResultKind::None);
+        rp.cancel(d);
+        rp.expire(settings.nic_answer_timeout);
+        assert_eq!(rp.len(), 0, "b expired, d was never transmitted");
+        let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::None);
+        rp.sent(a, 0, &settings);
         assert_eq!(rp.match_nic(L), AnswerMatch::One(origin(10)));
         let (c, _) = rp.insert(L, origin(10), &cmd, ResultKind::None);
         rp.sent(c, 5, &settings);

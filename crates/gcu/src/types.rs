@@ -124,7 +124,8 @@ pub enum Event {
     Started { id: CommandId, port: u8, stop: bool },
     /// The command `id` ended (exactly once per accepted id).
     Finished { id: CommandId, outcome: Outcome },
-    /// A frame (or job) was dropped.
+    /// A frame (or job) was dropped. For a bare `?` (no header), `dest`
+    /// is 0.0.0 and `source` 0.
     Dropped {
         reason: DropReason,
         at: Place,

@@ -401,10 +401,14 @@ fn stop_is_not_held_behind_a_long_ix_result_wait() {
     h.port(1, &[ACK]);
     let a = h.wait(5);
     assert_eq!(finished(&a), vec![Outcome::Completed]);
-    // The set-aside IX still takes its result.
+    // Other work waits for the set-aside IX: it could be answered with its header.
+    let a = h.link(CLIENT, &frame((G, 1, 3), 2, b"P?"));
+    assert!(port_writes(&a, 1).is_empty());
+    // The set-aside IX still takes its result; then the queued work goes.
     let a = h.port(1, &frame((2, 1, 3), G, b"0001000100010001"));
     assert_eq!(finished(&a), vec![Outcome::Result]);
     assert_eq!(link_writes(&a, CLIENT), vec![frame((2, 1, 3), G, b"0001000100010001")]);
+    assert_eq!(port_writes(&a, 1), vec![vec![ACK], frame((G, 1, 3), 2, b"P?")]);
 }
 
 #[test]

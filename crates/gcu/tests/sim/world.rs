@@ -253,6 +253,13 @@ enum Ev {
         d: usize,
         to: ReplyTo,
     },
+    /// The device's silence timer: no byte since `since`.
+    DeviceIdle {
+        g: usize,
+        p: usize,
+        d: usize,
+        since: u64,
+    },
     FlapPair(usize),
     FlapClient(usize),
     FlapPort {
@@ -555,6 +562,7 @@ impl World {
         for action in actions {
             match action {
                 Action::WritePort { port, bytes } => {
+                    self.log(format_args!("gcu {g} port {port} <- {bytes:02X?}"));
                     let Some(p) = self.gcus[g].ports.iter().position(|sp| sp.id == port) else {
                         self.violation(format!("gcu {g} wrote to unknown port {port}"));
                         continue;
@@ -806,6 +814,20 @@ impl World {
                 let bps = dev.bps;
                 self.device_writes(g, p, d, out, epoch, bps);
             }
+            Ev::DeviceIdle { g, p, d, since } => {
+                let now = self.now;
+                let sp = &mut self.gcus[g].ports[p];
+                let epoch = sp.epoch;
+                let dev = &mut sp.devices[d];
+                if dev.last_rx != since {
+                    return;
+                }
+                let mut out = Vec::new();
+                dev.ep
+                    .line_idle(now, &mut dev.gimbal, &mut |b: &[u8]| out.extend_from_slice(b));
+                let bps = dev.bps;
+                self.device_writes(g, p, d, out, epoch, bps);
+            }
             Ev::FlapPair(i) => {
                 if self.quiet {
                     return;
@@ -873,10 +895,6 @@ impl World {
                     return; // another line rate: garbage to this device
                 }
                 let mut out = Vec::new();
-                if now.saturating_sub(dev.last_rx) >= SILENCE {
-                    dev.ep
-                        .line_idle(now, &mut dev.gimbal, &mut |b: &[u8]| out.extend_from_slice(b));
-                }
                 dev.last_rx = now;
                 dev.ep
                     .receive(&bytes, now, &mut dev.gimbal, &mut |b: &[u8]| out.extend_from_slice(b));
@@ -886,6 +904,7 @@ impl World {
                 }
                 let deferred = dev.gimbal.deferred.take();
                 self.device_writes(g, p, d, out, port_epoch, sent_at);
+                self.schedule(now + SILENCE, Ev::DeviceIdle { g, p, d, since: now });
                 if let Some(reply_to) = deferred {
                     let at = self.now + self.rng.range(200, 2_000);
                     self.schedule(at, Ev::Deferred { g, p, d, to: reply_to });
@@ -897,6 +916,7 @@ impl World {
                     return;
                 }
                 let port = sp.id;
+                self.log(format_args!("gcu {g} port {port} -> {bytes:02X?}"));
                 self.input(g, Input::PortBytes { port, bytes: &bytes });
             }
             Node::Link { g, link } => {
