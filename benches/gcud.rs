@@ -45,14 +45,16 @@ fn spawn_gcud(config: &str, dir: &tempfile::TempDir) -> (Proc, String) {
     let path = dir.path().join("gcud.toml");
     std::fs::write(&path, config).expect("config");
     let log_path = dir.path().join("gcud.log");
-    let child = Command::new(env!("CARGO_BIN_EXE_gcud"))
-        .arg("--config")
-        .arg(&path)
-        .env("RUST_LOG", "info,sagebrush_sim=warn")
-        .stdout(Stdio::null())
-        .stderr(std::fs::File::create(&log_path).expect("log"))
-        .spawn()
-        .expect("spawn gcud");
+    let child = Proc(
+        Command::new(env!("CARGO_BIN_EXE_gcud"))
+            .arg("--config")
+            .arg(&path)
+            .env("RUST_LOG", "info,sagebrush_sim=warn")
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(&log_path).expect("log"))
+            .spawn()
+            .expect("spawn gcud"),
+    );
     let started = Instant::now();
     loop {
         let log = std::fs::read_to_string(&log_path).unwrap_or_default();
@@ -63,7 +65,7 @@ fn spawn_gcud(config: &str, dir: &tempfile::TempDir) -> (Proc, String) {
                 .and_then(|l| l.split("addr=").nth(1))
                 .map(|a| a.split_whitespace().next().unwrap_or_default().to_owned())
                 .expect("client listener address");
-            return (Proc(child), addr);
+            return (child, addr);
         }
         assert!(
             started.elapsed() < Duration::from_secs(60),

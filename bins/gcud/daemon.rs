@@ -90,7 +90,9 @@ fn link_config(config: &Config, index: usize) -> LinkConfig {
         Some(groups) => SourceFilter::Only(groups.clone()),
         None => SourceFilter::Any,
     };
-    LinkConfig::new(kind, sources)
+    let mut lc = LinkConfig::new(kind, sources);
+    lc.lossless = !matches!(link.transport, LinkTransport::Serial { .. });
+    lc
 }
 
 /// What the daemon knows of a live link, for logs and metrics.

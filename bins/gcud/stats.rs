@@ -24,9 +24,12 @@ fn snake(name: &str) -> String {
     out
 }
 
+/// Reads one counter of a [`LineStats`].
+type Field = fn(&LineStats) -> u64;
+
 /// One family per counter of [`LineStats`], shared by ports and links.
 struct LineFamilies {
-    fields: Vec<(Family, fn(&LineStats) -> u64)>,
+    fields: Vec<(Family, Field)>,
     drops: Family,
     last_seen: Family,
 }
@@ -37,7 +40,7 @@ impl LineFamilies {
             ($($field:ident: $help:literal),* $(,)?) => {
                 vec![$((
                     Family::new(format!("{prefix}_{}", stringify!($field)), $help, Kind::Counter),
-                    (|s: &LineStats| s.$field) as fn(&LineStats) -> u64,
+                    (|s: &LineStats| s.$field) as Field,
                 )),*]
             };
         }

@@ -25,7 +25,8 @@ pub enum LinkKind {
 }
 
 /// Source groups a link may speak for, so that a client cannot speak as
-/// another GCU. Group 255 and the router's own group are refused always.
+/// another GCU. Group 255 is refused always, and the router's own group on
+/// every link but a client's (a client acts for this GCU, Figure 7).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum SourceFilter {
     Any,
@@ -46,11 +47,20 @@ impl SourceFilter {
 pub struct LinkConfig {
     pub kind: LinkKind,
     pub allowed_sources: SourceFilter,
+    /// The medium delivers every byte, in order (TCP): our ACKs are never
+    /// lost, so the next GCU never sends an answer twice for that reason.
+    /// `false` (a serial line) is the safe default.
+    pub lossless: bool,
 }
 
 impl LinkConfig {
+    /// A link over a medium that may lose bytes (see [`LinkConfig::lossless`]).
     pub fn new(kind: LinkKind, allowed_sources: SourceFilter) -> Self {
-        Self { kind, allowed_sources }
+        Self {
+            kind,
+            allowed_sources,
+            lossless: false,
+        }
     }
 }
 

@@ -34,6 +34,8 @@ pub(crate) enum LinkOut {
     Write(Vec<u8>),
     /// The frame of this reverse-path entry was transmitted for the first time.
     FirstSent(u64),
+    /// ... and again: the next GCU may execute it twice.
+    Resent(u64),
     /// The frame was given up.
     Failed(Box<Outgoing>, DropReason),
 }
@@ -144,6 +146,9 @@ impl Link {
             }
         } else {
             self.stats.line.retransmits += 1;
+            if let Some(key) = pending {
+                out.push(LinkOut::Resent(key));
+            }
         }
         self.write(bytes, out);
     }

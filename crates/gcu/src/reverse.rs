@@ -17,12 +17,23 @@
 //! link. A bare `?` carries no address: it matches every transmitted entry
 //! on `L`, and goes back only when they all share one origin.
 //!
-//! Answered entries are kept until they expire: a lost link ACK makes the
-//! sender retransmit and the next GCU execute the command twice (the
-//! protocol has no sequence numbers), so a second answer may follow. Kept,
-//! the answered entry makes that duplicate ambiguous against another
-//! origin's pending command instead of being taken for its answer. When
-//! the table is full, the oldest answered entry is forgotten first.
+//! A result must also be one its command can have (it parses as that
+//! command's reply): a `D?` answer is never taken for a pending `P?`.
+//!
+//! Answered entries are kept until they expire, because the protocol has no
+//! sequence numbers and an answer may come twice:
+//! - our ACK of the answer was lost on a lossy link and the next GCU sends
+//!   the same frame again: a byte-identical frame within that GCU's retry budget (assumed
+//!   to be ours: retries + 1 ACK time-outs) goes back to the origin the
+//!   first went to;
+//! - our ACK time-out made us retransmit the command and the next GCU ran
+//!   it twice: the second answer may differ, so such an entry makes a
+//!   waiting entry of another origin ambiguous until it expires.
+//!
+//! Otherwise entries still waiting for their answer are matched first, so
+//! that an answered one does not block the next command of another client
+//! (a new `gimbalctl` run, say). When the table is full, the oldest answered
+//! entry is forgotten first.
 //!
 //! Entries outlive a link going down, either way: the next GCU keeps
 //! executing and answers on the link once it is back (same id), and answers
@@ -33,12 +44,12 @@
 
 use std::collections::VecDeque;
 
-use sagebrush_protocol::{Address, Frame, ResultKind, ResultTimeout, WILDCARD};
+use sagebrush_protocol::{Address, Command, Frame, FrameBuf, Reply, ResultKind, ResultTimeout, WILDCARD};
 
 use crate::config::LinkSettings;
 use crate::types::{LinkId, Origin};
 
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 struct Pending {
     key: u64,
     out_link: LinkId,
@@ -47,13 +58,25 @@ struct Pending {
     source: u8,
     dest: Address,
     kind: ResultKind,
+    /// The forwarded frame, to check that an answer fits its command.
+    forwarded: Box<FrameBuf>,
     /// Set at the first transmission on `out_link`.
     expires: Option<u64>,
     /// An answer went back already.
     answered: bool,
+    /// Transmitted more than once: the next GCU may answer twice.
+    resent: bool,
+    /// The last answer that went back, and when.
+    last_answer: Option<(u64, Box<FrameBuf>)>,
 }
 
 impl Pending {
+    /// Whether this entry still waits for answers: a fan-out (a wildcard
+    /// group, port or device) waits for several until it expires.
+    fn waiting(&self) -> bool {
+        !self.answered || self.dest.has_wildcard()
+    }
+
     fn answered_by(&self, frame: &Frame<'_>) -> bool {
         let level = |want: u8, got: u8| want == WILDCARD || want == got;
         self.kind != ResultKind::None
@@ -61,6 +84,7 @@ impl Pending {
             && level(self.dest.port, frame.dest.port)
             && level(self.dest.device, frame.dest.device)
             && level(self.dest.group, frame.source)
+            && Reply::parse(&Command::parse(self.forwarded.frame().payload()), frame.payload()).is_ok()
     }
 }
 
@@ -77,14 +101,20 @@ pub(crate) struct ReversePath {
     entries: VecDeque<Pending>,
     next_key: u64,
     max: usize,
+    /// How long after an answer the next GCU may send it again.
+    repeat_window: u64,
 }
 
 impl ReversePath {
-    pub fn new(max: usize) -> Self {
+    /// A table of at most `max` entries; `repeat_window` is how long after
+    /// an answer the next GCU may still send it again (its whole retry
+    /// budget on the link: retries + 1 ACK time-outs).
+    pub fn new(max: usize, repeat_window: u64) -> Self {
         Self {
             entries: VecDeque::new(),
             next_key: 0,
             max: max.max(1),
+            repeat_window,
         }
     }
 
@@ -105,8 +135,11 @@ impl ReversePath {
             source: frame.source,
             dest: frame.dest,
             kind,
+            forwarded: Box::new(FrameBuf::from_frame(frame)),
             expires: None,
             answered: false,
+            resent: false,
+            last_answer: None,
         });
         (key, evicted)
     }
@@ -123,6 +156,13 @@ impl ReversePath {
         }
     }
 
+    /// The frame of `key` was transmitted again (NAK or ACK time-out).
+    pub fn resent(&mut self, key: u64) {
+        if let Some(e) = self.entries.iter_mut().find(|e| e.key == key) {
+            e.resent = true;
+        }
+    }
+
     /// The frame of `key` was dropped or given up. Once transmitted, the
     /// next GCU may have executed it even though no ACK came back (ACKs get
     /// lost too), so a transmitted entry stays until it expires.
@@ -131,36 +171,68 @@ impl ReversePath {
     }
 
     /// Where a frame arriving on `link` goes back to, if it answers a forwarded one.
-    pub fn match_result(&mut self, link: LinkId, frame: &Frame<'_>) -> AnswerMatch {
-        self.take(|e| e.out_link == link && e.expires.is_some() && e.answered_by(frame))
+    /// `repeats`: whether the link may repeat an answer (it can lose our ACK).
+    pub fn match_result(&mut self, now: u64, link: LinkId, frame: &Frame<'_>, repeats: bool) -> AnswerMatch {
+        let answer = FrameBuf::from_frame(frame);
+        let window = if repeats { self.repeat_window } else { 0 };
+        let repeated = |e: &Pending| {
+            e.last_answer
+                .as_ref()
+                .is_some_and(|(at, last)| **last == answer && now <= at.saturating_add(window))
+        };
+        let matches = |e: &Pending| e.out_link == link && e.expires.is_some() && e.answered_by(frame);
+        let mut repeats = self
+            .entries
+            .iter()
+            .filter(|e| matches(e) && repeated(e))
+            .map(|e| e.origin);
+        if let Some(origin) = repeats.next() {
+            return if repeats.all(|o| o == origin) {
+                AnswerMatch::One(origin)
+            } else {
+                AnswerMatch::Ambiguous
+            };
+        }
+        self.take(matches, Some((now, answer)))
     }
 
     /// Where a `?` arriving on `link` goes back to.
     pub fn match_nic(&mut self, link: LinkId) -> AnswerMatch {
-        self.take(|e| e.out_link == link && e.expires.is_some())
+        self.take(|e| e.out_link == link && e.expires.is_some(), None)
     }
 
-    /// The origin of the matching entries, when they all share one; the
-    /// oldest unanswered one is marked answered.
-    fn take(&mut self, matches: impl Fn(&Pending) -> bool) -> AnswerMatch {
-        let mut candidates = self.entries.iter_mut().filter(|e| matches(e));
-        let Some(first) = candidates.next() else {
-            return AnswerMatch::None;
-        };
-        let origin = first.origin;
-        let mut fresh = (!first.answered).then_some(first);
-        for e in candidates {
-            if e.origin != origin {
+    /// The origin of the matching entries, when they all share one: those
+    /// still waiting for an answer first (the oldest is marked answered; a
+    /// fan-out keeps waiting), else answered ones (a duplicate answer goes
+    /// back where the first went). An answered entry whose frame was sent
+    /// more than once may yet be answered again, so it makes a waiting
+    /// entry of another origin ambiguous.
+    fn take(&mut self, matches: impl Fn(&Pending) -> bool, answer: Option<(u64, FrameBuf)>) -> AnswerMatch {
+        let mut waiting = self
+            .entries
+            .iter()
+            .filter(|e| e.waiting() && matches(e))
+            .map(|e| e.origin);
+        if let Some(origin) = waiting.next() {
+            let duplicate_of_other = self
+                .entries
+                .iter()
+                .any(|e| !e.waiting() && e.resent && e.origin != origin && matches(e));
+            if waiting.any(|o| o != origin) || duplicate_of_other {
                 return AnswerMatch::Ambiguous;
             }
-            if fresh.is_none() && !e.answered {
-                fresh = Some(e);
+            if let Some(first) = self.entries.iter_mut().find(|e| e.waiting() && matches(e)) {
+                first.answered = true;
+                first.last_answer = answer.map(|(at, frame)| (at, Box::new(frame)));
             }
+            return AnswerMatch::One(origin);
         }
-        if let Some(e) = fresh {
-            e.answered = true;
+        let mut answered = self.entries.iter().filter(|e| matches(e)).map(|e| e.origin);
+        match answered.next() {
+            None => AnswerMatch::None,
+            Some(origin) if answered.all(|o| o == origin) => AnswerMatch::One(origin),
+            Some(_) => AnswerMatch::Ambiguous,
         }
-        AnswerMatch::One(origin)
     }
 
     /// Forgets what expired by `now`.
@@ -182,6 +254,15 @@ mod tests {
     use super::*;
 
     const L: LinkId = LinkId(1);
+    thread_local!(static CLOCK: std::cell::Cell<u64> = const { std::cell::Cell::new(10_000) });
+
+    /// A time after the repeat window of every earlier answer.
+    fn later() -> u64 {
+        CLOCK.with(|c| {
+            c.set(c.get() + 1_000);
+            c.get()
+        })
+    }
 
     fn origin(link: u32) -> Origin {
         Origin::Link {
@@ -193,31 +274,108 @@ mod tests {
     #[test]
     fn result_goes_back_to_the_origin_of_the_forwarded_command() {
         let settings = LinkSettings::default();
-        let mut rp = ReversePath::new(8);
+        let mut rp = ReversePath::new(8, 200);
         let cmd = Frame::new(Address::new(5, 1, 12), 2, b"P?").unwrap();
         let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::Required(ResultTimeout::Normal));
         let (b, _) = rp.insert(L, origin(11), &cmd, ResultKind::Required(ResultTimeout::Normal));
         let result = Frame::new(Address::new(2, 1, 12), 5, b"00000000").unwrap();
         // Not transmitted yet: not an answer.
-        assert_eq!(rp.match_result(L, &result), AnswerMatch::None);
+        assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::None);
         rp.sent(a, 0, &settings);
-        assert_eq!(rp.match_result(LinkId(2), &result), AnswerMatch::None, "wrong link");
-        assert_eq!(rp.match_result(L, &result), AnswerMatch::One(origin(10)));
+        assert_eq!(
+            rp.match_result(later(), LinkId(2), &result, true),
+            AnswerMatch::None,
+            "wrong link"
+        );
+        assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::One(origin(10)));
         // A duplicate of that answer is still recognised as origin 10's.
-        assert_eq!(rp.match_result(L, &result), AnswerMatch::One(origin(10)));
+        assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::One(origin(10)));
         rp.sent(b, 1, &settings);
-        // Now it could be origin 10's duplicate or origin 11's answer.
-        assert_eq!(rp.match_result(L, &result), AnswerMatch::Ambiguous);
+        // Origin 11 is still waiting: the next answer is its answer (a new
+        // client run must not be blocked by an answered entry).
+        assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::One(origin(11)));
+        // Both answered now: a further copy could be either one's duplicate.
+        assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::Ambiguous);
         rp.expire(settings.answer_timeout);
-        assert_eq!(rp.match_result(L, &result), AnswerMatch::One(origin(11)));
+        assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::One(origin(11)));
         rp.expire(settings.answer_timeout + 1);
-        assert_eq!(rp.match_result(L, &result), AnswerMatch::None);
+        assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::None);
+    }
+
+    #[test]
+    fn an_answered_entry_sent_twice_may_be_answered_again() {
+        let settings = LinkSettings::default();
+        let mut rp = ReversePath::new(8, 200);
+        let cmd = Frame::new(Address::new(5, 1, 12), 2, b"P?").unwrap();
+        let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::Required(ResultTimeout::Normal));
+        rp.sent(a, 0, &settings);
+        rp.resent(a);
+        let result = Frame::new(Address::new(2, 1, 12), 5, b"00000000").unwrap();
+        assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::One(origin(10)));
+        let (b, _) = rp.insert(L, origin(11), &cmd, ResultKind::Required(ResultTimeout::Normal));
+        rp.sent(b, 1, &settings);
+        assert_eq!(
+            rp.match_result(later(), L, &result, true),
+            AnswerMatch::Ambiguous,
+            "origin 10's command ran twice at the next GCU: this may be its second answer"
+        );
+    }
+
+    #[test]
+    fn a_repeated_answer_goes_where_the_first_went() {
+        let settings = LinkSettings::default();
+        let mut rp = ReversePath::new(8, 200);
+        let cmd = Frame::new(Address::new(5, 1, 12), 2, b"P?").unwrap();
+        let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::Required(ResultTimeout::Normal));
+        rp.sent(a, 0, &settings);
+        let answer = Frame::new(Address::new(2, 1, 12), 5, b"00640064").unwrap();
+        assert_eq!(rp.match_result(1000, L, &answer, true), AnswerMatch::One(origin(10)));
+        let (b, _) = rp.insert(L, origin(11), &cmd, ResultKind::Required(ResultTimeout::Normal));
+        rp.sent(b, 1010, &settings);
+        // The next GCU did not get our ACK and sends the same frame again.
+        assert_eq!(
+            rp.match_result(1200, L, &answer, true),
+            AnswerMatch::One(origin(10)),
+            "a repeat"
+        );
+        let moved = Frame::new(Address::new(2, 1, 12), 5, b"00C80064").unwrap();
+        assert_eq!(
+            rp.match_result(1250, L, &moved, true),
+            AnswerMatch::One(origin(11)),
+            "a new answer"
+        );
+        // Past the window, the same bytes are a new answer, and nobody waits.
+        assert_eq!(rp.match_result(1401, L, &answer, true), AnswerMatch::Ambiguous);
+        // On a lossless link nothing is repeated: identical bytes are a new answer.
+        let (c, _) = rp.insert(L, origin(12), &cmd, ResultKind::Required(ResultTimeout::Normal));
+        rp.sent(c, 1410, &settings);
+        assert_eq!(rp.match_result(1420, L, &moved, false), AnswerMatch::One(origin(12)));
+    }
+
+    #[test]
+    fn an_answer_must_fit_the_forwarded_command() {
+        let settings = LinkSettings::default();
+        let mut rp = ReversePath::new(8, 200);
+        let position = Frame::new(Address::new(5, 1, 12), 2, b"P?").unwrap();
+        let identify = Frame::new(Address::new(5, 1, 12), 2, b"D?").unwrap();
+        let (a, _) = rp.insert(L, origin(10), &position, ResultKind::Required(ResultTimeout::Normal));
+        let (b, _) = rp.insert(L, origin(11), &identify, ResultKind::Required(ResultTimeout::Normal));
+        rp.sent(a, 0, &settings);
+        rp.sent(b, 0, &settings);
+        let id_block = Frame::new(Address::new(2, 1, 12), 5, b"0C19Sagebrush SIM").unwrap();
+        assert_eq!(
+            rp.match_result(later(), L, &id_block, true),
+            AnswerMatch::One(origin(11)),
+            "not a Table 15 position"
+        );
+        let pos = Frame::new(Address::new(2, 1, 12), 5, b"00000000").unwrap();
+        assert_eq!(rp.match_result(later(), L, &pos, true), AnswerMatch::One(origin(10)));
     }
 
     #[test]
     fn answer_that_two_origins_may_own_is_ambiguous() {
         let settings = LinkSettings::default();
-        let mut rp = ReversePath::new(8);
+        let mut rp = ReversePath::new(8, 200);
         let exact = Frame::new(Address::new(5, 1, 12), 2, b"*mu1").unwrap();
         let wildcard = Frame::new(Address::new(5, 1, 255), 2, b"*mu2").unwrap();
         let kind = ResultKind::Optional;
@@ -226,11 +384,11 @@ mod tests {
         rp.sent(a, 0, &settings);
         rp.sent(b, 0, &settings);
         let result = Frame::new(Address::new(2, 1, 12), 5, b"1").unwrap();
-        assert_eq!(rp.match_result(L, &result), AnswerMatch::Ambiguous);
+        assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::Ambiguous);
         let other = Frame::new(Address::new(2, 1, 13), 5, b"2").unwrap();
-        assert_eq!(rp.match_result(L, &other), AnswerMatch::One(origin(10)));
+        assert_eq!(rp.match_result(later(), L, &other, true), AnswerMatch::One(origin(10)));
         assert_eq!(
-            rp.match_result(L, &other),
+            rp.match_result(later(), L, &other, true),
             AnswerMatch::One(origin(10)),
             "wildcard entries stay"
         );
@@ -239,7 +397,7 @@ mod tests {
     #[test]
     fn nic_of_two_origins_is_ambiguous_and_entries_expire() {
         let settings = LinkSettings::default();
-        let mut rp = ReversePath::new(8);
+        let mut rp = ReversePath::new(8, 200);
         let cmd = Frame::new(Address::new(5, 1, 12), 2, b"PL").unwrap();
         let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::None);
         rp.sent(a, 0, &settings);
@@ -272,7 +430,7 @@ mod tests {
     #[test]
     fn bounded_by_evicting_the_oldest_answered_first() {
         let settings = LinkSettings::default();
-        let mut rp = ReversePath::new(2);
+        let mut rp = ReversePath::new(2, 200);
         let cmd = Frame::new(Address::new(5, 1, 12), 2, b"PL").unwrap();
         let other = Frame::new(Address::new(5, 1, 13), 2, b"P?").unwrap();
         let (a, evicted) = rp.insert(L, origin(1), &cmd, ResultKind::None);
@@ -282,7 +440,7 @@ mod tests {
         rp.sent(a, 0, &settings);
         rp.sent(b, 0, &settings);
         let answer = Frame::new(Address::new(2, 1, 13), 5, b"00000000").unwrap();
-        assert_eq!(rp.match_result(L, &answer), AnswerMatch::One(origin(2)));
+        assert_eq!(rp.match_result(later(), L, &answer, true), AnswerMatch::One(origin(2)));
         assert!(rp.insert(L, origin(1), &cmd, ResultKind::None).1);
         assert_eq!(rp.len(), 2);
         // The unanswered first entry survived: a `?` still finds origin 1.

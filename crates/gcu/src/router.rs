@@ -97,7 +97,10 @@ impl Router {
             links: BTreeMap::new(),
             retired: BTreeMap::new(),
             routes: RoutingTable::new(config.static_routes, config.default_upstream),
-            reverse: ReversePath::new(config.links.max_pending),
+            reverse: ReversePath::new(
+                config.links.max_pending,
+                (u64::from(config.links.retries) + 1) * config.links.ack_timeout,
+            ),
             deadman: DeadMan::default(),
             commands: BTreeMap::new(),
             next_id: 0,
@@ -299,6 +302,7 @@ impl Router {
             match o {
                 LinkOut::Write(bytes) => out.push(Action::WriteLink { link, bytes }),
                 LinkOut::FirstSent(key) => self.reverse.sent(key, now, &self.settings),
+                LinkOut::Resent(key) => self.reverse.resent(key),
                 LinkOut::Failed(item, reason) => {
                     if let Some(key) = item.pending {
                         self.reverse.cancel(key);
@@ -460,11 +464,16 @@ impl Router {
         let kind = l.config.kind;
         let f = frame.frame();
         let (dest, source) = (f.dest, f.source);
-        if source == WILDCARD || source == self.group || !l.config.allowed_sources.allows(source) {
+        // A client acts for this GCU and may speak as its group (Figure 7: a
+        // command issued from GCU-2, answered with destination group 2); a
+        // link to another GCU never may (a loop or a spoof).
+        let own_group = source == self.group && kind != LinkKind::Client;
+        if source == WILDCARD || own_group || !l.config.allowed_sources.allows(source) {
             l.stats.line.drops.add(DropReason::SourceNotAllowed);
             return self.drop_frame(DropReason::SourceNotAllowed, Place::Link(link), dest, source, out);
         }
-        match self.reverse.match_result(link, &f) {
+        let repeats = !l.config.lossless;
+        match self.reverse.match_result(now, link, &f, repeats) {
             AnswerMatch::One(origin) => return self.relay_forwarded(now, link, origin, frame, out),
             AnswerMatch::Ambiguous => {
                 return self.drop_frame(DropReason::AmbiguousAnswer, Place::Link(link), dest, source, out);

@@ -573,11 +573,17 @@ fn disallowed_source_group_is_dropped_and_counted() {
     assert_eq!(link_writes(&a, LinkId(9)), vec![vec![ACK]]);
     assert!(accepted(&a).is_empty());
     assert_eq!(dropped(&a), vec![DropReason::SourceNotAllowed]);
-    // Our own group and the wildcard are refused on any link.
-    let a = h.link(CLIENT, &frame((G, 1, 3), G, b"PL"));
-    assert!(accepted(&a).is_empty());
+    // The wildcard is refused on any link, our own group on links to other
+    // GCUs (a loop or a spoof). A client acts for this GCU (Figure 7: "a
+    // command issued from GCU-2") and may speak as its group.
     let a = h.link(CLIENT, &frame((G, 1, 3), 255, b"PL"));
     assert!(accepted(&a).is_empty());
+    h.up(UP, LinkKind::Upstream);
+    let a = h.link(UP, &frame((G, 1, 3), G, b"PL"));
+    assert!(accepted(&a).is_empty());
+    assert_eq!(dropped(&a), vec![DropReason::SourceNotAllowed]);
+    let a = h.link(CLIENT, &frame((G, 1, 3), G, b"PL"));
+    assert_eq!(accepted(&a).len(), 1, "a client may speak as our own group");
     let a = h.link(LinkId(9), &frame((G, 1, 3), 20, b"PL"));
     assert_eq!(accepted(&a).len(), 1);
     assert_eq!(

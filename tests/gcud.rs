@@ -1,0 +1,470 @@
+//! End-to-end tests of the `gcud` daemon: the real binary, real simulated
+//! gimbals (`gimbalsim`) on pseudo-terminals, TCP on 127.0.0.1 only.
+//! Nothing here asserts on wall-clock speed; waits are polls with a hang guard.
+
+mod support;
+
+use std::io::{Read, Write};
+use std::net::TcpStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use sagebrush_protocol::{ACK, Address, Command as Cmd, Event, FrameBuf, Framer, Position, Reply};
+use support::{HANG_GUARD, Output, Sim, eventually};
+
+// ---- a running daemon ---------------------------------------------------------
+
+/// A `gcud` process on a configuration written to a private directory;
+/// SIGTERM on drop.
+struct Gcud {
+    child: Child,
+    dir: tempfile::TempDir,
+}
+
+impl Gcud {
+    fn start(config: &str) -> Self {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("gcud.toml");
+        std::fs::write(&path, config).expect("write config");
+        let log = std::fs::File::create(dir.path().join("gcud.log")).expect("log file");
+        let child = Command::new(env!("CARGO_BIN_EXE_gcud"))
+            .arg("--config")
+            .arg(&path)
+            .env("RUST_LOG", "info")
+            .stdout(Stdio::null())
+            .stderr(Stdio::from(log))
+            .spawn()
+            .expect("spawn gcud");
+        let gcud = Self { child, dir };
+        gcud.wait_for_log("gcud ready");
+        gcud
+    }
+
+    fn log(&self) -> String {
+        std::fs::read_to_string(self.dir.path().join("gcud.log")).unwrap_or_default()
+    }
+
+    fn wait_for_log(&self, text: &str) -> String {
+        let started = Instant::now();
+        loop {
+            let log = self.log();
+            if let Some(line) = log.lines().find(|l| l.contains(text)) {
+                return line.to_owned();
+            }
+            if started.elapsed() > HANG_GUARD {
+                panic!("gcud never logged {text:?}; log:\n{log}");
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// The address a listener link (or the metrics endpoint) was bound to.
+    fn address(&self, what: &str) -> String {
+        let line = self.wait_for_log(what);
+        let addr = line.split("addr=").nth(1).expect("addr field");
+        addr.split_whitespace().next().expect("address").to_owned()
+    }
+
+    fn clients(&self) -> String {
+        self.address("listening link=clients")
+    }
+
+    /// `gimbalctl --tcp` to this daemon's client listener.
+    fn ctl(&self, args: &[&str]) -> Output {
+        let mut full = vec!["--tcp".to_owned(), self.clients()];
+        full.extend(args.iter().map(|s| s.to_string()));
+        let refs: Vec<&str> = full.iter().map(String::as_str).collect();
+        support::gimbalctl(&refs)
+    }
+
+    fn position(&self, to: &str) -> (f64, f64) {
+        let out = self.ctl(&["--json", "--to", to, "position"]);
+        assert_eq!(out.code, 0, "position of {to}: {out:?}\ngcud log:\n{}", self.log());
+        let r = &out.json()["result"];
+        (
+            r["pan_deg"].as_f64().expect("pan"),
+            r["tilt_deg"].as_f64().expect("tilt"),
+        )
+    }
+
+    fn settled_position(&self, to: &str) -> (f64, f64) {
+        let mut last = self.position(to);
+        eventually(&format!("{to} to stop moving"), || {
+            std::thread::sleep(Duration::from_millis(150));
+            let now = self.position(to);
+            let still = now == last;
+            last = now;
+            still
+        });
+        last
+    }
+
+    /// The metrics text (`[metrics] listen` must be configured).
+    fn metrics(&self) -> String {
+        let addr = self.address("metrics at /metrics");
+        let mut stream = TcpStream::connect(&addr).expect("connect to metrics");
+        stream.set_read_timeout(Some(HANG_GUARD)).expect("timeout");
+        write!(
+            stream,
+            "GET /metrics HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+        )
+        .expect("request");
+        let mut text = String::new();
+        stream.read_to_string(&mut text).expect("response");
+        assert!(text.starts_with("HTTP/1.1 200"), "{text}");
+        text
+    }
+
+    /// A counter or gauge from the metrics, 0 when absent.
+    fn metric(&self, series: &str) -> u64 {
+        let text = self.metrics();
+        text.lines()
+            .find_map(|l| l.strip_prefix(series).and_then(|v| v.strip_prefix(' ')))
+            .map_or(0, |v| v.trim().parse().expect("metric value"))
+    }
+}
+
+impl Drop for Gcud {
+    fn drop(&mut self) {
+        support::terminate(&mut self.child);
+    }
+}
+
+fn port_entry(id: u8, sim: &Sim) -> String {
+    format!("[[port]]\nid = {id}\npath = \"{}\"\n", sim.endpoint)
+}
+
+const CLIENTS: &str = "[[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n";
+const METRICS: &str = "[metrics]\nlisten = \"127.0.0.1:0\"\n";
+
+// ---- a byte-level client --------------------------------------------------
+
+/// A client speaking the wire protocol itself, to check headers byte by byte.
+struct WireClient {
+    stream: TcpStream,
+    framer: Framer,
+    pending: Vec<Owned>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+enum Owned {
+    Frame(Box<FrameBuf>),
+    Ack,
+    Nak,
+    Nic,
+}
+
+impl WireClient {
+    fn connect(addr: &str) -> Self {
+        let stream = TcpStream::connect(addr).expect("connect to gcud");
+        stream
+            .set_read_timeout(Some(Duration::from_millis(100)))
+            .expect("timeout");
+        Self {
+            stream,
+            framer: Framer::new(),
+            pending: Vec::new(),
+        }
+    }
+
+    fn send(&mut self, dest: Address, source: u8, command: &Cmd<'_>) {
+        let frame = FrameBuf::build(dest, source, |b| command.encode(b).map(<[u8]>::len)).expect("encode");
+        self.stream.write_all(frame.as_bytes()).expect("send");
+    }
+
+    /// The next thing received; frames are ACKed (hop by hop).
+    fn next(&mut self) -> Owned {
+        let started = Instant::now();
+        while self.pending.is_empty() {
+            assert!(started.elapsed() < HANG_GUARD, "nothing received from gcud");
+            let mut buf = [0u8; 512];
+            match self.stream.read(&mut buf) {
+                Ok(0) => panic!("gcud closed the connection"),
+                Ok(n) => {
+                    let pending = &mut self.pending;
+                    self.framer.feed(&buf[..n], |e| match e {
+                        Event::Frame(f) => pending.push(Owned::Frame(Box::new(FrameBuf::from_frame(&f)))),
+                        Event::Ack => pending.push(Owned::Ack),
+                        Event::Nak => pending.push(Owned::Nak),
+                        Event::Nic => pending.push(Owned::Nic),
+                        Event::BadChecksum(b) => panic!("bad checksum from gcud: {b:?}"),
+                    });
+                }
+                Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {}
+                Err(e) => panic!("read from gcud: {e}"),
+            }
+        }
+        let next = self.pending.remove(0);
+        if let Owned::Frame(_) = next {
+            self.stream.write_all(&[ACK]).expect("ack");
+        }
+        next
+    }
+
+    fn expect_result(&mut self) -> FrameBuf {
+        assert_eq!(self.next(), Owned::Ack, "gcud acknowledges the command hop by hop");
+        match self.next() {
+            Owned::Frame(f) => *f,
+            other => panic!("expected a result frame, got {other:?}"),
+        }
+    }
+}
+
+// ---- the tests --------------------------------------------------------------
+
+/// Table 3: a client attached to GCU 2 commands device 12 on port 1 of GCU 5;
+/// the result comes back with destination group 2 and source group 5.
+#[test]
+fn table3_result_crosses_two_gcus_with_groups_exchanged() {
+    let sim = Sim::pty(&["--device", "12"]);
+    let gcu5 = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n{}[[link]]\nname = \"gcus\"\nrole = \"upstream\"\nlisten = \"127.0.0.1:0\"\n",
+        port_entry(1, &sim)
+    ));
+    gcu5.wait_for_log("port open port=1");
+    let gcu5_addr = gcu5.address("listening link=gcus");
+    let gcu2 = Gcud::start(&format!(
+        "[gcu]\ngroup = 2\n{CLIENTS}[[link]]\nname = \"gcu5\"\nrole = \"downstream\"\nconnect = \"{gcu5_addr}\"\n\
+         [[route]]\ngroup = 5\nlink = \"gcu5\"\n"
+    ));
+    gcu2.wait_for_log("link connected");
+
+    let mut client = WireClient::connect(&gcu2.clients());
+    client.send(Address::new(5, 1, 12), 2, &Cmd::QueryPosition);
+    let result = client.expect_result();
+    let frame = result.frame();
+    assert_eq!(
+        frame.dest,
+        Address::new(2, 1, 12),
+        "destination group 2, port and device unchanged"
+    );
+    assert_eq!(frame.source, 5, "source group 5");
+    let reply = Reply::parse(&Cmd::QueryPosition, frame.payload()).expect("a Table 15 position");
+    assert!(matches!(reply, Reply::Position(Position { .. })), "{reply:?}");
+
+    // And the CLI sees the same through both GCUs.
+    let out = gcu2.ctl(&["--json", "--from", "2", "--to", "5.1.12", "id"]);
+    assert_eq!(out.code, 0, "{out:?}\n{}", gcu2.log());
+    assert_eq!(out.json()["result"]["id"], 12);
+    // Consecutive runs (each a new connection speaking as group 2, each
+    // answered identically by a gimbal at rest) each get their own answer.
+    for _ in 0..3 {
+        let out = gcu2.ctl(&["--json", "--from", "2", "--to", "5.1.12", "position"]);
+        assert_eq!(out.code, 0, "{out:?}\n{}", gcu2.log());
+    }
+}
+
+/// Port 255 and device 255 reach every gimbal of a GCU; group 255 reaches both GCUs.
+#[test]
+fn wildcards_reach_every_gimbal_and_both_gcus() {
+    let bus_a = Sim::pty(&["--device", "1,2"]);
+    let bus_b = Sim::pty(&["--device", "1"]);
+    let bus_c = Sim::pty(&["--device", "1"]);
+    let gcu5 = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n{CLIENTS}{}{}[[link]]\nname = \"gcus\"\nrole = \"upstream\"\nlisten = \"127.0.0.1:0\"\n",
+        port_entry(1, &bus_a),
+        port_entry(2, &bus_b)
+    ));
+    gcu5.wait_for_log("port open port=1");
+    gcu5.wait_for_log("port open port=2");
+    let gcu2 = Gcud::start(&format!(
+        "[gcu]\ngroup = 2\n{CLIENTS}{}[[link]]\nname = \"gcu5\"\nrole = \"downstream\"\nconnect = \"{}\"\n",
+        port_entry(1, &bus_c),
+        gcu5.address("listening link=gcus")
+    ));
+    gcu2.wait_for_log("port open port=1");
+    gcu2.wait_for_log("link connected");
+
+    // Port 255, device 255 on GCU 5: all three of its gimbals.
+    let out = gcu5.ctl(&["--to", "5.255.255", "goto", "30", "5"]);
+    assert_eq!(out.code, 0, "{out:?}");
+    for to in ["5.1.1", "5.1.2", "5.2.1"] {
+        let (pan, tilt) = gcu5.settled_position(to);
+        assert_eq!((pan, tilt), (30.0, 5.0), "{to}");
+    }
+    // Group 255 from a client of GCU 2: its own gimbal and, flooded
+    // downstream, GCU 5's gimbals on port 1.
+    let out = gcu2.ctl(&["--from", "2", "--to", "255.1.255", "goto", "-20", "-4"]);
+    assert_eq!(out.code, 0, "{out:?}\n{}", gcu2.log());
+    assert_eq!(gcu2.settled_position("2.1.1"), (-20.0, -4.0));
+    for to in ["5.1.1", "5.1.2"] {
+        assert_eq!(gcu5.settled_position(to), (-20.0, -4.0), "{to}\n{}", gcu5.log());
+    }
+    assert_eq!(gcu5.settled_position("5.2.1"), (30.0, 5.0), "port 2 was not addressed");
+}
+
+/// Damaged answers and commands on a port: retransmission recovers every
+/// exchange, and the metrics count it.
+#[test]
+fn port_corruption_is_recovered_and_counted() {
+    let sim = Sim::pty(&["--seed", "7", "--corrupt", "0.3", "--nak", "0.3", "--max-faults", "12"]);
+    let gcud = Gcud::start(&format!("[gcu]\ngroup = 5\n{CLIENTS}{METRICS}{}", port_entry(1, &sim)));
+    gcud.wait_for_log("port open port=1");
+    for _ in 0..12 {
+        let out = gcud.ctl(&["--to", "5.1.1", "position"]);
+        assert_eq!(out.code, 0, "{out:?}\n{}", gcud.log());
+    }
+    let retransmits = gcud.metric("gcud_port_retransmits_total{port=\"1\"}");
+    let bad = gcud.metric("gcud_port_bad_checksums_total{port=\"1\"}");
+    assert!(retransmits > 0, "commands NAKed by the device were retransmitted");
+    assert!(bad > 0, "damaged answers were seen (and NAKed)");
+    assert_eq!(gcud.metric("gcud_port_naks_sent_total{port=\"1\"}"), bad);
+    let stats = sim.stop();
+    assert!(stats["faults"]["nak"].as_u64().unwrap_or(0) > 0, "{stats}");
+}
+
+/// A port's pseudo-terminal disappears and comes back: the port recovers by
+/// itself and the other port never notices.
+#[test]
+fn vanished_port_recovers_and_others_never_notice() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let link1: PathBuf = dir.path().join("bus1");
+    let link1_arg = link1.to_str().expect("utf-8 path").to_owned();
+    let first = Sim::pty(&["--link", &link1_arg]);
+    let bus2 = Sim::pty(&[]);
+    let gcud = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n{CLIENTS}{METRICS}[[port]]\nid = 1\npath = \"{}\"\n{}",
+        link1.display(),
+        port_entry(2, &bus2)
+    ));
+    gcud.wait_for_log("port open port=1");
+    gcud.wait_for_log("port open port=2");
+    assert_eq!(gcud.ctl(&["--to", "5.1.1", "position"]).code, 0);
+
+    first.stop();
+    eventually("gcud to notice port 1 is gone", || {
+        gcud.metric("gcud_port_open{port=\"1\"}") == 0
+    });
+    assert!(!Path::new(&link1).exists());
+    for _ in 0..5 {
+        let out = gcud.ctl(&["--to", "5.2.1", "position"]);
+        assert_eq!(out.code, 0, "port 2 keeps working while port 1 is away: {out:?}");
+    }
+    assert_ne!(gcud.ctl(&["--to", "5.1.1", "position"]).code, 0, "port 1 is away");
+
+    let _second = Sim::pty(&["--link", &link1_arg]);
+    eventually("port 1 to come back", || gcud.metric("gcud_port_open{port=\"1\"}") == 1);
+    eventually("port 1 to answer again", || {
+        gcud.ctl(&["--to", "5.1.1", "position"]).code == 0
+    });
+    assert_eq!(
+        gcud.metric("gcud_port_timeouts_total{port=\"2\"}"),
+        0,
+        "port 2 never noticed"
+    );
+    assert_eq!(gcud.metric("gcud_port_open{port=\"2\"}"), 1);
+}
+
+/// Dead-man: a client that started a slew disconnects; gcud stops the gimbal.
+#[test]
+fn slew_of_a_disconnected_client_is_stopped() {
+    let sim = Sim::pty(&["--rate", "10"]);
+    let gcud = Gcud::start(&format!("[gcu]\ngroup = 5\n{CLIENTS}{METRICS}{}", port_entry(1, &sim)));
+    gcud.wait_for_log("port open port=1");
+    let start = gcud.position("5.1.1");
+
+    let mut client = WireClient::connect(&gcud.clients());
+    client.send(Address::new(5, 1, 1), 0, &Cmd::PanRight);
+    assert_eq!(client.next(), Owned::Ack);
+    eventually("the slew to move the gimbal", || gcud.position("5.1.1").0 > start.0);
+    drop(client);
+
+    let stopped = gcud.settled_position("5.1.1");
+    assert!(
+        stopped.0 > start.0 && stopped.0 < 180.0,
+        "stopped mid-way, not at a limit: {stopped:?}"
+    );
+    assert_eq!(gcud.metric("gcud_dead_man_stops_total"), 1);
+}
+
+/// Bad configuration files: each gives its specific message and exit code 2.
+#[test]
+fn bad_configs_name_the_problem_and_exit_2() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let cases: &[(&str, &str, &str)] = &[
+        (
+            "[gcu]\ngroup = 300\n",
+            ":2:9: gcu.group",
+            "expected an integer 1..=254, found 300",
+        ),
+        (
+            "[gcu]\ngroup = 5\n[[port]]\nid = 1\npath = \"/dev/x\"\nbaud = 9601\n",
+            ":6:8: port[0].baud",
+            "115200",
+        ),
+        (
+            "[gcu]\ngroup = 5\n[[port]]\nid = 1\npaht = \"/dev/x\"\n",
+            ":5:1",
+            "unknown field `paht`",
+        ),
+        (
+            "[gcu]\ngroup = 5\n[[port]]\nid = 1\npath = \"/a\"\n[[port]]\nid = 1\npath = \"/b\"\n",
+            ":7:6: port[1].id",
+            "configured twice",
+        ),
+        (
+            "[gcu]\ngroup = 5\n[[route]]\ngroup = 7\nlink = \"up\"\n",
+            ":5:8: route[0].link",
+            "no link is named \"up\"",
+        ),
+        (
+            "[gcu]\ngroup = 5\n[[link]]\nname = \"c\"\nrole = \"client\"\nlisten = \"localhost\"\n",
+            ":6:10: link[0].listen",
+            "expected an IP address and port",
+        ),
+        ("[gcu\ngroup = 5\n", ":1:5", "unclosed table, expected `]`"),
+        ("[gcu]\n", ":1:1: gcu", "missing field `group`"),
+    ];
+    for (i, (text, place, message)) in cases.iter().enumerate() {
+        let path = dir.path().join(format!("bad{i}.toml"));
+        std::fs::write(&path, text).expect("write");
+        for check in [true, false] {
+            let mut cmd = Command::new(env!("CARGO_BIN_EXE_gcud"));
+            if check {
+                cmd.arg("--check");
+            }
+            let out = cmd.arg("--config").arg(&path).output().expect("run gcud");
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(out.status.code(), Some(2), "case {i} ({text:?}): {stderr}");
+            let expected_place = format!("{}{place}", path.display());
+            assert!(
+                stderr.contains(&expected_place),
+                "case {i}: {stderr:?} should contain {expected_place:?}"
+            );
+            assert!(
+                stderr.contains(message),
+                "case {i}: {stderr:?} should contain {message:?}"
+            );
+        }
+    }
+    let missing = dir.path().join("missing.toml");
+    let out = Command::new(env!("CARGO_BIN_EXE_gcud"))
+        .arg("--check")
+        .arg("--config")
+        .arg(&missing)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("cannot read"));
+}
+
+/// 254 configured ports start and route (in-process simulated buses).
+#[test]
+fn all_254_ports_start_and_route() {
+    let mut config = format!("[gcu]\ngroup = 9\n{CLIENTS}{METRICS}");
+    for id in 1..=254 {
+        config.push_str(&format!("[[port]]\nid = {id}\nsimulate = [3]\n"));
+    }
+    let gcud = Gcud::start(&config);
+    eventually("all ports to open", || {
+        (1..=254).all(|id| gcud.metrics().contains(&format!("gcud_port_open{{port=\"{id}\"}} 1")))
+    });
+    for port in [1, 2, 127, 253, 254] {
+        let out = gcud.ctl(&["--json", "--to", &format!("9.{port}.3"), "id"]);
+        assert_eq!(out.code, 0, "port {port}: {out:?}");
+        assert_eq!(out.json()["result"]["id"], 3);
+    }
+    assert_eq!(gcud.metric("gcud_port_transactions_total{port=\"127\"}"), 1);
+    assert_eq!(gcud.metric("gcud_port_transactions_total{port=\"128\"}"), 0);
+}
