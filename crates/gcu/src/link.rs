@@ -26,6 +26,9 @@ pub(crate) struct Outgoing {
     pub pending: Option<u64>,
     /// A forwarded stop command.
     pub stop: bool,
+    /// A dead-man stop (DESIGN "Safety"): never refused for a full queue.
+    /// Their number is bounded by the motions the router tracks.
+    pub dead_man: bool,
 }
 
 /// What a link asks the router to do or know.
@@ -97,7 +100,7 @@ impl Link {
             if self.queue.iter().skip(waiting).any(|o| o.stop && o.frame == item.frame) {
                 Some(DropReason::DuplicateStop)
             } else {
-                (stops >= self.stop_bound).then_some(DropReason::QueueFull)
+                (stops >= self.stop_bound && !item.dead_man).then_some(DropReason::QueueFull)
             }
         } else {
             (self.queue.len() - stops >= self.bound).then_some(DropReason::QueueFull)
@@ -300,6 +303,7 @@ mod tests {
             frame: frame.clone(),
             pending,
             stop: false,
+            dead_man: false,
         };
         assert!(l.enqueue(0, item(&frame, Some(7)), &mut out).is_ok());
         assert!(l.enqueue(0, item(&second, None), &mut out).is_ok());
@@ -336,6 +340,7 @@ mod tests {
             frame: FrameBuf::new(Address::new(7, 1, 1), 3, payload).unwrap(),
             pending: None,
             stop,
+            dead_man: false,
         };
         let mut out = Vec::new();
         assert_eq!(l.enqueue(0, item(b"HO", false), &mut out), Ok(())); // in flight
@@ -347,9 +352,14 @@ mod tests {
         );
         assert_eq!(l.enqueue(0, item(b"TS", true), &mut out), Err(DropReason::QueueFull));
         assert_eq!(l.stats.line.drops.get(DropReason::QueueFull), 2);
+        let dead_man = Outgoing {
+            dead_man: true,
+            ..item(b"ZS", true)
+        };
+        assert_eq!(l.enqueue(0, dead_man, &mut out), Ok(()), "a dead-man stop always fits");
         out.clear();
         l.receive(1, &[ACK], &mut out);
         assert_eq!(writes(&out), vec![item(b"PS", true).frame.as_bytes().to_vec()]);
-        assert_eq!(l.shut_down().len(), 1);
+        assert_eq!(l.shut_down().len(), 2);
     }
 }

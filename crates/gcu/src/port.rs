@@ -25,7 +25,7 @@
 //! - The queue is bounded, stops and other work separately so that a burst
 //!   of work never costs a stop its place (and a burst of dead-man stops
 //!   never pushes work out): a job that does not fit is dropped and counted
-//!   ([`DropReason::QueueFull`]). A stop identical to one already queued
+//!   ([`DropReason::QueueFull`]), except a dead-man stop, which always fits. A stop identical to one already queued
 //!   (same destination and payload) is merged into it
 //!   ([`DropReason::DuplicateStop`]): the queued one does the job.
 //! - Wildcards: a copy of a port-255 command is written with this port's
@@ -251,7 +251,9 @@ impl Port {
             if self.queue.iter().any(same) {
                 return self.drop_job(job, DropReason::DuplicateStop, out);
             }
-            if stops >= self.stop_bound {
+            // A dead-man stop (the router's own) is never refused: their
+            // number is bounded by the motions the router tracks.
+            if stops >= self.stop_bound && job.origin != Origin::Internal {
                 return self.drop_job(job, DropReason::QueueFull, out);
             }
         } else if self.queue.len() - stops >= self.bound {

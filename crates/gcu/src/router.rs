@@ -326,6 +326,7 @@ impl Router {
         link: LinkId,
         frame: FrameBuf,
         pending: Option<u64>,
+        dead_man: bool,
         out: &mut Vec<Action>,
     ) -> Result<(), DropReason> {
         let Some(l) = self.links.get_mut(&link) else {
@@ -334,7 +335,16 @@ impl Router {
         // Only forwarded commands carry a reverse-path entry; their stops go first.
         let stop = pending.is_some() && Command::parse(frame.frame().payload()).is_stop();
         let mut lo = Vec::new();
-        let queued = l.enqueue(now, Outgoing { frame, pending, stop }, &mut lo);
+        let queued = l.enqueue(
+            now,
+            Outgoing {
+                frame,
+                pending,
+                stop,
+                dead_man,
+            },
+            &mut lo,
+        );
         self.link_outs(now, link, lo, out);
         queued
     }
@@ -388,7 +398,7 @@ impl Router {
         reply.set_header(Address::new(source, answered_port, answered.device), self.group);
         let dest = reply.frame().dest;
         let sent = match self.links.contains_key(&link) {
-            true => self.send_on_link(now, link, reply, None, out),
+            true => self.send_on_link(now, link, reply, None, false, out),
             false => Err(DropReason::OriginGone),
         };
         let progress = self.commands.get_mut(&id);
@@ -490,7 +500,7 @@ impl Router {
         let f = frame.frame();
         let (dest, source) = (f.dest, f.source);
         let sent = match self.links.contains_key(&link) {
-            true => self.send_on_link(now, link, frame, None, out),
+            true => self.send_on_link(now, link, frame, None, false, out),
             false => Err(DropReason::OriginGone),
         };
         match sent {
@@ -541,7 +551,7 @@ impl Router {
                 if evicted {
                     self.drop_frame(DropReason::PendingFull, Place::Router, dest, f.source, out);
                 }
-                match self.send_on_link(now, next, frame.clone(), Some(key), out) {
+                match self.send_on_link(now, next, frame.clone(), Some(key), origin == Origin::Internal, out) {
                     Ok(()) => Outcome::Forwarded(next),
                     Err(reason) => {
                         self.reverse.cancel(key);
@@ -579,7 +589,7 @@ impl Router {
             if evicted {
                 self.drop_frame(DropReason::PendingFull, Place::Router, f.dest, f.source, out);
             }
-            match self.send_on_link(now, link, frame.clone(), Some(key), out) {
+            match self.send_on_link(now, link, frame.clone(), Some(key), origin == Origin::Internal, out) {
                 Ok(()) => self.stats.flooded += 1,
                 Err(reason) => {
                     self.reverse.cancel(key);
@@ -598,7 +608,7 @@ impl Router {
             LINK_PORT => {
                 let outcome = match answer(self.group, &self.name, &self.serial, &f) {
                     SelfAnswer::Result(reply) => match origin {
-                        Origin::Link { link, .. } => match self.send_on_link(now, link, *reply, None, out) {
+                        Origin::Link { link, .. } => match self.send_on_link(now, link, *reply, None, false, out) {
                             Ok(()) => Outcome::Result,
                             Err(_) => Outcome::Dropped(DropReason::OriginGone),
                         },

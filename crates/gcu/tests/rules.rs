@@ -773,3 +773,33 @@ fn link_going_down_drops_its_queue_and_answers_for_it_count_origin_gone() {
     assert!(!h.r.link_is_up(CLIENT));
     assert!(!h.r.stats().links[&CLIENT].up);
 }
+
+/// Links going down together can owe more stops than a port's stop queue
+/// holds: dead-man stops are never dropped for a full queue.
+#[test]
+fn dead_man_stops_always_fit_the_port_queue() {
+    let mut h = H::with(&[1], |c| c.ports[0].stop_queue_bound = 1);
+    for device in 3..=6 {
+        h.link(CLIENT, &frame((G, 1, device), 2, b"PL"));
+        h.port(1, &[ACK]);
+        h.wait(5);
+    }
+    let a = h.go(Input::LinkDown { link: CLIENT });
+    assert!(
+        !finished(&a).contains(&Outcome::Dropped(DropReason::QueueFull)),
+        "{:?}",
+        finished(&a)
+    );
+    let mut stopped = port_writes(&a, 1);
+    for _ in 0..8 {
+        stopped.extend(port_writes(&h.port(1, &[ACK]), 1));
+        stopped.extend(port_writes(&h.wait(200), 1));
+    }
+    for device in 3..=6 {
+        assert!(
+            stopped.contains(&frame((G, 1, device), G, b"PS")),
+            "device {device}: {stopped:?}"
+        );
+    }
+    assert_eq!(h.r.stats().router.dead_man_stops, 4);
+}
