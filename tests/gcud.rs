@@ -125,6 +125,26 @@ impl Gcud {
     }
 }
 
+impl Gcud {
+    /// SIGTERM, then the exit status and the whole log (waits at most the hang guard).
+    fn terminate(mut self) -> (std::process::ExitStatus, String) {
+        let pid = nix::unistd::Pid::from_raw(self.child.id() as i32);
+        nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGTERM).expect("SIGTERM");
+        let started = Instant::now();
+        loop {
+            if let Some(status) = self.child.try_wait().expect("wait") {
+                return (status, self.log());
+            }
+            assert!(
+                started.elapsed() < HANG_GUARD,
+                "gcud did not exit on SIGTERM:\n{}",
+                self.log()
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+}
+
 impl Drop for Gcud {
     fn drop(&mut self) {
         support::terminate(&mut self.child);
@@ -467,4 +487,41 @@ fn all_254_ports_start_and_route() {
     }
     assert_eq!(gcud.metric("gcud_port_transactions_total{port=\"127\"}"), 1);
     assert_eq!(gcud.metric("gcud_port_transactions_total{port=\"128\"}"), 0);
+}
+
+/// SIGTERM: gcud stops accepting, finishes, says so, and exits 0.
+#[test]
+fn sigterm_shuts_down_gracefully() {
+    let sim = Sim::pty(&[]);
+    let gcud = Gcud::start(&format!("[gcu]\ngroup = 5\n{CLIENTS}{}", port_entry(1, &sim)));
+    gcud.wait_for_log("port open port=1");
+    assert_eq!(gcud.ctl(&["--to", "5.1.1", "position"]).code, 0);
+    let (status, log) = gcud.terminate();
+    assert!(status.success(), "exit status {status:?}\n{log}");
+    assert!(log.contains("shutting down"), "{log}");
+    assert!(log.contains("in-flight transactions finished"), "{log}");
+}
+
+/// A TCP client link configured before its peer exists keeps retrying and
+/// connects once the peer is up; routing through it then works.
+#[test]
+fn client_link_connects_once_its_peer_appears() {
+    let free = std::net::TcpListener::bind("127.0.0.1:0").expect("probe a free port");
+    let addr = free.local_addr().expect("address").to_string();
+    drop(free);
+    let gcu2 = Gcud::start(&format!(
+        "[gcu]\ngroup = 2\n{CLIENTS}[[link]]\nname = \"gcu5\"\nrole = \"downstream\"\nconnect = \"{addr}\"\n\
+         [[route]]\ngroup = 5\nlink = \"gcu5\"\n"
+    ));
+    gcu2.wait_for_log("cannot connect; retrying with backoff");
+    let sim = Sim::pty(&["--device", "3"]);
+    let gcu5 = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n{}[[link]]\nname = \"gcus\"\nrole = \"upstream\"\nlisten = \"{addr}\"\n",
+        port_entry(1, &sim)
+    ));
+    gcu5.wait_for_log("port open port=1");
+    gcu2.wait_for_log("link connected");
+    let out = gcu2.ctl(&["--json", "--from", "2", "--to", "5.1.3", "id"]);
+    assert_eq!(out.code, 0, "{out:?}\n{}", gcu2.log());
+    assert_eq!(out.json()["result"]["id"], 3);
 }

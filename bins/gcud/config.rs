@@ -365,15 +365,18 @@ impl Checker<'_> {
         Ok(s.trim_end().to_owned())
     }
 
+    /// `IP:PORT`, or a bare `PORT` meaning 127.0.0.1 (listeners stay on
+    /// loopback unless an address is given).
     fn socket(&self, v: &Spanned<String>, key: &str) -> Result<SocketAddr, ConfigError> {
-        v.get_ref().parse().map_err(|_| {
+        let text = v.get_ref().trim();
+        if let Ok(port) = text.parse::<u16>() {
+            return Ok(SocketAddr::from(([127, 0, 0, 1], port)));
+        }
+        text.parse().map_err(|_| {
             self.at(
                 v.span(),
                 key,
-                format!(
-                    "expected an IP address and port like 127.0.0.1:4001, found {:?}",
-                    v.get_ref()
-                ),
+                format!("expected an IP address and port like 127.0.0.1:4001 (or a port alone), found {text:?}"),
             )
         })
     }
@@ -791,6 +794,20 @@ mod tests {
         assert_eq!(full.ports[1].timing.retries, 5);
         assert_eq!(full.ports[1].timing.baud, 19200);
         assert_eq!(full.routes, vec![(7, "gcu7".to_owned())]);
+    }
+
+    #[test]
+    fn a_bare_port_listens_on_loopback() {
+        let c = parse(
+            Path::new("t.toml"),
+            "[gcu]\ngroup = 5\n[metrics]\nlisten = \"9200\"\n[[link]]\nname = \"c\"\nrole = \"client\"\nlisten = \"4001\"\n",
+        )
+        .unwrap();
+        assert_eq!(
+            c.links[0].transport,
+            LinkTransport::Listen("127.0.0.1:4001".parse().unwrap())
+        );
+        assert_eq!(c.metrics, Some("127.0.0.1:9200".parse().unwrap()));
     }
 
     #[test]
