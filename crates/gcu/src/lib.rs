@@ -56,8 +56,9 @@
 //!   upstream; no route -> dropped, counted, logged. Never back to the link
 //!   the frame came from ([`DropReason::Loop`]).
 //! - **Source filter**: a frame whose source group the link may not speak
-//!   for (or 255, or our own group) is ACKed (its checksum held) and
-//!   dropped ([`DropReason::SourceNotAllowed`]).
+//!   for (or 255, or our own group on a link to another GCU) is ACKed (its
+//!   checksum held) and dropped ([`DropReason::SourceNotAllowed`]). A client
+//!   link acts for this GCU and may speak as its group (Figure 7).
 //! - **Per-port transactions** (module `port`): one protocol `Transaction` at a
 //!   time per bus, with result time-out classes, NIC window, device-255
 //!   guard, stops overtaking queued work (and a long `IX` result wait), a
