@@ -81,11 +81,17 @@ pub struct Router {
     reverse: ReversePath,
     deadman: DeadMan,
     commands: BTreeMap<CommandId, Progress>,
+    /// Dead-man stops in progress: the stop, the link it is for, its round.
+    dead_man_rounds: BTreeMap<CommandId, (Box<FrameBuf>, LinkId, u8)>,
     next_id: u64,
     last_now: u64,
     stats: RouterStats,
     unknown_inputs: u64,
 }
+
+/// Rounds of a dead-man stop (each with the port's retries) before the
+/// router gives up on a device that never acknowledges it.
+const DEAD_MAN_ROUNDS: u8 = 5;
 
 impl Router {
     /// A router for `config`; ports start closed until [`Input::PortOpened`].
@@ -103,6 +109,7 @@ impl Router {
             ),
             deadman: DeadMan::default(),
             commands: BTreeMap::new(),
+            dead_man_rounds: BTreeMap::new(),
             next_id: 0,
             last_now: 0,
             stats: RouterStats::default(),
@@ -370,6 +377,7 @@ impl Router {
     }
 
     fn finish(&mut self, id: CommandId, outcome: Outcome, out: &mut Vec<Action>) {
+        self.dead_man_rounds.remove(&id);
         self.stats.count(outcome);
         out.push(Action::Event(Event::Finished { id, outcome }));
     }
@@ -439,7 +447,15 @@ impl Router {
                 outcome = Outcome::Dropped(reason);
             }
         }
+        let dead_man = self.dead_man_rounds.remove(&id);
         self.finish(id, outcome, out);
+        // A safety stop that no device acknowledged is sent again: the
+        // motion it ends goes on until one does.
+        if let Some((frame, link, round)) = dead_man {
+            if outcome == Outcome::Unreachable && round < DEAD_MAN_ROUNDS {
+                self.issue_dead_man_stop(now, *frame, link, round + 1, out);
+            }
+        }
     }
 
     fn on_received(&mut self, now: u64, link: LinkId, received: Received, out: &mut Vec<Action>) {
@@ -667,12 +683,21 @@ impl Router {
                 continue;
             };
             self.stats.dead_man_stops += 1;
-            out.push(Action::Event(Event::DeadManStop {
-                link,
-                dest,
-                stop: stop.mnemonic(),
-            }));
-            self.dispatch(now, Origin::Internal, None, frame, out);
+            self.issue_dead_man_stop(now, frame, link, 1, out);
         }
+    }
+
+    /// Round `round` (1 = the first) of a dead-man stop for `link`'s motion.
+    fn issue_dead_man_stop(&mut self, now: u64, frame: FrameBuf, link: LinkId, round: u8, out: &mut Vec<Action>) {
+        let f = frame.frame();
+        out.push(Action::Event(Event::DeadManStop {
+            link,
+            dest: f.dest,
+            stop: Command::parse(f.payload()).mnemonic(),
+        }));
+        // `dispatch` gives the command the next id.
+        self.dead_man_rounds
+            .insert(CommandId(self.next_id), (Box::new(frame.clone()), link, round));
+        self.dispatch(now, Origin::Internal, None, frame, out);
     }
 }

@@ -803,3 +803,27 @@ fn dead_man_stops_always_fit_the_port_queue() {
     }
     assert_eq!(h.r.stats().router.dead_man_stops, 4);
 }
+
+/// A dead-man stop that no device acknowledges (a burst of noise, say) is
+/// sent again, round after round, before the router gives up.
+#[test]
+fn unacknowledged_dead_man_stop_is_sent_again() {
+    let mut h = H::new(&[1]);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"PL"));
+    h.port(1, &[ACK]);
+    h.wait(100);
+    let mut writes = port_writes(&h.go(Input::LinkDown { link: CLIENT }), 1);
+    writes.extend(port_writes(&h.wait(60_000), 1));
+    let stop = frame((G, 1, 3), G, b"PS");
+    let retries = u64::from(port_config(1).retries);
+    let sent = writes.iter().filter(|w| **w == stop).count() as u64;
+    assert_eq!(
+        sent,
+        5 * (retries + 1),
+        "five rounds of {} transmissions: {writes:?}",
+        retries + 1
+    );
+    let unreachable = h.r.stats().router.unreachable;
+    assert_eq!(unreachable, 5, "each round ends unreachable");
+    assert_eq!(h.r.stats().router.dead_man_stops, 1, "one motion stopped");
+}

@@ -1293,7 +1293,9 @@ impl World {
                 .flat_map(|(g, p)| {
                     let sp = &self.gcus[g].ports[p];
                     (0..sp.devices.len())
-                        .filter(move |&d| sp.devices[d].bps == sp.bps)
+                        // At the port's rate, with no switch pending (a `C0..C7`
+                        // to one device of a shared bus takes it off the line).
+                        .filter(move |&d| sp.devices[d].bps == sp.bps && sp.devices[d].gimbal.pending_rate.is_none())
                         .map(move |d| (g, p, d))
                 })
                 .collect();
@@ -1329,6 +1331,11 @@ impl World {
         }
         self.drain()?;
         for &(c, g, p, d, axis) in &targets {
+            let sp = &self.gcus[g].ports[p];
+            if sp.devices[d].bps != sp.bps {
+                // Switched to another rate than its bus: no GCU can reach it.
+                continue;
+            }
             if self.gcus[g].ports[p].devices[d].gimbal.moving[axis] {
                 return Err(format!(
                     "dead-man: client {c} gone, gcu {g} port {} device {} still moving on axis {axis}",
