@@ -120,6 +120,19 @@ pub struct EndpointStats {
     pub naks_sent: u64,
     pub nics_sent: u64,
     pub results_sent: u64,
+    /// Results sent again because the master NAKed them.
+    pub results_resent: u64,
+}
+
+/// How often one result is sent again on NAK before the endpoint gives up.
+pub const RESULT_RESENDS: u8 = 3;
+
+/// The last result sent, kept for a NAK that follows it at once (1.4.2:
+/// the master NAKs a result whose checksum fails, hop by hop).
+#[derive(Clone, Debug)]
+struct LastResult {
+    frame: FrameBuf,
+    resends: u8,
 }
 
 /// A device on a bus: framer, address filter, ACK/NAK/NIC and results.
@@ -128,6 +141,7 @@ pub struct DeviceEndpoint<const N: usize = DEFAULT_CAPACITY> {
     config: EndpointConfig,
     framer: Framer<N>,
     stats: EndpointStats,
+    last_result: Option<LastResult>,
 }
 
 impl<const N: usize> DeviceEndpoint<N> {
@@ -140,7 +154,9 @@ impl<const N: usize> DeviceEndpoint<N> {
                 naks_sent: 0,
                 nics_sent: 0,
                 results_sent: 0,
+                results_resent: 0,
             },
+            last_result: None,
         }
     }
 
@@ -159,8 +175,15 @@ impl<const N: usize> DeviceEndpoint<N> {
 
     /// Bytes received from the bus; `out` receives every byte to send back.
     pub fn receive(&mut self, bytes: &[u8], now: u64, handler: &mut impl DeviceHandler, out: &mut impl FnMut(&[u8])) {
-        let Self { config, framer, stats } = self;
-        framer.feed(bytes, |event| handle_event(config, stats, event, now, handler, out));
+        let Self {
+            config,
+            framer,
+            stats,
+            last_result,
+        } = self;
+        framer.feed(bytes, |event| {
+            handle_event(config, stats, last_result, event, now, handler, out)
+        });
     }
 
     /// Free space in the endpoint's framer for a DMA transfer or a UART
@@ -172,17 +195,27 @@ impl<const N: usize> DeviceEndpoint<N> {
     /// `n` bytes were written into [`DeviceEndpoint::spare_capacity_mut`]:
     /// handles every event they complete, as [`DeviceEndpoint::receive`] does.
     pub fn commit(&mut self, n: usize, now: u64, handler: &mut impl DeviceHandler, out: &mut impl FnMut(&[u8])) {
-        let Self { config, framer, stats } = self;
+        let Self {
+            config,
+            framer,
+            stats,
+            last_result,
+        } = self;
         framer.commit(n);
         while let Some(event) = framer.next_event() {
-            handle_event(config, stats, event, now, handler, out);
+            handle_event(config, stats, last_result, event, now, handler, out);
         }
     }
 
     /// The bus has been silent: abandon a partial frame (the silence hook).
     pub fn line_idle(&mut self, now: u64, handler: &mut impl DeviceHandler, out: &mut impl FnMut(&[u8])) {
-        let Self { config, framer, stats } = self;
-        framer.flush_idle(|event| handle_event(config, stats, event, now, handler, out));
+        let Self {
+            config,
+            framer,
+            stats,
+            last_result,
+        } = self;
+        framer.flush_idle(|event| handle_event(config, stats, last_result, event, now, handler, out));
     }
 
     /// Sends a deferred result.
@@ -195,18 +228,35 @@ impl<const N: usize> DeviceEndpoint<N> {
         let frame = FrameBuf::build(to.dest, to.source, |buf| reply.encode(buf).map(<[u8]>::len))?;
         self.stats.results_sent += 1;
         out(frame.as_bytes());
+        self.last_result = Some(LastResult { frame, resends: 0 });
         Ok(())
     }
 }
 
+/// One framer event. A NAK right after our result makes us send it again
+/// (up to [`RESULT_RESENDS`] times); any other traffic on the line (an ACK,
+/// any frame) means the master moved on, so a later NAK, meant for another
+/// device of a shared bus, never makes this one answer.
 fn handle_event(
     config: &mut EndpointConfig,
     stats: &mut EndpointStats,
+    last_result: &mut Option<LastResult>,
     event: Event<'_>,
     now: u64,
     handler: &mut impl DeviceHandler,
     out: &mut impl FnMut(&[u8]),
 ) {
+    if let Event::Nak = event {
+        if let Some(last) = last_result.as_mut().filter(|l| l.resends < RESULT_RESENDS) {
+            last.resends += 1;
+            stats.results_resent += 1;
+            out(last.frame.as_bytes());
+        } else {
+            *last_result = None;
+        }
+        return;
+    }
+    *last_result = None;
     match event {
         Event::Frame(frame) if config.accepts(&frame.dest) => {
             stats.frames_accepted += 1;
@@ -242,6 +292,9 @@ fn handle_event(
                         Ok(frame) if reply.answers(&command) => {
                             stats.results_sent += u64::from(answer);
                             send(frame.as_bytes());
+                            if answer {
+                                *last_result = Some(LastResult { frame, resends: 0 });
+                            }
                         }
                         // A result the command cannot have: the handler is wrong; say NIC, not garbage.
                         _ => {

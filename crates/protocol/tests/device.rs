@@ -255,3 +255,41 @@ fn dma_path_matches_receive() {
         assert_eq!(g.handled.len(), 2);
     }
 }
+
+/// The master NAKs a damaged result (1.4.2, hop by hop): the device sends it
+/// again, at most `RESULT_RESENDS` times; after an ACK or any other frame on
+/// the line a NAK is someone else's and is ignored.
+#[test]
+fn result_is_resent_on_nak_until_the_master_moves_on() {
+    let mut ep: DeviceEndpoint = DeviceEndpoint::new(EndpointConfig::shared(12));
+    let mut g = Gimbal::default();
+    let query = frame(Address::new(5, 1, 12), 2, b"P?");
+    let out = run(&mut ep, &mut g, &query);
+    let result = out[1..].to_vec();
+    assert_eq!(Frame::parse(&result).unwrap().0.payload(), b"0064FF9C");
+    for _ in 0..RESULT_RESENDS {
+        assert_eq!(run(&mut ep, &mut g, &[NAK]), result, "resent on NAK");
+    }
+    assert!(
+        run(&mut ep, &mut g, &[NAK]).is_empty(),
+        "not more than RESULT_RESENDS times"
+    );
+    assert_eq!(ep.stats().results_resent, u64::from(RESULT_RESENDS));
+
+    // An ACK ends it.
+    run(&mut ep, &mut g, &query);
+    assert!(run(&mut ep, &mut g, &[ACK, NAK]).is_empty());
+    // So does the master's next command to another device of the bus.
+    run(&mut ep, &mut g, &query);
+    let other = frame(Address::new(5, 1, 13), 2, b"P?");
+    assert!(run(&mut ep, &mut g, &other).is_empty());
+    assert!(run(&mut ep, &mut g, &[NAK]).is_empty(), "that NAK is device 13's");
+    // A deferred result is kept the same way.
+    run(&mut ep, &mut g, &frame(Address::new(5, 1, 12), 2, b"IX"));
+    let mut sent = Vec::new();
+    let reply = Reply::Initialization(InitResults::default());
+    let to = g.deferred.expect("IX deferred");
+    ep.send_reply(to, &reply, &mut |b: &[u8]| sent.extend_from_slice(b))
+        .unwrap();
+    assert_eq!(run(&mut ep, &mut g, &[NAK]), sent);
+}
