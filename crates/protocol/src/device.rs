@@ -138,8 +138,14 @@ struct LastResult {
 /// A device on a bus: framer, address filter, ACK/NAK/NIC and results.
 #[derive(Debug)]
 pub struct DeviceEndpoint<const N: usize = DEFAULT_CAPACITY> {
-    config: EndpointConfig,
     framer: Framer<N>,
+    state: State,
+}
+
+/// What the framer's events act on: everything but the framer itself.
+#[derive(Debug)]
+struct State {
+    config: EndpointConfig,
     stats: EndpointStats,
     last_result: Option<LastResult>,
 }
@@ -147,25 +153,27 @@ pub struct DeviceEndpoint<const N: usize = DEFAULT_CAPACITY> {
 impl<const N: usize> DeviceEndpoint<N> {
     pub const fn new(config: EndpointConfig) -> Self {
         Self {
-            config,
             framer: Framer::new(),
-            stats: EndpointStats {
-                frames_accepted: 0,
-                naks_sent: 0,
-                nics_sent: 0,
-                results_sent: 0,
-                results_resent: 0,
+            state: State {
+                config,
+                stats: EndpointStats {
+                    frames_accepted: 0,
+                    naks_sent: 0,
+                    nics_sent: 0,
+                    results_sent: 0,
+                    results_resent: 0,
+                },
+                last_result: None,
             },
-            last_result: None,
         }
     }
 
     pub fn config(&self) -> &EndpointConfig {
-        &self.config
+        &self.state.config
     }
 
     pub fn stats(&self) -> EndpointStats {
-        self.stats
+        self.state.stats
     }
 
     /// The framer's counters (noise, bad checksums).
@@ -175,15 +183,8 @@ impl<const N: usize> DeviceEndpoint<N> {
 
     /// Bytes received from the bus; `out` receives every byte to send back.
     pub fn receive(&mut self, bytes: &[u8], now: u64, handler: &mut impl DeviceHandler, out: &mut impl FnMut(&[u8])) {
-        let Self {
-            config,
-            framer,
-            stats,
-            last_result,
-        } = self;
-        framer.feed(bytes, |event| {
-            handle_event(config, stats, last_result, event, now, handler, out)
-        });
+        let Self { framer, state } = self;
+        framer.feed(bytes, |event| state.on_event(event, now, handler, out));
     }
 
     /// Free space in the endpoint's framer for a DMA transfer or a UART
@@ -195,27 +196,17 @@ impl<const N: usize> DeviceEndpoint<N> {
     /// `n` bytes were written into [`DeviceEndpoint::spare_capacity_mut`]:
     /// handles every event they complete, as [`DeviceEndpoint::receive`] does.
     pub fn commit(&mut self, n: usize, now: u64, handler: &mut impl DeviceHandler, out: &mut impl FnMut(&[u8])) {
-        let Self {
-            config,
-            framer,
-            stats,
-            last_result,
-        } = self;
+        let Self { framer, state } = self;
         framer.commit(n);
         while let Some(event) = framer.next_event() {
-            handle_event(config, stats, last_result, event, now, handler, out);
+            state.on_event(event, now, handler, out);
         }
     }
 
     /// The bus has been silent: abandon a partial frame (the silence hook).
     pub fn line_idle(&mut self, now: u64, handler: &mut impl DeviceHandler, out: &mut impl FnMut(&[u8])) {
-        let Self {
-            config,
-            framer,
-            stats,
-            last_result,
-        } = self;
-        framer.flush_idle(|event| handle_event(config, stats, last_result, event, now, handler, out));
+        let Self { framer, state } = self;
+        framer.flush_idle(|event| state.on_event(event, now, handler, out));
     }
 
     /// Sends a deferred result.
@@ -226,89 +217,88 @@ impl<const N: usize> DeviceEndpoint<N> {
         out: &mut impl FnMut(&[u8]),
     ) -> Result<(), EncodeError> {
         let frame = FrameBuf::build(to.dest, to.source, |buf| reply.encode(buf).map(<[u8]>::len))?;
-        self.stats.results_sent += 1;
+        self.state.stats.results_sent += 1;
         out(frame.as_bytes());
-        self.last_result = Some(LastResult { frame, resends: 0 });
+        self.state.last_result = Some(LastResult { frame, resends: 0 });
         Ok(())
     }
 }
 
-/// One framer event. A NAK right after our result makes us send it again
-/// (up to [`RESULT_RESENDS`] times); any other traffic on the line (an ACK,
-/// any frame) means the master moved on, so a later NAK, meant for another
-/// device of a shared bus, never makes this one answer.
-fn handle_event(
-    config: &mut EndpointConfig,
-    stats: &mut EndpointStats,
-    last_result: &mut Option<LastResult>,
-    event: Event<'_>,
-    now: u64,
-    handler: &mut impl DeviceHandler,
-    out: &mut impl FnMut(&[u8]),
-) {
-    if let Event::Nak = event {
-        if let Some(last) = last_result.as_mut().filter(|l| l.resends < RESULT_RESENDS) {
-            last.resends += 1;
-            stats.results_resent += 1;
-            out(last.frame.as_bytes());
-        } else {
-            *last_result = None;
-        }
-        return;
-    }
-    *last_result = None;
-    match event {
-        Event::Frame(frame) if config.accepts(&frame.dest) => {
-            stats.frames_accepted += 1;
-            let answer = config.answers(&frame.dest);
-            let mut send = |bytes: &[u8]| {
-                if answer {
-                    out(bytes);
-                }
-            };
-            send(&[ACK]);
-            let command = Command::parse(frame.payload());
-            if let Command::Unknown(_) = command {
-                stats.nics_sent += u64::from(answer);
-                send(&[NIC]);
-                return;
+impl State {
+    /// One framer event. A NAK right after our result makes us send it again
+    /// (up to [`RESULT_RESENDS`] times); any other traffic on the line (an
+    /// ACK, any frame) means the master moved on, so a later NAK, meant for
+    /// another device of a shared bus, never makes this one answer.
+    fn on_event(&mut self, event: Event<'_>, now: u64, handler: &mut impl DeviceHandler, out: &mut impl FnMut(&[u8])) {
+        let Self {
+            config,
+            stats,
+            last_result,
+        } = self;
+        if let Event::Nak = event {
+            if let Some(last) = last_result.as_mut().filter(|l| l.resends < RESULT_RESENDS) {
+                last.resends += 1;
+                stats.results_resent += 1;
+                out(last.frame.as_bytes());
+            } else {
+                *last_result = None;
             }
-            let reply_to = ReplyTo::for_command(&frame, config);
-            match handler.handle(command, reply_to, now) {
-                Response::Done => {
-                    if let Command::SetDeviceId(id) = command {
-                        config.device = id.get();
+            return;
+        }
+        *last_result = None;
+        match event {
+            Event::Frame(frame) if config.accepts(&frame.dest) => {
+                stats.frames_accepted += 1;
+                let answer = config.answers(&frame.dest);
+                let mut send = |bytes: &[u8]| {
+                    if answer {
+                        out(bytes);
                     }
-                }
-                Response::Deferred => {}
-                Response::Nic => {
+                };
+                send(&[ACK]);
+                let command = Command::parse(frame.payload());
+                if let Command::Unknown(_) = command {
                     stats.nics_sent += u64::from(answer);
                     send(&[NIC]);
+                    return;
                 }
-                Response::Reply(reply) => {
-                    let encoded =
-                        FrameBuf::build(reply_to.dest, reply_to.source, |buf| reply.encode(buf).map(<[u8]>::len));
-                    match encoded {
-                        Ok(frame) if reply.answers(&command) => {
-                            stats.results_sent += u64::from(answer);
-                            send(frame.as_bytes());
-                            if answer {
-                                *last_result = Some(LastResult { frame, resends: 0 });
-                            }
+                let reply_to = ReplyTo::for_command(&frame, config);
+                match handler.handle(command, reply_to, now) {
+                    Response::Done => {
+                        if let Command::SetDeviceId(id) = command {
+                            config.device = id.get();
                         }
-                        // A result the command cannot have: the handler is wrong; say NIC, not garbage.
-                        _ => {
-                            stats.nics_sent += u64::from(answer);
-                            send(&[NIC]);
+                    }
+                    Response::Deferred => {}
+                    Response::Nic => {
+                        stats.nics_sent += u64::from(answer);
+                        send(&[NIC]);
+                    }
+                    Response::Reply(reply) => {
+                        let encoded =
+                            FrameBuf::build(reply_to.dest, reply_to.source, |buf| reply.encode(buf).map(<[u8]>::len));
+                        match encoded {
+                            Ok(frame) if reply.answers(&command) => {
+                                stats.results_sent += u64::from(answer);
+                                send(frame.as_bytes());
+                                if answer {
+                                    *last_result = Some(LastResult { frame, resends: 0 });
+                                }
+                            }
+                            // A result the command cannot have: the handler is wrong; say NIC, not garbage.
+                            _ => {
+                                stats.nics_sent += u64::from(answer);
+                                send(&[NIC]);
+                            }
                         }
                     }
                 }
             }
+            Event::BadChecksum(bad) if config.answers(&bad.dest) => {
+                stats.naks_sent += 1;
+                out(&[NAK]);
+            }
+            _ => {}
         }
-        Event::BadChecksum(bad) if config.answers(&bad.dest) => {
-            stats.naks_sent += 1;
-            out(&[NAK]);
-        }
-        _ => {}
     }
 }
