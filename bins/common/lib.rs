@@ -8,11 +8,13 @@
 //! - [`timing`]: time-outs derived from the line rate (1.4.2).
 //! - [`master`]: the bus/link master side of one command exchange (Figure
 //!   6) over any stream, driving the protocol crate's `Transaction`.
+//! - [`sim_line`]: a simulated bus served on a byte stream.
 //! - [`hex`]: hex text of wire bytes, as `gimbalctl encode/decode` use it.
 
 pub mod hex;
 pub mod logging;
 pub mod master;
 pub mod pty;
+pub mod sim_line;
 pub mod timing;
 pub mod transport;

@@ -123,7 +123,7 @@ async fn open_port(port: &Port, baud: u32) -> io::Result<OpenPort> {
             stream.set_nodelay(true)?;
             OpenPort::Tcp(stream)
         }
-        PortTransport::Simulated(devices) => OpenPort::Simulated(crate::simulated::spawn(port.id, devices)),
+        PortTransport::Simulated(devices) => OpenPort::Simulated(crate::simulated::spawn(port.id, devices, baud)),
     })
 }
 

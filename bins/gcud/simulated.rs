@@ -1,15 +1,17 @@
 //! `simulate = [devices]` ports: a bus of simulated gimbals (`sagebrush-sim`)
-//! in-process, joined to the port task by an in-memory byte pipe, so that
-//! the demo and tests run the daemon exactly as on real lines.
+//! in-process, served by the same loop as `gimbalsim`
+//! ([`sagebrush::sim_line`]) on an in-memory byte pipe, so that the demo and
+//! tests run the daemon exactly as on real lines.
 
+use sagebrush::sim_line::{Line, serve};
 use sagebrush_sim::{Bus, BusConfig, GimbalConfig};
-use tokio::io::{AsyncReadExt, AsyncWriteExt, DuplexStream};
-use tokio::time::{Duration, Instant};
+use tokio::io::DuplexStream;
+use tokio::time::Instant;
 use tracing::warn;
 
-/// Starts a simulated bus for `port` with `devices` and returns the port's end of the pipe.
-pub fn spawn(port: u8, devices: &[u8]) -> DuplexStream {
-    let (ours, theirs) = tokio::io::duplex(4096);
+/// Starts a simulated bus for `port` with `devices` at `baud`; returns the port's end of the pipe.
+pub fn spawn(port: u8, devices: &[u8], baud: u32) -> DuplexStream {
+    let (ours, mut theirs) = tokio::io::duplex(4096);
     let config = BusConfig {
         devices: devices
             .iter()
@@ -21,36 +23,20 @@ pub fn spawn(port: u8, devices: &[u8]) -> DuplexStream {
         ..BusConfig::default()
     };
     tokio::spawn(async move {
-        match Bus::new(config, 0) {
-            Ok(bus) => drive(bus, theirs).await,
-            Err(e) => warn!(port, error = %e, "cannot start the simulated bus"),
+        let mut bus = match Bus::new(config, 0) {
+            Ok(bus) => bus,
+            Err(e) => return warn!(port, error = %e, "cannot start the simulated bus"),
+        };
+        // A pipe has no line rate to switch; the bus runs until the port's end closes.
+        let mut line = Line {
+            epoch: Instant::now(),
+            pace: false,
+            baud,
+        };
+        let mut never = Box::pin(std::future::pending()) as sagebrush::sim_line::Shutdown;
+        if let Err(e) = serve(&mut bus, &mut theirs, &mut line, &mut |_, _| Ok(()), &mut never).await {
+            warn!(port, error = %e, "simulated bus stopped");
         }
     });
     ours
-}
-
-/// Feeds the bus what the port writes and writes back what it answers, when due.
-async fn drive(mut bus: Bus, mut line: DuplexStream) {
-    let epoch = Instant::now();
-    let now = || epoch.elapsed().as_millis() as u64;
-    let mut buf = [0u8; 1024];
-    loop {
-        let t = now();
-        bus.poll(t);
-        while let Some(out) = bus.pop_due(t) {
-            if line.write_all(&out.bytes).await.is_err() {
-                return;
-            }
-        }
-        let wake = bus.next_deadline().map_or(Duration::from_secs(3600), |d| {
-            Duration::from_millis(d.saturating_sub(t))
-        });
-        tokio::select! {
-            read = line.read(&mut buf) => match read {
-                Ok(0) | Err(_) => return,
-                Ok(n) => bus.receive(&buf[..n], now()),
-            },
-            () = tokio::time::sleep(wake) => {}
-        }
-    }
 }
