@@ -155,7 +155,7 @@ pub async fn run(config: Config) -> Result<(), StartError> {
         }
     }
     if let Some(addr) = config.metrics {
-        let listener = crate::metrics::bind(addr)
+        let listener = TcpListener::bind(addr)
             .await
             .map_err(|error| StartError::Metrics { addr, error })?;
         info!(addr = %listener.local_addr().unwrap_or(addr), "metrics at /metrics");

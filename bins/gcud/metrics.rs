@@ -3,7 +3,6 @@
 //! `prometheus-client` from a snapshot of the router core's statistics.
 
 use std::fmt;
-use std::net::SocketAddr;
 
 use prometheus_client::collector::Collector;
 use prometheus_client::encoding::{DescriptorEncoder, EncodeMetric};
@@ -103,11 +102,6 @@ pub fn render(families: Vec<Family>) -> String {
 
 /// A scrape asks the router task for fresh text through this channel.
 pub type ScrapeRequests = mpsc::Sender<oneshot::Sender<String>>;
-
-/// Binds `addr` (fails at start-up, not later, if it cannot).
-pub async fn bind(addr: SocketAddr) -> std::io::Result<TcpListener> {
-    TcpListener::bind(addr).await
-}
 
 /// Serves `GET /metrics` until the process ends.
 pub async fn serve(listener: TcpListener, scrapes: ScrapeRequests) {

@@ -262,7 +262,7 @@ impl Sim {
     }
 
     fn terminate(&mut self) {
-        terminate(&mut self.child);
+        let _ = terminate(&mut self.child);
     }
 
     /// Whether the process is still running.
@@ -282,20 +282,22 @@ impl Drop for Sim {
 }
 
 /// Stops a child process gracefully: SIGTERM, then SIGKILL after 10 s.
-pub fn terminate(child: &mut Child) {
+/// Returns how it exited, if it was still running and exited on SIGTERM.
+pub fn terminate(child: &mut Child) -> Option<std::process::ExitStatus> {
     if let Ok(None) = child.try_wait() {
         let pid = nix::unistd::Pid::from_raw(child.id() as i32);
         let _ = nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGTERM);
         let started = Instant::now();
         while started.elapsed() < Duration::from_secs(10) {
-            if let Ok(Some(_)) = child.try_wait() {
-                return;
+            if let Ok(Some(status)) = child.try_wait() {
+                return Some(status);
             }
             std::thread::sleep(Duration::from_millis(10));
         }
         let _ = child.kill();
         let _ = child.wait();
     }
+    None
 }
 
 /// Polls `condition` (which may sleep) until it holds; panics only after
