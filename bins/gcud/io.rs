@@ -9,7 +9,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Duration;
 
-use sagebrush::transport::open_serial;
+use sagebrush::transport::{Line, connect_tcp, open_serial};
 use sagebrush_gcu::LinkId;
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
@@ -118,11 +118,7 @@ enum OpenPort {
 async fn open_port(port: &Port, baud: u32) -> io::Result<OpenPort> {
     Ok(match &port.transport {
         PortTransport::Serial(path) => OpenPort::Serial(open_serial(&path.to_string_lossy(), baud)?),
-        PortTransport::Tcp(addr) => {
-            let stream = TcpStream::connect(addr.as_str()).await?;
-            stream.set_nodelay(true)?;
-            OpenPort::Tcp(stream)
-        }
+        PortTransport::Tcp(addr) => OpenPort::Tcp(connect_tcp(addr).await?),
         PortTransport::Simulated(devices) => OpenPort::Simulated(crate::simulated::spawn(port.id, devices, baud)),
     })
 }
@@ -283,53 +279,31 @@ async fn pump_link<S: AsyncRead + AsyncWrite + Unpin>(
 
 /// Runs one configured link for as long as the daemon runs.
 pub async fn run_link(index: usize, link: Link, events: mpsc::Sender<IoEvent>) {
-    match link.transport.clone() {
+    let peer = match &link.transport {
         // Bound at start-up by the daemon (a bad address is a start failure); see `accept_loop`.
-        LinkTransport::Listen(_) => {}
-        LinkTransport::Connect(addr) => {
-            let mut backoff = Backoff::new();
-            loop {
-                match TcpStream::connect(addr.as_str()).await {
-                    Ok(stream) => {
-                        backoff.reset();
-                        let _ = stream.set_nodelay(true);
-                        info!(link = %link.name, %addr, "link connected");
-                        pump_link(configured_link_id(index), index, addr.clone(), stream, &events).await;
-                    }
-                    Err(e) => warn!(link = %link.name, %addr, error = %e, "cannot connect; retrying with backoff"),
-                }
-                if events.is_closed() {
-                    return;
-                }
-                tokio::time::sleep(backoff.next_delay()).await;
+        LinkTransport::Listen(_) => return,
+        LinkTransport::Connect(addr) => addr.clone(),
+        LinkTransport::Serial { path, .. } => path.display().to_string(),
+    };
+    let mut backoff = Backoff::new();
+    loop {
+        let opened = match &link.transport {
+            LinkTransport::Listen(_) => return,
+            LinkTransport::Connect(addr) => connect_tcp(addr).await.map(Line::Tcp),
+            LinkTransport::Serial { path, baud } => open_serial(&path.to_string_lossy(), *baud).map(Line::Serial),
+        };
+        match opened {
+            Ok(stream) => {
+                backoff.reset();
+                info!(link = %link.name, %peer, "link connected");
+                pump_link(configured_link_id(index), index, peer.clone(), stream, &events).await;
             }
+            Err(e) => warn!(link = %link.name, %peer, error = %e, "cannot connect; retrying with backoff"),
         }
-        LinkTransport::Serial { path, baud } => {
-            let mut backoff = Backoff::new();
-            loop {
-                match open_serial(&path.to_string_lossy(), baud) {
-                    Ok(stream) => {
-                        backoff.reset();
-                        info!(link = %link.name, path = %path.display(), "serial link open");
-                        pump_link(
-                            configured_link_id(index),
-                            index,
-                            path.display().to_string(),
-                            stream,
-                            &events,
-                        )
-                        .await;
-                    }
-                    Err(e) => {
-                        warn!(link = %link.name, path = %path.display(), error = %e, "cannot open serial link; retrying")
-                    }
-                }
-                if events.is_closed() {
-                    return;
-                }
-                tokio::time::sleep(backoff.next_delay()).await;
-            }
+        if events.is_closed() {
+            return;
         }
+        tokio::time::sleep(backoff.next_delay()).await;
     }
 }
 
