@@ -511,3 +511,52 @@ fn client_link_connects_once_its_peer_appears() {
     assert_eq!(out.code, 0, "{out:?}\n{}", gcu2.log());
     assert_eq!(out.json()["result"]["id"], 3);
 }
+
+/// Security defaults on a listener: a peer outside `allow_peers` and a
+/// connection beyond `limits.max_connections` are closed at once.
+#[test]
+fn listener_refuses_unlisted_peers_and_connections_over_the_limit() {
+    // Closed: end of stream or reset. Still open after 2 s: not refused
+    // (gcud writes nothing to a silent client).
+    let closed_at_once = |addr: &str| {
+        let mut s = TcpStream::connect(addr).expect("connect");
+        s.set_read_timeout(Some(Duration::from_secs(2))).expect("timeout");
+        let mut buf = [0u8; 1];
+        match s.read(&mut buf) {
+            Ok(0) => true,
+            Err(e) => e.kind() == std::io::ErrorKind::ConnectionReset,
+            Ok(_) => false,
+        }
+    };
+    let only_v6 = Gcud::start(
+        "[gcu]\ngroup = 5\n[[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\nallow_peers = [\"::1\"]\n",
+    );
+    assert!(closed_at_once(&only_v6.clients()), "127.0.0.1 is not allowed");
+    only_v6.wait_for_log("peer not in allow_peers");
+
+    let sim = Sim::pty(&[]);
+    let one = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n[limits]\nmax_connections = 1\n{CLIENTS}{}",
+        port_entry(1, &sim)
+    ));
+    one.wait_for_log("port open port=1");
+    assert!(
+        !closed_at_once(&one.clients()),
+        "an allowed peer within the limit is kept"
+    );
+    eventually("that connection's slot to be free", || {
+        one.log().matches("link closed").count() == 1
+    });
+    let mut first = WireClient::connect(&one.clients());
+    eventually("the first client to be connected", || {
+        one.log().matches("client connected").count() == 2
+    });
+    assert!(closed_at_once(&one.clients()), "a second connection is over the limit");
+    one.wait_for_log("limits.max_connections reached");
+    first.send(Address::new(5, 1, 1), 0, &Cmd::QueryPosition);
+    first.expect_result();
+    drop(first);
+    eventually("the slot to be free again", || {
+        one.ctl(&["--to", "5.1.1", "position"]).code == 0
+    });
+}
