@@ -315,18 +315,16 @@ fn execute(
 }
 
 fn log_event(event: &Event, links: &BTreeMap<LinkId, LinkInfo>) {
-    let name = |id: &LinkId| {
-        links
-            .get(id)
-            .map_or_else(String::new, |l| format!("{} {}", l.name, l.peer))
-    };
+    // Events about a link name it as configured, with its peer.
     let context = match event {
-        Event::LinkState { link, .. } | Event::DeadManStop { link, .. } => name(link),
+        Event::LinkState { link, .. } | Event::DeadManStop { link, .. } => links
+            .get(link)
+            .map_or_else(String::new, |l| format!(" ({} {})", l.name, l.peer)),
         _ => String::new(),
     };
     match event.level() {
-        Level::Debug => debug!(link = %context, "{event}"),
-        Level::Info => info!(link = %context, "{event}"),
-        Level::Warn => warn!(link = %context, "{event}"),
+        Level::Debug => debug!("{event}{context}"),
+        Level::Info => info!("{event}{context}"),
+        Level::Warn => warn!("{event}{context}"),
     }
 }
