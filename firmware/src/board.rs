@@ -100,10 +100,11 @@ impl Uart {
             *slot = self.regs.dr.read().uart_dr_data().bits();
             n += 1;
         }
-        // The receive interrupts are level sources: clear the time-out one.
+        // The receive interrupt clears as the FIFO empties; the receive
+        // time-out one is cleared here.
         self.regs
             .icr
-            .write(|w| w.uart_icr_rxic().set_bit().uart_icr_rtic().set_bit());
+            .write(|w| w.uart_icr_rtic().set_bit());
         n
     }
 

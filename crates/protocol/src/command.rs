@@ -599,7 +599,10 @@ impl<'a> Command<'a> {
                         let config = aux_config(payload)?;
                         C::AuxConfigure(port, config)
                     }
-                    b't' => C::AuxTransmit(port, ranged("*xpt", 4, AuxBytes::new(&payload[4..]))?),
+                    b't' => C::AuxTransmit(
+                        port,
+                        ranged("*xpt", 4, AuxBytes::new(payload.get(4..).unwrap_or_default()))?,
+                    ),
                     b'r' => {
                         let n = whole("*xprnnn", payload, 4, "decimal count 1..=256", |i| decimal(3).parse(i))?;
                         C::AuxReceive(port, ranged("*xprnnn", 4, AuxReadLen::new(n as u16))?)

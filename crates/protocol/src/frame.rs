@@ -195,12 +195,25 @@ impl FrameBuf {
         encode: impl FnOnce(&mut [u8]) -> Result<usize, EncodeError>,
     ) -> Result<Self, EncodeError> {
         let mut bytes = [0u8; MAX_FRAME_LEN];
-        let n = encode(&mut bytes[HEADER_LEN..HEADER_LEN + MAX_PAYLOAD])?;
+        // Split with `split_first_chunk_mut`/`get_mut`, not indexing, so that
+        // no bounds-check panic is linked into firmware: `bytes` always
+        // splits, the `else` arm is never taken.
+        let Some((header, rest)) = bytes.split_first_chunk_mut::<HEADER_LEN>() else {
+            return Err(EncodeError::BufferTooSmall {
+                needed: MAX_FRAME_LEN,
+                capacity: 0,
+            });
+        };
+        let n = encode(rest.get_mut(..MAX_PAYLOAD).unwrap_or_default())?;
         if n == 0 || n > MAX_PAYLOAD {
             return Err(EncodeError::PayloadLength { len: n });
         }
-        bytes[..HEADER_LEN].copy_from_slice(&[START, dest.group, dest.port, dest.device, source, length_byte(n)]);
-        bytes[HEADER_LEN + n] = checksum(&bytes[1..HEADER_LEN + n]);
+        *header = [START, dest.group, dest.port, dest.device, source, length_byte(n)];
+        let sum =
+            checksum(header.get(1..).unwrap_or_default()).wrapping_add(checksum(rest.get(..n).unwrap_or_default()));
+        if let Some(slot) = rest.get_mut(n) {
+            *slot = sum;
+        }
         Ok(Self {
             bytes,
             len: (HEADER_LEN + n + 1) as u16,
@@ -209,24 +222,29 @@ impl FrameBuf {
 
     /// The frame's wire bytes.
     pub fn as_bytes(&self) -> &[u8] {
-        &self.bytes[..usize::from(self.len)]
+        self.bytes.get(..usize::from(self.len)).unwrap_or_default()
     }
 
     /// A view of the frame.
     pub fn frame(&self) -> Frame<'_> {
-        let n = usize::from(self.len) - HEADER_LEN - 1;
+        let [_, group, port, device, source, ..] = self.bytes;
+        let end = usize::from(self.len).saturating_sub(1);
         Frame {
-            dest: Address::new(self.bytes[1], self.bytes[2], self.bytes[3]),
-            source: self.bytes[4],
-            payload: &self.bytes[HEADER_LEN..HEADER_LEN + n],
+            dest: Address::new(group, port, device),
+            source,
+            payload: self.bytes.get(HEADER_LEN..end).unwrap_or_default(),
         }
     }
 
     /// Rewrites the header (destination and source) and recomputes the checksum.
     pub fn set_header(&mut self, dest: Address, source: u8) {
-        let end = usize::from(self.len) - 1;
-        self.bytes[1..5].copy_from_slice(&[dest.group, dest.port, dest.device, source]);
-        self.bytes[end] = checksum(&self.bytes[1..end]);
+        let end = usize::from(self.len).saturating_sub(1);
+        let [_, group, port, device, src, ..] = &mut self.bytes;
+        (*group, *port, *device, *src) = (dest.group, dest.port, dest.device, source);
+        let sum = checksum(self.bytes.get(1..end).unwrap_or_default());
+        if let Some(slot) = self.bytes.get_mut(end) {
+            *slot = sum;
+        }
     }
 }
 

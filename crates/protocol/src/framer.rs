@@ -86,17 +86,17 @@ fn scan<'d>(data: &'d [u8], mask: &mut usize, idle: bool, offset: u64, stats: &m
             event,
         }
     };
-    while i < data.len() {
-        let byte = data[i];
+    // Indexing below goes through `get` and slice patterns: a firmware image
+    // links no bounds-check panic for the framer (firmware/build.sh checks).
+    while let Some(&byte) = data.get(i) {
         let masked = i < m;
         if byte == START {
-            let available = data.len() - i;
-            let total = if available >= HEADER_LEN {
-                HEADER_LEN + payload_len(data[i + 5]) + 1
-            } else {
-                MAX_FRAME_LEN
+            let rest = data.get(i..).unwrap_or_default();
+            let total = match rest {
+                [_, _, _, _, _, len, ..] => HEADER_LEN + payload_len(*len) + 1,
+                _ => MAX_FRAME_LEN,
             };
-            if available < total {
+            let Some(candidate) = rest.get(..total) else {
                 if !idle {
                     return done(i, m, mask, i, None);
                 }
@@ -105,16 +105,18 @@ fn scan<'d>(data: &'d [u8], mask: &mut usize, idle: bool, offset: u64, stats: &m
                 m = m.max(data.len());
                 i += 1;
                 continue;
-            }
-            let candidate = &data[i..i + total];
-            let found = candidate[total - 1];
-            let expected = checksum(&candidate[1..total - 1]);
+            };
+            // `candidate` holds `total` >= 7 bytes: start, five header
+            // bytes, the payload and the checksum, so both patterns match.
+            let (Some((&found, body)), &[_, group, port, device, source, ..]) = (candidate.split_last(), candidate)
+            else {
+                i += 1;
+                continue;
+            };
+            let dest = Address::new(group, port, device);
+            let expected = checksum(body.get(1..).unwrap_or_default());
             if expected == found {
-                let frame = Frame::new(
-                    Address::new(candidate[1], candidate[2], candidate[3]),
-                    candidate[4],
-                    &candidate[HEADER_LEN..total - 1],
-                );
+                let frame = Frame::new(dest, source, body.get(HEADER_LEN..).unwrap_or_default());
                 if let Ok(frame) = frame {
                     return done(i + total, m, mask, i, Some(Event::Frame(frame)));
                 }
@@ -123,8 +125,8 @@ fn scan<'d>(data: &'d [u8], mask: &mut usize, idle: bool, offset: u64, stats: &m
             m = m.max(i + total);
             if !masked {
                 let bad = BadChecksum {
-                    dest: Address::new(candidate[1], candidate[2], candidate[3]),
-                    source: candidate[4],
+                    dest,
+                    source,
                     payload_len: total - HEADER_LEN - 1,
                     expected,
                     found,
@@ -207,7 +209,7 @@ impl<const N: usize> Framer<N> {
 
     /// Bytes buffered and not yet decided.
     pub fn buffered(&self) -> usize {
-        self.end - self.start
+        self.end.saturating_sub(self.start)
     }
 
     /// Stream offset of the next byte to be decided.
@@ -215,10 +217,21 @@ impl<const N: usize> Framer<N> {
         self.offset
     }
 
+    /// Moves the undecided bytes to the front. Byte by byte through `get`,
+    /// so that no bounds-check panic is linked (`copy_within` has one); it
+    /// runs when the buffer is full or empty, and then moves a partial frame
+    /// at most.
     fn compact(&mut self) {
         if self.start > 0 {
-            self.buf.copy_within(self.start..self.end, 0);
-            self.end -= self.start;
+            let len = self.buffered();
+            for to in 0..len {
+                if let Some(&byte) = self.buf.get(self.start + to) {
+                    if let Some(slot) = self.buf.get_mut(to) {
+                        *slot = byte;
+                    }
+                }
+            }
+            self.end = len;
             self.start = 0;
         }
     }
@@ -227,8 +240,11 @@ impl<const N: usize> Framer<N> {
     /// [`Framer::next_event`] until `None` before pushing the rest.
     pub fn push(&mut self, bytes: &[u8]) -> usize {
         let spare = self.spare_capacity_mut();
-        let n = spare.len().min(bytes.len());
-        spare[..n].copy_from_slice(&bytes[..n]);
+        let mut n = 0;
+        for (slot, &byte) in spare.iter_mut().zip(bytes) {
+            *slot = byte;
+            n += 1;
+        }
         self.commit(n);
         n
     }
@@ -239,12 +255,12 @@ impl<const N: usize> Framer<N> {
         if self.end == N || self.start == self.end {
             self.compact();
         }
-        &mut self.buf[self.end..]
+        self.buf.get_mut(self.end..).unwrap_or_default()
     }
 
     /// Marks `n` bytes written into [`Framer::spare_capacity_mut`] as received.
     pub fn commit(&mut self, n: usize) {
-        self.end = (self.end + n).min(N);
+        self.end = self.end.saturating_add(n).min(N);
         if n > 0 {
             self.idle = false;
         }
@@ -253,7 +269,7 @@ impl<const N: usize> Framer<N> {
     /// The next event decided from the buffered bytes, if any.
     pub fn next_event(&mut self) -> Option<Event<'_>> {
         let step = scan(
-            &self.buf[self.start..self.end],
+            self.buf.get(self.start..self.end).unwrap_or_default(),
             &mut self.mask,
             self.idle,
             self.offset,
@@ -276,7 +292,7 @@ impl<const N: usize> Framer<N> {
         // Finish what is buffered first.
         while self.start < self.end && !input.is_empty() {
             let n = self.push(input);
-            input = &input[n..];
+            input = input.get(n..).unwrap_or_default();
             while let Some(event) = self.next_event() {
                 on_event(event);
             }
@@ -289,15 +305,19 @@ impl<const N: usize> Framer<N> {
             let step = scan(input, &mut self.mask, false, self.offset, &mut self.stats);
             self.stats.skipped_bytes += step.skipped as u64;
             self.offset += step.consumed as u64;
-            input = &input[step.consumed..];
+            input = input.get(step.consumed..).unwrap_or_default();
             match step.event {
                 Some(event) => on_event(event),
                 None => break,
             }
         }
+        // A partial candidate is shorter than a maximum frame, so it fits.
         self.start = 0;
-        self.end = input.len();
-        self.buf[..input.len()].copy_from_slice(input);
+        self.end = 0;
+        for (slot, &byte) in self.buf.iter_mut().zip(input) {
+            *slot = byte;
+            self.end += 1;
+        }
     }
 
     /// The line has been silent longer than a frame takes: an incomplete
@@ -318,7 +338,7 @@ impl<const N: usize> Framer<N> {
 
     /// Drops everything buffered (counted as skipped and abandoned).
     pub fn reset(&mut self) {
-        let dropped = self.end - self.start;
+        let dropped = self.buffered();
         if dropped > 0 {
             self.stats.skipped_bytes += dropped as u64;
             self.stats.abandoned += 1;

@@ -39,13 +39,13 @@ pub(crate) fn hex_n(digits: usize) -> impl FnMut(&[u8]) -> IResult<&[u8], u32> {
                 Some(v) => value = (value << 4) | u32::from(v),
                 None => {
                     return Err(nom::Err::Error(Error::new(
-                        &input[i.min(input.len())..],
+                        input.get(i..).unwrap_or_default(),
                         ErrorKind::HexDigit,
                     )));
                 }
             }
         }
-        Ok((&input[digits..], value))
+        Ok((input.get(digits..).unwrap_or_default(), value))
     }
 }
 
@@ -71,8 +71,11 @@ pub(crate) fn decimal(max: usize) -> impl FnMut(&[u8]) -> IResult<&[u8], u32> {
         if n == 0 {
             return Err(nom::Err::Error(Error::new(input, ErrorKind::Digit)));
         }
-        let value = input[..n].iter().fold(0u32, |acc, &b| acc * 10 + u32::from(b - b'0'));
-        Ok((&input[n..], value))
+        let (digits, rest) = input.split_at_checked(n).unwrap_or((input, &[]));
+        let value = digits.iter().fold(0u32, |acc, &b| {
+            acc.wrapping_mul(10).wrapping_add(u32::from(b.wrapping_sub(b'0')))
+        });
+        Ok((rest, value))
     }
 }
 
@@ -95,13 +98,17 @@ impl<'b> Writer<'b> {
     }
 
     pub(crate) fn put(&mut self, bytes: &[u8]) -> Result<(), crate::EncodeError> {
-        let end = self.len + bytes.len();
+        let end = self.len.saturating_add(bytes.len());
         let capacity = self.buf.len();
         let dst = self
             .buf
             .get_mut(self.len..end)
             .ok_or(crate::EncodeError::BufferTooSmall { needed: end, capacity })?;
-        dst.copy_from_slice(bytes);
+        // `zip`, not `copy_from_slice`: the lengths are equal, but the
+        // optimiser cannot always see it and would link a panic.
+        for (d, &b) in dst.iter_mut().zip(bytes) {
+            *d = b;
+        }
         self.len = end;
         Ok(())
     }
@@ -123,8 +130,9 @@ impl<'b> Writer<'b> {
         let mut digits = [0u8; 10];
         let mut n = 0;
         let mut v = value;
-        loop {
-            digits[n] = b'0' + (v % 10) as u8;
+        // A u32 has at most 10 decimal digits: `digits` always has room.
+        for slot in digits.iter_mut() {
+            *slot = b'0' + (v % 10) as u8;
             n += 1;
             v /= 10;
             if v == 0 {
@@ -134,8 +142,8 @@ impl<'b> Writer<'b> {
         for _ in n..min_digits {
             self.byte(b'0')?;
         }
-        for i in (0..n).rev() {
-            self.byte(digits[i])?;
+        for &digit in digits.get(..n).unwrap_or_default().iter().rev() {
+            self.byte(digit)?;
         }
         Ok(())
     }
@@ -146,6 +154,7 @@ impl<'b> Writer<'b> {
 
     pub(crate) fn finish(self) -> &'b [u8] {
         let Writer { buf, len } = self;
-        &buf[..len]
+        let buf: &'b [u8] = buf;
+        buf.get(..len).unwrap_or_default()
     }
 }
