@@ -91,7 +91,7 @@ impl Uart {
     /// Moves what the receive FIFO holds into `buf`; returns the count.
     /// A byte received with a framing or parity error is passed on as it
     /// is: the framer's checksum rejects the frame and the master gets NAK.
-    pub fn read_into(&mut self, buf: &mut [u8]) -> usize {
+    pub fn read_into(&self, buf: &mut [u8]) -> usize {
         let mut n = 0;
         for slot in buf.iter_mut() {
             if !self.rx_ready() {
@@ -109,7 +109,7 @@ impl Uart {
     }
 
     /// Writes `bytes`, waiting for room in the transmit FIFO.
-    pub fn write(&mut self, bytes: &[u8]) {
+    pub fn write(&self, bytes: &[u8]) {
         for &byte in bytes {
             while self.regs.fr.read().uart_fr_txff().bit_is_set() {}
             // SAFETY: DR's data field takes any byte; writing it queues the byte.

@@ -13,6 +13,7 @@
 mod board;
 mod gimbal;
 
+use core::mem::MaybeUninit;
 use core::sync::atomic::Ordering;
 
 use cortex_m::peripheral::NVIC;
@@ -47,11 +48,12 @@ fn UART0() {
 fn main() -> ! {
     // The endpoint (framer buffer, last result) and the gimbal live in
     // static RAM; cortex-m-rt hands `static mut` of the entry function out
-    // as `&'static mut`, once.
-    static mut ENDPOINT: DeviceEndpoint<RX_CAPACITY> = DeviceEndpoint::new(EndpointConfig::single(DEVICE));
-    static mut GIMBAL: Gimbal = Gimbal::new();
-    let endpoint = ENDPOINT;
-    let gimbal = GIMBAL;
+    // as `&'static mut`, once. Uninitialised statics go to .bss and are set
+    // here, so that their initial values take no flash (.data would).
+    static mut ENDPOINT: MaybeUninit<DeviceEndpoint<RX_CAPACITY>> = MaybeUninit::uninit();
+    static mut GIMBAL: MaybeUninit<Gimbal> = MaybeUninit::uninit();
+    let endpoint = init(ENDPOINT, || DeviceEndpoint::new(EndpointConfig::single(DEVICE)));
+    let gimbal = init(GIMBAL, Gimbal::new);
 
     let (Some(dp), Some(mut cp)) = (pac::Peripherals::take(), cortex_m::Peripherals::take()) else {
         // Only reachable if something took the peripherals before main.
@@ -59,19 +61,22 @@ fn main() -> ! {
             cortex_m::asm::wfi();
         }
     };
-    let mut uart = Uart::new(dp.UART0, &dp.SYSCTL, &dp.GPIO_PORTA);
+    let uart = Uart::new(dp.UART0, &dp.SYSCTL, &dp.GPIO_PORTA);
     board::start_systick(&mut cp.SYST);
     let mut clock = Clock::default();
     let mut last_rx = 0;
+    // One output closure for both entry points, so that the endpoint's
+    // event handling is instantiated once.
+    let mut send = |bytes: &[u8]| uart.write(bytes);
 
     loop {
         let now = clock.now();
         let n = uart.read_into(endpoint.spare_capacity_mut());
         if n > 0 {
             last_rx = now;
-            endpoint.commit(n, now, gimbal, &mut |bytes: &[u8]| uart.write(bytes));
+            endpoint.commit(n, now, gimbal, &mut send);
         } else if endpoint.framer().buffered() > 0 && now.saturating_sub(last_rx) >= SILENCE_MS {
-            endpoint.line_idle(now, gimbal, &mut |bytes: &[u8]| uart.write(bytes));
+            endpoint.line_idle(now, gimbal, &mut send);
         }
         gimbal.advance(now);
 
@@ -89,6 +94,14 @@ fn main() -> ! {
             }
         });
     }
+}
+
+/// Writes `make()` into `slot`. Not inlined: the value is built in this
+/// function's frame, which is gone once it returns, instead of staying in
+/// `main`'s frame (which never returns) for good.
+#[inline(never)]
+fn init<T>(slot: &'static mut MaybeUninit<T>, make: impl FnOnce() -> T) -> &'static mut T {
+    slot.write(make())
 }
 
 /// A panic cannot come from input (build.sh checks that no panic site is

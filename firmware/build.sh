@@ -1,0 +1,110 @@
+#!/usr/bin/env bash
+# Builds the gimbal firmware (QEMU lm3s6965evb, thumbv7m-none-eabi) at
+# opt-level "z" and "s" and reports, per build: flash and RAM per section,
+# the largest symbols, the panic machinery still linked with its call sites;
+# then runs the bench image under QEMU -icount for the instructions per
+# received byte and the stack high-water mark.
+#
+# Installs nothing. Needs (Debian bookworm, as root):
+#   apt-get update && apt-get install -y --no-install-recommends \
+#     rustc-web cargo-web rust-web-src binutils-arm-none-eabi qemu-system-arm
+# Uses /usr/bin/rustc and /usr/bin/cargo (never rustup's): core is built
+# from /usr/lib/rustlib/src/rust with -Zbuild-std (RUSTC_BOOTSTRAP=1).
+#
+# Exit status: non-zero if a build fails, a panic call site is linked into
+# either image (the protocol path is panic-free; this keeps it so), or the
+# bench image misbehaves.
+set -euo pipefail
+cd "$(dirname "$0")"
+
+missing=()
+for tool in /usr/bin/cargo /usr/bin/rustc arm-none-eabi-ld arm-none-eabi-size arm-none-eabi-nm \
+    arm-none-eabi-objdump arm-none-eabi-addr2line qemu-system-arm python3 timeout; do
+    command -v "$tool" >/dev/null 2>&1 || missing+=("$tool")
+done
+[ -d /usr/lib/rustlib/src/rust/library/core ] || missing+=("/usr/lib/rustlib/src/rust (rust-web-src)")
+if [ ${#missing[@]} -gt 0 ]; then
+    echo "build.sh: missing: ${missing[*]}" >&2
+    echo "install (Debian bookworm, as root): apt-get update && apt-get install -y --no-install-recommends rustc-web cargo-web rust-web-src binutils-arm-none-eabi qemu-system-arm" >&2
+    exit 2
+fi
+
+# Debian's toolchain only: rustup's proxies must not be picked up.
+export PATH="/usr/bin:$PATH"
+export RUSTC=/usr/bin/rustc RUSTC_BOOTSTRAP=1
+unset RUSTUP_TOOLCHAIN RUSTFLAGS CARGO_BUILD_TARGET CARGO_TARGET_DIR
+CARGO=/usr/bin/cargo
+# -Zbuild-std compiles the library source next to the compiler: versions must match.
+if command -v dpkg-query >/dev/null 2>&1; then
+    rustc_deb=$(dpkg-query -W -f '${Version}' rustc-web 2>/dev/null || true)
+    src_deb=$(dpkg-query -W -f '${Version}' rust-web-src 2>/dev/null || true)
+    if [ -n "$rustc_deb" ] && [ "$rustc_deb" != "$src_deb" ]; then
+        echo "build.sh: rustc-web $rustc_deb but rust-web-src ${src_deb:-missing}: install matching versions" >&2
+        exit 2
+    fi
+fi
+echo "toolchain: $(/usr/bin/rustc --version), $($CARGO --version)"
+
+TARGET=thumbv7m-none-eabi
+status=0
+
+section_sizes() { # ELF -> "flash ram" in bytes
+    arm-none-eabi-size -A "$1" | awk '
+        $1 ~ /^\.(vector_table|text|rodata|gnu\.sgstubs)$/ { flash += $2 }
+        $1 == ".data" { flash += $2; ram += $2 }
+        $1 ~ /^\.(bss|uninit)$/ { ram += $2 }
+        END { print flash + 0, ram + 0 }'
+}
+
+declare -A FLASH RAM SITES
+for profile in release release-s; do
+    level=$([ "$profile" = release ] && echo z || echo s)
+    echo
+    echo "== opt-level \"$level\" (cargo profile $profile) =="
+    $CARGO build --quiet --profile "$profile" --bin gimbal
+    elf="target/$TARGET/$profile/gimbal"
+    arm-none-eabi-size -A "$elf" | awk 'NR <= 2 || ($1 ~ /^\./ && $1 !~ /^\.(debug|comment|ARM)/)'
+    read -r flash ram < <(section_sizes "$elf")
+    FLASH[$level]=$flash
+    RAM[$level]=$ram
+    echo "flash (vector_table + text + rodata + data): $flash bytes; static RAM (data + bss + uninit): $ram bytes"
+    echo "largest symbols (bytes, flash and RAM):"
+    arm-none-eabi-nm --print-size --size-sort --radix=d -C "$elf" | tail -12 | awk '{ $1 = ""; printf "  %6d %s", $2, $3; $2 = $3 = ""; print $0 }'
+    report=$(python3 panic_sites.py "$elf" arm-none-eabi-objdump arm-none-eabi-addr2line)
+    echo "$report" | sed 's|'"$(cd .. && pwd)"'/||g'
+    sites=$(echo "$report" | sed -n 's/^panic call sites: //p')
+    SITES[$level]=$sites
+    if [ "$sites" != 0 ]; then
+        echo "build.sh: FAIL: $sites panic call site(s) linked at opt-level $level" >&2
+        status=1
+    fi
+done
+
+echo
+echo "== bench: instructions per received byte (QEMU -icount shift=0) and stack high-water =="
+$CARGO build --quiet --profile release --features bench --bin bench
+bench_out=$(timeout 120 qemu-system-arm -M lm3s6965evb -nographic -monitor none -serial null \
+    -icount shift=0 -semihosting-config enable=on,target=native \
+    -kernel "target/$TARGET/release/bench" 2>&1) || {
+    echo "$bench_out"
+    echo "build.sh: FAIL: bench image exited with failure" >&2
+    exit 1
+}
+echo "$bench_out" | grep '^bench:'
+stack=$(echo "$bench_out" | sed -n 's/^bench: receive path stack high-water \([0-9]*\) bytes.*/\1/p')
+per_byte=$(echo "$bench_out" | sed -n 's/^bench: endpoint+handler \([0-9]*\) instructions\/byte.*/\1/p')
+framer_per_byte=$(echo "$bench_out" | sed -n 's/.*framer alone \([0-9]*\) instructions\/byte.*/\1/p')
+if [ -z "$stack" ] || [ -z "$per_byte" ]; then
+    echo "build.sh: FAIL: bench printed no figures" >&2
+    exit 1
+fi
+
+echo
+echo "== summary =="
+for level in z s; do
+    echo "opt-level $level: flash ${FLASH[$level]} B ($(awk "BEGIN { printf \"%.2f\", ${FLASH[$level]} / 1024 }") KiB), static RAM ${RAM[$level]} B, panic call sites ${SITES[$level]}"
+done
+echo "stack high-water (bench, opt-level z): $stack B; RAM static + stack at opt-level z: $((RAM[z] + stack)) B"
+echo "receive path: $per_byte instructions per received byte (endpoint + gimbal handler), framer alone $framer_per_byte"
+echo "targets: flash z <= 8192 B: $([ "${FLASH[z]}" -le 8192 ] && echo met || echo NOT met); RAM <= 2048 B: $([ $((RAM[z] + stack)) -le 2048 ] && echo met || echo NOT met); panic sites 0: $([ "${SITES[z]}" = 0 ] && [ "${SITES[s]}" = 0 ] && echo met || echo NOT met)"
+exit $status
