@@ -1,14 +1,20 @@
 //! The master side of command exchanges (1.4.2, 1.4.3, Figure 6) over any
 //! async byte stream: a bus master on a serial line, or a client of a GCU
 //! over TCP. It drives the protocol crate's [`Transaction`] with a real
-//! clock, acknowledges result frames and NAKs damaged ones (hop by hop), so
-//! that a device can resend.
+//! clock, acknowledges every intact frame and NAKs damaged results (hop by
+//! hop), so that a device can resend. Through a GCU, the ACK means the
+//! device acknowledged the command, and a delivery report comes instead
+//! when it was not delivered (ARCHITECTURE "Delivery contract"): the
+//! exchange ends with that report at once.
 
 use std::io;
 use std::time::Duration;
 
 use sagebrush_protocol::link::TransactionPolicy;
-use sagebrush_protocol::{ACK, Address, Command, Event, FrameBuf, Framer, NAK, Outcome, Transaction, TransactionStep};
+use sagebrush_protocol::{
+    ACK, Address, CONTROL_UNIT, Command, DeliveryReport, Event, FrameBuf, Framer, LINK_PORT, NAK, Outcome, Transaction,
+    TransactionStep, TxFailure,
+};
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::time::Instant;
 use tracing::{debug, info, warn};
@@ -29,7 +35,18 @@ pub struct Exchange {
     pub noise_bytes: u64,
     /// Frames that were not our result (another device, a late answer).
     pub stray_frames: u32,
+    /// A GCU's report that the command was not delivered (the outcome is
+    /// then [`Outcome::Failed`] with [`TxFailure::NoAck`]: no ACK came).
+    pub undelivered: Option<DeliveryReport>,
     pub elapsed: Duration,
+}
+
+/// A GCU's delivery report about `frame`, if `candidate` is one.
+fn report_about(frame: &FrameBuf, candidate: &FrameBuf) -> Option<DeliveryReport> {
+    let (command, got) = (frame.frame(), candidate.frame());
+    let addressed = got.dest.group == command.source && got.dest.port == LINK_PORT && got.dest.device == CONTROL_UNIT;
+    let report = DeliveryReport::parse(got.payload()).ok().filter(|_| addressed)?;
+    (report.dest == command.dest && report.command_checksum == command.checksum()).then_some(report)
 }
 
 /// An owned framer event.
@@ -89,6 +106,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
         let noise_at_start = self.framer.skipped_bytes();
         let mut tx = Transaction::new(frame.frame().dest, command, self.policy);
         let mut result = None;
+        let mut undelivered = None;
         let (mut naks_received, mut naks_sent, mut stray_frames) = (0u32, 0u32, 0u32);
         let mut step = tx.start(self.now());
         let mut buf = [0u8; 512];
@@ -144,10 +162,18 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
                 let now = self.now();
                 step = match event {
                     Owned::Frame(f) => {
+                        // Every intact frame is acknowledged, hop by hop.
+                        self.write(&[ACK]).await?;
+                        if let Some(report) = report_about(frame, &f).filter(|r| r.failure.is_some()) {
+                            if !tx.acknowledged() {
+                                warn!(dest = %frame.frame().dest, ?report, "not delivered");
+                                undelivered = Some(report);
+                                step = TransactionStep::Done(Outcome::Failed(TxFailure::NoAck));
+                                continue;
+                            }
+                        }
                         let s = tx.on_event(&Event::Frame(f.frame()), now);
                         if s == TransactionStep::Done(Outcome::Result) {
-                            // Hop-by-hop acknowledgement of the result.
-                            self.write(&[ACK]).await?;
                             result = Some(*f);
                         } else {
                             stray_frames += 1;
@@ -185,6 +211,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
             naks_sent,
             noise_bytes: self.framer.skipped_bytes() - noise_at_start,
             stray_frames,
+            undelivered,
             elapsed: started.elapsed(),
         })
     }

@@ -43,8 +43,27 @@ pub async fn connect_tcp(addr: &str) -> io::Result<TcpStream> {
     let stream = TcpStream::connect(addr)
         .await
         .map_err(|e| io::Error::new(e.kind(), format!("cannot connect to {addr}: {e}")))?;
-    stream.set_nodelay(true)?;
+    tune_tcp(&stream)?;
     Ok(stream)
+}
+
+/// Idle time before the first keepalive probe of a TCP line.
+pub const KEEPALIVE_IDLE: std::time::Duration = std::time::Duration::from_secs(10);
+/// Time between keepalive probes; after [`KEEPALIVE_PROBES`] unanswered
+/// ones the connection is reset, so a half-open peer is found in about 25 s.
+pub const KEEPALIVE_INTERVAL: std::time::Duration = std::time::Duration::from_secs(5);
+pub const KEEPALIVE_PROBES: u32 = 3;
+
+/// Frames go out at once (no Nagle delay), and a half-open peer (a client
+/// that hung, a cable pulled) is found by TCP keepalive, so that its link
+/// goes down and the dead-man stops what it left moving.
+pub fn tune_tcp(stream: &TcpStream) -> io::Result<()> {
+    stream.set_nodelay(true)?;
+    let keepalive = socket2::TcpKeepalive::new()
+        .with_time(KEEPALIVE_IDLE)
+        .with_interval(KEEPALIVE_INTERVAL)
+        .with_retries(KEEPALIVE_PROBES);
+    socket2::SockRef::from(stream).set_tcp_keepalive(&keepalive)
 }
 
 /// A serial line or a TCP link, as one stream type.

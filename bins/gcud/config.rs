@@ -199,6 +199,9 @@ pub struct PortSection {
 pub struct LinkSettings {
     pub retries: Option<Spanned<i64>>,
     pub ack_timeout_ms: Option<Spanned<i64>>,
+    /// A client's ACK or report comes at the latest this long after its
+    /// command (ARCHITECTURE "Delivery contract"); below the clients' own ACK time-out.
+    pub delivery_timeout_ms: Option<Spanned<i64>>,
 }
 
 /// Which way a link faces (for group-255 flooding and dead-man rules).
@@ -228,8 +231,12 @@ pub struct LinkSection {
     pub connect: Option<Spanned<String>>,
     /// Listener: peer addresses allowed to connect (default: loopback only).
     pub allow_peers: Option<Spanned<Vec<Spanned<String>>>>,
-    /// Source groups frames on this link may carry (default: any).
+    /// Source groups frames on this link may carry (default: any on links
+    /// to GCUs; the MCU's 0 and this GCU's own group on client links).
     pub allow_source_groups: Option<Spanned<Vec<Spanned<i64>>>>,
+    /// Continuous motion started on this link and not refreshed within
+    /// this time is stopped (default: no lease).
+    pub motion_lease_ms: Option<Spanned<i64>>,
 }
 
 /// `[[route]]`: a static route.
@@ -284,6 +291,7 @@ pub struct Link {
     pub allow_peers: Vec<IpAddr>,
     /// `None`: any source group.
     pub allow_source_groups: Option<Vec<u8>>,
+    pub motion_lease_ms: Option<u64>,
 }
 
 /// The validated configuration.
@@ -301,6 +309,7 @@ pub struct Config {
     pub max_connections: usize,
     pub link_retries: u8,
     pub link_ack_timeout_ms: u64,
+    pub delivery_timeout_ms: u64,
     pub ports: Vec<Port>,
     pub links: Vec<Link>,
     pub routes: Vec<(u8, String)>,
@@ -567,6 +576,10 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
         Some(v) => c.int(v, "link_timing.ack_timeout_ms", 1, 3_600_000)?,
         None => 200,
     };
+    let delivery_timeout_ms: u64 = match &raw.link_timing.delivery_timeout_ms {
+        Some(v) => c.int(v, "link_timing.delivery_timeout_ms", 50, 600_000)?,
+        None => sagebrush_gcu::LinkSettings::default().delivery_timeout,
+    };
     let mut links = Vec::with_capacity(raw.links.len());
     let mut names = BTreeSet::new();
     for (i, l) in raw.links.iter().enumerate() {
@@ -643,6 +656,13 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
                 }
                 Some(groups)
             }
+            // A client that does not say otherwise speaks as the MCU or as
+            // this GCU (Figure 7), never as another GCU.
+            None if *l.role.get_ref() == LinkRole::Client => Some(vec![sagebrush_protocol::MCU_GROUP, group]),
+            None => None,
+        };
+        let motion_lease_ms = match &l.motion_lease_ms {
+            Some(v) => Some(c.int(v, &format!("{key}.motion_lease_ms"), 100, 3_600_000)?),
             None => None,
         };
         links.push(Link {
@@ -651,6 +671,7 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
             transport,
             allow_peers,
             allow_source_groups,
+            motion_lease_ms,
         });
     }
 
@@ -709,6 +730,7 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
         max_connections,
         link_retries: link_base_retries,
         link_ack_timeout_ms: link_base_ack,
+        delivery_timeout_ms,
         ports,
         links,
         routes,

@@ -45,6 +45,7 @@ pub fn router_config(config: &Config) -> RouterConfig {
     }
     rc.links.retries = config.link_retries;
     rc.links.ack_timeout = config.link_ack_timeout_ms;
+    rc.links.delivery_timeout = config.delivery_timeout_ms;
     // A command forwarded to another GCU is answered after a whole port
     // transaction there; assume that GCU is configured like this one.
     let worst = |long: bool| {
@@ -92,6 +93,7 @@ fn link_config(config: &Config, index: usize) -> LinkConfig {
     };
     let mut lc = LinkConfig::new(kind, sources);
     lc.lossless = !matches!(link.transport, LinkTransport::Serial { .. });
+    lc.motion_lease = link.motion_lease_ms;
     lc
 }
 
@@ -243,8 +245,14 @@ pub async fn run(config: Config) -> Result<(), StartError> {
             }
             () = sleep_until(deadline) => router.handle(now(Instant::now()), Input::Tick, &mut actions),
             _ = watchdog_tick.tick(), if watchdog.is_some() => notify(&[sd_notify::NotifyState::Watchdog]),
-            _ = sigterm.recv(), if stopping.is_none() => stopping = Some(begin_shutdown(&config, &mut listeners, "SIGTERM")),
-            _ = sigint.recv(), if stopping.is_none() => stopping = Some(begin_shutdown(&config, &mut listeners, "SIGINT")),
+            _ = sigterm.recv(), if stopping.is_none() => {
+                stopping = Some(begin_shutdown(&config, &mut listeners, "SIGTERM"));
+                router.handle(now(Instant::now()), Input::Shutdown, &mut actions);
+            }
+            _ = sigint.recv(), if stopping.is_none() => {
+                stopping = Some(begin_shutdown(&config, &mut listeners, "SIGINT"));
+                router.handle(now(Instant::now()), Input::Shutdown, &mut actions);
+            }
             () = sleep_until(stopping.map(|s| s.min(Instant::now() + Duration::from_millis(50)))) => {}
         }
         execute(&mut actions, &ports, &links);
@@ -263,7 +271,7 @@ fn begin_shutdown(config: &Config, listeners: &mut Vec<JoinHandle<()>>, signal: 
     info!(
         signal,
         grace_ms = config.shutdown_grace_ms,
-        "shutting down: no new connections, finishing in-flight work"
+        "shutting down: no new connections or commands, stopping running motions, finishing in-flight work"
     );
     notify(&[sd_notify::NotifyState::Stopping]);
     for l in listeners.drain(..) {

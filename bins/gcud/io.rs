@@ -332,7 +332,9 @@ pub async fn accept_loop(
             warn!(link = %link.name, %peer, "connection refused: limits.max_connections reached");
             continue;
         };
-        let _ = stream.set_nodelay(true);
+        if let Err(e) = sagebrush::transport::tune_tcp(&stream) {
+            warn!(link = %link.name, %peer, error = %e, "cannot set TCP_NODELAY/keepalive");
+        }
         info!(link = %link.name, %peer, "client connected");
         let events = events.clone();
         tokio::spawn(async move {

@@ -126,6 +126,16 @@ pub fn render(stats: &Stats, links: &BTreeMap<LinkId, LinkInfo>, uptime_ms: u64)
     );
     accepted.push(vec![], r.accepted);
     out.push(accepted);
+    let mut delivery = Family::new(
+        "commands_delivery",
+        "Commands of links by what their origin was told (ARCHITECTURE \"Delivery contract\"): delivered, or why not.",
+        Kind::Counter,
+    );
+    delivery.push(vec![("delivery", "delivered".to_owned())], r.delivered);
+    for (kind, n) in r.undelivered.iter() {
+        delivery.push(vec![("delivery", kind.name().to_owned())], n);
+    }
+    out.push(delivery);
     let mut dropped = Family::new("commands_dropped", "Commands not executed, by reason.", Kind::Counter);
     push_drops(&mut dropped, &[], &r.dropped);
     out.push(dropped);
@@ -151,6 +161,16 @@ pub fn render(stats: &Stats, links: &BTreeMap<LinkId, LinkInfo>, uptime_ms: u64)
             "dead_man_stops",
             "Stops issued for motions of links that went down.",
             r.dead_man_stops,
+        ),
+        (
+            "lease_stops",
+            "Stops issued for motions whose link's motion lease ran out.",
+            r.lease_stops,
+        ),
+        (
+            "shutdown_stops",
+            "Stops issued at shutdown for motions still running.",
+            r.shutdown_stops,
         ),
     ] {
         let mut f = Family::new(name, help, Kind::Counter);

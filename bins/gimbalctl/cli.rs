@@ -13,7 +13,16 @@ Exit codes:
   4  no ACK after all retries (nothing answered)
   5  NIC: the device does not implement or cannot apply the command
   6  no result: ACKed, but the result did not come in time
-  7  malformed result: a result came that is not the command's";
+  7  malformed result: a result came that is not the command's
+  8..19  not delivered, as a GCU reported it (no ACK came; through gcud only):
+      8 device silent after all retries    9 device answered NAK to every try
+     10 no such port on the GCU           11 port not open
+     12 a queue on the way was full       13 no route to the group
+     14 link toward the group down        15 the GCU is shutting down
+     16 source group not allowed (--from) 17 routing loop
+     18 not confirmed in time (may still execute)
+     19 waited in a queue too long, given up unsent
+  Commands to device 255 get no ACK on a shared bus: success means written.";
 
 /// Command Sagebrush pan-tilt gimbals (protocol rev 1.9) by hand.
 ///

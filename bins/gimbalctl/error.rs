@@ -3,6 +3,14 @@
 
 use std::fmt;
 
+use sagebrush_protocol::Undelivered;
+
+/// Exit code of an undelivered command: 7 + the report's failure code
+/// (ARCHITECTURE "Delivery contract"), so 8..=19, one per reason.
+pub const fn undelivered_exit_code(failure: Undelivered) -> u8 {
+    7 + failure.code()
+}
+
 /// A failure, with a message naming what was wrong.
 #[derive(Debug)]
 pub enum CtlError {
@@ -20,6 +28,8 @@ pub enum CtlError {
     NoResult(String),
     /// A result that is not the command's (exit 7).
     BadReply(String),
+    /// A GCU reported that it could not deliver the command (exit 8..=19).
+    Undelivered(Undelivered, String),
 }
 
 impl CtlError {
@@ -32,6 +42,7 @@ impl CtlError {
             CtlError::Nic(_) => 5,
             CtlError::NoResult(_) => 6,
             CtlError::BadReply(_) => 7,
+            CtlError::Undelivered(failure, _) => undelivered_exit_code(*failure),
         }
     }
 
@@ -45,6 +56,7 @@ impl CtlError {
             CtlError::Nic(_) => "nic",
             CtlError::NoResult(_) => "no_result",
             CtlError::BadReply(_) => "bad_result",
+            CtlError::Undelivered(failure, _) => failure.name(),
         }
     }
 
@@ -56,7 +68,8 @@ impl CtlError {
             | CtlError::NoAck(m)
             | CtlError::Nic(m)
             | CtlError::NoResult(m)
-            | CtlError::BadReply(m) => m,
+            | CtlError::BadReply(m)
+            | CtlError::Undelivered(_, m) => m,
         }
     }
 }

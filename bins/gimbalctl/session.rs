@@ -66,6 +66,17 @@ impl Session {
         let what = format!("{} ({})", sagebrush::hex::payload_text(payload), command.mnemonic());
         let to = self.to;
         let policy = *self.master.policy();
+        if let Some(report) = ex.undelivered {
+            let failure = report.failure.unwrap_or(sagebrush_protocol::Undelivered::NotConfirmed);
+            return Err(CtlError::Undelivered(
+                failure,
+                format!(
+                    "not delivered: {what} to {to}: {} (reported by GCU {})",
+                    failure.describe(),
+                    report.at_group
+                ),
+            ));
+        }
         match ex.outcome {
             Outcome::Acknowledged | Outcome::Broadcast | Outcome::Result => Ok(ex),
             Outcome::Nic => Err(CtlError::Nic(format!(

@@ -51,6 +51,10 @@ pub struct LinkConfig {
     /// lost, so the next GCU never sends an answer twice for that reason.
     /// `false` (a serial line) is the safe default.
     pub lossless: bool,
+    /// Continuous motion started by this link and not refreshed (any
+    /// command of the link to that device) within this many ticks is
+    /// stopped, as if the link had gone down. `None`: no lease.
+    pub motion_lease: Option<u64>,
 }
 
 impl LinkConfig {
@@ -60,6 +64,7 @@ impl LinkConfig {
             kind,
             allowed_sources,
             lossless: false,
+            motion_lease: None,
         }
     }
 }
@@ -138,6 +143,14 @@ pub struct LinkSettings {
     pub nic_answer_timeout: u64,
     /// Forwarded commands awaiting answers, over all links.
     pub max_pending: usize,
+    /// How long after a client's transmission its ACK or report comes at
+    /// the latest (ARCHITECTURE "Delivery contract"): past it, a command
+    /// still queued is given up unsent
+    /// ([`sagebrush_protocol::Undelivered::Expired`]) and one already on
+    /// its way is reported not confirmed. It must be shorter than the
+    /// clients' own ACK time-out, so that no outcome arrives after the
+    /// client retransmitted or moved on.
+    pub delivery_timeout: u64,
 }
 
 impl Default for LinkSettings {
@@ -152,6 +165,7 @@ impl Default for LinkSettings {
             long_answer_timeout: 35_000,
             nic_answer_timeout: 1_500,
             max_pending: 1024,
+            delivery_timeout: 800,
         }
     }
 }

@@ -2,6 +2,11 @@
 //! `FF`, `FN`, `ZI`, `ZO`) started by a link that then disconnects is
 //! stopped with the matching stop command (`PS`, `TS`, `FS`, `ZS`).
 //!
+//! The same stops go out for every motion still owned when the GCU shuts
+//! down ([`DeadMan::take_all`]), and for a motion whose owner did not
+//! refresh it within its link's motion lease ([`DeadMan::expired`]): any
+//! command from the owner to the same address refreshes it.
+//!
 //! Ownership is per (destination address as received, axis): the last
 //! link that started a motion on an axis owns it; a stop of that axis for
 //! the same address (from any link) ends the ownership, `HA`, `HS` and `PT`
@@ -27,16 +32,45 @@ fn axis_of_stop(stop: &Command<'_>) -> Option<usize> {
     STOPS.iter().position(|s| s == stop)
 }
 
+/// Who owns a motion, and when it last heard from them about it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Owner {
+    link: LinkId,
+    refreshed: u64,
+    /// The owner's link's motion lease (ticks), if it has one.
+    lease: Option<u64>,
+}
+
+impl Owner {
+    fn expires(&self) -> Option<u64> {
+        self.lease.map(|l| self.refreshed.saturating_add(l))
+    }
+}
+
+/// A stop the GCU issues for a motion: for whom, where, which.
+pub(crate) type OwnedStop = (LinkId, Address, Command<'static>);
+
 #[derive(Debug, Default)]
 pub(crate) struct DeadMan {
-    owners: BTreeMap<(Address, usize), LinkId>,
+    owners: BTreeMap<(Address, usize), Owner>,
 }
 
 impl DeadMan {
-    /// A command for `dest` was accepted from `link`.
-    pub fn on_command(&mut self, link: LinkId, dest: Address, command: &Command<'_>) {
+    /// A command for `dest` was accepted from `link` at `now`; `lease` is
+    /// that link's motion lease.
+    pub fn on_command(&mut self, now: u64, link: LinkId, lease: Option<u64>, dest: Address, command: &Command<'_>) {
+        for ((d, _), owner) in self.owners.iter_mut() {
+            if *d == dest && owner.link == link {
+                owner.refreshed = now;
+            }
+        }
         if let Some(axis) = command.stopped_by().as_ref().and_then(axis_of_stop) {
-            self.owners.insert((dest, axis), link);
+            let owner = Owner {
+                link,
+                refreshed: now,
+                lease,
+            };
+            self.owners.insert((dest, axis), owner);
             return;
         }
         if let Some(axis) = axis_of_stop(command) {
@@ -52,10 +86,32 @@ impl DeadMan {
 
     /// `link` went down: the stops to issue, and the link forgotten.
     pub fn link_down(&mut self, link: LinkId) -> Vec<(Address, Command<'static>)> {
+        self.take(|owner| owner.link == link)
+            .into_iter()
+            .map(|(_, dest, stop)| (dest, stop))
+            .collect()
+    }
+
+    /// Every motion still owned (shutdown): the stops to issue.
+    pub fn take_all(&mut self) -> Vec<OwnedStop> {
+        self.take(|_| true)
+    }
+
+    /// Motions whose lease ran out by `now`: the stops to issue.
+    pub fn expired(&mut self, now: u64) -> Vec<OwnedStop> {
+        self.take(|owner| owner.expires().is_some_and(|t| now >= t))
+    }
+
+    /// When the next lease runs out.
+    pub fn next_deadline(&self) -> Option<u64> {
+        self.owners.values().filter_map(Owner::expires).min()
+    }
+
+    fn take(&mut self, pick: impl Fn(&Owner) -> bool) -> Vec<OwnedStop> {
         let mut stops = Vec::new();
         self.owners.retain(|&(dest, axis), owner| {
-            if *owner == link {
-                stops.push((dest, STOPS[axis]));
+            if pick(owner) {
+                stops.push((owner.link, dest, STOPS[axis]));
                 false
             } else {
                 true
@@ -78,10 +134,10 @@ mod tests {
     #[test]
     fn motion_owned_by_last_starter_until_stopped() {
         let mut dm = DeadMan::default();
-        dm.on_command(LinkId(1), A, &Command::PanLeft);
-        dm.on_command(LinkId(1), A, &Command::ZoomIn);
-        dm.on_command(LinkId(2), A, &Command::PanRight);
-        dm.on_command(LinkId(1), A, &Command::QueryPosition);
+        dm.on_command(0, LinkId(1), None, A, &Command::PanLeft);
+        dm.on_command(0, LinkId(1), None, A, &Command::ZoomIn);
+        dm.on_command(0, LinkId(2), None, A, &Command::PanRight);
+        dm.on_command(0, LinkId(1), None, A, &Command::QueryPosition);
         assert_eq!(dm.link_down(LinkId(1)), vec![(A, Command::ZoomStop)]);
         assert_eq!(dm.link_down(LinkId(2)), vec![(A, Command::PanStop)]);
         assert_eq!(dm.len(), 0);
@@ -90,13 +146,33 @@ mod tests {
     #[test]
     fn stops_end_ownership() {
         let mut dm = DeadMan::default();
-        dm.on_command(LinkId(1), A, &Command::PanLeft);
-        dm.on_command(LinkId(1), A, &Command::TiltUp);
-        dm.on_command(LinkId(1), A, &Command::FocusFar);
-        dm.on_command(LinkId(2), A, &Command::Halt);
+        dm.on_command(0, LinkId(1), None, A, &Command::PanLeft);
+        dm.on_command(0, LinkId(1), None, A, &Command::TiltUp);
+        dm.on_command(0, LinkId(1), None, A, &Command::FocusFar);
+        dm.on_command(0, LinkId(2), None, A, &Command::Halt);
         assert_eq!(dm.link_down(LinkId(1)), vec![(A, Command::FocusStop)]);
-        dm.on_command(LinkId(1), A, &Command::ZoomOut);
-        dm.on_command(LinkId(1), A, &Command::ZoomStop);
+        dm.on_command(0, LinkId(1), None, A, &Command::ZoomOut);
+        dm.on_command(0, LinkId(1), None, A, &Command::ZoomStop);
         assert!(dm.link_down(LinkId(1)).is_empty());
+    }
+
+    #[test]
+    fn a_lease_runs_out_unless_the_owner_speaks_to_the_device() {
+        let mut dm = DeadMan::default();
+        let b = Address::new(3, 1, 5);
+        dm.on_command(0, LinkId(1), Some(100), A, &Command::PanLeft);
+        dm.on_command(0, LinkId(2), None, b, &Command::TiltUp);
+        assert_eq!(dm.next_deadline(), Some(100));
+        // Another link's command, or one to another device, does not refresh it.
+        dm.on_command(60, LinkId(2), None, A, &Command::QueryPosition);
+        dm.on_command(60, LinkId(1), Some(100), b, &Command::QueryPosition);
+        assert!(dm.expired(99).is_empty());
+        // Any command of the owner to the device does.
+        dm.on_command(90, LinkId(1), Some(100), A, &Command::QueryPosition);
+        assert!(dm.expired(150).is_empty());
+        assert_eq!(dm.expired(190), vec![(LinkId(1), A, Command::PanStop)]);
+        assert_eq!(dm.next_deadline(), None, "a link without a lease never expires");
+        assert_eq!(dm.take_all(), vec![(LinkId(2), b, Command::TiltStop)]);
+        assert_eq!(dm.len(), 0);
     }
 }

@@ -1,6 +1,7 @@
 //! One link toward the MCU, another GCU or a client (DESIGN "Routing
-//! semantics"): hop-by-hop ACK/NAK of every frame received (ACK on a good
-//! checksum, NAK on a bad one, as bare bytes), and a bounded send queue whose
+//! semantics"): NAK of every damaged frame received, ACK when the router
+//! says so (ARCHITECTURE "Delivery contract": at once for answers and on
+//! links to other GCUs, on delivery for a client's command), and a bounded send queue whose
 //! head is retransmitted by the protocol crate's [`Transmitter`] on NAK or
 //! ACK time-out, up to the configured count. ACK/NAK bytes carry no address,
 //! so a link has one unacknowledged frame at a time (stop and wait).
@@ -83,6 +84,13 @@ impl Link {
     fn write(&mut self, bytes: Vec<u8>, out: &mut Vec<LinkOut>) {
         self.stats.line.bytes_out += bytes.len() as u64;
         out.push(LinkOut::Write(bytes));
+    }
+
+    /// Writes a bare ACK for a frame received intact (hop by hop), or for
+    /// a client's command once it is delivered.
+    pub fn ack(&mut self, out: &mut Vec<LinkOut>) {
+        self.stats.acks_sent += 1;
+        self.write(vec![ACK], out);
     }
 
     /// Writes a bare `?` (a relayed NIC).
@@ -193,8 +201,9 @@ impl Link {
         for event in events {
             match event {
                 RxEvent::Frame(frame) => {
+                    // The router writes the ACK: at once, or once the
+                    // command is delivered (ARCHITECTURE "Delivery contract").
                     self.stats.line.frames_in += 1;
-                    self.write(vec![ACK], out);
                     received.push(Received::Frame(frame));
                 }
                 RxEvent::BadChecksum => {
@@ -275,7 +284,7 @@ mod tests {
     }
 
     #[test]
-    fn acks_good_naks_bad() {
+    fn naks_bad_and_acks_when_told() {
         let settings = LinkSettings::default();
         let mut l = link(&settings);
         let frame = FrameBuf::new(Address::new(1, 1, 1), 0, b"AW").unwrap();
@@ -284,7 +293,14 @@ mod tests {
         let mut out = Vec::new();
         let got = l.receive(0, &[frame.as_bytes(), &bad].concat(), &mut out);
         assert!(matches!(got.as_slice(), [Received::Frame(f)] if **f == frame));
-        assert_eq!(writes(&out), vec![vec![ACK], vec![NAK]]);
+        assert_eq!(
+            writes(&out),
+            vec![vec![NAK]],
+            "the router decides when a good frame is ACKed"
+        );
+        out.clear();
+        l.ack(&mut out);
+        assert_eq!(writes(&out), vec![vec![ACK]]);
         assert_eq!(l.stats.line.bad_checksums, 1);
     }
 

@@ -45,7 +45,7 @@ use sagebrush_protocol::{
     ACK, Command, DataRate, Event as FramerEvent, FrameBuf, NAK, RetryPolicy, Transaction, TransactionStep, TxFailure,
     WILDCARD,
 };
-use sagebrush_protocol::{Outcome as TxOutcome, ResultKind, ResultTimeout};
+use sagebrush_protocol::{Outcome as TxOutcome, ResultKind, ResultTimeout, Undelivered};
 
 use crate::config::PortConfig;
 use crate::line::{Line, RxEvent};
@@ -61,6 +61,8 @@ pub(crate) struct Job {
     pub stop: bool,
     /// Starts a continuous motion (cancelled when its origin link goes down).
     pub motion: bool,
+    /// Identical stops of other commands merged into this one: they share its outcome.
+    pub merged: Vec<CommandId>,
 }
 
 impl Job {
@@ -72,7 +74,13 @@ impl Job {
             stop: command.is_stop(),
             motion: command.stopped_by().is_some(),
             frame,
+            merged: Vec::new(),
         }
+    }
+
+    /// The command ids this job decides: its own and the merged ones.
+    fn ids(&self) -> impl Iterator<Item = CommandId> + '_ {
+        core::iter::once(self.id).chain(self.merged.iter().copied())
     }
 }
 
@@ -85,6 +93,16 @@ pub(crate) enum PortOut {
         id: CommandId,
         origin: Origin,
         reply: Box<FrameBuf>,
+    },
+    /// The device acknowledged job `id` (or a device-255 command was written):
+    /// the command is delivered (ARCHITECTURE "Delivery contract").
+    Delivered {
+        id: CommandId,
+    },
+    /// Job `id` ended without the device acknowledging it.
+    Undelivered {
+        id: CommandId,
+        failure: Undelivered,
     },
     /// Job `id` is over.
     Finished {
@@ -195,10 +213,16 @@ impl Port {
 
     fn drop_job(&mut self, job: Job, reason: DropReason, out: &mut Vec<PortOut>) {
         self.stats.line.drops.add(reason);
-        out.push(PortOut::Finished {
-            id: job.id,
-            outcome: Outcome::Dropped(reason),
-        });
+        for id in job.ids() {
+            out.push(PortOut::Finished {
+                id,
+                outcome: Outcome::Dropped(reason),
+            });
+        }
+    }
+
+    fn delivered(job: &Job, out: &mut Vec<PortOut>) {
+        out.extend(job.ids().map(|id| PortOut::Delivered { id }));
     }
 
     /// The port was opened: tell the daemon the rate the bus runs at.
@@ -248,8 +272,11 @@ impl Port {
             let same = |j: &Job| {
                 j.stop && j.frame.frame().dest == dest && j.frame.frame().payload() == job.frame.frame().payload()
             };
-            if self.queue.iter().any(same) {
-                return self.drop_job(job, DropReason::DuplicateStop, out);
+            if let Some(queued) = self.queue.iter_mut().find(|j| same(j)) {
+                self.stats.line.drops.add(DropReason::DuplicateStop);
+                queued.merged.push(job.id);
+                queued.merged.extend(job.merged);
+                return;
             }
             // A dead-man stop (the router's own) is never refused: their
             // number is bounded by the motions the router tracks.
@@ -273,6 +300,18 @@ impl Port {
         self.note_queue();
         self.start_next(now, out);
         self.maybe_detach(now, out);
+    }
+
+    /// Gives up command `id`'s job if it is still queued (not on the bus).
+    pub fn cancel_queued(&mut self, id: CommandId, reason: DropReason, out: &mut Vec<PortOut>) -> bool {
+        let Some(at) = self.queue.iter().position(|j| j.id == id) else {
+            return false;
+        };
+        if let Some(job) = self.queue.remove(at) {
+            self.drop_job(job, reason, out);
+        }
+        self.note_queue();
+        true
     }
 
     /// The origin link went down: queued motions it started must not run
@@ -355,6 +394,10 @@ impl Port {
                     self.stats.line.retransmits += 1;
                 }
                 self.write(bytes, out);
+                if let Some(r) = self.active.as_ref().filter(|r| r.txn.is_broadcast()) {
+                    // Device 255: no ACK on a shared bus; written is all there is.
+                    Self::delivered(&r.job, out);
+                }
             }
             TransactionStep::Wait => {}
             TransactionStep::Done(outcome) => {
@@ -418,14 +461,19 @@ impl Port {
                 Outcome::NoResult
             }
             TxOutcome::Failed(failure) => {
-                if failure == TxFailure::NoAck {
-                    self.stats.line.timeouts += 1;
-                }
+                let failure = match failure {
+                    TxFailure::NoAck => {
+                        self.stats.line.timeouts += 1;
+                        Undelivered::DeviceSilent
+                    }
+                    TxFailure::Nak => Undelivered::DeviceNak,
+                };
                 self.device(device).unreachable += 1;
+                out.extend(r.job.ids().map(|id| PortOut::Undelivered { id, failure }));
                 Outcome::Unreachable
             }
         };
-        out.push(PortOut::Finished { id: r.job.id, outcome });
+        out.extend(r.job.ids().map(|id| PortOut::Finished { id, outcome }));
     }
 
     fn rate_acknowledged(&mut self, device: u8, rate: Option<DataRate>, out: &mut Vec<PortOut>) {
@@ -503,6 +551,9 @@ impl Port {
                     Some(r) => {
                         let device = r.device();
                         let step = r.txn.on_event(&fe, now);
+                        if r.txn.acknowledged() {
+                            Self::delivered(&r.job, out);
+                        }
                         self.device(device).last_seen = Some(now);
                         self.active_step(now, step, None, out);
                     }

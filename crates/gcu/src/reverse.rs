@@ -35,6 +35,11 @@
 //! (a new `gimbalctl` run, say). When the table is full, the oldest answered
 //! entry is forgotten first.
 //!
+//! Delivery reports (ARCHITECTURE "Delivery contract") of the next GCU
+//! come back the same way: a report names the command's destination and
+//! checksum, and settles the delivery of the oldest unreported entry it
+//! fits. An entry that expires unreported leaves its command not confirmed.
+//!
 //! Entries outlive a link going down, either way: the next GCU keeps
 //! executing and answers on the link once it is back (same id), and answers
 //! for an origin that left are recognised and counted
@@ -44,10 +49,12 @@
 
 use std::collections::VecDeque;
 
-use sagebrush_protocol::{Address, Command, Frame, FrameBuf, Reply, ResultKind, ResultTimeout, WILDCARD};
+use sagebrush_protocol::{
+    Address, Command, DeliveryReport, Frame, FrameBuf, Reply, ResultKind, ResultTimeout, Undelivered, WILDCARD,
+};
 
 use crate::config::LinkSettings;
-use crate::types::{LinkId, Origin};
+use crate::types::{CommandId, LinkId, Origin};
 
 #[derive(Clone, Debug)]
 struct Pending {
@@ -68,6 +75,11 @@ struct Pending {
     resent: bool,
     /// The last answer that went back, and when.
     last_answer: Option<(u64, Box<FrameBuf>)>,
+    /// The command whose delivery the next GCU's report settles (a link's
+    /// command; not a flood copy or the GCU's own stop).
+    command: Option<CommandId>,
+    /// The next GCU's delivery report arrived.
+    reported: bool,
 }
 
 impl Pending {
@@ -120,11 +132,21 @@ impl ReversePath {
 
     /// Remembers a forwarded frame; returns its key and whether the oldest
     /// entry had to be forgotten to make room.
-    pub fn insert(&mut self, out_link: LinkId, origin: Origin, frame: &Frame<'_>, kind: ResultKind) -> (u64, bool) {
-        let evicted = self.entries.len() >= self.max;
-        if evicted {
+    /// `command`: the command whose delivery this forward decides, if any.
+    /// Returns the key, and the unreported command of an entry forgotten
+    /// to make room (`Some(None)`: an entry without one).
+    pub fn insert(
+        &mut self,
+        out_link: LinkId,
+        origin: Origin,
+        frame: &Frame<'_>,
+        kind: ResultKind,
+        command: Option<CommandId>,
+    ) -> (u64, Option<Option<CommandId>>) {
+        let mut evicted = None;
+        if self.entries.len() >= self.max {
             let at = self.entries.iter().position(|e| e.answered).unwrap_or(0);
-            self.entries.remove(at);
+            evicted = self.entries.remove(at).map(|e| e.command.filter(|_| !e.reported));
         }
         let key = self.next_key;
         self.next_key += 1;
@@ -140,8 +162,35 @@ impl ReversePath {
             answered: false,
             resent: false,
             last_answer: None,
+            command,
+            reported: false,
         });
         (key, evicted)
+    }
+
+    /// The command whose delivery entry `key` decides, and whether its
+    /// frame was transmitted (the next GCU may have it).
+    pub fn command_of(&self, key: u64) -> Option<(CommandId, bool)> {
+        self.entries
+            .iter()
+            .find(|e| e.key == key && !e.reported)
+            .and_then(|e| e.command.map(|c| (c, e.expires.is_some())))
+    }
+
+    /// A delivery report arrived on `link` in a frame for group `to`.
+    /// `Some(command)`: it settles that entry (`Some(None)`: an entry with
+    /// no command to settle, e.g. a flood copy); `None`: nothing fits.
+    pub fn match_report(&mut self, link: LinkId, to: u8, report: &DeliveryReport) -> Option<Option<CommandId>> {
+        let entry = self.entries.iter_mut().find(|e| {
+            e.out_link == link
+                && e.expires.is_some()
+                && !e.reported
+                && e.source == to
+                && e.dest == report.dest
+                && e.forwarded.frame().checksum() == report.command_checksum
+        })?;
+        entry.reported = true;
+        Some(entry.command)
     }
 
     /// The frame of `key` was transmitted for the first time at `now`.
@@ -235,9 +284,18 @@ impl ReversePath {
         }
     }
 
-    /// Forgets what expired by `now`.
-    pub fn expire(&mut self, now: u64) {
-        self.entries.retain(|e| e.expires.is_none_or(|t| t > now));
+    /// Forgets what expired by `now`; returns the commands whose delivery
+    /// no report settled.
+    pub fn expire(&mut self, now: u64) -> Vec<(CommandId, Undelivered)> {
+        let mut unconfirmed = Vec::new();
+        self.entries.retain(|e| {
+            let keep = e.expires.is_none_or(|t| t > now);
+            if !keep && !e.reported {
+                unconfirmed.extend(e.command.map(|c| (c, Undelivered::NotConfirmed)));
+            }
+            keep
+        });
+        unconfirmed
     }
 
     pub fn next_deadline(&self) -> Option<u64> {
@@ -276,8 +334,8 @@ mod tests {
         let settings = LinkSettings::default();
         let mut rp = ReversePath::new(8, 200);
         let cmd = Frame::new(Address::new(5, 1, 12), 2, b"P?").unwrap();
-        let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::Required(ResultTimeout::Normal));
-        let (b, _) = rp.insert(L, origin(11), &cmd, ResultKind::Required(ResultTimeout::Normal));
+        let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::Required(ResultTimeout::Normal), None);
+        let (b, _) = rp.insert(L, origin(11), &cmd, ResultKind::Required(ResultTimeout::Normal), None);
         let result = Frame::new(Address::new(2, 1, 12), 5, b"00000000").unwrap();
         // Not transmitted yet: not an answer.
         assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::None);
@@ -307,12 +365,12 @@ mod tests {
         let settings = LinkSettings::default();
         let mut rp = ReversePath::new(8, 200);
         let cmd = Frame::new(Address::new(5, 1, 12), 2, b"P?").unwrap();
-        let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::Required(ResultTimeout::Normal));
+        let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::Required(ResultTimeout::Normal), None);
         rp.sent(a, 0, &settings);
         rp.resent(a);
         let result = Frame::new(Address::new(2, 1, 12), 5, b"00000000").unwrap();
         assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::One(origin(10)));
-        let (b, _) = rp.insert(L, origin(11), &cmd, ResultKind::Required(ResultTimeout::Normal));
+        let (b, _) = rp.insert(L, origin(11), &cmd, ResultKind::Required(ResultTimeout::Normal), None);
         rp.sent(b, 1, &settings);
         assert_eq!(
             rp.match_result(later(), L, &result, true),
@@ -326,11 +384,11 @@ mod tests {
         let settings = LinkSettings::default();
         let mut rp = ReversePath::new(8, 200);
         let cmd = Frame::new(Address::new(5, 1, 12), 2, b"P?").unwrap();
-        let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::Required(ResultTimeout::Normal));
+        let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::Required(ResultTimeout::Normal), None);
         rp.sent(a, 0, &settings);
         let answer = Frame::new(Address::new(2, 1, 12), 5, b"00640064").unwrap();
         assert_eq!(rp.match_result(1000, L, &answer, true), AnswerMatch::One(origin(10)));
-        let (b, _) = rp.insert(L, origin(11), &cmd, ResultKind::Required(ResultTimeout::Normal));
+        let (b, _) = rp.insert(L, origin(11), &cmd, ResultKind::Required(ResultTimeout::Normal), None);
         rp.sent(b, 1010, &settings);
         // The next GCU did not get our ACK and sends the same frame again.
         assert_eq!(
@@ -347,7 +405,7 @@ mod tests {
         // Past the window, the same bytes are a new answer, and nobody waits.
         assert_eq!(rp.match_result(1401, L, &answer, true), AnswerMatch::Ambiguous);
         // On a lossless link nothing is repeated: identical bytes are a new answer.
-        let (c, _) = rp.insert(L, origin(12), &cmd, ResultKind::Required(ResultTimeout::Normal));
+        let (c, _) = rp.insert(L, origin(12), &cmd, ResultKind::Required(ResultTimeout::Normal), None);
         rp.sent(c, 1410, &settings);
         assert_eq!(rp.match_result(1420, L, &moved, false), AnswerMatch::One(origin(12)));
     }
@@ -358,8 +416,20 @@ mod tests {
         let mut rp = ReversePath::new(8, 200);
         let position = Frame::new(Address::new(5, 1, 12), 2, b"P?").unwrap();
         let identify = Frame::new(Address::new(5, 1, 12), 2, b"D?").unwrap();
-        let (a, _) = rp.insert(L, origin(10), &position, ResultKind::Required(ResultTimeout::Normal));
-        let (b, _) = rp.insert(L, origin(11), &identify, ResultKind::Required(ResultTimeout::Normal));
+        let (a, _) = rp.insert(
+            L,
+            origin(10),
+            &position,
+            ResultKind::Required(ResultTimeout::Normal),
+            None,
+        );
+        let (b, _) = rp.insert(
+            L,
+            origin(11),
+            &identify,
+            ResultKind::Required(ResultTimeout::Normal),
+            None,
+        );
         rp.sent(a, 0, &settings);
         rp.sent(b, 0, &settings);
         let id_block = Frame::new(Address::new(2, 1, 12), 5, b"0C19Sagebrush SIM").unwrap();
@@ -379,8 +449,8 @@ mod tests {
         let exact = Frame::new(Address::new(5, 1, 12), 2, b"*mu1").unwrap();
         let wildcard = Frame::new(Address::new(5, 1, 255), 2, b"*mu2").unwrap();
         let kind = ResultKind::Optional;
-        let (a, _) = rp.insert(L, origin(10), &wildcard, kind);
-        let (b, _) = rp.insert(L, origin(11), &exact, kind);
+        let (a, _) = rp.insert(L, origin(10), &wildcard, kind, None);
+        let (b, _) = rp.insert(L, origin(11), &exact, kind, None);
         rp.sent(a, 0, &settings);
         rp.sent(b, 0, &settings);
         let result = Frame::new(Address::new(2, 1, 12), 5, b"1").unwrap();
@@ -399,9 +469,9 @@ mod tests {
         let settings = LinkSettings::default();
         let mut rp = ReversePath::new(8, 200);
         let cmd = Frame::new(Address::new(5, 1, 12), 2, b"PL").unwrap();
-        let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::None);
+        let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::None, None);
         rp.sent(a, 0, &settings);
-        let (b, _) = rp.insert(L, origin(11), &cmd, ResultKind::None);
+        let (b, _) = rp.insert(L, origin(11), &cmd, ResultKind::None, None);
         rp.sent(b, 0, &settings);
         assert_eq!(rp.match_nic(L), AnswerMatch::Ambiguous);
         rp.cancel(b);
@@ -410,14 +480,14 @@ mod tests {
             AnswerMatch::Ambiguous,
             "b was transmitted: its answer may come"
         );
-        let (d, _) = rp.insert(L, origin(12), &cmd, ResultKind::None);
+        let (d, _) = rp.insert(L, origin(12), &cmd, ResultKind::None, None);
         rp.cancel(d);
         rp.expire(settings.nic_answer_timeout);
         assert_eq!(rp.len(), 0, "b expired, d was never transmitted");
-        let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::None);
+        let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::None, None);
         rp.sent(a, 0, &settings);
         assert_eq!(rp.match_nic(L), AnswerMatch::One(origin(10)));
-        let (c, _) = rp.insert(L, origin(10), &cmd, ResultKind::None);
+        let (c, _) = rp.insert(L, origin(10), &cmd, ResultKind::None, None);
         rp.sent(c, 5, &settings);
         assert_eq!(rp.next_deadline(), Some(settings.nic_answer_timeout));
         rp.expire(settings.nic_answer_timeout);
@@ -433,15 +503,15 @@ mod tests {
         let mut rp = ReversePath::new(2, 200);
         let cmd = Frame::new(Address::new(5, 1, 12), 2, b"PL").unwrap();
         let other = Frame::new(Address::new(5, 1, 13), 2, b"P?").unwrap();
-        let (a, evicted) = rp.insert(L, origin(1), &cmd, ResultKind::None);
-        assert!(!evicted);
-        let (b, evicted) = rp.insert(L, origin(2), &other, ResultKind::Required(ResultTimeout::Normal));
-        assert!(!evicted);
+        let (a, evicted) = rp.insert(L, origin(1), &cmd, ResultKind::None, None);
+        assert_eq!(evicted, None);
+        let (b, evicted) = rp.insert(L, origin(2), &other, ResultKind::Required(ResultTimeout::Normal), None);
+        assert_eq!(evicted, None);
         rp.sent(a, 0, &settings);
         rp.sent(b, 0, &settings);
         let answer = Frame::new(Address::new(2, 1, 13), 5, b"00000000").unwrap();
         assert_eq!(rp.match_result(later(), L, &answer, true), AnswerMatch::One(origin(2)));
-        assert!(rp.insert(L, origin(1), &cmd, ResultKind::None).1);
+        assert_eq!(rp.insert(L, origin(1), &cmd, ResultKind::None, None).1, Some(None));
         assert_eq!(rp.len(), 2);
         // The unanswered first entry survived: a `?` still finds origin 1.
         assert_eq!(rp.match_nic(L), AnswerMatch::One(origin(1)));

@@ -6,7 +6,9 @@
 
 use std::collections::BTreeMap;
 
-use sagebrush_protocol::{Address, Command, FrameBuf, LINK_PORT, WILDCARD};
+use sagebrush_protocol::{
+    Address, CONTROL_UNIT, Command, DeliveryReport, Frame, FrameBuf, LINK_PORT, Undelivered, WILDCARD,
+};
 
 use crate::config::{ConfigError, LinkKind, LinkSettings, RouterConfig};
 use crate::deadman::DeadMan;
@@ -31,6 +33,8 @@ struct Progress {
     unreachable: usize,
     /// Why a result or `?` could not be handed to the origin, or a job was dropped.
     dropped: Option<DropReason>,
+    /// Why a job's device did not acknowledge it.
+    failure: Option<Undelivered>,
 }
 
 impl Progress {
@@ -44,6 +48,7 @@ impl Progress {
             no_result: 0,
             unreachable: 0,
             dropped: None,
+            failure: None,
         }
     }
 
@@ -65,6 +70,28 @@ impl Progress {
             Outcome::Dropped(self.dropped.unwrap_or(DropReason::UnknownPort))
         }
     }
+
+    /// Whether the jobs' outcome means the command reached a device.
+    fn delivery(&self, outcome: Outcome) -> Result<(), Undelivered> {
+        match outcome {
+            Outcome::Result | Outcome::Nic | Outcome::Completed | Outcome::NoResult | Outcome::Forwarded(_) => Ok(()),
+            Outcome::Unreachable => Err(self.failure.unwrap_or(Undelivered::DeviceSilent)),
+            Outcome::Dropped(reason) => Err(reason.undelivered()),
+        }
+    }
+}
+
+/// A link's command whose origin has not yet been told whether it was
+/// delivered (ARCHITECTURE "Delivery contract").
+#[derive(Debug)]
+struct Awaiting {
+    link: LinkId,
+    /// A client link: the answer is the withheld ACK, or a report when undelivered.
+    client: bool,
+    frame: Box<FrameBuf>,
+    command: &'static str,
+    /// When a client must be told at the latest (`delivery_timeout`).
+    deadline: Option<u64>,
 }
 
 /// The GCU router core. See the crate documentation for how a daemon drives it.
@@ -83,6 +110,10 @@ pub struct Router {
     commands: BTreeMap<CommandId, Progress>,
     /// Dead-man stops in progress: the stop, the link it is for, its round.
     dead_man_rounds: BTreeMap<CommandId, (Box<FrameBuf>, LinkId, u8)>,
+    /// Links' commands whose origin awaits the delivery outcome.
+    awaiting: BTreeMap<CommandId, Awaiting>,
+    /// [`Input::Shutdown`] came: new commands are refused.
+    stopping: bool,
     next_id: u64,
     last_now: u64,
     stats: RouterStats,
@@ -110,6 +141,8 @@ impl Router {
             deadman: DeadMan::default(),
             commands: BTreeMap::new(),
             dead_man_rounds: BTreeMap::new(),
+            awaiting: BTreeMap::new(),
+            stopping: false,
             next_id: 0,
             last_now: 0,
             stats: RouterStats::default(),
@@ -159,6 +192,7 @@ impl Router {
                 out.push(Action::Event(Event::LinkState { link, up: true }));
             }
             Input::LinkDown { link } => self.link_down(now, link, out),
+            Input::Shutdown => self.shut_down(now, out),
             Input::LinkBytes { link, bytes } => match self.links.get_mut(&link) {
                 Some(l) => {
                     let mut lo = Vec::new();
@@ -191,7 +225,12 @@ impl Router {
     pub fn next_deadline(&self) -> Option<u64> {
         let ports = self.ports.values().filter_map(Port::next_deadline);
         let links = self.links.values().filter_map(Link::next_deadline);
-        ports.chain(links).chain(self.reverse.next_deadline()).min()
+        ports
+            .chain(links)
+            .chain(self.reverse.next_deadline())
+            .chain(self.deadman.next_deadline())
+            .chain(self.awaiting.values().filter_map(|a| a.deadline))
+            .min()
     }
 
     /// A snapshot of every counter.
@@ -254,7 +293,27 @@ impl Router {
     }
 
     fn poll(&mut self, now: u64, out: &mut Vec<Action>) {
-        self.reverse.expire(now);
+        for (id, failure) in self.reverse.expire(now) {
+            self.resolve(now, id, Err(failure), self.group, out);
+        }
+        let overdue: Vec<CommandId> = self
+            .awaiting
+            .iter()
+            .filter(|(_, a)| a.deadline.is_some_and(|t| now >= t))
+            .map(|(&id, _)| id)
+            .collect();
+        for id in overdue {
+            self.deliver_overdue(now, id, out);
+        }
+        for (link, dest, stop) in self.deadman.expired(now) {
+            self.stats.lease_stops += 1;
+            out.push(Action::Event(Event::LeaseExpired {
+                link,
+                dest,
+                stop: stop.mnemonic(),
+            }));
+            self.issue_stop(now, dest, stop, link, out);
+        }
         let due = |d: Option<u64>| d.is_some_and(|t| t <= now);
         let ports: Vec<u8> = self
             .ports
@@ -299,6 +358,12 @@ impl Router {
                 PortOut::SetRate(bps) => out.push(Action::SetPortRate { port, bps }),
                 PortOut::Event(e) => out.push(Action::Event(e)),
                 PortOut::Relay { id, origin, reply } => self.relay_result(now, port, id, origin, *reply, out),
+                PortOut::Delivered { id } => self.resolve(now, id, Ok(()), self.group, out),
+                PortOut::Undelivered { id, failure } => {
+                    if let Some(p) = self.commands.get_mut(&id) {
+                        p.failure = Some(failure);
+                    }
+                }
                 PortOut::Finished { id, outcome, .. } => self.job_finished(now, id, outcome, out),
             }
         }
@@ -312,7 +377,16 @@ impl Router {
                 LinkOut::Resent(key) => self.reverse.resent(key),
                 LinkOut::Failed(item, reason) => {
                     if let Some(key) = item.pending {
+                        // Transmitted: the next GCU may have it and execute it.
+                        let settled = self.reverse.command_of(key);
                         self.reverse.cancel(key);
+                        if let Some((id, transmitted)) = settled {
+                            let failure = match transmitted {
+                                true => Undelivered::NotConfirmed,
+                                false => reason.undelivered(),
+                            };
+                            self.resolve(now, id, Err(failure), self.group, out);
+                        }
                     }
                     let f = item.frame.frame();
                     out.push(Action::Event(Event::Dropped {
@@ -370,6 +444,97 @@ impl Router {
         Ok(())
     }
 
+    /// Tells the origin of command `id` whether it was delivered, once
+    /// (ARCHITECTURE "Delivery contract"): a client gets the ACK it was
+    /// waiting for, or a delivery report instead; a link to another GCU
+    /// (whose frame was ACKed hop by hop) gets a report either way.
+    /// `at_group`: the GCU where delivery failed.
+    fn resolve(
+        &mut self,
+        now: u64,
+        id: CommandId,
+        delivery: Result<(), Undelivered>,
+        at_group: u8,
+        out: &mut Vec<Action>,
+    ) {
+        let Some(a) = self.awaiting.remove(&id) else { return };
+        let f = a.frame.frame();
+        match delivery {
+            Ok(()) => {
+                self.stats.delivered += 1;
+                out.push(Action::Event(Event::Delivered { id }));
+            }
+            Err(failure) => {
+                self.stats.undelivered.add(failure);
+                out.push(Action::Event(Event::Undelivered {
+                    id,
+                    origin: Origin::Link {
+                        link: a.link,
+                        source: f.source,
+                    },
+                    dest: f.dest,
+                    command: a.command,
+                    failure,
+                }));
+            }
+        }
+        if a.client && delivery.is_ok() {
+            if let Some(l) = self.links.get_mut(&a.link) {
+                let mut lo = Vec::new();
+                l.ack(&mut lo);
+                self.link_outs(now, a.link, lo, out);
+            }
+            return;
+        }
+        self.report(now, a.link, &f, delivery.err(), at_group, out);
+    }
+
+    /// A client's delivery time-out passed: jobs still queued are given up
+    /// unsent (expired); one on the bus, or a forward, may still be
+    /// delivered, which the client is told (not confirmed). A late ACK
+    /// is never written: the client may be waiting for its next command's.
+    fn deliver_overdue(&mut self, now: u64, id: CommandId, out: &mut Vec<Action>) {
+        let mut cancelled = false;
+        let ports: Vec<u8> = self.ports.keys().copied().collect();
+        for port in ports {
+            let mut po = Vec::new();
+            if let Some(p) = self.ports.get_mut(&port) {
+                cancelled |= p.cancel_queued(id, DropReason::Expired, &mut po);
+            }
+            self.port_outs(now, port, po, out);
+        }
+        let still_running = self.commands.contains_key(&id) || !cancelled;
+        let failure = match still_running {
+            true => Undelivered::NotConfirmed,
+            false => Undelivered::Expired,
+        };
+        self.resolve(now, id, Err(failure), self.group, out);
+    }
+
+    /// Queues a delivery report about `command` on `link`.
+    fn report(
+        &mut self,
+        now: u64,
+        link: LinkId,
+        command: &Frame<'_>,
+        failure: Option<Undelivered>,
+        at_group: u8,
+        out: &mut Vec<Action>,
+    ) {
+        let report = DeliveryReport {
+            failure,
+            dest: command.dest,
+            command_checksum: command.checksum(),
+            at_group,
+        };
+        let to = Address::new(command.source, LINK_PORT, CONTROL_UNIT);
+        if let Ok(frame) = FrameBuf::new(to, self.group, &report.encode()) {
+            if let Err(reason) = self.send_on_link(now, link, frame, None, false, out) {
+                self.drop_frame(reason, Place::Link(link), to, self.group, out);
+            }
+        }
+    }
+
     fn next_command_id(&mut self) -> CommandId {
         let id = CommandId(self.next_id);
         self.next_id += 1;
@@ -401,6 +566,8 @@ impl Router {
             }
             return;
         };
+        // A result means the device had the command: the ACK goes first.
+        self.resolve(now, id, Ok(()), self.group, out);
         let answered = reply.frame().dest;
         let answered_port = if answered.port == WILDCARD { port } else { answered.port };
         reply.set_header(Address::new(source, answered_port, answered.device), self.group);
@@ -442,6 +609,7 @@ impl Router {
         }
         let Some(p) = self.commands.remove(&id) else { return };
         let mut outcome = p.outcome();
+        self.resolve(now, id, p.delivery(outcome), self.group, out);
         if outcome == Outcome::Nic {
             if let Err(reason) = self.nic_to(now, p.origin, out) {
                 outcome = Outcome::Dropped(reason);
@@ -453,7 +621,15 @@ impl Router {
         // motion it ends goes on until one does.
         if let Some((frame, link, round)) = dead_man {
             if outcome == Outcome::Unreachable && round < DEAD_MAN_ROUNDS {
-                self.issue_dead_man_stop(now, *frame, link, round + 1, out);
+                let f = frame.frame();
+                out.push(Action::Event(Event::DeadManStop {
+                    link,
+                    dest: f.dest,
+                    stop: Command::parse(f.payload()).mnemonic(),
+                }));
+                let id = self.next_command_id();
+                self.dead_man_rounds.insert(id, (frame.clone(), link, round + 1));
+                self.dispatch(now, id, Origin::Internal, None, *frame, out);
             }
         }
     }
@@ -485,29 +661,84 @@ impl Router {
         }
     }
 
+    /// A frame from a link. ARCHITECTURE "Delivery contract": answers
+    /// (results, delivery reports) and every frame of a link to another GCU
+    /// are ACKed at once, hop by hop; a client's command is ACKed only once
+    /// it is delivered (a repeat of it meanwhile is its retransmission, not
+    /// a new command), or answered with a report instead.
     fn on_link_frame(&mut self, now: u64, link: LinkId, frame: FrameBuf, out: &mut Vec<Action>) {
         let Some(l) = self.links.get_mut(&link) else { return };
         let kind = l.config.kind;
+        let client = kind == LinkKind::Client;
         let f = frame.frame();
         let (dest, source) = (f.dest, f.source);
         // A client acts for this GCU and may speak as its group (Figure 7: a
         // command issued from GCU-2, answered with destination group 2); a
         // link to another GCU never may (a loop or a spoof).
-        let own_group = source == self.group && kind != LinkKind::Client;
+        let own_group = source == self.group && !client;
         if source == WILDCARD || own_group || !l.config.allowed_sources.allows(source) {
             l.stats.line.drops.add(DropReason::SourceNotAllowed);
-            return self.drop_frame(DropReason::SourceNotAllowed, Place::Link(link), dest, source, out);
+            if !client {
+                self.ack(now, link, out);
+            }
+            self.drop_frame(DropReason::SourceNotAllowed, Place::Link(link), dest, source, out);
+            if source != WILDCARD {
+                self.stats.undelivered.add(Undelivered::SourceNotAllowed);
+                self.report(now, link, &f, Some(Undelivered::SourceNotAllowed), self.group, out);
+            }
+            return;
         }
-        let repeats = !l.config.lossless;
+        // A report from another GCU is never a command (a report about a
+        // report would bounce between two GCUs forever) nor a result (an
+        // extended command's result may look like anything): it settles
+        // what it fits, or is dropped.
+        let report = (!client && dest.port == LINK_PORT && dest.device == CONTROL_UNIT)
+            .then(|| DeliveryReport::parse(f.payload()).ok())
+            .flatten();
+        if let Some(report) = report {
+            self.ack(now, link, out);
+            match self.reverse.match_report(link, dest.group, &report) {
+                Some(Some(id)) => self.resolve(now, id, report.failure.map_or(Ok(()), Err), report.at_group, out),
+                Some(None) => {}
+                None => self.drop_frame(DropReason::Unsolicited, Place::Link(link), dest, source, out),
+            }
+            return;
+        }
+        let repeats = self.links.get(&link).is_some_and(|l| !l.config.lossless);
         match self.reverse.match_result(now, link, &f, repeats) {
-            AnswerMatch::One(origin) => return self.relay_forwarded(now, link, origin, frame, out),
+            AnswerMatch::One(origin) => {
+                self.ack(now, link, out);
+                return self.relay_forwarded(now, link, origin, frame, out);
+            }
             AnswerMatch::Ambiguous => {
+                self.ack(now, link, out);
                 return self.drop_frame(DropReason::AmbiguousAnswer, Place::Link(link), dest, source, out);
             }
             AnswerMatch::None => {}
         }
+        if client {
+            let repeat = self.awaiting.values().any(|a| a.link == link && *a.frame == frame);
+            if repeat {
+                if let Some(l) = self.links.get_mut(&link) {
+                    l.stats.repeats += 1;
+                }
+                return;
+            }
+        } else {
+            self.ack(now, link, out);
+        }
         self.routes.learn(source, link, kind);
-        self.dispatch(now, Origin::Link { link, source }, Some(kind), frame, out);
+        let id = self.next_command_id();
+        self.dispatch(now, id, Origin::Link { link, source }, Some(kind), frame, out);
+    }
+
+    /// Writes a bare ACK on `link`.
+    fn ack(&mut self, now: u64, link: LinkId, out: &mut Vec<Action>) {
+        if let Some(l) = self.links.get_mut(&link) {
+            let mut lo = Vec::new();
+            l.ack(&mut lo);
+            self.link_outs(now, link, lo, out);
+        }
     }
 
     /// An answer from another GCU to a frame we forwarded: back to its origin, unchanged.
@@ -525,15 +756,20 @@ impl Router {
         }
     }
 
-    /// A command frame accepted from `origin` (a link of `kind`, or the router itself).
-    fn dispatch(&mut self, now: u64, origin: Origin, kind: Option<LinkKind>, frame: FrameBuf, out: &mut Vec<Action>) {
+    /// A command frame accepted from `origin` (a link of `kind`, or the
+    /// router itself) as command `id`.
+    fn dispatch(
+        &mut self,
+        now: u64,
+        id: CommandId,
+        origin: Origin,
+        kind: Option<LinkKind>,
+        frame: FrameBuf,
+        out: &mut Vec<Action>,
+    ) {
         let f = frame.frame();
         let dest = f.dest;
         let command = Command::parse(f.payload());
-        if let Origin::Link { link, .. } = origin {
-            self.deadman.on_command(link, dest, &command);
-        }
-        let id = self.next_command_id();
         self.stats.accepted += 1;
         out.push(Action::Event(Event::Accepted {
             id,
@@ -541,6 +777,26 @@ impl Router {
             dest,
             command: command.mnemonic(),
         }));
+        if let Origin::Link { link, .. } = origin {
+            self.awaiting.insert(
+                id,
+                Awaiting {
+                    link,
+                    client: kind == Some(LinkKind::Client),
+                    frame: Box::new(frame.clone()),
+                    command: command.mnemonic(),
+                    deadline: (kind == Some(LinkKind::Client))
+                        .then(|| now.saturating_add(self.settings.delivery_timeout)),
+                },
+            );
+            if self.stopping {
+                self.drop_frame(DropReason::ShuttingDown, Place::Router, dest, f.source, out);
+                self.finish(id, Outcome::Dropped(DropReason::ShuttingDown), out);
+                return self.resolve(now, id, Err(Undelivered::ShuttingDown), self.group, out);
+            }
+            let lease = self.links.get(&link).and_then(|l| l.config.motion_lease);
+            self.deadman.on_command(now, link, lease, dest, &command);
+        }
         let result_kind = command.result_kind();
         if dest.group == self.group || dest.group == WILDCARD {
             if dest.group == WILDCARD && kind != Some(LinkKind::Downstream) {
@@ -563,9 +819,13 @@ impl Router {
         });
         let outcome = match route {
             Ok(next) => {
-                let (key, evicted) = self.reverse.insert(next, origin, &f, result_kind);
-                if evicted {
+                let settles = origin.link().map(|_| id);
+                let (key, evicted) = self.reverse.insert(next, origin, &f, result_kind, settles);
+                if let Some(unreported) = evicted {
                     self.drop_frame(DropReason::PendingFull, Place::Router, dest, f.source, out);
+                    if let Some(old) = unreported {
+                        self.resolve(now, old, Err(Undelivered::NotConfirmed), self.group, out);
+                    }
                 }
                 match self.send_on_link(now, next, frame.clone(), Some(key), origin == Origin::Internal, out) {
                     Ok(()) => Outcome::Forwarded(next),
@@ -579,7 +839,9 @@ impl Router {
         };
         if let Outcome::Dropped(reason) = outcome {
             self.drop_frame(reason, Place::Router, dest, f.source, out);
+            self.resolve(now, id, Err(reason.undelivered()), self.group, out);
         }
+        // A forwarded command's delivery is settled by the next GCU's report.
         self.finish(id, outcome, out);
     }
 
@@ -601,9 +863,12 @@ impl Router {
             .collect();
         let f = frame.frame();
         for link in targets {
-            let (key, evicted) = self.reverse.insert(link, origin, &f, result_kind);
-            if evicted {
+            let (key, evicted) = self.reverse.insert(link, origin, &f, result_kind, None);
+            if let Some(unreported) = evicted {
                 self.drop_frame(DropReason::PendingFull, Place::Router, f.dest, f.source, out);
+                if let Some(old) = unreported {
+                    self.resolve(now, old, Err(Undelivered::NotConfirmed), self.group, out);
+                }
             }
             match self.send_on_link(now, link, frame.clone(), Some(key), origin == Origin::Internal, out) {
                 Ok(()) => self.stats.flooded += 1,
@@ -622,6 +887,7 @@ impl Router {
         let dest = f.dest;
         let targets: Vec<u8> = match dest.port {
             LINK_PORT => {
+                self.resolve(now, id, Ok(()), self.group, out);
                 let outcome = match answer(self.group, &self.name, &self.serial, &f) {
                     SelfAnswer::Result(reply) => match origin {
                         Origin::Link { link, .. } => match self.send_on_link(now, link, *reply, None, false, out) {
@@ -643,6 +909,7 @@ impl Router {
         };
         if targets.is_empty() {
             self.drop_frame(DropReason::UnknownPort, Place::Router, dest, f.source, out);
+            self.resolve(now, id, Err(Undelivered::NoSuchPort), self.group, out);
             return self.finish(id, Outcome::Dropped(DropReason::UnknownPort), out);
         }
         self.commands.insert(id, Progress::new(origin, targets.len()));
@@ -661,7 +928,15 @@ impl Router {
         };
         for item in l.shut_down() {
             if let Some(key) = item.pending {
+                let settled = self.reverse.command_of(key);
                 self.reverse.cancel(key);
+                if let Some((id, transmitted)) = settled {
+                    let failure = match transmitted {
+                        true => Undelivered::NotConfirmed,
+                        false => Undelivered::LinkDown,
+                    };
+                    self.resolve(now, id, Err(failure), self.group, out);
+                }
             }
             let f = item.frame.frame();
             out.push(Action::Event(Event::Dropped {
@@ -673,31 +948,51 @@ impl Router {
         }
         self.retired.insert(link, l.stats);
         self.routes.forget(link);
+        // Nobody is left to tell whether these were delivered.
+        self.awaiting.retain(|_, a| a.link != link);
         out.push(Action::Event(Event::LinkState { link, up: false }));
         let ports: Vec<u8> = self.ports.keys().copied().collect();
         for port in ports {
             self.with_port(now, port, out, |p, _, po| p.cancel_motions(link, po));
         }
         for (dest, stop) in self.deadman.link_down(link) {
-            let Ok(frame) = FrameBuf::build(dest, self.group, |buf| stop.encode(buf).map(<[u8]>::len)) else {
-                continue;
-            };
             self.stats.dead_man_stops += 1;
-            self.issue_dead_man_stop(now, frame, link, 1, out);
+            out.push(Action::Event(Event::DeadManStop {
+                link,
+                dest,
+                stop: stop.mnemonic(),
+            }));
+            self.issue_stop(now, dest, stop, link, out);
         }
     }
 
-    /// Round `round` (1 = the first) of a dead-man stop for `link`'s motion.
-    fn issue_dead_man_stop(&mut self, now: u64, frame: FrameBuf, link: LinkId, round: u8, out: &mut Vec<Action>) {
-        let f = frame.frame();
-        out.push(Action::Event(Event::DeadManStop {
-            link,
-            dest: f.dest,
-            stop: Command::parse(f.payload()).mnemonic(),
-        }));
-        // `dispatch` gives the command the next id.
-        self.dead_man_rounds
-            .insert(CommandId(self.next_id), (Box::new(frame.clone()), link, round));
-        self.dispatch(now, Origin::Internal, None, frame, out);
+    /// Shutdown (DESIGN "Safety"): refuse new commands from now on, and
+    /// stop every motion still owned by a link.
+    fn shut_down(&mut self, now: u64, out: &mut Vec<Action>) {
+        if self.stopping {
+            return;
+        }
+        self.stopping = true;
+        for (link, dest, stop) in self.deadman.take_all() {
+            self.stats.shutdown_stops += 1;
+            out.push(Action::Event(Event::DeadManStop {
+                link,
+                dest,
+                stop: stop.mnemonic(),
+            }));
+            self.issue_stop(now, dest, stop, link, out);
+        }
+    }
+
+    /// The first round of a stop the GCU issues itself (dead-man, lease,
+    /// shutdown) for the motion `link` owned at `dest`; an unacknowledged
+    /// one is sent again (module-level `DEAD_MAN_ROUNDS`).
+    fn issue_stop(&mut self, now: u64, dest: Address, stop: Command<'static>, link: LinkId, out: &mut Vec<Action>) {
+        let Ok(frame) = FrameBuf::build(dest, self.group, |buf| stop.encode(buf).map(<[u8]>::len)) else {
+            return;
+        };
+        let id = self.next_command_id();
+        self.dead_man_rounds.insert(id, (Box::new(frame.clone()), link, 1));
+        self.dispatch(now, id, Origin::Internal, None, frame, out);
     }
 }

@@ -4,11 +4,13 @@
 //!
 //! Source groups seen on client links are local clients, not destinations:
 //! a client is never a transit route, and its answers travel only along the
-//! reverse path (module `reverse`). A frame for such a group that is not an
-//! expected answer (a late or stray result) is dropped
-//! ([`DropReason::Unsolicited`]) rather than handed to whichever client
-//! speaks as that group, or sent upstream. Between GCU links, the link a
-//! group was seen on most recently wins (topology change).
+//! reverse path (module `reverse`). What a client says about its own group
+//! lives and dies with its connection and never shadows a static, learned
+//! or default route: it only names the drop of a frame for that group
+//! that has no route at all ([`DropReason::Unsolicited`], a late or stray
+//! answer) instead of handing it to whichever client speaks as that group.
+//! Between GCU links, the link a group was seen on most recently wins
+//! (topology change).
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -21,8 +23,8 @@ pub(crate) struct RoutingTable {
     default_upstream: Option<LinkId>,
     /// Group -> GCU links it was seen on, most recent last.
     learned: BTreeMap<u8, Vec<LinkId>>,
-    /// Groups seen on client links (kept after the client left).
-    client_groups: BTreeSet<u8>,
+    /// Groups seen on client links that are up, with those links.
+    client_groups: BTreeMap<u8, BTreeSet<LinkId>>,
 }
 
 impl RoutingTable {
@@ -31,14 +33,14 @@ impl RoutingTable {
             static_routes,
             default_upstream,
             learned: BTreeMap::new(),
-            client_groups: BTreeSet::new(),
+            client_groups: BTreeMap::new(),
         }
     }
 
     /// A frame from `group` arrived on `link`.
     pub fn learn(&mut self, group: u8, link: LinkId, kind: LinkKind) {
         if kind == LinkKind::Client {
-            self.client_groups.insert(group);
+            self.client_groups.entry(group).or_default().insert(link);
             return;
         }
         let seen = self.learned.entry(group).or_default();
@@ -55,6 +57,10 @@ impl RoutingTable {
             seen.retain(|&l| l != link);
             !seen.is_empty()
         });
+        self.client_groups.retain(|_, links| {
+            links.remove(&link);
+            !links.is_empty()
+        });
     }
 
     /// The next hop toward `group`; `up` tells which links are up;
@@ -68,9 +74,6 @@ impl RoutingTable {
         if let Some(&link) = self.static_routes.get(&group).filter(|&&l| up(l)) {
             return Ok(link);
         }
-        if self.client_groups.contains(&group) {
-            return Err(DropReason::Unsolicited);
-        }
         if let Some(&link) = self
             .learned
             .get(&group)
@@ -78,10 +81,11 @@ impl RoutingTable {
         {
             return Ok(link);
         }
-        self.default_upstream
-            .filter(|&l| up(l))
-            .or(any_upstream)
-            .ok_or(DropReason::NoRoute)
+        match self.default_upstream.filter(|&l| up(l)).or(any_upstream) {
+            Some(link) => Ok(link),
+            None if self.client_groups.contains_key(&group) => Err(DropReason::Unsolicited),
+            None => Err(DropReason::NoRoute),
+        }
     }
 }
 
@@ -107,14 +111,14 @@ mod tests {
 
     #[test]
     fn client_groups_are_never_routes_and_gcu_links_take_the_latest() {
-        let mut t = RoutingTable::new(BTreeMap::new(), Some(LinkId(9)));
+        let mut t = RoutingTable::new(BTreeMap::new(), None);
         t.learn(0, LinkId(1), LinkKind::Client);
         assert_eq!(t.lookup(0, |_| true, None), Err(DropReason::Unsolicited));
         t.forget(LinkId(1));
         assert_eq!(
             t.lookup(0, |_| true, None),
-            Err(DropReason::Unsolicited),
-            "not sent upstream either"
+            Err(DropReason::NoRoute),
+            "a client's group lives and dies with its connection"
         );
         t.learn(5, LinkId(3), LinkKind::Downstream);
         t.learn(5, LinkId(4), LinkKind::Downstream);
@@ -122,5 +126,17 @@ mod tests {
         t.learn(5, LinkId(3), LinkKind::Upstream);
         assert_eq!(t.lookup(5, |_| true, None), Ok(LinkId(3)));
         assert_eq!(t.lookup(5, |l| l == LinkId(4), None), Ok(LinkId(4)));
+    }
+
+    #[test]
+    fn a_client_speaking_as_a_gcu_never_shadows_its_routes() {
+        let mut t = RoutingTable::new([(7, LinkId(1))].into(), Some(LinkId(9)));
+        t.learn(8, LinkId(2), LinkKind::Downstream);
+        for group in [7, 8, 9] {
+            t.learn(group, LinkId(20), LinkKind::Client);
+        }
+        assert_eq!(t.lookup(7, |_| true, None), Ok(LinkId(1)), "static");
+        assert_eq!(t.lookup(8, |_| true, None), Ok(LinkId(2)), "learned");
+        assert_eq!(t.lookup(9, |_| true, None), Ok(LinkId(9)), "default");
     }
 }

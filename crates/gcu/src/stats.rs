@@ -5,6 +5,8 @@
 use std::collections::BTreeMap;
 
 use crate::config::LinkKind;
+use sagebrush_protocol::Undelivered;
+
 use crate::types::{DropReason, LinkId, Outcome};
 
 /// Drops counted by reason.
@@ -90,6 +92,11 @@ pub struct LinkStats {
     pub delivered: u64,
     /// Frames given up (retries exhausted) or dropped with the link.
     pub failed: u64,
+    /// ACKs written (hop by hop, or for a client's delivered command).
+    pub acks_sent: u64,
+    /// A client's frame identical to its command still awaiting delivery:
+    /// a retransmission, not executed again.
+    pub repeats: u64,
 }
 
 impl LinkStats {
@@ -103,6 +110,8 @@ impl LinkStats {
             queued: 0,
             delivered: 0,
             failed: 0,
+            acks_sent: 0,
+            repeats: 0,
         }
     }
 }
@@ -146,8 +155,41 @@ pub struct RouterStats {
     /// Group-255 copies flooded to downstream links.
     pub flooded: u64,
     pub dead_man_stops: u64,
+    /// Stops issued because a link's motion lease ran out.
+    pub lease_stops: u64,
+    /// Stops issued at shutdown for motions still running.
+    pub shutdown_stops: u64,
+    /// Commands from links whose origin was told "delivered" (ACK or report 00).
+    pub delivered: u64,
+    /// Commands from links whose origin was told "not delivered", by why.
+    pub undelivered: UndeliveredCounts,
     /// Commands in progress now.
     pub in_progress: u64,
+}
+
+/// Undelivered commands counted by [`Undelivered`] kind.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct UndeliveredCounts([u64; Undelivered::ALL.len()]);
+
+impl UndeliveredCounts {
+    pub fn get(&self, kind: Undelivered) -> u64 {
+        Undelivered::ALL
+            .iter()
+            .position(|&k| k == kind)
+            .map_or(0, |i| self.0[i])
+    }
+    pub fn total(&self) -> u64 {
+        self.0.iter().sum()
+    }
+    /// Every kind with its count (zeros included).
+    pub fn iter(&self) -> impl Iterator<Item = (Undelivered, u64)> + '_ {
+        Undelivered::ALL.iter().map(|&k| (k, self.get(k)))
+    }
+    pub(crate) fn add(&mut self, kind: Undelivered) {
+        if let Some(i) = Undelivered::ALL.iter().position(|&k| k == kind) {
+            self.0[i] += 1;
+        }
+    }
 }
 
 impl RouterStats {

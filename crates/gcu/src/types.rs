@@ -3,7 +3,7 @@
 
 use core::fmt;
 
-use sagebrush_protocol::Address;
+use sagebrush_protocol::{Address, Undelivered};
 
 use crate::config::LinkConfig;
 
@@ -35,6 +35,15 @@ pub enum Origin {
     Internal,
 }
 
+impl fmt::Display for Origin {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Origin::Link { link, source } => write!(f, "{link} (source group {source})"),
+            Origin::Internal => f.write_str("the GCU itself"),
+        }
+    }
+}
+
 impl Origin {
     pub fn link(&self) -> Option<LinkId> {
         match self {
@@ -64,6 +73,12 @@ pub enum Input<'a> {
     LinkDown { link: LinkId },
     /// Bytes read from a link, in any chunking.
     LinkBytes { link: LinkId, bytes: &'a [u8] },
+    /// The daemon is shutting down (DESIGN "Safety"): every continuous
+    /// motion started through this GCU and not yet stopped gets its stop,
+    /// and new commands from links are refused
+    /// ([`Undelivered::ShuttingDown`]). Answers still travel. The daemon
+    /// exits once [`crate::Router::in_progress`] is 0 (or its grace ran out).
+    Shutdown,
 }
 
 /// What the daemon does for the router.
@@ -144,18 +159,42 @@ pub enum Event {
     LinkState { link: LinkId, up: bool },
     /// A port was opened or lost.
     PortState { port: u8, open: bool },
+    /// The command `id` from a link was delivered: its origin got the ACK
+    /// (client links) or a report `00` (links to other GCUs).
+    Delivered { id: CommandId },
+    /// The command `id` from a link was not delivered: the origin got no
+    /// ACK but a delivery report saying why (client links), or a report
+    /// frame (links to other GCUs). ARCHITECTURE "Delivery contract".
+    Undelivered {
+        id: CommandId,
+        origin: Origin,
+        dest: Address,
+        command: &'static str,
+        failure: Undelivered,
+    },
+    /// A continuous motion's lease ran out (`motion_lease` of its link): this stop was issued.
+    LeaseExpired {
+        link: LinkId,
+        dest: Address,
+        stop: &'static str,
+    },
 }
 
 impl Event {
     /// Suggested log level.
     pub fn level(&self) -> Level {
         match self {
-            Event::Accepted { .. } | Event::Queued { .. } | Event::Started { .. } => Level::Debug,
+            Event::Accepted { .. } | Event::Queued { .. } | Event::Started { .. } | Event::Delivered { .. } => {
+                Level::Debug
+            }
             Event::Finished { outcome, .. } => match outcome {
                 Outcome::Dropped(_) | Outcome::Unreachable => Level::Warn,
                 _ => Level::Debug,
             },
-            Event::Dropped { .. } | Event::DeadManStop { .. } => Level::Warn,
+            Event::Dropped { .. }
+            | Event::DeadManStop { .. }
+            | Event::Undelivered { .. }
+            | Event::LeaseExpired { .. } => Level::Warn,
             Event::RateSwitched { .. } | Event::LinkState { .. } | Event::PortState { .. } => Level::Info,
         }
     }
@@ -183,6 +222,22 @@ impl fmt::Display for Event {
             Event::DeadManStop { link, dest, stop } => write!(f, "{link} down: dead-man {stop} to {dest}"),
             Event::LinkState { link, up } => write!(f, "{link} {}", if *up { "up" } else { "down" }),
             Event::PortState { port, open } => write!(f, "port {port} {}", if *open { "opened" } else { "lost" }),
+            Event::Delivered { id } => write!(f, "command {} delivered", id.0),
+            Event::Undelivered {
+                id,
+                origin,
+                dest,
+                command,
+                failure,
+            } => write!(
+                f,
+                "command {} {command} for {dest} from {origin} not delivered: {}",
+                id.0,
+                failure.describe()
+            ),
+            Event::LeaseExpired { link, dest, stop } => {
+                write!(f, "{link}: motion lease over, {stop} to {dest}")
+            }
         }
     }
 }
@@ -242,10 +297,14 @@ pub enum DropReason {
     AmbiguousAnswer,
     /// Too many forwarded commands awaiting answers: the oldest was forgotten.
     PendingFull,
+    /// The GCU is shutting down: new commands are refused.
+    ShuttingDown,
+    /// Still queued when its client's delivery time-out passed: given up unsent.
+    Expired,
 }
 
 impl DropReason {
-    pub const ALL: [DropReason; 14] = [
+    pub const ALL: [DropReason; 16] = [
         DropReason::NoRoute,
         DropReason::Loop,
         DropReason::UnknownPort,
@@ -260,6 +319,8 @@ impl DropReason {
         DropReason::Unsolicited,
         DropReason::AmbiguousAnswer,
         DropReason::PendingFull,
+        DropReason::ShuttingDown,
+        DropReason::Expired,
     ];
 
     /// Index into [`crate::DropCounts`].
@@ -284,6 +345,26 @@ impl DropReason {
             DropReason::Unsolicited => "unsolicited",
             DropReason::AmbiguousAnswer => "ambiguous_answer",
             DropReason::PendingFull => "pending_full",
+            DropReason::ShuttingDown => "shutting_down",
+            DropReason::Expired => "expired",
+        }
+    }
+
+    /// What the origin of a command dropped for this reason is told
+    /// (ARCHITECTURE "Delivery contract").
+    pub const fn undelivered(self) -> Undelivered {
+        match self {
+            DropReason::NoRoute | DropReason::Unsolicited => Undelivered::NoRoute,
+            DropReason::Loop => Undelivered::Loop,
+            DropReason::UnknownPort => Undelivered::NoSuchPort,
+            DropReason::PortClosed | DropReason::PortLost => Undelivered::PortClosed,
+            DropReason::QueueFull | DropReason::PendingFull | DropReason::DuplicateStop => Undelivered::QueueFull,
+            DropReason::SourceNotAllowed => Undelivered::SourceNotAllowed,
+            DropReason::LinkDown | DropReason::LinkNoAck | DropReason::OriginGone | DropReason::AmbiguousAnswer => {
+                Undelivered::LinkDown
+            }
+            DropReason::ShuttingDown => Undelivered::ShuttingDown,
+            DropReason::Expired => Undelivered::Expired,
         }
     }
 }

@@ -5,7 +5,7 @@ use sagebrush_gcu::{
     Action, CommandId, DropReason, Event, Input, LinkConfig, LinkId, LinkKind, Outcome, PortConfig, Router,
     RouterConfig, SourceFilter,
 };
-use sagebrush_protocol::{ACK, Address, FrameBuf, NAK, NIC};
+use sagebrush_protocol::{ACK, Address, DeliveryReport, FrameBuf, NAK, NIC, Undelivered};
 
 const G: u8 = 5;
 const CLIENT: LinkId = LinkId(1);
@@ -18,6 +18,19 @@ fn frame(dest: (u8, u8, u8), source: u8, payload: &[u8]) -> Vec<u8> {
         .unwrap()
         .as_bytes()
         .to_vec()
+}
+
+/// The delivery report GCU `G` sends about `command` (ARCHITECTURE "Delivery contract").
+fn report(command: &[u8], failure: Option<Undelivered>) -> Vec<u8> {
+    let (f, _) = sagebrush_protocol::Frame::parse(command).unwrap();
+    let payload = DeliveryReport {
+        failure,
+        dest: f.dest,
+        command_checksum: f.checksum(),
+        at_group: G,
+    }
+    .encode();
+    frame((f.source, 0, 0), G, &payload)
 }
 
 fn port_config(id: u8) -> PortConfig {
@@ -189,7 +202,7 @@ fn port_opened_reports_its_rate_and_unknown_inputs_are_counted() {
 }
 
 #[test]
-fn link_frames_are_acked_and_bad_checksums_naked() {
+fn client_commands_are_acked_once_delivered_and_bad_checksums_naked() {
     let mut h = H::new(&[1]);
     let mut bad = frame((G, 1, 3), 2, b"PL");
     *bad.last_mut().unwrap() ^= 0xFF;
@@ -197,12 +210,20 @@ fn link_frames_are_acked_and_bad_checksums_naked() {
     assert_eq!(link_writes(&a, CLIENT), vec![vec![NAK]]);
     assert!(accepted(&a).is_empty());
     let a = h.link(CLIENT, &frame((G, 1, 3), 2, b"PL"));
-    assert_eq!(link_writes(&a, CLIENT)[0], vec![ACK]);
+    assert!(link_writes(&a, CLIENT).is_empty(), "the ACK waits for the device's");
     assert_eq!(accepted(&a).len(), 1);
+    // The client's retransmission meanwhile is the same command, not a new one.
+    let a = h.link(CLIENT, &frame((G, 1, 3), 2, b"PL"));
+    assert!(accepted(&a).is_empty() && link_writes(&a, CLIENT).is_empty());
+    let a = h.port(1, &[ACK]);
+    assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK]]);
+    assert_eq!(port_writes(&a, 1), Vec::<Vec<u8>>::new(), "written once");
+    assert_eq!(h.r.stats().links[&CLIENT].repeats, 1);
+    assert_eq!(h.r.stats().router.delivered, 1);
     let s = h.r.stats();
     assert_eq!(s.links[&CLIENT].line.bad_checksums, 1);
     assert_eq!(s.links[&CLIENT].line.naks_sent, 1);
-    assert_eq!(s.links[&CLIENT].line.frames_in, 1);
+    assert_eq!(s.links[&CLIENT].line.frames_in, 2, "the repeat came in too");
 }
 
 #[test]
@@ -269,7 +290,7 @@ fn nic_is_relayed_as_a_bare_question_mark() {
     let mut h = H::new(&[1]);
     h.link(CLIENT, &frame((G, 1, 3), 2, b"XYZ"));
     let a = h.port(1, &[ACK, NIC]);
-    assert_eq!(link_writes(&a, CLIENT), vec![vec![NIC]]);
+    assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK], vec![NIC]]);
     assert_eq!(finished(&a), vec![Outcome::Nic]);
     assert_eq!(h.r.stats().devices[&(1, 3)].nics, 1);
 }
@@ -415,11 +436,17 @@ fn stop_is_not_held_behind_a_long_ix_result_wait() {
 fn bounded_port_queue_drops_with_counter_and_warning_and_stops_have_their_own_room() {
     let mut h = H::with(&[1], |c| c.ports[0].stop_queue_bound = 2);
     h.link(CLIENT, &frame((G, 1, 3), 2, b"P?")); // in flight
-    for _ in 0..4 {
-        h.link(CLIENT, &frame((G, 1, 3), 2, b"HO"));
+    for device in 4..8 {
+        h.link(CLIENT, &frame((G, 1, device), 2, b"HO"));
     }
-    let a = h.link(CLIENT, &frame((G, 1, 3), 2, b"HO"));
+    let refused = frame((G, 1, 8), 2, b"HO");
+    let a = h.link(CLIENT, &refused);
     assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::QueueFull)]);
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        vec![report(&refused, Some(Undelivered::QueueFull))],
+        "no ACK: a report says why"
+    );
     assert!(
         a.iter()
             .any(|x| matches!(x, Action::Event(e) if e.level() == sagebrush_gcu::Level::Warn))
@@ -427,11 +454,11 @@ fn bounded_port_queue_drops_with_counter_and_warning_and_stops_have_their_own_ro
     // Work filled its part of the queue; stops still fit.
     let a = h.link(CLIENT, &frame((G, 1, 3), 2, b"PS"));
     assert!(finished(&a).is_empty());
-    let a = h.link(CLIENT, &frame((G, 1, 3), 2, b"PS"));
-    assert_eq!(
-        finished(&a),
-        vec![Outcome::Dropped(DropReason::DuplicateStop)],
-        "merged"
+    h.up(LinkId(9), LinkKind::Client);
+    let a = h.link(LinkId(9), &frame((G, 1, 3), 2, b"PS"));
+    assert!(
+        finished(&a).is_empty() && link_writes(&a, LinkId(9)).is_empty(),
+        "merged into the queued stop: it shares that stop's outcome"
     );
     let a = h.link(CLIENT, &frame((G, 1, 4), 2, b"PS"));
     assert!(finished(&a).is_empty());
@@ -444,6 +471,14 @@ fn bounded_port_queue_drops_with_counter_and_warning_and_stops_have_their_own_ro
     let s = h.r.stats();
     assert_eq!(s.ports[&1].line.drops.get(DropReason::QueueFull), 2);
     assert_eq!(s.ports[&1].queue_high_water, 6);
+    // The merged stop is ACKed when the queued one is delivered: P? (in
+    // flight) gets its ACK and result, then the stops go first.
+    h.port(1, &[ACK]);
+    let a = h.port(1, &frame((2, 1, 3), G, b"00000000"));
+    assert_eq!(port_writes(&a, 1).last(), Some(&frame((G, 1, 3), 2, b"PS")));
+    let a = h.port(1, &[ACK]);
+    assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK]]);
+    assert_eq!(link_writes(&a, LinkId(9)), vec![vec![ACK]]);
 }
 
 #[test]
@@ -496,7 +531,11 @@ fn fan_out_relays_one_nic_only_when_no_port_did_better() {
     let mut h = H::new(&[1, 2]);
     h.link(CLIENT, &frame((G, 255, 3), 2, b"XX"));
     let a = h.port(1, &[ACK, NIC]);
-    assert!(link_writes(&a, CLIENT).is_empty());
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        vec![vec![ACK]],
+        "delivered once a device has it"
+    );
     let a = h.port(2, &[ACK, NIC]);
     assert_eq!(link_writes(&a, CLIENT), vec![vec![NIC]]);
     assert_eq!(finished(&a), vec![Outcome::Nic]);
@@ -532,8 +571,9 @@ fn other_groups_follow_static_then_learned_then_default_routes() {
     h.up(UP, LinkKind::Upstream);
     h.up(DOWN, LinkKind::Downstream);
     h.up(DOWN2, LinkKind::Downstream);
-    // Learned: group 8 seen on DOWN.
+    // Learned: group 8 seen on DOWN (a report and the answer go back).
     h.link(DOWN, &frame((G, 0, 0), 8, b"AW"));
+    h.link(DOWN, &[ACK]);
     h.link(DOWN, &[ACK]);
     let to7 = frame((7, 1, 1), 2, b"HO");
     let a = h.link(CLIENT, &to7);
@@ -557,9 +597,14 @@ fn other_groups_follow_static_then_learned_then_default_routes() {
 fn a_frame_is_never_routed_back_to_its_link() {
     let mut h = H::new(&[1]);
     h.up(UP, LinkKind::Upstream);
-    let a = h.link(UP, &frame((9, 1, 1), 0, b"HO"));
+    let cmd = frame((9, 1, 1), 0, b"HO");
+    let a = h.link(UP, &cmd);
     assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::Loop)]);
-    assert_eq!(link_writes(&a, UP), vec![vec![ACK]]);
+    assert_eq!(
+        link_writes(&a, UP),
+        vec![vec![ACK], report(&cmd, Some(Undelivered::Loop))],
+        "hop by hop on a GCU link, then the report"
+    );
 }
 
 #[test]
@@ -569,8 +614,12 @@ fn disallowed_source_group_is_dropped_and_counted() {
         link: LinkId(9),
         config: LinkConfig::new(LinkKind::Client, SourceFilter::Only(vec![20])),
     });
-    let a = h.link(LinkId(9), &frame((G, 1, 3), 21, b"PL"));
-    assert_eq!(link_writes(&a, LinkId(9)), vec![vec![ACK]]);
+    let spoof = frame((G, 1, 3), 21, b"PL");
+    let a = h.link(LinkId(9), &spoof);
+    assert_eq!(
+        link_writes(&a, LinkId(9)),
+        vec![report(&spoof, Some(Undelivered::SourceNotAllowed))]
+    );
     assert!(accepted(&a).is_empty());
     assert_eq!(dropped(&a), vec![DropReason::SourceNotAllowed]);
     // The wildcard is refused on any link, our own group on links to other
@@ -673,7 +722,9 @@ fn dead_man_stops_the_motions_of_a_link_that_goes_down() {
     h.link(CLIENT, &frame((G, 1, 3), 2, b"ZI"));
     h.link(CLIENT, &frame((G, 1, 4), 2, b"TU")); // still queued: cancelled
     h.link(CLIENT, &frame((7, 2, 2), 2, b"FF")); // on another GCU: stop routed there
-    h.link(DOWN, &[ACK]);
+    h.link(DOWN, &[ACK]); // the report of AW
+    h.link(DOWN, &[ACK]); // its answer
+    h.link(DOWN, &[ACK]); // FF
     let a = h.go(Input::LinkDown { link: CLIENT });
     assert_eq!(
         finished(&a).first(),

@@ -22,6 +22,7 @@ pub mod framer;
 mod hex;
 pub mod link;
 pub mod reply;
+pub mod report;
 pub mod units;
 
 pub use address::{Address, AddressParseError, CONTROL_UNIT, LINK_PORT, MCU_GROUP, WILDCARD};
@@ -30,6 +31,7 @@ pub use device::{DeviceEndpoint, DeviceHandler, EndpointConfig, EndpointStats, R
 pub use frame::{ACK, Frame, FrameBuf, FrameError, MAX_FRAME_LEN, MAX_PAYLOAD, NAK, NIC, START, checksum};
 pub use framer::{BadChecksum, Event, Framer, FramerStats};
 pub use link::{Outcome, RetryPolicy, Transaction, TransactionPolicy, TransactionStep, Transmitter, TxFailure, TxStep};
+pub use report::{DeliveryReport, NotAReport, REPORT_LEN, REPORT_MARK, Undelivered};
 pub use reply::{AwakeStatus, ErrorCodes, HomeStatus, Identity, InitResults, RateGains, Reply, ReplyError, StatusBits};
 pub use units::{
     Acceleration, Angle, AuxConfig, AuxPort, AuxReadLen, Axis, DataRate, DeviceId, DigitalZoom, LensPosition,

@@ -6,9 +6,9 @@ use sagebrush_gcu::{
     Action, CommandId, Event, Input, LinkConfig, LinkId, LinkKind, PortConfig, Router, RouterConfig, SourceFilter,
 };
 use sagebrush_protocol::{
-    ACK, Address, AwakeStatus, Command, DeviceEndpoint, DeviceHandler, EndpointConfig, Event as FEvent, Extended,
-    FrameBuf, Framer, Identity, InitResults, NAK, Position, Reply, ReplyTo, Response, ResultKind, RetryPolicy,
-    Transmitter, TxStep, WILDCARD,
+    ACK, Address, AwakeStatus, Command, DeliveryReport, DeviceEndpoint, DeviceHandler, EndpointConfig, Event as FEvent,
+    Extended, FrameBuf, Framer, Identity, InitResults, NAK, Position, Reply, ReplyTo, Response, ResultKind,
+    RetryPolicy, Transmitter, TxStep, WILDCARD,
 };
 
 use super::Rng;
@@ -31,6 +31,16 @@ pub struct Summary {
     pub nonce_results: u64,
     pub final_motions_checked: u64,
     pub phantom_frames: u64,
+    /// Client commands the client saw ACKed (delivered).
+    pub client_delivered: u64,
+    /// Client commands the client saw reported as not delivered.
+    pub client_undelivered: u64,
+    /// Client commands the client gave up on (no ACK, no report in its budget).
+    pub client_gave_up: u64,
+    /// Retransmissions of a client's command that the GCU recognised.
+    pub client_repeats: u64,
+    /// ACKs a client took that were bytes of a damaged frame (its report came after).
+    pub phantom_acks: u64,
     pub end_time: u64,
 }
 
@@ -51,6 +61,11 @@ impl Summary {
         self.nonce_results += o.nonce_results;
         self.final_motions_checked += o.final_motions_checked;
         self.phantom_frames += o.phantom_frames;
+        self.client_delivered += o.client_delivered;
+        self.client_undelivered += o.client_undelivered;
+        self.client_gave_up += o.client_gave_up;
+        self.client_repeats += o.client_repeats;
+        self.phantom_acks += o.phantom_acks;
         self.end_time = self.end_time.max(o.end_time);
     }
 }
@@ -156,6 +171,8 @@ struct Ledger {
     finished: BTreeSet<CommandId>,
     /// Stops queued and not started, per port.
     pending_stops: BTreeMap<u8, BTreeSet<CommandId>>,
+    /// Commands of links whose origin has not yet been told delivered or not.
+    untold: BTreeMap<CommandId, LinkId>,
 }
 
 #[derive(Debug)]
@@ -227,6 +244,15 @@ struct Client {
     last_rx: u64,
     /// Every frame the router wrote to this client's link.
     written: BTreeSet<Vec<u8>>,
+    /// Destination and checksum of the command awaiting its ACK or report.
+    current: Option<(Address, u8)>,
+    /// Commands it gave up on, or was told of: a report of one of them may
+    /// come late, or again (its ACK of the report frame was lost).
+    abandoned: BTreeSet<(Address, u8)>,
+    /// The command it last took an ACK for.
+    acked: Option<(Address, u8)>,
+    /// Bytes toward it were damaged since it issued its command.
+    wire_damaged: bool,
 }
 
 // ---------------------------------------------------------------- wires
@@ -268,8 +294,10 @@ enum Ev {
     },
 }
 
+/// A client's ACK time-out is longer than the GCUs' delivery time-out
+/// (the ACK means "the device acknowledged it", ARCHITECTURE "Delivery contract").
 const CLIENT_RETRY: RetryPolicy = RetryPolicy {
-    ack_timeout: 60,
+    ack_timeout: 600,
     retries: 3,
 };
 const RANDOM_PHASE_CAP: u64 = 60_000;
@@ -347,6 +375,8 @@ impl World {
             config.links.long_answer_timeout = 8_000;
             config.links.nic_answer_timeout = 1_500;
             config.links.max_pending = 64;
+            // Below the clients' ACK time-out (600), wire delays included.
+            config.links.delivery_timeout = 450;
             // Child: default upstream. Every GCU: static routes to its descendants.
             for pair in &pairs {
                 if pair.child.0 == i {
@@ -461,6 +491,10 @@ impl World {
                 nics: 0,
                 last_rx: 0,
                 written: BTreeSet::new(),
+                current: None,
+                abandoned: BTreeSet::new(),
+                acked: None,
+                wire_damaged: false,
             });
         }
         let level = rng.below(4);
@@ -605,8 +639,20 @@ impl World {
         }
         let ledger = &mut self.gcus[g].ledger;
         let problem = match event {
-            Event::Accepted { id, .. } => {
+            Event::Accepted { id, origin, .. } => {
+                if let Some(link) = origin.link() {
+                    ledger.untold.insert(id, link);
+                }
                 (!ledger.accepted.insert(id)).then(|| format!("gcu {g}: {id:?} accepted twice"))
+            }
+            Event::Delivered { id } | Event::Undelivered { id, .. } => ledger
+                .untold
+                .remove(&id)
+                .is_none()
+                .then(|| format!("gcu {g}: {id:?} told twice, or never accepted from a link")),
+            Event::LinkState { link, up: false } => {
+                ledger.untold.retain(|_, l| *l != link);
+                None
             }
             Event::Finished { id, outcome } => {
                 if !ledger.accepted.contains(&id) {
@@ -708,6 +754,10 @@ impl World {
             if !bytes.is_empty() && self.rng.chance(self.corrupt_pm) {
                 let at = self.rng.below(bytes.len() as u64) as usize;
                 bytes[at] ^= self.rng.range(1, 255) as u8;
+                if let Node::Client { c } = to {
+                    // A damaged frame can leave a bare 0x06 behind: a phantom ACK.
+                    self.clients[c].wire_damaged = true;
+                }
             }
         }
         let delay = 1 + self.rng.below(self.jitter);
@@ -767,6 +817,9 @@ impl World {
         cl.connected = false;
         cl.epoch += 1;
         cl.state = ClientState::Idle;
+        if let Some(current) = cl.current.take() {
+            cl.abandoned.insert(current);
+        }
         let (g, link) = (cl.gcu, cl.link);
         self.input(g, Input::LinkDown { link });
     }
@@ -1035,6 +1088,8 @@ impl World {
         let bytes = frame.as_bytes().to_vec();
         let cl = &mut self.clients[c];
         cl.issued.push(dest);
+        cl.current = Some((dest, frame.frame().checksum()));
+        cl.wire_damaged = false;
         cl.state = ClientState::AwaitAck {
             tx,
             frame: Box::new(frame),
@@ -1081,7 +1136,7 @@ impl World {
                             let bytes = frame.as_bytes().to_vec();
                             self.client_write(c, bytes);
                         }
-                        TxStep::Failed(_) => self.client_idle(c),
+                        TxStep::Failed(_) => self.client_gave_up(c),
                         _ => {}
                     }
                 }
@@ -1117,7 +1172,9 @@ impl World {
             match event {
                 ClientEvent::Nic => {
                     self.clients[c].nics += 1;
-                    if !matches!(self.clients[c].state, ClientState::Idle) {
+                    // A `?` follows the ACK of its command: one while the ACK
+                    // is awaited is a late answer to an earlier command.
+                    if matches!(self.clients[c].state, ClientState::AwaitAnswer { .. }) {
                         self.client_idle(c);
                     }
                 }
@@ -1126,6 +1183,14 @@ impl World {
                 ClientEvent::Nak => self.client_nak(c),
                 ClientEvent::Frame(f) => {
                     self.client_write(c, vec![ACK]);
+                    let frame = f.frame();
+                    let report = (frame.dest.port == 0 && frame.dest.device == 0)
+                        .then(|| DeliveryReport::parse(frame.payload()).ok())
+                        .flatten();
+                    if let Some(report) = report.filter(|_| self.clients[c].written.contains(f.as_bytes())) {
+                        self.client_report(c, &report);
+                        continue;
+                    }
                     self.check_reply(c, &f);
                     if matches!(self.clients[c].state, ClientState::AwaitAnswer { .. }) {
                         self.client_idle(c);
@@ -1141,6 +1206,10 @@ impl World {
             if tx.on_ack() == TxStep::Delivered {
                 let wait = if *kind == ResultKind::None { 60 } else { 3_000 };
                 self.clients[c].state = ClientState::AwaitAnswer { until: now + wait };
+                let cl = &mut self.clients[c];
+                cl.acked = cl.current.take();
+                self.summary.client_delivered += 1;
+                self.log(format_args!("client {c}: ACK (delivered)"));
             }
         }
     }
@@ -1153,10 +1222,48 @@ impl World {
                     let bytes = frame.as_bytes().to_vec();
                     self.client_write(c, bytes);
                 }
-                TxStep::Failed(_) => self.client_idle(c),
+                TxStep::Failed(_) => self.client_gave_up(c),
                 _ => {}
             }
         }
+    }
+
+    fn client_gave_up(&mut self, c: usize) {
+        self.summary.client_gave_up += 1;
+        let cl = &mut self.clients[c];
+        if let Some(current) = cl.current.take() {
+            cl.abandoned.insert(current);
+        }
+        self.client_idle(c);
+    }
+
+    /// A delivery report (ARCHITECTURE "Delivery contract") must be about
+    /// the command this client awaits (or one it gave up on), and comes
+    /// instead of the ACK: exactly one outcome per command.
+    fn client_report(&mut self, c: usize, report: &DeliveryReport) {
+        let key = (report.dest, report.command_checksum);
+        let cl = &mut self.clients[c];
+        let awaiting = matches!(cl.state, ClientState::AwaitAck { .. });
+        if awaiting && cl.current == Some(key) && report.failure.is_some() {
+            cl.current = None;
+            cl.abandoned.insert(key);
+            self.summary.client_undelivered += 1;
+            self.log(format_args!("client {c}: not delivered: {report:?}"));
+            return self.client_idle(c);
+        }
+        if report.failure.is_some() && cl.abandoned.contains(&key) {
+            return;
+        }
+        if cl.acked == Some(key) && cl.wire_damaged {
+            // The ACK it took was a damaged frame's byte, not the GCU's.
+            self.summary.phantom_acks += 1;
+            cl.abandoned.insert(key);
+            return;
+        }
+        let current = cl.current;
+        self.violation(format!(
+            "client {c} got a report {report:?} that answers none of its commands (awaiting {current:?})"
+        ));
     }
 
     /// No reply reaches a wrong link: the frame is for this client's group,
@@ -1353,6 +1460,12 @@ impl World {
             if !open.is_empty() {
                 return Err(format!("gcu {g}: commands without outcome: {open:?}"));
             }
+            if !gcu.ledger.untold.is_empty() {
+                return Err(format!(
+                    "gcu {g}: origins never told whether these were delivered: {:?}",
+                    gcu.ledger.untold
+                ));
+            }
             if gcu.router.in_progress() != 0 {
                 return Err(format!(
                     "gcu {g}: {} commands still in progress",
@@ -1402,6 +1515,7 @@ impl World {
             s.forwarded += r.forwarded;
             s.dropped += r.dropped.total();
             s.dead_man_stops += r.dead_man_stops;
+            s.client_repeats += st.links.values().map(|l| l.repeats).sum::<u64>();
             s.rate_switches += st.ports.values().map(|p| p.rate_switches).sum::<u64>();
             s.retransmits += st.ports.values().map(|p| p.line.retransmits).sum::<u64>()
                 + st.links.values().map(|l| l.line.retransmits).sum::<u64>();
