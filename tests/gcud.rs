@@ -560,3 +560,178 @@ fn listener_refuses_unlisted_peers_and_connections_over_the_limit() {
         one.ctl(&["--to", "5.1.1", "position"]).code == 0
     });
 }
+
+// ---- honest outcomes, shutdown, poisoning, lease (ARCHITECTURE "Delivery contract") ----
+
+/// Two GCUs: group 2 has the clients and a downstream link to group 5,
+/// which has port 1 with gimbal 1 only (device 2 is silent; port 9 does
+/// not exist).
+fn two_gcus(sim: &Sim) -> (Gcud, Gcud) {
+    let free = std::net::TcpListener::bind("127.0.0.1:0").expect("probe a free port");
+    let addr = free.local_addr().expect("address").to_string();
+    drop(free);
+    let gcu5 = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n{CLIENTS}{METRICS}{}[[link]]\nname = \"gcus\"\nrole = \"upstream\"\nlisten = \"{addr}\"\n",
+        port_entry(1, sim)
+    ));
+    gcu5.wait_for_log("port open port=1");
+    let gcu2 = Gcud::start(&format!(
+        "[gcu]\ngroup = 2\ndefault_route = \"gcu5\"\n{CLIENTS}{METRICS}[[link]]\nname = \"gcu5\"\nrole = \"downstream\"\nconnect = \"{addr}\"\n"
+    ));
+    gcu2.wait_for_log("link connected");
+    (gcu5, gcu2)
+}
+
+/// Through one GCU and through two, a command that was not delivered exits
+/// with its own code and a message naming the address; a live gimbal still
+/// exits 0 and no command runs twice.
+#[test]
+fn undelivered_commands_exit_non_zero_naming_the_address() {
+    let sim = Sim::pty(&["--device", "1"]);
+    let (gcu5, gcu2) = two_gcus(&sim);
+    let cases: &[(&Gcud, &str, &str, i32, &str)] = &[
+        (&gcu5, "0", "5.1.2", 8, "did not acknowledge"),
+        (&gcu5, "0", "5.9.1", 10, "no such port"),
+        (&gcu2, "2", "5.1.2", 8, "did not acknowledge"),
+        (&gcu2, "2", "5.9.1", 10, "no such port"),
+        (&gcu2, "2", "7.1.1", 17, "leads back"),
+    ];
+    for (gcud, from, to, code, message) in cases {
+        for command in ["stop", "halt"] {
+            let out = gcud.ctl(&["--from", from, "--to", to, command]);
+            assert_eq!(out.code, *code, "{command} to {to} from {from}: {out:?}");
+            assert!(
+                out.stderr.contains(to) && out.stderr.contains(message),
+                "the message names {to} and says {message:?}: {}",
+                out.stderr
+            );
+        }
+    }
+    let out = gcu2.ctl(&["--json", "--from", "2", "--to", "5.1.2", "stop"]);
+    assert_eq!(out.json()["outcome"], "device_silent", "{out:?}");
+    // A live gimbal, directly and through two GCUs.
+    for (gcud, from) in [(&gcu5, "0"), (&gcu2, "2")] {
+        assert_eq!(gcud.ctl(&["--from", from, "--to", "5.1.1", "stop"]).code, 0);
+        assert_eq!(gcud.ctl(&["--from", from, "--to", "5.1.1", "position"]).code, 0);
+    }
+    assert!(gcu5.log().contains("not delivered"), "{}", gcu5.log());
+    assert!(gcu5.metric("gcud_commands_delivery_total{delivery=\"device_silent\"}") >= 4);
+    assert!(gcu5.metric("gcud_commands_delivery_total{delivery=\"no_such_port\"}") >= 4);
+    assert_eq!(gcu2.metric("gcud_commands_delivery_total{delivery=\"delivered\"}"), 2);
+    drop(gcu2);
+    drop(gcu5);
+    let stats = sim.stop();
+    assert_eq!(
+        stats["frames_in"], 4,
+        "each command to gimbal 1 reached it once: {stats}"
+    );
+}
+
+/// A client that knows only the spec sees no ACK for an undelivered command:
+/// a delivery report comes instead, naming the command's address and checksum.
+#[test]
+fn a_spec_client_gets_no_ack_for_an_undelivered_command() {
+    let sim = Sim::pty(&["--device", "1"]);
+    let gcud = Gcud::start(&format!("[gcu]\ngroup = 5\n{CLIENTS}{}", port_entry(1, &sim)));
+    gcud.wait_for_log("port open port=1");
+    let mut client = WireClient::connect(&gcud.clients());
+    client.send(Address::new(5, 1, 2), 0, &Cmd::Stop);
+    let Owned::Frame(report) = client.next() else {
+        panic!("expected a delivery report, not an ACK");
+    };
+    let report_frame = report.frame();
+    assert_eq!(report_frame.dest, Address::new(0, 0, 0));
+    assert_eq!(report_frame.source, 5);
+    let parsed = sagebrush_protocol::DeliveryReport::parse(report_frame.payload()).expect("a report");
+    assert_eq!(parsed.failure, Some(sagebrush_protocol::Undelivered::DeviceSilent));
+    assert_eq!(parsed.dest, Address::new(5, 1, 2));
+    // The live gimbal: the ACK comes (after the device's), then the result.
+    client.send(Address::new(5, 1, 1), 0, &Cmd::QueryPosition);
+    let result = client.expect_result();
+    assert_eq!(result.frame().dest, Address::new(0, 1, 1));
+}
+
+/// SIGTERM while a client's slew runs: gcud stops the gimbal before it
+/// exits, and refuses new commands meanwhile.
+#[test]
+fn sigterm_stops_a_running_slew_before_exit() {
+    let sim = Sim::pty(&["--rate", "10"]);
+    let gcud = Gcud::start(&format!("[gcu]\ngroup = 5\n{CLIENTS}{}", port_entry(1, &sim)));
+    gcud.wait_for_log("port open port=1");
+    let start = gcud.position("5.1.1");
+    let mut client = WireClient::connect(&gcud.clients());
+    client.send(Address::new(5, 1, 1), 0, &Cmd::PanLeft);
+    assert_eq!(client.next(), Owned::Ack);
+    eventually("the slew to move the gimbal", || gcud.position("5.1.1").0 < start.0);
+    let (status, log) = gcud.terminate();
+    assert!(status.is_some_and(|s| s.success()), "exit status {status:?}\n{log}");
+    assert!(log.contains("dead-man PS to 5.1.1"), "{log}");
+    assert!(log.contains("in-flight transactions finished"), "{log}");
+    // gcud is gone and the client still connected: the gimbal stands still.
+    let first = sim.position();
+    std::thread::sleep(Duration::from_millis(300));
+    let second = sim.position();
+    assert_eq!(first, second, "the gimbal was stopped before gcud exited");
+    assert!(first.0 > -180.0, "stopped mid-way, not at a limit: {first:?}");
+    drop(client);
+}
+
+/// A client claiming another GCU's source group can neither speak as it
+/// (default allow list: the MCU and this GCU) nor, where a listener allows
+/// it, divert or drop the traffic routed to that GCU for anyone.
+#[test]
+fn a_client_speaking_as_another_gcu_never_poisons_its_route() {
+    let sim = Sim::pty(&["--device", "1"]);
+    let free = std::net::TcpListener::bind("127.0.0.1:0").expect("probe a free port");
+    let addr = free.local_addr().expect("address").to_string();
+    drop(free);
+    let gcu5 = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n{}[[link]]\nname = \"gcus\"\nrole = \"upstream\"\nlisten = \"{addr}\"\n",
+        port_entry(1, &sim)
+    ));
+    gcu5.wait_for_log("port open port=1");
+    let gcu2 = Gcud::start(&format!(
+        "[gcu]\ngroup = 2\ndefault_route = \"gcu5\"\n{CLIENTS}\
+         [[link]]\nname = \"open\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\nallow_source_groups = [0, 5]\n\
+         [[link]]\nname = \"gcu5\"\nrole = \"downstream\"\nconnect = \"{addr}\"\n"
+    ));
+    gcu2.wait_for_log("link connected");
+    let out = gcu2.ctl(&["--from", "5", "--to", "5.1.1", "position"]);
+    assert_eq!(out.code, 16, "source group 5 is not a client's by default: {out:?}");
+    assert!(out.stderr.contains("source group"), "{}", out.stderr);
+    // The listener that allows group 5: one frame speaking as GCU 5.
+    let mut spoofer = WireClient::connect(&gcu2.address("listening link=open"));
+    spoofer.send(Address::new(2, 0, 0), 5, &Cmd::AwakeStatus);
+    assert_eq!(spoofer.next(), Owned::Ack);
+    for _ in 0..3 {
+        let out = gcu2.ctl(&["--from", "0", "--to", "5.1.1", "position"]);
+        assert_eq!(out.code, 0, "delivery to GCU 5 is intact: {out:?}\n{}", gcu2.log());
+    }
+    drop(spoofer);
+    let out = gcu2.ctl(&["--from", "0", "--to", "5.1.1", "position"]);
+    assert_eq!(out.code, 0, "and after the spoofer left: {out:?}");
+}
+
+/// A link with a motion lease: a slew its client started and does not
+/// refresh is stopped although the connection stays open.
+#[test]
+fn an_unrefreshed_slew_is_stopped_when_its_lease_runs_out() {
+    let sim = Sim::pty(&["--rate", "10"]);
+    let gcud = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n{CLIENTS}motion_lease_ms = 400\n{METRICS}{}",
+        port_entry(1, &sim)
+    ));
+    gcud.wait_for_log("port open port=1");
+    let start = gcud.position("5.1.1");
+    let mut client = WireClient::connect(&gcud.clients());
+    client.send(Address::new(5, 1, 1), 0, &Cmd::PanRight);
+    assert_eq!(client.next(), Owned::Ack);
+    let stopped = gcud.settled_position("5.1.1");
+    assert!(
+        stopped.0 > start.0 && stopped.0 < 180.0,
+        "stopped mid-way, not at a limit: {stopped:?}"
+    );
+    assert_eq!(gcud.metric("gcud_lease_stops_total"), 1);
+    assert!(gcud.log().contains("motion lease over"), "{}", gcud.log());
+    drop(client);
+}
