@@ -735,3 +735,134 @@ fn an_unrefreshed_slew_is_stopped_when_its_lease_runs_out() {
     assert!(gcud.log().contains("motion lease over"), "{}", gcud.log());
     drop(client);
 }
+
+impl Gcud {
+    fn config_path(&self) -> PathBuf {
+        self.dir.path().join("gcud.toml")
+    }
+
+    /// Writes a new configuration file and sends SIGHUP; returns once the
+    /// daemon logged `done` for the `nth` reload (1 = the first).
+    fn reload(&self, config: Option<&str>, nth: usize, done: &str) {
+        match config {
+            Some(text) => std::fs::write(self.config_path(), text).expect("write config"),
+            None => std::fs::remove_file(self.config_path()).expect("remove config"),
+        }
+        let pid = nix::unistd::Pid::from_raw(self.child.id() as i32);
+        nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGHUP).expect("SIGHUP");
+        eventually(&format!("reload {nth} to end with {done:?}"), || {
+            let log = self.log();
+            log.matches("SIGHUP: reloading").count() >= nth
+                && log
+                    .split("SIGHUP: reloading")
+                    .nth(nth)
+                    .is_some_and(|after| after.contains(done))
+        });
+    }
+}
+
+/// SIGHUP: an unchanged file disturbs nothing, an added and a changed port
+/// are applied (a slew on the changed one is stopped first), a broken or
+/// missing file is refused with its file:line and the daemon keeps running;
+/// meanwhile a P? loop on port 1 never misses.
+#[test]
+fn sighup_reloads_the_difference_and_refuses_broken_files() {
+    let sim1 = Sim::pty(&["--device", "1"]);
+    let sim2 = Sim::pty(&["--device", "1", "--rate", "10"]);
+    let sim3 = Sim::pty(&["--device", "1"]);
+    let base = format!("[gcu]\ngroup = 5\n{CLIENTS}{}", port_entry(1, &sim1));
+    let gcud = Gcud::start(&base);
+    gcud.wait_for_log("port open port=1");
+
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let clients = gcud.clients();
+    let poller = {
+        let stop = stop.clone();
+        std::thread::spawn(move || {
+            let (mut ok, mut failed) = (0u32, Vec::new());
+            let started = Instant::now();
+            while !stop.load(std::sync::atomic::Ordering::Relaxed) && started.elapsed() < HANG_GUARD * 4 {
+                let out = support::gimbalctl(&["--tcp", &clients, "--to", "5.1.1", "position"]);
+                match out.code {
+                    0 => ok += 1,
+                    _ => failed.push(out),
+                }
+            }
+            (ok, failed)
+        })
+    };
+
+    gcud.reload(Some(&base), 1, "configuration unchanged");
+    let with2 = format!("{base}{}", port_entry(2, &sim2));
+    gcud.reload(Some(&with2), 2, "reload: port 2: added");
+    gcud.wait_for_log("port open port=2");
+    let start = gcud.position("5.2.1");
+
+    let broken = format!("{with2}[[port]]\nid = \"three\"\n");
+    gcud.reload(Some(&broken), 3, "reload refused");
+    let refused = gcud
+        .log()
+        .lines()
+        .find(|l| l.contains("reload refused"))
+        .unwrap_or_default()
+        .to_owned();
+    assert!(
+        refused.contains("gcud.toml:") && refused.contains("port[2].id"),
+        "{refused}"
+    );
+    gcud.reload(None, 4, "reload refused");
+
+    // Port 2 moves to another bus while its gimbal slews: stopped first.
+    let mut client = WireClient::connect(&gcud.clients());
+    client.send(Address::new(5, 2, 1), 0, &Cmd::PanRight);
+    assert_eq!(client.next(), Owned::Ack);
+    eventually("the slew to move the gimbal", || gcud.position("5.2.1").0 > start.0);
+    let moved = format!("{base}{}", port_entry(2, &sim3));
+    gcud.reload(Some(&moved), 5, "reload: port 2: changed");
+    gcud.wait_for_log("port closed (configuration reloaded)");
+    assert!(gcud.log().contains("dead-man PS to 5.2.1"), "{}", gcud.log());
+    let first = sim2.position();
+    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(sim2.position(), first, "the old bus's gimbal was stopped");
+    eventually("port 2 on its new bus", || {
+        gcud.ctl(&["--to", "5.2.1", "position"]).code == 0
+    });
+
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    let (ok, failed) = poller.join().expect("poller");
+    assert!(ok >= 3, "the P? loop ran ({ok})");
+    assert!(failed.is_empty(), "the P? loop on port 1 missed: {failed:?}");
+    drop(client);
+}
+
+/// `--check --against`: what a reload would change, without applying it.
+#[test]
+fn check_against_prints_what_a_reload_would_change() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let old = dir.path().join("old.toml");
+    let new = dir.path().join("new.toml");
+    let head = "[gcu]\ngroup = 5\n[[port]]\nid = 1\nsimulate = [1]\n";
+    std::fs::write(&old, format!("{head}[[port]]\nid = 2\nsimulate = [1]\n")).expect("write");
+    std::fs::write(&new, format!("{head}[[port]]\nid = 3\nsimulate = [1]\n")).expect("write");
+    let run = |a: &Path, b: &Path| {
+        Command::new(env!("CARGO_BIN_EXE_gcud"))
+            .args(["--check", "--config"])
+            .arg(a)
+            .arg("--against")
+            .arg(b)
+            .output()
+            .expect("run gcud --check")
+    };
+    let out = run(&new, &old);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "{text}");
+    assert!(
+        text.contains("port 3: added") && text.contains("port 2: removed"),
+        "{text}"
+    );
+    assert!(!text.contains("port 1"), "port 1 did not change: {text}");
+    std::fs::write(&new, head.replace("group = 5", "group = 6")).expect("write");
+    let out = run(&new, &old);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("gcu.group: changed; needs a restart"));
+}

@@ -269,7 +269,7 @@ pub enum PortTransport {
     Simulated(Vec<u8>),
 }
 
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Port {
     pub id: u8,
     pub transport: PortTransport,
@@ -283,7 +283,7 @@ pub enum LinkTransport {
     Connect(String),
 }
 
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Link {
     pub name: String,
     pub role: LinkRole,

@@ -1,7 +1,8 @@
 //! The router task: owns the `sagebrush-gcu` router core, feeds it what the
 //! port and link tasks read, executes its actions, arms its one timer,
-//! answers metrics scrapes, pings the systemd watchdog, and shuts down
-//! gracefully on SIGTERM/SIGINT.
+//! answers metrics scrapes, pings the systemd watchdog, reloads the
+//! configuration on SIGHUP (module `reload`), and shuts down gracefully on
+//! SIGTERM/SIGINT, stopping what it started.
 
 use std::collections::{BTreeMap, HashMap};
 use std::sync::Arc;
@@ -17,12 +18,25 @@ use tokio::task::JoinHandle;
 use tokio::time::Instant;
 use tracing::{debug, error, info, warn};
 
-use crate::config::{Config, LinkRole, LinkTransport, PortTransport};
+use crate::config::{Config, Link, LinkRole, LinkTransport, Port, PortTransport};
 use crate::io::{self, IoEvent, PortWrite};
+use crate::reload::Diff;
 use crate::stats;
 
+/// Stable ids of configured links, by name: kept across reconnects and
+/// reloads, so that routes keep pointing at the right link.
+#[derive(Debug, Default)]
+struct LinkIds(BTreeMap<String, LinkId>);
+
+impl LinkIds {
+    fn of(&mut self, name: &str) -> LinkId {
+        let next = LinkId(self.0.values().map(|l| l.0).max().unwrap_or(0) + 1);
+        *self.0.entry(name.to_owned()).or_insert(next)
+    }
+}
+
 /// Builds the router core's configuration from the validated file.
-pub fn router_config(config: &Config) -> RouterConfig {
+fn router_config(config: &Config, ids: &mut LinkIds) -> RouterConfig {
     let mut rc = RouterConfig::new(config.group);
     rc.name = config.name.clone();
     rc.serial = config.serial.clone();
@@ -67,21 +81,17 @@ pub fn router_config(config: &Config) -> RouterConfig {
     let link_ack = (u64::from(config.link_retries) + 1) * config.link_ack_timeout_ms;
     rc.links.answer_timeout = rc.links.answer_timeout.max(2 * link_ack + worst(false));
     rc.links.long_answer_timeout = rc.links.long_answer_timeout.max(2 * link_ack + worst(true));
-    for (group, name) in &config.routes {
-        if let Some(index) = config.links.iter().position(|l| &l.name == name) {
-            rc.static_routes.insert(*group, io::configured_link_id(index));
-        }
+    for link in &config.links {
+        ids.of(&link.name);
     }
-    rc.default_upstream = config
-        .default_route
-        .as_ref()
-        .and_then(|name| config.links.iter().position(|l| &l.name == name))
-        .map(io::configured_link_id);
+    for (group, name) in &config.routes {
+        rc.static_routes.insert(*group, ids.of(name));
+    }
+    rc.default_upstream = config.default_route.as_ref().map(|name| ids.of(name));
     rc
 }
 
-fn link_config(config: &Config, index: usize) -> LinkConfig {
-    let link = &config.links[index];
+fn link_config(link: &Link) -> LinkConfig {
     let kind = match link.role {
         LinkRole::Upstream => LinkKind::Upstream,
         LinkRole::Downstream => LinkKind::Downstream,
@@ -125,17 +135,19 @@ pub enum StartError {
     Signals(std::io::Error),
 }
 
-/// Runs the daemon until SIGTERM or SIGINT, then shuts down gracefully.
-pub async fn run(config: Config) -> Result<(), StartError> {
-    let mut router = Router::new(router_config(&config)).map_err(|e| StartError::Router(e.to_string()))?;
-    let start = Instant::now();
-    let (events_tx, mut events) = mpsc::channel::<IoEvent>(4096);
+/// The I/O tasks of the configured ports and links, so that a reload can
+/// close and open them one by one.
+struct Tasks {
+    events: mpsc::Sender<IoEvent>,
+    connections: Arc<Semaphore>,
+    ports: HashMap<u8, JoinHandle<()>>,
+    links: BTreeMap<String, JoinHandle<()>>,
+}
 
-    // Listeners and the metrics endpoint bind now: a bad address is a start failure.
-    let connections = Arc::new(Semaphore::new(config.max_connections));
-    let mut listeners: Vec<JoinHandle<()>> = Vec::new();
-    for (index, link) in config.links.iter().enumerate() {
-        match link.transport {
+impl Tasks {
+    /// Starts a link; a listener binds now (an address in use is an error).
+    async fn start_link(&mut self, link: &Link, id: LinkId) -> Result<(), StartError> {
+        let task = match link.transport {
             LinkTransport::Listen(addr) => {
                 let listener = TcpListener::bind(addr).await.map_err(|error| StartError::Listen {
                     link: link.name.clone(),
@@ -143,18 +155,58 @@ pub async fn run(config: Config) -> Result<(), StartError> {
                     error,
                 })?;
                 info!(link = %link.name, addr = %listener.local_addr().unwrap_or(addr), "listening");
-                listeners.push(tokio::spawn(io::accept_loop(
-                    index,
+                let connections = self.connections.clone();
+                tokio::spawn(io::accept_loop(
                     link.clone(),
                     listener,
-                    connections.clone(),
-                    events_tx.clone(),
-                )));
+                    connections,
+                    self.events.clone(),
+                ))
             }
-            _ => {
-                tokio::spawn(io::run_link(index, link.clone(), events_tx.clone()));
-            }
+            _ => tokio::spawn(io::run_link(id, link.clone(), self.events.clone())),
+        };
+        if let Some(old) = self.links.insert(link.name.clone(), task) {
+            old.abort();
         }
+        Ok(())
+    }
+
+    fn stop_link(&mut self, name: &str) {
+        if let Some(task) = self.links.remove(name) {
+            task.abort();
+        }
+    }
+
+    fn start_port(&mut self, port: &Port) {
+        let task = tokio::spawn(io::run_port(port.clone(), self.events.clone()));
+        if let Some(old) = self.ports.insert(port.id, task) {
+            old.abort();
+        }
+    }
+
+    fn stop_port(&mut self, id: u8) {
+        if let Some(task) = self.ports.remove(&id) {
+            task.abort();
+        }
+    }
+}
+
+/// Runs the daemon until SIGTERM or SIGINT, then shuts down gracefully.
+pub async fn run(mut config: Config) -> Result<(), StartError> {
+    let mut ids = LinkIds::default();
+    let mut router = Router::new(router_config(&config, &mut ids)).map_err(|e| StartError::Router(e.to_string()))?;
+    let start = Instant::now();
+    let (events_tx, mut events) = mpsc::channel::<IoEvent>(4096);
+    let mut tasks = Tasks {
+        events: events_tx.clone(),
+        connections: Arc::new(Semaphore::new(config.max_connections)),
+        ports: HashMap::new(),
+        links: BTreeMap::new(),
+    };
+
+    // Listeners and the metrics endpoint bind now: a bad address is a start failure.
+    for link in &config.links {
+        tasks.start_link(link, ids.of(&link.name)).await?;
     }
     if let Some(addr) = config.metrics {
         let listener = TcpListener::bind(addr)
@@ -173,12 +225,13 @@ pub async fn run(config: Config) -> Result<(), StartError> {
         tokio::spawn(crate::metrics::serve(listener, scrape_tx));
     }
     for port in &config.ports {
-        tokio::spawn(io::run_port(port.clone(), events_tx.clone()));
+        tasks.start_port(port);
     }
     drop(events_tx);
 
     let mut sigterm = signal(SignalKind::terminate()).map_err(StartError::Signals)?;
     let mut sigint = signal(SignalKind::interrupt()).map_err(StartError::Signals)?;
+    let mut sighup = signal(SignalKind::hangup()).map_err(StartError::Signals)?;
     let watchdog = sd_notify::watchdog_enabled();
     let mut watchdog_tick = tokio::time::interval(watchdog.map_or(Duration::from_secs(3600), |d| d / 2));
     notify(&[sd_notify::NotifyState::Ready]);
@@ -193,6 +246,8 @@ pub async fn run(config: Config) -> Result<(), StartError> {
     let mut links: BTreeMap<LinkId, LinkInfo> = BTreeMap::new();
     let mut actions = Vec::new();
     let mut stopping: Option<Instant> = None;
+    // Ports closing after a reload, with the time their grace runs out.
+    let mut closing: HashMap<u8, Instant> = HashMap::new();
     let now = |at: Instant| at.duration_since(start).as_millis() as u64;
 
     loop {
@@ -225,11 +280,15 @@ pub async fn run(config: Config) -> Result<(), StartError> {
                         router.handle(t, Input::PortLost { port }, &mut actions);
                     }
                     IoEvent::LinkOpened { id, link, peer, writer } => {
+                        let Some(configured) = config.links.iter().find(|l| l.name == link) else {
+                            continue; // removed by a reload; dropping the writer closes it
+                        };
                         if stopping.is_some() {
-                            continue; // dropping the writer closes it
+                            continue;
                         }
-                        links.insert(id, LinkInfo { name: config.links[link].name.clone(), peer, writer: Some(writer) });
-                        router.handle(t, Input::LinkUp { link: id, config: link_config(&config, link) }, &mut actions);
+                        let lc = link_config(configured);
+                        links.insert(id, LinkInfo { name: link, peer, writer: Some(writer) });
+                        router.handle(t, Input::LinkUp { link: id, config: lc }, &mut actions);
                     }
                     IoEvent::LinkBytes { id, bytes } => router.handle(t, Input::LinkBytes { link: id, bytes: &bytes }, &mut actions),
                     IoEvent::LinkClosed { id } => {
@@ -246,18 +305,134 @@ pub async fn run(config: Config) -> Result<(), StartError> {
             () = sleep_until(deadline) => router.handle(now(Instant::now()), Input::Tick, &mut actions),
             _ = watchdog_tick.tick(), if watchdog.is_some() => notify(&[sd_notify::NotifyState::Watchdog]),
             _ = sigterm.recv(), if stopping.is_none() => {
-                stopping = Some(begin_shutdown(&config, &mut listeners, "SIGTERM"));
+                stopping = Some(begin_shutdown(&config, "SIGTERM"));
                 router.handle(now(Instant::now()), Input::Shutdown, &mut actions);
             }
             _ = sigint.recv(), if stopping.is_none() => {
-                stopping = Some(begin_shutdown(&config, &mut listeners, "SIGINT"));
+                stopping = Some(begin_shutdown(&config, "SIGINT"));
                 router.handle(now(Instant::now()), Input::Shutdown, &mut actions);
             }
-            () = sleep_until(stopping.map(|s| s.min(Instant::now() + Duration::from_millis(50)))) => {}
+            _ = sighup.recv(), if stopping.is_none() => {
+                let t = now(Instant::now());
+                let reloaded = Reload { config: &mut config, ids: &mut ids, router: &mut router, tasks: &mut tasks, links: &mut links, closing: &mut closing };
+                reloaded.run(t, &mut actions).await;
+            }
+            () = sleep_until(stopping.or_else(|| closing.values().min().copied()).map(|s| s.min(Instant::now() + Duration::from_millis(50)))) => {}
+        }
+        // Ports closing after a reload: closed once idle (their stops
+        // done) or when their grace ran out.
+        let t = now(Instant::now());
+        let overdue: Vec<u8> = closing
+            .iter()
+            .filter(|(_, until)| Instant::now() >= **until)
+            .map(|(&p, _)| p)
+            .collect();
+        for port in router.closed_ports().into_iter().chain(overdue) {
+            if closing.remove(&port).is_none() {
+                continue;
+            }
+            tasks.stop_port(port);
+            ports.remove(&port);
+            router.port_closed(t, port, &mut actions);
+            info!(port, "port closed (configuration reloaded)");
+            if let Some(new) = config.ports.iter().find(|p| p.id == port) {
+                tasks.start_port(new);
+            }
         }
         execute(&mut actions, &ports, &links);
     }
     Ok(())
+}
+
+/// One SIGHUP (module `reload`): the file is read and checked as at start;
+/// a broken or unreadable one, or one that changes what needs a restart,
+/// is refused and logged, and the running configuration stays. Otherwise
+/// the difference is applied.
+struct Reload<'a> {
+    config: &'a mut Config,
+    ids: &'a mut LinkIds,
+    router: &'a mut Router,
+    tasks: &'a mut Tasks,
+    links: &'a mut BTreeMap<LinkId, LinkInfo>,
+    closing: &'a mut HashMap<u8, Instant>,
+}
+
+impl Reload<'_> {
+    async fn run(self, now: u64, actions: &mut Vec<Action>) {
+        // RELOADING=1 goes with MONOTONIC_USEC= (sd_notify(3)).
+        match sd_notify::NotifyState::monotonic_usec_now() {
+            Ok(usec) => notify(&[sd_notify::NotifyState::Reloading, usec]),
+            Err(_) => notify(&[sd_notify::NotifyState::Reloading]),
+        }
+        info!(file = %self.config.file.display(), "SIGHUP: reloading the configuration");
+        match crate::config::load(&self.config.file) {
+            Err(e) => error!("reload refused, running configuration kept: {e}"),
+            Ok(new) => self.apply(now, new, actions).await,
+        }
+        notify(&[sd_notify::NotifyState::Ready]);
+    }
+
+    async fn apply(self, now: u64, new: Config, actions: &mut Vec<Action>) {
+        let diff = Diff::between(self.config, &new);
+        if !diff.needs_restart.is_empty() {
+            return error!(
+                "reload refused, running configuration kept: {} changed; restart gcud to apply it",
+                diff.needs_restart.join(", ")
+            );
+        }
+        if diff.is_empty() {
+            return info!("configuration unchanged");
+        }
+        let reopen: Vec<u8> = diff.ports_changed.iter().map(|p| p.id).collect();
+        if let Err(e) = self
+            .router
+            .reconfigure(now, router_config(&new, self.ids), &reopen, actions)
+        {
+            return error!("reload refused, running configuration kept: {e}");
+        }
+        for line in diff.to_string().lines() {
+            info!("reload: {line}");
+        }
+        let grace = Instant::now() + Duration::from_millis(new.shutdown_grace_ms);
+        for port in diff
+            .ports_changed
+            .iter()
+            .map(|p| p.id)
+            .chain(diff.ports_removed.iter().copied())
+        {
+            self.closing.insert(port, grace);
+        }
+        for port in &diff.ports_added {
+            self.tasks.start_port(port);
+        }
+        let closed = diff
+            .links_changed
+            .iter()
+            .map(|l| l.name.clone())
+            .chain(diff.links_removed.iter().cloned());
+        for name in closed {
+            self.tasks.stop_link(&name);
+            // Its connections are gone: the router takes them down (dead-man).
+            let gone: Vec<LinkId> = self
+                .links
+                .iter()
+                .filter(|(_, l)| l.name == name && l.writer.is_some())
+                .map(|(&id, _)| id)
+                .collect();
+            for id in gone {
+                if let Some(info) = self.links.get_mut(&id) {
+                    info.writer = None;
+                }
+                self.router.handle(now, Input::LinkDown { link: id }, actions);
+            }
+        }
+        *self.config = new;
+        for link in diff.links_changed.iter().chain(&diff.links_added) {
+            if let Err(e) = self.tasks.start_link(link, self.ids.of(&link.name)).await {
+                error!("reload: {e}");
+            }
+        }
+    }
 }
 
 async fn sleep_until(deadline: Option<Instant>) {
@@ -267,16 +442,13 @@ async fn sleep_until(deadline: Option<Instant>) {
     }
 }
 
-fn begin_shutdown(config: &Config, listeners: &mut Vec<JoinHandle<()>>, signal: &str) -> Instant {
+fn begin_shutdown(config: &Config, signal: &str) -> Instant {
     info!(
         signal,
         grace_ms = config.shutdown_grace_ms,
         "shutting down: no new connections or commands, stopping running motions, finishing in-flight work"
     );
     notify(&[sd_notify::NotifyState::Stopping]);
-    for l in listeners.drain(..) {
-        l.abort();
-    }
     Instant::now() + Duration::from_millis(config.shutdown_grace_ms)
 }
 

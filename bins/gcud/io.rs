@@ -34,7 +34,8 @@ pub enum IoEvent {
     },
     LinkOpened {
         id: LinkId,
-        link: usize,
+        /// The configured link's name.
+        link: String,
         peer: String,
         writer: mpsc::Sender<Vec<u8>>,
     },
@@ -219,20 +220,16 @@ fn describe(t: &PortTransport) -> String {
 // ---- links ----------------------------------------------------------------
 
 /// Ids of accepted connections start here; a configured serial or TCP
-/// client link keeps `index + 1` across reconnects, so that static routes
-/// and the default upstream survive them.
-const FIRST_ACCEPTED_ID: u32 = 1 << 16;
+/// client link keeps the id the daemon gave its name (below this) across
+/// reconnects and reloads, so that static routes and the default upstream
+/// survive them.
+pub const FIRST_ACCEPTED_ID: u32 = 1 << 16;
 static NEXT_LINK_ID: AtomicU32 = AtomicU32::new(FIRST_ACCEPTED_ID);
-
-/// The stable id of configured link `index`.
-pub fn configured_link_id(index: usize) -> LinkId {
-    LinkId(index as u32 + 1)
-}
 
 /// Moves bytes between one link connection and the router until it closes.
 async fn pump_link<S: AsyncRead + AsyncWrite + Unpin>(
     id: LinkId,
-    index: usize,
+    link: String,
     peer: String,
     stream: S,
     events: &mpsc::Sender<IoEvent>,
@@ -241,7 +238,7 @@ async fn pump_link<S: AsyncRead + AsyncWrite + Unpin>(
     if events
         .send(IoEvent::LinkOpened {
             id,
-            link: index,
+            link,
             peer: peer.clone(),
             writer,
         })
@@ -278,7 +275,7 @@ async fn pump_link<S: AsyncRead + AsyncWrite + Unpin>(
 }
 
 /// Runs one configured link for as long as the daemon runs.
-pub async fn run_link(index: usize, link: Link, events: mpsc::Sender<IoEvent>) {
+pub async fn run_link(id: LinkId, link: Link, events: mpsc::Sender<IoEvent>) {
     let peer = match &link.transport {
         // Bound at start-up by the daemon (a bad address is a start failure); see `accept_loop`.
         LinkTransport::Listen(_) => return,
@@ -296,7 +293,7 @@ pub async fn run_link(index: usize, link: Link, events: mpsc::Sender<IoEvent>) {
             Ok(stream) => {
                 backoff.reset();
                 info!(link = %link.name, %peer, "link connected");
-                pump_link(configured_link_id(index), index, peer.clone(), stream, &events).await;
+                pump_link(id, link.name.clone(), peer.clone(), stream, &events).await;
             }
             Err(e) => warn!(link = %link.name, %peer, error = %e, "cannot connect; retrying with backoff"),
         }
@@ -307,16 +304,21 @@ pub async fn run_link(index: usize, link: Link, events: mpsc::Sender<IoEvent>) {
     }
 }
 
-/// Accepts connections: allow-listed peers only, up to the connection limit.
+/// Accepts connections: allow-listed peers only, up to the connection
+/// limit. The connections end with this task (a link removed on reload).
 pub async fn accept_loop(
-    index: usize,
     link: Link,
     listener: TcpListener,
     connections: Arc<Semaphore>,
     events: mpsc::Sender<IoEvent>,
 ) {
+    let mut open = tokio::task::JoinSet::new();
     loop {
-        let (stream, peer) = match listener.accept().await {
+        let accepted = tokio::select! {
+            accepted = listener.accept() => accepted,
+            Some(_) = open.join_next() => continue,
+        };
+        let (stream, peer) = match accepted {
             Ok(c) => c,
             Err(e) => {
                 warn!(link = %link.name, error = %e, "accept failed");
@@ -337,9 +339,10 @@ pub async fn accept_loop(
         }
         info!(link = %link.name, %peer, "client connected");
         let events = events.clone();
-        tokio::spawn(async move {
+        let name = link.name.clone();
+        open.spawn(async move {
             let id = LinkId(NEXT_LINK_ID.fetch_add(1, Ordering::Relaxed));
-            pump_link(id, index, peer.to_string(), stream, &events).await;
+            pump_link(id, name, peer.to_string(), stream, &events).await;
             drop(permit);
         });
     }

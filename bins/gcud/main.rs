@@ -6,6 +6,7 @@ mod config;
 mod daemon;
 mod io;
 mod metrics;
+mod reload;
 mod simulated;
 mod stats;
 
@@ -32,6 +33,11 @@ struct Args {
     /// Validate the configuration and exit: 0 valid, 2 invalid.
     #[arg(long)]
     check: bool,
+    /// With --check: print what a reload (SIGHUP) of --config would change
+    /// against this running configuration, without applying it; exit 2
+    /// when the reload would be refused.
+    #[arg(long, value_name = "RUNNING_FILE", requires = "check")]
+    against: Option<PathBuf>,
 }
 
 fn main() -> ExitCode {
@@ -43,6 +49,21 @@ fn main() -> ExitCode {
             return ExitCode::from(EXIT_CONFIG);
         }
     };
+    if let Some(running) = &args.against {
+        let running = match config::load(running) {
+            Ok(running) => running,
+            Err(e) => {
+                eprintln!("gcud: {e}");
+                return ExitCode::from(EXIT_CONFIG);
+            }
+        };
+        let diff = reload::Diff::between(&running, &config);
+        print!("{diff}");
+        return match diff.needs_restart.is_empty() {
+            true => ExitCode::SUCCESS,
+            false => ExitCode::from(EXIT_CONFIG),
+        };
+    }
     if args.check {
         println!(
             "{}: valid: group {}, {} port(s), {} link(s), {} route(s)",

@@ -273,6 +273,8 @@ pub enum ConfigError {
     Zero(&'static str),
     /// A static route for the own group or the wildcard.
     StaticRoute(u8),
+    /// A setting that a running router cannot change (see [`crate::Router::reconfigure`]).
+    NotReloadable(&'static str),
 }
 
 impl std::fmt::Display for ConfigError {
@@ -287,6 +289,7 @@ impl std::fmt::Display for ConfigError {
             ConfigError::Rate { port, bps } => write!(f, "port {port}: {bps} bps is not a protocol rate"),
             ConfigError::Zero(what) => write!(f, "{what} must not be zero"),
             ConfigError::StaticRoute(g) => write!(f, "static route for group {g} (own group or wildcard)"),
+            ConfigError::NotReloadable(what) => write!(f, "{what} cannot change while running: restart instead"),
         }
     }
 }

@@ -86,7 +86,7 @@ impl DeadMan {
 
     /// `link` went down: the stops to issue, and the link forgotten.
     pub fn link_down(&mut self, link: LinkId) -> Vec<(Address, Command<'static>)> {
-        self.take(|owner| owner.link == link)
+        self.take(|_, owner| owner.link == link)
             .into_iter()
             .map(|(_, dest, stop)| (dest, stop))
             .collect()
@@ -94,12 +94,17 @@ impl DeadMan {
 
     /// Every motion still owned (shutdown): the stops to issue.
     pub fn take_all(&mut self) -> Vec<OwnedStop> {
-        self.take(|_| true)
+        self.take(|_, _| true)
+    }
+
+    /// Every motion owned on `port` (it is about to close): the stops to issue.
+    pub fn take_port(&mut self, port: u8) -> Vec<OwnedStop> {
+        self.take(|dest, _| dest.port == port)
     }
 
     /// Motions whose lease ran out by `now`: the stops to issue.
     pub fn expired(&mut self, now: u64) -> Vec<OwnedStop> {
-        self.take(|owner| owner.expires().is_some_and(|t| now >= t))
+        self.take(|_, owner| owner.expires().is_some_and(|t| now >= t))
     }
 
     /// When the next lease runs out.
@@ -107,10 +112,10 @@ impl DeadMan {
         self.owners.values().filter_map(Owner::expires).min()
     }
 
-    fn take(&mut self, pick: impl Fn(&Owner) -> bool) -> Vec<OwnedStop> {
+    fn take(&mut self, pick: impl Fn(&Address, &Owner) -> bool) -> Vec<OwnedStop> {
         let mut stops = Vec::new();
         self.owners.retain(|&(dest, axis), owner| {
-            if pick(owner) {
+            if pick(&dest, owner) {
                 stops.push((owner.link, dest, STOPS[axis]));
                 false
             } else {

@@ -139,6 +139,8 @@ impl Running {
 #[derive(Debug)]
 pub(crate) struct Port {
     pub id: u8,
+    /// What it was made from (a reload compares it).
+    pub config: PortConfig,
     policy: TransactionPolicy,
     bound: usize,
     stop_bound: usize,
@@ -157,6 +159,8 @@ pub(crate) struct Port {
     /// After an exchange that was retransmitted the device may answer a
     /// second time: no new exchange starts before this tick.
     settle_until: Option<u64>,
+    /// Being closed (removed or reconfigured): only the GCU's own stops are taken.
+    pub closing: bool,
     pub stats: PortStats,
     pub device_stats: BTreeMap<u8, DeviceStats>,
 }
@@ -176,6 +180,7 @@ impl Port {
         let rate = DataRate::from_bits_per_second(config.bps).unwrap_or(DataRate::Bps9600);
         Self {
             id: config.id,
+            config: config.clone(),
             policy,
             bound: config.queue_bound,
             stop_bound: config.stop_queue_bound,
@@ -189,6 +194,7 @@ impl Port {
             seen: BTreeSet::new(),
             acked_rates: BTreeMap::new(),
             settle_until: None,
+            closing: false,
             stats: PortStats {
                 bps: rate.bits_per_second().unwrap_or(9600),
                 ..PortStats::default()
@@ -260,6 +266,9 @@ impl Port {
     pub fn enqueue(&mut self, now: u64, mut job: Job, out: &mut Vec<PortOut>) {
         if !self.open {
             return self.drop_job(job, DropReason::PortClosed, out);
+        }
+        if self.closing && job.origin != Origin::Internal {
+            return self.drop_job(job, DropReason::ShuttingDown, out);
         }
         let dest = job.frame.frame().dest;
         if dest.port == WILDCARD {
@@ -657,6 +666,11 @@ impl Port {
             self.start_next(now, out);
         }
         self.maybe_detach(now, out);
+    }
+
+    /// Nothing on the bus, set aside or queued.
+    pub fn is_idle(&self) -> bool {
+        self.active.is_none() && self.detached.is_empty() && self.queue.is_empty()
     }
 
     pub fn next_deadline(&self) -> Option<u64> {

@@ -10,7 +10,7 @@ use sagebrush_protocol::{
     Address, CONTROL_UNIT, Command, DeliveryReport, Frame, FrameBuf, LINK_PORT, Undelivered, WILDCARD,
 };
 
-use crate::config::{ConfigError, LinkKind, LinkSettings, RouterConfig};
+use crate::config::{ConfigError, LinkKind, LinkSettings, PortConfig, RouterConfig};
 use crate::deadman::DeadMan;
 use crate::link::{Link, LinkOut, Outgoing, Received};
 use crate::local::{SelfAnswer, answer};
@@ -114,6 +114,8 @@ pub struct Router {
     awaiting: BTreeMap<CommandId, Awaiting>,
     /// [`Input::Shutdown`] came: new commands are refused.
     stopping: bool,
+    /// New configurations of ports that are closing (reconfigured).
+    replacements: BTreeMap<u8, PortConfig>,
     next_id: u64,
     last_now: u64,
     stats: RouterStats,
@@ -143,6 +145,7 @@ impl Router {
             dead_man_rounds: BTreeMap::new(),
             awaiting: BTreeMap::new(),
             stopping: false,
+            replacements: BTreeMap::new(),
             next_id: 0,
             last_now: 0,
             stats: RouterStats::default(),
@@ -274,6 +277,108 @@ impl Router {
     /// Continuous motions owned by links (dead-man records).
     pub fn owned_motions(&self) -> usize {
         self.deadman.len()
+    }
+
+    /// Applies a changed configuration (DESIGN "Safety": a port is closed
+    /// or reconfigured only after its motions were stopped). Routes are
+    /// replaced at once; a new port is added (closed until
+    /// [`Input::PortOpened`]); a removed or changed port starts closing:
+    /// it takes no new commands (refused as shutting down), every motion
+    /// owned on it gets its stop, and once it is idle
+    /// ([`Router::closed_ports`]) the daemon closes it and calls
+    /// [`Router::port_closed`], which installs the changed port's new
+    /// configuration. `reopen`: ports whose I/O the daemon changes (a
+    /// new device path, say) although their router configuration is the
+    /// same; they close and come back too. Other ports whose configuration
+    /// did not change are not touched. The group, name, serial and link
+    /// settings cannot change.
+    pub fn reconfigure(
+        &mut self,
+        now: u64,
+        config: RouterConfig,
+        reopen: &[u8],
+        out: &mut Vec<Action>,
+    ) -> Result<(), ConfigError> {
+        config.validate()?;
+        if config.group != self.group {
+            return Err(ConfigError::NotReloadable("the group"));
+        }
+        if config.name != self.name || config.serial != self.serial {
+            return Err(ConfigError::NotReloadable("the name or serial"));
+        }
+        if config.links != self.settings {
+            return Err(ConfigError::NotReloadable("the link settings"));
+        }
+        self.routes
+            .set_configured(config.static_routes, config.default_upstream);
+        for (&id, port) in &mut self.ports {
+            let same = config.ports.iter().any(|p| p.id == id && *p == port.config);
+            port.closing = !same || reopen.contains(&id);
+        }
+        self.replacements = config
+            .ports
+            .into_iter()
+            .filter(|p| self.ports.get(&p.id).is_none_or(|old| old.closing))
+            .map(|p| (p.id, p))
+            .collect();
+        let added: Vec<u8> = self
+            .replacements
+            .keys()
+            .copied()
+            .filter(|id| !self.ports.contains_key(id))
+            .collect();
+        for id in added {
+            if let Some(p) = self.replacements.remove(&id) {
+                self.ports.insert(id, Port::new(&p));
+            }
+        }
+        let closing: Vec<u8> = self
+            .ports
+            .iter()
+            .filter(|(_, p)| p.closing)
+            .map(|(&id, _)| id)
+            .collect();
+        for port in closing {
+            for (link, dest, stop) in self.deadman.take_port(port) {
+                self.stats.dead_man_stops += 1;
+                out.push(Action::Event(Event::DeadManStop {
+                    link,
+                    dest,
+                    stop: stop.mnemonic(),
+                }));
+                self.issue_stop(now, dest, stop, link, out);
+            }
+        }
+        self.poll(now, out);
+        Ok(())
+    }
+
+    /// Ports that are closing and idle: the daemon may close them now.
+    pub fn closed_ports(&self) -> Vec<u8> {
+        self.ports
+            .iter()
+            .filter(|(_, p)| p.closing && p.is_idle())
+            .map(|(&id, _)| id)
+            .collect()
+    }
+
+    /// Whether `port` is configured (and not closing).
+    pub fn has_port(&self, port: u8) -> bool {
+        self.ports.get(&port).is_some_and(|p| !p.closing)
+    }
+
+    /// The daemon closed a closing port (idle, or its grace ran out: what
+    /// is left on it fails as [`DropReason::PortLost`]). A changed port
+    /// comes back with its new configuration, closed until opened.
+    pub fn port_closed(&mut self, now: u64, port: u8, out: &mut Vec<Action>) {
+        if !self.ports.get(&port).is_some_and(|p| p.closing) {
+            return;
+        }
+        self.with_port(now, port, out, |p, _, po| p.lose(po));
+        self.ports.remove(&port);
+        if let Some(config) = self.replacements.remove(&port) {
+            self.ports.insert(port, Port::new(&config));
+        }
     }
 
     fn with_port(

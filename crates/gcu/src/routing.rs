@@ -37,6 +37,13 @@ impl RoutingTable {
         }
     }
 
+    /// New static routes and default upstream (configuration reloaded);
+    /// what was learned stays.
+    pub fn set_configured(&mut self, static_routes: BTreeMap<u8, LinkId>, default_upstream: Option<LinkId>) {
+        self.static_routes = static_routes;
+        self.default_upstream = default_upstream;
+    }
+
     /// A frame from `group` arrived on `link`.
     pub fn learn(&mut self, group: u8, link: LinkId, kind: LinkKind) {
         if kind == LinkKind::Client {

@@ -878,3 +878,53 @@ fn unacknowledged_dead_man_stop_is_sent_again() {
     assert_eq!(unreachable, 5, "each round ends unreachable");
     assert_eq!(h.r.stats().router.dead_man_stops, 1, "one motion stopped");
 }
+
+#[test]
+fn reconfigure_leaves_unchanged_ports_alone_and_stops_motions_before_closing_a_port() {
+    let mut h = H::new(&[1, 2]);
+    // Port 1: a query in flight. Port 2: a slew running.
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"P?"));
+    h.link(CLIENT, &frame((G, 2, 4), 2, b"PL"));
+    h.port(2, &[ACK]);
+    h.wait(6);
+    // New configuration: port 1 as it was, port 2 gone, port 3 new.
+    let mut config = RouterConfig::new(G);
+    config.name = "test gcu".into();
+    config.serial = "SN-5".into();
+    config.ports = vec![port_config(1), port_config(3)];
+    config.links.ack_timeout = 10;
+    config.links.retries = 2;
+    let mut a = Vec::new();
+    h.r.reconfigure(h.now, config.clone(), &[], &mut a).expect("valid");
+    assert_eq!(
+        port_writes(&a, 2),
+        vec![frame((G, 2, 4), G, b"PS")],
+        "the slew is stopped first"
+    );
+    assert!(port_writes(&a, 1).is_empty(), "port 1 is not touched");
+    assert!(h.r.closed_ports().is_empty(), "port 2 is busy with its stop");
+    let refused = frame((G, 2, 4), 2, b"HO");
+    let a = h.link(CLIENT, &refused);
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        vec![report(&refused, Some(Undelivered::ShuttingDown))]
+    );
+    h.link(CLIENT, &[ACK]); // the client acknowledges the report
+    // The query on port 1 goes on: delivered, then answered.
+    let a = h.port(1, &[ACK]);
+    assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK]]);
+    let a = h.port(1, &frame((2, 1, 3), G, b"00000000"));
+    assert_eq!(link_writes(&a, CLIENT), vec![frame((2, 1, 3), G, b"00000000")]);
+    h.port(2, &[ACK]);
+    h.wait(10);
+    assert_eq!(h.r.closed_ports(), vec![2]);
+    let mut a = Vec::new();
+    h.r.port_closed(h.now, 2, &mut a);
+    assert!(!h.r.has_port(2));
+    assert!(h.r.has_port(3));
+    let a = h.link(CLIENT, &frame((G, 2, 4), 2, b"HO"));
+    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::UnknownPort)]);
+    // The group cannot change while running.
+    config.group = 6;
+    assert!(h.r.reconfigure(h.now, config, &[], &mut Vec::new()).is_err());
+}
