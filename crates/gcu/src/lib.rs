@@ -40,8 +40,16 @@
 //!
 //! # Rules implemented (DESIGN "Routing semantics", "Safety")
 //!
-//! - **Hop by hop** (module `link`, module `port`): every frame received on a link or
-//!   port is ACKed when its checksum holds and NAKed when not (bare bytes).
+//! - **Delivery contract** (ARCHITECTURE.md): a client link's command is
+//!   ACKed only once it is delivered (the device acknowledged it); an
+//!   undelivered one gets a delivery report instead of the ACK
+//!   ([`sagebrush_protocol::DeliveryReport`]), a repeat of it meanwhile is
+//!   not executed again, and its outcome comes within
+//!   [`LinkSettings::delivery_timeout`]. On links to other GCUs every frame
+//!   is ACKed hop by hop and every command's outcome is reported.
+//! - **Hop by hop** (module `link`, module `port`): every frame received on a
+//!   port, and every answer or GCU-link frame, is ACKed when its checksum holds;
+//!   every damaged frame is NAKed (bare bytes).
 //!   Every frame the GCU sends on a link is retransmitted by the protocol
 //!   crate's `Transmitter` on NAK or ACK time-out, up to the configured count
 //!   (one unacknowledged frame per link at a time).
@@ -89,6 +97,8 @@
 //! - **Dead-man** (module `deadman`): a link that goes down has its queued
 //!   continuous motions cancelled and the motions it owns stopped (`PS`,
 //!   `TS`, `FS`, `ZS`), locally or routed to the GCU that owns the device.
+//!   The same stops go out at [`Input::Shutdown`], before a port is closed
+//!   by [`Router::reconfigure`], and when a link's motion lease runs out.
 //! - **Rate change**: a `C0`..`C7` acknowledged by every device of a port,
 //!   or written to device 255, switches the port ([`Action::SetPortRate`]).
 //! - **Bounded memory**: port queues (work and stops apart), link queues
