@@ -928,3 +928,42 @@ fn reconfigure_leaves_unchanged_ports_alone_and_stops_motions_before_closing_a_p
     config.group = 6;
     assert!(h.r.reconfigure(h.now, config, &[], &mut Vec::new()).is_err());
 }
+
+#[test]
+fn shutdown_stops_every_owned_motion_and_refuses_new_commands() {
+    let mut h = H::new(&[1]);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"PL"));
+    h.port(1, &[ACK]);
+    h.wait(6);
+    h.link(CLIENT, &frame((G, 1, 4), 2, b"ZI"));
+    h.port(1, &[ACK]);
+    h.wait(6);
+    assert_eq!(h.r.owned_motions(), 2);
+    let a = h.go(Input::Shutdown);
+    let stops: Vec<_> = a
+        .iter()
+        .filter_map(|x| match x {
+            Action::Event(Event::DeadManStop { dest, stop, .. }) => Some((*dest, *stop)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        stops,
+        vec![(Address::new(G, 1, 3), "PS"), (Address::new(G, 1, 4), "ZS")]
+    );
+    assert_eq!(h.r.owned_motions(), 0);
+    assert!(h.r.in_progress() > 0, "the daemon waits for the stops");
+    let refused = frame((G, 1, 3), 2, b"PR");
+    let a = h.link(CLIENT, &refused);
+    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::ShuttingDown)]);
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        vec![report(&refused, Some(Undelivered::ShuttingDown))]
+    );
+    h.port(1, &[ACK]);
+    h.wait(10);
+    h.port(1, &[ACK]);
+    h.wait(10);
+    assert_eq!(h.r.in_progress(), 0);
+    assert_eq!(h.r.stats().router.shutdown_stops, 2);
+}
