@@ -9,11 +9,14 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use sagebrush_gcu::{
-    Action, Event, Input, Level, LinkConfig, LinkId, LinkKind, PortConfig, Router, RouterConfig, SourceFilter,
+    Action, Event, Input, Level, LinkConfig, LinkId, LinkKind, LinkStats, PortConfig, Router, RouterConfig,
+    SourceFilter,
 };
 use tokio::net::TcpListener;
 use tokio::signal::unix::{SignalKind, signal};
-use tokio::sync::{Semaphore, mpsc};
+use tokio::sync::mpsc;
+
+use crate::admission::{Connections, Limits};
 use tokio::task::JoinHandle;
 use tokio::time::Instant;
 use tracing::{debug, error, info, warn};
@@ -139,7 +142,7 @@ pub enum StartError {
 /// close and open them one by one.
 struct Tasks {
     events: mpsc::Sender<IoEvent>,
-    connections: Arc<Semaphore>,
+    connections: Arc<Connections>,
     ports: HashMap<u8, JoinHandle<()>>,
     links: BTreeMap<String, JoinHandle<()>>,
 }
@@ -199,7 +202,11 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
     let (events_tx, mut events) = mpsc::channel::<IoEvent>(4096);
     let mut tasks = Tasks {
         events: events_tx.clone(),
-        connections: Arc::new(Semaphore::new(config.max_connections)),
+        connections: Connections::new(Limits {
+            max_total: config.max_connections,
+            max_per_peer: crate::admission::DEFAULT_MAX_PER_PEER,
+            idle_timeout: crate::admission::DEFAULT_IDLE_TIMEOUT,
+        }),
         ports: HashMap::new(),
         links: BTreeMap::new(),
     };
@@ -244,6 +251,8 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
 
     let mut ports: HashMap<u8, mpsc::Sender<PortWrite>> = HashMap::new();
     let mut links: BTreeMap<LinkId, LinkInfo> = BTreeMap::new();
+    // Final counters of connections gone, per configured link name.
+    let mut departed: BTreeMap<String, LinkStats> = BTreeMap::new();
     let mut actions = Vec::new();
     let mut stopping: Option<Instant> = None;
     // Ports closing after a reload, with the time their grace runs out.
@@ -298,7 +307,9 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
                         router.handle(t, Input::LinkDown { link: id }, &mut actions);
                     }
                     IoEvent::Scrape(reply) => {
-                        let _ = reply.send(stats::render(&router.stats(), &links, now(Instant::now())));
+                        let mut s = snapshot(&router, &config, &links, &departed, now(Instant::now()));
+                        s.connections = tasks.connections.stats();
+                        let _ = reply.send(s);
                     }
                 }
             }
@@ -339,9 +350,48 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
                 tasks.start_port(new);
             }
         }
-        execute(&mut actions, &ports, &links);
+        execute(&mut actions, &ports, &mut links, &mut departed);
     }
     Ok(())
+}
+
+/// The counters a scrape renders: live links and those gone, per configured link.
+fn snapshot(
+    router: &Router,
+    config: &Config,
+    links: &BTreeMap<LinkId, LinkInfo>,
+    departed: &BTreeMap<String, LinkStats>,
+    uptime_ms: u64,
+) -> stats::Snapshot {
+    let stats = router.stats();
+    let mut totals: BTreeMap<String, stats::LinkTotals> = config
+        .links
+        .iter()
+        .map(|l| {
+            let mut gone = LinkStats::new(link_config(l).kind);
+            gone.up = false;
+            if let Some(d) = departed.get(&l.name) {
+                gone.absorb(d);
+            }
+            let totals = stats::LinkTotals {
+                stats: gone,
+                connections: 0,
+            };
+            (l.name.clone(), totals)
+        })
+        .collect();
+    for (id, live) in &stats.links {
+        if let Some(t) = links.get(id).and_then(|info| totals.get_mut(&info.name)) {
+            t.stats.absorb(live);
+            t.connections += 1;
+        }
+    }
+    stats::Snapshot {
+        stats,
+        links: totals,
+        connections: Default::default(),
+        uptime_ms,
+    }
 }
 
 /// One SIGHUP (module `reload`): the file is read and checked as at start;
@@ -458,12 +508,15 @@ fn notify(state: &[sd_notify::NotifyState<'_>]) {
     }
 }
 
-/// Carries out the router's actions in order.
+/// Carries out the router's actions in order. A link gone leaves its
+/// counters with its configured link and nothing else behind.
 fn execute(
     actions: &mut Vec<Action>,
     ports: &HashMap<u8, mpsc::Sender<PortWrite>>,
-    links: &BTreeMap<LinkId, LinkInfo>,
+    links: &mut BTreeMap<LinkId, LinkInfo>,
+    departed: &mut BTreeMap<String, LinkStats>,
 ) {
+    let mut gone = Vec::new();
     for action in actions.drain(..) {
         match action {
             Action::WritePort { port, bytes } => match ports.get(&port) {
@@ -490,7 +543,21 @@ fn execute(
                 }
             }
             Action::Event(event) => log_event(&event, links),
+            Action::LinkGone { link, stats } => {
+                if let Some(info) = links.get(&link) {
+                    match departed.get_mut(&info.name) {
+                        Some(d) => d.absorb(&stats),
+                        None => {
+                            departed.insert(info.name.clone(), *stats);
+                        }
+                    }
+                }
+                gone.push(link);
+            }
         }
+    }
+    for link in gone {
+        links.remove(&link);
     }
 }
 

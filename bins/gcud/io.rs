@@ -13,7 +13,9 @@ use sagebrush::transport::{Line, connect_tcp, open_serial};
 use sagebrush_gcu::LinkId;
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
-use tokio::sync::{Semaphore, mpsc, oneshot};
+use tokio::sync::{Notify, mpsc, oneshot};
+
+use crate::admission::{Admission, Connections};
 use tracing::{debug, info, warn};
 
 use crate::config::{Link, LinkTransport, Port, PortTransport};
@@ -46,8 +48,8 @@ pub enum IoEvent {
     LinkClosed {
         id: LinkId,
     },
-    /// A metrics scrape wants the current statistics as text.
-    Scrape(oneshot::Sender<String>),
+    /// A metrics scrape wants a snapshot of the counters (rendered off the router task).
+    Scrape(oneshot::Sender<crate::stats::Snapshot>),
 }
 
 /// What the router task asks of a port.
@@ -226,13 +228,22 @@ fn describe(t: &PortTransport) -> String {
 pub const FIRST_ACCEPTED_ID: u32 = 1 << 16;
 static NEXT_LINK_ID: AtomicU32 = AtomicU32::new(FIRST_ACCEPTED_ID);
 
-/// Moves bytes between one link connection and the router until it closes.
+/// An accepted connection's place in the admission table.
+struct Admitted {
+    table: Arc<Connections>,
+    key: u64,
+    close: Arc<Notify>,
+}
+
+/// Moves bytes between one link connection and the router until it closes
+/// (an accepted one also when evicted or idle too long).
 async fn pump_link<S: AsyncRead + AsyncWrite + Unpin>(
     id: LinkId,
     link: String,
     peer: String,
     stream: S,
     events: &mpsc::Sender<IoEvent>,
+    admitted: Option<Admitted>,
 ) {
     let (writer, mut writes) = mpsc::channel::<Vec<u8>>(256);
     if events
@@ -249,17 +260,31 @@ async fn pump_link<S: AsyncRead + AsyncWrite + Unpin>(
     }
     let (mut rd, mut wr) = tokio::io::split(stream);
     let mut buf = vec![0u8; 4096];
+    let mut idle = false;
+    let idle_at = || admitted.as_ref().and_then(|a| a.table.idle_at(a.key));
     let reason = loop {
         tokio::select! {
             read = rd.read(&mut buf) => match read {
                 Ok(0) => break "closed by peer".to_owned(),
                 Ok(n) => {
+                    if let Some(a) = &admitted {
+                        a.table.touch(a.key, tokio::time::Instant::now());
+                    }
                     if events.send(IoEvent::LinkBytes { id, bytes: buf[..n].to_vec() }).await.is_err() {
                         break "router stopped".to_owned();
                     }
                 }
                 Err(e) => break format!("read failed: {e}"),
             },
+            () = async { match &admitted { Some(a) => a.close.notified().await, None => std::future::pending().await } } => {
+                break "evicted for a newcomer (limits.max_connections)".to_owned();
+            }
+            () = async { match idle_at() { Some(at) => tokio::time::sleep_until(at).await, None => std::future::pending().await } } => {
+                if idle_at().is_some_and(|at| at <= tokio::time::Instant::now()) {
+                    idle = true;
+                    break "idle (limits.idle_timeout_ms)".to_owned();
+                }
+            }
             write = writes.recv() => match write {
                 Some(bytes) => {
                     if let Err(e) = wr.write_all(&bytes).await {
@@ -270,6 +295,9 @@ async fn pump_link<S: AsyncRead + AsyncWrite + Unpin>(
             },
         }
     };
+    if let Some(a) = &admitted {
+        a.table.left(a.key, idle);
+    }
     info!(%id, %peer, %reason, "link closed");
     let _ = events.send(IoEvent::LinkClosed { id }).await;
 }
@@ -293,7 +321,7 @@ pub async fn run_link(id: LinkId, link: Link, events: mpsc::Sender<IoEvent>) {
             Ok(stream) => {
                 backoff.reset();
                 info!(link = %link.name, %peer, "link connected");
-                pump_link(id, link.name.clone(), peer.clone(), stream, &events).await;
+                pump_link(id, link.name.clone(), peer.clone(), stream, &events, None).await;
             }
             Err(e) => warn!(link = %link.name, %peer, error = %e, "cannot connect; retrying with backoff"),
         }
@@ -304,12 +332,13 @@ pub async fn run_link(id: LinkId, link: Link, events: mpsc::Sender<IoEvent>) {
     }
 }
 
-/// Accepts connections: allow-listed peers only, up to the connection
-/// limit. The connections end with this task (a link removed on reload).
+/// Accepts connections: allow-listed peers only, admitted by the shared
+/// table (module `admission`). The connections end with this task (a link
+/// removed on reload).
 pub async fn accept_loop(
     link: Link,
     listener: TcpListener,
-    connections: Arc<Semaphore>,
+    connections: Arc<Connections>,
     events: mpsc::Sender<IoEvent>,
 ) {
     let mut open = tokio::task::JoinSet::new();
@@ -327,12 +356,24 @@ pub async fn accept_loop(
             }
         };
         if !link.allow_peers.contains(&peer.ip()) {
-            warn!(link = %link.name, %peer, "connection refused: peer not in allow_peers");
+            if connections.refuse_unlisted(peer.ip(), tokio::time::Instant::now()) {
+                warn!(link = %link.name, %peer, "connection refused: peer not in allow_peers (logged once a minute per peer)");
+            }
             continue;
         }
-        let Ok(permit) = connections.clone().try_acquire_owned() else {
-            warn!(link = %link.name, %peer, "connection refused: limits.max_connections reached");
-            continue;
+        let (key, close) = match connections.admit(peer.ip(), tokio::time::Instant::now()) {
+            Admission::Admitted { key, close, evicted } => {
+                if let Some(victim) = evicted {
+                    warn!(link = %link.name, peer = %victim, newcomer = %peer, "connection evicted: idle the longest at limits.max_connections (logged once a minute per peer)");
+                }
+                (key, close)
+            }
+            Admission::Refused { why, log } => {
+                if log {
+                    warn!(link = %link.name, %peer, "connection refused: {why} (logged once a minute per peer; gcud_connections_refused_total counts them all)");
+                }
+                continue;
+            }
         };
         if let Err(e) = sagebrush::transport::tune_tcp(&stream) {
             warn!(link = %link.name, %peer, error = %e, "cannot set TCP_NODELAY/keepalive");
@@ -340,10 +381,14 @@ pub async fn accept_loop(
         info!(link = %link.name, %peer, "client connected");
         let events = events.clone();
         let name = link.name.clone();
+        let admitted = Admitted {
+            table: connections.clone(),
+            key,
+            close,
+        };
         open.spawn(async move {
             let id = LinkId(NEXT_LINK_ID.fetch_add(1, Ordering::Relaxed));
-            pump_link(id, name, peer.to_string(), stream, &events).await;
-            drop(permit);
+            pump_link(id, name, peer.to_string(), stream, &events, Some(admitted)).await;
         });
     }
 }

@@ -2,6 +2,7 @@
 //! router core; this binary wires it to serial ports and TCP links
 //! (DESIGN "Layers", 3 and 4).
 
+mod admission;
 mod config;
 mod daemon;
 mod io;

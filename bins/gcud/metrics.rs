@@ -101,7 +101,7 @@ pub fn render(families: Vec<Family>) -> String {
 }
 
 /// A scrape asks the router task for fresh text through this channel.
-pub type ScrapeRequests = mpsc::Sender<oneshot::Sender<String>>;
+pub type ScrapeRequests = mpsc::Sender<oneshot::Sender<crate::stats::Snapshot>>;
 
 /// Serves `GET /metrics` until the process ends.
 pub async fn serve(listener: TcpListener, scrapes: ScrapeRequests) {
@@ -110,10 +110,18 @@ pub async fn serve(listener: TcpListener, scrapes: ScrapeRequests) {
         axum::routing::get(move || {
             let scrapes = scrapes.clone();
             async move {
+                // The router task only copies its counters; the text is
+                // rendered here, so that a scrape never stalls routing.
                 let (tx, rx) = oneshot::channel();
-                let body = match scrapes.send(tx).await {
-                    Ok(()) => rx.await.unwrap_or_default(),
-                    Err(_) => String::new(),
+                let snapshot = match scrapes.send(tx).await {
+                    Ok(()) => rx.await.ok(),
+                    Err(_) => None,
+                };
+                let body = match snapshot {
+                    Some(s) => tokio::task::spawn_blocking(move || crate::stats::render(&s))
+                        .await
+                        .unwrap_or_default(),
+                    None => String::new(),
                 };
                 (
                     [(

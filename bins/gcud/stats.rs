@@ -3,10 +3,31 @@
 
 use std::collections::BTreeMap;
 
-use sagebrush_gcu::{DropCounts, LineStats, LinkId, LinkKind, Stats};
+use sagebrush_gcu::{DropCounts, LineStats, LinkKind, LinkStats, Stats};
 
-use crate::daemon::LinkInfo;
 use crate::metrics::{Family, Kind, render as encode};
+
+/// Counters of one configured link: its connections gone and live (a
+/// listener's accepted connections fold into it, so that metrics never
+/// grow with connections).
+#[derive(Debug, Clone)]
+pub struct LinkTotals {
+    pub stats: LinkStats,
+    /// Connections up now.
+    pub connections: u64,
+}
+
+/// What a scrape renders: copied on the router task (counters only, their
+/// number bounded by the configuration), rendered off it.
+#[derive(Debug)]
+pub struct Snapshot {
+    pub stats: Stats,
+    /// Per configured link name.
+    pub links: BTreeMap<String, LinkTotals>,
+    /// Accepted connections over all listeners.
+    pub connections: crate::admission::AdmissionStats,
+    pub uptime_ms: u64,
+}
 
 /// `NoRoute` -> `no_route`, for label values.
 fn snake(name: &str) -> String {
@@ -99,7 +120,8 @@ fn push_drops(family: &mut Family, labels: &[(&'static str, String)], drops: &Dr
 }
 
 /// Renders everything in the OpenMetrics text format.
-pub fn render(stats: &Stats, links: &BTreeMap<LinkId, LinkInfo>, uptime_ms: u64) -> String {
+pub fn render(snapshot: &Snapshot) -> String {
+    let (stats, uptime_ms) = (&snapshot.stats, snapshot.uptime_ms);
     let mut out = Vec::new();
 
     let mut uptime = Family::new("uptime_ms", "Milliseconds since gcud started.", Kind::Gauge);
@@ -177,6 +199,26 @@ pub fn render(stats: &Stats, links: &BTreeMap<LinkId, LinkInfo>, uptime_ms: u64)
         f.push(vec![], value);
         out.push(f);
     }
+    let c = &snapshot.connections;
+    let mut open = Family::new("connections_open", "Accepted connections open now.", Kind::Gauge);
+    open.push(vec![], c.open);
+    out.push(open);
+    let mut accepted_conns = Family::new("connections_accepted", "Connections accepted.", Kind::Counter);
+    accepted_conns.push(vec![], c.accepted);
+    out.push(accepted_conns);
+    let mut refused = Family::new("connections_refused", "Connections refused, by why.", Kind::Counter);
+    for (why, n) in [
+        ("max_connections", c.refused_total_cap),
+        ("max_connections_per_peer", c.refused_peer_cap),
+        ("allow_peers", c.refused_not_allowed),
+    ] {
+        refused.push(vec![("why", why.to_owned())], n);
+    }
+    out.push(refused);
+    let mut closed = Family::new("connections_closed", "Connections gcud closed, by why.", Kind::Counter);
+    closed.push(vec![("why", "evicted".to_owned())], c.evicted);
+    closed.push(vec![("why", "idle".to_owned())], c.idle_closed);
+    out.push(closed);
     let mut in_progress = Family::new("commands_in_progress", "Commands in progress now.", Kind::Gauge);
     in_progress.push(vec![], r.in_progress);
     out.push(in_progress);
@@ -204,33 +246,36 @@ pub fn render(stats: &Stats, links: &BTreeMap<LinkId, LinkInfo>, uptime_ms: u64)
     out.extend([port_open, port_bps, port_queue, port_tx, port_switches]);
 
     let mut link_lines = LineFamilies::new("link");
-    let mut link_up = Family::new("link_up", "Whether the link is connected.", Kind::Gauge);
+    let mut link_up = Family::new("link_up", "Whether the link has a connection up.", Kind::Gauge);
+    let mut link_connections = Family::new("link_connections", "Connections up now.", Kind::Gauge);
+    let mut link_repeats = Family::new(
+        "link_command_repeats",
+        "Retransmissions of a client's command awaiting delivery (not executed again).",
+        Kind::Counter,
+    );
     let mut link_delivered = Family::new("link_frames_delivered", "Frames the peer acknowledged.", Kind::Counter);
     let mut link_failed = Family::new(
         "link_frames_failed",
         "Frames given up or dropped with the link.",
         Kind::Counter,
     );
-    for (id, l) in &stats.links {
-        let info = links.get(id);
+    for (name, t) in &snapshot.links {
+        let l = &t.stats;
         let kind = match l.kind {
             LinkKind::Upstream => "upstream",
             LinkKind::Downstream => "downstream",
             LinkKind::Client => "client",
         };
-        let labels = vec![
-            ("link_id", id.0.to_string()),
-            ("link", info.map_or_else(String::new, |i| i.name.clone())),
-            ("peer", info.map_or_else(String::new, |i| i.peer.clone())),
-            ("role", kind.to_owned()),
-        ];
+        let labels = vec![("link", name.clone()), ("role", kind.to_owned())];
         link_lines.push(&labels, &l.line);
-        link_up.push(labels.clone(), u64::from(l.up));
+        link_up.push(labels.clone(), u64::from(t.connections > 0));
+        link_connections.push(labels.clone(), t.connections);
+        link_repeats.push(labels.clone(), l.repeats);
         link_delivered.push(labels.clone(), l.delivered);
         link_failed.push(labels, l.failed);
     }
     link_lines.into_families(&mut out);
-    out.extend([link_up, link_delivered, link_failed]);
+    out.extend([link_up, link_connections, link_repeats, link_delivered, link_failed]);
 
     let mut device_families = [
         Family::new(
@@ -302,8 +347,27 @@ mod tests {
         let mut router = sagebrush_gcu::Router::new(config).unwrap();
         let mut actions = Vec::new();
         router.handle(0, sagebrush_gcu::Input::PortOpened { port: 1 }, &mut actions);
-        let text = render(&router.stats(), &BTreeMap::new(), 42);
+        let mut gone = LinkStats::new(LinkKind::Client);
+        gone.line.frames_in = 3;
+        let mut live = LinkStats::new(LinkKind::Client);
+        live.line.frames_in = 4;
+        let mut clients = LinkTotals {
+            stats: gone,
+            connections: 1,
+        };
+        clients.stats.absorb(&live);
+        let snapshot = Snapshot {
+            stats: router.stats(),
+            links: BTreeMap::from([("clients".to_owned(), clients)]),
+            connections: Default::default(),
+            uptime_ms: 42,
+        };
+        let text = render(&snapshot);
         assert!(text.contains("gcud_uptime_ms 42"), "{text}");
+        assert!(
+            text.contains("gcud_link_frames_in_total{link=\"clients\",role=\"client\"} 7"),
+            "connections fold into their configured link: {text}"
+        );
         assert!(text.contains("gcud_port_open{port=\"1\"} 1"), "{text}");
         assert!(text.contains("gcud_port_retransmits_total{port=\"1\"} 0"), "{text}");
         assert!(

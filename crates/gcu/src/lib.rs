@@ -18,6 +18,7 @@
 //!         Action::WritePort { port, bytes } => { /* write to the serial port */ }
 //!         Action::WriteLink { link, bytes } => { /* write to the TCP/serial link */ }
 //!         Action::SetPortRate { port, bps } => { /* reconfigure the serial port */ }
+//!         Action::LinkGone { link, stats } => { /* fold its counters into its configured link's */ }
 //!         Action::Event(event) => { /* log at event.level(), e.g. through tracing */ }
 //!     }
 //! }

@@ -103,7 +103,6 @@ pub struct Router {
     settings: LinkSettings,
     ports: BTreeMap<u8, Port>,
     links: BTreeMap<LinkId, Link>,
-    retired: BTreeMap<LinkId, LinkStats>,
     routes: RoutingTable,
     reverse: ReversePath,
     deadman: DeadMan,
@@ -134,7 +133,6 @@ impl Router {
             group: config.group,
             ports: config.ports.iter().map(|p| (p.id, Port::new(p))).collect(),
             links: BTreeMap::new(),
-            retired: BTreeMap::new(),
             routes: RoutingTable::new(config.static_routes, config.default_upstream),
             reverse: ReversePath::new(
                 config.links.max_pending,
@@ -183,14 +181,7 @@ impl Router {
                 if self.links.contains_key(&link) {
                     self.link_down(now, link, out);
                 }
-                let stats = match self.retired.remove(&link) {
-                    Some(old) => LinkStats {
-                        up: true,
-                        kind: config.kind,
-                        ..old
-                    },
-                    None => LinkStats::new(config.kind),
-                };
+                let stats = LinkStats::new(config.kind);
                 self.links.insert(link, Link::new(config, &self.settings, stats));
                 out.push(Action::Event(Event::LinkState { link, up: true }));
             }
@@ -240,8 +231,7 @@ impl Router {
     pub fn stats(&self) -> Stats {
         let mut router = self.stats;
         router.in_progress = self.commands.len() as u64;
-        let mut links = self.retired.clone();
-        links.extend(self.links.iter().map(|(&id, l)| (id, l.stats)));
+        let links = self.links.iter().map(|(&id, l)| (id, l.stats)).collect();
         Stats {
             router,
             ports: self.ports.iter().map(|(&id, p)| (id, p.stats)).collect(),
@@ -1051,7 +1041,10 @@ impl Router {
                 source: f.source,
             }));
         }
-        self.retired.insert(link, l.stats);
+        out.push(Action::LinkGone {
+            link,
+            stats: Box::new(l.stats),
+        });
         self.routes.forget(link);
         // Nobody is left to tell whether these were delivered.
         self.awaiting.retain(|_, a| a.link != link);

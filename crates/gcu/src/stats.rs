@@ -27,6 +27,12 @@ impl DropCounts {
     pub(crate) fn add(&mut self, reason: DropReason) {
         self.0[reason.index()] += 1;
     }
+    /// Adds another set of counts to these.
+    pub fn absorb(&mut self, other: &DropCounts) {
+        for (mine, theirs) in self.0.iter_mut().zip(other.0) {
+            *mine += theirs;
+        }
+    }
 }
 
 /// Counters of one line (a serial port or a link).
@@ -61,6 +67,27 @@ pub struct LineStats {
     pub last_seen: Option<u64>,
 }
 
+impl LineStats {
+    /// Adds another line's counters to these (the later `last_seen` wins).
+    pub fn absorb(&mut self, o: &LineStats) {
+        self.frames_in += o.frames_in;
+        self.frames_out += o.frames_out;
+        self.bytes_in += o.bytes_in;
+        self.bytes_out += o.bytes_out;
+        self.bad_checksums += o.bad_checksums;
+        self.naks_sent += o.naks_sent;
+        self.naks_received += o.naks_received;
+        self.stray_bytes += o.stray_bytes;
+        self.retransmits += o.retransmits;
+        self.timeouts += o.timeouts;
+        self.nics_in += o.nics_in;
+        self.nics_out += o.nics_out;
+        self.noise_bytes += o.noise_bytes;
+        self.drops.absorb(&o.drops);
+        self.last_seen = self.last_seen.max(o.last_seen);
+    }
+}
+
 /// One serial port.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PortStats {
@@ -77,7 +104,8 @@ pub struct PortStats {
     pub rate_switches: u64,
 }
 
-/// One link (kept after it went down, under its id).
+/// One link while it is up (its final counters leave with
+/// [`crate::Action::LinkGone`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LinkStats {
     pub line: LineStats,
@@ -100,7 +128,21 @@ pub struct LinkStats {
 }
 
 impl LinkStats {
-    pub(crate) fn new(kind: LinkKind) -> Self {
+    /// Adds another link's counters to these (several connections of one
+    /// configured link, live and gone); queue lengths add up, `up` if either is.
+    pub fn absorb(&mut self, o: &LinkStats) {
+        self.line.absorb(&o.line);
+        self.up |= o.up;
+        self.queue_len += o.queue_len;
+        self.queue_high_water = self.queue_high_water.max(o.queue_high_water);
+        self.queued += o.queued;
+        self.delivered += o.delivered;
+        self.failed += o.failed;
+        self.acks_sent += o.acks_sent;
+        self.repeats += o.repeats;
+    }
+
+    pub fn new(kind: LinkKind) -> Self {
         Self {
             line: LineStats::default(),
             up: true,

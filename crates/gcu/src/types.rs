@@ -90,6 +90,10 @@ pub enum Action {
     WriteLink { link: LinkId, bytes: Vec<u8> },
     /// Switch the serial port's own line rate (bits per second).
     SetPortRate { port: u8, bps: u32 },
+    /// The link went down and the router forgot it: its final counters,
+    /// for the daemon to fold into what it keeps per configured link
+    /// (state stays bounded by what is live).
+    LinkGone { link: LinkId, stats: Box<crate::LinkStats> },
     /// Something worth logging or counting; see [`Event::level`].
     Event(Event),
 }

@@ -818,11 +818,22 @@ fn link_going_down_drops_its_queue_and_answers_for_it_count_origin_gone() {
     let mut h = H::new(&[1]);
     h.link(CLIENT, &frame((G, 1, 3), 2, b"P?"));
     h.port(1, &[ACK]);
-    h.go(Input::LinkDown { link: CLIENT });
+    let a = h.go(Input::LinkDown { link: CLIENT });
+    let gone: Vec<_> = a
+        .iter()
+        .filter_map(|x| match x {
+            Action::LinkGone { link, stats } => Some((*link, stats.line.frames_in)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(gone, vec![(CLIENT, 1)], "its final counters go to the daemon");
     let a = h.port(1, &frame((2, 1, 3), G, b"00000000"));
     assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::OriginGone)]);
     assert!(!h.r.link_is_up(CLIENT));
-    assert!(!h.r.stats().links[&CLIENT].up);
+    assert!(
+        !h.r.stats().links.contains_key(&CLIENT),
+        "the router keeps nothing of a link gone"
+    );
 }
 
 /// Links going down together can owe more stops than a port's stop queue

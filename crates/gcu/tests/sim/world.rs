@@ -629,6 +629,12 @@ impl World {
                     }
                 }
                 Action::Event(event) => self.on_event(g, event),
+                Action::LinkGone { link, stats } => {
+                    // Every frame it queued is accounted for when it leaves.
+                    if stats.queued != stats.delivered + stats.failed || stats.queue_len != 0 {
+                        self.violation(format!("gcu {g} {link} left with frames unaccounted {stats:?}"));
+                    }
+                }
             }
         }
     }
