@@ -53,7 +53,9 @@ fn router_config(config: &Config, ids: &mut LinkIds) -> RouterConfig {
         pc.long_result_timeout = t.long_result_timeout_ms;
         pc.nic_window = t.nic_window_ms;
         pc.broadcast_guard = t.broadcast_guard_ms;
-        pc.queue_bound = config.queue_depth;
+        // Every client that may connect can have a command waiting on
+        // every port (fair queuing drops a hog's work first).
+        pc.queue_bound = config.queue_depth.max(config.max_connections);
         pc.idle_timeout = sagebrush::timing::wire_ms(8, t.baud) + 20;
         if let PortTransport::Simulated(devices) = &port.transport {
             pc.devices = Some(devices.clone());

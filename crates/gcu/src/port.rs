@@ -22,6 +22,11 @@
 //!   twice, or answered after the GCU gave up: the bus stays quiet for one
 //!   ACK time-out so that such an answer is not taken for the next
 //!   exchange's (it is ACKed and counted as unsolicited).
+//! - Fair: the next job after the stops is the oldest of the origin (link,
+//!   i.e. client) served least recently, round robin; when the queue is
+//!   full, the origin holding the most jobs gives up its newest one for a
+//!   newcomer of another origin (so one client's flood never costs another
+//!   its command); the newcomer of the hog itself is refused.
 //! - The queue is bounded, stops and other work separately so that a burst
 //!   of work never costs a stop its place (and a burst of dead-man stops
 //!   never pushes work out): a job that does not fit is dropped and counted
@@ -161,6 +166,9 @@ pub(crate) struct Port {
     settle_until: Option<u64>,
     /// Being closed (removed or reconfigured): only the GCU's own stops are taken.
     pub closing: bool,
+    /// Round robin: when each origin (link) was last served, by `turn`.
+    served: BTreeMap<Option<crate::LinkId>, u64>,
+    turn: u64,
     pub stats: PortStats,
     pub device_stats: BTreeMap<u8, DeviceStats>,
 }
@@ -195,6 +203,8 @@ impl Port {
             acked_rates: BTreeMap::new(),
             settle_until: None,
             closing: false,
+            served: BTreeMap::new(),
+            turn: 0,
             stats: PortStats {
                 bps: rate.bits_per_second().unwrap_or(9600),
                 ..PortStats::default()
@@ -293,7 +303,25 @@ impl Port {
                 return self.drop_job(job, DropReason::QueueFull, out);
             }
         } else if self.queue.len() - stops >= self.bound {
-            return self.drop_job(job, DropReason::QueueFull, out);
+            // Full: the origin holding the most work gives up its newest
+            // job, unless that is the newcomer's own origin (fair drop:
+            // one client's flood never costs another client its command).
+            let mut counts: BTreeMap<Option<crate::LinkId>, usize> = BTreeMap::new();
+            for j in self.queue.iter().filter(|j| !j.stop) {
+                *counts.entry(j.origin.link()).or_default() += 1;
+            }
+            let mine = counts.get(&job.origin.link()).copied().unwrap_or(0);
+            let hog = counts.iter().max_by_key(|&(_, n)| *n).map(|(&o, &n)| (o, n));
+            match hog {
+                Some((hog, n)) if hog != job.origin.link() && n > mine + 1 => {
+                    if let Some(at) = self.queue.iter().rposition(|j| !j.stop && j.origin.link() == hog) {
+                        if let Some(victim) = self.queue.remove(at) {
+                            self.drop_job(victim, DropReason::QueueFull, out);
+                        }
+                    }
+                }
+                _ => return self.drop_job(job, DropReason::QueueFull, out),
+            }
         }
         let at = if job.stop {
             self.queue.iter().position(|j| !j.stop).unwrap_or(self.queue.len())
@@ -348,7 +376,7 @@ impl Port {
             if !self.detached.is_empty() && !self.queue.front().is_some_and(|j| j.stop) {
                 break;
             }
-            let Some(job) = self.queue.pop_front() else { break };
+            let Some(job) = self.next_job() else { break };
             self.note_queue();
             let frame = job.frame.frame();
             let command = Command::parse(frame.payload());
@@ -369,6 +397,35 @@ impl Port {
             });
             self.active_step(now, step, None, out);
         }
+    }
+
+    /// The next job: a stop first; else round robin between origins (each
+    /// link is one client, DESIGN "Safety": none starves another), the
+    /// oldest job of the origin served least recently.
+    fn next_job(&mut self) -> Option<Job> {
+        if self.queue.front()?.stop {
+            return self.queue.pop_front();
+        }
+        let mut best: Option<(u64, usize)> = None;
+        let mut seen = BTreeSet::new();
+        for (i, j) in self.queue.iter().enumerate() {
+            let origin = j.origin.link();
+            if !seen.insert(origin) {
+                continue;
+            }
+            let served = self.served.get(&origin).copied().unwrap_or(0);
+            if best.is_none_or(|(s, _)| served < s) {
+                best = Some((served, i));
+            }
+        }
+        let job = self.queue.remove(best?.1)?;
+        self.turn += 1;
+        self.served.insert(job.origin.link(), self.turn);
+        if self.served.len() > 2 * self.queue.len() + 16 {
+            let queued: BTreeSet<_> = self.queue.iter().map(|j| j.origin.link()).collect();
+            self.served.retain(|o, _| queued.contains(o));
+        }
+        Some(job)
     }
 
     /// A long result wait gives the bus to a queued stop.

@@ -978,3 +978,34 @@ fn shutdown_stops_every_owned_motion_and_refuses_new_commands() {
     assert_eq!(h.r.in_progress(), 0);
     assert_eq!(h.r.stats().router.shutdown_stops, 2);
 }
+
+#[test]
+fn ports_serve_clients_round_robin_and_a_flood_costs_only_its_sender() {
+    let other = LinkId(9);
+    let mut h = H::new(&[1]);
+    h.up(other, LinkKind::Client);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"P?")); // in flight
+    for device in 4..8 {
+        h.link(CLIENT, &frame((G, 1, device), 2, b"HO")); // fills the queue (bound 4)
+    }
+    // The queue is full of CLIENT's work: the other client's command takes
+    // the place of CLIENT's newest, which CLIENT is told was not delivered.
+    let a = h.link(other, &frame((G, 1, 9), 3, b"P?"));
+    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::QueueFull)]);
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        vec![report(&frame((G, 1, 7), 2, b"HO"), Some(Undelivered::QueueFull))]
+    );
+    assert!(
+        link_writes(&a, other).is_empty(),
+        "the other client's command is queued"
+    );
+    // CLIENT's next command is refused: it holds the most.
+    let a = h.link(CLIENT, &frame((G, 1, 8), 2, b"HO"));
+    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::QueueFull)]);
+    // Round robin: after CLIENT's P?, the other client's P? goes next,
+    // ahead of CLIENT's older queued work.
+    h.port(1, &[ACK]);
+    let a = h.port(1, &frame((2, 1, 3), G, b"00000000"));
+    assert_eq!(port_writes(&a, 1).last(), Some(&frame((G, 1, 9), 3, b"P?")));
+}
