@@ -9,7 +9,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use sagebrush_gcu::{
-    Action, Event, Input, Level, LinkConfig, LinkId, LinkKind, LinkStats, PortConfig, Router, RouterConfig,
+    Action, Event, Input, Level, LinkConfig, LinkId, LinkKind, LinkStats, Place, PortConfig, Router, RouterConfig,
     SourceFilter,
 };
 use tokio::net::TcpListener;
@@ -25,6 +25,7 @@ use crate::config::{Config, Link, LinkRole, LinkTransport, Port, PortTransport};
 use crate::io::{self, IoEvent, PortWrite};
 use crate::reload::Diff;
 use crate::stats;
+use crate::throttle::Throttle;
 
 /// Stable ids of configured links, by name: kept across reconnects and
 /// reloads, so that routes keep pointing at the right link.
@@ -255,6 +256,7 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
     let mut links: BTreeMap<LinkId, LinkInfo> = BTreeMap::new();
     // Final counters of connections gone, per configured link name.
     let mut departed: BTreeMap<String, LinkStats> = BTreeMap::new();
+    let mut throttle = Throttle::default();
     let mut actions = Vec::new();
     let mut stopping: Option<Instant> = None;
     // Ports closing after a reload, with the time their grace runs out.
@@ -330,7 +332,13 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
                 let reloaded = Reload { config: &mut config, ids: &mut ids, router: &mut router, tasks: &mut tasks, links: &mut links, closing: &mut closing };
                 reloaded.run(t, &mut actions).await;
             }
-            () = sleep_until(stopping.or_else(|| closing.values().min().copied()).map(|s| s.min(Instant::now() + Duration::from_millis(50)))) => {}
+            () = sleep_until(
+                [stopping, closing.values().min().copied(), throttle.next_deadline()]
+                    .into_iter()
+                    .flatten()
+                    .min()
+                    .map(|s| s.min(Instant::now() + Duration::from_millis(50)).max(Instant::now() + Duration::from_millis(1)))
+            ) => {}
         }
         // Ports closing after a reload: closed once idle (their stops
         // done) or when their grace ran out.
@@ -352,7 +360,10 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
                 tasks.start_port(new);
             }
         }
-        execute(&mut actions, &ports, &mut links, &mut departed);
+        execute(&mut actions, &ports, &mut links, &mut departed, &mut throttle);
+        for summary in throttle.summaries(Instant::now()) {
+            warn!("{summary}");
+        }
     }
     Ok(())
 }
@@ -517,6 +528,7 @@ fn execute(
     ports: &HashMap<u8, mpsc::Sender<PortWrite>>,
     links: &mut BTreeMap<LinkId, LinkInfo>,
     departed: &mut BTreeMap<String, LinkStats>,
+    throttle: &mut Throttle,
 ) {
     let mut gone = Vec::new();
     for action in actions.drain(..) {
@@ -524,7 +536,10 @@ fn execute(
             Action::WritePort { port, bytes } => match ports.get(&port) {
                 Some(tx) => {
                     if tx.try_send(PortWrite::Bytes(bytes)).is_err() {
-                        warn!(port, "port writer is behind or gone: bytes dropped");
+                        let line = || format!("port {port}: port writer is behind or gone: bytes dropped");
+                        if throttle.allow("writer behind", &format!("port {port}"), line, Instant::now()) {
+                            warn!(port, "port writer is behind or gone: bytes dropped");
+                        }
                     }
                 }
                 None => debug!(port, "write to a closed port dropped"),
@@ -532,7 +547,11 @@ fn execute(
             Action::WriteLink { link, bytes } => match links.get(&link).and_then(|l| l.writer.as_ref()) {
                 Some(tx) => {
                     if tx.try_send(bytes).is_err() {
-                        warn!(%link, "link writer is behind or gone: bytes dropped");
+                        let place = links.get(&link).map_or_else(|| link.to_string(), |l| l.name.clone());
+                        let line = || format!("{link} ({place}): link writer is behind or gone: bytes dropped");
+                        if throttle.allow("writer behind", &place, line, Instant::now()) {
+                            warn!(%link, "link writer is behind or gone: bytes dropped");
+                        }
                     }
                 }
                 None => debug!(%link, "write to a closed link dropped"),
@@ -544,7 +563,7 @@ fn execute(
                     }
                 }
             }
-            Action::Event(event) => log_event(&event, links),
+            Action::Event(event) => log_event(&event, links, throttle),
             Action::LinkGone { link, stats } => {
                 if let Some(info) = links.get(&link) {
                     match departed.get_mut(&info.name) {
@@ -563,7 +582,10 @@ fn execute(
     }
 }
 
-fn log_event(event: &Event, links: &BTreeMap<LinkId, LinkInfo>) {
+/// Logs a router event; repeated warnings of one kind from one place are
+/// throttled (module `throttle`).
+fn log_event(event: &Event, links: &BTreeMap<LinkId, LinkInfo>, throttle: &mut Throttle) {
+    let name = |link: &LinkId| links.get(link).map_or_else(|| link.to_string(), |l| l.name.clone());
     // Events about a link name it as configured, with its peer.
     let context = match event {
         Event::LinkState { link, .. } | Event::DeadManStop { link, .. } => links
@@ -574,6 +596,26 @@ fn log_event(event: &Event, links: &BTreeMap<LinkId, LinkInfo>) {
     match event.level() {
         Level::Debug => debug!("{event}{context}"),
         Level::Info => info!("{event}{context}"),
-        Level::Warn => warn!("{event}{context}"),
+        Level::Warn => {
+            let (kind, place) = match event {
+                Event::Dropped { reason, at, .. } => (
+                    format!("dropped {}", reason.name()),
+                    match at {
+                        Place::Link(link) => name(link),
+                        other => other.to_string(),
+                    },
+                ),
+                Event::Undelivered { failure, origin, .. } => (
+                    format!("undelivered {}", failure.name()),
+                    origin.link().as_ref().map_or_else(String::new, name),
+                ),
+                Event::Finished { outcome, .. } => (format!("finished {outcome:?}"), String::new()),
+                Event::DeadManStop { link, .. } | Event::LeaseExpired { link, .. } => ("stop".to_owned(), name(link)),
+                other => (format!("{:?}", std::mem::discriminant(other)), String::new()),
+            };
+            if throttle.allow(&kind, &place, || format!("{event}{context}"), Instant::now()) {
+                warn!("{event}{context}");
+            }
+        }
     }
 }

@@ -10,6 +10,7 @@ mod metrics;
 mod reload;
 mod simulated;
 mod stats;
+mod throttle;
 
 use std::path::PathBuf;
 use std::process::ExitCode;

@@ -732,6 +732,13 @@ impl Router {
     fn on_received(&mut self, now: u64, link: LinkId, received: Received, out: &mut Vec<Action>) {
         match received {
             Received::Frame(frame) => self.on_link_frame(now, link, *frame, out),
+            // A client answers no command: its `?` is a byte in the wrong
+            // direction, counted as stray, not a dropped frame.
+            Received::Nic if self.links.get(&link).is_some_and(|l| l.config.kind == LinkKind::Client) => {
+                if let Some(l) = self.links.get_mut(&link) {
+                    l.stats.line.stray_bytes += 1;
+                }
+            }
             Received::Nic => match self.reverse.match_nic(link) {
                 AnswerMatch::One(origin) => {
                     if self.nic_to(now, origin, out).is_err() {

@@ -1009,3 +1009,24 @@ fn ports_serve_clients_round_robin_and_a_flood_costs_only_its_sender() {
     let a = h.port(1, &frame((2, 1, 3), G, b"00000000"));
     assert_eq!(port_writes(&a, 1).last(), Some(&frame((G, 1, 9), 3, b"P?")));
 }
+
+#[test]
+fn control_bytes_from_a_client_in_the_wrong_direction_are_stray_not_drops() {
+    let mut h = H::new(&[1]);
+    let a = h.link(CLIENT, &[NIC, ACK, NAK]);
+    assert!(dropped(&a).is_empty() && link_writes(&a, CLIENT).is_empty(), "{a:?}");
+    let s = h.r.stats();
+    assert_eq!(s.links[&CLIENT].line.stray_bytes, 3);
+    assert_eq!(s.router.frame_drops.total(), 0);
+}
+
+/// Payload bytes outside printable ASCII (an `*xpt` may carry any byte to
+/// an auxiliary port) are relayed unchanged: the frame is length-delimited,
+/// and what a payload means is the device's to judge (NIC).
+#[test]
+fn payload_bytes_outside_printable_ascii_are_relayed_unchanged() {
+    let mut h = H::new(&[1]);
+    let raw = frame((G, 1, 3), 2, b"*x0t\x01\xF8\x06\x15?");
+    let a = h.link(CLIENT, &raw);
+    assert_eq!(port_writes(&a, 1), vec![raw]);
+}

@@ -1,0 +1,106 @@
+//! Logs that survive a flood: repeated warnings of one kind from one place
+//! (a port, a link, the router) are written at most [`BURST`] times per
+//! [`WINDOW`]; the rest are counted and summarised once the window ends
+//! ("... repeated 83112 times in 10 s"). The metrics keep the exact numbers.
+
+use std::collections::HashMap;
+use std::time::Duration;
+
+use tokio::time::Instant;
+
+/// Lines of one kind and place written per window before the rest is counted.
+pub const BURST: u32 = 10;
+/// The window.
+pub const WINDOW: Duration = Duration::from_secs(10);
+/// Kinds and places tracked at once; beyond, the oldest window is summarised early.
+const MAX_KEYS: usize = 4096;
+
+#[derive(Debug)]
+struct Window {
+    start: Instant,
+    written: u32,
+    suppressed: u64,
+    /// The last suppressed line, quoted in the summary.
+    last: String,
+}
+
+/// Per (kind, place) windows.
+#[derive(Debug, Default)]
+pub struct Throttle {
+    windows: HashMap<(String, String), Window>,
+}
+
+impl Throttle {
+    /// Whether a warning of `kind` at `place` may be written now; if not,
+    /// it is counted (with its text, for the summary).
+    pub fn allow(&mut self, kind: &str, place: &str, line: impl FnOnce() -> String, now: Instant) -> bool {
+        if self.windows.len() >= MAX_KEYS && !self.windows.contains_key(&(kind.to_owned(), place.to_owned())) {
+            return true; // never lose a new kind of warning for bookkeeping's sake
+        }
+        let w = self
+            .windows
+            .entry((kind.to_owned(), place.to_owned()))
+            .or_insert_with(|| Window {
+                start: now,
+                written: 0,
+                suppressed: 0,
+                last: String::new(),
+            });
+        if w.written < BURST {
+            w.written += 1;
+            return true;
+        }
+        w.suppressed += 1;
+        w.last = line();
+        false
+    }
+
+    /// Summaries of the windows that ended by `now` (and their reset).
+    pub fn summaries(&mut self, now: Instant) -> Vec<String> {
+        let mut out = Vec::new();
+        self.windows.retain(|_, w| {
+            let ended = now.duration_since(w.start) >= WINDOW;
+            if ended && w.suppressed > 0 {
+                out.push(format!(
+                    "{} (repeated {} more times in {} s)",
+                    w.last,
+                    w.suppressed,
+                    now.duration_since(w.start).as_secs()
+                ));
+            }
+            !ended
+        });
+        out
+    }
+
+    /// When the next window ends, if any is open.
+    pub fn next_deadline(&self) -> Option<Instant> {
+        self.windows.values().map(|w| w.start + WINDOW).min()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_flood_is_a_burst_and_one_summary_per_window() {
+        let mut t = Throttle::default();
+        let t0 = Instant::now();
+        let written = (0..1000)
+            .filter(|i| t.allow("dropped unsolicited", "port 1", || format!("line {i}"), t0))
+            .count();
+        assert_eq!(written, BURST as usize);
+        assert!(
+            t.allow("dropped unsolicited", "port 2", String::new, t0),
+            "another place"
+        );
+        assert!(t.summaries(t0 + WINDOW / 2).is_empty(), "the window is still open");
+        let summaries = t.summaries(t0 + WINDOW);
+        assert_eq!(summaries, vec!["line 999 (repeated 990 more times in 10 s)".to_owned()]);
+        assert!(
+            t.allow("dropped unsolicited", "port 1", String::new, t0 + WINDOW),
+            "a new window"
+        );
+    }
+}
