@@ -866,3 +866,147 @@ fn check_against_prints_what_a_reload_would_change() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stdout).contains("gcu.group: changed; needs a restart"));
 }
+
+// ---- bounded and fair under hostile load (issue: per-connection state, hygiene, fairness, logs) ----
+
+impl Gcud {
+    fn rss_kib(&self) -> u64 {
+        let status = std::fs::read_to_string(format!("/proc/{}/status", self.child.id())).expect("proc status");
+        let line = status.lines().find(|l| l.starts_with("VmRSS:")).expect("VmRSS");
+        line.split_whitespace()
+            .nth(1)
+            .and_then(|v| v.parse().ok())
+            .expect("RSS in kB")
+    }
+}
+
+/// Thousands of connections come and go: memory and the metrics stay flat
+/// (a connection's counters fold into its configured link).
+#[test]
+fn connection_churn_leaves_memory_and_metrics_flat() {
+    let gcud = Gcud::start(&format!("[gcu]\ngroup = 5\n{CLIENTS}{METRICS}"));
+    let addr = gcud.clients();
+    let aw = FrameBuf::new(Address::new(5, 0, 0), 0, b"AW").expect("frame");
+    let churn = |n: usize| {
+        for _ in 0..n {
+            let mut s = TcpStream::connect(&addr).expect("connect");
+            s.set_read_timeout(Some(HANG_GUARD)).expect("timeout");
+            s.write_all(aw.as_bytes()).expect("send");
+            let mut ack = [0u8; 1];
+            assert_eq!(s.read(&mut ack).expect("the ACK"), 1);
+        }
+        eventually("every churned connection to be closed", || {
+            gcud.metric("gcud_connections_open") == 0
+        });
+    };
+    churn(500); // warm up allocator pools and the metrics' label set
+    let (rss_before, metrics_before) = (gcud.rss_kib(), gcud.metrics().len());
+    churn(5000);
+    let (rss_after, metrics_after) = (gcud.rss_kib(), gcud.metrics().len());
+    eprintln!(
+        "5000 connections: RSS {rss_before} -> {rss_after} KiB, /metrics {metrics_before} -> {metrics_after} bytes"
+    );
+    assert_eq!(gcud.metric("gcud_connections_accepted_total"), 5500);
+    assert!(
+        gcud.metric("gcud_link_frames_in_total{link=\"clients\",role=\"client\"}") >= 5000,
+        "the connections' counters live on in their link's"
+    );
+    assert!(
+        metrics_after <= metrics_before + 200,
+        "metrics grew from {metrics_before} to {metrics_after} bytes"
+    );
+    assert!(
+        rss_after <= rss_before + 2048,
+        "RSS grew from {rss_before} to {rss_after} KiB over 5000 connections"
+    );
+}
+
+/// Connections that hold their slot and say nothing do not lock a newcomer
+/// out: at the limit, the one idle the longest is evicted.
+#[test]
+fn idle_holders_make_room_for_a_newcomer() {
+    let sim = Sim::pty(&[]);
+    let gcud = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n[limits]\nmax_connections = 2\n{CLIENTS}{METRICS}{}",
+        port_entry(1, &sim)
+    ));
+    gcud.wait_for_log("port open port=1");
+    let holders: Vec<TcpStream> = (0..2)
+        .map(|_| TcpStream::connect(gcud.clients()).expect("connect"))
+        .collect();
+    eventually("both holders to be admitted", || {
+        gcud.metric("gcud_connections_open") == 2
+    });
+    std::thread::sleep(Duration::from_millis(1200));
+    let out = gcud.ctl(&["--to", "5.1.1", "position"]);
+    assert_eq!(out.code, 0, "the newcomer is served: {out:?}\n{}", gcud.log());
+    assert_eq!(gcud.metric("gcud_connections_closed_total{why=\"evicted\"}"), 1);
+    assert!(gcud.log().contains("connection evicted"), "{}", gcud.log());
+    drop(holders);
+}
+
+/// Eight clients pipeline five commands each at one port: every command
+/// ends in exactly one outcome its client sees (an ACK or a report).
+#[test]
+fn pipelining_clients_see_one_outcome_per_command() {
+    let sim = Sim::pty(&[]);
+    let gcud = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n[limits]\nqueue_depth = 4\nmax_connections = 8\n{CLIENTS}{METRICS}{}",
+        port_entry(1, &sim)
+    ));
+    gcud.wait_for_log("port open port=1");
+    let mut clients: Vec<WireClient> = (0..8).map(|_| WireClient::connect(&gcud.clients())).collect();
+    for (c, client) in clients.iter_mut().enumerate() {
+        for k in 0..5i16 {
+            let pan = sagebrush_protocol::Angle::from_centidegrees(100 * (c as i16 * 5 + k));
+            let tilt = sagebrush_protocol::Angle::from_centidegrees(0);
+            client.send(Address::new(5, 1, 1), 0, &Cmd::GoTo(Position::new(pan, tilt)));
+        }
+    }
+    let (mut acks, mut reports) = (0, 0);
+    for client in &mut clients {
+        for _ in 0..5 {
+            match client.next() {
+                Owned::Ack => acks += 1,
+                Owned::Frame(f) if sagebrush_protocol::DeliveryReport::parse(f.frame().payload()).is_ok() => {
+                    reports += 1
+                }
+                other => panic!("unexpected {other:?}"),
+            }
+        }
+    }
+    assert_eq!(acks + reports, 40);
+    assert_eq!(
+        gcud.metric("gcud_commands_delivery_total{delivery=\"delivered\"}"),
+        acks,
+        "{}",
+        gcud.metrics()
+    );
+    assert_eq!(
+        gcud.metric("gcud_commands_delivery_total{delivery=\"queue_full\"}"),
+        reports
+    );
+}
+
+/// A bus that spews frames nobody asked for: every one is counted, but
+/// the log holds a burst and a summary, not a line per frame.
+#[test]
+fn a_spewing_bus_is_counted_exactly_and_logged_briefly() {
+    let bus = std::net::TcpListener::bind("127.0.0.1:0").expect("bind the fake device server");
+    let addr = bus.local_addr().expect("address");
+    let gcud = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n{METRICS}[[port]]\nid = 1\ntcp = \"{addr}\"\n"
+    ));
+    let (mut line, _) = bus.accept().expect("gcud connects");
+    let stray = FrameBuf::new(Address::new(7, 1, 1), 5, b"00000000").expect("frame");
+    let burst: Vec<u8> = (0..200).flat_map(|_| stray.as_bytes().to_vec()).collect();
+    for _ in 0..50 {
+        line.write_all(&burst).expect("spew");
+    }
+    eventually("every stray frame to be counted", || {
+        gcud.metric("gcud_port_drops_total{port=\"1\",reason=\"unsolicited\"}") == 10_000
+    });
+    let log = gcud.log();
+    let lines = log.lines().filter(|l| l.contains("Unsolicited")).count();
+    assert!(lines <= 12, "{lines} log lines for 10000 stray frames:\n{log}");
+}
