@@ -4,7 +4,12 @@
 //!    beside the same client talking to the simulator directly (p50/p99 and
 //!    the latency gcud adds);
 //! 2. transactions per second with many ports busy at once;
-//! 3. resident memory and CPU of gcud with 254 idle ports.
+//! 3. resident memory and CPU of gcud with 254 idle ports;
+//! 4. with `GCUD_BENCH_SOAK=SECONDS`: a soak of N clients (`GCUD_SOAK_CLIENTS`,
+//!    default 32) on M ports (`GCUD_SOAK_PORTS`, default 4) that reconnect
+//!    every 50 exchanges (connection churn), printing RSS and `/metrics`
+//!    size before and after, each client's share (Jain's fairness index)
+//!    and every command's outcome, as the clients saw it and as gcud counted.
 //!
 //! Figures are printed, never asserted: the machines are shared and noisy.
 //! `GCUD_BENCH_SAMPLES` sets the samples per latency series (default 2000).
@@ -157,6 +162,9 @@ fn main() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(2000);
     let dir = tempfile::tempdir().expect("temp dir");
+    if let Some(secs) = std::env::var("GCUD_BENCH_SOAK").ok().and_then(|s| s.parse().ok()) {
+        return soak(Duration::from_secs(secs));
+    }
 
     // 1. Latency: direct vs through gcud, against the same simulator.
     let (_sim, sim_addr) = spawn_sim_tcp(&[]);
@@ -242,4 +250,161 @@ fn main() {
         rss as f64 / 1024.0,
         window.as_secs()
     );
+}
+
+/// What one soak exchange ended in, as the client saw it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+enum Seen {
+    /// ACK, then the result.
+    Delivered,
+    /// A delivery report instead of the ACK, with its failure code.
+    Report(u8),
+    /// Nothing in time (the client gives up on the exchange).
+    Nothing,
+    /// The connection was closed (refused or evicted): the client reconnects.
+    Closed,
+}
+
+/// One `P?` exchange that tolerates every outcome.
+fn soak_exchange(stream: &mut TcpStream, framer: &mut Framer, request: &FrameBuf) -> Seen {
+    if stream.write_all(request.as_bytes()).is_err() {
+        return Seen::Closed;
+    }
+    let (mut acked, mut result, mut report) = (false, false, None);
+    let mut buf = [0u8; 512];
+    let deadline = Instant::now() + Duration::from_secs(3);
+    while !(acked && result) && report.is_none() {
+        if Instant::now() >= deadline {
+            return Seen::Nothing;
+        }
+        let n = match stream.read(&mut buf) {
+            Ok(0) => return Seen::Closed,
+            Ok(n) => n,
+            Err(_) => continue, // read time-out: check the deadline
+        };
+        let mut frames = 0;
+        framer.feed(&buf[..n], |e| match e {
+            Event::Ack => acked = true,
+            Event::Frame(f) => {
+                frames += 1;
+                match sagebrush_protocol::DeliveryReport::parse(f.payload()) {
+                    Ok(r) => report = Some(r.failure.map_or(0, sagebrush_protocol::Undelivered::code)),
+                    Err(_) => result = true,
+                }
+            }
+            _ => {}
+        });
+        for _ in 0..frames {
+            let _ = stream.write_all(&[ACK]);
+        }
+    }
+    match report {
+        Some(code) => Seen::Report(code),
+        None => Seen::Delivered,
+    }
+}
+
+fn metrics_text(addr: &str) -> String {
+    let mut s = TcpStream::connect(addr).expect("metrics");
+    s.write_all(format!("GET /metrics HTTP/1.0\r\nHost: {addr}\r\n\r\n").as_bytes())
+        .expect("request");
+    let mut body = String::new();
+    s.read_to_string(&mut body).expect("response");
+    body
+}
+
+fn soak(duration: Duration) {
+    let env = |name: &str, default: usize| std::env::var(name).ok().and_then(|s| s.parse().ok()).unwrap_or(default);
+    let (clients, ports) = (env("GCUD_SOAK_CLIENTS", 32), env("GCUD_SOAK_PORTS", 4));
+    let sims: Vec<(Proc, String)> = (0..ports).map(|_| spawn_sim_tcp(&[])).collect();
+    let free = std::net::TcpListener::bind("127.0.0.1:0").expect("probe");
+    let metrics_addr = free.local_addr().expect("address").to_string();
+    drop(free);
+    let mut config = format!(
+        "[gcu]\ngroup = 5\n[metrics]\nlisten = \"{metrics_addr}\"\n[limits]\nmax_connections = {}\n\
+         [[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n",
+        clients * 2
+    );
+    for (i, (_, addr)) in sims.iter().enumerate() {
+        config.push_str(&format!("[[port]]\nid = {}\ntcp = \"{addr}\"\n", i + 1));
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (gcud, addr) = spawn_gcud(&config, &dir);
+    std::thread::sleep(Duration::from_millis(300));
+    let (_, rss_before) = proc_usage(gcud.0.id());
+    let metrics_before = metrics_text(&metrics_addr).len();
+    let started = Instant::now();
+    let handles: Vec<_> = (0..clients)
+        .map(|i| {
+            let addr = addr.clone();
+            std::thread::spawn(move || {
+                let dest = Address::new(5, (i % ports) as u8 + 1, 1);
+                let request =
+                    FrameBuf::build(dest, 0, |b| Cmd::QueryPosition.encode(b).map(<[u8]>::len)).expect("encode");
+                let mut seen = std::collections::BTreeMap::<Seen, u64>::new();
+                let mut connections = 0u64;
+                while started.elapsed() < duration {
+                    let mut stream = TcpStream::connect(&addr).expect("connect");
+                    stream.set_nodelay(true).expect("nodelay");
+                    stream
+                        .set_read_timeout(Some(Duration::from_millis(200)))
+                        .expect("timeout");
+                    connections += 1;
+                    let mut framer = Framer::new();
+                    for _ in 0..50 {
+                        if started.elapsed() >= duration {
+                            break;
+                        }
+                        let outcome = soak_exchange(&mut stream, &mut framer, &request);
+                        *seen.entry(outcome).or_default() += 1;
+                        if outcome == Seen::Closed {
+                            std::thread::sleep(Duration::from_millis(10));
+                            break;
+                        }
+                    }
+                }
+                (seen, connections)
+            })
+        })
+        .collect();
+    let results: Vec<_> = handles.into_iter().map(|h| h.join().expect("client")).collect();
+    let secs = started.elapsed().as_secs_f64();
+    std::thread::sleep(Duration::from_millis(500));
+    let (_, rss_after) = proc_usage(gcud.0.id());
+    let metrics = metrics_text(&metrics_addr);
+    let delivered: Vec<f64> = results
+        .iter()
+        .map(|(seen, _)| seen.get(&Seen::Delivered).copied().unwrap_or(0) as f64)
+        .collect();
+    let sum: f64 = delivered.iter().sum();
+    let jain = sum * sum / (delivered.len() as f64 * delivered.iter().map(|x| x * x).sum::<f64>());
+    let mut totals = std::collections::BTreeMap::<Seen, u64>::new();
+    for (seen, _) in &results {
+        for (k, v) in seen {
+            *totals.entry(*k).or_default() += v;
+        }
+    }
+    let connections: u64 = results.iter().map(|(_, c)| c).sum();
+    println!("soak: {clients} clients on {ports} ports for {secs:.1} s, {connections} connections");
+    println!(
+        "  gcud RSS {:.1} -> {:.1} MiB, /metrics {} -> {} bytes",
+        rss_before as f64 / 1024.0,
+        rss_after as f64 / 1024.0,
+        metrics_before,
+        metrics.len()
+    );
+    let (min, max) = delivered
+        .iter()
+        .fold((f64::MAX, 0.0f64), |(lo, hi), &x| (lo.min(x), hi.max(x)));
+    println!(
+        "  delivered per client: min {min:.0} max {max:.0}, {:.0} transactions/s, Jain's fairness index {jain:.4}",
+        sum / secs
+    );
+    println!("  as the clients saw it: {totals:?}");
+    let delivery: Vec<&str> = metrics
+        .lines()
+        .filter(|l| l.starts_with("gcud_commands_delivery_total") && !l.ends_with(" 0"))
+        .collect();
+    println!("  as gcud counted it: {delivery:?}");
+    drop(gcud);
 }
