@@ -85,11 +85,8 @@ impl DeadMan {
     }
 
     /// `link` went down: the stops to issue, and the link forgotten.
-    pub fn link_down(&mut self, link: LinkId) -> Vec<(Address, Command<'static>)> {
+    pub fn link_down(&mut self, link: LinkId) -> Vec<OwnedStop> {
         self.take(|_, owner| owner.link == link)
-            .into_iter()
-            .map(|(_, dest, stop)| (dest, stop))
-            .collect()
     }
 
     /// Every motion still owned (shutdown): the stops to issue.
@@ -143,8 +140,8 @@ mod tests {
         dm.on_command(0, LinkId(1), None, A, &Command::ZoomIn);
         dm.on_command(0, LinkId(2), None, A, &Command::PanRight);
         dm.on_command(0, LinkId(1), None, A, &Command::QueryPosition);
-        assert_eq!(dm.link_down(LinkId(1)), vec![(A, Command::ZoomStop)]);
-        assert_eq!(dm.link_down(LinkId(2)), vec![(A, Command::PanStop)]);
+        assert_eq!(dm.link_down(LinkId(1)), vec![(LinkId(1), A, Command::ZoomStop)]);
+        assert_eq!(dm.link_down(LinkId(2)), vec![(LinkId(2), A, Command::PanStop)]);
         assert_eq!(dm.len(), 0);
     }
 
@@ -155,7 +152,7 @@ mod tests {
         dm.on_command(0, LinkId(1), None, A, &Command::TiltUp);
         dm.on_command(0, LinkId(1), None, A, &Command::FocusFar);
         dm.on_command(0, LinkId(2), None, A, &Command::Halt);
-        assert_eq!(dm.link_down(LinkId(1)), vec![(A, Command::FocusStop)]);
+        assert_eq!(dm.link_down(LinkId(1)), vec![(LinkId(1), A, Command::FocusStop)]);
         dm.on_command(0, LinkId(1), None, A, &Command::ZoomOut);
         dm.on_command(0, LinkId(1), None, A, &Command::ZoomStop);
         assert!(dm.link_down(LinkId(1)).is_empty());

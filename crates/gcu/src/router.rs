@@ -11,7 +11,7 @@ use sagebrush_protocol::{
 };
 
 use crate::config::{ConfigError, LinkKind, LinkSettings, PortConfig, RouterConfig};
-use crate::deadman::DeadMan;
+use crate::deadman::{DeadMan, OwnedStop};
 use crate::link::{Link, LinkOut, Outgoing, Received};
 use crate::local::{SelfAnswer, answer};
 use crate::port::{Job, Port, PortOut};
@@ -119,6 +119,17 @@ pub struct Router {
     last_now: u64,
     stats: RouterStats,
     unknown_inputs: u64,
+}
+
+/// Why the GCU stops a motion it did not get a stop for.
+#[derive(Clone, Copy, Debug)]
+enum StopCause {
+    /// Its link went down, or its port is closing.
+    DeadMan,
+    /// The daemon shuts down.
+    Shutdown,
+    /// Its link's motion lease ran out.
+    Lease,
 }
 
 /// Rounds of a dead-man stop (each with the port's retries) before the
@@ -329,15 +340,8 @@ impl Router {
             .map(|(&id, _)| id)
             .collect();
         for port in closing {
-            for (link, dest, stop) in self.deadman.take_port(port) {
-                self.stats.dead_man_stops += 1;
-                out.push(Action::Event(Event::DeadManStop {
-                    link,
-                    dest,
-                    stop: stop.mnemonic(),
-                }));
-                self.issue_stop(now, dest, stop, link, out);
-            }
+            let stops = self.deadman.take_port(port);
+            self.stop_motions(now, stops, StopCause::DeadMan, out);
         }
         self.poll(now, out);
         Ok(())
@@ -400,15 +404,8 @@ impl Router {
         for id in overdue {
             self.deliver_overdue(now, id, out);
         }
-        for (link, dest, stop) in self.deadman.expired(now) {
-            self.stats.lease_stops += 1;
-            out.push(Action::Event(Event::LeaseExpired {
-                link,
-                dest,
-                stop: stop.mnemonic(),
-            }));
-            self.issue_stop(now, dest, stop, link, out);
-        }
+        let expired = self.deadman.expired(now);
+        self.stop_motions(now, expired, StopCause::Lease, out);
         let due = |d: Option<u64>| d.is_some_and(|t| t <= now);
         let ports: Vec<u8> = self
             .ports
@@ -1060,15 +1057,8 @@ impl Router {
         for port in ports {
             self.with_port(now, port, out, |p, _, po| p.cancel_motions(link, po));
         }
-        for (dest, stop) in self.deadman.link_down(link) {
-            self.stats.dead_man_stops += 1;
-            out.push(Action::Event(Event::DeadManStop {
-                link,
-                dest,
-                stop: stop.mnemonic(),
-            }));
-            self.issue_stop(now, dest, stop, link, out);
-        }
+        let stops = self.deadman.link_down(link);
+        self.stop_motions(now, stops, StopCause::DeadMan, out);
     }
 
     /// Shutdown (DESIGN "Safety"): refuse new commands from now on, and
@@ -1078,13 +1068,41 @@ impl Router {
             return;
         }
         self.stopping = true;
-        for (link, dest, stop) in self.deadman.take_all() {
-            self.stats.shutdown_stops += 1;
-            out.push(Action::Event(Event::DeadManStop {
-                link,
-                dest,
-                stop: stop.mnemonic(),
-            }));
+        let stops = self.deadman.take_all();
+        self.stop_motions(now, stops, StopCause::Shutdown, out);
+    }
+
+    /// Stops motions the GCU takes back (each logged and counted by cause).
+    fn stop_motions(&mut self, now: u64, stops: Vec<OwnedStop>, cause: StopCause, out: &mut Vec<Action>) {
+        for (link, dest, stop) in stops {
+            let stop_name = stop.mnemonic();
+            let event = match cause {
+                StopCause::DeadMan => {
+                    self.stats.dead_man_stops += 1;
+                    Event::DeadManStop {
+                        link,
+                        dest,
+                        stop: stop_name,
+                    }
+                }
+                StopCause::Shutdown => {
+                    self.stats.shutdown_stops += 1;
+                    Event::DeadManStop {
+                        link,
+                        dest,
+                        stop: stop_name,
+                    }
+                }
+                StopCause::Lease => {
+                    self.stats.lease_stops += 1;
+                    Event::LeaseExpired {
+                        link,
+                        dest,
+                        stop: stop_name,
+                    }
+                }
+            };
+            out.push(Action::Event(event));
             self.issue_stop(now, dest, stop, link, out);
         }
     }
