@@ -128,11 +128,13 @@ pub struct EndpointStats {
 pub const RESULT_RESENDS: u8 = 3;
 
 /// The last result sent, kept for a NAK that follows it at once (1.4.2:
-/// the master NAKs a result whose checksum fails, hop by hop).
+/// the master NAKs a result whose checksum fails, hop by hop). The buffer
+/// is always there (results are built straight into it, so that answering
+/// needs no second frame on the stack); `resends_left` 0 means none is kept.
 #[derive(Clone, Debug)]
 struct LastResult {
     frame: FrameBuf,
-    resends: u8,
+    resends_left: u8,
 }
 
 /// A device on a bus: framer, address filter, ACK/NAK/NIC and results.
@@ -147,7 +149,7 @@ pub struct DeviceEndpoint<const N: usize = DEFAULT_CAPACITY> {
 struct State {
     config: EndpointConfig,
     stats: EndpointStats,
-    last_result: Option<LastResult>,
+    last_result: LastResult,
 }
 
 impl<const N: usize> DeviceEndpoint<N> {
@@ -163,7 +165,10 @@ impl<const N: usize> DeviceEndpoint<N> {
                     results_sent: 0,
                     results_resent: 0,
                 },
-                last_result: None,
+                last_result: LastResult {
+                    frame: FrameBuf::EMPTY,
+                    resends_left: 0,
+                },
             },
         }
     }
@@ -219,7 +224,10 @@ impl<const N: usize> DeviceEndpoint<N> {
         let frame = FrameBuf::build(to.dest, to.source, |buf| reply.encode(buf).map(<[u8]>::len))?;
         self.state.stats.results_sent += 1;
         out(frame.as_bytes());
-        self.state.last_result = Some(LastResult { frame, resends: 0 });
+        self.state.last_result = LastResult {
+            frame,
+            resends_left: RESULT_RESENDS,
+        };
         Ok(())
     }
 }
@@ -236,16 +244,14 @@ impl State {
             last_result,
         } = self;
         if let Event::Nak = event {
-            if let Some(last) = last_result.as_mut().filter(|l| l.resends < RESULT_RESENDS) {
-                last.resends += 1;
+            if last_result.resends_left > 0 {
+                last_result.resends_left -= 1;
                 stats.results_resent += 1;
-                out(last.frame.as_bytes());
-            } else {
-                *last_result = None;
+                out(last_result.frame.as_bytes());
             }
             return;
         }
-        *last_result = None;
+        last_result.resends_left = 0;
         match event {
             Event::Frame(frame) if config.accepts(&frame.dest) => {
                 stats.frames_accepted += 1;
@@ -275,14 +281,16 @@ impl State {
                         send(&[NIC]);
                     }
                     Response::Reply(reply) => {
-                        let encoded =
-                            FrameBuf::build(reply_to.dest, reply_to.source, |buf| reply.encode(buf).map(<[u8]>::len));
+                        // Built in the last-result buffer, not on the stack.
+                        let encoded = last_result
+                            .frame
+                            .rebuild(reply_to.dest, reply_to.source, |buf| reply.encode(buf).map(<[u8]>::len));
                         match encoded {
-                            Ok(frame) if reply.answers(&command) => {
+                            Ok(()) if reply.answers(&command) => {
                                 stats.results_sent += u64::from(answer);
-                                send(frame.as_bytes());
+                                send(last_result.frame.as_bytes());
                                 if answer {
-                                    *last_result = Some(LastResult { frame, resends: 0 });
+                                    last_result.resends_left = RESULT_RESENDS;
                                 }
                             }
                             // A result the command cannot have: the handler is wrong; say NIC, not garbage.

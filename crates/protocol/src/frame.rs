@@ -174,6 +174,12 @@ pub struct FrameBuf {
 }
 
 impl FrameBuf {
+    /// No frame yet: `as_bytes` is empty.
+    pub(crate) const EMPTY: FrameBuf = FrameBuf {
+        bytes: [0; MAX_FRAME_LEN],
+        len: 0,
+    };
+
     /// Copies `frame` in its wire form.
     pub fn from_frame(frame: &Frame<'_>) -> Self {
         let mut bytes = [0u8; MAX_FRAME_LEN];
@@ -194,11 +200,28 @@ impl FrameBuf {
         source: u8,
         encode: impl FnOnce(&mut [u8]) -> Result<usize, EncodeError>,
     ) -> Result<Self, EncodeError> {
-        let mut bytes = [0u8; MAX_FRAME_LEN];
+        let mut frame = Self {
+            bytes: [0u8; MAX_FRAME_LEN],
+            len: 0,
+        };
+        frame.rebuild(dest, source, encode)?;
+        Ok(frame)
+    }
+
+    /// [`FrameBuf::build`] in place: overwrites this buffer, so that a
+    /// caller that keeps the frame (the device endpoint's last result) needs
+    /// no second copy of it on the stack. On error the buffer is left empty.
+    pub(crate) fn rebuild(
+        &mut self,
+        dest: Address,
+        source: u8,
+        encode: impl FnOnce(&mut [u8]) -> Result<usize, EncodeError>,
+    ) -> Result<(), EncodeError> {
+        self.len = 0;
         // Split with `split_first_chunk_mut`/`get_mut`, not indexing, so that
         // no bounds-check panic is linked into firmware: `bytes` always
         // splits, the `else` arm is never taken.
-        let Some((header, rest)) = bytes.split_first_chunk_mut::<HEADER_LEN>() else {
+        let Some((header, rest)) = self.bytes.split_first_chunk_mut::<HEADER_LEN>() else {
             return Err(EncodeError::BufferTooSmall {
                 needed: MAX_FRAME_LEN,
                 capacity: 0,
@@ -214,10 +237,8 @@ impl FrameBuf {
         if let Some(slot) = rest.get_mut(n) {
             *slot = sum;
         }
-        Ok(Self {
-            bytes,
-            len: (HEADER_LEN + n + 1) as u16,
-        })
+        self.len = (HEADER_LEN + n + 1) as u16;
+        Ok(())
     }
 
     /// The frame's wire bytes.
