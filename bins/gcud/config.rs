@@ -78,7 +78,7 @@ pub struct GcuSection {
     pub default_route: Option<Spanned<String>>,
     /// On SIGTERM: how long in-flight transactions may take to finish.
     #[serde(default = "default_shutdown_grace_ms")]
-    pub shutdown_grace_ms: u64,
+    pub shutdown_grace_ms: Spanned<i64>,
 }
 
 fn default_name() -> Spanned<String> {
@@ -89,8 +89,8 @@ fn default_serial() -> Spanned<String> {
     Spanned::new(0..0, String::new())
 }
 
-fn default_shutdown_grace_ms() -> u64 {
-    3000
+fn default_shutdown_grace_ms() -> Spanned<i64> {
+    Spanned::new(0..0, 3000)
 }
 
 /// `[log]`.
@@ -108,6 +108,8 @@ pub struct MetricsSection {
     /// Address to serve `/metrics` on; loopback unless you mean otherwise.
     #[serde(default = "default_metrics_listen")]
     pub listen: Spanned<String>,
+    /// Peer addresses allowed to scrape (default: loopback only).
+    pub allow_peers: Option<Spanned<Vec<Spanned<String>>>>,
 }
 
 fn default_metrics_listen() -> Spanned<String> {
@@ -181,7 +183,7 @@ pub struct PortSection {
     /// A TCP device server (ser2net) `host:port` instead of a local line.
     pub tcp: Option<Spanned<String>>,
     /// Simulated gimbals with these device addresses, in-process (demo, tests).
-    pub simulate: Option<Spanned<Vec<i64>>>,
+    pub simulate: Option<Spanned<Vec<Spanned<i64>>>>,
     // The settings of [`PortSettings`], inline (serde's flatten would lose
     // the positions that error messages need).
     pub baud: Option<Spanned<i64>>,
@@ -305,6 +307,9 @@ pub struct Config {
     pub shutdown_grace_ms: u64,
     pub log_level: Option<String>,
     pub metrics: Option<SocketAddr>,
+    /// `[metrics] allow_peers`: peers allowed to scrape (default: loopback only).
+    #[allow(dead_code)] // until the metrics server enforces it
+    pub metrics_allow_peers: Vec<IpAddr>,
     pub queue_depth: usize,
     pub max_connections: usize,
     pub link_retries: u8,
@@ -313,6 +318,33 @@ pub struct Config {
     pub ports: Vec<Port>,
     pub links: Vec<Link>,
     pub routes: Vec<(u8, String)>,
+    /// What is valid but probably not meant (a listener reachable from the
+    /// network, ...), each `FILE:LINE:COLUMN: KEY: message` like an error:
+    /// `--check` prints them, start-up logs them once logging is set up.
+    pub warnings: Vec<String>,
+    /// Every TCP listen address with its place (`FILE:LINE:COLUMN: KEY`),
+    /// for [`Config::probe_listeners`].
+    pub listen_places: Vec<(SocketAddr, String)>,
+}
+
+impl Config {
+    /// `--check` only: tries to bind each listen address (port 0 is never
+    /// taken) and returns a warning for each that cannot be bound now. Not
+    /// an error: the address may be free by the time gcud starts (and a
+    /// running gcud holds its own).
+    pub fn probe_listeners(&self) -> Vec<String> {
+        self.listen_places
+            .iter()
+            .filter(|(addr, _)| addr.port() != 0)
+            .filter_map(|(addr, place)| match std::net::TcpListener::bind(addr) {
+                Ok(_) => None,
+                Err(e) if e.kind() == std::io::ErrorKind::AddrInUse => Some(format!(
+                    "{place}: {addr} is in use on this machine now; start-up fails unless it is free by then"
+                )),
+                Err(e) => Some(format!("{place}: cannot listen on {addr} here now: {e}")),
+            })
+            .collect()
+    }
 }
 
 /// Defaults derived from the line rate: a maximum frame's time plus a margin.
@@ -328,6 +360,29 @@ fn default_timing(baud: u32) -> PortTiming {
         broadcast_guard_ms: 50 + max_frame,
     }
 }
+
+/// The accepted range of a time in milliseconds, inclusive (documented in
+/// config/gcud.toml): wide enough for any line or network a field engineer
+/// meets, narrow enough that a typo (an extra digit or three) is caught.
+type MsRange = (i64, i64);
+/// `gcu.shutdown_grace_ms`: 0 (stop at once) to 10 minutes.
+const SHUTDOWN_GRACE_MS: MsRange = (0, 600_000);
+/// `ack_timeout_ms` of a port: 10 ms to 10 s.
+const PORT_ACK_TIMEOUT_MS: MsRange = (10, 10_000);
+/// `result_timeout_ms`: 10 ms to 1 minute.
+const RESULT_TIMEOUT_MS: MsRange = (10, 60_000);
+/// `long_result_timeout_ms` (`IX`): 1 s to 10 minutes.
+const LONG_RESULT_TIMEOUT_MS: MsRange = (1_000, 600_000);
+/// `nic_window_ms`: 1 ms to 10 s.
+const NIC_WINDOW_MS: MsRange = (1, 10_000);
+/// `broadcast_guard_ms`: 1 ms to 10 s.
+const BROADCAST_GUARD_MS: MsRange = (1, 10_000);
+/// `link_timing.ack_timeout_ms`: 10 ms to 10 s.
+const LINK_ACK_TIMEOUT_MS: MsRange = (10, 10_000);
+/// `link_timing.delivery_timeout_ms`: 50 ms to 1 minute.
+const DELIVERY_TIMEOUT_MS: MsRange = (50, 60_000);
+/// `motion_lease_ms` of a link: 100 ms to 10 minutes.
+const MOTION_LEASE_MS: MsRange = (100, 600_000);
 
 struct Checker<'a> {
     file: &'a Path,
@@ -390,6 +445,36 @@ impl Checker<'_> {
         })
     }
 
+    /// `FILE:LINE:COLUMN: KEY` of `span`, the start of a warning.
+    fn place(&self, span: Range<usize>, key: &str) -> String {
+        let mut place = self.at(span, key, "").to_string();
+        place.truncate(place.len() - 2);
+        place
+    }
+
+    /// A non-empty list of peer IP addresses (`allow_peers`).
+    fn peers(&self, list: &Spanned<Vec<Spanned<String>>>, key: &str) -> Result<Vec<IpAddr>, ConfigError> {
+        if list.get_ref().is_empty() {
+            return Err(self.at(
+                list.span(),
+                key,
+                "expected at least one IP address: an empty list refuses every peer \
+                 (remove the key for the default, loopback only)",
+            ));
+        }
+        let mut peers = Vec::new();
+        for (j, p) in list.get_ref().iter().enumerate() {
+            peers.push(p.get_ref().parse::<IpAddr>().map_err(|_| {
+                self.at(
+                    p.span(),
+                    format!("{key}[{j}]"),
+                    format!("expected an IP address, found {:?}", p.get_ref()),
+                )
+            })?);
+        }
+        Ok(peers)
+    }
+
     fn baud(&self, v: &Spanned<i64>, key: &str) -> Result<u32, ConfigError> {
         u32::try_from(*v.get_ref())
             .ok()
@@ -421,23 +506,111 @@ impl Checker<'_> {
         if let Some(v) = &s.retries {
             t.retries = self.int(v, &format!("{key}.retries"), 0, 20)?;
         }
-        let ms = |field: &Option<Spanned<i64>>, name: &str, target: &mut u64| -> Result<(), ConfigError> {
-            if let Some(v) = field {
-                *target = self.int(v, &format!("{key}.{name}"), 1, 3_600_000)?;
-            }
-            Ok(())
-        };
-        ms(&s.ack_timeout_ms, "ack_timeout_ms", &mut t.ack_timeout_ms)?;
-        ms(&s.result_timeout_ms, "result_timeout_ms", &mut t.result_timeout_ms)?;
+        let ms =
+            |field: &Option<Spanned<i64>>, name: &str, range: MsRange, target: &mut u64| -> Result<(), ConfigError> {
+                if let Some(v) = field {
+                    *target = self.int(v, &format!("{key}.{name}"), range.0, range.1)?;
+                }
+                Ok(())
+            };
+        ms(
+            &s.ack_timeout_ms,
+            "ack_timeout_ms",
+            PORT_ACK_TIMEOUT_MS,
+            &mut t.ack_timeout_ms,
+        )?;
+        ms(
+            &s.result_timeout_ms,
+            "result_timeout_ms",
+            RESULT_TIMEOUT_MS,
+            &mut t.result_timeout_ms,
+        )?;
         ms(
             &s.long_result_timeout_ms,
             "long_result_timeout_ms",
+            LONG_RESULT_TIMEOUT_MS,
             &mut t.long_result_timeout_ms,
         )?;
-        ms(&s.nic_window_ms, "nic_window_ms", &mut t.nic_window_ms)?;
-        ms(&s.broadcast_guard_ms, "broadcast_guard_ms", &mut t.broadcast_guard_ms)?;
+        ms(&s.nic_window_ms, "nic_window_ms", NIC_WINDOW_MS, &mut t.nic_window_ms)?;
+        ms(
+            &s.broadcast_guard_ms,
+            "broadcast_guard_ms",
+            BROADCAST_GUARD_MS,
+            &mut t.broadcast_guard_ms,
+        )?;
         Ok(t)
     }
+}
+
+/// The default `allow_peers`: loopback only.
+fn loopback() -> Vec<IpAddr> {
+    vec![
+        IpAddr::from([127, 0, 0, 1]),
+        IpAddr::from(std::net::Ipv6Addr::LOCALHOST),
+    ]
+}
+
+fn list_ips(ips: &[IpAddr]) -> String {
+    ips.iter().map(IpAddr::to_string).collect::<Vec<_>>().join(", ")
+}
+
+/// Whether listeners on `a` and `b` cannot both bind: the same port (not 0)
+/// on the same address, or one of them on the unspecified address that
+/// covers the other (`0.0.0.0` covers IPv4, `::` covers both on Linux).
+fn clash(a: &SocketAddr, b: &SocketAddr) -> bool {
+    let covers = |x: IpAddr, y: IpAddr| x.is_unspecified() && (x.is_ipv6() || y.is_ipv4());
+    a.port() == b.port() && a.port() != 0 && (a.ip() == b.ip() || covers(a.ip(), b.ip()) || covers(b.ip(), a.ip()))
+}
+
+/// The levels a `log.level` directive may name (any case).
+const LOG_LEVELS: [&str; 6] = ["error", "warn", "info", "debug", "trace", "off"];
+
+/// Catches what `EnvFilter` accepts but almost certainly is a mistake: it
+/// reads a misspelt level such as `wran` as a *target* name, which enables
+/// that (non-existent) target and so silences all logging.
+///
+/// The rule, per comma-separated directive (empty ones are ignored, as
+/// `EnvFilter` does; the whole filter may not be empty):
+/// - with a `=` after any `[span]` part (`target=level`, `target[span]=level`,
+///   `[span]=level`): the text after the `=` must be a level;
+/// - without one: the directive is a level, or a span filter (contains `[`),
+///   or a target that cannot be a misspelt level: a module path (contains
+///   `::`) or a crate name with `_` such as `sagebrush_gcu`. A one-word
+///   target such as `gcud` is written `gcud=trace`.
+///
+/// Levels are `error`, `warn`, `info`, `debug`, `trace` and `off`, in any
+/// case (`EnvFilter`'s numeric levels `0`..`5` are refused: write the name).
+fn check_log_filter(filter: &str) -> Result<(), String> {
+    let expected = "expected a level (error, warn, info, debug, trace, off) \
+                    or directives like \"gcud=debug,info\"";
+    let is_level = |s: &str| LOG_LEVELS.iter().any(|l| s.trim().eq_ignore_ascii_case(l));
+    if filter.trim().is_empty() {
+        return Err(format!(
+            "{expected}, found an empty filter (remove the key for the default, info)"
+        ));
+    }
+    for directive in filter.split(',').map(str::trim).filter(|d| !d.is_empty()) {
+        // The level follows the last `=` outside a `[span{field=value}]` part.
+        let tail = directive.rfind(']').map_or(directive, |i| &directive[i + 1..]);
+        match tail.rfind('=') {
+            Some(i) => {
+                let level = &tail[i + 1..];
+                if !is_level(level) {
+                    return Err(format!("{expected}, found level {level:?} in directive {directive:?}"));
+                }
+            }
+            None => {
+                let target_only = directive.contains("::") || directive.contains('_') || directive.contains('[');
+                if !is_level(directive) && !target_only {
+                    return Err(format!(
+                        "{expected}, found {directive:?} (not a level; as a target name it would \
+                         turn every other message off; write TARGET=LEVEL)"
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// 1-based line and column of byte `offset` in `text`.
@@ -448,16 +621,73 @@ fn line_column(text: &str, offset: usize) -> (usize, usize) {
     (line, column)
 }
 
-/// Reads and validates `file`.
+/// The largest configuration file read (a real one is a few KiB).
+pub const MAX_FILE_BYTES: u64 = 1024 * 1024;
+
+/// Reads and validates `file`. Only a regular file of at most
+/// [`MAX_FILE_BYTES`] is read: the kind and size are checked before any
+/// byte is read (a FIFO would block, `/dev/urandom` never ends), the file is
+/// opened non-blocking and checked again through its handle, and at most one
+/// byte more than the limit is read.
 pub fn load(file: &Path) -> Result<Config, ConfigError> {
-    let text = std::fs::read_to_string(file).map_err(|e| ConfigError {
+    let text = read_bounded(file).map_err(|message| ConfigError {
         file: file.to_owned(),
         line: 0,
         column: 0,
         key: String::new(),
-        message: format!("cannot read: {e}"),
+        message,
     })?;
     parse(file, &text)
+}
+
+fn read_bounded(file: &Path) -> Result<String, String> {
+    use std::io::Read;
+    use std::os::unix::fs::OpenOptionsExt;
+
+    fn kind(m: &std::fs::Metadata) -> Result<(), String> {
+        use std::os::unix::fs::FileTypeExt;
+        let t = m.file_type();
+        let what = if t.is_file() {
+            if m.len() > MAX_FILE_BYTES {
+                return Err(format!(
+                    "cannot read: larger than 1 MiB ({} bytes); expected a configuration file",
+                    m.len()
+                ));
+            }
+            return Ok(());
+        } else if t.is_dir() {
+            "a directory"
+        } else if t.is_fifo() {
+            "a FIFO"
+        } else if t.is_char_device() {
+            "a character device"
+        } else if t.is_block_device() {
+            "a block device"
+        } else if t.is_socket() {
+            "a socket"
+        } else {
+            "not a file"
+        };
+        Err(format!("cannot read: {what}, not a regular file"))
+    }
+
+    kind(&std::fs::metadata(file).map_err(|e| format!("cannot read: {e}"))?)?;
+    let handle = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(nix::fcntl::OFlag::O_NONBLOCK.bits())
+        .open(file)
+        .map_err(|e| format!("cannot read: {e}"))?;
+    // The path may have been replaced since: check what was opened.
+    kind(&handle.metadata().map_err(|e| format!("cannot read: {e}"))?)?;
+    let mut bytes = Vec::new();
+    handle
+        .take(MAX_FILE_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| format!("cannot read: {e}"))?;
+    if bytes.len() as u64 > MAX_FILE_BYTES {
+        return Err("cannot read: larger than 1 MiB; expected a configuration file".to_owned());
+    }
+    String::from_utf8(bytes).map_err(|e| format!("cannot read: not UTF-8 text ({e})"))
 }
 
 /// Parses and validates configuration `text` read from `file`.
@@ -491,6 +721,7 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
     let max_connections = c.int(&raw.limits.max_connections, "limits.max_connections", 1, 4096)?;
     let log_level = match &raw.log.level {
         Some(level) => {
+            check_log_filter(level.get_ref()).map_err(|m| c.at(level.span(), "log.level", m))?;
             tracing_subscriber::EnvFilter::try_new(level.get_ref()).map_err(|e| {
                 c.at(
                     level.span(),
@@ -502,8 +733,33 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
         }
         None => None,
     };
+    let shutdown_grace_ms: u64 = c.int(
+        &raw.gcu.shutdown_grace_ms,
+        "gcu.shutdown_grace_ms",
+        SHUTDOWN_GRACE_MS.0,
+        SHUTDOWN_GRACE_MS.1,
+    )?;
+    let mut warnings = Vec::new();
+    // Every TCP listener: address, span, key and place, for the checks below.
+    let mut listeners: Vec<(SocketAddr, Range<usize>, String, String)> = Vec::new();
+    let mut metrics_allow_peers = loopback();
     let metrics = match &raw.metrics {
-        Some(m) => Some(c.socket(&m.listen, "metrics.listen")?),
+        Some(m) => {
+            let addr = c.socket(&m.listen, "metrics.listen")?;
+            if let Some(list) = &m.allow_peers {
+                metrics_allow_peers = c.peers(list, "metrics.allow_peers")?;
+            }
+            let place = c.place(m.listen.span(), "metrics.listen");
+            if !addr.ip().is_loopback() {
+                warnings.push(format!(
+                    "{place}: serves /metrics on {addr}, not on loopback: reachable from other machines \
+                     (allow_peers: {})",
+                    list_ips(&metrics_allow_peers)
+                ));
+            }
+            listeners.push((addr, m.listen.span(), "metrics.listen".to_owned(), place));
+            Some(addr)
+        }
         None => None,
     };
 
@@ -537,15 +793,16 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
             }
             (None, None, Some(devices)) => {
                 let mut ids = Vec::new();
-                for d in devices.get_ref() {
-                    if !(1..=254).contains(d) {
+                for (j, d) in devices.get_ref().iter().enumerate() {
+                    let id: u8 = c.int(d, &format!("{key}.simulate[{j}]"), 1, 254)?;
+                    if ids.contains(&id) {
                         return Err(c.at(
-                            devices.span(),
-                            format!("{key}.simulate"),
-                            format!("device addresses are 1..=254, found {d}"),
+                            d.span(),
+                            format!("{key}.simulate[{j}]"),
+                            format!("device {id} is listed twice"),
                         ));
                     }
-                    ids.push(*d as u8);
+                    ids.push(id);
                 }
                 if ids.is_empty() {
                     return Err(c.at(
@@ -573,11 +830,21 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
         None => 3,
     };
     let link_base_ack: u64 = match &raw.link_timing.ack_timeout_ms {
-        Some(v) => c.int(v, "link_timing.ack_timeout_ms", 1, 3_600_000)?,
+        Some(v) => c.int(
+            v,
+            "link_timing.ack_timeout_ms",
+            LINK_ACK_TIMEOUT_MS.0,
+            LINK_ACK_TIMEOUT_MS.1,
+        )?,
         None => 200,
     };
     let delivery_timeout_ms: u64 = match &raw.link_timing.delivery_timeout_ms {
-        Some(v) => c.int(v, "link_timing.delivery_timeout_ms", 50, 600_000)?,
+        Some(v) => c.int(
+            v,
+            "link_timing.delivery_timeout_ms",
+            DELIVERY_TIMEOUT_MS.0,
+            DELIVERY_TIMEOUT_MS.1,
+        )?,
         None => sagebrush_gcu::LinkSettings::default().delivery_timeout,
     };
     let mut links = Vec::with_capacity(raw.links.len());
@@ -631,25 +898,20 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
                         "`allow_peers` applies to a `listen` link only",
                     ));
                 }
-                let mut peers = Vec::new();
-                for (j, p) in list.get_ref().iter().enumerate() {
-                    peers.push(p.get_ref().parse::<IpAddr>().map_err(|_| {
-                        c.at(
-                            p.span(),
-                            format!("{key}.allow_peers[{j}]"),
-                            format!("expected an IP address, found {:?}", p.get_ref()),
-                        )
-                    })?);
-                }
-                peers
+                c.peers(list, &format!("{key}.allow_peers"))?
             }
-            None => vec![
-                IpAddr::from([127, 0, 0, 1]),
-                IpAddr::from(std::net::Ipv6Addr::LOCALHOST),
-            ],
+            None => loopback(),
         };
         let allow_source_groups = match &l.allow_source_groups {
             Some(list) => {
+                if list.get_ref().is_empty() {
+                    return Err(c.at(
+                        list.span(),
+                        format!("{key}.allow_source_groups"),
+                        "expected at least one group 0..=254: an empty list refuses every frame \
+                         on this link (remove the key for the default)",
+                    ));
+                }
                 let mut groups = Vec::new();
                 for (j, g) in list.get_ref().iter().enumerate() {
                     groups.push(c.int(g, &format!("{key}.allow_source_groups[{j}]"), 0, 254)?);
@@ -662,9 +924,25 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
             None => None,
         };
         let motion_lease_ms = match &l.motion_lease_ms {
-            Some(v) => Some(c.int(v, &format!("{key}.motion_lease_ms"), 100, 3_600_000)?),
+            Some(v) => Some(c.int(
+                v,
+                &format!("{key}.motion_lease_ms"),
+                MOTION_LEASE_MS.0,
+                MOTION_LEASE_MS.1,
+            )?),
             None => None,
         };
+        if let (LinkTransport::Listen(addr), Some(listen)) = (&transport, &l.listen) {
+            let place = c.place(listen.span(), &format!("{key}.listen"));
+            if !addr.ip().is_loopback() {
+                warnings.push(format!(
+                    "{place}: listens on {addr}, not on loopback: reachable from other machines \
+                     (allow_peers: {})",
+                    list_ips(&allow_peers)
+                ));
+            }
+            listeners.push((*addr, listen.span(), format!("{key}.listen"), place));
+        }
         links.push(Link {
             name,
             role: *l.role.get_ref(),
@@ -673,6 +951,26 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
             allow_source_groups,
             motion_lease_ms,
         });
+    }
+
+    // Two listeners on one address: the second bind fails at start-up.
+    // Listeners on port 0 get distinct ports from the system.
+    let mut by_place: Vec<_> = listeners.iter().collect();
+    by_place.sort_by_key(|(_, span, _, _)| span.start);
+    for (i, (addr, span, key, _)) in by_place.iter().enumerate() {
+        if let Some((first, first_span, first_key, _)) = by_place[..i].iter().find(|(a, ..)| clash(a, addr)) {
+            let line = match c.at(first_span.clone(), "", "").line {
+                0 => "by default".to_owned(),
+                n => format!("line {n}"),
+            };
+            return Err(c.at(
+                span.clone(),
+                key.clone(),
+                format!(
+                    "{addr} is already taken by {first_key} = {first} ({line}): each listener needs its own address"
+                ),
+            ));
+        }
     }
 
     // A route needs one peer: a listener's connections come and go.
@@ -723,9 +1021,10 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
         name,
         serial,
         default_route,
-        shutdown_grace_ms: raw.gcu.shutdown_grace_ms,
+        shutdown_grace_ms,
         log_level,
         metrics,
+        metrics_allow_peers,
         queue_depth,
         max_connections,
         link_retries: link_base_retries,
@@ -734,6 +1033,8 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
         ports,
         links,
         routes,
+        warnings,
+        listen_places: listeners.into_iter().map(|(addr, _, _, place)| (addr, place)).collect(),
     })
 }
 

@@ -51,6 +51,16 @@ fn main() -> ExitCode {
             return ExitCode::from(EXIT_CONFIG);
         }
     };
+    if args.check {
+        let mut warnings = config.warnings.clone();
+        if args.against.is_none() {
+            // A running gcud holds its own addresses: no probe against it.
+            warnings.extend(config.probe_listeners());
+        }
+        for w in &warnings {
+            eprintln!("gcud: warning: {w}");
+        }
+    }
     if let Some(running) = &args.against {
         let running = match config::load(running) {
             Ok(running) => running,
@@ -80,6 +90,9 @@ fn main() -> ExitCode {
     if let Err(e) = sagebrush::logging::init(config.log_level.as_deref().unwrap_or("info"), false) {
         eprintln!("gcud: {e}");
         return ExitCode::from(EXIT_CONFIG);
+    }
+    for w in &config.warnings {
+        tracing::warn!("{w}");
     }
     let runtime = match tokio::runtime::Builder::new_multi_thread().enable_all().build() {
         Ok(rt) => rt,
