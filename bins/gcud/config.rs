@@ -570,7 +570,7 @@ const LOG_LEVELS: [&str; 6] = ["error", "warn", "info", "debug", "trace", "off"]
 /// that (non-existent) target and so silences all logging.
 ///
 /// The rule, per comma-separated directive (empty ones are ignored, as
-/// `EnvFilter` does; the whole filter may not be empty):
+/// `EnvFilter` does, but there must be at least one):
 /// - with a `=` after any `[span]` part (`target=level`, `target[span]=level`,
 ///   `[span]=level`): the text after the `=` must be a level;
 /// - without one: the directive is a level, or a span filter (contains `[`),
@@ -584,7 +584,7 @@ fn check_log_filter(filter: &str) -> Result<(), String> {
     let expected = "expected a level (error, warn, info, debug, trace, off) \
                     or directives like \"gcud=debug,info\"";
     let is_level = |s: &str| LOG_LEVELS.iter().any(|l| s.trim().eq_ignore_ascii_case(l));
-    if filter.trim().is_empty() {
+    if filter.split(',').all(|d| d.trim().is_empty()) {
         return Err(format!(
             "{expected}, found an empty filter (remove the key for the default, info)"
         ));
@@ -1140,6 +1140,46 @@ mod tests {
         );
         assert_eq!((e.key.as_str(), e.line), ("gcu.default_route", 3), "{e}");
         assert!(e.message.contains("listener"), "{e}");
+    }
+
+    #[test]
+    fn log_filters_name_levels_or_targets_that_cannot_be_misspelt_levels() {
+        for ok in [
+            "info",
+            "WARN,gcud=debug",
+            "sagebrush_gcu",
+            "gcud::io=trace",
+            "[conn]",
+            "gcud[conn{peer=a}]=debug",
+            "info,",
+        ] {
+            assert_eq!(check_log_filter(ok), Ok(()), "{ok:?}");
+        }
+        for bad in [
+            "wran",
+            "gcud",
+            "info,gcud=wran",
+            "gcud=",
+            "gcud=3",
+            "[conn]=x",
+            "",
+            " , ",
+        ] {
+            assert!(check_log_filter(bad).is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn listeners_clash_on_one_port_of_one_or_every_address() {
+        let a = |s: &str| s.parse::<SocketAddr>().unwrap();
+        assert!(clash(&a("127.0.0.1:1"), &a("127.0.0.1:1")));
+        assert!(clash(&a("0.0.0.0:1"), &a("127.0.0.1:1")));
+        assert!(clash(&a("[::1]:1"), &a("[::]:1")));
+        assert!(clash(&a("127.0.0.1:1"), &a("[::]:1")));
+        assert!(!clash(&a("0.0.0.0:1"), &a("[::1]:1")));
+        assert!(!clash(&a("127.0.0.1:1"), &a("127.0.0.1:2")));
+        assert!(!clash(&a("127.0.0.1:1"), &a("127.0.0.2:1")));
+        assert!(!clash(&a("127.0.0.1:0"), &a("127.0.0.1:0")));
     }
 
     #[test]
