@@ -321,8 +321,9 @@ fn soak(duration: Duration) {
     let metrics_addr = free.local_addr().expect("address").to_string();
     drop(free);
     let mut config = format!(
-        "[gcu]\ngroup = 5\n[metrics]\nlisten = \"{metrics_addr}\"\n[limits]\nmax_connections = {}\n\
+        "[gcu]\ngroup = 5\n[metrics]\nlisten = \"{metrics_addr}\"\n[limits]\nmax_connections = {}\nmax_connections_per_peer = {}\n\
          [[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n",
+        clients * 2,
         clients * 2
     );
     for (i, (_, addr)) in sims.iter().enumerate() {

@@ -963,13 +963,16 @@ fn pipelining_clients_see_one_outcome_per_command() {
             client.send(Address::new(5, 1, 1), 0, &Cmd::GoTo(Position::new(pan, tilt)));
         }
     }
-    let (mut acks, mut reports) = (0, 0);
+    // One outcome per command, in whatever order (TCP: no frame is ever
+    // sent twice, so each report is one command's).
+    let (mut acks, mut reports) = (0u64, 0u64);
     for client in &mut clients {
         for _ in 0..5 {
             match client.next() {
                 Owned::Ack => acks += 1,
-                Owned::Frame(f) if sagebrush_protocol::DeliveryReport::parse(f.frame().payload()).is_ok() => {
-                    reports += 1
+                Owned::Frame(f) => {
+                    sagebrush_protocol::DeliveryReport::parse(f.frame().payload()).expect("a report");
+                    reports += 1;
                 }
                 other => panic!("unexpected {other:?}"),
             }
@@ -982,10 +985,14 @@ fn pipelining_clients_see_one_outcome_per_command() {
         "{}",
         gcud.metrics()
     );
-    assert_eq!(
-        gcud.metric("gcud_commands_delivery_total{delivery=\"queue_full\"}"),
-        reports
-    );
+    let metrics = gcud.metrics();
+    let undelivered: u64 = metrics
+        .lines()
+        .filter(|l| l.starts_with("gcud_commands_delivery_total{") && !l.contains("\"delivered\""))
+        .filter_map(|l| l.rsplit(' ').next()?.parse::<u64>().ok())
+        .sum();
+    assert_eq!(undelivered, reports, "{metrics}");
+    assert!(gcud.metric("gcud_commands_delivery_total{delivery=\"queue_full\"}") > 0);
 }
 
 /// A bus that spews frames nobody asked for: every one is counted, but
@@ -1009,4 +1016,59 @@ fn a_spewing_bus_is_counted_exactly_and_logged_briefly() {
     let log = gcud.log();
     let lines = log.lines().filter(|l| l.contains("Unsolicited")).count();
     assert!(lines <= 12, "{lines} log lines for 10000 stray frames:\n{log}");
+}
+
+/// A connection that says nothing for `limits.idle_timeout_ms` is closed,
+/// and the slew it left running is stopped by the dead-man.
+#[test]
+fn a_silent_connection_is_closed_and_its_slew_stopped() {
+    let sim = Sim::pty(&["--rate", "10"]);
+    let gcud = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n[limits]\nidle_timeout_ms = 1000\n{CLIENTS}{METRICS}{}",
+        port_entry(1, &sim)
+    ));
+    gcud.wait_for_log("port open port=1");
+    let start = gcud.position("5.1.1");
+    let mut client = WireClient::connect(&gcud.clients());
+    client.send(Address::new(5, 1, 1), 0, &Cmd::PanRight);
+    assert_eq!(client.next(), Owned::Ack);
+    let stopped = gcud.settled_position("5.1.1");
+    assert!(stopped.0 > start.0 && stopped.0 < 180.0, "stopped mid-way: {stopped:?}");
+    assert_eq!(gcud.metric("gcud_connections_closed_total{why=\"idle\"}"), 1);
+    assert_eq!(gcud.metric("gcud_dead_man_stops_total"), 1);
+    assert!(gcud.log().contains("idle (limits.idle_timeout_ms)"), "{}", gcud.log());
+}
+
+/// One peer cannot hold more than `limits.max_connections_per_peer`, and
+/// `/metrics` answers only its own `allow_peers`.
+#[test]
+fn per_peer_cap_and_metrics_allow_peers_hold() {
+    let gcud = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n[limits]\nmax_connections_per_peer = 2\n{CLIENTS}{METRICS}"
+    ));
+    let held: Vec<TcpStream> = (0..2)
+        .map(|_| TcpStream::connect(gcud.clients()).expect("connect"))
+        .collect();
+    eventually("both admitted", || gcud.metric("gcud_connections_open") == 2);
+    let mut third = TcpStream::connect(gcud.clients()).expect("connect");
+    third.set_read_timeout(Some(HANG_GUARD)).expect("timeout");
+    let mut buf = [0u8; 1];
+    assert!(
+        matches!(third.read(&mut buf), Ok(0) | Err(_)),
+        "the third is closed at once"
+    );
+    assert_eq!(
+        gcud.metric("gcud_connections_refused_total{why=\"max_connections_per_peer\"}"),
+        1
+    );
+    drop(held);
+
+    let closed = Gcud::start("[gcu]\ngroup = 5\n[metrics]\nlisten = \"127.0.0.1:0\"\nallow_peers = [\"::1\"]\n");
+    let addr = closed.address("metrics at /metrics");
+    let mut s = TcpStream::connect(&addr).expect("connect");
+    s.set_read_timeout(Some(HANG_GUARD)).expect("timeout");
+    write!(s, "GET /metrics HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n").expect("request");
+    let mut text = String::new();
+    s.read_to_string(&mut text).expect("response");
+    assert!(text.starts_with("HTTP/1.1 403"), "127.0.0.1 may not scrape: {text}");
 }

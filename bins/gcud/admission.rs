@@ -7,7 +7,9 @@
 //!   at least [`MIN_IDLE_TO_EVICT`]); only when every connection is busy is
 //!   the newcomer refused;
 //! - a per-peer cap (`limits.max_connections_per_peer`): a newcomer from a
-//!   peer at its cap is refused;
+//!   peer at its cap is refused; unless the cap is configured, it is half
+//!   the total and applies to peers off this machine only (every local
+//!   client is the same loopback peer);
 //! - an idle time-out (`limits.idle_timeout_ms`): a connection that sent
 //!   nothing for that long is closed (its motions are then stopped by the
 //!   dead-man);
@@ -34,13 +36,11 @@ const LOGGED_PEERS: usize = 1024;
 pub struct Limits {
     pub max_total: usize,
     pub max_per_peer: usize,
+    /// Whether the per-peer cap applies to loopback peers too (they are all
+    /// "this machine": by default only peers off it are capped).
+    pub cap_loopback: bool,
     pub idle_timeout: Duration,
 }
-
-/// Default `limits.max_connections_per_peer`.
-pub const DEFAULT_MAX_PER_PEER: usize = 8;
-/// Default `limits.idle_timeout_ms`: five minutes of silence.
-pub const DEFAULT_IDLE_TIMEOUT: Duration = Duration::from_secs(300);
 
 /// Counters for the metrics.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -106,7 +106,8 @@ impl Connections {
     pub fn admit(&self, peer: IpAddr, now: Instant) -> Admission {
         let mut t = self.table();
         let of_peer = t.open.values().filter(|c| c.peer == peer).count();
-        if of_peer >= self.limits.max_per_peer {
+        let capped = self.limits.cap_loopback || !peer.is_loopback();
+        if capped && of_peer >= self.limits.max_per_peer {
             t.stats.refused_peer_cap += 1;
             let log = should_log(&mut t, peer, now);
             return Admission::Refused {
@@ -216,6 +217,7 @@ mod tests {
         Connections::new(Limits {
             max_total,
             max_per_peer,
+            cap_loopback: true,
             idle_timeout: Duration::from_secs(300),
         })
     }

@@ -123,9 +123,14 @@ pub struct LimitsSection {
     /// Commands waiting per port beyond the one in flight; more are dropped and counted.
     #[serde(default = "default_queue_depth")]
     pub queue_depth: Spanned<i64>,
-    /// Connections accepted at once over all TCP listeners.
+    /// Connections accepted at once over all TCP listeners; at the limit the
+    /// one idle the longest is evicted for a newcomer.
     #[serde(default = "default_max_connections")]
     pub max_connections: Spanned<i64>,
+    /// Connections one peer address may hold at once (default: half of `max_connections`).
+    pub max_connections_per_peer: Option<Spanned<i64>>,
+    /// An accepted connection that sends nothing this long is closed.
+    pub idle_timeout_ms: Option<Spanned<i64>>,
 }
 
 impl Default for LimitsSection {
@@ -133,6 +138,8 @@ impl Default for LimitsSection {
         Self {
             queue_depth: default_queue_depth(),
             max_connections: default_max_connections(),
+            max_connections_per_peer: None,
+            idle_timeout_ms: None,
         }
     }
 }
@@ -308,10 +315,13 @@ pub struct Config {
     pub log_level: Option<String>,
     pub metrics: Option<SocketAddr>,
     /// `[metrics] allow_peers`: peers allowed to scrape (default: loopback only).
-    #[allow(dead_code)] // until the metrics server enforces it
     pub metrics_allow_peers: Vec<IpAddr>,
     pub queue_depth: usize,
     pub max_connections: usize,
+    pub max_connections_per_peer: usize,
+    /// The per-peer cap was configured: it applies to loopback peers too.
+    pub per_peer_cap_configured: bool,
+    pub idle_timeout_ms: u64,
     pub link_retries: u8,
     pub link_ack_timeout_ms: u64,
     pub delivery_timeout_ms: u64,
@@ -718,7 +728,15 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
     let name = c.text20(&raw.gcu.name, "gcu.name")?;
     let serial = c.text20(&raw.gcu.serial, "gcu.serial")?;
     let queue_depth = c.int(&raw.limits.queue_depth, "limits.queue_depth", 1, 4096)?;
-    let max_connections = c.int(&raw.limits.max_connections, "limits.max_connections", 1, 4096)?;
+    let max_connections: usize = c.int(&raw.limits.max_connections, "limits.max_connections", 1, 4096)?;
+    let max_connections_per_peer: usize = match &raw.limits.max_connections_per_peer {
+        Some(v) => c.int(v, "limits.max_connections_per_peer", 1, max_connections as i64)?,
+        None => (max_connections / 2).max(1),
+    };
+    let idle_timeout_ms: u64 = match &raw.limits.idle_timeout_ms {
+        Some(v) => c.int(v, "limits.idle_timeout_ms", 1_000, 86_400_000)?,
+        None => 300_000,
+    };
     let log_level = match &raw.log.level {
         Some(level) => {
             check_log_filter(level.get_ref()).map_err(|m| c.at(level.span(), "log.level", m))?;
@@ -1027,6 +1045,9 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
         metrics_allow_peers,
         queue_depth,
         max_connections,
+        max_connections_per_peer,
+        per_peer_cap_configured: raw.limits.max_connections_per_peer.is_some(),
+        idle_timeout_ms,
         link_retries: link_base_retries,
         link_ack_timeout_ms: link_base_ack,
         delivery_timeout_ms,

@@ -207,8 +207,9 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
         events: events_tx.clone(),
         connections: Connections::new(Limits {
             max_total: config.max_connections,
-            max_per_peer: crate::admission::DEFAULT_MAX_PER_PEER,
-            idle_timeout: crate::admission::DEFAULT_IDLE_TIMEOUT,
+            max_per_peer: config.max_connections_per_peer,
+            cap_loopback: config.per_peer_cap_configured,
+            idle_timeout: Duration::from_millis(config.idle_timeout_ms),
         }),
         ports: HashMap::new(),
         links: BTreeMap::new(),
@@ -232,7 +233,11 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
                 }
             }
         });
-        tokio::spawn(crate::metrics::serve(listener, scrape_tx));
+        tokio::spawn(crate::metrics::serve(
+            listener,
+            config.metrics_allow_peers.clone(),
+            scrape_tx,
+        ));
     }
     for port in &config.ports {
         tasks.start_port(port);
@@ -430,7 +435,12 @@ impl Reload<'_> {
         info!(file = %self.config.file.display(), "SIGHUP: reloading the configuration");
         match crate::config::load(&self.config.file) {
             Err(e) => error!("reload refused, running configuration kept: {e}"),
-            Ok(new) => self.apply(now, new, actions).await,
+            Ok(new) => {
+                for warning in &new.warnings {
+                    warn!("reload: {warning}");
+                }
+                self.apply(now, new, actions).await
+            }
         }
         notify(&[sd_notify::NotifyState::Ready]);
     }

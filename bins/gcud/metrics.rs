@@ -104,12 +104,19 @@ pub fn render(families: Vec<Family>) -> String {
 pub type ScrapeRequests = mpsc::Sender<oneshot::Sender<crate::stats::Snapshot>>;
 
 /// Serves `GET /metrics` until the process ends.
-pub async fn serve(listener: TcpListener, scrapes: ScrapeRequests) {
+pub async fn serve(listener: TcpListener, allow_peers: Vec<std::net::IpAddr>, scrapes: ScrapeRequests) {
+    use axum::extract::ConnectInfo;
+    use axum::http::StatusCode;
+    use axum::response::IntoResponse;
     let app = axum::Router::new().route(
         "/metrics",
-        axum::routing::get(move || {
+        axum::routing::get(move |ConnectInfo(peer): ConnectInfo<std::net::SocketAddr>| {
             let scrapes = scrapes.clone();
+            let allowed = allow_peers.contains(&peer.ip());
             async move {
+                if !allowed {
+                    return (StatusCode::FORBIDDEN, "not in [metrics] allow_peers\n").into_response();
+                }
                 // The router task only copies its counters; the text is
                 // rendered here, so that a scrape never stalls routing.
                 let (tx, rx) = oneshot::channel();
@@ -130,9 +137,11 @@ pub async fn serve(listener: TcpListener, scrapes: ScrapeRequests) {
                     )],
                     body,
                 )
+                    .into_response()
             }
         }),
     );
+    let app = app.into_make_service_with_connect_info::<std::net::SocketAddr>();
     if let Err(e) = axum::serve(listener, app).await {
         tracing::error!(error = %e, "metrics endpoint stopped");
     }

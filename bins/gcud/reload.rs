@@ -62,8 +62,18 @@ impl Diff {
             ("gcu.shutdown_grace_ms", old.shutdown_grace_ms != new.shutdown_grace_ms),
             ("log.level", old.log_level != new.log_level),
             ("metrics.listen", old.metrics != new.metrics),
+            (
+                "metrics.allow_peers",
+                old.metrics_allow_peers != new.metrics_allow_peers,
+            ),
             ("limits.queue_depth", old.queue_depth != new.queue_depth),
             ("limits.max_connections", old.max_connections != new.max_connections),
+            (
+                "limits.max_connections_per_peer",
+                old.max_connections_per_peer != new.max_connections_per_peer
+                    || old.per_peer_cap_configured != new.per_peer_cap_configured,
+            ),
+            ("limits.idle_timeout_ms", old.idle_timeout_ms != new.idle_timeout_ms),
             (
                 "link_timing",
                 old.link_retries != new.link_retries

@@ -4,7 +4,9 @@
 //! links to other GCUs, on delivery for a client's command), and a bounded send queue whose
 //! head is retransmitted by the protocol crate's [`Transmitter`] on NAK or
 //! ACK time-out, up to the configured count. ACK/NAK bytes carry no address,
-//! so a link has one unacknowledged frame at a time (stop and wait).
+//! so a link has one unacknowledged frame at a time (stop and wait). On a
+//! lossless link (TCP) frames go out back to back instead: nothing is ever
+//! retransmitted or given up there.
 //!
 //! Forwarded stop commands overtake the frames waiting on the link (not the
 //! one in flight), are bounded apart from them (so that a burst of traffic
@@ -137,6 +139,17 @@ impl Link {
     }
 
     fn transmit_next(&mut self, now: u64, out: &mut Vec<LinkOut>) {
+        if self.config.lossless {
+            // TCP delivers every byte, in order: there is nothing to
+            // retransmit and nothing to give up, so frames go out back to
+            // back; a client slow to acknowledge loses no answer and gets
+            // no duplicate. Its ACKs confirm nothing new.
+            while !self.queue.is_empty() {
+                self.send_head(out);
+                self.step(TxStep::Delivered, out);
+            }
+            return;
+        }
         if self.in_flight || self.queue.is_empty() {
             return;
         }
@@ -220,6 +233,7 @@ impl Link {
                     let step = self.tx.on_nak(now);
                     self.step(step, out);
                 }
+                RxEvent::Ack if self.config.lossless => {}
                 RxEvent::Ack | RxEvent::Nak => self.stats.line.stray_bytes += 1,
                 RxEvent::Nic => {
                     self.stats.line.nics_in += 1;
@@ -377,5 +391,34 @@ mod tests {
         l.receive(1, &[ACK], &mut out);
         assert_eq!(writes(&out), vec![item(b"PS", true).frame.as_bytes().to_vec()]);
         assert_eq!(l.shut_down().len(), 2);
+    }
+
+    #[test]
+    fn a_lossless_link_sends_back_to_back_and_never_retransmits() {
+        let settings = LinkSettings {
+            retries: 2,
+            ack_timeout: 10,
+            ..LinkSettings::default()
+        };
+        let mut config = LinkConfig::new(LinkKind::Client, SourceFilter::Any);
+        config.lossless = true;
+        let mut l = Link::new(config, &settings, LinkStats::new(LinkKind::Client));
+        let item = |payload: &[u8]| Outgoing {
+            frame: FrameBuf::new(Address::new(0, 1, 1), 5, payload).unwrap(),
+            pending: None,
+            stop: false,
+            dead_man: false,
+        };
+        let mut out = Vec::new();
+        for payload in [b"1", b"2", b"3"] {
+            assert_eq!(l.enqueue(0, item(payload), &mut out), Ok(()));
+        }
+        assert_eq!(writes(&out).len(), 3, "all three at once, no ACK awaited");
+        out.clear();
+        assert!(l.poll(1000, &mut out).is_empty());
+        assert!(writes(&out).is_empty(), "nothing retransmitted");
+        assert_eq!(l.next_deadline(), None);
+        l.receive(1001, &[ACK, ACK, ACK], &mut out);
+        assert_eq!((l.stats.delivered, l.stats.failed, l.stats.line.stray_bytes), (3, 0, 0));
     }
 }
