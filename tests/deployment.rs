@@ -1,0 +1,147 @@
+//! The shipped deployment files (`config/gcud.service`,
+//! `config/99-sagebrush-gimbal.rules`) hold what field installs need, and the
+//! unit is accepted by `systemd-analyze verify` where that tool exists.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn read(name: &str) -> String {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("config").join(name);
+    std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// The unit's `[Section]` → its `KEY=VALUE` lines (comments and blanks left
+/// out, surrounding spaces trimmed).
+fn section(unit: &str, name: &str) -> Vec<String> {
+    let mut inside = false;
+    let mut lines = Vec::new();
+    for line in unit.lines().map(str::trim) {
+        if line.starts_with('[') {
+            inside = line == format!("[{name}]");
+        } else if inside && !line.is_empty() && !line.starts_with('#') {
+            lines.push(line.to_owned());
+        }
+    }
+    lines
+}
+
+fn has(lines: &[String], want: &str) -> bool {
+    lines.iter().any(|l| l == want)
+}
+
+#[test]
+fn unit_allows_every_serial_family_and_waits_for_the_network() {
+    let unit = read("gcud.service");
+    let service = section(&unit, "Service");
+    for family in ["ttyUSB", "ttyS", "ttyACM", "ttyAMA", "ttyTHS", "ttymxc", "ttyO"] {
+        let line = format!("DeviceAllow=char-{family} rw");
+        assert!(has(&service, &line), "[Service] lacks {line:?}");
+    }
+    let unit_section = section(&unit, "Unit");
+    for line in ["After=network-online.target", "Wants=network-online.target"] {
+        assert!(has(&unit_section, line), "[Unit] lacks {line:?}");
+    }
+    assert!(
+        !unit_section.iter().any(|l| l == "After=network.target"),
+        "[Unit] still orders only after network.target"
+    );
+    assert!(
+        has(&service, "Restart=on-failure"),
+        "[Service] lacks Restart=on-failure"
+    );
+    // A start limit that lets boot-time retries run for a while: at least
+    // a minute's worth of restarts before the unit is failed for good.
+    let value = |lines: &[String], key: &str| -> Option<String> {
+        lines
+            .iter()
+            .find_map(|l| l.strip_prefix(&format!("{key}=")).map(str::to_owned))
+    };
+    let secs = |v: String| -> u64 {
+        let v = v.trim();
+        v.strip_suffix("min")
+            .map(|m| m.parse::<u64>().unwrap() * 60)
+            .or_else(|| v.strip_suffix('s').map(|s| s.parse().unwrap()))
+            .unwrap_or_else(|| v.parse().unwrap_or_else(|_| panic!("unreadable time {v:?}")))
+    };
+    let interval = value(&unit_section, "StartLimitIntervalSec")
+        .map(secs)
+        .expect("[Unit] lacks StartLimitIntervalSec");
+    let burst: u64 = value(&unit_section, "StartLimitBurst")
+        .expect("[Unit] lacks StartLimitBurst")
+        .parse()
+        .expect("StartLimitBurst is a number");
+    let restart = value(&service, "RestartSec")
+        .map(secs)
+        .expect("[Service] lacks RestartSec");
+    assert!(restart >= 1, "RestartSec={restart}s would spin");
+    assert!(
+        burst * restart >= 60,
+        "{burst} starts {restart}s apart give up in under a minute"
+    );
+    assert!(
+        interval >= burst * restart,
+        "StartLimitIntervalSec={interval} is shorter than {burst} restarts {restart}s apart: the limit never trips"
+    );
+}
+
+#[test]
+fn udev_rule_keeps_modemmanager_away() {
+    let rules = read("99-sagebrush-gimbal.rules");
+    let rules: Vec<&str> = rules
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with('#'))
+        .collect();
+    assert!(!rules.is_empty(), "no rules");
+    for rule in rules {
+        assert!(
+            rule.contains(r#"ENV{ID_MM_DEVICE_IGNORE}="1""#),
+            "rule without ID_MM_DEVICE_IGNORE: {rule}"
+        );
+    }
+}
+
+#[test]
+fn systemd_analyze_verify_accepts_the_unit() {
+    let probe = Command::new("systemd-analyze").arg("--version").output();
+    if !probe.is_ok_and(|o| o.status.success()) {
+        println!("note: systemd-analyze not found; unit not verified");
+        return;
+    }
+    // ExecStart's /usr/local/bin/gcud may not be installed here: verify a copy
+    // running /bin/true instead (everything else unchanged).
+    let unit: String = read("gcud.service")
+        .lines()
+        .map(|line| {
+            for key in ["ExecStartPre=", "ExecStart="] {
+                if line.starts_with(key) {
+                    return format!("{key}/bin/true\n");
+                }
+            }
+            format!("{line}\n")
+        })
+        .collect();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("gcud.service");
+    std::fs::write(&path, unit).unwrap();
+    let out = Command::new("systemd-analyze")
+        .arg("verify")
+        .arg("--man=no")
+        .arg(&path)
+        .output()
+        .expect("systemd-analyze runs");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    // Lines about the unit itself; the host's other units (absent in a
+    // container, say) are not ours to judge.
+    let ours: Vec<&str> = stderr
+        .lines()
+        .chain(stdout.lines())
+        .filter(|l| l.contains("gcud.service"))
+        .collect();
+    assert!(
+        out.status.success() && ours.is_empty(),
+        "systemd-analyze verify refused the unit (exit {:?}):\n{stdout}{stderr}",
+        out.status.code()
+    );
+}
