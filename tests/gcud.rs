@@ -1072,3 +1072,31 @@ fn per_peer_cap_and_metrics_allow_peers_hold() {
     s.read_to_string(&mut text).expect("response");
     assert!(text.starts_with("HTTP/1.1 403"), "127.0.0.1 may not scrape: {text}");
 }
+
+/// Under systemd (`JOURNAL_STREAM` set) each line starts with its syslog
+/// priority, so journald records the level: `<6>` for info.
+#[test]
+fn journal_lines_carry_their_priority() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("gcud.toml");
+    std::fs::write(&path, format!("[gcu]\ngroup = 5\n{CLIENTS}")).expect("write config");
+    let log = std::fs::File::create(dir.path().join("gcud.log")).expect("log file");
+    let child = Command::new(env!("CARGO_BIN_EXE_gcud"))
+        .arg("--config")
+        .arg(&path)
+        .env("RUST_LOG", "info")
+        .env("JOURNAL_STREAM", "8:1234")
+        .stdout(Stdio::null())
+        .stderr(Stdio::from(log))
+        .spawn()
+        .expect("spawn gcud");
+    let gcud = Gcud { child, dir };
+    let ready = gcud.wait_for_log("gcud ready");
+    assert!(ready.starts_with("<6>"), "{ready:?}");
+    let (status, log) = gcud.terminate();
+    assert!(status.is_some_and(|s| s.success()), "exit status {status:?}\n{log}");
+    for line in log.lines() {
+        let prefixed = ["<3>", "<4>", "<6>", "<7>"].iter().any(|p| line.starts_with(p));
+        assert!(prefixed, "a line without its priority: {line:?}\n{log}");
+    }
+}
