@@ -464,3 +464,50 @@ fn listeners_off_loopback_are_warned_of_by_check_and_at_start_up() {
     assert!(missing.is_empty(), "not logged: {missing:?}; log: {seen:#?}");
     assert!(running, "gcud should run despite the warnings: {seen:#?}");
 }
+
+#[test]
+fn allow_peers_take_networks_and_refuse_bad_ones_by_place() {
+    refused(&[
+        (
+            &format!("[gcu]\ngroup = 5\n{LINK_C}listen = \"4001\"\nallow_peers = [\"10.0.0.0/33\"]\n"),
+            ":7:16: link[0].allow_peers[0]",
+            "expected a network ADDRESS/PREFIX (prefix 0..=32 for IPv4, 0..=128 for IPv6, \
+             e.g. 10.0.0.0/8, fd00::/8), found \"10.0.0.0/33\"",
+        ),
+        (
+            "[gcu]\ngroup = 5\n[metrics]\nallow_peers = [\"::1\", \"10.0.0.0/33\"]\n",
+            ":4:23: metrics.allow_peers[1]",
+            "found \"10.0.0.0/33\"",
+        ),
+        (
+            "[gcu]\ngroup = 5\n[metrics]\nallow_peers = [\"192.168.1.1/24\"]\n",
+            ":4:16: metrics.allow_peers[0]",
+            "\"192.168.1.1/24\" has bits set past its /24 prefix: write the network, 192.168.1.0/24",
+        ),
+    ]);
+    accepted(&[&format!(
+        "[gcu]\ngroup = 5\n[metrics]\nlisten = \"127.0.0.1:0\"\nallow_peers = [\"10.0.0.0/8\", \"fd00::/8\", \"::1\"]\n\
+             {LINK_C}listen = \"127.0.0.1:0\"\nallow_peers = [\"192.168.1.0/24\", \"127.0.0.1\"]\n"
+    )]);
+    // Off loopback, the warning lists networks as written.
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = write(
+        dir.path(),
+        "lan.toml",
+        &format!(
+            "[gcu]\ngroup = 5\n{LINK_C}listen = \"0.0.0.0:0\"\nallow_peers = [\"10.0.0.0/8\", \"fd00::/8\", \"::1\"]\n"
+        ),
+    );
+    let run = gcud(&["--check"], &path);
+    assert_eq!(run.code, Some(0), "{}", run.stderr);
+    let expected = format!(
+        "gcud: warning: {}:6:10: link[0].listen: listens on 0.0.0.0:0, not on loopback: \
+         reachable from other machines (allow_peers: 10.0.0.0/8, fd00::/8, ::1)",
+        path.display()
+    );
+    assert!(
+        run.stderr.contains(&expected),
+        "{:?} should contain {expected:?}",
+        run.stderr
+    );
+}

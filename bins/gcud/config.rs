@@ -2,6 +2,7 @@
 //! validated. Every error names the file, the line and column, the key and
 //! what was expected (`gcud --check` prints them and exits 2).
 
+use ipnet::IpNet;
 use std::collections::BTreeSet;
 use std::fmt;
 use std::net::{IpAddr, SocketAddr};
@@ -297,7 +298,7 @@ pub struct Link {
     pub name: String,
     pub role: LinkRole,
     pub transport: LinkTransport,
-    pub allow_peers: Vec<IpAddr>,
+    pub allow_peers: PeerAllowList,
     /// `None`: any source group.
     pub allow_source_groups: Option<Vec<u8>>,
     pub motion_lease_ms: Option<u64>,
@@ -315,7 +316,7 @@ pub struct Config {
     pub log_level: Option<String>,
     pub metrics: Option<SocketAddr>,
     /// `[metrics] allow_peers`: peers allowed to scrape (default: loopback only).
-    pub metrics_allow_peers: Vec<IpAddr>,
+    pub metrics_allow_peers: PeerAllowList,
     pub queue_depth: usize,
     pub max_connections: usize,
     pub max_connections_per_peer: usize,
@@ -462,8 +463,9 @@ impl Checker<'_> {
         place
     }
 
-    /// A non-empty list of peer IP addresses (`allow_peers`).
-    fn peers(&self, list: &Spanned<Vec<Spanned<String>>>, key: &str) -> Result<Vec<IpAddr>, ConfigError> {
+    /// A non-empty list of peer IP addresses or networks in CIDR notation
+    /// (`allow_peers`: `10.1.2.3`, `10.0.0.0/8`, `fd00::/8`).
+    fn peers(&self, list: &Spanned<Vec<Spanned<String>>>, key: &str) -> Result<PeerAllowList, ConfigError> {
         if list.get_ref().is_empty() {
             return Err(self.at(
                 list.span(),
@@ -474,15 +476,11 @@ impl Checker<'_> {
         }
         let mut peers = Vec::new();
         for (j, p) in list.get_ref().iter().enumerate() {
-            peers.push(p.get_ref().parse::<IpAddr>().map_err(|_| {
-                self.at(
-                    p.span(),
-                    format!("{key}[{j}]"),
-                    format!("expected an IP address, found {:?}", p.get_ref()),
-                )
-            })?);
+            let text = p.get_ref().as_str();
+            let net = parse_peer(text).map_err(|why| self.at(p.span(), format!("{key}[{j}]"), why))?;
+            peers.push(net);
         }
-        Ok(peers)
+        Ok(PeerAllowList(peers))
     }
 
     fn baud(&self, v: &Spanned<i64>, key: &str) -> Result<u32, ConfigError> {
@@ -552,16 +550,68 @@ impl Checker<'_> {
     }
 }
 
-/// The default `allow_peers`: loopback only.
-fn loopback() -> Vec<IpAddr> {
-    vec![
-        IpAddr::from([127, 0, 0, 1]),
-        IpAddr::from(std::net::Ipv6Addr::LOCALHOST),
-    ]
+/// Which peers a listener (or the metrics endpoint) admits: addresses and
+/// networks from `allow_peers`, a plain address being a one-host network.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PeerAllowList(Vec<IpNet>);
+
+impl PeerAllowList {
+    /// Whether `peer` is in one of the entries. An IPv4 peer seen on an IPv6
+    /// socket (`::ffff:10.1.2.3`) counts as its IPv4 address.
+    pub fn contains(&self, peer: &IpAddr) -> bool {
+        let peer = peer.to_canonical();
+        self.0.iter().any(|net| net.contains(&peer))
+    }
 }
 
-fn list_ips(ips: &[IpAddr]) -> String {
-    ips.iter().map(IpAddr::to_string).collect::<Vec<_>>().join(", ")
+/// The entries separated by `, `; a one-host entry as a plain address.
+impl fmt::Display for PeerAllowList {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, net) in self.0.iter().enumerate() {
+            if i > 0 {
+                f.write_str(", ")?;
+            }
+            if net.prefix_len() == net.max_prefix_len() {
+                write!(f, "{}", net.addr())?;
+            } else {
+                write!(f, "{net}")?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// One `allow_peers` entry: an address (`10.1.2.3`, `::1`) or a network
+/// `ADDRESS/PREFIX` (`10.0.0.0/8`, `fd00::/8`) with no host bits set.
+fn parse_peer(text: &str) -> Result<IpNet, String> {
+    if !text.contains('/') {
+        return text
+            .parse::<IpAddr>()
+            .map(IpNet::from)
+            .map_err(|_| format!("expected an IP address, found {text:?} (or a network like 10.0.0.0/8, fd00::/8)"));
+    }
+    let net = text.parse::<IpNet>().map_err(|_| {
+        format!(
+            "expected a network ADDRESS/PREFIX (prefix 0..=32 for IPv4, 0..=128 for IPv6, \
+             e.g. 10.0.0.0/8, fd00::/8), found {text:?}"
+        )
+    })?;
+    if net.trunc() != net {
+        return Err(format!(
+            "{text:?} has bits set past its /{} prefix: write the network, {}",
+            net.prefix_len(),
+            net.trunc()
+        ));
+    }
+    Ok(net)
+}
+
+/// The default `allow_peers`: loopback only.
+fn loopback() -> PeerAllowList {
+    PeerAllowList(vec![
+        IpNet::from(IpAddr::from([127, 0, 0, 1])),
+        IpNet::from(IpAddr::from(std::net::Ipv6Addr::LOCALHOST)),
+    ])
 }
 
 /// Whether listeners on `a` and `b` cannot both bind: the same port (not 0)
@@ -772,7 +822,7 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
                 warnings.push(format!(
                     "{place}: serves /metrics on {addr}, not on loopback: reachable from other machines \
                      (allow_peers: {})",
-                    list_ips(&metrics_allow_peers)
+                    metrics_allow_peers
                 ));
             }
             listeners.push((addr, m.listen.span(), "metrics.listen".to_owned(), place));
@@ -956,7 +1006,7 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
                 warnings.push(format!(
                     "{place}: listens on {addr}, not on loopback: reachable from other machines \
                      (allow_peers: {})",
-                    list_ips(&allow_peers)
+                    allow_peers
                 ));
             }
             listeners.push((*addr, listen.span(), format!("{key}.listen"), place));
@@ -1210,10 +1260,60 @@ mod tests {
             "[gcu]\ngroup = 5\n[[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"127.0.0.1:4001\"\n",
         )
         .unwrap();
-        assert!(c.links[0].allow_peers.iter().all(IpAddr::is_loopback));
+        assert_eq!(c.links[0].allow_peers, loopback());
+        assert_eq!(c.links[0].allow_peers.to_string(), "127.0.0.1, ::1");
         let e = err(
             "[gcu]\ngroup = 5\n[[link]]\nname = \"c\"\nrole = \"client\"\nlisten = \"0.0.0.0:1\"\nallow_peers = [\"10.0.0.300\"]\n",
         );
         assert_eq!(e.key, "link[0].allow_peers[0]", "{e}");
+    }
+
+    #[test]
+    fn allow_peers_take_addresses_and_networks() {
+        let c = parse(
+            Path::new("t.toml"),
+            "[gcu]\ngroup = 5\n[[link]]\nname = \"c\"\nrole = \"client\"\nlisten = \"0.0.0.0:1\"\n\
+             allow_peers = [\"10.0.0.0/8\", \"192.168.1.0/24\", \"fd00::/8\", \"172.16.0.9\", \"::1\"]\n",
+        )
+        .unwrap();
+        let allow = &c.links[0].allow_peers;
+        let ip = |s: &str| s.parse::<IpAddr>().unwrap();
+        for inside in [
+            "10.0.0.1",
+            "10.255.255.255",
+            "192.168.1.77",
+            "fd12:3456::1",
+            "172.16.0.9",
+            "::1",
+            "::ffff:10.9.8.7",
+        ] {
+            assert!(allow.contains(&ip(inside)), "{inside} should be allowed");
+        }
+        for outside in ["11.0.0.1", "192.168.2.1", "fe80::1", "172.16.0.10", "127.0.0.1", "::2"] {
+            assert!(!allow.contains(&ip(outside)), "{outside} should be refused");
+        }
+        assert_eq!(
+            allow.to_string(),
+            "10.0.0.0/8, 192.168.1.0/24, fd00::/8, 172.16.0.9, ::1"
+        );
+
+        for (entry, message) in [
+            ("10.0.0.0/33", "expected a network ADDRESS/PREFIX"),
+            ("fd00::/129", "expected a network ADDRESS/PREFIX"),
+            ("10.0.0/8", "expected a network ADDRESS/PREFIX"),
+            ("10.0.0.0/", "expected a network ADDRESS/PREFIX"),
+            (
+                "10.1.2.3/8",
+                "has bits set past its /8 prefix: write the network, 10.0.0.0/8",
+            ),
+            ("10.0.0.300", "expected an IP address, found \"10.0.0.300\""),
+        ] {
+            let e = err(&format!(
+                "[gcu]\ngroup = 5\n[metrics]\nallow_peers = [\"127.0.0.1\", \"{entry}\"]\n"
+            ));
+            assert_eq!(e.key, "metrics.allow_peers[1]", "{entry}: {e}");
+            assert!(e.to_string().contains(message), "{entry}: {e}");
+            assert!(e.to_string().contains(":4:29:"), "{entry}: {e}");
+        }
     }
 }

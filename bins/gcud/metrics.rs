@@ -104,7 +104,7 @@ pub fn render(families: Vec<Family>) -> String {
 pub type ScrapeRequests = mpsc::Sender<oneshot::Sender<crate::stats::Snapshot>>;
 
 /// Serves `GET /metrics` until the process ends.
-pub async fn serve(listener: TcpListener, allow_peers: Vec<std::net::IpAddr>, scrapes: ScrapeRequests) {
+pub async fn serve(listener: TcpListener, allow_peers: crate::config::PeerAllowList, scrapes: ScrapeRequests) {
     use axum::extract::ConnectInfo;
     use axum::http::StatusCode;
     use axum::response::IntoResponse;
