@@ -1100,3 +1100,48 @@ fn journal_lines_carry_their_priority() {
         assert!(prefixed, "a line without its priority: {line:?}\n{log}");
     }
 }
+
+/// A clean SIGTERM is not a loss: the ports and links that end with it log
+/// at info or below, never WARN; a port lost while running stays a WARN.
+#[test]
+fn clean_sigterm_logs_no_warning() {
+    // A real loss while running: the device end of the port goes away.
+    let lost = Sim::pty(&[]);
+    let gcud = Gcud::start(&format!("[gcu]\ngroup = 5\n{}", port_entry(1, &lost)));
+    gcud.wait_for_log("port open port=1");
+    drop(lost);
+    let line = gcud.wait_for_log("port lost");
+    assert!(line.contains("WARN"), "{line}");
+    drop(gcud);
+
+    let sim = Sim::pty(&[]);
+    let gcud = Gcud::start(&format!("[gcu]\ngroup = 5\n{CLIENTS}{}", port_entry(1, &sim)));
+    gcud.wait_for_log("port open port=1");
+    assert_eq!(gcud.ctl(&["--to", "5.1.1", "position"]).code, 0);
+    // A client connection still open when the signal comes.
+    let held = TcpStream::connect(gcud.clients()).expect("connect");
+    eventually("the held connection to be up", || {
+        gcud.log().lines().filter(|l| l.contains(" up (clients ")).count() == 2
+    });
+    let (status, log) = gcud.terminate();
+    drop(held);
+    assert!(status.is_some_and(|s| s.success()), "exit status {status:?}\n{log}");
+    let after = log
+        .split_once("shutting down")
+        .map(|(_, after)| after)
+        .unwrap_or_else(|| panic!("no \"shutting down\" line:\n{log}"));
+    // The port's end is logged (so a WARN for it would be seen), at info.
+    let ended = after
+        .lines()
+        .find(|l| l.contains("port=1") && !l.contains("port open"))
+        .unwrap_or_else(|| panic!("the port's end is not logged after \"shutting down\":\n{log}"));
+    assert!(ended.contains("INFO"), "{ended}");
+    let warnings: Vec<&str> = after
+        .lines()
+        .filter(|l| l.contains("WARN") || l.contains("ERROR"))
+        .collect();
+    assert!(
+        warnings.is_empty(),
+        "a clean shutdown warned: {warnings:#?}\nlog:\n{log}"
+    );
+}

@@ -370,6 +370,17 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
             warn!("{summary}");
         }
     }
+    // Let go of every port and link (their writers and the event channel), so
+    // that their tasks end as a shutdown, logged at info, not as a loss; wait
+    // briefly for the ports' last lines.
+    drop((ports, links, events));
+    let ending = tasks.ports.drain().map(|(_, task)| task).collect::<Vec<_>>();
+    let _ = tokio::time::timeout(Duration::from_millis(500), async {
+        for task in ending {
+            let _ = task.await;
+        }
+    })
+    .await;
     Ok(())
 }
 

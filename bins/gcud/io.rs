@@ -126,48 +126,57 @@ async fn open_port(port: &Port, baud: u32) -> io::Result<OpenPort> {
     })
 }
 
-/// Moves bytes between `stream` and the router until the stream fails.
-/// `baud` follows line-rate switches, so that a reopened port keeps the rate
-/// its devices were switched to.
+/// Why a port stopped pumping.
+enum PortEnd {
+    /// The line failed (end of stream, an I/O error): a loss, reopened.
+    Lost(String),
+    /// The router let go of the port (gcud shutting down): not a loss.
+    Released,
+}
+
+/// Moves bytes between `stream` and the router until the stream fails or
+/// the router lets go. `baud` follows line-rate switches, so that a reopened
+/// port keeps the rate its devices were switched to.
 async fn pump_port<S: PortStream>(
     port: u8,
     mut stream: S,
     baud: &mut u32,
     writes: &mut mpsc::Receiver<PortWrite>,
     events: &mpsc::Sender<IoEvent>,
-) -> String {
+) -> PortEnd {
     let mut buf = vec![0u8; 4096];
     loop {
         tokio::select! {
             read = stream.read(&mut buf) => match read {
-                Ok(0) => return "end of stream".to_owned(),
+                Ok(0) => return PortEnd::Lost("end of stream".to_owned()),
                 Ok(n) => {
                     if events.send(IoEvent::PortBytes { port, bytes: buf[..n].to_vec() }).await.is_err() {
-                        return "router stopped".to_owned();
+                        return PortEnd::Released;
                     }
                 }
-                Err(e) => return format!("read failed: {e}"),
+                Err(e) => return PortEnd::Lost(format!("read failed: {e}")),
             },
             write = writes.recv() => match write {
                 Some(PortWrite::Bytes(bytes)) => {
                     if let Err(e) = stream.write_all(&bytes).await {
-                        return format!("write failed: {e}");
+                        return PortEnd::Lost(format!("write failed: {e}"));
                     }
                 }
                 Some(PortWrite::SetBaud(rate)) => {
                     if let Err(e) = stream.set_baud(rate) {
-                        return format!("cannot switch line rate to {rate}: {e}");
+                        return PortEnd::Lost(format!("cannot switch line rate to {rate}: {e}"));
                     }
                     *baud = rate;
                     info!(port, baud = rate, "line rate switched");
                 }
-                None => return "router stopped".to_owned(),
+                None => return PortEnd::Released,
             },
         }
     }
 }
 
-/// Keeps one port open for as long as the daemon runs.
+/// Keeps one port open for as long as the daemon runs; ends quietly (info)
+/// once the router lets go of it (shutdown).
 pub async fn run_port(port: Port, events: mpsc::Sender<IoEvent>) {
     let mut backoff = Backoff::new();
     let mut baud = port.timing.baud;
@@ -187,10 +196,14 @@ pub async fn run_port(port: Port, events: mpsc::Sender<IoEvent>) {
                     return;
                 }
                 let (id, w, e) = (port.id, &mut writes, &events);
-                let reason = match stream {
+                let end = match stream {
                     OpenPort::Serial(s) => pump_port(id, s, &mut baud, w, e).await,
                     OpenPort::Tcp(s) => pump_port(id, s, &mut baud, w, e).await,
                     OpenPort::Simulated(s) => pump_port(id, s, &mut baud, w, e).await,
+                };
+                let PortEnd::Lost(reason) = end else {
+                    info!(port = port.id, "port closed: gcud stopping");
+                    return;
                 };
                 warn!(port = port.id, %reason, "port lost; reopening");
                 if events.send(IoEvent::PortClosed { port: port.id }).await.is_err() {
@@ -207,7 +220,10 @@ pub async fn run_port(port: Port, events: mpsc::Sender<IoEvent>) {
                 }
             }
         }
-        tokio::time::sleep(backoff.next_delay()).await;
+        tokio::select! {
+            () = tokio::time::sleep(backoff.next_delay()) => {}
+            () = events.closed() => return,
+        }
     }
 }
 
