@@ -245,10 +245,20 @@ pub const FIRST_ACCEPTED_ID: u32 = 1 << 16;
 static NEXT_LINK_ID: AtomicU32 = AtomicU32::new(FIRST_ACCEPTED_ID);
 
 /// An accepted connection's place in the admission table.
+/// Leaves the table when dropped, however the connection ends (its task
+/// aborted by a reload included).
 struct Admitted {
     table: Arc<Connections>,
     key: u64,
     close: Arc<Notify>,
+    /// Closed for its idle time-out.
+    idle: bool,
+}
+
+impl Drop for Admitted {
+    fn drop(&mut self) {
+        self.table.left(self.key, self.idle);
+    }
 }
 
 /// Moves bytes between one link connection and the router until it closes
@@ -276,8 +286,8 @@ async fn pump_link<S: AsyncRead + AsyncWrite + Unpin>(
     }
     let (mut rd, mut wr) = tokio::io::split(stream);
     let mut buf = vec![0u8; 4096];
-    let mut idle = false;
-    let idle_at = || admitted.as_ref().and_then(|a| a.table.idle_at(a.key));
+    let mut admitted = admitted;
+    let idle_at = |a: &Option<Admitted>| a.as_ref().and_then(|a| a.table.idle_at(a.key));
     let reason = loop {
         tokio::select! {
             read = rd.read(&mut buf) => match read {
@@ -295,9 +305,11 @@ async fn pump_link<S: AsyncRead + AsyncWrite + Unpin>(
             () = async { match &admitted { Some(a) => a.close.notified().await, None => std::future::pending().await } } => {
                 break "evicted for a newcomer (limits.max_connections)".to_owned();
             }
-            () = async { match idle_at() { Some(at) => tokio::time::sleep_until(at).await, None => std::future::pending().await } } => {
-                if idle_at().is_some_and(|at| at <= tokio::time::Instant::now()) {
-                    idle = true;
+            () = async { match idle_at(&admitted) { Some(at) => tokio::time::sleep_until(at).await, None => std::future::pending().await } } => {
+                if idle_at(&admitted).is_some_and(|at| at <= tokio::time::Instant::now()) {
+                    if let Some(a) = admitted.as_mut() {
+                        a.idle = true;
+                    }
                     break "idle (limits.idle_timeout_ms)".to_owned();
                 }
             }
@@ -311,9 +323,7 @@ async fn pump_link<S: AsyncRead + AsyncWrite + Unpin>(
             },
         }
     };
-    if let Some(a) = &admitted {
-        a.table.left(a.key, idle);
-    }
+    drop(admitted);
     info!(%id, %peer, %reason, "link closed");
     let _ = events.send(IoEvent::LinkClosed { id }).await;
 }
@@ -401,6 +411,7 @@ pub async fn accept_loop(
             table: connections.clone(),
             key,
             close,
+            idle: false,
         };
         open.spawn(async move {
             let id = LinkId(NEXT_LINK_ID.fetch_add(1, Ordering::Relaxed));
