@@ -712,15 +712,9 @@ fn a_client_speaking_as_another_gcu_never_poisons_its_route() {
     assert_eq!(out.code, 0, "and after the spoofer left: {out:?}");
 }
 
-/// A link with a motion lease: a slew its client started and does not
-/// refresh is stopped although the connection stays open.
-#[test]
-fn an_unrefreshed_slew_is_stopped_when_its_lease_runs_out() {
-    let sim = Sim::pty(&["--rate", "10"]);
-    let gcud = Gcud::start(&format!(
-        "[gcu]\ngroup = 5\n{CLIENTS}motion_lease_ms = 400\n{METRICS}{}",
-        port_entry(1, &sim)
-    ));
+/// A client (kept connected, returned) starts a slew of gimbal 5.1.1; gcud
+/// must stop it mid-way by itself (lease, idle time-out, ...).
+fn slew_that_gcud_stops(gcud: &Gcud) -> WireClient {
     gcud.wait_for_log("port open port=1");
     let start = gcud.position("5.1.1");
     let mut client = WireClient::connect(&gcud.clients());
@@ -731,6 +725,19 @@ fn an_unrefreshed_slew_is_stopped_when_its_lease_runs_out() {
         stopped.0 > start.0 && stopped.0 < 180.0,
         "stopped mid-way, not at a limit: {stopped:?}"
     );
+    client
+}
+
+/// A link with a motion lease: a slew its client started and does not
+/// refresh is stopped although the connection stays open.
+#[test]
+fn an_unrefreshed_slew_is_stopped_when_its_lease_runs_out() {
+    let sim = Sim::pty(&["--rate", "10"]);
+    let gcud = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n{CLIENTS}motion_lease_ms = 400\n{METRICS}{}",
+        port_entry(1, &sim)
+    ));
+    let client = slew_that_gcud_stops(&gcud);
     assert_eq!(gcud.metric("gcud_lease_stops_total"), 1);
     assert!(gcud.log().contains("motion lease over"), "{}", gcud.log());
     drop(client);
@@ -1027,13 +1034,7 @@ fn a_silent_connection_is_closed_and_its_slew_stopped() {
         "[gcu]\ngroup = 5\n[limits]\nidle_timeout_ms = 1000\n{CLIENTS}{METRICS}{}",
         port_entry(1, &sim)
     ));
-    gcud.wait_for_log("port open port=1");
-    let start = gcud.position("5.1.1");
-    let mut client = WireClient::connect(&gcud.clients());
-    client.send(Address::new(5, 1, 1), 0, &Cmd::PanRight);
-    assert_eq!(client.next(), Owned::Ack);
-    let stopped = gcud.settled_position("5.1.1");
-    assert!(stopped.0 > start.0 && stopped.0 < 180.0, "stopped mid-way: {stopped:?}");
+    let _client = slew_that_gcud_stops(&gcud);
     assert_eq!(gcud.metric("gcud_connections_closed_total{why=\"idle\"}"), 1);
     assert_eq!(gcud.metric("gcud_dead_man_stops_total"), 1);
     assert!(gcud.log().contains("idle (limits.idle_timeout_ms)"), "{}", gcud.log());
