@@ -362,18 +362,24 @@ fn vanished_port_recovers_and_others_never_notice() {
     assert_eq!(gcud.metric("gcud_port_open{port=\"2\"}"), 1);
 }
 
+/// Once port 1 is open, a wire client starts `slew` on gimbal 5.1.1 and
+/// sees the gimbal move; returns where it started and the client.
+fn start_slew(gcud: &Gcud, slew: &Cmd<'_>) -> ((f64, f64), WireClient) {
+    gcud.wait_for_log("port open port=1");
+    let start = gcud.position("5.1.1");
+    let mut client = WireClient::connect(&gcud.clients());
+    client.send(Address::new(5, 1, 1), 0, slew);
+    assert_eq!(client.next(), Owned::Ack);
+    eventually("the slew to move the gimbal", || gcud.position("5.1.1") != start);
+    (start, client)
+}
+
 /// Dead-man: a client that started a slew disconnects; gcud stops the gimbal.
 #[test]
 fn slew_of_a_disconnected_client_is_stopped() {
     let sim = Sim::pty(&["--rate", "10"]);
     let gcud = Gcud::start(&format!("[gcu]\ngroup = 5\n{CLIENTS}{METRICS}{}", port_entry(1, &sim)));
-    gcud.wait_for_log("port open port=1");
-    let start = gcud.position("5.1.1");
-
-    let mut client = WireClient::connect(&gcud.clients());
-    client.send(Address::new(5, 1, 1), 0, &Cmd::PanRight);
-    assert_eq!(client.next(), Owned::Ack);
-    eventually("the slew to move the gimbal", || gcud.position("5.1.1").0 > start.0);
+    let (start, client) = start_slew(&gcud, &Cmd::PanRight);
     drop(client);
 
     let stopped = gcud.settled_position("5.1.1");
@@ -652,17 +658,13 @@ fn a_spec_client_gets_no_ack_for_an_undelivered_command() {
 }
 
 /// SIGTERM while a client's slew runs: gcud stops the gimbal before it
-/// exits, and refuses new commands meanwhile.
+/// exits (refusing new commands meanwhile is the router rule
+/// `shutdown_stops_every_owned_motion_and_refuses_new_commands`).
 #[test]
 fn sigterm_stops_a_running_slew_before_exit() {
     let sim = Sim::pty(&["--rate", "10"]);
     let gcud = Gcud::start(&format!("[gcu]\ngroup = 5\n{CLIENTS}{}", port_entry(1, &sim)));
-    gcud.wait_for_log("port open port=1");
-    let start = gcud.position("5.1.1");
-    let mut client = WireClient::connect(&gcud.clients());
-    client.send(Address::new(5, 1, 1), 0, &Cmd::PanLeft);
-    assert_eq!(client.next(), Owned::Ack);
-    eventually("the slew to move the gimbal", || gcud.position("5.1.1").0 < start.0);
+    let (_, client) = start_slew(&gcud, &Cmd::PanLeft);
     let (status, log) = gcud.terminate();
     assert!(status.is_some_and(|s| s.success()), "exit status {status:?}\n{log}");
     assert!(log.contains("dead-man PS to 5.1.1"), "{log}");
@@ -715,11 +717,7 @@ fn a_client_speaking_as_another_gcu_never_poisons_its_route() {
 /// A client (kept connected, returned) starts a slew of gimbal 5.1.1; gcud
 /// must stop it mid-way by itself (lease, idle time-out, ...).
 fn slew_that_gcud_stops(gcud: &Gcud) -> WireClient {
-    gcud.wait_for_log("port open port=1");
-    let start = gcud.position("5.1.1");
-    let mut client = WireClient::connect(&gcud.clients());
-    client.send(Address::new(5, 1, 1), 0, &Cmd::PanRight);
-    assert_eq!(client.next(), Owned::Ack);
+    let (start, client) = start_slew(gcud, &Cmd::PanRight);
     let stopped = gcud.settled_position("5.1.1");
     assert!(
         stopped.0 > start.0 && stopped.0 < 180.0,

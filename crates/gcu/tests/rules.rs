@@ -139,6 +139,17 @@ fn finished(actions: &[Action]) -> Vec<Outcome> {
         .collect()
 }
 
+/// The stops the router issued itself (dead-man, shutdown), in order.
+fn dead_man_stops(actions: &[Action]) -> Vec<(Address, &'static str)> {
+    actions
+        .iter()
+        .filter_map(|x| match x {
+            Action::Event(Event::DeadManStop { dest, stop, .. }) => Some((*dest, *stop)),
+            _ => None,
+        })
+        .collect()
+}
+
 fn accepted(actions: &[Action]) -> Vec<CommandId> {
     actions
         .iter()
@@ -731,13 +742,7 @@ fn dead_man_stops_the_motions_of_a_link_that_goes_down() {
         Some(&Outcome::Dropped(DropReason::OriginGone)),
         "queued TU cancelled"
     );
-    let stops: Vec<_> = a
-        .iter()
-        .filter_map(|x| match x {
-            Action::Event(Event::DeadManStop { dest, stop, .. }) => Some((*dest, *stop)),
-            _ => None,
-        })
-        .collect();
+    let stops = dead_man_stops(&a);
     assert_eq!(stops.len(), 4, "{stops:?}");
     assert!(stops.contains(&(Address::new(G, 1, 3), "PS")));
     assert!(stops.contains(&(Address::new(G, 1, 3), "ZS")));
@@ -951,13 +956,7 @@ fn shutdown_stops_every_owned_motion_and_refuses_new_commands() {
     h.wait(6);
     assert_eq!(h.r.owned_motions(), 2);
     let a = h.go(Input::Shutdown);
-    let stops: Vec<_> = a
-        .iter()
-        .filter_map(|x| match x {
-            Action::Event(Event::DeadManStop { dest, stop, .. }) => Some((*dest, *stop)),
-            _ => None,
-        })
-        .collect();
+    let stops = dead_man_stops(&a);
     assert_eq!(
         stops,
         vec![(Address::new(G, 1, 3), "PS"), (Address::new(G, 1, 4), "ZS")]
