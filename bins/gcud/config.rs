@@ -9,7 +9,7 @@ use std::net::{IpAddr, SocketAddr};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-use sagebrush::timing::wire_ms;
+use sagebrush_host::timing::wire_ms;
 use sagebrush_protocol::DataRate;
 use serde::Deserialize;
 use toml::Spanned;
@@ -790,7 +790,7 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
     let log_level = match &raw.log.level {
         Some(level) => {
             check_log_filter(level.get_ref()).map_err(|m| c.at(level.span(), "log.level", m))?;
-            tracing_subscriber::EnvFilter::try_new(level.get_ref()).map_err(|e| {
+            sagebrush_host::logging::check_filter(level.get_ref()).map_err(|e| {
                 c.at(
                     level.span(),
                     "log.level",

@@ -9,8 +9,8 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Duration;
 
-use sagebrush::transport::{Line, connect_tcp, open_serial};
 use sagebrush_gcu::LinkId;
+use sagebrush_host::transport::{Line, connect_tcp, open_serial};
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{Notify, mpsc, oneshot};
@@ -90,7 +90,7 @@ pub trait PortStream: AsyncRead + AsyncWrite + Unpin + Send {
 
 impl PortStream for tokio_serial::SerialStream {
     fn set_baud(&mut self, baud: u32) -> io::Result<()> {
-        sagebrush::transport::set_baud(self, baud)
+        sagebrush_host::transport::set_baud(self, baud)
     }
 }
 
@@ -115,6 +115,7 @@ impl PortStream for tokio::io::DuplexStream {
 enum OpenPort {
     Serial(tokio_serial::SerialStream),
     Tcp(TcpStream),
+    #[cfg(feature = "sim")]
     Simulated(tokio::io::DuplexStream),
 }
 
@@ -122,7 +123,14 @@ async fn open_port(port: &Port, baud: u32) -> io::Result<OpenPort> {
     Ok(match &port.transport {
         PortTransport::Serial(path) => OpenPort::Serial(open_serial(&path.to_string_lossy(), baud)?),
         PortTransport::Tcp(addr) => OpenPort::Tcp(connect_tcp(addr).await?),
+        #[cfg(feature = "sim")]
         PortTransport::Simulated(devices) => OpenPort::Simulated(crate::simulated::spawn(port.id, devices, baud)),
+        #[cfg(not(feature = "sim"))]
+        PortTransport::Simulated(_) => {
+            return Err(io::Error::other(
+                "simulated port: this gcud was built without the `sim` feature",
+            ));
+        }
     })
 }
 
@@ -199,6 +207,7 @@ pub async fn run_port(port: Port, events: mpsc::Sender<IoEvent>) {
                 let end = match stream {
                     OpenPort::Serial(s) => pump_port(id, s, &mut baud, w, e).await,
                     OpenPort::Tcp(s) => pump_port(id, s, &mut baud, w, e).await,
+                    #[cfg(feature = "sim")]
                     OpenPort::Simulated(s) => pump_port(id, s, &mut baud, w, e).await,
                 };
                 let PortEnd::Lost(reason) = end else {
@@ -401,7 +410,7 @@ pub async fn accept_loop(
                 continue;
             }
         };
-        if let Err(e) = sagebrush::transport::tune_tcp(&stream) {
+        if let Err(e) = sagebrush_host::transport::tune_tcp(&stream) {
             warn!(link = %link.name, %peer, error = %e, "cannot set TCP_NODELAY/keepalive");
         }
         info!(link = %link.name, %peer, "client connected");

@@ -8,6 +8,7 @@ mod daemon;
 mod io;
 mod metrics;
 mod reload;
+#[cfg(feature = "sim")]
 mod simulated;
 mod stats;
 mod throttle;
@@ -87,7 +88,7 @@ fn main() -> ExitCode {
         );
         return ExitCode::SUCCESS;
     }
-    if let Err(e) = sagebrush::logging::init(config.log_level.as_deref().unwrap_or("info"), false) {
+    if let Err(e) = sagebrush_host::logging::init(config.log_level.as_deref().unwrap_or("info"), false) {
         eprintln!("gcud: {e}");
         return ExitCode::from(EXIT_CONFIG);
     }

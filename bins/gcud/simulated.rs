@@ -1,9 +1,9 @@
 //! `simulate = [devices]` ports: a bus of simulated gimbals (`sagebrush-sim`)
 //! in-process, served by the same loop as `gimbalsim`
-//! ([`sagebrush::sim_line`]) on an in-memory byte pipe, so that the demo and
+//! ([`sagebrush_host::sim_line`]) on an in-memory byte pipe, so that the demo and
 //! tests run the daemon exactly as on real lines.
 
-use sagebrush::sim_line::{Line, serve};
+use sagebrush_host::sim_line::{Line, serve};
 use sagebrush_sim::{Bus, BusConfig, GimbalConfig};
 use tokio::io::DuplexStream;
 use tokio::time::Instant;
@@ -33,7 +33,7 @@ pub fn spawn(port: u8, devices: &[u8], baud: u32) -> DuplexStream {
             pace: false,
             baud,
         };
-        let mut never = Box::pin(std::future::pending()) as sagebrush::sim_line::Shutdown;
+        let mut never = Box::pin(std::future::pending()) as sagebrush_host::sim_line::Shutdown;
         if let Err(e) = serve(&mut bus, &mut theirs, &mut line, &mut |_, _| Ok(()), &mut never).await {
             warn!(port, error = %e, "simulated bus stopped");
         }

@@ -3,7 +3,7 @@
 
 use std::io::Read;
 
-use sagebrush::hex::{from_hex, payload_text, to_hex};
+use sagebrush_host::hex::{from_hex, payload_text, to_hex};
 use sagebrush_protocol::{Address, BadChecksum, Command, Event, FrameBuf, Framer};
 use serde_json::{Value, json};
 
@@ -23,8 +23,8 @@ pub fn command_json(payload: &[u8]) -> Value {
 
 /// `gimbalctl encode`: prints the frame for `payload`.
 pub fn encode(dest: Address, source: u8, payload: &str, as_json: bool) -> Result<(), CtlError> {
-    let bytes =
-        sagebrush::hex::payload_bytes(payload).map_err(|e| CtlError::Usage(format!("payload {payload:?}: {e}")))?;
+    let bytes = sagebrush_host::hex::payload_bytes(payload)
+        .map_err(|e| CtlError::Usage(format!("payload {payload:?}: {e}")))?;
     let frame =
         FrameBuf::new(dest, source, &bytes).map_err(|e| CtlError::Usage(format!("payload {payload:?}: {e}")))?;
     if let Err(e) = Command::parse_strict(&bytes) {

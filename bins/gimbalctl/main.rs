@@ -1,6 +1,6 @@
 //! `gimbalctl`: command Sagebrush pan-tilt gimbals (protocol rev 1.9) by
 //! hand, on a bus (`--serial`) or through a GCU daemon (`--tcp`). Built on
-//! the protocol crate's `Transaction` (via `sagebrush::master`). Exit codes
+//! the protocol crate's `Transaction` (via `sagebrush_host::master`). Exit codes
 //! are listed in [`cli::EXIT_CODES`].
 
 mod cli;
@@ -15,8 +15,8 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Parser;
-use sagebrush::hex::payload_text;
-use sagebrush::master::Exchange;
+use sagebrush_host::hex::payload_text;
+use sagebrush_host::master::Exchange;
 use sagebrush_protocol::{Command, Outcome, Position, Reply};
 use serde_json::{Value, json};
 
@@ -27,7 +27,7 @@ use crate::session::Session;
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let as_json = cli.global.json;
-    if let Err(e) = sagebrush::logging::init(&cli.global.log, false) {
+    if let Err(e) = sagebrush_host::logging::init(&cli.global.log, false) {
         eprintln!("gimbalctl: {e}");
         return ExitCode::from(2);
     }

@@ -1,7 +1,7 @@
 //! Results for people (physical units) and for scripts (JSON), one
 //! function per result table (4A, 5, 6, 6A, 6B, 8, 9, 10, 13, 14, 15, 17).
 
-use sagebrush::hex::payload_text;
+use sagebrush_host::hex::payload_text;
 use sagebrush_protocol::{Angle, AwakeStatus, Command, DataRate, InitResults, Position, Reply};
 use serde_json::{Value, json};
 

@@ -1,7 +1,7 @@
 //! Each subcommand as the typed command of the protocol crate, encoded as
 //! the payload to send (Tables 4, 11, 16 and the rev 1.9 list).
 
-use sagebrush::hex::payload_bytes;
+use sagebrush_host::hex::payload_bytes;
 use sagebrush_protocol::{
     Acceleration, Angle, AuxBytes, AuxConfig, AuxPort, AuxReadLen, Axis, Command, DataRate, DeviceId, DigitalZoom,
     Extended, LensPosition, LensSpeed, Limits, MAX_PAYLOAD, Parity, Position, Rate, RateGain, Relay, Speed, U12,

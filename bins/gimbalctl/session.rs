@@ -2,9 +2,9 @@
 //! and the exchanges `gimbalctl` makes over it, with protocol failures
 //! turned into [`CtlError`]s that say what happened.
 
-use sagebrush::master::{Exchange, Master};
-use sagebrush::timing;
-use sagebrush::transport::{self, Line};
+use sagebrush_host::master::{Exchange, Master};
+use sagebrush_host::timing;
+use sagebrush_host::transport::{self, Line};
 use sagebrush_protocol::{Address, Command, FrameBuf, Outcome, TxFailure};
 
 use crate::cli::Global;
@@ -63,7 +63,11 @@ impl Session {
         let frame = FrameBuf::new(self.to, self.from, payload).map_err(|e| CtlError::Usage(format!("payload: {e}")))?;
         let command = Command::parse(payload);
         let ex = self.master.transact(&frame, &command).await?;
-        let what = format!("{} ({})", sagebrush::hex::payload_text(payload), command.mnemonic());
+        let what = format!(
+            "{} ({})",
+            sagebrush_host::hex::payload_text(payload),
+            command.mnemonic()
+        );
         let to = self.to;
         let policy = *self.master.policy();
         if let Some(report) = ex.undelivered {

@@ -11,7 +11,7 @@ use clap::Parser;
 
 fn main() -> ExitCode {
     let cli = cli::Cli::parse();
-    if let Err(e) = sagebrush::logging::init(&cli.log, cli.log_json) {
+    if let Err(e) = sagebrush_host::logging::init(&cli.log, cli.log_json) {
         eprintln!("gimbalsim: {e}");
         return ExitCode::from(2);
     }

@@ -4,9 +4,9 @@
 
 use std::io;
 
-use sagebrush::pty::{PtyMaster, Symlink};
-use sagebrush::sim_line::{End, Line, Shutdown, serve};
-use sagebrush::transport;
+use sagebrush_host::pty::{PtyMaster, Symlink};
+use sagebrush_host::sim_line::{End, Line, Shutdown, serve};
+use sagebrush_host::transport;
 use sagebrush_sim::{Bus, BusConfig, Fault};
 use tokio::net::TcpListener;
 use tokio::time::Instant;

@@ -15,6 +15,12 @@ use tracing_subscriber::fmt::format::Writer;
 use tracing_subscriber::fmt::{FmtContext, FormatEvent, FormatFields};
 use tracing_subscriber::registry::LookupSpan;
 
+/// Checks a log filter (`"info"`, `"warn,sagebrush_gcu=debug"`) as
+/// [`init`] would read it; the error says what is wrong with it.
+pub fn check_filter(filter: &str) -> Result<(), String> {
+    EnvFilter::try_new(filter).map(drop).map_err(|e| e.to_string())
+}
+
 /// Installs the global subscriber. `default_filter` applies when `RUST_LOG`
 /// is unset; a malformed filter is reported, not ignored.
 pub fn init(default_filter: &str, json: bool) -> Result<(), String> {

@@ -15,6 +15,7 @@ pub mod hex;
 pub mod logging;
 pub mod master;
 pub mod pty;
+#[cfg(feature = "sim")]
 pub mod sim_line;
 pub mod timing;
 pub mod transport;
