@@ -16,7 +16,7 @@
 //! - Payload bytes are not checked for ASCII: `*xpt` may carry raw bytes.
 
 use crate::address::Address;
-use crate::frame::{ACK, Frame, HEADER_LEN, MAX_FRAME_LEN, NAK, NIC, START, checksum, payload_len};
+use crate::frame::{ACK, Frame, FrameBuf, FrameError, HEADER_LEN, Header, MAX_FRAME_LEN, NAK, NIC, START, layout};
 
 /// Default buffer size: room for two maximum frames, so compaction is rare.
 pub const DEFAULT_CAPACITY: usize = 2 * MAX_FRAME_LEN;
@@ -51,6 +51,77 @@ pub enum Event<'a> {
     Nic,
     /// A frame-sized candidate whose checksum failed: NAK it.
     BadChecksum(BadChecksum),
+}
+
+/// An owned [`Event`]: the same five cases, with the frame copied into a
+/// [`FrameBuf`], for queues and channels that outlive the framer's buffer.
+/// Build one with [`Event::to_owned`] or `From`; borrow it back with
+/// [`OwnedEvent::as_event`].
+///
+/// The frame is held inline (this crate has no `alloc`), so the type is
+/// about 270 bytes; a caller that queues many may box it.
+#[allow(
+    clippy::large_enum_variant,
+    reason = "no alloc: the frame is held inline, as in FrameBuf"
+)]
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub enum OwnedEvent {
+    /// A frame whose checksum holds.
+    Frame(FrameBuf),
+    /// A bare ACK (0x06).
+    Ack,
+    /// A bare NAK (0x15).
+    Nak,
+    /// A bare NIC `?` (0x3F).
+    Nic,
+    /// A frame-sized candidate whose checksum failed: NAK it.
+    BadChecksum(BadChecksum),
+}
+
+impl Event<'_> {
+    /// An owned copy (the frame's bytes copied into a [`FrameBuf`]). Takes
+    /// precedence over `ToOwned::to_owned`, which would give an `Event`.
+    pub fn to_owned(&self) -> OwnedEvent {
+        match *self {
+            Event::Frame(frame) => OwnedEvent::Frame(FrameBuf::from_frame(&frame)),
+            Event::Ack => OwnedEvent::Ack,
+            Event::Nak => OwnedEvent::Nak,
+            Event::Nic => OwnedEvent::Nic,
+            Event::BadChecksum(bad) => OwnedEvent::BadChecksum(bad),
+        }
+    }
+}
+
+impl OwnedEvent {
+    /// The event as the framer gave it, borrowing the frame from `self`
+    /// (for `Transaction::on_event` and other consumers of [`Event`]).
+    pub fn as_event(&self) -> Event<'_> {
+        match self {
+            OwnedEvent::Frame(frame) => Event::Frame(frame.frame()),
+            OwnedEvent::Ack => Event::Ack,
+            OwnedEvent::Nak => Event::Nak,
+            OwnedEvent::Nic => Event::Nic,
+            OwnedEvent::BadChecksum(bad) => Event::BadChecksum(*bad),
+        }
+    }
+}
+
+impl From<Event<'_>> for OwnedEvent {
+    fn from(event: Event<'_>) -> Self {
+        event.to_owned()
+    }
+}
+
+impl From<&Event<'_>> for OwnedEvent {
+    fn from(event: &Event<'_>) -> Self {
+        event.to_owned()
+    }
+}
+
+impl PartialEq<Event<'_>> for OwnedEvent {
+    fn eq(&self, other: &Event<'_>) -> bool {
+        self.as_event() == *other
+    }
 }
 
 /// Counters of what the framer passed over.
@@ -92,11 +163,10 @@ fn scan<'d>(data: &'d [u8], mask: &mut usize, idle: bool, offset: u64, stats: &m
         let masked = i < m;
         if byte == START {
             let rest = data.get(i..).unwrap_or_default();
-            let total = match rest {
-                [_, _, _, _, _, len, ..] => HEADER_LEN + payload_len(*len) + 1,
-                _ => MAX_FRAME_LEN,
-            };
-            let Some(candidate) = rest.get(..total) else {
+            // The candidate's span comes from its length byte (layout, Table 1).
+            let header = rest.first_chunk::<HEADER_LEN>().map(Header::read);
+            let total = header.map_or(MAX_FRAME_LEN, |h| layout::wire_len(h.len));
+            let (Some(header), Some(candidate)) = (header, rest.get(..total)) else {
                 if !idle {
                     return done(i, m, mask, i, None);
                 }
@@ -106,28 +176,23 @@ fn scan<'d>(data: &'d [u8], mask: &mut usize, idle: bool, offset: u64, stats: &m
                 i += 1;
                 continue;
             };
-            // `candidate` holds `total` >= 7 bytes: start, five header
-            // bytes, the payload and the checksum, so both patterns match.
-            let (Some((&found, body)), &[_, group, port, device, source, ..]) = (candidate.split_last(), candidate)
-            else {
-                i += 1;
-                continue;
-            };
-            let dest = Address::new(group, port, device);
-            let expected = checksum(body.get(1..).unwrap_or_default());
-            if expected == found {
-                let frame = Frame::new(dest, source, body.get(HEADER_LEN..).unwrap_or_default());
-                if let Ok(frame) = frame {
-                    return done(i + total, m, mask, i, Some(Event::Frame(frame)));
+            // `candidate` is exactly one frame's span: `Frame::parse` checks it.
+            let (expected, found) = match Frame::parse(candidate) {
+                Ok((frame, _)) => return done(i + total, m, mask, i, Some(Event::Frame(frame))),
+                Err(FrameError::BadChecksum { expected, found, .. }) => (expected, found),
+                // Not reached: the span starts with 0xF8 and is complete.
+                Err(FrameError::BadStart { .. } | FrameError::Incomplete { .. } | FrameError::PayloadLength { .. }) => {
+                    i += 1;
+                    continue;
                 }
-            }
+            };
             stats.bad_checksums += 1;
             m = m.max(i + total);
             if !masked {
                 let bad = BadChecksum {
-                    dest,
-                    source,
-                    payload_len: total - HEADER_LEN - 1,
+                    dest: header.dest,
+                    source: header.source,
+                    payload_len: header.len.get(),
                     expected,
                     found,
                     offset: offset + i as u64,
@@ -348,5 +413,68 @@ impl<const N: usize> Framer<N> {
         self.end = 0;
         self.mask = 0;
         self.idle = false;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every event of a stream, owned.
+    fn owned_events(bytes: &[u8]) -> ([Option<OwnedEvent>; 8], usize) {
+        let mut out: [Option<OwnedEvent>; 8] = Default::default();
+        let mut n = 0;
+        let mut framer: Framer = Framer::new();
+        framer.feed(bytes, |event| {
+            if let Some(slot) = out.get_mut(n) {
+                *slot = Some(event.to_owned());
+            }
+            n += 1;
+        });
+        (out, n)
+    }
+
+    #[test]
+    fn owned_events_round_trip() {
+        // `P?` to 5.1.12 from 2, ACK, NAK, NIC, then the frame with its
+        // checksum damaged (rescanned from the byte after its 0xF8).
+        let good = [0xF8, 0x05, 0x01, 0x0C, 0x02, 0x02, 0x50, 0x3F, 0xA5];
+        let mut bad = good;
+        bad[8] = 0xA6;
+        let mut stream = [0u8; 21];
+        stream[..9].copy_from_slice(&good);
+        stream[9..12].copy_from_slice(&[ACK, NAK, NIC]);
+        stream[12..].copy_from_slice(&bad);
+        let (events, n) = owned_events(&stream);
+        assert_eq!(n, 5);
+        let frame = FrameBuf::new(Address::new(5, 1, 12), 2, b"P?").unwrap();
+        assert_eq!(events[0], Some(OwnedEvent::Frame(frame.clone())));
+        assert_eq!(events[1], Some(OwnedEvent::Ack));
+        assert_eq!(events[2], Some(OwnedEvent::Nak));
+        assert_eq!(events[3], Some(OwnedEvent::Nic));
+        let Some(OwnedEvent::BadChecksum(damaged)) = events[4] else {
+            panic!("{:?}", events[4]);
+        };
+        assert_eq!((damaged.expected, damaged.found, damaged.offset), (0xA5, 0xA6, 12));
+        assert_eq!(damaged.dest, Address::new(5, 1, 12));
+
+        // Back to borrowed events, equal to what the framer gave.
+        let original = Frame::new(Address::new(5, 1, 12), 2, b"P?").unwrap();
+        let owned = OwnedEvent::from(Event::Frame(original));
+        assert_eq!(owned.as_event(), Event::Frame(original));
+        assert_eq!(owned, Event::Frame(original));
+        assert_ne!(owned, Event::Ack);
+        for event in [Event::Ack, Event::Nak, Event::Nic, Event::BadChecksum(damaged)] {
+            let owned = OwnedEvent::from(&event);
+            assert_eq!(owned.as_event(), event);
+            assert_eq!(event.to_owned(), owned);
+        }
+        // The owned frame outlives the bytes it came from.
+        let kept = {
+            let bytes = good;
+            let (frame, _) = Frame::parse(&bytes).unwrap();
+            Event::Frame(frame).to_owned()
+        };
+        assert_eq!(kept, OwnedEvent::Frame(frame));
     }
 }

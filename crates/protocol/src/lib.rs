@@ -2,9 +2,11 @@
 //! on the wire, for firmware and host alike.
 //!
 //! `no_std`, no `alloc`, no `unsafe`. Layers (DESIGN "Layers"):
-//! - [`frame`]: the frame of Table 1, checksum, ACK/NAK/NIC bytes; [`FrameBuf`]
-//!   for queues.
-//! - [`framer`]: the streaming framer with resynchronisation.
+//! - [`frame`]: the frame of Table 1 (layout declared once in
+//!   [`frame::layout`]), checksum, ACK/NAK/NIC bytes; [`FrameBuf`], always a
+//!   valid frame, for queues.
+//! - [`framer`]: the streaming framer with resynchronisation; its events
+//!   borrowed ([`Event`]) or owned ([`OwnedEvent`], for queues).
 //! - [`command`], [`reply`], [`units`]: the typed command set (Tables 4, 11,
 //!   16, rev 1.9 list) and results (Tables 4A-17), in physical units.
 //! - [`link`]: the sender side of a link (ACK/NAK, retransmission, result
@@ -28,8 +30,10 @@ pub mod units;
 pub use address::{Address, AddressParseError, CONTROL_UNIT, LINK_PORT, MCU_GROUP, WILDCARD};
 pub use command::{AuxBytes, Command, CommandError, Extended, ResultKind, ResultTimeout};
 pub use device::{DeviceEndpoint, DeviceHandler, EndpointConfig, EndpointStats, RESULT_RESENDS, ReplyTo, Response};
-pub use frame::{ACK, Frame, FrameBuf, FrameError, MAX_FRAME_LEN, MAX_PAYLOAD, NAK, NIC, START, checksum};
-pub use framer::{BadChecksum, Event, Framer, FramerStats};
+pub use frame::{
+    ACK, Frame, FrameBuf, FrameError, Header, MAX_FRAME_LEN, MAX_PAYLOAD, NAK, NIC, PayloadLen, START, checksum,
+};
+pub use framer::{BadChecksum, Event, Framer, FramerStats, OwnedEvent};
 pub use link::{Outcome, RetryPolicy, Transaction, TransactionPolicy, TransactionStep, Transmitter, TxFailure, TxStep};
 pub use reply::{AwakeStatus, ErrorCodes, HomeStatus, Identity, InitResults, RateGains, Reply, ReplyError, StatusBits};
 pub use report::{DeliveryReport, NotAReport, REPORT_LEN, REPORT_MARK, Undelivered};

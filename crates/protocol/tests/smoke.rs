@@ -12,18 +12,21 @@ fn table3_example_and_reply() {
         &[0xF8, 0x05, 0x01, 0x0C, 0x02, 0x02, 0x50, 0x3F, 0xA5]
     );
     let mut framer: Framer = Framer::new();
+    // Noise, the frame, an ACK: exactly two events, in that order. The
+    // count is checked after `feed`, so a framer that reports nothing fails.
     let mut n = 0;
     framer.feed(
         &[0x41, 0xF8, 0x05, 0x01, 0x0C, 0x02, 0x02, 0x50, 0x3F, 0xA5, 0x06],
         |e| {
             n += 1;
             match n {
-                1 => assert!(matches!(e, Event::Frame(f) if f.payload() == b"P?")),
+                1 => assert!(matches!(e, Event::Frame(f) if f.payload() == b"P?"), "{e:?}"),
                 2 => assert_eq!(e, Event::Ack),
-                _ => panic!(),
+                _ => panic!("unexpected event {n}: {e:?}"),
             }
         },
     );
+    assert_eq!(n, 2, "events seen");
     assert_eq!(framer.skipped_bytes(), 1);
     for (payload, want) in [
         (&b"P?"[..], Command::QueryPosition),
