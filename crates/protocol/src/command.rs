@@ -10,6 +10,7 @@ use nom::Parser;
 
 use crate::EncodeError;
 use crate::hex::{Writer, decimal, hex_n, hex_u8, hex_u16, hex_value, hex12, is_hex, offset_in};
+use crate::reply::Shape;
 use crate::units::{
     Acceleration, Angle, AuxConfig, AuxPort, AuxReadLen, Axis, DataRate, DeviceId, DigitalZoom, LensPosition,
     LensSpeed, Limits, Parity, Position, RangeError, Rate, RateGain, Relay, Speed,
@@ -37,124 +38,6 @@ impl<'a> AuxBytes<'a> {
     }
 }
 
-/// Rev 1.9 commands published by name only (1.2, NOTES E13): their
-/// argument and reply bytes are kept raw, no layout is guessed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Extended {
-    /// `HP`: go to the gimbal position saved by `HA`.
-    GoToHaltPosition,
-    /// `VP`: go to the lens position saved by `HA`.
-    LensGoToHaltPosition,
-    /// `VS`: camera and relay status.
-    CameraRelayStatus,
-    /// `F?`: current focus speed number.
-    FocusSpeedQuery,
-    /// `Z?`: current zoom speed number.
-    ZoomSpeedQuery,
-    /// `C?`: lens software limits or preset position values.
-    LensLimitsQuery,
-    /// `*dA`: analog channel values.
-    AnalogInputs,
-    /// `*di`: digital input values.
-    DigitalInputs,
-    /// `*do`: digital output values.
-    DigitalOutputs,
-    /// `*dl`: status messages.
-    StatusMessages,
-    /// `*dm`: set loop mode.
-    LoopMode,
-    /// `*mr`: rate commands.
-    RateCommand,
-    /// `*me`: send/read position in encoder counts.
-    EncoderPosition,
-    /// `*mp`: send/read position in floating point.
-    FloatPosition,
-    /// `*mu`: set/read user parameters.
-    UserParameters,
-    /// `*sa`: set/read inertial gain.
-    InertialGain,
-    /// `*sgr`: set/read rate gain in floating point.
-    RateGainFloat,
-    /// `*sgp`: set/read position gain in floating point.
-    PositionGainFloat,
-    /// `*sl`: set/read rate/acceleration limits.
-    RateLimits,
-}
-
-impl Extended {
-    pub const ALL: [Extended; 19] = [
-        Extended::GoToHaltPosition,
-        Extended::LensGoToHaltPosition,
-        Extended::CameraRelayStatus,
-        Extended::FocusSpeedQuery,
-        Extended::ZoomSpeedQuery,
-        Extended::LensLimitsQuery,
-        Extended::AnalogInputs,
-        Extended::DigitalInputs,
-        Extended::DigitalOutputs,
-        Extended::StatusMessages,
-        Extended::LoopMode,
-        Extended::RateCommand,
-        Extended::EncoderPosition,
-        Extended::FloatPosition,
-        Extended::UserParameters,
-        Extended::InertialGain,
-        Extended::RateGainFloat,
-        Extended::PositionGainFloat,
-        Extended::RateLimits,
-    ];
-
-    /// The command's name bytes on the wire.
-    pub const fn name(self) -> &'static str {
-        match self {
-            Extended::GoToHaltPosition => "HP",
-            Extended::LensGoToHaltPosition => "VP",
-            Extended::CameraRelayStatus => "VS",
-            Extended::FocusSpeedQuery => "F?",
-            Extended::ZoomSpeedQuery => "Z?",
-            Extended::LensLimitsQuery => "C?",
-            Extended::AnalogInputs => "*dA",
-            Extended::DigitalInputs => "*di",
-            Extended::DigitalOutputs => "*do",
-            Extended::StatusMessages => "*dl",
-            Extended::LoopMode => "*dm",
-            Extended::RateCommand => "*mr",
-            Extended::EncoderPosition => "*me",
-            Extended::FloatPosition => "*mp",
-            Extended::UserParameters => "*mu",
-            Extended::InertialGain => "*sa",
-            Extended::RateGainFloat => "*sgr",
-            Extended::PositionGainFloat => "*sgp",
-            Extended::RateLimits => "*sl",
-        }
-    }
-
-    /// Whether a result follows: queries answer, set/read ones may.
-    pub const fn result_kind(self) -> ResultKind {
-        match self {
-            Extended::GoToHaltPosition
-            | Extended::LensGoToHaltPosition
-            | Extended::LoopMode
-            | Extended::RateCommand => ResultKind::None,
-            Extended::CameraRelayStatus
-            | Extended::FocusSpeedQuery
-            | Extended::ZoomSpeedQuery
-            | Extended::LensLimitsQuery
-            | Extended::AnalogInputs
-            | Extended::DigitalInputs
-            | Extended::DigitalOutputs
-            | Extended::StatusMessages => ResultKind::Required(ResultTimeout::Normal),
-            Extended::EncoderPosition
-            | Extended::FloatPosition
-            | Extended::UserParameters
-            | Extended::InertialGain
-            | Extended::RateGainFloat
-            | Extended::PositionGainFloat
-            | Extended::RateLimits => ResultKind::Optional,
-        }
-    }
-}
-
 /// How long a result may take, as a class; the durations are the user's.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ResultTimeout {
@@ -175,141 +58,836 @@ pub enum ResultKind {
     Optional,
 }
 
-/// One command payload.
+/// A row's answer fact (the "RESPONSE" column): what follows the ACK and,
+/// when a result can, its shape. [`Command::result_kind`] and the reply
+/// dispatch ([`crate::Reply::parse`], [`crate::Reply::answers`]) both come
+/// from it, so a query cannot have a result kind without a reply shape.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Command<'a> {
-    // Table 4: general device control.
-    /// `#NN`: set device address/ID.
-    SetDeviceId(DeviceId),
-    /// `AW`: awake status (Table 5).
-    AwakeStatus,
-    /// `B?`: maximum data rate (`C0..CF`).
-    QueryMaxDataRate,
-    /// `C0..CF`: set communication data rate.
-    SetDataRate(DataRate),
-    /// `D?`: identification (Table 6).
-    Identify,
-    /// `E?`: error codes (Table 6A).
-    QueryErrors,
-    /// `I?`: status bits (Table 6B).
-    QueryStatusBits,
-    /// `GRPnn` / `GRTnn`: set a rate gain (Table 7).
-    SetRateGain(Axis, RateGain),
-    /// `G?`: rate gains (Table 8).
-    QueryRateGains,
-    /// `IX`: initialisation (Table 9).
-    Initialize,
-    /// `L0..L3`: open relay.
-    OpenRelay(Relay),
-    /// `L8..LB`: close relay.
-    CloseRelay(Relay),
-    /// `LR`: relay status (Table 4A).
-    QueryRelays,
-    /// `LC`: clear software limits.
-    ClearLimits,
-    /// `LS` + 12 hex: set software limits (Table 10).
-    SetLimits(Limits),
-    /// `L?`: software limits (Table 10).
-    QueryLimits,
+pub(crate) enum Answer {
+    /// ACK only.
+    Ack,
+    /// ACK and a result of this shape.
+    Result(ResultTimeout, Shape),
+    /// A rev 1.9 set/read command: a result of this shape when it reads.
+    Optional(Shape),
+}
 
-    // Table 11: pan/tilt mount.
-    /// `APnnnn` / `ATnnnn` (Table 12).
-    SetAcceleration(Axis, Acceleration),
-    /// `A?`: both accelerations (Table 13, NOTES E7).
-    QueryAccelerations,
-    /// `AP?` / `AT?`: one axis (NOTES E7).
-    QueryAcceleration(Axis),
-    /// `HA`: halt, stores the position, motors off.
-    Halt,
-    /// `HV`: verify home (Table 14).
-    VerifyHome,
-    /// `HO`: go home (0, 0).
-    Home,
-    /// `HS`: stop, motors off.
+impl Answer {
+    /// An ACK and a result answered from memory.
+    const fn normal(shape: Shape) -> Self {
+        Answer::Result(ResultTimeout::Normal, shape)
+    }
+
+    pub(crate) const fn kind(self) -> ResultKind {
+        match self {
+            Answer::Ack => ResultKind::None,
+            Answer::Result(timeout, _) => ResultKind::Required(timeout),
+            Answer::Optional(_) => ResultKind::Optional,
+        }
+    }
+
+    /// The result's shape, if one can follow.
+    pub(crate) const fn shape(self) -> Option<Shape> {
+        match self {
+            Answer::Ack => None,
+            Answer::Result(_, shape) | Answer::Optional(shape) => Some(shape),
+        }
+    }
+}
+
+/// A row's motion fact (Tables 11, 16).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum Motion {
+    /// Starts no continuous motion and stops none.
+    Other,
+    /// A stop or halt: overtakes queued work.
     Stop,
-    /// `P?`: current position (Table 15).
-    QueryPosition,
-    /// `Paaaaeeee`: go to position (Table 15).
-    GoTo(Position),
-    /// `PL`: pan left (CW) until `PS`.
-    PanLeft,
-    /// `PR`: pan right (CCW) until `PS`.
-    PanRight,
-    /// `PS`: pan stop.
-    PanStop,
-    /// `PT`: stop motion.
-    StopMotion,
-    /// `Pnn`: go to preset.
-    GoToPreset(u8),
-    /// `P?nn`: preset position (Table 15).
-    QueryPreset(u8),
-    /// `RPnnnn` / `RTnnnn` (Table 12).
-    SetRate(Axis, Rate),
-    /// `R?`: both rates (Table 13, NOTES E7).
-    QueryRates,
-    /// `RP?` / `RT?`: one axis (NOTES E7).
-    QueryRate(Axis),
-    /// `Snn`: store current position as preset.
-    StorePreset(u8),
-    /// `SP0..SPF` / `ST0..STF`: proportional speed.
-    SetSpeed(Axis, Speed),
-    /// `S?nn`: position stored at preset (Table 15).
-    QueryStoredPreset(u8),
-    /// `TD`: tilt down (CW) until `TS`.
-    TiltDown,
-    /// `TS`: tilt stop.
-    TiltStop,
-    /// `TU`: tilt up (CCW) until `TS`.
-    TiltUp,
-    /// `VMn`: vector motion on/off.
-    SetVectorMode(bool),
+    /// Starts a continuous motion that runs until this command.
+    Until(Command<'static>),
+}
 
-    // Table 16: camera.
-    /// `CN`: camera and lens power on.
-    CameraOn,
-    /// `CX`: camera and lens power off.
-    CameraOff,
-    /// `F0..F9`: focus speed.
-    FocusSpeed(LensSpeed),
-    /// `FA`: auto-focus on (not implemented by the gimbal).
-    AutoFocusOn,
-    /// `FF`: focus far until `FS`.
-    FocusFar,
-    /// `FN`: focus near until `FS`.
-    FocusNear,
-    /// `FS`: focus stop.
-    FocusStop,
-    /// `FX`: auto-focus off (not implemented by the gimbal).
-    AutoFocusOff,
-    /// `Vzzzfff`: lens go-to (Table 17).
-    LensGoTo(LensPosition),
-    /// `V?`: lens position (Table 17).
-    QueryLens,
-    /// `Z0..Z9`: zoom speed.
-    ZoomSpeed(LensSpeed),
-    /// `ZA..ZF`: digital zoom (not implemented by the gimbal).
-    DigitalZoom(DigitalZoom),
-    /// `ZI`: zoom in until `ZS`.
-    ZoomIn,
-    /// `ZO`: zoom out until `ZS`.
-    ZoomOut,
-    /// `ZS`: zoom stop.
-    ZoomStop,
-    /// `*xpc,baud,data,stop,parity` (Table 18).
-    AuxConfigure(AuxPort, AuxConfig),
-    /// `*xpt` + data.
-    AuxTransmit(AuxPort, AuxBytes<'a>),
-    /// `*xprnnn`: receive up to nnn bytes (decimal, NOTES E14).
-    AuxReceive(AuxPort, AuxReadLen),
-    /// `*xpn`: characters waiting.
-    AuxCount(AuxPort),
-    /// `*xpf`: flush.
-    AuxFlush(AuxPort),
+/// The rev 1.9 table: one row per command published by name only (1.2,
+/// NOTES E13); the argument and reply bytes stay raw, no layout is guessed.
+/// A row is `Variant = "name", answer;`.
+macro_rules! extended_table {
+    ($( $(#[$doc:meta])* $Variant:ident = $name:literal, $answer:expr; )+) => {
+        /// Rev 1.9 commands published by name only (1.2, NOTES E13): their
+        /// argument and reply bytes are kept raw, no layout is guessed.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum Extended {
+            $( $(#[$doc])* $Variant, )+
+        }
 
-    /// Rev 1.9 commands with their raw argument bytes (NOTES E13).
-    Extended(Extended, &'a [u8]),
-    /// A payload that fits no command: a device answers it with NIC.
-    Unknown(&'a [u8]),
+        impl Extended {
+            const COUNT: usize = [$($name),+].len();
+
+            /// Every rev 1.9 command, in table order.
+            pub const ALL: [Extended; Self::COUNT] = [$(Extended::$Variant),+];
+
+            /// The command's name bytes on the wire.
+            pub const fn name(self) -> &'static str {
+                match self {
+                    $( Extended::$Variant => $name, )+
+                }
+            }
+
+            /// The row's answer fact.
+            pub(crate) const fn answer(self) -> Answer {
+                match self {
+                    $( Extended::$Variant => $answer, )+
+                }
+            }
+        }
+    };
+}
+
+extended_table! {
+    /// `HP`: go to the gimbal position saved by `HA`.
+    GoToHaltPosition = "HP", Answer::Ack;
+    /// `VP`: go to the lens position saved by `HA`.
+    LensGoToHaltPosition = "VP", Answer::Ack;
+    /// `VS`: camera and relay status.
+    CameraRelayStatus = "VS", Answer::normal(Shape::Raw);
+    /// `F?`: current focus speed number.
+    FocusSpeedQuery = "F?", Answer::normal(Shape::Raw);
+    /// `Z?`: current zoom speed number.
+    ZoomSpeedQuery = "Z?", Answer::normal(Shape::Raw);
+    /// `C?`: lens software limits or preset position values.
+    LensLimitsQuery = "C?", Answer::normal(Shape::Raw);
+    /// `*dA`: analog channel values.
+    AnalogInputs = "*dA", Answer::normal(Shape::Raw);
+    /// `*di`: digital input values.
+    DigitalInputs = "*di", Answer::normal(Shape::Raw);
+    /// `*do`: digital output values.
+    DigitalOutputs = "*do", Answer::normal(Shape::Raw);
+    /// `*dl`: status messages.
+    StatusMessages = "*dl", Answer::normal(Shape::Raw);
+    /// `*dm`: set loop mode.
+    LoopMode = "*dm", Answer::Ack;
+    /// `*mr`: rate commands.
+    RateCommand = "*mr", Answer::Ack;
+    /// `*me`: send/read position in encoder counts.
+    EncoderPosition = "*me", Answer::Optional(Shape::Raw);
+    /// `*mp`: send/read position in floating point.
+    FloatPosition = "*mp", Answer::Optional(Shape::Raw);
+    /// `*mu`: set/read user parameters.
+    UserParameters = "*mu", Answer::Optional(Shape::Raw);
+    /// `*sa`: set/read inertial gain.
+    InertialGain = "*sa", Answer::Optional(Shape::Raw);
+    /// `*sgr`: set/read rate gain in floating point.
+    RateGainFloat = "*sgr", Answer::Optional(Shape::Raw);
+    /// `*sgp`: set/read position gain in floating point.
+    PositionGainFloat = "*sgp", Answer::Optional(Shape::Raw);
+    /// `*sl`: set/read rate/acceleration limits.
+    RateLimits = "*sl", Answer::Optional(Shape::Raw);
+}
+
+impl Extended {
+    /// Whether a result follows: queries answer, set/read ones may.
+    pub const fn result_kind(self) -> ResultKind {
+        self.answer().kind()
+    }
+
+    /// The rev 1.9 command whose name starts `payload`, and its argument bytes.
+    fn split(payload: &[u8]) -> Option<(Extended, &[u8])> {
+        Extended::ALL
+            .into_iter()
+            .find_map(|ext| Some((ext, payload.strip_prefix(ext.name().as_bytes())?)))
+    }
+}
+
+/// The command table: one row per command, from which the enum, `parse`,
+/// `encode`, `mnemonic`, `result_kind`, the stop/motion facts and the reply
+/// shape are all generated (no wildcard arm over commands anywhere: a new
+/// row that leaves out a fact does not compile).
+///
+/// A row is `Variant(field: Type, ..) => { facts }` with either
+/// - `wire: "XY", answer: .., motion: ..` for a command without arguments
+///   (parsed, encoded and named by its two bytes), or
+/// - `mnemonic: .., answer: .., motion: .., parse: { arms }, encode: { .. }`:
+///   `parse` arms are `pattern (if guard) => command` over the payload,
+///   `parse: (expr)` an `Option<Command>`; `encode` writes the fields with
+///   the writer. The fields are bound by name in `mnemonic`, `answer`,
+///   `motion` and `encode`.
+///
+/// Rows are tried for `parse` in table order, so of two rows whose patterns
+/// overlap the more specific comes first (`AP?` before `APnnnn`).
+macro_rules! command_table {
+    (
+        $(#[$meta:meta])*
+        pub enum $Command:ident<$lt:lifetime> (payload = $payload:ident, writer = $w:ident) {
+            $(
+                $(#[$doc:meta])*
+                $Variant:ident $( ( $($field:ident : $fty:ty),+ $(,)? ) )? => { $($row:tt)* }
+            )+
+        }
+    ) => {
+        $(#[$meta])*
+        pub enum $Command<$lt> {
+            $( $(#[$doc])* $Variant $( ( $($fty),+ ) )?, )+
+        }
+
+        impl<$lt> $Command<$lt> {
+            /// The first row whose parse arms take `payload`; `Ok(None)` if none does.
+            fn parse_rows($payload: &$lt [u8]) -> Result<Option<Self>, CommandError> {
+                $( command_table!(@parse $payload, $Variant; $($row)*); )+
+                Ok(None)
+            }
+
+            /// Writes the row's bytes (not checked for emptiness).
+            fn encode_row(&self, $w: &mut Writer<'_>) -> Result<(), EncodeError> {
+                match *self {
+                    $(
+                        #[allow(unused_variables)]
+                        Self::$Variant $( ( $($field),+ ) )? => command_table!(@encode $w; $($row)*),
+                    )+
+                }
+                Ok(())
+            }
+
+            /// The mnemonic of the command's row in the spec tables, for logs.
+            pub fn mnemonic(&self) -> &'static str {
+                match *self {
+                    $(
+                        #[allow(unused_variables)]
+                        Self::$Variant $( ( $($field),+ ) )? => command_table!(@mnemonic $($row)*),
+                    )+
+                }
+            }
+
+            /// The row's answer fact: result kind and reply shape.
+            pub(crate) fn answer(&self) -> Answer {
+                match *self {
+                    $(
+                        #[allow(unused_variables)]
+                        Self::$Variant $( ( $($field),+ ) )? => command_table!(@answer $($row)*),
+                    )+
+                }
+            }
+
+            /// The row's motion fact.
+            fn motion(&self) -> Motion {
+                match *self {
+                    $(
+                        #[allow(unused_variables)]
+                        Self::$Variant $( ( $($field),+ ) )? => command_table!(@motion $($row)*),
+                    )+
+                }
+            }
+        }
+    };
+
+    // One fact of a row. Each rule spells out the whole row, so a row
+    // missing a fact (or with one misspelt) matches none and fails to compile.
+    (@parse $payload:ident, $Variant:ident;
+        wire: $wire:literal, answer: $answer:expr, motion: $motion:expr $(,)?) => {
+        if $payload == $wire.as_bytes() {
+            return Ok(Some(Self::$Variant));
+        }
+    };
+    (@parse $payload:ident, $Variant:ident;
+        mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
+        parse: { $( $pat:pat $(if $guard:expr)? => $command:expr ),+ $(,)? },
+        encode: { $($encode:tt)* } $(,)?) => {
+        $(
+            match $payload {
+                $pat $(if $guard)? => return Ok(Some($command)),
+                _ => {}
+            }
+        )+
+    };
+    (@parse $payload:ident, $Variant:ident;
+        mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
+        parse: ( $parse:expr ), encode: { $($encode:tt)* } $(,)?) => {
+        if let Some(command) = $parse {
+            return Ok(Some(command));
+        }
+    };
+
+    (@encode $w:ident; wire: $wire:literal, answer: $answer:expr, motion: $motion:expr $(,)?) => {
+        $w.put($wire.as_bytes())?
+    };
+    (@encode $w:ident; mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
+        parse: $parse:tt, encode: { $($encode:tt)* } $(,)?) => {
+        { $($encode)* }
+    };
+
+    (@mnemonic wire: $wire:literal, answer: $answer:expr, motion: $motion:expr $(,)?) => { $wire };
+    (@mnemonic mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
+        parse: $parse:tt, encode: $encode:tt $(,)?) => { $mnemonic };
+
+    (@answer wire: $wire:literal, answer: $answer:expr, motion: $motion:expr $(,)?) => { $answer };
+    (@answer mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
+        parse: $parse:tt, encode: $encode:tt $(,)?) => { $answer };
+
+    (@motion wire: $wire:literal, answer: $answer:expr, motion: $motion:expr $(,)?) => { $motion };
+    (@motion mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
+        parse: $parse:tt, encode: $encode:tt $(,)?) => { $motion };
+}
+
+/// The axis a letter names (`P` pan, `T` tilt).
+fn axis(letter: u8) -> Option<Axis> {
+    Axis::from_letter(letter)
+}
+
+/// `*xp..`: the auxiliary port digit at offset 2.
+fn aux_port(p: u8) -> Result<AuxPort, CommandError> {
+    match p {
+        b'0' | b'1' => ranged("*xp", 2, AuxPort::new(p - b'0')),
+        _ => Err(CommandError::BadArgument {
+            command: "*xp..",
+            offset: 2,
+            found: Some(p),
+            expected: "auxiliary port '0' or '1'",
+        }),
+    }
+}
+
+/// The error for a payload that fits no row.
+fn unknown(payload: &[u8]) -> CommandError {
+    match payload.first() {
+        Some(&first) => CommandError::Unknown {
+            first,
+            len: payload.len(),
+        },
+        None => CommandError::Empty,
+    }
+}
+
+command_table! {
+    /// One command payload: every row of Tables 4, 11 and 16 and the rev 1.9
+    /// list (1.2).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    pub enum Command<'a> (payload = payload, writer = w) {
+        // Rev 1.9 (1.2): first, because its names are prefixes that win over
+        // the patterns below (`VP`/`VS` + six bytes is not `Vzzzfff`).
+        /// Rev 1.9 commands with their raw argument bytes (1.2, NOTES E13).
+        Extended(ext: Extended, args: &'a [u8]) => {
+            mnemonic: ext.name(),
+            answer: ext.answer(),
+            motion: Motion::Other,
+            parse: (Extended::split(payload).map(|(ext, args)| Self::Extended(ext, args))),
+            encode: {
+                w.put(ext.name().as_bytes())?;
+                w.put(args)?;
+            },
+        }
+
+        // Table 4: general device control.
+        /// `#NN`: set device address/ID (Table 4).
+        SetDeviceId(id: DeviceId) => {
+            mnemonic: "#NN",
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: {
+                [b'#', ..] => {
+                    let id = whole("#NN", payload, 1, "two hex digits 01..FE", hex_u8)?;
+                    Self::SetDeviceId(ranged("#NN", 1, DeviceId::new(id))?)
+                },
+            },
+            encode: {
+                w.byte(b'#')?;
+                w.hex(id.get().into(), 2)?;
+            },
+        }
+        /// `AW`: awake status (Table 4; result Table 5).
+        AwakeStatus => { wire: "AW", answer: Answer::normal(Shape::AwakeStatus), motion: Motion::Other }
+        /// `B?`: maximum data rate, `C0..CF` (Table 4).
+        QueryMaxDataRate => { wire: "B?", answer: Answer::normal(Shape::MaxDataRate), motion: Motion::Other }
+        /// `C0..CF`: set communication data rate (Table 4; `C8..CF` reserved, NOTES E15).
+        SetDataRate(rate: DataRate) => {
+            mnemonic: "Cn",
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: {
+                [b'C', d] if is_hex(*d) => match DataRate::from_code(hex_value(*d).unwrap_or(0)) {
+                    Some(rate) => Self::SetDataRate(rate),
+                    None => return Err(unknown(payload)),
+                },
+            },
+            encode: {
+                let code = rate.encodable_code().map_err(EncodeError::OutOfRange)?;
+                w.byte(b'C')?;
+                w.hex(code.into(), 1)?;
+            },
+        }
+        /// `D?`: identification (Table 4; result Table 6).
+        Identify => { wire: "D?", answer: Answer::normal(Shape::Identity), motion: Motion::Other }
+        /// `E?`: error codes (Table 4; result Table 6A).
+        QueryErrors => { wire: "E?", answer: Answer::normal(Shape::Errors), motion: Motion::Other }
+        /// `I?`: status bits (Table 4; result Table 6B).
+        QueryStatusBits => { wire: "I?", answer: Answer::normal(Shape::StatusBits), motion: Motion::Other }
+        /// `GRPnn` / `GRTnn`: set a rate gain (Table 4; value Table 7).
+        SetRateGain(axis: Axis, gain: RateGain) => {
+            mnemonic: match axis {
+                Axis::Pan => "GRPnn",
+                Axis::Tilt => "GRTnn",
+            },
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: {
+                [b'G', b'R', a, ..] if axis(*a).is_some() => {
+                    let v = whole("GRPnn/GRTnn", payload, 3, "two hex digits", hex_u8)?;
+                    Self::SetRateGain(axis(*a).unwrap_or(Axis::Pan), ranged("GRPnn/GRTnn", 3, RateGain::new(v))?)
+                },
+            },
+            encode: {
+                w.put(&[b'G', b'R', axis.letter()])?;
+                w.hex(gain.get().into(), 2)?;
+            },
+        }
+        /// `G?`: rate gains (Table 4; result Table 8).
+        QueryRateGains => { wire: "G?", answer: Answer::normal(Shape::RateGains), motion: Motion::Other }
+        /// `IX`: initialisation (Table 4; result Table 9, which takes long).
+        Initialize => {
+            wire: "IX",
+            answer: Answer::Result(ResultTimeout::Long, Shape::Initialization),
+            motion: Motion::Other,
+        }
+        /// `L0..L3`: open relay (Table 4).
+        OpenRelay(relay: Relay) => {
+            mnemonic: "L0..L3",
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: {
+                [b'L', d @ b'0'..=b'3'] => Self::OpenRelay(ranged("L0..L3", 1, Relay::new(d - b'0'))?),
+            },
+            encode: {
+                w.put(&[b'L', b'0' + relay.get()])?;
+            },
+        }
+        /// `L8..LB`: close relay (Table 4).
+        CloseRelay(relay: Relay) => {
+            mnemonic: "L8..LB",
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: {
+                [b'L', d @ (b'8' | b'9' | b'A' | b'B' | b'a' | b'b')] => {
+                    let bit = hex_value(*d).unwrap_or(8) - 8;
+                    Self::CloseRelay(ranged("L8..LB", 1, Relay::new(bit))?)
+                },
+            },
+            encode: {
+                w.byte(b'L')?;
+                w.hex(u32::from(relay.get()) + 8, 1)?;
+            },
+        }
+        /// `LR`: relay status (Table 4; result Table 4A).
+        QueryRelays => { wire: "LR", answer: Answer::normal(Shape::Relays), motion: Motion::Other }
+        /// `LC`: clear software limits (Table 4).
+        ClearLimits => { wire: "LC", answer: Answer::Ack, motion: Motion::Other }
+        /// `LS` + 12 hex: set software limits (Table 4; values Table 10).
+        SetLimits(limits: Limits) => {
+            mnemonic: "LS",
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: {
+                [b'L', b'S', ..] => {
+                    let (pan_ccw, pan_cw, tilt_ccw, tilt_cw) = whole("LS", payload, 2, "twelve hex digits", |i| {
+                        (hex12, hex12, hex12, hex12).parse(i)
+                    })?;
+                    Self::SetLimits(Limits {
+                        pan_ccw,
+                        pan_cw,
+                        tilt_ccw,
+                        tilt_cw,
+                    })
+                },
+            },
+            encode: {
+                w.put(b"LS")?;
+                for v in [limits.pan_ccw, limits.pan_cw, limits.tilt_ccw, limits.tilt_cw] {
+                    w.hex(v.get().into(), 3)?;
+                }
+            },
+        }
+        /// `L?`: software limits (Table 4; result Table 10).
+        QueryLimits => { wire: "L?", answer: Answer::normal(Shape::Limits), motion: Motion::Other }
+
+        // Table 11: pan/tilt mount.
+        /// `A?`: both accelerations (Table 11; result Table 13, NOTES E7).
+        QueryAccelerations => { wire: "A?", answer: Answer::normal(Shape::Accelerations), motion: Motion::Other }
+        /// `AP?` / `AT?`: one axis (Table 11, NOTES E7). Before `APnnnn`.
+        QueryAcceleration(axis: Axis) => {
+            mnemonic: match axis {
+                Axis::Pan => "AP?",
+                Axis::Tilt => "AT?",
+            },
+            answer: Answer::normal(Shape::Acceleration),
+            motion: Motion::Other,
+            parse: {
+                [b'A', a, b'?'] if axis(*a).is_some() => Self::QueryAcceleration(axis(*a).unwrap_or(Axis::Pan)),
+            },
+            encode: {
+                w.put(&[b'A', axis.letter(), b'?'])?;
+            },
+        }
+        /// `APnnnn` / `ATnnnn` (Table 11; value Table 12).
+        SetAcceleration(axis: Axis, acceleration: Acceleration) => {
+            mnemonic: match axis {
+                Axis::Pan => "APnnnn",
+                Axis::Tilt => "ATnnnn",
+            },
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: {
+                [b'A', a, ..] if axis(*a).is_some() => {
+                    let v = whole("APnnnn/ATnnnn", payload, 2, "four hex digits", hex_u16)?;
+                    Self::SetAcceleration(axis(*a).unwrap_or(Axis::Pan), Acceleration(v))
+                },
+            },
+            encode: {
+                w.put(&[b'A', axis.letter()])?;
+                w.hex(acceleration.0.into(), 4)?;
+            },
+        }
+        /// `HA`: halt, stores the position, motors off (Table 11).
+        Halt => { wire: "HA", answer: Answer::Ack, motion: Motion::Stop }
+        /// `HV`: verify home (Table 11; result Table 14).
+        VerifyHome => { wire: "HV", answer: Answer::normal(Shape::VerifyHome), motion: Motion::Other }
+        /// `HO`: go home (0, 0) (Table 11).
+        Home => { wire: "HO", answer: Answer::Ack, motion: Motion::Other }
+        /// `HS`: stop, motors off (Table 11).
+        Stop => { wire: "HS", answer: Answer::Ack, motion: Motion::Stop }
+        /// `P?`: current position (Table 11; result Table 15).
+        QueryPosition => { wire: "P?", answer: Answer::normal(Shape::Position), motion: Motion::Other }
+        /// `Paaaaeeee`: go to position (Table 11; values Table 15).
+        GoTo(position: Position) => {
+            mnemonic: "Paaaaeeee",
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: {
+                [b'P', _, _, _, _, _, _, _, _] => {
+                    let (pan, tilt) = whole("Paaaaeeee", payload, 1, "eight hex digits", |i| {
+                        (hex_u16, hex_u16).parse(i)
+                    })?;
+                    Self::GoTo(Position::new(Angle(pan as i16), Angle(tilt as i16)))
+                },
+            },
+            encode: {
+                w.byte(b'P')?;
+                w.hex(u32::from(position.pan.0 as u16), 4)?;
+                w.hex(u32::from(position.tilt.0 as u16), 4)?;
+            },
+        }
+        /// `PL`: pan left (CW) until `PS` (Table 11).
+        PanLeft => { wire: "PL", answer: Answer::Ack, motion: Motion::Until(Command::PanStop) }
+        /// `PR`: pan right (CCW) until `PS` (Table 11).
+        PanRight => { wire: "PR", answer: Answer::Ack, motion: Motion::Until(Command::PanStop) }
+        /// `PS`: pan stop (Table 11).
+        PanStop => { wire: "PS", answer: Answer::Ack, motion: Motion::Stop }
+        /// `PT`: stop motion (Table 11).
+        StopMotion => { wire: "PT", answer: Answer::Ack, motion: Motion::Stop }
+        /// `Pnn`: go to preset (Table 11).
+        GoToPreset(preset: u8) => {
+            mnemonic: "Pnn",
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: {
+                [b'P', a, b] if is_hex(*a) && is_hex(*b) => {
+                    Self::GoToPreset(whole("Pnn", payload, 1, "two hex digits", hex_u8)?)
+                },
+            },
+            encode: {
+                w.byte(b'P')?;
+                w.hex(preset.into(), 2)?;
+            },
+        }
+        /// `P?nn`: preset position (Table 11; result Table 15).
+        QueryPreset(preset: u8) => {
+            mnemonic: "P?nn",
+            answer: Answer::normal(Shape::Position),
+            motion: Motion::Other,
+            parse: {
+                [b'P', b'?', _, _] => Self::QueryPreset(whole("P?nn", payload, 2, "two hex digits", hex_u8)?),
+            },
+            encode: {
+                w.put(b"P?")?;
+                w.hex(preset.into(), 2)?;
+            },
+        }
+        /// `R?`: both rates (Table 11; result Table 13, NOTES E7).
+        QueryRates => { wire: "R?", answer: Answer::normal(Shape::Rates), motion: Motion::Other }
+        /// `RP?` / `RT?`: one axis (Table 11, NOTES E7). Before `RPnnnn`.
+        QueryRate(axis: Axis) => {
+            mnemonic: match axis {
+                Axis::Pan => "RP?",
+                Axis::Tilt => "RT?",
+            },
+            answer: Answer::normal(Shape::Rate),
+            motion: Motion::Other,
+            parse: {
+                [b'R', a, b'?'] if axis(*a).is_some() => Self::QueryRate(axis(*a).unwrap_or(Axis::Pan)),
+            },
+            encode: {
+                w.put(&[b'R', axis.letter(), b'?'])?;
+            },
+        }
+        /// `RPnnnn` / `RTnnnn` (Table 11; value Table 12).
+        SetRate(axis: Axis, rate: Rate) => {
+            mnemonic: match axis {
+                Axis::Pan => "RPnnnn",
+                Axis::Tilt => "RTnnnn",
+            },
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: {
+                [b'R', a, ..] if axis(*a).is_some() => {
+                    let v = whole("RPnnnn/RTnnnn", payload, 2, "four hex digits", hex_u16)?;
+                    Self::SetRate(axis(*a).unwrap_or(Axis::Pan), Rate(v))
+                },
+            },
+            encode: {
+                w.put(&[b'R', axis.letter()])?;
+                w.hex(rate.0.into(), 4)?;
+            },
+        }
+        /// `SP0..SPF` / `ST0..STF`: proportional speed (Table 11). Before `Snn`.
+        SetSpeed(axis: Axis, speed: Speed) => {
+            mnemonic: match axis {
+                Axis::Pan => "SPn",
+                Axis::Tilt => "STn",
+            },
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: {
+                [b'S', a, _] if axis(*a).is_some() => {
+                    let v = whole("SPn/STn", payload, 2, "one hex digit", hex_n(1))?;
+                    Self::SetSpeed(axis(*a).unwrap_or(Axis::Pan), ranged("SPn/STn", 2, Speed::new(v as u8))?)
+                },
+            },
+            encode: {
+                w.put(&[b'S', axis.letter()])?;
+                w.hex(speed.get().into(), 1)?;
+            },
+        }
+        /// `Snn`: store current position as preset (Table 11).
+        StorePreset(preset: u8) => {
+            mnemonic: "Snn",
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: {
+                [b'S', _, _] => Self::StorePreset(whole("Snn", payload, 1, "two hex digits", hex_u8)?),
+            },
+            encode: {
+                w.byte(b'S')?;
+                w.hex(preset.into(), 2)?;
+            },
+        }
+        /// `S?nn`: position stored at preset (Table 11; result Table 15).
+        QueryStoredPreset(preset: u8) => {
+            mnemonic: "S?nn",
+            answer: Answer::normal(Shape::Position),
+            motion: Motion::Other,
+            parse: {
+                [b'S', b'?', _, _] => Self::QueryStoredPreset(whole("S?nn", payload, 2, "two hex digits", hex_u8)?),
+            },
+            encode: {
+                w.put(b"S?")?;
+                w.hex(preset.into(), 2)?;
+            },
+        }
+        /// `TD`: tilt down (CW) until `TS` (Table 11).
+        TiltDown => { wire: "TD", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop) }
+        /// `TS`: tilt stop (Table 11).
+        TiltStop => { wire: "TS", answer: Answer::Ack, motion: Motion::Stop }
+        /// `TU`: tilt up (CCW) until `TS` (Table 11).
+        TiltUp => { wire: "TU", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop) }
+        /// `VMn`: vector motion on/off (Table 11).
+        SetVectorMode(on: bool) => {
+            mnemonic: "VMn",
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: {
+                [b'V', b'M', d] => match d {
+                    b'0' => Self::SetVectorMode(false),
+                    b'1' => Self::SetVectorMode(true),
+                    _ => {
+                        return Err(CommandError::BadArgument {
+                            command: "VMn",
+                            offset: 2,
+                            found: Some(*d),
+                            expected: "'0' or '1'",
+                        });
+                    }
+                },
+            },
+            encode: {
+                w.put(if on { b"VM1" } else { b"VM0" })?;
+            },
+        }
+
+        // Table 16: camera.
+        /// `CN`: camera and lens power on (Table 16).
+        CameraOn => { wire: "CN", answer: Answer::Ack, motion: Motion::Other }
+        /// `CX`: camera and lens power off (Table 16).
+        CameraOff => { wire: "CX", answer: Answer::Ack, motion: Motion::Other }
+        /// `F0..F9`: focus speed (Table 16).
+        FocusSpeed(speed: LensSpeed) => {
+            mnemonic: "Fn",
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: {
+                [b'F', d] if d.is_ascii_digit() => Self::FocusSpeed(ranged("F0..F9", 1, LensSpeed::new(d - b'0'))?),
+            },
+            encode: {
+                w.put(&[b'F', b'0' + speed.get()])?;
+            },
+        }
+        /// `FA`: auto-focus on (Table 16; not implemented by the gimbal).
+        AutoFocusOn => { wire: "FA", answer: Answer::Ack, motion: Motion::Other }
+        /// `FF`: focus far until `FS` (Table 16).
+        FocusFar => { wire: "FF", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop) }
+        /// `FN`: focus near until `FS` (Table 16).
+        FocusNear => { wire: "FN", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop) }
+        /// `FS`: focus stop (Table 16).
+        FocusStop => { wire: "FS", answer: Answer::Ack, motion: Motion::Stop }
+        /// `FX`: auto-focus off (Table 16; not implemented by the gimbal).
+        AutoFocusOff => { wire: "FX", answer: Answer::Ack, motion: Motion::Other }
+        /// `Vzzzfff`: lens go-to (Table 16; values Table 17).
+        LensGoTo(lens: LensPosition) => {
+            mnemonic: "Vzzzfff",
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: {
+                [b'V', _, _, _, _, _, _] => {
+                    let (zoom, focus) = whole("Vzzzfff", payload, 1, "six hex digits", |i| (hex12, hex12).parse(i))?;
+                    Self::LensGoTo(LensPosition { zoom, focus })
+                },
+            },
+            encode: {
+                w.byte(b'V')?;
+                w.hex(lens.zoom.get().into(), 3)?;
+                w.hex(lens.focus.get().into(), 3)?;
+            },
+        }
+        /// `V?`: lens position (Table 16; result Table 17).
+        QueryLens => { wire: "V?", answer: Answer::normal(Shape::Lens), motion: Motion::Other }
+        /// `Z0..Z9`: zoom speed (Table 16).
+        ZoomSpeed(speed: LensSpeed) => {
+            mnemonic: "Zn",
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: {
+                [b'Z', d] if d.is_ascii_digit() => Self::ZoomSpeed(ranged("Z0..Z9", 1, LensSpeed::new(d - b'0'))?),
+            },
+            encode: {
+                w.put(&[b'Z', b'0' + speed.get()])?;
+            },
+        }
+        /// `ZA..ZF`: digital zoom (Table 16; not implemented by the gimbal).
+        DigitalZoom(zoom: DigitalZoom) => {
+            mnemonic: "ZA..ZF",
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: {
+                [b'Z', d @ (b'A'..=b'F' | b'a'..=b'f')] => {
+                    Self::DigitalZoom(ranged("ZA..ZF", 1, DigitalZoom::new(hex_value(*d).unwrap_or(10)))?)
+                },
+            },
+            encode: {
+                w.byte(b'Z')?;
+                w.hex(zoom.get().into(), 1)?;
+            },
+        }
+        /// `ZI`: zoom in until `ZS` (Table 16).
+        ZoomIn => { wire: "ZI", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop) }
+        /// `ZO`: zoom out until `ZS` (Table 16).
+        ZoomOut => { wire: "ZO", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop) }
+        /// `ZS`: zoom stop (Table 16).
+        ZoomStop => { wire: "ZS", answer: Answer::Ack, motion: Motion::Stop }
+        /// `*xpc,baud,data,stop,parity` (Table 16; fields Table 18).
+        AuxConfigure(port: AuxPort, config: AuxConfig) => {
+            mnemonic: "*xpc",
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: {
+                [b'*', b'x', p, b'c', ..] => {
+                    let port = aux_port(*p)?;
+                    Self::AuxConfigure(port, aux_config(payload)?)
+                },
+            },
+            encode: {
+                w.put(&[b'*', b'x', b'0' + port.get(), b'c', b','])?;
+                w.decimal(config.baud(), 1)?;
+                w.put(&[b',', b'0' + config.data_bits(), b',', b'0' + config.stop_bits(), b','])?;
+                w.byte(match config.parity() {
+                    Parity::None => b'0',
+                    Parity::Odd => b'1',
+                    Parity::Even => b'2',
+                })?;
+            },
+        }
+        /// `*xpt` + data (Table 16).
+        AuxTransmit(port: AuxPort, data: AuxBytes<'a>) => {
+            mnemonic: "*xpt",
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: {
+                [b'*', b'x', p, b't', data @ ..] => {
+                    let port = aux_port(*p)?;
+                    Self::AuxTransmit(port, ranged("*xpt", 4, AuxBytes::new(data))?)
+                },
+            },
+            encode: {
+                w.put(&[b'*', b'x', b'0' + port.get(), b't'])?;
+                w.put(data.bytes())?;
+            },
+        }
+        /// `*xprnnn`: receive up to nnn bytes (Table 16; decimal, NOTES E14).
+        AuxReceive(port: AuxPort, len: AuxReadLen) => {
+            mnemonic: "*xprnnn",
+            answer: Answer::normal(Shape::AuxData),
+            motion: Motion::Other,
+            parse: {
+                [b'*', b'x', p, b'r', ..] => {
+                    let port = aux_port(*p)?;
+                    let n = whole("*xprnnn", payload, 4, "decimal count 1..=256", |i| decimal(3).parse(i))?;
+                    Self::AuxReceive(port, ranged("*xprnnn", 4, AuxReadLen::new(n as u16))?)
+                },
+            },
+            encode: {
+                w.put(&[b'*', b'x', b'0' + port.get(), b'r'])?;
+                w.decimal(len.get().into(), 3)?;
+            },
+        }
+        /// `*xpn`: characters waiting (Table 16; decimal, NOTES E14).
+        AuxCount(port: AuxPort) => {
+            mnemonic: "*xpn",
+            answer: Answer::normal(Shape::AuxCount),
+            motion: Motion::Other,
+            parse: {
+                [b'*', b'x', p, b'n'] => Self::AuxCount(aux_port(*p)?),
+            },
+            encode: {
+                w.put(&[b'*', b'x', b'0' + port.get(), b'n'])?;
+            },
+        }
+        /// `*xpf`: flush (Table 16).
+        AuxFlush(port: AuxPort) => {
+            mnemonic: "*xpf",
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: {
+                [b'*', b'x', p, b'f'] => Self::AuxFlush(aux_port(*p)?),
+            },
+            encode: {
+                w.put(&[b'*', b'x', b'0' + port.get(), b'f'])?;
+            },
+        }
+
+        /// A payload that fits no command: a device answers it with NIC.
+        /// No row parses to it: [`Command::parse`] gives it for what no row takes.
+        Unknown(bytes: &'a [u8]) => {
+            mnemonic: "unknown",
+            answer: Answer::Ack,
+            motion: Motion::Other,
+            parse: (None::<Self>),
+            encode: {
+                w.put(bytes)?;
+            },
+        }
+    }
 }
 
 /// Why a payload is not a well-formed command.
@@ -450,324 +1028,30 @@ impl<'a> Command<'a> {
 
     /// Parses a payload, saying what is wrong with one that fits no command.
     pub fn parse_strict(payload: &'a [u8]) -> Result<Self, CommandError> {
-        use Command as C;
-        let unknown = || match payload.first() {
-            Some(&first) => CommandError::Unknown {
-                first,
-                len: payload.len(),
-            },
-            None => CommandError::Empty,
-        };
-        for ext in Extended::ALL {
-            if let Some(args) = payload.strip_prefix(ext.name().as_bytes()) {
-                return Ok(C::Extended(ext, args));
-            }
+        if payload.is_empty() {
+            return Err(CommandError::Empty);
         }
-        let axis = |b: u8| Axis::from_letter(b);
-        Ok(match payload {
-            [] => return Err(CommandError::Empty),
-            [b'#', ..] => {
-                let id = whole("#NN", payload, 1, "two hex digits 01..FE", hex_u8)?;
-                C::SetDeviceId(ranged("#NN", 1, DeviceId::new(id))?)
-            }
-            b"AW" => C::AwakeStatus,
-            b"A?" => C::QueryAccelerations,
-            [b'A', a, b'?'] if axis(*a).is_some() => C::QueryAcceleration(axis(*a).unwrap_or(Axis::Pan)),
-            [b'A', a, ..] if axis(*a).is_some() => {
-                let v = whole("APnnnn/ATnnnn", payload, 2, "four hex digits", hex_u16)?;
-                C::SetAcceleration(axis(*a).unwrap_or(Axis::Pan), Acceleration(v))
-            }
-            b"B?" => C::QueryMaxDataRate,
-            b"CN" => C::CameraOn,
-            b"CX" => C::CameraOff,
-            [b'C', d] if is_hex(*d) => match DataRate::from_code(hex_value(*d).unwrap_or(0)) {
-                Some(rate) => C::SetDataRate(rate),
-                None => return Err(unknown()),
-            },
-            b"D?" => C::Identify,
-            b"E?" => C::QueryErrors,
-            b"FA" => C::AutoFocusOn,
-            b"FF" => C::FocusFar,
-            b"FN" => C::FocusNear,
-            b"FS" => C::FocusStop,
-            b"FX" => C::AutoFocusOff,
-            [b'F', d] if d.is_ascii_digit() => C::FocusSpeed(ranged("F0..F9", 1, LensSpeed::new(d - b'0'))?),
-            b"G?" => C::QueryRateGains,
-            [b'G', b'R', a, ..] if axis(*a).is_some() => {
-                let v = whole("GRPnn/GRTnn", payload, 3, "two hex digits", hex_u8)?;
-                C::SetRateGain(
-                    axis(*a).unwrap_or(Axis::Pan),
-                    ranged("GRPnn/GRTnn", 3, RateGain::new(v))?,
-                )
-            }
-            b"HA" => C::Halt,
-            b"HV" => C::VerifyHome,
-            b"HO" => C::Home,
-            b"HS" => C::Stop,
-            b"I?" => C::QueryStatusBits,
-            b"IX" => C::Initialize,
-            b"LR" => C::QueryRelays,
-            b"LC" => C::ClearLimits,
-            b"L?" => C::QueryLimits,
-            [b'L', d @ b'0'..=b'3'] => C::OpenRelay(ranged("L0..L3", 1, Relay::new(d - b'0'))?),
-            [b'L', d @ (b'8' | b'9' | b'A' | b'B' | b'a' | b'b')] => {
-                let bit = hex_value(*d).unwrap_or(8) - 8;
-                C::CloseRelay(ranged("L8..LB", 1, Relay::new(bit))?)
-            }
-            [b'L', b'S', ..] => {
-                let (pan_ccw, pan_cw, tilt_ccw, tilt_cw) = whole("LS", payload, 2, "twelve hex digits", |i| {
-                    (hex12, hex12, hex12, hex12).parse(i)
-                })?;
-                C::SetLimits(Limits {
-                    pan_ccw,
-                    pan_cw,
-                    tilt_ccw,
-                    tilt_cw,
-                })
-            }
-            b"P?" => C::QueryPosition,
-            b"PL" => C::PanLeft,
-            b"PR" => C::PanRight,
-            b"PS" => C::PanStop,
-            b"PT" => C::StopMotion,
-            [b'P', a, b] if is_hex(*a) && is_hex(*b) => {
-                C::GoToPreset(whole("Pnn", payload, 1, "two hex digits", hex_u8)?)
-            }
-            [b'P', b'?', _, _] => C::QueryPreset(whole("P?nn", payload, 2, "two hex digits", hex_u8)?),
-            [b'P', _, _, _, _, _, _, _, _] => {
-                let (pan, tilt) = whole("Paaaaeeee", payload, 1, "eight hex digits", |i| {
-                    (hex_u16, hex_u16).parse(i)
-                })?;
-                C::GoTo(Position::new(Angle(pan as i16), Angle(tilt as i16)))
-            }
-            b"R?" => C::QueryRates,
-            [b'R', a, b'?'] if axis(*a).is_some() => C::QueryRate(axis(*a).unwrap_or(Axis::Pan)),
-            [b'R', a, ..] if axis(*a).is_some() => {
-                let v = whole("RPnnnn/RTnnnn", payload, 2, "four hex digits", hex_u16)?;
-                C::SetRate(axis(*a).unwrap_or(Axis::Pan), Rate(v))
-            }
-            [b'S', b'?', _, _] => C::QueryStoredPreset(whole("S?nn", payload, 2, "two hex digits", hex_u8)?),
-            [b'S', a, _] if axis(*a).is_some() => {
-                let v = whole("SPn/STn", payload, 2, "one hex digit", hex_n(1))?;
-                C::SetSpeed(
-                    axis(*a).unwrap_or(Axis::Pan),
-                    ranged("SPn/STn", 2, Speed::new(v as u8))?,
-                )
-            }
-            [b'S', _, _] => C::StorePreset(whole("Snn", payload, 1, "two hex digits", hex_u8)?),
-            b"TD" => C::TiltDown,
-            b"TS" => C::TiltStop,
-            b"TU" => C::TiltUp,
-            [b'V', b'M', d] => match d {
-                b'0' => C::SetVectorMode(false),
-                b'1' => C::SetVectorMode(true),
-                _ => {
-                    return Err(CommandError::BadArgument {
-                        command: "VMn",
-                        offset: 2,
-                        found: Some(*d),
-                        expected: "'0' or '1'",
-                    });
-                }
-            },
-            b"V?" => C::QueryLens,
-            [b'V', _, _, _, _, _, _] => {
-                let (zoom, focus) = whole("Vzzzfff", payload, 1, "six hex digits", |i| (hex12, hex12).parse(i))?;
-                C::LensGoTo(LensPosition { zoom, focus })
-            }
-            b"ZI" => C::ZoomIn,
-            b"ZO" => C::ZoomOut,
-            b"ZS" => C::ZoomStop,
-            [b'Z', d] if d.is_ascii_digit() => C::ZoomSpeed(ranged("Z0..Z9", 1, LensSpeed::new(d - b'0'))?),
-            [b'Z', d @ (b'A'..=b'F' | b'a'..=b'f')] => {
-                C::DigitalZoom(ranged("ZA..ZF", 1, DigitalZoom::new(hex_value(*d).unwrap_or(10)))?)
-            }
-            [b'*', b'x', p, op, ..] => {
-                let port = match p {
-                    b'0' | b'1' => ranged("*xp", 2, AuxPort::new(p - b'0'))?,
-                    _ => {
-                        return Err(CommandError::BadArgument {
-                            command: "*xp..",
-                            offset: 2,
-                            found: Some(*p),
-                            expected: "auxiliary port '0' or '1'",
-                        });
-                    }
-                };
-                match op {
-                    b'c' => {
-                        let config = aux_config(payload)?;
-                        C::AuxConfigure(port, config)
-                    }
-                    b't' => C::AuxTransmit(
-                        port,
-                        ranged("*xpt", 4, AuxBytes::new(payload.get(4..).unwrap_or_default()))?,
-                    ),
-                    b'r' => {
-                        let n = whole("*xprnnn", payload, 4, "decimal count 1..=256", |i| decimal(3).parse(i))?;
-                        C::AuxReceive(port, ranged("*xprnnn", 4, AuxReadLen::new(n as u16))?)
-                    }
-                    b'n' if payload.len() == 4 => C::AuxCount(port),
-                    b'f' if payload.len() == 4 => C::AuxFlush(port),
-                    _ => {
-                        return Err(CommandError::BadArgument {
-                            command: "*xp..",
-                            offset: 3,
-                            found: Some(*op),
-                            expected: "one of c, t, r, n, f (n and f alone)",
-                        });
-                    }
-                }
-            }
-            _ => return Err(unknown()),
-        })
+        if let Some(command) = Self::parse_rows(payload)? {
+            return Ok(command);
+        }
+        // `*xp` + an operation no row takes: say which byte is wrong,
+        // the port first (as the rows do).
+        if let [b'*', b'x', p, op, ..] = payload {
+            aux_port(*p)?;
+            return Err(CommandError::BadArgument {
+                command: "*xp..",
+                offset: 3,
+                found: Some(*op),
+                expected: "one of c, t, r, n, f (n and f alone)",
+            });
+        }
+        Err(unknown(payload))
     }
 
     /// Writes the payload into `buf`; returns the written prefix.
     pub fn encode<'b>(&self, buf: &'b mut [u8]) -> Result<&'b [u8], EncodeError> {
-        use Command as C;
         let mut w = Writer::new(buf);
-        let fixed: Option<&[u8]> = match self {
-            C::AwakeStatus => Some(b"AW"),
-            C::QueryMaxDataRate => Some(b"B?"),
-            C::Identify => Some(b"D?"),
-            C::QueryErrors => Some(b"E?"),
-            C::QueryStatusBits => Some(b"I?"),
-            C::QueryRateGains => Some(b"G?"),
-            C::Initialize => Some(b"IX"),
-            C::QueryRelays => Some(b"LR"),
-            C::ClearLimits => Some(b"LC"),
-            C::QueryLimits => Some(b"L?"),
-            C::QueryAccelerations => Some(b"A?"),
-            C::Halt => Some(b"HA"),
-            C::VerifyHome => Some(b"HV"),
-            C::Home => Some(b"HO"),
-            C::Stop => Some(b"HS"),
-            C::QueryPosition => Some(b"P?"),
-            C::PanLeft => Some(b"PL"),
-            C::PanRight => Some(b"PR"),
-            C::PanStop => Some(b"PS"),
-            C::StopMotion => Some(b"PT"),
-            C::QueryRates => Some(b"R?"),
-            C::TiltDown => Some(b"TD"),
-            C::TiltStop => Some(b"TS"),
-            C::TiltUp => Some(b"TU"),
-            C::CameraOn => Some(b"CN"),
-            C::CameraOff => Some(b"CX"),
-            C::AutoFocusOn => Some(b"FA"),
-            C::FocusFar => Some(b"FF"),
-            C::FocusNear => Some(b"FN"),
-            C::FocusStop => Some(b"FS"),
-            C::AutoFocusOff => Some(b"FX"),
-            C::QueryLens => Some(b"V?"),
-            C::ZoomIn => Some(b"ZI"),
-            C::ZoomOut => Some(b"ZO"),
-            C::ZoomStop => Some(b"ZS"),
-            _ => None,
-        };
-        if let Some(bytes) = fixed {
-            w.put(bytes)?;
-            return Ok(w.finish());
-        }
-        match *self {
-            C::SetDeviceId(id) => {
-                w.byte(b'#')?;
-                w.hex(id.get().into(), 2)?;
-            }
-            C::SetDataRate(rate) => {
-                let code = rate.encodable_code().map_err(EncodeError::OutOfRange)?;
-                w.byte(b'C')?;
-                w.hex(code.into(), 1)?;
-            }
-            C::SetRateGain(axis, gain) => {
-                w.put(&[b'G', b'R', axis.letter()])?;
-                w.hex(gain.get().into(), 2)?;
-            }
-            C::OpenRelay(relay) => w.put(&[b'L', b'0' + relay.get()])?,
-            C::CloseRelay(relay) => {
-                w.byte(b'L')?;
-                w.hex(u32::from(relay.get()) + 8, 1)?;
-            }
-            C::SetLimits(l) => {
-                w.put(b"LS")?;
-                for v in [l.pan_ccw, l.pan_cw, l.tilt_ccw, l.tilt_cw] {
-                    w.hex(v.get().into(), 3)?;
-                }
-            }
-            C::SetAcceleration(axis, a) => {
-                w.put(&[b'A', axis.letter()])?;
-                w.hex(a.0.into(), 4)?;
-            }
-            C::QueryAcceleration(axis) => w.put(&[b'A', axis.letter(), b'?'])?,
-            C::GoTo(p) => {
-                w.byte(b'P')?;
-                w.hex(u32::from(p.pan.0 as u16), 4)?;
-                w.hex(u32::from(p.tilt.0 as u16), 4)?;
-            }
-            C::GoToPreset(n) => {
-                w.byte(b'P')?;
-                w.hex(n.into(), 2)?;
-            }
-            C::QueryPreset(n) => {
-                w.put(b"P?")?;
-                w.hex(n.into(), 2)?;
-            }
-            C::SetRate(axis, r) => {
-                w.put(&[b'R', axis.letter()])?;
-                w.hex(r.0.into(), 4)?;
-            }
-            C::QueryRate(axis) => w.put(&[b'R', axis.letter(), b'?'])?,
-            C::StorePreset(n) => {
-                w.byte(b'S')?;
-                w.hex(n.into(), 2)?;
-            }
-            C::SetSpeed(axis, s) => {
-                w.put(&[b'S', axis.letter()])?;
-                w.hex(s.get().into(), 1)?;
-            }
-            C::QueryStoredPreset(n) => {
-                w.put(b"S?")?;
-                w.hex(n.into(), 2)?;
-            }
-            C::SetVectorMode(on) => w.put(if on { b"VM1" } else { b"VM0" })?,
-            C::FocusSpeed(s) => w.put(&[b'F', b'0' + s.get()])?,
-            C::LensGoTo(lens) => {
-                w.byte(b'V')?;
-                w.hex(lens.zoom.get().into(), 3)?;
-                w.hex(lens.focus.get().into(), 3)?;
-            }
-            C::ZoomSpeed(s) => w.put(&[b'Z', b'0' + s.get()])?,
-            C::DigitalZoom(z) => {
-                w.byte(b'Z')?;
-                w.hex(z.get().into(), 1)?;
-            }
-            C::AuxConfigure(port, c) => {
-                w.put(&[b'*', b'x', b'0' + port.get(), b'c', b','])?;
-                w.decimal(c.baud(), 1)?;
-                w.put(&[b',', b'0' + c.data_bits(), b',', b'0' + c.stop_bits(), b','])?;
-                w.byte(match c.parity() {
-                    Parity::None => b'0',
-                    Parity::Odd => b'1',
-                    Parity::Even => b'2',
-                })?;
-            }
-            C::AuxTransmit(port, data) => {
-                w.put(&[b'*', b'x', b'0' + port.get(), b't'])?;
-                w.put(data.bytes())?;
-            }
-            C::AuxReceive(port, n) => {
-                w.put(&[b'*', b'x', b'0' + port.get(), b'r'])?;
-                w.decimal(n.get().into(), 3)?;
-            }
-            C::AuxCount(port) => w.put(&[b'*', b'x', b'0' + port.get(), b'n'])?,
-            C::AuxFlush(port) => w.put(&[b'*', b'x', b'0' + port.get(), b'f'])?,
-            C::Extended(ext, args) => {
-                w.put(ext.name().as_bytes())?;
-                w.put(args)?;
-            }
-            C::Unknown(bytes) => w.put(bytes)?,
-            _ => {}
-        }
+        self.encode_row(&mut w)?;
         if w.len() == 0 {
             return Err(EncodeError::PayloadLength { len: 0 });
         }
@@ -776,136 +1060,145 @@ impl<'a> Command<'a> {
 
     /// What follows the ACK (Tables 4, 11, 16 "RESPONSE" column).
     pub fn result_kind(&self) -> ResultKind {
-        use Command as C;
-        match self {
-            C::AwakeStatus
-            | C::QueryMaxDataRate
-            | C::Identify
-            | C::QueryErrors
-            | C::QueryStatusBits
-            | C::QueryRateGains
-            | C::QueryRelays
-            | C::QueryLimits
-            | C::QueryAccelerations
-            | C::QueryAcceleration(_)
-            | C::VerifyHome
-            | C::QueryPosition
-            | C::QueryPreset(_)
-            | C::QueryRates
-            | C::QueryRate(_)
-            | C::QueryStoredPreset(_)
-            | C::QueryLens
-            | C::AuxReceive(..)
-            | C::AuxCount(_) => ResultKind::Required(ResultTimeout::Normal),
-            C::Initialize => ResultKind::Required(ResultTimeout::Long),
-            C::Extended(ext, _) => ext.result_kind(),
-            _ => ResultKind::None,
-        }
+        self.answer().kind()
     }
 
     /// Stop and halt commands, which overtake queued work (DESIGN "Routing").
     pub fn is_stop(&self) -> bool {
-        use Command as C;
-        matches!(
-            self,
-            C::Halt | C::Stop | C::PanStop | C::TiltStop | C::StopMotion | C::FocusStop | C::ZoomStop
-        )
+        self.motion() == Motion::Stop
     }
 
     /// For a command that starts continuous motion (`PL`, `PR`, `TU`, `TD`,
     /// `FF`, `FN`, `ZI`, `ZO`), the command that stops it (Tables 11, 16).
     pub fn stopped_by(&self) -> Option<Command<'static>> {
-        use Command as C;
-        match self {
-            C::PanLeft | C::PanRight => Some(C::PanStop),
-            C::TiltUp | C::TiltDown => Some(C::TiltStop),
-            C::FocusFar | C::FocusNear => Some(C::FocusStop),
-            C::ZoomIn | C::ZoomOut => Some(C::ZoomStop),
-            _ => None,
+        match self.motion() {
+            Motion::Until(stop) => Some(stop),
+            Motion::Other | Motion::Stop => None,
         }
     }
 
     /// The line rate a `C0..CF` command switches to (reserved codes included).
     pub fn data_rate_change(&self) -> Option<DataRate> {
-        match self {
-            Command::SetDataRate(rate) => Some(*rate),
-            _ => None,
+        if let Command::SetDataRate(rate) = self {
+            Some(*rate)
+        } else {
+            None
         }
     }
+}
 
-    /// The mnemonic of the command's row in the spec tables, for logs.
-    pub fn mnemonic(&self) -> &'static str {
-        use Command as C;
-        match self {
-            C::SetDeviceId(_) => "#NN",
-            C::AwakeStatus => "AW",
-            C::QueryMaxDataRate => "B?",
-            C::SetDataRate(_) => "Cn",
-            C::Identify => "D?",
-            C::QueryErrors => "E?",
-            C::QueryStatusBits => "I?",
-            C::SetRateGain(Axis::Pan, _) => "GRPnn",
-            C::SetRateGain(Axis::Tilt, _) => "GRTnn",
-            C::QueryRateGains => "G?",
-            C::Initialize => "IX",
-            C::OpenRelay(_) => "L0..L3",
-            C::CloseRelay(_) => "L8..LB",
-            C::QueryRelays => "LR",
-            C::ClearLimits => "LC",
-            C::SetLimits(_) => "LS",
-            C::QueryLimits => "L?",
-            C::SetAcceleration(Axis::Pan, _) => "APnnnn",
-            C::SetAcceleration(Axis::Tilt, _) => "ATnnnn",
-            C::QueryAccelerations => "A?",
-            C::QueryAcceleration(Axis::Pan) => "AP?",
-            C::QueryAcceleration(Axis::Tilt) => "AT?",
-            C::Halt => "HA",
-            C::VerifyHome => "HV",
-            C::Home => "HO",
-            C::Stop => "HS",
-            C::QueryPosition => "P?",
-            C::GoTo(_) => "Paaaaeeee",
-            C::PanLeft => "PL",
-            C::PanRight => "PR",
-            C::PanStop => "PS",
-            C::StopMotion => "PT",
-            C::GoToPreset(_) => "Pnn",
-            C::QueryPreset(_) => "P?nn",
-            C::SetRate(Axis::Pan, _) => "RPnnnn",
-            C::SetRate(Axis::Tilt, _) => "RTnnnn",
-            C::QueryRates => "R?",
-            C::QueryRate(Axis::Pan) => "RP?",
-            C::QueryRate(Axis::Tilt) => "RT?",
-            C::StorePreset(_) => "Snn",
-            C::SetSpeed(Axis::Pan, _) => "SPn",
-            C::SetSpeed(Axis::Tilt, _) => "STn",
-            C::QueryStoredPreset(_) => "S?nn",
-            C::TiltDown => "TD",
-            C::TiltStop => "TS",
-            C::TiltUp => "TU",
-            C::SetVectorMode(_) => "VMn",
-            C::CameraOn => "CN",
-            C::CameraOff => "CX",
-            C::FocusSpeed(_) => "Fn",
-            C::AutoFocusOn => "FA",
-            C::FocusFar => "FF",
-            C::FocusNear => "FN",
-            C::FocusStop => "FS",
-            C::AutoFocusOff => "FX",
-            C::LensGoTo(_) => "Vzzzfff",
-            C::QueryLens => "V?",
-            C::ZoomSpeed(_) => "Zn",
-            C::DigitalZoom(_) => "ZA..ZF",
-            C::ZoomIn => "ZI",
-            C::ZoomOut => "ZO",
-            C::ZoomStop => "ZS",
-            C::AuxConfigure(..) => "*xpc",
-            C::AuxTransmit(..) => "*xpt",
-            C::AuxReceive(..) => "*xprnnn",
-            C::AuxCount(_) => "*xpn",
-            C::AuxFlush(_) => "*xpf",
-            C::Extended(ext, _) => ext.name(),
-            C::Unknown(_) => "unknown",
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One command of every row, built by parsing its wire form.
+    const SAMPLES: &[&[u8]] = &[
+        b"HP",
+        b"VS12",
+        b"*mu1",
+        b"#0C",
+        b"AW",
+        b"B?",
+        b"C3",
+        b"D?",
+        b"E?",
+        b"I?",
+        b"GRP0F",
+        b"G?",
+        b"IX",
+        b"L2",
+        b"L9",
+        b"LR",
+        b"LC",
+        b"LS000FFF000FFF",
+        b"L?",
+        b"A?",
+        b"AT?",
+        b"AP0100",
+        b"HA",
+        b"HV",
+        b"HO",
+        b"HS",
+        b"P?",
+        b"P0064FF9C",
+        b"PL",
+        b"PR",
+        b"PS",
+        b"PT",
+        b"P0A",
+        b"P?0A",
+        b"R?",
+        b"RP?",
+        b"RT0200",
+        b"SPF",
+        b"S0A",
+        b"S?0A",
+        b"TD",
+        b"TS",
+        b"TU",
+        b"VM1",
+        b"CN",
+        b"CX",
+        b"F5",
+        b"FA",
+        b"FF",
+        b"FN",
+        b"FS",
+        b"FX",
+        b"V123456",
+        b"V?",
+        b"Z5",
+        b"ZB",
+        b"ZI",
+        b"ZO",
+        b"ZS",
+        b"*x0c,9600,8,1,0",
+        b"*x1tabc",
+        b"*x0r010",
+        b"*x1n",
+        b"*x0f",
+    ];
+
+    #[test]
+    fn every_row_parses_encodes_and_states_its_facts() {
+        for &payload in SAMPLES {
+            let command = Command::parse_strict(payload).unwrap();
+            let mut buf = [0u8; 32];
+            assert_eq!(command.encode(&mut buf).unwrap(), payload, "{command:?}");
+            assert!(!command.mnemonic().is_empty());
+            // The answer fact gives the result kind and the reply shape together.
+            let answer = command.answer();
+            assert_eq!(answer.shape().is_some(), command.result_kind() != ResultKind::None);
+            // A continuous motion is stopped by a stop command of the table.
+            if let Some(stop) = command.stopped_by() {
+                assert!(stop.is_stop(), "{command:?} stopped by {stop:?}");
+                assert_eq!(stop.stopped_by(), None);
+                assert!(!command.is_stop());
+            }
         }
+        let stops = SAMPLES.iter().filter(|p| Command::parse(p).is_stop()).count();
+        assert_eq!(stops, 7);
+        let motions = SAMPLES
+            .iter()
+            .filter(|p| Command::parse(p).stopped_by().is_some())
+            .count();
+        assert_eq!(motions, 8);
+        assert_eq!(Extended::ALL.len(), 19);
+        assert_eq!(Command::Unknown(b"QQ").answer(), Answer::Ack);
+    }
+
+    #[test]
+    fn more_specific_rows_win() {
+        assert_eq!(Command::parse(b"AP?"), Command::QueryAcceleration(Axis::Pan));
+        assert_eq!(Command::parse(b"RT?"), Command::QueryRate(Axis::Tilt));
+        assert_eq!(
+            Command::parse(b"ST5"),
+            Command::SetSpeed(Axis::Tilt, Speed::new(5).unwrap())
+        );
+        assert_eq!(Command::parse(b"S15"), Command::StorePreset(0x15));
+        assert_eq!(
+            Command::parse(b"VS12345"),
+            Command::Extended(Extended::CameraRelayStatus, b"12345")
+        );
     }
 }

@@ -335,8 +335,12 @@ impl FrameBuf {
         source: u8,
         encode: impl FnOnce(&mut [u8]) -> Result<usize, EncodeError>,
     ) -> Result<Self, EncodeError> {
-        let mut frame = Self::PLACEHOLDER;
-        frame.rebuild(dest, source, encode)?;
+        // Zeroed scratch: not a frame until `seal`, and never seen unsealed.
+        let mut frame = Self {
+            bytes: [0u8; MAX_FRAME_LEN],
+        };
+        let len = frame.encode_payload(encode)?;
+        frame.seal(Header { dest, source, len });
         Ok(frame)
     }
 
@@ -350,9 +354,7 @@ impl FrameBuf {
         source: u8,
         encode: impl FnOnce(&mut [u8]) -> Result<usize, EncodeError>,
     ) -> Result<(), EncodeError> {
-        let written = encode(self.payload_space())
-            .and_then(|n| PayloadLen::new(n).map_err(|_| EncodeError::PayloadLength { len: n }));
-        match written {
+        match self.encode_payload(encode) {
             Ok(len) => {
                 self.seal(Header { dest, source, len });
                 Ok(())
@@ -362,6 +364,16 @@ impl FrameBuf {
                 Err(e)
             }
         }
+    }
+
+    /// Runs a payload encoder over the payload space; the length it reports
+    /// passes the one length check or is an error.
+    fn encode_payload(
+        &mut self,
+        encode: impl FnOnce(&mut [u8]) -> Result<usize, EncodeError>,
+    ) -> Result<PayloadLen, EncodeError> {
+        let n = encode(self.payload_space())?;
+        PayloadLen::new(n).map_err(|_| EncodeError::PayloadLength { len: n })
     }
 
     /// The 256 bytes a payload may occupy.

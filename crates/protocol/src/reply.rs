@@ -10,7 +10,7 @@ use nom::Parser;
 use nom::bytes::complete::take;
 
 use crate::EncodeError;
-use crate::command::{Command, CommandError, ResultKind, found_text, whole};
+use crate::command::{Command, CommandError, found_text, whole};
 use crate::hex::{Writer, decimal, hex_n, hex_u8, hex_u16, hex_value, hex12};
 use crate::units::{Acceleration, Angle, DataRate, LensPosition, Limits, Position, RangeError, Rate, RateGain};
 
@@ -223,9 +223,12 @@ impl From<CommandError> for ReplyError {
     }
 }
 
-/// The shape of result a command expects.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Shape {
+/// The shape of result a command expects: one per [`Reply`] variant. Each
+/// command's row in the command table (`command.rs`) names its shape in its
+/// answer fact; `Reply::parse` dispatches on it and `Reply::answers`
+/// compares with it, both exhaustively.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub(crate) enum Shape {
     AwakeStatus,
     MaxDataRate,
     Identity,
@@ -247,32 +250,6 @@ enum Shape {
     Raw,
 }
 
-fn shape(command: &Command<'_>) -> Option<Shape> {
-    use Command as C;
-    Some(match command {
-        C::AwakeStatus => Shape::AwakeStatus,
-        C::QueryMaxDataRate => Shape::MaxDataRate,
-        C::Identify => Shape::Identity,
-        C::QueryErrors => Shape::Errors,
-        C::QueryStatusBits => Shape::StatusBits,
-        C::QueryRateGains => Shape::RateGains,
-        C::Initialize => Shape::Initialization,
-        C::QueryLimits => Shape::Limits,
-        C::QueryRelays => Shape::Relays,
-        C::QueryAccelerations => Shape::Accelerations,
-        C::QueryAcceleration(_) => Shape::Acceleration,
-        C::QueryRates => Shape::Rates,
-        C::QueryRate(_) => Shape::Rate,
-        C::VerifyHome => Shape::VerifyHome,
-        C::QueryPosition | C::QueryPreset(_) | C::QueryStoredPreset(_) => Shape::Position,
-        C::QueryLens => Shape::Lens,
-        C::AuxCount(_) => Shape::AuxCount,
-        C::AuxReceive(..) => Shape::AuxData,
-        C::Extended(..) if command.result_kind() != ResultKind::None => Shape::Raw,
-        _ => return None,
-    })
-}
-
 fn digit_or_raw(b: u8) -> Option<u8> {
     hex_value(b).or(if b <= 0x0F { Some(b) } else { None })
 }
@@ -281,7 +258,7 @@ impl<'a> Reply<'a> {
     /// Parses `payload` as the result of `command`.
     pub fn parse(command: &Command<'_>, payload: &'a [u8]) -> Result<Self, ReplyError> {
         let name = command.mnemonic();
-        let shape = shape(command).ok_or(ReplyError::NoResult { command: name })?;
+        let shape = command.answer().shape().ok_or(ReplyError::NoResult { command: name })?;
         // An echo of the command in front of the result (NOTES E6).
         if payload.is_empty() {
             // A frame never carries an empty payload (Table 1: 1..=256 bytes).
@@ -505,7 +482,7 @@ impl<'a> Reply<'a> {
             Reply::AuxData(_) => Shape::AuxData,
             Reply::Raw(_) => Shape::Raw,
         };
-        shape(command) == Some(own)
+        command.answer().shape() == Some(own)
     }
 
     /// Writes the canonical payload into `buf`; returns the written prefix.
