@@ -10,7 +10,10 @@
 //!   6) over any stream, driving the protocol crate's `Transaction`.
 //! - [`sim_line`]: a simulated bus served on a byte stream.
 //! - [`hex`]: hex text of wire bytes, as `gimbalctl encode/decode` use it.
+//! - [`capture`]: pcapng capture of bus and link traffic for Wireshark
+//!   (`docs/capture.md`, `tools/wireshark/sagebrush.lua`).
 
+pub mod capture;
 pub mod hex;
 pub mod logging;
 pub mod master;
