@@ -543,24 +543,31 @@ impl Writer {
         let mut record = Vec::with_capacity(RECORD_HEADER_LEN + data.len());
         record.extend_from_slice(&[RECORD_VERSION, kind as u8, dir as u8, role as u8]);
         record.extend_from_slice(data);
-        let idb = (!self.file_ifaces.contains_key(&iface)).then(|| interface_block(&name));
-        let epb_len = 32 + pad4(record.len()) + 12 + 4;
-        let needed = (epb_len + idb.as_ref().map_or(0, Vec::len)) as u64;
+        let epb_len = (32 + pad4(record.len()) + 12 + 4) as u64;
+        let idb_len = interface_block(&name).len() as u64;
+        let pending = self.file_bytes + self.out.len() as u64;
+        let declared = self.file_ifaces.contains_key(&iface);
+        let needed = epb_len + if declared { 0 } else { idb_len };
+        let rotate = self
+            .config
+            .rotate_bytes
+            .is_some_and(|limit| pending + needed > limit && !self.file_ifaces.is_empty());
         if let Some(budget) = self.config.budget_bytes {
             let total = self.shared.bytes.load(Ordering::Relaxed) + self.out.len() as u64;
+            let needed = match rotate {
+                true => section_header(&self.config.application).len() as u64 + idb_len + epb_len,
+                false => needed,
+            };
             if total + needed > budget {
                 return self.give_up(format!("capture budget of {budget} bytes reached"), false);
             }
         }
-        if let Some(limit) = self.config.rotate_bytes {
-            let pending = self.file_bytes + self.out.len() as u64;
-            if pending + needed > limit && !self.file_ifaces.is_empty() {
-                if let Err(e) = self.rotate() {
-                    return self.give_up(format!("cannot rotate {}: {e}", self.path.display()), true);
-                }
-                return self.packet(iface, dir, kind, at, data);
+        if rotate {
+            if let Err(e) = self.rotate() {
+                return self.give_up(format!("cannot rotate {}: {e}", self.path.display()), true);
             }
         }
+        let idb = (!self.file_ifaces.contains_key(&iface)).then(|| interface_block(&name));
         if let Some(idb) = idb {
             let id = self.file_ifaces.len() as u32;
             self.file_ifaces.insert(iface, id);
