@@ -68,13 +68,21 @@ impl EndpointConfig {
     }
 }
 
-/// The header for a result (Table 3): destination group = the command's
-/// source, port and device unchanged (a wildcard replaced by the endpoint's
-/// own, so that the answer says who answered), source = the command's group.
+/// Where a command's result goes, handed to [`DeviceHandler::handle`]: the
+/// header for a result (Table 3: destination group = the command's source,
+/// port and device unchanged, a wildcard replaced by the endpoint's own so
+/// that the answer says who answered; source = the command's group), and
+/// whether the command is answered at all.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct ReplyTo {
     pub dest: Address,
     pub source: u8,
+    /// `false` when the endpoint executes the command without answering it
+    /// (a broadcast on a shared bus, [`EndpointConfig::answers`]): no ACK,
+    /// NIC or result goes out for it, and [`DeviceEndpoint::send_reply`]
+    /// sends nothing to this target, so a handler that defers a result
+    /// (`IX`) need not know the bus it is on.
+    pub answered: bool,
 }
 
 impl ReplyTo {
@@ -89,7 +97,11 @@ impl ReplyTo {
         if source == WILDCARD {
             source = config.group.unwrap_or(WILDCARD);
         }
-        Self { dest, source }
+        Self {
+            dest,
+            source,
+            answered: config.answers(&frame.dest),
+        }
     }
 }
 
@@ -109,7 +121,8 @@ pub enum Response<'r> {
 
 /// What the device does with its commands.
 pub trait DeviceHandler {
-    /// Executes `command`; `reply_to` is the header any result must carry.
+    /// Executes `command`; `reply_to` is the header any result must carry
+    /// and says whether the command is answered ([`ReplyTo::answered`]).
     fn handle(&mut self, command: Command<'_>, reply_to: ReplyTo, now: u64) -> Response<'_>;
 }
 
@@ -214,7 +227,8 @@ impl<const N: usize> DeviceEndpoint<N> {
         framer.flush_idle(|event| state.on_event(event, now, handler, out));
     }
 
-    /// Sends a deferred result.
+    /// Sends a deferred result; to a target that is not answered
+    /// ([`ReplyTo::answered`] false) nothing is sent.
     pub fn send_reply(
         &mut self,
         to: ReplyTo,
@@ -222,6 +236,9 @@ impl<const N: usize> DeviceEndpoint<N> {
         out: &mut impl FnMut(&[u8]),
     ) -> Result<(), EncodeError> {
         let frame = FrameBuf::build(to.dest, to.source, |buf| reply.encode(buf).map(<[u8]>::len))?;
+        if !to.answered {
+            return Ok(());
+        }
         self.state.stats.results_sent += 1;
         out(frame.as_bytes());
         self.state.last_result = LastResult {
@@ -255,7 +272,8 @@ impl State {
         match event {
             Event::Frame(frame) if config.accepts(&frame.dest) => {
                 stats.frames_accepted += 1;
-                let answer = config.answers(&frame.dest);
+                let reply_to = ReplyTo::for_command(&frame, config);
+                let answer = reply_to.answered;
                 let mut send = |bytes: &[u8]| {
                     if answer {
                         out(bytes);
@@ -268,7 +286,6 @@ impl State {
                     send(&[NIC]);
                     return;
                 }
-                let reply_to = ReplyTo::for_command(&frame, config);
                 match handler.handle(command, reply_to, now) {
                     Response::Done => {
                         if let Command::SetDeviceId(id) = command {

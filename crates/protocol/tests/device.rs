@@ -57,7 +57,8 @@ fn ack_then_table3_result() {
             "P?".to_string(),
             ReplyTo {
                 dest: Address::new(2, 1, 12),
-                source: 5
+                source: 5,
+                answered: true,
             }
         )]
     );
@@ -158,6 +159,7 @@ fn broadcast_answered_or_silent() {
     let mut g = Gimbal::default();
     assert_eq!(run(&mut ep, &mut g, &broadcast), []);
     assert_eq!(g.handled.len(), 1, "executed all the same");
+    assert!(!g.handled[0].1.answered, "the handler is told nobody hears its result");
     assert_eq!(run(&mut ep, &mut g, &frame(Address::new(5, 1, WILDCARD), 2, b"QQ")), []);
     let mut bad = broadcast.clone();
     *bad.last_mut().unwrap() ^= 1;
@@ -292,4 +294,30 @@ fn result_is_resent_on_nak_until_the_master_moves_on() {
     ep.send_reply(to, &reply, &mut |b: &[u8]| sent.extend_from_slice(b))
         .unwrap();
     assert_eq!(run(&mut ep, &mut g, &[NAK]), sent);
+}
+
+/// The handler learns from its `ReplyTo` whether the command is answered: a
+/// broadcast on a shared bus is not, and a deferred result to it is not sent
+/// (the simulator's gimbal and the firmware defer `IX` without knowing the bus).
+#[test]
+fn deferred_reply_to_an_unanswered_broadcast_is_not_sent() {
+    let results = Reply::Initialization(InitResults::default());
+    let mut ep: DeviceEndpoint = DeviceEndpoint::new(EndpointConfig::shared(12));
+    let mut g = Gimbal::default();
+    assert_eq!(run(&mut ep, &mut g, &frame(Address::new(5, 1, WILDCARD), 2, b"IX")), []);
+    let to = g.deferred.expect("IX deferred");
+    assert_eq!((to.dest, to.source, to.answered), (Address::new(2, 1, 12), 5, false));
+    let mut out = Vec::new();
+    ep.send_reply(to, &results, &mut |b: &[u8]| out.extend_from_slice(b))
+        .unwrap();
+    assert!(out.is_empty(), "nobody is listening for it");
+    assert_eq!(ep.stats().results_sent, 0);
+    assert!(run(&mut ep, &mut g, &[NAK]).is_empty(), "nothing kept to resend");
+    // The same command to its own address is answered, later result included.
+    assert_eq!(run(&mut ep, &mut g, &frame(Address::new(5, 1, 12), 2, b"IX")), [ACK]);
+    let to = g.deferred.expect("IX deferred");
+    assert!(to.answered);
+    ep.send_reply(to, &results, &mut |b: &[u8]| out.extend_from_slice(b))
+        .unwrap();
+    assert_eq!(Frame::parse(&out).unwrap().0.dest, Address::new(2, 1, 12));
 }
