@@ -61,6 +61,46 @@ pub struct ConfigFile {
     pub links: Vec<LinkSection>,
     #[serde(default, rename = "route")]
     pub routes: Vec<RouteSection>,
+    pub capture: Option<CaptureSection>,
+}
+
+/// `[capture]`: pcapng capture of every port and link (docs/capture.md);
+/// SIGUSR1 starts and stops it at run time.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CaptureSection {
+    /// The pcapng file written (older ones rotate to NAME.1.pcapng, ...).
+    pub file: Spanned<String>,
+    /// Capture from start-up (default true); SIGUSR1 toggles either way.
+    pub enabled: Option<Spanned<bool>>,
+    /// Start a new file past this size (default: one file).
+    pub rotate_bytes: Option<Spanned<i64>>,
+    /// Files kept, the current one included (default 4).
+    pub rotate_count: Option<Spanned<i64>>,
+    /// Stop capturing after this many bytes in all (default: no limit).
+    pub budget_bytes: Option<Spanned<i64>>,
+}
+
+/// `[capture]`, validated.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CaptureSettings {
+    pub file: PathBuf,
+    pub enabled: bool,
+    pub rotate_bytes: Option<u64>,
+    pub rotate_count: u32,
+    pub budget_bytes: Option<u64>,
+}
+
+impl CaptureSettings {
+    pub fn capture_config(&self) -> sagebrush_host::capture::CaptureConfig {
+        sagebrush_host::capture::CaptureConfig {
+            rotate_bytes: self.rotate_bytes,
+            rotate_count: self.rotate_count,
+            budget_bytes: self.budget_bytes,
+            application: format!("gcud {}", env!("CARGO_PKG_VERSION")),
+            ..Default::default()
+        }
+    }
 }
 
 /// `[gcu]`: this GCU.
@@ -329,6 +369,8 @@ pub struct Config {
     pub ports: Vec<Port>,
     pub links: Vec<Link>,
     pub routes: Vec<(u8, String)>,
+    /// `[capture]`, if configured.
+    pub capture: Option<CaptureSettings>,
     /// What is valid but probably not meant (a listener reachable from the
     /// network, ...), each `FILE:LINE:COLUMN: KEY: message` like an error:
     /// `--check` prints them, start-up logs them once logging is set up.
@@ -1083,6 +1125,30 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
         routes.push((g, routable(&r.link, &format!("{key}.link"))?));
     }
 
+    let capture = match &raw.capture {
+        Some(cap) => {
+            let file = cap.file.get_ref().trim();
+            if file.is_empty() {
+                return Err(c.at(cap.file.span(), "capture.file", "expected a file path"));
+            }
+            const GIB: i64 = 1 << 30;
+            let bytes = |v: &Option<Spanned<i64>>, key: &str| -> Result<Option<u64>, ConfigError> {
+                v.as_ref().map(|v| c.int(v, key, 4096, 1024 * GIB)).transpose()
+            };
+            Some(CaptureSettings {
+                file: PathBuf::from(file),
+                enabled: cap.enabled.as_ref().is_none_or(|e| *e.get_ref()),
+                rotate_bytes: bytes(&cap.rotate_bytes, "capture.rotate_bytes")?,
+                rotate_count: match &cap.rotate_count {
+                    Some(v) => c.int(v, "capture.rotate_count", 1, 1000)?,
+                    None => 4,
+                },
+                budget_bytes: bytes(&cap.budget_bytes, "capture.budget_bytes")?,
+            })
+        }
+        None => None,
+    };
+
     Ok(Config {
         file: c.file.to_owned(),
         group,
@@ -1104,6 +1170,7 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
         ports,
         links,
         routes,
+        capture,
         warnings,
         listen_places: listeners.into_iter().map(|(addr, _, _, place)| (addr, place)).collect(),
     })
@@ -1188,6 +1255,28 @@ mod tests {
         assert_eq!(full.ports[1].timing.retries, 5);
         assert_eq!(full.ports[1].timing.baud, 19200);
         assert_eq!(full.routes, vec![(7, "gcu7".to_owned())]);
+    }
+
+    #[test]
+    fn capture_section_is_optional_and_checked() {
+        let c = parse(Path::new("t.toml"), MINIMAL).unwrap();
+        assert_eq!(c.capture, None);
+        let c = parse(
+            Path::new("t.toml"),
+            "[gcu]\ngroup = 5\n[capture]\nfile = \"/tmp/g.pcapng\"\nrotate_bytes = 1048576\n",
+        )
+        .unwrap();
+        let cap = c.capture.unwrap();
+        assert_eq!(
+            (cap.enabled, cap.rotate_bytes, cap.rotate_count),
+            (true, Some(1 << 20), 4)
+        );
+        let e = err("[gcu]\ngroup = 5\n[capture]\nfile = \"x\"\nrotate_count = 0\n");
+        assert_eq!((e.key.as_str(), e.line), ("capture.rotate_count", 5), "{e}");
+        let e = err("[gcu]\ngroup = 5\n[capture]\nfile = \"x\"\nbudget_bytes = 10\n");
+        assert_eq!(e.key, "capture.budget_bytes", "{e}");
+        let e = err("[gcu]\ngroup = 5\n[capture]\nfil = \"x\"\n");
+        assert!(e.message.contains("fil"), "{e}");
     }
 
     #[test]

@@ -12,6 +12,7 @@ use sagebrush_gcu::{
     Action, Event, Input, Level, LinkConfig, LinkId, LinkKind, LinkStats, Place, PortConfig, Router, RouterConfig,
     SourceFilter,
 };
+use sagebrush_host::capture::{Capture, CaptureSwitch};
 use tokio::net::TcpListener;
 use tokio::signal::unix::{SignalKind, signal};
 use tokio::sync::mpsc;
@@ -148,6 +149,8 @@ struct Tasks {
     connections: Arc<Connections>,
     ports: HashMap<u8, JoinHandle<()>>,
     links: BTreeMap<String, JoinHandle<()>>,
+    /// `[capture]`: every port and link task taps its bytes here.
+    capture: Arc<CaptureSwitch>,
 }
 
 impl Tasks {
@@ -167,9 +170,15 @@ impl Tasks {
                     listener,
                     connections,
                     self.events.clone(),
+                    self.capture.clone(),
                 ))
             }
-            _ => tokio::spawn(io::run_link(id, link.clone(), self.events.clone())),
+            _ => tokio::spawn(io::run_link(
+                id,
+                link.clone(),
+                self.events.clone(),
+                self.capture.clone(),
+            )),
         };
         if let Some(old) = self.links.insert(link.name.clone(), task) {
             old.abort();
@@ -184,7 +193,7 @@ impl Tasks {
     }
 
     fn start_port(&mut self, port: &Port) {
-        let task = tokio::spawn(io::run_port(port.clone(), self.events.clone()));
+        let task = tokio::spawn(io::run_port(port.clone(), self.events.clone(), self.capture.clone()));
         if let Some(old) = self.ports.insert(port.id, task) {
             old.abort();
         }
@@ -213,7 +222,11 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
         }),
         ports: HashMap::new(),
         links: BTreeMap::new(),
+        capture: CaptureSwitch::new(),
     };
+    if config.capture.as_ref().is_some_and(|c| c.enabled) {
+        toggle_capture(&tasks.capture, &config);
+    }
 
     // Listeners and the metrics endpoint bind now: a bad address is a start failure.
     for link in &config.links {
@@ -247,6 +260,7 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
     let mut sigterm = signal(SignalKind::terminate()).map_err(StartError::Signals)?;
     let mut sigint = signal(SignalKind::interrupt()).map_err(StartError::Signals)?;
     let mut sighup = signal(SignalKind::hangup()).map_err(StartError::Signals)?;
+    let mut sigusr1 = signal(SignalKind::user_defined1()).map_err(StartError::Signals)?;
     let watchdog = sd_notify::watchdog_enabled();
     let mut watchdog_tick = tokio::time::interval(watchdog.map_or(Duration::from_secs(3600), |d| d / 2));
     notify(&[sd_notify::NotifyState::Ready]);
@@ -337,6 +351,7 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
                 let reloaded = Reload { config: &mut config, ids: &mut ids, router: &mut router, tasks: &mut tasks, links: &mut links, closing: &mut closing };
                 reloaded.run(t, &mut actions).await;
             }
+            _ = sigusr1.recv() => toggle_capture(&tasks.capture, &config),
             () = sleep_until(
                 [stopping, closing.values().min().copied(), throttle.next_deadline()]
                     .into_iter()
@@ -381,7 +396,46 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
         }
     })
     .await;
+    if let Some(capture) = tasks.capture.stop() {
+        log_capture_stop(&capture, "gcud stopping");
+    }
     Ok(())
+}
+
+/// SIGUSR1: starts a capture with `[capture]` as the file reads now (the
+/// running settings if it cannot be read), or stops the running one. A
+/// capture that cannot start is one error line; routing goes on.
+fn toggle_capture(switch: &CaptureSwitch, config: &Config) {
+    if let Some(capture) = switch.stop() {
+        return log_capture_stop(&capture, "SIGUSR1");
+    }
+    let settings = match crate::config::load(&config.file) {
+        Ok(now) => now.capture,
+        Err(_) => config.capture.clone(),
+    };
+    let Some(settings) = settings else {
+        return warn!("SIGUSR1: no [capture] section in the configuration; nothing to capture to");
+    };
+    match Capture::open(&settings.file, settings.capture_config()) {
+        Ok(capture) => {
+            info!(file = %settings.file.display(), "capture started (SIGUSR1 stops it)");
+            switch.start(capture);
+        }
+        Err(e) => {
+            error!(file = %settings.file.display(), error = %e, "cannot start the capture; routing goes on without it")
+        }
+    }
+}
+
+fn log_capture_stop(capture: &Capture, why: &str) {
+    let stats = capture.stop(Duration::from_secs(2));
+    info!(
+        file = %capture.path().display(),
+        records = stats.records,
+        bytes = stats.bytes_written,
+        dropped = stats.dropped,
+        "capture stopped ({why})"
+    );
 }
 
 /// The counters a scrape renders: live links and those gone, per configured link.

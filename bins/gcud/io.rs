@@ -10,6 +10,7 @@ use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Duration;
 
 use sagebrush_gcu::LinkId;
+use sagebrush_host::capture::{CaptureSwitch, Role, Tap};
 use sagebrush_host::transport::{Line, connect_tcp, open_serial};
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
@@ -18,7 +19,7 @@ use tokio::sync::{Notify, mpsc, oneshot};
 use crate::admission::{Admission, Connections};
 use tracing::{debug, info, warn};
 
-use crate::config::{Link, LinkTransport, Port, PortTransport};
+use crate::config::{Link, LinkRole, LinkTransport, Port, PortTransport};
 
 /// What a pipe tells the router task.
 #[derive(Debug)]
@@ -151,6 +152,7 @@ async fn pump_port<S: PortStream>(
     baud: &mut u32,
     writes: &mut mpsc::Receiver<PortWrite>,
     events: &mpsc::Sender<IoEvent>,
+    tap: &mut Tap,
 ) -> PortEnd {
     let mut buf = vec![0u8; 4096];
     loop {
@@ -158,6 +160,7 @@ async fn pump_port<S: PortStream>(
             read = stream.read(&mut buf) => match read {
                 Ok(0) => return PortEnd::Lost("end of stream".to_owned()),
                 Ok(n) => {
+                    tap.inbound(&buf[..n]);
                     if events.send(IoEvent::PortBytes { port, bytes: buf[..n].to_vec() }).await.is_err() {
                         return PortEnd::Released;
                     }
@@ -166,6 +169,7 @@ async fn pump_port<S: PortStream>(
             },
             write = writes.recv() => match write {
                 Some(PortWrite::Bytes(bytes)) => {
+                    tap.outbound(&bytes);
                     if let Err(e) = stream.write_all(&bytes).await {
                         return PortEnd::Lost(format!("write failed: {e}"));
                     }
@@ -185,7 +189,8 @@ async fn pump_port<S: PortStream>(
 
 /// Keeps one port open for as long as the daemon runs; ends quietly (info)
 /// once the router lets go of it (shutdown).
-pub async fn run_port(port: Port, events: mpsc::Sender<IoEvent>) {
+pub async fn run_port(port: Port, events: mpsc::Sender<IoEvent>, capture: Arc<CaptureSwitch>) {
+    let mut tap = capture.tap(format!("port {} {}", port.id, describe(&port.transport)), Role::Master);
     let mut backoff = Backoff::new();
     let mut baud = port.timing.baud;
     let mut last_error = String::new();
@@ -203,12 +208,12 @@ pub async fn run_port(port: Port, events: mpsc::Sender<IoEvent>) {
                 {
                     return;
                 }
-                let (id, w, e) = (port.id, &mut writes, &events);
+                let (id, w, e, t) = (port.id, &mut writes, &events, &mut tap);
                 let end = match stream {
-                    OpenPort::Serial(s) => pump_port(id, s, &mut baud, w, e).await,
-                    OpenPort::Tcp(s) => pump_port(id, s, &mut baud, w, e).await,
+                    OpenPort::Serial(s) => pump_port(id, s, &mut baud, w, e, t).await,
+                    OpenPort::Tcp(s) => pump_port(id, s, &mut baud, w, e, t).await,
                     #[cfg(feature = "sim")]
-                    OpenPort::Simulated(s) => pump_port(id, s, &mut baud, w, e).await,
+                    OpenPort::Simulated(s) => pump_port(id, s, &mut baud, w, e, t).await,
                 };
                 let PortEnd::Lost(reason) = end else {
                     info!(port = port.id, "port closed: gcud stopping");
@@ -279,6 +284,7 @@ async fn pump_link<S: AsyncRead + AsyncWrite + Unpin>(
     stream: S,
     events: &mpsc::Sender<IoEvent>,
     admitted: Option<Admitted>,
+    mut tap: Tap,
 ) {
     let (writer, mut writes) = mpsc::channel::<Vec<u8>>(256);
     if events
@@ -302,6 +308,7 @@ async fn pump_link<S: AsyncRead + AsyncWrite + Unpin>(
             read = rd.read(&mut buf) => match read {
                 Ok(0) => break "closed by peer".to_owned(),
                 Ok(n) => {
+                    tap.inbound(&buf[..n]);
                     if let Some(a) = &admitted {
                         a.table.touch(a.key, tokio::time::Instant::now());
                     }
@@ -324,6 +331,7 @@ async fn pump_link<S: AsyncRead + AsyncWrite + Unpin>(
             }
             write = writes.recv() => match write {
                 Some(bytes) => {
+                    tap.outbound(&bytes);
                     if let Err(e) = wr.write_all(&bytes).await {
                         break format!("write failed: {e}");
                     }
@@ -338,7 +346,7 @@ async fn pump_link<S: AsyncRead + AsyncWrite + Unpin>(
 }
 
 /// Runs one configured link for as long as the daemon runs.
-pub async fn run_link(id: LinkId, link: Link, events: mpsc::Sender<IoEvent>) {
+pub async fn run_link(id: LinkId, link: Link, events: mpsc::Sender<IoEvent>, capture: Arc<CaptureSwitch>) {
     let peer = match &link.transport {
         // Bound at start-up by the daemon (a bad address is a start failure); see `accept_loop`.
         LinkTransport::Listen(_) => return,
@@ -356,7 +364,8 @@ pub async fn run_link(id: LinkId, link: Link, events: mpsc::Sender<IoEvent>) {
             Ok(stream) => {
                 backoff.reset();
                 info!(link = %link.name, %peer, "link connected");
-                pump_link(id, link.name.clone(), peer.clone(), stream, &events, None).await;
+                let tap = capture.tap(format!("link {} {peer}", link.name), capture_role(link.role));
+                pump_link(id, link.name.clone(), peer.clone(), stream, &events, None, tap).await;
             }
             Err(e) => warn!(link = %link.name, %peer, error = %e, "cannot connect; retrying with backoff"),
         }
@@ -375,6 +384,7 @@ pub async fn accept_loop(
     listener: TcpListener,
     connections: Arc<Connections>,
     events: mpsc::Sender<IoEvent>,
+    capture: Arc<CaptureSwitch>,
 ) {
     let mut open = tokio::task::JoinSet::new();
     loop {
@@ -422,9 +432,18 @@ pub async fn accept_loop(
             close,
             idle: false,
         };
+        let tap = capture.tap(format!("link {name} {peer}"), capture_role(link.role));
         open.spawn(async move {
             let id = LinkId(NEXT_LINK_ID.fetch_add(1, Ordering::Relaxed));
-            pump_link(id, name, peer.to_string(), stream, &events, Some(admitted)).await;
+            pump_link(id, name, peer.to_string(), stream, &events, Some(admitted), tap).await;
         });
+    }
+}
+
+/// Which way commands flow on a link, for the capture (docs/capture.md).
+fn capture_role(role: LinkRole) -> Role {
+    match role {
+        LinkRole::Downstream => Role::Master,
+        LinkRole::Upstream | LinkRole::Client => Role::Responder,
     }
 }

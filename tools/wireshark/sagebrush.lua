@@ -1,0 +1,590 @@
+-- Wireshark dissector for Sagebrush gimbal protocol rev 1.9 captures
+-- written by sagebrush_host::capture (gcud [capture], see docs/capture.md).
+--
+-- Link type LINKTYPE_USER0 (147). Each record: a 4-byte header
+--   version (1), kind (1 frame, 2 ACK, 3 NAK, 4 NIC, 5 noise, 6 bad checksum),
+--   direction (1 inbound, 2 outbound, seen from the capturing program),
+--   role (0 unknown, 1 the capturer sends the commands, 2 it receives them)
+-- then the raw bytes of the frame, byte or noise.
+--
+-- Install: copy to ~/.local/lib/wireshark/plugins/ (or run
+--   tshark -X lua_script:tools/wireshark/sagebrush.lua -r FILE).
+-- Pairing rules (results, ACK/NAK/NIC, reports, retransmissions, time-outs):
+-- docs/capture.md, "Pairing".
+
+local p = Proto("sagebrush", "Sagebrush gimbal protocol rev 1.9")
+
+local kinds = { [1] = "Frame", [2] = "ACK", [3] = "NAK", [4] = "NIC", [5] = "Noise", [6] = "Bad checksum" }
+local directions = { [1] = "Inbound (read by the capturer)", [2] = "Outbound (written by the capturer)" }
+local roles = { [0] = "Unknown", [1] = "Capturer sends commands (port, downstream link, bus master)",
+                [2] = "Capturer receives commands (client or upstream link, device)" }
+
+local f = {
+    version = ProtoField.uint8("sagebrush.version", "Record version"),
+    kind = ProtoField.uint8("sagebrush.kind", "Record kind", base.DEC, kinds),
+    direction = ProtoField.uint8("sagebrush.direction", "Direction", base.DEC, directions),
+    role = ProtoField.uint8("sagebrush.role", "Line role", base.DEC, roles),
+    start = ProtoField.uint8("sagebrush.start", "Start character", base.HEX),
+    dest_group = ProtoField.uint8("sagebrush.dest.group", "Destination group", base.DEC),
+    dest_port = ProtoField.uint8("sagebrush.dest.port", "Destination port", base.DEC),
+    dest_device = ProtoField.uint8("sagebrush.dest.device", "Destination device", base.DEC),
+    source = ProtoField.uint8("sagebrush.source", "Source group", base.DEC),
+    address = ProtoField.string("sagebrush.address", "Destination (group.port.device)"),
+    length = ProtoField.uint8("sagebrush.length", "Length byte", base.DEC),
+    payload_len = ProtoField.uint16("sagebrush.payload_len", "Payload length", base.DEC),
+    payload = ProtoField.string("sagebrush.payload", "Payload"),
+    checksum = ProtoField.uint8("sagebrush.checksum", "Checksum", base.HEX),
+    checksum_expected = ProtoField.uint8("sagebrush.checksum.expected", "Checksum computed", base.HEX),
+    checksum_bad = ProtoField.bool("sagebrush.checksum.bad", "Checksum bad"),
+    type = ProtoField.string("sagebrush.type", "Frame type"),
+    cmd = ProtoField.string("sagebrush.cmd", "Command"),
+    cmd_desc = ProtoField.string("sagebrush.cmd.description", "Command description"),
+    pan_deg = ProtoField.double("sagebrush.pan_deg", "Pan position (deg)"),
+    tilt_deg = ProtoField.double("sagebrush.tilt_deg", "Tilt position (deg)"),
+    pan_rate = ProtoField.double("sagebrush.pan_rate", "Pan rate (deg/s)"),
+    tilt_rate = ProtoField.double("sagebrush.tilt_rate", "Tilt rate (deg/s)"),
+    rate = ProtoField.double("sagebrush.rate", "Rate (deg/s)"),
+    pan_accel = ProtoField.double("sagebrush.pan_accel", "Pan acceleration (deg/s^2)"),
+    tilt_accel = ProtoField.double("sagebrush.tilt_accel", "Tilt acceleration (deg/s^2)"),
+    accel = ProtoField.double("sagebrush.accel", "Acceleration (deg/s^2)"),
+    axis = ProtoField.string("sagebrush.axis", "Axis"),
+    speed = ProtoField.uint8("sagebrush.speed", "Proportional speed (0 slow .. 15 max)"),
+    preset = ProtoField.uint8("sagebrush.preset", "Preset", base.HEX),
+    gain = ProtoField.double("sagebrush.gain", "Rate gain"),
+    pan_gain = ProtoField.double("sagebrush.pan_gain", "Pan rate gain"),
+    tilt_gain = ProtoField.double("sagebrush.tilt_gain", "Tilt rate gain"),
+    data_rate = ProtoField.uint32("sagebrush.data_rate", "Data rate (bit/s)"),
+    device_id = ProtoField.uint8("sagebrush.device_id", "Device ID", base.HEX),
+    status = ProtoField.uint8("sagebrush.status", "Awake status bits", base.HEX),
+    zoom = ProtoField.uint16("sagebrush.zoom", "Zoom position (12 bit)"),
+    focus = ProtoField.uint16("sagebrush.focus", "Focus position (12 bit)"),
+    id_revision = ProtoField.string("sagebrush.id.revision", "Protocol revision"),
+    id_name = ProtoField.string("sagebrush.id.name", "Device name"),
+    id_serial = ProtoField.string("sagebrush.id.serial", "Serial number"),
+    swapped = ProtoField.bool("sagebrush.table3_swap", "Table 3 header swap holds"),
+    response_to = ProtoField.framenum("sagebrush.response_to", "Result of command in frame", base.NONE, frametype.RESPONSE),
+    response_in = ProtoField.framenum("sagebrush.response_in", "Result in frame", base.NONE, frametype.REQUEST),
+    ack_of = ProtoField.framenum("sagebrush.ack_of", "Answers command in frame", base.NONE, frametype.ACK),
+    ack_in = ProtoField.framenum("sagebrush.ack_in", "Acknowledged in frame", base.NONE, frametype.REQUEST),
+    retransmission_of = ProtoField.framenum("sagebrush.retransmission_of", "Retransmission of frame"),
+    report_code = ProtoField.uint8("sagebrush.report.code", "Delivery report code", base.HEX),
+    report_reason = ProtoField.string("sagebrush.report.reason", "Delivery outcome"),
+    report_address = ProtoField.string("sagebrush.report.address", "Reported command address"),
+    report_checksum = ProtoField.uint8("sagebrush.report.checksum", "Reported command checksum", base.HEX),
+    report_group = ProtoField.uint8("sagebrush.report.group", "Reporting failure group"),
+    report_of = ProtoField.framenum("sagebrush.report_of", "Report on command in frame", base.NONE, frametype.RESPONSE),
+    noise = ProtoField.bytes("sagebrush.noise", "Noise bytes"),
+}
+local field_list = {}
+for _, v in pairs(f) do field_list[#field_list + 1] = v end
+p.fields = field_list
+
+local e = {
+    bad_checksum = ProtoExpert.new("sagebrush.expert.bad_checksum", "Bad checksum",
+        expert.group.CHECKSUM, expert.severity.ERROR),
+    nak = ProtoExpert.new("sagebrush.expert.nak", "NAK: the command arrived damaged",
+        expert.group.RESPONSE_CODE, expert.severity.WARN),
+    nic = ProtoExpert.new("sagebrush.expert.nic", "NIC: command not implemented by the device",
+        expert.group.RESPONSE_CODE, expert.severity.WARN),
+    retransmission = ProtoExpert.new("sagebrush.expert.retransmission", "Retransmission",
+        expert.group.SEQUENCE, expert.severity.NOTE),
+    timeout = ProtoExpert.new("sagebrush.expert.timeout", "Time-out",
+        expert.group.SEQUENCE, expert.severity.WARN),
+    noise = ProtoExpert.new("sagebrush.expert.noise", "Noise bytes between frames",
+        expert.group.MALFORMED, expert.severity.NOTE),
+    swap = ProtoExpert.new("sagebrush.expert.swap", "Result header does not follow Table 3",
+        expert.group.PROTOCOL, expert.severity.WARN),
+    unpaired = ProtoExpert.new("sagebrush.expert.unpaired", "No command awaits this",
+        expert.group.SEQUENCE, expert.severity.NOTE),
+    undelivered = ProtoExpert.new("sagebrush.expert.undelivered", "Command not delivered",
+        expert.group.RESPONSE_CODE, expert.severity.WARN),
+}
+p.experts = { e.bad_checksum, e.nak, e.nic, e.retransmission, e.timeout, e.noise, e.swap, e.unpaired, e.undelivered }
+
+local f_iface = Field.new("frame.interface_id")
+
+-- Table 2 meanings.
+local function group_name(v)
+    if v == 0 then return "MCU" elseif v == 255 then return "broadcast: every GCU" end
+    return "GCU " .. v
+end
+local function port_name(v)
+    if v == 0 then return "GCU/MCU link (the control unit itself)" elseif v == 255 then return "broadcast: every port" end
+    return "port " .. v
+end
+local function device_name(v)
+    if v == 0 then return "the MCU/GCU itself" elseif v == 255 then return "broadcast: every device on the port" end
+    return "device " .. v
+end
+
+local function hexval(s)
+    if s == nil or s == "" or not s:match("^[0-9A-Fa-f]+$") then return nil end
+    return tonumber(s, 16)
+end
+local function signed16(v) if v >= 32768 then return v - 65536 end return v end
+
+local rates = { [0] = 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200 }
+
+local report_codes = {
+    [0x00] = "delivered", [0x01] = "device silent", [0x02] = "device NAK", [0x03] = "no such port",
+    [0x04] = "port closed", [0x05] = "queue full", [0x06] = "no route", [0x07] = "link down",
+    [0x08] = "shutting down", [0x09] = "source not allowed", [0x0A] = "loop", [0x0B] = "not confirmed",
+    [0x0C] = "expired",
+}
+
+-- Commands (Tables 4, 11, 16, the rev 1.9 list), told apart by first
+-- character and length as in crates/protocol/src/command.rs.
+-- Returns mnemonic, description, result shape (nil: ACK only), and a list of
+-- {field, value, offset, length} decoded arguments.
+local extended = { "HP", "VP", "VS", "F?", "Z?", "C?", "*dA", "*di", "*do", "*dl", "*dm", "*mr", "*me", "*mp",
+                   "*mu", "*sa", "*sgr", "*sgp", "*sl" }
+local extended_result = { ["VS"] = true, ["F?"] = true, ["Z?"] = true, ["C?"] = true, ["*dA"] = true,
+                          ["*di"] = true, ["*do"] = true, ["*dl"] = true }
+local fixed = {
+    ["AW"] = { "Request awake status", "awake" }, ["B?"] = { "Request maximum data rate", "maxrate" },
+    ["D?"] = { "Request ID information", "identity" }, ["E?"] = { "Request error codes", "errors" },
+    ["I?"] = { "Request status bits", "statusbits" }, ["G?"] = { "Rate gains request", "gains" },
+    ["IX"] = { "Initialization", "init" }, ["LR"] = { "Auxiliary relay status request", "relays" },
+    ["LC"] = { "Clear software limits" }, ["L?"] = { "Software limits request", "limits" },
+    ["A?"] = { "Request current acceleration settings", "accels" }, ["HA"] = { "Halt" },
+    ["HV"] = { "Verify home", "home" }, ["HO"] = { "Go to the home position" }, ["HS"] = { "Stop" },
+    ["P?"] = { "Current position query", "position" }, ["PL"] = { "Pan left (CW)" },
+    ["PR"] = { "Pan right (CCW)" }, ["PS"] = { "Pan stop" }, ["PT"] = { "Stop motion" },
+    ["R?"] = { "Request current rate settings", "rates" }, ["TD"] = { "Tilt down (CW)" },
+    ["TS"] = { "Tilt stop" }, ["TU"] = { "Tilt up (CCW)" }, ["CN"] = { "Camera power on" },
+    ["CX"] = { "Camera power off" }, ["FA"] = { "Auto-focus on" }, ["FF"] = { "Focus far" },
+    ["FN"] = { "Focus near" }, ["FS"] = { "Focus stop" }, ["FX"] = { "Auto-focus off" },
+    ["V?"] = { "Lens position request", "lens" }, ["ZI"] = { "Zoom in" }, ["ZO"] = { "Zoom out" },
+    ["ZS"] = { "Zoom stop" }, ["VM0"] = { "Vector motion off" }, ["VM1"] = { "Vector motion on" },
+}
+
+local function parse_command(s)
+    local n = #s
+    local a = {}
+    local function arg(field, value, offset, len) a[#a + 1] = { field, value, offset, len } end
+    for _, name in ipairs(extended) do
+        if s:sub(1, #name) == name then
+            return name, "Rev 1.9 command (raw arguments)", extended_result[name] and "raw" or nil, a
+        end
+    end
+    local fx = fixed[s]
+    if fx then return s, fx[1], fx[2], a end
+    local c = s:sub(1, 1)
+    local axis_of = { P = "pan", T = "tilt" }
+    if c == "#" and n == 3 and hexval(s:sub(2, 3)) then
+        arg(f.device_id, hexval(s:sub(2, 3)), 1, 2)
+        return "#NN", "Set device address/ID", nil, a
+    elseif c == "A" and n == 3 and axis_of[s:sub(2, 2)] and s:sub(3, 3) == "?" then
+        arg(f.axis, axis_of[s:sub(2, 2)], 1, 1)
+        return "A" .. s:sub(2, 2) .. "?", "Request acceleration (one axis)", "accel", a
+    elseif c == "A" and n == 6 and axis_of[s:sub(2, 2)] and hexval(s:sub(3, 6)) then
+        arg(f.axis, axis_of[s:sub(2, 2)], 1, 1)
+        arg(f.accel, hexval(s:sub(3, 6)) / 100, 2, 4)
+        return "A" .. s:sub(2, 2) .. "nnnn", "Set acceleration for " .. axis_of[s:sub(2, 2)] .. " moves", nil, a
+    elseif c == "C" and n == 2 and hexval(s:sub(2, 2)) then
+        local code = hexval(s:sub(2, 2))
+        if rates[code] then arg(f.data_rate, rates[code], 1, 1) end
+        return "Cn", "Set communication data rate" .. (rates[code] and "" or " (reserved code)"), nil, a
+    elseif c == "F" and n == 2 and s:sub(2, 2):match("%d") then
+        arg(f.speed, tonumber(s:sub(2, 2)), 1, 1)
+        return "Fn", "Focus speed", nil, a
+    elseif s:sub(1, 2) == "GR" and n == 5 and axis_of[s:sub(3, 3)] and hexval(s:sub(4, 5)) then
+        arg(f.axis, axis_of[s:sub(3, 3)], 2, 1)
+        arg(f.gain, hexval(s:sub(4, 5)) / 10, 3, 2)
+        return "GR" .. s:sub(3, 3) .. "nn", "Set rate gain", nil, a
+    elseif c == "L" and n == 2 and s:sub(2, 2):match("[0-3]") then
+        return "L0..L3", "Open relay " .. s:sub(2, 2), nil, a
+    elseif c == "L" and n == 2 and s:sub(2, 2):match("[89ABab]") then
+        return "L8..LB", "Close relay " .. (hexval(s:sub(2, 2)) - 8), nil, a
+    elseif s:sub(1, 2) == "LS" and n == 14 then
+        return "LS", "Set software limits", nil, a
+    elseif c == "P" and n == 3 and hexval(s:sub(2, 3)) then
+        arg(f.preset, hexval(s:sub(2, 3)), 1, 2)
+        return "Pnn", "Go to preset", nil, a
+    elseif s:sub(1, 2) == "P?" and n == 4 and hexval(s:sub(3, 4)) then
+        arg(f.preset, hexval(s:sub(3, 4)), 2, 2)
+        return "P?nn", "Get preset", "position", a
+    elseif c == "P" and n == 9 and hexval(s:sub(2, 9)) then
+        arg(f.pan_deg, signed16(hexval(s:sub(2, 5))) / 100, 1, 4)
+        arg(f.tilt_deg, signed16(hexval(s:sub(6, 9))) / 100, 5, 4)
+        return "Paaaaeeee", "Go to pan-tilt position", nil, a
+    elseif c == "R" and n == 3 and axis_of[s:sub(2, 2)] and s:sub(3, 3) == "?" then
+        arg(f.axis, axis_of[s:sub(2, 2)], 1, 1)
+        return "R" .. s:sub(2, 2) .. "?", "Request rate (one axis)", "rate", a
+    elseif c == "R" and n == 6 and axis_of[s:sub(2, 2)] and hexval(s:sub(3, 6)) then
+        arg(f.axis, axis_of[s:sub(2, 2)], 1, 1)
+        arg(f.rate, hexval(s:sub(3, 6)) / 100, 2, 4)
+        return "R" .. s:sub(2, 2) .. "nnnn", "Set discrete rate for " .. axis_of[s:sub(2, 2)] .. " moves", nil, a
+    elseif s:sub(1, 2) == "S?" and n == 4 and hexval(s:sub(3, 4)) then
+        arg(f.preset, hexval(s:sub(3, 4)), 2, 2)
+        return "S?nn", "Request position stored at preset", "position", a
+    elseif c == "S" and n == 3 and axis_of[s:sub(2, 2)] and hexval(s:sub(3, 3)) then
+        arg(f.axis, axis_of[s:sub(2, 2)], 1, 1)
+        arg(f.speed, hexval(s:sub(3, 3)), 2, 1)
+        return "S" .. s:sub(2, 2) .. "n", "Set proportional speed", nil, a
+    elseif c == "S" and n == 3 and hexval(s:sub(2, 3)) then
+        arg(f.preset, hexval(s:sub(2, 3)), 1, 2)
+        return "Snn", "Store current position as preset", nil, a
+    elseif c == "V" and n == 7 and hexval(s:sub(2, 7)) then
+        arg(f.zoom, hexval(s:sub(2, 4)), 1, 3)
+        arg(f.focus, hexval(s:sub(5, 7)), 4, 3)
+        return "Vzzzfff", "Lens go-to", nil, a
+    elseif c == "Z" and n == 2 and s:sub(2, 2):match("%d") then
+        arg(f.speed, tonumber(s:sub(2, 2)), 1, 1)
+        return "Zn", "Zoom speed", nil, a
+    elseif c == "Z" and n == 2 and s:sub(2, 2):match("[A-Fa-f]") then
+        return "ZA..ZF", "Digital zoom", nil, a
+    elseif s:sub(1, 2) == "*x" and n >= 4 then
+        local op = s:sub(4, 4)
+        local names = { c = { "*xpc", "Configure auxiliary serial port" }, t = { "*xpt", "Transmit to auxiliary port" },
+                        r = { "*xprnnn", "Receive from auxiliary port", "raw" }, n = { "*xpn", "Characters in auxiliary port buffer", "auxcount" },
+                        f = { "*xpf", "Flush auxiliary port buffer" } }
+        local m = names[op]
+        if m then return m[1], m[2] .. " " .. s:sub(3, 3), m[3], a end
+    end
+    return "unknown", "Fits no command: a device answers NIC", nil, a
+end
+
+-- Decodes a result payload for the command's shape (crates/protocol/src/reply.rs).
+local function decode_result(shape, cmd_payload, s, tree, range)
+    local skip = 0
+    if shape ~= "raw" and cmd_payload and #s > #cmd_payload and s:sub(1, #cmd_payload) == cmd_payload then
+        skip = #cmd_payload -- an echo of the command (NOTES E6)
+    end
+    local body = s:sub(skip + 1)
+    local function at(off, len) return range(skip + off, len) end
+    if shape == "position" then
+        local o = 0
+        if #body == 9 and body:sub(1, 1) == "P" then o = 1 end
+        local pan, tilt = hexval(body:sub(o + 1, o + 4)), hexval(body:sub(o + 5, o + 8))
+        if pan and tilt and #body == o + 8 then
+            tree:add(f.pan_deg, at(o, 4), signed16(pan) / 100)
+            tree:add(f.tilt_deg, at(o + 4, 4), signed16(tilt) / 100)
+            return string.format("pan %.2f deg, tilt %.2f deg", signed16(pan) / 100, signed16(tilt) / 100)
+        end
+    elseif shape == "rates" or shape == "accels" then
+        local pan, tilt = hexval(body:sub(1, 4)), hexval(body:sub(5, 8))
+        if pan and tilt and #body == 8 then
+            local fp, ft, unit = f.pan_rate, f.tilt_rate, "deg/s"
+            if shape == "accels" then fp, ft, unit = f.pan_accel, f.tilt_accel, "deg/s^2" end
+            tree:add(fp, at(0, 4), pan / 100)
+            tree:add(ft, at(4, 4), tilt / 100)
+            return string.format("pan %.2f %s, tilt %.2f %s", pan / 100, unit, tilt / 100, unit)
+        end
+    elseif shape == "rate" or shape == "accel" then
+        local v = hexval(body)
+        if v and #body == 4 then
+            tree:add(shape == "rate" and f.rate or f.accel, at(0, 4), v / 100)
+            return string.format("%.2f %s", v / 100, shape == "rate" and "deg/s" or "deg/s^2")
+        end
+    elseif shape == "gains" then
+        local pan, tilt = hexval(body:sub(1, 2)), hexval(body:sub(3, 4))
+        if pan and tilt then
+            tree:add(f.pan_gain, at(0, 2), pan / 10)
+            tree:add(f.tilt_gain, at(2, 2), tilt / 10)
+            return string.format("pan gain %.1f, tilt gain %.1f", pan / 10, tilt / 10)
+        end
+    elseif shape == "awake" then
+        local v = hexval(body) or (#body == 1 and body:byte(1) <= 15 and body:byte(1)) or nil
+        if v and #body == 1 then
+            tree:add(f.status, at(0, 1), v)
+            if v == 0 then return "hardware functioning properly" end
+            local bits = {}
+            if v % 2 == 1 then bits[#bits + 1] = "azimuth not initialized" end
+            if math.floor(v / 2) % 2 == 1 then bits[#bits + 1] = "elevation not initialized" end
+            if math.floor(v / 4) % 2 == 1 then bits[#bits + 1] = "motors off" end
+            if math.floor(v / 8) % 2 == 1 then bits[#bits + 1] = "error condition" end
+            return table.concat(bits, ", ")
+        end
+    elseif shape == "maxrate" then
+        local code = hexval(body:gsub("^C", ""))
+        if code then
+            if rates[code] then tree:add(f.data_rate, at(0, #body), rates[code]) end
+            return "maximum data rate " .. (rates[code] or "reserved") .. " bit/s"
+        end
+    elseif shape == "identity" then
+        if #body >= 4 and hexval(body:sub(1, 2)) then
+            tree:add(f.device_id, at(0, 2), hexval(body:sub(1, 2)))
+            tree:add(f.id_revision, at(2, 2), body:sub(3, 4))
+            local name = body:sub(5, 24):gsub("[ %z]+$", "")
+            local serial = body:sub(25, 44):gsub("[ %z]+$", "")
+            if #body > 4 then tree:add(f.id_name, at(4, math.min(20, #body - 4)), name) end
+            if #body > 24 then tree:add(f.id_serial, at(24, math.min(20, #body - 24)), serial) end
+            return string.format("ID %s rev %s %q %q", body:sub(1, 2), body:sub(3, 4), name, serial)
+        end
+    elseif shape == "lens" then
+        local o = (#body == 7 and body:sub(1, 1) == "V") and 1 or 0
+        local z, fo = hexval(body:sub(o + 1, o + 3)), hexval(body:sub(o + 4, o + 6))
+        if z and fo then
+            tree:add(f.zoom, at(o, 3), z)
+            tree:add(f.focus, at(o + 3, 3), fo)
+            return string.format("zoom %d, focus %d", z, fo)
+        end
+    end
+    return nil
+end
+
+-- Pairing state, built on the first pass; per-frame results kept for later passes.
+local ifaces, notes = {}, {}
+
+function p.init()
+    ifaces, notes = {}, {}
+end
+
+local function iface_state(id)
+    local st = ifaces[id]
+    if not st then
+        st = { cmds = {}, last = nil }
+        ifaces[id] = st
+    end
+    return st
+end
+
+-- Remembers at most this many commands per interface.
+local WINDOW = 64
+
+local function first_pass(pinfo, id, kind, dir, role, info)
+    local st = iface_state(id)
+    local n = { }
+    local now = pinfo.abs_ts
+    local cmd_dir = (role == 1) and 2 or 1 -- the direction commands travel in
+    if kind == 6 and dir ~= cmd_dir then
+        st.last_reply = { num = pinfo.number }
+    elseif kind == 6 then
+        -- A damaged command: the NAK that follows answers it.
+        local c = { num = pinfo.number, bytes = "", time = now, group = -1, port = -1, device = -1, damaged = true }
+        st.cmds[#st.cmds + 1] = c
+        if #st.cmds > WINDOW then table.remove(st.cmds, 1) end
+    elseif kind == 1 and info.is_command then
+        local last = st.last
+        if last and last.bytes == info.bytes and not last.ack then
+            n.retransmission_of = last.num
+            n.timeout = string.format("no ACK/NAK to frame %d within %.0f ms: retransmitted", last.num, (now - last.time) * 1000)
+        elseif role == 1 and last and last.shape and not last.result and last.ack then
+            n.timeout = string.format("frame %d (%s) got no result before this command", last.num, last.mnemonic)
+        end
+        local c = { num = pinfo.number, bytes = info.bytes, time = now, group = info.group, port = info.port,
+                    device = info.device, source = info.source, mnemonic = info.mnemonic, shape = info.shape,
+                    payload = info.payload, checksum = info.checksum }
+        if n.retransmission_of then
+            c = last
+            c.retransmissions = (c.retransmissions or 0) + 1
+        else
+            st.cmds[#st.cmds + 1] = c
+            if #st.cmds > WINDOW then table.remove(st.cmds, 1) end
+        end
+        st.last = c
+    elseif kind == 1 and info.is_report then
+        for i = #st.cmds, 1, -1 do
+            local c = st.cmds[i]
+            if string.format("%02X%02X%02X", c.group, c.port, c.device) == info.report_address
+                and c.checksum == info.report_checksum then
+                n.report_of = c.num
+                c.report = pinfo.number
+                break
+            end
+        end
+        st.last_reply = { num = pinfo.number }
+    elseif kind == 1 then
+        -- A result: the oldest command expecting one from that port and device,
+        -- with the Table 3 swap first, then by port and device alone.
+        local found, swapped
+        for pass = 1, 2 do
+            for _, c in ipairs(st.cmds) do
+                if c.shape and not c.result and (c.port == info.port or c.port == 255)
+                    and (c.device == info.device or c.device == 255) then
+                    local swap = info.group == c.source and info.source == c.group
+                    if pass == 2 or swap then
+                        found, swapped = c, swap
+                        break
+                    end
+                end
+            end
+            if found then break end
+        end
+        st.last_reply = { num = pinfo.number }
+        if found then
+            found.result = pinfo.number
+            n.response_to = found.num
+            n.swapped = swapped
+            n.cmd_payload = found.payload
+            n.shape = found.shape
+            n.cmd_mnemonic = found.mnemonic
+        end
+    elseif (kind == 2 or kind == 3) and dir == cmd_dir and role ~= 0 then
+        -- The command side acknowledges a result, report or damaged frame sent to it.
+        local r = st.last_reply
+        if r and not r.ack then
+            n.ack_of = r.num
+            r.ack = pinfo.number
+        end
+    elseif kind == 2 or kind == 3 then
+        for _, c in ipairs(st.cmds) do
+            if not c.ack and not c.naked then
+                n.ack_of = c.num
+                if kind == 2 then c.ack = pinfo.number else c.naked = c.damaged end
+                break
+            end
+        end
+    elseif kind == 4 then
+        for i = #st.cmds, 1, -1 do
+            if st.cmds[i].ack then
+                n.ack_of = st.cmds[i].num
+                st.cmds[i].shape = nil -- a NIC ends the wait for a result
+                break
+            end
+        end
+    end
+    notes[pinfo.number] = n
+    return n
+end
+
+local function checksum(buf, from, to)
+    local s = 0
+    for i = from, to do s = (s + buf(i, 1):uint()) % 256 end
+    return s
+end
+
+function p.dissector(buf, pinfo, tree)
+    if buf:len() < 4 then return 0 end
+    pinfo.cols.protocol = "Sagebrush"
+    local version, kind, dir, role = buf(0, 1):uint(), buf(1, 1):uint(), buf(2, 1):uint(), buf(3, 1):uint()
+    local t = tree:add(p, buf(), "Sagebrush gimbal protocol, " .. (kinds[kind] or "record kind " .. kind))
+    local h = t:add(p, buf(0, 4), "Capture record header")
+    h:add(f.version, buf(0, 1))
+    h:add(f.kind, buf(1, 1))
+    h:add(f.direction, buf(2, 1))
+    h:add(f.role, buf(3, 1))
+    local data = buf(4):tvb()
+    local id = f_iface() and f_iface().value or 0
+    local arrow = dir == 1 and "<- " or "-> "
+    local info = {}
+    local summary
+    local cmd_dir = (role == 1) and 2 or 1
+
+    if kind == 5 then
+        t:add(f.noise, data())
+        t:add_proto_expert_info(e.noise, data:len() .. " noise byte(s)")
+        pinfo.cols.info = arrow .. "noise, " .. data:len() .. " byte(s)"
+        return buf:len()
+    elseif kind == 2 or kind == 3 or kind == 4 then
+        local n = pinfo.visited and notes[pinfo.number] or first_pass(pinfo, id, kind, dir, role, info)
+        n = n or {}
+        summary = ({ [2] = "ACK", [3] = "NAK", [4] = "NIC (?)" })[kind]
+        if n.ack_of then t:add(f.ack_of, n.ack_of) end
+        if kind == 3 then t:add_proto_expert_info(e.nak) end
+        if kind == 4 then t:add_proto_expert_info(e.nic) end
+        if not n.ack_of then t:add_proto_expert_info(e.unpaired) end
+        pinfo.cols.info = arrow .. summary .. (n.ack_of and (" to frame " .. n.ack_of) or "")
+        return buf:len()
+    end
+
+    -- A frame or a bad-checksum candidate.
+    if data:len() < 7 then
+        pinfo.cols.info = arrow .. "short frame"
+        return buf:len()
+    end
+    local g, po, d, src = data(1, 1):uint(), data(2, 1):uint(), data(3, 1):uint(), data(4, 1):uint()
+    local lenb = data(5, 1):uint()
+    local plen = (lenb == 0) and 256 or lenb
+    local plen_here = math.min(plen, data:len() - 7)
+    t:add(f.start, data(0, 1))
+    t:add(f.dest_group, data(1, 1)):append_text(" (" .. group_name(g) .. ")")
+    t:add(f.dest_port, data(2, 1)):append_text(" (" .. port_name(po) .. ")")
+    t:add(f.dest_device, data(3, 1)):append_text(" (" .. device_name(d) .. ")")
+    t:add(f.source, data(4, 1)):append_text(" (" .. group_name(src) .. ")")
+    t:add(f.address, data(1, 3), string.format("%d.%d.%d", g, po, d))
+    t:add(f.length, data(5, 1)):append_text(lenb == 0 and " (0 means 256)" or "")
+    t:add(f.payload_len, data(5, 1), plen)
+    local payload = data(6, plen_here):string()
+    local ck_range = data(6 + plen_here, 1)
+    local ck = ck_range:uint()
+    local expected = checksum(data, 1, 5 + plen_here)
+    local ck_item = t:add(f.checksum, ck_range)
+    t:add(f.checksum_expected, ck_range, expected)
+    t:add(f.checksum_bad, ck_range, ck ~= expected)
+    if ck ~= expected then
+        ck_item:append_text(string.format(" [incorrect, should be 0x%02X]", expected))
+        ck_item:add_proto_expert_info(e.bad_checksum, string.format("Bad checksum 0x%02X, computed 0x%02X", ck, expected))
+    else
+        ck_item:append_text(" [correct]")
+    end
+    t:add(f.payload, data(6, plen_here))
+    local addr = string.format("%d.%d.%d from %d", g, po, d, src)
+    if kind == 6 then
+        if not pinfo.visited then first_pass(pinfo, id, kind, dir, role, info) end
+        pinfo.cols.info = arrow .. "BAD CHECKSUM " .. addr .. " " .. payload
+        return buf:len()
+    end
+
+    info.bytes = data():string()
+    info.group, info.port, info.device, info.source, info.payload, info.checksum = g, po, d, src, payload, ck
+    info.is_report = (dir ~= cmd_dir or role == 0) and po == 0 and d == 0 and #payload == 13 and payload:sub(1, 1) == "!"
+    info.is_command = not info.is_report and (role == 0 or dir == cmd_dir)
+    if info.is_report then
+        info.report_address = payload:sub(4, 9)
+        info.report_checksum = hexval(payload:sub(10, 11))
+    end
+    local mnemonic, desc, shape, args
+    if info.is_command then
+        mnemonic, desc, shape, args = parse_command(payload)
+        info.mnemonic, info.shape = mnemonic, shape
+    end
+    local n = pinfo.visited and notes[pinfo.number] or first_pass(pinfo, id, kind, dir, role, info)
+    n = n or {}
+
+    if info.is_command then
+        t:add(f.type, "command")
+        t:add(f.cmd, data(6, plen_here), mnemonic)
+        t:add(f.cmd_desc, data(6, plen_here), desc)
+        for _, a in ipairs(args) do
+            t:add(a[1], data(6 + a[3], a[4]), a[2])
+        end
+        if n.retransmission_of then
+            t:add(f.retransmission_of, n.retransmission_of)
+            t:add_proto_expert_info(e.retransmission)
+        end
+        if n.timeout then t:add_proto_expert_info(e.timeout, n.timeout) end
+        local c = nil
+        for _, st in pairs(ifaces) do
+            for _, x in ipairs(st.cmds) do if x.num == pinfo.number then c = x end end
+        end
+        if c and c.result then t:add(f.response_in, c.result) end
+        if c and c.ack then t:add(f.ack_in, c.ack) end
+        pinfo.cols.info = arrow .. "command " .. addr .. ": " .. mnemonic .. " " .. payload
+    elseif info.is_report then
+        t:add(f.type, "delivery report")
+        local code = hexval(payload:sub(2, 3)) or 255
+        t:add(f.report_code, data(7, 2), code)
+        t:add(f.report_reason, data(7, 2), report_codes[code] or "unknown")
+        t:add(f.report_address, data(9, 6), payload:sub(4, 9))
+        t:add(f.report_checksum, data(15, 2), hexval(payload:sub(10, 11)) or 0)
+        t:add(f.report_group, data(17, 2), hexval(payload:sub(12, 13)) or 0)
+        if n.report_of then t:add(f.report_of, n.report_of) end
+        if code ~= 0 then t:add_proto_expert_info(e.undelivered, "Not delivered: " .. (report_codes[code] or "unknown")) end
+        pinfo.cols.info = arrow .. "report " .. addr .. ": " .. (report_codes[code] or "?") .. " (" .. payload:sub(4, 9) .. ")"
+    else
+        t:add(f.type, "result")
+        local text
+        if n.response_to then
+            t:add(f.response_to, n.response_to)
+            t:add(f.cmd, n.cmd_mnemonic)
+            local sw = t:add(f.swapped, n.swapped)
+            if n.swapped then
+                sw:append_text(" (dest group = command's source, source = command's dest group)")
+            else
+                sw:add_proto_expert_info(e.swap)
+            end
+            if n.shape then
+                text = decode_result(n.shape, n.cmd_payload, payload, t, function(o, l) return data(6 + o, l) end)
+            end
+        else
+            t:add_proto_expert_info(e.unpaired, "No command awaits a result from this address")
+        end
+        pinfo.cols.info = arrow .. "result " .. addr .. ": " .. (n.cmd_mnemonic and (n.cmd_mnemonic .. " ") or "")
+            .. payload .. (text and (" (" .. text .. ")") or "")
+    end
+    return buf:len()
+end
+
+DissectorTable.get("wtap_encap"):add(wtap_encaps and wtap_encaps.USER0 or 45, p)
