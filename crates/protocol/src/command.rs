@@ -1,6 +1,12 @@
 //! Every command of Tables 4, 11 and 16 and the rev 1.9 list (1.2), as one
 //! typed enum with `parse` and `encode`.
 //!
+//! Each command is declared once, as a row of `command_table!` below (the
+//! rev 1.9 names as rows of `extended_table!`): the enum variant, its parse
+//! arms, its encoding, its mnemonic, what follows its ACK with the shape of
+//! its result (used by [`crate::Reply`]), and whether it stops or starts a
+//! motion all come from that row. No match over commands has a wildcard arm.
+//!
 //! Disambiguation (NOTES "Command disambiguation"): by first character and
 //! length. `P?`/`PL` (2) vs `Pnn` (3) vs `P?nn` (4) vs `Paaaaeeee` (9);
 //! `Snn` vs `SP0..SPF`/`ST0..STF` vs `S?nn`; `VMn` (3) vs `V`+6 hex (7).
@@ -202,35 +208,109 @@ impl Extended {
 /// row that leaves out a fact does not compile).
 ///
 /// A row is `Variant(field: Type, ..) => { facts }` with either
-/// - `wire: "XY", answer: .., motion: ..` for a command without arguments
-///   (parsed, encoded and named by its two bytes), or
+/// - `wire: b"XY", answer: .., motion: ..` for a command without arguments
+///   (parsed, encoded and named by its bytes), or
 /// - `mnemonic: .., answer: .., motion: .., parse: { arms }, encode: { .. }`:
-///   `parse` arms are `pattern (if guard) => command` over the payload,
-///   `parse: (expr)` an `Option<Command>`; `encode` writes the fields with
-///   the writer. The fields are bound by name in `mnemonic`, `answer`,
-///   `motion` and `encode`.
+///   `parse` arms are `pattern (if guard) => command` over the payload, or
+///   `parse: (expr)` an `Option<Command>` tried before all pattern arms;
+///   `encode` writes the fields with the writer. The fields are bound by
+///   name in `mnemonic`, `answer`, `motion` and `encode`.
 ///
-/// Rows are tried for `parse` in table order, so of two rows whose patterns
-/// overlap the more specific comes first (`AP?` before `APnnnn`).
+/// All pattern arms form one `match`, in table order, so of two rows whose
+/// patterns overlap the more specific comes first (`AP?` before `APnnnn`).
 macro_rules! command_table {
     (
         $(#[$meta:meta])*
         pub enum $Command:ident<$lt:lifetime> (payload = $payload:ident, writer = $w:ident) {
-            $(
-                $(#[$doc:meta])*
-                $Variant:ident $( ( $($field:ident : $fty:ty),+ $(,)? ) )? => { $($row:tt)* }
-            )+
+            $($rows:tt)*
         }
     ) => {
+        command_table!(@row [$(#[$meta])* $Command $lt $payload $w] [] $($rows)*);
+    };
+
+    // Each row, in turn, brought to one form. Each rule spells out the whole
+    // row, so a row missing a fact (or with one misspelt) matches none and
+    // fails to compile.
+    (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] [$($done:tt)*]
+        $(#[$doc:meta])* $Variant:ident => {
+            wire: $wire:tt, answer: $answer:expr, motion: $motion:expr $(,)?
+        }
+        $($rest:tt)*
+    ) => {
+        command_table!(@row [$(#[$meta])* $Command $lt $payload $w] [$($done)*
+            [$(#[$doc])* $Variant => {
+                mnemonic: const { wire_name($wire) },
+                answer: $answer,
+                motion: $motion,
+                arms: { $wire => Self::$Variant },
+                encode: { $w.put($wire)?; },
+            }]
+        ] $($rest)*);
+    };
+    (@row $head:tt [$($done:tt)*]
+        $(#[$doc:meta])* $Variant:ident $( ( $($field:ident : $fty:ty),+ $(,)? ) )? => {
+            mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
+            parse: { $($arms:tt)* }, encode: { $($encode:tt)* } $(,)?
+        }
+        $($rest:tt)*
+    ) => {
+        command_table!(@row $head [$($done)*
+            [$(#[$doc])* $Variant $( ( $($field : $fty),+ ) )? => {
+                mnemonic: $mnemonic,
+                answer: $answer,
+                motion: $motion,
+                arms: { $($arms)* },
+                encode: { $($encode)* },
+            }]
+        ] $($rest)*);
+    };
+    (@row $head:tt [$($done:tt)*]
+        $(#[$doc:meta])* $Variant:ident $( ( $($field:ident : $fty:ty),+ $(,)? ) )? => {
+            mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
+            parse: ( $parse:expr ), encode: { $($encode:tt)* } $(,)?
+        }
+        $($rest:tt)*
+    ) => {
+        command_table!(@row $head [$($done)*
+            [$(#[$doc])* $Variant $( ( $($field : $fty),+ ) )? => {
+                mnemonic: $mnemonic,
+                answer: $answer,
+                motion: $motion,
+                arms: {},
+                first: ($parse),
+                encode: { $($encode)* },
+            }]
+        ] $($rest)*);
+    };
+
+    // Every row in one form: the enum and its functions.
+    (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] [$(
+        [$(#[$doc:meta])* $Variant:ident $( ( $($field:ident : $fty:ty),+ ) )? => {
+            mnemonic: $mnemonic:expr,
+            answer: $answer:expr,
+            motion: $motion:expr,
+            arms: { $( $pat:pat $(if $guard:expr)? => $command:expr ),* $(,)? },
+            $( first: ($first:expr), )?
+            encode: { $($encode:tt)* },
+        }]
+    )+]) => {
         $(#[$meta])*
         pub enum $Command<$lt> {
             $( $(#[$doc])* $Variant $( ( $($fty),+ ) )?, )+
         }
 
         impl<$lt> $Command<$lt> {
-            /// The first row whose parse arms take `payload`; `Ok(None)` if none does.
+            /// The row that takes `payload`; `Ok(None)` if none does.
             fn parse_rows($payload: &$lt [u8]) -> Result<Option<Self>, CommandError> {
-                $( command_table!(@parse $payload, $Variant; $($row)*); )+
+                $($(
+                    if let Some(command) = $first {
+                        return Ok(Some(command));
+                    }
+                )?)+
+                match $payload {
+                    $($( $pat $(if $guard)? => return Ok(Some($command)), )*)+
+                    _ => {}
+                }
                 Ok(None)
             }
 
@@ -239,7 +319,7 @@ macro_rules! command_table {
                 match *self {
                     $(
                         #[allow(unused_variables)]
-                        Self::$Variant $( ( $($field),+ ) )? => command_table!(@encode $w; $($row)*),
+                        Self::$Variant $( ( $($field),+ ) )? => { $($encode)* }
                     )+
                 }
                 Ok(())
@@ -250,7 +330,7 @@ macro_rules! command_table {
                 match *self {
                     $(
                         #[allow(unused_variables)]
-                        Self::$Variant $( ( $($field),+ ) )? => command_table!(@mnemonic $($row)*),
+                        Self::$Variant $( ( $($field),+ ) )? => $mnemonic,
                     )+
                 }
             }
@@ -260,7 +340,7 @@ macro_rules! command_table {
                 match *self {
                     $(
                         #[allow(unused_variables)]
-                        Self::$Variant $( ( $($field),+ ) )? => command_table!(@answer $($row)*),
+                        Self::$Variant $( ( $($field),+ ) )? => $answer,
                     )+
                 }
             }
@@ -270,59 +350,20 @@ macro_rules! command_table {
                 match *self {
                     $(
                         #[allow(unused_variables)]
-                        Self::$Variant $( ( $($field),+ ) )? => command_table!(@motion $($row)*),
+                        Self::$Variant $( ( $($field),+ ) )? => $motion,
                     )+
                 }
             }
         }
     };
+}
 
-    // One fact of a row. Each rule spells out the whole row, so a row
-    // missing a fact (or with one misspelt) matches none and fails to compile.
-    (@parse $payload:ident, $Variant:ident;
-        wire: $wire:literal, answer: $answer:expr, motion: $motion:expr $(,)?) => {
-        if $payload == $wire.as_bytes() {
-            return Ok(Some(Self::$Variant));
-        }
-    };
-    (@parse $payload:ident, $Variant:ident;
-        mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
-        parse: { $( $pat:pat $(if $guard:expr)? => $command:expr ),+ $(,)? },
-        encode: { $($encode:tt)* } $(,)?) => {
-        $(
-            match $payload {
-                $pat $(if $guard)? => return Ok(Some($command)),
-                _ => {}
-            }
-        )+
-    };
-    (@parse $payload:ident, $Variant:ident;
-        mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
-        parse: ( $parse:expr ), encode: { $($encode:tt)* } $(,)?) => {
-        if let Some(command) = $parse {
-            return Ok(Some(command));
-        }
-    };
-
-    (@encode $w:ident; wire: $wire:literal, answer: $answer:expr, motion: $motion:expr $(,)?) => {
-        $w.put($wire.as_bytes())?
-    };
-    (@encode $w:ident; mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
-        parse: $parse:tt, encode: { $($encode:tt)* } $(,)?) => {
-        { $($encode)* }
-    };
-
-    (@mnemonic wire: $wire:literal, answer: $answer:expr, motion: $motion:expr $(,)?) => { $wire };
-    (@mnemonic mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
-        parse: $parse:tt, encode: $encode:tt $(,)?) => { $mnemonic };
-
-    (@answer wire: $wire:literal, answer: $answer:expr, motion: $motion:expr $(,)?) => { $answer };
-    (@answer mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
-        parse: $parse:tt, encode: $encode:tt $(,)?) => { $answer };
-
-    (@motion wire: $wire:literal, answer: $answer:expr, motion: $motion:expr $(,)?) => { $motion };
-    (@motion mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
-        parse: $parse:tt, encode: $encode:tt $(,)?) => { $motion };
+/// A `wire` row's name as text (evaluated at compile time).
+const fn wire_name(wire: &'static [u8]) -> &'static str {
+    match core::str::from_utf8(wire) {
+        Ok(name) => name,
+        Err(_) => "?",
+    }
 }
 
 /// The axis a letter names (`P` pan, `T` tilt).
@@ -391,9 +432,9 @@ command_table! {
             },
         }
         /// `AW`: awake status (Table 4; result Table 5).
-        AwakeStatus => { wire: "AW", answer: Answer::normal(Shape::AwakeStatus), motion: Motion::Other }
+        AwakeStatus => { wire: b"AW", answer: Answer::normal(Shape::AwakeStatus), motion: Motion::Other }
         /// `B?`: maximum data rate, `C0..CF` (Table 4).
-        QueryMaxDataRate => { wire: "B?", answer: Answer::normal(Shape::MaxDataRate), motion: Motion::Other }
+        QueryMaxDataRate => { wire: b"B?", answer: Answer::normal(Shape::MaxDataRate), motion: Motion::Other }
         /// `C0..CF`: set communication data rate (Table 4; `C8..CF` reserved, NOTES E15).
         SetDataRate(rate: DataRate) => {
             mnemonic: "Cn",
@@ -412,11 +453,11 @@ command_table! {
             },
         }
         /// `D?`: identification (Table 4; result Table 6).
-        Identify => { wire: "D?", answer: Answer::normal(Shape::Identity), motion: Motion::Other }
+        Identify => { wire: b"D?", answer: Answer::normal(Shape::Identity), motion: Motion::Other }
         /// `E?`: error codes (Table 4; result Table 6A).
-        QueryErrors => { wire: "E?", answer: Answer::normal(Shape::Errors), motion: Motion::Other }
+        QueryErrors => { wire: b"E?", answer: Answer::normal(Shape::Errors), motion: Motion::Other }
         /// `I?`: status bits (Table 4; result Table 6B).
-        QueryStatusBits => { wire: "I?", answer: Answer::normal(Shape::StatusBits), motion: Motion::Other }
+        QueryStatusBits => { wire: b"I?", answer: Answer::normal(Shape::StatusBits), motion: Motion::Other }
         /// `GRPnn` / `GRTnn`: set a rate gain (Table 4; value Table 7).
         SetRateGain(axis: Axis, gain: RateGain) => {
             mnemonic: match axis {
@@ -437,10 +478,10 @@ command_table! {
             },
         }
         /// `G?`: rate gains (Table 4; result Table 8).
-        QueryRateGains => { wire: "G?", answer: Answer::normal(Shape::RateGains), motion: Motion::Other }
+        QueryRateGains => { wire: b"G?", answer: Answer::normal(Shape::RateGains), motion: Motion::Other }
         /// `IX`: initialisation (Table 4; result Table 9, which takes long).
         Initialize => {
-            wire: "IX",
+            wire: b"IX",
             answer: Answer::Result(ResultTimeout::Long, Shape::Initialization),
             motion: Motion::Other,
         }
@@ -473,9 +514,9 @@ command_table! {
             },
         }
         /// `LR`: relay status (Table 4; result Table 4A).
-        QueryRelays => { wire: "LR", answer: Answer::normal(Shape::Relays), motion: Motion::Other }
+        QueryRelays => { wire: b"LR", answer: Answer::normal(Shape::Relays), motion: Motion::Other }
         /// `LC`: clear software limits (Table 4).
-        ClearLimits => { wire: "LC", answer: Answer::Ack, motion: Motion::Other }
+        ClearLimits => { wire: b"LC", answer: Answer::Ack, motion: Motion::Other }
         /// `LS` + 12 hex: set software limits (Table 4; values Table 10).
         SetLimits(limits: Limits) => {
             mnemonic: "LS",
@@ -502,11 +543,11 @@ command_table! {
             },
         }
         /// `L?`: software limits (Table 4; result Table 10).
-        QueryLimits => { wire: "L?", answer: Answer::normal(Shape::Limits), motion: Motion::Other }
+        QueryLimits => { wire: b"L?", answer: Answer::normal(Shape::Limits), motion: Motion::Other }
 
         // Table 11: pan/tilt mount.
         /// `A?`: both accelerations (Table 11; result Table 13, NOTES E7).
-        QueryAccelerations => { wire: "A?", answer: Answer::normal(Shape::Accelerations), motion: Motion::Other }
+        QueryAccelerations => { wire: b"A?", answer: Answer::normal(Shape::Accelerations), motion: Motion::Other }
         /// `AP?` / `AT?`: one axis (Table 11, NOTES E7). Before `APnnnn`.
         QueryAcceleration(axis: Axis) => {
             mnemonic: match axis {
@@ -542,15 +583,15 @@ command_table! {
             },
         }
         /// `HA`: halt, stores the position, motors off (Table 11).
-        Halt => { wire: "HA", answer: Answer::Ack, motion: Motion::Stop }
+        Halt => { wire: b"HA", answer: Answer::Ack, motion: Motion::Stop }
         /// `HV`: verify home (Table 11; result Table 14).
-        VerifyHome => { wire: "HV", answer: Answer::normal(Shape::VerifyHome), motion: Motion::Other }
+        VerifyHome => { wire: b"HV", answer: Answer::normal(Shape::VerifyHome), motion: Motion::Other }
         /// `HO`: go home (0, 0) (Table 11).
-        Home => { wire: "HO", answer: Answer::Ack, motion: Motion::Other }
+        Home => { wire: b"HO", answer: Answer::Ack, motion: Motion::Other }
         /// `HS`: stop, motors off (Table 11).
-        Stop => { wire: "HS", answer: Answer::Ack, motion: Motion::Stop }
+        Stop => { wire: b"HS", answer: Answer::Ack, motion: Motion::Stop }
         /// `P?`: current position (Table 11; result Table 15).
-        QueryPosition => { wire: "P?", answer: Answer::normal(Shape::Position), motion: Motion::Other }
+        QueryPosition => { wire: b"P?", answer: Answer::normal(Shape::Position), motion: Motion::Other }
         /// `Paaaaeeee`: go to position (Table 11; values Table 15).
         GoTo(position: Position) => {
             mnemonic: "Paaaaeeee",
@@ -571,13 +612,13 @@ command_table! {
             },
         }
         /// `PL`: pan left (CW) until `PS` (Table 11).
-        PanLeft => { wire: "PL", answer: Answer::Ack, motion: Motion::Until(Command::PanStop) }
+        PanLeft => { wire: b"PL", answer: Answer::Ack, motion: Motion::Until(Command::PanStop) }
         /// `PR`: pan right (CCW) until `PS` (Table 11).
-        PanRight => { wire: "PR", answer: Answer::Ack, motion: Motion::Until(Command::PanStop) }
+        PanRight => { wire: b"PR", answer: Answer::Ack, motion: Motion::Until(Command::PanStop) }
         /// `PS`: pan stop (Table 11).
-        PanStop => { wire: "PS", answer: Answer::Ack, motion: Motion::Stop }
+        PanStop => { wire: b"PS", answer: Answer::Ack, motion: Motion::Stop }
         /// `PT`: stop motion (Table 11).
-        StopMotion => { wire: "PT", answer: Answer::Ack, motion: Motion::Stop }
+        StopMotion => { wire: b"PT", answer: Answer::Ack, motion: Motion::Stop }
         /// `Pnn`: go to preset (Table 11).
         GoToPreset(preset: u8) => {
             mnemonic: "Pnn",
@@ -607,7 +648,7 @@ command_table! {
             },
         }
         /// `R?`: both rates (Table 11; result Table 13, NOTES E7).
-        QueryRates => { wire: "R?", answer: Answer::normal(Shape::Rates), motion: Motion::Other }
+        QueryRates => { wire: b"R?", answer: Answer::normal(Shape::Rates), motion: Motion::Other }
         /// `RP?` / `RT?`: one axis (Table 11, NOTES E7). Before `RPnnnn`.
         QueryRate(axis: Axis) => {
             mnemonic: match axis {
@@ -688,11 +729,11 @@ command_table! {
             },
         }
         /// `TD`: tilt down (CW) until `TS` (Table 11).
-        TiltDown => { wire: "TD", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop) }
+        TiltDown => { wire: b"TD", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop) }
         /// `TS`: tilt stop (Table 11).
-        TiltStop => { wire: "TS", answer: Answer::Ack, motion: Motion::Stop }
+        TiltStop => { wire: b"TS", answer: Answer::Ack, motion: Motion::Stop }
         /// `TU`: tilt up (CCW) until `TS` (Table 11).
-        TiltUp => { wire: "TU", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop) }
+        TiltUp => { wire: b"TU", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop) }
         /// `VMn`: vector motion on/off (Table 11).
         SetVectorMode(on: bool) => {
             mnemonic: "VMn",
@@ -719,9 +760,9 @@ command_table! {
 
         // Table 16: camera.
         /// `CN`: camera and lens power on (Table 16).
-        CameraOn => { wire: "CN", answer: Answer::Ack, motion: Motion::Other }
+        CameraOn => { wire: b"CN", answer: Answer::Ack, motion: Motion::Other }
         /// `CX`: camera and lens power off (Table 16).
-        CameraOff => { wire: "CX", answer: Answer::Ack, motion: Motion::Other }
+        CameraOff => { wire: b"CX", answer: Answer::Ack, motion: Motion::Other }
         /// `F0..F9`: focus speed (Table 16).
         FocusSpeed(speed: LensSpeed) => {
             mnemonic: "Fn",
@@ -735,15 +776,15 @@ command_table! {
             },
         }
         /// `FA`: auto-focus on (Table 16; not implemented by the gimbal).
-        AutoFocusOn => { wire: "FA", answer: Answer::Ack, motion: Motion::Other }
+        AutoFocusOn => { wire: b"FA", answer: Answer::Ack, motion: Motion::Other }
         /// `FF`: focus far until `FS` (Table 16).
-        FocusFar => { wire: "FF", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop) }
+        FocusFar => { wire: b"FF", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop) }
         /// `FN`: focus near until `FS` (Table 16).
-        FocusNear => { wire: "FN", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop) }
+        FocusNear => { wire: b"FN", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop) }
         /// `FS`: focus stop (Table 16).
-        FocusStop => { wire: "FS", answer: Answer::Ack, motion: Motion::Stop }
+        FocusStop => { wire: b"FS", answer: Answer::Ack, motion: Motion::Stop }
         /// `FX`: auto-focus off (Table 16; not implemented by the gimbal).
-        AutoFocusOff => { wire: "FX", answer: Answer::Ack, motion: Motion::Other }
+        AutoFocusOff => { wire: b"FX", answer: Answer::Ack, motion: Motion::Other }
         /// `Vzzzfff`: lens go-to (Table 16; values Table 17).
         LensGoTo(lens: LensPosition) => {
             mnemonic: "Vzzzfff",
@@ -762,7 +803,7 @@ command_table! {
             },
         }
         /// `V?`: lens position (Table 16; result Table 17).
-        QueryLens => { wire: "V?", answer: Answer::normal(Shape::Lens), motion: Motion::Other }
+        QueryLens => { wire: b"V?", answer: Answer::normal(Shape::Lens), motion: Motion::Other }
         /// `Z0..Z9`: zoom speed (Table 16).
         ZoomSpeed(speed: LensSpeed) => {
             mnemonic: "Zn",
@@ -791,11 +832,11 @@ command_table! {
             },
         }
         /// `ZI`: zoom in until `ZS` (Table 16).
-        ZoomIn => { wire: "ZI", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop) }
+        ZoomIn => { wire: b"ZI", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop) }
         /// `ZO`: zoom out until `ZS` (Table 16).
-        ZoomOut => { wire: "ZO", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop) }
+        ZoomOut => { wire: b"ZO", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop) }
         /// `ZS`: zoom stop (Table 16).
-        ZoomStop => { wire: "ZS", answer: Answer::Ack, motion: Motion::Stop }
+        ZoomStop => { wire: b"ZS", answer: Answer::Ack, motion: Motion::Stop }
         /// `*xpc,baud,data,stop,parity` (Table 16; fields Table 18).
         AuxConfigure(port: AuxPort, config: AuxConfig) => {
             mnemonic: "*xpc",

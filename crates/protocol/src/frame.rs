@@ -232,25 +232,28 @@ impl<'a> Frame<'a> {
         let header = Header::read(header);
         let wire_len = layout::wire_len(header.len);
         let (frame, rest) = input.split_at_checked(wire_len).ok_or(incomplete(wire_len))?;
-        let at = layout::checksum(header.len);
-        let (payload, found) = (
-            frame.get(layout::payload(header.len)).unwrap_or_default(),
-            frame.get(at).copied().unwrap_or_default(),
-        );
-        let frame = Frame {
+        let frame = Self::check(header, frame).map_err(|(expected, found)| FrameError::BadChecksum {
+            offset: layout::checksum(header.len),
+            expected,
+            found,
+        })?;
+        Ok((frame, rest))
+    }
+
+    /// The frame in `span`, the bytes of one frame with this `header` (the
+    /// framer's candidates, `parse`): `Err((expected, found))` if its
+    /// checksum does not hold.
+    pub(crate) fn check(header: Header, span: &'a [u8]) -> Result<Self, (u8, u8)> {
+        let expected = checksum(span.get(layout::summed(header.len)).unwrap_or_default());
+        let found = span.get(layout::checksum(header.len)).copied().unwrap_or_default();
+        if expected != found {
+            return Err((expected, found));
+        }
+        Ok(Frame {
             dest: header.dest,
             source: header.source,
-            payload,
-        };
-        let expected = frame.checksum();
-        if expected != found {
-            return Err(FrameError::BadChecksum {
-                offset: at,
-                expected,
-                found,
-            });
-        }
-        Ok((frame, rest))
+            payload: span.get(layout::payload(header.len)).unwrap_or_default(),
+        })
     }
 
     /// Writes the frame into `buf`; returns the written prefix.

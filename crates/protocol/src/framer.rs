@@ -16,7 +16,7 @@
 //! - Payload bytes are not checked for ASCII: `*xpt` may carry raw bytes.
 
 use crate::address::Address;
-use crate::frame::{ACK, Frame, FrameBuf, FrameError, HEADER_LEN, Header, MAX_FRAME_LEN, NAK, NIC, START, layout};
+use crate::frame::{ACK, Frame, FrameBuf, HEADER_LEN, Header, MAX_FRAME_LEN, NAK, NIC, START, layout};
 
 /// Default buffer size: room for two maximum frames, so compaction is rare.
 pub const DEFAULT_CAPACITY: usize = 2 * MAX_FRAME_LEN;
@@ -176,15 +176,10 @@ fn scan<'d>(data: &'d [u8], mask: &mut usize, idle: bool, offset: u64, stats: &m
                 i += 1;
                 continue;
             };
-            // `candidate` is exactly one frame's span: `Frame::parse` checks it.
-            let (expected, found) = match Frame::parse(candidate) {
-                Ok((frame, _)) => return done(i + total, m, mask, i, Some(Event::Frame(frame))),
-                Err(FrameError::BadChecksum { expected, found, .. }) => (expected, found),
-                // Not reached: the span starts with 0xF8 and is complete.
-                Err(FrameError::BadStart { .. } | FrameError::Incomplete { .. } | FrameError::PayloadLength { .. }) => {
-                    i += 1;
-                    continue;
-                }
+            // `candidate` is exactly one frame's span, as `Frame::parse` checks it.
+            let (expected, found) = match Frame::check(header, candidate) {
+                Ok(frame) => return done(i + total, m, mask, i, Some(Event::Frame(frame))),
+                Err(sums) => sums,
             };
             stats.bad_checksums += 1;
             m = m.max(i + total);

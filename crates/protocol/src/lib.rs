@@ -30,9 +30,7 @@ pub mod units;
 pub use address::{Address, AddressParseError, CONTROL_UNIT, LINK_PORT, MCU_GROUP, WILDCARD};
 pub use command::{AuxBytes, Command, CommandError, Extended, ResultKind, ResultTimeout};
 pub use device::{DeviceEndpoint, DeviceHandler, EndpointConfig, EndpointStats, RESULT_RESENDS, ReplyTo, Response};
-pub use frame::{
-    ACK, Frame, FrameBuf, FrameError, Header, MAX_FRAME_LEN, MAX_PAYLOAD, NAK, NIC, PayloadLen, START, checksum,
-};
+pub use frame::{ACK, Frame, FrameBuf, FrameError, MAX_FRAME_LEN, MAX_PAYLOAD, NAK, NIC, START, checksum};
 pub use framer::{BadChecksum, Event, Framer, FramerStats, OwnedEvent};
 pub use link::{Outcome, RetryPolicy, Transaction, TransactionPolicy, TransactionStep, Transmitter, TxFailure, TxStep};
 pub use reply::{AwakeStatus, ErrorCodes, HomeStatus, Identity, InitResults, RateGains, Reply, ReplyError, StatusBits};

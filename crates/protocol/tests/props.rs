@@ -34,6 +34,26 @@ proptest! {
         prop_assert_eq!(owned.frame(), frame);
     }
 
+    /// `OwnedEvent` keeps exactly what the borrowed event said, frames included.
+    #[test]
+    fn owned_events_match_borrowed(stream in common::stream(), chunk in 1usize..300) {
+        let mut framer: Framer = Framer::new();
+        let (mut owned, mut reference) = (Vec::new(), Vec::new());
+        let mut record = |e: Event<'_>| {
+            owned.push(OwnedEvent::from(e));
+            reference.push(Owned::of(&e));
+        };
+        for piece in stream.chunks(chunk) {
+            framer.feed(piece, &mut record);
+        }
+        framer.flush_idle(&mut record);
+        prop_assert_eq!(owned.len(), reference.len());
+        for (o, r) in owned.iter().zip(&reference) {
+            prop_assert_eq!(&Owned::of(&o.as_event()), r);
+            prop_assert_eq!(o, &o.as_event().to_owned());
+        }
+    }
+
     #[test]
     fn command_encode_parse_identity(command in common::command()) {
         let mut buf = [0u8; MAX_PAYLOAD];
