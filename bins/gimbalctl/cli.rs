@@ -1,36 +1,55 @@
 //! Command line of `gimbalctl`: transport, addressing, time-outs, and one
 //! subcommand per command family of Tables 4, 11 and 16 and the rev 1.9 list.
+//! Every argument names its unit and range; every subcommand has examples.
+
+use std::time::Duration;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use sagebrush_protocol::{Address, DataRate};
 
+/// Exit code: `--wait` saw the mount stop away from its target.
+pub const EXIT_STOPPED_SHORT: u8 = 20;
+/// Exit code: `--wait` gave up while the mount was still moving.
+pub const EXIT_WAIT_TIMEOUT: u8 = 21;
+/// Exit code: the stop after `--for`/`--hold` was not acknowledged.
+pub const EXIT_STOP_UNCONFIRMED: u8 = 22;
+
 pub const EXIT_CODES: &str = "\
 Exit codes:
-  0  success
-  1  I/O error (cannot open the serial port or connect, the line closed)
-  2  bad arguments
-  3  NAK after all retries (the command kept arriving damaged)
-  4  no ACK after all retries (nothing answered)
-  5  NIC: the device does not implement or cannot apply the command
-  6  no result: ACKed, but the result did not come in time
-  7  malformed result: a result came that is not the command's
-  8..19  not delivered, as a GCU reported it (no ACK came; through gcud only):
-      8 device silent after all retries    9 device answered NAK to every try
-     10 no such port on the GCU           11 port not open
-     12 a queue on the way was full       13 no route to the group
-     14 link toward the group down        15 the GCU is shutting down
-     16 source group not allowed (--from) 17 routing loop
-     18 not confirmed in time (may still execute)
-     19 waited in a queue too long, given up unsent
+   0  success
+   1  I/O error: cannot open the serial port or connect, the line closed
+   2  bad arguments (the message names the argument and its range)
+   3  NAK after all retries (the command kept arriving damaged)
+   4  no ACK after all retries (nothing answered; scan: no device answered)
+   5  NIC: the device does not implement or cannot apply the command
+   6  no result: acknowledged, but the result did not come in time
+   7  malformed result: a result came that is not the command's
+   8..19  not delivered, as the GCU reported it (through gcud; 7 + report code):
+       8 device silent (did not acknowledge)   9 device answered NAK to every try
+      10 no such port on the GCU              11 port not open (port down)
+      12 a queue on the way was full          13 no route to the group
+      14 link toward the group down           15 the GCU is shutting down
+      16 source group not allowed (--from)    17 routing loop
+      18 not confirmed in time (may still execute)
+      19 waited in a queue too long, given up unsent
+  20  --wait: the mount stopped short of its target (limits? travel?)
+  21  --wait: still moving when --wait-timeout ran out
+  22  --for/--hold: the stop was not acknowledged (the mount may still move)
   Commands to device 255 get no ACK on a shared bus: success means written.";
 
 /// Command Sagebrush pan-tilt gimbals (protocol rev 1.9) by hand.
 ///
 /// Talks to a bus directly (--serial, as bus master) or to a GCU daemon
 /// (--tcp, as a client like the MCU). Angles are degrees (positive =
-/// counter-clockwise: pan right, tilt up), rates degrees per second.
+/// counter-clockwise: pan right, tilt up), rates degrees per second. Every
+/// command to a device needs --to GROUP.PORT.DEVICE.
 #[derive(Debug, Parser)]
-#[command(name = "gimbalctl", version, after_help = EXIT_CODES, after_long_help = EXIT_CODES)]
+#[command(
+    name = "gimbalctl",
+    version,
+    after_help = concat!("Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 goto 45 -10 --wait\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 slew right --for 2s\n  gimbalctl --serial /dev/ttyUSB0 --to 1.1.1 position\n  gimbalctl --tcp 127.0.0.1:4001 scan --devices 1-8\n\n", "Run `gimbalctl help <SUBCOMMAND>` for a subcommand's arguments and examples."),
+    after_long_help = EXIT_CODES
+)]
 pub struct Cli {
     #[command(flatten)]
     pub global: Global,
@@ -46,214 +65,417 @@ pub struct Global {
         global = true,
         env = "GIMBALCTL_SERIAL",
         conflicts_with = "tcp",
-        value_name = "PATH"
+        value_name = "PATH",
+        help_heading = "Connection (global)"
     )]
     pub serial: Option<String>,
-    /// Line rate of --serial in bit/s.
-    #[arg(long, global = true, default_value_t = 9600, value_parser = parse_baud)]
+    /// Line rate of --serial in bit/s: 1200, 2400, 4800, 9600, 19200, 38400, 57600 or 115200.
+    #[arg(long, global = true, default_value_t = 9600, value_parser = parse_baud, help_heading = "Connection (global)")]
     pub baud: u32,
-    /// A GCU daemon's link address (this program is a client like the MCU).
-    #[arg(long, global = true, env = "GIMBALCTL_TCP", value_name = "HOST:PORT")]
+    /// A GCU daemon's client address HOST:PORT, e.g. 127.0.0.1:4001 (this program is a client like the MCU).
+    #[arg(long, global = true, env = "GIMBALCTL_TCP", value_name = "HOST:PORT", value_parser = parse_host_port, help_heading = "Connection (global)")]
     pub tcp: Option<String>,
-    /// Destination GROUP.PORT.DEVICE (255 = wildcard at any level).
-    #[arg(long, global = true, default_value = "1.1.1", value_parser = parse_address, value_name = "G.P.D")]
-    pub to: Address,
-    /// Source group address (0 = the MCU).
-    #[arg(long, global = true, default_value_t = 0, value_name = "G")]
+    /// Destination GROUP.PORT.DEVICE, each 0..255 (255 = wildcard at that level). Required by every command to a device.
+    #[arg(long, global = true, value_parser = parse_address, value_name = "G.P.D", help_heading = "Addressing (global)")]
+    pub to: Option<Address>,
+    /// Source group address 0..254 (0 = the MCU).
+    #[arg(
+        long,
+        global = true,
+        default_value_t = 0,
+        value_name = "G",
+        help_heading = "Addressing (global)"
+    )]
     pub from: u8,
-    /// Print JSON (one object per line) instead of text.
-    #[arg(long, global = true)]
+    /// Print JSON (one object per line) instead of text; the README documents every shape.
+    #[arg(long, global = true, help_heading = "Output (global)")]
     pub json: bool,
-    /// Retransmissions after the first (default 3).
-    #[arg(long, global = true)]
+    /// Log filter for diagnostics on stderr (RUST_LOG syntax).
+    #[arg(
+        long,
+        global = true,
+        default_value = "warn,sagebrush_host::master=error",
+        value_name = "FILTER",
+        help_heading = "Output (global)"
+    )]
+    pub log: String,
+    /// Retransmissions after the first, 0..255 (default 3).
+    #[arg(long, global = true, value_name = "N", help_heading = "Time-outs (global)")]
     pub retries: Option<u8>,
     /// Wait for ACK/NAK, milliseconds (default derived from --baud; 1000 over TCP).
-    #[arg(long, global = true, value_name = "MS")]
+    #[arg(long, global = true, value_name = "MS", help_heading = "Time-outs (global)")]
     pub ack_timeout: Option<u64>,
     /// Wait for a result after the ACK, milliseconds (default derived from --baud; 5000 over TCP).
-    #[arg(long, global = true, value_name = "MS")]
+    #[arg(long, global = true, value_name = "MS", help_heading = "Time-outs (global)")]
     pub result_timeout: Option<u64>,
     /// Wait for a NIC after the ACK of a command without result, milliseconds.
-    #[arg(long, global = true, value_name = "MS")]
+    #[arg(long, global = true, value_name = "MS", help_heading = "Time-outs (global)")]
     pub nic_window: Option<u64>,
     /// Wait for the IX initialisation result, milliseconds (default 60000).
-    #[arg(long, global = true, value_name = "MS")]
+    #[arg(long, global = true, value_name = "MS", help_heading = "Time-outs (global)")]
     pub init_timeout: Option<u64>,
-    /// Log filter for diagnostics on stderr (RUST_LOG syntax).
-    #[arg(long, global = true, default_value = "warn")]
-    pub log: String,
+}
+
+/// `--wait` and its time-out, shared by every positioning command.
+#[derive(Debug, Clone, Copy, Args)]
+pub struct WaitArgs {
+    /// Poll until the motion ends; exit 20 if it stopped short of the target, 21 if still moving at --wait-timeout.
+    #[arg(long)]
+    pub wait: bool,
+    /// Give up waiting after this many milliseconds, 1..=3600000.
+    #[arg(long, default_value_t = 60_000, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..=3_600_000))]
+    pub wait_timeout: u64,
+}
+
+/// `--for` / `--hold` of continuous motions.
+#[derive(Debug, Clone, Copy, Args)]
+pub struct JogArgs {
+    /// Move for DURATION (e.g. 2s, 500ms, 1.5s; 1ms..=1h), then send the stop and confirm it.
+    #[arg(long = "for", value_name = "DURATION", value_parser = parse_duration, conflicts_with = "hold")]
+    pub duration: Option<Duration>,
+    /// Keep the connection (and the motion) until Ctrl-C, SIGTERM or end of stdin, then stop and confirm.
+    #[arg(long)]
+    pub hold: bool,
 }
 
 #[derive(Debug, Subcommand)]
 pub enum Cmd {
-    /// Current pan/tilt position (P?).
+    /// Current pan/tilt position in degrees (P?, Table 15).
+    #[command(
+        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 position\n  gimbalctl --json --serial /dev/ttyUSB0 --to 1.1.1 position"
+    )]
     Position,
-    /// Go to an absolute position in degrees (Paaaaeeee).
-    #[command(allow_negative_numbers = true)]
+    /// Go to an absolute position in degrees (Paaaaeeee, Table 15).
+    #[command(
+        allow_negative_numbers = true,
+        after_help = "Angles are hundredths of a degree on the wire (16-bit two's complement): -327.68..=327.67.\n\nExamples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 goto 45 -10 --wait\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 goto -12.25 3.5"
+    )]
     Goto {
-        /// Pan, degrees (-327.68..327.67, + = counter-clockwise).
-        #[arg(value_parser = parse_degrees)]
+        /// Pan (azimuth), degrees -327.68..=327.67 (+ = counter-clockwise, right).
+        #[arg(value_parser = parse_pan)]
         pan: f64,
-        /// Tilt, degrees (+ = up).
-        #[arg(value_parser = parse_degrees)]
+        /// Tilt (elevation), degrees -327.68..=327.67 (+ = up; the mount's travel and software limits apply).
+        #[arg(value_parser = parse_tilt)]
         tilt: f64,
-        /// Poll the position until the mount stops, and report where.
-        #[arg(long)]
-        wait: bool,
-        /// Give up waiting after this many milliseconds.
-        #[arg(long, default_value_t = 60_000, value_name = "MS")]
-        wait_timeout: u64,
+        #[command(flatten)]
+        wait: WaitArgs,
     },
-    /// Presets 00..FF (Snn, Pnn, P?nn, S?nn).
-    #[command(subcommand)]
+    /// Presets 0..255 (decimal, or hex with 0x): store, recall, query (Snn, Pnn, P?nn, S?nn).
+    #[command(
+        subcommand,
+        after_help = "Preset numbers are decimal 0..255 in and out (hex with a 0x prefix accepted); the wire carries two hex digits (preset 255 = FF).\n\nExamples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 preset store 12\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 preset recall 12 --wait\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 preset query 0x0C"
+    )]
     Preset(PresetCmd),
-    /// Slew continuously until `stop` (PL, PR, TU, TD).
-    Slew { direction: Direction },
-    /// Stop: motion (PT, default), one axis (PS, TS) or the motors (HS).
+    /// Slew continuously (PL, PR, TU, TD); see --for/--hold and the dead-man below.
+    #[command(after_help = concat!(
+        "Continuous motion and gcud's dead-man: through gcud (--tcp) a motion is stopped as soon as the connection that started it closes, i.e. when gimbalctl exits. Without --for or --hold the motion therefore lasts only an instant through gcud; on a bus (--serial) it goes on until its stop command (PS or TS, `gimbalctl stop`).",
+        "\n\nExamples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 slew right --for 2s\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 slew up --hold      # until Ctrl-C\n  gimbalctl --serial /dev/ttyUSB0 --to 1.1.1 slew left          # until `stop pan`"
+    ))]
+    Slew {
+        /// left = pan clockwise (PL), right = pan counter-clockwise (PR), up = tilt up (TU), down = tilt down (TD).
+        direction: Direction,
+        #[command(flatten)]
+        jog: JogArgs,
+    },
+    /// Stop: all motion (PT, default), one axis (PS, TS), the lens (FS, ZS) or the motors (HS).
+    #[command(
+        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 stop\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 stop pan"
+    )]
     Stop {
+        /// all = PT, pan = PS, tilt = TS, zoom = ZS, focus = FS, motors = HS (motors off).
         #[arg(default_value = "all")]
         what: StopWhat,
     },
     /// Halt: stop dead, store the position for recall-halt, motors off (HA).
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 halt")]
     Halt,
     /// Go back to the position saved by halt (HP; VP with --lens).
+    #[command(
+        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 recall-halt\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 recall-halt --lens"
+    )]
     RecallHalt {
         /// The lens position instead (VP).
         #[arg(long)]
         lens: bool,
     },
-    /// Proportional speed 0..15 (0..F) for pan or tilt moves (SPn, STn).
+    /// Proportional speed for pan or tilt moves (SPn, STn).
+    #[command(
+        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 speed pan 8     # sends SP8\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 speed tilt F    # sends STF"
+    )]
     Speed {
+        /// pan (SPn) or tilt (STn).
         axis: AxisArg,
-        #[arg(value_parser = parse_speed)]
+        /// Proportional speed 0..=15 (0 = slowest, 15 = maximum); decimal or one hex digit 0..F.
+        #[arg(value_parser = parse_speed, value_name = "SPEED")]
         speed: u8,
     },
     /// Query (R?, RP?, RT?) or set (RPnnnn, RTnnnn) discrete rates, degrees per second.
+    #[command(
+        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 rate\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 rate pan 10.25   # sends RP0401"
+    )]
     Rate {
+        /// pan or tilt; both when omitted (query only).
         axis: Option<AxisArg>,
-        #[arg(requires = "axis", value_parser = parse_rate)]
+        /// New rate, degrees per second 0..=655.35 (hundredths on the wire, Table 12); query when omitted.
+        #[arg(requires = "axis", value_parser = parse_rate, value_name = "DEG_PER_S")]
         value: Option<f64>,
     },
     /// Query (A?, AP?, AT?) or set (APnnnn, ATnnnn) accelerations, degrees per second squared.
+    #[command(
+        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 accel\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 accel tilt 80"
+    )]
     Accel {
+        /// pan or tilt; both when omitted (query only).
         axis: Option<AxisArg>,
-        #[arg(requires = "axis", value_parser = parse_rate)]
+        /// New acceleration, degrees per second squared 0..=655.35 (Table 12); query when omitted.
+        #[arg(requires = "axis", value_parser = parse_accel, value_name = "DEG_PER_S2")]
         value: Option<f64>,
     },
     /// Vector moves: both axes arrive together (VM1 / VM0).
-    Vector { state: OnOff },
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 vector on")]
+    Vector {
+        /// on (VM1) or off (VM0).
+        state: OnOff,
+    },
     /// Go home, pan 0 tilt 0 (HO).
-    Home,
+    #[command(
+        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 home --wait\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.255.255 home   # every gimbal of GCU 5 (no ACK: written)"
+    )]
+    Home {
+        #[command(flatten)]
+        wait: WaitArgs,
+    },
     /// Verify home (HV, Table 14).
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 verify-home")]
     VerifyHome,
-    /// Run the initialisation sequence and report Table 9 (IX).
+    /// Run the initialisation sequence and report Table 9 (IX); waits up to --init-timeout.
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 init")]
     Init,
     /// Software limits: query (L?), set raw 12-bit values (LS) or clear (LC).
+    #[command(
+        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 limits\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 limits set 100 50 30 20\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 limits clear"
+    )]
     Limits {
         #[command(subcommand)]
         action: Option<LimitsCmd>,
     },
-    /// Rate gains: query (G?) or set 0.3..3.0 (GRPnn, GRTnn).
+    /// Rate gains: query (G?) or set 0.3..=3.0 (GRPnn, GRTnn).
+    #[command(
+        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 gains\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 gains set tilt 1.5   # sends GRT0F"
+    )]
     Gains {
         #[command(subcommand)]
         action: Option<GainsCmd>,
     },
-    /// Auxiliary relays 0..3: status (LR), open (L0..L3), close (L8..LB).
+    /// Auxiliary relays 0..=3: status (LR), open (L0..L3), close (L8..LB).
+    #[command(
+        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 relay\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 relay close 2"
+    )]
     Relay {
         #[command(subcommand)]
         action: Option<RelayCmd>,
     },
-    /// Lens position: query (V?) or go to zoom/focus 0..4095 (Vzzzfff).
+    /// Lens position: query (V?) or go to zoom/focus 0..=4095 (Vzzzfff, Table 17).
+    #[command(
+        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 lens\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 lens goto 2048 100 --wait"
+    )]
     Lens {
         #[command(subcommand)]
         action: Option<LensCmd>,
     },
     /// Camera and lens power (CN, CX) or camera/relay status (VS).
-    Camera { state: CameraState },
-    /// Focus: far, near, stop, speed 0..9, auto on/off (FF, FN, FS, Fn, F?, FA, FX).
+    #[command(
+        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 camera status\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 camera on"
+    )]
+    Camera {
+        /// on (CN: lens and camera relay on), off (CX), status (VS: camera power and relays).
+        state: CameraState,
+    },
+    /// Focus: far, near (continuous, see --for/--hold), stop, speed 0..=9, auto on/off (FF, FN, FS, Fn, F?, FA, FX).
+    #[command(after_help = concat!(
+        "Focus far/near are continuous motions: through gcud (--tcp) gcud's dead-man stops them as soon as the connection that started them closes (when gimbalctl exits). Use --for or --hold; on a bus (--serial) they go on until `focus stop` (FS).",
+        "\n\nExamples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 focus far --for 500ms\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 focus speed 9\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 focus speed        # query (F?)"
+    ))]
     Focus {
         #[command(subcommand)]
         action: FocusCmd,
     },
-    /// Zoom: in, out, stop, speed 0..9, digital A..F (ZI, ZO, ZS, Zn, Z?, ZA..ZF).
+    /// Zoom: in, out (continuous, see --for/--hold), stop, speed 0..=9, digital A..F (ZI, ZO, ZS, Zn, Z?, ZA..ZF).
+    #[command(after_help = concat!(
+        "Zoom in/out are continuous motions: through gcud (--tcp) gcud's dead-man stops them as soon as the connection that started them closes (when gimbalctl exits). Use --for or --hold; on a bus (--serial) they go on until `zoom stop` (ZS).",
+        "\n\nExamples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 zoom in --for 1s\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 zoom out --hold\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 zoom speed 5"
+    ))]
     Zoom {
         #[command(subcommand)]
         action: ZoomCmd,
     },
-    /// Identification block (D?, Table 6).
+    /// Identification block: ID, revision, name, serial (D?, Table 6).
+    #[command(
+        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 id\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.0.0 id      # the GCU itself"
+    )]
     Id,
-    /// Awake status (AW, Table 5).
+    /// Awake status: axes initialised, motors, error (AW, Table 5).
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 status")]
     Status,
-    /// Error codes (E?, Table 6A).
+    /// Error bits per axis, by name (E?, Table 6A).
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 errors")]
     Errors,
-    /// Status bits (I?, Table 6B).
+    /// Status bits per axis, by name (I?, Table 6B).
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 status-bits")]
     StatusBits,
     /// Maximum data rate (B?) or switch the device's rate (C0..C7).
+    #[command(
+        after_help = "Examples:\n  gimbalctl --serial /dev/ttyUSB0 --to 1.1.1 data-rate\n  gimbalctl --serial /dev/ttyUSB0 --to 1.1.1 data-rate 38400   # then use --baud 38400"
+    )]
     DataRate {
-        /// New rate in bit/s (1200 .. 115200).
-        #[arg(value_parser = parse_baud)]
+        /// New rate in bit/s: 1200, 2400, 4800, 9600, 19200, 38400, 57600 or 115200; query when omitted.
+        #[arg(value_parser = parse_baud, value_name = "BPS")]
         bps: Option<u32>,
     },
     /// Program the device's address (#NN); best with only one device on the bus.
+    #[command(after_help = "Examples:\n  gimbalctl --serial /dev/ttyUSB0 --to 1.1.255 set-address 9")]
     SetAddress {
-        #[arg(value_parser = clap::value_parser!(u8).range(1..=254))]
+        /// New device ID 1..=254.
+        #[arg(value_parser = clap::value_parser!(u8).range(1..=254), value_name = "ID")]
         id: u8,
     },
-    /// Auxiliary serial port 0 or 1 (*xpc, *xpt, *xpr, *xpn, *xpf).
+    /// Auxiliary serial port 0 or 1 (*xpc, *xpt, *xpr, *xpn, *xpf, Table 18).
+    #[command(
+        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 aux 1 configure 19200 8 1 even\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 aux 1 send 'ping\\x0D'\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 aux 1 read 16"
+    )]
     Aux {
-        #[arg(value_parser = clap::value_parser!(u8).range(0..=1))]
+        /// Auxiliary port 0 or 1.
+        #[arg(value_parser = clap::value_parser!(u8).range(0..=1), value_name = "PORT")]
         port: u8,
         #[command(subcommand)]
         action: AuxCmd,
     },
     /// Send any payload (\xNN escapes allowed) and show what comes back.
-    Raw { payload: String },
+    #[command(
+        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 raw 'P?'\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 raw VS"
+    )]
+    Raw {
+        /// Payload, 1..=256 bytes of text; \xNN for any byte.
+        #[arg(value_name = "PAYLOAD")]
+        payload: String,
+    },
     /// Poll position and lens and keep one live line (JSON: one object per sample).
+    #[command(
+        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 watch\n  gimbalctl --json --tcp 127.0.0.1:4001 --to 5.1.1 watch --rate 10 --count 20"
+    )]
     Watch {
-        /// Samples per second.
-        #[arg(long, default_value_t = 4.0)]
+        /// Samples per second, more than 0 and at most 100.
+        #[arg(long, default_value_t = 4.0, value_name = "HZ")]
         rate: f64,
         /// Stop after this many samples (default: until interrupted).
-        #[arg(long)]
+        #[arg(long, value_name = "N")]
         count: Option<u64>,
     },
-    /// Print the frame for PAYLOAD as hex bytes (no I/O).
-    Encode { payload: String },
+    /// Find what is reachable: GCUs, their ports, the devices on each (queries only: D?, AW, I?).
+    #[command(after_help = "\
+Through gcud (--tcp) the scan asks each group of --gcus for its GCU's identity (D? to G.0.0; groups \
+without a route are skipped), then each port of --ports of every GCU found (a port the GCU does not \
+have is skipped at once), then D?, AW and I? to each device of --devices on each port. On a bus \
+(--serial) it sweeps the devices at --bus GROUP.PORT. Only queries are sent, never a motion, one \
+at a time, --interval apart. Silent addresses are counted; garbage, time-outs after an ACK and \
+other failures are reported per address and the scan goes on; two answers to one address \
+(duplicate device IDs on one bus) are reported as a collision.
+
+Examples:
+  gimbalctl --tcp 127.0.0.1:4001 scan
+  gimbalctl --tcp 127.0.0.1:4001 scan --gcus 5 --ports 1-2 --devices 1-16
+  gimbalctl --serial /dev/ttyUSB0 scan --devices 1-32 --timeout 100
+  gimbalctl --json --tcp 127.0.0.1:4001 scan --devices 1-8")]
+    Scan(ScanArgs),
+    /// Print the frame for PAYLOAD as hex bytes (no I/O; needs --to).
+    #[command(after_help = "Examples:\n  gimbalctl encode --to 5.1.12 --from 2 'P?'     # F8 05 01 0C 02 02 50 3F A5")]
+    Encode {
+        /// Payload, 1..=256 bytes of text; \xNN for any byte.
+        #[arg(value_name = "PAYLOAD")]
+        payload: String,
+    },
     /// Decode hex bytes (arguments or stdin) into framer events (no I/O).
-    Decode { hex: Vec<String> },
+    #[command(
+        after_help = "Examples:\n  gimbalctl decode F8 05 01 0C 02 02 50 3F A5 06\n  echo 'F8 05 01 0C 02 02 50 3F A5' | gimbalctl --json decode"
+    )]
+    Decode {
+        /// Hex bytes, spaces optional; read from stdin when none are given.
+        #[arg(value_name = "HEX")]
+        hex: Vec<String>,
+    },
 }
+
+#[derive(Debug, Args)]
+pub struct ScanArgs {
+    /// Groups whose GCU to look for (through gcud), e.g. 5, 1-254, 2,5-7; 1..=254.
+    #[arg(long, default_value = "1-254", value_parser = parse_id_list, value_name = "LIST")]
+    pub gcus: IdList,
+    /// Ports of each GCU to sweep, e.g. 1-4; 1..=254.
+    #[arg(long, default_value = "1-254", value_parser = parse_id_list, value_name = "LIST")]
+    pub ports: IdList,
+    /// Device IDs to ask on each port, e.g. 1-16 or 1,3,7; 1..=254.
+    #[arg(long, default_value = "1-254", value_parser = parse_id_list, value_name = "LIST")]
+    pub devices: IdList,
+    /// On a bus (--serial): the GROUP.PORT the devices are addressed at, each 1..=255.
+    #[arg(long, default_value = "255.255", value_parser = parse_bus, value_name = "G.P")]
+    pub bus: (u8, u8),
+    /// Time-out per address (ACK and result), milliseconds 1..=10000.
+    #[arg(long, default_value_t = 300, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..=10_000))]
+    pub timeout: u64,
+    /// Pause between two queries, milliseconds 0..=10000 (rate limit).
+    #[arg(long, default_value_t = 10, value_name = "MS", value_parser = clap::value_parser!(u64).range(0..=10_000))]
+    pub interval: u64,
+}
+
+/// A set of IDs from `1-4,7`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct IdList(pub Vec<u8>);
 
 #[derive(Debug, Subcommand)]
 pub enum PresetCmd {
     /// Store the current position as preset N (Snn).
     Store {
-        #[arg(value_parser = parse_preset)]
+        /// Preset 0..=255 (decimal, or 0x00..=0xFF).
+        #[arg(value_parser = parse_preset, value_name = "N")]
         n: u8,
     },
     /// Go to preset N (Pnn).
     Recall {
-        #[arg(value_parser = parse_preset)]
+        /// Preset 0..=255 (decimal, or 0x00..=0xFF).
+        #[arg(value_parser = parse_preset, value_name = "N")]
         n: u8,
+        #[command(flatten)]
+        wait: WaitArgs,
     },
     /// Position of preset N (P?nn).
     Query {
-        #[arg(value_parser = parse_preset)]
+        /// Preset 0..=255 (decimal, or 0x00..=0xFF).
+        #[arg(value_parser = parse_preset, value_name = "N")]
         n: u8,
     },
     /// Position stored at preset N (S?nn).
     Stored {
-        #[arg(value_parser = parse_preset)]
+        /// Preset 0..=255 (decimal, or 0x00..=0xFF).
+        #[arg(value_parser = parse_preset, value_name = "N")]
         n: u8,
     },
 }
 
 #[derive(Debug, Subcommand)]
 pub enum LimitsCmd {
-    /// Set raw 12-bit limits 0..4095 (Table 10; the unit is the device's).
+    /// Set raw 12-bit limits, each 0..=4095 (Table 10; the unit is the device's).
     Set {
+        /// Pan counter-clockwise (+) limit, raw 0..=4095.
+        #[arg(value_parser = clap::value_parser!(u16).range(0..=4095))]
         pan_ccw: u16,
+        /// Pan clockwise (-) limit, raw 0..=4095.
+        #[arg(value_parser = clap::value_parser!(u16).range(0..=4095))]
         pan_cw: u16,
+        /// Tilt counter-clockwise (up) limit, raw 0..=4095.
+        #[arg(value_parser = clap::value_parser!(u16).range(0..=4095))]
         tilt_ccw: u16,
+        /// Tilt clockwise (down) limit, raw 0..=4095.
+        #[arg(value_parser = clap::value_parser!(u16).range(0..=4095))]
         tilt_cw: u16,
     },
     /// Clear the software limits (LC).
@@ -262,10 +484,12 @@ pub enum LimitsCmd {
 
 #[derive(Debug, Subcommand)]
 pub enum GainsCmd {
-    /// Set a rate gain 0.3..3.0 (Table 7).
+    /// Set a rate gain (Table 7).
     Set {
+        /// pan (GRPnn) or tilt (GRTnn).
         axis: AxisArg,
-        #[arg(value_parser = parse_gain)]
+        /// Rate gain 0.3..=3.0, unitless (tenths on the wire).
+        #[arg(value_parser = parse_gain, value_name = "GAIN")]
         gain: f64,
     },
 }
@@ -274,54 +498,83 @@ pub enum GainsCmd {
 pub enum RelayCmd {
     /// Open (switch off) relay N (L0..L3).
     Open {
-        #[arg(value_parser = clap::value_parser!(u8).range(0..=3))]
+        /// Relay 0..=3.
+        #[arg(value_parser = clap::value_parser!(u8).range(0..=3), value_name = "N")]
         n: u8,
     },
     /// Close (switch on) relay N (L8..LB).
     Close {
-        #[arg(value_parser = clap::value_parser!(u8).range(0..=3))]
+        /// Relay 0..=3.
+        #[arg(value_parser = clap::value_parser!(u8).range(0..=3), value_name = "N")]
         n: u8,
     },
 }
 
 #[derive(Debug, Subcommand)]
 pub enum LensCmd {
-    /// Go to zoom and focus positions 0..4095 (Table 17).
+    /// Go to zoom and focus positions (Table 17).
     Goto {
+        /// Zoom position 0..=4095 (12 bits, the lens's own unit).
         #[arg(value_parser = clap::value_parser!(u16).range(0..=4095))]
         zoom: u16,
+        /// Focus position 0..=4095 (12 bits, the lens's own unit).
         #[arg(value_parser = clap::value_parser!(u16).range(0..=4095))]
         focus: u16,
+        #[command(flatten)]
+        wait: WaitArgs,
     },
 }
 
 #[derive(Debug, Subcommand)]
 pub enum FocusCmd {
-    Far,
-    Near,
+    /// Focus far, continuously (FF) until `focus stop`; see --for/--hold.
+    Far {
+        #[command(flatten)]
+        jog: JogArgs,
+    },
+    /// Focus near, continuously (FN) until `focus stop`; see --for/--hold.
+    Near {
+        #[command(flatten)]
+        jog: JogArgs,
+    },
+    /// Stop focusing (FS).
     Stop,
-    /// Set the speed 0..9 (Fn), or query it (F?) without a value.
+    /// Set the focus speed (Fn), or query it (F?) without a value.
     Speed {
-        #[arg(value_parser = clap::value_parser!(u8).range(0..=9))]
+        /// Speed 0..=9 (0 = slowest, 9 = fastest).
+        #[arg(value_parser = clap::value_parser!(u8).range(0..=9), value_name = "N")]
         n: Option<u8>,
     },
+    /// Auto-focus on (FA; "not implemented" in rev 1.9, devices answer NIC).
     AutoOn,
+    /// Auto-focus off (FX; "not implemented" in rev 1.9, devices answer NIC).
     AutoOff,
 }
 
 #[derive(Debug, Subcommand)]
 pub enum ZoomCmd {
-    In,
-    Out,
+    /// Zoom in, continuously (ZI) until `zoom stop`; see --for/--hold.
+    In {
+        #[command(flatten)]
+        jog: JogArgs,
+    },
+    /// Zoom out, continuously (ZO) until `zoom stop`; see --for/--hold.
+    Out {
+        #[command(flatten)]
+        jog: JogArgs,
+    },
+    /// Stop zooming (ZS).
     Stop,
-    /// Set the speed 0..9 (Zn), or query it (Z?) without a value.
+    /// Set the zoom speed (Zn), or query it (Z?) without a value.
     Speed {
-        #[arg(value_parser = clap::value_parser!(u8).range(0..=9))]
+        /// Speed 0..=9 (0 = slowest, 9 = fastest).
+        #[arg(value_parser = clap::value_parser!(u8).range(0..=9), value_name = "N")]
         n: Option<u8>,
     },
-    /// Digital zoom step A..F.
+    /// Digital zoom step (ZA..ZF; "not implemented" in rev 1.9).
     Digital {
-        #[arg(value_parser = parse_digital)]
+        /// Step A..=F.
+        #[arg(value_parser = parse_digital, value_name = "STEP")]
         step: u8,
     },
 }
@@ -330,17 +583,22 @@ pub enum ZoomCmd {
 pub enum AuxCmd {
     /// Line settings (Table 18).
     Configure {
+        /// Baud rate of the auxiliary port, 1..=115200 bit/s.
         baud: u32,
+        /// Data bits 5..=8.
         #[arg(value_parser = clap::value_parser!(u8).range(5..=8))]
         data_bits: u8,
+        /// Stop bits 1..=2.
         #[arg(value_parser = clap::value_parser!(u8).range(1..=2))]
         stop_bits: u8,
+        /// none, odd or even.
         parity: ParityArg,
     },
-    /// Transmit DATA (1..200 bytes, \xNN escapes allowed).
+    /// Transmit DATA (1..=200 bytes, \xNN escapes allowed).
     Send { data: String },
-    /// Receive up to MAX bytes (1..256).
+    /// Receive up to MAX bytes.
     Read {
+        /// Bytes 1..=256.
         #[arg(value_parser = clap::value_parser!(u16).range(1..=256))]
         max: u16,
     },
@@ -363,6 +621,8 @@ pub enum StopWhat {
     All,
     Pan,
     Tilt,
+    Zoom,
+    Focus,
     Motors,
 }
 
@@ -392,41 +652,159 @@ pub enum ParityArg {
     Even,
 }
 
-fn parse_address(text: &str) -> Result<Address, String> {
-    text.parse::<Address>().map_err(|e| format!("{text:?}: {e}"))
-}
+impl Cmd {
+    /// The subcommand's name as JSON `command` ("goto", "preset recall").
+    pub fn name(&self) -> &'static str {
+        match self {
+            Cmd::Position => "position",
+            Cmd::Goto { .. } => "goto",
+            Cmd::Preset(PresetCmd::Store { .. }) => "preset store",
+            Cmd::Preset(PresetCmd::Recall { .. }) => "preset recall",
+            Cmd::Preset(PresetCmd::Query { .. }) => "preset query",
+            Cmd::Preset(PresetCmd::Stored { .. }) => "preset stored",
+            Cmd::Slew { .. } => "slew",
+            Cmd::Stop { .. } => "stop",
+            Cmd::Halt => "halt",
+            Cmd::RecallHalt { .. } => "recall-halt",
+            Cmd::Speed { .. } => "speed",
+            Cmd::Rate { .. } => "rate",
+            Cmd::Accel { .. } => "accel",
+            Cmd::Vector { .. } => "vector",
+            Cmd::Home { .. } => "home",
+            Cmd::VerifyHome => "verify-home",
+            Cmd::Init => "init",
+            Cmd::Limits { .. } => "limits",
+            Cmd::Gains { .. } => "gains",
+            Cmd::Relay { .. } => "relay",
+            Cmd::Lens { action: None } => "lens",
+            Cmd::Lens { action: Some(_) } => "lens goto",
+            Cmd::Camera { .. } => "camera",
+            Cmd::Focus { .. } => "focus",
+            Cmd::Zoom { .. } => "zoom",
+            Cmd::Id => "id",
+            Cmd::Status => "status",
+            Cmd::Errors => "errors",
+            Cmd::StatusBits => "status-bits",
+            Cmd::DataRate { .. } => "data-rate",
+            Cmd::SetAddress { .. } => "set-address",
+            Cmd::Aux { .. } => "aux",
+            Cmd::Raw { .. } => "raw",
+            Cmd::Watch { .. } => "watch",
+            Cmd::Scan(_) => "scan",
+            Cmd::Encode { .. } => "encode",
+            Cmd::Decode { .. } => "decode",
+        }
+    }
 
-pub fn parse_baud(text: &str) -> Result<u32, String> {
-    let bps: u32 = text.parse().map_err(|_| format!("{text:?} is not a number of bit/s"))?;
-    DataRate::from_bits_per_second(bps).map(|_| bps).ok_or_else(|| {
-        format!("{bps} bit/s is not a protocol rate (1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200)")
-    })
-}
+    /// `--for`/`--hold` of a continuous motion, if this is one.
+    pub fn jog(&self) -> Option<JogArgs> {
+        match self {
+            Cmd::Slew { jog, .. }
+            | Cmd::Focus {
+                action: FocusCmd::Far { jog } | FocusCmd::Near { jog },
+            }
+            | Cmd::Zoom {
+                action: ZoomCmd::In { jog } | ZoomCmd::Out { jog },
+            } => Some(*jog),
+            _ => None,
+        }
+    }
 
-fn parse_degrees(text: &str) -> Result<f64, String> {
-    let v: f64 = text
-        .parse()
-        .map_err(|_| format!("{text:?} is not a number of degrees"))?;
-    if (-327.68..=327.67).contains(&v) {
-        Ok(v)
-    } else {
-        Err(format!("{v} degrees is out of range -327.68..=327.67"))
+    /// `--wait` of a positioning command, if given.
+    pub fn wait(&self) -> Option<WaitArgs> {
+        match self {
+            Cmd::Goto { wait, .. }
+            | Cmd::Home { wait }
+            | Cmd::Preset(PresetCmd::Recall { wait, .. })
+            | Cmd::Lens {
+                action: Some(LensCmd::Goto { wait, .. }),
+            } => Some(*wait).filter(|w| w.wait),
+            _ => None,
+        }
     }
 }
 
-fn parse_rate(text: &str) -> Result<f64, String> {
-    let v: f64 = text.parse().map_err(|_| format!("{text:?} is not a number"))?;
-    if (0.0..=655.35).contains(&v) {
+fn parse_address(text: &str) -> Result<Address, String> {
+    text.parse::<Address>()
+        .map_err(|e| format!("{text:?}: {e}; expected GROUP.PORT.DEVICE, each 0..=255, e.g. 5.1.1"))
+}
+
+/// `HOST:PORT` with a port 1..=65535.
+pub fn parse_host_port(text: &str) -> Result<String, String> {
+    const HINT: &str = "expected HOST:PORT, e.g. 127.0.0.1:4001";
+    let Some((host, port)) = text.rsplit_once(':') else {
+        return Err(format!("{text:?} has no port: {HINT}"));
+    };
+    if host.is_empty() || host == "[" {
+        return Err(format!("{text:?} has no host: {HINT}"));
+    }
+    if host.contains(':') && !(host.starts_with('[') && host.ends_with(']')) {
+        return Err(format!(
+            "{text:?}: an IPv6 host goes in brackets, e.g. [::1]:4001; {HINT}"
+        ));
+    }
+    match port.parse::<u16>() {
+        Ok(p) if p > 0 => Ok(text.to_string()),
+        _ => Err(format!("{text:?}: port {port:?} is not 1..=65535; {HINT}")),
+    }
+}
+
+pub fn parse_baud(text: &str) -> Result<u32, String> {
+    const RATES: &str = "1200, 2400, 4800, 9600, 19200, 38400, 57600 or 115200";
+    let bps: u32 = text
+        .parse()
+        .map_err(|_| format!("{text:?} is not a number of bit/s ({RATES})"))?;
+    DataRate::from_bits_per_second(bps)
+        .map(|_| bps)
+        .ok_or_else(|| format!("{bps} bit/s is not a protocol rate ({RATES})"))
+}
+
+fn parse_angle(what: &str, text: &str) -> Result<f64, String> {
+    let v: f64 = text
+        .parse()
+        .map_err(|_| format!("{what} {text:?} is not a number of degrees (-327.68..=327.67)"))?;
+    if (-327.68..=327.67).contains(&v) {
         Ok(v)
     } else {
         Err(format!(
-            "{v} is out of range 0..=655.35 (hundredths on the wire, 16 bits)"
+            "{what} {v} degrees is out of range -327.68..=327.67 (16-bit hundredths of a degree, Table 15)"
         ))
     }
 }
 
+fn parse_pan(text: &str) -> Result<f64, String> {
+    parse_angle("pan", text)
+}
+
+fn parse_tilt(text: &str) -> Result<f64, String> {
+    parse_angle("tilt", text)
+}
+
+fn parse_hundredths(what: &str, unit: &str, text: &str) -> Result<f64, String> {
+    let v: f64 = text
+        .parse()
+        .map_err(|_| format!("{what} {text:?} is not a number of {unit} (0..=655.35)"))?;
+    if (0.0..=655.35).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!(
+            "{what} {v} {unit} is out of range 0..=655.35 (hundredths on the wire, 16 bits, Table 12)"
+        ))
+    }
+}
+
+fn parse_rate(text: &str) -> Result<f64, String> {
+    parse_hundredths("rate", "deg/s", text)
+}
+
+fn parse_accel(text: &str) -> Result<f64, String> {
+    parse_hundredths("acceleration", "deg/s²", text)
+}
+
 fn parse_gain(text: &str) -> Result<f64, String> {
-    let v: f64 = text.parse().map_err(|_| format!("{text:?} is not a number"))?;
+    let v: f64 = text
+        .parse()
+        .map_err(|_| format!("rate gain {text:?} is not a number (0.3..=3.0)"))?;
     if (0.3..=3.0).contains(&v) {
         Ok(v)
     } else {
@@ -438,8 +816,10 @@ fn parse_gain(text: &str) -> Result<f64, String> {
 fn parse_speed(text: &str) -> Result<u8, String> {
     let v = match text.parse::<u8>() {
         Ok(v) => v,
-        Err(_) if text.len() == 1 => u8::from_str_radix(text, 16).map_err(|_| format!("{text:?} is not a speed"))?,
-        Err(_) => return Err(format!("{text:?} is not a speed 0..15 (or 0..F)")),
+        Err(_) if text.len() == 1 => {
+            u8::from_str_radix(text, 16).map_err(|_| format!("speed {text:?} is not 0..=15 (or one hex digit 0..F)"))?
+        }
+        Err(_) => return Err(format!("speed {text:?} is not 0..=15 (or one hex digit 0..F)")),
     };
     if v <= 15 {
         Ok(v)
@@ -449,12 +829,12 @@ fn parse_speed(text: &str) -> Result<u8, String> {
 }
 
 /// 0..255 decimal, or hex with a `0x` prefix (presets are `00..FF` on the wire).
-fn parse_preset(text: &str) -> Result<u8, String> {
+pub fn parse_preset(text: &str) -> Result<u8, String> {
     let parsed = match text.strip_prefix("0x").or_else(|| text.strip_prefix("0X")) {
         Some(hex) => u8::from_str_radix(hex, 16),
         None => text.parse(),
     };
-    parsed.map_err(|_| format!("preset {text:?} is not 0..255 (or 0x00..0xFF)"))
+    parsed.map_err(|_| format!("preset {text:?} is out of range 0..=255 (decimal, or 0x00..=0xFF)"))
 }
 
 fn parse_digital(text: &str) -> Result<u8, String> {
@@ -462,6 +842,86 @@ fn parse_digital(text: &str) -> Result<u8, String> {
         "A" | "B" | "C" | "D" | "E" | "F" | "a" | "b" | "c" | "d" | "e" | "f" => {
             u8::from_str_radix(text, 16).map_err(|e| e.to_string())
         }
-        _ => Err(format!("digital zoom step {text:?} is not one of A..F")),
+        _ => Err(format!("digital zoom step {text:?} is not one of A..=F")),
+    }
+}
+
+/// `2s`, `500ms`, `1.5s`, `1m`: 1 ms ..= 1 h.
+pub fn parse_duration(text: &str) -> Result<Duration, String> {
+    const HINT: &str = "expected a duration like 2s, 500ms, 1.5s or 1m (1ms..=1h)";
+    let t = text.trim();
+    let (number, scale) = if let Some(n) = t.strip_suffix("ms") {
+        (n, 0.001)
+    } else if let Some(n) = t.strip_suffix('s') {
+        (n, 1.0)
+    } else if let Some(n) = t.strip_suffix('m') {
+        (n, 60.0)
+    } else {
+        return Err(format!("{text:?} has no unit: {HINT}"));
+    };
+    let v: f64 = number.trim().parse().map_err(|_| format!("{text:?}: {HINT}"))?;
+    let secs = v * scale;
+    if secs.is_finite() && (0.001..=3600.0).contains(&secs) {
+        Ok(Duration::from_secs_f64(secs))
+    } else {
+        Err(format!("{text:?} is out of range: {HINT}"))
+    }
+}
+
+/// `1-4,7`: IDs 1..=254.
+pub fn parse_id_list(text: &str) -> Result<IdList, String> {
+    const HINT: &str = "expected IDs 1..=254 like 5, 1-8 or 1,3,5-7";
+    let mut ids = Vec::new();
+    for part in text.split(',').map(str::trim) {
+        let (lo, hi) = match part.split_once('-') {
+            Some((a, b)) => (a.trim(), b.trim()),
+            None => (part, part),
+        };
+        let parse = |s: &str| -> Result<u8, String> {
+            match s.parse::<u8>() {
+                Ok(v) if (1..=254).contains(&v) => Ok(v),
+                _ => Err(format!("{text:?}: {s:?} is not 1..=254; {HINT}")),
+            }
+        };
+        let (lo, hi) = (parse(lo)?, parse(hi)?);
+        if lo > hi {
+            return Err(format!("{text:?}: {lo}-{hi} is empty; {HINT}"));
+        }
+        ids.extend(lo..=hi);
+    }
+    ids.sort_unstable();
+    ids.dedup();
+    Ok(IdList(ids))
+}
+
+/// `GROUP.PORT` of a bus, each 1..=255.
+fn parse_bus(text: &str) -> Result<(u8, u8), String> {
+    const HINT: &str = "expected GROUP.PORT, each 1..=255, e.g. 1.1 or 255.255";
+    let (g, p) = text.split_once('.').ok_or_else(|| format!("{text:?}: {HINT}"))?;
+    let parse = |s: &str| match s.parse::<u8>() {
+        Ok(v) if v >= 1 => Ok(v),
+        _ => Err(format!("{text:?}: {HINT}")),
+    };
+    Ok((parse(g)?, parse(p)?))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn durations_host_ports_and_lists() {
+        assert_eq!(parse_duration("2s"), Ok(Duration::from_secs(2)));
+        assert_eq!(parse_duration("500ms"), Ok(Duration::from_millis(500)));
+        assert_eq!(parse_duration("1.5s"), Ok(Duration::from_millis(1500)));
+        assert!(parse_duration("2").is_err() && parse_duration("0s").is_err() && parse_duration("2h").is_err());
+        assert!(parse_host_port("127.0.0.1").unwrap_err().contains("127.0.0.1:4001"));
+        assert!(parse_host_port("127.0.0.1:0").is_err() && parse_host_port(":4001").is_err());
+        assert!(parse_host_port("[::1]:4001").is_ok() && parse_host_port("localhost:4001").is_ok());
+        assert_eq!(parse_id_list("1-3,7,2"), Ok(IdList(vec![1, 2, 3, 7])));
+        assert!(parse_id_list("0-3").is_err() && parse_id_list("4-2").is_err());
+        assert_eq!(parse_preset("255"), Ok(255));
+        assert_eq!(parse_preset("0xFF"), Ok(255));
+        assert!(parse_preset("256").unwrap_err().contains("0..=255"));
     }
 }

@@ -16,7 +16,7 @@ fn address_json(a: &Address) -> Value {
 /// The typed parse of a payload, or null for one that fits no command.
 pub fn command_json(payload: &[u8]) -> Value {
     match Command::parse_strict(payload) {
-        Ok(c) => json!({ "mnemonic": c.mnemonic(), "typed": format!("{c:?}") }),
+        Ok(c) => crate::output::command_json(&c, payload),
         Err(_) => Value::Null,
     }
 }

@@ -4,6 +4,9 @@
 use std::fmt;
 
 use sagebrush_protocol::Undelivered;
+use serde_json::Value;
+
+use crate::cli::{EXIT_STOP_UNCONFIRMED, EXIT_STOPPED_SHORT, EXIT_WAIT_TIMEOUT};
 
 /// Exit code of an undelivered command: 7 + the report's failure code
 /// (ARCHITECTURE "Delivery contract"), so 8..=19, one per reason.
@@ -30,6 +33,12 @@ pub enum CtlError {
     BadReply(String),
     /// A GCU reported that it could not deliver the command (exit 8..=19).
     Undelivered(Undelivered, String),
+    /// `--wait`: the motion ended away from its target (exit 20); JSON fields.
+    StoppedShort(String, Value),
+    /// `--wait`: still moving when the wait timed out (exit 21); JSON fields.
+    WaitTimeout(String, Value),
+    /// The stop after `--for`/`--hold` was not acknowledged (exit 22): why.
+    StopUnconfirmed(String, Box<CtlError>),
 }
 
 impl CtlError {
@@ -43,6 +52,9 @@ impl CtlError {
             CtlError::NoResult(_) => 6,
             CtlError::BadReply(_) => 7,
             CtlError::Undelivered(failure, _) => undelivered_exit_code(*failure),
+            CtlError::StoppedShort(..) => EXIT_STOPPED_SHORT,
+            CtlError::WaitTimeout(..) => EXIT_WAIT_TIMEOUT,
+            CtlError::StopUnconfirmed(..) => EXIT_STOP_UNCONFIRMED,
         }
     }
 
@@ -57,6 +69,21 @@ impl CtlError {
             CtlError::NoResult(_) => "no_result",
             CtlError::BadReply(_) => "bad_result",
             CtlError::Undelivered(failure, _) => failure.name(),
+            CtlError::StoppedShort(..) => "stopped_short",
+            CtlError::WaitTimeout(..) => "wait_timeout",
+            CtlError::StopUnconfirmed(..) => "stop_unconfirmed",
+        }
+    }
+
+    /// Extra typed JSON fields of this failure (merged into the error object).
+    pub fn detail(&self) -> Value {
+        match self {
+            CtlError::StoppedShort(_, v) | CtlError::WaitTimeout(_, v) => v.clone(),
+            CtlError::StopUnconfirmed(_, why) => serde_json::json!({
+                "stop_outcome": why.kind(),
+                "stop_exit_code": why.exit_code(),
+            }),
+            _ => Value::Null,
         }
     }
 
@@ -69,7 +96,10 @@ impl CtlError {
             | CtlError::Nic(m)
             | CtlError::NoResult(m)
             | CtlError::BadReply(m)
-            | CtlError::Undelivered(_, m) => m,
+            | CtlError::Undelivered(_, m)
+            | CtlError::StoppedShort(m, _)
+            | CtlError::WaitTimeout(m, _)
+            | CtlError::StopUnconfirmed(m, _) => m,
         }
     }
 }

@@ -6,8 +6,11 @@
 mod cli;
 mod codec;
 mod error;
+mod jog;
+mod motion;
 mod output;
 mod request;
+mod scan;
 mod session;
 mod watch;
 
@@ -17,8 +20,8 @@ use std::time::Duration;
 use clap::Parser;
 use sagebrush_host::hex::payload_text;
 use sagebrush_host::master::Exchange;
-use sagebrush_protocol::{Command, Outcome, Position, Reply};
-use serde_json::{Value, json};
+use sagebrush_protocol::{Address, Command, Outcome, Reply};
+use serde_json::{Map, Value, json};
 
 use crate::cli::{Cli, Cmd};
 use crate::error::CtlError;
@@ -32,10 +35,17 @@ fn main() -> ExitCode {
         return ExitCode::from(2);
     }
     let result = match &cli.command {
-        Cmd::Encode { payload } => codec::encode(cli.global.to, cli.global.from, payload, as_json),
+        Cmd::Encode { payload } => {
+            destination(&cli).and_then(|to| codec::encode(to, cli.global.from, payload, as_json))
+        }
         Cmd::Decode { hex } => codec::decode(hex, as_json),
         _ => match tokio::runtime::Builder::new_current_thread().enable_all().build() {
-            Ok(rt) => rt.block_on(run(&cli)),
+            Ok(rt) => {
+                let r = rt.block_on(run(&cli));
+                // A blocking stdin read (--hold) must not keep the process alive.
+                rt.shutdown_background();
+                r
+            }
             Err(e) => Err(CtlError::Io(format!("cannot start the runtime: {e}"))),
         },
     };
@@ -43,16 +53,18 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             if as_json {
-                println!(
-                    "{}",
-                    json!({
-                        "ok": false,
-                        "dest": cli.global.to.to_string(),
-                        "outcome": e.kind(),
-                        "error": e.to_string(),
-                        "exit_code": e.exit_code(),
-                    })
-                );
+                let mut value = json!({
+                    "ok": false,
+                    "command": cli.command.name(),
+                    "dest": cli.global.to.map(|a| a.to_string()),
+                    "outcome": e.kind(),
+                    "error": e.to_string(),
+                    "exit_code": e.exit_code(),
+                });
+                if let (Value::Object(m), Value::Object(extra)) = (&mut value, e.detail()) {
+                    m.extend(extra);
+                }
+                println!("{value}");
             }
             eprintln!("gimbalctl: {e}");
             ExitCode::from(e.exit_code())
@@ -60,44 +72,65 @@ fn main() -> ExitCode {
     }
 }
 
+/// `--to`, which every command to a device needs (no silent default).
+fn destination(cli: &Cli) -> Result<Address, CtlError> {
+    cli.global.to.ok_or_else(|| {
+        CtlError::Usage(format!(
+            "`{}` needs --to GROUP.PORT.DEVICE: which device? e.g. --to 5.1.1 (GCU 5, port 1, device 1; \
+             5.0.0 is GCU 5 itself; 255 is a wildcard); `gimbalctl scan` lists what answers",
+            cli.command.name()
+        ))
+    })
+}
+
 async fn run(cli: &Cli) -> Result<(), CtlError> {
     let g = &cli.global;
+    if let Cmd::Scan(args) = &cli.command {
+        return scan::scan(g, args).await;
+    }
+    let to = destination(cli)?;
     let payload = request::payload(&cli.command)?;
-    let mut session = Session::open(g).await?;
+    let wait = cli.command.wait();
+    if wait.is_some() && (to.device == 255 || to.port == 255 || to.group == 255) {
+        return Err(CtlError::Usage(format!(
+            "--wait polls one device's position, and {to} is a wildcard address: give one device, e.g. --to 5.1.1"
+        )));
+    }
+    let mut session = Session::open(g, to).await?;
     if let Cmd::Watch { rate, count } = cli.command {
         return watch::watch(&mut session, rate, count, g.json).await;
     }
     let Some(payload) = payload else {
         return Err(CtlError::Usage("this subcommand sends nothing".into()));
     };
+    if let Some(j) = cli.command.jog().filter(|j| j.duration.is_some() || j.hold) {
+        return jog::run(&mut session, &cli.command, &payload, j, g.json).await;
+    }
+    let command = Command::parse(&payload);
+    // A preset's position, known before the recall, is what --wait aims at.
+    let target = match wait {
+        Some(_) => Some(motion::target(&mut session, &command).await?),
+        None => None,
+    };
     let ex = session.exchange(&payload).await?;
     let raw = matches!(cli.command, Cmd::Raw { .. });
-    let (text, mut value) = report(&session, &payload, &ex, raw)?;
-    if let Cmd::Goto {
-        pan,
-        tilt,
-        wait: true,
-        wait_timeout,
-    } = cli.command
-    {
-        let target = match Command::parse(&payload) {
-            Command::GoTo(p) => p,
-            _ => Position::default(),
-        };
-        let (last, reached) = wait_for_stop(&mut session, target, Duration::from_millis(wait_timeout)).await?;
-        value["final"] = output::position_json(&last);
-        value["reached"] = reached.into();
+    let (text, mut value) = report(&session, &cli.command, &payload, &ex, raw)?;
+    if cli.command.jog().is_some() && session.over_tcp && ex.outcome != Outcome::Broadcast {
+        eprintln!(
+            "gimbalctl: note: through gcud this motion stops as soon as gimbalctl exits (gcud's dead-man); \
+             use --for DURATION or --hold to keep it going"
+        );
+    }
+    if let (Some(w), Some(target)) = (wait, target) {
+        let arrived = motion::wait(&mut session, target, Duration::from_millis(w.wait_timeout)).await?;
+        if let Value::Object(m) = &mut value {
+            if let Value::Object(extra) = arrived.json() {
+                m.extend(extra);
+            }
+        }
         if !g.json {
-            println!(
-                "{} at {}{}",
-                if reached { "arrived" } else { "stopped short" },
-                output::position_text(&last).trim(),
-                if reached {
-                    String::new()
-                } else {
-                    format!(" (target pan {pan:.2}° tilt {tilt:.2}°; software limits or travel?)")
-                }
-            );
+            println!("{text}");
+            println!("{}", arrived.text());
             return Ok(());
         }
     }
@@ -115,21 +148,48 @@ async fn run(cli: &Cli) -> Result<(), CtlError> {
     Ok(())
 }
 
-/// The text and JSON of a successful exchange.
-fn report(session: &Session, payload: &[u8], ex: &Exchange, raw: bool) -> Result<(String, Value), CtlError> {
+/// The JSON fields every exchange has: what was asked, what was sent, how it went.
+pub fn exchange_json(session: &Session, cmd: &Cmd, payload: &[u8], ex: &Exchange, outcome: &str) -> Map<String, Value> {
     let command = Command::parse(payload);
+    let mut m = Map::new();
+    m.insert("ok".into(), true.into());
+    m.insert("command".into(), cmd.name().into());
+    m.insert("sent".into(), payload_text(payload).into());
+    m.insert("mnemonic".into(), command.mnemonic().into());
+    if let Value::Object(args) = output::command_json(&command, payload) {
+        for (k, v) in args {
+            if k != "name" && k != "mnemonic" {
+                m.insert(k, v);
+            }
+        }
+    }
+    m.insert("dest".into(), session.to.to_string().into());
+    m.insert("source".into(), session.from.into());
+    m.insert("outcome".into(), outcome.into());
+    m.insert("transmissions".into(), ex.transmissions.into());
+    m.insert("naks_received".into(), ex.naks_received.into());
+    m.insert("naks_sent".into(), ex.naks_sent.into());
+    m.insert("noise_bytes".into(), ex.noise_bytes.into());
+    m.insert("elapsed_ms".into(), (ex.elapsed.as_millis() as u64).into());
+    m
+}
+
+/// The text and JSON of a successful exchange.
+fn report(session: &Session, cmd: &Cmd, payload: &[u8], ex: &Exchange, raw: bool) -> Result<(String, Value), CtlError> {
+    let command = Command::parse(payload);
+    let sent = payload_text(payload);
     let (text, result, outcome) = match &ex.result {
         Some(frame) => {
             let p = frame.frame().payload();
             match Reply::parse(&command, p) {
                 Ok(reply) => {
-                    let (t, v) = output::describe(&reply);
+                    let (t, v) = output::describe(&command, &reply);
                     (t, v, "result")
                 }
-                Err(_) if raw => (payload_text(p), Value::Null, "result"),
+                Err(_) if raw => (payload_text(p), json!({ "raw": payload_text(p) }), "result"),
                 Err(e) => {
                     return Err(CtlError::BadReply(format!(
-                        "result of {} from {}: {e} (payload \"{}\")",
+                        "result of {sent} ({}) from {}: {e} (payload \"{}\")",
                         command.mnemonic(),
                         session.to,
                         payload_text(p)
@@ -139,57 +199,19 @@ fn report(session: &Session, payload: &[u8], ex: &Exchange, raw: bool) -> Result
         }
         None if ex.outcome == Outcome::Broadcast => (
             format!(
-                "{} sent to every device (broadcast: no answer awaited)",
-                command.mnemonic()
+                "{sent} sent to every device of {} (broadcast: no answer awaited)",
+                session.to
             ),
             Value::Null,
             "broadcast",
         ),
-        None => (output::acknowledged_text(&command), Value::Null, "acknowledged"),
+        None => (output::acknowledged_text(&command, &sent), Value::Null, "acknowledged"),
     };
-    let value = json!({
-        "ok": true,
-        "dest": session.to.to_string(),
-        "source": session.from,
-        "command": command.mnemonic(),
-        "payload": payload_text(payload),
-        "outcome": outcome,
-        "result": result,
-        "result_payload": ex.result.as_ref().map(|f| payload_text(f.frame().payload())),
-        "transmissions": ex.transmissions,
-        "naks_received": ex.naks_received,
-        "naks_sent": ex.naks_sent,
-        "noise_bytes": ex.noise_bytes,
-        "elapsed_ms": ex.elapsed.as_millis() as u64,
-    });
-    Ok((text, value))
-}
-
-/// Polls the position until two readings 100 ms apart agree; whether that is the target.
-async fn wait_for_stop(
-    session: &mut Session,
-    target: Position,
-    timeout: Duration,
-) -> Result<(Position, bool), CtlError> {
-    let deadline = tokio::time::Instant::now() + timeout;
-    let mut last: Option<Position> = None;
-    loop {
-        let p = session.query(&Command::QueryPosition).await?;
-        let p = match Reply::parse(&Command::QueryPosition, &p) {
-            Ok(Reply::Position(p)) => p,
-            _ => return Err(CtlError::BadReply(format!("position reply {p:?} is not Table 15"))),
-        };
-        if last == Some(p) {
-            return Ok((p, p == target));
-        }
-        if tokio::time::Instant::now() >= deadline {
-            return Err(CtlError::NoResult(format!(
-                "the mount was still moving after {} ms (at {})",
-                timeout.as_millis(),
-                output::position_text(&p).trim()
-            )));
-        }
-        last = Some(p);
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
+    let mut m = exchange_json(session, cmd, payload, ex, outcome);
+    m.insert("result".into(), result);
+    m.insert(
+        "result_payload".into(),
+        ex.result.as_ref().map(|f| payload_text(f.frame().payload())).into(),
+    );
+    Ok((text, Value::Object(m)))
 }

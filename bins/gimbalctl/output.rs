@@ -1,9 +1,11 @@
-//! Results for people (physical units) and for scripts (JSON), one
-//! function per result table (4A, 5, 6, 6A, 6B, 8, 9, 10, 13, 14, 15, 17).
+//! Results for people (labels and physical units) and for scripts (typed
+//! JSON with units in field names and bits by name), one function per
+//! result table (4A, 5, 6, 6A, 6B, 8, 9, 10, 13, 14, 15, 17, and the rev 1.9
+//! `VS`, `F?`, `Z?`, `C?`), and the commands themselves as sent.
 
 use sagebrush_host::hex::payload_text;
-use sagebrush_protocol::{Angle, AwakeStatus, Command, DataRate, InitResults, Position, Reply};
-use serde_json::{Value, json};
+use sagebrush_protocol::{Angle, AwakeStatus, Axis, Command, DataRate, Extended, InitResults, Parity, Position, Reply};
+use serde_json::{Map, Value, json};
 
 fn deg(a: Angle) -> f64 {
     f64::from(a.0) / 100.0
@@ -13,19 +15,15 @@ fn hundredths(v: u16) -> f64 {
     f64::from(v) / 100.0
 }
 
-fn bit_names(bits: u16, names: &[(u16, &'static str)]) -> Vec<&'static str> {
-    names.iter().filter(|(b, _)| bits & b != 0).map(|(_, n)| *n).collect()
-}
-
-/// Table 6A.
-const ERROR_BITS: [(u16, &str); 4] = [
+/// Table 6A, bit -> name.
+pub const ERROR_BITS: [(u16, &str); 4] = [
     (1, "center_reference"),
     (1 << 4, "initialization"),
     (1 << 5, "motor_timeout"),
     (1 << 6, "temperature"),
 ];
-/// Table 6B.
-const STATUS_BITS: [(u16, &str); 8] = [
+/// Table 6B, bit -> name (low byte; the high byte is reserved).
+pub const STATUS_BITS: [(u16, &str); 8] = [
     (1, "not_initialized"),
     (1 << 1, "positive_limit_found"),
     (1 << 2, "negative_limit_found"),
@@ -35,6 +33,35 @@ const STATUS_BITS: [(u16, &str); 8] = [
     (1 << 6, "negative_hard_stop"),
     (1 << 7, "error_present"),
 ];
+/// Table 5, bit -> name.
+const AWAKE_BITS: [(u8, &str, &str); 4] = [
+    (
+        AwakeStatus::PAN_NOT_INITIALIZED,
+        "azimuth_not_initialized",
+        "azimuth (pan) not initialised",
+    ),
+    (
+        AwakeStatus::TILT_NOT_INITIALIZED,
+        "elevation_not_initialized",
+        "elevation (tilt) not initialised",
+    ),
+    (AwakeStatus::MOTORS_OFF, "motors_off", "motors off"),
+    (AwakeStatus::ERROR, "error", "error condition"),
+];
+
+fn set_names(bits: u16, names: &[(u16, &'static str)]) -> Vec<&'static str> {
+    names.iter().filter(|(b, _)| bits & b != 0).map(|(_, n)| *n).collect()
+}
+
+/// One axis's bits as `{"raw": n, "<name>": bool, ...}` (every name present).
+pub fn named_bits(bits: u16, names: &[(u16, &'static str)]) -> Value {
+    let mut m = Map::new();
+    m.insert("raw".into(), bits.into());
+    for (b, n) in names {
+        m.insert((*n).into(), (bits & b != 0).into());
+    }
+    Value::Object(m)
+}
 
 fn list(names: &[&str]) -> String {
     if names.is_empty() {
@@ -75,36 +102,77 @@ fn init_ok(r: &InitResults) -> bool {
         .all(|w| w & 1 != 0 && w & 4 == 0)
 }
 
-fn awake(s: AwakeStatus) -> (String, Value) {
+/// Table 5.
+pub fn awake(s: AwakeStatus) -> (String, Value) {
     let b = s.bits();
-    let mut problems = Vec::new();
-    for (bit, name) in [
-        (AwakeStatus::PAN_NOT_INITIALIZED, "pan not initialised"),
-        (AwakeStatus::TILT_NOT_INITIALIZED, "tilt not initialised"),
-        (AwakeStatus::MOTORS_OFF, "motors off"),
-        (AwakeStatus::ERROR, "error condition"),
-    ] {
-        if b & bit != 0 {
-            problems.push(name);
-        }
-    }
+    let problems: Vec<&str> = AWAKE_BITS
+        .iter()
+        .filter(|(bit, _, _)| b & bit != 0)
+        .map(|(_, _, text)| *text)
+        .collect();
     let text = if problems.is_empty() {
-        "awake: hardware functioning properly".to_string()
+        "awake: hardware functioning properly (status 0)".to_string()
     } else {
-        format!("awake: {}", problems.join(", "))
+        format!("awake: {} (status {b:X})", problems.join(", "))
     };
-    let value = json!({
-        "bits": b,
-        "pan_initialized": b & AwakeStatus::PAN_NOT_INITIALIZED == 0,
-        "tilt_initialized": b & AwakeStatus::TILT_NOT_INITIALIZED == 0,
-        "motors_on": b & AwakeStatus::MOTORS_OFF == 0,
-        "error": b & AwakeStatus::ERROR != 0,
-    });
-    (text, value)
+    let mut m = Map::new();
+    m.insert("code".into(), b.into());
+    m.insert("hardware_ok".into(), (b == 0).into());
+    for (bit, name, _) in AWAKE_BITS {
+        m.insert(name.into(), (b & bit != 0).into());
+    }
+    (text, Value::Object(m))
 }
 
-/// Text and JSON of a result.
-pub fn describe(reply: &Reply<'_>) -> (String, Value) {
+/// `VS`: no published layout (NOTES E13); devices built on the simulator's
+/// and the firmware's reading answer `C` + camera power digit + `L` + relay
+/// hex digit (Table 4A style). Anything else is shown raw.
+fn camera_status(bytes: &[u8]) -> (String, Value) {
+    let raw = payload_text(bytes);
+    if let [b'C', power @ (b'0' | b'1'), b'L', relays] = bytes {
+        if let Some(bits) = (*relays as char).to_digit(16) {
+            let on: Vec<u32> = (0..4).filter(|i| bits & (1 << i) != 0).collect();
+            let power = *power == b'1';
+            return (
+                format!(
+                    "camera and lens power {}; relays on: {} (VS {raw})",
+                    if power { "on" } else { "off" },
+                    if on.is_empty() {
+                        "none".to_string()
+                    } else {
+                        on.iter().map(u32::to_string).collect::<Vec<_>>().join(", ")
+                    }
+                ),
+                json!({ "camera_power": power, "relays": { "raw": bits, "on": on }, "raw": raw }),
+            );
+        }
+    }
+    (
+        format!("camera/relay status (VS, layout unknown): {raw}"),
+        json!({ "camera_power": null, "relays": null, "raw": raw }),
+    )
+}
+
+/// `F?` / `Z?`: one decimal digit 0..9.
+fn lens_speed(what: &str, bytes: &[u8]) -> (String, Value) {
+    let raw = payload_text(bytes);
+    match bytes {
+        [d @ b'0'..=b'9'] => {
+            let n = d - b'0';
+            (
+                format!("{what} speed {n} (0 = slowest .. 9 = fastest)"),
+                json!({ "speed": n, "raw": raw }),
+            )
+        }
+        _ => (
+            format!("{what} speed: {raw} (not one digit 0..9)"),
+            json!({ "speed": null, "raw": raw }),
+        ),
+    }
+}
+
+/// Text and JSON of a result of `command`.
+pub fn describe(command: &Command<'_>, reply: &Reply<'_>) -> (String, Value) {
     match *reply {
         Reply::AwakeStatus(s) => awake(s),
         Reply::MaxDataRate(r) => (
@@ -124,26 +192,29 @@ pub fn describe(reply: &Reply<'_>) -> (String, Value) {
             )
         }
         Reply::Errors(e) => {
-            let pan = bit_names(e.pan.into(), &ERROR_BITS);
-            let tilt = bit_names(e.tilt.into(), &ERROR_BITS);
+            let (pan, tilt) = (u16::from(e.pan), u16::from(e.tilt));
             (
-                format!("errors: pan {} ; tilt {}", list(&pan), list(&tilt)),
-                json!({ "pan": { "bits": e.pan, "set": pan }, "tilt": { "bits": e.tilt, "set": tilt } }),
+                format!(
+                    "errors: pan {} ; tilt {}",
+                    list(&set_names(pan, &ERROR_BITS)),
+                    list(&set_names(tilt, &ERROR_BITS))
+                ),
+                json!({ "azimuth": named_bits(pan, &ERROR_BITS), "elevation": named_bits(tilt, &ERROR_BITS) }),
             )
         }
-        Reply::StatusBits(s) => {
-            let pan = bit_names(s.pan, &STATUS_BITS);
-            let tilt = bit_names(s.tilt, &STATUS_BITS);
-            (
-                format!("status: pan {} ; tilt {}", list(&pan), list(&tilt)),
-                json!({ "pan": { "bits": s.pan, "set": pan }, "tilt": { "bits": s.tilt, "set": tilt } }),
-            )
-        }
+        Reply::StatusBits(s) => (
+            format!(
+                "status: pan {} ; tilt {}",
+                list(&set_names(s.pan, &STATUS_BITS)),
+                list(&set_names(s.tilt, &STATUS_BITS))
+            ),
+            json!({ "azimuth": named_bits(s.pan, &STATUS_BITS), "elevation": named_bits(s.tilt, &STATUS_BITS) }),
+        ),
         Reply::RateGains(g) => {
             let (p, t) = (f64::from(g.pan.get()) / 10.0, f64::from(g.tilt.get()) / 10.0);
             (
                 format!("rate gains: pan {p:.1}  tilt {t:.1}"),
-                json!({ "pan": p, "tilt": t }),
+                json!({ "pan_gain": p, "tilt_gain": t }),
             )
         }
         Reply::Initialization(r) => {
@@ -166,15 +237,15 @@ pub fn describe(reply: &Reply<'_>) -> (String, Value) {
         }
         Reply::Limits(l) => (
             format!(
-                "software limits (raw 12-bit): pan ccw {} cw {}  tilt ccw {} cw {}",
+                "software limits (raw 12-bit, the device's unit): pan ccw {} cw {}  tilt ccw {} cw {}",
                 l.pan_ccw.get(),
                 l.pan_cw.get(),
                 l.tilt_ccw.get(),
                 l.tilt_cw.get()
             ),
             json!({
-                "pan_ccw": l.pan_ccw.get(), "pan_cw": l.pan_cw.get(),
-                "tilt_ccw": l.tilt_ccw.get(), "tilt_cw": l.tilt_cw.get(),
+                "pan_ccw_raw": l.pan_ccw.get(), "pan_cw_raw": l.pan_cw.get(),
+                "tilt_ccw_raw": l.tilt_ccw.get(), "tilt_cw_raw": l.tilt_cw.get(),
             }),
         ),
         Reply::Relays(bits) => {
@@ -182,9 +253,12 @@ pub fn describe(reply: &Reply<'_>) -> (String, Value) {
             let text = if on.is_empty() {
                 "relays: all off".to_string()
             } else {
-                format!("relays on: {on:?}")
+                format!(
+                    "relays on: {}",
+                    on.iter().map(u8::to_string).collect::<Vec<_>>().join(", ")
+                )
             };
-            (text, json!({ "bits": bits, "on": on }))
+            (text, json!({ "raw": bits, "on": on }))
         }
         Reply::Accelerations { pan, tilt } => (
             format!(
@@ -229,7 +303,7 @@ pub fn describe(reply: &Reply<'_>) -> (String, Value) {
         }
         Reply::Position(p) => (position_text(&p), position_json(&p)),
         Reply::Lens(l) => (
-            format!("zoom {}  focus {}", l.zoom.get(), l.focus.get()),
+            format!("zoom {}  focus {} (of 0..4095)", l.zoom.get(), l.focus.get()),
             json!({ "zoom": l.zoom.get(), "focus": l.focus.get() }),
         ),
         Reply::AuxCount(n) => (format!("{n} characters waiting"), json!({ "count": n })),
@@ -237,24 +311,182 @@ pub fn describe(reply: &Reply<'_>) -> (String, Value) {
             payload_text(bytes),
             json!({ "data": payload_text(bytes), "len": bytes.len() }),
         ),
-        Reply::Raw(bytes) => (payload_text(bytes), json!({ "raw": payload_text(bytes) })),
+        Reply::Raw(bytes) => match command {
+            Command::Extended(Extended::CameraRelayStatus, _) => camera_status(bytes),
+            Command::Extended(Extended::FocusSpeedQuery, _) => lens_speed("focus", bytes),
+            Command::Extended(Extended::ZoomSpeedQuery, _) => lens_speed("zoom", bytes),
+            Command::Extended(Extended::LensLimitsQuery, _) => (
+                format!(
+                    "lens limits/preset values (C?, no published layout): {}",
+                    payload_text(bytes)
+                ),
+                json!({ "raw": payload_text(bytes) }),
+            ),
+            _ => (payload_text(bytes), json!({ "raw": payload_text(bytes) })),
+        },
     }
 }
 
-/// What an acknowledged command without result did, for people.
-pub fn acknowledged_text(command: &Command<'_>) -> String {
+fn axis_name(a: Axis) -> &'static str {
+    match a {
+        Axis::Pan => "pan",
+        Axis::Tilt => "tilt",
+    }
+}
+
+fn parity_name(p: Parity) -> &'static str {
+    match p {
+        Parity::None => "none",
+        Parity::Odd => "odd",
+        Parity::Even => "even",
+    }
+}
+
+/// A command as typed JSON: `name` (snake_case), `mnemonic` (the spec
+/// table's row) and its arguments with units in their names.
+pub fn command_json(command: &Command<'_>, payload: &[u8]) -> Value {
+    use Command as C;
+    let (name, args) = match command {
+        C::SetDeviceId(id) => ("set_device_id", json!({ "device_id": id.get() })),
+        C::AwakeStatus => ("awake_status", json!({})),
+        C::QueryMaxDataRate => ("query_max_data_rate", json!({})),
+        C::SetDataRate(r) => ("set_data_rate", json!({ "code": r.code(), "bps": r.bits_per_second() })),
+        C::Identify => ("identify", json!({})),
+        C::QueryErrors => ("query_errors", json!({})),
+        C::QueryStatusBits => ("query_status_bits", json!({})),
+        C::SetRateGain(a, g) => (
+            "set_rate_gain",
+            json!({ "axis": axis_name(*a), "gain": f64::from(g.get()) / 10.0 }),
+        ),
+        C::QueryRateGains => ("query_rate_gains", json!({})),
+        C::Initialize => ("initialize", json!({})),
+        C::OpenRelay(r) => ("open_relay", json!({ "relay": r.get() })),
+        C::CloseRelay(r) => ("close_relay", json!({ "relay": r.get() })),
+        C::QueryRelays => ("query_relays", json!({})),
+        C::ClearLimits => ("clear_limits", json!({})),
+        C::SetLimits(l) => (
+            "set_limits",
+            json!({
+                "pan_ccw_raw": l.pan_ccw.get(), "pan_cw_raw": l.pan_cw.get(),
+                "tilt_ccw_raw": l.tilt_ccw.get(), "tilt_cw_raw": l.tilt_cw.get(),
+            }),
+        ),
+        C::QueryLimits => ("query_limits", json!({})),
+        C::SetAcceleration(a, v) => (
+            "set_acceleration",
+            json!({ "axis": axis_name(*a), "accel_deg_s2": hundredths(v.0) }),
+        ),
+        C::QueryAccelerations => ("query_accelerations", json!({})),
+        C::QueryAcceleration(a) => ("query_acceleration", json!({ "axis": axis_name(*a) })),
+        C::Halt => ("halt", json!({})),
+        C::VerifyHome => ("verify_home", json!({})),
+        C::Home => ("home", json!({ "pan_deg": 0.0, "tilt_deg": 0.0 })),
+        C::Stop => ("motors_stop", json!({})),
+        C::QueryPosition => ("query_position", json!({})),
+        C::GoTo(p) => ("go_to", position_json(p)),
+        C::PanLeft => ("pan_left", json!({})),
+        C::PanRight => ("pan_right", json!({})),
+        C::PanStop => ("pan_stop", json!({})),
+        C::StopMotion => ("stop_motion", json!({})),
+        C::GoToPreset(n) => ("go_to_preset", json!({ "preset": n })),
+        C::QueryPreset(n) => ("query_preset", json!({ "preset": n })),
+        C::SetRate(a, r) => (
+            "set_rate",
+            json!({ "axis": axis_name(*a), "rate_deg_s": hundredths(r.0) }),
+        ),
+        C::QueryRates => ("query_rates", json!({})),
+        C::QueryRate(a) => ("query_rate", json!({ "axis": axis_name(*a) })),
+        C::StorePreset(n) => ("store_preset", json!({ "preset": n })),
+        C::SetSpeed(a, s) => ("set_speed", json!({ "axis": axis_name(*a), "speed": s.get() })),
+        C::QueryStoredPreset(n) => ("query_stored_preset", json!({ "preset": n })),
+        C::TiltDown => ("tilt_down", json!({})),
+        C::TiltStop => ("tilt_stop", json!({})),
+        C::TiltUp => ("tilt_up", json!({})),
+        C::SetVectorMode(on) => ("set_vector_mode", json!({ "on": on })),
+        C::CameraOn => ("camera_on", json!({})),
+        C::CameraOff => ("camera_off", json!({})),
+        C::FocusSpeed(s) => ("focus_speed", json!({ "speed": s.get() })),
+        C::AutoFocusOn => ("auto_focus_on", json!({})),
+        C::FocusFar => ("focus_far", json!({})),
+        C::FocusNear => ("focus_near", json!({})),
+        C::FocusStop => ("focus_stop", json!({})),
+        C::AutoFocusOff => ("auto_focus_off", json!({})),
+        C::LensGoTo(l) => ("lens_go_to", json!({ "zoom": l.zoom.get(), "focus": l.focus.get() })),
+        C::QueryLens => ("query_lens", json!({})),
+        C::ZoomSpeed(s) => ("zoom_speed", json!({ "speed": s.get() })),
+        C::DigitalZoom(z) => ("digital_zoom", json!({ "step": format!("{:X}", z.get()) })),
+        C::ZoomIn => ("zoom_in", json!({})),
+        C::ZoomOut => ("zoom_out", json!({})),
+        C::ZoomStop => ("zoom_stop", json!({})),
+        C::AuxConfigure(p, c) => (
+            "aux_configure",
+            json!({
+                "aux_port": p.get(), "baud": c.baud(), "data_bits": c.data_bits(),
+                "stop_bits": c.stop_bits(), "parity": parity_name(c.parity()),
+            }),
+        ),
+        C::AuxTransmit(p, _) => (
+            "aux_transmit",
+            json!({ "aux_port": p.get(), "data": payload_text(payload.get(4..).unwrap_or_default()) }),
+        ),
+        C::AuxReceive(p, n) => ("aux_receive", json!({ "aux_port": p.get(), "max_bytes": n.get() })),
+        C::AuxCount(p) => ("aux_count", json!({ "aux_port": p.get() })),
+        C::AuxFlush(p) => ("aux_flush", json!({ "aux_port": p.get() })),
+        C::Extended(ext, arg) => (
+            "extended",
+            json!({ "extended": ext.name(), "argument": payload_text(arg) }),
+        ),
+        C::Unknown(_) => ("unknown", json!({})),
+    };
+    let mut m = Map::new();
+    m.insert("name".into(), name.into());
+    m.insert("mnemonic".into(), command.mnemonic().into());
+    if let Value::Object(args) = args {
+        m.extend(args);
+    }
+    Value::Object(m)
+}
+
+/// What an acknowledged command without result did, for people; `sent`
+/// is the payload as sent (`SP8`, never the template `SPn`).
+pub fn acknowledged_text(command: &Command<'_>, sent: &str) -> String {
     use Command as C;
     match command {
-        C::GoTo(p) => format!("moving to {}", position_text(p).trim()),
-        C::Home => "moving home (pan 0, tilt 0)".into(),
-        C::GoToPreset(n) => format!("moving to preset {n:02X}"),
-        C::StorePreset(n) => format!("current position stored as preset {n:02X}"),
+        C::GoTo(p) => format!("{sent}: moving to {}", position_text(p).trim()),
+        C::Home => format!("{sent}: moving home (pan 0, tilt 0)"),
+        C::GoToPreset(n) => format!("{sent}: moving to preset {n}"),
+        C::StorePreset(n) => format!("{sent}: current position stored as preset {n}"),
+        C::SetSpeed(a, s) => format!(
+            "{sent} acknowledged: {} proportional speed {} (0..15)",
+            axis_name(*a),
+            s.get()
+        ),
+        C::SetRate(a, r) => format!(
+            "{sent} acknowledged: {} rate {:.2} deg/s",
+            axis_name(*a),
+            hundredths(r.0)
+        ),
+        C::SetAcceleration(a, r) => format!(
+            "{sent} acknowledged: {} acceleration {:.2} deg/s²",
+            axis_name(*a),
+            hundredths(r.0)
+        ),
+        C::SetRateGain(a, g) => format!(
+            "{sent} acknowledged: {} rate gain {:.1}",
+            axis_name(*a),
+            f64::from(g.get()) / 10.0
+        ),
+        C::LensGoTo(l) => format!("{sent}: lens moving to zoom {} focus {}", l.zoom.get(), l.focus.get()),
+        C::FocusSpeed(s) => format!("{sent} acknowledged: focus speed {} (0..9)", s.get()),
+        C::ZoomSpeed(s) => format!("{sent} acknowledged: zoom speed {} (0..9)", s.get()),
+        C::OpenRelay(r) => format!("{sent} acknowledged: relay {} open (off)", r.get()),
+        C::CloseRelay(r) => format!("{sent} acknowledged: relay {} closed (on)", r.get()),
         C::SetDataRate(r) => format!(
-            "device switches to {}; use --baud {} from now on",
+            "{sent}: device switches to {}; use --baud {} from now on",
             rate_text(*r),
             r.bits_per_second().unwrap_or(0)
         ),
-        C::SetDeviceId(id) => format!("device address set to {}", id.get()),
-        other => format!("{} acknowledged", other.mnemonic()),
+        C::SetDeviceId(id) => format!("{sent}: device address set to {}", id.get()),
+        _ => format!("{sent} acknowledged"),
     }
 }

@@ -49,10 +49,10 @@ pub fn payload(cmd: &Cmd) -> Result<Option<Vec<u8>>, CtlError> {
             range("tilt", Angle::from_degrees(*tilt as f32))?,
         )),
         Cmd::Preset(PresetCmd::Store { n }) => C::StorePreset(*n),
-        Cmd::Preset(PresetCmd::Recall { n }) => C::GoToPreset(*n),
+        Cmd::Preset(PresetCmd::Recall { n, .. }) => C::GoToPreset(*n),
         Cmd::Preset(PresetCmd::Query { n }) => C::QueryPreset(*n),
         Cmd::Preset(PresetCmd::Stored { n }) => C::QueryStoredPreset(*n),
-        Cmd::Slew { direction } => match direction {
+        Cmd::Slew { direction, .. } => match direction {
             Direction::Left => C::PanLeft,
             Direction::Right => C::PanRight,
             Direction::Up => C::TiltUp,
@@ -62,6 +62,8 @@ pub fn payload(cmd: &Cmd) -> Result<Option<Vec<u8>>, CtlError> {
             StopWhat::All => C::StopMotion,
             StopWhat::Pan => C::PanStop,
             StopWhat::Tilt => C::TiltStop,
+            StopWhat::Zoom => C::ZoomStop,
+            StopWhat::Focus => C::FocusStop,
             StopWhat::Motors => C::Stop,
         },
         Cmd::Halt => C::Halt,
@@ -87,7 +89,7 @@ pub fn payload(cmd: &Cmd) -> Result<Option<Vec<u8>>, CtlError> {
             value: Some(v),
         } => C::SetAcceleration(axis(*a), Acceleration(hundredths(*v))),
         Cmd::Vector { state } => C::SetVectorMode(matches!(state, OnOff::On)),
-        Cmd::Home => C::Home,
+        Cmd::Home { .. } => C::Home,
         Cmd::VerifyHome => C::VerifyHome,
         Cmd::Init => C::Initialize,
         Cmd::Limits { action: None } => C::QueryLimits,
@@ -121,7 +123,7 @@ pub fn payload(cmd: &Cmd) -> Result<Option<Vec<u8>>, CtlError> {
         } => C::CloseRelay(range("relay", Relay::new(*n))?),
         Cmd::Lens { action: None } => C::QueryLens,
         Cmd::Lens {
-            action: Some(LensCmd::Goto { zoom, focus }),
+            action: Some(LensCmd::Goto { zoom, focus, .. }),
         } => C::LensGoTo(LensPosition {
             zoom: range("zoom", U12::new(*zoom))?,
             focus: range("focus", U12::new(*focus))?,
@@ -132,8 +134,8 @@ pub fn payload(cmd: &Cmd) -> Result<Option<Vec<u8>>, CtlError> {
             CameraState::Status => C::Extended(Extended::CameraRelayStatus, b""),
         },
         Cmd::Focus { action } => match action {
-            FocusCmd::Far => C::FocusFar,
-            FocusCmd::Near => C::FocusNear,
+            FocusCmd::Far { .. } => C::FocusFar,
+            FocusCmd::Near { .. } => C::FocusNear,
             FocusCmd::Stop => C::FocusStop,
             FocusCmd::Speed { n: Some(n) } => C::FocusSpeed(range("focus speed", LensSpeed::new(*n))?),
             FocusCmd::Speed { n: None } => C::Extended(Extended::FocusSpeedQuery, b""),
@@ -141,8 +143,8 @@ pub fn payload(cmd: &Cmd) -> Result<Option<Vec<u8>>, CtlError> {
             FocusCmd::AutoOff => C::AutoFocusOff,
         },
         Cmd::Zoom { action } => match action {
-            ZoomCmd::In => C::ZoomIn,
-            ZoomCmd::Out => C::ZoomOut,
+            ZoomCmd::In { .. } => C::ZoomIn,
+            ZoomCmd::Out { .. } => C::ZoomOut,
             ZoomCmd::Stop => C::ZoomStop,
             ZoomCmd::Speed { n: Some(n) } => C::ZoomSpeed(range("zoom speed", LensSpeed::new(*n))?),
             ZoomCmd::Speed { n: None } => C::Extended(Extended::ZoomSpeedQuery, b""),
@@ -171,7 +173,7 @@ pub fn payload(cmd: &Cmd) -> Result<Option<Vec<u8>>, CtlError> {
             }
             return Ok(Some(bytes));
         }
-        Cmd::Watch { .. } | Cmd::Encode { .. } | Cmd::Decode { .. } => return Ok(None),
+        Cmd::Watch { .. } | Cmd::Scan(_) | Cmd::Encode { .. } | Cmd::Decode { .. } => return Ok(None),
     };
     encode(&command).map(Some)
 }

@@ -5,7 +5,11 @@
 use sagebrush_host::master::{Exchange, Master};
 use sagebrush_host::timing;
 use sagebrush_host::transport::{self, Line};
-use sagebrush_protocol::{Address, Command, FrameBuf, Outcome, TxFailure};
+use std::time::Duration;
+
+use sagebrush_protocol::link::TransactionPolicy;
+use sagebrush_protocol::{ACK, Address, Command, Event, FrameBuf, Framer, Outcome, TxFailure};
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
 use crate::cli::Global;
 use crate::error::CtlError;
@@ -16,12 +20,33 @@ pub struct Session {
     master: Master<Line>,
     pub to: Address,
     pub from: u8,
+    /// What the line is (`tcp 127.0.0.1:4001`, `serial /dev/pts/3`).
+    pub line: String,
+    pub over_tcp: bool,
+}
+
+/// What came in after an exchange ended (`Session::linger`).
+#[derive(Debug, Default)]
+pub struct Lingered {
+    pub frames: Vec<FrameBuf>,
+    pub acks: u32,
+    pub other_bytes: u32,
 }
 
 impl Session {
     /// Opens the transport the options name, with time-outs derived from
     /// the baud rate (serial) or the TCP defaults, then the overrides.
-    pub async fn open(g: &Global) -> Result<Self, CtlError> {
+    pub async fn open(g: &Global, to: Address) -> Result<Self, CtlError> {
+        Self::open_with(g, to, |_| {}).await
+    }
+
+    /// [`Session::open`], with `tune` applied to the default policy before
+    /// the command line's overrides.
+    pub async fn open_with(
+        g: &Global,
+        to: Address,
+        tune: impl FnOnce(&mut TransactionPolicy),
+    ) -> Result<Self, CtlError> {
         let (line, mut policy) = match (&g.serial, &g.tcp) {
             (Some(path), _) => (
                 Line::Serial(transport::open_serial(path, g.baud)?),
@@ -34,6 +59,7 @@ impl Session {
                 ));
             }
         };
+        tune(&mut policy);
         if let Some(r) = g.retries {
             policy.retry.retries = r;
         }
@@ -49,11 +75,15 @@ impl Session {
         if let Some(t) = g.init_timeout {
             policy.long_result_timeout = t;
         }
-        tracing::debug!(line = %line.describe(), ?policy, "connected");
+        let described = line.describe();
+        let over_tcp = matches!(line, Line::Tcp(_));
+        tracing::debug!(line = %described, ?policy, "connected");
         Ok(Self {
             master: Master::new(line, policy),
-            to: g.to,
+            to,
             from: g.from,
+            line: described,
+            over_tcp,
         })
     }
 
@@ -119,5 +149,38 @@ impl Session {
                 command.mnemonic()
             ))),
         }
+    }
+}
+
+impl Session {
+    /// Reads what arrives within `window` after an exchange: a second
+    /// answer to one address (two devices with one ID on a bus) shows here.
+    /// Frames are acknowledged, hop by hop, like every intact frame.
+    pub async fn linger(&mut self, window: Duration) -> Result<Lingered, CtlError> {
+        let mut framer: Framer = Framer::new();
+        let mut seen = Lingered::default();
+        let deadline = tokio::time::Instant::now() + window;
+        let mut buf = [0u8; 512];
+        loop {
+            let stream = self.master.stream_mut();
+            let n = match tokio::time::timeout_at(deadline, stream.read(&mut buf)).await {
+                Err(_) => break,
+                Ok(Ok(0)) => return Err(CtlError::Io("the line closed".into())),
+                Ok(Ok(n)) => n,
+                Ok(Err(e)) => return Err(e.into()),
+            };
+            let mut frames = Vec::new();
+            framer.feed(&buf[..n], |e| match e {
+                Event::Frame(f) => frames.push(FrameBuf::from_frame(&f)),
+                Event::Ack => seen.acks += 1,
+                _ => seen.other_bytes += 1,
+            });
+            for _ in &frames {
+                stream.write_all(&[ACK]).await?;
+            }
+            seen.frames.extend(frames);
+        }
+        seen.other_bytes += framer.skipped_bytes() as u32;
+        Ok(seen)
     }
 }
