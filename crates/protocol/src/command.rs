@@ -196,9 +196,12 @@ impl Extended {
 
     /// The rev 1.9 command whose name starts `payload`, and its argument bytes.
     fn split(payload: &[u8]) -> Option<(Extended, &[u8])> {
-        Extended::ALL
-            .into_iter()
-            .find_map(|ext| Some((ext, payload.strip_prefix(ext.name().as_bytes())?)))
+        for ext in Extended::ALL {
+            if let Some(args) = payload.strip_prefix(ext.name().as_bytes()) {
+                return Some((ext, args));
+            }
+        }
+        None
     }
 }
 

@@ -244,15 +244,17 @@ impl<'a> Frame<'a> {
     /// framer's candidates, `parse`): `Err((expected, found))` if its
     /// checksum does not hold.
     pub(crate) fn check(header: Header, span: &'a [u8]) -> Result<Self, (u8, u8)> {
-        let expected = checksum(span.get(layout::summed(header.len)).unwrap_or_default());
-        let found = span.get(layout::checksum(header.len)).copied().unwrap_or_default();
+        // `span` is `layout::wire_len(header.len)` bytes: the checksum is its
+        // last byte, and what it sums and the payload lie before it.
+        let (&found, body) = span.split_last().unwrap_or((&0, &[]));
+        let expected = checksum(body.get(layout::GROUP..).unwrap_or_default());
         if expected != found {
             return Err((expected, found));
         }
         Ok(Frame {
             dest: header.dest,
             source: header.source,
-            payload: span.get(layout::payload(header.len)).unwrap_or_default(),
+            payload: body.get(layout::PAYLOAD..).unwrap_or_default(),
         })
     }
 

@@ -16,7 +16,7 @@
 //! - Payload bytes are not checked for ASCII: `*xpt` may carry raw bytes.
 
 use crate::address::Address;
-use crate::frame::{ACK, Frame, FrameBuf, HEADER_LEN, Header, MAX_FRAME_LEN, NAK, NIC, START, layout};
+use crate::frame::{ACK, Frame, FrameBuf, HEADER_LEN, Header, MAX_FRAME_LEN, NAK, NIC, PayloadLen, START, layout};
 
 /// Default buffer size: room for two maximum frames, so compaction is rare.
 pub const DEFAULT_CAPACITY: usize = 2 * MAX_FRAME_LEN;
@@ -164,9 +164,11 @@ fn scan<'d>(data: &'d [u8], mask: &mut usize, idle: bool, offset: u64, stats: &m
         if byte == START {
             let rest = data.get(i..).unwrap_or_default();
             // The candidate's span comes from its length byte (layout, Table 1).
-            let header = rest.first_chunk::<HEADER_LEN>().map(Header::read);
-            let total = header.map_or(MAX_FRAME_LEN, |h| layout::wire_len(h.len));
-            let (Some(header), Some(candidate)) = (header, rest.get(..total)) else {
+            let total = match rest.first_chunk::<HEADER_LEN>() {
+                Some(head) => layout::wire_len(PayloadLen::from_byte(head[layout::LENGTH])),
+                None => MAX_FRAME_LEN,
+            };
+            let Some((head, candidate)) = rest.get(..total).and_then(|c| Some((c.first_chunk()?, c))) else {
                 if !idle {
                     return done(i, m, mask, i, None);
                 }
@@ -177,6 +179,7 @@ fn scan<'d>(data: &'d [u8], mask: &mut usize, idle: bool, offset: u64, stats: &m
                 continue;
             };
             // `candidate` is exactly one frame's span, as `Frame::parse` checks it.
+            let header = Header::read(head);
             let (expected, found) = match Frame::check(header, candidate) {
                 Ok(frame) => return done(i + total, m, mask, i, Some(Event::Frame(frame))),
                 Err(sums) => sums,
