@@ -9,6 +9,8 @@
 
 #![allow(dead_code)]
 
+pub mod capture;
+
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -16,6 +18,8 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use serde_json::Value;
+
+pub mod cli;
 
 /// Only to avoid hanging on a broken build: never an assertion on speed.
 pub const HANG_GUARD: Duration = Duration::from_secs(60);
