@@ -1,15 +1,34 @@
 //! A bus (one serial line, Figure 3) of simulated gimbals, sans-IO: bytes in
 //! with the time they arrived, bytes out with the time they are due.
 //!
-//! Each gimbal sits behind the protocol crate's [`DeviceEndpoint`] (address
-//! filter, ACK/NAK, NIC, Table 3 reply header). The bus runs one framer over
-//! the line so that it can give each endpoint whole frames, NAK damaged
-//! frames addressed to one of its devices (1.4.2), resend the last result
-//! when the master NAKs it, and apply seeded faults ([`crate::faults`]) per
-//! exchange. Every frame in and out is logged with `tracing`.
+//! The bus is a wire-level shim around unmodified [`DeviceEndpoint`]s, the
+//! code gimbal firmware runs, in the way a fault injector wraps a network
+//! device: each simulated gimbal is a `DeviceEndpoint` with the gimbal model
+//! ([`Gimbal`]) as its `DeviceHandler`; every endpoint gets the line's bytes
+//! (each has its own framer, as real devices do) and the bus collects what
+//! they write. Every protocol rule (address filter, ACK/NAK/NIC, Table 3
+//! header, the result resent on the master's NAK) is the endpoint's.
+//!
+//! What the bus adds is the line: the delay of a result (Figure 6 "time
+//! delay", [`BusConfig::reply_latency_ms`]), the silence after which a cut
+//! frame is abandoned, and seeded faults ([`crate::faults`]) applied to the
+//! bytes. To apply a fault to a whole frame the bus watches the line with a
+//! framer of its own (the tap, which also logs every frame and keeps the
+//! counters): bytes that may still belong to an incomplete frame are held
+//! back from the endpoints until the tap has decided, which costs no time,
+//! since an endpoint acts on a frame only at its last byte. Then one draw
+//! per frame addressed to a device of the bus:
+//! - `Silent`: the frame's bytes never reach the endpoints;
+//! - `Nak`: its checksum byte is damaged on the way in (the endpoint NAKs);
+//! - `DropAck`, `Corrupt`, `Delay`: the endpoints' answer loses its ACK,
+//!   has a byte damaged, or leaves late.
+//!
+//! A result the endpoint sends again on a NAK is damaged again with the
+//! `corrupt` probability.
 
+use sagebrush_protocol::frame::layout;
 use sagebrush_protocol::{
-    ACK, BadChecksum, Command, DataRate, DeviceEndpoint, EndpointConfig, Event, Frame, FrameBuf, Framer, NAK, NIC,
+    ACK, Command, DataRate, DeviceEndpoint, EndpointConfig, EndpointStats, Event, Frame, Framer, NAK, NIC, OwnedEvent,
     Reply,
 };
 use tracing::{debug, info, warn};
@@ -28,8 +47,6 @@ pub struct BusConfig {
     pub reply_latency_ms: u64,
     /// Silence after which a partial frame is abandoned, milliseconds.
     pub idle_ms: u64,
-    /// How long after a result a NAK from the master makes the device resend it, milliseconds.
-    pub nak_window_ms: u64,
 }
 
 impl Default for BusConfig {
@@ -39,7 +56,6 @@ impl Default for BusConfig {
             faults: FaultConfig::default(),
             reply_latency_ms: 0,
             idle_ms: 100,
-            nak_window_ms: 1000,
         }
     }
 }
@@ -61,53 +77,52 @@ pub struct BusStats {
     pub frames_in: u64,
     /// Good frames for addresses not on this bus.
     pub frames_ignored: u64,
-    /// Damaged frames seen on the line.
+    /// Damaged frames seen on the line (fault-injected ones included).
     pub bad_checksums_in: u64,
-    /// NAKs sent for damaged frames (fault-injected ones included).
+    /// NAKs the endpoints sent for damaged frames.
     pub naks_sent: u64,
-    /// Results sent again after a NAK from the master.
+    /// Results the endpoints sent again after a NAK from the master.
     pub results_resent: u64,
     /// NACKs and ACKs from the master, counted for the log.
     pub naks_in: u64,
     pub acks_in: u64,
 }
 
+/// One simulated gimbal: the firmware's endpoint and the model behind it.
 #[derive(Debug)]
 struct Device {
     endpoint: DeviceEndpoint,
     gimbal: Gimbal,
 }
 
-#[derive(Clone, Debug)]
-struct LastResult {
-    bytes: Vec<u8>,
-    sent_at: u64,
-    resends: u8,
-}
-
-/// What the line framer found.
-enum Inbound {
-    Frame(Box<FrameBuf>),
-    Bad(BadChecksum),
-    Ack,
-    Nak,
-    Nic,
-}
-
-/// Most times a result is resent on NAK.
-const MAX_RESENDS: u8 = 3;
-
 /// A simulated bus of gimbals.
 #[derive(Debug)]
 pub struct Bus {
     devices: Vec<Device>,
-    framer: Framer,
+    /// The bus's own view of the line (logging, counters, which bytes form
+    /// a frame for a fault); the endpoints never see its decisions.
+    tap: Framer,
+    /// Line bytes not yet given to the endpoints; `held[0]` is at stream
+    /// offset `held_at` of the tap.
+    held: Vec<u8>,
+    held_at: u64,
     faults: Faults,
     outbox: Vec<Outgoing>,
     last_rx: u64,
-    last_result: Option<LastResult>,
+    /// Fault-damaged commands (the tap saw them whole).
+    damaged_in: u64,
     config: BusConfig,
     stats: BusStats,
+}
+
+/// Bytes the endpoints wrote in answer to one stretch of the line.
+#[derive(Debug, Default)]
+struct Answer {
+    /// One entry per write: an ACK, NAK or NIC byte, or a result frame.
+    pieces: Vec<Vec<u8>>,
+    switch_to: Option<DataRate>,
+    /// Whether a result among `pieces` is an endpoint's resend on NAK.
+    resent: bool,
 }
 
 impl Bus {
@@ -142,18 +157,28 @@ impl Bus {
             .collect();
         Ok(Self {
             devices,
-            framer: Framer::new(),
+            tap: Framer::new(),
+            held: Vec::new(),
+            held_at: 0,
             faults: Faults::new(config.faults),
             outbox: Vec::new(),
             last_rx: now,
-            last_result: None,
+            damaged_in: 0,
             config,
             stats: BusStats::default(),
         })
     }
 
+    /// The bus's counters; NAKs and resends are the endpoints' own.
     pub fn stats(&self) -> BusStats {
-        self.stats
+        let mut stats = self.stats;
+        stats.bad_checksums_in += self.damaged_in;
+        for d in &self.devices {
+            let s = d.endpoint.stats();
+            stats.naks_sent += s.naks_sent;
+            stats.results_resent += s.results_resent;
+        }
+        stats
     }
 
     /// Faults injected so far, by kind.
@@ -163,7 +188,7 @@ impl Bus {
 
     /// Bytes on the line that were part of no frame or bare ACK/NAK/NIC.
     pub fn noise_bytes(&self) -> u64 {
-        self.framer.skipped_bytes()
+        self.tap.skipped_bytes()
     }
 
     /// The gimbals, in configuration order.
@@ -176,33 +201,51 @@ impl Bus {
         self.gimbals().find(|g| g.device() == device)
     }
 
+    /// The counters of the endpoint currently at `device`.
+    pub fn endpoint_stats(&self, device: u8) -> Option<EndpointStats> {
+        self.devices
+            .iter()
+            .find(|d| d.endpoint.config().device == device)
+            .map(|d| d.endpoint.stats())
+    }
+
     /// Bytes received from the line at `now`.
     pub fn receive(&mut self, bytes: &[u8], now: u64) {
         self.advance(now);
         self.last_rx = now;
-        let mut inbound = Vec::new();
-        self.framer.feed(bytes, |event| inbound.push(Inbound::from(event)));
-        for event in inbound {
-            self.process(event, now);
+        self.held.extend_from_slice(bytes);
+        let mut rest = bytes;
+        let mut events = Vec::new();
+        while !rest.is_empty() {
+            let n = self.tap.push(rest);
+            rest = &rest[n..];
+            self.drain_tap(&mut events);
         }
+        self.pass(events, now, false);
     }
 
     /// Time passed: physics, results that became due (`IX`), and a partial
     /// frame abandoned after [`BusConfig::idle_ms`] of silence.
     pub fn poll(&mut self, now: u64) {
         self.advance(now);
-        if self.framer.buffered() > 0 && now >= self.last_rx + self.config.idle_ms {
-            let mut inbound = Vec::new();
-            self.framer.flush_idle(|event| inbound.push(Inbound::from(event)));
-            for event in inbound {
-                self.process(event, now);
-            }
+        if self.tap.buffered() > 0 && now >= self.last_rx + self.config.idle_ms {
+            let mut events = Vec::new();
+            self.tap.line_idle();
+            self.drain_tap(&mut events);
+            self.pass(events, now, true);
+        }
+    }
+
+    /// The tap's events with the stream offset each ends at.
+    fn drain_tap(&mut self, events: &mut Vec<(u64, OwnedEvent)>) {
+        while let Some(event) = self.tap.next_event().map(|e| e.to_owned()) {
+            events.push((self.tap.stream_offset(), event));
         }
     }
 
     /// When [`Bus::poll`] or [`Bus::pop_due`] next has something to do.
     pub fn next_deadline(&self) -> Option<u64> {
-        let idle = (self.framer.buffered() > 0).then_some(self.last_rx + self.config.idle_ms);
+        let idle = (self.tap.buffered() > 0).then_some(self.last_rx + self.config.idle_ms);
         let out = self.outbox.first().map(|o| o.due);
         let models = self.devices.iter().filter_map(|d| d.gimbal.next_deadline());
         out.into_iter().chain(idle).chain(models).min()
@@ -218,6 +261,8 @@ impl Bus {
         None
     }
 
+    /// Physics up to `now`, and the deferred results (`IX`) that became due,
+    /// sent through their endpoints.
     fn advance(&mut self, now: u64) {
         let mut due = Vec::new();
         for dev in &mut self.devices {
@@ -235,7 +280,6 @@ impl Bus {
             }
         }
         for (at, bytes) in due {
-            self.remember_result(&bytes, at);
             self.queue(at, bytes, None);
         }
     }
@@ -245,163 +289,166 @@ impl Bus {
         self.outbox.insert(at, Outgoing { due, bytes, switch_to });
     }
 
-    fn remember_result(&mut self, bytes: &[u8], sent_at: u64) {
-        self.last_result = Some(LastResult {
-            bytes: bytes.to_vec(),
-            sent_at,
-            resends: 0,
-        });
+    /// Gives the endpoints the held bytes the tap has decided, stretch by
+    /// stretch (each ends with one of `events`, `(end offset, event)`), with
+    /// the faults drawn for the frames among them; on `idle` all held bytes,
+    /// then the endpoints' silence hook.
+    fn pass(&mut self, events: Vec<(u64, OwnedEvent)>, now: u64, idle: bool) {
+        for (end, event) in events {
+            let fault = self.watch(&event.as_event());
+            let mut stretch = self.take_held(end);
+            if let (OwnedEvent::Frame(frame), Some(f)) = (&event, fault) {
+                let start = stretch.len().saturating_sub(frame.as_bytes().len());
+                match f {
+                    // The device does not hear it at all.
+                    Fault::Silent => stretch.truncate(start),
+                    // Damaged in transit: the checksum no longer holds.
+                    Fault::Nak => {
+                        if let Some(last) = stretch.last_mut() {
+                            *last = last.wrapping_add(1);
+                            self.damaged_in += 1;
+                        }
+                    }
+                    _ => {}
+                }
+            }
+            // After silence each stretch ends in it, as every candidate the tap
+            // abandoned is abandoned by the endpoints' framers too.
+            let answer = self.deliver(&stretch, now, idle);
+            self.answer(answer, fault, now);
+        }
+        let decided = self.tap.stream_offset();
+        let rest = self.take_held(decided);
+        let answer = self.deliver(&rest, now, idle);
+        self.answer(answer, None, now);
     }
 
-    fn process(&mut self, event: Inbound, now: u64) {
+    /// Removes and returns the held bytes before stream offset `end`.
+    fn take_held(&mut self, end: u64) -> Vec<u8> {
+        let n = usize::try_from(end.saturating_sub(self.held_at))
+            .unwrap_or(usize::MAX)
+            .min(self.held.len());
+        self.held_at += n as u64;
+        self.held.drain(..n).collect()
+    }
+
+    /// Logs and counts what the tap saw; draws the fault for a frame addressed to a device of the bus.
+    fn watch(&mut self, event: &Event<'_>) -> Option<Fault> {
         match event {
-            Inbound::Frame(frame) => self.exchange(&frame, now),
-            Inbound::Bad(bad) => {
+            Event::Frame(frame) => {
+                if !self.devices.iter().any(|d| d.endpoint.config().accepts(&frame.dest)) {
+                    self.stats.frames_ignored += 1;
+                    debug!(dest = %frame.dest, "rx frame for another address");
+                    return None;
+                }
+                self.stats.frames_in += 1;
+                log_frame("rx frame", frame);
+                let fault = self.faults.draw();
+                if let Some(f) = fault {
+                    warn!(fault = f.name(), dest = %frame.dest, "fault injected");
+                }
+                fault
+            }
+            Event::BadChecksum(bad) => {
                 self.stats.bad_checksums_in += 1;
                 let ours = self.devices.iter().any(|d| d.endpoint.config().answers(&bad.dest));
                 warn!(dest = %bad.dest, source = bad.source, expected = bad.expected, found = bad.found,
                     ours, "rx damaged frame");
-                if ours {
-                    self.stats.naks_sent += 1;
-                    self.queue(now, vec![NAK], None);
-                }
+                None
             }
-            Inbound::Ack => {
+            Event::Ack => {
                 self.stats.acks_in += 1;
-                self.last_result = None;
+                None
             }
-            Inbound::Nak => {
+            Event::Nak => {
                 self.stats.naks_in += 1;
-                self.resend_result(now);
+                None
             }
-            Inbound::Nic => debug!("rx NIC from the master (ignored)"),
+            Event::Nic => {
+                debug!("rx NIC from the master (ignored)");
+                None
+            }
         }
     }
 
-    /// The master NAKed our last result: send it again (1.4.2, hop by hop).
-    fn resend_result(&mut self, now: u64) {
-        let window = self.config.nak_window_ms;
-        let Some(last) = self.last_result.as_mut() else {
-            debug!("rx NAK with no result to resend");
-            return;
-        };
-        if now > last.sent_at + window || last.resends >= MAX_RESENDS {
-            debug!("rx NAK too late or too often: result not resent");
-            return;
+    /// Every endpoint hears `bytes` (then, on `idle`, the line's silence);
+    /// returns what they wrote.
+    fn deliver(&mut self, bytes: &[u8], now: u64, idle: bool) -> Answer {
+        let mut answer = Answer::default();
+        if bytes.is_empty() && !idle {
+            return answer;
         }
-        last.resends += 1;
-        let mut bytes = last.bytes.clone();
-        if self.faults.draw_corrupt() {
-            corrupt_frame(&mut bytes, &mut self.faults);
-            warn!(fault = "corrupt", "fault injected into resent result");
-        }
-        self.stats.results_resent += 1;
-        let due = now + self.config.reply_latency_ms;
-        self.queue(due, bytes, None);
-    }
-
-    /// One command frame: faults, every endpoint, the answers queued.
-    fn exchange(&mut self, frame: &FrameBuf, now: u64) {
-        let view = frame.frame();
-        if !self.devices.iter().any(|d| d.endpoint.config().accepts(&view.dest)) {
-            self.stats.frames_ignored += 1;
-            debug!(dest = %view.dest, "rx frame for another address");
-            return;
-        }
-        self.stats.frames_in += 1;
-        log_frame("rx frame", &view);
-        let fault = self.faults.draw();
-        if let Some(f) = fault {
-            warn!(fault = f.name(), dest = %view.dest, "fault injected");
-        }
-        if fault == Some(Fault::Silent) {
-            return;
-        }
-        let mut bytes = frame.as_bytes().to_vec();
-        if fault == Some(Fault::Nak) {
-            // Damaged in transit: the checksum no longer holds, the device NAKs.
-            if let Some(last) = bytes.last_mut() {
-                *last = last.wrapping_add(1);
-            }
-            self.stats.bad_checksums_in += 1;
-        }
-        let mut pieces: Vec<Vec<u8>> = Vec::new();
-        let mut switch_to = None;
         for dev in &mut self.devices {
-            let answers = dev.endpoint.config().answers(&view.dest);
-            dev.gimbal.set_answering(answers);
-            let naks_before = dev.endpoint.stats().naks_sent;
-            dev.endpoint
-                .receive(&bytes, now, &mut dev.gimbal, &mut |b: &[u8]| pieces.push(b.to_vec()));
-            self.stats.naks_sent += dev.endpoint.stats().naks_sent - naks_before;
+            let resent = dev.endpoint.stats().results_resent;
+            let mut out = |b: &[u8]| answer.pieces.push(b.to_vec());
+            dev.endpoint.receive(bytes, now, &mut dev.gimbal, &mut out);
+            if idle {
+                dev.endpoint.line_idle(now, &mut dev.gimbal, &mut out);
+            }
+            answer.resent |= dev.endpoint.stats().results_resent > resent;
             if let Some(rate) = dev.gimbal.take_rate_change() {
-                switch_to = Some(rate);
+                answer.switch_to = Some(rate);
             }
         }
+        answer
+    }
+
+    /// Queues the endpoints' answer with the exchange's fault applied.
+    fn answer(&mut self, mut answer: Answer, fault: Option<Fault>, now: u64) {
         let mut start = now;
-        let mut clean = None;
         match fault {
             Some(Fault::DropAck) => {
-                if let Some(i) = pieces.iter().position(|p| p.as_slice() == [ACK]) {
-                    pieces.remove(i);
+                if let Some(i) = answer.pieces.iter().position(|p| p.as_slice() == [ACK]) {
+                    answer.pieces.remove(i);
                 }
             }
-            Some(Fault::Corrupt) => clean = self.corrupt_answer(&mut pieces),
+            Some(Fault::Corrupt) => self.corrupt_answer(&mut answer.pieces),
             Some(Fault::Delay) => start += self.faults.config().delay_ms,
             _ => {}
         }
-        for piece in pieces {
+        if answer.resent && self.faults.draw_corrupt() {
+            if let Some(frame) = answer.pieces.iter_mut().find(|p| p.len() > 1) {
+                corrupt_frame(frame, &mut self.faults);
+                warn!(fault = "corrupt", "fault injected into resent result");
+            }
+        }
+        for piece in answer.pieces {
+            // A result frame leaves after the device's "time delay"; ACK, NAK and NIC at once.
             let due = if piece.len() > 1 {
-                let due = start + self.config.reply_latency_ms;
-                self.remember_result(clean.as_deref().unwrap_or(&piece), due);
-                due
+                start + self.config.reply_latency_ms
             } else {
                 start
             };
             self.queue(due, piece, None);
         }
-        if let Some(rate) = switch_to {
+        if let Some(rate) = answer.switch_to {
             self.queue(start, Vec::new(), Some(rate));
         }
         // An `IX` with no duration finishes at once.
         self.advance(now);
     }
 
-    /// Damages one byte of the answer: a payload byte of the result frame
-    /// (returning the clean copy, for a resend on NAK), else the ACK or NIC byte.
-    fn corrupt_answer(&mut self, pieces: &mut [Vec<u8>]) -> Option<Vec<u8>> {
+    /// Damages one byte of the answer: a payload byte of the result frame,
+    /// else the ACK or NIC byte. (The endpoint keeps its clean copy for a
+    /// resend on NAK.)
+    fn corrupt_answer(&mut self, pieces: &mut [Vec<u8>]) {
         if let Some(frame) = pieces.iter_mut().find(|p| p.len() > 1) {
-            let clean = frame.clone();
             corrupt_frame(frame, &mut self.faults);
-            return Some(clean);
-        }
-        if let Some(byte) = pieces.iter_mut().find(|p| p.len() == 1) {
+        } else if let Some(byte) = pieces.iter_mut().find(|p| p.len() == 1) {
             // 0x06 -> 0x46 'F', '?' -> 0x7F: noise, no longer an ACK or NIC.
             byte[0] ^= 0x40;
         }
-        None
     }
 }
 
 /// Flips the low bit of one payload byte of an encoded frame.
 fn corrupt_frame(frame: &mut [u8], faults: &mut Faults) {
-    const HEADER: usize = 6;
-    if frame.len() > HEADER + 1 {
-        let i = HEADER + faults.pick(frame.len() - HEADER - 1);
-        frame[i] ^= 0x01;
-    }
-}
-
-impl From<Event<'_>> for Inbound {
-    fn from(event: Event<'_>) -> Self {
-        match event {
-            Event::Frame(f) => Inbound::Frame(Box::new(FrameBuf::from_frame(&f))),
-            Event::BadChecksum(b) => Inbound::Bad(b),
-            Event::Ack => Inbound::Ack,
-            Event::Nak => Inbound::Nak,
-            Event::Nic => Inbound::Nic,
-        }
-    }
+    let Ok((parsed, _)) = Frame::parse(frame) else {
+        return;
+    };
+    let payload = layout::payload(parsed.header().len);
+    let i = payload.start + faults.pick(payload.len());
+    frame[i] ^= 0x01;
 }
 
 fn log_frame(what: &'static str, frame: &Frame<'_>) {

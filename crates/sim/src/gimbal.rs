@@ -48,7 +48,8 @@ enum Init {
 }
 
 /// A result the gimbal owes after the exchange that asked for it (the
-/// deferred `IX` result), for the bus to send.
+/// deferred `IX` result), for the bus to send through the gimbal's
+/// `DeviceEndpoint::send_reply`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct DeferredResult {
     pub reply_to: ReplyTo,
@@ -83,8 +84,6 @@ pub struct Gimbal {
     data_rate: DataRate,
     pending_rate: Option<DataRate>,
     aux: [AuxSerial; 2],
-    /// Whether the current exchange is answered (a broadcast on a shared bus is not).
-    answering: bool,
     finished: Vec<DeferredResult>,
     scratch: Vec<u8>,
 }
@@ -132,7 +131,6 @@ impl Gimbal {
             data_rate: DataRate::Bps9600,
             pending_rate: None,
             aux: [AuxSerial::default(), AuxSerial::default()],
-            answering: true,
             finished: Vec::new(),
             scratch: Vec::new(),
             config,
@@ -192,11 +190,6 @@ impl Gimbal {
     /// Bytes lost to a full auxiliary receive buffer, per port.
     pub fn aux_overruns(&self) -> [u64; 2] {
         [self.aux[0].overruns(), self.aux[1].overruns()]
-    }
-
-    /// Set by the bus before each exchange: whether its results are sent.
-    pub fn set_answering(&mut self, answering: bool) {
-        self.answering = answering;
     }
 
     /// A data-rate change (`C0..C7`) accepted since the last call: the line
@@ -542,7 +535,8 @@ impl Gimbal {
                 self.tilt.go_to(0, rate, accel);
                 self.init = Init::Running {
                     until: self.now + self.config.init_ms,
-                    reply: self.answering.then_some(reply_to),
+                    // A broadcast on a shared bus is not answered: no result is owed.
+                    reply: reply_to.answered.then_some(reply_to),
                 };
                 Response::Deferred
             }

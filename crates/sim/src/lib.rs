@@ -5,10 +5,14 @@
 //!   Tables 11-12; lens zoom/focus, Tables 16-17).
 //! - [`gimbal`]: one gimbal's state behind every command, as a
 //!   `DeviceHandler` of the protocol crate.
-//! - [`bus`]: a line of gimbals, each behind a `DeviceEndpoint`: bytes in
-//!   with their arrival time, [`bus::Outgoing`] bytes out with their due time.
-//! - [`faults`]: seeded fault injection (dropped ACK, NAK, damaged byte,
-//!   late answer, silence).
+//! - [`bus`]: a line of gimbals, each an unmodified `DeviceEndpoint` (the
+//!   firmware's device code: framer, address filter, ACK/NAK/NIC, Table 3
+//!   header, result resent on NAK) with a [`Gimbal`] as its handler; the
+//!   bus is only the wire around them: bytes in with their arrival time,
+//!   [`bus::Outgoing`] bytes out with their due time.
+//! - [`faults`]: seeded fault injection on the wire's bytes (dropped ACK,
+//!   command damaged in transit, damaged answer byte, late answer, a command
+//!   not heard).
 //!
 //! Time is milliseconds as a `u64` the caller passes in; nothing here reads
 //! a clock or does I/O.

@@ -1,12 +1,12 @@
 //! The simulated bus driven with wire bytes, as a master would drive it.
 
 use sagebrush_protocol::{
-    ACK, Address, Angle, Command, Event, FrameBuf, Framer, LensPosition, NAK, Position, Reply, U12,
+    ACK, Address, Angle, Command, Event, FrameBuf, Framer, LensPosition, NAK, Position, RESULT_RESENDS, Reply, U12,
 };
 use sagebrush_sim::{Bus, BusConfig, Fault, FaultConfig, GimbalConfig};
 
 /// What came back from one exchange.
-#[derive(Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 enum Answer {
     Ack,
     Nak,
@@ -509,4 +509,92 @@ fn fault_drop_ack_delay_and_silence() {
     assert_eq!(line.send(b"?"), [Answer::Ack, Answer::Nic]);
     line.run(300);
     assert_eq!(line.position(), pos(0, 0));
+}
+
+/// The master NAKs a damaged result: the gimbal's own `DeviceEndpoint` (the
+/// firmware's code) sends it again, at most `RESULT_RESENDS` times, with no
+/// time window; once the master has moved on (an ACK, or a frame to another
+/// device of the bus) a NAK is not this device's and gets nothing.
+#[test]
+fn the_endpoints_resend_on_nak_runs_in_the_simulator() {
+    let mut line = Line::new(BusConfig {
+        devices: vec![GimbalConfig::at(1), GimbalConfig::at(2)],
+        ..BusConfig::default()
+    });
+    let result = Answer::Frame(Address::new(0, 1, 1), 1, b"00000000".to_vec());
+    assert_eq!(line.send(b"P?"), [Answer::Ack, result.clone()]);
+    line.run(2000);
+    for _ in 0..RESULT_RESENDS {
+        assert_eq!(
+            line.raw(&[NAK]),
+            std::slice::from_ref(&result),
+            "resent, however late the NAK"
+        );
+    }
+    assert_eq!(line.raw(&[NAK]), [], "not more than RESULT_RESENDS times");
+    let resent = u64::from(RESULT_RESENDS);
+    assert_eq!(line.bus.endpoint_stats(1).unwrap().results_resent, resent);
+    assert_eq!(line.bus.stats().results_resent, resent);
+    assert_eq!(line.bus.stats().naks_in, resent + 1);
+
+    assert_eq!(line.send(b"P?"), [Answer::Ack, result.clone()]);
+    assert_eq!(line.raw(&[ACK, NAK]), [], "an ACK ends it");
+    assert_eq!(line.send(b"P?"), [Answer::Ack, result]);
+    assert_eq!(line.send_to(Address::new(1, 1, 2), b"PL"), [Answer::Ack]);
+    assert_eq!(line.raw(&[NAK]), [], "that NAK is about device 2's ACK");
+    assert_eq!(line.bus.stats().results_resent, resent);
+}
+
+/// `IX` broadcast on a shared bus: executed by every gimbal, answered by
+/// none, its later result included (the handler learns it from `ReplyTo`).
+#[test]
+fn a_broadcast_ix_on_a_shared_bus_owes_no_result() {
+    let uninitialized = |d| GimbalConfig {
+        init_ms: 500,
+        start_initialized: false,
+        ..GimbalConfig::at(d)
+    };
+    let mut line = Line::new(BusConfig {
+        devices: vec![uninitialized(1), uninitialized(2)],
+        ..BusConfig::default()
+    });
+    assert_eq!(line.send_to(Address::new(1, 1, 255), b"IX"), []);
+    assert_eq!(line.run(1000), [], "no IX result on the line");
+    assert!(line.bus.gimbals().all(|g| g.is_initialized()));
+    assert_eq!(line.bus.endpoint_stats(1).unwrap().results_sent, 0);
+    // Addressed to one of them, the same command is answered, result and all.
+    assert_eq!(line.send_to(Address::new(1, 1, 2), b"IX"), [Answer::Ack]);
+    let out = line.run(1000);
+    let (frame, _) = sagebrush_protocol::Frame::parse(&out).unwrap();
+    assert_eq!(frame.payload(), b"0009000900090009");
+}
+
+/// Bytes of a frame in progress are held back from the endpoints until the
+/// frame is whole, so a fault takes the whole frame even when it arrives in
+/// pieces, and nothing is answered before its last byte.
+#[test]
+fn a_frame_in_pieces_is_answered_at_its_last_byte_and_faults_take_it_whole() {
+    let frame = FrameBuf::new(Address::new(1, 1, 1), 0, b"PR").unwrap();
+    let (head, tail) = frame.as_bytes().split_at(4);
+    let mut line = faulty(FaultConfig {
+        silent: 1.0,
+        max_faults: Some(1),
+        ..FaultConfig::default()
+    });
+    assert_eq!(line.raw(head), []);
+    assert_eq!(line.raw(tail), [], "not heard");
+    line.run(300);
+    assert_eq!(line.position(), pos(0, 0), "not executed");
+    assert_eq!(line.bus.faults_injected(Fault::Silent), 1);
+
+    let mut line = faulty(FaultConfig {
+        nak: 1.0,
+        max_faults: Some(1),
+        ..FaultConfig::default()
+    });
+    assert_eq!(line.raw(head), []);
+    assert_eq!(line.raw(tail), [Answer::Nak], "damaged in transit");
+    assert_eq!(line.raw(head), []);
+    assert_eq!(line.raw(tail), [Answer::Ack]);
+    assert_eq!(line.bus.stats().bad_checksums_in, 1);
 }
