@@ -303,18 +303,17 @@ macro_rules! command_table {
         }
 
         impl<$lt> $Command<$lt> {
-            /// The row that takes `payload`; `Ok(None)` if none does.
-            fn parse_rows($payload: &$lt [u8]) -> Result<Option<Self>, CommandError> {
+            /// The row that takes `payload`, or why none does ([`no_row`]).
+            fn parse_rows($payload: &$lt [u8]) -> Result<Self, CommandError> {
                 $($(
                     if let Some(command) = $first {
-                        return Ok(Some(command));
+                        return Ok(command);
                     }
                 )?)+
-                match $payload {
-                    $($( $pat $(if $guard)? => return Ok(Some($command)), )*)+
-                    _ => {}
-                }
-                Ok(None)
+                Ok(match $payload {
+                    $($( $pat $(if $guard)? => $command, )*)+
+                    _ => return Err(no_row($payload)),
+                })
             }
 
             /// Writes the row's bytes (not checked for emptiness).
@@ -384,6 +383,25 @@ fn aux_port(p: u8) -> Result<AuxPort, CommandError> {
             found: Some(p),
             expected: "auxiliary port '0' or '1'",
         }),
+    }
+}
+
+/// Why `payload` fits no row: empty, or `*xp` with a bad port or an
+/// operation no row takes (the port is checked first, as the rows do), or
+/// no command at all.
+fn no_row(payload: &[u8]) -> CommandError {
+    match payload {
+        [] => CommandError::Empty,
+        [b'*', b'x', p, op, ..] => match aux_port(*p) {
+            Err(e) => e,
+            Ok(_) => CommandError::BadArgument {
+                command: "*xp..",
+                offset: 3,
+                found: Some(*op),
+                expected: "one of c, t, r, n, f (n and f alone)",
+            },
+        },
+        _ => unknown(payload),
     }
 }
 
@@ -1072,24 +1090,7 @@ impl<'a> Command<'a> {
 
     /// Parses a payload, saying what is wrong with one that fits no command.
     pub fn parse_strict(payload: &'a [u8]) -> Result<Self, CommandError> {
-        if payload.is_empty() {
-            return Err(CommandError::Empty);
-        }
-        if let Some(command) = Self::parse_rows(payload)? {
-            return Ok(command);
-        }
-        // `*xp` + an operation no row takes: say which byte is wrong,
-        // the port first (as the rows do).
-        if let [b'*', b'x', p, op, ..] = payload {
-            aux_port(*p)?;
-            return Err(CommandError::BadArgument {
-                command: "*xp..",
-                offset: 3,
-                found: Some(*op),
-                expected: "one of c, t, r, n, f (n and f alone)",
-            });
-        }
-        Err(unknown(payload))
+        Self::parse_rows(payload)
     }
 
     /// Writes the payload into `buf`; returns the written prefix.
