@@ -802,8 +802,11 @@ impl Drop for Tap {
 mod tests {
     use super::*;
 
-    /// (interface id, flags, record) of each EPB, and IDB names, of a file.
-    fn read(path: &Path) -> (Vec<String>, Vec<(u32, u32, Vec<u8>)>) {
+    /// (interface id, EPB flags, record) of each EPB.
+    type Packets = Vec<(u32, u32, Vec<u8>)>;
+
+    /// The IDB names and the EPBs of a file.
+    fn read(path: &Path) -> (Vec<String>, Packets) {
         let data = std::fs::read(path).unwrap();
         let (mut names, mut packets, mut at) = (Vec::new(), Vec::new(), 0);
         let u32_at = |i: usize| u32::from_le_bytes(data[i..i + 4].try_into().unwrap());
