@@ -77,6 +77,10 @@ fn gcud_capture_decodes_in_wireshark_with_units_pairing_and_bad_checksums() {
     assert_eq!(out.code, 0, "{out:?}");
     let reported = out.json()["result"]["pan_deg"].as_f64().expect("pan");
     assert_eq!(send_bad_checksum(&gcud.clients()), [0x15], "gcud NAKs a damaged frame");
+    // No device 9: retransmitted on the port, given up, reported; XX: NIC.
+    assert_ne!(gcud.ctl(&["--to", "5.1.9", "position"]).code, 0);
+    assert_ne!(gcud.ctl(&["--to", "5.1.1", "raw", "XX"]).code, 0);
+    assert_eq!(gcud.ctl(&["--to", "5.1.2", "home"]).code, 0);
     let (log, dir) = gcud.terminate();
     let file = dir.path().join("gcud.pcapng");
     assert!(log.contains("capture stopped (gcud stopping)"), "{log}");
@@ -155,6 +159,13 @@ fn gcud_capture_decodes_in_wireshark_with_units_pairing_and_bad_checksums() {
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("Bad checksum 0x00, computed 0x98"), "{text}");
     assert!(text.contains("NAK: the command arrived damaged"), "{text}");
+    assert!(text.contains("Retransmission of frame"), "{text}");
+    assert!(
+        text.contains("got no ACK (given up after 3 retransmission(s))"),
+        "{text}"
+    );
+    assert!(text.contains("Not delivered: device silent"), "{text}");
+    assert!(text.contains("NIC: command not implemented by the device"), "{text}");
 }
 
 #[test]

@@ -1,10 +1,11 @@
 -- Wireshark dissector for Sagebrush gimbal protocol rev 1.9 captures
 -- written by sagebrush_host::capture (gcud [capture], see docs/capture.md).
 --
--- Link type LINKTYPE_USER0 (147). Each record: a 4-byte header
+-- Link type LINKTYPE_USER0 (147). Each record: an 8-byte header
 --   version (1), kind (1 frame, 2 ACK, 3 NAK, 4 NIC, 5 noise, 6 bad checksum),
 --   direction (1 inbound, 2 outbound, seen from the capturing program),
---   role (0 unknown, 1 the capturer sends the commands, 2 it receives them)
+--   role (0 unknown, 1 the capturer sends the commands, 2 it receives them),
+--   interface number (u32 big endian, the capturing program's own)
 -- then the raw bytes of the frame, byte or noise.
 --
 -- Install: copy to ~/.local/lib/wireshark/plugins/ (or run
@@ -24,6 +25,7 @@ local f = {
     kind = ProtoField.uint8("sagebrush.kind", "Record kind", base.DEC, kinds),
     direction = ProtoField.uint8("sagebrush.direction", "Direction", base.DEC, directions),
     role = ProtoField.uint8("sagebrush.role", "Line role", base.DEC, roles),
+    iface = ProtoField.uint32("sagebrush.interface", "Interface number (capturing program's)"),
     start = ProtoField.uint8("sagebrush.start", "Start character", base.HEX),
     dest_group = ProtoField.uint8("sagebrush.dest.group", "Destination group", base.DEC),
     dest_port = ProtoField.uint8("sagebrush.dest.port", "Destination port", base.DEC),
@@ -101,7 +103,6 @@ local e = {
 }
 p.experts = { e.bad_checksum, e.nak, e.nic, e.retransmission, e.timeout, e.noise, e.swap, e.unpaired, e.undelivered }
 
-local f_iface = Field.new("frame.interface_id")
 
 -- Table 2 meanings.
 local function group_name(v)
@@ -363,6 +364,16 @@ local function first_pass(pinfo, id, kind, dir, role, info)
         elseif role == 1 and last and last.shape and not last.result and last.ack then
             n.timeout = string.format("frame %d (%s) got no result before this command", last.num, last.mnemonic)
         end
+        if role == 1 and not n.retransmission_of then
+            -- Stop and wait: a new command means the master gave up the unacknowledged ones.
+            for _, old in ipairs(st.cmds) do
+                if not old.ack and not old.done then
+                    old.done = true
+                    n.timeout = string.format("frame %d got no ACK (given up after %d retransmission(s))",
+                        old.num, old.retransmissions or 0)
+                end
+            end
+        end
         local c = { num = pinfo.number, bytes = info.bytes, time = now, group = info.group, port = info.port,
                     device = info.device, source = info.source, mnemonic = info.mnemonic, shape = info.shape,
                     payload = info.payload, checksum = info.checksum }
@@ -381,6 +392,7 @@ local function first_pass(pinfo, id, kind, dir, role, info)
                 and c.checksum == info.report_checksum then
                 n.report_of = c.num
                 c.report = pinfo.number
+                c.done = true
                 break
             end
         end
@@ -420,7 +432,7 @@ local function first_pass(pinfo, id, kind, dir, role, info)
         end
     elseif kind == 2 or kind == 3 then
         for _, c in ipairs(st.cmds) do
-            if not c.ack and not c.naked then
+            if not c.ack and not c.naked and not c.done then
                 n.ack_of = c.num
                 if kind == 2 then c.ack = pinfo.number else c.naked = c.damaged end
                 break
@@ -446,17 +458,21 @@ local function checksum(buf, from, to)
 end
 
 function p.dissector(buf, pinfo, tree)
-    if buf:len() < 4 then return 0 end
+    if buf:len() < 8 then return 0 end
     pinfo.cols.protocol = "Sagebrush"
     local version, kind, dir, role = buf(0, 1):uint(), buf(1, 1):uint(), buf(2, 1):uint(), buf(3, 1):uint()
     local t = tree:add(p, buf(), "Sagebrush gimbal protocol, " .. (kinds[kind] or "record kind " .. kind))
-    local h = t:add(p, buf(0, 4), "Capture record header")
+    local h = t:add(p, buf(0, 8), "Capture record header")
     h:add(f.version, buf(0, 1))
     h:add(f.kind, buf(1, 1))
     h:add(f.direction, buf(2, 1))
     h:add(f.role, buf(3, 1))
-    local data = buf(4):tvb()
-    local id = f_iface() and f_iface().value or 0
+    h:add(f.iface, buf(4, 4))
+    -- Pairing state is per interface: by the record's own interface number,
+    -- which (unlike frame.interface_id) is there on a first pass without a tree.
+    local id = buf(4, 4):uint()
+    if buf:len() == 8 then return buf:len() end
+    local data = buf(8):tvb()
     local arrow = dir == 1 and "<- " or "-> "
     local info = {}
     local summary
@@ -563,6 +579,7 @@ function p.dissector(buf, pinfo, tree)
         if n.report_of then t:add(f.report_of, n.report_of) end
         if code ~= 0 then t:add_proto_expert_info(e.undelivered, "Not delivered: " .. (report_codes[code] or "unknown")) end
         pinfo.cols.info = arrow .. "report " .. addr .. ": " .. (report_codes[code] or "?") .. " (" .. payload:sub(4, 9) .. ")"
+            .. (n.report_of and (" on frame " .. n.report_of) or "")
     else
         t:add(f.type, "result")
         local text

@@ -7,8 +7,10 @@
 //!   candidate or run of noise bytes, split by the protocol crate's
 //!   [`Framer`] per interface and direction, stamped with the time the chunk
 //!   holding its first byte was read or written; EPB flags say inbound or
-//!   outbound. Each record starts with a 4-byte header: version (1), kind
-//!   ([`RecordKind`]), direction ([`Direction`]), role ([`Role`]).
+//!   outbound. Each record starts with an 8-byte header: version (1), kind
+//!   ([`RecordKind`]), direction ([`Direction`]), role ([`Role`]), and the
+//!   interface's number in the capturing program (u32, big endian; the same
+//!   in every rotated file, so a reader pairs by it without frame fields).
 //! - The caller never waits: [`Capture::record`] copies the bytes into a
 //!   bounded channel (a full channel drops and counts them); a writer thread
 //!   frames them and writes whole blocks, so a file cut short by a killed
@@ -42,7 +44,7 @@ pub const LINKTYPE: u16 = 147;
 /// First byte of every record.
 pub const RECORD_VERSION: u8 = 1;
 /// Bytes of the record header before the raw bytes.
-pub const RECORD_HEADER_LEN: usize = 4;
+pub const RECORD_HEADER_LEN: usize = 8;
 /// A stream with an incomplete frame silent this long: the frame is given up (noise).
 const IDLE: Duration = Duration::from_millis(200);
 
@@ -542,6 +544,7 @@ impl Writer {
         let (name, role) = self.role_of(iface);
         let mut record = Vec::with_capacity(RECORD_HEADER_LEN + data.len());
         record.extend_from_slice(&[RECORD_VERSION, kind as u8, dir as u8, role as u8]);
+        record.extend_from_slice(&iface.to_be_bytes());
         record.extend_from_slice(data);
         let epb_len = (32 + pad4(record.len()) + 12 + 4) as u64;
         let idb_len = interface_block(&name).len() as u64;
@@ -853,9 +856,10 @@ mod tests {
             [(2, 1, 2, 1), (1, 5, 1, 1), (1, 2, 1, 1), (1, 6, 1, 1), (1, 4, 1, 1)],
             "{packets:?}"
         );
-        assert_eq!(&packets[0].2[4..], &frame);
-        assert_eq!(&packets[1].2[4..], b"xy");
-        assert_eq!(&packets[3].2[4..], &[0xF8, 5, 1, 1, 0, 1, b'A', 0x00]);
+        assert_eq!(&packets[0].2[4..8], &[0, 0, 0, 0], "interface number");
+        assert_eq!(&packets[0].2[8..], &frame);
+        assert_eq!(&packets[1].2[8..], b"xy");
+        assert_eq!(&packets[3].2[8..], &[0xF8, 5, 1, 1, 0, 1, b'A', 0x00]);
     }
 
     #[test]
@@ -869,7 +873,7 @@ mod tests {
         c.stop(Duration::from_secs(5));
         let (_, packets) = read(&path);
         assert_eq!(packets.len(), 1);
-        assert_eq!(packets[0].2, [1, 5, 1, 2, 0xF8, 5, 1]);
+        assert_eq!(packets[0].2, [1, 5, 1, 2, 0, 0, 0, 0, 0xF8, 5, 1]);
     }
 
     #[test]
@@ -937,6 +941,6 @@ mod tests {
         let (names, packets) = read(&path);
         assert_eq!(names, ["port 2"]);
         assert_eq!(packets.len(), 1);
-        assert_eq!(packets[0].2, [1, 3, 2, 1, 0x15]);
+        assert_eq!(packets[0].2, [1, 3, 2, 1, 0, 0, 0, 0, 0x15]);
     }
 }
