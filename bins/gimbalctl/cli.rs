@@ -211,6 +211,7 @@ pub enum Cmd {
     },
     /// Query (R?, RP?, RT?) or set (RPnnnn, RTnnnn) discrete rates, degrees per second.
     #[command(
+        allow_negative_numbers = true,
         after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 rate\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 rate pan 10.25   # sends RP0401"
     )]
     Rate {
@@ -222,6 +223,7 @@ pub enum Cmd {
     },
     /// Query (A?, AP?, AT?) or set (APnnnn, ATnnnn) accelerations, degrees per second squared.
     #[command(
+        allow_negative_numbers = true,
         after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 accel\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 accel tilt 80"
     )]
     Accel {
@@ -376,7 +378,7 @@ pub enum Cmd {
 Through gcud (--tcp) the scan asks each group of --gcus for its GCU's identity (D? to G.0.0; groups \
 without a route are skipped), then each port of --ports of every GCU found (a port the GCU does not \
 have is skipped at once), then D?, AW and I? to each device of --devices on each port. On a bus \
-(--serial) it sweeps the devices at --bus GROUP.PORT. Only queries are sent, never a motion, one \
+(--serial, or --tcp --direct to a device server) it sweeps the devices at --bus GROUP.PORT. Only queries are sent, never a motion, one \
 at a time, --interval apart. Silent addresses are counted; garbage, time-outs after an ACK and \
 other failures are reported per address and the scan goes on; two answers to one address \
 (duplicate device IDs on one bus) are reported as a collision.
@@ -416,7 +418,10 @@ pub struct ScanArgs {
     /// Device IDs to ask on each port, e.g. 1-16 or 1,3,7; 1..=254.
     #[arg(long, default_value = "1-254", value_parser = parse_id_list, value_name = "LIST")]
     pub devices: IdList,
-    /// On a bus (--serial): the GROUP.PORT the devices are addressed at, each 1..=255.
+    /// --tcp leads to a bus, not a GCU (gimbalsim --tcp, a ser2net device server): sweep --bus directly.
+    #[arg(long)]
+    pub direct: bool,
+    /// On a bus (--serial, or --tcp with --direct): the GROUP.PORT the devices are addressed at, each 1..=255.
     #[arg(long, default_value = "255.255", value_parser = parse_bus, value_name = "G.P")]
     pub bus: (u8, u8),
     /// Time-out per address (ACK and result), milliseconds 1..=10000.

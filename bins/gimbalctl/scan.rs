@@ -8,7 +8,7 @@
 use std::time::Duration;
 
 use sagebrush_host::hex::payload_text;
-use sagebrush_protocol::{Address, Command, FrameBuf, Reply, Undelivered};
+use sagebrush_protocol::{Address, Command, DeliveryReport, FrameBuf, Reply, Undelivered};
 use serde_json::{Value, json};
 
 use crate::cli::{Global, ScanArgs};
@@ -73,6 +73,16 @@ impl Scan<'_> {
             Ok(ex) => match &ex.result {
                 Some(frame) => {
                     let p = frame.frame().payload();
+                    if DeliveryReport::is_report(p) {
+                        // A late report about an earlier probe: not this address's answer.
+                        let e = CtlError::BadReply(format!(
+                            "a delivery report \"{}\" about an earlier probe came instead of {at}'s identity",
+                            payload_text(p)
+                        ));
+                        self.problem(at, &e);
+                        self.pause().await;
+                        return Ok(Probe::Failed);
+                    }
                     match identity(p) {
                         Some(id) => {
                             self.check_collision(at, &id, &ex).await?;
@@ -239,14 +249,20 @@ fn device_line(d: &Value) -> String {
 pub async fn scan(g: &Global, args: &ScanArgs) -> Result<(), CtlError> {
     let started = std::time::Instant::now();
     let timeout = args.timeout;
+    // Through a GCU the ACK waits for the device (and a report says why
+    // not) within gcud's delivery time-out, shorter than the TCP default
+    // ACK time-out: that one stays, or a late report would meet the next probe.
+    let to_gcu = g.tcp.is_some() && !args.direct;
     let session = Session::open_with(g, Address::new(255, 0, 0), |p| {
         p.retry.retries = 0;
         p.result_timeout = timeout;
         p.nic_window = p.nic_window.min(timeout);
-        p.retry.ack_timeout = p.retry.ack_timeout.min(timeout.max(1));
+        if !to_gcu {
+            p.retry.ack_timeout = timeout;
+        }
     })
     .await?;
-    let over_tcp = session.over_tcp;
+    let through_gcu = session.over_tcp && !args.direct;
     let line = session.line.clone();
     let mut s = Scan {
         session,
@@ -258,7 +274,7 @@ pub async fn scan(g: &Global, args: &ScanArgs) -> Result<(), CtlError> {
     let mut text = Vec::new();
     let mut gcus = Vec::new();
     let mut bus = Value::Null;
-    if over_tcp {
+    if through_gcu {
         for group in args.gcus.0.clone() {
             let at = Address::new(group, 0, 0);
             let Probe::Found(id) = s.identify(at).await? else {
