@@ -403,11 +403,17 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
 }
 
 /// SIGUSR1: starts a capture with `[capture]` as the file reads now (the
-/// running settings if it cannot be read), or stops the running one. A
-/// capture that cannot start is one error line; routing goes on.
+/// running settings if it cannot be read), or stops the running one (one
+/// that stopped by itself, on a write error or its budget, is replaced by a
+/// fresh one). A capture that cannot start is one error line; routing goes on.
 fn toggle_capture(switch: &CaptureSwitch, config: &Config) {
     if let Some(capture) = switch.stop() {
-        return log_capture_stop(&capture, "SIGUSR1");
+        let running = capture.is_active();
+        log_capture_stop(&capture, "SIGUSR1");
+        if running {
+            return;
+        }
+        // It had stopped by itself (write error, budget): start afresh.
     }
     let settings = match crate::config::load(&config.file) {
         Ok(now) => now.capture,
