@@ -6,7 +6,7 @@
 use sagebrush_host::sim_line::{Line, serve};
 use sagebrush_sim::{Bus, BusConfig, GimbalConfig};
 use tokio::io::DuplexStream;
-use tokio::time::Instant;
+use tokio::time::{Duration, Instant};
 use tracing::warn;
 
 /// Starts a simulated bus for `port` with `devices` at `baud`; returns the port's end of the pipe.
@@ -32,6 +32,7 @@ pub fn spawn(port: u8, devices: &[u8], baud: u32) -> DuplexStream {
             epoch: Instant::now(),
             pace: false,
             baud,
+            reply_delay: Duration::ZERO,
         };
         let mut never = Box::pin(std::future::pending()) as sagebrush_host::sim_line::Shutdown;
         if let Err(e) = serve(&mut bus, &mut theirs, &mut line, &mut |_, _| Ok(()), &mut never).await {

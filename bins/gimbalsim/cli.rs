@@ -33,6 +33,10 @@ pub struct Cli {
     /// Pace bytes at the line rate (a pty or TCP delivers at once; a real line does not).
     #[arg(long)]
     pub pace: bool,
+    /// With --pace: microseconds from a command's last byte to the first
+    /// byte of its answer (the device's turnaround).
+    #[arg(long, value_name = "US", default_value_t = 20)]
+    pub reply_delay_us: u64,
 
     /// Device addresses on the bus (1..=254), comma separated or repeated.
     #[arg(long = "device", value_name = "N", value_delimiter = ',', default_value = "1",

@@ -1,6 +1,6 @@
 //! The simulator's I/O: a pseudo-terminal, TCP listener or serial device
 //! around the sans-IO [`Bus`], a millisecond clock, optional pacing at the
-//! line rate, data-rate switches (Table 4 `C0..C7`) and shutdown.
+//! line rate with a device turnaround (`--reply-delay-us`), data-rate switches (Table 4 `C0..C7`) and shutdown.
 
 use std::io;
 
@@ -9,7 +9,7 @@ use sagebrush_host::sim_line::{End, Line, Shutdown, serve};
 use sagebrush_host::transport;
 use sagebrush_sim::{Bus, BusConfig, Fault};
 use tokio::net::TcpListener;
-use tokio::time::Instant;
+use tokio::time::{Duration, Instant};
 use tracing::{info, warn};
 
 use crate::cli::Cli;
@@ -55,6 +55,7 @@ pub async fn run(cli: Cli, config: BusConfig) -> Result<(), String> {
         epoch,
         pace: cli.pace,
         baud: cli.baud,
+        reply_delay: Duration::from_micros(cli.reply_delay_us),
     };
     let addresses: Vec<String> = bus.gimbals().map(|g| g.device().to_string()).collect();
     let result = if let Some(addr) = &cli.tcp {
