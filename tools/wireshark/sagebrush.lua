@@ -76,6 +76,11 @@ local f = {
     report_group = ProtoField.uint8("sagebrush.report.group", "Reporting failure group"),
     report_of = ProtoField.framenum("sagebrush.report_of", "Report on command in frame", base.NONE, frametype.RESPONSE),
     noise = ProtoField.bytes("sagebrush.noise", "Noise bytes"),
+    pan_bits = ProtoField.uint16("sagebrush.pan_bits", "Pan (azimuth) bits", base.HEX),
+    tilt_bits = ProtoField.uint16("sagebrush.tilt_bits", "Tilt (elevation) bits", base.HEX),
+    limit = ProtoField.uint16("sagebrush.limit", "Software limit (raw 12 bit)"),
+    relays = ProtoField.uint8("sagebrush.relays", "Relays on (bit n = relay n)", base.HEX),
+    home = ProtoField.string("sagebrush.home", "Verify home (limit, centre, count correct; bit 0 pan, bit 1 tilt)"),
 }
 local field_list = {}
 for _, v in pairs(f) do field_list[#field_list + 1] = v end
@@ -313,6 +318,40 @@ local function decode_result(shape, cmd_payload, s, tree, range)
             if #body > 24 then tree:add(f.id_serial, at(24, math.min(20, #body - 24)), serial) end
             return string.format("ID %s rev %s %q %q", body:sub(1, 2), body:sub(3, 4), name, serial)
         end
+    elseif shape == "errors" or shape == "statusbits" then
+        -- Table 6A: 2 + 2 hex; Table 6B: 4 + 4 (2 + 2 accepted, NOTES E3).
+        local w = (#body == 8) and 4 or 2
+        local pan, tilt = hexval(body:sub(1, w)), hexval(body:sub(w + 1, 2 * w))
+        if pan and tilt and #body == 2 * w then
+            tree:add(f.pan_bits, at(0, w), pan)
+            tree:add(f.tilt_bits, at(w, w), tilt)
+            return string.format("pan 0x%X, tilt 0x%X", pan, tilt)
+        end
+    elseif shape == "limits" then
+        local o = (#body == 13 and body:sub(1, 1) == "L") and 1 or 0
+        local names = { "pan CCW (+)", "pan CW (-)", "tilt CCW (+)", "tilt CW (-)" }
+        local parts = {}
+        for i = 0, 3 do
+            local v = hexval(body:sub(o + 3 * i + 1, o + 3 * i + 3))
+            if not v then return nil end
+            tree:add(f.limit, at(o + 3 * i, 3), v):prepend_text(names[i + 1] .. " ")
+            parts[#parts + 1] = names[i + 1] .. " " .. v
+        end
+        return table.concat(parts, ", ")
+    elseif shape == "relays" then
+        local v = hexval(body:gsub("^L", ""))
+        if v then
+            tree:add(f.relays, at(0, #body), v)
+            return string.format("relays 0x%X", v)
+        end
+    elseif shape == "home" then
+        if #body == 3 then
+            tree:add(f.home, at(0, 3), body)
+            return "limit " .. body:sub(1, 1) .. ", centre " .. body:sub(2, 2) .. ", count correct " .. body:sub(3, 3)
+        end
+    elseif shape == "auxcount" then
+        local v = tonumber(body)
+        if v then return v .. " character(s) waiting" end
     elseif shape == "lens" then
         local o = (#body == 7 and body:sub(1, 1) == "V") and 1 or 0
         local z, fo = hexval(body:sub(o + 1, o + 3)), hexval(body:sub(o + 4, o + 6))
