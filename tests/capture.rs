@@ -246,3 +246,22 @@ fn a_capture_cut_short_by_a_killed_gcud_still_reads() {
     assert_eq!(cut_rows.len(), rows.len() - 1, "{}", table(&cut_rows));
     assert!(cut_rows.iter().any(|r| r.get("sagebrush.cmd") == "Paaaaeeee"));
 }
+
+#[test]
+fn a_capture_out_of_budget_stops_once_and_sigusr1_starts_a_fresh_one() {
+    let gcud = Daemon::start(&config("[capture]\nfile = \"{dir}/b.pcapng\"\nbudget_bytes = 4096\n"));
+    eventually("the budget to run out", || {
+        assert_eq!(gcud.ctl(&["--to", "5.1.1", "position"]).code, 0, "{}", gcud.log());
+        gcud.log().contains("capture budget of 4096 bytes reached")
+    });
+    assert!(std::fs::metadata(gcud.path("b.pcapng")).expect("file").len() <= 4096);
+    gcud.signal(Signal::SIGUSR1);
+    gcud.wait_for_log("capture stopped (SIGUSR1)");
+    eventually("a second capture", || {
+        gcud.log().matches("capture started").count() == 2
+    });
+    assert!(gcud.path("b.1.pcapng").exists(), "the spent file rotated away");
+    assert_eq!(gcud.ctl(&["--to", "5.1.1", "position"]).code, 0);
+    let (log, _dir) = gcud.terminate();
+    assert_eq!(log.matches("capture budget of 4096 bytes reached").count(), 1, "{log}");
+}
