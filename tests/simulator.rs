@@ -118,3 +118,57 @@ fn every_frame_is_logged() {
         "{log}"
     );
 }
+
+/// Issue 14: with `--pace` the simulator answers like hardware. A master
+/// on the pty sends `P?` again and again at 115200 bit/s: no answer comes
+/// before the command and the answer have had their wire time, and the
+/// median transaction (26 bytes on the wire) takes less than 38 byte-times
+/// (the loop timed in milliseconds took about 73).
+#[test]
+fn paced_line_answers_within_the_line_rate() {
+    use std::io::{Read, Write};
+    use std::time::{Duration, Instant};
+
+    use sagebrush_protocol::{ACK, Address, Event, FrameBuf, Framer};
+
+    let sim = Sim::pty(&["--pace", "--baud", "115200"]);
+    let mut port = std::fs::File::options()
+        .read(true)
+        .write(true)
+        .open(&sim.endpoint)
+        .unwrap();
+    let command = FrameBuf::new(Address::new(1, 1, 1), 0, b"P?").unwrap();
+    let byte = Duration::from_nanos(10 * 1_000_000_000 / 115_200);
+    let mut framer: Framer = Framer::new();
+    let mut took = Vec::new();
+    for _ in 0..60 {
+        let start = Instant::now();
+        port.write_all(command.as_bytes()).unwrap();
+        let (mut ack, mut result) = (None, None);
+        let mut buf = [0u8; 64];
+        while result.is_none() {
+            let n = port.read(&mut buf).unwrap();
+            assert!(n > 0);
+            let now = start.elapsed();
+            framer.feed(&buf[..n], |e| match e {
+                Event::Ack => ack = ack.or(Some(now)),
+                Event::Frame(f) => result = Some((now, f.payload().to_vec())),
+                other => panic!("{other:?}"),
+            });
+        }
+        let (done, payload) = result.unwrap();
+        assert_eq!(payload, b"00000000");
+        assert!(
+            ack.unwrap() >= byte * 10,
+            "ACK after command and ACK on the wire: {ack:?}"
+        );
+        assert!(done >= byte * 25, "result after its 15 bytes: {done:?}");
+        port.write_all(&[ACK]).unwrap();
+        took.push(start.elapsed());
+    }
+    took.sort();
+    let median = took[took.len() / 2];
+    assert!(median < byte * 38, "median transaction {median:?}, a byte {byte:?}");
+    let stats = sim.stop();
+    assert_eq!(stats["frames_in"], 60, "{stats}");
+}
