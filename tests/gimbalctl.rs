@@ -824,6 +824,33 @@ fn bad_arguments_exit_2_with_a_hint_and_to_is_required() {
 }
 
 #[test]
+fn json_failures_of_bad_arguments_are_json_too() {
+    for args in [
+        &["--json", "--tcp", "127.0.0.1", "--to", "5.1.1", "position"][..],
+        &[
+            "--json",
+            "--serial",
+            "/nonexistent",
+            "--to",
+            "1.1.1",
+            "speed",
+            "pan",
+            "16",
+        ],
+        &["--json", "--serial", "/nonexistent", "goto", "1", "2"],
+    ] {
+        let out = gimbalctl(args);
+        assert_eq!(out.code, 2, "{args:?}: {out:?}");
+        let v = out.json();
+        assert_eq!(
+            (v["ok"].as_bool(), v["outcome"].as_str(), v["exit_code"].as_u64()),
+            (Some(false), Some("usage"), Some(2))
+        );
+        assert!(v["error"].as_str().is_some_and(|e| !e.is_empty()), "{v}");
+    }
+}
+
+#[test]
 fn undeliverable_queries_fail_at_once_with_their_own_reason_and_code() {
     let gcud = DemoGcud::start();
     for (to, code, outcome, says) in [

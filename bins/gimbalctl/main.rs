@@ -28,7 +28,25 @@ use crate::error::CtlError;
 use crate::session::Session;
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            use clap::error::ErrorKind;
+            let usage_error = !matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion)
+                && e.kind() != ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand;
+            // Scripts asking for JSON get a JSON failure for bad arguments too.
+            if usage_error && std::env::args().any(|a| a == "--json") {
+                let text = e.render().to_string();
+                let first = text.lines().next().unwrap_or_default().trim_start_matches("error: ");
+                println!(
+                    "{}",
+                    json!({ "ok": false, "command": null, "dest": null, "outcome": "usage",
+                            "error": first, "exit_code": 2 })
+                );
+            }
+            e.exit();
+        }
+    };
     let as_json = cli.global.json;
     if let Err(e) = sagebrush_host::logging::init(&cli.global.log, false) {
         eprintln!("gimbalctl: {e}");
