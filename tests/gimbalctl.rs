@@ -743,6 +743,37 @@ fn help_documents_the_dead_man_examples_ranges_and_exit_codes() {
             out.stdout
         );
     }
+    for nested in [
+        &["preset", "store"][..],
+        &["preset", "recall"],
+        &["preset", "query"],
+        &["preset", "stored"],
+        &["limits", "set"],
+        &["limits", "clear"],
+        &["gains", "set"],
+        &["relay", "open"],
+        &["relay", "close"],
+        &["lens", "goto"],
+        &["focus", "far"],
+        &["focus", "near"],
+        &["focus", "stop"],
+        &["focus", "speed"],
+        &["zoom", "in"],
+        &["zoom", "out"],
+        &["zoom", "stop"],
+        &["zoom", "speed"],
+        &["zoom", "digital"],
+        &["aux", "configure"],
+        &["aux", "send"],
+        &["aux", "read"],
+        &["aux", "count"],
+        &["aux", "flush"],
+    ] {
+        let mut args = vec!["help"];
+        args.extend_from_slice(nested);
+        let out = gimbalctl(&args);
+        assert!(out.stdout.contains("Examples:"), "{nested:?} has no examples: {out:?}");
+    }
     for (sub, range) in [
         (&["help", "speed"][..], "0..=15"),
         (&["help", "goto"], "-327.68..=327.67"),

@@ -133,7 +133,7 @@ pub struct JogArgs {
     /// Move for DURATION (e.g. 2s, 500ms, 1.5s; 1ms..=1h), then send the stop and confirm it.
     #[arg(long = "for", value_name = "DURATION", value_parser = parse_duration, conflicts_with = "hold")]
     pub duration: Option<Duration>,
-    /// Keep the connection (and the motion) until Ctrl-C, SIGTERM or end of stdin, then stop and confirm.
+    /// Keep the connection (and the motion) until Ctrl-C, SIGTERM or end of stdin, then stop and confirm (stdin from /dev/null ends it at once: use a terminal or a pipe).
     #[arg(long)]
     pub hold: bool,
 }
@@ -424,7 +424,7 @@ pub struct ScanArgs {
     /// On a bus (--serial, or --tcp with --direct): the GROUP.PORT the devices are addressed at, each 1..=255.
     #[arg(long, default_value = "255.255", value_parser = parse_bus, value_name = "G.P")]
     pub bus: (u8, u8),
-    /// Time-out per address (ACK and result), milliseconds 1..=10000.
+    /// Time-out per address, milliseconds 1..=10000: ACK and result on a bus; the result through gcud (there the GCU's own retries decide that a device is silent, and an ACK waits up to --ack-timeout).
     #[arg(long, default_value_t = 300, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..=10_000))]
     pub timeout: u64,
     /// Pause between two queries, milliseconds 0..=10000 (rate limit).
@@ -439,12 +439,16 @@ pub struct IdList(pub Vec<u8>);
 #[derive(Debug, Subcommand)]
 pub enum PresetCmd {
     /// Store the current position as preset N (Snn).
+    #[command(
+        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 preset store 12\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 preset store 0xFF   # preset 255 (SFF)"
+    )]
     Store {
         /// Preset 0..=255 (decimal, or 0x00..=0xFF).
         #[arg(value_parser = parse_preset, value_name = "N")]
         n: u8,
     },
     /// Go to preset N (Pnn).
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 preset recall 12 --wait")]
     Recall {
         /// Preset 0..=255 (decimal, or 0x00..=0xFF).
         #[arg(value_parser = parse_preset, value_name = "N")]
@@ -453,12 +457,14 @@ pub enum PresetCmd {
         wait: WaitArgs,
     },
     /// Position of preset N (P?nn).
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 preset query 12")]
     Query {
         /// Preset 0..=255 (decimal, or 0x00..=0xFF).
         #[arg(value_parser = parse_preset, value_name = "N")]
         n: u8,
     },
     /// Position stored at preset N (S?nn).
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 preset stored 12")]
     Stored {
         /// Preset 0..=255 (decimal, or 0x00..=0xFF).
         #[arg(value_parser = parse_preset, value_name = "N")]
@@ -469,6 +475,7 @@ pub enum PresetCmd {
 #[derive(Debug, Subcommand)]
 pub enum LimitsCmd {
     /// Set raw 12-bit limits, each 0..=4095 (Table 10; the unit is the device's).
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 limits set 100 50 30 20")]
     Set {
         /// Pan counter-clockwise (+) limit, raw 0..=4095.
         #[arg(value_parser = clap::value_parser!(u16).range(0..=4095))]
@@ -484,12 +491,14 @@ pub enum LimitsCmd {
         tilt_cw: u16,
     },
     /// Clear the software limits (LC).
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 limits clear")]
     Clear,
 }
 
 #[derive(Debug, Subcommand)]
 pub enum GainsCmd {
     /// Set a rate gain (Table 7).
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 gains set pan 1.5   # GRP0F")]
     Set {
         /// pan (GRPnn) or tilt (GRTnn).
         axis: AxisArg,
@@ -502,12 +511,14 @@ pub enum GainsCmd {
 #[derive(Debug, Subcommand)]
 pub enum RelayCmd {
     /// Open (switch off) relay N (L0..L3).
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 relay open 2   # L2")]
     Open {
         /// Relay 0..=3.
         #[arg(value_parser = clap::value_parser!(u8).range(0..=3), value_name = "N")]
         n: u8,
     },
     /// Close (switch on) relay N (L8..LB).
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 relay close 2   # LA")]
     Close {
         /// Relay 0..=3.
         #[arg(value_parser = clap::value_parser!(u8).range(0..=3), value_name = "N")]
@@ -518,6 +529,7 @@ pub enum RelayCmd {
 #[derive(Debug, Subcommand)]
 pub enum LensCmd {
     /// Go to zoom and focus positions (Table 17).
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 lens goto 2048 100 --wait")]
     Goto {
         /// Zoom position 0..=4095 (12 bits, the lens's own unit).
         #[arg(value_parser = clap::value_parser!(u16).range(0..=4095))]
@@ -533,50 +545,65 @@ pub enum LensCmd {
 #[derive(Debug, Subcommand)]
 pub enum FocusCmd {
     /// Focus far, continuously (FF) until `focus stop`; see --for/--hold.
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 focus far --for 500ms")]
     Far {
         #[command(flatten)]
         jog: JogArgs,
     },
     /// Focus near, continuously (FN) until `focus stop`; see --for/--hold.
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 focus near --hold")]
     Near {
         #[command(flatten)]
         jog: JogArgs,
     },
     /// Stop focusing (FS).
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 focus stop")]
     Stop,
     /// Set the focus speed (Fn), or query it (F?) without a value.
+    #[command(
+        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 focus speed 9\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 focus speed   # query (F?)"
+    )]
     Speed {
         /// Speed 0..=9 (0 = slowest, 9 = fastest).
         #[arg(value_parser = clap::value_parser!(u8).range(0..=9), value_name = "N")]
         n: Option<u8>,
     },
     /// Auto-focus on (FA; "not implemented" in rev 1.9, devices answer NIC).
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 focus auto-on")]
     AutoOn,
     /// Auto-focus off (FX; "not implemented" in rev 1.9, devices answer NIC).
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 focus auto-off")]
     AutoOff,
 }
 
 #[derive(Debug, Subcommand)]
 pub enum ZoomCmd {
     /// Zoom in, continuously (ZI) until `zoom stop`; see --for/--hold.
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 zoom in --for 1s")]
     In {
         #[command(flatten)]
         jog: JogArgs,
     },
     /// Zoom out, continuously (ZO) until `zoom stop`; see --for/--hold.
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 zoom out --hold")]
     Out {
         #[command(flatten)]
         jog: JogArgs,
     },
     /// Stop zooming (ZS).
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 zoom stop")]
     Stop,
     /// Set the zoom speed (Zn), or query it (Z?) without a value.
+    #[command(
+        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 zoom speed 5\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 zoom speed   # query (Z?)"
+    )]
     Speed {
         /// Speed 0..=9 (0 = slowest, 9 = fastest).
         #[arg(value_parser = clap::value_parser!(u8).range(0..=9), value_name = "N")]
         n: Option<u8>,
     },
     /// Digital zoom step (ZA..ZF; "not implemented" in rev 1.9).
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 zoom digital A")]
     Digital {
         /// Step A..=F.
         #[arg(value_parser = parse_digital, value_name = "STEP")]
@@ -587,6 +614,7 @@ pub enum ZoomCmd {
 #[derive(Debug, Subcommand)]
 pub enum AuxCmd {
     /// Line settings (Table 18).
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 aux 1 configure 19200 8 1 even")]
     Configure {
         /// Baud rate of the auxiliary port, 1..=115200 bit/s.
         baud: u32,
@@ -600,16 +628,23 @@ pub enum AuxCmd {
         parity: ParityArg,
     },
     /// Transmit DATA (1..=200 bytes, \xNN escapes allowed).
-    Send { data: String },
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 aux 1 send 'ping\\x0D'")]
+    Send {
+        /// Bytes to send, 1..=200 (text; \xNN for any byte).
+        data: String,
+    },
     /// Receive up to MAX bytes.
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 aux 1 read 16")]
     Read {
         /// Bytes 1..=256.
         #[arg(value_parser = clap::value_parser!(u16).range(1..=256))]
         max: u16,
     },
     /// Characters waiting.
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 aux 1 count")]
     Count,
     /// Drop what is waiting.
+    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 aux 1 flush")]
     Flush,
 }
 

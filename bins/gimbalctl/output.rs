@@ -185,7 +185,7 @@ pub fn describe(command: &Command<'_>, reply: &Reply<'_>) -> (String, Value) {
             let revision = String::from_utf8_lossy(&id.revision).trim().to_string();
             (
                 format!(
-                    "device {:02X}  protocol revision {revision}  name {name:?}  serial {serial:?}",
+                    "device {:02}  protocol revision {revision}  name {name:?}  serial {serial:?}",
                     id.id
                 ),
                 json!({ "id": id.id, "revision": revision, "name": name, "serial": serial }),
