@@ -64,7 +64,14 @@ fn print(event: &Decoded, as_json: bool) {
             let f = frame.frame();
             let command = Command::parse_strict(f.payload());
             let typed = match &command {
-                Ok(c) => format!("{} {c:?}", c.mnemonic()),
+                Ok(c) => match crate::output::command_json(c, f.payload()) {
+                    Value::Object(m) => m
+                        .iter()
+                        .filter(|(k, _)| k.as_str() != "mnemonic")
+                        .map(|(k, v)| format!("{k}={v}"))
+                        .fold(c.mnemonic().to_string(), |acc, kv| acc + " " + &kv),
+                    _ => c.mnemonic().to_string(),
+                },
                 Err(e) => format!("none ({e})"),
             };
             (

@@ -36,7 +36,8 @@ pub async fn watch(session: &mut Session, rate: f64, count: Option<u64>, as_json
             Ok(Reply::Position(p)) => p,
             _ => {
                 return Err(CtlError::BadReply(format!(
-                    "position reply {position:?} is not Table 15"
+                    "position reply \"{}\" is not Table 15",
+                    sagebrush_host::hex::payload_text(&position)
                 )));
             }
         };
@@ -44,7 +45,12 @@ pub async fn watch(session: &mut Session, rate: f64, count: Option<u64>, as_json
         let lens = match session.query(&Command::QueryLens).await {
             Ok(p) => match Reply::parse(&Command::QueryLens, &p) {
                 Ok(Reply::Lens(l)) => Some(l),
-                _ => return Err(CtlError::BadReply(format!("lens reply {p:?} is not Table 17"))),
+                _ => {
+                    return Err(CtlError::BadReply(format!(
+                        "lens reply \"{}\" is not Table 17",
+                        sagebrush_host::hex::payload_text(&p)
+                    )));
+                }
             },
             Err(CtlError::Nic(_)) => None,
             Err(e) => return Err(e),
