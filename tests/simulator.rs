@@ -15,7 +15,14 @@ fn pty_path_is_the_first_line_and_link_is_made_and_removed() {
     assert!(sim.endpoint.starts_with("/dev/"), "{}", sim.endpoint);
     assert_eq!(std::fs::read_link(&link).unwrap(), sim.endpoint_path());
     let out = Command::new(support::gimbalctl_bin())
-        .args(["--serial", link.to_str().unwrap(), "--json", "position"])
+        .args([
+            "--serial",
+            link.to_str().unwrap(),
+            "--json",
+            "--to",
+            "1.1.1",
+            "position",
+        ])
         .output()
         .unwrap();
     assert!(out.status.success(), "{out:?}");
@@ -28,7 +35,7 @@ fn pty_path_is_the_first_line_and_link_is_made_and_removed() {
 fn tcp_listener_serves_clients_one_after_another() {
     let sim = Sim::tcp(&[]);
     assert!(sim.endpoint.starts_with("127.0.0.1:"), "{}", sim.endpoint);
-    sim.ctl_json(&["goto", "5", "5"]);
+    sim.ctl_json(&["--to", "1.1.1", "goto", "5", "5"]);
     eventually("the move over TCP", || sim.position() == (5.0, 5.0));
     let stats = sim.stop();
     assert!(stats["frames_in"].as_u64().unwrap() >= 2, "{stats}");
@@ -42,13 +49,13 @@ fn tcp_listener_serves_clients_one_after_another() {
 #[test]
 fn paced_line_at_1200_baud_still_answers() {
     let sim = Sim::pty(&["--pace", "--baud", "1200"]);
-    let v = sim.ctl_json(&["--baud", "1200", "id"]);
+    let v = sim.ctl_json(&["--baud", "1200", "--to", "1.1.1", "id"]);
     assert_eq!(v["transmissions"], 1, "{v}");
     // 11 bytes out and 51 back at 120 bytes/s: the exchange cannot be instant.
     assert!(v["elapsed_ms"].as_u64().unwrap() >= 400, "{v}");
     // After a C-command the simulator paces at the new rate.
-    sim.ctl_json(&["--baud", "1200", "data-rate", "115200"]);
-    let v = sim.ctl_json(&["--baud", "115200", "id"]);
+    sim.ctl_json(&["--baud", "1200", "--to", "1.1.1", "data-rate", "115200"]);
+    let v = sim.ctl_json(&["--baud", "115200", "--to", "1.1.1", "id"]);
     assert_eq!(v["result"]["id"], 1);
 }
 
@@ -110,8 +117,8 @@ fn bad_configuration_is_refused_with_its_name() {
 #[test]
 fn every_frame_is_logged() {
     let sim = Sim::pty(&[]);
-    sim.ctl_json(&["position"]);
-    sim.ctl(&["raw", "QQ"]);
+    sim.ctl_json(&["--to", "1.1.1", "position"]);
+    sim.ctl(&["--to", "1.1.1", "raw", "QQ"]);
     let log = sim.log();
     assert!(
         log.contains("rx frame") && log.contains("tx result") && log.contains("tx NIC"),

@@ -227,7 +227,7 @@ impl Sim {
 
     /// Current position in degrees.
     pub fn position(&self) -> (f64, f64) {
-        let r = self.result(&["position"]);
+        let r = self.result(&["--to", "1.1.1", "position"]);
         (
             r["pan_deg"].as_f64().expect("pan"),
             r["tilt_deg"].as_f64().expect("tilt"),
