@@ -624,12 +624,22 @@ impl Writer {
 
     /// Stops capturing for good, with one log line.
     fn give_up(&mut self, why: String, error: bool) {
+        let mut stopped = self.shared.stopped.lock().unwrap_or_else(|e| e.into_inner());
+        if stopped.is_some() {
+            // Records already queued meet the same end: said once.
+            if error {
+                self.out.clear();
+                self.file = None;
+            }
+            return;
+        }
+        *stopped = Some(why.clone());
+        drop(stopped);
         if error {
             tracing::error!(file = %self.path.display(), "capture stopped: {why}");
         } else {
             tracing::warn!(file = %self.path.display(), "capture stopped: {why}");
         }
-        *self.shared.stopped.lock().unwrap_or_else(|e| e.into_inner()) = Some(why);
         self.shared.active.store(false, Ordering::Release);
         if error {
             self.out.clear();
