@@ -25,17 +25,7 @@ struct Gcud {
 impl Gcud {
     fn start(config: &str) -> Self {
         let dir = tempfile::tempdir().expect("temp dir");
-        let path = dir.path().join("gcud.toml");
-        std::fs::write(&path, config).expect("write config");
-        let log = std::fs::File::create(dir.path().join("gcud.log")).expect("log file");
-        let child = Command::new(env!("CARGO_BIN_EXE_gcud"))
-            .arg("--config")
-            .arg(&path)
-            .env("RUST_LOG", "info")
-            .stdout(Stdio::null())
-            .stderr(Stdio::from(log))
-            .spawn()
-            .expect("spawn gcud");
+        let child = support::spawn_gcud(dir.path(), config);
         let gcud = Self { child, dir };
         gcud.wait_for_log("gcud ready");
         gcud

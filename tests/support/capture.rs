@@ -19,17 +19,7 @@ impl Daemon {
     pub fn start(config: &str) -> Self {
         let dir = tempfile::tempdir().expect("temp dir");
         let config = config.replace("{dir}", &dir.path().display().to_string());
-        let path = dir.path().join("gcud.toml");
-        std::fs::write(&path, config).expect("write config");
-        let log = std::fs::File::create(dir.path().join("gcud.log")).expect("log file");
-        let child = Command::new(env!("CARGO_BIN_EXE_gcud"))
-            .arg("--config")
-            .arg(&path)
-            .env("RUST_LOG", "info")
-            .stdout(Stdio::null())
-            .stderr(Stdio::from(log))
-            .spawn()
-            .expect("spawn gcud");
+        let child = super::spawn_gcud(dir.path(), &config);
         let d = Self { child, dir };
         d.wait_for_log("gcud ready");
         d

@@ -86,17 +86,7 @@ impl DemoGcud {
              [[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n",
             dir.path().join("no-such-tty").display()
         );
-        let path = dir.path().join("gcud.toml");
-        std::fs::write(&path, config).expect("write config");
-        let log = std::fs::File::create(dir.path().join("gcud.log")).expect("log file");
-        let child = Command::new(env!("CARGO_BIN_EXE_gcud"))
-            .arg("--config")
-            .arg(&path)
-            .env("RUST_LOG", "info")
-            .stdout(Stdio::null())
-            .stderr(Stdio::from(log))
-            .spawn()
-            .expect("spawn gcud");
+        let child = super::spawn_gcud(dir.path(), &config);
         let mut gcud = Self {
             child,
             dir,

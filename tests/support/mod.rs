@@ -28,6 +28,22 @@ pub fn gimbalsim_bin() -> &'static str {
     env!("CARGO_BIN_EXE_gimbalsim")
 }
 
+/// Writes `config` to `dir/gcud.toml` and starts the real gcud on it,
+/// its log (`RUST_LOG=info`) going to `dir/gcud.log`.
+pub fn spawn_gcud(dir: &Path, config: &str) -> Child {
+    let path = dir.join("gcud.toml");
+    std::fs::write(&path, config).expect("write config");
+    let log = std::fs::File::create(dir.join("gcud.log")).expect("log file");
+    Command::new(env!("CARGO_BIN_EXE_gcud"))
+        .arg("--config")
+        .arg(&path)
+        .env("RUST_LOG", "info")
+        .stdout(Stdio::null())
+        .stderr(Stdio::from(log))
+        .spawn()
+        .expect("spawn gcud")
+}
+
 pub fn gimbalctl_bin() -> &'static str {
     env!("CARGO_BIN_EXE_gimbalctl")
 }
