@@ -36,17 +36,7 @@ impl Gcud {
     }
 
     fn wait_for_log(&self, text: &str) -> String {
-        let started = Instant::now();
-        loop {
-            let log = self.log();
-            if let Some(line) = log.lines().find(|l| l.contains(text)) {
-                return line.to_owned();
-            }
-            if started.elapsed() > HANG_GUARD {
-                panic!("gcud never logged {text:?}; log:\n{log}");
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
+        support::wait_for_log_line(&self.dir.path().join("gcud.log"), text)
     }
 
     /// The address a listener link (or the metrics endpoint) was bound to.

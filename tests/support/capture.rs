@@ -3,9 +3,8 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
 
-use super::{HANG_GUARD, Output};
+use super::Output;
 
 /// A `gcud` on `config` in a private directory; SIGTERM on drop.
 #[derive(Debug)]
@@ -35,17 +34,7 @@ impl Daemon {
 
     /// Waits until a log line contains `text`; returns it.
     pub fn wait_for_log(&self, text: &str) -> String {
-        let started = Instant::now();
-        loop {
-            let log = self.log();
-            if let Some(line) = log.lines().find(|l| l.contains(text)) {
-                return line.to_owned();
-            }
-            if started.elapsed() > HANG_GUARD {
-                panic!("gcud never logged {text:?}; log:\n{log}");
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
+        super::wait_for_log_line(&self.path("gcud.log"), text)
     }
 
     /// The client listener's address (`[[link]] name = "clients"`).

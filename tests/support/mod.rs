@@ -44,6 +44,22 @@ pub fn spawn_gcud(dir: &Path, config: &str) -> Child {
         .expect("spawn gcud")
 }
 
+/// Waits (at most [`HANG_GUARD`]) until a line of the log file `log`
+/// contains `text`; returns that line.
+pub fn wait_for_log_line(log: &Path, text: &str) -> String {
+    let started = Instant::now();
+    loop {
+        let content = std::fs::read_to_string(log).unwrap_or_default();
+        if let Some(line) = content.lines().find(|l| l.contains(text)) {
+            return line.to_owned();
+        }
+        if started.elapsed() > HANG_GUARD {
+            panic!("gcud never logged {text:?}; log:\n{content}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
 pub fn gimbalctl_bin() -> &'static str {
     env!("CARGO_BIN_EXE_gimbalctl")
 }
