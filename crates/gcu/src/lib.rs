@@ -140,5 +140,7 @@ mod types;
 
 pub use config::{ConfigError, LinkConfig, LinkKind, LinkSettings, PortConfig, RouterConfig, SourceFilter};
 pub use router::Router;
-pub use stats::{DeviceStats, DropCounts, LineStats, LinkStats, PortStats, RouterStats, Stats, UndeliveredCounts};
+pub use stats::{
+    DeviceError, DeviceStats, DropCounts, LineStats, LinkStats, PortStats, RouterStats, Stats, UndeliveredCounts,
+};
 pub use types::{Action, CommandId, DropReason, Event, Input, Level, LinkId, Origin, Outcome, Place};

@@ -47,14 +47,14 @@ use std::collections::{BTreeMap, BTreeSet, VecDeque};
 
 use sagebrush_protocol::link::TransactionPolicy;
 use sagebrush_protocol::{
-    ACK, Command, DataRate, Event as FramerEvent, FrameBuf, NAK, RetryPolicy, Transaction, TransactionStep, TxFailure,
-    WILDCARD,
+    ACK, Command, DataRate, Event as FramerEvent, FrameBuf, NAK, Reply, RetryPolicy, Transaction, TransactionStep,
+    TxFailure, WILDCARD,
 };
 use sagebrush_protocol::{Outcome as TxOutcome, ResultKind, ResultTimeout, Undelivered};
 
 use crate::config::PortConfig;
 use crate::line::{Line, RxEvent};
-use crate::stats::{DeviceStats, PortStats};
+use crate::stats::{DeviceError, DeviceStats, PortStats};
 use crate::types::{CommandId, DropReason, Event, Origin, Outcome};
 
 /// One command exchange waiting for or holding a bus.
@@ -495,6 +495,9 @@ impl Port {
             self.seen.insert(device);
             self.device(device).last_seen = Some(now);
         }
+        if device != WILDCARD {
+            self.learn(now, device, &r.job, outcome, frame.as_deref());
+        }
         let outcome = match outcome {
             TxOutcome::Result => {
                 if let Some(reply) = frame {
@@ -540,6 +543,32 @@ impl Port {
             }
         };
         out.extend(r.job.ids().map(|id| PortOut::Finished { id, outcome }));
+    }
+
+    /// What an exchange tells about its device (the device registry):
+    /// whether it answers, its last error, and the position or lens
+    /// position it answered to `P?` (Table 15) or `V?` (Table 17).
+    fn learn(&mut self, now: u64, device: u8, job: &Job, outcome: TxOutcome, result: Option<&FrameBuf>) {
+        let d = self.device(device);
+        let error = match outcome {
+            TxOutcome::Broadcast => return,
+            TxOutcome::Failed(TxFailure::NoAck) => Some(DeviceError::Silent),
+            TxOutcome::Failed(TxFailure::Nak) => Some(DeviceError::Nak),
+            TxOutcome::NoResult => Some(DeviceError::NoResult),
+            TxOutcome::Nic => Some(DeviceError::Nic),
+            TxOutcome::Result | TxOutcome::Acknowledged => None,
+        };
+        d.online = error != Some(DeviceError::Silent);
+        if let Some(error) = error {
+            d.last_error = Some((now, error));
+        }
+        let Some(result) = result else { return };
+        let command = Command::parse(job.frame.frame().payload());
+        match (&command, Reply::parse(&command, result.frame().payload())) {
+            (Command::QueryPosition, Ok(Reply::Position(p))) => d.position = Some((now, p)),
+            (Command::QueryLens, Ok(Reply::Lens(l))) => d.lens = Some((now, l)),
+            _ => {}
+        }
     }
 
     fn rate_acknowledged(&mut self, device: u8, rate: Option<DataRate>, out: &mut Vec<PortOut>) {

@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 
 use crate::config::LinkKind;
-use sagebrush_protocol::Undelivered;
+use sagebrush_protocol::{LensPosition, Position, Undelivered};
 
 use crate::types::{DropReason, LinkId, Outcome};
 
@@ -158,7 +158,45 @@ impl LinkStats {
     }
 }
 
-/// One device, keyed by (port, device address).
+/// Why the last exchange with a device did not end as asked.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DeviceError {
+    /// Never acknowledged: no ACK to any transmission (1.4.2).
+    Silent,
+    /// Answered NAK to every transmission.
+    Nak,
+    /// Acknowledged, result never came.
+    NoResult,
+    /// Answered `?`: it does not implement or cannot apply the command.
+    Nic,
+}
+
+impl DeviceError {
+    /// A stable snake_case name (metric labels, JSON).
+    pub fn name(self) -> &'static str {
+        match self {
+            DeviceError::Silent => "device_silent",
+            DeviceError::Nak => "device_nak",
+            DeviceError::NoResult => "no_result",
+            DeviceError::Nic => "nic",
+        }
+    }
+}
+
+impl core::fmt::Display for DeviceError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            DeviceError::Silent => "did not acknowledge",
+            DeviceError::Nak => "answered NAK to every try",
+            DeviceError::NoResult => "acknowledged, sent no result",
+            DeviceError::Nic => "answered NIC",
+        })
+    }
+}
+
+/// One device, keyed by (port, device address): its counters and what the
+/// GCU learned from its answers (the device registry of `gcud`'s status
+/// and metrics). Bounded: at most 255 per port.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct DeviceStats {
     /// Transactions addressed to it.
@@ -173,8 +211,17 @@ pub struct DeviceStats {
     /// Acknowledged, result never came.
     pub no_result: u64,
     pub nics: u64,
-    /// Tick of the last answer (ACK, result or `?`).
+    /// Tick of the last answer (ACK, NAK, result or `?`).
     pub last_seen: Option<u64>,
+    /// Whether it answered the last exchange addressed to it (an ACK or
+    /// NAK; a broadcast to device 255 says nothing). `false` before any.
+    pub online: bool,
+    /// The last position it answered to `P?` (Table 15), with its tick.
+    pub position: Option<(u64, Position)>,
+    /// The last lens position it answered to `V?` (Table 17), with its tick.
+    pub lens: Option<(u64, LensPosition)>,
+    /// The last exchange that did not end as asked, with its tick.
+    pub last_error: Option<(u64, DeviceError)>,
 }
 
 /// Router-wide counters of accepted commands and their outcomes.

@@ -307,6 +307,54 @@ fn nic_is_relayed_as_a_bare_question_mark() {
 }
 
 #[test]
+fn the_device_registry_keeps_what_each_device_answered() {
+    use sagebrush_gcu::DeviceError;
+    let mut h = H::new(&[1]);
+    assert!(
+        !h.r.stats().devices.contains_key(&(1, 12)),
+        "nothing known before an exchange"
+    );
+    h.link(CLIENT, &frame((G, 1, 12), 2, b"P?"));
+    h.port(1, &[ACK]);
+    h.now = 7;
+    h.port(1, &frame((2, 1, 12), G, b"1194FC18"));
+    let d = h.r.stats().devices[&(1, 12)];
+    assert!(d.online);
+    assert_eq!(d.last_error, None);
+    let (at, position) = d.position.expect("P? answered");
+    assert_eq!(at, 7);
+    assert_eq!((position.pan.degrees(), position.tilt.degrees()), (45.0, -10.0));
+    // Table 17: zoom then focus, 3 hex digits each.
+    h.link(CLIENT, &frame((G, 1, 12), 2, b"V?"));
+    h.port(1, &[ACK]);
+    h.port(1, &frame((2, 1, 12), G, b"123456"));
+    let (_, lens) = h.r.stats().devices[&(1, 12)].lens.expect("V? answered");
+    assert_eq!((lens.zoom.get(), lens.focus.get()), (0x123, 0x456));
+    // A preset's stored position is not where the mount is.
+    h.link(CLIENT, &frame((G, 1, 12), 2, b"P?01"));
+    h.port(1, &[ACK]);
+    h.port(1, &frame((2, 1, 12), G, b"00000000"));
+    assert_eq!(h.r.stats().devices[&(1, 12)].position, Some((7, position)));
+    h.now = 20;
+    h.link(CLIENT, &frame((G, 1, 12), 2, b"XYZ"));
+    h.port(1, &[ACK, NIC]);
+    let d = h.r.stats().devices[&(1, 12)];
+    assert_eq!((d.online, d.last_error), (true, Some((20, DeviceError::Nic))));
+    // Silent: offline, and what it answered before is kept.
+    h.link(CLIENT, &frame((G, 1, 12), 2, b"PL"));
+    h.wait(100);
+    let d = h.r.stats().devices[&(1, 12)];
+    assert!(!d.online, "silent to every try");
+    assert!(matches!(d.last_error, Some((_, DeviceError::Silent))));
+    assert_eq!(d.position, Some((7, position)));
+    // Answering again brings it back.
+    h.link(CLIENT, &frame((G, 1, 12), 2, b"PS"));
+    h.port(1, &[ACK]);
+    h.wait(10);
+    assert!(h.r.stats().devices[&(1, 12)].online);
+}
+
+#[test]
 fn no_ack_retransmits_up_to_the_count_then_unreachable() {
     let mut h = H::new(&[1]);
     let cmd = frame((G, 1, 3), 2, b"PL");
