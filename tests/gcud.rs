@@ -86,20 +86,43 @@ impl Gcud {
         (status, self.log())
     }
 
-    /// The metrics text (`[metrics] listen` must be configured).
-    fn metrics(&self) -> String {
+    /// `GET path` from the metrics endpoint (`[metrics] listen` must be
+    /// configured): the whole response, status line first.
+    fn http_get(&self, path: &str) -> String {
         let addr = self.address("metrics at /metrics");
         let mut stream = TcpStream::connect(&addr).expect("connect to metrics");
         stream.set_read_timeout(Some(HANG_GUARD)).expect("timeout");
         write!(
             stream,
-            "GET /metrics HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+            "GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
         )
         .expect("request");
         let mut text = String::new();
         stream.read_to_string(&mut text).expect("response");
+        text
+    }
+
+    /// The metrics text.
+    fn metrics(&self) -> String {
+        let text = self.http_get("/metrics");
         assert!(text.starts_with("HTTP/1.1 200"), "{text}");
         text
+    }
+
+    /// A gauge with a fraction or a sign, `None` when absent.
+    fn real_metric(&self, series: &str) -> Option<f64> {
+        let text = self.metrics();
+        text.lines()
+            .find_map(|l| l.strip_prefix(series).and_then(|v| v.strip_prefix(' ')))
+            .map(|v| v.trim().parse().expect("metric value"))
+    }
+
+    /// `/status` as JSON.
+    fn status(&self) -> serde_json::Value {
+        let text = self.http_get("/status");
+        assert!(text.starts_with("HTTP/1.1 200"), "{text}");
+        let body = text.split("\r\n\r\n").nth(1).expect("body");
+        serde_json::from_str(body).unwrap_or_else(|e| panic!("/status is not JSON ({e}): {body}"))
     }
 
     /// A counter or gauge from the metrics, 0 when absent.
@@ -1043,13 +1066,94 @@ fn per_peer_cap_and_metrics_allow_peers_hold() {
     drop(held);
 
     let closed = Gcud::start("[gcu]\ngroup = 5\n[metrics]\nlisten = \"127.0.0.1:0\"\nallow_peers = [\"::1\"]\n");
-    let addr = closed.address("metrics at /metrics");
-    let mut s = TcpStream::connect(&addr).expect("connect");
-    s.set_read_timeout(Some(HANG_GUARD)).expect("timeout");
-    write!(s, "GET /metrics HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n").expect("request");
-    let mut text = String::new();
-    s.read_to_string(&mut text).expect("response");
-    assert!(text.starts_with("HTTP/1.1 403"), "127.0.0.1 may not scrape: {text}");
+    for path in ["/metrics", "/status", "/healthz"] {
+        let text = closed.http_get(path);
+        assert!(text.starts_with("HTTP/1.1 403"), "127.0.0.1 may not GET {path}: {text}");
+    }
+}
+
+/// gcud keeps what it learns of each device (the router core's registry)
+/// and shows it: `/status` (JSON) and per-device gauges with Unix times;
+/// `/healthz` answers while the router task does.
+#[test]
+fn status_metrics_and_health_show_the_devices_gcud_has_seen() {
+    let gcud = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\nname = \"field gcu\"\n[[port]]\nid = 1\nsimulate = [1, 2]\n{CLIENTS}{METRICS}"
+    ));
+    let health = gcud.http_get("/healthz");
+    assert!(
+        health.starts_with("HTTP/1.1 200") && health.ends_with("ok\n"),
+        "{health}"
+    );
+    let before = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .expect("clock")
+        .as_secs_f64();
+    let out = gcud.ctl(&["--to", "5.1.1", "goto", "12.5", "-3", "--wait"]);
+    assert_eq!(out.code, 0, "{out:?}");
+    let (pan, tilt) = gcud.position("5.1.1");
+    assert_eq!((pan, tilt), (12.5, -3.0));
+    let out = gcud.ctl(&["--to", "5.1.9", "id"]);
+    assert_eq!(out.code, 8, "nobody at 5.1.9: {out:?}");
+
+    let status = gcud.status();
+    assert_eq!(status["gcud"]["group"], 5);
+    assert_eq!(status["gcud"]["name"], "field gcu");
+    assert_eq!(status["gcud"]["shutting_down"], false);
+    let port = &status["ports"][0];
+    assert_eq!(
+        (port["port"].as_u64(), port["open"].as_bool()),
+        (Some(1), Some(true)),
+        "{port}"
+    );
+    let devices = port["devices"].as_array().expect("devices");
+    let device = |n: u64| {
+        devices
+            .iter()
+            .find(|d| d["device"].as_u64() == Some(n))
+            .unwrap_or_else(|| panic!("device {n} in {port}"))
+    };
+    let one = device(1);
+    assert_eq!(one["address"], "5.1.1");
+    assert_eq!(one["online"], true);
+    assert_eq!(one["position"]["pan_deg"].as_f64(), Some(12.5), "{one}");
+    assert_eq!(one["position"]["tilt_deg"].as_f64(), Some(-3.0), "{one}");
+    let seen = one["last_seen_unix"].as_f64().expect("last seen");
+    assert!(
+        seen >= before - 1.0 && seen < before + 600.0,
+        "a Unix time: {seen} vs {before}"
+    );
+    let nine = device(9);
+    assert_eq!(nine["online"], false, "{nine}");
+    assert_eq!(nine["last_error"]["error"], "device_silent", "{nine}");
+    assert!(nine["position"].is_null(), "{nine}");
+    assert!(
+        devices.iter().all(|d| d["device"] != 2),
+        "device 2 was never addressed: {port}"
+    );
+    assert_eq!(status["links"][0]["link"], "clients");
+
+    let one = "{port=\"1\",device=\"1\"}";
+    assert_eq!(gcud.real_metric(&format!("gcud_device_online{one}")), Some(1.0));
+    assert_eq!(
+        gcud.real_metric(&format!("gcud_device_position_pan_degrees{one}")),
+        Some(12.5)
+    );
+    assert_eq!(
+        gcud.real_metric(&format!("gcud_device_position_tilt_degrees{one}")),
+        Some(-3.0)
+    );
+    assert_eq!(
+        gcud.real_metric("gcud_device_online{port=\"1\",device=\"9\"}"),
+        Some(0.0)
+    );
+    let seen = gcud.real_metric(&format!("gcud_device_last_seen_timestamp_seconds{one}"));
+    assert!(seen.is_some_and(|t| t >= before - 1.0), "{seen:?}");
+    assert!(
+        gcud.metrics().contains("gcud_build_info{version=\""),
+        "{}",
+        gcud.metrics()
+    );
 }
 
 /// Under systemd (`JOURNAL_STREAM` set) each line starts with its syslog

@@ -211,6 +211,10 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
     let mut ids = LinkIds::default();
     let mut router = Router::new(router_config(&config, &mut ids)).map_err(|e| StartError::Router(e.to_string()))?;
     let start = Instant::now();
+    // Tick 0 on the wall clock, for the Unix timestamps of metrics and status.
+    let started_unix_ms = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_millis() as u64);
     let (events_tx, mut events) = mpsc::channel::<IoEvent>(4096);
     let mut tasks = Tasks {
         events: events_tx.clone(),
@@ -332,6 +336,8 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
                     IoEvent::Scrape(reply) => {
                         let mut s = snapshot(&router, &config, &links, &departed, now(Instant::now()));
                         s.connections = tasks.connections.stats();
+                        s.started_unix_ms = started_unix_ms;
+                        s.shutting_down = stopping.is_some();
                         let _ = reply.send(s);
                     }
                 }
@@ -480,6 +486,10 @@ fn snapshot(
         links: totals,
         connections: Default::default(),
         uptime_ms,
+        started_unix_ms: 0,
+        group: config.group,
+        name: config.name.clone(),
+        shutting_down: false,
     }
 }
 

@@ -11,6 +11,7 @@ mod reload;
 #[cfg(feature = "sim")]
 mod simulated;
 mod stats;
+mod status;
 mod throttle;
 
 use std::path::PathBuf;

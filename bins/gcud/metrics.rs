@@ -20,11 +20,19 @@ pub enum Kind {
     Gauge,
 }
 
+/// A sample's value: a count, or a measurement (degrees, seconds since the
+/// Unix epoch) that needs a fraction or a sign.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Value {
+    Count(u64),
+    Real(f64),
+}
+
 /// One labelled value.
 #[derive(Debug, Clone)]
 pub struct Sample {
     pub labels: Vec<(&'static str, String)>,
-    pub value: u64,
+    pub value: Value,
 }
 
 /// One metric family.
@@ -47,7 +55,18 @@ impl Family {
     }
 
     pub fn push(&mut self, labels: Vec<(&'static str, String)>, value: u64) {
-        self.samples.push(Sample { labels, value });
+        self.samples.push(Sample {
+            labels,
+            value: Value::Count(value),
+        });
+    }
+
+    /// A gauge's measurement with a fraction or a sign.
+    pub fn push_real(&mut self, labels: Vec<(&'static str, String)>, value: f64) {
+        self.samples.push(Sample {
+            labels,
+            value: Value::Real(value),
+        });
     }
 }
 
@@ -80,12 +99,14 @@ impl Collector for Snapshot {
 
 fn encode_value(
     kind: Kind,
-    value: u64,
+    value: Value,
     encoder: prometheus_client::encoding::MetricEncoder<'_>,
 ) -> Result<(), fmt::Error> {
-    match kind {
-        Kind::Counter => ConstCounter::new(value).encode(encoder),
-        Kind::Gauge => ConstGauge::new(i64::try_from(value).unwrap_or(i64::MAX)).encode(encoder),
+    match (kind, value) {
+        (Kind::Counter, Value::Count(n)) => ConstCounter::new(n).encode(encoder),
+        (Kind::Counter, Value::Real(x)) => ConstCounter::new(x).encode(encoder),
+        (Kind::Gauge, Value::Count(n)) => ConstGauge::new(i64::try_from(n).unwrap_or(i64::MAX)).encode(encoder),
+        (Kind::Gauge, Value::Real(x)) => ConstGauge::new(x).encode(encoder),
     }
 }
 
@@ -100,48 +121,99 @@ pub fn render(families: Vec<Family>) -> String {
     text
 }
 
-/// A scrape asks the router task for fresh text through this channel.
+/// A scrape asks the router task for a fresh snapshot through this channel.
 pub type ScrapeRequests = mpsc::Sender<oneshot::Sender<crate::stats::Snapshot>>;
 
-/// Serves `GET /metrics` until the process ends.
+/// How long `/healthz` waits for the router task before calling it stuck.
+const HEALTH_WAIT: std::time::Duration = std::time::Duration::from_secs(1);
+
+/// What the HTTP handlers share.
+#[derive(Clone, Debug)]
+struct Endpoint {
+    allow_peers: crate::config::PeerAllowList,
+    scrapes: ScrapeRequests,
+}
+
+impl Endpoint {
+    /// A snapshot copied on the router task (counters only), or `None` if
+    /// the task is gone. Rendering happens off that task, so that a scrape
+    /// never stalls routing.
+    async fn snapshot(&self) -> Option<crate::stats::Snapshot> {
+        let (tx, rx) = oneshot::channel();
+        self.scrapes.send(tx).await.ok()?;
+        rx.await.ok()
+    }
+}
+
+/// Serves, to `[metrics] allow_peers` only (403 otherwise), until the
+/// process ends: `GET /metrics` (OpenMetrics text), `GET /status` (JSON,
+/// module `status`) and `GET /healthz` (200 `ok` while the router task
+/// answers within a second and gcud is not shutting down, 503 and why
+/// otherwise).
 pub async fn serve(listener: TcpListener, allow_peers: crate::config::PeerAllowList, scrapes: ScrapeRequests) {
-    use axum::extract::ConnectInfo;
+    use axum::extract::{ConnectInfo, Request, State};
     use axum::http::StatusCode;
-    use axum::response::IntoResponse;
-    let app = axum::Router::new().route(
-        "/metrics",
-        axum::routing::get(move |ConnectInfo(peer): ConnectInfo<std::net::SocketAddr>| {
-            let scrapes = scrapes.clone();
-            let allowed = allow_peers.contains(&peer.ip());
-            async move {
-                if !allowed {
-                    return (StatusCode::FORBIDDEN, "not in [metrics] allow_peers\n").into_response();
-                }
-                // The router task only copies its counters; the text is
-                // rendered here, so that a scrape never stalls routing.
-                let (tx, rx) = oneshot::channel();
-                let snapshot = match scrapes.send(tx).await {
-                    Ok(()) => rx.await.ok(),
-                    Err(_) => None,
-                };
-                let body = match snapshot {
-                    Some(s) => tokio::task::spawn_blocking(move || crate::stats::render(&s))
-                        .await
-                        .unwrap_or_default(),
-                    None => String::new(),
-                };
-                (
-                    [(
-                        "content-type",
-                        "application/openmetrics-text; version=1.0.0; charset=utf-8",
-                    )],
-                    body,
-                )
-                    .into_response()
-            }
-        }),
-    );
-    let app = app.into_make_service_with_connect_info::<std::net::SocketAddr>();
+    use axum::middleware::{self, Next};
+    use axum::response::{IntoResponse, Response};
+    use axum::routing::get;
+
+    async fn allowed(
+        State(endpoint): State<Endpoint>,
+        ConnectInfo(peer): ConnectInfo<std::net::SocketAddr>,
+        request: Request,
+        next: Next,
+    ) -> Response {
+        if !endpoint.allow_peers.contains(&peer.ip()) {
+            return (StatusCode::FORBIDDEN, "not in [metrics] allow_peers\n").into_response();
+        }
+        next.run(request).await
+    }
+
+    async fn metrics(State(endpoint): State<Endpoint>) -> Response {
+        let body = match endpoint.snapshot().await {
+            Some(s) => tokio::task::spawn_blocking(move || crate::stats::render(&s))
+                .await
+                .unwrap_or_default(),
+            None => String::new(),
+        };
+        (
+            [(
+                "content-type",
+                "application/openmetrics-text; version=1.0.0; charset=utf-8",
+            )],
+            body,
+        )
+            .into_response()
+    }
+
+    async fn status(State(endpoint): State<Endpoint>) -> Response {
+        match endpoint.snapshot().await {
+            Some(s) => axum::Json(crate::status::Status::of(&s)).into_response(),
+            None => (StatusCode::SERVICE_UNAVAILABLE, "gcud is stopping\n").into_response(),
+        }
+    }
+
+    async fn healthz(State(endpoint): State<Endpoint>) -> Response {
+        match tokio::time::timeout(HEALTH_WAIT, endpoint.snapshot()).await {
+            Ok(Some(s)) if s.shutting_down => (StatusCode::SERVICE_UNAVAILABLE, "shutting down\n").into_response(),
+            Ok(Some(_)) => (StatusCode::OK, "ok\n").into_response(),
+            Ok(None) => (StatusCode::SERVICE_UNAVAILABLE, "gcud is stopping\n").into_response(),
+            Err(_) => (
+                StatusCode::SERVICE_UNAVAILABLE,
+                "router task did not answer within 1 s\n",
+            )
+                .into_response(),
+        }
+    }
+
+    let endpoint = Endpoint { allow_peers, scrapes };
+    let app = axum::Router::new()
+        .route("/metrics", get(metrics))
+        .route("/status", get(status))
+        .route("/healthz", get(healthz))
+        .layer(middleware::from_fn_with_state(endpoint.clone(), allowed))
+        .with_state(endpoint)
+        .into_make_service_with_connect_info::<std::net::SocketAddr>();
     if let Err(e) = axum::serve(listener, app).await {
         tracing::error!(error = %e, "metrics endpoint stopped");
     }

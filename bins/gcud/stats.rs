@@ -27,6 +27,33 @@ pub struct Snapshot {
     /// Accepted connections over all listeners.
     pub connections: crate::admission::AdmissionStats,
     pub uptime_ms: u64,
+    /// Wall-clock time of tick 0 (gcud's start), ms since the Unix epoch:
+    /// the router core counts ticks, people and dashboards read dates.
+    pub started_unix_ms: u64,
+    /// This GCU's group and name (`[gcu]`).
+    pub group: u8,
+    pub name: String,
+    /// SIGTERM/SIGINT received: new commands are refused.
+    pub shutting_down: bool,
+}
+
+impl Snapshot {
+    /// Seconds since the Unix epoch of a router tick.
+    pub fn unix_seconds(&self, tick: u64) -> f64 {
+        self.started_unix_ms.saturating_add(tick) as f64 / 1000.0
+    }
+}
+
+/// gcud's version, as `gcud --version` prints it.
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");
+
+/// A link's role as the configuration spells it.
+pub fn role_name(kind: LinkKind) -> &'static str {
+    match kind {
+        LinkKind::Upstream => "upstream",
+        LinkKind::Downstream => "downstream",
+        LinkKind::Client => "client",
+    }
 }
 
 /// `NoRoute` -> `no_route`, for label values.
@@ -87,20 +114,20 @@ impl LineFamilies {
                 Kind::Counter,
             ),
             last_seen: Family::new(
-                format!("{prefix}_last_seen_ms"),
-                "Daemon uptime in ms when the last byte was received.",
+                format!("{prefix}_last_seen_timestamp_seconds"),
+                "When the last byte was received, seconds since the Unix epoch.",
                 Kind::Gauge,
             ),
         }
     }
 
-    fn push(&mut self, labels: &[(&'static str, String)], line: &LineStats) {
+    fn push(&mut self, labels: &[(&'static str, String)], line: &LineStats, snapshot: &Snapshot) {
         for (family, get) in &mut self.fields {
             family.push(labels.to_vec(), get(line));
         }
         push_drops(&mut self.drops, labels, &line.drops);
         if let Some(t) = line.last_seen {
-            self.last_seen.push(labels.to_vec(), t);
+            self.last_seen.push_real(labels.to_vec(), snapshot.unix_seconds(t));
         }
     }
 
@@ -124,9 +151,37 @@ pub fn render(snapshot: &Snapshot) -> String {
     let (stats, uptime_ms) = (&snapshot.stats, snapshot.uptime_ms);
     let mut out = Vec::new();
 
+    let mut build = Family::new(
+        "build_info",
+        "gcud's version and this GCU's group and name; always 1.",
+        Kind::Gauge,
+    );
+    build.push(
+        vec![
+            ("version", VERSION.to_owned()),
+            ("group", snapshot.group.to_string()),
+            ("name", snapshot.name.clone()),
+        ],
+        1,
+    );
+    out.push(build);
     let mut uptime = Family::new("uptime_ms", "Milliseconds since gcud started.", Kind::Gauge);
     uptime.push(vec![], uptime_ms);
     out.push(uptime);
+    let mut started = Family::new(
+        "start_time_seconds",
+        "When gcud started, seconds since the Unix epoch.",
+        Kind::Gauge,
+    );
+    started.push_real(vec![], snapshot.unix_seconds(0));
+    out.push(started);
+    let mut stopping = Family::new(
+        "shutting_down",
+        "1 once SIGTERM/SIGINT was received (new commands are refused).",
+        Kind::Gauge,
+    );
+    stopping.push(vec![], u64::from(snapshot.shutting_down));
+    out.push(stopping);
 
     let r = &stats.router;
     let mut outcomes = Family::new("commands", "Commands accepted from links, by outcome.", Kind::Counter);
@@ -235,7 +290,7 @@ pub fn render(snapshot: &Snapshot) -> String {
     let mut port_switches = Family::new("port_rate_switches", "Line rate switches.", Kind::Counter);
     for (id, p) in &stats.ports {
         let labels = vec![("port", id.to_string())];
-        port_lines.push(&labels, &p.line);
+        port_lines.push(&labels, &p.line, snapshot);
         port_open.push(labels.clone(), u64::from(p.open));
         port_bps.push(labels.clone(), u64::from(p.bps));
         port_queue.push(labels.clone(), p.queue_len as u64);
@@ -261,13 +316,8 @@ pub fn render(snapshot: &Snapshot) -> String {
     );
     for (name, t) in &snapshot.links {
         let l = &t.stats;
-        let kind = match l.kind {
-            LinkKind::Upstream => "upstream",
-            LinkKind::Downstream => "downstream",
-            LinkKind::Client => "client",
-        };
-        let labels = vec![("link", name.clone()), ("role", kind.to_owned())];
-        link_lines.push(&labels, &l.line);
+        let labels = vec![("link", name.clone()), ("role", role_name(l.kind).to_owned())];
+        link_lines.push(&labels, &l.line, snapshot);
         link_up.push(labels.clone(), u64::from(t.connections > 0));
         link_connections.push(labels.clone(), t.connections);
         link_repeats.push(labels.clone(), l.repeats);
@@ -303,8 +353,45 @@ pub fn render(snapshot: &Snapshot) -> String {
         Family::new("device_nics", "NIC answers from the device.", Kind::Counter),
     ];
     let mut device_seen = Family::new(
-        "device_last_seen_ms",
-        "Uptime in ms of the device's last answer.",
+        "device_last_seen_timestamp_seconds",
+        "When the device last answered (ACK, NAK, result or NIC), seconds since the Unix epoch.",
+        Kind::Gauge,
+    );
+    let mut device_online = Family::new(
+        "device_online",
+        "1 if the device answered the last exchange addressed to it, 0 if it was silent.",
+        Kind::Gauge,
+    );
+    let mut device_gauges = [
+        Family::new(
+            "device_position_pan_degrees",
+            "Pan the device last answered to P? (Table 15), degrees.",
+            Kind::Gauge,
+        ),
+        Family::new(
+            "device_position_tilt_degrees",
+            "Tilt the device last answered to P? (Table 15), degrees.",
+            Kind::Gauge,
+        ),
+        Family::new(
+            "device_position_timestamp_seconds",
+            "When the device last answered P?, seconds since the Unix epoch.",
+            Kind::Gauge,
+        ),
+        Family::new(
+            "device_lens_zoom",
+            "Zoom position the device last answered to V? (Table 17), 0..4095.",
+            Kind::Gauge,
+        ),
+        Family::new(
+            "device_lens_focus",
+            "Focus position the device last answered to V? (Table 17), 0..4095.",
+            Kind::Gauge,
+        ),
+    ];
+    let mut device_errors = Family::new(
+        "device_last_error_timestamp_seconds",
+        "When the device's last exchange that did not end as asked ended, by what went wrong, seconds since the Unix epoch.",
         Kind::Gauge,
     );
     for ((port, device), d) in &stats.devices {
@@ -320,12 +407,30 @@ pub fn render(snapshot: &Snapshot) -> String {
         ]) {
             family.push(labels.clone(), value);
         }
+        device_online.push(labels.clone(), u64::from(d.online));
         if let Some(t) = d.last_seen {
-            device_seen.push(labels, t);
+            device_seen.push_real(labels.clone(), snapshot.unix_seconds(t));
+        }
+        let [pan, tilt, position_at, zoom, focus] = &mut device_gauges;
+        if let Some((t, p)) = d.position {
+            pan.push_real(labels.clone(), f64::from(p.pan.0) / 100.0);
+            tilt.push_real(labels.clone(), f64::from(p.tilt.0) / 100.0);
+            position_at.push_real(labels.clone(), snapshot.unix_seconds(t));
+        }
+        if let Some((_, l)) = d.lens {
+            zoom.push(labels.clone(), u64::from(l.zoom.get()));
+            focus.push(labels.clone(), u64::from(l.focus.get()));
+        }
+        if let Some((t, error)) = d.last_error {
+            let mut l = labels;
+            l.push(("error", error.name().to_owned()));
+            device_errors.push_real(l, snapshot.unix_seconds(t));
         }
     }
     out.extend(device_families);
-    out.push(device_seen);
+    out.extend([device_online, device_seen]);
+    out.extend(device_gauges);
+    out.push(device_errors);
 
     encode(out)
 }
@@ -347,6 +452,50 @@ mod tests {
         let mut router = sagebrush_gcu::Router::new(config).unwrap();
         let mut actions = Vec::new();
         router.handle(0, sagebrush_gcu::Input::PortOpened { port: 1 }, &mut actions);
+        // A P? answered by device 3 at tick 1500: position and Unix times.
+        let client = sagebrush_gcu::LinkId(1);
+        let link = sagebrush_gcu::LinkConfig::new(LinkKind::Client, sagebrush_gcu::SourceFilter::Any);
+        router.handle(
+            0,
+            sagebrush_gcu::Input::LinkUp {
+                link: client,
+                config: link,
+            },
+            &mut actions,
+        );
+        let frame = |dest: (u8, u8, u8), source: u8, payload: &[u8]| {
+            let address = sagebrush_protocol::Address::new(dest.0, dest.1, dest.2);
+            sagebrush_protocol::FrameBuf::new(address, source, payload)
+                .unwrap()
+                .as_bytes()
+                .to_vec()
+        };
+        let command = frame((5, 1, 3), 0, b"P?");
+        router.handle(
+            0,
+            sagebrush_gcu::Input::LinkBytes {
+                link: client,
+                bytes: &command,
+            },
+            &mut actions,
+        );
+        router.handle(
+            0,
+            sagebrush_gcu::Input::PortBytes {
+                port: 1,
+                bytes: &[sagebrush_protocol::ACK],
+            },
+            &mut actions,
+        );
+        let result = frame((0, 1, 3), 5, b"EECF03E8");
+        router.handle(
+            1500,
+            sagebrush_gcu::Input::PortBytes {
+                port: 1,
+                bytes: &result,
+            },
+            &mut actions,
+        );
         let mut gone = LinkStats::new(LinkKind::Client);
         gone.line.frames_in = 3;
         let mut live = LinkStats::new(LinkKind::Client);
@@ -361,9 +510,32 @@ mod tests {
             links: BTreeMap::from([("clients".to_owned(), clients)]),
             connections: Default::default(),
             uptime_ms: 42,
+            started_unix_ms: 1_700_000_000_000,
+            group: 5,
+            name: "test gcu".to_owned(),
+            shutting_down: false,
         };
         let text = render(&snapshot);
         assert!(text.contains("gcud_uptime_ms 42"), "{text}");
+        assert!(
+            text.contains(&format!(
+                "gcud_build_info{{version=\"{VERSION}\",group=\"5\",name=\"test gcu\"}} 1"
+            )),
+            "{text}"
+        );
+        assert!(text.contains("gcud_start_time_seconds 1700000000.0"), "{text}");
+        let device = "{port=\"1\",device=\"3\"}";
+        for line in [
+            format!("gcud_device_online{device} 1"),
+            format!("gcud_device_position_pan_degrees{device} -44.01"),
+            format!("gcud_device_position_tilt_degrees{device} 10.0"),
+            format!("gcud_device_position_timestamp_seconds{device} 1700000001.5"),
+            format!("gcud_device_last_seen_timestamp_seconds{device} 1700000001.5"),
+            "gcud_port_last_seen_timestamp_seconds{port=\"1\"} 1700000001.5".to_owned(),
+        ] {
+            assert!(text.lines().any(|l| l == line), "{line} missing: {text}");
+        }
+        assert!(!text.contains("last_seen_ms"), "uptime-based times are gone: {text}");
         assert!(
             text.contains("gcud_link_frames_in_total{link=\"clients\",role=\"client\"} 7"),
             "connections fold into their configured link: {text}"

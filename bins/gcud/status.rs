@@ -1,0 +1,173 @@
+//! `GET /status`: what gcud knows now, as one JSON document for people and
+//! scripts (`gimbalctl gcud-status` prints it as a table): the daemon, each
+//! port with the devices seen on it (the router core's device registry:
+//! online, last position and lens position answered, last error), and each
+//! configured link. Times are seconds since the Unix epoch. Built from the
+//! same [`Snapshot`] as `/metrics`; the README documents the shape.
+
+use serde::Serialize;
+
+use crate::stats::{Snapshot, VERSION};
+
+#[derive(Debug, Serialize)]
+pub struct Status {
+    pub gcud: Daemon,
+    pub ports: Vec<Port>,
+    pub links: Vec<Link>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct Daemon {
+    pub version: &'static str,
+    pub group: u8,
+    pub name: String,
+    pub started_unix: f64,
+    pub uptime_ms: u64,
+    pub shutting_down: bool,
+    pub commands_in_progress: u64,
+    pub connections_open: u64,
+}
+
+#[derive(Debug, Serialize)]
+pub struct Port {
+    pub port: u8,
+    pub open: bool,
+    pub bps: u32,
+    pub queue_length: usize,
+    pub transactions: u64,
+    pub frames_in: u64,
+    pub frames_out: u64,
+    pub timeouts: u64,
+    pub bad_checksums: u64,
+    pub last_seen_unix: Option<f64>,
+    pub devices: Vec<Device>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct Device {
+    pub device: u8,
+    /// `G.P.D`, as `gimbalctl --to` takes it.
+    pub address: String,
+    pub online: bool,
+    pub last_seen_unix: Option<f64>,
+    pub position: Option<PositionSeen>,
+    pub lens: Option<LensSeen>,
+    pub last_error: Option<ErrorSeen>,
+    pub commands: u64,
+    pub unreachable: u64,
+    pub no_result: u64,
+    pub nics: u64,
+}
+
+/// The last answer to `P?` (Table 15).
+#[derive(Debug, Serialize)]
+pub struct PositionSeen {
+    pub pan_deg: f64,
+    pub tilt_deg: f64,
+    pub unix: f64,
+}
+
+/// The last answer to `V?` (Table 17), raw 12-bit positions.
+#[derive(Debug, Serialize)]
+pub struct LensSeen {
+    pub zoom: u16,
+    pub focus: u16,
+    pub unix: f64,
+}
+
+#[derive(Debug, Serialize)]
+pub struct ErrorSeen {
+    /// `device_silent`, `device_nak`, `no_result` or `nic`.
+    pub error: &'static str,
+    pub message: String,
+    pub unix: f64,
+}
+
+#[derive(Debug, Serialize)]
+pub struct Link {
+    pub link: String,
+    pub role: &'static str,
+    pub up: bool,
+    pub connections: u64,
+    pub frames_in: u64,
+    pub frames_out: u64,
+    pub last_seen_unix: Option<f64>,
+}
+
+impl Status {
+    pub fn of(s: &Snapshot) -> Self {
+        let stats = &s.stats;
+        let ports = stats
+            .ports
+            .iter()
+            .map(|(&port, p)| Port {
+                port,
+                open: p.open,
+                bps: p.bps,
+                queue_length: p.queue_len,
+                transactions: p.transactions,
+                frames_in: p.line.frames_in,
+                frames_out: p.line.frames_out,
+                timeouts: p.line.timeouts,
+                bad_checksums: p.line.bad_checksums,
+                last_seen_unix: p.line.last_seen.map(|t| s.unix_seconds(t)),
+                devices: stats
+                    .devices
+                    .range((port, 0)..=(port, u8::MAX))
+                    .map(|(&(_, device), d)| Device {
+                        device,
+                        address: format!("{}.{port}.{device}", s.group),
+                        online: d.online,
+                        last_seen_unix: d.last_seen.map(|t| s.unix_seconds(t)),
+                        position: d.position.map(|(t, p)| PositionSeen {
+                            pan_deg: f64::from(p.pan.0) / 100.0,
+                            tilt_deg: f64::from(p.tilt.0) / 100.0,
+                            unix: s.unix_seconds(t),
+                        }),
+                        lens: d.lens.map(|(t, l)| LensSeen {
+                            zoom: l.zoom.get(),
+                            focus: l.focus.get(),
+                            unix: s.unix_seconds(t),
+                        }),
+                        last_error: d.last_error.map(|(t, e)| ErrorSeen {
+                            error: e.name(),
+                            message: e.to_string(),
+                            unix: s.unix_seconds(t),
+                        }),
+                        commands: d.commands,
+                        unreachable: d.unreachable,
+                        no_result: d.no_result,
+                        nics: d.nics,
+                    })
+                    .collect(),
+            })
+            .collect();
+        let links = s
+            .links
+            .iter()
+            .map(|(name, t)| Link {
+                link: name.clone(),
+                role: crate::stats::role_name(t.stats.kind),
+                up: t.connections > 0,
+                connections: t.connections,
+                frames_in: t.stats.line.frames_in,
+                frames_out: t.stats.line.frames_out,
+                last_seen_unix: t.stats.line.last_seen.map(|tick| s.unix_seconds(tick)),
+            })
+            .collect();
+        Status {
+            gcud: Daemon {
+                version: VERSION,
+                group: s.group,
+                name: s.name.clone(),
+                started_unix: s.unix_seconds(0),
+                uptime_ms: s.uptime_ms,
+                shutting_down: s.shutting_down,
+                commands_in_progress: stats.router.in_progress,
+                connections_open: s.connections.open,
+            },
+            ports,
+            links,
+        }
+    }
+}
