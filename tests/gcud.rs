@@ -1154,6 +1154,42 @@ fn status_metrics_and_health_show_the_devices_gcud_has_seen() {
         "{}",
         gcud.metrics()
     );
+
+    // The operator's view of the same: gimbalctl gcud-status.
+    let http = gcud.address("metrics at /metrics");
+    let out = support::gimbalctl(&["gcud-status", "--http", &http]);
+    assert_eq!(out.code, 0, "{out:?}");
+    let line = |address: &str| {
+        out.stdout
+            .lines()
+            .find(|l| l.trim_start().starts_with(address))
+            .unwrap_or_else(|| panic!("{address} in {}", out.stdout))
+    };
+    assert!(
+        line("5.1.1").contains("yes") && line("5.1.1").contains("pan 12.50° tilt -3.00°"),
+        "{out:?}"
+    );
+    assert!(
+        line("5.1.9").contains("no") && line("5.1.9").contains("did not acknowledge"),
+        "{out:?}"
+    );
+    assert!(
+        out.stdout.starts_with("gcud ") && out.stdout.contains("\"field gcu\" (group 5)"),
+        "{out:?}"
+    );
+    let out = support::gimbalctl(&["--json", "gcud-status", "--http", &http]);
+    assert_eq!(out.code, 0, "{out:?}");
+    let json = out.json();
+    assert_eq!(json["ok"], true);
+    assert_eq!(json["status"]["ports"][0]["devices"][0]["address"], "5.1.1", "{json}");
+    drop(gcud);
+    let out = support::gimbalctl(&["--json", "gcud-status", "--http", &http]);
+    assert_eq!(out.code, 1, "gcud is gone: {out:?}");
+    assert_eq!(out.json()["outcome"], "io", "{out:?}");
+    assert!(
+        out.stderr.contains(&format!("http://{http}/status")),
+        "names what it asked: {out:?}"
+    );
 }
 
 /// Under systemd (`JOURNAL_STREAM` set) each line starts with its syslog

@@ -389,6 +389,22 @@ Examples:
   gimbalctl --serial /dev/ttyUSB0 scan --devices 1-32 --timeout 100
   gimbalctl --json --tcp 127.0.0.1:4001 scan --devices 1-8")]
     Scan(ScanArgs),
+    /// What a running gcud knows: ports, links, and the devices it has seen (online, last position, last error).
+    #[command(after_help = "\
+Reads gcud's /status document, served beside /metrics on its [metrics] listen address (which only \
+[metrics] allow_peers may read). Devices are those gcud has addressed since it started: online if \
+the last exchange with them was answered, their last position and lens position as answered to P? \
+and V?, and their last error (did not acknowledge, NAK, no result, NIC). --json prints the document \
+under \"status\" (the README documents its shape).
+
+Examples:
+  gimbalctl gcud-status --http 127.0.0.1:9187
+  gimbalctl --json gcud-status --http 127.0.0.1:9187")]
+    GcudStatus {
+        /// gcud's [metrics] listen address HOST:PORT, e.g. 127.0.0.1:9187.
+        #[arg(long, env = "GIMBALCTL_HTTP", value_name = "HOST:PORT", value_parser = parse_host_port)]
+        http: String,
+    },
     /// Print the frame for PAYLOAD as hex bytes (no I/O; needs --to).
     #[command(after_help = "Examples:\n  gimbalctl encode --to 5.1.12 --from 2 'P?'     # F8 05 01 0C 02 02 50 3F A5")]
     Encode {
@@ -731,6 +747,7 @@ impl Cmd {
             Cmd::Raw { .. } => "raw",
             Cmd::Watch { .. } => "watch",
             Cmd::Scan(_) => "scan",
+            Cmd::GcudStatus { .. } => "gcud-status",
             Cmd::Encode { .. } => "encode",
             Cmd::Decode { .. } => "decode",
         }

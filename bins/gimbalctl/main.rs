@@ -6,6 +6,7 @@
 mod cli;
 mod codec;
 mod error;
+mod gcud_status;
 mod jog;
 mod motion;
 mod output;
@@ -57,6 +58,7 @@ fn main() -> ExitCode {
             destination(&cli).and_then(|to| codec::encode(to, cli.global.from, payload, as_json))
         }
         Cmd::Decode { hex } => codec::decode(hex, as_json),
+        Cmd::GcudStatus { http } => gcud_status::run(http, as_json),
         _ => match tokio::runtime::Builder::new_current_thread().enable_all().build() {
             Ok(rt) => {
                 let r = rt.block_on(run(&cli));

@@ -39,7 +39,7 @@ pub fn encode(command: &Command<'_>) -> Result<Vec<u8>, CtlError> {
 }
 
 /// The payload a one-exchange subcommand sends; `None` for the subcommands
-/// that are not one exchange (watch, encode, decode).
+/// that are not one exchange (watch, scan, gcud-status, encode, decode).
 pub fn payload(cmd: &Cmd) -> Result<Option<Vec<u8>>, CtlError> {
     use Command as C;
     let command = match cmd {
@@ -173,7 +173,9 @@ pub fn payload(cmd: &Cmd) -> Result<Option<Vec<u8>>, CtlError> {
             }
             return Ok(Some(bytes));
         }
-        Cmd::Watch { .. } | Cmd::Scan(_) | Cmd::Encode { .. } | Cmd::Decode { .. } => return Ok(None),
+        Cmd::Watch { .. } | Cmd::Scan(_) | Cmd::GcudStatus { .. } | Cmd::Encode { .. } | Cmd::Decode { .. } => {
+            return Ok(None);
+        }
     };
     encode(&command).map(Some)
 }

@@ -1,0 +1,256 @@
+//! `gimbalctl gcud-status --http HOST:PORT`: what a running gcud knows, from
+//! its `/status` document (served beside `/metrics`, `[metrics] listen`):
+//! the daemon, each port with the devices it has seen (online, last position
+//! and lens position answered, last error), each link. Text tables, or with
+//! `--json` the document itself under `status`.
+
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+use serde_json::{Value, json};
+
+use crate::error::CtlError;
+
+/// How long to wait for gcud's answer.
+const TIMEOUT: Duration = Duration::from_secs(5);
+
+/// Fetches `/status` from gcud's metrics listener.
+fn fetch(http: &str) -> Result<Value, CtlError> {
+    let url = format!("http://{http}/status");
+    let agent: ureq::Agent = ureq::Agent::config_builder()
+        .timeout_global(Some(TIMEOUT))
+        .http_status_as_error(false)
+        .build()
+        .into();
+    let mut response = agent
+        .get(&url)
+        .call()
+        .map_err(|e| CtlError::Io(format!("cannot read {url}: {e} (is gcud's [metrics] listen {http}?)")))?;
+    let status = response.status();
+    let body = response
+        .body_mut()
+        .read_to_string()
+        .map_err(|e| CtlError::Io(format!("reading {url}: {e}")))?;
+    if status == 403 {
+        return Err(CtlError::Io(format!(
+            "{url}: gcud refused this address (403: not in its [metrics] allow_peers)"
+        )));
+    }
+    if !status.is_success() {
+        return Err(CtlError::Io(format!("{url}: HTTP {status}: {}", body.trim())));
+    }
+    serde_json::from_str(&body).map_err(|e| CtlError::BadReply(format!("{url}: not a gcud status document: {e}")))
+}
+
+pub fn run(http: &str, as_json: bool) -> Result<(), CtlError> {
+    let status = fetch(http)?;
+    if as_json {
+        println!(
+            "{}",
+            json!({ "ok": true, "command": "gcud-status", "http": http, "status": status })
+        );
+    } else {
+        print!("{}", text(&status, now_unix()));
+    }
+    Ok(())
+}
+
+fn now_unix() -> f64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}
+
+/// "3 s ago", "never".
+fn ago(at: &Value, now: f64) -> String {
+    match at.as_f64() {
+        Some(t) => {
+            let s = (now - t).max(0.0);
+            if s < 120.0 {
+                format!("{s:.0} s ago")
+            } else if s < 7200.0 {
+                format!("{:.0} min ago", s / 60.0)
+            } else {
+                format!("{:.1} h ago", s / 3600.0)
+            }
+        }
+        None => "never".to_owned(),
+    }
+}
+
+fn yes(v: &Value) -> &'static str {
+    if v.as_bool() == Some(true) { "yes" } else { "no" }
+}
+
+/// Rows under a header, each column as wide as its widest cell.
+fn table(indent: &str, header: &[&str], rows: &[Vec<String>]) -> String {
+    let mut widths: Vec<usize> = header.iter().map(|h| h.len()).collect();
+    for row in rows {
+        for (w, cell) in widths.iter_mut().zip(row) {
+            *w = (*w).max(cell.chars().count());
+        }
+    }
+    let line = |cells: Vec<&str>| {
+        let mut out = indent.to_owned();
+        for (i, (cell, w)) in cells.iter().zip(&widths).enumerate() {
+            if i + 1 == cells.len() {
+                out.push_str(cell);
+            } else {
+                out.push_str(&format!("{cell:<w$}  "));
+            }
+        }
+        out.trim_end().to_owned() + "\n"
+    };
+    let mut out = line(header.to_vec());
+    for row in rows {
+        out.push_str(&line(row.iter().map(String::as_str).collect()));
+    }
+    out
+}
+
+/// The status document as text tables.
+fn text(s: &Value, now: f64) -> String {
+    let g = &s["gcud"];
+    let mut out = format!(
+        "gcud {} \"{}\" (group {}), up {:.1} s, {} command(s) in progress, {} connection(s){}\n",
+        g["version"].as_str().unwrap_or("?"),
+        g["name"].as_str().unwrap_or(""),
+        g["group"],
+        g["uptime_ms"].as_f64().unwrap_or(0.0) / 1000.0,
+        g["commands_in_progress"],
+        g["connections_open"],
+        if g["shutting_down"].as_bool() == Some(true) {
+            ", SHUTTING DOWN"
+        } else {
+            ""
+        },
+    );
+    let empty = Vec::new();
+    for port in s["ports"].as_array().unwrap_or(&empty) {
+        out.push('\n');
+        out.push_str(&format!(
+            "port {}: {}, {} bit/s, {} waiting, {} transactions, frames in/out {}/{}, {} time-outs, {} bad checksums, last byte {}\n",
+            port["port"],
+            if port["open"].as_bool() == Some(true) { "open" } else { "CLOSED" },
+            port["bps"],
+            port["queue_length"],
+            port["transactions"],
+            port["frames_in"],
+            port["frames_out"],
+            port["timeouts"],
+            port["bad_checksums"],
+            ago(&port["last_seen_unix"], now),
+        ));
+        let devices = port["devices"].as_array().unwrap_or(&empty);
+        if devices.is_empty() {
+            out.push_str("  no device addressed yet\n");
+            continue;
+        }
+        let rows: Vec<Vec<String>> = devices
+            .iter()
+            .map(|d| {
+                let position = match &d["position"] {
+                    Value::Null => "-".to_owned(),
+                    p => format!(
+                        "pan {:.2}° tilt {:.2}° ({})",
+                        p["pan_deg"].as_f64().unwrap_or(f64::NAN),
+                        p["tilt_deg"].as_f64().unwrap_or(f64::NAN),
+                        ago(&p["unix"], now)
+                    ),
+                };
+                let lens = match &d["lens"] {
+                    Value::Null => "-".to_owned(),
+                    l => format!("zoom {} focus {}", l["zoom"], l["focus"]),
+                };
+                let error = match &d["last_error"] {
+                    Value::Null => "-".to_owned(),
+                    e => format!("{} ({})", e["message"].as_str().unwrap_or("?"), ago(&e["unix"], now)),
+                };
+                vec![
+                    d["address"].as_str().unwrap_or("?").to_owned(),
+                    yes(&d["online"]).to_owned(),
+                    ago(&d["last_seen_unix"], now),
+                    position,
+                    lens,
+                    d["commands"].to_string(),
+                    error,
+                ]
+            })
+            .collect();
+        out.push_str(&table(
+            "  ",
+            &[
+                "DEVICE",
+                "ONLINE",
+                "LAST SEEN",
+                "LAST POSITION",
+                "LENS",
+                "COMMANDS",
+                "LAST ERROR",
+            ],
+            &rows,
+        ));
+    }
+    let links = s["links"].as_array().unwrap_or(&empty);
+    if !links.is_empty() {
+        out.push('\n');
+        let rows: Vec<Vec<String>> = links
+            .iter()
+            .map(|l| {
+                vec![
+                    l["link"].as_str().unwrap_or("?").to_owned(),
+                    l["role"].as_str().unwrap_or("?").to_owned(),
+                    yes(&l["up"]).to_owned(),
+                    l["connections"].to_string(),
+                    format!("{}/{}", l["frames_in"], l["frames_out"]),
+                    ago(&l["last_seen_unix"], now),
+                ]
+            })
+            .collect();
+        out.push_str(&table(
+            "",
+            &["LINK", "ROLE", "UP", "CONNECTIONS", "FRAMES IN/OUT", "LAST SEEN"],
+            &rows,
+        ));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn text_names_every_device_with_its_position_and_error() {
+        let status = json!({
+            "gcud": {"version": "0.1.0", "group": 5, "name": "field", "started_unix": 1000.0,
+                     "uptime_ms": 2500, "shutting_down": false, "commands_in_progress": 0, "connections_open": 1},
+            "ports": [{"port": 1, "open": true, "bps": 9600, "queue_length": 0, "transactions": 3,
+                       "frames_in": 2, "frames_out": 3, "timeouts": 1, "bad_checksums": 0, "last_seen_unix": 1090.0,
+                       "devices": [
+                         {"device": 1, "address": "5.1.1", "online": true, "last_seen_unix": 1095.0,
+                          "position": {"pan_deg": 12.5, "tilt_deg": -3.0, "unix": 1095.0}, "lens": null,
+                          "last_error": null, "commands": 2, "unreachable": 0, "no_result": 0, "nics": 0},
+                         {"device": 9, "address": "5.1.9", "online": false, "last_seen_unix": null,
+                          "position": null, "lens": null, "commands": 1, "unreachable": 1, "no_result": 0, "nics": 0,
+                          "last_error": {"error": "device_silent", "message": "did not acknowledge", "unix": 1098.0}}]}],
+            "links": [{"link": "clients", "role": "client", "up": true, "connections": 1,
+                       "frames_in": 3, "frames_out": 4, "last_seen_unix": 1099.0}]
+        });
+        let text = text(&status, 1100.0);
+        assert!(text.starts_with("gcud 0.1.0 \"field\" (group 5), up 2.5 s"), "{text}");
+        let one = text.lines().find(|l| l.contains("5.1.1")).expect("device 1");
+        assert!(
+            one.contains("yes") && one.contains("pan 12.50° tilt -3.00° (5 s ago)"),
+            "{one}"
+        );
+        let nine = text.lines().find(|l| l.contains("5.1.9")).expect("device 9");
+        assert!(
+            nine.contains("never") && nine.contains("did not acknowledge (2 s ago)"),
+            "{nine}"
+        );
+        assert!(
+            text.lines().any(|l| l.starts_with("clients") && l.contains("3/4")),
+            "{text}"
+        );
+    }
+}
