@@ -264,6 +264,44 @@ fn table3_result_crosses_two_gcus_with_groups_exchanged() {
     }
 }
 
+/// A field GCU that dials into the hub's `downstream` listener can be
+/// routed to from the hub at once (a route names the listener), before it
+/// sent anything, and again after it reconnects.
+#[test]
+fn a_gcu_that_dials_in_is_routed_to_through_the_listener_route() {
+    let hub = Gcud::start(&format!(
+        "[gcu]\ngroup = 2\n{CLIENTS}[[link]]\nname = \"field\"\nrole = \"downstream\"\nlisten = \"127.0.0.1:0\"\n\
+         [[route]]\ngroup = 7\nlink = \"field\"\n"
+    ));
+    let listener = hub.address("listening link=field");
+    let out = hub.ctl(&["--from", "2", "--to", "7.1.1", "position"]);
+    assert_eq!(out.code, 13, "nobody dialled in yet: no route: {out:?}");
+    let field_config = format!(
+        "[gcu]\ngroup = 7\n[[port]]\nid = 1\nsimulate = [1]\n\
+         [[link]]\nname = \"hub\"\nrole = \"upstream\"\nconnect = \"{listener}\"\n"
+    );
+    for round in 1..=2 {
+        let field = Gcud::start(&field_config);
+        field.wait_for_log("link connected");
+        eventually("the hub to accept the field GCU", || {
+            hub.log().matches("client connected link=field").count() >= round
+        });
+        let out = hub.ctl(&["--json", "--from", "2", "--to", "7.1.1", "id"]);
+        assert_eq!(
+            out.code,
+            0,
+            "round {round}: {out:?}\nhub:\n{}\nfield:\n{}",
+            hub.log(),
+            field.log()
+        );
+        assert_eq!(out.json()["result"]["id"], 1);
+        let out = hub.ctl(&["--from", "2", "--to", "7.1.1", "goto", "5", "1", "--wait"]);
+        assert_eq!(out.code, 0, "round {round}: {out:?}");
+        let (_, log) = field.terminate();
+        assert!(log.contains("shutting down"), "{log}");
+    }
+}
+
 /// Port 255 and device 255 reach every gimbal of a GCU; group 255 reaches both GCUs.
 #[test]
 fn wildcards_reach_every_gimbal_and_both_gcus() {

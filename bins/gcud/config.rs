@@ -1083,16 +1083,18 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
         }
     }
 
-    // A route needs one peer: a listener's connections come and go.
+    // A route goes to another GCU: a client is never a destination. A route
+    // naming a listener reaches its newest live connection (a GCU that
+    // dials in).
     let routable = |name: &Spanned<String>, key: &str| -> Result<String, ConfigError> {
         match links.iter().find(|l| &l.name == name.get_ref()) {
             None => Err(c.at(name.span(), key, format!("no link is named {:?}", name.get_ref()))),
-            Some(l) if matches!(l.transport, LinkTransport::Listen(_)) => Err(c.at(
+            Some(l) if l.role == LinkRole::Client => Err(c.at(
                 name.span(),
                 key,
                 format!(
-                    "link {:?} is a listener; routes go to a `serial` or `connect` link \
-                     (answers to a listener's clients follow the reverse path)",
+                    "link {:?} has role \"client\"; routes go to a link to another GCU (role \
+                     \"upstream\" or \"downstream\"); answers to clients follow the reverse path",
                     l.name
                 ),
             )),
@@ -1294,12 +1296,22 @@ mod tests {
     }
 
     #[test]
-    fn routes_to_listeners_are_refused() {
+    fn routes_to_clients_are_refused_and_to_gcu_listeners_taken() {
         let e = err(
             "[gcu]\ngroup = 5\ndefault_route = \"c\"\n[[link]]\nname = \"c\"\nrole = \"client\"\nlisten = \"127.0.0.1:1\"\n",
         );
         assert_eq!((e.key.as_str(), e.line), ("gcu.default_route", 3), "{e}");
-        assert!(e.message.contains("listener"), "{e}");
+        assert!(e.message.contains("role \"client\""), "{e}");
+        let e = err(
+            "[gcu]\ngroup = 5\n[[link]]\nname = \"c\"\nrole = \"client\"\nconnect = \"127.0.0.1:1\"\n[[route]]\ngroup = 7\nlink = \"c\"\n",
+        );
+        assert_eq!((e.key.as_str(), e.line), ("route[0].link", 9), "{e}");
+        let c = parse(
+            Path::new("t.toml"),
+            "[gcu]\ngroup = 5\n[[link]]\nname = \"field\"\nrole = \"downstream\"\nlisten = \"127.0.0.1:1\"\n[[route]]\ngroup = 7\nlink = \"field\"\n",
+        )
+        .expect("a route may name a GCU listener");
+        assert_eq!(c.routes, vec![(7, "field".to_owned())]);
     }
 
     #[test]

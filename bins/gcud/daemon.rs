@@ -322,7 +322,11 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
                         if stopping.is_some() {
                             continue;
                         }
-                        let lc = link_config(configured);
+                        let mut lc = link_config(configured);
+                        if matches!(configured.transport, LinkTransport::Listen(_)) {
+                            // Routes naming the listener reach this connection.
+                            lc.listener = Some(ids.of(&configured.name));
+                        }
                         links.insert(id, LinkInfo { name: link, peer, writer: Some(writer) });
                         router.handle(t, Input::LinkUp { link: id, config: lc }, &mut actions);
                     }

@@ -55,6 +55,11 @@ pub struct LinkConfig {
     /// command of the link to that device) within this many ticks is
     /// stopped, as if the link had gone down. `None`: no lease.
     pub motion_lease: Option<u64>,
+    /// The configured listener this connection was accepted on (each
+    /// connection has its own [`LinkId`]): a static route or the default
+    /// upstream that names the listener reaches its newest live connection,
+    /// so a GCU that dials in can be routed to.
+    pub listener: Option<LinkId>,
 }
 
 impl LinkConfig {
@@ -65,6 +70,7 @@ impl LinkConfig {
             allowed_sources,
             lossless: false,
             motion_lease: None,
+            listener: None,
         }
     }
 }

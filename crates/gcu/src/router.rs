@@ -193,6 +193,9 @@ impl Router {
                     self.link_down(now, link, out);
                 }
                 let stats = LinkStats::new(config.kind);
+                if let Some(listener) = config.listener {
+                    self.routes.accepted(listener, link);
+                }
                 self.links.insert(link, Link::new(config, &self.settings, stats));
                 out.push(Action::Event(Event::LinkState { link, up: true }));
             }

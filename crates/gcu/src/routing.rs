@@ -11,6 +11,10 @@
 //! answer) instead of handing it to whichever client speaks as that group.
 //! Between GCU links, the link a group was seen on most recently wins
 //! (topology change).
+//!
+//! A configured route (static or default) may name a listener: it reaches
+//! the newest live connection accepted on it (a GCU that dials in), so
+//! that the hub can route to a field GCU before it has said anything.
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -25,6 +29,8 @@ pub(crate) struct RoutingTable {
     learned: BTreeMap<u8, Vec<LinkId>>,
     /// Groups seen on client links that are up, with those links.
     client_groups: BTreeMap<u8, BTreeSet<LinkId>>,
+    /// Listener -> its live connections, newest last.
+    accepted: BTreeMap<LinkId, Vec<LinkId>>,
 }
 
 impl RoutingTable {
@@ -34,7 +40,24 @@ impl RoutingTable {
             default_upstream,
             learned: BTreeMap::new(),
             client_groups: BTreeMap::new(),
+            accepted: BTreeMap::new(),
         }
+    }
+
+    /// `link` is a connection accepted on `listener`.
+    pub fn accepted(&mut self, listener: LinkId, link: LinkId) {
+        let connections = self.accepted.entry(listener).or_default();
+        connections.retain(|&l| l != link);
+        connections.push(link);
+    }
+
+    /// The live link a configured route names: the link itself, or the
+    /// newest live connection of the listener it names.
+    fn configured(&self, link: LinkId, up: &impl Fn(LinkId) -> bool) -> Option<LinkId> {
+        if up(link) {
+            return Some(link);
+        }
+        self.accepted.get(&link)?.iter().rev().copied().find(|&l| up(l))
     }
 
     /// New static routes and default upstream (configuration reloaded);
@@ -68,6 +91,10 @@ impl RoutingTable {
             links.remove(&link);
             !links.is_empty()
         });
+        self.accepted.retain(|_, links| {
+            links.retain(|&l| l != link);
+            !links.is_empty()
+        });
     }
 
     /// The next hop toward `group`; `up` tells which links are up;
@@ -78,7 +105,7 @@ impl RoutingTable {
         up: impl Fn(LinkId) -> bool,
         any_upstream: Option<LinkId>,
     ) -> Result<LinkId, DropReason> {
-        if let Some(&link) = self.static_routes.get(&group).filter(|&&l| up(l)) {
+        if let Some(link) = self.static_routes.get(&group).and_then(|&l| self.configured(l, &up)) {
             return Ok(link);
         }
         if let Some(&link) = self
@@ -88,7 +115,11 @@ impl RoutingTable {
         {
             return Ok(link);
         }
-        match self.default_upstream.filter(|&l| up(l)).or(any_upstream) {
+        match self
+            .default_upstream
+            .and_then(|l| self.configured(l, &up))
+            .or(any_upstream)
+        {
             Some(link) => Ok(link),
             None if self.client_groups.contains_key(&group) => Err(DropReason::Unsolicited),
             None => Err(DropReason::NoRoute),
@@ -133,6 +164,27 @@ mod tests {
         t.learn(5, LinkId(3), LinkKind::Upstream);
         assert_eq!(t.lookup(5, |_| true, None), Ok(LinkId(3)));
         assert_eq!(t.lookup(5, |l| l == LinkId(4), None), Ok(LinkId(4)));
+    }
+
+    #[test]
+    fn a_route_naming_a_listener_reaches_its_newest_live_connection() {
+        const LISTENER: LinkId = LinkId(1);
+        let mut t = RoutingTable::new([(7, LISTENER)].into(), Some(LISTENER));
+        assert_eq!(
+            t.lookup(7, |_| false, None),
+            Err(DropReason::NoRoute),
+            "nobody dialled in"
+        );
+        t.accepted(LISTENER, LinkId(100));
+        t.accepted(LISTENER, LinkId(101));
+        let up = |l: LinkId| l == LinkId(100) || l == LinkId(101);
+        assert_eq!(t.lookup(7, up, None), Ok(LinkId(101)), "the newest connection");
+        assert_eq!(t.lookup(9, up, None), Ok(LinkId(101)), "default route too");
+        t.forget(LinkId(101));
+        assert_eq!(t.lookup(7, |l| l == LinkId(100), None), Ok(LinkId(100)));
+        t.forget(LinkId(100));
+        assert_eq!(t.lookup(7, |_| true, None), Ok(LISTENER), "an id that is up is itself");
+        assert_eq!(t.lookup(7, |l| l != LISTENER, None), Err(DropReason::NoRoute));
     }
 
     #[test]
