@@ -522,14 +522,28 @@ fn all_254_ports_start_and_route() {
     assert_eq!(gcud.metric("gcud_port_transactions_total{port=\"128\"}"), 0);
 }
 
-/// SIGTERM: gcud stops accepting, finishes, says so, and exits 0.
+/// SIGTERM with a transaction in flight: gcud lets it finish (its client
+/// gets the result it asked for), says so, and exits 0.
 #[test]
 fn sigterm_shuts_down_gracefully() {
-    let sim = Sim::pty(&[]);
-    let gcud = Gcud::start(&format!("[gcu]\ngroup = 5\n{CLIENTS}{}", port_entry(1, &sim)));
+    // The gimbal takes 0.4 s to answer, so the P? is on the bus at SIGTERM.
+    let sim = Sim::pty(&["--pace", "--reply-delay-us", "400000"]);
+    let gcud = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n{CLIENTS}{METRICS}{}ack_timeout_ms = 2000\nresult_timeout_ms = 3000\n\
+         [link_timing]\ndelivery_timeout_ms = 2500\n",
+        port_entry(1, &sim)
+    ));
     gcud.wait_for_log("port open port=1");
-    assert_eq!(gcud.ctl(&["--to", "5.1.1", "position"]).code, 0);
+    let clients = gcud.clients();
+    let client =
+        std::thread::spawn(move || support::gimbalctl(&["--json", "--tcp", &clients, "--to", "5.1.1", "position"]));
+    eventually("the P? to be in flight", || {
+        gcud.metric("gcud_commands_in_progress") == 1
+    });
     let (status, log) = gcud.terminate();
+    let out = client.join().expect("client thread");
+    assert_eq!(out.code, 0, "the command in flight finished: {out:?}\n{log}");
+    assert_eq!(out.json()["outcome"], "result", "{out:?}");
     assert!(status.is_some_and(|s| s.success()), "exit status {status:?}\n{log}");
     assert!(log.contains("shutting down"), "{log}");
     assert!(log.contains("in-flight transactions finished"), "{log}");
