@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use sagebrush_protocol::{ACK, Address, Command as Cmd, Event, FrameBuf, Framer, Position, Reply};
+use sagebrush_protocol::{ACK, Address, Command as Cmd, Event, FrameBuf, Framer, OwnedEvent, Position, Reply};
 use support::{HANG_GUARD, Output, Sim, eventually};
 
 // ---- a running daemon ---------------------------------------------------------
@@ -153,15 +153,7 @@ const METRICS: &str = "[metrics]\nlisten = \"127.0.0.1:0\"\n";
 struct WireClient {
     stream: TcpStream,
     framer: Framer,
-    pending: Vec<Owned>,
-}
-
-#[derive(Debug, Clone, PartialEq)]
-enum Owned {
-    Frame(Box<FrameBuf>),
-    Ack,
-    Nak,
-    Nic,
+    pending: Vec<OwnedEvent>,
 }
 
 impl WireClient {
@@ -183,7 +175,7 @@ impl WireClient {
     }
 
     /// The next thing received; frames are ACKed (hop by hop).
-    fn next(&mut self) -> Owned {
+    fn next(&mut self) -> OwnedEvent {
         let started = Instant::now();
         while self.pending.is_empty() {
             assert!(started.elapsed() < HANG_GUARD, "nothing received from gcud");
@@ -193,11 +185,8 @@ impl WireClient {
                 Ok(n) => {
                     let pending = &mut self.pending;
                     self.framer.feed(&buf[..n], |e| match e {
-                        Event::Frame(f) => pending.push(Owned::Frame(Box::new(FrameBuf::from_frame(&f)))),
-                        Event::Ack => pending.push(Owned::Ack),
-                        Event::Nak => pending.push(Owned::Nak),
-                        Event::Nic => pending.push(Owned::Nic),
                         Event::BadChecksum(b) => panic!("bad checksum from gcud: {b:?}"),
+                        e => pending.push(e.to_owned()),
                     });
                 }
                 Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {}
@@ -205,16 +194,16 @@ impl WireClient {
             }
         }
         let next = self.pending.remove(0);
-        if let Owned::Frame(_) = next {
+        if let OwnedEvent::Frame(_) = next {
             self.stream.write_all(&[ACK]).expect("ack");
         }
         next
     }
 
     fn expect_result(&mut self) -> FrameBuf {
-        assert_eq!(self.next(), Owned::Ack, "gcud acknowledges the command hop by hop");
+        assert_eq!(self.next(), OwnedEvent::Ack, "gcud acknowledges the command hop by hop");
         match self.next() {
-            Owned::Frame(f) => *f,
+            OwnedEvent::Frame(f) => f,
             other => panic!("expected a result frame, got {other:?}"),
         }
     }
@@ -410,7 +399,7 @@ fn start_slew(gcud: &Gcud, slew: &Cmd<'_>) -> ((f64, f64), WireClient) {
     let start = gcud.position("5.1.1");
     let mut client = WireClient::connect(&gcud.clients());
     client.send(Address::new(5, 1, 1), 0, slew);
-    assert_eq!(client.next(), Owned::Ack);
+    assert_eq!(client.next(), OwnedEvent::Ack);
     eventually("the slew to move the gimbal", || gcud.position("5.1.1") != start);
     (start, client)
 }
@@ -697,7 +686,7 @@ fn a_spec_client_gets_no_ack_for_an_undelivered_command() {
     gcud.wait_for_log("port open port=1");
     let mut client = WireClient::connect(&gcud.clients());
     client.send(Address::new(5, 1, 2), 0, &Cmd::Stop);
-    let Owned::Frame(report) = client.next() else {
+    let OwnedEvent::Frame(report) = client.next() else {
         panic!("expected a delivery report, not an ACK");
     };
     let report_frame = report.frame();
@@ -759,7 +748,7 @@ fn a_client_speaking_as_another_gcu_never_poisons_its_route() {
     // The listener that allows group 5: one frame speaking as GCU 5.
     let mut spoofer = WireClient::connect(&gcu2.address("listening link=open"));
     spoofer.send(Address::new(2, 0, 0), 5, &Cmd::AwakeStatus);
-    assert_eq!(spoofer.next(), Owned::Ack);
+    assert_eq!(spoofer.next(), OwnedEvent::Ack);
     for _ in 0..3 {
         let out = gcu2.ctl(&["--from", "0", "--to", "5.1.1", "position"]);
         assert_eq!(out.code, 0, "delivery to GCU 5 is intact: {out:?}\n{}", gcu2.log());
@@ -875,7 +864,7 @@ fn sighup_reloads_the_difference_and_refuses_broken_files() {
     // Port 2 moves to another bus while its gimbal slews: stopped first.
     let mut client = WireClient::connect(&gcud.clients());
     client.send(Address::new(5, 2, 1), 0, &Cmd::PanRight);
-    assert_eq!(client.next(), Owned::Ack);
+    assert_eq!(client.next(), OwnedEvent::Ack);
     eventually("the slew to move the gimbal", || gcud.position("5.2.1").0 > start.0);
     let moved = format!("{base}{}", port_entry(2, &sim3));
     gcud.reload(Some(&moved), 5, "reload: port 2: changed");
@@ -1029,8 +1018,8 @@ fn pipelining_clients_see_one_outcome_per_command() {
     for client in &mut clients {
         for _ in 0..5 {
             match client.next() {
-                Owned::Ack => acks += 1,
-                Owned::Frame(f) => {
+                OwnedEvent::Ack => acks += 1,
+                OwnedEvent::Frame(f) => {
                     sagebrush_protocol::DeliveryReport::parse(f.frame().payload()).expect("a report");
                     reports += 1;
                 }

@@ -4,7 +4,7 @@
 use std::io::Read;
 
 use sagebrush_host::hex::{from_hex, payload_text, to_hex};
-use sagebrush_protocol::{Address, BadChecksum, Command, Event, FrameBuf, Framer};
+use sagebrush_protocol::{Address, Command, FrameBuf, Framer, OwnedEvent};
 use serde_json::{Value, json};
 
 use crate::error::CtlError;
@@ -48,19 +48,19 @@ pub fn encode(dest: Address, source: u8, payload: &str, as_json: bool) -> Result
     Ok(())
 }
 
-/// One framer event, owned.
+/// One framer event, or a run of bytes the framer skipped as noise.
+#[expect(
+    clippy::large_enum_variant,
+    reason = "a decode prints a few events once; boxing would only hide the frame behind a pointer"
+)]
 enum Decoded {
-    Frame(Box<FrameBuf>),
-    Ack,
-    Nak,
-    Nic,
-    Bad(BadChecksum),
+    Event(OwnedEvent),
     Noise(u64),
 }
 
 fn print(event: &Decoded, as_json: bool) {
     let (text, value) = match event {
-        Decoded::Frame(frame) => {
+        Decoded::Event(OwnedEvent::Frame(frame)) => {
             let f = frame.frame();
             let command = Command::parse_strict(f.payload());
             let typed = match &command {
@@ -93,10 +93,10 @@ fn print(event: &Decoded, as_json: bool) {
                 }),
             )
         }
-        Decoded::Ack => ("ack".into(), json!({ "kind": "ack" })),
-        Decoded::Nak => ("nak".into(), json!({ "kind": "nak" })),
-        Decoded::Nic => ("nic".into(), json!({ "kind": "nic" })),
-        Decoded::Bad(b) => (
+        Decoded::Event(OwnedEvent::Ack) => ("ack".into(), json!({ "kind": "ack" })),
+        Decoded::Event(OwnedEvent::Nak) => ("nak".into(), json!({ "kind": "nak" })),
+        Decoded::Event(OwnedEvent::Nic) => ("nic".into(), json!({ "kind": "nic" })),
+        Decoded::Event(OwnedEvent::BadChecksum(b)) => (
             format!(
                 "bad_checksum dest {} source {} length {} expected {:02X} found {:02X} at offset {}",
                 b.dest, b.source, b.payload_len, b.expected, b.found, b.offset
@@ -141,17 +141,10 @@ fn events(bytes: &[u8]) -> Vec<Decoded> {
         if idle {
             framer.line_idle();
         }
-        loop {
-            let event = match framer.next_event() {
-                None => break,
-                Some(Event::Frame(f)) => Decoded::Frame(Box::new(FrameBuf::from_frame(&f))),
-                Some(Event::Ack) => Decoded::Ack,
-                Some(Event::Nak) => Decoded::Nak,
-                Some(Event::Nic) => Decoded::Nic,
-                Some(Event::BadChecksum(b)) => Decoded::Bad(b),
-            };
+        while let Some(event) = framer.next_event() {
+            let event = Decoded::Event(event.to_owned());
             let skipped = framer.skipped_bytes();
-            let own = u64::from(matches!(event, Decoded::Bad(_)));
+            let own = u64::from(matches!(event, Decoded::Event(OwnedEvent::BadChecksum(_))));
             let noise = (skipped - seen).saturating_sub(own);
             if noise > 0 {
                 out.push(Decoded::Noise(noise));
@@ -196,11 +189,13 @@ mod tests {
         events(bytes)
             .iter()
             .map(|e| match e {
-                Decoded::Frame(f) => format!("frame:{}", String::from_utf8_lossy(f.frame().payload())),
-                Decoded::Ack => "ack".into(),
-                Decoded::Nak => "nak".into(),
-                Decoded::Nic => "nic".into(),
-                Decoded::Bad(_) => "bad".into(),
+                Decoded::Event(OwnedEvent::Frame(f)) => {
+                    format!("frame:{}", String::from_utf8_lossy(f.frame().payload()))
+                }
+                Decoded::Event(OwnedEvent::Ack) => "ack".into(),
+                Decoded::Event(OwnedEvent::Nak) => "nak".into(),
+                Decoded::Event(OwnedEvent::Nic) => "nic".into(),
+                Decoded::Event(OwnedEvent::BadChecksum(_)) => "bad".into(),
                 Decoded::Noise(n) => format!("noise:{n}"),
             })
             .collect()

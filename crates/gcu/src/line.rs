@@ -1,31 +1,10 @@
 //! The receive side of one line (serial port or link): the protocol
 //! crate's streaming [`Framer`] plus the silence hook (NOTES "Framing": a
 //! partial candidate is abandoned once the line has been idle), turning
-//! bytes into owned events the router can keep while it mutates itself.
+//! bytes into the protocol crate's [`OwnedEvent`]s, which the router can
+//! keep while it mutates itself.
 
-use sagebrush_protocol::{Event, FrameBuf, Framer};
-
-/// An owned framer event.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub(crate) enum RxEvent {
-    Frame(Box<FrameBuf>),
-    Ack,
-    Nak,
-    Nic,
-    BadChecksum,
-}
-
-impl RxEvent {
-    fn from_event(event: Event<'_>) -> Self {
-        match event {
-            Event::Frame(frame) => RxEvent::Frame(Box::new(FrameBuf::from_frame(&frame))),
-            Event::Ack => RxEvent::Ack,
-            Event::Nak => RxEvent::Nak,
-            Event::Nic => RxEvent::Nic,
-            Event::BadChecksum(_) => RxEvent::BadChecksum,
-        }
-    }
-}
+use sagebrush_protocol::{Framer, OwnedEvent};
 
 #[derive(Debug)]
 pub(crate) struct Line {
@@ -47,14 +26,14 @@ impl Line {
     }
 
     /// Bytes received at `now`.
-    pub fn feed(&mut self, now: u64, bytes: &[u8]) -> Vec<RxEvent> {
+    pub fn feed(&mut self, now: u64, bytes: &[u8]) -> Vec<OwnedEvent> {
         let mut events = Vec::new();
         if bytes.is_empty() {
             return events;
         }
         self.last_rx = Some(now);
         self.flushed = false;
-        self.framer.feed(bytes, |e| events.push(RxEvent::from_event(e)));
+        self.framer.feed(bytes, |e| events.push(e.to_owned()));
         events
     }
 
@@ -67,11 +46,11 @@ impl Line {
     }
 
     /// Abandons a partial frame once the line has been silent long enough.
-    pub fn poll(&mut self, now: u64) -> Vec<RxEvent> {
+    pub fn poll(&mut self, now: u64) -> Vec<OwnedEvent> {
         let mut events = Vec::new();
         if self.idle_deadline().is_some_and(|t| now >= t) {
             self.flushed = true;
-            self.framer.flush_idle(|e| events.push(RxEvent::from_event(e)));
+            self.framer.flush_idle(|e| events.push(e.to_owned()));
         }
         events
     }
@@ -91,7 +70,7 @@ impl Line {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use sagebrush_protocol::{ACK, Address};
+    use sagebrush_protocol::{ACK, Address, FrameBuf};
 
     #[test]
     fn partial_frame_abandoned_after_silence_then_rescanned() {
@@ -107,6 +86,6 @@ mod tests {
         assert!(line.poll(10).is_empty());
         assert!(line.noise_bytes() >= 6);
         assert_eq!(line.idle_deadline(), None);
-        assert_eq!(line.feed(11, frame.as_bytes()), vec![RxEvent::Frame(Box::new(frame))]);
+        assert_eq!(line.feed(11, frame.as_bytes()), vec![OwnedEvent::Frame(frame)]);
     }
 }

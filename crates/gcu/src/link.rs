@@ -15,10 +15,10 @@
 
 use std::collections::VecDeque;
 
-use sagebrush_protocol::{ACK, FrameBuf, NAK, NIC, RetryPolicy, Transmitter, TxStep};
+use sagebrush_protocol::{ACK, FrameBuf, NAK, NIC, OwnedEvent, RetryPolicy, Transmitter, TxStep};
 
 use crate::config::{LinkConfig, LinkSettings};
-use crate::line::{Line, RxEvent};
+use crate::line::Line;
 use crate::stats::LinkStats;
 use crate::types::DropReason;
 
@@ -209,33 +209,33 @@ impl Link {
         self.on_events(now, events, out)
     }
 
-    fn on_events(&mut self, now: u64, events: Vec<RxEvent>, out: &mut Vec<LinkOut>) -> Vec<Received> {
+    fn on_events(&mut self, now: u64, events: Vec<OwnedEvent>, out: &mut Vec<LinkOut>) -> Vec<Received> {
         let mut received = Vec::new();
         for event in events {
             match event {
-                RxEvent::Frame(frame) => {
+                OwnedEvent::Frame(frame) => {
                     // The router writes the ACK: at once, or once the
                     // command is delivered (ARCHITECTURE "Delivery contract").
                     self.stats.line.frames_in += 1;
-                    received.push(Received::Frame(frame));
+                    received.push(Received::Frame(Box::new(frame)));
                 }
-                RxEvent::BadChecksum => {
+                OwnedEvent::BadChecksum(_) => {
                     self.stats.line.bad_checksums += 1;
                     self.stats.line.naks_sent += 1;
                     self.write(vec![NAK], out);
                 }
-                RxEvent::Ack if self.in_flight => {
+                OwnedEvent::Ack if self.in_flight => {
                     let step = self.tx.on_ack();
                     self.step(step, out);
                 }
-                RxEvent::Nak if self.in_flight => {
+                OwnedEvent::Nak if self.in_flight => {
                     self.stats.line.naks_received += 1;
                     let step = self.tx.on_nak(now);
                     self.step(step, out);
                 }
-                RxEvent::Ack if self.config.lossless => {}
-                RxEvent::Ack | RxEvent::Nak => self.stats.line.stray_bytes += 1,
-                RxEvent::Nic => {
+                OwnedEvent::Ack if self.config.lossless => {}
+                OwnedEvent::Ack | OwnedEvent::Nak => self.stats.line.stray_bytes += 1,
+                OwnedEvent::Nic => {
                     self.stats.line.nics_in += 1;
                     received.push(Received::Nic);
                 }

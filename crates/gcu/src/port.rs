@@ -47,13 +47,13 @@ use std::collections::{BTreeMap, BTreeSet, VecDeque};
 
 use sagebrush_protocol::link::TransactionPolicy;
 use sagebrush_protocol::{
-    ACK, Command, DataRate, Event as FramerEvent, FrameBuf, NAK, Reply, RetryPolicy, Transaction, TransactionStep,
-    TxFailure, WILDCARD,
+    ACK, Command, DataRate, Event as FramerEvent, FrameBuf, NAK, OwnedEvent, Reply, RetryPolicy, Transaction,
+    TransactionStep, TxFailure, WILDCARD,
 };
 use sagebrush_protocol::{Outcome as TxOutcome, ResultKind, ResultTimeout, Undelivered};
 
 use crate::config::PortConfig;
-use crate::line::{Line, RxEvent};
+use crate::line::Line;
 use crate::stats::{DeviceError, DeviceStats, PortStats};
 use crate::types::{CommandId, DropReason, Event, Origin, Outcome};
 
@@ -618,21 +618,21 @@ impl Port {
         self.maybe_detach(now, out);
     }
 
-    fn on_event(&mut self, now: u64, event: RxEvent, out: &mut Vec<PortOut>) {
+    fn on_event(&mut self, now: u64, event: OwnedEvent, out: &mut Vec<PortOut>) {
         match event {
-            RxEvent::Frame(frame) => {
+            OwnedEvent::Frame(frame) => {
                 self.stats.line.frames_in += 1;
                 self.write(vec![ACK], out);
-                self.on_frame(now, frame, out);
+                self.on_frame(now, Box::new(frame), out);
             }
-            RxEvent::BadChecksum => {
+            OwnedEvent::BadChecksum(_) => {
                 self.stats.line.bad_checksums += 1;
                 self.stats.line.naks_sent += 1;
                 self.write(vec![NAK], out);
             }
-            RxEvent::Ack | RxEvent::Nak => {
+            OwnedEvent::Ack | OwnedEvent::Nak => {
                 let (fe, nak) = match event {
-                    RxEvent::Nak => (FramerEvent::Nak, true),
+                    OwnedEvent::Nak => (FramerEvent::Nak, true),
                     _ => (FramerEvent::Ack, false),
                 };
                 if nak {
@@ -655,7 +655,7 @@ impl Port {
                     None => self.stats.line.stray_bytes += 1,
                 }
             }
-            RxEvent::Nic => {
+            OwnedEvent::Nic => {
                 self.stats.line.nics_in += 1;
                 if let Some(r) = self.active.as_mut().filter(|r| !r.txn.is_broadcast()) {
                     let step = r.txn.on_event(&FramerEvent::Nic, now);

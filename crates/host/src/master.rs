@@ -12,8 +12,8 @@ use std::time::Duration;
 
 use sagebrush_protocol::link::TransactionPolicy;
 use sagebrush_protocol::{
-    ACK, Address, CONTROL_UNIT, Command, DeliveryReport, Event, FrameBuf, Framer, LINK_PORT, NAK, Outcome, Transaction,
-    TransactionStep, TxFailure,
+    ACK, CONTROL_UNIT, Command, DeliveryReport, Event, FrameBuf, Framer, LINK_PORT, NAK, Outcome, OwnedEvent,
+    Transaction, TransactionStep, TxFailure,
 };
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::time::Instant;
@@ -47,15 +47,6 @@ fn report_about(frame: &FrameBuf, candidate: &FrameBuf) -> Option<DeliveryReport
     let addressed = got.dest.group == command.source && got.dest.port == LINK_PORT && got.dest.device == CONTROL_UNIT;
     let report = DeliveryReport::parse(got.payload()).ok().filter(|_| addressed)?;
     (report.dest == command.dest && report.command_checksum == command.checksum()).then_some(report)
-}
-
-/// An owned framer event.
-enum Owned {
-    Frame(Box<FrameBuf>),
-    Bad(Address),
-    Ack,
-    Nak,
-    Nic,
 }
 
 /// A master on one stream.
@@ -145,15 +136,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
                 Some(Err(e)) => return Err(e),
             };
             let mut events = Vec::new();
-            self.framer.feed(&buf[..n], |e| {
-                events.push(match e {
-                    Event::Frame(f) => Owned::Frame(Box::new(FrameBuf::from_frame(&f))),
-                    Event::BadChecksum(b) => Owned::Bad(b.dest),
-                    Event::Ack => Owned::Ack,
-                    Event::Nak => Owned::Nak,
-                    Event::Nic => Owned::Nic,
-                })
-            });
+            self.framer.feed(&buf[..n], |e| events.push(e.to_owned()));
             for event in events {
                 if matches!(step, TransactionStep::Done(_)) {
                     debug!("byte after the end of the exchange ignored");
@@ -161,7 +144,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
                 }
                 let now = self.now();
                 step = match event {
-                    Owned::Frame(f) => {
+                    OwnedEvent::Frame(f) => {
                         // Every intact frame is acknowledged, hop by hop.
                         self.write(&[ACK]).await?;
                         if let Some(report) = report_about(frame, &f).filter(|r| r.failure.is_some()) {
@@ -174,14 +157,15 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
                         }
                         let s = tx.on_event(&Event::Frame(f.frame()), now);
                         if s == TransactionStep::Done(Outcome::Result) {
-                            result = Some(*f);
+                            result = Some(f);
                         } else {
                             stray_frames += 1;
                             debug!(dest = %f.frame().dest, "frame that is not our result ignored");
                         }
                         s
                     }
-                    Owned::Bad(dest) => {
+                    OwnedEvent::BadChecksum(bad) => {
+                        let dest = bad.dest;
                         if tx.is_result_header(&dest) {
                             warn!(dest = %dest, "damaged result: NAK");
                             naks_sent += 1;
@@ -189,12 +173,12 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
                         }
                         TransactionStep::Wait
                     }
-                    Owned::Ack => tx.on_event(&Event::Ack, now),
-                    Owned::Nak => {
+                    OwnedEvent::Ack => tx.on_event(&Event::Ack, now),
+                    OwnedEvent::Nak => {
                         naks_received += 1;
                         tx.on_event(&Event::Nak, now)
                     }
-                    Owned::Nic => tx.on_event(&Event::Nic, now),
+                    OwnedEvent::Nic => tx.on_event(&Event::Nic, now),
                 };
                 if step == TransactionStep::Send {
                     info!(transmission = tx.transmissions(), "NAK received: retransmitting");

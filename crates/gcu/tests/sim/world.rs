@@ -6,8 +6,8 @@ use sagebrush_gcu::{
     Action, CommandId, Event, Input, LinkConfig, LinkId, LinkKind, PortConfig, Router, RouterConfig, SourceFilter,
 };
 use sagebrush_protocol::{
-    ACK, Address, AwakeStatus, Command, DeliveryReport, DeviceEndpoint, DeviceHandler, EndpointConfig, Event as FEvent,
-    Extended, FrameBuf, Framer, Identity, InitResults, NAK, Position, Reply, ReplyTo, Response, ResultKind,
+    ACK, Address, AwakeStatus, Command, DeliveryReport, DeviceEndpoint, DeviceHandler, EndpointConfig, Extended,
+    FrameBuf, Framer, Identity, InitResults, NAK, OwnedEvent, Position, Reply, ReplyTo, Response, ResultKind,
     RetryPolicy, Transmitter, TxStep, WILDCARD,
 };
 
@@ -189,26 +189,6 @@ struct Pair {
     child: (usize, LinkId),
     up: bool,
     epoch: u64,
-}
-
-enum ClientEvent {
-    Frame(Box<FrameBuf>),
-    Ack,
-    Nak,
-    Bad,
-    Nic,
-}
-
-impl From<FEvent<'_>> for ClientEvent {
-    fn from(e: FEvent<'_>) -> Self {
-        match e {
-            FEvent::Frame(f) => ClientEvent::Frame(Box::new(FrameBuf::from_frame(&f))),
-            FEvent::BadChecksum(_) => ClientEvent::Bad,
-            FEvent::Ack => ClientEvent::Ack,
-            FEvent::Nak => ClientEvent::Nak,
-            FEvent::Nic => ClientEvent::Nic,
-        }
-    }
 }
 
 #[derive(Debug)]
@@ -1169,14 +1149,14 @@ impl World {
         if now.saturating_sub(cl.last_rx) >= SILENCE {
             cl.framer.line_idle();
             while let Some(e) = cl.framer.next_event() {
-                events.push(ClientEvent::from(e));
+                events.push(e.to_owned());
             }
         }
         cl.last_rx = now;
-        cl.framer.feed(bytes, |e| events.push(ClientEvent::from(e)));
+        cl.framer.feed(bytes, |e| events.push(e.to_owned()));
         for event in events {
             match event {
-                ClientEvent::Nic => {
+                OwnedEvent::Nic => {
                     self.clients[c].nics += 1;
                     // A `?` follows the ACK of its command: one while the ACK
                     // is awaited is a late answer to an earlier command.
@@ -1184,10 +1164,10 @@ impl World {
                         self.client_idle(c);
                     }
                 }
-                ClientEvent::Bad => self.client_write(c, vec![NAK]),
-                ClientEvent::Ack => self.client_ack(c),
-                ClientEvent::Nak => self.client_nak(c),
-                ClientEvent::Frame(f) => {
+                OwnedEvent::BadChecksum(_) => self.client_write(c, vec![NAK]),
+                OwnedEvent::Ack => self.client_ack(c),
+                OwnedEvent::Nak => self.client_nak(c),
+                OwnedEvent::Frame(f) => {
                     self.client_write(c, vec![ACK]);
                     let frame = f.frame();
                     let report = (frame.dest.port == 0 && frame.dest.device == 0)
