@@ -9,8 +9,8 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use sagebrush_gcu::{
-    Action, Event, Input, Level, LinkConfig, LinkId, LinkKind, LinkStats, Place, PortConfig, Router, RouterConfig,
-    SourceFilter,
+    Action, Input, Level, LinkConfig, LinkId, LinkKind, LinkStats, Place, PortConfig, Router, RouterConfig,
+    RouterEvent, SourceFilter,
 };
 use sagebrush_host::capture::{Capture, CaptureSwitch};
 use tokio::net::TcpListener;
@@ -679,11 +679,11 @@ fn execute(
 
 /// Logs a router event; repeated warnings of one kind from one place are
 /// throttled (module `throttle`).
-fn log_event(event: &Event, links: &BTreeMap<LinkId, LinkInfo>, throttle: &mut Throttle) {
+fn log_event(event: &RouterEvent, links: &BTreeMap<LinkId, LinkInfo>, throttle: &mut Throttle) {
     let name = |link: &LinkId| links.get(link).map_or_else(|| link.to_string(), |l| l.name.clone());
     // Events about a link name it as configured, with its peer.
     let context = match event {
-        Event::LinkState { link, .. } | Event::DeadManStop { link, .. } => links
+        RouterEvent::LinkState { link, .. } | RouterEvent::DeadManStop { link, .. } => links
             .get(link)
             .map_or_else(String::new, |l| format!(" ({} {})", l.name, l.peer)),
         _ => String::new(),
@@ -693,19 +693,21 @@ fn log_event(event: &Event, links: &BTreeMap<LinkId, LinkInfo>, throttle: &mut T
         Level::Info => info!("{event}{context}"),
         Level::Warn => {
             let (kind, place) = match event {
-                Event::Dropped { reason, at, .. } => (
+                RouterEvent::Dropped { reason, at, .. } => (
                     format!("dropped {}", reason.name()),
                     match at {
                         Place::Link(link) => name(link),
                         other => other.to_string(),
                     },
                 ),
-                Event::Undelivered { failure, origin, .. } => (
+                RouterEvent::Undelivered { failure, origin, .. } => (
                     format!("undelivered {}", failure.name()),
                     origin.link().as_ref().map_or_else(String::new, name),
                 ),
-                Event::Finished { outcome, .. } => (format!("finished {outcome:?}"), String::new()),
-                Event::DeadManStop { link, .. } | Event::LeaseExpired { link, .. } => ("stop".to_owned(), name(link)),
+                RouterEvent::Finished { outcome, .. } => (format!("finished {outcome:?}"), String::new()),
+                RouterEvent::DeadManStop { link, .. } | RouterEvent::LeaseExpired { link, .. } => {
+                    ("stop".to_owned(), name(link))
+                }
                 other => (format!("{:?}", std::mem::discriminant(other)), String::new()),
             };
             if throttle.allow(&kind, &place, || format!("{event}{context}"), Instant::now()) {

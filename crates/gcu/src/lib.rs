@@ -109,8 +109,8 @@
 //! # Outcomes
 //!
 //! Every accepted command (a good frame from an allowed source, or a
-//! dead-man stop) gets a [`CommandId`] ([`Event::Accepted`]) and ends in
-//! exactly one [`Event::Finished`] with an [`Outcome`]: `Result` (queued to
+//! dead-man stop) gets a [`CommandId`] ([`RouterEvent::Accepted`]) and ends in
+//! exactly one [`RouterEvent::Finished`] with a [`CommandOutcome`]: `Result` (queued to
 //! the origin link), `Nic` (`?` written to it), `Completed`, `NoResult`,
 //! `Unreachable` (device never ACKed), `Forwarded` (queued to the next-hop
 //! link) or `Dropped(reason)`. What happens to a frame after it was queued
@@ -143,4 +143,4 @@ pub use router::Router;
 pub use stats::{
     DeviceError, DeviceStats, DropCounts, LineStats, LinkStats, PortStats, RouterStats, Stats, UndeliveredCounts,
 };
-pub use types::{Action, CommandId, DropReason, Event, Input, Level, LinkId, Origin, Outcome, Place};
+pub use types::{Action, CommandId, CommandOutcome, DropReason, Input, Level, LinkId, Origin, Place, RouterEvent};

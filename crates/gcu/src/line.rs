@@ -6,8 +6,10 @@
 
 use sagebrush_protocol::{Framer, OwnedEvent};
 
+/// The receive side of one line: bytes in, framer events out, a partial
+/// frame abandoned after silence.
 #[derive(Debug)]
-pub(crate) struct Line {
+pub(crate) struct LineReceiver {
     framer: Framer,
     idle_timeout: u64,
     last_rx: Option<u64>,
@@ -15,7 +17,7 @@ pub(crate) struct Line {
     flushed: bool,
 }
 
-impl Line {
+impl LineReceiver {
     pub fn new(idle_timeout: u64) -> Self {
         Self {
             framer: Framer::new(),
@@ -74,7 +76,7 @@ mod tests {
 
     #[test]
     fn partial_frame_abandoned_after_silence_then_rescanned() {
-        let mut line = Line::new(10);
+        let mut line = LineReceiver::new(10);
         let frame = FrameBuf::new(Address::new(1, 2, 3), 0, b"AW").unwrap();
         // A truncated frame: the ACK after it is taken for its length byte.
         let mut bytes = frame.as_bytes()[..5].to_vec();

@@ -18,7 +18,7 @@ use std::collections::VecDeque;
 use sagebrush_protocol::{ACK, FrameBuf, NAK, NIC, OwnedEvent, RetryPolicy, Transmitter, TxStep};
 
 use crate::config::{LinkConfig, LinkSettings};
-use crate::line::Line;
+use crate::line::LineReceiver;
 use crate::stats::LinkStats;
 use crate::types::DropReason;
 
@@ -56,7 +56,7 @@ pub(crate) enum Received {
 #[derive(Debug)]
 pub(crate) struct Link {
     pub config: LinkConfig,
-    line: Line,
+    line: LineReceiver,
     queue: VecDeque<Outgoing>,
     tx: Transmitter,
     in_flight: bool,
@@ -73,7 +73,7 @@ impl Link {
         };
         Self {
             config,
-            line: Line::new(settings.idle_timeout),
+            line: LineReceiver::new(settings.idle_timeout),
             queue: VecDeque::new(),
             tx: Transmitter::new(policy),
             in_flight: false,

@@ -47,15 +47,15 @@ use std::collections::{BTreeMap, BTreeSet, VecDeque};
 
 use sagebrush_protocol::link::TransactionPolicy;
 use sagebrush_protocol::{
-    ACK, Command, DataRate, Event as FramerEvent, FrameBuf, NAK, OwnedEvent, Reply, RetryPolicy, Transaction,
-    TransactionStep, TxFailure, WILDCARD,
+    ACK, Command, DataRate, Event, FrameBuf, NAK, OwnedEvent, Reply, RetryPolicy, Transaction, TransactionStep,
+    TxFailure, WILDCARD,
 };
-use sagebrush_protocol::{Outcome as TxOutcome, ResultKind, ResultTimeout, Undelivered};
+use sagebrush_protocol::{Outcome, ResultKind, ResultTimeout, Undelivered};
 
 use crate::config::PortConfig;
-use crate::line::Line;
+use crate::line::LineReceiver;
 use crate::stats::{DeviceError, DeviceStats, PortStats};
-use crate::types::{CommandId, DropReason, Event, Origin, Outcome};
+use crate::types::{CommandId, CommandOutcome, DropReason, Origin, RouterEvent};
 
 /// One command exchange waiting for or holding a bus.
 #[derive(Clone, Debug)]
@@ -112,10 +112,10 @@ pub(crate) enum PortOut {
     /// Job `id` is over.
     Finished {
         id: CommandId,
-        outcome: Outcome,
+        outcome: CommandOutcome,
     },
     SetRate(u32),
-    Event(Event),
+    Event(RouterEvent),
 }
 
 #[derive(Debug)]
@@ -150,7 +150,7 @@ pub(crate) struct Port {
     bound: usize,
     stop_bound: usize,
     devices: Option<Vec<u8>>,
-    line: Line,
+    line: LineReceiver,
     open: bool,
     rate: DataRate,
     queue: VecDeque<Job>,
@@ -193,7 +193,7 @@ impl Port {
             bound: config.queue_bound,
             stop_bound: config.stop_queue_bound,
             devices: config.devices.clone(),
-            line: Line::new(config.idle_timeout),
+            line: LineReceiver::new(config.idle_timeout),
             open: false,
             rate,
             queue: VecDeque::new(),
@@ -232,7 +232,7 @@ impl Port {
         for id in job.ids() {
             out.push(PortOut::Finished {
                 id,
-                outcome: Outcome::Dropped(reason),
+                outcome: CommandOutcome::Dropped(reason),
             });
         }
     }
@@ -328,7 +328,7 @@ impl Port {
         } else {
             self.queue.len()
         };
-        out.push(PortOut::Event(Event::Queued {
+        out.push(PortOut::Event(RouterEvent::Queued {
             id: job.id,
             port: self.id,
             stop: job.stop,
@@ -381,7 +381,7 @@ impl Port {
             let frame = job.frame.frame();
             let command = Command::parse(frame.payload());
             let mut txn = Transaction::new(frame.dest, &command, self.policy);
-            out.push(PortOut::Event(Event::Started {
+            out.push(PortOut::Event(RouterEvent::Started {
                 id: job.id,
                 port: self.id,
                 stop: job.stop,
@@ -475,14 +475,7 @@ impl Port {
         }
     }
 
-    fn finish(
-        &mut self,
-        now: u64,
-        r: Running,
-        outcome: TxOutcome,
-        frame: Option<Box<FrameBuf>>,
-        out: &mut Vec<PortOut>,
-    ) {
+    fn finish(&mut self, now: u64, r: Running, outcome: Outcome, frame: Option<Box<FrameBuf>>, out: &mut Vec<PortOut>) {
         let device = r.device();
         if r.txn.transmissions() > 1 {
             // The device may have executed the command twice: let its
@@ -490,7 +483,7 @@ impl Port {
             let settle = now.saturating_add(self.policy.retry.ack_timeout);
             self.settle_until = Some(self.settle_until.map_or(settle, |t| t.max(settle)));
         }
-        let answered = !matches!(outcome, TxOutcome::Failed(_) | TxOutcome::Broadcast);
+        let answered = !matches!(outcome, Outcome::Failed(_) | Outcome::Broadcast);
         if answered && device != WILDCARD {
             self.seen.insert(device);
             self.device(device).last_seen = Some(now);
@@ -499,7 +492,7 @@ impl Port {
             self.learn(now, device, &r.job, outcome, frame.as_deref());
         }
         let outcome = match outcome {
-            TxOutcome::Result => {
+            Outcome::Result => {
                 if let Some(reply) = frame {
                     self.device(device).frames_in += 1;
                     out.push(PortOut::Relay {
@@ -508,28 +501,28 @@ impl Port {
                         reply,
                     });
                 }
-                Outcome::Result
+                CommandOutcome::Result
             }
-            TxOutcome::Nic => {
+            Outcome::Nic => {
                 self.device(device).nics += 1;
-                Outcome::Nic
+                CommandOutcome::Nic
             }
-            TxOutcome::Acknowledged => {
+            Outcome::Acknowledged => {
                 self.rate_acknowledged(device, r.rate, out);
-                Outcome::Completed
+                CommandOutcome::Completed
             }
-            TxOutcome::Broadcast => {
+            Outcome::Broadcast => {
                 if let Some(rate) = r.rate {
                     self.switch_rate(rate, out);
                 }
-                Outcome::Completed
+                CommandOutcome::Completed
             }
-            TxOutcome::NoResult => {
+            Outcome::NoResult => {
                 self.stats.line.timeouts += 1;
                 self.device(device).no_result += 1;
-                Outcome::NoResult
+                CommandOutcome::NoResult
             }
-            TxOutcome::Failed(failure) => {
+            Outcome::Failed(failure) => {
                 let failure = match failure {
                     TxFailure::NoAck => {
                         self.stats.line.timeouts += 1;
@@ -539,7 +532,7 @@ impl Port {
                 };
                 self.device(device).unreachable += 1;
                 out.extend(r.job.ids().map(|id| PortOut::Undelivered { id, failure }));
-                Outcome::Unreachable
+                CommandOutcome::Unreachable
             }
         };
         out.extend(r.job.ids().map(|id| PortOut::Finished { id, outcome }));
@@ -548,15 +541,15 @@ impl Port {
     /// What an exchange tells about its device (the device registry):
     /// whether it answers, its last error, and the position or lens
     /// position it answered to `P?` (Table 15) or `V?` (Table 17).
-    fn learn(&mut self, now: u64, device: u8, job: &Job, outcome: TxOutcome, result: Option<&FrameBuf>) {
+    fn learn(&mut self, now: u64, device: u8, job: &Job, outcome: Outcome, result: Option<&FrameBuf>) {
         let d = self.device(device);
         let error = match outcome {
-            TxOutcome::Broadcast => return,
-            TxOutcome::Failed(TxFailure::NoAck) => Some(DeviceError::Silent),
-            TxOutcome::Failed(TxFailure::Nak) => Some(DeviceError::Nak),
-            TxOutcome::NoResult => Some(DeviceError::NoResult),
-            TxOutcome::Nic => Some(DeviceError::Nic),
-            TxOutcome::Result | TxOutcome::Acknowledged => None,
+            Outcome::Broadcast => return,
+            Outcome::Failed(TxFailure::NoAck) => Some(DeviceError::Silent),
+            Outcome::Failed(TxFailure::Nak) => Some(DeviceError::Nak),
+            Outcome::NoResult => Some(DeviceError::NoResult),
+            Outcome::Nic => Some(DeviceError::Nic),
+            Outcome::Result | Outcome::Acknowledged => None,
         };
         d.online = error != Some(DeviceError::Silent);
         if let Some(error) = error {
@@ -596,7 +589,7 @@ impl Port {
         self.stats.rate_switches += 1;
         self.line.reset();
         out.push(PortOut::SetRate(bps));
-        out.push(PortOut::Event(Event::RateSwitched { port: self.id, bps }));
+        out.push(PortOut::Event(RouterEvent::RateSwitched { port: self.id, bps }));
     }
 
     /// Bytes from the bus.
@@ -632,8 +625,8 @@ impl Port {
             }
             OwnedEvent::Ack | OwnedEvent::Nak => {
                 let (fe, nak) = match event {
-                    OwnedEvent::Nak => (FramerEvent::Nak, true),
-                    _ => (FramerEvent::Ack, false),
+                    OwnedEvent::Nak => (Event::Nak, true),
+                    _ => (Event::Ack, false),
                 };
                 if nak {
                     self.stats.line.naks_received += 1;
@@ -658,14 +651,14 @@ impl Port {
             OwnedEvent::Nic => {
                 self.stats.line.nics_in += 1;
                 if let Some(r) = self.active.as_mut().filter(|r| !r.txn.is_broadcast()) {
-                    let step = r.txn.on_event(&FramerEvent::Nic, now);
+                    let step = r.txn.on_event(&Event::Nic, now);
                     if step != TransactionStep::Wait {
                         return self.active_step(now, step, None, out);
                     }
                 }
                 if !self.detached.is_empty() {
                     let mut r = self.detached.remove(0);
-                    if let TransactionStep::Done(outcome) = r.txn.on_event(&FramerEvent::Nic, now) {
+                    if let TransactionStep::Done(outcome) = r.txn.on_event(&Event::Nic, now) {
                         self.finish(now, r, outcome, None, out);
                         return self.start_next(now, out);
                     }
@@ -696,7 +689,7 @@ impl Port {
                     return;
                 }
             } else if r.answered_by(&view) {
-                let step = r.txn.on_event(&FramerEvent::Frame(view), now);
+                let step = r.txn.on_event(&Event::Frame(view), now);
                 if let TransactionStep::Done(_) = step {
                     return self.active_step(now, step, Some(frame), out);
                 }
@@ -704,14 +697,14 @@ impl Port {
         }
         if let Some(at) = self.detached.iter().position(|r| r.answered_by(&view)) {
             let mut r = self.detached.remove(at);
-            if let TransactionStep::Done(outcome) = r.txn.on_event(&FramerEvent::Frame(view), now) {
+            if let TransactionStep::Done(outcome) = r.txn.on_event(&Event::Frame(view), now) {
                 self.finish(now, r, outcome, Some(frame), out);
                 return self.start_next(now, out);
             }
             self.detached.insert(at, r);
         }
         self.stats.line.drops.add(DropReason::Unsolicited);
-        out.push(PortOut::Event(Event::Dropped {
+        out.push(PortOut::Event(RouterEvent::Dropped {
             reason: DropReason::Unsolicited,
             at: crate::Place::Port(self.id),
             dest: view.dest,

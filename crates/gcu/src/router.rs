@@ -18,7 +18,7 @@ use crate::port::{Job, Port, PortOut};
 use crate::reverse::{AnswerMatch, ReversePath};
 use crate::routing::RoutingTable;
 use crate::stats::{LinkStats, RouterStats, Stats};
-use crate::types::{Action, CommandId, DropReason, Event, Input, LinkId, Origin, Outcome, Place};
+use crate::types::{Action, CommandId, CommandOutcome, DropReason, Input, LinkId, Origin, Place, RouterEvent};
 
 /// Progress of one accepted command executed on local ports (one job per
 /// port; a port-255 command has one per configured port).
@@ -55,28 +55,32 @@ impl Progress {
     /// The one outcome of all jobs: any result relayed wins; then a NIC when
     /// nothing completed (one `?` is relayed); then completed, no result,
     /// unreachable, dropped.
-    fn outcome(&self) -> Outcome {
+    fn outcome(&self) -> CommandOutcome {
         if self.results > 0 {
-            Outcome::Result
+            CommandOutcome::Result
         } else if self.nics > 0 && self.completed == 0 {
-            Outcome::Nic
+            CommandOutcome::Nic
         } else if self.completed > 0 {
-            Outcome::Completed
+            CommandOutcome::Completed
         } else if self.no_result > 0 {
-            Outcome::NoResult
+            CommandOutcome::NoResult
         } else if self.unreachable > 0 {
-            Outcome::Unreachable
+            CommandOutcome::Unreachable
         } else {
-            Outcome::Dropped(self.dropped.unwrap_or(DropReason::UnknownPort))
+            CommandOutcome::Dropped(self.dropped.unwrap_or(DropReason::UnknownPort))
         }
     }
 
     /// Whether the jobs' outcome means the command reached a device.
-    fn delivery(&self, outcome: Outcome) -> Result<(), Undelivered> {
+    fn delivery(&self, outcome: CommandOutcome) -> Result<(), Undelivered> {
         match outcome {
-            Outcome::Result | Outcome::Nic | Outcome::Completed | Outcome::NoResult | Outcome::Forwarded(_) => Ok(()),
-            Outcome::Unreachable => Err(self.failure.unwrap_or(Undelivered::DeviceSilent)),
-            Outcome::Dropped(reason) => Err(reason.undelivered()),
+            CommandOutcome::Result
+            | CommandOutcome::Nic
+            | CommandOutcome::Completed
+            | CommandOutcome::NoResult
+            | CommandOutcome::Forwarded(_) => Ok(()),
+            CommandOutcome::Unreachable => Err(self.failure.unwrap_or(Undelivered::DeviceSilent)),
+            CommandOutcome::Dropped(reason) => Err(reason.undelivered()),
         }
     }
 }
@@ -197,7 +201,7 @@ impl Router {
                     self.routes.accepted(listener, link);
                 }
                 self.links.insert(link, Link::new(config, &self.settings, stats));
-                out.push(Action::Event(Event::LinkState { link, up: true }));
+                out.push(Action::Event(RouterEvent::LinkState { link, up: true }));
             }
             Input::LinkDown { link } => self.link_down(now, link, out),
             Input::Shutdown => self.shut_down(now, out),
@@ -218,7 +222,7 @@ impl Router {
 
     fn port_state(&self, port: u8, open: bool, out: &mut Vec<Action>) {
         if self.ports.contains_key(&port) {
-            out.push(Action::Event(Event::PortState { port, open }));
+            out.push(Action::Event(RouterEvent::PortState { port, open }));
         }
     }
 
@@ -438,7 +442,7 @@ impl Router {
 
     fn drop_frame(&mut self, reason: DropReason, at: Place, dest: Address, source: u8, out: &mut Vec<Action>) {
         self.stats.frame_drops.add(reason);
-        out.push(Action::Event(Event::Dropped {
+        out.push(Action::Event(RouterEvent::Dropped {
             reason,
             at,
             dest,
@@ -484,7 +488,7 @@ impl Router {
                         }
                     }
                     let f = item.frame.frame();
-                    out.push(Action::Event(Event::Dropped {
+                    out.push(Action::Event(RouterEvent::Dropped {
                         reason,
                         at: Place::Link(link),
                         dest: f.dest,
@@ -557,11 +561,11 @@ impl Router {
         match delivery {
             Ok(()) => {
                 self.stats.delivered += 1;
-                out.push(Action::Event(Event::Delivered { id }));
+                out.push(Action::Event(RouterEvent::Delivered { id }));
             }
             Err(failure) => {
                 self.stats.undelivered.add(failure);
-                out.push(Action::Event(Event::Undelivered {
+                out.push(Action::Event(RouterEvent::Undelivered {
                     id,
                     origin: Origin::Link {
                         link: a.link,
@@ -636,10 +640,10 @@ impl Router {
         id
     }
 
-    fn finish(&mut self, id: CommandId, outcome: Outcome, out: &mut Vec<Action>) {
+    fn finish(&mut self, id: CommandId, outcome: CommandOutcome, out: &mut Vec<Action>) {
         self.dead_man_rounds.remove(&id);
         self.stats.count(outcome);
-        out.push(Action::Event(Event::Finished { id, outcome }));
+        out.push(Action::Event(RouterEvent::Finished { id, outcome }));
     }
 
     /// A result of job `id` from `port`: back to the origin with the Table 3
@@ -688,15 +692,15 @@ impl Router {
         }
     }
 
-    fn job_finished(&mut self, now: u64, id: CommandId, outcome: Outcome, out: &mut Vec<Action>) {
+    fn job_finished(&mut self, now: u64, id: CommandId, outcome: CommandOutcome, out: &mut Vec<Action>) {
         let Some(p) = self.commands.get_mut(&id) else { return };
         match outcome {
-            Outcome::Result | Outcome::Forwarded(_) => {}
-            Outcome::Nic => p.nics += 1,
-            Outcome::Completed => p.completed += 1,
-            Outcome::NoResult => p.no_result += 1,
-            Outcome::Unreachable => p.unreachable += 1,
-            Outcome::Dropped(reason) => p.dropped = Some(reason),
+            CommandOutcome::Result | CommandOutcome::Forwarded(_) => {}
+            CommandOutcome::Nic => p.nics += 1,
+            CommandOutcome::Completed => p.completed += 1,
+            CommandOutcome::NoResult => p.no_result += 1,
+            CommandOutcome::Unreachable => p.unreachable += 1,
+            CommandOutcome::Dropped(reason) => p.dropped = Some(reason),
         }
         p.remaining = p.remaining.saturating_sub(1);
         if p.remaining > 0 {
@@ -705,9 +709,9 @@ impl Router {
         let Some(p) = self.commands.remove(&id) else { return };
         let mut outcome = p.outcome();
         self.resolve(now, id, p.delivery(outcome), self.group, out);
-        if outcome == Outcome::Nic {
+        if outcome == CommandOutcome::Nic {
             if let Err(reason) = self.nic_to(now, p.origin, out) {
-                outcome = Outcome::Dropped(reason);
+                outcome = CommandOutcome::Dropped(reason);
             }
         }
         let dead_man = self.dead_man_rounds.remove(&id);
@@ -715,9 +719,9 @@ impl Router {
         // A safety stop that no device acknowledged is sent again: the
         // motion it ends goes on until one does.
         if let Some((frame, link, round)) = dead_man {
-            if outcome == Outcome::Unreachable && round < DEAD_MAN_ROUNDS {
+            if outcome == CommandOutcome::Unreachable && round < DEAD_MAN_ROUNDS {
                 let f = frame.frame();
-                out.push(Action::Event(Event::DeadManStop {
+                out.push(Action::Event(RouterEvent::DeadManStop {
                     link,
                     dest: f.dest,
                     stop: Command::parse(f.payload()).mnemonic(),
@@ -873,7 +877,7 @@ impl Router {
         let dest = f.dest;
         let command = Command::parse(f.payload());
         self.stats.accepted += 1;
-        out.push(Action::Event(Event::Accepted {
+        out.push(Action::Event(RouterEvent::Accepted {
             id,
             origin,
             dest,
@@ -893,7 +897,7 @@ impl Router {
             );
             if self.stopping {
                 self.drop_frame(DropReason::ShuttingDown, Place::Router, dest, f.source, out);
-                self.finish(id, Outcome::Dropped(DropReason::ShuttingDown), out);
+                self.finish(id, CommandOutcome::Dropped(DropReason::ShuttingDown), out);
                 return self.resolve(now, id, Err(Undelivered::ShuttingDown), self.group, out);
             }
             let lease = self.links.get(&link).and_then(|l| l.config.motion_lease);
@@ -930,16 +934,16 @@ impl Router {
                     }
                 }
                 match self.send_on_link(now, next, frame.clone(), Some(key), origin == Origin::Internal, out) {
-                    Ok(()) => Outcome::Forwarded(next),
+                    Ok(()) => CommandOutcome::Forwarded(next),
                     Err(reason) => {
                         self.reverse.cancel(key);
-                        Outcome::Dropped(reason)
+                        CommandOutcome::Dropped(reason)
                     }
                 }
             }
-            Err(reason) => Outcome::Dropped(reason),
+            Err(reason) => CommandOutcome::Dropped(reason),
         };
-        if let Outcome::Dropped(reason) = outcome {
+        if let CommandOutcome::Dropped(reason) = outcome {
             self.drop_frame(reason, Place::Router, dest, f.source, out);
             self.resolve(now, id, Err(reason.undelivered()), self.group, out);
         }
@@ -993,14 +997,14 @@ impl Router {
                 let outcome = match answer(self.group, &self.name, &self.serial, &f) {
                     SelfAnswer::Result(reply) => match origin {
                         Origin::Link { link, .. } => match self.send_on_link(now, link, *reply, None, false, out) {
-                            Ok(()) => Outcome::Result,
-                            Err(_) => Outcome::Dropped(DropReason::OriginGone),
+                            Ok(()) => CommandOutcome::Result,
+                            Err(_) => CommandOutcome::Dropped(DropReason::OriginGone),
                         },
-                        Origin::Internal => Outcome::Completed,
+                        Origin::Internal => CommandOutcome::Completed,
                     },
                     SelfAnswer::Nic => match self.nic_to(now, origin, out) {
-                        Ok(()) => Outcome::Nic,
-                        Err(reason) => Outcome::Dropped(reason),
+                        Ok(()) => CommandOutcome::Nic,
+                        Err(reason) => CommandOutcome::Dropped(reason),
                     },
                 };
                 return self.finish(id, outcome, out);
@@ -1012,7 +1016,7 @@ impl Router {
         if targets.is_empty() {
             self.drop_frame(DropReason::UnknownPort, Place::Router, dest, f.source, out);
             self.resolve(now, id, Err(Undelivered::NoSuchPort), self.group, out);
-            return self.finish(id, Outcome::Dropped(DropReason::UnknownPort), out);
+            return self.finish(id, CommandOutcome::Dropped(DropReason::UnknownPort), out);
         }
         self.commands.insert(id, Progress::new(origin, targets.len()));
         for port in targets {
@@ -1041,7 +1045,7 @@ impl Router {
                 }
             }
             let f = item.frame.frame();
-            out.push(Action::Event(Event::Dropped {
+            out.push(Action::Event(RouterEvent::Dropped {
                 reason: DropReason::LinkDown,
                 at: Place::Link(link),
                 dest: f.dest,
@@ -1055,7 +1059,7 @@ impl Router {
         self.routes.forget(link);
         // Nobody is left to tell whether these were delivered.
         self.awaiting.retain(|_, a| a.link != link);
-        out.push(Action::Event(Event::LinkState { link, up: false }));
+        out.push(Action::Event(RouterEvent::LinkState { link, up: false }));
         let ports: Vec<u8> = self.ports.keys().copied().collect();
         for port in ports {
             self.with_port(now, port, out, |p, _, po| p.cancel_motions(link, po));
@@ -1082,7 +1086,7 @@ impl Router {
             let event = match cause {
                 StopCause::DeadMan => {
                     self.stats.dead_man_stops += 1;
-                    Event::DeadManStop {
+                    RouterEvent::DeadManStop {
                         link,
                         dest,
                         stop: stop_name,
@@ -1090,7 +1094,7 @@ impl Router {
                 }
                 StopCause::Shutdown => {
                     self.stats.shutdown_stops += 1;
-                    Event::DeadManStop {
+                    RouterEvent::DeadManStop {
                         link,
                         dest,
                         stop: stop_name,
@@ -1098,7 +1102,7 @@ impl Router {
                 }
                 StopCause::Lease => {
                     self.stats.lease_stops += 1;
-                    Event::LeaseExpired {
+                    RouterEvent::LeaseExpired {
                         link,
                         dest,
                         stop: stop_name,

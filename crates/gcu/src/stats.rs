@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use crate::config::LinkKind;
 use sagebrush_protocol::{LensPosition, Position, Undelivered};
 
-use crate::types::{DropReason, LinkId, Outcome};
+use crate::types::{CommandOutcome, DropReason, LinkId};
 
 /// Drops counted by reason.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -235,7 +235,7 @@ pub struct RouterStats {
     pub no_result: u64,
     pub unreachable: u64,
     pub forwarded: u64,
-    /// Outcomes [`Outcome::Dropped`], by reason.
+    /// Outcomes [`CommandOutcome::Dropped`], by reason.
     pub dropped: DropCounts,
     /// Frames dropped at the router (routing, source filter, stray answers), by reason.
     pub frame_drops: DropCounts,
@@ -282,15 +282,15 @@ impl UndeliveredCounts {
 }
 
 impl RouterStats {
-    pub(crate) fn count(&mut self, outcome: Outcome) {
+    pub(crate) fn count(&mut self, outcome: CommandOutcome) {
         match outcome {
-            Outcome::Result => self.results += 1,
-            Outcome::Nic => self.nics += 1,
-            Outcome::Completed => self.completed += 1,
-            Outcome::NoResult => self.no_result += 1,
-            Outcome::Unreachable => self.unreachable += 1,
-            Outcome::Forwarded(_) => self.forwarded += 1,
-            Outcome::Dropped(reason) => self.dropped.add(reason),
+            CommandOutcome::Result => self.results += 1,
+            CommandOutcome::Nic => self.nics += 1,
+            CommandOutcome::Completed => self.completed += 1,
+            CommandOutcome::NoResult => self.no_result += 1,
+            CommandOutcome::Unreachable => self.unreachable += 1,
+            CommandOutcome::Forwarded(_) => self.forwarded += 1,
+            CommandOutcome::Dropped(reason) => self.dropped.add(reason),
         }
     }
 

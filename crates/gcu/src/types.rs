@@ -22,7 +22,7 @@ impl fmt::Display for LinkId {
 
 /// Sequence number of a command accepted by this router (also given to the
 /// dead-man stops it issues itself). Every id ends in exactly one
-/// [`Event::Finished`].
+/// [`RouterEvent::Finished`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct CommandId(pub u64);
 
@@ -94,11 +94,11 @@ pub enum Action {
     /// for the daemon to fold into what it keeps per configured link
     /// (state stays bounded by what is live).
     LinkGone { link: LinkId, stats: Box<crate::LinkStats> },
-    /// Something worth logging or counting; see [`Event::level`].
-    Event(Event),
+    /// Something worth logging or counting; see [`RouterEvent::level`].
+    Event(RouterEvent),
 }
 
-/// How loud an [`Event`] is.
+/// How loud a [`RouterEvent`] is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Level {
     Debug,
@@ -128,7 +128,7 @@ impl fmt::Display for Place {
 /// A log/stat event. Counters are kept in [`crate::Stats`] as well; the
 /// events carry the addresses a log line needs.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub enum Event {
+pub enum RouterEvent {
     /// A command frame from a link (or the router's own dead-man stop) was
     /// accepted for local execution or forwarding.
     Accepted {
@@ -142,7 +142,7 @@ pub enum Event {
     /// A job of command `id` began its transaction on `port`.
     Started { id: CommandId, port: u8, stop: bool },
     /// The command `id` ended (exactly once per accepted id).
-    Finished { id: CommandId, outcome: Outcome },
+    Finished { id: CommandId, outcome: CommandOutcome },
     /// A frame (or job) was dropped. For a bare `?` (no header), `dest`
     /// is 0.0.0 and `source` 0.
     Dropped {
@@ -184,50 +184,57 @@ pub enum Event {
     },
 }
 
-impl Event {
+impl RouterEvent {
     /// Suggested log level.
     pub fn level(&self) -> Level {
         match self {
-            Event::Accepted { .. } | Event::Queued { .. } | Event::Started { .. } | Event::Delivered { .. } => {
-                Level::Debug
-            }
-            Event::Finished { outcome, .. } => match outcome {
-                Outcome::Dropped(_) | Outcome::Unreachable => Level::Warn,
+            RouterEvent::Accepted { .. }
+            | RouterEvent::Queued { .. }
+            | RouterEvent::Started { .. }
+            | RouterEvent::Delivered { .. } => Level::Debug,
+            RouterEvent::Finished { outcome, .. } => match outcome {
+                CommandOutcome::Dropped(_) | CommandOutcome::Unreachable => Level::Warn,
                 _ => Level::Debug,
             },
-            Event::Dropped { .. }
-            | Event::DeadManStop { .. }
-            | Event::Undelivered { .. }
-            | Event::LeaseExpired { .. } => Level::Warn,
-            Event::RateSwitched { .. } | Event::LinkState { .. } | Event::PortState { .. } => Level::Info,
+            RouterEvent::Dropped { .. }
+            | RouterEvent::DeadManStop { .. }
+            | RouterEvent::Undelivered { .. }
+            | RouterEvent::LeaseExpired { .. } => Level::Warn,
+            RouterEvent::RateSwitched { .. } | RouterEvent::LinkState { .. } | RouterEvent::PortState { .. } => {
+                Level::Info
+            }
         }
     }
 }
 
-impl fmt::Display for Event {
+impl fmt::Display for RouterEvent {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Event::Accepted {
+            RouterEvent::Accepted {
                 id,
                 origin,
                 dest,
                 command,
             } => write!(f, "command {} {command} for {dest} accepted from {origin:?}", id.0),
-            Event::Queued { id, port, stop } => write!(f, "command {} queued on port {port} (stop: {stop})", id.0),
-            Event::Started { id, port, stop } => write!(f, "command {} started on port {port} (stop: {stop})", id.0),
-            Event::Finished { id, outcome } => write!(f, "command {} finished: {outcome:?}", id.0),
-            Event::Dropped {
+            RouterEvent::Queued { id, port, stop } => {
+                write!(f, "command {} queued on port {port} (stop: {stop})", id.0)
+            }
+            RouterEvent::Started { id, port, stop } => {
+                write!(f, "command {} started on port {port} (stop: {stop})", id.0)
+            }
+            RouterEvent::Finished { id, outcome } => write!(f, "command {} finished: {outcome:?}", id.0),
+            RouterEvent::Dropped {
                 reason,
                 at,
                 dest,
                 source,
             } => write!(f, "dropped frame for {dest} from group {source} at {at}: {reason:?}"),
-            Event::RateSwitched { port, bps } => write!(f, "port {port} switched to {bps} bps"),
-            Event::DeadManStop { link, dest, stop } => write!(f, "{link} down: dead-man {stop} to {dest}"),
-            Event::LinkState { link, up } => write!(f, "{link} {}", if *up { "up" } else { "down" }),
-            Event::PortState { port, open } => write!(f, "port {port} {}", if *open { "opened" } else { "lost" }),
-            Event::Delivered { id } => write!(f, "command {} delivered", id.0),
-            Event::Undelivered {
+            RouterEvent::RateSwitched { port, bps } => write!(f, "port {port} switched to {bps} bps"),
+            RouterEvent::DeadManStop { link, dest, stop } => write!(f, "{link} down: dead-man {stop} to {dest}"),
+            RouterEvent::LinkState { link, up } => write!(f, "{link} {}", if *up { "up" } else { "down" }),
+            RouterEvent::PortState { port, open } => write!(f, "port {port} {}", if *open { "opened" } else { "lost" }),
+            RouterEvent::Delivered { id } => write!(f, "command {} delivered", id.0),
+            RouterEvent::Undelivered {
                 id,
                 origin,
                 dest,
@@ -239,7 +246,7 @@ impl fmt::Display for Event {
                 id.0,
                 failure.describe()
             ),
-            Event::LeaseExpired { link, dest, stop } => {
+            RouterEvent::LeaseExpired { link, dest, stop } => {
                 write!(f, "{link}: motion lease over, {stop} to {dest}")
             }
         }
@@ -248,7 +255,7 @@ impl fmt::Display for Event {
 
 /// How an accepted command ended at this router.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Outcome {
+pub enum CommandOutcome {
     /// At least one result frame was queued to the origin link (for a
     /// command to the GCU itself: its own answer).
     Result,

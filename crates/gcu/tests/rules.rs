@@ -2,8 +2,8 @@
 //! the public `Router` API with hand-written bytes.
 
 use sagebrush_gcu::{
-    Action, CommandId, DropReason, Event, Input, LinkConfig, LinkId, LinkKind, Outcome, PortConfig, Router,
-    RouterConfig, SourceFilter,
+    Action, CommandId, CommandOutcome, DropReason, Input, LinkConfig, LinkId, LinkKind, PortConfig, Router,
+    RouterConfig, RouterEvent, SourceFilter,
 };
 use sagebrush_protocol::{ACK, Address, DeliveryReport, FrameBuf, NAK, NIC, Undelivered};
 
@@ -129,11 +129,11 @@ fn link_writes(actions: &[Action], link: LinkId) -> Vec<Vec<u8>> {
         .collect()
 }
 
-fn finished(actions: &[Action]) -> Vec<Outcome> {
+fn finished(actions: &[Action]) -> Vec<CommandOutcome> {
     actions
         .iter()
         .filter_map(|a| match a {
-            Action::Event(Event::Finished { outcome, .. }) => Some(*outcome),
+            Action::Event(RouterEvent::Finished { outcome, .. }) => Some(*outcome),
             _ => None,
         })
         .collect()
@@ -144,7 +144,7 @@ fn dead_man_stops(actions: &[Action]) -> Vec<(Address, &'static str)> {
     actions
         .iter()
         .filter_map(|x| match x {
-            Action::Event(Event::DeadManStop { dest, stop, .. }) => Some((*dest, *stop)),
+            Action::Event(RouterEvent::DeadManStop { dest, stop, .. }) => Some((*dest, *stop)),
             _ => None,
         })
         .collect()
@@ -154,7 +154,7 @@ fn accepted(actions: &[Action]) -> Vec<CommandId> {
     actions
         .iter()
         .filter_map(|a| match a {
-            Action::Event(Event::Accepted { id, .. }) => Some(*id),
+            Action::Event(RouterEvent::Accepted { id, .. }) => Some(*id),
             _ => None,
         })
         .collect()
@@ -164,7 +164,7 @@ fn dropped(actions: &[Action]) -> Vec<DropReason> {
     actions
         .iter()
         .filter_map(|a| match a {
-            Action::Event(Event::Dropped { reason, .. }) => Some(*reason),
+            Action::Event(RouterEvent::Dropped { reason, .. }) => Some(*reason),
             _ => None,
         })
         .collect()
@@ -242,7 +242,7 @@ fn gcu_itself_answers_aw_and_id_and_nic_otherwise() {
     let mut h = H::new(&[1]);
     let a = h.link(CLIENT, &frame((G, 0, 0), 2, b"AW"));
     assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK], frame((2, 0, 0), G, b"0")]);
-    assert_eq!(finished(&a), vec![Outcome::Result]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Result]);
     h.link(CLIENT, &[ACK]);
     let a = h.link(CLIENT, &frame((G, 0, 0), 2, b"D?"));
     let writes = link_writes(&a, CLIENT);
@@ -256,7 +256,7 @@ fn gcu_itself_answers_aw_and_id_and_nic_otherwise() {
     h.link(CLIENT, &[ACK]);
     let a = h.link(CLIENT, &frame((G, 0, 0), 2, b"PL"));
     assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK], vec![NIC]]);
-    assert_eq!(finished(&a), vec![Outcome::Nic]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Nic]);
     assert!(port_writes(&a, 1).is_empty());
 }
 
@@ -276,7 +276,7 @@ fn result_goes_back_with_table3_header_and_is_acked_on_the_port() {
     let a = h.port(1, &frame((2, 1, 12), 255, b"00640000"));
     assert_eq!(port_writes(&a, 1), vec![vec![ACK]], "hop-by-hop ACK of the result");
     assert_eq!(link_writes(&a, CLIENT), vec![frame((2, 1, 12), G, b"00640000")]);
-    assert_eq!(finished(&a), vec![Outcome::Result]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Result]);
     let s = h.r.stats();
     assert_eq!(s.devices[&(1, 12)].frames_in, 1);
     assert_eq!(s.ports[&1].line.frames_in, 1);
@@ -293,7 +293,7 @@ fn bad_checksum_result_is_naked_on_the_port_and_retransmission_accepted() {
     assert_eq!(port_writes(&a, 1), vec![vec![NAK]]);
     assert!(finished(&a).is_empty());
     let a = h.port(1, &frame((2, 1, 3), G, b"0"));
-    assert_eq!(finished(&a), vec![Outcome::Result]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Result]);
 }
 
 #[test]
@@ -302,7 +302,7 @@ fn nic_is_relayed_as_a_bare_question_mark() {
     h.link(CLIENT, &frame((G, 1, 3), 2, b"XYZ"));
     let a = h.port(1, &[ACK, NIC]);
     assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK], vec![NIC]]);
-    assert_eq!(finished(&a), vec![Outcome::Nic]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Nic]);
     assert_eq!(h.r.stats().devices[&(1, 3)].nics, 1);
 }
 
@@ -365,7 +365,7 @@ fn no_ack_retransmits_up_to_the_count_then_unreachable() {
     assert_eq!(port_writes(&a, 1), vec![cmd.clone()]);
     let a = h.wait(100);
     assert_eq!(port_writes(&a, 1), vec![cmd.clone()], "retries = 2");
-    assert_eq!(finished(&a), vec![Outcome::Unreachable]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Unreachable]);
     let s = h.r.stats();
     assert_eq!(s.devices[&(1, 3)].retransmits, 2);
     assert_eq!(s.devices[&(1, 3)].unreachable, 1);
@@ -379,11 +379,11 @@ fn result_time_out_classes_normal_and_long() {
     h.link(CLIENT, &frame((G, 1, 3), 2, b"P?"));
     h.port(1, &[ACK]);
     assert!(finished(&h.wait(49)).is_empty());
-    assert_eq!(finished(&h.wait(1)), vec![Outcome::NoResult]);
+    assert_eq!(finished(&h.wait(1)), vec![CommandOutcome::NoResult]);
     h.link(CLIENT, &frame((G, 1, 3), 2, b"IX"));
     h.port(1, &[ACK]);
     assert!(finished(&h.wait(999)).is_empty(), "IX is long");
-    assert_eq!(finished(&h.wait(1)), vec![Outcome::NoResult]);
+    assert_eq!(finished(&h.wait(1)), vec![CommandOutcome::NoResult]);
     assert_eq!(h.r.stats().devices[&(1, 3)].no_result, 2);
 }
 
@@ -395,12 +395,12 @@ fn command_without_result_waits_a_short_nic_window() {
     let a = h.port(1, &[ACK]);
     assert!(port_writes(&a, 1).is_empty(), "bus held during the NIC window");
     let a = h.wait(5);
-    assert_eq!(finished(&a), vec![Outcome::Completed]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Completed]);
     h.link(CLIENT, &second);
     let a = h.port(1, &[ACK]);
     assert!(finished(&a).is_empty());
     let a = h.port(1, &[NIC]);
-    assert_eq!(finished(&a), vec![Outcome::Nic]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Nic]);
 }
 
 #[test]
@@ -415,7 +415,7 @@ fn device_255_written_once_without_ack_then_guard() {
     let a = h.wait(19);
     assert!(port_writes(&a, 1).is_empty(), "written once, no retransmission");
     let a = h.wait(1);
-    assert_eq!(finished(&a), vec![Outcome::Completed]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Completed]);
     assert_eq!(port_writes(&a, 1), vec![next]);
 }
 
@@ -428,7 +428,7 @@ fn a_late_or_duplicate_result_is_never_taken_for_the_next_exchange() {
     assert_eq!(port_writes(&a, 1), vec![mu], "ACK lost: retransmitted");
     h.port(1, &[ACK]);
     let a = h.port(1, &frame((2, 1, 3), G, b"1"));
-    assert_eq!(finished(&a), vec![Outcome::Result]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Result]);
     // The device executed it twice; the bus settles before the next exchange.
     let query = frame((G, 1, 3), 3, b"P?");
     let a = h.link(CLIENT, &query);
@@ -443,7 +443,7 @@ fn a_late_or_duplicate_result_is_never_taken_for_the_next_exchange() {
     assert_eq!(dropped(&a), vec![DropReason::Unsolicited]);
     assert!(finished(&a).is_empty());
     let a = h.port(1, &frame((3, 1, 3), G, b"00000000"));
-    assert_eq!(finished(&a), vec![Outcome::Result]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Result]);
     assert_eq!(
         link_writes(&a, CLIENT),
         Vec::<Vec<u8>>::new(),
@@ -480,13 +480,13 @@ fn stop_is_not_held_behind_a_long_ix_result_wait() {
     assert_eq!(port_writes(&a, 1), vec![frame((G, 1, 3), 2, b"HS")]);
     h.port(1, &[ACK]);
     let a = h.wait(5);
-    assert_eq!(finished(&a), vec![Outcome::Completed]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Completed]);
     // Other work waits for the set-aside IX: it could be answered with its header.
     let a = h.link(CLIENT, &frame((G, 1, 3), 2, b"P?"));
     assert!(port_writes(&a, 1).is_empty());
     // The set-aside IX still takes its result; then the queued work goes.
     let a = h.port(1, &frame((2, 1, 3), G, b"0001000100010001"));
-    assert_eq!(finished(&a), vec![Outcome::Result]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Result]);
     assert_eq!(link_writes(&a, CLIENT), vec![frame((2, 1, 3), G, b"0001000100010001")]);
     assert_eq!(port_writes(&a, 1), vec![vec![ACK], frame((G, 1, 3), 2, b"P?")]);
 }
@@ -500,7 +500,7 @@ fn bounded_port_queue_drops_with_counter_and_warning_and_stops_have_their_own_ro
     }
     let refused = frame((G, 1, 8), 2, b"HO");
     let a = h.link(CLIENT, &refused);
-    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::QueueFull)]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::QueueFull)]);
     assert_eq!(
         link_writes(&a, CLIENT),
         vec![report(&refused, Some(Undelivered::QueueFull))],
@@ -524,7 +524,7 @@ fn bounded_port_queue_drops_with_counter_and_warning_and_stops_have_their_own_ro
     let a = h.link(CLIENT, &frame((G, 1, 5), 2, b"PS"));
     assert_eq!(
         finished(&a),
-        vec![Outcome::Dropped(DropReason::QueueFull)],
+        vec![CommandOutcome::Dropped(DropReason::QueueFull)],
         "stops are bounded too"
     );
     let s = h.r.stats();
@@ -544,10 +544,10 @@ fn bounded_port_queue_drops_with_counter_and_warning_and_stops_have_their_own_ro
 fn unknown_and_closed_ports_are_dropped_and_counted() {
     let mut h = H::new(&[1]);
     let a = h.link(CLIENT, &frame((G, 9, 3), 2, b"AW"));
-    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::UnknownPort)]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::UnknownPort)]);
     h.go(Input::PortLost { port: 1 });
     let a = h.link(CLIENT, &frame((G, 1, 3), 2, b"AW"));
-    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::PortClosed)]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::PortClosed)]);
     assert_eq!(h.r.stats().router.dropped.get(DropReason::UnknownPort), 1);
 }
 
@@ -557,7 +557,7 @@ fn lost_port_fails_in_flight_and_queued_then_recovers() {
     h.link(CLIENT, &frame((G, 1, 3), 2, b"P?"));
     h.link(CLIENT, &frame((G, 1, 3), 2, b"HO"));
     let a = h.go(Input::PortLost { port: 1 });
-    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::PortLost); 2]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::PortLost); 2]);
     assert_eq!(h.r.stats().ports[&1].line.drops.get(DropReason::PortLost), 2);
     let a = h.go(Input::PortOpened { port: 1 });
     assert!(a.contains(&Action::SetPortRate { port: 1, bps: 9600 }));
@@ -579,7 +579,7 @@ fn port_255_goes_to_every_port_and_each_result_names_its_port() {
     assert!(finished(&a).is_empty(), "one outcome once every port is done");
     h.port(2, &[ACK]);
     let a = h.port(2, &frame((2, 2, 3), G, b"4"));
-    assert_eq!(finished(&a), vec![Outcome::Result]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Result]);
     assert!(link_writes(&a, CLIENT).is_empty(), "one unacknowledged frame per link");
     let a = h.link(CLIENT, &[ACK]);
     assert_eq!(link_writes(&a, CLIENT), vec![frame((2, 2, 3), G, b"4")]);
@@ -597,7 +597,7 @@ fn fan_out_relays_one_nic_only_when_no_port_did_better() {
     );
     let a = h.port(2, &[ACK, NIC]);
     assert_eq!(link_writes(&a, CLIENT), vec![vec![NIC]]);
-    assert_eq!(finished(&a), vec![Outcome::Nic]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Nic]);
 }
 
 #[test]
@@ -637,7 +637,7 @@ fn other_groups_follow_static_then_learned_then_default_routes() {
     let to7 = frame((7, 1, 1), 2, b"HO");
     let a = h.link(CLIENT, &to7);
     assert_eq!(link_writes(&a, DOWN2), vec![to7]);
-    assert_eq!(finished(&a), vec![Outcome::Forwarded(DOWN2)]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Forwarded(DOWN2)]);
     let to8 = frame((8, 1, 1), 2, b"HO");
     let a = h.link(CLIENT, &to8);
     assert_eq!(link_writes(&a, DOWN), vec![to8]);
@@ -647,7 +647,7 @@ fn other_groups_follow_static_then_learned_then_default_routes() {
     // Static route down: learned would be used; default down too: no route.
     h.go(Input::LinkDown { link: UP });
     let a = h.link(CLIENT, &to9);
-    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::NoRoute)]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::NoRoute)]);
     assert_eq!(dropped(&a), vec![DropReason::NoRoute]);
     assert_eq!(h.r.stats().router.frame_drops.get(DropReason::NoRoute), 1);
 }
@@ -658,7 +658,7 @@ fn a_frame_is_never_routed_back_to_its_link() {
     h.up(UP, LinkKind::Upstream);
     let cmd = frame((9, 1, 1), 0, b"HO");
     let a = h.link(UP, &cmd);
-    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::Loop)]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::Loop)]);
     assert_eq!(
         link_writes(&a, UP),
         vec![vec![ACK], report(&cmd, Some(Undelivered::Loop))],
@@ -787,7 +787,7 @@ fn dead_man_stops_the_motions_of_a_link_that_goes_down() {
     let a = h.go(Input::LinkDown { link: CLIENT });
     assert_eq!(
         finished(&a).first(),
-        Some(&Outcome::Dropped(DropReason::OriginGone)),
+        Some(&CommandOutcome::Dropped(DropReason::OriginGone)),
         "queued TU cancelled"
     );
     let stops = dead_man_stops(&a);
@@ -814,7 +814,7 @@ fn rate_change_acknowledged_by_every_device_switches_the_port() {
     h.link(CLIENT, &frame((G, 1, 3), 2, b"C5"));
     h.port(1, &[ACK]);
     let a = h.wait(5);
-    assert_eq!(finished(&a), vec![Outcome::Completed]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Completed]);
     assert!(
         !a.iter().any(|x| matches!(x, Action::SetPortRate { .. })),
         "device 4 not yet"
@@ -834,7 +834,7 @@ fn rate_change_to_device_255_switches_the_port_reserved_rates_never() {
     assert!(a.contains(&Action::SetPortRate { port: 1, bps: 115200 }));
     h.link(CLIENT, &frame((G, 1, 255), 2, b"C9"));
     let a = h.wait(20);
-    assert_eq!(finished(&a), vec![Outcome::Completed]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Completed]);
     assert!(!a.iter().any(|x| matches!(x, Action::SetPortRate { .. })));
     // Learned devices: the one that answered switches the port alone.
     h.link(CLIENT, &frame((G, 1, 3), 2, b"AW"));
@@ -881,7 +881,7 @@ fn link_going_down_drops_its_queue_and_answers_for_it_count_origin_gone() {
         .collect();
     assert_eq!(gone, vec![(CLIENT, 1)], "its final counters go to the daemon");
     let a = h.port(1, &frame((2, 1, 3), G, b"00000000"));
-    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::OriginGone)]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::OriginGone)]);
     assert!(!h.r.link_is_up(CLIENT));
     assert!(
         !h.r.stats().links.contains_key(&CLIENT),
@@ -901,7 +901,7 @@ fn dead_man_stops_always_fit_the_port_queue() {
     }
     let a = h.go(Input::LinkDown { link: CLIENT });
     assert!(
-        !finished(&a).contains(&Outcome::Dropped(DropReason::QueueFull)),
+        !finished(&a).contains(&CommandOutcome::Dropped(DropReason::QueueFull)),
         "{:?}",
         finished(&a)
     );
@@ -987,7 +987,7 @@ fn reconfigure_leaves_unchanged_ports_alone_and_stops_motions_before_closing_a_p
     assert!(!h.r.has_port(2));
     assert!(h.r.has_port(3));
     let a = h.link(CLIENT, &frame((G, 2, 4), 2, b"HO"));
-    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::UnknownPort)]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::UnknownPort)]);
     // The group cannot change while running.
     config.group = 6;
     assert!(h.r.reconfigure(h.now, config, &[], &mut Vec::new()).is_err());
@@ -1013,7 +1013,7 @@ fn shutdown_stops_every_owned_motion_and_refuses_new_commands() {
     assert!(h.r.in_progress() > 0, "the daemon waits for the stops");
     let refused = frame((G, 1, 3), 2, b"PR");
     let a = h.link(CLIENT, &refused);
-    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::ShuttingDown)]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::ShuttingDown)]);
     assert_eq!(
         link_writes(&a, CLIENT),
         vec![report(&refused, Some(Undelivered::ShuttingDown))]
@@ -1038,7 +1038,7 @@ fn ports_serve_clients_round_robin_and_a_flood_costs_only_its_sender() {
     // The queue is full of CLIENT's work: the other client's command takes
     // the place of CLIENT's newest, which CLIENT is told was not delivered.
     let a = h.link(other, &frame((G, 1, 9), 3, b"P?"));
-    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::QueueFull)]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::QueueFull)]);
     assert_eq!(
         link_writes(&a, CLIENT),
         vec![report(&frame((G, 1, 7), 2, b"HO"), Some(Undelivered::QueueFull))]
@@ -1049,7 +1049,7 @@ fn ports_serve_clients_round_robin_and_a_flood_costs_only_its_sender() {
     );
     // CLIENT's next command is refused: it holds the most.
     let a = h.link(CLIENT, &frame((G, 1, 8), 2, b"HO"));
-    assert_eq!(finished(&a), vec![Outcome::Dropped(DropReason::QueueFull)]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::QueueFull)]);
     // Round robin: after CLIENT's P?, the other client's P? goes next,
     // ahead of CLIENT's older queued work.
     h.port(1, &[ACK]);

@@ -3,7 +3,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use sagebrush_gcu::{
-    Action, CommandId, Event, Input, LinkConfig, LinkId, LinkKind, PortConfig, Router, RouterConfig, SourceFilter,
+    Action, CommandId, Input, LinkConfig, LinkId, LinkKind, PortConfig, Router, RouterConfig, RouterEvent, SourceFilter,
 };
 use sagebrush_protocol::{
     ACK, Address, AwakeStatus, Command, DeliveryReport, DeviceEndpoint, DeviceHandler, EndpointConfig, Extended,
@@ -619,28 +619,28 @@ impl World {
         }
     }
 
-    fn on_event(&mut self, g: usize, event: Event) {
+    fn on_event(&mut self, g: usize, event: RouterEvent) {
         if self.trace {
             self.log(format_args!("gcu {g}: {event}"));
         }
         let ledger = &mut self.gcus[g].ledger;
         let problem = match event {
-            Event::Accepted { id, origin, .. } => {
+            RouterEvent::Accepted { id, origin, .. } => {
                 if let Some(link) = origin.link() {
                     ledger.untold.insert(id, link);
                 }
                 (!ledger.accepted.insert(id)).then(|| format!("gcu {g}: {id:?} accepted twice"))
             }
-            Event::Delivered { id } | Event::Undelivered { id, .. } => ledger
+            RouterEvent::Delivered { id } | RouterEvent::Undelivered { id, .. } => ledger
                 .untold
                 .remove(&id)
                 .is_none()
                 .then(|| format!("gcu {g}: {id:?} told twice, or never accepted from a link")),
-            Event::LinkState { link, up: false } => {
+            RouterEvent::LinkState { link, up: false } => {
                 ledger.untold.retain(|_, l| *l != link);
                 None
             }
-            Event::Finished { id, outcome } => {
+            RouterEvent::Finished { id, outcome } => {
                 if !ledger.accepted.contains(&id) {
                     Some(format!("gcu {g}: {id:?} finished without being accepted"))
                 } else if !ledger.finished.insert(id) {
@@ -649,13 +649,13 @@ impl World {
                     None
                 }
             }
-            Event::Queued { id, port, stop } => {
+            RouterEvent::Queued { id, port, stop } => {
                 if stop {
                     ledger.pending_stops.entry(port).or_default().insert(id);
                 }
                 None
             }
-            Event::Started { id, port, stop } => {
+            RouterEvent::Started { id, port, stop } => {
                 let pending = ledger.pending_stops.entry(port).or_default();
                 if stop {
                     pending.remove(&id);
