@@ -132,6 +132,7 @@ mod line;
 mod link;
 mod local;
 mod port;
+mod queue;
 mod reverse;
 mod router;
 mod routing;

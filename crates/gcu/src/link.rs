@@ -13,12 +13,11 @@
 //! never costs a stop its place, DESIGN "Safety"), and a stop identical to
 //! one already waiting is merged into it.
 
-use std::collections::VecDeque;
-
 use sagebrush_protocol::{ACK, FrameBuf, NAK, NIC, OwnedEvent, RetryPolicy, Transmitter, TxStep};
 
 use crate::config::{LinkConfig, LinkSettings};
 use crate::line::LineReceiver;
+use crate::queue::{Queued, StopFirstQueue};
 use crate::stats::LinkStats;
 use crate::types::DropReason;
 
@@ -32,6 +31,18 @@ pub(crate) struct Outgoing {
     /// A dead-man stop (DESIGN "Safety"): never refused for a full queue.
     /// Their number is bounded by the motions the router tracks.
     pub dead_man: bool,
+}
+
+impl Queued for Outgoing {
+    fn is_stop(&self) -> bool {
+        self.stop
+    }
+    fn always_fits(&self) -> bool {
+        self.dead_man
+    }
+    fn same_frame(&self, other: &Self) -> bool {
+        self.frame == other.frame
+    }
 }
 
 /// What a link asks the router to do or know.
@@ -57,11 +68,9 @@ pub(crate) enum Received {
 pub(crate) struct Link {
     pub config: LinkConfig,
     line: LineReceiver,
-    queue: VecDeque<Outgoing>,
+    /// A frame in flight is its pinned head: nothing overtakes it.
+    queue: StopFirstQueue<Outgoing>,
     tx: Transmitter,
-    in_flight: bool,
-    bound: usize,
-    stop_bound: usize,
     pub stats: LinkStats,
 }
 
@@ -74,11 +83,8 @@ impl Link {
         Self {
             config,
             line: LineReceiver::new(settings.idle_timeout),
-            queue: VecDeque::new(),
+            queue: StopFirstQueue::new(settings.queue_bound, settings.stop_queue_bound),
             tx: Transmitter::new(policy),
-            in_flight: false,
-            bound: settings.queue_bound,
-            stop_bound: settings.stop_queue_bound,
             stats,
         }
     }
@@ -103,30 +109,16 @@ impl Link {
 
     /// Queues a frame, or says (and counts) why not.
     pub fn enqueue(&mut self, now: u64, item: Outgoing, out: &mut Vec<LinkOut>) -> Result<(), DropReason> {
-        // The head is on the wire while in flight: nothing goes before it.
-        let waiting = usize::from(self.in_flight);
-        let stops = self.queue.iter().skip(waiting).filter(|o| o.stop).count();
-        let refused = if item.stop {
-            if self.queue.iter().skip(waiting).any(|o| o.stop && o.frame == item.frame) {
-                Some(DropReason::DuplicateStop)
-            } else {
-                (stops >= self.stop_bound && !item.dead_man).then_some(DropReason::QueueFull)
-            }
+        let refused = if item.stop && self.queue.same_stop_mut(&item).is_some() {
+            Some(DropReason::DuplicateStop)
         } else {
-            (self.queue.len() - stops >= self.bound).then_some(DropReason::QueueFull)
+            (!self.queue.has_room(&item)).then_some(DropReason::QueueFull)
         };
         if let Some(reason) = refused {
             self.stats.line.drops.add(reason);
             return Err(reason);
         }
-        let at = if item.stop {
-            (waiting..self.queue.len())
-                .find(|&i| !self.queue[i].stop)
-                .unwrap_or(self.queue.len())
-        } else {
-            self.queue.len()
-        };
-        self.queue.insert(at, item);
+        self.queue.push(item);
         self.stats.queued += 1;
         self.note_queue();
         self.transmit_next(now, out);
@@ -135,7 +127,7 @@ impl Link {
 
     fn note_queue(&mut self) {
         self.stats.queue_len = self.queue.len();
-        self.stats.queue_high_water = self.stats.queue_high_water.max(self.queue.len());
+        self.stats.queue_high_water = self.queue.high_water();
     }
 
     fn transmit_next(&mut self, now: u64, out: &mut Vec<LinkOut>) {
@@ -150,10 +142,10 @@ impl Link {
             }
             return;
         }
-        if self.in_flight || self.queue.is_empty() {
+        if self.queue.head_pinned() || self.queue.is_empty() {
             return;
         }
-        self.in_flight = true;
+        self.queue.pin_head();
         let step = self.tx.start(now);
         self.step(step, out);
     }
@@ -182,13 +174,11 @@ impl Link {
             TxStep::Send => self.send_head(out),
             TxStep::Wait => {}
             TxStep::Delivered => {
-                self.in_flight = false;
                 self.queue.pop_front();
                 self.stats.delivered += 1;
                 self.note_queue();
             }
             TxStep::Failed(_) => {
-                self.in_flight = false;
                 if let Some(item) = self.queue.pop_front() {
                     self.stats.failed += 1;
                     self.stats.line.drops.add(DropReason::LinkNoAck);
@@ -224,11 +214,11 @@ impl Link {
                     self.stats.line.naks_sent += 1;
                     self.write(vec![NAK], out);
                 }
-                OwnedEvent::Ack if self.in_flight => {
+                OwnedEvent::Ack if self.queue.head_pinned() => {
                     let step = self.tx.on_ack();
                     self.step(step, out);
                 }
-                OwnedEvent::Nak if self.in_flight => {
+                OwnedEvent::Nak if self.queue.head_pinned() => {
                     self.stats.line.naks_received += 1;
                     let step = self.tx.on_nak(now);
                     self.step(step, out);
@@ -248,7 +238,7 @@ impl Link {
 
     /// Time passed: retransmit or give up the head, abandon a stale partial frame.
     pub fn poll(&mut self, now: u64, out: &mut Vec<LinkOut>) -> Vec<Received> {
-        if self.in_flight && self.tx.deadline().is_some_and(|t| now >= t) {
+        if self.queue.head_pinned() && self.tx.deadline().is_some_and(|t| now >= t) {
             self.stats.line.timeouts += 1;
             let step = self.tx.poll(now);
             self.step(step, out);
@@ -259,14 +249,17 @@ impl Link {
     }
 
     pub fn next_deadline(&self) -> Option<u64> {
-        let tx = if self.in_flight { self.tx.deadline() } else { None };
+        let tx = if self.queue.head_pinned() {
+            self.tx.deadline()
+        } else {
+            None
+        };
         [tx, self.line.idle_deadline()].into_iter().flatten().min()
     }
 
     /// The link went down: everything queued is given back.
     pub fn shut_down(&mut self) -> Vec<Outgoing> {
-        self.in_flight = false;
-        let dropped: Vec<_> = self.queue.drain(..).collect();
+        let dropped = self.queue.drain_all();
         for _ in &dropped {
             self.stats.failed += 1;
             self.stats.line.drops.add(DropReason::LinkDown);

@@ -43,7 +43,7 @@
 //!   Reserved rates `C8`..`CF` never do (NOTES E15).
 //! - A lost port fails its in-flight and queued jobs ([`DropReason::PortLost`]).
 
-use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::collections::{BTreeMap, BTreeSet};
 
 use sagebrush_protocol::link::TransactionPolicy;
 use sagebrush_protocol::{
@@ -54,8 +54,48 @@ use sagebrush_protocol::{Outcome, ResultKind, ResultTimeout, Undelivered};
 
 use crate::config::PortConfig;
 use crate::line::LineReceiver;
+use crate::queue::{Queued, StopFirstQueue};
 use crate::stats::{DeviceError, DeviceStats, PortStats};
 use crate::types::{CommandId, CommandOutcome, DropReason, Origin, RouterEvent};
+
+/// What a job's command is, read once when the router accepts it (Tables
+/// 4, 11, 16 through the protocol crate's command table).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct CommandFacts {
+    pub stop: bool,
+    /// Starts a continuous motion (cancelled when its origin link goes down).
+    pub motion: bool,
+    pub kind: ResultKind,
+    /// A `C0`..`C7` rate change.
+    pub rate: Option<DataRate>,
+    /// `P?` or `V?`: the device registry keeps the answer.
+    pub registry: Option<Registry>,
+}
+
+/// Which answer the device registry keeps.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Registry {
+    /// `P?`, Table 15.
+    Position,
+    /// `V?`, Table 17.
+    Lens,
+}
+
+impl CommandFacts {
+    pub fn of(command: &Command<'_>) -> Self {
+        Self {
+            stop: command.is_stop(),
+            motion: command.stopped_by().is_some(),
+            kind: command.result_kind(),
+            rate: command.data_rate_change(),
+            registry: match command {
+                Command::QueryPosition => Some(Registry::Position),
+                Command::QueryLens => Some(Registry::Lens),
+                _ => None,
+            },
+        }
+    }
+}
 
 /// One command exchange waiting for or holding a bus.
 #[derive(Clone, Debug)]
@@ -63,22 +103,18 @@ pub(crate) struct Job {
     pub id: CommandId,
     pub origin: Origin,
     pub frame: FrameBuf,
-    pub stop: bool,
-    /// Starts a continuous motion (cancelled when its origin link goes down).
-    pub motion: bool,
+    pub facts: CommandFacts,
     /// Identical stops of other commands merged into this one: they share its outcome.
     pub merged: Vec<CommandId>,
 }
 
 impl Job {
-    pub fn new(id: CommandId, origin: Origin, frame: FrameBuf) -> Self {
-        let command = Command::parse(frame.frame().payload());
+    pub fn new(id: CommandId, origin: Origin, frame: FrameBuf, facts: CommandFacts) -> Self {
         Self {
             id,
             origin,
-            stop: command.is_stop(),
-            motion: command.stopped_by().is_some(),
             frame,
+            facts,
             merged: Vec::new(),
         }
     }
@@ -86,6 +122,19 @@ impl Job {
     /// The command ids this job decides: its own and the merged ones.
     fn ids(&self) -> impl Iterator<Item = CommandId> + '_ {
         core::iter::once(self.id).chain(self.merged.iter().copied())
+    }
+}
+
+impl Queued for Job {
+    fn is_stop(&self) -> bool {
+        self.facts.stop
+    }
+    fn always_fits(&self) -> bool {
+        self.origin == Origin::Internal
+    }
+    fn same_frame(&self, other: &Self) -> bool {
+        let (a, b) = (self.frame.frame(), other.frame.frame());
+        a.dest == b.dest && a.payload() == b.payload()
     }
 }
 
@@ -122,8 +171,6 @@ pub(crate) enum PortOut {
 struct Running {
     job: Job,
     txn: Transaction,
-    kind: ResultKind,
-    rate: Option<DataRate>,
 }
 
 impl Running {
@@ -147,13 +194,11 @@ pub(crate) struct Port {
     /// What it was made from (a reload compares it).
     pub config: PortConfig,
     policy: TransactionPolicy,
-    bound: usize,
-    stop_bound: usize,
     devices: Option<Vec<u8>>,
     line: LineReceiver,
     open: bool,
     rate: DataRate,
-    queue: VecDeque<Job>,
+    queue: StopFirstQueue<Job>,
     active: Option<Running>,
     /// Long result waits set aside for a stop, oldest first.
     detached: Vec<Running>,
@@ -190,13 +235,11 @@ impl Port {
             id: config.id,
             config: config.clone(),
             policy,
-            bound: config.queue_bound,
-            stop_bound: config.stop_queue_bound,
             devices: config.devices.clone(),
             line: LineReceiver::new(config.idle_timeout),
             open: false,
             rate,
-            queue: VecDeque::new(),
+            queue: StopFirstQueue::new(config.queue_bound, config.stop_queue_bound),
             active: None,
             detached: Vec::new(),
             seen: BTreeSet::new(),
@@ -224,7 +267,7 @@ impl Port {
 
     fn note_queue(&mut self) {
         self.stats.queue_len = self.queue.len();
-        self.stats.queue_high_water = self.stats.queue_high_water.max(self.queue.len());
+        self.stats.queue_high_water = self.queue.high_water();
     }
 
     fn drop_job(&mut self, job: Job, reason: DropReason, out: &mut Vec<PortOut>) {
@@ -286,54 +329,42 @@ impl Port {
             port_copy.port = self.id;
             job.frame.set_header(port_copy, job.frame.frame().source);
         }
-        let stops = self.queue.iter().filter(|j| j.stop).count();
-        if job.stop {
-            let same = |j: &Job| {
-                j.stop && j.frame.frame().dest == dest && j.frame.frame().payload() == job.frame.frame().payload()
-            };
-            if let Some(queued) = self.queue.iter_mut().find(|j| same(j)) {
+        if job.facts.stop {
+            if let Some(queued) = self.queue.same_stop_mut(&job) {
                 self.stats.line.drops.add(DropReason::DuplicateStop);
                 queued.merged.push(job.id);
                 queued.merged.extend(job.merged);
                 return;
             }
-            // A dead-man stop (the router's own) is never refused: their
-            // number is bounded by the motions the router tracks.
-            if stops >= self.stop_bound && job.origin != Origin::Internal {
+            if !self.queue.has_room(&job) {
                 return self.drop_job(job, DropReason::QueueFull, out);
             }
-        } else if self.queue.len() - stops >= self.bound {
+        } else if !self.queue.has_room(&job) {
             // Full: the origin holding the most work gives up its newest
             // job, unless that is the newcomer's own origin (fair drop:
             // one client's flood never costs another client its command).
             let mut counts: BTreeMap<Option<crate::LinkId>, usize> = BTreeMap::new();
-            for j in self.queue.iter().filter(|j| !j.stop) {
+            for j in self.queue.iter().filter(|j| !j.facts.stop) {
                 *counts.entry(j.origin.link()).or_default() += 1;
             }
             let mine = counts.get(&job.origin.link()).copied().unwrap_or(0);
             let hog = counts.iter().max_by_key(|&(_, n)| *n).map(|(&o, &n)| (o, n));
             match hog {
                 Some((hog, n)) if hog != job.origin.link() && n > mine + 1 => {
-                    if let Some(at) = self.queue.iter().rposition(|j| !j.stop && j.origin.link() == hog) {
-                        if let Some(victim) = self.queue.remove(at) {
-                            self.drop_job(victim, DropReason::QueueFull, out);
-                        }
+                    let newest = self.queue.iter().rposition(|j| !j.facts.stop && j.origin.link() == hog);
+                    if let Some(victim) = newest.and_then(|at| self.queue.remove(at)) {
+                        self.drop_job(victim, DropReason::QueueFull, out);
                     }
                 }
                 _ => return self.drop_job(job, DropReason::QueueFull, out),
             }
         }
-        let at = if job.stop {
-            self.queue.iter().position(|j| !j.stop).unwrap_or(self.queue.len())
-        } else {
-            self.queue.len()
-        };
         out.push(PortOut::Event(RouterEvent::Queued {
             id: job.id,
             port: self.id,
-            stop: job.stop,
+            stop: job.facts.stop,
         }));
-        self.queue.insert(at, job);
+        self.queue.push(job);
         self.note_queue();
         self.start_next(now, out);
         self.maybe_detach(now, out);
@@ -354,11 +385,9 @@ impl Port {
     /// The origin link went down: queued motions it started must not run
     /// after the dead-man stop.
     pub fn cancel_motions(&mut self, link: crate::LinkId, out: &mut Vec<PortOut>) {
-        let (cancel, keep): (Vec<_>, Vec<_>) = self
+        let cancel = self
             .queue
-            .drain(..)
-            .partition(|j| j.motion && j.origin.link() == Some(link));
-        self.queue = keep.into();
+            .remove_where(|j| j.facts.motion && j.origin.link() == Some(link));
         for job in cancel {
             self.drop_job(job, DropReason::OriginGone, out);
         }
@@ -373,28 +402,22 @@ impl Port {
         while self.active.is_none() && self.open {
             // While a long wait is set aside only stops use the bus: another
             // exchange could take its result (same Table 3 header) or give it theirs.
-            if !self.detached.is_empty() && !self.queue.front().is_some_and(|j| j.stop) {
+            if !self.detached.is_empty() && !self.queue.front().is_some_and(|j| j.facts.stop) {
                 break;
             }
             let Some(job) = self.next_job() else { break };
             self.note_queue();
-            let frame = job.frame.frame();
-            let command = Command::parse(frame.payload());
-            let mut txn = Transaction::new(frame.dest, &command, self.policy);
+            let dest = job.frame.frame().dest;
+            let mut txn = Transaction::expecting(dest, job.facts.kind, self.policy);
             out.push(PortOut::Event(RouterEvent::Started {
                 id: job.id,
                 port: self.id,
-                stop: job.stop,
+                stop: job.facts.stop,
             }));
             self.stats.transactions += 1;
-            self.device(frame.dest.device).commands += 1;
+            self.device(dest.device).commands += 1;
             let step = txn.start(now);
-            self.active = Some(Running {
-                kind: command.result_kind(),
-                rate: command.data_rate_change(),
-                job,
-                txn,
-            });
+            self.active = Some(Running { job, txn });
             self.active_step(now, step, None, out);
         }
     }
@@ -403,7 +426,7 @@ impl Port {
     /// link is one client, DESIGN "Safety": none starves another), the
     /// oldest job of the origin served least recently.
     fn next_job(&mut self) -> Option<Job> {
-        if self.queue.front()?.stop {
+        if self.queue.front()?.facts.stop {
             return self.queue.pop_front();
         }
         let mut best: Option<(u64, usize)> = None;
@@ -430,9 +453,9 @@ impl Port {
 
     /// A long result wait gives the bus to a queued stop.
     fn maybe_detach(&mut self, now: u64, out: &mut Vec<PortOut>) {
-        let stop_waiting = self.queue.front().is_some_and(|j| j.stop);
+        let stop_waiting = self.queue.front().is_some_and(|j| j.facts.stop);
         let long_wait = self.active.as_ref().is_some_and(|r| {
-            r.kind == ResultKind::Required(ResultTimeout::Long)
+            r.job.facts.kind == ResultKind::Required(ResultTimeout::Long)
                 && !r.txn.is_broadcast()
                 && r.txn.acknowledged()
                 && r.txn.outcome().is_none()
@@ -508,11 +531,11 @@ impl Port {
                 CommandOutcome::Nic
             }
             Outcome::Acknowledged => {
-                self.rate_acknowledged(device, r.rate, out);
+                self.rate_acknowledged(device, r.job.facts.rate, out);
                 CommandOutcome::Completed
             }
             Outcome::Broadcast => {
-                if let Some(rate) = r.rate {
+                if let Some(rate) = r.job.facts.rate {
                     self.switch_rate(rate, out);
                 }
                 CommandOutcome::Completed
@@ -555,11 +578,16 @@ impl Port {
         if let Some(error) = error {
             d.last_error = Some((now, error));
         }
-        let Some(result) = result else { return };
-        let command = Command::parse(job.frame.frame().payload());
-        match (&command, Reply::parse(&command, result.frame().payload())) {
-            (Command::QueryPosition, Ok(Reply::Position(p))) => d.position = Some((now, p)),
-            (Command::QueryLens, Ok(Reply::Lens(l))) => d.lens = Some((now, l)),
+        let (Some(result), Some(registry)) = (result, job.facts.registry) else {
+            return;
+        };
+        let command = match registry {
+            Registry::Position => Command::QueryPosition,
+            Registry::Lens => Command::QueryLens,
+        };
+        match Reply::parse(&command, result.frame().payload()) {
+            Ok(Reply::Position(p)) => d.position = Some((now, p)),
+            Ok(Reply::Lens(l)) => d.lens = Some((now, l)),
             _ => {}
         }
     }

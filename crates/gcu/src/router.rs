@@ -14,7 +14,7 @@ use crate::config::{ConfigError, LinkKind, LinkSettings, PortConfig, RouterConfi
 use crate::deadman::{DeadMan, OwnedStop};
 use crate::link::{Link, LinkOut, Outgoing, Received};
 use crate::local::{SelfAnswer, answer};
-use crate::port::{Job, Port, PortOut};
+use crate::port::{CommandFacts, Job, Port, PortOut};
 use crate::reverse::{AnswerMatch, ReversePath};
 use crate::routing::RoutingTable;
 use crate::stats::{LinkStats, RouterStats, Stats};
@@ -908,7 +908,8 @@ impl Router {
             if dest.group == WILDCARD && kind != Some(LinkKind::Downstream) {
                 self.flood(now, origin, &frame, result_kind, out);
             }
-            return self.execute_local(now, id, origin, frame, out);
+            let facts = CommandFacts::of(&command);
+            return self.execute_local(now, id, origin, frame, facts, out);
         }
         let up = |l: LinkId| self.links.contains_key(&l);
         let any_upstream = self
@@ -988,7 +989,15 @@ impl Router {
 
     /// Destination group G or 255: port 0 is the GCU itself, 1..=254 one
     /// port, 255 every port.
-    fn execute_local(&mut self, now: u64, id: CommandId, origin: Origin, frame: FrameBuf, out: &mut Vec<Action>) {
+    fn execute_local(
+        &mut self,
+        now: u64,
+        id: CommandId,
+        origin: Origin,
+        frame: FrameBuf,
+        facts: CommandFacts,
+        out: &mut Vec<Action>,
+    ) {
         let f = frame.frame();
         let dest = f.dest;
         let targets: Vec<u8> = match dest.port {
@@ -1020,7 +1029,7 @@ impl Router {
         }
         self.commands.insert(id, Progress::new(origin, targets.len()));
         for port in targets {
-            let job = Job::new(id, origin, frame.clone());
+            let job = Job::new(id, origin, frame.clone(), facts);
             self.with_port(now, port, out, |p, now, po| p.enqueue(now, job, po));
         }
     }

@@ -206,11 +206,17 @@ pub struct Transaction {
 impl Transaction {
     /// An exchange of `command` with `dest`.
     pub fn new(dest: Address, command: &Command<'_>, policy: TransactionPolicy) -> Self {
+        Self::expecting(dest, command.result_kind(), policy)
+    }
+
+    /// An exchange with `dest` of a command whose result kind is already
+    /// known (a router that read the command once when it accepted it).
+    pub fn expecting(dest: Address, expect: ResultKind, policy: TransactionPolicy) -> Self {
         Self {
             policy,
             tx: Transmitter::new(policy.retry),
             dest,
-            expect: command.result_kind(),
+            expect,
             phase: Phase::Idle,
         }
     }
