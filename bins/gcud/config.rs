@@ -9,8 +9,8 @@ use std::net::{IpAddr, SocketAddr};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-use sagebrush_host::timing::wire_ms;
 use sagebrush_protocol::DataRate;
+use sagebrush_protocol::link::TransactionPolicy;
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -400,17 +400,18 @@ impl Config {
     }
 }
 
-/// Defaults derived from the line rate: a maximum frame's time plus a margin.
+/// Defaults derived from the line rate: the protocol crate's
+/// ([`TransactionPolicy::serial`], the one place they are derived).
 fn default_timing(baud: u32) -> PortTiming {
-    let max_frame = wire_ms(sagebrush_protocol::MAX_FRAME_LEN, baud);
+    let p = TransactionPolicy::serial(baud);
     PortTiming {
         baud,
-        retries: 3,
-        ack_timeout_ms: 50 + wire_ms(16, baud),
-        result_timeout_ms: 500 + max_frame,
-        long_result_timeout_ms: 60_000,
-        nic_window_ms: 30 + wire_ms(4, baud),
-        broadcast_guard_ms: 50 + max_frame,
+        retries: p.retry.retries,
+        ack_timeout_ms: p.retry.ack_timeout,
+        result_timeout_ms: p.result_timeout,
+        long_result_timeout_ms: p.long_result_timeout,
+        nic_window_ms: p.nic_window,
+        broadcast_guard_ms: p.broadcast_guard,
     }
 }
 

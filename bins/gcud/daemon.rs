@@ -58,7 +58,7 @@ fn router_config(config: &Config, ids: &mut LinkIds) -> RouterConfig {
         // Every client that may connect can have a command waiting on
         // every port (fair queuing drops a hog's work first).
         pc.queue_bound = config.queue_depth.max(config.max_connections);
-        pc.idle_timeout = sagebrush_host::timing::wire_ms(8, t.baud) + 20;
+        pc.idle_timeout = sagebrush_protocol::link::silence_ms(t.baud);
         if let PortTransport::Simulated(devices) = &port.transport {
             pc.devices = Some(devices.clone());
         }

@@ -5,6 +5,7 @@
 
 use std::collections::BTreeMap;
 
+use sagebrush_protocol::link::{TransactionPolicy, silence_ms};
 use sagebrush_protocol::{DataRate, Identity, MCU_GROUP, WILDCARD};
 
 use crate::types::LinkId;
@@ -108,20 +109,28 @@ pub struct PortConfig {
 }
 
 impl PortConfig {
-    /// A 9600 bps port with time-outs suited to millisecond ticks.
+    /// A 9600 bit/s port, see [`PortConfig::at_rate`].
     pub fn new(id: u8) -> Self {
+        Self::at_rate(id, 9600)
+    }
+
+    /// A port at `bps` with the protocol's default time-outs for that rate
+    /// in millisecond ticks ([`TransactionPolicy::serial`] and
+    /// [`silence_ms`], the one place they are derived).
+    pub fn at_rate(id: u8, bps: u32) -> Self {
+        let policy = TransactionPolicy::serial(bps);
         Self {
             id,
-            bps: 9600,
-            retries: 3,
-            ack_timeout: 100,
-            result_timeout: 500,
-            long_result_timeout: 30_000,
-            nic_window: 50,
-            broadcast_guard: 100,
+            bps,
+            retries: policy.retry.retries,
+            ack_timeout: policy.retry.ack_timeout,
+            result_timeout: policy.result_timeout,
+            long_result_timeout: policy.long_result_timeout,
+            nic_window: policy.nic_window,
+            broadcast_guard: policy.broadcast_guard,
             queue_bound: 32,
             stop_queue_bound: 64,
-            idle_timeout: 50,
+            idle_timeout: silence_ms(bps),
             devices: None,
         }
     }

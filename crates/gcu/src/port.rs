@@ -408,7 +408,10 @@ impl Port {
             let Some(job) = self.next_job() else { break };
             self.note_queue();
             let dest = job.frame.frame().dest;
-            let mut txn = Transaction::expecting(dest, job.facts.kind, self.policy);
+            // The ACK clock starts now, at the write: the frame's own wire
+            // time is added to the wait.
+            let policy = self.policy.for_frame(job.frame.as_bytes().len(), self.stats.bps);
+            let mut txn = Transaction::expecting(dest, job.facts.kind, policy);
             out.push(PortOut::Event(RouterEvent::Started {
                 id: job.id,
                 port: self.id,

@@ -5,6 +5,7 @@ use sagebrush_gcu::{
     Action, CommandId, CommandOutcome, DropReason, Input, LinkConfig, LinkId, LinkKind, PortConfig, Router,
     RouterConfig, RouterEvent, SourceFilter,
 };
+use sagebrush_protocol::link::wire_ms;
 use sagebrush_protocol::{ACK, Address, DeliveryReport, FrameBuf, NAK, NIC, Undelivered};
 
 const G: u8 = 5;
@@ -373,6 +374,26 @@ fn no_ack_retransmits_up_to_the_count_then_unreachable() {
     assert_eq!(s.router.unreachable, 1);
 }
 
+/// The ACK clock starts at the write: a long frame on a slow line gets its
+/// own wire time on top of the ACK time-out, and is not sent again while it
+/// is still going out.
+#[test]
+fn a_long_frame_is_not_retransmitted_while_it_is_still_going_out() {
+    let mut h = H::new(&[1]);
+    // `*x1t` with 240 bytes for the auxiliary port: 251 bytes, 262 ms at 9600 bit/s.
+    let mut payload = b"*x1t".to_vec();
+    payload.extend(std::iter::repeat_n(b'A', 240));
+    let long = frame((G, 1, 3), 2, &payload);
+    assert_eq!(wire_ms(long.len(), 9600), 262);
+    h.link(CLIENT, &long);
+    let a = h.wait(250);
+    assert!(port_writes(&a, 1).is_empty(), "still on the wire: no retransmission");
+    h.port(1, &[ACK]);
+    let a = h.wait(20);
+    assert_eq!(finished(&a), vec![CommandOutcome::Completed], "{a:?}");
+    assert_eq!(h.r.stats().devices[&(1, 3)].retransmits, 0);
+}
+
 #[test]
 fn result_time_out_classes_normal_and_long() {
     let mut h = H::new(&[1]);
@@ -424,7 +445,7 @@ fn a_late_or_duplicate_result_is_never_taken_for_the_next_exchange() {
     let mut h = H::new(&[1]);
     let mu = frame((G, 1, 3), 2, b"*mu1");
     h.link(CLIENT, &mu);
-    let a = h.wait(10);
+    let a = h.wait(10 + wire_ms(mu.len(), 9600));
     assert_eq!(port_writes(&a, 1), vec![mu], "ACK lost: retransmitted");
     h.port(1, &[ACK]);
     let a = h.port(1, &frame((2, 1, 3), G, b"1"));

@@ -154,6 +154,57 @@ pub struct TransactionPolicy {
     pub broadcast_guard: u64,
 }
 
+/// Bits on the wire per byte: start, 8 data, stop (1.5.1).
+pub const BITS_PER_BYTE: u64 = 10;
+
+/// Milliseconds `bytes` take on a line at `baud`, rounded up.
+pub const fn wire_ms(bytes: usize, baud: u32) -> u64 {
+    let baud = if baud == 0 { 1 } else { baud as u64 };
+    (bytes as u64 * BITS_PER_BYTE * 1000).div_ceil(baud)
+}
+
+/// Silence (ms) after which a partial frame on a line at `baud` is
+/// abandoned: eight byte times and 20 ms for a busy host to read.
+pub const fn silence_ms(baud: u32) -> u64 {
+    wire_ms(8, baud) + 20
+}
+
+impl TransactionPolicy {
+    /// The default time-outs (ms) of an exchange on a serial line at
+    /// `baud`, the one place they are derived ("if no ACK or NAK is
+    /// received within a time-out period, the message should be
+    /// re-transmitted", 1.4.2):
+    /// - ACK: 50 ms turnaround and 16 byte times, counted from the
+    ///   command's last byte ([`TransactionPolicy::for_frame`] adds the
+    ///   frame's own wire time when the clock starts at the write);
+    /// - result: a longest frame back plus 500 ms for the device to think;
+    ///   `IX` (the long class): 60 s, both axes driven to their switches;
+    /// - NIC window after an ACK: four byte times + 30 ms;
+    /// - broadcast guard: a longest frame + 50 ms; 3 retries.
+    pub const fn serial(baud: u32) -> Self {
+        let longest = wire_ms(crate::MAX_FRAME_LEN, baud);
+        Self {
+            retry: RetryPolicy {
+                ack_timeout: 50 + wire_ms(16, baud),
+                retries: 3,
+            },
+            result_timeout: 500 + longest,
+            long_result_timeout: 60_000,
+            nic_window: 30 + wire_ms(4, baud),
+            broadcast_guard: 50 + longest,
+        }
+    }
+
+    /// This policy for a command frame of `len` bytes written at `baud`
+    /// when the ACK clock starts at the write: the frame's own wire time is
+    /// added to the ACK wait, so that a long frame on a slow line is not
+    /// retransmitted while it is still going out.
+    pub const fn for_frame(mut self, len: usize, baud: u32) -> Self {
+        self.retry.ack_timeout += wire_ms(len, baud);
+        self
+    }
+}
+
 /// How an exchange ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Outcome {

@@ -267,3 +267,27 @@ fn transaction_to_port_255_takes_the_answer_from_the_devices_port() {
         "a named port must match"
     );
 }
+
+/// The default time-outs scale with the line rate (1.4.2, 1.5.1: ten bits
+/// a byte), and a frame's own wire time is added to its ACK wait.
+#[test]
+fn serial_time_outs_scale_with_the_line_rate() {
+    use sagebrush_protocol::link::{silence_ms, wire_ms};
+    assert_eq!(wire_ms(96, 9600), 100);
+    assert_eq!(wire_ms(1, 115_200), 1, "rounded up");
+    let (slow, fast) = (TransactionPolicy::serial(1200), TransactionPolicy::serial(115_200));
+    assert_eq!(fast.retry.ack_timeout, 50 + 2);
+    assert_eq!(slow.retry.ack_timeout, 50 + wire_ms(16, 1200));
+    assert!(
+        slow.result_timeout > fast.result_timeout + 2000,
+        "a longest frame back at 1200 bit/s"
+    );
+    assert_eq!(slow.long_result_timeout, 60_000);
+    let long = TransactionPolicy::serial(9600).for_frame(MAX_FRAME_LEN, 9600);
+    assert_eq!(
+        long.retry.ack_timeout,
+        TransactionPolicy::serial(9600).retry.ack_timeout + 274
+    );
+    assert_eq!(long.result_timeout, TransactionPolicy::serial(9600).result_timeout);
+    assert!(silence_ms(1200) > silence_ms(115_200));
+}
