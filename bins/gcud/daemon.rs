@@ -67,27 +67,6 @@ fn router_config(config: &Config, ids: &mut LinkIds) -> RouterConfig {
     rc.links.retries = config.link_retries;
     rc.links.ack_timeout = config.link_ack_timeout_ms;
     rc.links.delivery_timeout = config.delivery_timeout_ms;
-    // A command forwarded to another GCU is answered after a whole port
-    // transaction there; assume that GCU is configured like this one.
-    let worst = |long: bool| {
-        config
-            .ports
-            .iter()
-            .map(|p| {
-                let t = p.timing;
-                let result = if long {
-                    t.long_result_timeout_ms
-                } else {
-                    t.result_timeout_ms
-                };
-                (u64::from(t.retries) + 1) * t.ack_timeout_ms + result
-            })
-            .max()
-            .unwrap_or(0)
-    };
-    let link_ack = (u64::from(config.link_retries) + 1) * config.link_ack_timeout_ms;
-    rc.links.answer_timeout = rc.links.answer_timeout.max(2 * link_ack + worst(false));
-    rc.links.long_answer_timeout = rc.links.long_answer_timeout.max(2 * link_ack + worst(true));
     for link in &config.links {
         ids.of(&link.name);
     }

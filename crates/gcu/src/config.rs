@@ -5,7 +5,7 @@
 
 use std::collections::BTreeMap;
 
-use sagebrush_protocol::link::{TransactionPolicy, silence_ms};
+use sagebrush_protocol::link::{TransactionPolicy, silence_ms, wire_ms};
 use sagebrush_protocol::{DataRate, Identity, MCU_GROUP, WILDCARD};
 
 use crate::types::LinkId;
@@ -136,6 +136,22 @@ impl PortConfig {
     }
 }
 
+impl PortConfig {
+    /// The longest one transaction on this port may take: every try's ACK
+    /// wait (a longest frame's wire time included, the clock starts at the
+    /// write), then the result wait of the normal or long class.
+    pub fn worst_exchange(&self, long: bool) -> u64 {
+        let tries = u64::from(self.retries) + 1;
+        let ack = self.ack_timeout + wire_ms(sagebrush_protocol::MAX_FRAME_LEN, self.bps);
+        let result = if long {
+            self.long_result_timeout
+        } else {
+            self.result_timeout
+        };
+        tries * ack + result
+    }
+}
+
 /// Settings shared by all links.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct LinkSettings {
@@ -181,6 +197,23 @@ impl Default for LinkSettings {
             nic_answer_timeout: 1_500,
             max_pending: 1024,
             delivery_timeout: 800,
+        }
+    }
+}
+
+impl LinkSettings {
+    /// These settings in force with `ports`: a command forwarded to another
+    /// GCU is answered after a whole port transaction there (assumed
+    /// configured like the slowest port here) and the link's own retries
+    /// both ways, so the reverse path waits at least that long for its
+    /// answer (normal and long class).
+    pub(crate) fn with_answer_time_for(&self, ports: &[PortConfig]) -> Self {
+        let worst = |long| ports.iter().map(|p| p.worst_exchange(long)).max().unwrap_or(0);
+        let link = 2 * (u64::from(self.retries) + 1) * self.ack_timeout;
+        Self {
+            answer_timeout: self.answer_timeout.max(link + worst(false)),
+            long_answer_timeout: self.long_answer_timeout.max(link + worst(true)),
+            ..self.clone()
         }
     }
 }

@@ -104,7 +104,11 @@ pub struct Router {
     group: u8,
     name: String,
     serial: String,
+    /// As configured (a reload must not change them).
     settings: LinkSettings,
+    /// In force: the reverse path's answer time-outs raised to what the
+    /// configured ports may take ([`LinkSettings::with_answer_time_for`]).
+    in_force: LinkSettings,
     ports: BTreeMap<u8, Port>,
     links: BTreeMap<LinkId, Link>,
     routes: RoutingTable,
@@ -163,6 +167,7 @@ impl Router {
             last_now: 0,
             stats: RouterStats::default(),
             unknown_inputs: 0,
+            in_force: config.links.with_answer_time_for(&config.ports),
             settings: config.links,
             name: config.name,
             serial: config.serial,
@@ -317,6 +322,7 @@ impl Router {
         if config.links != self.settings {
             return Err(ConfigError::NotReloadable("the link settings"));
         }
+        self.in_force = self.settings.with_answer_time_for(&config.ports);
         self.routes
             .set_configured(config.static_routes, config.default_upstream);
         for (&id, port) in &mut self.ports {
@@ -472,7 +478,7 @@ impl Router {
         for o in outs {
             match o {
                 LinkOut::Write(bytes) => out.push(Action::WriteLink { link, bytes }),
-                LinkOut::FirstSent(key) => self.reverse.sent(key, now, &self.settings),
+                LinkOut::FirstSent(key) => self.reverse.sent(key, now, &self.in_force),
                 LinkOut::Resent(key) => self.reverse.resent(key),
                 LinkOut::Failed(item, reason) => {
                     if let Some(key) = item.pending {

@@ -778,6 +778,28 @@ fn answers_of_forwarded_commands_go_back_along_the_reverse_path_never_to_a_wrong
     assert!(link_writes(&a, CLIENT).is_empty() && link_writes(&a, other).is_empty());
 }
 
+/// The reverse path waits for a whole port transaction at the next GCU
+/// (assumed configured like the slowest port here, every retry included),
+/// not only the configured answer time-out: an answer from behind a slow
+/// bus still reaches its origin.
+#[test]
+fn a_forwarded_command_waits_for_a_whole_slow_port_exchange_at_the_next_gcu() {
+    let mut h = H::with(&[1], |c| c.ports[0] = PortConfig::at_rate(1, 1200));
+    assert!(h.r.stats().ports[&1].bps == 1200);
+    h.up(DOWN, LinkKind::Downstream);
+    h.link(DOWN, &frame((G, 0, 0), 7, b"AW"));
+    h.link(DOWN, &[ACK]);
+    // From a client: its group is never routed, only the reverse path
+    // carries the answer back.
+    h.link(CLIENT, &frame((7, 1, 3), 2, b"P?"));
+    h.link(DOWN, &[ACK]);
+    // 1200 bit/s, 4 tries of a longest frame and its ACK wait, then the
+    // result wait: about 12 s, well past the configured 3 s.
+    h.wait(11_000);
+    let a = h.link(DOWN, &frame((2, 1, 3), 7, b"00000000"));
+    assert_eq!(link_writes(&a, CLIENT), vec![frame((2, 1, 3), 7, b"00000000")], "{a:?}");
+}
+
 #[test]
 fn nic_from_another_gcu_is_relayed_to_the_origin() {
     let mut h = H::new(&[1]);
