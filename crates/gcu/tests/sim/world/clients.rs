@@ -1,0 +1,387 @@
+//! The clients: each a spec-following MCU on its own link that issues
+//! random commands, retransmits, and checks every answer and report it gets.
+
+use super::*;
+
+#[derive(Debug)]
+pub(super) enum ClientState {
+    Idle,
+    AwaitAck {
+        tx: Transmitter,
+        frame: Box<FrameBuf>,
+        kind: ResultKind,
+    },
+    AwaitAnswer {
+        until: u64,
+    },
+}
+
+#[derive(Debug)]
+pub(super) struct Client {
+    pub(super) gcu: usize,
+    pub(super) link: LinkId,
+    pub(super) group: u8,
+    pub(super) filter: SourceFilter,
+    pub(super) connected: bool,
+    pub(super) epoch: u64,
+    pub(super) framer: Framer,
+    pub(super) state: ClientState,
+    pub(super) issued: Vec<Address>,
+    pub(super) nonces: BTreeSet<u16>,
+    pub(super) counter: u16,
+    pub(super) to_issue: usize,
+    pub(super) next_at: u64,
+    pub(super) forced: Option<(Address, Vec<u8>)>,
+    pub(super) nics: u64,
+    pub(super) last_rx: u64,
+    /// Every frame the router wrote to this client's link.
+    pub(super) written: BTreeSet<Vec<u8>>,
+    /// Destination and checksum of the command awaiting its ACK or report.
+    pub(super) current: Option<(Address, u8)>,
+    /// Commands it gave up on, or was told of: a report of one of them may
+    /// come late, or again (its ACK of the report frame was lost).
+    pub(super) abandoned: BTreeSet<(Address, u8)>,
+    /// The command it last took an ACK for.
+    pub(super) acked: Option<(Address, u8)>,
+    /// Bytes toward it were damaged since it issued its command.
+    pub(super) wire_damaged: bool,
+}
+
+impl World {
+    pub(super) fn client_up(&mut self, c: usize) {
+        let cl = &mut self.clients[c];
+        cl.connected = true;
+        cl.framer = Framer::new();
+        cl.state = ClientState::Idle;
+        let (g, link, filter) = (cl.gcu, cl.link, cl.filter.clone());
+        self.input(
+            g,
+            Input::LinkUp {
+                link,
+                config: LinkConfig::new(LinkKind::Client, filter),
+            },
+        );
+    }
+
+    pub(super) fn client_down(&mut self, c: usize) {
+        let cl = &mut self.clients[c];
+        cl.connected = false;
+        cl.epoch += 1;
+        cl.state = ClientState::Idle;
+        if let Some(current) = cl.current.take() {
+            cl.abandoned.insert(current);
+        }
+        let (g, link) = (cl.gcu, cl.link);
+        self.input(g, Input::LinkDown { link });
+    }
+
+    pub(super) fn client_write(&mut self, c: usize, bytes: Vec<u8>) {
+        let cl = &self.clients[c];
+        let (from, to, epoch) = (
+            Node::Client { c },
+            Node::Link {
+                g: cl.gcu,
+                link: cl.link,
+            },
+            cl.epoch,
+        );
+        if let Some((at, bytes)) = self.wire(from, to, bytes) {
+            self.schedule(
+                at,
+                Ev::Bytes {
+                    to,
+                    bytes,
+                    epoch,
+                    bps: 0,
+                },
+            );
+        }
+    }
+
+    pub(super) fn random_command(&mut self, c: usize) -> (Address, Vec<u8>) {
+        let own = self.clients[c].gcu;
+        let g = if self.gcus.len() > 1 && self.rng.chance(400) {
+            self.rng.below(self.gcus.len() as u64) as usize
+        } else {
+            own
+        };
+        let group = match self.rng.below(100) {
+            0..=3 => WILDCARD,
+            4..=6 => self.rng.range(61, 90) as u8, // no such GCU
+            _ => self.gcus[g].group,
+        };
+        let ports: Vec<u8> = self.gcus[g].ports.iter().map(|p| p.id).collect();
+        let pi = self.rng.below(ports.len() as u64) as usize;
+        let port = match self.rng.below(100) {
+            0..=5 => WILDCARD,
+            6..=10 => 0,
+            11..=14 => self.rng.range(9, 20) as u8,
+            _ => ports[pi],
+        };
+        let ids: Vec<u8> = self.gcus[g].ports[pi].devices.iter().map(|d| d.gimbal.id).collect();
+        let device = match self.rng.below(100) {
+            0..=5 => WILDCARD,
+            6..=12 => self.rng.range(10, 30) as u8,
+            _ => self.rng.pick(&ids),
+        };
+        let payload: Vec<u8> = match self.rng.below(100) {
+            0..=9 => b"AW".to_vec(),
+            10..=17 => b"P?".to_vec(),
+            18..=20 => b"D?".to_vec(),
+            21..=34 => {
+                let cl = &mut self.clients[c];
+                cl.counter = cl.counter.wrapping_add(1);
+                cl.nonces.insert(cl.counter);
+                format!("*muN{:02X}{:04X}", c, cl.counter).into_bytes()
+            }
+            35..=37 => b"*mu".to_vec(),
+            38..=40 => b"IX".to_vec(),
+            41..=58 => self
+                .rng
+                .pick(&[&b"PL"[..], b"PR", b"TU", b"TD", b"FF", b"FN", b"ZI", b"ZO"])
+                .to_vec(),
+            59..=74 => self
+                .rng
+                .pick(&[&b"PS"[..], b"TS", b"FS", b"ZS", b"HA", b"HS", b"PT"])
+                .to_vec(),
+            75..=82 => self.rng.pick(&[&b"HO"[..], b"P00640064", b"SP5", b"VM1"]).to_vec(),
+            83..=85 => format!("C{:X}", self.rng.range(3, 15)).into_bytes(),
+            86..=92 => self.rng.pick(&[&b"QQ"[..], b"FA", b"Z?x"]).to_vec(),
+            _ => b"HO".to_vec(),
+        };
+        (Address::new(group, port, device), payload)
+    }
+
+    pub(super) fn client_issue(&mut self, c: usize, dest: Address, payload: Vec<u8>) {
+        let group = self.clients[c].group;
+        let Ok(frame) = FrameBuf::new(dest, group, &payload) else {
+            return self.violation("generator built an invalid frame".into());
+        };
+        let kind = Command::parse(&payload).result_kind();
+        let mut tx = Transmitter::new(CLIENT_RETRY);
+        let _ = tx.start(self.now);
+        let bytes = frame.as_bytes().to_vec();
+        let cl = &mut self.clients[c];
+        cl.issued.push(dest);
+        cl.current = Some((dest, frame.frame().checksum()));
+        cl.wire_damaged = false;
+        cl.state = ClientState::AwaitAck {
+            tx,
+            frame: Box::new(frame),
+            kind,
+        };
+        self.log(format_args!(
+            "client {c} (group {group}) issues {} to {dest}",
+            String::from_utf8_lossy(&payload)
+        ));
+        self.client_write(c, bytes);
+    }
+
+    pub(super) fn client_deadline(&self, c: usize) -> Option<u64> {
+        let cl = &self.clients[c];
+        if !cl.connected {
+            return None;
+        }
+        match &cl.state {
+            ClientState::Idle if cl.forced.is_some() || (cl.to_issue > 0 && !self.quiet) => Some(cl.next_at),
+            ClientState::Idle => None,
+            ClientState::AwaitAck { tx, .. } => tx.deadline(),
+            ClientState::AwaitAnswer { until } => Some(*until),
+        }
+    }
+
+    pub(super) fn client_poll(&mut self, c: usize) {
+        let now = self.now;
+        let cl = &mut self.clients[c];
+        match &mut cl.state {
+            ClientState::Idle => {
+                if let Some((dest, payload)) = cl.forced.take() {
+                    return self.client_issue(c, dest, payload);
+                }
+                if cl.to_issue > 0 && now >= cl.next_at && !self.quiet {
+                    cl.to_issue -= 1;
+                    let (dest, payload) = self.random_command(c);
+                    self.client_issue(c, dest, payload);
+                }
+            }
+            ClientState::AwaitAck { tx, frame, .. } => {
+                if tx.deadline().is_some_and(|t| now >= t) {
+                    match tx.poll(now) {
+                        TxStep::Send => {
+                            let bytes = frame.as_bytes().to_vec();
+                            self.client_write(c, bytes);
+                        }
+                        TxStep::Failed(_) => self.client_gave_up(c),
+                        _ => {}
+                    }
+                }
+            }
+            ClientState::AwaitAnswer { until } => {
+                if now >= *until {
+                    self.client_idle(c);
+                }
+            }
+        }
+    }
+
+    pub(super) fn client_idle(&mut self, c: usize) {
+        let pause = self.rng.range(0, 40);
+        let cl = &mut self.clients[c];
+        cl.state = ClientState::Idle;
+        cl.next_at = self.now + pause;
+    }
+
+    pub(super) fn client_receive(&mut self, c: usize, bytes: &[u8]) {
+        let mut events = Vec::new();
+        let now = self.now;
+        let cl = &mut self.clients[c];
+        if now.saturating_sub(cl.last_rx) >= SILENCE {
+            cl.framer.line_idle();
+            while let Some(e) = cl.framer.next_event() {
+                events.push(e.to_owned());
+            }
+        }
+        cl.last_rx = now;
+        cl.framer.feed(bytes, |e| events.push(e.to_owned()));
+        for event in events {
+            match event {
+                OwnedEvent::Nic => {
+                    self.clients[c].nics += 1;
+                    // A `?` follows the ACK of its command: one while the ACK
+                    // is awaited is a late answer to an earlier command.
+                    if matches!(self.clients[c].state, ClientState::AwaitAnswer { .. }) {
+                        self.client_idle(c);
+                    }
+                }
+                OwnedEvent::BadChecksum(_) => self.client_write(c, vec![NAK]),
+                OwnedEvent::Ack => self.client_ack(c),
+                OwnedEvent::Nak => self.client_nak(c),
+                OwnedEvent::Frame(f) => {
+                    self.client_write(c, vec![ACK]);
+                    let frame = f.frame();
+                    let report = (frame.dest.port == 0 && frame.dest.device == 0)
+                        .then(|| DeliveryReport::parse(frame.payload()).ok())
+                        .flatten();
+                    if let Some(report) = report.filter(|_| self.clients[c].written.contains(f.as_bytes())) {
+                        self.client_report(c, &report);
+                        continue;
+                    }
+                    self.check_reply(c, &f);
+                    if matches!(self.clients[c].state, ClientState::AwaitAnswer { .. }) {
+                        self.client_idle(c);
+                    }
+                }
+            }
+        }
+    }
+
+    pub(super) fn client_ack(&mut self, c: usize) {
+        let now = self.now;
+        if let ClientState::AwaitAck { tx, kind, .. } = &mut self.clients[c].state {
+            if tx.on_ack() == TxStep::Delivered {
+                let wait = if *kind == ResultKind::None { 60 } else { 3_000 };
+                self.clients[c].state = ClientState::AwaitAnswer { until: now + wait };
+                let cl = &mut self.clients[c];
+                cl.acked = cl.current.take();
+                self.summary.client_delivered += 1;
+                self.log(format_args!("client {c}: ACK (delivered)"));
+            }
+        }
+    }
+
+    pub(super) fn client_nak(&mut self, c: usize) {
+        let now = self.now;
+        if let ClientState::AwaitAck { tx, frame, .. } = &mut self.clients[c].state {
+            match tx.on_nak(now) {
+                TxStep::Send => {
+                    let bytes = frame.as_bytes().to_vec();
+                    self.client_write(c, bytes);
+                }
+                TxStep::Failed(_) => self.client_gave_up(c),
+                _ => {}
+            }
+        }
+    }
+
+    pub(super) fn client_gave_up(&mut self, c: usize) {
+        self.summary.client_gave_up += 1;
+        let cl = &mut self.clients[c];
+        if let Some(current) = cl.current.take() {
+            cl.abandoned.insert(current);
+        }
+        self.client_idle(c);
+    }
+
+    /// A delivery report (ARCHITECTURE "Delivery contract") must be about
+    /// the command this client awaits (or one it gave up on), and comes
+    /// instead of the ACK: exactly one outcome per command.
+    pub(super) fn client_report(&mut self, c: usize, report: &DeliveryReport) {
+        let key = (report.dest, report.command_checksum);
+        let cl = &mut self.clients[c];
+        let awaiting = matches!(cl.state, ClientState::AwaitAck { .. });
+        if awaiting && cl.current == Some(key) && report.failure.is_some() {
+            cl.current = None;
+            cl.abandoned.insert(key);
+            self.summary.client_undelivered += 1;
+            self.log(format_args!("client {c}: not delivered: {report:?}"));
+            return self.client_idle(c);
+        }
+        if report.failure.is_some() && cl.abandoned.contains(&key) {
+            return;
+        }
+        if cl.acked == Some(key) && cl.wire_damaged {
+            // The ACK it took was a damaged frame's byte, not the GCU's.
+            self.summary.phantom_acks += 1;
+            cl.abandoned.insert(key);
+            return;
+        }
+        let current = cl.current;
+        self.violation(format!(
+            "client {c} got a report {report:?} that answers none of its commands (awaiting {current:?})"
+        ));
+    }
+
+    /// No reply reaches a wrong link: the frame is for this client's group,
+    /// a nonce echo is one of its own, any other result matches something
+    /// it asked.
+    pub(super) fn check_reply(&mut self, c: usize, f: &FrameBuf) {
+        let frame = f.frame();
+        let cl = &self.clients[c];
+        if !cl.written.contains(f.as_bytes()) {
+            // Corruption that happens to form a valid frame (an 8-bit
+            // checksum passes 1 time in 256): not something the router sent.
+            self.summary.phantom_frames += 1;
+            return;
+        }
+        self.summary.client_results += 1;
+        if frame.dest.group != cl.group {
+            return self.violation(format!(
+                "client {c} (group {}) got a frame for group {}",
+                cl.group, frame.dest.group
+            ));
+        }
+        let payload = frame.payload();
+        if payload.len() == 7 && payload[0] == b'N' {
+            let text = String::from_utf8_lossy(&payload[1..]).to_string();
+            let owner = u8::from_str_radix(&text[..2], 16).ok();
+            let nonce = u16::from_str_radix(&text[2..], 16).ok();
+            if owner != Some(c as u8) || !nonce.is_some_and(|n| cl.nonces.contains(&n)) {
+                return self.violation(format!("client {c} got another link's answer {text}"));
+            }
+            self.summary.nonce_results += 1;
+            return;
+        }
+        let level = |want: u8, got: u8| want == WILDCARD || want == got;
+        let asked = cl.issued.iter().any(|d| {
+            level(d.group, frame.source)
+                && level(d.port, frame.dest.port)
+                && (level(d.device, frame.dest.device) || (d.port == 0 && frame.dest.device == 0))
+        });
+        if !asked {
+            self.violation(format!(
+                "client {c} got a result from {}.{}.{} it never asked for",
+                frame.source, frame.dest.port, frame.dest.device
+            ));
+        }
+    }
+}

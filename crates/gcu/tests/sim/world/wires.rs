@@ -1,0 +1,177 @@
+//! The wires between nodes: latency, loss, damage and FIFO order per
+//! direction, links between GCUs coming and going, and delivery of bytes to
+//! routers, devices and clients.
+
+use super::*;
+
+impl World {
+    pub(super) fn write_link(&mut self, g: usize, link: LinkId, bytes: Vec<u8>) {
+        if let Some(i) = self
+            .pairs
+            .iter()
+            .position(|p| p.parent == (g, link) || p.child == (g, link))
+        {
+            let pair = &self.pairs[i];
+            if !pair.up {
+                return self.violation(format!("gcu {g} wrote to down {link}"));
+            }
+            let to = if pair.parent == (g, link) {
+                pair.child
+            } else {
+                pair.parent
+            };
+            let epoch = pair.epoch;
+            let to = Node::Link { g: to.0, link: to.1 };
+            if let Some((at, bytes)) = self.wire(Node::Link { g, link }, to, bytes) {
+                self.schedule(
+                    at,
+                    Ev::Bytes {
+                        to,
+                        bytes,
+                        epoch,
+                        bps: 0,
+                    },
+                );
+            }
+            return;
+        }
+        if let Some(c) = self.clients.iter().position(|cl| cl.gcu == g && cl.link == link) {
+            if !self.clients[c].connected {
+                return self.violation(format!("gcu {g} wrote to disconnected client {link}"));
+            }
+            let epoch = self.clients[c].epoch;
+            if bytes.len() > 1 {
+                self.clients[c].written.insert(bytes.clone());
+            }
+            let to = Node::Client { c };
+            if let Some((at, bytes)) = self.wire(Node::Link { g, link }, to, bytes) {
+                self.schedule(
+                    at,
+                    Ev::Bytes {
+                        to,
+                        bytes,
+                        epoch,
+                        bps: 0,
+                    },
+                );
+            }
+            return;
+        }
+        self.violation(format!("gcu {g} wrote to unknown {link}"));
+    }
+
+    /// Faults of one write: dropped, or delivered at a time (FIFO per wire),
+    /// perhaps with one byte corrupted.
+    pub(super) fn wire(&mut self, from: Node, to: Node, mut bytes: Vec<u8>) -> Option<(u64, Vec<u8>)> {
+        if !self.quiet {
+            if self.rng.chance(self.drop_pm) {
+                return None;
+            }
+            if !bytes.is_empty() && self.rng.chance(self.corrupt_pm) {
+                let at = self.rng.below(bytes.len() as u64) as usize;
+                bytes[at] ^= self.rng.range(1, 255) as u8;
+                if let Node::Client { c } = to {
+                    // A damaged frame can leave a bare 0x06 behind: a phantom ACK.
+                    self.clients[c].wire_damaged = true;
+                }
+            }
+        }
+        let delay = 1 + self.rng.below(self.jitter);
+        let last = self.fifo.entry((from, to)).or_insert(0);
+        let at = (*last).max(self.now + delay);
+        *last = at;
+        Some((at, bytes))
+    }
+
+    pub(super) fn pair_up(&mut self, i: usize) {
+        let (parent, child) = (self.pairs[i].parent, self.pairs[i].child);
+        self.pairs[i].up = true;
+        let any = SourceFilter::Any;
+        self.input(
+            parent.0,
+            Input::LinkUp {
+                link: parent.1,
+                config: LinkConfig::new(LinkKind::Downstream, any.clone()),
+            },
+        );
+        self.input(
+            child.0,
+            Input::LinkUp {
+                link: child.1,
+                config: LinkConfig::new(LinkKind::Upstream, any),
+            },
+        );
+    }
+
+    pub(super) fn pair_down(&mut self, i: usize) {
+        let (parent, child) = (self.pairs[i].parent, self.pairs[i].child);
+        self.pairs[i].up = false;
+        self.pairs[i].epoch += 1;
+        self.input(parent.0, Input::LinkDown { link: parent.1 });
+        self.input(child.0, Input::LinkDown { link: child.1 });
+    }
+
+    pub(super) fn deliver(&mut self, to: Node, bytes: Vec<u8>, epoch: u64, bps: u32) {
+        match to {
+            Node::Device { g, p, d } => {
+                let now = self.now;
+                let sp = &mut self.gcus[g].ports[p];
+                if sp.epoch != epoch {
+                    return;
+                }
+                let port_epoch = sp.epoch;
+                let dev = &mut sp.devices[d];
+                if dev.bps != bps {
+                    return; // another line rate: garbage to this device
+                }
+                let mut out = Vec::new();
+                dev.last_rx = now;
+                dev.ep
+                    .receive(&bytes, now, &mut dev.gimbal, &mut |b: &[u8]| out.extend_from_slice(b));
+                let sent_at = dev.bps;
+                if let Some(new) = dev.gimbal.pending_rate.take() {
+                    dev.bps = new;
+                }
+                let deferred = dev.gimbal.deferred.take();
+                self.device_writes(g, p, d, out, port_epoch, sent_at);
+                self.schedule(now + SILENCE, Ev::DeviceIdle { g, p, d, since: now });
+                if let Some(reply_to) = deferred {
+                    let at = self.now + self.rng.range(200, 2_000);
+                    self.schedule(at, Ev::Deferred { g, p, d, to: reply_to });
+                }
+            }
+            Node::Port { g, p } => {
+                let sp = &self.gcus[g].ports[p];
+                if sp.epoch != epoch || !sp.open || sp.bps != bps {
+                    return;
+                }
+                let port = sp.id;
+                self.log(format_args!("gcu {g} port {port} -> {bytes:02X?}"));
+                self.input(g, Input::PortBytes { port, bytes: &bytes });
+            }
+            Node::Link { g, link } => {
+                let Some(pair) = self
+                    .pairs
+                    .iter()
+                    .find(|p| p.parent == (g, link) || p.child == (g, link))
+                else {
+                    // A client's link.
+                    if let Some(c) = self.clients.iter().position(|cl| cl.gcu == g && cl.link == link) {
+                        if self.clients[c].epoch == epoch && self.clients[c].connected {
+                            self.input(g, Input::LinkBytes { link, bytes: &bytes });
+                        }
+                    }
+                    return;
+                };
+                if pair.epoch == epoch && pair.up {
+                    self.input(g, Input::LinkBytes { link, bytes: &bytes });
+                }
+            }
+            Node::Client { c } => {
+                if self.clients[c].epoch == epoch && self.clients[c].connected {
+                    self.client_receive(c, &bytes);
+                }
+            }
+        }
+    }
+}
