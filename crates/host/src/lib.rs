@@ -14,6 +14,7 @@
 //!   (`docs/capture.md`, `tools/wireshark/sagebrush.lua`).
 
 pub mod capture;
+pub mod codec;
 pub mod hex;
 pub mod logging;
 pub mod master;

@@ -10,12 +10,16 @@
 use std::io;
 use std::time::Duration;
 
+use futures_util::{FutureExt, SinkExt, StreamExt};
 use sagebrush_protocol::link::TransactionPolicy;
 use sagebrush_protocol::{
-    ACK, CONTROL_UNIT, Command, DeliveryReport, Event, FrameBuf, Framer, LINK_PORT, NAK, Outcome, OwnedEvent,
-    Transaction, TransactionStep, TxFailure,
+    CONTROL_UNIT, Command, DeliveryReport, Event, FrameBuf, LINK_PORT, Outcome, OwnedEvent, Transaction,
+    TransactionStep, TxFailure,
 };
-use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use tokio::io::{AsyncRead, AsyncWrite};
+use tokio_util::codec::Framed;
+
+use crate::codec::{FrameCodec, Write};
 use tokio::time::Instant;
 use tracing::{debug, info, warn};
 
@@ -49,20 +53,23 @@ fn report_about(frame: &FrameBuf, candidate: &FrameBuf) -> Option<DeliveryReport
     (report.dest == command.dest && report.command_checksum == command.checksum()).then_some(report)
 }
 
-/// A master on one stream.
+/// A master on one stream, read as framer events ([`FrameCodec`]): none is
+/// lost between reads or exchanges.
 #[derive(Debug)]
 pub struct Master<S> {
-    stream: S,
-    framer: Framer,
+    framed: Framed<S, FrameCodec>,
     epoch: Instant,
     policy: TransactionPolicy,
 }
 
+/// Events already waiting when an exchange starts are discarded (they
+/// arrived before its command, so they cannot answer it); at most this many.
+const STALE_EVENTS_CAP: usize = 1024;
+
 impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
     pub fn new(stream: S, policy: TransactionPolicy) -> Self {
         Self {
-            stream,
-            framer: Framer::new(),
+            framed: Framed::new(stream, FrameCodec::new()),
             epoch: Instant::now(),
             policy,
         }
@@ -72,8 +79,9 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
         &self.policy
     }
 
+    /// The stream itself (bytes already read into events are not in it).
     pub fn stream_mut(&mut self) -> &mut S {
-        &mut self.stream
+        self.framed.get_mut()
     }
 
     fn now(&self) -> u64 {
@@ -84,9 +92,33 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
         self.epoch + Duration::from_millis(tick)
     }
 
-    async fn write(&mut self, bytes: &[u8]) -> io::Result<()> {
-        self.stream.write_all(bytes).await?;
-        self.stream.flush().await
+    /// Writes and flushes.
+    pub async fn write(&mut self, what: Write<'_>) -> io::Result<()> {
+        self.framed.send(what).await
+    }
+
+    /// The next event, or `None` once `deadline` passed; the end of the
+    /// stream is an error.
+    pub async fn next_event(&mut self, deadline: Option<Instant>) -> io::Result<Option<OwnedEvent>> {
+        let next = match deadline {
+            Some(at) => match tokio::time::timeout_at(at, self.framed.next()).await {
+                Ok(next) => next,
+                Err(_) => return Ok(None),
+            },
+            None => self.framed.next().await,
+        };
+        match next {
+            Some(event) => event.map(Some),
+            None => Err(io::Error::new(
+                io::ErrorKind::UnexpectedEof,
+                "the line closed during the exchange",
+            )),
+        }
+    }
+
+    /// Noise bytes skipped so far.
+    pub fn noise_bytes(&self) -> u64 {
+        self.framed.codec().framer().skipped_bytes()
     }
 
     /// Sends `frame` (whose payload is `command`) and waits for the end of
@@ -94,13 +126,23 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
     /// outcome, failures included, is an [`Exchange`].
     pub async fn transact(&mut self, frame: &FrameBuf, command: &Command<'_>) -> io::Result<Exchange> {
         let started = Instant::now();
-        let noise_at_start = self.framer.skipped_bytes();
+        let mut stale = 0;
+        while stale < STALE_EVENTS_CAP {
+            match self.framed.next().now_or_never() {
+                Some(Some(Ok(event))) => {
+                    debug!(?event, "event before the command discarded");
+                    stale += 1;
+                }
+                Some(Some(Err(e))) => return Err(e),
+                Some(None) | None => break,
+            }
+        }
+        let noise_at_start = self.noise_bytes();
         let mut tx = Transaction::new(frame.frame().dest, command, self.policy);
         let mut result = None;
         let mut undelivered = None;
         let (mut naks_received, mut naks_sent, mut stray_frames) = (0u32, 0u32, 0u32);
         let mut step = tx.start(self.now());
-        let mut buf = [0u8; 512];
         let outcome = loop {
             match step {
                 TransactionStep::Done(outcome) => break outcome,
@@ -108,83 +150,58 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
                     if tx.transmissions() > 1 {
                         info!(transmission = tx.transmissions(), dest = %frame.frame().dest, "retransmitting");
                     }
-                    self.write(frame.as_bytes()).await?;
+                    self.write(Write::Frame(frame)).await?;
                     step = tx.poll(self.now());
                     continue;
                 }
                 TransactionStep::Wait => {}
             }
             let deadline = tx.deadline().map(|d| self.instant(d));
-            let read = async {
-                match deadline {
-                    Some(at) => tokio::time::timeout_at(at, self.stream.read(&mut buf)).await.ok(),
-                    None => Some(self.stream.read(&mut buf).await),
-                }
+            let Some(event) = self.next_event(deadline).await? else {
+                step = tx.poll(self.now());
+                continue;
             };
-            let n = match read.await {
-                None => {
-                    step = tx.poll(self.now());
-                    continue;
+            let now = self.now();
+            step = match event {
+                OwnedEvent::Frame(f) => {
+                    // Every intact frame is acknowledged, hop by hop.
+                    self.write(Write::Ack).await?;
+                    if let Some(report) = report_about(frame, &f).filter(|r| r.failure.is_some()) {
+                        if !tx.acknowledged() {
+                            warn!(dest = %frame.frame().dest, ?report, "not delivered");
+                            undelivered = Some(report);
+                            step = TransactionStep::Done(Outcome::Failed(TxFailure::NoAck));
+                            continue;
+                        }
+                    }
+                    let s = tx.on_event(&Event::Frame(f.frame()), now);
+                    if s == TransactionStep::Done(Outcome::Result) {
+                        result = Some(f);
+                    } else {
+                        stray_frames += 1;
+                        debug!(dest = %f.frame().dest, "frame that is not our result ignored");
+                    }
+                    s
                 }
-                Some(Ok(0)) => {
-                    return Err(io::Error::new(
-                        io::ErrorKind::UnexpectedEof,
-                        "the line closed during the exchange",
-                    ));
+                OwnedEvent::BadChecksum(bad) => {
+                    if tx.is_result_header(&bad.dest) {
+                        warn!(dest = %bad.dest, "damaged result: NAK");
+                        naks_sent += 1;
+                        self.write(Write::Nak).await?;
+                    }
+                    TransactionStep::Wait
                 }
-                Some(Ok(n)) => n,
-                Some(Err(e)) => return Err(e),
+                OwnedEvent::Ack => tx.on_event(&Event::Ack, now),
+                OwnedEvent::Nak => {
+                    naks_received += 1;
+                    tx.on_event(&Event::Nak, now)
+                }
+                OwnedEvent::Nic => tx.on_event(&Event::Nic, now),
             };
-            let mut events = Vec::new();
-            self.framer.feed(&buf[..n], |e| events.push(e.to_owned()));
-            for event in events {
-                if matches!(step, TransactionStep::Done(_)) {
-                    debug!("byte after the end of the exchange ignored");
-                    continue;
-                }
-                let now = self.now();
-                step = match event {
-                    OwnedEvent::Frame(f) => {
-                        // Every intact frame is acknowledged, hop by hop.
-                        self.write(&[ACK]).await?;
-                        if let Some(report) = report_about(frame, &f).filter(|r| r.failure.is_some()) {
-                            if !tx.acknowledged() {
-                                warn!(dest = %frame.frame().dest, ?report, "not delivered");
-                                undelivered = Some(report);
-                                step = TransactionStep::Done(Outcome::Failed(TxFailure::NoAck));
-                                continue;
-                            }
-                        }
-                        let s = tx.on_event(&Event::Frame(f.frame()), now);
-                        if s == TransactionStep::Done(Outcome::Result) {
-                            result = Some(f);
-                        } else {
-                            stray_frames += 1;
-                            debug!(dest = %f.frame().dest, "frame that is not our result ignored");
-                        }
-                        s
-                    }
-                    OwnedEvent::BadChecksum(bad) => {
-                        let dest = bad.dest;
-                        if tx.is_result_header(&dest) {
-                            warn!(dest = %dest, "damaged result: NAK");
-                            naks_sent += 1;
-                            self.write(&[NAK]).await?;
-                        }
-                        TransactionStep::Wait
-                    }
-                    OwnedEvent::Ack => tx.on_event(&Event::Ack, now),
-                    OwnedEvent::Nak => {
-                        naks_received += 1;
-                        tx.on_event(&Event::Nak, now)
-                    }
-                    OwnedEvent::Nic => tx.on_event(&Event::Nic, now),
-                };
-                if step == TransactionStep::Send {
-                    info!(transmission = tx.transmissions(), "NAK received: retransmitting");
-                    self.write(frame.as_bytes()).await?;
-                    step = tx.poll(self.now());
-                }
+            if step == TransactionStep::Send {
+                info!(transmission = tx.transmissions(), "NAK received: retransmitting");
+                self.write(Write::Frame(frame)).await?;
+                step = tx.poll(self.now());
             }
         };
         Ok(Exchange {
@@ -193,7 +210,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
             transmissions: tx.transmissions(),
             naks_received,
             naks_sent,
-            noise_bytes: self.framer.skipped_bytes() - noise_at_start,
+            noise_bytes: self.noise_bytes() - noise_at_start,
             stray_frames,
             undelivered,
             elapsed: started.elapsed(),
