@@ -85,17 +85,7 @@ impl World {
             },
             cl.epoch,
         );
-        if let Some((at, bytes)) = self.wire(from, to, bytes) {
-            self.schedule(
-                at,
-                Ev::Bytes {
-                    to,
-                    bytes,
-                    epoch,
-                    bps: 0,
-                },
-            );
-        }
+        self.send_on_wire(from, to, bytes, epoch);
     }
 
     pub(super) fn random_command(&mut self, c: usize) -> (Address, Vec<u8>) {

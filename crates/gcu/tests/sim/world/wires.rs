@@ -5,6 +5,22 @@
 use super::*;
 
 impl World {
+    /// Bytes over a wire without a line rate (a link, a client's
+    /// connection): through the wire's faults, then delivered in order.
+    pub(super) fn send_on_wire(&mut self, from: Node, to: Node, bytes: Vec<u8>, epoch: u64) {
+        if let Some((at, bytes)) = self.wire(from, to, bytes) {
+            self.schedule(
+                at,
+                Ev::Bytes {
+                    to,
+                    bytes,
+                    epoch,
+                    bps: 0,
+                },
+            );
+        }
+    }
+
     pub(super) fn write_link(&mut self, g: usize, link: LinkId, bytes: Vec<u8>) {
         if let Some(i) = self
             .pairs
@@ -22,17 +38,7 @@ impl World {
             };
             let epoch = pair.epoch;
             let to = Node::Link { g: to.0, link: to.1 };
-            if let Some((at, bytes)) = self.wire(Node::Link { g, link }, to, bytes) {
-                self.schedule(
-                    at,
-                    Ev::Bytes {
-                        to,
-                        bytes,
-                        epoch,
-                        bps: 0,
-                    },
-                );
-            }
+            self.send_on_wire(Node::Link { g, link }, to, bytes, epoch);
             return;
         }
         if let Some(c) = self.clients.iter().position(|cl| cl.gcu == g && cl.link == link) {
@@ -44,17 +50,7 @@ impl World {
                 self.clients[c].written.insert(bytes.clone());
             }
             let to = Node::Client { c };
-            if let Some((at, bytes)) = self.wire(Node::Link { g, link }, to, bytes) {
-                self.schedule(
-                    at,
-                    Ev::Bytes {
-                        to,
-                        bytes,
-                        epoch,
-                        bps: 0,
-                    },
-                );
-            }
+            self.send_on_wire(Node::Link { g, link }, to, bytes, epoch);
             return;
         }
         self.violation(format!("gcu {g} wrote to unknown {link}"));
