@@ -1,0 +1,135 @@
+//! `config/grafana-dashboard.json` loads (valid JSON, every panel has
+//! queries) and every metric its queries name is one that a real gcud
+//! exports: the dashboard is checked against a scrape of the binary, not
+//! against a list kept by hand.
+
+mod support;
+
+use std::collections::BTreeSet;
+use std::io::{Read, Write};
+use std::net::TcpStream;
+
+use serde_json::Value;
+use support::HANG_GUARD;
+
+/// The `gcud_...` metric names in a PromQL expression.
+fn metric_names(expr: &str) -> Vec<String> {
+    let mut names = Vec::new();
+    let mut rest = expr;
+    while let Some(at) = rest.find("gcud_") {
+        let tail = &rest[at..];
+        let end = tail
+            .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+            .unwrap_or(tail.len());
+        names.push(tail[..end].to_owned());
+        rest = &tail[end..];
+    }
+    names
+}
+
+fn dashboard() -> Value {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/config/grafana-dashboard.json");
+    let text = std::fs::read_to_string(path).expect("config/grafana-dashboard.json");
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{path} is not valid JSON: {e}"))
+}
+
+/// Every query of the dashboard: (panel title, expression).
+fn queries(dashboard: &Value) -> Vec<(String, String)> {
+    let panels = dashboard["panels"].as_array().expect("a panels array");
+    assert!(!panels.is_empty(), "the dashboard has panels");
+    let mut queries = Vec::new();
+    for panel in panels {
+        let title = panel["title"].as_str().expect("every panel has a title").to_owned();
+        let targets = panel["targets"].as_array().filter(|t| !t.is_empty());
+        for target in targets.unwrap_or_else(|| panic!("panel {title:?} has no queries")) {
+            let expr = target["expr"].as_str();
+            let expr = expr.unwrap_or_else(|| panic!("a query of {title:?} has no expr"));
+            queries.push((title.clone(), expr.to_owned()));
+        }
+    }
+    for variable in dashboard["templating"]["list"].as_array().into_iter().flatten() {
+        if let Some(query) = variable["query"].as_str() {
+            queries.push((format!("variable {}", variable["name"]), query.to_owned()));
+        }
+    }
+    queries
+}
+
+/// The metric families and sample names a scrape shows.
+fn exported(scrape: &str) -> BTreeSet<String> {
+    let mut names = BTreeSet::new();
+    for line in scrape.lines() {
+        if let Some(rest) = line.strip_prefix("# TYPE ") {
+            let mut words = rest.split_whitespace();
+            if let (Some(name), Some(kind)) = (words.next(), words.next()) {
+                names.insert(name.to_owned());
+                if kind == "counter" {
+                    names.insert(format!("{name}_total"));
+                }
+            }
+        } else if !line.starts_with('#') {
+            let end = line.find(['{', ' ']).unwrap_or(line.len());
+            names.insert(line[..end].to_owned());
+        }
+    }
+    names
+}
+
+#[test]
+fn the_dashboard_queries_only_metrics_that_gcud_exports() {
+    let queries = queries(&dashboard());
+    let wanted: BTreeSet<(String, String)> = queries
+        .iter()
+        .flat_map(|(title, expr)| metric_names(expr).into_iter().map(|n| (n, title.clone())))
+        .collect();
+    assert!(wanted.len() > 10, "the dashboard names gcud's metrics: {wanted:?}");
+
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut gcud = support::spawn_gcud(
+        dir.path(),
+        "[gcu]\ngroup = 5\n[metrics]\nlisten = \"127.0.0.1:0\"\n[[port]]\nid = 1\nsimulate = [1]\n\
+         [[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n",
+    );
+    let log = dir.path().join("gcud.log");
+    let address = |what: &str| {
+        let line = support::wait_for_log_line(&log, what);
+        let addr = line.split("addr=").nth(1).expect("addr field");
+        addr.split_whitespace().next().expect("address").to_owned()
+    };
+    let (clients, metrics) = (address("listening link=clients"), address("metrics at /metrics"));
+    // One exchange, so that the per-device families have samples too.
+    for query in ["position", "lens"] {
+        let out = support::gimbalctl(&["--tcp", &clients, "--to", "5.1.1", query]);
+        assert_eq!(out.code, 0, "{query}: {out:?}");
+    }
+    let mut stream = TcpStream::connect(&metrics).expect("connect to /metrics");
+    stream.set_read_timeout(Some(HANG_GUARD)).expect("timeout");
+    write!(
+        stream,
+        "GET /metrics HTTP/1.1\r\nHost: {metrics}\r\nConnection: close\r\n\r\n"
+    )
+    .expect("request");
+    let mut scrape = String::new();
+    stream.read_to_string(&mut scrape).expect("response");
+    support::terminate(&mut gcud);
+    assert!(scrape.starts_with("HTTP/1.1 200"), "{scrape}");
+
+    let exported = exported(&scrape);
+    let missing: Vec<String> = wanted
+        .iter()
+        .filter(|(name, _)| !exported.contains(name))
+        .map(|(name, title)| format!("{name} (panel {title:?})"))
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "the dashboard queries metrics gcud does not export: {missing:?}\nscrape:\n{scrape}"
+    );
+}
+
+#[test]
+fn metric_names_are_found_in_promql() {
+    assert_eq!(
+        metric_names("sum by (outcome) (rate(gcud_commands_total{instance=~\"$i\"}[5m])) / gcud_uptime_ms"),
+        ["gcud_commands_total", "gcud_uptime_ms"]
+    );
+}
