@@ -1,4 +1,4 @@
-//! Who may hold an accepted connection (DESIGN "Safety": no client can
+//! Who may hold an accepted connection (ARCHITECTURE "Safety": no client can
 //! lock others out; state bounded by what is live). One table for all
 //! listeners:
 //!

@@ -2,7 +2,7 @@
 //! TCP device server, in-process simulator) and links (serial, TCP listener,
 //! TCP client). Every pipe reconnects by itself with backoff when its device
 //! or peer is missing or vanishes, without disturbing any other pipe
-//! (DESIGN "Layers", 3: transport).
+//! (ARCHITECTURE "Layers", 3: transport).
 
 use std::io;
 use std::sync::Arc;

@@ -1,6 +1,6 @@
 //! `gcud`: the GCU router daemon. The routing logic is the `sagebrush-gcu`
 //! router core; this binary wires it to serial ports and TCP links
-//! (DESIGN "Layers", 3 and 4).
+//! (ARCHITECTURE "Layers", 3 and 4).
 
 mod admission;
 mod config;

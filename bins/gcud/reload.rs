@@ -1,5 +1,5 @@
 //! SIGHUP: what a new configuration file changes against the running one
-//! (DESIGN "Safety"; README "Reload"). Ports and links are compared by
+//! (ARCHITECTURE "Safety"; README "Reload"). Ports and links are compared by
 //! port id and link name: an unchanged one is left alone (its in-flight
 //! transactions and queues go on), a removed or changed one is closed
 //! (ports after their motions were stopped, links through the dead-man),

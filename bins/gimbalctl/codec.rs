@@ -1,5 +1,5 @@
 //! `encode` and `decode`: frames to hex and hex to framer events, without
-//! I/O (Table 1; the framer's resynchronisation rules of NOTES "Framing").
+//! I/O (Table 1; the framer's resynchronisation rules of protocol-notes "Framing").
 
 use std::io::Read;
 

@@ -124,7 +124,7 @@ pub fn awake(s: AwakeStatus) -> (String, Value) {
     (text, Value::Object(m))
 }
 
-/// `VS`: no published layout (NOTES E13); devices built on the simulator's
+/// `VS`: no published layout (protocol-notes E13); devices built on the simulator's
 /// and the firmware's reading answer `C` + camera power digit + `L` + relay
 /// hex digit (Table 4A style). Anything else is shown raw.
 fn camera_status(bytes: &[u8]) -> (String, Value) {

@@ -255,7 +255,7 @@ end
 local function decode_result(shape, cmd_payload, s, tree, range)
     local skip = 0
     if shape ~= "raw" and cmd_payload and #s > #cmd_payload and s:sub(1, #cmd_payload) == cmd_payload then
-        skip = #cmd_payload -- an echo of the command (NOTES E6)
+        skip = #cmd_payload -- an echo of the command (protocol-notes E6)
     end
     local body = s:sub(skip + 1)
     local function at(off, len) return range(skip + off, len) end
@@ -319,7 +319,7 @@ local function decode_result(shape, cmd_payload, s, tree, range)
             return string.format("ID %s rev %s %q %q", body:sub(1, 2), body:sub(3, 4), name, serial)
         end
     elseif shape == "errors" or shape == "statusbits" then
-        -- Table 6A: 2 + 2 hex; Table 6B: 4 + 4 (2 + 2 accepted, NOTES E3).
+        -- Table 6A: 2 + 2 hex; Table 6B: 4 + 4 (2 + 2 accepted, protocol-notes E3).
         local w = (#body == 8) and 4 or 2
         local pan, tilt = hexval(body:sub(1, w)), hexval(body:sub(w + 1, 2 * w))
         if pan and tilt and #body == 2 * w then

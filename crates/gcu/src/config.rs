@@ -1,4 +1,4 @@
-//! Router configuration (DESIGN "Routing semantics"): own group, ports with
+//! Router configuration (ARCHITECTURE "Routing semantics"): own group, ports with
 //! their time-outs, link settings, static routes and the default upstream.
 //! All durations are in ticks, the unit of the `now` the daemon passes in
 //! (milliseconds in `gcud`).

@@ -1,4 +1,4 @@
-//! Dead-man (DESIGN "Safety"): continuous motion (`PL`, `PR`, `TU`, `TD`,
+//! Dead-man (ARCHITECTURE "Safety"): continuous motion (`PL`, `PR`, `TU`, `TD`,
 //! `FF`, `FN`, `ZI`, `ZO`) started by a link that then disconnects is
 //! stopped with the matching stop command (`PS`, `TS`, `FS`, `ZS`).
 //!

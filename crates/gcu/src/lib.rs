@@ -1,4 +1,4 @@
-//! The GCU router core (DESIGN "Layers" 2): a group control unit of group G
+//! The GCU router core (ARCHITECTURE "Layers" 2): a group control unit of group G
 //! as pure, deterministic logic. No I/O, no clocks, no threads: events go
 //! in with a tick count, actions come out.
 //!
@@ -39,7 +39,7 @@
 //! - Ports start closed: send [`Input::PortOpened`] once the serial port is
 //!   open; the router answers with [`Action::SetPortRate`].
 //!
-//! # Rules implemented (DESIGN "Routing semantics", "Safety")
+//! # Rules implemented (ARCHITECTURE "Routing semantics", "Safety")
 //!
 //! - **Delivery contract** (ARCHITECTURE.md): a client link's command is
 //!   ACKed only once it is delivered (the device acknowledged it); an

@@ -1,5 +1,5 @@
 //! The receive side of one line (serial port or link): the protocol
-//! crate's streaming [`Framer`] plus the silence hook (NOTES "Framing": a
+//! crate's streaming [`Framer`] plus the silence hook (protocol-notes "Framing": a
 //! partial candidate is abandoned once the line has been idle), turning
 //! bytes into the protocol crate's [`OwnedEvent`]s, which the router can
 //! keep while it mutates itself.

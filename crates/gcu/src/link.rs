@@ -1,4 +1,4 @@
-//! One link toward the MCU, another GCU or a client (DESIGN "Routing
+//! One link toward the MCU, another GCU or a client (ARCHITECTURE "Routing
 //! semantics"): NAK of every damaged frame received, ACK when the router
 //! says so (ARCHITECTURE "Delivery contract": at once for answers and on
 //! links to other GCUs, on delivery for a client's command), and a bounded send queue whose
@@ -10,7 +10,7 @@
 //!
 //! Forwarded stop commands overtake the frames waiting on the link (not the
 //! one in flight), are bounded apart from them (so that a burst of traffic
-//! never costs a stop its place, DESIGN "Safety"), and a stop identical to
+//! never costs a stop its place, ARCHITECTURE "Safety"), and a stop identical to
 //! one already waiting is merged into it.
 
 use sagebrush_protocol::{ACK, FrameBuf, NAK, NIC, OwnedEvent, RetryPolicy, Transmitter, TxStep};
@@ -28,7 +28,7 @@ pub(crate) struct Outgoing {
     pub pending: Option<u64>,
     /// A forwarded stop command.
     pub stop: bool,
-    /// A dead-man stop (DESIGN "Safety"): never refused for a full queue.
+    /// A dead-man stop (ARCHITECTURE "Safety"): never refused for a full queue.
     /// Their number is bounded by the motions the router tracks.
     pub dead_man: bool,
 }

@@ -1,4 +1,4 @@
-//! The GCU itself as a destination (DESIGN "Routing semantics": port 0 is
+//! The GCU itself as a destination (ARCHITECTURE "Routing semantics": port 0 is
 //! addressed to the GCU itself, which answers at least `AW` and `D?`, NIC
 //! otherwise). `AW` answers status 0 (Table 5: all well); `D?` answers
 //! Table 6 with the group as ID, revision `19` and the configured name and

@@ -1,4 +1,4 @@
-//! The per-port transaction scheduler (DESIGN "Routing semantics", "On a
+//! The per-port transaction scheduler (ARCHITECTURE "Routing semantics", "On a
 //! port, one transaction at a time"):
 //!
 //! - One [`Transaction`] of the protocol crate at a time on each bus: write,
@@ -40,7 +40,7 @@
 //! - A `C0`..`C7` rate change acknowledged by every device of the port
 //!   (configured list, or the devices that answered since the port opened),
 //!   or broadcast to device 255, switches the port's own line rate.
-//!   Reserved rates `C8`..`CF` never do (NOTES E15).
+//!   Reserved rates `C8`..`CF` never do (protocol-notes E15).
 //! - A lost port fails its in-flight and queued jobs ([`DropReason::PortLost`]).
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -426,7 +426,7 @@ impl Port {
     }
 
     /// The next job: a stop first; else round robin between origins (each
-    /// link is one client, DESIGN "Safety": none starves another), the
+    /// link is one client, ARCHITECTURE "Safety": none starves another), the
     /// oldest job of the origin served least recently.
     fn next_job(&mut self) -> Option<Job> {
         if self.queue.front()?.facts.stop {

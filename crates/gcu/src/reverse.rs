@@ -1,4 +1,4 @@
-//! The reverse path of forwarded frames (DESIGN "Routing semantics":
+//! The reverse path of forwarded frames (ARCHITECTURE "Routing semantics":
 //! results go back along the reverse path to the link the command came
 //! from). When this GCU forwards a frame to another GCU (by route or by a
 //! group-255 flood), it remembers where the frame came from, so that the

@@ -292,7 +292,7 @@ impl Router {
         self.deadman.len()
     }
 
-    /// Applies a changed configuration (DESIGN "Safety": a port is closed
+    /// Applies a changed configuration (ARCHITECTURE "Safety": a port is closed
     /// or reconfigured only after its motions were stopped). Routes are
     /// replaced at once; a new port is added (closed until
     /// [`Input::PortOpened`]); a removed or changed port starts closing:
@@ -535,7 +535,7 @@ impl Router {
         queued
     }
 
-    /// Writes a bare `?` to the origin (DESIGN: NIC relayed as a bare `?`).
+    /// Writes a bare `?` to the origin (ARCHITECTURE "Routing semantics": a NIC is relayed as a bare `?`).
     fn nic_to(&mut self, now: u64, origin: Origin, out: &mut Vec<Action>) -> Result<(), DropReason> {
         let Origin::Link { link, .. } = origin else {
             return Ok(());
@@ -1083,7 +1083,7 @@ impl Router {
         self.stop_motions(now, stops, StopCause::DeadMan, out);
     }
 
-    /// Shutdown (DESIGN "Safety"): refuse new commands from now on, and
+    /// Shutdown (ARCHITECTURE "Safety"): refuse new commands from now on, and
     /// stop every motion still owned by a link.
     fn shut_down(&mut self, now: u64, out: &mut Vec<Action>) {
         if self.stopping {

@@ -1,4 +1,4 @@
-//! The routing table for groups other than our own (DESIGN "Routing
+//! The routing table for groups other than our own (ARCHITECTURE "Routing
 //! semantics"): static routes, then routes learned from the source groups
 //! seen on links, then the default upstream.
 //!

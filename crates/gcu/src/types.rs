@@ -73,7 +73,7 @@ pub enum Input<'a> {
     LinkDown { link: LinkId },
     /// Bytes read from a link, in any chunking.
     LinkBytes { link: LinkId, bytes: &'a [u8] },
-    /// The daemon is shutting down (DESIGN "Safety"): every continuous
+    /// The daemon is shutting down (ARCHITECTURE "Safety"): every continuous
     /// motion started through this GCU and not yet stopped gets its stop,
     /// and new commands from links are refused
     /// ([`Undelivered::ShuttingDown`]). Answers still travel. The daemon

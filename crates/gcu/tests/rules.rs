@@ -1,4 +1,4 @@
-//! One test per rule of DESIGN "Routing semantics" and "Safety", driving
+//! One test per rule of ARCHITECTURE "Routing semantics" and "Safety", driving
 //! the public `Router` API with hand-written bytes.
 
 use sagebrush_gcu::{

@@ -1,4 +1,4 @@
-//! Byte streams to a bus or a link (DESIGN "Layers", 3): serial ports via
+//! Byte streams to a bus or a link (ARCHITECTURE "Layers", 3): serial ports via
 //! tokio-serial (8N1, 1.5.1) and TCP. Errors name the device or address.
 
 use std::io;

@@ -7,7 +7,7 @@
 //! its result (used by [`crate::Reply`]), and whether it stops or starts a
 //! motion all come from that row. No match over commands has a wildcard arm.
 //!
-//! Disambiguation (NOTES "Command disambiguation"): by first character and
+//! Disambiguation (protocol-notes "Command disambiguation"): by first character and
 //! length. `P?`/`PL` (2) vs `Pnn` (3) vs `P?nn` (4) vs `Paaaaeeee` (9);
 //! `Snn` vs `SP0..SPF`/`ST0..STF` vs `S?nn`; `VMn` (3) vs `V`+6 hex (7).
 //! Hex arguments are emitted upper case and accepted in either case.
@@ -113,11 +113,11 @@ enum Motion {
 }
 
 /// The rev 1.9 table: one row per command published by name only (1.2,
-/// NOTES E13); the argument and reply bytes stay raw, no layout is guessed.
+/// protocol-notes E13); the argument and reply bytes stay raw, no layout is guessed.
 /// A row is `Variant = "name", answer;`.
 macro_rules! extended_table {
     ($( $(#[$doc:meta])* $Variant:ident = $name:literal, $answer:expr; )+) => {
-        /// Rev 1.9 commands published by name only (1.2, NOTES E13): their
+        /// Rev 1.9 commands published by name only (1.2, protocol-notes E13): their
         /// argument and reply bytes are kept raw, no layout is guessed.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
         pub enum Extended {
@@ -423,7 +423,7 @@ command_table! {
     pub enum Command<'a> (payload = payload, writer = w) {
         // Rev 1.9 (1.2): first, because its names are prefixes that win over
         // the patterns below (`VP`/`VS` + six bytes is not `Vzzzfff`).
-        /// Rev 1.9 commands with their raw argument bytes (1.2, NOTES E13).
+        /// Rev 1.9 commands with their raw argument bytes (1.2, protocol-notes E13).
         Extended(ext: Extended, args: &'a [u8]) => {
             mnemonic: ext.name(),
             answer: ext.answer(),
@@ -456,7 +456,7 @@ command_table! {
         AwakeStatus => { wire: b"AW", answer: Answer::normal(Shape::AwakeStatus), motion: Motion::Other }
         /// `B?`: maximum data rate, `C0..CF` (Table 4).
         QueryMaxDataRate => { wire: b"B?", answer: Answer::normal(Shape::MaxDataRate), motion: Motion::Other }
-        /// `C0..CF`: set communication data rate (Table 4; `C8..CF` reserved, NOTES E15).
+        /// `C0..CF`: set communication data rate (Table 4; `C8..CF` reserved, protocol-notes E15).
         SetDataRate(rate: DataRate) => {
             mnemonic: "Cn",
             answer: Answer::Ack,
@@ -567,9 +567,9 @@ command_table! {
         QueryLimits => { wire: b"L?", answer: Answer::normal(Shape::Limits), motion: Motion::Other }
 
         // Table 11: pan/tilt mount.
-        /// `A?`: both accelerations (Table 11; result Table 13, NOTES E7).
+        /// `A?`: both accelerations (Table 11; result Table 13, protocol-notes E7).
         QueryAccelerations => { wire: b"A?", answer: Answer::normal(Shape::Accelerations), motion: Motion::Other }
-        /// `AP?` / `AT?`: one axis (Table 11, NOTES E7). Before `APnnnn`.
+        /// `AP?` / `AT?`: one axis (Table 11, protocol-notes E7). Before `APnnnn`.
         QueryAcceleration(axis: Axis) => {
             mnemonic: match axis {
                 Axis::Pan => "AP?",
@@ -668,9 +668,9 @@ command_table! {
                 w.hex(preset.into(), 2)?;
             },
         }
-        /// `R?`: both rates (Table 11; result Table 13, NOTES E7).
+        /// `R?`: both rates (Table 11; result Table 13, protocol-notes E7).
         QueryRates => { wire: b"R?", answer: Answer::normal(Shape::Rates), motion: Motion::Other }
-        /// `RP?` / `RT?`: one axis (Table 11, NOTES E7). Before `RPnnnn`.
+        /// `RP?` / `RT?`: one axis (Table 11, protocol-notes E7). Before `RPnnnn`.
         QueryRate(axis: Axis) => {
             mnemonic: match axis {
                 Axis::Pan => "RP?",
@@ -896,7 +896,7 @@ command_table! {
                 w.put(data.bytes())?;
             },
         }
-        /// `*xprnnn`: receive up to nnn bytes (Table 16; decimal, NOTES E14).
+        /// `*xprnnn`: receive up to nnn bytes (Table 16; decimal, protocol-notes E14).
         AuxReceive(port: AuxPort, len: AuxReadLen) => {
             mnemonic: "*xprnnn",
             answer: Answer::normal(Shape::AuxData),
@@ -913,7 +913,7 @@ command_table! {
                 w.decimal(len.get().into(), 3)?;
             },
         }
-        /// `*xpn`: characters waiting (Table 16; decimal, NOTES E14).
+        /// `*xpn`: characters waiting (Table 16; decimal, protocol-notes E14).
         AuxCount(port: AuxPort) => {
             mnemonic: "*xpn",
             answer: Answer::normal(Shape::AuxCount),
@@ -1108,7 +1108,7 @@ impl<'a> Command<'a> {
         self.answer().kind()
     }
 
-    /// Stop and halt commands, which overtake queued work (DESIGN "Routing").
+    /// Stop and halt commands, which overtake queued work (ARCHITECTURE "Routing semantics").
     pub fn is_stop(&self) -> bool {
         self.motion() == Motion::Stop
     }

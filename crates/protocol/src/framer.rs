@@ -1,7 +1,7 @@
 //! Streaming framer: turns a byte stream in any chunking into frames and the
 //! bare ACK/NAK/NIC bytes (Table 1, 1.4.2), with resynchronisation.
 //!
-//! Rules (NOTES "Framing"):
+//! Rules (protocol-notes "Framing"):
 //! - A candidate starts at `0xF8` and claims `7 + len` bytes. A candidate
 //!   whose checksum fails is reported once as [`Event::BadChecksum`] (so a
 //!   receiver can NAK) and the scan resumes at the byte after its `0xF8`,

@@ -1,8 +1,8 @@
 //! ASCII number primitives shared by the command and reply codecs.
 //!
 //! Spec 1.4.1.2: numbers travel as upper-case ASCII hexadecimal. Parsers here
-//! also accept lower case (lenient, NOTES "parse leniently"); the writer always
-//! emits upper case. Decimal is used only by `*xpr`/`*xpn` (NOTES E14) and the
+//! also accept lower case (lenient, protocol-notes "Parse leniently"); the writer always
+//! emits upper case. Decimal is used only by `*xpr`/`*xpn` (protocol-notes E14) and the
 //! auxiliary port configuration (Table 18).
 
 use nom::IResult;

@@ -1,18 +1,4 @@
-//! Sagebrush pan-tilt gimbal protocol, revision 1.9: everything about bytes
-//! on the wire, for firmware and host alike.
-//!
-//! `no_std`, no `alloc`, no `unsafe`. Layers (DESIGN "Layers"):
-//! - [`frame`]: the frame of Table 1 (layout declared once in
-//!   [`frame::layout`]), checksum, ACK/NAK/NIC bytes; [`FrameBuf`], always a
-//!   valid frame, for queues.
-//! - [`framer`]: the streaming framer with resynchronisation; its events
-//!   borrowed ([`Event`]) or owned ([`OwnedEvent`], for queues).
-//! - [`command`], [`reply`], [`units`]: the typed command set (Tables 4, 11,
-//!   16, rev 1.9 list) and results (Tables 4A-17), in physical units.
-//! - [`link`]: the sender side of a link (ACK/NAK, retransmission, result
-//!   wait) as sans-IO state machines; time is a number the caller passes in.
-//! - [`device`]: the device side (address filter, ACK/NAK, NIC, Table 3
-//!   reply header) as a sans-IO endpoint that firmware can use as it is.
+#![doc = include_str!("../README.md")]
 #![no_std]
 #![forbid(unsafe_code)]
 
@@ -50,8 +36,3 @@ pub enum EncodeError {
     #[error("cannot encode: {0}")]
     OutOfRange(RangeError),
 }
-
-/// The README's examples, compiled and run as doc tests.
-#[cfg(doctest)]
-#[doc = include_str!("../README.md")]
-pub struct ReadmeDoctests;

@@ -2,9 +2,9 @@
 //! command code (Tables 4A, 5, 6, 6A, 6B, 8, 9, 10, 13, 14, 15, 17, the
 //! `C0..CF` data-rate reply, `*xpn`, `*xpr`).
 //!
-//! NOTES rule: parse leniently (every plausible reading), emit one canonical
+//! protocol-notes "Parse leniently": parse leniently (every plausible reading), emit one canonical
 //! form. Each type says both. Generally accepted everywhere except raw
-//! replies: an echo of the command in front of the result (NOTES E6).
+//! replies: an echo of the command in front of the result (protocol-notes E6).
 
 use nom::Parser;
 use nom::bytes::complete::take;
@@ -16,7 +16,7 @@ use crate::units::{Acceleration, Angle, DataRate, LensPosition, Limits, Position
 
 /// Awake status, Table 5: bit 0 pan not initialised, bit 1 tilt not
 /// initialised, bit 2 motors off, bit 3 error. Parsed from one hex digit or a
-/// raw byte 0x00..=0x0F (NOTES E10); emitted as one hex digit.
+/// raw byte 0x00..=0x0F (protocol-notes E10); emitted as one hex digit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct AwakeStatus(u8);
 
@@ -41,7 +41,7 @@ impl AwakeStatus {
     }
 }
 
-/// Identification block, Table 6 (NOTES E5): device ID (2 hex), protocol
+/// Identification block, Table 6 (protocol-notes E5): device ID (2 hex), protocol
 /// revision (2 characters, leading space allowed), name and serial number
 /// (20 characters each, space padded). Parsing trims the padding and accepts
 /// short blocks; encoding pads to the full 44 bytes.
@@ -94,7 +94,7 @@ pub struct ErrorCodes {
     pub tilt: u8,
 }
 
-/// Status bits per axis, Table 6B (NOTES E3): low byte bit 0 not
+/// Status bits per axis, Table 6B (protocol-notes E3): low byte bit 0 not
 /// initialised, 1 + limit, 2 - limit, 3 + centre, 4 - centre, 5 + hard stop,
 /// 6 - hard stop, 7 error present; high byte reserved. Parsed from 2 + 2 or
 /// 4 + 4 hex, emitted as 4 + 4.
@@ -104,7 +104,7 @@ pub struct StatusBits {
     pub tilt: u16,
 }
 
-/// Rate gains, Table 8 (NOTES E1, E6): pan and tilt gain x10 as 2 hex each,
+/// Rate gains, Table 8 (protocol-notes E1, E6): pan and tilt gain x10 as 2 hex each,
 /// then 4 unused characters. Parsed with or without a `G?` echo and with or
 /// without the unused characters; emitted as `pptt0000`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -113,7 +113,7 @@ pub struct RateGains {
     pub tilt: RateGain,
 }
 
-/// Initialisation results, Table 9 (NOTES E4): per direction, low byte bit 0
+/// Initialisation results, Table 9 (protocol-notes E4): per direction, low byte bit 0
 /// centre switch detected, bit 2 hard limit detected (bad), bit 3 limit
 /// switch hit. Parsed from 2 or 4 hex each, emitted as 4 each.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -153,10 +153,10 @@ pub enum Reply<'a> {
     Initialization(InitResults),
     /// `L?`, Table 10: 12 hex.
     Limits(Limits),
-    /// `LR`, Table 4A (NOTES E11): `L` + one hex digit of relay bits (bare
+    /// `LR`, Table 4A (protocol-notes E11): `L` + one hex digit of relay bits (bare
     /// digit accepted).
     Relays(u8),
-    /// `A?`: pan then tilt, 4 hex each (Table 13, NOTES E7).
+    /// `A?`: pan then tilt, 4 hex each (Table 13, protocol-notes E7).
     Accelerations { pan: Acceleration, tilt: Acceleration },
     /// `AP?` / `AT?`: 4 hex.
     Acceleration(Acceleration),
@@ -170,11 +170,11 @@ pub enum Reply<'a> {
     Position(Position),
     /// `V?`, Table 17: 6 hex (a leading `V` accepted).
     Lens(LensPosition),
-    /// `*xpn`: decimal count (NOTES E14).
+    /// `*xpn`: decimal count (protocol-notes E14).
     AuxCount(u16),
     /// `*xprnnn`: the bytes read, raw.
     AuxData(&'a [u8]),
-    /// Rev 1.9 commands: the reply bytes, raw (NOTES E13).
+    /// Rev 1.9 commands: the reply bytes, raw (protocol-notes E13).
     Raw(&'a [u8]),
 }
 
@@ -259,7 +259,7 @@ impl<'a> Reply<'a> {
     pub fn parse(command: &Command<'_>, payload: &'a [u8]) -> Result<Self, ReplyError> {
         let name = command.mnemonic();
         let shape = command.answer().shape().ok_or(ReplyError::NoResult { command: name })?;
-        // An echo of the command in front of the result (NOTES E6).
+        // An echo of the command in front of the result (protocol-notes E6).
         if payload.is_empty() {
             // A frame never carries an empty payload (Table 1: 1..=256 bytes).
             return Err(malformed(name, 0, None, "a result of at least one byte"));

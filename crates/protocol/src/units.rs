@@ -44,7 +44,7 @@ impl Axis {
 }
 
 /// An angle in hundredths of a degree, signed 16-bit two's complement,
-/// positive = counter-clockwise (Table 15, NOTES E8, E12).
+/// positive = counter-clockwise (Table 15, protocol-notes E8, E12).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct Angle(pub i16);
 
@@ -133,12 +133,12 @@ bounded!(
     LensSpeed, u8, "lens speed", 0, 9
 );
 bounded!(
-    /// Rate gain times ten, 0.3..=3.0 -> 3..=30 (Table 7, NOTES E1).
+    /// Rate gain times ten, 0.3..=3.0 -> 3..=30 (Table 7, protocol-notes E1).
     RateGain, u8, "rate gain (x10)", 3, 30
 );
 bounded!(
     /// A 12-bit value: lens zoom/focus position (Table 17) or a raw software
-    /// limit (Table 10, NOTES E9: no unit is invented).
+    /// limit (Table 10, protocol-notes E9: no unit is invented).
     U12, u16, "12-bit value", 0, 4095
 );
 bounded!(
@@ -162,7 +162,7 @@ bounded!(
     AuxReadLen, u16, "auxiliary read length", 1, 256
 );
 
-/// Communication data rate `C0..CF` (Table 4, NOTES E15).
+/// Communication data rate `C0..CF` (Table 4, protocol-notes E15).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum DataRate {
     Bps1200,
@@ -258,7 +258,7 @@ pub struct LensPosition {
     pub focus: U12,
 }
 
-/// Software limits, raw 12-bit values (Table 10, NOTES E9).
+/// Software limits, raw 12-bit values (Table 10, protocol-notes E9).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Limits {
     /// Pan counter-clockwise (+) limit.

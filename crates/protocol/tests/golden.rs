@@ -1,5 +1,5 @@
 //! Golden vectors from the protocol document (rev 1.9) and the readings of
-//! spec/NOTES.md (E1-E15), both directions.
+//! docs/protocol-notes.md (E1-E15), both directions.
 
 mod common;
 
@@ -138,7 +138,7 @@ fn start_byte_inside_header_and_as_checksum() {
     assert_eq!(stats.bad_checksums, 0);
 }
 
-/// NOTES "Framing": after a false 0xF8 the scan resumes at the byte after
+/// protocol-notes "Framing": after a false 0xF8 the scan resumes at the byte after
 /// it, so a real frame inside the false candidate's span is found.
 #[test]
 fn framer_rescans_after_a_false_start() {
@@ -346,7 +346,7 @@ fn commands_table11_pan_tilt() {
     both_ways(b"TU", C::TiltUp);
     both_ways(b"VM1", C::SetVectorMode(true));
     both_ways(b"VM0", C::SetVectorMode(false));
-    // Disambiguation by length and letters (NOTES): P?/PL (2), Pnn (3),
+    // Disambiguation by length and letters (protocol-notes "Command disambiguation"): P?/PL (2), Pnn (3),
     // P?nn (4), Paaaaeeee (9); Snn vs SPn/STn (P, T are not hex) vs S?nn.
     assert_eq!(Command::parse(b"PA0"), C::GoToPreset(0xA0));
     assert_eq!(Command::parse(b"S10"), C::StorePreset(0x10));

@@ -37,7 +37,7 @@ pub struct GimbalConfig {
     /// Mechanical tilt travel (down end, up end), hundredths of a degree.
     pub tilt_range: (i16, i16),
     /// Hundredths of a degree per count of a Table 10 software limit. The
-    /// protocol gives no unit (NOTES E9); this is the simulator's choice.
+    /// protocol gives no unit (protocol-notes E9); this is the simulator's choice.
     pub limit_unit: u16,
     /// Highest data rate the unit supports (`B?`, Table 4).
     pub max_data_rate: DataRate,

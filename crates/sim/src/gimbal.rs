@@ -741,7 +741,7 @@ impl Gimbal {
         Response::Reply(Reply::AuxData(&self.scratch))
     }
 
-    /// The rev 1.9 commands (1.2, NOTES E13).
+    /// The rev 1.9 commands (1.2, protocol-notes E13).
     fn extended(&mut self, ext: Extended, args: &[u8]) -> Response<'_> {
         if !args.is_empty() {
             return Response::Nic;
