@@ -265,3 +265,113 @@ fn a_capture_out_of_budget_stops_once_and_sigusr1_starts_a_fresh_one() {
     let (log, _dir) = gcud.terminate();
     assert_eq!(log.matches("capture budget of 4096 bytes reached").count(), 1, "{log}");
 }
+
+/// gimbalsim and gimbalctl capture their own line (`--capture FILE`): the
+/// same exchange, recorded at both ends, decodes with the dissector, each
+/// end with its own directions (the master's commands outbound, the
+/// device's inbound; ACKs and results the other way).
+#[test]
+fn gimbalsim_and_gimbalctl_capture_their_own_line() {
+    require_tshark();
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (sim_file, ctl_file) = (dir.path().join("sim.pcapng"), dir.path().join("ctl.pcapng"));
+    let sim = support::Sim::pty(&["--device", "1", "--capture", sim_file.to_str().expect("path")]);
+    let out = sim.ctl(&[
+        "--capture",
+        ctl_file.to_str().expect("path"),
+        "--to",
+        "1.1.1",
+        "goto",
+        "12.5",
+        "-3",
+    ]);
+    assert_eq!(out.code, 0, "{out:?}");
+    let out = sim.ctl(&["--to", "1.1.1", "position"]);
+    assert_eq!(out.code, 0, "{out:?}");
+    sim.stop();
+
+    // The bus master's view: one goto out, its ACK in.
+    let (rows, code, stderr) = decode(&ctl_file);
+    assert_eq!(code, 0, "tshark: {stderr}");
+    let all = table(&rows);
+    assert!(
+        rows.iter()
+            .all(|r| r.get("frame.interface_name").starts_with("gimbalctl serial ")),
+        "{all}"
+    );
+    let goto = rows
+        .iter()
+        .find(|r| r.get("sagebrush.cmd") == "Paaaaeeee")
+        .expect("the goto");
+    assert_eq!(goto.get("sagebrush.direction"), "2", "written by gimbalctl: {all}");
+    assert_eq!(goto.get("sagebrush.address"), "1.1.1", "{all}");
+    assert_eq!(goto.get("sagebrush.pan_deg").parse::<f64>().ok(), Some(12.5), "{all}");
+    assert_eq!(goto.get("sagebrush.tilt_deg").parse::<f64>().ok(), Some(-3.0), "{all}");
+    let ack = rows.iter().find(|r| r.get("sagebrush.kind") == "2").expect("the ACK");
+    assert_eq!(ack.get("sagebrush.direction"), "1", "read by gimbalctl: {all}");
+    assert!(
+        !rows.iter().any(|r| r.get("sagebrush.cmd") == "P?"),
+        "the second run was not captured: {all}"
+    );
+
+    // The device's view: both runs (one line, one file), directions reversed.
+    let (rows, code, stderr) = decode(&sim_file);
+    assert_eq!(code, 0, "tshark: {stderr}");
+    let all = table(&rows);
+    assert!(
+        rows.iter()
+            .all(|r| r.get("frame.interface_name").starts_with("gimbalsim pty ")),
+        "{all}"
+    );
+    let goto = rows
+        .iter()
+        .find(|r| r.get("sagebrush.cmd") == "Paaaaeeee")
+        .expect("the goto");
+    assert_eq!(goto.get("sagebrush.direction"), "1", "read by gimbalsim: {all}");
+    assert_eq!(goto.get("sagebrush.pan_deg").parse::<f64>().ok(), Some(12.5), "{all}");
+    let result = rows
+        .iter()
+        .find(|r| r.get("sagebrush.type") == "result")
+        .expect("the P? result");
+    assert_eq!(result.get("sagebrush.cmd"), "P?", "paired with its command: {all}");
+    assert_eq!(result.get("sagebrush.direction"), "2", "written by gimbalsim: {all}");
+    assert_eq!(result.get("sagebrush.table3_swap"), "1", "{all}");
+}
+
+/// A capture file that cannot be written is refused before anything is
+/// sent (gimbalctl, exit 2) or before the bus starts (gimbalsim), naming it.
+#[test]
+fn an_unwritable_capture_file_is_refused_up_front() {
+    let sim = support::Sim::pty(&["--device", "1"]);
+    let out = sim.ctl(&[
+        "--capture",
+        "/nonexistent/dir/x.pcapng",
+        "--to",
+        "1.1.1",
+        "goto",
+        "1",
+        "1",
+    ]);
+    assert_eq!(out.code, 2, "{out:?}");
+    assert!(
+        out.stderr
+            .contains("--capture /nonexistent/dir/x.pcapng: cannot write it"),
+        "{out:?}"
+    );
+    assert_eq!(
+        sim.ctl_json(&["--to", "1.1.1", "position"])["result"]["pan_deg"],
+        0.0,
+        "nothing was sent"
+    );
+    let out = std::process::Command::new(support::gimbalsim_bin())
+        .args(["--capture", "/nonexistent/dir/y.pcapng"])
+        .stdin(std::process::Stdio::null())
+        .output()
+        .expect("run gimbalsim");
+    assert!(!out.status.success(), "{out:?}");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("--capture /nonexistent/dir/y.pcapng: cannot write it"),
+        "{stderr}"
+    );
+}

@@ -2,14 +2,15 @@
 //! and the exchanges `gimbalctl` makes over it, with protocol failures
 //! turned into [`CtlError`]s that say what happened.
 
+use sagebrush_host::capture::{Capture, CaptureSwitch, Role, Tapped, capture_to};
+use sagebrush_host::codec::Write;
 use sagebrush_host::master::{Exchange, Master};
 use sagebrush_host::timing;
 use sagebrush_host::transport::{self, Line};
 use std::time::Duration;
 
 use sagebrush_protocol::link::TransactionPolicy;
-use sagebrush_protocol::{ACK, Address, Command, Event, FrameBuf, Framer, Outcome, TxFailure};
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use sagebrush_protocol::{Address, Command, FrameBuf, Outcome, OwnedEvent, TxFailure};
 
 use crate::cli::Global;
 use crate::error::CtlError;
@@ -17,7 +18,9 @@ use crate::error::CtlError;
 /// A connection and the addressing of its commands.
 #[derive(Debug)]
 pub struct Session {
-    master: Master<Line>,
+    master: Master<Tapped<Line>>,
+    /// `--capture FILE`: stopped (the file completed) when the session ends.
+    capture: Option<Capture>,
     pub to: Address,
     pub from: u8,
     /// What the line is (`tcp 127.0.0.1:4001`, `serial /dev/pts/3`).
@@ -47,6 +50,14 @@ impl Session {
         to: Address,
         tune: impl FnOnce(&mut TransactionPolicy),
     ) -> Result<Self, CtlError> {
+        // A capture file that cannot be written is refused before anything is sent.
+        let capture = match &g.capture {
+            Some(path) => Some(
+                capture_to(path, "gimbalctl")
+                    .map_err(|e| CtlError::Usage(format!("--capture {}: cannot write it: {e}", path.display())))?,
+            ),
+            None => None,
+        };
         let (line, mut policy) = match (&g.serial, &g.tcp) {
             (Some(path), _) => (
                 Line::Serial(transport::open_serial(path, g.baud)?),
@@ -78,8 +89,13 @@ impl Session {
         let described = line.describe();
         let over_tcp = matches!(line, Line::Tcp(_));
         tracing::debug!(line = %described, ?policy, "connected");
+        let tap = match &capture {
+            Some((switch, _)) => switch.tap(format!("gimbalctl {described}"), Role::Master),
+            None => CaptureSwitch::new().tap(described.clone(), Role::Master),
+        };
         Ok(Self {
-            master: Master::new(line, policy),
+            master: Master::new(Tapped::new(line, tap), policy),
+            capture: capture.map(|(_, capture)| capture),
             to,
             from: g.from,
             line: described,
@@ -157,30 +173,29 @@ impl Session {
     /// answer to one address (two devices with one ID on a bus) shows here.
     /// Frames are acknowledged, hop by hop, like every intact frame.
     pub async fn linger(&mut self, window: Duration) -> Result<Lingered, CtlError> {
-        let mut framer: Framer = Framer::new();
         let mut seen = Lingered::default();
+        let noise_before = self.master.noise_bytes();
         let deadline = tokio::time::Instant::now() + window;
-        let mut buf = [0u8; 512];
-        loop {
-            let stream = self.master.stream_mut();
-            let n = match tokio::time::timeout_at(deadline, stream.read(&mut buf)).await {
-                Err(_) => break,
-                Ok(Ok(0)) => return Err(CtlError::Io("the line closed".into())),
-                Ok(Ok(n)) => n,
-                Ok(Err(e)) => return Err(e.into()),
-            };
-            let mut frames = Vec::new();
-            framer.feed(&buf[..n], |e| match e {
-                Event::Frame(f) => frames.push(FrameBuf::from_frame(&f)),
-                Event::Ack => seen.acks += 1,
+        while let Some(event) = self.master.next_event(Some(deadline)).await? {
+            match event {
+                OwnedEvent::Frame(frame) => {
+                    self.master.write(Write::Ack).await?;
+                    seen.frames.push(frame);
+                }
+                OwnedEvent::Ack => seen.acks += 1,
                 _ => seen.other_bytes += 1,
-            });
-            for _ in &frames {
-                stream.write_all(&[ACK]).await?;
             }
-            seen.frames.extend(frames);
         }
-        seen.other_bytes += framer.skipped_bytes() as u32;
+        seen.other_bytes += (self.master.noise_bytes() - noise_before) as u32;
         Ok(seen)
+    }
+}
+
+impl Drop for Session {
+    fn drop(&mut self) {
+        if let Some(capture) = self.capture.take() {
+            let stats = capture.stop(Duration::from_secs(2));
+            tracing::debug!(?stats, "capture stopped");
+        }
     }
 }

@@ -27,6 +27,9 @@ pub struct Cli {
     /// Attach to an existing serial device.
     #[arg(long, value_name = "PATH")]
     pub serial: Option<String>,
+    /// Record every byte of the bus line (both ways, timed) to FILE as pcapng for Wireshark with tools/wireshark/sagebrush.lua (docs/capture.md); complete when gimbalsim exits.
+    #[arg(long, value_name = "FILE")]
+    pub capture: Option<std::path::PathBuf>,
     /// Line rate in bit/s: opens a serial device at it and paces with --pace.
     #[arg(long, default_value_t = 9600, value_parser = parse_baud)]
     pub baud: u32,

@@ -4,6 +4,7 @@
 
 use std::io;
 
+use sagebrush_host::capture::{CaptureSwitch, Role, Tapped, capture_to};
 use sagebrush_host::pty::{PtyMaster, Symlink};
 use sagebrush_host::sim_line::{End, Line, Shutdown, serve};
 use sagebrush_host::transport;
@@ -57,6 +58,15 @@ pub async fn run(cli: Cli, config: BusConfig) -> Result<(), String> {
         baud: cli.baud,
         reply_delay: Duration::from_micros(cli.reply_delay_us),
     };
+    // A capture file that cannot be written is refused before the bus starts.
+    let (switch, capture) = match &cli.capture {
+        Some(path) => {
+            let (switch, capture) = capture_to(path, "gimbalsim")
+                .map_err(|e| format!("--capture {}: cannot write it: {e}", path.display()))?;
+            (switch, Some(capture))
+        }
+        None => (CaptureSwitch::new(), None),
+    };
     let addresses: Vec<String> = bus.gimbals().map(|g| g.device().to_string()).collect();
     let result = if let Some(addr) = &cli.tcp {
         let listener = TcpListener::bind(addr)
@@ -70,8 +80,9 @@ pub async fn run(cli: Cli, config: BusConfig) -> Result<(), String> {
                 a = listener.accept() => a,
                 _ = shutdown.as_mut() => break Ok(()),
             };
-            let (mut stream, peer) = accepted.map_err(|e| format!("accept on {local}: {e}"))?;
+            let (stream, peer) = accepted.map_err(|e| format!("accept on {local}: {e}"))?;
             let _ = stream.set_nodelay(true);
+            let mut stream = Tapped::new(stream, switch.tap(format!("gimbalsim tcp {peer}"), Role::Responder));
             info!(%peer, "client connected");
             match serve(&mut bus, &mut stream, &mut line, &mut |_, _| Ok(()), &mut shutdown).await {
                 Ok(End::Eof) => info!(%peer, "client disconnected"),
@@ -80,18 +91,21 @@ pub async fn run(cli: Cli, config: BusConfig) -> Result<(), String> {
             }
         }
     } else if let Some(path) = &cli.serial {
-        let mut port = transport::open_serial(path, cli.baud).map_err(|e| e.to_string())?;
+        let port = transport::open_serial(path, cli.baud).map_err(|e| e.to_string())?;
+        let mut port = Tapped::new(port, switch.tap(format!("gimbalsim serial {path}"), Role::Responder));
         announce(path);
         info!(path, baud = cli.baud, devices = ?addresses, "gimbalsim on serial device");
-        let mut set_rate = |p: &mut tokio_serial::SerialStream, bps: u32| transport::set_baud(p, bps);
+        let mut set_rate = |p: &mut Tapped<tokio_serial::SerialStream>, bps: u32| transport::set_baud(p.get_mut(), bps);
         match serve(&mut bus, &mut port, &mut line, &mut set_rate, &mut shutdown).await {
             Ok(End::Eof) => Err(format!("serial device {path} closed")),
             Ok(End::Shutdown) => Ok(()),
             Err(e) => Err(format!("serial device {path}: {e}")),
         }
     } else {
-        let mut pty = PtyMaster::open().map_err(|e| e.to_string())?;
+        let pty = PtyMaster::open().map_err(|e| e.to_string())?;
         let path = pty.slave_path().to_path_buf();
+        let tap = switch.tap(format!("gimbalsim pty {}", path.display()), Role::Responder);
+        let mut pty = Tapped::new(pty, tap);
         let _link = match &cli.link {
             Some(link) => Some(Symlink::create(&path, link).map_err(|e| e.to_string())?),
             None => None,
@@ -104,6 +118,10 @@ pub async fn run(cli: Cli, config: BusConfig) -> Result<(), String> {
             Err(e) => Err(format!("pseudo-terminal {}: {e}", path.display())),
         }
     };
+    if let Some(capture) = capture {
+        let stats = capture.stop(Duration::from_secs(2));
+        info!(records = stats.records, bytes = stats.bytes_written, "capture stopped");
+    }
     print_stats(&bus);
     result
 }

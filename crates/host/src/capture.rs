@@ -32,12 +32,15 @@ use std::collections::{HashMap, VecDeque};
 use std::fs::{File, OpenOptions};
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
+use std::pin::Pin;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError, sync_channel};
 use std::sync::{Arc, Condvar, Mutex};
+use std::task::{Context, Poll};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use sagebrush_protocol::{Event, Framer};
+use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 
 /// `LINKTYPE_USER0`: the pcap community's link type for private protocols.
 pub const LINKTYPE: u16 = 147;
@@ -809,6 +812,78 @@ impl Drop for Tap {
             capture.close_interface(*id);
         }
     }
+}
+
+/// A stream whose bytes a [`Tap`] records: what is read as inbound, what is
+/// written as outbound. For programs whose line is one stream (gimbalctl,
+/// gimbalsim); gcud taps its pumps directly.
+#[derive(Debug)]
+pub struct Tapped<S> {
+    inner: S,
+    tap: Tap,
+}
+
+impl<S> Tapped<S> {
+    pub fn new(inner: S, tap: Tap) -> Self {
+        Self { inner, tap }
+    }
+
+    pub fn get_ref(&self) -> &S {
+        &self.inner
+    }
+
+    pub fn get_mut(&mut self) -> &mut S {
+        &mut self.inner
+    }
+}
+
+impl<S: AsyncRead + Unpin> AsyncRead for Tapped<S> {
+    fn poll_read(self: Pin<&mut Self>, cx: &mut Context<'_>, buf: &mut ReadBuf<'_>) -> Poll<io::Result<()>> {
+        let this = self.get_mut();
+        let before = buf.filled().len();
+        let polled = Pin::new(&mut this.inner).poll_read(cx, buf);
+        if let Poll::Ready(Ok(())) = &polled {
+            let read = &buf.filled()[before..];
+            if !read.is_empty() {
+                this.tap.inbound(read);
+            }
+        }
+        polled
+    }
+}
+
+impl<S: AsyncWrite + Unpin> AsyncWrite for Tapped<S> {
+    fn poll_write(self: Pin<&mut Self>, cx: &mut Context<'_>, buf: &[u8]) -> Poll<io::Result<usize>> {
+        let this = self.get_mut();
+        let polled = Pin::new(&mut this.inner).poll_write(cx, buf);
+        if let Poll::Ready(Ok(n)) = &polled {
+            this.tap.outbound(&buf[..*n]);
+        }
+        polled
+    }
+
+    fn poll_flush(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        Pin::new(&mut self.get_mut().inner).poll_flush(cx)
+    }
+
+    fn poll_shutdown(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        Pin::new(&mut self.get_mut().inner).poll_shutdown(cx)
+    }
+}
+
+/// A capture to `path` from start to exit, for a program's `--capture
+/// FILE`: the switch its [`Tap`]s follow, already on, and the capture to
+/// [`Capture::stop`] before the program exits (so the file is complete).
+/// `application` names the program in the file's section header.
+pub fn capture_to(path: &Path, application: &str) -> io::Result<(Arc<CaptureSwitch>, Capture)> {
+    let config = CaptureConfig {
+        application: application.to_owned(),
+        ..CaptureConfig::default()
+    };
+    let capture = Capture::open(path, config)?;
+    let switch = CaptureSwitch::new();
+    switch.start(capture.clone());
+    Ok((switch, capture))
 }
 
 #[cfg(test)]
