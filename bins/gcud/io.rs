@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use sagebrush_gcu::LinkId;
 use sagebrush_host::capture::{CaptureSwitch, Role, Tap};
-use sagebrush_host::transport::{Line, connect_tcp, open_serial};
+use sagebrush_host::transport::{SerialOrTcp, connect_tcp, open_serial};
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{Notify, mpsc, oneshot};
@@ -357,8 +357,10 @@ pub async fn run_link(id: LinkId, link: Link, events: mpsc::Sender<IoEvent>, cap
     loop {
         let opened = match &link.transport {
             LinkTransport::Listen(_) => return,
-            LinkTransport::Connect(addr) => connect_tcp(addr).await.map(Line::Tcp),
-            LinkTransport::Serial { path, baud } => open_serial(&path.to_string_lossy(), *baud).map(Line::Serial),
+            LinkTransport::Connect(addr) => connect_tcp(addr).await.map(SerialOrTcp::Tcp),
+            LinkTransport::Serial { path, baud } => {
+                open_serial(&path.to_string_lossy(), *baud).map(SerialOrTcp::Serial)
+            }
         };
         match opened {
             Ok(stream) => {

@@ -3,7 +3,7 @@
 //! ([`sagebrush_host::sim_line`]) on an in-memory byte pipe, so that the demo and
 //! tests run the daemon exactly as on real lines.
 
-use sagebrush_host::sim_line::{Line, serve};
+use sagebrush_host::sim_line::{LineClock, serve};
 use sagebrush_sim::{Bus, BusConfig, GimbalConfig};
 use tokio::io::DuplexStream;
 use tokio::time::{Duration, Instant};
@@ -28,7 +28,7 @@ pub fn spawn(port: u8, devices: &[u8], baud: u32) -> DuplexStream {
             Err(e) => return warn!(port, error = %e, "cannot start the simulated bus"),
         };
         // A pipe has no line rate to switch; the bus runs until the port's end closes.
-        let mut line = Line {
+        let mut line = LineClock {
             epoch: Instant::now(),
             pace: false,
             baud,

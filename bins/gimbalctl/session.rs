@@ -6,7 +6,7 @@ use sagebrush_host::capture::{Capture, CaptureSwitch, Role, Tapped, capture_to};
 use sagebrush_host::codec::Write;
 use sagebrush_host::master::{Exchange, Master};
 use sagebrush_host::timing;
-use sagebrush_host::transport::{self, Line};
+use sagebrush_host::transport::{self, SerialOrTcp};
 use std::time::Duration;
 
 use sagebrush_protocol::link::TransactionPolicy;
@@ -18,7 +18,7 @@ use crate::error::CtlError;
 /// A connection and the addressing of its commands.
 #[derive(Debug)]
 pub struct Session {
-    master: Master<Tapped<Line>>,
+    master: Master<Tapped<SerialOrTcp>>,
     /// `--capture FILE`: stopped (the file completed) when the session ends.
     capture: Option<Capture>,
     pub to: Address,
@@ -60,10 +60,13 @@ impl Session {
         };
         let (line, mut policy) = match (&g.serial, &g.tcp) {
             (Some(path), _) => (
-                Line::Serial(transport::open_serial(path, g.baud)?),
+                SerialOrTcp::Serial(transport::open_serial(path, g.baud)?),
                 timing::serial_policy(g.baud),
             ),
-            (None, Some(addr)) => (Line::Tcp(transport::connect_tcp(addr).await?), timing::tcp_policy()),
+            (None, Some(addr)) => (
+                SerialOrTcp::Tcp(transport::connect_tcp(addr).await?),
+                timing::tcp_policy(),
+            ),
             (None, None) => {
                 return Err(CtlError::Usage(
                     "no transport: give --serial PATH (bus master) or --tcp HOST:PORT (GCU daemon)".into(),
@@ -87,7 +90,7 @@ impl Session {
             policy.long_result_timeout = t;
         }
         let described = line.describe();
-        let over_tcp = matches!(line, Line::Tcp(_));
+        let over_tcp = matches!(line, SerialOrTcp::Tcp(_));
         tracing::debug!(line = %described, ?policy, "connected");
         let tap = match &capture {
             Some((switch, _)) => switch.tap(format!("gimbalctl {described}"), Role::Master),

@@ -6,7 +6,7 @@ use std::io;
 
 use sagebrush_host::capture::{CaptureSwitch, Role, Tapped, capture_to};
 use sagebrush_host::pty::{PtyMaster, Symlink};
-use sagebrush_host::sim_line::{End, Line, Shutdown, serve};
+use sagebrush_host::sim_line::{End, LineClock, Shutdown, serve};
 use sagebrush_host::transport;
 use sagebrush_sim::{Bus, BusConfig, Fault};
 use tokio::net::TcpListener;
@@ -52,7 +52,7 @@ pub async fn run(cli: Cli, config: BusConfig) -> Result<(), String> {
     let epoch = Instant::now();
     let mut bus = Bus::new(config, 0)?;
     let mut shutdown = shutdown_signal().map_err(|e| format!("cannot install signal handlers: {e}"))?;
-    let mut line = Line {
+    let mut line = LineClock {
         epoch,
         pace: cli.pace,
         baud: cli.baud,

@@ -2,7 +2,7 @@
 //!
 //! - [`logging`]: `tracing` set-up (stderr, `RUST_LOG`-style filters, JSON).
 //! - [`transport`]: serial ports (tokio-serial) and TCP links as byte
-//!   streams ([`transport::Line`]), with errors that name the device.
+//!   streams ([`transport::SerialOrTcp`]), with errors that name the device.
 //! - [`pty`]: a fresh pseudo-terminal pair whose master is an async stream
 //!   (the simulator's virtual serial port).
 //! - [`timing`]: time-outs derived from the line rate (1.4.2).

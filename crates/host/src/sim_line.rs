@@ -4,10 +4,10 @@
 //! clock for the bus, optionally times the line as a real one would (a pty
 //! does not), and switches the line rate after a `C0..C7` (Table 4).
 //!
-//! With [`Line::pace`] both directions take their wire time at [`Line::baud`]
+//! With [`LineClock::pace`] both directions take their wire time at [`LineClock::baud`]
 //! (10 bits a byte), computed, not slept byte by byte: bytes read are heard
 //! by the bus when their last bit would have arrived, and each answer (an
-//! ACK, a NIC, a result frame) starts [`Line::reply_delay`] after the
+//! ACK, a NIC, a result frame) starts [`LineClock::reply_delay`] after the
 //! command's last byte, or when the line is free, and is written in one go
 //! at the instant its last byte would have left. Tokio's timer ticks in
 //! milliseconds, longer than a byte at 115200 bit/s, so the last two
@@ -44,7 +44,7 @@ const TICK: Duration = Duration::from_millis(2);
 
 /// The line clock and pacing state.
 #[derive(Debug)]
-pub struct Line {
+pub struct LineClock {
     pub epoch: Instant,
     /// Time bytes at `baud`, both ways.
     pub pace: bool,
@@ -54,7 +54,7 @@ pub struct Line {
     pub reply_delay: Duration,
 }
 
-impl Line {
+impl LineClock {
     /// Milliseconds since `epoch`, the bus's clock.
     pub fn now(&self) -> u64 {
         self.ms(Instant::now())
@@ -89,7 +89,7 @@ struct Tx {
 impl Tx {
     /// Takes what the bus has due by `now_ms`; `heard` is when the last
     /// received byte was through (an answer cannot start before it).
-    fn schedule(&mut self, bus: &mut Bus, now_ms: u64, heard: Instant, line: &Line) {
+    fn schedule(&mut self, bus: &mut Bus, now_ms: u64, heard: Instant, line: &LineClock) {
         while let Some(out) = bus.pop_due(now_ms) {
             let due = line.epoch + Duration::from_millis(out.due);
             let at = if line.pace {
@@ -109,7 +109,7 @@ impl Tx {
 pub async fn serve<S: AsyncRead + AsyncWrite + Unpin + Send>(
     bus: &mut Bus,
     stream: &mut S,
-    line: &mut Line,
+    line: &mut LineClock,
     set_rate: &mut (dyn FnMut(&mut S, u32) -> io::Result<()> + Send),
     shutdown: &mut Shutdown,
 ) -> io::Result<End> {

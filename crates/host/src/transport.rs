@@ -68,17 +68,17 @@ pub fn tune_tcp(stream: &TcpStream) -> io::Result<()> {
 
 /// A serial line or a TCP link, as one stream type.
 #[derive(Debug)]
-pub enum Line {
+pub enum SerialOrTcp {
     Serial(SerialStream),
     Tcp(TcpStream),
 }
 
-impl Line {
+impl SerialOrTcp {
     /// What the line is, for messages.
     pub fn describe(&self) -> String {
         match self {
-            Line::Serial(s) => format!("serial {}", s.name().unwrap_or_default()),
-            Line::Tcp(t) => match t.peer_addr() {
+            SerialOrTcp::Serial(s) => format!("serial {}", s.name().unwrap_or_default()),
+            SerialOrTcp::Tcp(t) => match t.peer_addr() {
                 Ok(a) => format!("tcp {a}"),
                 Err(_) => "tcp".into(),
             },
@@ -86,34 +86,34 @@ impl Line {
     }
 }
 
-impl AsyncRead for Line {
+impl AsyncRead for SerialOrTcp {
     fn poll_read(self: Pin<&mut Self>, cx: &mut Context<'_>, buf: &mut ReadBuf<'_>) -> Poll<io::Result<()>> {
         match self.get_mut() {
-            Line::Serial(s) => Pin::new(s).poll_read(cx, buf),
-            Line::Tcp(t) => Pin::new(t).poll_read(cx, buf),
+            SerialOrTcp::Serial(s) => Pin::new(s).poll_read(cx, buf),
+            SerialOrTcp::Tcp(t) => Pin::new(t).poll_read(cx, buf),
         }
     }
 }
 
-impl AsyncWrite for Line {
+impl AsyncWrite for SerialOrTcp {
     fn poll_write(self: Pin<&mut Self>, cx: &mut Context<'_>, buf: &[u8]) -> Poll<io::Result<usize>> {
         match self.get_mut() {
-            Line::Serial(s) => Pin::new(s).poll_write(cx, buf),
-            Line::Tcp(t) => Pin::new(t).poll_write(cx, buf),
+            SerialOrTcp::Serial(s) => Pin::new(s).poll_write(cx, buf),
+            SerialOrTcp::Tcp(t) => Pin::new(t).poll_write(cx, buf),
         }
     }
 
     fn poll_flush(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
         match self.get_mut() {
-            Line::Serial(s) => Pin::new(s).poll_flush(cx),
-            Line::Tcp(t) => Pin::new(t).poll_flush(cx),
+            SerialOrTcp::Serial(s) => Pin::new(s).poll_flush(cx),
+            SerialOrTcp::Tcp(t) => Pin::new(t).poll_flush(cx),
         }
     }
 
     fn poll_shutdown(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
         match self.get_mut() {
-            Line::Serial(s) => Pin::new(s).poll_shutdown(cx),
-            Line::Tcp(t) => Pin::new(t).poll_shutdown(cx),
+            SerialOrTcp::Serial(s) => Pin::new(s).poll_shutdown(cx),
+            SerialOrTcp::Tcp(t) => Pin::new(t).poll_shutdown(cx),
         }
     }
 }
