@@ -9,7 +9,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use sagebrush_gcu::{
-    Action, Input, Level, LinkConfig, LinkId, LinkKind, LinkStats, Place, PortConfig, Router, RouterConfig,
+    Action, Input, Level, LinkConfig, LinkId, LinkKind, LinkStats, Outbox, Place, PortConfig, Router, RouterConfig,
     RouterEvent, SourceFilter,
 };
 use sagebrush_host::capture::{Capture, CaptureSwitch};
@@ -259,7 +259,8 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
     // Final counters of connections gone, per configured link name.
     let mut departed: BTreeMap<String, LinkStats> = BTreeMap::new();
     let mut throttle = Throttle::default();
-    let mut actions = Vec::new();
+    // Reused for every call: the router's writes land in its one buffer.
+    let mut actions = Outbox::new();
     let mut stopping: Option<Instant> = None;
     // Ports closing after a reload, with the time their grace runs out.
     let mut closing: HashMap<u8, Instant> = HashMap::new();
@@ -490,7 +491,7 @@ struct Reload<'a> {
 }
 
 impl Reload<'_> {
-    async fn run(self, now: u64, actions: &mut Vec<Action>) {
+    async fn run(self, now: u64, actions: &mut Outbox) {
         // RELOADING=1 goes with MONOTONIC_USEC= (sd_notify(3)).
         match sd_notify::NotifyState::monotonic_usec_now() {
             Ok(usec) => notify(&[sd_notify::NotifyState::Reloading, usec]),
@@ -509,7 +510,7 @@ impl Reload<'_> {
         notify(&[sd_notify::NotifyState::Ready]);
     }
 
-    async fn apply(self, now: u64, new: Config, actions: &mut Vec<Action>) {
+    async fn apply(self, now: u64, new: Config, actions: &mut Outbox) {
         let diff = Diff::between(self.config, &new);
         if !diff.needs_restart.is_empty() {
             return error!(
@@ -598,18 +599,20 @@ fn notify(state: &[sd_notify::NotifyState<'_>]) {
 /// Carries out the router's actions in order. A link gone leaves its
 /// counters with its configured link and nothing else behind.
 fn execute(
-    actions: &mut Vec<Action>,
+    actions: &mut Outbox,
     ports: &HashMap<u8, mpsc::Sender<PortWrite>>,
     links: &mut BTreeMap<LinkId, LinkInfo>,
     departed: &mut BTreeMap<String, LinkStats>,
     throttle: &mut Throttle,
 ) {
     let mut gone = Vec::new();
-    for action in actions.drain(..) {
+    for action in actions.actions() {
         match action {
-            Action::WritePort { port, bytes } => match ports.get(&port) {
+            Action::WritePort { port, bytes } => match ports.get(port) {
                 Some(tx) => {
-                    if tx.try_send(PortWrite::Bytes(bytes)).is_err() {
+                    // The port task owns what it writes: one copy per
+                    // (merged) write, until ports are served on this task.
+                    if tx.try_send(PortWrite::Bytes(actions.bytes(bytes).to_vec())).is_err() {
                         let line = || format!("port {port}: port writer is behind or gone: bytes dropped");
                         if throttle.allow("writer behind", &format!("port {port}"), line, Instant::now()) {
                             warn!(port, "port writer is behind or gone: bytes dropped");
@@ -618,10 +621,10 @@ fn execute(
                 }
                 None => debug!(port, "write to a closed port dropped"),
             },
-            Action::WriteLink { link, bytes } => match links.get(&link).and_then(|l| l.writer.as_ref()) {
+            Action::WriteLink { link, bytes } => match links.get(link).and_then(|l| l.writer.as_ref()) {
                 Some(tx) => {
-                    if tx.try_send(bytes).is_err() {
-                        let place = links.get(&link).map_or_else(|| link.to_string(), |l| l.name.clone());
+                    if tx.try_send(actions.bytes(bytes).to_vec()).is_err() {
+                        let place = links.get(link).map_or_else(|| link.to_string(), |l| l.name.clone());
                         let line = || format!("{link} ({place}): link writer is behind or gone: bytes dropped");
                         if throttle.allow("writer behind", &place, line, Instant::now()) {
                             warn!(%link, "link writer is behind or gone: bytes dropped");
@@ -631,26 +634,27 @@ fn execute(
                 None => debug!(%link, "write to a closed link dropped"),
             },
             Action::SetPortRate { port, bps } => {
-                if let Some(tx) = ports.get(&port) {
-                    if tx.try_send(PortWrite::SetBaud(bps)).is_err() {
+                if let Some(tx) = ports.get(port) {
+                    if tx.try_send(PortWrite::SetBaud(*bps)).is_err() {
                         error!(port, bps, "cannot switch the port's line rate: writer gone");
                     }
                 }
             }
-            Action::Event(event) => log_event(&event, links, throttle),
+            Action::Event(event) => log_event(event, links, throttle),
             Action::LinkGone { link, stats } => {
-                if let Some(info) = links.get(&link) {
+                if let Some(info) = links.get(link) {
                     match departed.get_mut(&info.name) {
-                        Some(d) => d.absorb(&stats),
+                        Some(d) => d.absorb(stats),
                         None => {
-                            departed.insert(info.name.clone(), *stats);
+                            departed.insert(info.name.clone(), **stats);
                         }
                     }
                 }
-                gone.push(link);
+                gone.push(*link);
             }
         }
     }
+    actions.clear();
     for link in gone {
         links.remove(&link);
     }

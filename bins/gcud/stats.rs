@@ -428,7 +428,7 @@ mod tests {
         let mut config = sagebrush_gcu::RouterConfig::new(5);
         config.ports.push(sagebrush_gcu::PortConfig::new(1));
         let mut router = sagebrush_gcu::Router::new(config).unwrap();
-        let mut actions = Vec::new();
+        let mut actions = sagebrush_gcu::Outbox::new();
         router.handle(0, sagebrush_gcu::Input::PortOpened { port: 1 }, &mut actions);
         // A P? answered by device 3 at tick 1500: position and Unix times.
         let client = sagebrush_gcu::LinkId(1);

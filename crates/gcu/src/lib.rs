@@ -5,23 +5,25 @@
 //! # Driving it (the daemon's side)
 //!
 //! ```
-//! use sagebrush_gcu::{Action, Input, LinkConfig, LinkId, LinkKind, PortConfig, Router, RouterConfig, SourceFilter};
+//! use sagebrush_gcu::{Action, Input, LinkConfig, LinkId, LinkKind, Outbox, PortConfig, Router, RouterConfig, SourceFilter};
 //!
 //! let mut config = RouterConfig::new(5);
 //! config.ports.push(PortConfig::new(1));
 //! let mut router = Router::new(config).expect("valid config");
-//! let mut actions = Vec::new();
-//! router.handle(0, Input::PortOpened { port: 1 }, &mut actions);
-//! router.handle(0, Input::LinkUp { link: LinkId(1), config: LinkConfig::new(LinkKind::Client, SourceFilter::Any) }, &mut actions);
-//! for action in actions.drain(..) {
+//! // Kept across calls: its memory is reused, nothing is allocated per frame.
+//! let mut out = Outbox::new();
+//! router.handle(0, Input::PortOpened { port: 1 }, &mut out);
+//! router.handle(0, Input::LinkUp { link: LinkId(1), config: LinkConfig::new(LinkKind::Client, SourceFilter::Any) }, &mut out);
+//! for action in out.actions() {
 //!     match action {
-//!         Action::WritePort { port, bytes } => { /* write to the serial port */ }
-//!         Action::WriteLink { link, bytes } => { /* write to the TCP/serial link */ }
+//!         Action::WritePort { port, bytes } => { let _ = out.bytes(bytes); /* write them to the serial port */ }
+//!         Action::WriteLink { link, bytes } => { let _ = out.bytes(bytes); /* write them to the link */ }
 //!         Action::SetPortRate { port, bps } => { /* reconfigure the serial port */ }
 //!         Action::LinkGone { link, stats } => { /* fold its counters into its configured link's */ }
 //!         Action::Event(event) => { /* log at event.level(), e.g. through tracing */ }
 //!     }
 //! }
+//! out.clear();
 //! // Sleep until router.next_deadline(), or until bytes arrive, then call
 //! // router.handle(now, Input::Tick / Input::PortBytes { .. } / ..).
 //! let _ = router.next_deadline();
@@ -29,7 +31,7 @@
 //! ```
 //!
 //! - One [`Router`] value, [`Router::new`] with a validated [`RouterConfig`].
-//! - [`Router::handle`]`(now, input, &mut actions)` for every [`Input`]:
+//! - [`Router::handle`]`(now, input, &mut outbox)` for every [`Input`]:
 //!   bytes read from a port or link (any chunking), port opened/lost, link
 //!   up (with its [`LinkKind`] and [`SourceFilter`]) or down, or a plain
 //!   [`Input::Tick`]. Actions are appended in the order they must be executed.
@@ -131,6 +133,7 @@ mod deadman;
 mod line;
 mod link;
 mod local;
+mod outbox;
 mod port;
 mod queue;
 mod reverse;
@@ -140,6 +143,7 @@ mod stats;
 mod types;
 
 pub use config::{ConfigError, LinkConfig, LinkKind, LinkSettings, PortConfig, RouterConfig, SourceFilter};
+pub use outbox::Outbox;
 pub use router::Router;
 pub use stats::{
     DeviceError, DeviceStats, DropCounts, LineStats, LinkStats, PortStats, RouterStats, Stats, UndeliveredCounts,

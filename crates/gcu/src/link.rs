@@ -13,10 +13,11 @@
 //! never costs a stop its place, ARCHITECTURE "Safety"), and a stop identical to
 //! one already waiting is merged into it.
 
-use sagebrush_protocol::{ACK, FrameBuf, NAK, NIC, OwnedEvent, RetryPolicy, Transmitter, TxStep};
+use sagebrush_protocol::{FrameBuf, OwnedEvent, RetryPolicy, Transmitter, TxStep};
 
 use crate::config::{LinkConfig, LinkSettings};
 use crate::line::LineReceiver;
+use crate::outbox::Wire;
 use crate::queue::{Queued, StopFirstQueue};
 use crate::stats::LinkStats;
 use crate::types::DropReason;
@@ -46,9 +47,13 @@ impl Queued for Outgoing {
 }
 
 /// What a link asks the router to do or know.
+#[expect(
+    clippy::large_enum_variant,
+    reason = "a frame to write is held inline, without an allocation of its own, on its short way to the Outbox"
+)]
 #[derive(Debug)]
 pub(crate) enum LinkOut {
-    Write(Vec<u8>),
+    Write(Wire),
     /// The frame of this reverse-path entry was transmitted for the first time.
     FirstSent(u64),
     /// ... and again: the next GCU may execute it twice.
@@ -89,22 +94,22 @@ impl Link {
         }
     }
 
-    fn write(&mut self, bytes: Vec<u8>, out: &mut Vec<LinkOut>) {
-        self.stats.line.bytes_out += bytes.len() as u64;
-        out.push(LinkOut::Write(bytes));
+    fn write(&mut self, wire: Wire, out: &mut Vec<LinkOut>) {
+        self.stats.line.bytes_out += wire.as_bytes().len() as u64;
+        out.push(LinkOut::Write(wire));
     }
 
     /// Writes a bare ACK for a frame received intact (hop by hop), or for
     /// a client's command once it is delivered.
     pub fn ack(&mut self, out: &mut Vec<LinkOut>) {
         self.stats.acks_sent += 1;
-        self.write(vec![ACK], out);
+        self.write(Wire::Ack, out);
     }
 
     /// Writes a bare `?` (a relayed NIC).
     pub fn write_nic(&mut self, out: &mut Vec<LinkOut>) {
         self.stats.line.nics_out += 1;
-        self.write(vec![NIC], out);
+        self.write(Wire::Nic, out);
     }
 
     /// Queues a frame, or says (and counts) why not.
@@ -152,7 +157,7 @@ impl Link {
 
     fn send_head(&mut self, out: &mut Vec<LinkOut>) {
         let Some(head) = self.queue.front() else { return };
-        let bytes = head.frame.as_bytes().to_vec();
+        let frame = Wire::Frame(head.frame.clone());
         let first = self.tx.transmissions() <= 1;
         let pending = head.pending;
         self.stats.line.frames_out += 1;
@@ -166,7 +171,7 @@ impl Link {
                 out.push(LinkOut::Resent(key));
             }
         }
-        self.write(bytes, out);
+        self.write(frame, out);
     }
 
     fn step(&mut self, step: TxStep, out: &mut Vec<LinkOut>) {
@@ -212,7 +217,7 @@ impl Link {
                 OwnedEvent::BadChecksum(_) => {
                     self.stats.line.bad_checksums += 1;
                     self.stats.line.naks_sent += 1;
-                    self.write(vec![NAK], out);
+                    self.write(Wire::Nak, out);
                 }
                 OwnedEvent::Ack if self.queue.head_pinned() => {
                     let step = self.tx.on_ack();
@@ -274,7 +279,7 @@ impl Link {
 mod tests {
     use super::*;
     use crate::config::{LinkKind, SourceFilter};
-    use sagebrush_protocol::Address;
+    use sagebrush_protocol::{ACK, Address, NAK};
 
     fn link(settings: &LinkSettings) -> Link {
         let config = LinkConfig::new(LinkKind::Client, SourceFilter::Any);
@@ -284,7 +289,7 @@ mod tests {
     fn writes(out: &[LinkOut]) -> Vec<Vec<u8>> {
         out.iter()
             .filter_map(|o| match o {
-                LinkOut::Write(b) => Some(b.clone()),
+                LinkOut::Write(w) => Some(w.as_bytes().to_vec()),
                 _ => None,
             })
             .collect()

@@ -47,13 +47,14 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use sagebrush_protocol::link::TransactionPolicy;
 use sagebrush_protocol::{
-    ACK, Command, DataRate, Event, FrameBuf, NAK, OwnedEvent, Reply, RetryPolicy, Transaction, TransactionStep,
-    TxFailure, WILDCARD,
+    Command, DataRate, Event, FrameBuf, OwnedEvent, Reply, RetryPolicy, Transaction, TransactionStep, TxFailure,
+    WILDCARD,
 };
 use sagebrush_protocol::{Outcome, ResultKind, ResultTimeout, Undelivered};
 
 use crate::config::PortConfig;
 use crate::line::LineReceiver;
+use crate::outbox::Wire;
 use crate::queue::{Queued, StopFirstQueue};
 use crate::stats::{DeviceError, DeviceStats, PortStats};
 use crate::types::{CommandId, CommandOutcome, DropReason, Origin, RouterEvent};
@@ -139,9 +140,13 @@ impl Queued for Job {
 }
 
 /// What a port asks the router to do.
+#[expect(
+    clippy::large_enum_variant,
+    reason = "a frame to write is held inline, without an allocation of its own, on its short way to the Outbox"
+)]
 #[derive(Debug)]
 pub(crate) enum PortOut {
-    Write(Vec<u8>),
+    Write(Wire),
     /// A result frame for the origin of job `id`, header as the device sent it.
     Relay {
         id: CommandId,
@@ -256,9 +261,9 @@ impl Port {
         }
     }
 
-    fn write(&mut self, bytes: Vec<u8>, out: &mut Vec<PortOut>) {
-        self.stats.line.bytes_out += bytes.len() as u64;
-        out.push(PortOut::Write(bytes));
+    fn write(&mut self, wire: Wire, out: &mut Vec<PortOut>) {
+        self.stats.line.bytes_out += wire.as_bytes().len() as u64;
+        out.push(PortOut::Write(wire));
     }
 
     fn device(&mut self, device: u8) -> &mut DeviceStats {
@@ -475,7 +480,7 @@ impl Port {
         match step {
             TransactionStep::Send => {
                 let Some(r) = &self.active else { return };
-                let bytes = r.job.frame.as_bytes().to_vec();
+                let frame = Wire::Frame(r.job.frame.clone());
                 let retransmit = r.txn.transmissions() > 1;
                 let device = r.device();
                 self.stats.line.frames_out += 1;
@@ -485,7 +490,7 @@ impl Port {
                     d.retransmits += 1;
                     self.stats.line.retransmits += 1;
                 }
-                self.write(bytes, out);
+                self.write(frame, out);
                 if let Some(r) = self.active.as_ref().filter(|r| r.txn.is_broadcast()) {
                     // Device 255: no ACK on a shared bus; written is all there is.
                     Self::delivered(&r.job, out);
@@ -646,13 +651,13 @@ impl Port {
         match event {
             OwnedEvent::Frame(frame) => {
                 self.stats.line.frames_in += 1;
-                self.write(vec![ACK], out);
+                self.write(Wire::Ack, out);
                 self.on_frame(now, Box::new(frame), out);
             }
             OwnedEvent::BadChecksum(_) => {
                 self.stats.line.bad_checksums += 1;
                 self.stats.line.naks_sent += 1;
-                self.write(vec![NAK], out);
+                self.write(Wire::Nak, out);
             }
             OwnedEvent::Ack | OwnedEvent::Nak => {
                 let (fe, nak) = match event {

@@ -14,6 +14,7 @@ use crate::config::{ConfigError, LinkKind, LinkSettings, PortConfig, RouterConfi
 use crate::deadman::{DeadMan, OwnedStop};
 use crate::link::{Link, LinkOut, Outgoing, Received};
 use crate::local::{SelfAnswer, answer};
+use crate::outbox::Outbox;
 use crate::port::{CommandFacts, Job, Port, PortOut};
 use crate::reverse::{AnswerMatch, ReversePath};
 use crate::routing::RoutingTable;
@@ -183,7 +184,7 @@ impl Router {
     /// order, to `out`. Time-outs due by `now` are processed too, so any
     /// input doubles as a tick. `now` never goes backwards (an earlier
     /// value is taken as the latest one seen).
-    pub fn handle(&mut self, now: u64, input: Input<'_>, out: &mut Vec<Action>) {
+    pub fn handle(&mut self, now: u64, input: Input<'_>, out: &mut Outbox) {
         let now = now.max(self.last_now);
         self.last_now = now;
         match input {
@@ -225,15 +226,15 @@ impl Router {
         self.poll(now, out);
     }
 
-    fn port_state(&self, port: u8, open: bool, out: &mut Vec<Action>) {
+    fn port_state(&self, port: u8, open: bool, out: &mut Outbox) {
         if self.ports.contains_key(&port) {
             out.push(Action::Event(RouterEvent::PortState { port, open }));
         }
     }
 
-    /// [`Router::handle`] returning a fresh vector.
-    pub fn handle_vec(&mut self, now: u64, input: Input<'_>) -> Vec<Action> {
-        let mut out = Vec::new();
+    /// [`Router::handle`] into a fresh [`Outbox`] (tests; a daemon keeps one).
+    pub fn handle_once(&mut self, now: u64, input: Input<'_>) -> Outbox {
+        let mut out = Outbox::new();
         self.handle(now, input, &mut out);
         out
     }
@@ -310,7 +311,7 @@ impl Router {
         now: u64,
         config: RouterConfig,
         reopen: &[u8],
-        out: &mut Vec<Action>,
+        out: &mut Outbox,
     ) -> Result<(), ConfigError> {
         config.validate()?;
         if config.group != self.group {
@@ -377,7 +378,7 @@ impl Router {
     /// The daemon closed a closing port (idle, or its grace ran out: what
     /// is left on it fails as [`DropReason::PortLost`]). A changed port
     /// comes back with its new configuration, closed until opened.
-    pub fn port_closed(&mut self, now: u64, port: u8, out: &mut Vec<Action>) {
+    pub fn port_closed(&mut self, now: u64, port: u8, out: &mut Outbox) {
         if !self.ports.get(&port).is_some_and(|p| p.closing) {
             return;
         }
@@ -388,13 +389,7 @@ impl Router {
         }
     }
 
-    fn with_port(
-        &mut self,
-        now: u64,
-        port: u8,
-        out: &mut Vec<Action>,
-        f: impl FnOnce(&mut Port, u64, &mut Vec<PortOut>),
-    ) {
+    fn with_port(&mut self, now: u64, port: u8, out: &mut Outbox, f: impl FnOnce(&mut Port, u64, &mut Vec<PortOut>)) {
         let Some(p) = self.ports.get_mut(&port) else {
             self.unknown_inputs += 1;
             return;
@@ -404,7 +399,7 @@ impl Router {
         self.port_outs(now, port, po, out);
     }
 
-    fn poll(&mut self, now: u64, out: &mut Vec<Action>) {
+    fn poll(&mut self, now: u64, out: &mut Outbox) {
         for (id, failure) in self.reverse.expire(now) {
             self.resolve(now, id, Err(failure), self.group, out);
         }
@@ -446,7 +441,7 @@ impl Router {
         }
     }
 
-    fn drop_frame(&mut self, reason: DropReason, at: Place, dest: Address, source: u8, out: &mut Vec<Action>) {
+    fn drop_frame(&mut self, reason: DropReason, at: Place, dest: Address, source: u8, out: &mut Outbox) {
         self.stats.frame_drops.add(reason);
         out.push(Action::Event(RouterEvent::Dropped {
             reason,
@@ -456,10 +451,10 @@ impl Router {
         }));
     }
 
-    fn port_outs(&mut self, now: u64, port: u8, outs: Vec<PortOut>, out: &mut Vec<Action>) {
+    fn port_outs(&mut self, now: u64, port: u8, outs: Vec<PortOut>, out: &mut Outbox) {
         for o in outs {
             match o {
-                PortOut::Write(bytes) => out.push(Action::WritePort { port, bytes }),
+                PortOut::Write(wire) => out.write_port(port, &wire),
                 PortOut::SetRate(bps) => out.push(Action::SetPortRate { port, bps }),
                 PortOut::Event(e) => out.push(Action::Event(e)),
                 PortOut::Relay { id, origin, reply } => self.relay_result(now, port, id, origin, *reply, out),
@@ -474,10 +469,10 @@ impl Router {
         }
     }
 
-    fn link_outs(&mut self, now: u64, link: LinkId, outs: Vec<LinkOut>, out: &mut Vec<Action>) {
+    fn link_outs(&mut self, now: u64, link: LinkId, outs: Vec<LinkOut>, out: &mut Outbox) {
         for o in outs {
             match o {
-                LinkOut::Write(bytes) => out.push(Action::WriteLink { link, bytes }),
+                LinkOut::Write(wire) => out.write_link(link, &wire),
                 LinkOut::FirstSent(key) => self.reverse.sent(key, now, &self.in_force),
                 LinkOut::Resent(key) => self.reverse.resent(key),
                 LinkOut::Failed(item, reason) => {
@@ -513,7 +508,7 @@ impl Router {
         frame: FrameBuf,
         pending: Option<u64>,
         dead_man: bool,
-        out: &mut Vec<Action>,
+        out: &mut Outbox,
     ) -> Result<(), DropReason> {
         let Some(l) = self.links.get_mut(&link) else {
             return Err(DropReason::LinkDown);
@@ -536,7 +531,7 @@ impl Router {
     }
 
     /// Writes a bare `?` to the origin (ARCHITECTURE "Routing semantics": a NIC is relayed as a bare `?`).
-    fn nic_to(&mut self, now: u64, origin: Origin, out: &mut Vec<Action>) -> Result<(), DropReason> {
+    fn nic_to(&mut self, now: u64, origin: Origin, out: &mut Outbox) -> Result<(), DropReason> {
         let Origin::Link { link, .. } = origin else {
             return Ok(());
         };
@@ -554,14 +549,7 @@ impl Router {
     /// waiting for, or a delivery report instead; a link to another GCU
     /// (whose frame was ACKed hop by hop) gets a report either way.
     /// `at_group`: the GCU where delivery failed.
-    fn resolve(
-        &mut self,
-        now: u64,
-        id: CommandId,
-        delivery: Result<(), Undelivered>,
-        at_group: u8,
-        out: &mut Vec<Action>,
-    ) {
+    fn resolve(&mut self, now: u64, id: CommandId, delivery: Result<(), Undelivered>, at_group: u8, out: &mut Outbox) {
         let Some(a) = self.awaiting.remove(&id) else { return };
         let f = a.frame.frame();
         match delivery {
@@ -598,7 +586,7 @@ impl Router {
     /// unsent (expired); one on the bus, or a forward, may still be
     /// delivered, which the client is told (not confirmed). A late ACK
     /// is never written: the client may be waiting for its next command's.
-    fn deliver_overdue(&mut self, now: u64, id: CommandId, out: &mut Vec<Action>) {
+    fn deliver_overdue(&mut self, now: u64, id: CommandId, out: &mut Outbox) {
         let mut cancelled = false;
         let ports: Vec<u8> = self.ports.keys().copied().collect();
         for port in ports {
@@ -624,7 +612,7 @@ impl Router {
         command: &Frame<'_>,
         failure: Option<Undelivered>,
         at_group: u8,
-        out: &mut Vec<Action>,
+        out: &mut Outbox,
     ) {
         let report = DeliveryReport {
             failure,
@@ -646,7 +634,7 @@ impl Router {
         id
     }
 
-    fn finish(&mut self, id: CommandId, outcome: CommandOutcome, out: &mut Vec<Action>) {
+    fn finish(&mut self, id: CommandId, outcome: CommandOutcome, out: &mut Outbox) {
         self.dead_man_rounds.remove(&id);
         self.stats.count(outcome);
         out.push(Action::Event(RouterEvent::Finished { id, outcome }));
@@ -662,7 +650,7 @@ impl Router {
         id: CommandId,
         origin: Origin,
         mut reply: FrameBuf,
-        out: &mut Vec<Action>,
+        out: &mut Outbox,
     ) {
         let Origin::Link { link, source } = origin else {
             // The router's own command: the answer is taken, not relayed.
@@ -698,7 +686,7 @@ impl Router {
         }
     }
 
-    fn job_finished(&mut self, now: u64, id: CommandId, outcome: CommandOutcome, out: &mut Vec<Action>) {
+    fn job_finished(&mut self, now: u64, id: CommandId, outcome: CommandOutcome, out: &mut Outbox) {
         let Some(p) = self.commands.get_mut(&id) else { return };
         match outcome {
             CommandOutcome::Result | CommandOutcome::Forwarded(_) => {}
@@ -739,7 +727,7 @@ impl Router {
         }
     }
 
-    fn on_received(&mut self, now: u64, link: LinkId, received: Received, out: &mut Vec<Action>) {
+    fn on_received(&mut self, now: u64, link: LinkId, received: Received, out: &mut Outbox) {
         match received {
             Received::Frame(frame) => self.on_link_frame(now, link, *frame, out),
             // A client answers no command: its `?` is a byte in the wrong
@@ -778,7 +766,7 @@ impl Router {
     /// are ACKed at once, hop by hop; a client's command is ACKed only once
     /// it is delivered (a repeat of it meanwhile is its retransmission, not
     /// a new command), or answered with a report instead.
-    fn on_link_frame(&mut self, now: u64, link: LinkId, frame: FrameBuf, out: &mut Vec<Action>) {
+    fn on_link_frame(&mut self, now: u64, link: LinkId, frame: FrameBuf, out: &mut Outbox) {
         let Some(l) = self.links.get_mut(&link) else { return };
         let kind = l.config.kind;
         let client = kind == LinkKind::Client;
@@ -845,7 +833,7 @@ impl Router {
     }
 
     /// Writes a bare ACK on `link`.
-    fn ack(&mut self, now: u64, link: LinkId, out: &mut Vec<Action>) {
+    fn ack(&mut self, now: u64, link: LinkId, out: &mut Outbox) {
         if let Some(l) = self.links.get_mut(&link) {
             let mut lo = Vec::new();
             l.ack(&mut lo);
@@ -854,7 +842,7 @@ impl Router {
     }
 
     /// An answer from another GCU to a frame we forwarded: back to its origin, unchanged.
-    fn relay_forwarded(&mut self, now: u64, from: LinkId, origin: Origin, frame: FrameBuf, out: &mut Vec<Action>) {
+    fn relay_forwarded(&mut self, now: u64, from: LinkId, origin: Origin, frame: FrameBuf, out: &mut Outbox) {
         let Origin::Link { link, .. } = origin else { return };
         let f = frame.frame();
         let (dest, source) = (f.dest, f.source);
@@ -877,7 +865,7 @@ impl Router {
         origin: Origin,
         kind: Option<LinkKind>,
         frame: FrameBuf,
-        out: &mut Vec<Action>,
+        out: &mut Outbox,
     ) {
         let f = frame.frame();
         let dest = f.dest;
@@ -966,7 +954,7 @@ impl Router {
         origin: Origin,
         frame: &FrameBuf,
         result_kind: sagebrush_protocol::ResultKind,
-        out: &mut Vec<Action>,
+        out: &mut Outbox,
     ) {
         let targets: Vec<LinkId> = self
             .links
@@ -1002,7 +990,7 @@ impl Router {
         origin: Origin,
         frame: FrameBuf,
         facts: CommandFacts,
-        out: &mut Vec<Action>,
+        out: &mut Outbox,
     ) {
         let f = frame.frame();
         let dest = f.dest;
@@ -1042,7 +1030,7 @@ impl Router {
 
     /// A link went down: drop its queue, forget its routes, cancel the
     /// motions it queued and stop the motions it owns (dead-man).
-    fn link_down(&mut self, now: u64, link: LinkId, out: &mut Vec<Action>) {
+    fn link_down(&mut self, now: u64, link: LinkId, out: &mut Outbox) {
         let Some(mut l) = self.links.remove(&link) else {
             self.unknown_inputs += 1;
             return;
@@ -1085,7 +1073,7 @@ impl Router {
 
     /// Shutdown (ARCHITECTURE "Safety"): refuse new commands from now on, and
     /// stop every motion still owned by a link.
-    fn shut_down(&mut self, now: u64, out: &mut Vec<Action>) {
+    fn shut_down(&mut self, now: u64, out: &mut Outbox) {
         if self.stopping {
             return;
         }
@@ -1095,7 +1083,7 @@ impl Router {
     }
 
     /// Stops motions the GCU takes back (each logged and counted by cause).
-    fn stop_motions(&mut self, now: u64, stops: Vec<OwnedStop>, cause: StopCause, out: &mut Vec<Action>) {
+    fn stop_motions(&mut self, now: u64, stops: Vec<OwnedStop>, cause: StopCause, out: &mut Outbox) {
         for (link, dest, stop) in stops {
             let stop_name = stop.mnemonic();
             let event = match cause {
@@ -1132,7 +1120,7 @@ impl Router {
     /// The first round of a stop the GCU issues itself (dead-man, lease,
     /// shutdown) for the motion `link` owned at `dest`; an unacknowledged
     /// one is sent again (module-level `DEAD_MAN_ROUNDS`).
-    fn issue_stop(&mut self, now: u64, dest: Address, stop: Command<'static>, link: LinkId, out: &mut Vec<Action>) {
+    fn issue_stop(&mut self, now: u64, dest: Address, stop: Command<'static>, link: LinkId, out: &mut Outbox) {
         let Ok(frame) = FrameBuf::build(dest, self.group, |buf| stop.encode(buf).map(<[u8]>::len)) else {
             return;
         };

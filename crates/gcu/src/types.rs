@@ -84,10 +84,14 @@ pub enum Input<'a> {
 /// What the daemon does for the router.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Action {
-    /// Write these bytes to the serial port.
-    WritePort { port: u8, bytes: Vec<u8> },
-    /// Write these bytes to the link.
-    WriteLink { link: LinkId, bytes: Vec<u8> },
+    /// Write these bytes to the serial port: a span of the
+    /// [`crate::Outbox`]'s buffer ([`crate::Outbox::bytes`]).
+    WritePort { port: u8, bytes: std::ops::Range<usize> },
+    /// Write these bytes to the link (a span, as above).
+    WriteLink {
+        link: LinkId,
+        bytes: std::ops::Range<usize>,
+    },
     /// Switch the serial port's own line rate (bits per second).
     SetPortRate { port: u8, bps: u32 },
     /// The link went down and the router forgot it: its final counters,

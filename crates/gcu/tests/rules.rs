@@ -2,11 +2,11 @@
 //! the public `Router` API with hand-written bytes.
 
 use sagebrush_gcu::{
-    Action, CommandId, CommandOutcome, DropReason, Input, LinkConfig, LinkId, LinkKind, PortConfig, Router,
+    Action, CommandId, CommandOutcome, DropReason, Input, LinkConfig, LinkId, LinkKind, Outbox, PortConfig, Router,
     RouterConfig, RouterEvent, SourceFilter,
 };
 use sagebrush_protocol::link::wire_ms;
-use sagebrush_protocol::{ACK, Address, DeliveryReport, FrameBuf, NAK, NIC, Undelivered};
+use sagebrush_protocol::{ACK, Address, DeliveryReport, Event, FrameBuf, Framer, NAK, NIC, Undelivered};
 
 const G: u8 = 5;
 const CLIENT: LinkId = LinkId(1);
@@ -84,50 +84,63 @@ impl H {
         });
     }
 
-    fn go(&mut self, input: Input<'_>) -> Vec<Action> {
-        self.r.handle_vec(self.now, input)
+    fn go(&mut self, input: Input<'_>) -> Outbox {
+        self.r.handle_once(self.now, input)
     }
 
-    fn link(&mut self, link: LinkId, bytes: &[u8]) -> Vec<Action> {
+    fn link(&mut self, link: LinkId, bytes: &[u8]) -> Outbox {
         self.go(Input::LinkBytes { link, bytes })
     }
 
-    fn port(&mut self, port: u8, bytes: &[u8]) -> Vec<Action> {
+    fn port(&mut self, port: u8, bytes: &[u8]) -> Outbox {
         self.go(Input::PortBytes { port, bytes })
     }
 
     /// Advances time by `ticks`, firing every deadline on the way.
-    fn wait(&mut self, ticks: u64) -> Vec<Action> {
+    fn wait(&mut self, ticks: u64) -> Outbox {
         let end = self.now + ticks;
-        let mut all = Vec::new();
+        let mut all = Outbox::new();
         while let Some(t) = self.r.next_deadline().filter(|&t| t <= end) {
             self.now = t.max(self.now);
-            all.extend(self.go(Input::Tick));
+            self.r.handle(self.now, Input::Tick, &mut all);
         }
         self.now = end;
-        all.extend(self.go(Input::Tick));
+        self.r.handle(self.now, Input::Tick, &mut all);
         all
     }
 }
 
-fn port_writes(actions: &[Action], port: u8) -> Vec<Vec<u8>> {
-    actions
-        .iter()
-        .filter_map(|a| match a {
-            Action::WritePort { port: p, bytes } if *p == port => Some(bytes.clone()),
-            _ => None,
-        })
-        .collect()
+/// What was written where `to` says, one frame or bare byte per item (the
+/// outbox merges consecutive writes to one line; the framer splits them).
+fn writes(out: &Outbox, to: impl Fn(&Action) -> Option<&std::ops::Range<usize>>) -> Vec<Vec<u8>> {
+    let mut framer: Framer = Framer::new();
+    let mut items = Vec::new();
+    for span in out.actions().iter().filter_map(to) {
+        framer.feed(out.bytes(span), |e| {
+            items.push(match e {
+                Event::Frame(f) => FrameBuf::from_frame(&f).as_bytes().to_vec(),
+                Event::Ack => vec![ACK],
+                Event::Nak => vec![NAK],
+                Event::Nic => vec![NIC],
+                Event::BadChecksum(b) => panic!("the router wrote a damaged frame: {b:?}"),
+            })
+        });
+    }
+    items
 }
 
-fn link_writes(actions: &[Action], link: LinkId) -> Vec<Vec<u8>> {
-    actions
-        .iter()
-        .filter_map(|a| match a {
-            Action::WriteLink { link: l, bytes } if *l == link => Some(bytes.clone()),
-            _ => None,
-        })
-        .collect()
+fn port_writes(out: &Outbox, port: u8) -> Vec<Vec<u8>> {
+    writes(out, |a| match a {
+        Action::WritePort { port: p, bytes } if *p == port => Some(bytes),
+        _ => None,
+    })
+}
+
+fn link_writes(out: &Outbox, link: LinkId) -> Vec<Vec<u8>> {
+    writes(out, |a| match a {
+        Action::WriteLink { link: l, bytes } if *l == link => Some(bytes),
+        _ => None,
+    })
 }
 
 fn finished(actions: &[Action]) -> Vec<CommandOutcome> {
@@ -197,11 +210,11 @@ fn port_opened_reports_its_rate_and_unknown_inputs_are_counted() {
         ..port_config(1)
     }];
     let mut r = Router::new(config).unwrap();
-    let a = r.handle_vec(0, Input::PortOpened { port: 1 });
+    let a = r.handle_once(0, Input::PortOpened { port: 1 });
     assert!(a.contains(&Action::SetPortRate { port: 1, bps: 38400 }));
-    assert!(r.handle_vec(0, Input::PortBytes { port: 9, bytes: b"x" }).is_empty());
+    assert!(r.handle_once(0, Input::PortBytes { port: 9, bytes: b"x" }).is_empty());
     assert!(
-        r.handle_vec(
+        r.handle_once(
             0,
             Input::LinkBytes {
                 link: LinkId(9),
@@ -1001,7 +1014,7 @@ fn reconfigure_leaves_unchanged_ports_alone_and_stops_motions_before_closing_a_p
     config.ports = vec![port_config(1), port_config(3)];
     config.links.ack_timeout = 10;
     config.links.retries = 2;
-    let mut a = Vec::new();
+    let mut a = Outbox::new();
     h.r.reconfigure(h.now, config.clone(), &[], &mut a).expect("valid");
     assert_eq!(
         port_writes(&a, 2),
@@ -1025,7 +1038,7 @@ fn reconfigure_leaves_unchanged_ports_alone_and_stops_motions_before_closing_a_p
     h.port(2, &[ACK]);
     h.wait(10);
     assert_eq!(h.r.closed_ports(), vec![2]);
-    let mut a = Vec::new();
+    let mut a = Outbox::new();
     h.r.port_closed(h.now, 2, &mut a);
     assert!(!h.r.has_port(2));
     assert!(h.r.has_port(3));
@@ -1033,7 +1046,7 @@ fn reconfigure_leaves_unchanged_ports_alone_and_stops_motions_before_closing_a_p
     assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::UnknownPort)]);
     // The group cannot change while running.
     config.group = 6;
-    assert!(h.r.reconfigure(h.now, config, &[], &mut Vec::new()).is_err());
+    assert!(h.r.reconfigure(h.now, config, &[], &mut Outbox::new()).is_err());
 }
 
 #[test]

@@ -5,7 +5,8 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use sagebrush_gcu::{
-    Action, CommandId, Input, LinkConfig, LinkId, LinkKind, PortConfig, Router, RouterConfig, RouterEvent, SourceFilter,
+    Action, CommandId, Input, LinkConfig, LinkId, LinkKind, Outbox, PortConfig, Router, RouterConfig, RouterEvent,
+    SourceFilter,
 };
 use sagebrush_protocol::{
     ACK, Address, AwakeStatus, Command, DeliveryReport, DeviceEndpoint, DeviceHandler, EndpointConfig, Extended,
@@ -433,8 +434,8 @@ impl World {
 
     fn input(&mut self, g: usize, input: Input<'_>) {
         let now = self.now;
-        let actions = self.gcus[g].router.handle_vec(now, input);
-        self.apply(g, actions);
+        let out = self.gcus[g].router.handle_once(now, input);
+        self.apply(g, out);
     }
 
     fn violation(&mut self, message: String) {
@@ -444,10 +445,11 @@ impl World {
         }
     }
 
-    fn apply(&mut self, g: usize, actions: Vec<Action>) {
-        for action in actions {
+    fn apply(&mut self, g: usize, out: Outbox) {
+        for action in out.actions().iter().cloned() {
             match action {
                 Action::WritePort { port, bytes } => {
+                    let bytes = out.bytes(&bytes).to_vec();
                     self.log(format_args!("gcu {g} port {port} <- {bytes:02X?}"));
                     let Some(p) = self.gcus[g].ports.iter().position(|sp| sp.id == port) else {
                         self.violation(format!("gcu {g} wrote to unknown port {port}"));
@@ -474,7 +476,7 @@ impl World {
                         }
                     }
                 }
-                Action::WriteLink { link, bytes } => self.write_link(g, link, bytes),
+                Action::WriteLink { link, bytes } => self.write_link(g, link, out.bytes(&bytes).to_vec()),
                 Action::SetPortRate { port, bps } => {
                     if let Some(sp) = self.gcus[g].ports.iter_mut().find(|sp| sp.id == port) {
                         sp.bps = bps;
