@@ -125,6 +125,10 @@ pub struct Router {
     /// New configurations of ports that are closing (reconfigured).
     replacements: BTreeMap<u8, PortConfig>,
     next_id: u64,
+    /// Emptied scratch vectors of port and link outputs, reused so that
+    /// routing a frame does not allocate them anew (a few: calls nest).
+    port_scratch: Vec<Vec<PortOut>>,
+    link_scratch: Vec<Vec<LinkOut>>,
     last_now: u64,
     stats: RouterStats,
     unknown_inputs: u64,
@@ -144,6 +148,9 @@ enum StopCause {
 /// Rounds of a dead-man stop (each with the port's retries) before the
 /// router gives up on a device that never acknowledges it.
 const DEAD_MAN_ROUNDS: u8 = 5;
+
+/// Scratch vectors kept for reuse, per kind (calls nest a few deep).
+const SCRATCH_KEPT: usize = 4;
 
 impl Router {
     /// A router for `config`; ports start closed until [`Input::PortOpened`].
@@ -165,6 +172,8 @@ impl Router {
             stopping: false,
             replacements: BTreeMap::new(),
             next_id: 0,
+            port_scratch: Vec::new(),
+            link_scratch: Vec::new(),
             last_now: 0,
             stats: RouterStats::default(),
             unknown_inputs: 0,
@@ -213,7 +222,7 @@ impl Router {
             Input::Shutdown => self.shut_down(now, out),
             Input::LinkBytes { link, bytes } => match self.links.get_mut(&link) {
                 Some(l) => {
-                    let mut lo = Vec::new();
+                    let mut lo = self.link_scratch.pop().unwrap_or_default();
                     let received = l.receive(now, bytes, &mut lo);
                     self.link_outs(now, link, lo, out);
                     for r in received {
@@ -394,7 +403,7 @@ impl Router {
             self.unknown_inputs += 1;
             return;
         };
-        let mut po = Vec::new();
+        let mut po = self.port_scratch.pop().unwrap_or_default();
         f(p, now, &mut po);
         self.port_outs(now, port, po, out);
     }
@@ -432,7 +441,7 @@ impl Router {
             .collect();
         for link in links {
             let Some(l) = self.links.get_mut(&link) else { continue };
-            let mut lo = Vec::new();
+            let mut lo = self.link_scratch.pop().unwrap_or_default();
             let received = l.poll(now, &mut lo);
             self.link_outs(now, link, lo, out);
             for r in received {
@@ -451,8 +460,8 @@ impl Router {
         }));
     }
 
-    fn port_outs(&mut self, now: u64, port: u8, outs: Vec<PortOut>, out: &mut Outbox) {
-        for o in outs {
+    fn port_outs(&mut self, now: u64, port: u8, mut outs: Vec<PortOut>, out: &mut Outbox) {
+        for o in outs.drain(..) {
             match o {
                 PortOut::Write(wire) => out.write_port(port, &wire),
                 PortOut::SetRate(bps) => out.push(Action::SetPortRate { port, bps }),
@@ -467,10 +476,13 @@ impl Router {
                 PortOut::Finished { id, outcome, .. } => self.job_finished(now, id, outcome, out),
             }
         }
+        if self.port_scratch.len() < SCRATCH_KEPT {
+            self.port_scratch.push(outs);
+        }
     }
 
-    fn link_outs(&mut self, now: u64, link: LinkId, outs: Vec<LinkOut>, out: &mut Outbox) {
-        for o in outs {
+    fn link_outs(&mut self, now: u64, link: LinkId, mut outs: Vec<LinkOut>, out: &mut Outbox) {
+        for o in outs.drain(..) {
             match o {
                 LinkOut::Write(wire) => out.write_link(link, &wire),
                 LinkOut::FirstSent(key) => self.reverse.sent(key, now, &self.in_force),
@@ -498,6 +510,9 @@ impl Router {
                 }
             }
         }
+        if self.link_scratch.len() < SCRATCH_KEPT {
+            self.link_scratch.push(outs);
+        }
     }
 
     /// Queues `frame` on `link`.
@@ -515,7 +530,7 @@ impl Router {
         };
         // Only forwarded commands carry a reverse-path entry; their stops go first.
         let stop = pending.is_some() && Command::parse(frame.frame().payload()).is_stop();
-        let mut lo = Vec::new();
+        let mut lo = self.link_scratch.pop().unwrap_or_default();
         let queued = l.enqueue(
             now,
             Outgoing {
@@ -538,7 +553,7 @@ impl Router {
         let Some(l) = self.links.get_mut(&link) else {
             return Err(DropReason::OriginGone);
         };
-        let mut lo = Vec::new();
+        let mut lo = self.link_scratch.pop().unwrap_or_default();
         l.write_nic(&mut lo);
         self.link_outs(now, link, lo, out);
         Ok(())
@@ -573,7 +588,7 @@ impl Router {
         }
         if a.client && delivery.is_ok() {
             if let Some(l) = self.links.get_mut(&a.link) {
-                let mut lo = Vec::new();
+                let mut lo = self.link_scratch.pop().unwrap_or_default();
                 l.ack(&mut lo);
                 self.link_outs(now, a.link, lo, out);
             }
@@ -590,7 +605,7 @@ impl Router {
         let mut cancelled = false;
         let ports: Vec<u8> = self.ports.keys().copied().collect();
         for port in ports {
-            let mut po = Vec::new();
+            let mut po = self.port_scratch.pop().unwrap_or_default();
             if let Some(p) = self.ports.get_mut(&port) {
                 cancelled |= p.cancel_queued(id, DropReason::Expired, &mut po);
             }
@@ -835,7 +850,7 @@ impl Router {
     /// Writes a bare ACK on `link`.
     fn ack(&mut self, now: u64, link: LinkId, out: &mut Outbox) {
         if let Some(l) = self.links.get_mut(&link) {
-            let mut lo = Vec::new();
+            let mut lo = self.link_scratch.pop().unwrap_or_default();
             l.ack(&mut lo);
             self.link_outs(now, link, lo, out);
         }

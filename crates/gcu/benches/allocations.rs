@@ -1,0 +1,85 @@
+//! Heap allocations per routed transaction in the router core, the figure
+//! issue 14's zero-allocation data path is measured by: a client's `P?` to
+//! a device on a port, its ACK, the device's ACK and result, the result
+//! relayed back and acknowledged, repeated after a warm-up so that every
+//! buffer (the caller's `Outbox` included) has grown. `cargo bench -p
+//! sagebrush-gcu --bench allocations`; it prints, it asserts nothing.
+
+use std::alloc::System;
+
+use sagebrush_gcu::{Input, LinkConfig, LinkId, LinkKind, Outbox, PortConfig, Router, RouterConfig, SourceFilter};
+use sagebrush_protocol::{ACK, Address, FrameBuf};
+use stats_alloc::{INSTRUMENTED_SYSTEM, Region, StatsAlloc};
+
+#[global_allocator]
+static GLOBAL: &StatsAlloc<System> = &INSTRUMENTED_SYSTEM;
+
+const CLIENT: LinkId = LinkId(1);
+
+fn main() {
+    let mut config = RouterConfig::new(5);
+    config.ports.push(PortConfig::new(1));
+    let mut router = Router::new(config).expect("valid config");
+    let mut out = Outbox::new();
+    router.handle(0, Input::PortOpened { port: 1 }, &mut out);
+    let link = LinkConfig::new(LinkKind::Client, SourceFilter::Any);
+    router.handle(
+        0,
+        Input::LinkUp {
+            link: CLIENT,
+            config: link,
+        },
+        &mut out,
+    );
+    out.clear();
+    let command = FrameBuf::new(Address::new(5, 1, 3), 0, b"P?").expect("frame");
+    let result = FrameBuf::new(Address::new(0, 1, 3), 5, b"00640000").expect("frame");
+    let mut now = 0u64;
+    let mut transaction = |router: &mut Router, out: &mut Outbox| {
+        now += 10;
+        router.handle(
+            now,
+            Input::LinkBytes {
+                link: CLIENT,
+                bytes: command.as_bytes(),
+            },
+            out,
+        );
+        router.handle(now, Input::PortBytes { port: 1, bytes: &[ACK] }, out);
+        router.handle(
+            now,
+            Input::PortBytes {
+                port: 1,
+                bytes: result.as_bytes(),
+            },
+            out,
+        );
+        router.handle(
+            now,
+            Input::LinkBytes {
+                link: CLIENT,
+                bytes: &[ACK],
+            },
+            out,
+        );
+        now += 1000;
+        router.handle(now, Input::Tick, out);
+        out.clear();
+    };
+    for _ in 0..1000 {
+        transaction(&mut router, &mut out);
+    }
+    const N: u64 = 10_000;
+    let region = Region::new(GLOBAL);
+    for _ in 0..N {
+        transaction(&mut router, &mut out);
+    }
+    let stats = region.change();
+    assert_eq!(router.stats().router.results, 1000 + N, "every P? was answered");
+    println!(
+        "router core, routed P? (client -> port -> result back): {:.2} allocations, {:.0} bytes allocated per transaction ({} transactions)",
+        stats.allocations as f64 / N as f64,
+        stats.bytes_allocated as f64 / N as f64,
+        N
+    );
+}
