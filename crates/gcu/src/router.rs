@@ -117,7 +117,7 @@ pub struct Router {
     deadman: DeadMan,
     commands: BTreeMap<CommandId, Progress>,
     /// Dead-man stops in progress: the stop, the link it is for, its round.
-    dead_man_rounds: BTreeMap<CommandId, (Box<FrameBuf>, LinkId, u8)>,
+    dead_man_rounds: BTreeMap<CommandId, DeadManRound>,
     /// Links' commands whose origin awaits the delivery outcome.
     awaiting: BTreeMap<CommandId, Awaiting>,
     /// [`Input::Shutdown`] came: new commands are refused.
@@ -148,6 +148,10 @@ enum StopCause {
 /// Rounds of a dead-man stop (each with the port's retries) before the
 /// router gives up on a device that never acknowledges it.
 const DEAD_MAN_ROUNDS: u8 = 5;
+
+/// A stop the GCU issued itself: the stop, the link whose motion it ends,
+/// and which round of sending it this is.
+type DeadManRound = (Box<FrameBuf>, LinkId, u8);
 
 /// Scratch vectors kept for reuse, per kind (calls nest a few deep).
 const SCRATCH_KEPT: usize = 4;
@@ -735,9 +739,8 @@ impl Router {
                     dest: f.dest,
                     stop: Command::parse(f.payload()).mnemonic(),
                 }));
-                let id = self.next_command_id();
-                self.dead_man_rounds.insert(id, (frame.clone(), link, round + 1));
-                self.dispatch(now, id, Origin::Internal, None, *frame, out);
+                let again = (frame.clone(), link, round + 1);
+                self.dispatch(now, Origin::Internal, None, *frame, Some(again), out);
             }
         }
     }
@@ -843,8 +846,7 @@ impl Router {
             self.ack(now, link, out);
         }
         self.routes.learn(source, link, kind);
-        let id = self.next_command_id();
-        self.dispatch(now, id, Origin::Link { link, source }, Some(kind), frame, out);
+        self.dispatch(now, Origin::Link { link, source }, Some(kind), frame, None, out);
     }
 
     /// Writes a bare ACK on `link`.
@@ -872,8 +874,28 @@ impl Router {
     }
 
     /// A command frame accepted from `origin` (a link of `kind`, or the
-    /// router itself) as command `id`.
+    /// router itself): gives it the next command id and returns it. A stop
+    /// the GCU issued itself is registered under that id before routing,
+    /// since the command may end inside this call.
     fn dispatch(
+        &mut self,
+        now: u64,
+        origin: Origin,
+        kind: Option<LinkKind>,
+        frame: FrameBuf,
+        dead_man: Option<DeadManRound>,
+        out: &mut Outbox,
+    ) -> CommandId {
+        let id = self.next_command_id();
+        if let Some(round) = dead_man {
+            self.dead_man_rounds.insert(id, round);
+        }
+        self.route_command(now, id, origin, kind, frame, out);
+        id
+    }
+
+    /// Routes command `id`: locally, to a link, or dropped and reported.
+    fn route_command(
         &mut self,
         now: u64,
         id: CommandId,
@@ -1139,8 +1161,7 @@ impl Router {
         let Ok(frame) = FrameBuf::build(dest, self.group, |buf| stop.encode(buf).map(<[u8]>::len)) else {
             return;
         };
-        let id = self.next_command_id();
-        self.dead_man_rounds.insert(id, (Box::new(frame.clone()), link, 1));
-        self.dispatch(now, id, Origin::Internal, None, frame, out);
+        let round = (Box::new(frame.clone()), link, 1);
+        self.dispatch(now, Origin::Internal, None, frame, Some(round), out);
     }
 }
