@@ -6,12 +6,12 @@
 mod support;
 
 use std::io::{Read, Write};
-use std::net::TcpStream;
+use std::net::{TcpListener, TcpStream};
 use std::path::Path;
 use std::time::Duration;
 
 use nix::sys::signal::Signal;
-use support::capture::{Daemon, require_tshark, tshark_fields};
+use support::capture::{Daemon, Program, require_tshark, tshark_fields, wait_until_read};
 use support::eventually;
 
 fn config(capture: &str) -> String {
@@ -21,7 +21,7 @@ fn config(capture: &str) -> String {
     )
 }
 
-const FIELDS: [&str; 13] = [
+const FIELDS: [&str; 15] = [
     "frame.number",
     "frame.interface_name",
     "sagebrush.kind",
@@ -35,6 +35,8 @@ const FIELDS: [&str; 13] = [
     "sagebrush.table3_swap",
     "sagebrush.checksum.bad",
     "sagebrush.response_to",
+    "sagebrush.ack_of",
+    "frame.len",
 ];
 
 /// One decoded packet, by field name.
@@ -266,76 +268,250 @@ fn a_capture_out_of_budget_stops_once_and_sigusr1_starts_a_fresh_one() {
     assert_eq!(log.matches("capture budget of 4096 bytes reached").count(), 1, "{log}");
 }
 
-/// gimbalsim and gimbalctl capture their own line (`--capture FILE`): the
-/// same exchange, recorded at both ends, decodes with the dissector, each
-/// end with its own directions (the master's commands outbound, the
-/// device's inbound; ACKs and results the other way).
+/// The rows of a capture file (tshark must read it) and their table for messages.
+fn decoded(file: &Path) -> (Vec<Row>, String) {
+    let (rows, code, stderr) = decode(file);
+    assert_eq!(code, 0, "tshark {}: {stderr}", file.display());
+    let all = table(&rows);
+    (rows, all)
+}
+
+/// The row of frame number `n` (tshark numbers from 1).
+fn frame<'a>(rows: &'a [Row], n: &str, all: &str) -> &'a Row {
+    let n: usize = n.parse().unwrap_or_else(|_| panic!("a frame number, not {n:?}: {all}"));
+    &rows[n - 1]
+}
+
+/// gimbalsim and gimbalctl capture their own line (`--capture FILE`), on a
+/// pseudo-terminal and over TCP: the same exchanges, recorded at both ends,
+/// decode with the dissector, each end with its own directions (the
+/// master's commands and its ACKs of results outbound, the device's ACKs
+/// and results inbound; the other way round at the device), every ACK
+/// paired with what it answers.
 #[test]
 fn gimbalsim_and_gimbalctl_capture_their_own_line() {
     require_tshark();
-    let dir = tempfile::tempdir().expect("temp dir");
-    let (sim_file, ctl_file) = (dir.path().join("sim.pcapng"), dir.path().join("ctl.pcapng"));
-    let sim = support::Sim::pty(&["--device", "1", "--capture", sim_file.to_str().expect("path")]);
-    let out = sim.ctl(&[
-        "--capture",
-        ctl_file.to_str().expect("path"),
-        "--to",
-        "1.1.1",
-        "goto",
-        "12.5",
-        "-3",
-    ]);
-    assert_eq!(out.code, 0, "{out:?}");
-    let out = sim.ctl(&["--to", "1.1.1", "position"]);
-    assert_eq!(out.code, 0, "{out:?}");
-    sim.stop();
+    for tcp in [false, true] {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let file = |name: &str| dir.path().join(name).to_str().expect("path").to_owned();
+        let sim_args = ["--device", "1", "--capture", &file("sim.pcapng")];
+        let sim = if tcp {
+            support::Sim::tcp(&sim_args)
+        } else {
+            support::Sim::pty(&sim_args)
+        };
+        let goto = ["--capture", &file("goto.pcapng"), "--to", "1.1.1", "goto", "12.5", "-3"];
+        let out = sim.ctl(&goto);
+        assert_eq!(out.code, 0, "{out:?}");
+        assert_eq!(sim.settled_position(), (12.5, -3.0));
+        let reported = sim.result(&["--capture", &file("position.pcapng"), "--to", "1.1.1", "position"]);
+        assert_eq!(
+            (reported["pan_deg"].as_f64(), reported["tilt_deg"].as_f64()),
+            (Some(12.5), Some(-3.0))
+        );
+        let endpoint = sim.endpoint.clone();
+        sim.stop();
+        let ctl_interface = match tcp {
+            true => format!("gimbalctl tcp {endpoint}"),
+            false => format!("gimbalctl serial {endpoint}"),
+        };
 
-    // The bus master's view: one goto out, its ACK in.
-    let (rows, code, stderr) = decode(&ctl_file);
-    assert_eq!(code, 0, "tshark: {stderr}");
-    let all = table(&rows);
-    assert!(
-        rows.iter()
-            .all(|r| r.get("frame.interface_name").starts_with("gimbalctl serial ")),
-        "{all}"
-    );
-    let goto = rows
-        .iter()
-        .find(|r| r.get("sagebrush.cmd") == "Paaaaeeee")
-        .expect("the goto");
-    assert_eq!(goto.get("sagebrush.direction"), "2", "written by gimbalctl: {all}");
-    assert_eq!(goto.get("sagebrush.address"), "1.1.1", "{all}");
-    assert_eq!(goto.get("sagebrush.pan_deg").parse::<f64>().ok(), Some(12.5), "{all}");
-    assert_eq!(goto.get("sagebrush.tilt_deg").parse::<f64>().ok(), Some(-3.0), "{all}");
-    let ack = rows.iter().find(|r| r.get("sagebrush.kind") == "2").expect("the ACK");
-    assert_eq!(ack.get("sagebrush.direction"), "1", "read by gimbalctl: {all}");
-    assert!(
-        !rows.iter().any(|r| r.get("sagebrush.cmd") == "P?"),
-        "the second run was not captured: {all}"
-    );
+        // gimbalctl's goto: the command out, the device's ACK in.
+        let (rows, all) = decoded(&dir.path().join("goto.pcapng"));
+        assert_eq!(rows.len(), 2, "{all}");
+        assert!(
+            rows.iter().all(|r| r.get("frame.interface_name") == ctl_interface),
+            "{all}"
+        );
+        let (goto, ack) = (&rows[0], &rows[1]);
+        assert_eq!(goto.get("sagebrush.type"), "command", "{all}");
+        assert_eq!(goto.get("sagebrush.cmd"), "Paaaaeeee", "{all}");
+        assert_eq!(goto.get("sagebrush.direction"), "2", "written by gimbalctl: {all}");
+        assert_eq!(goto.get("sagebrush.address"), "1.1.1", "{all}");
+        assert_eq!(goto.get("sagebrush.source"), "0", "{all}");
+        assert_eq!(goto.get("sagebrush.pan_deg").parse::<f64>().ok(), Some(12.5), "{all}");
+        assert_eq!(goto.get("sagebrush.tilt_deg").parse::<f64>().ok(), Some(-3.0), "{all}");
+        assert_eq!(ack.get("sagebrush.kind"), "2", "{all}");
+        assert_eq!(ack.get("sagebrush.direction"), "1", "read by gimbalctl: {all}");
+        assert_eq!(ack.get("sagebrush.ack_of"), goto.get("frame.number"), "{all}");
 
-    // The device's view: both runs (one line, one file), directions reversed.
-    let (rows, code, stderr) = decode(&sim_file);
-    assert_eq!(code, 0, "tshark: {stderr}");
-    let all = table(&rows);
-    assert!(
-        rows.iter()
-            .all(|r| r.get("frame.interface_name").starts_with("gimbalsim pty ")),
-        "{all}"
-    );
-    let goto = rows
-        .iter()
-        .find(|r| r.get("sagebrush.cmd") == "Paaaaeeee")
-        .expect("the goto");
-    assert_eq!(goto.get("sagebrush.direction"), "1", "read by gimbalsim: {all}");
-    assert_eq!(goto.get("sagebrush.pan_deg").parse::<f64>().ok(), Some(12.5), "{all}");
-    let result = rows
-        .iter()
-        .find(|r| r.get("sagebrush.type") == "result")
-        .expect("the P? result");
-    assert_eq!(result.get("sagebrush.cmd"), "P?", "paired with its command: {all}");
-    assert_eq!(result.get("sagebrush.direction"), "2", "written by gimbalsim: {all}");
-    assert_eq!(result.get("sagebrush.table3_swap"), "1", "{all}");
+        // gimbalctl's position: P? out, ACK in, the result in (in degrees), its ACK out.
+        let (rows, all) = decoded(&dir.path().join("position.pcapng"));
+        let seen: Vec<(&str, &str, &str)> = rows
+            .iter()
+            .map(|r| {
+                (
+                    r.get("sagebrush.kind"),
+                    r.get("sagebrush.direction"),
+                    r.get("sagebrush.cmd"),
+                )
+            })
+            .collect();
+        assert_eq!(
+            seen,
+            [("1", "2", "P?"), ("2", "1", ""), ("1", "1", "P?"), ("2", "2", "")],
+            "{all}"
+        );
+        assert!(
+            rows.iter().all(|r| r.get("frame.interface_name") == ctl_interface),
+            "{all}"
+        );
+        let (query, result) = (&rows[0], &rows[2]);
+        assert_eq!(query.get("sagebrush.address"), "1.1.1", "{all}");
+        assert_eq!(rows[1].get("sagebrush.ack_of"), query.get("frame.number"), "{all}");
+        assert_eq!(result.get("sagebrush.type"), "result", "{all}");
+        assert_eq!(result.get("sagebrush.response_to"), query.get("frame.number"), "{all}");
+        assert_eq!(result.get("sagebrush.address"), "0.1.1", "Table 3 swap: {all}");
+        assert_eq!(result.get("sagebrush.source"), "1", "{all}");
+        assert_eq!(result.get("sagebrush.table3_swap"), "1", "{all}");
+        assert_eq!(result.get("sagebrush.pan_deg").parse::<f64>().ok(), Some(12.5), "{all}");
+        assert_eq!(
+            result.get("sagebrush.tilt_deg").parse::<f64>().ok(),
+            Some(-3.0),
+            "{all}"
+        );
+        assert_eq!(rows[3].get("sagebrush.ack_of"), result.get("frame.number"), "{all}");
+
+        // gimbalsim's view: every run (one file, an interface per TCP
+        // connection), directions reversed.
+        let (rows, all) = decoded(&dir.path().join("sim.pcapng"));
+        let sim_interface = match tcp {
+            true => "gimbalsim tcp 127.0.0.1:".to_owned(),
+            false => format!("gimbalsim pty {endpoint}"),
+        };
+        assert!(
+            rows.iter()
+                .all(|r| r.get("frame.interface_name").starts_with(&sim_interface)),
+            "{all}"
+        );
+        let gotos: Vec<&Row> = rows.iter().filter(|r| r.get("sagebrush.cmd") == "Paaaaeeee").collect();
+        assert_eq!(gotos.len(), 1, "{all}");
+        let goto = gotos[0];
+        assert_eq!(goto.get("sagebrush.direction"), "1", "read by gimbalsim: {all}");
+        assert_eq!(goto.get("sagebrush.address"), "1.1.1", "{all}");
+        assert_eq!(goto.get("sagebrush.pan_deg").parse::<f64>().ok(), Some(12.5), "{all}");
+        assert_eq!(goto.get("sagebrush.tilt_deg").parse::<f64>().ok(), Some(-3.0), "{all}");
+        let ack = rows
+            .iter()
+            .find(|r| r.get("sagebrush.kind") == "2" && r.get("sagebrush.ack_of") == goto.get("frame.number"))
+            .unwrap_or_else(|| panic!("gimbalsim's ACK of the goto: {all}"));
+        assert_eq!(ack.get("sagebrush.direction"), "2", "written by gimbalsim: {all}");
+        // The last result is the captured position's.
+        let result = rows
+            .iter()
+            .rfind(|r| r.get("sagebrush.type") == "result")
+            .unwrap_or_else(|| panic!("a result: {all}"));
+        assert_eq!(result.get("sagebrush.direction"), "2", "written by gimbalsim: {all}");
+        assert_eq!(result.get("sagebrush.address"), "0.1.1", "{all}");
+        assert_eq!(result.get("sagebrush.pan_deg").parse::<f64>().ok(), Some(12.5), "{all}");
+        assert_eq!(
+            result.get("sagebrush.tilt_deg").parse::<f64>().ok(),
+            Some(-3.0),
+            "{all}"
+        );
+        let query = frame(&rows, result.get("sagebrush.response_to"), &all);
+        assert_eq!(query.get("sagebrush.cmd"), "P?", "{all}");
+        assert_eq!(query.get("sagebrush.direction"), "1", "read by gimbalsim: {all}");
+        assert!(
+            rows.iter()
+                .any(|r| r.get("sagebrush.ack_of") == result.get("frame.number") && r.get("sagebrush.direction") == "1"),
+            "gimbalctl's ACK of the result, read by gimbalsim: {all}"
+        );
+    }
+}
+
+/// What a program read before SIGINT or SIGTERM is in its capture file:
+/// gimbalctl (through a stand-in for gcud that acknowledges a `P?` and
+/// sends half its result) and gimbalsim (sent half a command) complete the
+/// file on the way out, the cut frame written as noise; gimbalctl exits
+/// 128 + the signal, gimbalsim prints its stats line as before.
+#[test]
+fn sigint_and_sigterm_complete_the_capture_files() {
+    require_tshark();
+    for signal in [Signal::SIGINT, Signal::SIGTERM] {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let file = |name: &str| dir.path().join(name).to_str().expect("path").to_owned();
+
+        let gcud = TcpListener::bind("127.0.0.1:0").expect("listen");
+        let gcud_addr = gcud.local_addr().expect("address").to_string();
+        let ctl = Program::spawn(
+            support::gimbalctl_bin(),
+            &[
+                "--tcp",
+                &gcud_addr,
+                "--capture",
+                &file("ctl.pcapng"),
+                "--to",
+                "1.1.1",
+                "position",
+            ],
+        );
+        gcud.set_nonblocking(true).expect("nonblocking");
+        let mut accepted = None;
+        eventually("gimbalctl to connect", || {
+            accepted = gcud.accept().ok();
+            accepted.is_some()
+        });
+        let (mut conn, ctl_addr) = accepted.expect("connection");
+        conn.set_nonblocking(false).expect("blocking");
+        conn.set_read_timeout(Some(support::HANG_GUARD)).expect("timeout");
+        let mut query = [0u8; 9];
+        conn.read_exact(&mut query).expect("gimbalctl's P?");
+        assert_eq!(&query[..8], [0xF8, 1, 1, 1, 0, 2, b'P', b'?']);
+        conn.write_all(&[0x06, 0xF8, 0, 1, 1]).expect("ACK and half a result");
+        wait_until_read(ctl_addr.port(), gcud.local_addr().expect("address").port());
+        ctl.signal(signal);
+        let (status, _, stderr) = ctl.wait();
+
+        let (rows, all) = decoded(&dir.path().join("ctl.pcapng"));
+        let seen: Vec<(&str, &str)> = rows
+            .iter()
+            .map(|r| (r.get("sagebrush.kind"), r.get("sagebrush.direction")))
+            .collect();
+        assert_eq!(
+            seen,
+            [("1", "2"), ("2", "1"), ("5", "1")],
+            "{signal}: P?, ACK, half a result: {all}"
+        );
+        assert_eq!(rows[2].get("frame.len"), "12", "a record header and 4 bytes: {all}");
+        assert_eq!(
+            status.code(),
+            Some(128 + signal as i32),
+            "{signal}: {status:?} {stderr}"
+        );
+        assert!(stderr.contains(&format!("interrupted by {signal}")), "{stderr}");
+
+        let sim = Program::spawn(
+            support::gimbalsim_bin(),
+            &[
+                "--device",
+                "1",
+                "--tcp",
+                "127.0.0.1:0",
+                "--capture",
+                &file("sim.pcapng"),
+            ],
+        );
+        let sim_addr = sim.line();
+        let mut master = TcpStream::connect(&sim_addr).expect("connect to gimbalsim");
+        master.write_all(&[0xF8, 1, 1, 1]).expect("half a command");
+        let sim_port: u16 = sim_addr.rsplit(':').next().and_then(|p| p.parse().ok()).expect("port");
+        let master_port = master.local_addr().expect("address").port();
+        wait_until_read(sim_port, master_port);
+        sim.signal(signal);
+        let (status, stdout, stderr) = sim.wait();
+        assert!(status.success(), "{signal}: {status:?} {stderr}");
+        assert!(stdout.contains("stats {"), "{signal}: the stats line: {stdout}");
+        let (rows, all) = decoded(&dir.path().join("sim.pcapng"));
+        assert_eq!(rows.len(), 1, "{signal}: {all}");
+        assert_eq!(rows[0].get("sagebrush.kind"), "5", "{signal}: half a command: {all}");
+        assert_eq!(rows[0].get("sagebrush.direction"), "1", "{all}");
+        assert_eq!(
+            rows[0].get("frame.interface_name"),
+            format!("gimbalsim tcp 127.0.0.1:{master_port}"),
+            "{all}"
+        );
+    }
 }
 
 /// A capture file that cannot be written is refused before anything is

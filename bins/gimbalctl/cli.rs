@@ -87,7 +87,7 @@ pub struct Global {
         help_heading = "Addressing (global)"
     )]
     pub from: u8,
-    /// Record every byte of the line (both ways, timed) to FILE as pcapng for Wireshark with tools/wireshark/sagebrush.lua (docs/capture.md).
+    /// Record every byte of the line (both ways, timed) to FILE as pcapng for Wireshark with tools/wireshark/sagebrush.lua (docs/capture.md); SIGINT/SIGTERM complete the file, then exit 130/143.
     #[arg(long, global = true, value_name = "FILE", help_heading = "Output (global)")]
     pub capture: Option<std::path::PathBuf>,
     /// Print JSON (one object per line) instead of text; the README documents every shape.

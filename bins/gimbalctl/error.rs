@@ -39,6 +39,10 @@ pub enum CtlError {
     WaitTimeout(String, Value),
     /// The stop after `--for`/`--hold` was not acknowledged (exit 22): why.
     StopUnconfirmed(String, Box<CtlError>),
+    /// `--capture`: SIGINT or SIGTERM ended the command once the capture
+    /// file was complete (exit 128 + the signal's number, 130 or 143, as a
+    /// shell reports a process killed by it).
+    Interrupted(String, u8),
 }
 
 impl CtlError {
@@ -55,6 +59,7 @@ impl CtlError {
             CtlError::StoppedShort(..) => EXIT_STOPPED_SHORT,
             CtlError::WaitTimeout(..) => EXIT_WAIT_TIMEOUT,
             CtlError::StopUnconfirmed(..) => EXIT_STOP_UNCONFIRMED,
+            CtlError::Interrupted(_, code) => *code,
         }
     }
 
@@ -72,6 +77,7 @@ impl CtlError {
             CtlError::StoppedShort(..) => "stopped_short",
             CtlError::WaitTimeout(..) => "wait_timeout",
             CtlError::StopUnconfirmed(..) => "stop_unconfirmed",
+            CtlError::Interrupted(..) => "interrupted",
         }
     }
 
@@ -99,7 +105,8 @@ impl CtlError {
             | CtlError::Undelivered(_, m)
             | CtlError::StoppedShort(m, _)
             | CtlError::WaitTimeout(m, _)
-            | CtlError::StopUnconfirmed(m, _) => m,
+            | CtlError::StopUnconfirmed(m, _)
+            | CtlError::Interrupted(m, _) => m,
         }
     }
 }

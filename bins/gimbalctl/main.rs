@@ -61,7 +61,7 @@ fn main() -> ExitCode {
         Cmd::GcudStatus { http } => gcud_status::run(http, as_json),
         _ => match tokio::runtime::Builder::new_current_thread().enable_all().build() {
             Ok(rt) => {
-                let r = rt.block_on(run(&cli));
+                let r = rt.block_on(run_to_the_end_of_the_capture(&cli));
                 // A blocking stdin read (--hold) must not keep the process alive.
                 rt.shutdown_background();
                 r
@@ -101,6 +101,41 @@ fn destination(cli: &Cli) -> Result<Address, CtlError> {
             cli.command.name()
         ))
     })
+}
+
+/// [`run`]; with `--capture`, SIGINT and SIGTERM end the command instead of
+/// the process, so that the session, and the capture file with it, is
+/// completed (flushed and closed) before gimbalctl exits, 130 or 143 as a
+/// shell reports a process killed by them. What ends on a signal by itself
+/// keeps doing so: a jog with `--for`/`--hold` (it sends its stop first) and
+/// `watch` on Ctrl-C (a normal end).
+async fn run_to_the_end_of_the_capture(cli: &Cli) -> Result<(), CtlError> {
+    use tokio::signal::unix::{Signal, SignalKind, signal};
+    let handles_signals = cli.command.jog().is_some_and(|j| j.duration.is_some() || j.hold);
+    if cli.global.capture.is_none() || handles_signals {
+        return run(cli).await;
+    }
+    let mut term = signal(SignalKind::terminate())?;
+    // `watch` ends on Ctrl-C itself, with its samples so far: a normal end.
+    let mut int = match cli.command {
+        Cmd::Watch { .. } => None,
+        _ => Some(signal(SignalKind::interrupt())?),
+    };
+    async fn interrupted(int: &mut Option<Signal>) {
+        match int {
+            Some(s) => {
+                s.recv().await;
+            }
+            None => std::future::pending().await,
+        }
+    }
+    let (name, code) = tokio::select! {
+        result = run(cli) => return result,
+        _ = term.recv() => ("SIGTERM", 143),
+        _ = interrupted(&mut int) => ("SIGINT", 130),
+    };
+    // `run` and its session are gone here: the capture file is complete.
+    Err(CtlError::Interrupted(format!("interrupted by {name}"), code))
 }
 
 async fn run(cli: &Cli) -> Result<(), CtlError> {

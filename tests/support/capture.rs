@@ -1,10 +1,15 @@
 //! Support for the capture tests: a `gcud` on a written configuration, and
 //! `tshark` with the project's dissector (`tools/wireshark/sagebrush.lua`).
 
+use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
 
-use super::Output;
+use nix::sys::signal::Signal;
+
+use super::{HANG_GUARD, Output};
 
 /// A `gcud` on `config` in a private directory; SIGTERM on drop.
 #[derive(Debug)]
@@ -52,7 +57,7 @@ impl Daemon {
         super::gimbalctl(&full)
     }
 
-    pub fn signal(&self, signal: nix::sys::signal::Signal) {
+    pub fn signal(&self, signal: Signal) {
         let pid = nix::unistd::Pid::from_raw(self.child.id() as i32);
         nix::sys::signal::kill(pid, signal).expect("signal gcud");
     }
@@ -128,4 +133,99 @@ pub fn tshark_fields(file: &Path, fields: &[&str]) -> (Vec<Vec<String>>, i32, St
         out.status.code().unwrap_or(-1),
         String::from_utf8_lossy(&out.stderr).into_owned(),
     )
+}
+
+/// A program the test signals itself (SIGINT or SIGTERM), its standard
+/// output read line by line as it comes.
+#[derive(Debug)]
+pub struct Program {
+    child: Child,
+    lines: mpsc::Receiver<String>,
+}
+
+impl Program {
+    pub fn spawn(bin: &str, args: &[&str]) -> Self {
+        let mut child = Command::new(bin)
+            .args(args)
+            .env_remove("GIMBALCTL_SERIAL")
+            .env_remove("GIMBALCTL_TCP")
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap_or_else(|e| panic!("spawn {bin}: {e}"));
+        let stdout = child.stdout.take().expect("stdout");
+        let (tx, lines) = mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        Self { child, lines }
+    }
+
+    /// The next line of standard output (gimbalsim's first: where it listens).
+    pub fn line(&self) -> String {
+        self.lines.recv_timeout(HANG_GUARD).expect("a line on stdout")
+    }
+
+    pub fn signal(&self, signal: Signal) {
+        let pid = nix::unistd::Pid::from_raw(self.child.id() as i32);
+        nix::sys::signal::kill(pid, signal).expect("signal the program");
+    }
+
+    /// Waits for the exit: how it ended, the rest of standard output, standard error.
+    pub fn wait(mut self) -> (ExitStatus, String, String) {
+        let started = Instant::now();
+        let status = loop {
+            match self.child.try_wait().expect("wait") {
+                Some(status) => break status,
+                None if started.elapsed() > HANG_GUARD => {
+                    let _ = self.child.kill();
+                    panic!("the program did not exit");
+                }
+                None => std::thread::sleep(Duration::from_millis(10)),
+            }
+        };
+        let mut stdout = Vec::new();
+        while let Ok(line) = self.lines.recv_timeout(HANG_GUARD) {
+            stdout.push(line);
+        }
+        let mut stderr = String::new();
+        if let Some(mut e) = self.child.stderr.take() {
+            let _ = e.read_to_string(&mut stderr);
+        }
+        (status, stdout.join("\n"), stderr)
+    }
+}
+
+impl Drop for Program {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Bytes the kernel holds unread for the local TCP socket `local_port`
+/// connected to `remote_port` (`/proc/net/tcp`'s rx_queue), if it exists.
+pub fn unread_bytes(local_port: u16, remote_port: u16) -> Option<u64> {
+    let table = std::fs::read_to_string("/proc/net/tcp").expect("/proc/net/tcp");
+    let port = |field: &str| field.rsplit(':').next().and_then(|p| u16::from_str_radix(p, 16).ok());
+    table.lines().skip(1).find_map(|line| {
+        let f: Vec<&str> = line.split_whitespace().collect();
+        let queues = f.get(4)?;
+        (port(f.get(1)?)? == local_port && port(f.get(2)?)? == remote_port)
+            .then(|| u64::from_str_radix(queues.rsplit(':').next()?, 16).ok())
+            .flatten()
+    })
+}
+
+/// Waits until the program owning the socket `local_port` -> `remote_port`
+/// has read everything sent to it.
+pub fn wait_until_read(local_port: u16, remote_port: u16) {
+    super::eventually("the program to read what was sent", || {
+        unread_bytes(local_port, remote_port) == Some(0)
+    });
 }
