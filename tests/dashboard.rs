@@ -55,19 +55,25 @@ fn queries(dashboard: &Value) -> Vec<(String, String)> {
     queries
 }
 
-/// The metric families and sample names a scrape shows.
+/// The series names a scrape exports, as Prometheus stores them: every
+/// sample's name, and for a family declared without samples yet the names
+/// its samples take (a counter's `_total`, a histogram's `_bucket`, `_sum`
+/// and `_count`, ...). A counter's family name itself is no series.
 fn exported(scrape: &str) -> BTreeSet<String> {
     let mut names = BTreeSet::new();
     for line in scrape.lines() {
         if let Some(rest) = line.strip_prefix("# TYPE ") {
             let mut words = rest.split_whitespace();
             if let (Some(name), Some(kind)) = (words.next(), words.next()) {
-                names.insert(name.to_owned());
-                if kind == "counter" {
-                    names.insert(format!("{name}_total"));
-                }
+                let suffixes: &[&str] = match kind {
+                    "counter" => &["_total"],
+                    "histogram" | "gaugehistogram" => &["_bucket", "_sum", "_count"],
+                    "summary" => &["", "_sum", "_count"],
+                    _ => &[""],
+                };
+                names.extend(suffixes.iter().map(|s| format!("{name}{s}")));
             }
-        } else if !line.starts_with('#') {
+        } else if !line.starts_with('#') && !line.is_empty() {
             let end = line.find(['{', ' ']).unwrap_or(line.len());
             names.insert(line[..end].to_owned());
         }
@@ -124,6 +130,46 @@ fn the_dashboard_queries_only_metrics_that_gcud_exports() {
         missing.is_empty(),
         "the dashboard queries metrics gcud does not export: {missing:?}\nscrape:\n{scrape}"
     );
+}
+
+/// Imported into Grafana, the dashboard asks for one Prometheus data source
+/// (`${DS_PROMETHEUS}`) that every panel uses, and every query follows the
+/// `instance` variable.
+#[test]
+fn the_dashboard_imports_with_one_prometheus_input_and_an_instance_variable() {
+    let dashboard = dashboard();
+    let inputs = dashboard["__inputs"].as_array().expect("__inputs");
+    assert!(
+        inputs
+            .iter()
+            .any(|i| i["name"] == "DS_PROMETHEUS" && i["type"] == "datasource" && i["pluginId"] == "prometheus"),
+        "{inputs:?}"
+    );
+    let variables = dashboard["templating"]["list"].as_array().expect("templating");
+    assert!(variables.iter().any(|v| v["name"] == "instance"), "{variables:?}");
+    for panel in dashboard["panels"].as_array().expect("panels") {
+        assert_eq!(panel["datasource"]["uid"], "${DS_PROMETHEUS}", "{}", panel["title"]);
+    }
+    for (title, expr) in queries(&dashboard) {
+        assert!(
+            expr.contains("instance=~\"$instance\"") || title.starts_with("variable"),
+            "{title}: {expr}"
+        );
+    }
+}
+
+#[test]
+fn a_counter_is_queried_by_its_total() {
+    let scrape = "# TYPE gcud_commands counter\ngcud_commands_total{outcome=\"result\"} 1\n\
+                  # TYPE gcud_port_open gauge\n# TYPE gcud_wait histogram\n# EOF\n";
+    let names = exported(scrape);
+    assert!(names.contains("gcud_commands_total") && names.contains("gcud_port_open"));
+    assert!(names.contains("gcud_wait_bucket") && names.contains("gcud_wait_count"));
+    assert!(
+        !names.contains("gcud_commands"),
+        "a counter's family name is no series: {names:?}"
+    );
+    assert!(!names.contains("gcud_wait"), "{names:?}");
 }
 
 #[test]
