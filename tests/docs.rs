@@ -1,7 +1,9 @@
 //! The repository's documentation stands on its own: nothing points outside
 //! it, every citation of the project's design notes or protocol notes names
-//! a section that exists, and every relative Markdown link resolves.
-//! Checked over the files git tracks, so a user's clone sees what this sees.
+//! a section that exists, every relative Markdown link resolves, and what the
+//! protocol crate's README says about itself (MSRV, features, rustdoc,
+//! doctests) is true. Checked over the files git tracks, so a user's clone
+//! sees what this sees.
 
 use std::collections::BTreeSet;
 use std::path::Path;
@@ -10,6 +12,16 @@ use std::process::Command;
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 /// This file spells the patterns it looks for.
 const SELF: &str = "tests/docs.rs";
+/// Where `protocol-notes E<n>` and `protocol-notes "<section>"` point.
+const NOTES: &str = "docs/protocol-notes.md";
+/// Where `ARCHITECTURE "<section>"` points.
+const DESIGN: &str = "ARCHITECTURE.md";
+/// The protocol crate's README, also its rustdoc front page.
+const CRATE_README: &str = "crates/protocol/README.md";
+
+fn read(file: &str) -> String {
+    std::fs::read_to_string(Path::new(ROOT).join(file)).unwrap_or_else(|e| panic!("{file}: {e}"))
+}
 
 /// Tracked text files of the kinds that carry docs and citations.
 fn tracked() -> Vec<(String, String)> {
@@ -27,24 +39,54 @@ fn tracked() -> Vec<(String, String)> {
         .collect()
 }
 
+/// The lines of a Markdown text outside fenced code blocks, numbered from 1.
+fn prose(text: &str) -> Vec<(usize, &str)> {
+    let mut fenced = false;
+    let mut lines = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        if line.trim_start().starts_with("```") {
+            fenced = !fenced;
+        } else if !fenced {
+            lines.push((n + 1, line));
+        }
+    }
+    lines
+}
+
 /// The headings of a Markdown file, lower case, without the `#`s.
 fn headings(file: &str) -> Vec<String> {
-    let text = std::fs::read_to_string(Path::new(ROOT).join(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
-    text.lines()
-        .filter(|l| l.starts_with('#'))
-        .map(|l| l.trim_start_matches('#').trim().to_lowercase())
+    prose(&read(file))
+        .into_iter()
+        .filter(|(_, l)| l.starts_with('#'))
+        .map(|(_, l)| l.trim_start_matches('#').trim().to_lowercase())
         .collect()
 }
 
-/// Every `<prefix> "<name>"` in `text`, with its line number (a name in
-/// angle brackets is a placeholder in prose, not a citation).
+/// Whether a cited section names a heading: the whole heading, or its
+/// beginning up to a word boundary ("Delivery contract" names "Delivery
+/// contract (what a client of gcud can believe)"; "Safe" names nothing).
+fn names_heading(headings: &[String], section: &str) -> bool {
+    let section = section.to_lowercase();
+    headings.iter().any(|h| {
+        h.strip_prefix(&section)
+            .is_some_and(|rest| rest.chars().next().is_none_or(|c| !c.is_alphanumeric()))
+    })
+}
+
+/// Every `<prefix> "<name>"` or `<prefix> '<name>'` in `text`, with its line
+/// number (a name in angle brackets is a placeholder in prose, not a
+/// citation, and is left out).
 fn quoted_after<'a>(text: &'a str, prefix: &str) -> Vec<(usize, &'a str)> {
     let mut found = Vec::new();
     for (n, line) in text.lines().enumerate() {
         let mut rest = line;
         while let Some(at) = rest.find(prefix) {
             rest = &rest[at + prefix.len()..];
-            if let Some(name) = rest.strip_prefix('"').and_then(|r| r.split('"').next()) {
+            let Some(quote) = rest.chars().next().filter(|c| *c == '"' || *c == '\'') else {
+                continue;
+            };
+            let name = rest[1..].split(quote).next().unwrap_or_default();
+            if !name.starts_with('<') {
                 found.push((n + 1, name));
             }
         }
@@ -52,18 +94,51 @@ fn quoted_after<'a>(text: &'a str, prefix: &str) -> Vec<(usize, &'a str)> {
     found
 }
 
-/// Every `<prefix>E<digits>` in `text`, with its line number.
+/// Every erratum cited as `<prefix>E<n>` in `text`, lists included
+/// (`E1, E6`, `E3-E7`, `E8 and E12`, `E2/E3`), with its line number, as
+/// `e<n>` (a heading's lower-case form).
 fn errata_after(text: &str, prefix: &str) -> Vec<(usize, String)> {
     let mut found = Vec::new();
     for (n, line) in text.lines().enumerate() {
         let mut rest = line;
         while let Some(at) = rest.find(prefix) {
             rest = &rest[at + prefix.len()..];
-            if let Some(digits) = rest.strip_prefix('E') {
+            let mut list = rest;
+            while let Some(digits) = list.strip_prefix('E') {
                 let number: String = digits.chars().take_while(char::is_ascii_digit).collect();
-                if !number.is_empty() {
-                    found.push((n + 1, format!("e{number}")));
+                if number.is_empty() {
+                    break;
                 }
+                found.push((n + 1, format!("e{number}")));
+                list = &digits[number.len()..];
+                let Some(next) = [", ", ",", "-", "..", "/", " and ", " or "]
+                    .iter()
+                    .find_map(|sep| list.strip_prefix(sep))
+                else {
+                    break;
+                };
+                list = next;
+            }
+        }
+    }
+    found
+}
+
+/// Every relative link target `](target)` on the prose lines of a Markdown
+/// text (outside code blocks), with its line number.
+fn relative_links(text: &str) -> Vec<(usize, &str)> {
+    let mut found = Vec::new();
+    for (n, line) in prose(text) {
+        let mut rest = line;
+        while let Some(at) = rest.find("](") {
+            rest = &rest[at + 2..];
+            let target = rest.split(')').next().unwrap_or_default();
+            // `](<path> "title")`: the path alone.
+            let target = target.split_whitespace().next().unwrap_or_default();
+            let target = target.trim_start_matches('<').trim_end_matches('>');
+            let external = target.contains("://") || target.starts_with("mailto:") || target.starts_with('#');
+            if !external && !target.is_empty() {
+                found.push((n, target));
             }
         }
     }
@@ -73,8 +148,8 @@ fn errata_after(text: &str, prefix: &str) -> Vec<(usize, String)> {
 /// What is wrong with the tracked files, as `file:line: why`.
 fn problems() -> Vec<String> {
     let files = tracked();
-    let notes = headings("docs/protocol-notes.md");
-    let design = headings("ARCHITECTURE.md");
+    let notes = headings(NOTES);
+    let design = headings(DESIGN);
     let mut problems = Vec::new();
     for (file, text) in &files {
         for (n, line) in text.lines().enumerate() {
@@ -86,41 +161,43 @@ fn problems() -> Vec<String> {
         }
         for (n, old) in quoted_after(text, "DESIGN ") {
             problems.push(format!(
-                "{file}:{n}: cites DESIGN \"{old}\", a file outside the repository"
+                "{file}:{n}: cites DESIGN \"{old}\", a file outside the repository (cite ARCHITECTURE \"<section>\")"
             ));
         }
         for (n, old) in errata_after(text, "NOTES ") {
-            problems.push(format!("{file}:{n}: cites NOTES {old}, a file outside the repository"));
+            problems.push(format!(
+                "{file}:{n}: cites NOTES {}, a file outside the repository (cite protocol-notes E<n>)",
+                old.to_uppercase()
+            ));
         }
         for (n, number) in errata_after(text, "protocol-notes ") {
             if !notes.contains(&number) {
-                problems.push(format!("{file}:{n}: protocol-notes {number} has no heading"));
+                problems.push(format!(
+                    "{file}:{n}: protocol-notes {} has no heading in {NOTES}",
+                    number.to_uppercase()
+                ));
             }
         }
         for (n, section) in quoted_after(text, "protocol-notes ") {
-            let section = section.to_lowercase();
-            if !section.starts_with('<') && !notes.iter().any(|h| h.starts_with(&section)) {
-                problems.push(format!("{file}:{n}: protocol-notes \"{section}\" has no heading"));
+            if !names_heading(&notes, section) {
+                problems.push(format!(
+                    "{file}:{n}: protocol-notes \"{section}\" has no heading in {NOTES}"
+                ));
             }
         }
         for (n, section) in quoted_after(text, "ARCHITECTURE ") {
-            let section = section.to_lowercase();
-            if !section.starts_with('<') && !design.iter().any(|h| h.starts_with(&section)) {
-                problems.push(format!("{file}:{n}: ARCHITECTURE \"{section}\" has no heading"));
+            if !names_heading(&design, section) {
+                problems.push(format!(
+                    "{file}:{n}: ARCHITECTURE \"{section}\" has no heading in {DESIGN}"
+                ));
             }
         }
         if file.ends_with(".md") {
             let dir = Path::new(file).parent().unwrap_or(Path::new(""));
-            for (n, line) in text.lines().enumerate() {
-                let mut rest = line;
-                while let Some(at) = rest.find("](") {
-                    rest = &rest[at + 2..];
-                    let target = rest.split(')').next().unwrap_or_default();
-                    let path = target.split('#').next().unwrap_or_default();
-                    let external = target.contains("://") || target.starts_with("mailto:");
-                    if !external && !path.is_empty() && !Path::new(ROOT).join(dir).join(path).exists() {
-                        problems.push(format!("{file}:{}: link to {target} does not resolve", n + 1));
-                    }
+            for (n, target) in relative_links(text) {
+                let path = target.split('#').next().unwrap_or_default();
+                if !path.is_empty() && !Path::new(ROOT).join(dir).join(path).exists() {
+                    problems.push(format!("{file}:{n}: link to {target} does not resolve"));
                 }
             }
         }
@@ -136,17 +213,97 @@ fn the_docs_stand_on_their_own() {
 
 #[test]
 fn every_erratum_has_its_section() {
-    let notes: BTreeSet<String> = headings("docs/protocol-notes.md").into_iter().collect();
+    let notes: BTreeSet<String> = headings(NOTES).into_iter().collect();
     for n in 1..=15 {
-        assert!(
-            notes.contains(&format!("e{n}")),
-            "docs/protocol-notes.md has no ### E{n}"
-        );
+        assert!(notes.contains(&format!("e{n}")), "{NOTES} has no ### E{n}");
     }
     for section in ["framing", "command disambiguation", "parse leniently"] {
-        assert!(
-            notes.contains(section),
-            "docs/protocol-notes.md has no {section} section"
-        );
+        assert!(notes.contains(section), "{NOTES} has no {section} section");
     }
+}
+
+/// The protocol crate's README is its rustdoc front page, says the MSRV
+/// and features the manifests declare, and every code block in it is
+/// either a doctest that runs or tagged as another language.
+#[test]
+fn the_crate_readme_tells_the_truth() {
+    let readme = read(CRATE_README);
+    let mut problems = Vec::new();
+
+    let lib = read("crates/protocol/src/lib.rs");
+    if !lib.contains("#![doc = include_str!(\"../README.md\")]") {
+        problems.push("crates/protocol/src/lib.rs: the README is not the crate's rustdoc".to_owned());
+    }
+
+    let workspace: toml::Table = read("Cargo.toml").parse().expect("Cargo.toml");
+    let msrv = workspace["workspace"]["package"]["rust-version"]
+        .as_str()
+        .expect("workspace.package.rust-version");
+    if !readme.contains(&format!("**MSRV**: Rust {msrv} ")) {
+        problems.push(format!(
+            "{CRATE_README}: no \"**MSRV**: Rust {msrv} \" (the workspace's rust-version)"
+        ));
+    }
+
+    // Cargo features: the [features] table and every optional dependency.
+    let manifest: toml::Table = read("crates/protocol/Cargo.toml").parse().expect("protocol Cargo.toml");
+    let mut features: Vec<String> = manifest
+        .get("features")
+        .and_then(toml::Value::as_table)
+        .map(|t| t.keys().cloned().collect())
+        .unwrap_or_default();
+    for deps in ["dependencies", "build-dependencies"] {
+        for (name, dep) in manifest.get(deps).and_then(toml::Value::as_table).into_iter().flatten() {
+            if dep.get("optional").and_then(toml::Value::as_bool) == Some(true) {
+                features.push(name.clone());
+            }
+        }
+    }
+    let said = readme
+        .lines()
+        .find(|l| l.contains("**Features**"))
+        .unwrap_or_else(|| panic!("{CRATE_README}: no **Features** item"));
+    if features.is_empty() && !said.contains("**Features**: none") {
+        problems.push(format!(
+            "{CRATE_README}: the crate has no cargo features; say \"**Features**: none\""
+        ));
+    }
+    if !features.is_empty() && said.contains("**Features**: none") {
+        problems.push(format!("{CRATE_README}: says no features, Cargo.toml has {features:?}"));
+    }
+    for feature in features.iter().filter(|f| !readme.contains(&format!("`{f}`"))) {
+        problems.push(format!("{CRATE_README}: cargo feature `{feature}` is not described"));
+    }
+
+    // Code blocks: a language on every block; Rust runs (no `ignore`).
+    let mut fenced = false;
+    for (n, line) in readme.lines().enumerate() {
+        let Some(info) = line.trim_start().strip_prefix("```") else {
+            continue;
+        };
+        fenced = !fenced;
+        if !fenced {
+            continue;
+        }
+        let info = info.trim();
+        if info.is_empty() {
+            problems.push(format!(
+                "{CRATE_README}:{}: a code block without a language is a Rust doctest; tag it",
+                n + 1
+            ));
+        }
+        if info.split(',').any(|a| a.trim() == "ignore") {
+            problems.push(format!("{CRATE_README}:{}: an ignored doctest", n + 1));
+        }
+    }
+
+    // Rustdoc renders the README outside the repository: a relative link
+    // there points nowhere.
+    for (n, target) in relative_links(&readme) {
+        problems.push(format!(
+            "{CRATE_README}:{n}: relative link {target} breaks in rustdoc (use plain text or a full URL)"
+        ));
+    }
+
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
 }
