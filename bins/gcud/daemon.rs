@@ -474,6 +474,7 @@ fn snapshot(
         group: config.group,
         name: config.name.clone(),
         shutting_down: false,
+        heap: stats::Heap::now(),
     }
 }
 

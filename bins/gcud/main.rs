@@ -44,6 +44,12 @@ struct Args {
     against: Option<PathBuf>,
 }
 
+/// Counts heap allocations for `gcud_heap_*` (module `stats`): the
+/// data path's zero-allocation budget (ARCHITECTURE "Data path"), watched
+/// in the field and by `cargo bench --bench gcud`.
+#[global_allocator]
+static HEAP: &stats_alloc::StatsAlloc<std::alloc::System> = &stats_alloc::INSTRUMENTED_SYSTEM;
+
 fn main() -> ExitCode {
     let args = Args::parse();
     let config = match config::load(&args.config) {

@@ -35,6 +35,26 @@ pub struct Snapshot {
     pub name: String,
     /// SIGTERM/SIGINT received: new commands are refused.
     pub shutting_down: bool,
+    pub heap: Heap,
+}
+
+/// The process's heap, as the global allocator counts it.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Heap {
+    pub allocations: u64,
+    pub bytes_in_use: u64,
+}
+
+impl Heap {
+    /// Now, from the counting allocator gcud runs on (`main.rs`).
+    pub fn now() -> Self {
+        let s = stats_alloc::INSTRUMENTED_SYSTEM.stats();
+        let allocated = (s.bytes_allocated as i128) + (s.bytes_reallocated as i128) - (s.bytes_deallocated as i128);
+        Self {
+            allocations: (s.allocations + s.reallocations) as u64,
+            bytes_in_use: allocated.max(0) as u64,
+        }
+    }
 }
 
 impl Snapshot {
@@ -166,6 +186,16 @@ pub fn render(snapshot: &Snapshot) -> String {
     );
     stopping.push(vec![], u64::from(snapshot.shutting_down));
     out.push(stopping);
+    let mut allocations = Family::new(
+        "heap_allocations",
+        "Heap allocations and reallocations since start (none per routed frame in steady state).",
+        Kind::Counter,
+    );
+    allocations.push(vec![], snapshot.heap.allocations);
+    out.push(allocations);
+    let mut heap = Family::new("heap_bytes", "Bytes of heap in use.", Kind::Gauge);
+    heap.push(vec![], snapshot.heap.bytes_in_use);
+    out.push(heap);
 
     let r = &stats.router;
     let mut outcomes = Family::new("commands", "Commands accepted from links, by outcome.", Kind::Counter);
@@ -492,6 +522,7 @@ mod tests {
             group: 5,
             name: "test gcu".to_owned(),
             shutting_down: false,
+            heap: crate::stats::Heap { allocations: 7, bytes_in_use: 4096 },
         };
         let text = render(&snapshot);
         assert!(text.contains("gcud_uptime_ms 42"), "{text}");
@@ -502,6 +533,8 @@ mod tests {
             "{text}"
         );
         assert!(text.contains("gcud_start_time_seconds 1700000000.0"), "{text}");
+        assert!(text.contains("gcud_heap_allocations_total 7"), "{text}");
+        assert!(text.contains("gcud_heap_bytes 4096"), "{text}");
         let device = "{port=\"1\",device=\"3\"}";
         for line in [
             format!("gcud_device_online{device} 1"),
