@@ -23,7 +23,8 @@ use tokio::time::Instant;
 use tracing::{debug, error, info, warn};
 
 use crate::config::{Config, Link, LinkRole, LinkTransport, Port, PortTransport};
-use crate::io::{self, IoEvent, PortWrite};
+use crate::io::{self, IoEvent};
+use crate::lines::{LineEvent, LineId, Lines, Refused};
 use crate::reload::Diff;
 use crate::stats;
 use crate::throttle::Throttle;
@@ -98,7 +99,8 @@ fn link_config(link: &Link) -> LinkConfig {
 pub struct LinkInfo {
     pub name: String,
     pub peer: String,
-    writer: Option<mpsc::Sender<Vec<u8>>>,
+    /// Open (its line in `Lines`), not yet gone from the router.
+    live: bool,
 }
 
 /// Start-up failures that end the daemon (exit 1).
@@ -254,7 +256,7 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
         "gcud ready"
     );
 
-    let mut ports: HashMap<u8, mpsc::Sender<PortWrite>> = HashMap::new();
+    let mut lines = Lines::new();
     let mut links: BTreeMap<LinkId, LinkInfo> = BTreeMap::new();
     // Final counters of connections gone, per configured link name.
     let mut departed: BTreeMap<String, LinkStats> = BTreeMap::new();
@@ -286,16 +288,11 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
                 let Some(event) = event else { break };
                 let t = now(Instant::now());
                 match event {
-                    IoEvent::PortOpened { port, writer } => {
-                        ports.insert(port, writer);
+                    IoEvent::PortOpened { port, stream, tap, baud, ended } => {
+                        lines.add(LineId::Port(port), stream, tap, baud, None, ended);
                         router.handle(t, Input::PortOpened { port }, &mut actions);
                     }
-                    IoEvent::PortBytes { port, bytes } => router.handle(t, Input::PortBytes { port, bytes: &bytes }, &mut actions),
-                    IoEvent::PortClosed { port } => {
-                        ports.remove(&port);
-                        router.handle(t, Input::PortLost { port }, &mut actions);
-                    }
-                    IoEvent::LinkOpened { id, link, peer, writer } => {
+                    IoEvent::LinkOpened { id, link, peer, stream, tap, admission, ended } => {
                         let Some(configured) = config.links.iter().find(|l| l.name == link) else {
                             continue; // removed by a reload; dropping the writer closes it
                         };
@@ -307,15 +304,14 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
                             // Routes naming the listener reach this connection.
                             lc.listener = Some(ids.of(&configured.name));
                         }
-                        links.insert(id, LinkInfo { name: link, peer, writer: Some(writer) });
+                        lines.add(LineId::Link(id), stream, tap, 0, admission, ended);
+                        links.insert(id, LinkInfo { name: link, peer, live: true });
                         router.handle(t, Input::LinkUp { link: id, config: lc }, &mut actions);
                     }
-                    IoEvent::LinkBytes { id, bytes } => router.handle(t, Input::LinkBytes { link: id, bytes: &bytes }, &mut actions),
-                    IoEvent::LinkClosed { id } => {
-                        if let Some(info) = links.get_mut(&id) {
-                            info.writer = None;
+                    IoEvent::CloseLink { id, reason } => {
+                        if lines.close(LineId::Link(id), reason) {
+                            link_down(&mut router, &mut links, t, id, &mut actions);
                         }
-                        router.handle(t, Input::LinkDown { link: id }, &mut actions);
                     }
                     IoEvent::Scrape(reply) => {
                         let mut s = snapshot(&router, &config, &links, &departed, now(Instant::now()));
@@ -324,6 +320,15 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
                         s.shutting_down = stopping.is_some();
                         let _ = reply.send(s);
                     }
+                }
+            }
+            event = std::future::poll_fn(|cx| lines.poll_next(cx)) => {
+                let t = now(Instant::now());
+                match event {
+                    LineEvent::Read(LineId::Port(port), n) => router.handle(t, Input::PortBytes { port, bytes: lines.read(n) }, &mut actions),
+                    LineEvent::Read(LineId::Link(link), n) => router.handle(t, Input::LinkBytes { link, bytes: lines.read(n) }, &mut actions),
+                    LineEvent::Closed(LineId::Port(port)) => router.handle(t, Input::PortLost { port }, &mut actions),
+                    LineEvent::Closed(LineId::Link(id)) => link_down(&mut router, &mut links, t, id, &mut actions),
                 }
             }
             () = sleep_until(deadline) => router.handle(now(Instant::now()), Input::Tick, &mut actions),
@@ -338,7 +343,7 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
             }
             _ = sighup.recv(), if stopping.is_none() => {
                 let t = now(Instant::now());
-                let reloaded = Reload { config: &mut config, ids: &mut ids, router: &mut router, tasks: &mut tasks, links: &mut links, closing: &mut closing };
+                let reloaded = Reload { config: &mut config, ids: &mut ids, router: &mut router, tasks: &mut tasks, lines: &mut lines, links: &mut links, closing: &mut closing };
                 reloaded.run(t, &mut actions).await;
             }
             _ = sigusr1.recv() => toggle_capture(&tasks.capture, &config),
@@ -363,14 +368,21 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
                 continue;
             }
             tasks.stop_port(port);
-            ports.remove(&port);
+            lines.close(LineId::Port(port), "configuration reloaded");
             router.port_closed(t, port, &mut actions);
             info!(port, "port closed (configuration reloaded)");
             if let Some(new) = config.ports.iter().find(|p| p.id == port) {
                 tasks.start_port(new);
             }
         }
-        execute(&mut actions, &ports, &mut links, &mut departed, &mut throttle);
+        execute(&mut actions, &mut lines, &mut links, &mut departed, &mut throttle);
+        // Written now, straight from this task; what a line cannot take yet
+        // is written when it can (`Lines::poll_next`).
+        std::future::poll_fn(|cx| {
+            lines.flush(cx);
+            std::task::Poll::Ready(())
+        })
+        .await;
         for summary in throttle.summaries(Instant::now()) {
             warn!("{summary}");
         }
@@ -378,7 +390,13 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
     // Let go of every port and link (their writers and the event channel), so
     // that their tasks end as a shutdown, logged at info, not as a loss; wait
     // briefly for the ports' last lines.
-    drop((ports, links, events));
+    let _ = tokio::time::timeout(
+        Duration::from_millis(500),
+        std::future::poll_fn(|cx| lines.poll_drained(cx)),
+    )
+    .await;
+    lines.release();
+    drop((links, events));
     let ending = tasks.ports.drain().map(|(_, task)| task).collect::<Vec<_>>();
     let _ = tokio::time::timeout(Duration::from_millis(500), async {
         for task in ending {
@@ -487,6 +505,7 @@ struct Reload<'a> {
     ids: &'a mut LinkIds,
     router: &'a mut Router,
     tasks: &'a mut Tasks,
+    lines: &'a mut Lines,
     links: &'a mut BTreeMap<LinkId, LinkInfo>,
     closing: &'a mut HashMap<u8, Instant>,
 }
@@ -555,14 +574,13 @@ impl Reload<'_> {
             let gone: Vec<LinkId> = self
                 .links
                 .iter()
-                .filter(|(_, l)| l.name == name && l.writer.is_some())
+                .filter(|(_, l)| l.name == name && l.live)
                 .map(|(&id, _)| id)
                 .collect();
             for id in gone {
-                if let Some(info) = self.links.get_mut(&id) {
-                    info.writer = None;
-                }
-                self.router.handle(now, Input::LinkDown { link: id }, actions);
+                self.lines
+                    .close(LineId::Link(id), "link removed or changed by a reload");
+                link_down(self.router, self.links, now, id, actions);
             }
         }
         *self.config = new;
@@ -597,11 +615,20 @@ fn notify(state: &[sd_notify::NotifyState<'_>]) {
     }
 }
 
-/// Carries out the router's actions in order. A link gone leaves its
-/// counters with its configured link and nothing else behind.
+/// A link's line is gone: the router takes it down (dead-man stops).
+fn link_down(router: &mut Router, links: &mut BTreeMap<LinkId, LinkInfo>, now: u64, id: LinkId, out: &mut Outbox) {
+    if let Some(info) = links.get_mut(&id) {
+        info.live = false;
+    }
+    router.handle(now, Input::LinkDown { link: id }, out);
+}
+
+/// Carries out the router's actions in order: writes are queued on their
+/// lines straight from the Outbox's buffer. A link gone leaves its counters
+/// with its configured link and nothing else behind.
 fn execute(
     actions: &mut Outbox,
-    ports: &HashMap<u8, mpsc::Sender<PortWrite>>,
+    lines: &mut Lines,
     links: &mut BTreeMap<LinkId, LinkInfo>,
     departed: &mut BTreeMap<String, LinkStats>,
     throttle: &mut Throttle,
@@ -609,38 +636,31 @@ fn execute(
     let mut gone = Vec::new();
     for action in actions.actions() {
         match action {
-            Action::WritePort { port, bytes } => match ports.get(port) {
-                Some(tx) => {
-                    // The port task owns what it writes: one copy per
-                    // (merged) write, until ports are served on this task.
-                    if tx.try_send(PortWrite::Bytes(actions.bytes(bytes).to_vec())).is_err() {
-                        let line = || format!("port {port}: port writer is behind or gone: bytes dropped");
-                        if throttle.allow("writer behind", &format!("port {port}"), line, Instant::now()) {
-                            warn!(port, "port writer is behind or gone: bytes dropped");
-                        }
+            Action::WritePort { port, bytes } => match lines.write(LineId::Port(*port), actions.bytes(bytes)) {
+                Ok(()) => {}
+                Err(Refused::Behind) => {
+                    let line = || format!("port {port}: the port is not taking bytes (limit reached): bytes dropped");
+                    if throttle.allow("writer behind", &format!("port {port}"), line, Instant::now()) {
+                        warn!(port, "the port is not taking bytes (limit reached): bytes dropped");
                     }
                 }
-                None => debug!(port, "write to a closed port dropped"),
+                Err(Refused::Closed) => debug!(port, "write to a closed port dropped"),
             },
-            Action::WriteLink { link, bytes } => match links.get(link).and_then(|l| l.writer.as_ref()) {
-                Some(tx) => {
-                    if tx.try_send(actions.bytes(bytes).to_vec()).is_err() {
-                        let place = links.get(link).map_or_else(|| link.to_string(), |l| l.name.clone());
-                        let line = || format!("{link} ({place}): link writer is behind or gone: bytes dropped");
-                        if throttle.allow("writer behind", &place, line, Instant::now()) {
-                            warn!(%link, "link writer is behind or gone: bytes dropped");
-                        }
+            Action::WriteLink { link, bytes } => match lines.write(LineId::Link(*link), actions.bytes(bytes)) {
+                Ok(()) => {}
+                Err(Refused::Behind) => {
+                    let place = links.get(link).map_or_else(|| link.to_string(), |l| l.name.clone());
+                    let line = || format!("{link} ({place}): the peer is not reading (limit reached): bytes dropped");
+                    if throttle.allow("writer behind", &place, line, Instant::now()) {
+                        warn!(%link, "the peer is not reading (limit reached): bytes dropped");
                     }
                 }
-                None => debug!(%link, "write to a closed link dropped"),
+                Err(Refused::Closed) => debug!(%link, "write to a closed link dropped"),
             },
-            Action::SetPortRate { port, bps } => {
-                if let Some(tx) = ports.get(port) {
-                    if tx.try_send(PortWrite::SetBaud(*bps)).is_err() {
-                        error!(port, bps, "cannot switch the port's line rate: writer gone");
-                    }
-                }
-            }
+            Action::SetPortRate { port, bps } => match lines.set_baud(*port, *bps) {
+                Ok(()) => info!(port, baud = bps, "line rate switched"),
+                Err(_) => error!(port, bps, "cannot switch the port's line rate"),
+            },
             Action::Event(event) => log_event(event, links, throttle),
             Action::LinkGone { link, stats } => {
                 if let Some(info) = links.get(link) {
@@ -651,6 +671,7 @@ fn execute(
                         }
                     }
                 }
+                // Named in the logs of the actions after this one.
                 gone.push(*link);
             }
         }

@@ -1,4 +1,4 @@
-//! Byte pipes between the world and the router task: device ports (serial,
+//! Opening the lines the router task owns (module `lines`): device ports (serial,
 //! TCP device server, in-process simulator) and links (serial, TCP listener,
 //! TCP client). Every pipe reconnects by itself with backoff when its device
 //! or peer is missing or vanishes, without disturbing any other pipe
@@ -11,8 +11,9 @@ use std::time::Duration;
 
 use sagebrush_gcu::LinkId;
 use sagebrush_host::capture::{CaptureSwitch, Role, Tap};
+
+use crate::lines::{Ended, LineStream};
 use sagebrush_host::transport::{SerialOrTcp, connect_tcp, open_serial};
-use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{Notify, mpsc, oneshot};
 
@@ -21,44 +22,44 @@ use tracing::{debug, info, warn};
 
 use crate::config::{Link, LinkRole, LinkTransport, Port, PortTransport};
 
-/// What a pipe tells the router task.
-#[derive(Debug)]
+/// What the line tasks tell the router task: a line is open (the router
+/// task owns it from then on, module `lines`), or an accepted connection
+/// must close (evicted, idle).
 pub enum IoEvent {
     PortOpened {
         port: u8,
-        writer: mpsc::Sender<PortWrite>,
-    },
-    PortBytes {
-        port: u8,
-        bytes: Vec<u8>,
-    },
-    PortClosed {
-        port: u8,
+        stream: Box<dyn LineStream>,
+        tap: Tap,
+        baud: u32,
+        ended: oneshot::Sender<Ended>,
     },
     LinkOpened {
         id: LinkId,
         /// The configured link's name.
         link: String,
         peer: String,
-        writer: mpsc::Sender<Vec<u8>>,
+        stream: Box<dyn LineStream>,
+        tap: Tap,
+        admission: Option<(Arc<Connections>, u64)>,
+        ended: oneshot::Sender<Ended>,
     },
-    LinkBytes {
-        id: LinkId,
-        bytes: Vec<u8>,
-    },
-    LinkClosed {
-        id: LinkId,
-    },
+    /// Close an accepted connection (its admission entry says why).
+    CloseLink { id: LinkId, reason: &'static str },
     /// A metrics scrape wants a snapshot of the counters (rendered off the router task).
     Scrape(oneshot::Sender<crate::stats::Snapshot>),
 }
 
-/// What the router task asks of a port.
-#[derive(Debug)]
-pub enum PortWrite {
-    Bytes(Vec<u8>),
-    /// Switch the line rate (after an acknowledged `C0..C7`, Table 4).
-    SetBaud(u32),
+impl std::fmt::Debug for IoEvent {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::PortOpened { port, baud, .. } => write!(f, "PortOpened {{ port: {port}, baud: {baud} }}"),
+            Self::LinkOpened { id, link, peer, .. } => {
+                write!(f, "LinkOpened {{ id: {id}, link: {link}, peer: {peer} }}")
+            }
+            Self::CloseLink { id, reason } => write!(f, "CloseLink {{ id: {id}, reason: {reason} }}"),
+            Self::Scrape(_) => f.write_str("Scrape"),
+        }
+    }
 }
 
 /// Exponential backoff: 250 ms doubling to 10 s.
@@ -84,18 +85,13 @@ impl Backoff {
     }
 }
 
-/// A port's byte stream, with a line-rate switch where the medium has one.
-pub trait PortStream: AsyncRead + AsyncWrite + Unpin + Send {
-    fn set_baud(&mut self, baud: u32) -> io::Result<()>;
-}
-
-impl PortStream for tokio_serial::SerialStream {
+impl LineStream for tokio_serial::SerialStream {
     fn set_baud(&mut self, baud: u32) -> io::Result<()> {
         sagebrush_host::transport::set_baud(self, baud)
     }
 }
 
-impl PortStream for TcpStream {
+impl LineStream for TcpStream {
     fn set_baud(&mut self, baud: u32) -> io::Result<()> {
         // The device server owns the serial line; its rate is configured there.
         warn!(
@@ -106,26 +102,16 @@ impl PortStream for TcpStream {
     }
 }
 
-impl PortStream for tokio::io::DuplexStream {
-    fn set_baud(&mut self, _baud: u32) -> io::Result<()> {
-        Ok(())
-    }
-}
+impl LineStream for tokio::io::DuplexStream {}
 
-/// An open port, whichever its medium.
-enum OpenPort {
-    Serial(tokio_serial::SerialStream),
-    Tcp(TcpStream),
-    #[cfg(feature = "sim")]
-    Simulated(tokio::io::DuplexStream),
-}
+impl LineStream for SerialOrTcp {}
 
-async fn open_port(port: &Port, baud: u32) -> io::Result<OpenPort> {
+async fn open_port(port: &Port, baud: u32) -> io::Result<Box<dyn LineStream>> {
     Ok(match &port.transport {
-        PortTransport::Serial(path) => OpenPort::Serial(open_serial(&path.to_string_lossy(), baud)?),
-        PortTransport::Tcp(addr) => OpenPort::Tcp(connect_tcp(addr).await?),
+        PortTransport::Serial(path) => Box::new(open_serial(&path.to_string_lossy(), baud)?),
+        PortTransport::Tcp(addr) => Box::new(connect_tcp(addr).await?),
         #[cfg(feature = "sim")]
-        PortTransport::Simulated(devices) => OpenPort::Simulated(crate::simulated::spawn(port.id, devices, baud)),
+        PortTransport::Simulated(devices) => Box::new(crate::simulated::spawn(port.id, devices, baud)),
         #[cfg(not(feature = "sim"))]
         PortTransport::Simulated(_) => {
             return Err(io::Error::other(
@@ -135,62 +121,9 @@ async fn open_port(port: &Port, baud: u32) -> io::Result<OpenPort> {
     })
 }
 
-/// Why a port stopped pumping.
-enum PortEnd {
-    /// The line failed (end of stream, an I/O error): a loss, reopened.
-    Lost(String),
-    /// The router let go of the port (gcud shutting down): not a loss.
-    Released,
-}
-
-/// Moves bytes between `stream` and the router until the stream fails or
-/// the router lets go. `baud` follows line-rate switches, so that a reopened
-/// port keeps the rate its devices were switched to.
-async fn pump_port<S: PortStream>(
-    port: u8,
-    mut stream: S,
-    baud: &mut u32,
-    writes: &mut mpsc::Receiver<PortWrite>,
-    events: &mpsc::Sender<IoEvent>,
-    tap: &mut Tap,
-) -> PortEnd {
-    let mut buf = vec![0u8; 4096];
-    loop {
-        tokio::select! {
-            read = stream.read(&mut buf) => match read {
-                Ok(0) => return PortEnd::Lost("end of stream".to_owned()),
-                Ok(n) => {
-                    tap.inbound(&buf[..n]);
-                    if events.send(IoEvent::PortBytes { port, bytes: buf[..n].to_vec() }).await.is_err() {
-                        return PortEnd::Released;
-                    }
-                }
-                Err(e) => return PortEnd::Lost(format!("read failed: {e}")),
-            },
-            write = writes.recv() => match write {
-                Some(PortWrite::Bytes(bytes)) => {
-                    tap.outbound(&bytes);
-                    if let Err(e) = stream.write_all(&bytes).await {
-                        return PortEnd::Lost(format!("write failed: {e}"));
-                    }
-                }
-                Some(PortWrite::SetBaud(rate)) => {
-                    if let Err(e) = stream.set_baud(rate) {
-                        return PortEnd::Lost(format!("cannot switch line rate to {rate}: {e}"));
-                    }
-                    *baud = rate;
-                    info!(port, baud = rate, "line rate switched");
-                }
-                None => return PortEnd::Released,
-            },
-        }
-    }
-}
-
 /// Keeps one port open for as long as the daemon runs; ends quietly (info)
 /// once the router lets go of it (shutdown).
 pub async fn run_port(port: Port, events: mpsc::Sender<IoEvent>, capture: Arc<CaptureSwitch>) {
-    let mut tap = capture.tap(format!("port {} {}", port.id, describe(&port.transport)), Role::Master);
     let mut backoff = Backoff::new();
     let mut baud = port.timing.baud;
     let mut last_error = String::new();
@@ -200,29 +133,25 @@ pub async fn run_port(port: Port, events: mpsc::Sender<IoEvent>, capture: Arc<Ca
                 backoff.reset();
                 last_error.clear();
                 info!(port = port.id, transport = %describe(&port.transport), baud, "port open");
-                let (writer, mut writes) = mpsc::channel(256);
-                if events
-                    .send(IoEvent::PortOpened { port: port.id, writer })
-                    .await
-                    .is_err()
-                {
+                let (ended, end) = oneshot::channel();
+                let tap = capture.tap(format!("port {} {}", port.id, describe(&port.transport)), Role::Master);
+                let opened = IoEvent::PortOpened {
+                    port: port.id,
+                    stream,
+                    tap,
+                    baud,
+                    ended,
+                };
+                if events.send(opened).await.is_err() {
                     return;
                 }
-                let (id, w, e, t) = (port.id, &mut writes, &events, &mut tap);
-                let end = match stream {
-                    OpenPort::Serial(s) => pump_port(id, s, &mut baud, w, e, t).await,
-                    OpenPort::Tcp(s) => pump_port(id, s, &mut baud, w, e, t).await,
-                    #[cfg(feature = "sim")]
-                    OpenPort::Simulated(s) => pump_port(id, s, &mut baud, w, e, t).await,
-                };
-                let PortEnd::Lost(reason) = end else {
+                // The router task owns the line now; it says how it ended.
+                let Ok(ended) = end.await else {
                     info!(port = port.id, "port closed: gcud stopping");
                     return;
                 };
-                warn!(port = port.id, %reason, "port lost; reopening");
-                if events.send(IoEvent::PortClosed { port: port.id }).await.is_err() {
-                    return;
-                }
+                baud = ended.baud;
+                warn!(port = port.id, reason = %ended.reason, "port lost; reopening");
             }
             Err(e) => {
                 let error = e.to_string();
@@ -275,74 +204,56 @@ impl Drop for Admitted {
     }
 }
 
-/// Moves bytes between one link connection and the router until it closes
-/// (an accepted one also when evicted or idle too long).
-async fn pump_link<S: AsyncRead + AsyncWrite + Unpin>(
+/// Hands one link connection to the router task and waits until it ends
+/// (an accepted one also ends when evicted or idle too long: the router
+/// task is asked to close it).
+async fn serve_link<S: LineStream + 'static>(
     id: LinkId,
     link: String,
     peer: String,
     stream: S,
     events: &mpsc::Sender<IoEvent>,
     admitted: Option<Admitted>,
-    mut tap: Tap,
+    tap: Tap,
 ) {
-    let (writer, mut writes) = mpsc::channel::<Vec<u8>>(256);
-    if events
-        .send(IoEvent::LinkOpened {
-            id,
-            link,
-            peer: peer.clone(),
-            writer,
-        })
-        .await
-        .is_err()
-    {
+    let (ended, mut end) = oneshot::channel();
+    let opened = IoEvent::LinkOpened {
+        id,
+        link,
+        peer: peer.clone(),
+        stream: Box::new(stream),
+        tap,
+        admission: admitted.as_ref().map(|a| (a.table.clone(), a.key)),
+        ended,
+    };
+    if events.send(opened).await.is_err() {
         return;
     }
-    let (mut rd, mut wr) = tokio::io::split(stream);
-    let mut buf = vec![0u8; 4096];
     let mut admitted = admitted;
     let idle_at = |a: &Option<Admitted>| a.as_ref().and_then(|a| a.table.idle_at(a.key));
-    let reason = loop {
+    let closing = loop {
         tokio::select! {
-            read = rd.read(&mut buf) => match read {
-                Ok(0) => break "closed by peer".to_owned(),
-                Ok(n) => {
-                    tap.inbound(&buf[..n]);
-                    if let Some(a) = &admitted {
-                        a.table.touch(a.key, tokio::time::Instant::now());
-                    }
-                    if events.send(IoEvent::LinkBytes { id, bytes: buf[..n].to_vec() }).await.is_err() {
-                        break "router stopped".to_owned();
-                    }
-                }
-                Err(e) => break format!("read failed: {e}"),
-            },
+            ended = &mut end => {
+                let reason = ended.map_or_else(|_| "closed by the router".to_owned(), |e| e.reason);
+                info!(%id, %peer, %reason, "link closed");
+                return;
+            }
             () = async { match &admitted { Some(a) => a.close.notified().await, None => std::future::pending().await } } => {
-                break "evicted for a newcomer (limits.max_connections)".to_owned();
+                break "evicted for a newcomer (limits.max_connections)";
             }
             () = async { match idle_at(&admitted) { Some(at) => tokio::time::sleep_until(at).await, None => std::future::pending().await } } => {
                 if idle_at(&admitted).is_some_and(|at| at <= tokio::time::Instant::now()) {
                     if let Some(a) = admitted.as_mut() {
                         a.idle = true;
                     }
-                    break "idle (limits.idle_timeout_ms)".to_owned();
+                    break "idle (limits.idle_timeout_ms)";
                 }
             }
-            write = writes.recv() => match write {
-                Some(bytes) => {
-                    tap.outbound(&bytes);
-                    if let Err(e) = wr.write_all(&bytes).await {
-                        break format!("write failed: {e}");
-                    }
-                }
-                None => break "closed by the router".to_owned(),
-            },
         }
     };
+    let _ = events.send(IoEvent::CloseLink { id, reason: closing }).await;
     drop(admitted);
-    info!(%id, %peer, %reason, "link closed");
-    let _ = events.send(IoEvent::LinkClosed { id }).await;
+    info!(%id, %peer, reason = closing, "link closed");
 }
 
 /// Runs one configured link for as long as the daemon runs.
@@ -367,7 +278,7 @@ pub async fn run_link(id: LinkId, link: Link, events: mpsc::Sender<IoEvent>, cap
                 backoff.reset();
                 info!(link = %link.name, %peer, "link connected");
                 let tap = capture.tap(format!("link {} {peer}", link.name), capture_role(link.role));
-                pump_link(id, link.name.clone(), peer.clone(), stream, &events, None, tap).await;
+                serve_link(id, link.name.clone(), peer.clone(), stream, &events, None, tap).await;
             }
             Err(e) => warn!(link = %link.name, %peer, error = %e, "cannot connect; retrying with backoff"),
         }
@@ -437,7 +348,7 @@ pub async fn accept_loop(
         let tap = capture.tap(format!("link {name} {peer}"), capture_role(link.role));
         open.spawn(async move {
             let id = LinkId(NEXT_LINK_ID.fetch_add(1, Ordering::Relaxed));
-            pump_link(id, name, peer.to_string(), stream, &events, Some(admitted), tap).await;
+            serve_link(id, name, peer.to_string(), stream, &events, Some(admitted), tap).await;
         });
     }
 }

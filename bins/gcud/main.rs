@@ -6,6 +6,7 @@ mod admission;
 mod config;
 mod daemon;
 mod io;
+mod lines;
 mod metrics;
 mod reload;
 #[cfg(feature = "sim")]
@@ -102,7 +103,7 @@ fn main() -> ExitCode {
     for w in &config.warnings {
         tracing::warn!("{w}");
     }
-    let runtime = match tokio::runtime::Builder::new_multi_thread().enable_all().build() {
+    let runtime = match tokio::runtime::Builder::new_current_thread().enable_all().build() {
         Ok(rt) => rt,
         Err(e) => {
             eprintln!("gcud: cannot start the async runtime: {e}");

@@ -522,7 +522,10 @@ mod tests {
             group: 5,
             name: "test gcu".to_owned(),
             shutting_down: false,
-            heap: crate::stats::Heap { allocations: 7, bytes_in_use: 4096 },
+            heap: Heap {
+                allocations: 7,
+                bytes_in_use: 4096,
+            },
         };
         let text = render(&snapshot);
         assert!(text.contains("gcud_uptime_ms 42"), "{text}");

@@ -1,0 +1,284 @@
+//! The open ports and links of the GCU, owned by the router task: it reads
+//! every line into one buffer and writes the router's output straight from
+//! its `Outbox`, with no task between a line and the router core and no
+//! allocation per frame (ARCHITECTURE "Data path"). The tasks of module
+//! `io` open the lines, reconnect them and watch admission; they hand each
+//! open stream over and wait to hear how it ended.
+
+use std::collections::BTreeMap;
+use std::io;
+use std::ops::Bound;
+use std::pin::Pin;
+use std::sync::Arc;
+use std::task::{Context, Poll};
+
+use sagebrush_gcu::LinkId;
+use sagebrush_host::capture::Tap;
+use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
+use tokio::sync::oneshot;
+
+use crate::admission::Connections;
+
+/// A line's byte stream, whichever its medium, with a line-rate switch
+/// where the medium has one.
+pub trait LineStream: AsyncRead + AsyncWrite + Unpin + Send {
+    fn set_baud(&mut self, _baud: u32) -> io::Result<()> {
+        Ok(())
+    }
+}
+
+/// Which line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum LineId {
+    Port(u8),
+    Link(LinkId),
+}
+
+/// How a line ended, told to the task that opened it.
+#[derive(Debug)]
+pub struct Ended {
+    pub reason: String,
+    /// A port's line rate when it ended (switched by `C0..C7`), to reopen at.
+    pub baud: u32,
+}
+
+/// What the lines have for the router task.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LineEvent {
+    /// `n` bytes read, in [`Lines::read`].
+    Read(LineId, usize),
+    /// The line failed or its peer closed it; it is gone.
+    Closed(LineId),
+}
+
+/// Bytes a line may have waiting to be written before more are dropped:
+/// a peer that does not read cannot grow the daemon's memory.
+pub const MAX_PENDING: usize = 64 * 1024;
+
+/// A write the line could not take.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Refused {
+    /// More than [`MAX_PENDING`] bytes already wait.
+    Behind,
+    /// No such line open.
+    Closed,
+}
+
+/// An open line.
+struct Line {
+    stream: Box<dyn LineStream>,
+    tap: Tap,
+    /// Written bytes not yet taken by the stream; its capacity is kept.
+    pending: Vec<u8>,
+    baud: u32,
+    /// An accepted connection's entry in the admission table, touched on reads.
+    admission: Option<(Arc<Connections>, u64)>,
+    owner: Option<oneshot::Sender<Ended>>,
+}
+
+impl Line {
+    fn end(mut self, reason: String) {
+        if let Some(owner) = self.owner.take() {
+            let _ = owner.send(Ended {
+                reason,
+                baud: self.baud,
+            });
+        }
+    }
+
+    /// Reads into `buf` if the line has bytes or ended: the byte count, or
+    /// why it ended; `None` while it has nothing (the task is woken then).
+    fn poll_read(&mut self, cx: &mut Context<'_>, buf: &mut [u8]) -> Option<Result<usize, String>> {
+        let mut read = ReadBuf::new(buf);
+        match Pin::new(&mut self.stream).poll_read(cx, &mut read) {
+            Poll::Pending => None,
+            Poll::Ready(Ok(())) if read.filled().is_empty() => Some(Err("closed by peer".to_owned())),
+            Poll::Ready(Ok(())) => {
+                let n = read.filled().len();
+                self.tap.inbound(&buf[..n]);
+                if let Some((table, key)) = &self.admission {
+                    table.touch(*key, tokio::time::Instant::now());
+                }
+                Some(Ok(n))
+            }
+            Poll::Ready(Err(e)) => Some(Err(format!("read failed: {e}"))),
+        }
+    }
+
+    /// Writes what is pending until done or the stream would block (the
+    /// task is woken when it can take more).
+    fn flush(&mut self, cx: &mut Context<'_>) -> Result<(), String> {
+        let mut written = 0;
+        let result = loop {
+            if written == self.pending.len() {
+                break Ok(());
+            }
+            match Pin::new(&mut self.stream).poll_write(cx, &self.pending[written..]) {
+                Poll::Ready(Ok(0)) => break Err("write failed: the line takes no more bytes".to_owned()),
+                Poll::Ready(Ok(n)) => {
+                    self.tap.outbound(&self.pending[written..written + n]);
+                    written += n;
+                }
+                Poll::Ready(Err(e)) => break Err(format!("write failed: {e}")),
+                Poll::Pending => break Ok(()),
+            }
+        };
+        self.pending.drain(..written);
+        result
+    }
+}
+
+/// Every open port and link.
+pub struct Lines {
+    open: BTreeMap<LineId, Line>,
+    /// Where reads land; handed to the router core as they are.
+    buf: Box<[u8; 4096]>,
+    /// Where the next read poll starts, so that every line gets its turn.
+    next: Option<LineId>,
+    /// Lines whose write failed, closed, not yet reported.
+    failed: Vec<LineId>,
+}
+
+impl std::fmt::Debug for Lines {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Lines").field("open", &self.open.keys()).finish()
+    }
+}
+
+impl Lines {
+    pub fn new() -> Self {
+        Self {
+            open: BTreeMap::new(),
+            buf: Box::new([0; 4096]),
+            next: None,
+            failed: Vec::new(),
+        }
+    }
+
+    /// Takes a freshly opened line; a line of that id still open is closed
+    /// (its owner told so).
+    pub fn add(
+        &mut self,
+        id: LineId,
+        stream: Box<dyn LineStream>,
+        tap: Tap,
+        baud: u32,
+        admission: Option<(Arc<Connections>, u64)>,
+        owner: oneshot::Sender<Ended>,
+    ) {
+        let line = Line {
+            stream,
+            tap,
+            pending: Vec::new(),
+            baud,
+            admission,
+            owner: Some(owner),
+        };
+        if let Some(old) = self.open.insert(id, line) {
+            old.end("replaced by a new connection".to_owned());
+        }
+    }
+
+    /// Closes a line, telling its owner `reason`; whether it was open.
+    pub fn close(&mut self, id: LineId, reason: &str) -> bool {
+        self.open.remove(&id).map(|line| line.end(reason.to_owned())).is_some()
+    }
+
+    /// Queues `bytes` for the line; [`Lines::flush`] writes them.
+    pub fn write(&mut self, id: LineId, bytes: &[u8]) -> Result<(), Refused> {
+        let line = self.open.get_mut(&id).ok_or(Refused::Closed)?;
+        if line.pending.len() + bytes.len() > MAX_PENDING {
+            return Err(Refused::Behind);
+        }
+        line.pending.extend_from_slice(bytes);
+        Ok(())
+    }
+
+    /// Switches a port's line rate (after an acknowledged `C0..C7`, Table 4);
+    /// what is pending is written at the old rate first.
+    pub fn set_baud(&mut self, port: u8, baud: u32) -> Result<(), Refused> {
+        let line = self.open.get_mut(&LineId::Port(port)).ok_or(Refused::Closed)?;
+        line.baud = baud;
+        line.stream.set_baud(baud).map_err(|_| Refused::Closed)
+    }
+
+    /// Writes every line's pending bytes as far as they go now; a line
+    /// whose write fails is closed (reported by [`Lines::poll_next`]).
+    /// Whether nothing is left pending.
+    pub fn flush(&mut self, cx: &mut Context<'_>) -> bool {
+        let mut drained = true;
+        for (&id, line) in self.open.iter_mut() {
+            if line.pending.is_empty() {
+                continue;
+            }
+            if let Err(reason) = line.flush(cx) {
+                if let Some(owner) = line.owner.take() {
+                    let _ = owner.send(Ended {
+                        reason,
+                        baud: line.baud,
+                    });
+                }
+                self.failed.push(id);
+            } else {
+                drained &= line.pending.is_empty();
+            }
+        }
+        for id in &self.failed {
+            self.open.remove(id);
+        }
+        drained
+    }
+
+    /// Writes what is pending, then the next read or closed line, each line
+    /// in turn.
+    pub fn poll_next(&mut self, cx: &mut Context<'_>) -> Poll<LineEvent> {
+        self.flush(cx);
+        if let Some(id) = self.failed.pop() {
+            return Poll::Ready(LineEvent::Closed(id));
+        }
+        let first = self.next.take().unwrap_or(LineId::Port(0));
+        let Self { open, buf, .. } = self;
+        let mut poll = |(&id, line): (&LineId, &mut Line)| line.poll_read(cx, &mut buf[..]).map(|r| (id, r));
+        let ready = match open.range_mut(first..).find_map(&mut poll) {
+            Some(ready) => Some(ready),
+            None => open.range_mut(..first).find_map(&mut poll),
+        };
+        match ready {
+            None => Poll::Pending,
+            Some((id, Ok(n))) => {
+                // The line after this one reads first next time.
+                self.next = self
+                    .open
+                    .range((Bound::Excluded(id), Bound::Unbounded))
+                    .next()
+                    .map(|(&id, _)| id);
+                Poll::Ready(LineEvent::Read(id, n))
+            }
+            Some((id, Err(reason))) => {
+                if let Some(line) = self.open.remove(&id) {
+                    line.end(reason);
+                }
+                Poll::Ready(LineEvent::Closed(id))
+            }
+        }
+    }
+
+    /// The bytes of the last [`LineEvent::Read`].
+    pub fn read(&self, n: usize) -> &[u8] {
+        &self.buf[..n]
+    }
+
+    /// Resolves once every line has written what is pending (shutdown).
+    pub fn poll_drained(&mut self, cx: &mut Context<'_>) -> Poll<()> {
+        match self.flush(cx) {
+            true => Poll::Ready(()),
+            false => Poll::Pending,
+        }
+    }
+
+    /// Lets go of every line (shutdown): their owners hear that the router
+    /// let go.
+    pub fn release(&mut self) {
+        self.open.clear();
+    }
+}
