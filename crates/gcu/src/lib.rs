@@ -128,6 +128,7 @@
 //! prints its seed and the command replaying it with a trace
 //! (`GCU_SIM_SEED=<seed> ... -- --nocapture`).
 
+mod by_id;
 mod config;
 mod deadman;
 mod line;

@@ -27,16 +27,22 @@ impl LineReceiver {
         }
     }
 
-    /// Bytes received at `now`.
-    pub fn feed(&mut self, now: u64, bytes: &[u8]) -> Vec<OwnedEvent> {
-        let mut events = Vec::new();
+    /// Takes as many of `bytes`, received at `now`, as the framer has room
+    /// for and returns how many; take the events they complete with
+    /// [`LineReceiver::next_event`] before handing over the rest. Events come
+    /// out one at a time, so that receiving needs no list of them.
+    pub fn push(&mut self, now: u64, bytes: &[u8]) -> usize {
         if bytes.is_empty() {
-            return events;
+            return 0;
         }
         self.last_rx = Some(now);
         self.flushed = false;
-        self.framer.feed(bytes, |e| events.push(e.to_owned()));
-        events
+        self.framer.push(bytes)
+    }
+
+    /// The next event the bytes pushed (or the silence) complete.
+    pub fn next_event(&mut self) -> Option<OwnedEvent> {
+        self.framer.next_event().map(|e| e.to_owned())
     }
 
     /// When a partial frame would be abandoned, if one is buffered.
@@ -47,14 +53,13 @@ impl LineReceiver {
         }
     }
 
-    /// Abandons a partial frame once the line has been silent long enough.
-    pub fn poll(&mut self, now: u64) -> Vec<OwnedEvent> {
-        let mut events = Vec::new();
+    /// Abandons a partial frame once the line has been silent long enough;
+    /// take what the framer then finds with [`LineReceiver::next_event`].
+    pub fn poll(&mut self, now: u64) {
         if self.idle_deadline().is_some_and(|t| now >= t) {
             self.flushed = true;
-            self.framer.flush_idle(|e| events.push(e.to_owned()));
+            self.framer.line_idle();
         }
-        events
     }
 
     /// Drops everything buffered (line lost, rate switched).
@@ -81,13 +86,18 @@ mod tests {
         // A truncated frame: the ACK after it is taken for its length byte.
         let mut bytes = frame.as_bytes()[..5].to_vec();
         bytes.push(ACK);
-        assert!(line.feed(0, &bytes).is_empty());
+        assert_eq!(line.push(0, &bytes), bytes.len());
+        assert_eq!(line.next_event(), None);
         assert_eq!(line.idle_deadline(), Some(10));
-        assert!(line.poll(9).is_empty());
+        line.poll(9);
+        assert_eq!(line.next_event(), None);
         // Abandoned: the bytes of a damaged candidate are not acknowledgements.
-        assert!(line.poll(10).is_empty());
+        line.poll(10);
+        assert_eq!(line.next_event(), None);
         assert!(line.noise_bytes() >= 6);
         assert_eq!(line.idle_deadline(), None);
-        assert_eq!(line.feed(11, frame.as_bytes()), vec![OwnedEvent::Frame(frame)]);
+        assert_eq!(line.push(11, frame.as_bytes()), frame.as_bytes().len());
+        assert_eq!(line.next_event(), Some(OwnedEvent::Frame(frame)));
+        assert_eq!(line.next_event(), None);
     }
 }

@@ -64,8 +64,12 @@ pub(crate) enum LinkOut {
 
 /// What arrived on a link for the router to route.
 #[derive(Debug)]
+#[expect(
+    clippy::large_enum_variant,
+    reason = "a frame moves by value, without an allocation of its own, on its short way to routing"
+)]
 pub(crate) enum Received {
-    Frame(Box<FrameBuf>),
+    Frame(FrameBuf),
     Nic,
 }
 
@@ -194,25 +198,37 @@ impl Link {
         }
     }
 
-    /// Bytes from the peer: ACK/NAK what they complete, hand frames and `?` over.
-    pub fn receive(&mut self, now: u64, bytes: &[u8], out: &mut Vec<LinkOut>) -> Vec<Received> {
+    /// Bytes from the peer: ACK/NAK what they complete, hand frames and `?`
+    /// over in `received` (the caller's, reused).
+    pub fn receive(&mut self, now: u64, bytes: &[u8], out: &mut Vec<LinkOut>, received: &mut Vec<Received>) {
         self.stats.line.bytes_in += bytes.len() as u64;
         if !bytes.is_empty() {
             self.stats.line.last_seen = Some(now);
         }
-        let events = self.line.feed(now, bytes);
-        self.on_events(now, events, out)
+        let mut rest = bytes;
+        loop {
+            let taken = self.line.push(now, rest);
+            rest = rest.get(taken..).unwrap_or_default();
+            let any = self.on_events(now, out, received);
+            // The framer always has room once its events are taken; the
+            // check only bounds the loop.
+            if rest.is_empty() || (taken == 0 && !any) {
+                break;
+            }
+        }
     }
 
-    fn on_events(&mut self, now: u64, events: Vec<OwnedEvent>, out: &mut Vec<LinkOut>) -> Vec<Received> {
-        let mut received = Vec::new();
-        for event in events {
+    /// Takes the framer's events; whether there were any.
+    fn on_events(&mut self, now: u64, out: &mut Vec<LinkOut>, received: &mut Vec<Received>) -> bool {
+        let mut any = false;
+        while let Some(event) = self.line.next_event() {
+            any = true;
             match event {
                 OwnedEvent::Frame(frame) => {
                     // The router writes the ACK: at once, or once the
                     // command is delivered (ARCHITECTURE "Delivery contract").
                     self.stats.line.frames_in += 1;
-                    received.push(Received::Frame(Box::new(frame)));
+                    received.push(Received::Frame(frame));
                 }
                 OwnedEvent::BadChecksum(_) => {
                     self.stats.line.bad_checksums += 1;
@@ -238,19 +254,19 @@ impl Link {
             self.transmit_next(now, out);
         }
         self.stats.line.noise_bytes = self.line.noise_bytes();
-        received
+        any
     }
 
     /// Time passed: retransmit or give up the head, abandon a stale partial frame.
-    pub fn poll(&mut self, now: u64, out: &mut Vec<LinkOut>) -> Vec<Received> {
+    pub fn poll(&mut self, now: u64, out: &mut Vec<LinkOut>, received: &mut Vec<Received>) {
         if self.queue.head_pinned() && self.tx.deadline().is_some_and(|t| now >= t) {
             self.stats.line.timeouts += 1;
             let step = self.tx.poll(now);
             self.step(step, out);
             self.transmit_next(now, out);
         }
-        let events = self.line.poll(now);
-        self.on_events(now, events, out)
+        self.line.poll(now);
+        self.on_events(now, out, received);
     }
 
     pub fn next_deadline(&self) -> Option<u64> {
@@ -303,8 +319,9 @@ mod tests {
         let mut bad = frame.as_bytes().to_vec();
         *bad.last_mut().unwrap() ^= 0x01;
         let mut out = Vec::new();
-        let got = l.receive(0, &[frame.as_bytes(), &bad].concat(), &mut out);
-        assert!(matches!(got.as_slice(), [Received::Frame(f)] if **f == frame));
+        let mut got = Vec::new();
+        l.receive(0, &[frame.as_bytes(), &bad].concat(), &mut out, &mut got);
+        assert!(matches!(got.as_slice(), [Received::Frame(f)] if *f == frame));
         assert_eq!(
             writes(&out),
             vec![vec![NAK]],
@@ -338,18 +355,18 @@ mod tests {
         assert!(matches!(out[0], LinkOut::FirstSent(7)));
         assert_eq!(writes(&out), vec![frame.as_bytes().to_vec()]);
         out.clear();
-        l.receive(1, &[NAK], &mut out);
+        l.receive(1, &[NAK], &mut out, &mut Vec::new());
         assert_eq!(writes(&out), vec![frame.as_bytes().to_vec()]);
         out.clear();
         assert_eq!(l.next_deadline(), Some(11));
-        l.poll(11, &mut out);
+        l.poll(11, &mut out, &mut Vec::new());
         assert_eq!(writes(&out), vec![frame.as_bytes().to_vec()]);
         out.clear();
-        l.poll(21, &mut out);
+        l.poll(21, &mut out, &mut Vec::new());
         assert!(matches!(&out[0], LinkOut::Failed(item, DropReason::LinkNoAck) if item.frame == frame));
         assert_eq!(writes(&out), vec![second.as_bytes().to_vec()]);
         out.clear();
-        l.receive(22, &[ACK], &mut out);
+        l.receive(22, &[ACK], &mut out, &mut Vec::new());
         assert_eq!(l.stats.delivered, 1);
         assert_eq!(l.stats.failed, 1);
         assert_eq!(l.stats.line.retransmits, 2);
@@ -386,7 +403,7 @@ mod tests {
         };
         assert_eq!(l.enqueue(0, dead_man, &mut out), Ok(()), "a dead-man stop always fits");
         out.clear();
-        l.receive(1, &[ACK], &mut out);
+        l.receive(1, &[ACK], &mut out, &mut Vec::new());
         assert_eq!(writes(&out), vec![item(b"PS", true).frame.as_bytes().to_vec()]);
         assert_eq!(l.shut_down().len(), 2);
     }
@@ -413,10 +430,12 @@ mod tests {
         }
         assert_eq!(writes(&out).len(), 3, "all three at once, no ACK awaited");
         out.clear();
-        assert!(l.poll(1000, &mut out).is_empty());
+        let mut got = Vec::new();
+        l.poll(1000, &mut out, &mut got);
+        assert!(got.is_empty());
         assert!(writes(&out).is_empty(), "nothing retransmitted");
         assert_eq!(l.next_deadline(), None);
-        l.receive(1001, &[ACK, ACK, ACK], &mut out);
+        l.receive(1001, &[ACK, ACK, ACK], &mut out, &mut Vec::new());
         assert_eq!((l.stats.delivered, l.stats.failed, l.stats.line.stray_bytes), (3, 0, 0));
     }
 }

@@ -139,11 +139,8 @@ impl Queued for Job {
     }
 }
 
-/// What a port asks the router to do.
-#[expect(
-    clippy::large_enum_variant,
-    reason = "a frame to write is held inline, without an allocation of its own, on its short way to the Outbox"
-)]
+/// What a port asks the router to do. Frames are held inline, without an
+/// allocation of their own, on their short way to the Outbox or the origin.
 #[derive(Debug)]
 pub(crate) enum PortOut {
     Write(Wire),
@@ -151,7 +148,7 @@ pub(crate) enum PortOut {
     Relay {
         id: CommandId,
         origin: Origin,
-        reply: Box<FrameBuf>,
+        reply: FrameBuf,
     },
     /// The device acknowledged job `id` (or a device-255 command was written):
     /// the command is delivered (ARCHITECTURE "Delivery contract").
@@ -437,13 +434,11 @@ impl Port {
         if self.queue.front()?.facts.stop {
             return self.queue.pop_front();
         }
+        // An origin's later jobs have the served turn of its first, so the
+        // strict `<` keeps each origin's oldest job.
         let mut best: Option<(u64, usize)> = None;
-        let mut seen = BTreeSet::new();
         for (i, j) in self.queue.iter().enumerate() {
             let origin = j.origin.link();
-            if !seen.insert(origin) {
-                continue;
-            }
             let served = self.served.get(&origin).copied().unwrap_or(0);
             if best.is_none_or(|(s, _)| served < s) {
                 best = Some((served, i));
@@ -476,7 +471,7 @@ impl Port {
         }
     }
 
-    fn active_step(&mut self, now: u64, step: TransactionStep, frame: Option<Box<FrameBuf>>, out: &mut Vec<PortOut>) {
+    fn active_step(&mut self, now: u64, step: TransactionStep, frame: Option<FrameBuf>, out: &mut Vec<PortOut>) {
         match step {
             TransactionStep::Send => {
                 let Some(r) = &self.active else { return };
@@ -506,7 +501,7 @@ impl Port {
         }
     }
 
-    fn finish(&mut self, now: u64, r: Running, outcome: Outcome, frame: Option<Box<FrameBuf>>, out: &mut Vec<PortOut>) {
+    fn finish(&mut self, now: u64, r: Running, outcome: Outcome, frame: Option<FrameBuf>, out: &mut Vec<PortOut>) {
         let device = r.device();
         if r.txn.transmissions() > 1 {
             // The device may have executed the command twice: let its
@@ -520,7 +515,7 @@ impl Port {
             self.device(device).last_seen = Some(now);
         }
         if device != WILDCARD {
-            self.learn(now, device, &r.job, outcome, frame.as_deref());
+            self.learn(now, device, &r.job, outcome, frame.as_ref());
         }
         let outcome = match outcome {
             Outcome::Result => {
@@ -639,9 +634,20 @@ impl Port {
         if !bytes.is_empty() {
             self.stats.line.last_seen = Some(now);
         }
-        let events = self.line.feed(now, bytes);
-        for event in events {
-            self.on_event(now, event, out);
+        let mut rest = bytes;
+        loop {
+            let taken = self.line.push(now, rest);
+            rest = rest.get(taken..).unwrap_or_default();
+            let mut any = false;
+            while let Some(event) = self.line.next_event() {
+                any = true;
+                self.on_event(now, event, out);
+            }
+            // The framer always has room once its events are taken; the
+            // check only bounds the loop.
+            if rest.is_empty() || (taken == 0 && !any) {
+                break;
+            }
         }
         self.stats.line.noise_bytes = self.line.noise_bytes();
         self.maybe_detach(now, out);
@@ -652,7 +658,7 @@ impl Port {
             OwnedEvent::Frame(frame) => {
                 self.stats.line.frames_in += 1;
                 self.write(Wire::Ack, out);
-                self.on_frame(now, Box::new(frame), out);
+                self.on_frame(now, frame, out);
             }
             OwnedEvent::BadChecksum(_) => {
                 self.stats.line.bad_checksums += 1;
@@ -705,7 +711,7 @@ impl Port {
         }
     }
 
-    fn on_frame(&mut self, now: u64, frame: Box<FrameBuf>, out: &mut Vec<PortOut>) {
+    fn on_frame(&mut self, now: u64, frame: FrameBuf, out: &mut Vec<PortOut>) {
         let view = frame.frame();
         if let Some(r) = self.active.as_mut() {
             if r.txn.is_broadcast() {
@@ -750,7 +756,8 @@ impl Port {
 
     /// Time passed.
     pub fn poll(&mut self, now: u64, out: &mut Vec<PortOut>) {
-        for event in self.line.poll(now) {
+        self.line.poll(now);
+        while let Some(event) = self.line.next_event() {
             self.on_event(now, event, out);
         }
         self.stats.line.noise_bytes = self.line.noise_bytes();

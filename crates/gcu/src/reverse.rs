@@ -66,7 +66,7 @@ struct Pending {
     dest: Address,
     kind: ResultKind,
     /// The forwarded frame, to check that an answer fits its command.
-    forwarded: Box<FrameBuf>,
+    forwarded: FrameBuf,
     /// Set at the first transmission on `out_link`.
     expires: Option<u64>,
     /// An answer went back already.
@@ -74,7 +74,7 @@ struct Pending {
     /// Transmitted more than once: the next GCU may answer twice.
     resent: bool,
     /// The last answer that went back, and when.
-    last_answer: Option<(u64, Box<FrameBuf>)>,
+    last_answer: Option<(u64, FrameBuf)>,
     /// The command whose delivery the next GCU's report settles (a link's
     /// command; not a flood copy or the GCU's own stop).
     command: Option<CommandId>,
@@ -157,7 +157,7 @@ impl ReversePath {
             source: frame.source,
             dest: frame.dest,
             kind,
-            forwarded: Box::new(FrameBuf::from_frame(frame)),
+            forwarded: FrameBuf::from_frame(frame),
             expires: None,
             answered: false,
             resent: false,
@@ -227,7 +227,7 @@ impl ReversePath {
         let repeated = |e: &Pending| {
             e.last_answer
                 .as_ref()
-                .is_some_and(|(at, last)| **last == answer && now <= at.saturating_add(window))
+                .is_some_and(|(at, last)| *last == answer && now <= at.saturating_add(window))
         };
         let matches = |e: &Pending| e.out_link == link && e.expires.is_some() && e.answered_by(frame);
         let mut repeats = self
@@ -272,7 +272,7 @@ impl ReversePath {
             }
             if let Some(first) = self.entries.iter_mut().find(|e| e.waiting() && matches(e)) {
                 first.answered = true;
-                first.last_answer = answer.map(|(at, frame)| (at, Box::new(frame)));
+                first.last_answer = answer;
             }
             return AnswerMatch::One(origin);
         }

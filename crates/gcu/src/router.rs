@@ -5,11 +5,13 @@
 //! answers (module `local`). See the crate documentation for the rules.
 
 use std::collections::BTreeMap;
+use std::ops::Bound;
 
 use sagebrush_protocol::{
     Address, CONTROL_UNIT, Command, DeliveryReport, Frame, FrameBuf, LINK_PORT, Undelivered, WILDCARD,
 };
 
+use crate::by_id::ById;
 use crate::config::{ConfigError, LinkKind, LinkSettings, PortConfig, RouterConfig};
 use crate::deadman::{DeadMan, OwnedStop};
 use crate::link::{Link, LinkOut, Outgoing, Received};
@@ -93,7 +95,7 @@ struct Awaiting {
     link: LinkId,
     /// A client link: the answer is the withheld ACK, or a report when undelivered.
     client: bool,
-    frame: Box<FrameBuf>,
+    frame: FrameBuf,
     command: &'static str,
     /// When a client must be told at the latest (`delivery_timeout`).
     deadline: Option<u64>,
@@ -115,11 +117,11 @@ pub struct Router {
     routes: RoutingTable,
     reverse: ReversePath,
     deadman: DeadMan,
-    commands: BTreeMap<CommandId, Progress>,
+    commands: ById<Progress>,
     /// Dead-man stops in progress: the stop, the link it is for, its round.
-    dead_man_rounds: BTreeMap<CommandId, DeadManRound>,
+    dead_man_rounds: ById<DeadManRound>,
     /// Links' commands whose origin awaits the delivery outcome.
-    awaiting: BTreeMap<CommandId, Awaiting>,
+    awaiting: ById<Awaiting>,
     /// [`Input::Shutdown`] came: new commands are refused.
     stopping: bool,
     /// New configurations of ports that are closing (reconfigured).
@@ -129,6 +131,7 @@ pub struct Router {
     /// routing a frame does not allocate them anew (a few: calls nest).
     port_scratch: Vec<Vec<PortOut>>,
     link_scratch: Vec<Vec<LinkOut>>,
+    received_scratch: Vec<Vec<Received>>,
     last_now: u64,
     stats: RouterStats,
     unknown_inputs: u64,
@@ -170,14 +173,15 @@ impl Router {
                 (u64::from(config.links.retries) + 1) * config.links.ack_timeout,
             ),
             deadman: DeadMan::default(),
-            commands: BTreeMap::new(),
-            dead_man_rounds: BTreeMap::new(),
-            awaiting: BTreeMap::new(),
+            commands: ById::new(),
+            dead_man_rounds: ById::new(),
+            awaiting: ById::new(),
             stopping: false,
             replacements: BTreeMap::new(),
             next_id: 0,
             port_scratch: Vec::new(),
             link_scratch: Vec::new(),
+            received_scratch: Vec::new(),
             last_now: 0,
             stats: RouterStats::default(),
             unknown_inputs: 0,
@@ -227,11 +231,10 @@ impl Router {
             Input::LinkBytes { link, bytes } => match self.links.get_mut(&link) {
                 Some(l) => {
                     let mut lo = self.link_scratch.pop().unwrap_or_default();
-                    let received = l.receive(now, bytes, &mut lo);
+                    let mut received = self.received_scratch.pop().unwrap_or_default();
+                    l.receive(now, bytes, &mut lo, &mut received);
                     self.link_outs(now, link, lo, out);
-                    for r in received {
-                        self.on_received(now, link, r, out);
-                    }
+                    self.route_received(now, link, received, out);
                 }
                 None => self.unknown_inputs += 1,
             },
@@ -428,29 +431,32 @@ impl Router {
         let expired = self.deadman.expired(now);
         self.stop_motions(now, expired, StopCause::Lease, out);
         let due = |d: Option<u64>| d.is_some_and(|t| t <= now);
-        let ports: Vec<u8> = self
+        // The next due port or link after the last one polled: found afresh
+        // each time (polling one may change the others), with no list.
+        let mut after = None;
+        while let Some(port) = self
             .ports
-            .iter()
-            .filter(|(_, p)| due(p.next_deadline()))
+            .range((after.map_or(Bound::Unbounded, Bound::Excluded), Bound::Unbounded))
+            .find(|(_, p)| due(p.next_deadline()))
             .map(|(&id, _)| id)
-            .collect();
-        for port in ports {
+        {
             self.with_port(now, port, out, |p, now, po| p.poll(now, po));
+            after = Some(port);
         }
-        let links: Vec<LinkId> = self
+        let mut after = None;
+        while let Some(link) = self
             .links
-            .iter()
-            .filter(|(_, l)| due(l.next_deadline()))
+            .range((after.map_or(Bound::Unbounded, Bound::Excluded), Bound::Unbounded))
+            .find(|(_, l)| due(l.next_deadline()))
             .map(|(&id, _)| id)
-            .collect();
-        for link in links {
+        {
+            after = Some(link);
             let Some(l) = self.links.get_mut(&link) else { continue };
             let mut lo = self.link_scratch.pop().unwrap_or_default();
-            let received = l.poll(now, &mut lo);
+            let mut received = self.received_scratch.pop().unwrap_or_default();
+            l.poll(now, &mut lo, &mut received);
             self.link_outs(now, link, lo, out);
-            for r in received {
-                self.on_received(now, link, r, out);
-            }
+            self.route_received(now, link, received, out);
         }
     }
 
@@ -470,7 +476,7 @@ impl Router {
                 PortOut::Write(wire) => out.write_port(port, &wire),
                 PortOut::SetRate(bps) => out.push(Action::SetPortRate { port, bps }),
                 PortOut::Event(e) => out.push(Action::Event(e)),
-                PortOut::Relay { id, origin, reply } => self.relay_result(now, port, id, origin, *reply, out),
+                PortOut::Relay { id, origin, reply } => self.relay_result(now, port, id, origin, reply, out),
                 PortOut::Delivered { id } => self.resolve(now, id, Ok(()), self.group, out),
                 PortOut::Undelivered { id, failure } => {
                     if let Some(p) = self.commands.get_mut(&id) {
@@ -745,9 +751,19 @@ impl Router {
         }
     }
 
+    /// Routes what a link received; the vector goes back to the scratch pool.
+    fn route_received(&mut self, now: u64, link: LinkId, mut received: Vec<Received>, out: &mut Outbox) {
+        for r in received.drain(..) {
+            self.on_received(now, link, r, out);
+        }
+        if self.received_scratch.len() < SCRATCH_KEPT {
+            self.received_scratch.push(received);
+        }
+    }
+
     fn on_received(&mut self, now: u64, link: LinkId, received: Received, out: &mut Outbox) {
         match received {
-            Received::Frame(frame) => self.on_link_frame(now, link, *frame, out),
+            Received::Frame(frame) => self.on_link_frame(now, link, frame, out),
             // A client answers no command: its `?` is a byte in the wrong
             // direction, counted as stray, not a dropped frame.
             Received::Nic if self.links.get(&link).is_some_and(|l| l.config.kind == LinkKind::Client) => {
@@ -835,7 +851,7 @@ impl Router {
             AnswerMatch::None => {}
         }
         if client {
-            let repeat = self.awaiting.values().any(|a| a.link == link && *a.frame == frame);
+            let repeat = self.awaiting.values().any(|a| a.link == link && a.frame == frame);
             if repeat {
                 if let Some(l) = self.links.get_mut(&link) {
                     l.stats.repeats += 1;
@@ -920,7 +936,7 @@ impl Router {
                 Awaiting {
                     link,
                     client: kind == Some(LinkKind::Client),
-                    frame: Box::new(frame.clone()),
+                    frame: frame.clone(),
                     command: command.mnemonic(),
                     deadline: (kind == Some(LinkKind::Client))
                         .then(|| now.saturating_add(self.settings.delivery_timeout)),
@@ -1031,7 +1047,9 @@ impl Router {
     ) {
         let f = frame.frame();
         let dest = f.dest;
-        let targets: Vec<u8> = match dest.port {
+        // One port, or every port (a broadcast to port 255): counted first,
+        // then each found afresh, with no list of targets.
+        let one = match dest.port {
             LINK_PORT => {
                 self.resolve(now, id, Ok(()), self.group, out);
                 let outcome = match answer(self.group, &self.name, &self.serial, &f) {
@@ -1049,19 +1067,31 @@ impl Router {
                 };
                 return self.finish(id, outcome, out);
             }
-            WILDCARD => self.ports.keys().copied().collect(),
-            port if self.ports.contains_key(&port) => vec![port],
-            _ => Vec::new(),
+            WILDCARD => None,
+            port => Some(port),
         };
-        if targets.is_empty() {
+        let targets = match one {
+            Some(port) => usize::from(self.ports.contains_key(&port)),
+            None => self.ports.len(),
+        };
+        if targets == 0 {
             self.drop_frame(DropReason::UnknownPort, Place::Router, dest, f.source, out);
             self.resolve(now, id, Err(Undelivered::NoSuchPort), self.group, out);
             return self.finish(id, CommandOutcome::Dropped(DropReason::UnknownPort), out);
         }
-        self.commands.insert(id, Progress::new(origin, targets.len()));
-        for port in targets {
+        self.commands.insert(id, Progress::new(origin, targets));
+        let mut after = None;
+        while let Some(port) = match one {
+            Some(port) => (after.is_none()).then_some(port),
+            None => self
+                .ports
+                .range((after.map_or(Bound::Unbounded, Bound::Excluded), Bound::Unbounded))
+                .next()
+                .map(|(&id, _)| id),
+        } {
             let job = Job::new(id, origin, frame.clone(), facts);
             self.with_port(now, port, out, |p, now, po| p.enqueue(now, job, po));
+            after = Some(port);
         }
     }
 
