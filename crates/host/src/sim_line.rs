@@ -42,6 +42,22 @@ pub enum End {
 /// up to another, so it may fire up to two milliseconds late.
 const TICK: Duration = Duration::from_millis(2);
 
+/// What a thread sleep may overshoot by: tens of microseconds, most of a
+/// byte-time at 115200 bit/s. The last stretch of a paced wait is spun.
+const SPIN: Duration = Duration::from_micros(200);
+
+/// Waits until `at`: a thread sleep for all but the last [`SPIN`], then a
+/// spin, so that an answer leaves within a fraction of a byte-time of its
+/// instant (the simulator owns its thread while it waits).
+fn settle_until(at: Instant) {
+    if let Some(long) = at.saturating_duration_since(Instant::now()).checked_sub(SPIN) {
+        std::thread::sleep(long);
+    }
+    while Instant::now() < at {
+        std::hint::spin_loop();
+    }
+}
+
 /// The line clock and pacing state.
 #[derive(Debug)]
 pub struct LineClock {
@@ -129,7 +145,7 @@ pub async fn serve<S: AsyncRead + AsyncWrite + Unpin + Send>(
         while let Some(next) = tx.queue.front() {
             let wait = next.at.saturating_duration_since(Instant::now());
             if line.pace && !wait.is_zero() && wait <= TICK {
-                std::thread::sleep(wait);
+                settle_until(next.at);
             } else if !wait.is_zero() {
                 break;
             }
