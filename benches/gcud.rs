@@ -163,7 +163,10 @@ impl Usage {
         for &pid in pids {
             let (ticks, _) = proc_usage(pid);
             total.ticks += ticks;
-            let tasks = std::fs::read_dir(format!("/proc/{pid}/task")).into_iter().flatten().flatten();
+            let tasks = std::fs::read_dir(format!("/proc/{pid}/task"))
+                .into_iter()
+                .flatten()
+                .flatten();
             for task in tasks {
                 let status = std::fs::read_to_string(task.path().join("status")).unwrap_or_default();
                 total.switches += status
@@ -212,16 +215,25 @@ fn free_addr() -> String {
 /// without connecting: a socat relay serves its first connection only).
 fn listening(port: u16) -> bool {
     let local = format!("0100007F:{port:04X}");
-    std::fs::read_to_string("/proc/net/tcp").unwrap_or_default().lines().any(|l| {
-        let f: Vec<&str> = l.split_whitespace().collect();
-        f.len() > 3 && f[1] == local && f[3] == "0A"
-    })
+    std::fs::read_to_string("/proc/net/tcp")
+        .unwrap_or_default()
+        .lines()
+        .any(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            f.len() > 3 && f[1] == local && f[3] == "0A"
+        })
 }
 
 /// socat on PATH, installed with apt-get when missing and that is possible
 /// (root, or sudo without a password).
 fn socat_ready() -> bool {
-    let present = || Command::new("socat").arg("-V").stdout(Stdio::null()).status().is_ok_and(|s| s.success());
+    let present = || {
+        Command::new("socat")
+            .arg("-V")
+            .stdout(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success())
+    };
     if present() {
         return true;
     }
@@ -231,7 +243,11 @@ fn socat_ready() -> bool {
         .lines()
         .any(|l| l.starts_with("Uid:") && l.split_whitespace().nth(1) == Some("0"));
     let apt = |args: &[&str]| {
-        let mut c = if root { Command::new("apt-get") } else { Command::new("sudo") };
+        let mut c = if root {
+            Command::new("apt-get")
+        } else {
+            Command::new("sudo")
+        };
         if !root {
             c.args(["-n", "apt-get"]);
         }
@@ -261,7 +277,10 @@ fn spawn_socat(target: &str) -> (Proc, String) {
     );
     let started = Instant::now();
     while !listening(port) {
-        assert!(started.elapsed() < Duration::from_secs(10), "socat did not listen on {addr}");
+        assert!(
+            started.elapsed() < Duration::from_secs(10),
+            "socat did not listen on {addr}"
+        );
         std::thread::sleep(Duration::from_millis(5));
     }
     (child, addr)
@@ -352,14 +371,17 @@ fn latency(samples: usize, runs: usize, socat: bool) {
     let metrics = free_addr();
     let (gcud, gcud_addr) = spawn_gcud(&gcud_config(&[gcud_sim], &metrics), &dir);
     let gcud_pid = [gcud.0.id()];
-    let (mut direct, mut relayed, mut routed) = (PathFigures::default(), PathFigures::default(), PathFigures::default());
+    let (mut direct, mut relayed, mut routed) =
+        (PathFigures::default(), PathFigures::default(), PathFigures::default());
     for _ in 0..runs {
         direct.runs.push(latency_series(&direct_sim, samples, &[], None));
         if socat {
             let (relay, addr) = spawn_socat(&socat_sim);
             relayed.runs.push(latency_series(&addr, samples, &[relay.0.id()], None));
         }
-        routed.runs.push(latency_series(&gcud_addr, samples, &gcud_pid, Some(&metrics)));
+        routed
+            .runs
+            .push(latency_series(&gcud_addr, samples, &gcud_pid, Some(&metrics)));
     }
     println!(
         "1. latency of sequential P? (client -> [relay ->] gimbalsim --tcp on 127.0.0.1), \
@@ -540,7 +562,8 @@ fn bus_case(baud: u32, seconds: f64, device: &str) {
     let _sim;
     match device {
         "instant" => {
-            let master = nix::pty::posix_openpt(nix::fcntl::OFlag::O_RDWR | nix::fcntl::OFlag::O_NOCTTY).expect("openpt");
+            let master =
+                nix::pty::posix_openpt(nix::fcntl::OFlag::O_RDWR | nix::fcntl::OFlag::O_NOCTTY).expect("openpt");
             nix::pty::grantpt(&master).expect("grantpt");
             nix::pty::unlockpt(&master).expect("unlockpt");
             pty_path = nix::pty::ptsname_r(&master).expect("ptsname");
@@ -596,7 +619,13 @@ fn bus_case(baud: u32, seconds: f64, device: &str) {
     }
     drop(gcud);
     // The rate between the first and the last completion in the window.
-    let mut times: Vec<Instant> = done.lock().expect("lock").iter().copied().filter(|t| *t >= started).collect();
+    let mut times: Vec<Instant> = done
+        .lock()
+        .expect("lock")
+        .iter()
+        .copied()
+        .filter(|t| *t >= started)
+        .collect();
     times.sort();
     let (first, last) = (times[0], times[times.len() - 1]);
     let rate = (times.len() - 1) as f64 / last.duration_since(first).as_secs_f64();
@@ -684,7 +713,6 @@ fn main() {
         window.as_secs()
     );
 }
-
 
 /// What one soak exchange ended in, as the client saw it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]

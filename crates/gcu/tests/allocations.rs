@@ -1,9 +1,11 @@
-//! Heap allocations per routed transaction in the router core, the figure
-//! issue 14's zero-allocation data path is measured by: a client's `P?` to
-//! a device on a port, its ACK, the device's ACK and result, the result
+//! Heap allocations per routed transaction in the router core
+//! (ARCHITECTURE "Data path": none in steady state): a client's `P?` to a
+//! device on a port, its ACK, the device's ACK and result, the result
 //! relayed back and acknowledged, repeated after a warm-up so that every
-//! buffer (the caller's `Outbox` included) has grown. `cargo bench -p
-//! sagebrush-gcu --bench allocations`; it prints, it asserts nothing.
+//! buffer (the caller's `Outbox` included) has grown. An allocation count
+//! is exact, not a timing, so it is asserted: any allocation per routed
+//! frame fails. `cargo test -p sagebrush-gcu --release --test allocations`
+//! prints the figure (no test harness: nothing else runs in the process).
 
 use std::alloc::System;
 
@@ -81,5 +83,10 @@ fn main() {
         stats.allocations as f64 / N as f64,
         stats.bytes_allocated as f64 / N as f64,
         N
+    );
+    assert_eq!(
+        stats.allocations + stats.reallocations,
+        0,
+        "the router core allocated while routing: {stats:?}"
     );
 }
