@@ -1305,3 +1305,36 @@ fn clean_sigterm_logs_no_warning() {
         "a clean shutdown warned: {warnings:#?}\nlog:\n{log}"
     );
 }
+
+/// A client that stops reading cannot grow gcud: what its line has not
+/// taken is capped (64 KiB), more is dropped and logged, and another
+/// client is still answered.
+#[test]
+fn a_client_that_stops_reading_cannot_grow_the_daemon() {
+    let gcud = Gcud::start(&format!("[gcu]\ngroup = 5\n{METRICS}{CLIENTS}"));
+    let addr = gcud.clients();
+    let heap_before = gcud.metric("gcud_heap_bytes");
+    let mut hog = TcpStream::connect(&addr).expect("connect");
+    hog.set_write_timeout(Some(Duration::from_secs(10))).expect("timeout");
+    // D? to the GCU itself: ACK and a Table 6 answer for every 10 bytes sent.
+    let ask = FrameBuf::build(Address::new(5, 0, 0), 0, |b| Cmd::Identify.encode(b).map(<[u8]>::len)).expect("encode");
+    let burst: Vec<u8> = (0..1000).flat_map(|_| ask.as_bytes().to_vec()).collect();
+    for _ in 0..400 {
+        if hog.write_all(&burst).is_err() {
+            break;
+        }
+    }
+    gcud.wait_for_log("the peer is not reading");
+    let heap = gcud.metric("gcud_heap_bytes");
+    assert!(
+        heap < heap_before + (4 << 20),
+        "gcud's heap grew from {heap_before} to {heap} bytes for a client that does not read"
+    );
+    let mut other = WireClient::connect(&addr);
+    other.send(Address::new(5, 0, 0), 0, &Cmd::Identify);
+    assert_eq!(other.next(), OwnedEvent::Ack);
+    assert!(
+        matches!(other.next(), OwnedEvent::Frame(_)),
+        "the other client is answered"
+    );
+}

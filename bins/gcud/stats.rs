@@ -49,10 +49,11 @@ impl Heap {
     /// Now, from the counting allocator gcud runs on (`main.rs`).
     pub fn now() -> Self {
         let s = stats_alloc::INSTRUMENTED_SYSTEM.stats();
-        let allocated = (s.bytes_allocated as i128) + (s.bytes_reallocated as i128) - (s.bytes_deallocated as i128);
+        // A reallocation's growth is in `bytes_allocated`, its shrinking in
+        // `bytes_deallocated` (`bytes_reallocated` is the two again, netted).
         Self {
             allocations: (s.allocations + s.reallocations) as u64,
-            bytes_in_use: allocated.max(0) as u64,
+            bytes_in_use: s.bytes_allocated.saturating_sub(s.bytes_deallocated) as u64,
         }
     }
 }
