@@ -1,5 +1,6 @@
-//! The router task: owns the `sagebrush-gcu` router core, feeds it what the
-//! port and link tasks read, executes its actions, arms its one timer,
+//! The router task: owns the `sagebrush-gcu` router core and the GCU's open
+//! ports and links (module `lines`), feeds it what they read, executes its
+//! actions, arms its one timer,
 //! answers metrics scrapes, pings the systemd watchdog, reloads the
 //! configuration on SIGHUP (module `reload`), and shuts down gracefully on
 //! SIGTERM/SIGINT, stopping what it started.
@@ -99,8 +100,6 @@ fn link_config(link: &Link) -> LinkConfig {
 pub struct LinkInfo {
     pub name: String,
     pub peer: String,
-    /// Open (its line in `Lines`), not yet gone from the router.
-    live: bool,
 }
 
 /// Start-up failures that end the daemon (exit 1).
@@ -305,12 +304,12 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
                             lc.listener = Some(ids.of(&configured.name));
                         }
                         lines.add(LineId::Link(id), stream, tap, 0, admission, ended);
-                        links.insert(id, LinkInfo { name: link, peer, live: true });
+                        links.insert(id, LinkInfo { name: link, peer });
                         router.handle(t, Input::LinkUp { link: id, config: lc }, &mut actions);
                     }
                     IoEvent::CloseLink { id, reason } => {
                         if lines.close(LineId::Link(id), reason) {
-                            link_down(&mut router, &mut links, t, id, &mut actions);
+                            router.handle(t, Input::LinkDown { link: id }, &mut actions);
                         }
                     }
                     IoEvent::Scrape(reply) => {
@@ -328,7 +327,7 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
                     LineEvent::Read(LineId::Port(port), n) => router.handle(t, Input::PortBytes { port, bytes: lines.read(n) }, &mut actions),
                     LineEvent::Read(LineId::Link(link), n) => router.handle(t, Input::LinkBytes { link, bytes: lines.read(n) }, &mut actions),
                     LineEvent::Closed(LineId::Port(port)) => router.handle(t, Input::PortLost { port }, &mut actions),
-                    LineEvent::Closed(LineId::Link(id)) => link_down(&mut router, &mut links, t, id, &mut actions),
+                    LineEvent::Closed(LineId::Link(link)) => router.handle(t, Input::LinkDown { link }, &mut actions),
                 }
             }
             () = sleep_until(deadline) => router.handle(now(Instant::now()), Input::Tick, &mut actions),
@@ -571,16 +570,19 @@ impl Reload<'_> {
         for name in closed {
             self.tasks.stop_link(&name);
             // Its connections are gone: the router takes them down (dead-man).
-            let gone: Vec<LinkId> = self
+            let named: Vec<LinkId> = self
                 .links
                 .iter()
-                .filter(|(_, l)| l.name == name && l.live)
+                .filter(|(_, l)| l.name == name)
                 .map(|(&id, _)| id)
                 .collect();
-            for id in gone {
-                self.lines
-                    .close(LineId::Link(id), "link removed or changed by a reload");
-                link_down(self.router, self.links, now, id, actions);
+            for id in named {
+                if self
+                    .lines
+                    .close(LineId::Link(id), "link removed or changed by a reload")
+                {
+                    self.router.handle(now, Input::LinkDown { link: id }, actions);
+                }
             }
         }
         *self.config = new;
@@ -613,14 +615,6 @@ fn notify(state: &[sd_notify::NotifyState<'_>]) {
     if let Err(e) = sd_notify::notify(state) {
         warn!(error = %e, "cannot notify systemd");
     }
-}
-
-/// A link's line is gone: the router takes it down (dead-man stops).
-fn link_down(router: &mut Router, links: &mut BTreeMap<LinkId, LinkInfo>, now: u64, id: LinkId, out: &mut Outbox) {
-    if let Some(info) = links.get_mut(&id) {
-        info.live = false;
-    }
-    router.handle(now, Input::LinkDown { link: id }, out);
 }
 
 /// Carries out the router's actions in order: writes are queued on their
@@ -659,7 +653,7 @@ fn execute(
             },
             Action::SetPortRate { port, bps } => match lines.set_baud(*port, *bps) {
                 Ok(()) => info!(port, baud = bps, "line rate switched"),
-                Err(_) => error!(port, bps, "cannot switch the port's line rate"),
+                Err(reason) => error!(port, bps, %reason, "port lost: cannot switch its line rate; reopening"),
             },
             Action::Event(event) => log_event(event, links, throttle),
             Action::LinkGone { link, stats } => {

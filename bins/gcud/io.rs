@@ -1,7 +1,7 @@
 //! Opening the lines the router task owns (module `lines`): device ports (serial,
 //! TCP device server, in-process simulator) and links (serial, TCP listener,
-//! TCP client). Every pipe reconnects by itself with backoff when its device
-//! or peer is missing or vanishes, without disturbing any other pipe
+//! TCP client). Every line is reopened by its task with backoff when its device
+//! or peer is missing or vanishes, without disturbing any other line
 //! (ARCHITECTURE "Layers", 3: transport).
 
 use std::io;
@@ -47,19 +47,6 @@ pub enum IoEvent {
     CloseLink { id: LinkId, reason: &'static str },
     /// A metrics scrape wants a snapshot of the counters (rendered off the router task).
     Scrape(oneshot::Sender<crate::stats::Snapshot>),
-}
-
-impl std::fmt::Debug for IoEvent {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::PortOpened { port, baud, .. } => write!(f, "PortOpened {{ port: {port}, baud: {baud} }}"),
-            Self::LinkOpened { id, link, peer, .. } => {
-                write!(f, "LinkOpened {{ id: {id}, link: {link}, peer: {peer} }}")
-            }
-            Self::CloseLink { id, reason } => write!(f, "CloseLink {{ id: {id}, reason: {reason} }}"),
-            Self::Scrape(_) => f.write_str("Scrape"),
-        }
-    }
 }
 
 /// Exponential backoff: 250 ms doubling to 10 s.

@@ -21,7 +21,7 @@ use crate::admission::Connections;
 
 /// A line's byte stream, whichever its medium, with a line-rate switch
 /// where the medium has one.
-pub trait LineStream: AsyncRead + AsyncWrite + Unpin + Send {
+pub trait LineStream: AsyncRead + AsyncWrite + Unpin + Send + std::fmt::Debug {
     fn set_baud(&mut self, _baud: u32) -> io::Result<()> {
         Ok(())
     }
@@ -65,6 +65,7 @@ pub enum Refused {
 }
 
 /// An open line.
+#[derive(Debug)]
 struct Line {
     stream: Box<dyn LineStream>,
     tap: Tap,
@@ -77,7 +78,8 @@ struct Line {
 }
 
 impl Line {
-    fn end(mut self, reason: String) {
+    /// Tells the task that opened the line how it ended (once).
+    fn tell_owner(&mut self, reason: String) {
         if let Some(owner) = self.owner.take() {
             let _ = owner.send(Ended {
                 reason,
@@ -129,20 +131,15 @@ impl Line {
 }
 
 /// Every open port and link.
+#[derive(Debug)]
 pub struct Lines {
     open: BTreeMap<LineId, Line>,
     /// Where reads land; handed to the router core as they are.
     buf: Box<[u8; 4096]>,
     /// Where the next read poll starts, so that every line gets its turn.
     next: Option<LineId>,
-    /// Lines whose write failed, closed, not yet reported.
+    /// Lines closed for a failed write or rate switch, not yet reported.
     failed: Vec<LineId>,
-}
-
-impl std::fmt::Debug for Lines {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Lines").field("open", &self.open.keys()).finish()
-    }
 }
 
 impl Lines {
@@ -174,14 +171,17 @@ impl Lines {
             admission,
             owner: Some(owner),
         };
-        if let Some(old) = self.open.insert(id, line) {
-            old.end("replaced by a new connection".to_owned());
+        if let Some(mut old) = self.open.insert(id, line) {
+            old.tell_owner("replaced by a new connection".to_owned());
         }
     }
 
     /// Closes a line, telling its owner `reason`; whether it was open.
     pub fn close(&mut self, id: LineId, reason: &str) -> bool {
-        self.open.remove(&id).map(|line| line.end(reason.to_owned())).is_some()
+        self.open
+            .remove(&id)
+            .map(|mut line| line.tell_owner(reason.to_owned()))
+            .is_some()
     }
 
     /// Queues `bytes` for the line; [`Lines::flush`] writes them.
@@ -195,11 +195,21 @@ impl Lines {
     }
 
     /// Switches a port's line rate (after an acknowledged `C0..C7`, Table 4);
-    /// what is pending is written at the old rate first.
-    pub fn set_baud(&mut self, port: u8, baud: u32) -> Result<(), Refused> {
-        let line = self.open.get_mut(&LineId::Port(port)).ok_or(Refused::Closed)?;
+    /// what is pending is written at the old rate first. A line that cannot
+    /// switch is lost, as a failed write is: closed (reported by
+    /// [`Lines::poll_next`]) and reopened by its task at the rate it had.
+    pub fn set_baud(&mut self, port: u8, baud: u32) -> Result<(), String> {
+        let id = LineId::Port(port);
+        let line = self.open.get_mut(&id).ok_or_else(|| "the port is closed".to_owned())?;
+        if let Err(e) = line.stream.set_baud(baud) {
+            let reason = format!("cannot switch the line rate to {baud}: {e}");
+            line.tell_owner(reason.clone());
+            self.open.remove(&id);
+            self.failed.push(id);
+            return Err(reason);
+        }
         line.baud = baud;
-        line.stream.set_baud(baud).map_err(|_| Refused::Closed)
+        Ok(())
     }
 
     /// Writes every line's pending bytes as far as they go now; a line
@@ -207,25 +217,18 @@ impl Lines {
     /// Whether nothing is left pending.
     pub fn flush(&mut self, cx: &mut Context<'_>) -> bool {
         let mut drained = true;
-        for (&id, line) in self.open.iter_mut() {
-            if line.pending.is_empty() {
-                continue;
-            }
-            if let Err(reason) = line.flush(cx) {
-                if let Some(owner) = line.owner.take() {
-                    let _ = owner.send(Ended {
-                        reason,
-                        baud: line.baud,
-                    });
-                }
-                self.failed.push(id);
-            } else {
+        let failed = &mut self.failed;
+        self.open.retain(|&id, line| match line.flush(cx) {
+            Ok(()) => {
                 drained &= line.pending.is_empty();
+                true
             }
-        }
-        for id in &self.failed {
-            self.open.remove(id);
-        }
+            Err(reason) => {
+                line.tell_owner(reason);
+                failed.push(id);
+                false
+            }
+        });
         drained
     }
 
@@ -255,9 +258,7 @@ impl Lines {
                 Poll::Ready(LineEvent::Read(id, n))
             }
             Some((id, Err(reason))) => {
-                if let Some(line) = self.open.remove(&id) {
-                    line.end(reason);
-                }
+                self.close(id, &reason);
                 Poll::Ready(LineEvent::Closed(id))
             }
         }
