@@ -27,22 +27,29 @@ impl LineReceiver {
         }
     }
 
-    /// Takes as many of `bytes`, received at `now`, as the framer has room
-    /// for and returns how many; take the events they complete with
-    /// [`LineReceiver::next_event`] before handing over the rest. Events come
-    /// out one at a time, so that receiving needs no list of them.
-    pub fn push(&mut self, now: u64, bytes: &[u8]) -> usize {
-        if bytes.is_empty() {
-            return 0;
+    /// The next event, taking bytes received at `now` from the front of
+    /// `rest` as the framer has room for them; `None` once `rest` is used up
+    /// and nothing more is decided. Events come out one at a time, so that
+    /// receiving needs no list of them. After [`LineReceiver::poll`], pass an
+    /// empty `rest` to collect what the silence decided.
+    pub fn next_event(&mut self, now: u64, rest: &mut &[u8]) -> Option<OwnedEvent> {
+        loop {
+            if let Some(event) = self.framer.next_event() {
+                return Some(event.to_owned());
+            }
+            if rest.is_empty() {
+                return None;
+            }
+            self.last_rx = Some(now);
+            self.flushed = false;
+            let taken = self.framer.push(rest);
+            *rest = rest.get(taken..).unwrap_or_default();
+            // The framer always has room once its events are taken; this
+            // only bounds the loop.
+            if taken == 0 {
+                return None;
+            }
         }
-        self.last_rx = Some(now);
-        self.flushed = false;
-        self.framer.push(bytes)
-    }
-
-    /// The next event the bytes pushed (or the silence) complete.
-    pub fn next_event(&mut self) -> Option<OwnedEvent> {
-        self.framer.next_event().map(|e| e.to_owned())
     }
 
     /// When a partial frame would be abandoned, if one is buffered.
@@ -54,7 +61,8 @@ impl LineReceiver {
     }
 
     /// Abandons a partial frame once the line has been silent long enough;
-    /// take what the framer then finds with [`LineReceiver::next_event`].
+    /// take what the framer then finds with [`LineReceiver::next_event`]
+    /// (no bytes).
     pub fn poll(&mut self, now: u64) {
         if self.idle_deadline().is_some_and(|t| now >= t) {
             self.flushed = true;
@@ -86,18 +94,20 @@ mod tests {
         // A truncated frame: the ACK after it is taken for its length byte.
         let mut bytes = frame.as_bytes()[..5].to_vec();
         bytes.push(ACK);
-        assert_eq!(line.push(0, &bytes), bytes.len());
-        assert_eq!(line.next_event(), None);
+        let mut rest = &bytes[..];
+        assert_eq!(line.next_event(0, &mut rest), None);
+        assert!(rest.is_empty(), "every byte taken");
         assert_eq!(line.idle_deadline(), Some(10));
         line.poll(9);
-        assert_eq!(line.next_event(), None);
+        assert_eq!(line.next_event(9, &mut &[][..]), None);
         // Abandoned: the bytes of a damaged candidate are not acknowledgements.
         line.poll(10);
-        assert_eq!(line.next_event(), None);
+        assert_eq!(line.next_event(10, &mut &[][..]), None);
         assert!(line.noise_bytes() >= 6);
         assert_eq!(line.idle_deadline(), None);
-        assert_eq!(line.push(11, frame.as_bytes()), frame.as_bytes().len());
-        assert_eq!(line.next_event(), Some(OwnedEvent::Frame(frame)));
-        assert_eq!(line.next_event(), None);
+        let wire = frame.as_bytes().to_vec();
+        let mut rest = &wire[..];
+        assert_eq!(line.next_event(11, &mut rest), Some(OwnedEvent::Frame(frame)));
+        assert_eq!(line.next_event(11, &mut rest), None);
     }
 }

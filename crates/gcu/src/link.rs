@@ -205,24 +205,13 @@ impl Link {
         if !bytes.is_empty() {
             self.stats.line.last_seen = Some(now);
         }
-        let mut rest = bytes;
-        loop {
-            let taken = self.line.push(now, rest);
-            rest = rest.get(taken..).unwrap_or_default();
-            let any = self.on_events(now, out, received);
-            // The framer always has room once its events are taken; the
-            // check only bounds the loop.
-            if rest.is_empty() || (taken == 0 && !any) {
-                break;
-            }
-        }
+        self.on_events(now, bytes, out, received);
     }
 
-    /// Takes the framer's events; whether there were any.
-    fn on_events(&mut self, now: u64, out: &mut Vec<LinkOut>, received: &mut Vec<Received>) -> bool {
-        let mut any = false;
-        while let Some(event) = self.line.next_event() {
-            any = true;
+    /// Takes the events `bytes` (or the silence, with none) complete.
+    fn on_events(&mut self, now: u64, bytes: &[u8], out: &mut Vec<LinkOut>, received: &mut Vec<Received>) {
+        let mut rest = bytes;
+        while let Some(event) = self.line.next_event(now, &mut rest) {
             match event {
                 OwnedEvent::Frame(frame) => {
                     // The router writes the ACK: at once, or once the
@@ -254,7 +243,6 @@ impl Link {
             self.transmit_next(now, out);
         }
         self.stats.line.noise_bytes = self.line.noise_bytes();
-        any
     }
 
     /// Time passed: retransmit or give up the head, abandon a stale partial frame.
@@ -266,7 +254,7 @@ impl Link {
             self.transmit_next(now, out);
         }
         self.line.poll(now);
-        self.on_events(now, out, received);
+        self.on_events(now, &[], out, received);
     }
 
     pub fn next_deadline(&self) -> Option<u64> {

@@ -635,19 +635,8 @@ impl Port {
             self.stats.line.last_seen = Some(now);
         }
         let mut rest = bytes;
-        loop {
-            let taken = self.line.push(now, rest);
-            rest = rest.get(taken..).unwrap_or_default();
-            let mut any = false;
-            while let Some(event) = self.line.next_event() {
-                any = true;
-                self.on_event(now, event, out);
-            }
-            // The framer always has room once its events are taken; the
-            // check only bounds the loop.
-            if rest.is_empty() || (taken == 0 && !any) {
-                break;
-            }
+        while let Some(event) = self.line.next_event(now, &mut rest) {
+            self.on_event(now, event, out);
         }
         self.stats.line.noise_bytes = self.line.noise_bytes();
         self.maybe_detach(now, out);
@@ -757,7 +746,7 @@ impl Port {
     /// Time passed.
     pub fn poll(&mut self, now: u64, out: &mut Vec<PortOut>) {
         self.line.poll(now);
-        while let Some(event) = self.line.next_event() {
+        while let Some(event) = self.line.next_event(now, &mut &[][..]) {
             self.on_event(now, event, out);
         }
         self.stats.line.noise_bytes = self.line.noise_bytes();

@@ -436,7 +436,7 @@ impl Router {
         let mut after = None;
         while let Some(port) = self
             .ports
-            .range((after.map_or(Bound::Unbounded, Bound::Excluded), Bound::Unbounded))
+            .range(after_key(after))
             .find(|(_, p)| due(p.next_deadline()))
             .map(|(&id, _)| id)
         {
@@ -446,7 +446,7 @@ impl Router {
         let mut after = None;
         while let Some(link) = self
             .links
-            .range((after.map_or(Bound::Unbounded, Bound::Excluded), Bound::Unbounded))
+            .range(after_key(after))
             .find(|(_, l)| due(l.next_deadline()))
             .map(|(&id, _)| id)
         {
@@ -1083,11 +1083,7 @@ impl Router {
         let mut after = None;
         while let Some(port) = match one {
             Some(port) => (after.is_none()).then_some(port),
-            None => self
-                .ports
-                .range((after.map_or(Bound::Unbounded, Bound::Excluded), Bound::Unbounded))
-                .next()
-                .map(|(&id, _)| id),
+            None => self.ports.range(after_key(after)).next().map(|(&id, _)| id),
         } {
             let job = Job::new(id, origin, frame.clone(), facts);
             self.with_port(now, port, out, |p, now, po| p.enqueue(now, job, po));
@@ -1194,4 +1190,10 @@ impl Router {
         let round = (Box::new(frame.clone()), link, 1);
         self.dispatch(now, Origin::Internal, None, frame, Some(round), out);
     }
+}
+
+/// The keys after `after` (all of them for `None`): a cursor over a map
+/// that is walked while it may change, without collecting its keys.
+fn after_key<K: Copy>(after: Option<K>) -> (Bound<K>, Bound<K>) {
+    (after.map_or(Bound::Unbounded, Bound::Excluded), Bound::Unbounded)
 }
