@@ -17,39 +17,20 @@
 //! `BUS_BENCH_GIMBALSIM` another gimbalsim binary to measure (before/after).
 
 use std::fs::File;
-use std::io::{BufRead, BufReader, Read, Write};
-use std::process::{Child, Command, Stdio};
+use std::io::{Read, Write};
 use std::time::{Duration, Instant};
 
 use sagebrush_protocol::{ACK, Address, Event, FrameBuf, Framer};
+use support::{Proc, TRANSACTION_BYTES, percentile};
 
-/// Bytes on the wire per `P?` transaction: command, ACK, result, ACK.
-const TRANSACTION_BYTES: f64 = 26.0;
-
-/// A child process killed on drop.
-struct Proc(Child);
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
+mod support;
 
 fn spawn_sim(baud: u32, extra: &[String]) -> (Proc, String) {
     let bin = std::env::var("BUS_BENCH_GIMBALSIM").unwrap_or_else(|_| env!("CARGO_BIN_EXE_gimbalsim").into());
-    let mut child = Command::new(bin)
-        .args(["--pace", "--baud", &baud.to_string(), "--log", "warn"])
-        .args(extra)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("spawn gimbalsim");
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().expect("stdout"))
-        .read_line(&mut line)
-        .expect("pty path");
-    (Proc(child), line.trim().to_owned())
+    let rate = baud.to_string();
+    let mut args = vec!["--pace", "--baud", &rate];
+    args.extend(extra.iter().map(String::as_str));
+    support::gimbalsim(&bin, &args)
 }
 
 /// One `P?` transaction; returns the time from the command written to the ACK read.
@@ -70,10 +51,6 @@ fn transaction(port: &mut File, command: &[u8], framer: &mut Framer) -> Duration
     }
     port.write_all(&[ACK]).expect("write ACK");
     ack_at.expect("ACK before the result") - start
-}
-
-fn percentile(sorted: &[Duration], p: f64) -> Duration {
-    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
 }
 
 fn run(baud: u32, seconds: f64, extra: &[String]) {

@@ -28,38 +28,22 @@
 //!
 //! Figures are printed, never asserted: the machines are shared and noisy.
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::net::TcpStream;
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use sagebrush_protocol::{ACK, Address, Command as Cmd, Event, FrameBuf, Framer};
+use support::{Proc, TRANSACTION_BYTES, percentile};
 
-/// A child process killed on drop.
-struct Proc(Child);
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
+mod support;
 
 fn spawn_sim_tcp(args: &[&str]) -> (Proc, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_gimbalsim"))
-        .args(["--tcp", "127.0.0.1:0", "--log", "warn"])
-        .args(args)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("spawn gimbalsim");
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().expect("stdout"))
-        .read_line(&mut line)
-        .expect("sim address");
-    (Proc(child), line.trim().to_owned())
+    let mut all = vec!["--tcp", "127.0.0.1:0"];
+    all.extend_from_slice(args);
+    support::gimbalsim(env!("CARGO_BIN_EXE_gimbalsim"), &all)
 }
 
 fn spawn_gcud(config: &str, dir: &tempfile::TempDir) -> (Proc, String) {
@@ -133,10 +117,6 @@ impl Client {
         self.stream.write_all(&[ACK]).expect("ack the result");
         elapsed
     }
-}
-
-fn percentile(sorted: &[Duration], p: f64) -> Duration {
-    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
 }
 
 fn us(d: Duration) -> f64 {
@@ -483,9 +463,6 @@ fn throughput(per_client: usize, socat: bool) {
     );
 }
 
-/// Bytes on the wire per `P?` transaction: command 9, ACK 1, result 15, ACK 1.
-const TRANSACTION_BYTES: f64 = 26.0;
-
 /// The instant reference device: the protocol crate's `DeviceEndpoint`
 /// answering every `P?` at once. Its line is timed at `baud` both ways, as
 /// on a half-duplex bus: a read's bytes are through one byte-time each
@@ -572,19 +549,14 @@ fn bus_case(baud: u32, seconds: f64, device: &str) {
             _sim = None;
         }
         _ => {
-            let mut child = Command::new(env!("CARGO_BIN_EXE_gimbalsim"))
-                .args(["--pace", "--baud", &baud.to_string(), "--log", "warn", "--device", "1"])
-                .stdout(Stdio::piped())
-                .stderr(Stdio::null())
-                .spawn()
-                .expect("spawn gimbalsim");
-            let mut line = String::new();
-            BufReader::new(child.stdout.take().expect("stdout"))
-                .read_line(&mut line)
-                .expect("pty path");
-            pty_path = line.trim().to_owned();
+            let rate = baud.to_string();
+            let (sim, path) = support::gimbalsim(
+                env!("CARGO_BIN_EXE_gimbalsim"),
+                &["--pace", "--baud", &rate, "--device", "1"],
+            );
+            pty_path = path;
             device_end = Box::new(|_| Vec::new());
-            _sim = Some(Proc(child));
+            _sim = Some(sim);
         }
     }
     let stop = Arc::new(AtomicBool::new(false));

@@ -6,11 +6,8 @@
 mod support;
 
 use std::collections::BTreeSet;
-use std::io::{Read, Write};
-use std::net::TcpStream;
 
 use serde_json::Value;
-use support::HANG_GUARD;
 
 /// The `gcud_...` metric names in a PromQL expression.
 fn metric_names(expr: &str) -> Vec<String> {
@@ -97,26 +94,14 @@ fn the_dashboard_queries_only_metrics_that_gcud_exports() {
          [[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n",
     );
     let log = dir.path().join("gcud.log");
-    let address = |what: &str| {
-        let line = support::wait_for_log_line(&log, what);
-        let addr = line.split("addr=").nth(1).expect("addr field");
-        addr.split_whitespace().next().expect("address").to_owned()
-    };
+    let address = |what: &str| support::addr_field(&support::wait_for_log_line(&log, what));
     let (clients, metrics) = (address("listening link=clients"), address("metrics at /metrics"));
     // One exchange, so that the per-device families have samples too.
     for query in ["position", "lens"] {
         let out = support::gimbalctl(&["--tcp", &clients, "--to", "5.1.1", query]);
         assert_eq!(out.code, 0, "{query}: {out:?}");
     }
-    let mut stream = TcpStream::connect(&metrics).expect("connect to /metrics");
-    stream.set_read_timeout(Some(HANG_GUARD)).expect("timeout");
-    write!(
-        stream,
-        "GET /metrics HTTP/1.1\r\nHost: {metrics}\r\nConnection: close\r\n\r\n"
-    )
-    .expect("request");
-    let mut scrape = String::new();
-    stream.read_to_string(&mut scrape).expect("response");
+    let scrape = support::http_get(&metrics, "/metrics");
     support::terminate(&mut gcud);
     assert!(scrape.starts_with("HTTP/1.1 200"), "{scrape}");
 

@@ -44,9 +44,7 @@ impl Daemon {
 
     /// The client listener's address (`[[link]] name = "clients"`).
     pub fn clients(&self) -> String {
-        let line = self.wait_for_log("listening link=clients");
-        let addr = line.split("addr=").nth(1).expect("addr field");
-        addr.split_whitespace().next().expect("address").to_owned()
+        super::addr_field(&self.wait_for_log("listening link=clients"))
     }
 
     /// `gimbalctl --tcp CLIENTS ARGS`.

@@ -97,8 +97,7 @@ impl DemoGcud {
             let log = gcud.log();
             if log.contains("gcud ready") {
                 if let Some(line) = log.lines().find(|l| l.contains("listening link=clients")) {
-                    let addr = line.split("addr=").nth(1).expect("addr field");
-                    gcud.clients = addr.split_whitespace().next().expect("address").to_owned();
+                    gcud.clients = super::addr_field(line);
                     return gcud;
                 }
             }

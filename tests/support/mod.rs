@@ -44,6 +44,29 @@ pub fn spawn_gcud(dir: &Path, config: &str) -> Child {
         .expect("spawn gcud")
 }
 
+/// The `addr=` field of a gcud log line ("listening link=clients ...",
+/// "metrics at /metrics ...").
+pub fn addr_field(line: &str) -> String {
+    let addr = line.split("addr=").nth(1).expect("addr field");
+    addr.split_whitespace().next().expect("address").to_owned()
+}
+
+/// `GET path` over HTTP/1.1 from `addr` (gcud's metrics endpoint): the
+/// whole response, status line first.
+pub fn http_get(addr: &str, path: &str) -> String {
+    use std::io::{Read, Write};
+    let mut stream = std::net::TcpStream::connect(addr).expect("connect to the metrics endpoint");
+    stream.set_read_timeout(Some(HANG_GUARD)).expect("timeout");
+    write!(
+        stream,
+        "GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+    )
+    .expect("request");
+    let mut text = String::new();
+    stream.read_to_string(&mut text).expect("response");
+    text
+}
+
 /// Waits (at most [`HANG_GUARD`]) until a line of the log file `log`
 /// contains `text`; returns that line.
 pub fn wait_for_log_line(log: &Path, text: &str) -> String {
