@@ -277,6 +277,7 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
             if Instant::now() >= until {
                 warn!(
                     in_progress = router.in_progress(),
+                    pending_answers = router.pending_answers(),
                     "shutdown grace time over; exiting with work unfinished"
                 );
                 break;

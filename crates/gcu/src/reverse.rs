@@ -32,13 +32,31 @@
 //!
 //! Otherwise entries still waiting for their answer are matched first, so
 //! that an answered one does not block the next command of another client
-//! (a new `gimbalctl` run, say). When the table is full, the oldest answered
-//! entry is forgotten first.
+//! (a new `gimbalctl` run, say). When the table is full, a settled entry
+//! (answered or closed, and reported) is forgotten first, silently; only
+//! forgetting one that was still owed something counts as a drop.
 //!
 //! Delivery reports (ARCHITECTURE "Delivery contract") of the next GCU
 //! come back the same way: a report names the command's destination and
 //! checksum, and settles the delivery of the oldest unreported entry it
 //! fits. An entry that expires unreported leaves its command not confirmed.
+//!
+//! Reports also put answers in order, so that the commands of a client that
+//! left never shadow the next client's: the next GCU reports a command when
+//! its device acknowledged it, before its result (1.4.3: "The result
+//! response is sent following the ACK"), and runs one transaction at a time
+//! per port, each origin's jobs in order, a stop overtaking only queued
+//! work. So on one link, for one source group and one port:
+//! - a result answers the oldest entry reported delivered and not yet
+//!   answered (its transaction is the one running there);
+//! - the delivered report of a later command that is not a stop closes the
+//!   earlier reported entries: their transactions ended, no answer of
+//!   theirs can come any more;
+//! - an entry reported undelivered waits for nothing.
+//!
+//! Only when no reported entry fits (a report lost on a lossy link) are the
+//! unreported waiting entries considered, and then only when they all share
+//! one origin.
 //!
 //! Entries outlive a link going down, either way: the next GCU keeps
 //! executing and answers on the link once it is back (same id), and answers
@@ -78,15 +96,39 @@ struct Pending {
     /// The command whose delivery the next GCU's report settles (a link's
     /// command; not a flood copy or the GCU's own stop).
     command: Option<CommandId>,
-    /// The next GCU's delivery report arrived.
-    reported: bool,
+    /// A stop or halt: it overtakes queued work at the next GCU, so its
+    /// report says nothing about the transactions before it.
+    stop: bool,
+    /// The next GCU's delivery report: `Some(true)` delivered.
+    reported: Option<bool>,
+    /// The next GCU reported a later command on the same port: this
+    /// entry's transaction ended there and no answer of it can come.
+    closed: bool,
 }
 
 impl Pending {
     /// Whether this entry still waits for answers: a fan-out (a wildcard
     /// group, port or device) waits for several until it expires.
     fn waiting(&self) -> bool {
-        !self.answered || self.dest.has_wildcard()
+        !self.closed && self.reported != Some(false) && (!self.answered || self.dest.has_wildcard())
+    }
+
+    /// Its delivery is reported (or nobody awaits it).
+    fn told(&self) -> bool {
+        self.reported.is_some() || self.command.is_none()
+    }
+
+    /// Nothing more can come for it that anybody awaits: forgetting it
+    /// loses nothing (kept only to recognise a repeated answer).
+    fn settled(&self) -> bool {
+        self.told() && !self.waiting()
+    }
+
+    /// Work left: a client awaits its report, or a required result is
+    /// still to come. (A `?` that may follow a command without result, or
+    /// more answers of a fan-out, are not worth waiting for.)
+    fn owed(&self) -> bool {
+        !self.told() || matches!(self.kind, ResultKind::Required(_)) && !self.answered && self.waiting()
     }
 
     fn answered_by(&self, frame: &Frame<'_>) -> bool {
@@ -140,13 +182,19 @@ impl ReversePath {
         out_link: LinkId,
         origin: Origin,
         frame: &Frame<'_>,
-        kind: ResultKind,
+        facts: Forwarded,
         command: Option<CommandId>,
     ) -> (u64, Option<Option<CommandId>>) {
         let mut evicted = None;
         if self.entries.len() >= self.max {
-            let at = self.entries.iter().position(|e| e.answered).unwrap_or(0);
-            evicted = self.entries.remove(at).map(|e| e.command.filter(|_| !e.reported));
+            let at = (self.entries.iter().position(Pending::settled))
+                .or_else(|| self.entries.iter().position(|e| e.answered))
+                .unwrap_or(0);
+            evicted = self
+                .entries
+                .remove(at)
+                .filter(|e| !e.settled())
+                .map(|e| e.command.filter(|_| e.reported.is_none()));
         }
         let key = self.next_key;
         self.next_key += 1;
@@ -156,14 +204,16 @@ impl ReversePath {
             origin,
             source: frame.source,
             dest: frame.dest,
-            kind,
+            kind: facts.kind,
             forwarded: FrameBuf::from_frame(frame),
             expires: None,
             answered: false,
             resent: false,
             last_answer: None,
             command,
-            reported: false,
+            stop: facts.stop,
+            reported: None,
+            closed: false,
         });
         (key, evicted)
     }
@@ -173,7 +223,7 @@ impl ReversePath {
     pub fn command_of(&self, key: u64) -> Option<(CommandId, bool)> {
         self.entries
             .iter()
-            .find(|e| e.key == key && !e.reported)
+            .find(|e| e.key == key && e.reported.is_none())
             .and_then(|e| e.command.map(|c| (c, e.expires.is_some())))
     }
 
@@ -181,16 +231,27 @@ impl ReversePath {
     /// `Some(command)`: it settles that entry (`Some(None)`: an entry with
     /// no command to settle, e.g. a flood copy); `None`: nothing fits.
     pub fn match_report(&mut self, link: LinkId, to: u8, report: &DeliveryReport) -> Option<Option<CommandId>> {
-        let entry = self.entries.iter_mut().find(|e| {
+        let at = self.entries.iter().position(|e| {
             e.out_link == link
                 && e.expires.is_some()
-                && !e.reported
+                && e.reported.is_none()
                 && e.source == to
                 && e.dest == report.dest
                 && e.forwarded.frame().checksum() == report.command_checksum
         })?;
-        entry.reported = true;
-        Some(entry.command)
+        let delivered = report.failure.is_none();
+        let entry = &mut self.entries[at];
+        entry.reported = Some(delivered);
+        let (command, stop, dest, key) = (entry.command, entry.stop, entry.dest, entry.key);
+        if delivered && !stop && dest.port != WILDCARD {
+            for e in self.entries.iter_mut().take(at) {
+                if e.out_link == link && e.source == to && e.dest.port == dest.port && e.reported == Some(true) {
+                    debug_assert!(e.key < key);
+                    e.closed = true;
+                }
+            }
+        }
+        Some(command)
     }
 
     /// The frame of `key` was transmitted for the first time at `now`.
@@ -223,11 +284,15 @@ impl ReversePath {
     /// `repeats`: whether the link may repeat an answer (it can lose our ACK).
     pub fn match_result(&mut self, now: u64, link: LinkId, frame: &Frame<'_>, repeats: bool) -> AnswerMatch {
         let answer = FrameBuf::from_frame(frame);
-        let window = if repeats { self.repeat_window } else { 0 };
+        // On a lossless link nothing is ever repeated: identical bytes are a
+        // new answer, even within the same tick (two answers of a resting
+        // gimbal's position are byte for byte the same).
+        let window = self.repeat_window;
         let repeated = |e: &Pending| {
-            e.last_answer
-                .as_ref()
-                .is_some_and(|(at, last)| *last == answer && now <= at.saturating_add(window))
+            repeats
+                && e.last_answer
+                    .as_ref()
+                    .is_some_and(|(at, last)| *last == answer && now <= at.saturating_add(window))
         };
         let matches = |e: &Pending| e.out_link == link && e.expires.is_some() && e.answered_by(frame);
         let mut repeats = self
@@ -241,6 +306,28 @@ impl ReversePath {
             } else {
                 AnswerMatch::Ambiguous
             };
+        }
+        // The transaction running at the next GCU: the oldest entry it
+        // reported delivered and has not answered. Only a fan-out of another
+        // origin waiting for the same answers makes it ambiguous.
+        let running = |e: &Pending| matches(e) && e.waiting() && e.reported == Some(true) && !e.dest.has_wildcard();
+        if let Some(at) = self.entries.iter().position(running) {
+            let origin = self.entries[at].origin;
+            let fan_out_of_other = self
+                .entries
+                .iter()
+                .any(|e| matches(e) && e.waiting() && e.dest.has_wildcard() && e.origin != origin);
+            let duplicate_of_other = self
+                .entries
+                .iter()
+                .any(|e| !e.waiting() && !e.closed && e.resent && e.origin != origin && matches(e));
+            if fan_out_of_other || duplicate_of_other {
+                return AnswerMatch::Ambiguous;
+            }
+            let entry = &mut self.entries[at];
+            entry.answered = true;
+            entry.last_answer = Some((now, answer));
+            return AnswerMatch::One(origin);
         }
         self.take(matches, Some((now, answer)))
     }
@@ -290,7 +377,7 @@ impl ReversePath {
         let mut unconfirmed = Vec::new();
         self.entries.retain(|e| {
             let keep = e.expires.is_none_or(|t| t > now);
-            if !keep && !e.reported {
+            if !keep && e.reported.is_none() {
                 unconfirmed.extend(e.command.map(|c| (c, Undelivered::NotConfirmed)));
             }
             keep
@@ -302,9 +389,26 @@ impl ReversePath {
         self.entries.iter().filter_map(|e| e.expires).min()
     }
 
+    #[cfg(test)]
     pub fn len(&self) -> usize {
         self.entries.len()
     }
+
+    /// Entries still owed something: a delivery report a client waits for,
+    /// or a required result. Answered and reported entries are kept only to
+    /// recognise repeats, which is no work left (shutdown need not wait).
+    pub fn unsettled(&self) -> usize {
+        self.entries.iter().filter(|e| e.owed()).count()
+    }
+}
+
+/// What the reverse path keeps of a forwarded command (read once when the
+/// router accepted it, `port::CommandFacts`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Forwarded {
+    pub kind: ResultKind,
+    /// A stop or halt (it overtakes queued work at the next GCU).
+    pub stop: bool,
 }
 
 #[cfg(test)]
@@ -322,6 +426,10 @@ mod tests {
         })
     }
 
+    fn fwd(kind: ResultKind) -> Forwarded {
+        Forwarded { kind, stop: false }
+    }
+
     fn origin(link: u32) -> Origin {
         Origin::Link {
             link: LinkId(link),
@@ -334,8 +442,20 @@ mod tests {
         let settings = LinkSettings::default();
         let mut rp = ReversePath::new(8, 200);
         let cmd = Frame::new(Address::new(5, 1, 12), 2, b"P?").unwrap();
-        let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::Required(ResultTimeout::Normal), None);
-        let (b, _) = rp.insert(L, origin(11), &cmd, ResultKind::Required(ResultTimeout::Normal), None);
+        let (a, _) = rp.insert(
+            L,
+            origin(10),
+            &cmd,
+            fwd(ResultKind::Required(ResultTimeout::Normal)),
+            None,
+        );
+        let (b, _) = rp.insert(
+            L,
+            origin(11),
+            &cmd,
+            fwd(ResultKind::Required(ResultTimeout::Normal)),
+            None,
+        );
         let result = Frame::new(Address::new(2, 1, 12), 5, b"00000000").unwrap();
         // Not transmitted yet: not an answer.
         assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::None);
@@ -365,12 +485,24 @@ mod tests {
         let settings = LinkSettings::default();
         let mut rp = ReversePath::new(8, 200);
         let cmd = Frame::new(Address::new(5, 1, 12), 2, b"P?").unwrap();
-        let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::Required(ResultTimeout::Normal), None);
+        let (a, _) = rp.insert(
+            L,
+            origin(10),
+            &cmd,
+            fwd(ResultKind::Required(ResultTimeout::Normal)),
+            None,
+        );
         rp.sent(a, 0, &settings);
         rp.resent(a);
         let result = Frame::new(Address::new(2, 1, 12), 5, b"00000000").unwrap();
         assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::One(origin(10)));
-        let (b, _) = rp.insert(L, origin(11), &cmd, ResultKind::Required(ResultTimeout::Normal), None);
+        let (b, _) = rp.insert(
+            L,
+            origin(11),
+            &cmd,
+            fwd(ResultKind::Required(ResultTimeout::Normal)),
+            None,
+        );
         rp.sent(b, 1, &settings);
         assert_eq!(
             rp.match_result(later(), L, &result, true),
@@ -384,11 +516,23 @@ mod tests {
         let settings = LinkSettings::default();
         let mut rp = ReversePath::new(8, 200);
         let cmd = Frame::new(Address::new(5, 1, 12), 2, b"P?").unwrap();
-        let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::Required(ResultTimeout::Normal), None);
+        let (a, _) = rp.insert(
+            L,
+            origin(10),
+            &cmd,
+            fwd(ResultKind::Required(ResultTimeout::Normal)),
+            None,
+        );
         rp.sent(a, 0, &settings);
         let answer = Frame::new(Address::new(2, 1, 12), 5, b"00640064").unwrap();
         assert_eq!(rp.match_result(1000, L, &answer, true), AnswerMatch::One(origin(10)));
-        let (b, _) = rp.insert(L, origin(11), &cmd, ResultKind::Required(ResultTimeout::Normal), None);
+        let (b, _) = rp.insert(
+            L,
+            origin(11),
+            &cmd,
+            fwd(ResultKind::Required(ResultTimeout::Normal)),
+            None,
+        );
         rp.sent(b, 1010, &settings);
         // The next GCU did not get our ACK and sends the same frame again.
         assert_eq!(
@@ -405,7 +549,13 @@ mod tests {
         // Past the window, the same bytes are a new answer, and nobody waits.
         assert_eq!(rp.match_result(1401, L, &answer, true), AnswerMatch::Ambiguous);
         // On a lossless link nothing is repeated: identical bytes are a new answer.
-        let (c, _) = rp.insert(L, origin(12), &cmd, ResultKind::Required(ResultTimeout::Normal), None);
+        let (c, _) = rp.insert(
+            L,
+            origin(12),
+            &cmd,
+            fwd(ResultKind::Required(ResultTimeout::Normal)),
+            None,
+        );
         rp.sent(c, 1410, &settings);
         assert_eq!(rp.match_result(1420, L, &moved, false), AnswerMatch::One(origin(12)));
     }
@@ -420,14 +570,14 @@ mod tests {
             L,
             origin(10),
             &position,
-            ResultKind::Required(ResultTimeout::Normal),
+            fwd(ResultKind::Required(ResultTimeout::Normal)),
             None,
         );
         let (b, _) = rp.insert(
             L,
             origin(11),
             &identify,
-            ResultKind::Required(ResultTimeout::Normal),
+            fwd(ResultKind::Required(ResultTimeout::Normal)),
             None,
         );
         rp.sent(a, 0, &settings);
@@ -449,8 +599,8 @@ mod tests {
         let exact = Frame::new(Address::new(5, 1, 12), 2, b"*mu1").unwrap();
         let wildcard = Frame::new(Address::new(5, 1, 255), 2, b"*mu2").unwrap();
         let kind = ResultKind::Optional;
-        let (a, _) = rp.insert(L, origin(10), &wildcard, kind, None);
-        let (b, _) = rp.insert(L, origin(11), &exact, kind, None);
+        let (a, _) = rp.insert(L, origin(10), &wildcard, fwd(kind), None);
+        let (b, _) = rp.insert(L, origin(11), &exact, fwd(kind), None);
         rp.sent(a, 0, &settings);
         rp.sent(b, 0, &settings);
         let result = Frame::new(Address::new(2, 1, 12), 5, b"1").unwrap();
@@ -469,9 +619,9 @@ mod tests {
         let settings = LinkSettings::default();
         let mut rp = ReversePath::new(8, 200);
         let cmd = Frame::new(Address::new(5, 1, 12), 2, b"PL").unwrap();
-        let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::None, None);
+        let (a, _) = rp.insert(L, origin(10), &cmd, fwd(ResultKind::None), None);
         rp.sent(a, 0, &settings);
-        let (b, _) = rp.insert(L, origin(11), &cmd, ResultKind::None, None);
+        let (b, _) = rp.insert(L, origin(11), &cmd, fwd(ResultKind::None), None);
         rp.sent(b, 0, &settings);
         assert_eq!(rp.match_nic(L), AnswerMatch::Ambiguous);
         rp.cancel(b);
@@ -480,14 +630,14 @@ mod tests {
             AnswerMatch::Ambiguous,
             "b was transmitted: its answer may come"
         );
-        let (d, _) = rp.insert(L, origin(12), &cmd, ResultKind::None, None);
+        let (d, _) = rp.insert(L, origin(12), &cmd, fwd(ResultKind::None), None);
         rp.cancel(d);
         rp.expire(settings.nic_answer_timeout);
         assert_eq!(rp.len(), 0, "b expired, d was never transmitted");
-        let (a, _) = rp.insert(L, origin(10), &cmd, ResultKind::None, None);
+        let (a, _) = rp.insert(L, origin(10), &cmd, fwd(ResultKind::None), None);
         rp.sent(a, 0, &settings);
         assert_eq!(rp.match_nic(L), AnswerMatch::One(origin(10)));
-        let (c, _) = rp.insert(L, origin(10), &cmd, ResultKind::None, None);
+        let (c, _) = rp.insert(L, origin(10), &cmd, fwd(ResultKind::None), None);
         rp.sent(c, 5, &settings);
         assert_eq!(rp.next_deadline(), Some(settings.nic_answer_timeout));
         rp.expire(settings.nic_answer_timeout);
@@ -503,17 +653,114 @@ mod tests {
         let mut rp = ReversePath::new(2, 200);
         let cmd = Frame::new(Address::new(5, 1, 12), 2, b"PL").unwrap();
         let other = Frame::new(Address::new(5, 1, 13), 2, b"P?").unwrap();
-        let (a, evicted) = rp.insert(L, origin(1), &cmd, ResultKind::None, None);
+        let (a, evicted) = rp.insert(L, origin(1), &cmd, fwd(ResultKind::None), None);
         assert_eq!(evicted, None);
-        let (b, evicted) = rp.insert(L, origin(2), &other, ResultKind::Required(ResultTimeout::Normal), None);
+        let (b, evicted) = rp.insert(
+            L,
+            origin(2),
+            &other,
+            fwd(ResultKind::Required(ResultTimeout::Normal)),
+            None,
+        );
         assert_eq!(evicted, None);
         rp.sent(a, 0, &settings);
         rp.sent(b, 0, &settings);
         let answer = Frame::new(Address::new(2, 1, 13), 5, b"00000000").unwrap();
         assert_eq!(rp.match_result(later(), L, &answer, true), AnswerMatch::One(origin(2)));
-        assert_eq!(rp.insert(L, origin(1), &cmd, ResultKind::None, None).1, Some(None));
+        assert_eq!(
+            rp.insert(L, origin(1), &cmd, fwd(ResultKind::None), None).1,
+            None,
+            "the answered entry is settled: forgetting it is no drop"
+        );
         assert_eq!(rp.len(), 2);
         // The unanswered first entry survived: a `?` still finds origin 1.
         assert_eq!(rp.match_nic(L), AnswerMatch::One(origin(1)));
+    }
+
+    fn report(dest: Address, command: &Frame<'_>, failure: Option<Undelivered>) -> DeliveryReport {
+        DeliveryReport {
+            failure,
+            dest,
+            command_checksum: command.checksum(),
+            at_group: 5,
+        }
+    }
+
+    /// Issue 20.1: the commands of a client that left (origin 10, still
+    /// waiting) never shadow the next client's (origin 11): the next GCU's
+    /// reports say which transaction runs, and a later report closes the
+    /// earlier ones.
+    #[test]
+    fn answers_follow_the_next_gcus_reports_not_a_waiting_origin() {
+        let settings = LinkSettings::default();
+        let mut rp = ReversePath::new(16, 200);
+        let at = Address::new(5, 1, 12);
+        let presets: Vec<FrameBuf> = (1..=3u8)
+            .map(|n| FrameBuf::build(at, 2, |b| Command::QueryPreset(n).encode(b).map(<[u8]>::len)).unwrap())
+            .collect();
+        let query = Frame::new(at, 2, b"P?").unwrap();
+        let normal = fwd(ResultKind::Required(ResultTimeout::Normal));
+        for p in &presets {
+            let (k, _) = rp.insert(L, origin(10), &p.frame(), normal, Some(CommandId(k_of(p))));
+            rp.sent(k, 0, &settings);
+        }
+        let (k, _) = rp.insert(L, origin(11), &query, normal, Some(CommandId(99)));
+        rp.sent(k, 0, &settings);
+        let answer = Frame::new(Address::new(2, 1, 12), 5, b"00640064").unwrap();
+        // Unreported, two origins wait: an answer now cannot be placed.
+        assert_eq!(rp.match_result(later(), L, &answer, false), AnswerMatch::Ambiguous);
+        // The first preset query ran: reported, then answered.
+        let first = presets[0].frame();
+        assert_eq!(
+            rp.match_report(L, 2, &report(at, &first, None)),
+            Some(Some(CommandId(k_of(&presets[0]))))
+        );
+        assert_eq!(
+            rp.match_result(later(), L, &answer, false),
+            AnswerMatch::One(origin(10))
+        );
+        // The second was reported but its answer was lost; the third was
+        // refused (its queue was full): the report of the next client's
+        // query closes the second, and the answer is the next client's.
+        let second = presets[1].frame();
+        let third = presets[2].frame();
+        assert!(rp.match_report(L, 2, &report(at, &second, None)).is_some());
+        assert!(
+            rp.match_report(L, 2, &report(at, &third, Some(Undelivered::QueueFull)))
+                .is_some()
+        );
+        assert_eq!(
+            rp.match_report(L, 2, &report(at, &query, None)),
+            Some(Some(CommandId(99)))
+        );
+        assert_eq!(
+            rp.match_result(later(), L, &answer, false),
+            AnswerMatch::One(origin(11))
+        );
+        assert_eq!(rp.unsettled(), 0, "nothing is owed any more");
+    }
+
+    fn k_of(frame: &FrameBuf) -> u64 {
+        u64::from(frame.frame().checksum())
+    }
+
+    /// Issue 20.1: on a lossless link two byte-identical answers in the
+    /// same tick (a resting gimbal's position, asked twice) are two answers.
+    #[test]
+    fn identical_answers_in_one_tick_on_a_lossless_link_are_two_answers() {
+        let settings = LinkSettings::default();
+        let mut rp = ReversePath::new(8, 200);
+        let cmd = Frame::new(Address::new(5, 1, 12), 2, b"P?").unwrap();
+        let normal = fwd(ResultKind::Required(ResultTimeout::Normal));
+        let (a, _) = rp.insert(L, origin(10), &cmd, normal, Some(CommandId(1)));
+        let (b, _) = rp.insert(L, origin(11), &cmd, normal, Some(CommandId(2)));
+        rp.sent(a, 0, &settings);
+        rp.sent(b, 0, &settings);
+        let answer = Frame::new(Address::new(2, 1, 12), 5, b"00000000").unwrap();
+        let delivered = report(cmd.dest, &cmd, None);
+        assert_eq!(rp.match_report(L, 2, &delivered), Some(Some(CommandId(1))));
+        assert_eq!(rp.match_result(500, L, &answer, false), AnswerMatch::One(origin(10)));
+        assert_eq!(rp.match_report(L, 2, &delivered), Some(Some(CommandId(2))));
+        assert_eq!(rp.match_result(500, L, &answer, false), AnswerMatch::One(origin(11)));
     }
 }

@@ -18,7 +18,7 @@ use crate::link::{Link, LinkOut, Outgoing, Received};
 use crate::local::{SelfAnswer, answer};
 use crate::outbox::Outbox;
 use crate::port::{CommandFacts, Job, Port, PortOut};
-use crate::reverse::{AnswerMatch, ReversePath};
+use crate::reverse::{AnswerMatch, Forwarded, ReversePath};
 use crate::routing::RoutingTable;
 use crate::stats::{LinkStats, RouterStats, Stats};
 use crate::types::{Action, CommandId, CommandOutcome, DropReason, Input, LinkId, Origin, Place, RouterEvent};
@@ -299,9 +299,11 @@ impl Router {
         self.commands.len()
     }
 
-    /// Forwarded frames whose answers are still routed back.
+    /// Forwarded commands still owed a delivery report or a result (what
+    /// shutdown waits for); answered entries kept only to recognise a
+    /// repeated answer are not counted.
     pub fn pending_answers(&self) -> usize {
-        self.reverse.len()
+        self.reverse.unsettled()
     }
 
     /// Continuous motions owned by links (dead-man records).
@@ -950,12 +952,15 @@ impl Router {
             let lease = self.links.get(&link).and_then(|l| l.config.motion_lease);
             self.deadman.on_command(now, link, lease, dest, &command);
         }
-        let result_kind = command.result_kind();
+        let facts = CommandFacts::of(&command);
+        let forwarded = Forwarded {
+            kind: facts.kind,
+            stop: facts.stop,
+        };
         if dest.group == self.group || dest.group == WILDCARD {
             if dest.group == WILDCARD && kind != Some(LinkKind::Downstream) {
-                self.flood(now, origin, &frame, result_kind, out);
+                self.flood(now, origin, &frame, forwarded, out);
             }
-            let facts = CommandFacts::of(&command);
             return self.execute_local(now, id, origin, frame, facts, out);
         }
         let up = |l: LinkId| self.links.contains_key(&l);
@@ -974,7 +979,7 @@ impl Router {
         let outcome = match route {
             Ok(next) => {
                 let settles = origin.link().map(|_| id);
-                let (key, evicted) = self.reverse.insert(next, origin, &f, result_kind, settles);
+                let (key, evicted) = self.reverse.insert(next, origin, &f, forwarded, settles);
                 if let Some(unreported) = evicted {
                     self.drop_frame(DropReason::PendingFull, Place::Router, dest, f.source, out);
                     if let Some(old) = unreported {
@@ -1001,14 +1006,7 @@ impl Router {
 
     /// Group 255 from upstream (or a client, or the router itself) is
     /// copied to every downstream link, never back where it came from.
-    fn flood(
-        &mut self,
-        now: u64,
-        origin: Origin,
-        frame: &FrameBuf,
-        result_kind: sagebrush_protocol::ResultKind,
-        out: &mut Outbox,
-    ) {
+    fn flood(&mut self, now: u64, origin: Origin, frame: &FrameBuf, forwarded: Forwarded, out: &mut Outbox) {
         let targets: Vec<LinkId> = self
             .links
             .iter()
@@ -1017,7 +1015,7 @@ impl Router {
             .collect();
         let f = frame.frame();
         for link in targets {
-            let (key, evicted) = self.reverse.insert(link, origin, &f, result_kind, None);
+            let (key, evicted) = self.reverse.insert(link, origin, &f, forwarded, None);
             if let Some(unreported) = evicted {
                 self.drop_frame(DropReason::PendingFull, Place::Router, f.dest, f.source, out);
                 if let Some(old) = unreported {

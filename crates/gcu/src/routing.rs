@@ -122,6 +122,11 @@ impl RoutingTable {
         {
             Some(link) => Ok(link),
             None if self.client_groups.contains_key(&group) => Err(DropReason::Unsolicited),
+            // A route was configured for it: its link is down, which is
+            // what the client should hear (07), not that none exists (06).
+            None if self.static_routes.contains_key(&group) || self.default_upstream.is_some() => {
+                Err(DropReason::LinkDown)
+            }
             None => Err(DropReason::NoRoute),
         }
     }
@@ -139,12 +144,19 @@ mod tests {
         assert_eq!(t.lookup(7, |_| true, None), Ok(LinkId(1)));
         assert_eq!(t.lookup(8, |_| true, None), Ok(LinkId(2)));
         assert_eq!(t.lookup(9, |_| true, None), Ok(LinkId(9)));
-        // Static route down: the learned one; nothing up: no route.
+        // Static route down: the learned one; nothing up: the default
+        // route's link is down (07), not "no route" (06).
         assert_eq!(t.lookup(7, |l| l == LinkId(2), None), Ok(LinkId(2)));
-        assert_eq!(t.lookup(9, |_| false, None), Err(DropReason::NoRoute));
+        assert_eq!(t.lookup(9, |_| false, None), Err(DropReason::LinkDown));
         assert_eq!(t.lookup(9, |_| false, Some(LinkId(3))), Ok(LinkId(3)));
         t.forget(LinkId(2));
-        assert_eq!(t.lookup(8, |l| l == LinkId(2), None), Err(DropReason::NoRoute));
+        assert_eq!(t.lookup(8, |l| l == LinkId(2), None), Err(DropReason::LinkDown));
+        let unrouted = RoutingTable::new(BTreeMap::new(), None);
+        assert_eq!(
+            unrouted.lookup(8, |_| false, None),
+            Err(DropReason::NoRoute),
+            "no route configured at all"
+        );
     }
 
     #[test]
@@ -172,8 +184,8 @@ mod tests {
         let mut t = RoutingTable::new([(7, LISTENER)].into(), Some(LISTENER));
         assert_eq!(
             t.lookup(7, |_| false, None),
-            Err(DropReason::NoRoute),
-            "nobody dialled in"
+            Err(DropReason::LinkDown),
+            "nobody dialled in: the route's link is down"
         );
         t.accepted(LISTENER, LinkId(100));
         t.accepted(LISTENER, LinkId(101));
@@ -184,7 +196,7 @@ mod tests {
         assert_eq!(t.lookup(7, |l| l == LinkId(100), None), Ok(LinkId(100)));
         t.forget(LinkId(100));
         assert_eq!(t.lookup(7, |_| true, None), Ok(LISTENER), "an id that is up is itself");
-        assert_eq!(t.lookup(7, |l| l != LISTENER, None), Err(DropReason::NoRoute));
+        assert_eq!(t.lookup(7, |l| l != LISTENER, None), Err(DropReason::LinkDown));
     }
 
     #[test]

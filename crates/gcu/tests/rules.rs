@@ -678,12 +678,14 @@ fn other_groups_follow_static_then_learned_then_default_routes() {
     let to9 = frame((9, 1, 1), 2, b"HO");
     let a = h.link(CLIENT, &to9);
     assert_eq!(link_writes(&a, UP), vec![to9.clone()]);
-    // Static route down: learned would be used; default down too: no route.
+    // Static route down: learned would be used; default down too: the
+    // client hears that the route's link is down (07), not "no route" (06).
     h.go(Input::LinkDown { link: UP });
     let a = h.link(CLIENT, &to9);
-    assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::NoRoute)]);
-    assert_eq!(dropped(&a), vec![DropReason::NoRoute]);
-    assert_eq!(h.r.stats().router.frame_drops.get(DropReason::NoRoute), 1);
+    assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::LinkDown)]);
+    assert_eq!(dropped(&a), vec![DropReason::LinkDown]);
+    assert_eq!(h.r.stats().router.frame_drops.get(DropReason::LinkDown), 1);
+    assert_eq!(h.r.stats().router.frame_drops.get(DropReason::NoRoute), 0);
 }
 
 #[test]

@@ -1,0 +1,106 @@
+//! gcud under attack (issue 20): each test reproduces one defect an
+//! adversarial run found, end to end where the defect lives: the real
+//! binaries, simulated gimbals on pseudo-terminals or TCP, 127.0.0.1 only.
+//! Nothing here asserts on wall-clock speed; waits are polls with a hang guard.
+
+mod support;
+
+use sagebrush_protocol::{Address, Command as Cmd};
+use support::Sim;
+use support::gcud::{CLIENTS, Gcud, METRICS, WireClient, port_entry};
+
+/// A hub GCU (group 2, the clients) routing group 9 over TCP to a field GCU
+/// (group 9) with gimbal 9.1.1 on port 1.
+fn hub_and_field(sim: &Sim) -> (Gcud, Gcud) {
+    hub_and_field_with(sim, "")
+}
+
+/// [`hub_and_field`] with more `[gcu]` keys for the hub.
+fn hub_and_field_with(sim: &Sim, hub_gcu: &str) -> (Gcud, Gcud) {
+    let field = Gcud::start(&format!(
+        "[gcu]\ngroup = 9\n{METRICS}{}[[link]]\nname = \"hub\"\nrole = \"upstream\"\nlisten = \"127.0.0.1:0\"\n",
+        port_entry(1, sim)
+    ));
+    field.wait_for_log("port open port=1");
+    let listener = field.address("listening link=hub");
+    let hub = Gcud::start(&format!(
+        "[gcu]\ngroup = 2\ndefault_route = \"field\"\n{hub_gcu}{CLIENTS}{METRICS}[[link]]\nname = \"field\"\nrole = \"downstream\"\nconnect = \"{listener}\"\n"
+    ));
+    hub.wait_for_log("link connected");
+    (hub, field)
+}
+
+/// Issue 20.1: a client's queries through a hub leave nothing behind that
+/// shadows the next client's. A client pipelines 12 preset queries (`P?nn`,
+/// answered with a Table 15 position like `P?`) and leaves while their
+/// answers are still coming back from the field GCU; each of the next
+/// back-to-back `gimbalctl position` runs gets its own answer (before the
+/// fix the first runs' answers were dropped as ambiguous, exit 6 "no
+/// result", until the old entries expired).
+#[test]
+fn answers_through_a_hub_reach_each_sequential_client() {
+    // Paced at 9600 bit/s, so that the queries below take a while.
+    let sim = Sim::pty(&["--device", "1", "--pace"]);
+    let (hub, _field) = hub_and_field(&sim);
+    // One client asks six times, reading each answer, then 12 times
+    // without waiting (distinct frames: an identical one would be taken
+    // for a retransmission; 12 fit the field GCU's port queue), and leaves
+    // before the answers come.
+    let mut client = WireClient::connect(&hub.clients());
+    for _ in 0..6 {
+        client.send(Address::new(9, 1, 1), 2, &Cmd::QueryPosition);
+        let result = client.expect_result();
+        assert_eq!(result.frame().source, 9, "the field GCU's answer");
+    }
+    for preset in 1..=12 {
+        client.send(Address::new(9, 1, 1), 2, &Cmd::QueryPreset(preset));
+    }
+    drop(client);
+    for run in 0..4 {
+        let out = hub.ctl(&["--json", "--from", "2", "--to", "9.1.1", "position"]);
+        assert_eq!(out.code, 0, "run {run}: {out:?}\nhub log:\n{}", hub.log());
+    }
+    assert_eq!(
+        hub.metric("gcud_router_frame_drops_total{reason=\"ambiguous_answer\"}"),
+        0
+    );
+    assert_eq!(
+        hub.metric("gcud_commands_accepted_total"),
+        6 + 12 + 4,
+        "every pipelined query was a command of its own"
+    );
+}
+
+/// Issue 20.7: after forwarded traffic, SIGTERM ends as soon as no work is
+/// left: answered entries kept only to recognise a repeated answer are no
+/// work (before the fix the hub waited the whole `shutdown_grace_ms` and
+/// logged "work unfinished in_progress=0").
+#[test]
+fn shutdown_after_forwarded_traffic_waits_for_no_settled_answer() {
+    let sim = Sim::pty(&["--device", "1"]);
+    // A grace shorter than the answered entries' expiry (seconds).
+    let (hub, _field) = hub_and_field_with(&sim, "shutdown_grace_ms = 1000\n");
+    for run in 0..3 {
+        let out = hub.ctl(&["--from", "2", "--to", "9.1.1", "position"]);
+        assert_eq!(out.code, 0, "run {run}: {out:?}");
+    }
+    let (status, log) = hub.terminate();
+    assert!(status.is_some_and(|s| s.success()), "{status:?}\n{log}");
+    assert!(log.contains("in-flight transactions finished; exiting"), "{log}");
+    assert!(!log.contains("work unfinished"), "{log}");
+}
+
+/// Issue 20.9: with the default route's link down, the client hears that
+/// the link is down (07, gimbalctl exit 14), not that no route exists (06).
+#[test]
+fn a_down_default_route_is_reported_as_link_down() {
+    let free = std::net::TcpListener::bind("127.0.0.1:0").expect("probe a free port");
+    let nobody = free.local_addr().expect("address").to_string();
+    drop(free);
+    let hub = Gcud::start(&format!(
+        "[gcu]\ngroup = 2\ndefault_route = \"field\"\n{CLIENTS}{METRICS}[[link]]\nname = \"field\"\nrole = \"downstream\"\nconnect = \"{nobody}\"\n"
+    ));
+    let out = hub.ctl(&["--from", "2", "--to", "9.1.1", "position"]);
+    assert_eq!(out.code, 7 + 7, "{out:?}");
+    assert_eq!(hub.metric("gcud_commands_delivery_total{delivery=\"link_down\"}"), 1);
+}
