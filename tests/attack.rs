@@ -104,3 +104,43 @@ fn a_down_default_route_is_reported_as_link_down() {
     assert_eq!(out.code, 7 + 7, "{out:?}");
     assert_eq!(hub.metric("gcud_commands_delivery_total{delivery=\"link_down\"}"), 1);
 }
+
+/// Issue 20.2: a TCP device server (ser2net-like) that stops reading for a
+/// while. gcud writes the goto once (no retransmission piles up behind the
+/// stalled server) and reports it `0B not confirmed` (gimbalctl exit 18),
+/// never `01` undelivered (exit 8): when the server resumes, the one copy
+/// may still run, and runs once.
+#[test]
+fn a_stalled_device_server_gets_one_copy_and_an_honest_report() {
+    let sim = Sim::tcp(&["--device", "1"]);
+    let gcud = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n{CLIENTS}{METRICS}[[port]]\nid = 1\ntcp = \"{}\"\n",
+        sim.endpoint
+    ));
+    gcud.wait_for_log("port open port=1");
+    assert_eq!(gcud.position("5.1.1"), (0.0, 0.0));
+    let pid = nix::unistd::Pid::from_raw(sim.pid() as i32);
+    nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGSTOP).expect("SIGSTOP gimbalsim");
+    let out = gcud.ctl(&["--to", "5.1.1", "goto", "20", "5"]);
+    nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGCONT).expect("SIGCONT gimbalsim");
+    assert_eq!(
+        out.code,
+        7 + 0x0B,
+        "not confirmed, not undelivered: {out:?}\n{}",
+        gcud.log()
+    );
+    // The one copy runs once the server reads again.
+    let reached = gcud.settled_position("5.1.1");
+    assert!(
+        (reached.0 - 20.0).abs() < 0.5 && (reached.1 - 5.0).abs() < 0.5,
+        "{reached:?}"
+    );
+    assert_eq!(gcud.metric("gcud_port_retransmits_total{port=\"1\"}"), 0);
+    let written = gcud.metric("gcud_port_frames_out_total{port=\"1\"}");
+    let stats = sim.stop();
+    assert_eq!(
+        stats["frames_in"].as_u64(),
+        Some(written),
+        "each frame written arrived once: {stats}"
+    );
+}

@@ -64,6 +64,7 @@ fn router_config(config: &Config, ids: &mut LinkIds) -> RouterConfig {
         if let PortTransport::Simulated(devices) = &port.transport {
             pc.devices = Some(devices.clone());
         }
+        pc.buffered = matches!(port.transport, PortTransport::Tcp(_));
         rc.ports.push(pc);
     }
     rc.links.retries = config.link_retries;

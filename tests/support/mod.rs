@@ -325,6 +325,12 @@ impl Sim {
         let _ = terminate(&mut self.child);
     }
 
+    /// The simulator's process id (to SIGSTOP it: a device server that
+    /// stops reading).
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
     /// Whether the process is still running.
     pub fn is_running(&mut self) -> bool {
         matches!(self.child.try_wait(), Ok(None))

@@ -106,6 +106,12 @@ pub struct PortConfig {
     /// once all of them acknowledged it. `None`: the devices that answered
     /// since the port was opened.
     pub devices: Option<Vec<u8>>,
+    /// A device server (ser2net over TCP) sits between the GCU and the bus:
+    /// bytes written may wait in its buffers for as long as it stalls, so
+    /// nothing is retransmitted into it (every copy would run once it
+    /// resumes) and a command whose ACK never came is reported `0B not
+    /// confirmed`, never undelivered (ARCHITECTURE "Delivery contract").
+    pub buffered: bool,
 }
 
 impl PortConfig {
@@ -132,16 +138,23 @@ impl PortConfig {
             stop_queue_bound: 64,
             idle_timeout: silence_ms(bps),
             devices: None,
+            buffered: false,
         }
     }
 }
 
 impl PortConfig {
+    /// Retransmissions after the first write: none into a device server
+    /// ([`PortConfig::buffered`]).
+    pub fn retransmissions(&self) -> u8 {
+        if self.buffered { 0 } else { self.retries }
+    }
+
     /// The longest one transaction on this port may take: every try's ACK
     /// wait (a longest frame's wire time included, the clock starts at the
     /// write), then the result wait of the normal or long class.
     pub fn worst_exchange(&self, long: bool) -> u64 {
-        let tries = u64::from(self.retries) + 1;
+        let tries = u64::from(self.retransmissions()) + 1;
         let ack = self.ack_timeout + wire_ms(sagebrush_protocol::MAX_FRAME_LEN, self.bps);
         let result = if long {
             self.long_result_timeout

@@ -42,6 +42,9 @@
 //!   or broadcast to device 255, switches the port's own line rate.
 //!   Reserved rates `C8`..`CF` never do (protocol-notes E15).
 //! - A lost port fails its in-flight and queued jobs ([`DropReason::PortLost`]).
+//! - Behind a device server (`PortConfig::buffered`) nothing is
+//!   retransmitted and a missing ACK is `0B not confirmed`: the bytes may
+//!   wait in the server while it stalls and run when it resumes.
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -225,7 +228,7 @@ impl Port {
         let policy = TransactionPolicy {
             retry: RetryPolicy {
                 ack_timeout: config.ack_timeout,
-                retries: config.retries,
+                retries: config.retransmissions(),
             },
             result_timeout: config.result_timeout,
             long_result_timeout: config.long_result_timeout,
@@ -550,6 +553,12 @@ impl Port {
             }
             Outcome::Failed(failure) => {
                 let failure = match failure {
+                    // Behind a device server the bytes may still be on
+                    // their way to the device.
+                    TxFailure::NoAck if self.config.buffered => {
+                        self.stats.line.timeouts += 1;
+                        Undelivered::NotConfirmed
+                    }
                     TxFailure::NoAck => {
                         self.stats.line.timeouts += 1;
                         Undelivered::DeviceSilent
