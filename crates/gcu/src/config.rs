@@ -112,7 +112,17 @@ pub struct PortConfig {
     /// resumes) and a command whose ACK never came is reported `0B not
     /// confirmed`, never undelivered (ARCHITECTURE "Delivery contract").
     pub buffered: bool,
+    /// Quiet ticks after a device that answered before went silent to
+    /// every try: its answer may still come, late, and a bare ACK names no
+    /// command, so nothing is written meanwhile that could take it for its
+    /// own (ARCHITECTURE "Routing semantics").
+    pub late_answer_guard: u64,
 }
+
+/// Default [`PortConfig::late_answer_guard`]: a device that answers at all
+/// answers within a second of giving up on it (the adversarial run's late
+/// answers came 900 ms after the command).
+pub const LATE_ANSWER_GUARD_MS: u64 = 1_000;
 
 impl PortConfig {
     /// A 9600 bit/s port, see [`PortConfig::at_rate`].
@@ -139,6 +149,7 @@ impl PortConfig {
             idle_timeout: silence_ms(bps),
             devices: None,
             buffered: false,
+            late_answer_guard: LATE_ANSWER_GUARD_MS,
         }
     }
 }

@@ -21,7 +21,10 @@
 //!   needed a retransmission, the device may have executed the command
 //!   twice, or answered after the GCU gave up: the bus stays quiet for one
 //!   ACK time-out so that such an answer is not taken for the next
-//!   exchange's (it is ACKed and counted as unsolicited).
+//!   exchange's (it is ACKed and counted as unsolicited). After a device
+//!   that answered before went silent to every try, the bus stays quiet for
+//!   `PortConfig::late_answer_guard` (an address that never answered gets
+//!   no guard: a scan of empty addresses stays fast).
 //! - Fair: the next job after the stops is the oldest of the origin (link,
 //!   i.e. client) served least recently, round robin; when the queue is
 //!   full, the origin holding the most jobs gives up its newest one for a
@@ -506,10 +509,19 @@ impl Port {
 
     fn finish(&mut self, now: u64, r: Running, outcome: Outcome, frame: Option<FrameBuf>, out: &mut Vec<PortOut>) {
         let device = r.device();
-        if r.txn.transmissions() > 1 {
+        let quiet = if matches!(outcome, Outcome::Failed(TxFailure::NoAck)) && self.seen.contains(&device) {
+            // A device that answers went silent: its answer may still
+            // come, late, and would be taken for the next command's ACK.
+            self.config.late_answer_guard
+        } else if r.txn.transmissions() > 1 {
             // The device may have executed the command twice: let its
             // second answer arrive while nothing can take it for its own.
-            let settle = now.saturating_add(self.policy.retry.ack_timeout);
+            self.policy.retry.ack_timeout
+        } else {
+            0
+        };
+        if quiet > 0 {
+            let settle = now.saturating_add(quiet);
             self.settle_until = Some(self.settle_until.map_or(settle, |t| t.max(settle)));
         }
         let answered = !matches!(outcome, Outcome::Failed(_) | Outcome::Broadcast);

@@ -6,7 +6,7 @@ use sagebrush_gcu::{
     RouterConfig, RouterEvent, SourceFilter,
 };
 use sagebrush_protocol::link::wire_ms;
-use sagebrush_protocol::{ACK, Address, DeliveryReport, Event, FrameBuf, Framer, NAK, NIC, Undelivered};
+use sagebrush_protocol::{ACK, Address, DeliveryReport, Event, Frame, FrameBuf, Framer, NAK, NIC, Undelivered};
 
 const G: u8 = 5;
 const CLIENT: LinkId = LinkId(1);
@@ -44,6 +44,7 @@ fn port_config(id: u8) -> PortConfig {
         broadcast_guard: 20,
         queue_bound: 4,
         idle_timeout: 5,
+        late_answer_guard: 25,
         ..PortConfig::new(id)
     }
 }
@@ -1134,4 +1135,63 @@ fn payload_bytes_outside_printable_ascii_are_relayed_unchanged() {
     let raw = frame((G, 1, 3), 2, b"*x0t\x01\xF8\x06\x15?");
     let a = h.link(CLIENT, &raw);
     assert_eq!(port_writes(&a, 1), vec![raw]);
+}
+
+/// Issue 20.5: a device that answered before goes silent to every try of a
+/// goto, and its ACK comes late, after the GCU gave up. Nothing is written
+/// during the late-answer guard, so that ACK cannot be taken for the next
+/// command's: the next goto is written after the guard and, with no ACK of
+/// its own, is reported undelivered, never ACKed.
+#[test]
+fn a_late_ack_is_never_taken_for_the_next_commands() {
+    let mut h = H::new(&[1]);
+    let guard = port_config(1).late_answer_guard;
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"HO"));
+    h.port(1, &[ACK]);
+    h.wait(100);
+    let report_of = |out: &Outbox| {
+        link_writes(out, CLIENT).iter().find_map(|w| {
+            Frame::parse(w)
+                .ok()
+                .and_then(|(f, _)| DeliveryReport::parse(f.payload()).ok())
+        })
+    };
+    let acked = |out: &Outbox| link_writes(out, CLIENT).iter().any(|w| w == &[ACK]);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"P07D001F4"));
+    // Silent to every try: given up and reported 01.
+    let mut first = None;
+    for _ in 0..1_000 {
+        let out = h.wait(1);
+        assert!(!acked(&out));
+        first = report_of(&out);
+        if first.is_some() {
+            break;
+        }
+    }
+    assert_eq!(first.expect("a report").failure, Some(Undelivered::DeviceSilent));
+    // Later than the one ACK time-out of quiet after a retransmitted
+    // exchange, still within the late-answer guard.
+    let past_settle = port_config(1).ack_timeout + 5;
+    assert!(past_settle < guard);
+    assert!(!acked(&h.wait(past_settle)));
+    let second = frame((G, 1, 3), 2, b"P00640064");
+    let a = h.link(CLIENT, &second);
+    assert!(port_writes(&a, 1).is_empty(), "the bus is quiet during the guard");
+    // The first goto's ACK arrives late, within the guard.
+    let late = h.port(1, &[ACK]);
+    assert!(!acked(&late), "a late ACK is not the second goto's");
+    // After the guard the second goto goes out; it gets no ACK of its own.
+    let out = h.wait(guard - past_settle);
+    assert!(port_writes(&out, 1).contains(&second), "written after the guard");
+    assert!(!acked(&out));
+    let mut report = report_of(&out);
+    for _ in 0..100 {
+        if report.is_some() {
+            break;
+        }
+        let out = h.wait(10);
+        assert!(!acked(&out), "never ACKed");
+        report = report_of(&out);
+    }
+    assert_eq!(report.expect("a report").failure, Some(Undelivered::DeviceSilent));
 }

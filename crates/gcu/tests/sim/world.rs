@@ -279,6 +279,7 @@ impl World {
                     stop_queue_bound: stop_bound,
                     idle_timeout: 10,
                     devices: devices_configured.then(|| ids.clone()),
+                    late_answer_guard: rng.range(0, 200),
                     ..PortConfig::new(pid)
                 });
                 let single = n_dev == 1 && rng.chance(500);
