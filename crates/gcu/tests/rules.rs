@@ -23,7 +23,7 @@ fn frame(dest: (u8, u8, u8), source: u8, payload: &[u8]) -> Vec<u8> {
 
 /// The delivery report GCU `G` sends about `command` (ARCHITECTURE "Delivery contract").
 fn report(command: &[u8], failure: Option<Undelivered>) -> Vec<u8> {
-    let (f, _) = sagebrush_protocol::Frame::parse(command).unwrap();
+    let (f, _) = Frame::parse(command).unwrap();
     let payload = DeliveryReport {
         failure,
         dest: f.dest,
