@@ -144,3 +144,59 @@ fn a_stalled_device_server_gets_one_copy_and_an_honest_report() {
         "each frame written arrived once: {stats}"
     );
 }
+
+/// Issue 20.8: a client flooding gcud never starves an in-process
+/// simulated port. Measured in the router's own units, not wall-clock
+/// time: the frames gcud took from the flooding client while another
+/// client's `P?` to a simulated gimbal was answered. Each router turn is
+/// bounded (4 KiB read, then the simulated bus gets its turn), so a
+/// transaction costs a few turns of the flood: 1,821 frames (median, 4
+/// turns). Before the fix the router read until tokio's budget ran out and
+/// the median was 123,560 (the victim's `P?` took 17 ms instead of 0.35 ms).
+#[test]
+fn a_flooding_client_never_starves_a_simulated_port() {
+    use std::io::{Read, Write};
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let gcud = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n{CLIENTS}{METRICS}[[port]]\nid = 1\nsimulate = [1]\n"
+    ));
+    gcud.wait_for_log("port open port=1");
+    let stop = std::sync::Arc::new(AtomicBool::new(false));
+    let flood = {
+        let stop = stop.clone();
+        let mut stream = std::net::TcpStream::connect(gcud.clients()).expect("flooding client");
+        stream.set_nonblocking(true).expect("non-blocking");
+        std::thread::spawn(move || {
+            let aw = sagebrush_protocol::FrameBuf::build(Address::new(5, 0, 0), 0, |b| {
+                Cmd::AwakeStatus.encode(b).map(<[u8]>::len)
+            })
+            .expect("AW");
+            let burst: Vec<u8> = aw.as_bytes().repeat(400);
+            let mut sink = vec![0u8; 1 << 16];
+            let started = std::time::Instant::now();
+            while !stop.load(Ordering::Relaxed) && started.elapsed() < support::HANG_GUARD {
+                let _ = stream.write(&burst);
+                while matches!(stream.read(&mut sink), Ok(n) if n > 0) {}
+            }
+        })
+    };
+    let frames_in = || gcud.metric("gcud_link_frames_in_total{link=\"clients\",role=\"client\"}");
+    let mut victim = WireClient::connect(&gcud.clients());
+    let mut flood_per_query = Vec::new();
+    for _ in 0..21 {
+        let before = frames_in();
+        victim.send(Address::new(5, 1, 1), 0, &Cmd::QueryPosition);
+        victim.expect_result();
+        flood_per_query.push(frames_in() - before);
+    }
+    stop.store(true, Ordering::Relaxed);
+    flood.join().expect("flooding client");
+    flood_per_query.sort_unstable();
+    let median = flood_per_query[flood_per_query.len() / 2];
+    eprintln!("flood frames per victim query: median {median}, all {flood_per_query:?}");
+    assert!(median > 0, "the flood was running");
+    assert!(
+        median < 40_000,
+        "the flood starved the simulated port: {flood_per_query:?}"
+    );
+}

@@ -267,6 +267,7 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
     // Ports closing after a reload, with the time their grace runs out.
     let mut closing: HashMap<u8, Instant> = HashMap::new();
     let now = |at: Instant| at.duration_since(start).as_millis() as u64;
+    let mut turn = Turn::default();
 
     loop {
         let deadline = router.next_deadline().map(|t| start + Duration::from_millis(t));
@@ -325,6 +326,7 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
             }
             event = std::future::poll_fn(|cx| lines.poll_next(cx)) => {
                 let t = now(Instant::now());
+                turn.read(&event).await;
                 match event {
                     LineEvent::Read(LineId::Port(port), n) => router.handle(t, Input::PortBytes { port, bytes: lines.read(n) }, &mut actions),
                     LineEvent::Read(LineId::Link(link), n) => router.handle(t, Input::LinkBytes { link, bytes: lines.read(n) }, &mut actions),
@@ -713,6 +715,31 @@ fn log_event(event: &RouterEvent, links: &BTreeMap<LinkId, LinkInfo>, throttle: 
             };
             if throttle.allow(&kind, &place, || format!("{event}{context}"), Instant::now()) {
                 warn!("{event}{context}");
+            }
+        }
+    }
+}
+
+/// Bounds the router task's turn: lines that always have bytes (a flooding
+/// client) would otherwise keep it from yielding, and the tasks that share
+/// its thread (in-process simulated buses, the io tasks) would wait for
+/// their turn (the adversarial run: another client's `P?` to a simulated
+/// port from 0.1 to 13 ms). Real ports are served by the kernel meanwhile.
+#[derive(Debug, Default)]
+struct Turn {
+    bytes: usize,
+}
+
+impl Turn {
+    /// Bytes the router task handles before it lets the others run.
+    const BYTES: usize = 4 * 1024;
+
+    async fn read(&mut self, event: &LineEvent) {
+        if let LineEvent::Read(_, n) = event {
+            self.bytes += n;
+            if self.bytes >= Self::BYTES {
+                self.bytes = 0;
+                tokio::task::yield_now().await;
             }
         }
     }

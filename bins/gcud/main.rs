@@ -103,7 +103,14 @@ fn main() -> ExitCode {
     for w in &config.warnings {
         tracing::warn!("{w}");
     }
-    let runtime = match tokio::runtime::Builder::new_current_thread().enable_all().build() {
+    // The router task yields after each bounded turn (daemon::Turn); the
+    // I/O driver is polled every few scheduler ticks (61 by default), so
+    // that a turn-by-turn flood cannot hide other sockets' readiness.
+    let runtime = match tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .event_interval(4)
+        .build()
+    {
         Ok(rt) => rt,
         Err(e) => {
             eprintln!("gcud: cannot start the async runtime: {e}");

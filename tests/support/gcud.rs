@@ -145,6 +145,9 @@ pub struct WireClient {
 impl WireClient {
     pub fn connect(addr: &str) -> Self {
         let stream = TcpStream::connect(addr).expect("connect to gcud");
+        // As gimbalctl: a command after our ACK of the last answer is not
+        // held back by Nagle's algorithm waiting for gcud's delayed ACK.
+        stream.set_nodelay(true).expect("nodelay");
         stream
             .set_read_timeout(Some(Duration::from_millis(100)))
             .expect("timeout");

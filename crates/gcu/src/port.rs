@@ -22,9 +22,10 @@
 //!   twice, or answered after the GCU gave up: the bus stays quiet for one
 //!   ACK time-out so that such an answer is not taken for the next
 //!   exchange's (it is ACKed and counted as unsolicited). After a device
-//!   that answered before went silent to every try, the bus stays quiet for
-//!   `PortConfig::late_answer_guard` (an address that never answered gets
-//!   no guard: a scan of empty addresses stays fast).
+//!   that answered its last exchange went silent to every try, the bus
+//!   stays quiet for `PortConfig::late_answer_guard` (an address that never
+//!   answered, or a device already offline, gets no guard: a scan of empty
+//!   addresses stays fast and a dead device does not hold up its bus).
 //! - Fair: the next job after the stops is the oldest of the origin (link,
 //!   i.e. client) served least recently, round robin; when the queue is
 //!   full, the origin holding the most jobs gives up its newest one for a
@@ -509,9 +510,12 @@ impl Port {
 
     fn finish(&mut self, now: u64, r: Running, outcome: Outcome, frame: Option<FrameBuf>, out: &mut Vec<PortOut>) {
         let device = r.device();
-        let quiet = if matches!(outcome, Outcome::Failed(TxFailure::NoAck)) && self.seen.contains(&device) {
-            // A device that answers went silent: its answer may still
-            // come, late, and would be taken for the next command's ACK.
+        let was_online = self.device_stats.get(&device).is_some_and(|d| d.online);
+        let quiet = if matches!(outcome, Outcome::Failed(TxFailure::NoAck)) && was_online {
+            // A device that answered its last exchange went silent: its
+            // answer may still come, late, and would be taken for the next
+            // command's ACK. (Once offline, a dead device does not hold
+            // the bus up again.)
             self.config.late_answer_guard
         } else if r.txn.transmissions() > 1 {
             // The device may have executed the command twice: let its
