@@ -946,13 +946,10 @@ fn undeliverable_queries_fail_at_once_with_their_own_reason_and_code() {
         ("7.1.1", 13, "no_route", "no route"),
     ] {
         for query in ["id", "position"] {
-            let started = std::time::Instant::now();
-            let out = gcud.ctl(&["--json", "--to", to, "--result-timeout", "30000", query]);
-            // Far below the 30 s result time-out: the report ended it, no result was awaited.
-            assert!(
-                started.elapsed() < Duration::from_secs(15),
-                "{to} {query} waited for a result"
-            );
+            // A result time-out longer than the hang guard: had gimbalctl
+            // waited for a result rather than ending on the report, the run
+            // would be killed as hung (no clock is compared here).
+            let out = gcud.ctl(&["--json", "--to", to, "--result-timeout", "120000", query]);
             assert_eq!(out.code, code, "{to} {query}: {out:?}");
             let v = out.json();
             assert_eq!(

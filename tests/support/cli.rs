@@ -216,7 +216,8 @@ pub struct FakeBus {
     received: std::sync::Arc<std::sync::Mutex<Vec<String>>>,
 }
 
-fn reply_frame(command: &sagebrush_protocol::Frame<'_>, reply: &Reply<'_>) -> Vec<u8> {
+/// The wire bytes of a device's `reply` to `command` (Table 3 header).
+pub fn reply_frame(command: &sagebrush_protocol::Frame<'_>, reply: &Reply<'_>) -> Vec<u8> {
     let mut buf = [0u8; MAX_PAYLOAD];
     let payload = reply.encode(&mut buf).expect("encode reply").to_vec();
     raw_frame(command, &payload)
