@@ -743,6 +743,12 @@ fn a_spec_client_gets_no_ack_for_an_undelivered_command() {
     let parsed = sagebrush_protocol::DeliveryReport::parse(report_frame.payload()).expect("a report");
     assert_eq!(parsed.failure, Some(sagebrush_protocol::Undelivered::DeviceSilent));
     assert_eq!(parsed.dest, Address::new(5, 1, 2));
+    let sent = FrameBuf::build(Address::new(5, 1, 2), 0, |b| Cmd::Stop.encode(b).map(<[u8]>::len)).expect("encode");
+    assert_eq!(
+        parsed.command_checksum,
+        sent.frame().checksum(),
+        "the report names the command's checksum"
+    );
     // The live gimbal: the ACK comes (after the device's), then the result.
     client.send(Address::new(5, 1, 1), 0, &Cmd::QueryPosition);
     let result = client.expect_result();

@@ -1183,7 +1183,7 @@ fn json_shapes_are_typed() {
     assert!(r["count"].is_u64(), "{r}");
     let r = sim.result1(&["preset", "query", "0"]);
     assert!(r["pan_deg"].is_f64(), "{r}");
-    // A broadcast.
+    // A broadcast (sent, not answered: the outcome says so).
     let v = sim.ctl_json(&["--to", "1.1.255", "stop"]);
     assert_eq!(
         (v["outcome"].as_str(), v["sent"].as_str()),
@@ -1291,10 +1291,27 @@ fn scan_on_a_bus_sends_only_queries_and_leaves_a_slew_alone() {
         .collect();
     assert_eq!(devices, [1, 2, 5], "{v}");
     assert_eq!(v["bus"]["silent"], 3);
-    // The slew of device 1 went on through the scan.
+    // What the devices received during the scan (their own record): only
+    // queries. Device 1 first got the rate and the slew.
+    let mut received = sim.received("1.1.1");
+    assert_eq!(
+        received.drain(..2).map(|(_, p)| p).collect::<Vec<_>>(),
+        ["RP01F4", "PR"],
+        "{received:?}"
+    );
+    received.extend(sim.received("1.1.2"));
+    received.extend(sim.received("1.1.5"));
+    assert!(received.len() >= 3, "every device was asked: {received:?}");
+    for (_, payload) in &received {
+        assert!(
+            payload.contains('?') || payload == "AW",
+            "the scan sent {payload:?}, not a query: {received:?}"
+        );
+    }
+    // The slew of device 1 went on through the scan (at 5 deg/s: a stopped
+    // gimbal never gets there, and the wait fails on the hang guard).
     let a = sim.position1();
-    std::thread::sleep(Duration::from_millis(200));
-    assert!(sim.position1().0 > a.0, "the scan stopped a moving gimbal");
+    eventually("the slew to go on after the scan", || sim.position1().0 > a.0 + 1.0);
     sim.json1(&["stop"]);
 }
 

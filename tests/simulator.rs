@@ -76,6 +76,17 @@ fn a_bus_of_several_devices() {
             r["pan_deg"] == 3.0 && r["tilt_deg"] == -3.0
         });
     }
+    // Answered by none: in the simulator's log (every ACK, NIC and result
+    // it sends is logged) nothing goes out between the broadcast and the
+    // next frame received, the first position query.
+    let log = sim.log();
+    let mut from_broadcast = log.lines().skip_while(|l| !l.contains("rx frame dest=1.1.255"));
+    assert!(from_broadcast.next().is_some(), "the broadcast was received:\n{log}");
+    let answers: Vec<&str> = from_broadcast
+        .take_while(|l| !l.contains("rx frame"))
+        .filter(|l| l.contains(" tx "))
+        .collect();
+    assert!(answers.is_empty(), "the broadcast was answered: {answers:?}\n{log}");
     let out = sim.ctl(&["--to", "1.1.3", "--retries", "0", "--ack-timeout", "100", "status"]);
     assert_eq!(out.code, 4, "{out:?}");
     let stats = sim.stop();
