@@ -208,9 +208,10 @@ expect "preset store 3 (S03)" 0 '' preset store 3
 expect "goto -30 20 --wait" 0 'arrived at pan +-30\.00° +tilt +20\.00°' goto -30 20 --wait
 expect "position (P?): -30.00 / 20.00" 0 '^pan +-30\.00° +tilt +20\.00°$' position
 expect "preset query 3 (P?03) gives the stored position" 0 'pan +12\.50° +tilt +-7\.25°' preset query 3
-expect "preset recall 3 (P03)" 0 '' preset recall 3
-# 42.5 deg of pan at the default 20 deg/s: about 2.1 s.
-sleep 3
+# --wait polls the position until the motion ends (an event, not a fixed
+# sleep: 42.5 deg of pan at 20 deg/s takes about 2.1 s, longer on a loaded
+# machine); --wait-timeout (25 s, inside ctl's 30 s) is only a hang guard.
+expect "preset recall 3 (P03) --wait: back at 12.50 / -7.25" 0 'arrived at pan +12\.50° +tilt +-7\.25°' preset recall 3 --wait --wait-timeout 25000
 expect "position (P?) after the recall: back at 12.50 / -7.25" 0 '^pan +12\.50° +tilt +-7\.25°$' position
 expect "raw XY: the device answers NIC for an unknown command" 5 'NIC' raw XY
 expect "preset query 40 (only 00..1F exist): NIC" 5 'NIC' preset query 40

@@ -53,15 +53,33 @@ fn preset_store_recall_and_query() {
     assert!(out.stderr.contains("NIC") && out.stderr.contains("P10"), "{out:?}");
 }
 
+/// The stops the gimbal itself received, in order (its log of the wire).
+fn stops_received(sim: &Sim) -> Vec<String> {
+    sim.received("1.1.1")
+        .into_iter()
+        .map(|(_, payload)| payload)
+        .filter(|p| ["PS", "TS", "PT"].contains(&p.as_str()))
+        .collect()
+}
+
 #[test]
 fn slew_stopped_by_its_stop_command() {
     let sim = Sim::pty(&[]);
+    // The slowest speed (SP0/ST0: 7.5 deg/s): the hard stops at 180 and -90
+    // degrees are 24 s and 12 s away, so a mount that settles short of
+    // them was stopped, not blocked (settled1 waits for it to stand still).
+    sim.json1(&["speed", "pan", "0"]);
+    sim.json1(&["speed", "tilt", "0"]);
     sim.json1(&["slew", "right"]);
     eventually("pan to move", || sim.position1().0 > 1.0);
     sim.json1(&["stop", "pan"]);
     let (pan, tilt) = sim.settled1();
-    assert!(pan > 1.0, "PR moves counter-clockwise (+): {pan}");
+    assert!(
+        pan > 1.0 && pan < 180.0,
+        "PR moves counter-clockwise (+) and PS stops it before the hard stop: {pan}"
+    );
     assert_eq!(tilt, 0.0);
+    assert_eq!(stops_received(&sim), ["PS"], "the gimbal received the stop");
     // Tilt slews while pan stays stopped, until TS.
     sim.json1(&["slew", "down"]);
     eventually("tilt to move down", || sim.position1().1 < -1.0);
@@ -72,15 +90,18 @@ fn slew_stopped_by_its_stop_command() {
         stopped.1 < -1.0 && stopped.1 > -90.0,
         "stopped before the hard stop: {stopped:?}"
     );
-    std::thread::sleep(Duration::from_millis(300));
-    assert_eq!(sim.position1(), stopped);
+    assert_eq!(stops_received(&sim), ["PS", "TS"]);
     // Slew left, then stop everything (PT).
     sim.json1(&["slew", "left"]);
-    eventually("pan to move left", || sim.position1().0 < pan);
+    eventually("pan to move left", || sim.position1().0 < pan - 1.0);
     sim.json1(&["stop"]);
     let all = sim.settled1();
-    std::thread::sleep(Duration::from_millis(200));
-    assert_eq!(sim.position1(), all);
+    assert!(
+        all.0 < pan && all.0 > -180.0,
+        "PT stopped pan short of the hard stop: {all:?}"
+    );
+    assert_eq!(all.1, stopped.1, "tilt stays stopped");
+    assert_eq!(stops_received(&sim), ["PS", "TS", "PT"]);
 }
 
 #[test]
@@ -165,6 +186,14 @@ fn a_lost_ack_with_a_result_still_delivers_the_result() {
     let v = sim.json1(&["id"]);
     assert_eq!(v["transmissions"], 1, "{v}");
     assert_eq!(v["result"]["serial"], "SIM-0001");
+    let log = sim.log();
+    let stats = sim.stop();
+    // The ACK was dropped (the simulator's own count) and the result, not a
+    // retransmission, answered the one command the device received.
+    assert_eq!(stats["faults"]["drop_ack"], 1, "{stats}\n{log}");
+    assert!(!log.contains("tx ACK"), "the device sent no ACK:\n{log}");
+    assert_eq!(stats["frames_in"], 1, "{stats}");
+    assert_eq!(stats["acks_in"], 1, "the result was ACKed: {stats}");
 }
 
 #[test]
@@ -489,35 +518,33 @@ fn decode_golden_vectors() {
 
 use support::cli::{DemoGcud, FakeBus, spawn_ctl, wait_output};
 
-/// Two position readings `gap` apart differ: the mount is moving.
-fn moving(gcud: &DemoGcud, to: &str, gap: Duration) -> bool {
-    let a = gcud.position(to);
-    std::thread::sleep(gap);
-    a != gcud.position(to)
+/// What gimbal `dest` received from clients (source 0) that stops a
+/// motion, by its own record; and that gcud's dead-man stopped nothing.
+fn client_stops(gcud: &DemoGcud, dest: &str) -> Vec<String> {
+    gcud.wait_until_clients_are_down();
+    assert_eq!(
+        gcud.dead_man_lines(),
+        Vec::<String>::new(),
+        "gcud's dead-man did the stopping:\n{}",
+        gcud.log()
+    );
+    let received = gcud.received(dest);
+    assert!(
+        received.iter().all(|(source, _)| *source == 0),
+        "only clients wrote to {dest}: {received:?}"
+    );
+    received
+        .into_iter()
+        .map(|(_, payload)| payload)
+        .filter(|p| p.len() == 2 && p.ends_with('S') && p != "HS")
+        .collect()
 }
 
 #[test]
 fn jog_for_a_duration_through_gcud_keeps_moving_then_stops_and_confirms() {
     let gcud = DemoGcud::start();
     gcud.json(&["--to", "5.1.1", "rate", "pan", "20"]);
-    let child = spawn_ctl(&[
-        "--json",
-        "--tcp",
-        &gcud.clients,
-        "--to",
-        "5.1.1",
-        "slew",
-        "right",
-        "--for",
-        "2s",
-    ]);
-    // Long after the start (the dead-man would have stopped it at once), still moving.
-    std::thread::sleep(Duration::from_millis(1000));
-    assert!(
-        moving(&gcud, "5.1.1", Duration::from_millis(200)),
-        "slew --for stopped early"
-    );
-    let out = wait_output(child);
+    let out = gcud.ctl(&["--json", "--to", "5.1.1", "slew", "right", "--for", "2s"]);
     assert_eq!(out.code, 0, "{out:?}\n{}", gcud.log());
     let v = out.json();
     assert_eq!(
@@ -530,10 +557,15 @@ fn jog_for_a_duration_through_gcud_keeps_moving_then_stops_and_confirms() {
         (Some("acknowledged"), Some("duration"))
     );
     assert!(v["held_ms"].as_u64() >= Some(2000) && v["for_ms"] == 2000, "{v}");
+    // The gimbal received gimbalctl's PS (not gcud's dead-man stop, which
+    // would have ended the slew at once when gimbalctl disconnected) ...
+    assert_eq!(client_stops(&gcud, "5.1.1"), ["PS"]);
+    // ... and it stands where the PS left it, after moving for the whole
+    // duration (the dead-man would have stopped it near 0).
     let stopped = gcud.position("5.1.1");
+    assert!(stopped.0 > 20.0, "moved for about 2 s at 20 deg/s: {stopped:?}");
     std::thread::sleep(Duration::from_millis(300));
     assert_eq!(gcud.position("5.1.1"), stopped, "PS stopped it");
-    assert!(stopped.0 > 20.0, "moved for about 2 s at 20 deg/s: {stopped:?}");
 
     // Zoom and focus are continuous motions too.
     let v = gcud.json(&["--to", "5.1.1", "zoom", "in", "--for", "300ms"]);
@@ -550,6 +582,7 @@ fn jog_for_a_duration_through_gcud_keeps_moving_then_stops_and_confirms() {
         "{v}"
     );
     assert!(gcud.lens("5.1.1").1 > 0, "focused far");
+    assert_eq!(client_stops(&gcud, "5.1.1"), ["PS", "ZS", "FS"]);
     // Without --for/--hold through gcud: a note says the dead-man stops it.
     let out = gcud.ctl(&["--to", "5.1.2", "slew", "left"]);
     assert!(
@@ -572,11 +605,11 @@ fn jog_hold_lasts_until_stdin_closes_or_sigterm_then_stops() {
         "up",
         "--hold",
     ]);
-    std::thread::sleep(Duration::from_millis(800));
-    assert!(
-        moving(&gcud, "5.2.1", Duration::from_millis(200)),
-        "held slew stopped early"
-    );
+    // Held: the connection stays open, so the slew goes on (at 5 deg/s the
+    // hard stop is 18 s away); a dead-man stop would have ended it near 0.
+    eventually("the held slew to carry tilt past 2 degrees", || {
+        gcud.position("5.2.1").1 > 2.0
+    });
     drop(child.stdin.take());
     let out = wait_output(child);
     assert_eq!(out.code, 0, "{out:?}");
@@ -587,7 +620,13 @@ fn jog_hold_lasts_until_stdin_closes_or_sigterm_then_stops() {
         "{v}"
     );
     assert_eq!(v["stop_outcome"], "acknowledged");
+    assert_eq!(
+        client_stops(&gcud, "5.2.1"),
+        ["TS"],
+        "gimbalctl's TS reached the gimbal"
+    );
     let stopped = gcud.position("5.2.1");
+    assert!(stopped.1 < 90.0, "stopped short of the hard stop: {stopped:?}");
     std::thread::sleep(Duration::from_millis(300));
     assert_eq!(gcud.position("5.2.1"), stopped);
 
@@ -601,13 +640,29 @@ fn jog_hold_lasts_until_stdin_closes_or_sigterm_then_stops() {
         "down",
         "--hold",
     ]);
-    std::thread::sleep(Duration::from_millis(800));
-    assert!(moving(&gcud, "5.2.1", Duration::from_millis(200)));
+    eventually("the held slew down to carry tilt 2 degrees lower", || {
+        gcud.position("5.2.1").1 < stopped.1 - 2.0
+    });
     let pid = nix::unistd::Pid::from_raw(child.id() as i32);
     nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGTERM).expect("SIGTERM");
     let out = wait_output(child);
     assert_eq!(out.code, 0, "{out:?}");
-    assert_eq!(out.json()["ended_by"], "signal");
+    let v = out.json();
+    assert_eq!(
+        (
+            v["ended_by"].as_str(),
+            v["stop_sent"].as_str(),
+            v["stop_outcome"].as_str()
+        ),
+        (Some("signal"), Some("TS"), Some("acknowledged")),
+        "{v}"
+    );
+    // The TS went out before gimbalctl exited, not gcud's dead-man after.
+    assert_eq!(client_stops(&gcud, "5.2.1"), ["TS", "TS"]);
+    let after = gcud.position("5.2.1");
+    assert!(after.1 > -90.0, "stopped short of the hard stop: {after:?}");
+    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(gcud.position("5.2.1"), after);
 }
 
 #[test]
@@ -891,13 +946,10 @@ fn undeliverable_queries_fail_at_once_with_their_own_reason_and_code() {
         ("7.1.1", 13, "no_route", "no route"),
     ] {
         for query in ["id", "position"] {
-            let started = std::time::Instant::now();
-            let out = gcud.ctl(&["--json", "--to", to, "--result-timeout", "30000", query]);
-            // Far below the 30 s result time-out: the report ended it, no result was awaited.
-            assert!(
-                started.elapsed() < Duration::from_secs(15),
-                "{to} {query} waited for a result"
-            );
+            // A result time-out longer than the hang guard: had gimbalctl
+            // waited for a result rather than ending on the report, the run
+            // would be killed as hung (no clock is compared here).
+            let out = gcud.ctl(&["--json", "--to", to, "--result-timeout", "120000", query]);
             assert_eq!(out.code, code, "{to} {query}: {out:?}");
             let v = out.json();
             assert_eq!(
@@ -1131,7 +1183,7 @@ fn json_shapes_are_typed() {
     assert!(r["count"].is_u64(), "{r}");
     let r = sim.result1(&["preset", "query", "0"]);
     assert!(r["pan_deg"].is_f64(), "{r}");
-    // A broadcast.
+    // A broadcast (sent, not answered: the outcome says so).
     let v = sim.ctl_json(&["--to", "1.1.255", "stop"]);
     assert_eq!(
         (v["outcome"].as_str(), v["sent"].as_str()),
@@ -1239,10 +1291,27 @@ fn scan_on_a_bus_sends_only_queries_and_leaves_a_slew_alone() {
         .collect();
     assert_eq!(devices, [1, 2, 5], "{v}");
     assert_eq!(v["bus"]["silent"], 3);
-    // The slew of device 1 went on through the scan.
+    // What the devices received during the scan (their own record): only
+    // queries. Device 1 first got the rate and the slew.
+    let mut received = sim.received("1.1.1");
+    assert_eq!(
+        received.drain(..2).map(|(_, p)| p).collect::<Vec<_>>(),
+        ["RP01F4", "PR"],
+        "{received:?}"
+    );
+    received.extend(sim.received("1.1.2"));
+    received.extend(sim.received("1.1.5"));
+    assert!(received.len() >= 3, "every device was asked: {received:?}");
+    for (_, payload) in &received {
+        assert!(
+            payload.contains('?') || payload == "AW",
+            "the scan sent {payload:?}, not a query: {received:?}"
+        );
+    }
+    // The slew of device 1 went on through the scan (at 5 deg/s: a stopped
+    // gimbal never gets there, and the wait fails on the hang guard).
     let a = sim.position1();
-    std::thread::sleep(Duration::from_millis(200));
-    assert!(sim.position1().0 > a.0, "the scan stopped a moving gimbal");
+    eventually("the slew to go on after the scan", || sim.position1().0 > a.0 + 1.0);
     sim.json1(&["stop"]);
 }
 

@@ -76,6 +76,17 @@ fn a_bus_of_several_devices() {
             r["pan_deg"] == 3.0 && r["tilt_deg"] == -3.0
         });
     }
+    // Answered by none: in the simulator's log (every ACK, NIC and result
+    // it sends is logged) nothing goes out between the broadcast and the
+    // next frame received, the first position query.
+    let log = sim.log();
+    let mut from_broadcast = log.lines().skip_while(|l| !l.contains("rx frame dest=1.1.255"));
+    assert!(from_broadcast.next().is_some(), "the broadcast was received:\n{log}");
+    let answers: Vec<&str> = from_broadcast
+        .take_while(|l| !l.contains("rx frame"))
+        .filter(|l| l.contains(" tx "))
+        .collect();
+    assert!(answers.is_empty(), "the broadcast was answered: {answers:?}\n{log}");
     let out = sim.ctl(&["--to", "1.1.3", "--retries", "0", "--ack-timeout", "100", "status"]);
     assert_eq!(out.code, 4, "{out:?}");
     let stats = sim.stop();
@@ -128,11 +139,12 @@ fn every_frame_is_logged() {
 
 /// Issue 14: with `--pace` the simulator answers like hardware. A master
 /// on the pty sends `P?` again and again at 115200 bit/s: no answer comes
-/// before the command and the answer have had their wire time, and the
-/// median transaction (26 bytes on the wire) takes less than 38 byte-times
-/// (the loop timed in milliseconds took about 73).
+/// before the command and the answer have had their wire time (a lower
+/// bound set by the line, not by the machine's speed). How close to the
+/// line rate it comes is a figure, not an assertion: `cargo bench --bench
+/// bus_efficiency` prints the median transaction in byte-times.
 #[test]
-fn paced_line_answers_within_the_line_rate() {
+fn paced_line_answers_no_sooner_than_the_line_allows() {
     use std::io::{Read, Write};
     use std::time::{Duration, Instant};
 
@@ -147,7 +159,6 @@ fn paced_line_answers_within_the_line_rate() {
     let command = FrameBuf::new(Address::new(1, 1, 1), 0, b"P?").unwrap();
     let byte = Duration::from_nanos(10 * 1_000_000_000 / 115_200);
     let mut framer: Framer = Framer::new();
-    let mut took = Vec::new();
     for _ in 0..60 {
         let start = Instant::now();
         port.write_all(command.as_bytes()).unwrap();
@@ -171,11 +182,7 @@ fn paced_line_answers_within_the_line_rate() {
         );
         assert!(done >= byte * 25, "result after its 15 bytes: {done:?}");
         port.write_all(&[ACK]).unwrap();
-        took.push(start.elapsed());
     }
-    took.sort();
-    let median = took[took.len() / 2];
-    assert!(median < byte * 38, "median transaction {median:?}, a byte {byte:?}");
     let stats = sim.stop();
     assert_eq!(stats["frames_in"], 60, "{stats}");
 }

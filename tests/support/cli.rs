@@ -126,6 +126,33 @@ impl DemoGcud {
         out.json()
     }
 
+    /// What the simulated gimbal `dest` received, by its own log line
+    /// (gcud logs its `simulate` ports): (source, payload) per frame.
+    /// Clients send as source 0; gcud's own stops come from group 5.
+    pub fn received(&self, dest: &str) -> Vec<(u8, String)> {
+        super::frames_received(&self.log(), dest)
+    }
+
+    /// The dead-man stops gcud logged (a client link went down with a
+    /// motion still running).
+    pub fn dead_man_lines(&self) -> Vec<String> {
+        self.log()
+            .lines()
+            .filter(|l| l.contains("dead-man"))
+            .map(str::to_owned)
+            .collect()
+    }
+
+    /// Waits until the router has taken down every client connection it
+    /// saw come up: any dead-man stop those caused is logged by then (the
+    /// router reports it with the link going down).
+    pub fn wait_until_clients_are_down(&self) {
+        eventually("every client connection to be down in gcud", || {
+            let log = self.log();
+            log.matches(" up (clients ").count() == log.matches(" down (clients ").count()
+        });
+    }
+
     pub fn position(&self, to: &str) -> (f64, f64) {
         let r = &self.json(&["--to", to, "position"])["result"];
         (
@@ -189,7 +216,8 @@ pub struct FakeBus {
     received: std::sync::Arc<std::sync::Mutex<Vec<String>>>,
 }
 
-fn reply_frame(command: &sagebrush_protocol::Frame<'_>, reply: &Reply<'_>) -> Vec<u8> {
+/// The wire bytes of a device's `reply` to `command` (Table 3 header).
+pub fn reply_frame(command: &sagebrush_protocol::Frame<'_>, reply: &Reply<'_>) -> Vec<u8> {
     let mut buf = [0u8; MAX_PAYLOAD];
     let payload = reply.encode(&mut buf).expect("encode reply").to_vec();
     raw_frame(command, &payload)

@@ -68,6 +68,22 @@ pub fn http_get(addr: &str, path: &str) -> String {
     text
 }
 
+/// What a simulated gimbal received, by its own record: the `rx frame`
+/// lines for `dest` in a gimbalsim log (or a gcud log, for its `simulate`
+/// ports), in order, as (source, payload). Tests of a stop read the stop
+/// here, on the gimbal's side of the wire, not in the sender's account.
+pub fn frames_received(log: &str, dest: &str) -> Vec<(u8, String)> {
+    let prefix = format!("rx frame dest={dest} source=");
+    log.lines()
+        .filter_map(|line| {
+            let rest = &line[line.find(&prefix)? + prefix.len()..];
+            let (source, rest) = rest.split_once(" payload=")?;
+            let payload = rest.split_once(" command=").map_or(rest, |(p, _)| p);
+            Some((source.parse().ok()?, payload.to_owned()))
+        })
+        .collect()
+}
+
 /// Waits (at most [`HANG_GUARD`]) until a line of the log file `log`
 /// contains `text`; returns that line.
 pub fn wait_for_log_line(log: &Path, text: &str) -> String {
@@ -244,6 +260,12 @@ impl Sim {
         std::fs::read_to_string(self.dir.path().join("gimbalsim.log")).unwrap_or_default()
     }
 
+    /// What device `dest` received so far, by the simulator's own log:
+    /// (source, payload) per frame ([`frames_received`]).
+    pub fn received(&self, dest: &str) -> Vec<(u8, String)> {
+        frames_received(&self.log(), dest)
+    }
+
     /// The `gimbalctl` transport flags for this simulator.
     pub fn transport(&self) -> Vec<String> {
         let flag = if self.tcp { "--tcp" } else { "--serial" };
@@ -347,14 +369,16 @@ impl Drop for Sim {
     }
 }
 
-/// Stops a child process gracefully: SIGTERM, then SIGKILL after 10 s.
+/// Stops a child process gracefully: SIGTERM, then SIGKILL only after
+/// [`HANG_GUARD`] (a hung process, not a slow one: a shutdown that waits
+/// for in-flight work on a loaded machine is never cut short).
 /// Returns how it exited, if it was still running and exited on SIGTERM.
 pub fn terminate(child: &mut Child) -> Option<std::process::ExitStatus> {
     if let Ok(None) = child.try_wait() {
         let pid = nix::unistd::Pid::from_raw(child.id() as i32);
         let _ = nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGTERM);
         let started = Instant::now();
-        while started.elapsed() < Duration::from_secs(10) {
+        while started.elapsed() < HANG_GUARD {
             if let Ok(Some(status)) = child.try_wait() {
                 return Some(status);
             }

@@ -71,13 +71,31 @@ fn main() {
     for _ in 0..1000 {
         transaction(&mut router, &mut out);
     }
+    // The canary: the counting allocator must see an allocation made here,
+    // or a zero below would prove nothing (the allocator not installed).
+    let region = Region::new(GLOBAL);
+    std::hint::black_box(Box::new(std::hint::black_box(7u64)));
+    let canary = region.change();
+    assert_eq!(
+        canary.allocations, 1,
+        "the counting allocator must see a Box: {canary:?}"
+    );
+    // And one inside the router's own work: an Outbox that must grow.
+    let mut fresh = Outbox::new();
+    let region = Region::new(GLOBAL);
+    transaction(&mut router, &mut fresh);
+    let first = region.change();
+    assert!(
+        first.allocations + first.reallocations > 0,
+        "a fresh Outbox grows while routing, and the count must show it: {first:?}"
+    );
     const N: u64 = 10_000;
     let region = Region::new(GLOBAL);
     for _ in 0..N {
         transaction(&mut router, &mut out);
     }
     let stats = region.change();
-    assert_eq!(router.stats().router.results, 1000 + N, "every P? was answered");
+    assert_eq!(router.stats().router.results, 1000 + 1 + N, "every P? was answered");
     println!(
         "router core, routed P? (client -> port -> result back): {:.2} allocations, {:.0} bytes allocated per transaction ({} transactions)",
         stats.allocations as f64 / N as f64,

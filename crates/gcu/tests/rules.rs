@@ -856,14 +856,28 @@ fn dead_man_stops_the_motions_of_a_link_that_goes_down() {
     assert!(stops.contains(&(Address::new(7, 2, 2), "FS")));
     assert!(stops.contains(&(Address::new(G, 1, 4), "TS")));
     assert_eq!(link_writes(&a, DOWN), vec![frame((7, 2, 2), G, b"FS")]);
-    // ZI in flight; the stops go next, before anything else.
-    h.port(1, &[ACK]);
-    let a = h.wait(5);
-    let w = port_writes(&a, 1);
+    // ZI in flight; the stops go next, before anything else, and each is
+    // written to the port (the events above are only the router's account).
+    assert!(port_writes(&a, 1).is_empty(), "ZI still awaits its ACK");
+    let mut wire = Vec::new();
+    for _ in 0..4 {
+        wire.extend(port_writes(&h.port(1, &[ACK]), 1));
+        wire.extend(port_writes(&h.wait(5), 1));
+    }
     assert!(
-        w[0] == frame((G, 1, 3), G, b"PS") || w[0] == frame((G, 1, 3), G, b"ZS"),
-        "{w:?}"
+        wire[0] == frame((G, 1, 3), G, b"PS") || wire[0] == frame((G, 1, 3), G, b"ZS"),
+        "{wire:?}"
     );
+    let mut sorted = wire.clone();
+    sorted.sort();
+    let mut want = vec![
+        frame((G, 1, 3), G, b"PS"),
+        frame((G, 1, 3), G, b"ZS"),
+        frame((G, 1, 4), G, b"TS"),
+    ];
+    want.sort();
+    assert_eq!(sorted, want, "each stop written to port 1 once; nothing else: {wire:?}");
+    assert_eq!(h.r.in_progress(), 0, "every stop acknowledged");
     assert_eq!(h.r.stats().router.dead_man_stops, 4);
 }
 
@@ -1068,6 +1082,8 @@ fn shutdown_stops_every_owned_motion_and_refuses_new_commands() {
         stops,
         vec![(Address::new(G, 1, 3), "PS"), (Address::new(G, 1, 4), "ZS")]
     );
+    // The stops themselves, on the wire: the events are only the router's account.
+    let mut wire = port_writes(&a, 1);
     assert_eq!(h.r.owned_motions(), 0);
     assert!(h.r.in_progress() > 0, "the daemon waits for the stops");
     let refused = frame((G, 1, 3), 2, b"PR");
@@ -1077,10 +1093,15 @@ fn shutdown_stops_every_owned_motion_and_refuses_new_commands() {
         link_writes(&a, CLIENT),
         vec![report(&refused, Some(Undelivered::ShuttingDown))]
     );
-    h.port(1, &[ACK]);
-    h.wait(10);
-    h.port(1, &[ACK]);
-    h.wait(10);
+    for _ in 0..2 {
+        wire.extend(port_writes(&h.port(1, &[ACK]), 1));
+        wire.extend(port_writes(&h.wait(10), 1));
+    }
+    assert_eq!(
+        wire,
+        vec![frame((G, 1, 3), G, b"PS"), frame((G, 1, 4), G, b"ZS")],
+        "each owned motion's stop is written to its port once; nothing else"
+    );
     assert_eq!(h.r.in_progress(), 0);
     assert_eq!(h.r.stats().router.shutdown_stops, 2);
 }

@@ -94,7 +94,9 @@ proptest! {
     }
 
     /// Arbitrary payloads never panic the reply parser; whatever parses
-    /// re-encodes and parses again to the same reply.
+    /// re-encodes and parses again to the same reply (random bytes are
+    /// nearly always `Raw` or refused: structured replies are
+    /// `near_replies_parse_to_what_they_re_encode_to`'s).
     #[test]
     fn arbitrary_replies((command, _) in common::command_and_reply(),
                          payload in proptest::collection::vec(any::<u8>(), 0..64)) {
@@ -105,6 +107,90 @@ proptest! {
             prop_assert_eq!(Reply::parse(&command, encoded), Ok(reply));
         }
     }
+}
+
+/// Bytes a reply parser sees from a real but imperfect device: the
+/// encoding of a valid reply for `command`, then up to three edits
+/// (replace, insert, delete a byte, or cut the tail) with bytes drawn
+/// mostly from what replies are made of (hex digits of both cases, the
+/// letters replies start with). Random bytes alone almost never form a
+/// structured reply, so the re-encode identity would only meet `Raw`.
+fn near_reply() -> impl Strategy<Value = (Command<'static>, Reply<'static>, Vec<u8>)> {
+    const ALPHABET: &[u8] = b"0123456789ABCDEFabcdefPVCLNxX- \0\xFF";
+    let edit = (0u8..4, any::<prop::sample::Index>(), prop::sample::select(ALPHABET));
+    (common::command_and_reply(), proptest::collection::vec(edit, 0..=3)).prop_map(|((command, reply), edits)| {
+        let mut buf = [0u8; MAX_PAYLOAD];
+        let mut bytes = reply.encode(&mut buf).unwrap().to_vec();
+        for (kind, at, byte) in edits {
+            let i = at.index(bytes.len() + 1);
+            match kind {
+                0 if i < bytes.len() => bytes[i] = byte,
+                1 if bytes.len() < MAX_PAYLOAD => bytes.insert(i, byte),
+                2 if i < bytes.len() => {
+                    bytes.remove(i);
+                }
+                3 => bytes.truncate(i),
+                _ => {}
+            }
+        }
+        (command, reply, bytes)
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2048))]
+
+    /// Near-valid payloads never panic the reply parser; whatever parses
+    /// answers its command and re-encodes to bytes that parse to the same
+    /// reply; an unedited encoding parses back to the reply it came from.
+    #[test]
+    fn near_replies_parse_to_what_they_re_encode_to((command, reply, payload) in near_reply()) {
+        let mut buf = [0u8; MAX_PAYLOAD];
+        let original = reply.encode(&mut buf).unwrap().to_vec();
+        if let Ok(parsed) = Reply::parse(&command, &payload) {
+            prop_assert!(parsed.answers(&command));
+            let mut buf = [0u8; MAX_PAYLOAD];
+            let encoded = parsed.encode(&mut buf).unwrap();
+            prop_assert_eq!(Reply::parse(&command, encoded), Ok(parsed));
+        }
+        if payload == original {
+            prop_assert_eq!(Reply::parse(&command, &payload), Ok(reply));
+        }
+    }
+}
+
+/// The near-reply strategy reaches what the identity is about: edited
+/// payloads that still parse to structured (non-`Raw`) replies of most
+/// variants, so `near_replies_parse_to_what_they_re_encode_to` checks
+/// their re-encoding, not only raw bytes.
+#[test]
+fn near_replies_reach_structured_replies() {
+    let mut runner = TestRunner::deterministic();
+    let strategy = near_reply();
+    let mut variants = [0u32; common::REPLY_VARIANTS];
+    let mut edited_structured = 0;
+    let cases = 4_000;
+    for _ in 0..cases {
+        let (command, reply, payload) = strategy.new_tree(&mut runner).unwrap().current();
+        let mut buf = [0u8; MAX_PAYLOAD];
+        let edited = reply.encode(&mut buf).unwrap() != payload.as_slice();
+        if let Ok(parsed) = Reply::parse(&command, &payload) {
+            if !matches!(parsed, Reply::Raw(_) | Reply::AuxData(_)) {
+                variants[common::reply_index(&parsed)] += 1;
+                edited_structured += u32::from(edited);
+            }
+        }
+    }
+    let reached = variants.iter().filter(|&&n| n > 0).count();
+    // Raw and AuxData carry bytes as they came: every other variant is structured.
+    assert!(
+        reached >= common::REPLY_VARIANTS - 2,
+        "structured variants reached: {variants:?}"
+    );
+    assert!(
+        edited_structured >= cases / 20,
+        "only {edited_structured} of {cases} edited payloads parsed as structured replies: {variants:?}"
+    );
 }
 
 /// Every Command and Reply variant is produced by the strategies above.

@@ -20,7 +20,7 @@ mod clients;
 mod devices;
 mod wires;
 
-use clients::{Client, ClientState};
+use clients::{Client, ClientState, ClientWire};
 use devices::{Device, Gimbal, SimPort, motion_axis};
 
 /// What a run did, summed over seeds (and compared for determinism).
@@ -51,6 +51,11 @@ pub struct Summary {
     pub client_repeats: u64,
     /// ACKs a client took that were bytes of a damaged frame (its report came after).
     pub phantom_acks: u64,
+    /// Writes to clients that a wire damaged: the only excuse for a phantom.
+    pub client_damaged_writes: u64,
+    /// ACKs a client took while its framer held damaged bytes: the most
+    /// phantom ACKs there can be.
+    pub tainted_acks: u64,
     pub end_time: u64,
 }
 
@@ -76,6 +81,8 @@ impl Summary {
         self.client_gave_up += o.client_gave_up;
         self.client_repeats += o.client_repeats;
         self.phantom_acks += o.phantom_acks;
+        self.client_damaged_writes += o.client_damaged_writes;
+        self.tainted_acks += o.tainted_acks;
         self.end_time = self.end_time.max(o.end_time);
     }
 }
@@ -348,7 +355,7 @@ impl World {
                 current: None,
                 abandoned: BTreeSet::new(),
                 acked: None,
-                wire_damaged: false,
+                wire: ClientWire::default(),
             });
         }
         let level = rng.below(4);

@@ -43,8 +43,43 @@ pub(super) struct Client {
     pub(super) abandoned: BTreeSet<(Address, u8)>,
     /// The command it last took an ACK for.
     pub(super) acked: Option<(Address, u8)>,
-    /// Bytes toward it were damaged since it issued its command.
-    pub(super) wire_damaged: bool,
+    /// Which bytes toward it were damaged, and whether its framer holds some.
+    pub(super) wire: ClientWire,
+}
+
+/// The damage on a client's incoming wire, tracked write by write so that
+/// an excuse (a phantom ACK or frame) is granted only for bytes a wire
+/// actually damaged.
+#[derive(Debug, Default)]
+pub(super) struct ClientWire {
+    /// Writes toward the client scheduled on its wire, and delivered (the
+    /// wire is FIFO and loses nothing once a write is scheduled).
+    sent: u64,
+    delivered: u64,
+    /// Sequence numbers of scheduled writes that were damaged.
+    damaged: BTreeSet<u64>,
+    /// The framer has taken damaged bytes since the line was last idle
+    /// (idle resets the framer: nothing of them is left after it).
+    tainted: bool,
+    /// The ACK it took for `Client::acked` came while tainted.
+    pub(super) acked_tainted: bool,
+}
+
+impl ClientWire {
+    /// A write toward the client was scheduled, `damaged` or not.
+    pub(super) fn scheduled(&mut self, damaged: bool) {
+        if damaged {
+            self.damaged.insert(self.sent);
+        }
+        self.sent += 1;
+    }
+
+    /// The next scheduled write arrives: whether it was damaged.
+    pub(super) fn arrived(&mut self) -> bool {
+        let seq = self.delivered;
+        self.delivered += 1;
+        self.damaged.remove(&seq)
+    }
 }
 
 impl World {
@@ -154,7 +189,6 @@ impl World {
         let cl = &mut self.clients[c];
         cl.issued.push(dest);
         cl.current = Some((dest, frame.frame().checksum()));
-        cl.wire_damaged = false;
         cl.state = ClientState::AwaitAck {
             tx,
             frame: Box::new(frame),
@@ -221,19 +255,27 @@ impl World {
         cl.next_at = self.now + pause;
     }
 
-    pub(super) fn client_receive(&mut self, c: usize, bytes: &[u8]) {
+    /// Bytes arrive (`damaged`: a wire changed one of them).
+    pub(super) fn client_receive(&mut self, c: usize, bytes: &[u8], damaged: bool) {
         let mut events = Vec::new();
         let now = self.now;
+        self.summary.client_damaged_writes += u64::from(damaged);
         let cl = &mut self.clients[c];
         if now.saturating_sub(cl.last_rx) >= SILENCE {
             cl.framer.line_idle();
+            let tainted = cl.wire.tainted;
             while let Some(e) = cl.framer.next_event() {
-                events.push(e.to_owned());
+                events.push((e.to_owned(), tainted));
             }
+            cl.wire.tainted = false;
         }
         cl.last_rx = now;
-        cl.framer.feed(bytes, |e| events.push(e.to_owned()));
-        for event in events {
+        if damaged {
+            cl.wire.tainted = true;
+        }
+        let tainted = cl.wire.tainted;
+        cl.framer.feed(bytes, |e| events.push((e.to_owned(), tainted)));
+        for (event, tainted) in events {
             match event {
                 OwnedEvent::Nic => {
                     self.clients[c].nics += 1;
@@ -244,7 +286,7 @@ impl World {
                     }
                 }
                 OwnedEvent::BadChecksum(_) => self.client_write(c, vec![NAK]),
-                OwnedEvent::Ack => self.client_ack(c),
+                OwnedEvent::Ack => self.client_ack(c, tainted),
                 OwnedEvent::Nak => self.client_nak(c),
                 OwnedEvent::Frame(f) => {
                     self.client_write(c, vec![ACK]);
@@ -256,7 +298,7 @@ impl World {
                         self.client_report(c, &report);
                         continue;
                     }
-                    self.check_reply(c, &f);
+                    self.check_reply(c, &f, tainted);
                     if matches!(self.clients[c].state, ClientState::AwaitAnswer { .. }) {
                         self.client_idle(c);
                     }
@@ -265,7 +307,8 @@ impl World {
         }
     }
 
-    pub(super) fn client_ack(&mut self, c: usize) {
+    /// An ACK (`tainted`: perhaps a byte of a damaged frame).
+    pub(super) fn client_ack(&mut self, c: usize, tainted: bool) {
         let now = self.now;
         if let ClientState::AwaitAck { tx, kind, .. } = &mut self.clients[c].state {
             if tx.on_ack() == TxStep::Delivered {
@@ -273,6 +316,8 @@ impl World {
                 self.clients[c].state = ClientState::AwaitAnswer { until: now + wait };
                 let cl = &mut self.clients[c];
                 cl.acked = cl.current.take();
+                cl.wire.acked_tainted = tainted;
+                self.summary.tainted_acks += u64::from(tainted);
                 self.summary.client_delivered += 1;
                 self.log(format_args!("client {c}: ACK (delivered)"));
             }
@@ -319,8 +364,10 @@ impl World {
         if report.failure.is_some() && cl.abandoned.contains(&key) {
             return;
         }
-        if cl.acked == Some(key) && cl.wire_damaged {
-            // The ACK it took was a damaged frame's byte, not the GCU's.
+        if cl.acked == Some(key) && cl.wire.acked_tainted {
+            // The ACK it took came with damaged bytes: a damaged frame's
+            // byte, not the GCU's. Only then is a report after an ACK excused.
+            cl.wire.acked_tainted = false;
             self.summary.phantom_acks += 1;
             cl.abandoned.insert(key);
             return;
@@ -334,10 +381,15 @@ impl World {
     /// No reply reaches a wrong link: the frame is for this client's group,
     /// a nonce echo is one of its own, any other result matches something
     /// it asked.
-    pub(super) fn check_reply(&mut self, c: usize, f: &FrameBuf) {
+    pub(super) fn check_reply(&mut self, c: usize, f: &FrameBuf, tainted: bool) {
         let frame = f.frame();
         let cl = &self.clients[c];
         if !cl.written.contains(f.as_bytes()) {
+            if !tainted {
+                return self.violation(format!(
+                    "client {c} got a frame the router never wrote, from undamaged bytes: {f:?}"
+                ));
+            }
             // Corruption that happens to form a valid frame (an 8-bit
             // checksum passes 1 time in 256): not something the router sent.
             self.summary.phantom_frames += 1;

@@ -46,9 +46,14 @@ impl World {
                 return self.violation(format!("gcu {g} wrote to disconnected client {link}"));
             }
             let epoch = self.clients[c].epoch;
-            if bytes.len() > 1 {
-                self.clients[c].written.insert(bytes.clone());
-            }
+            // Frame by frame: one write may carry an ACK and several frames.
+            let mut framer: Framer = Framer::new();
+            let written = &mut self.clients[c].written;
+            framer.feed(&bytes, |e| {
+                if let sagebrush_protocol::Event::Frame(f) = e {
+                    written.insert(FrameBuf::from_frame(&f).as_bytes().to_vec());
+                }
+            });
             let to = Node::Client { c };
             self.send_on_wire(Node::Link { g, link }, to, bytes, epoch);
             return;
@@ -59,6 +64,7 @@ impl World {
     /// Faults of one write: dropped, or delivered at a time (FIFO per wire),
     /// perhaps with one byte corrupted.
     pub(super) fn wire(&mut self, from: Node, to: Node, mut bytes: Vec<u8>) -> Option<(u64, Vec<u8>)> {
+        let mut damaged = false;
         if !self.quiet {
             if self.rng.chance(self.drop_pm) {
                 return None;
@@ -66,11 +72,13 @@ impl World {
             if !bytes.is_empty() && self.rng.chance(self.corrupt_pm) {
                 let at = self.rng.below(bytes.len() as u64) as usize;
                 bytes[at] ^= self.rng.range(1, 255) as u8;
-                if let Node::Client { c } = to {
-                    // A damaged frame can leave a bare 0x06 behind: a phantom ACK.
-                    self.clients[c].wire_damaged = true;
-                }
+                damaged = true;
             }
+        }
+        if let Node::Client { c } = to {
+            // A damaged frame can leave a bare 0x06 behind (a phantom ACK)
+            // or form another valid frame: the client's wire remembers which.
+            self.clients[c].wire.scheduled(damaged);
         }
         let delay = 1 + self.rng.below(self.jitter);
         let last = self.fifo.entry((from, to)).or_insert(0);
@@ -164,8 +172,9 @@ impl World {
                 }
             }
             Node::Client { c } => {
+                let damaged = self.clients[c].wire.arrived();
                 if self.clients[c].epoch == epoch && self.clients[c].connected {
-                    self.client_receive(c, &bytes);
+                    self.client_receive(c, &bytes, damaged);
                 }
             }
         }
