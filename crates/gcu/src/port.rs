@@ -517,9 +517,12 @@ impl Port {
             // command's ACK. (Once offline, a dead device does not hold
             // the bus up again.)
             self.config.late_answer_guard
-        } else if r.txn.transmissions() > 1 {
-            // The device may have executed the command twice: let its
-            // second answer arrive while nothing can take it for its own.
+        } else if r.txn.transmissions() > 1 || matches!(outcome, Outcome::Failed(TxFailure::NoAck)) {
+            // The device may have executed the command twice, or answer
+            // after we gave up (with no retransmission too: retries = 0, a
+            // device server): let that answer arrive while nothing can take
+            // it for its own (and a dead-man stop's next round be queued
+            // before other work starts).
             self.policy.retry.ack_timeout
         } else {
             0

@@ -11,7 +11,7 @@ use sagebrush_gcu::{
 use sagebrush_protocol::{
     ACK, Address, AwakeStatus, Command, DeliveryReport, DeviceEndpoint, DeviceHandler, EndpointConfig, Extended,
     FrameBuf, Framer, Identity, InitResults, NAK, OwnedEvent, Position, Reply, ReplyTo, Response, ResultKind,
-    RetryPolicy, Transmitter, TxStep, WILDCARD,
+    RetryPolicy, Transmitter, TxStep, Undelivered, WILDCARD,
 };
 
 use super::Rng;
@@ -56,12 +56,21 @@ pub struct Summary {
     /// ACKs a client took while its framer held damaged bytes: the most
     /// phantom ACKs there can be.
     pub tainted_acks: u64,
+    /// Fault: device servers that stopped reading for a while.
+    pub stalls: u64,
+    /// Reports a client got again (its ACK of the first was lost).
+    pub repeated_reports: u64,
+    /// Fault: device answers that left after the GCU gave up on them.
+    pub late_answers: u64,
     pub end_time: u64,
 }
 
 impl Summary {
     pub fn add(&mut self, o: &Summary) {
         self.accepted += o.accepted;
+        self.stalls += o.stalls;
+        self.repeated_reports += o.repeated_reports;
+        self.late_answers += o.late_answers;
         self.results += o.results;
         self.nics += o.nics;
         self.completed += o.completed;
@@ -274,6 +283,8 @@ impl World {
                 }
                 let bound = rng.range(2, 8) as usize;
                 let stop_bound = rng.range(8, 32) as usize;
+                // Behind a device server that may stall (fault: stalled line).
+                let buffered = rng.chance(250);
                 config.ports.push(PortConfig {
                     bps: 9600,
                     retries: 2,
@@ -287,6 +298,7 @@ impl World {
                     idle_timeout: 10,
                     devices: devices_configured.then(|| ids.clone()),
                     late_answer_guard: rng.range(0, 200),
+                    buffered,
                     ..PortConfig::new(pid)
                 });
                 let single = n_dev == 1 && rng.chance(500);
@@ -314,6 +326,8 @@ impl World {
                     bound,
                     stop_bound,
                     devices,
+                    buffered,
+                    stalled_until: 0,
                 });
             }
             let router = Router::new(config).expect("generated config is valid");
@@ -356,6 +370,7 @@ impl World {
                 abandoned: BTreeSet::new(),
                 acked: None,
                 wire: ClientWire::default(),
+                last_report: None,
             });
         }
         let level = rng.below(4);
@@ -470,6 +485,7 @@ impl World {
                         continue;
                     }
                     if let Some((at, bytes)) = self.wire(Node::Port { g, p }, Node::Device { g, p, d: 0 }, bytes) {
+                        let at = self.stalled_line(g, p, at);
                         for d in 0..n {
                             let to = Node::Device { g, p, d };
                             self.schedule(
@@ -505,7 +521,10 @@ impl World {
         if self.trace {
             self.log(format_args!("gcu {g}: {event}"));
         }
-        let ledger = &mut self.gcus[g].ledger;
+        let gcu = &mut self.gcus[g];
+        let behind_server =
+            |dest: Address| dest.group == gcu.group && gcu.ports.iter().any(|sp| sp.buffered && sp.id == dest.port);
+        let ledger = &mut gcu.ledger;
         let problem = match event {
             RouterEvent::Accepted { id, origin, .. } => {
                 if let Some(link) = origin.link() {
@@ -513,6 +532,13 @@ impl World {
                 }
                 (!ledger.accepted.insert(id)).then(|| format!("gcu {g}: {id:?} accepted twice"))
             }
+            RouterEvent::Undelivered {
+                dest,
+                failure: Undelivered::DeviceSilent,
+                ..
+            } if behind_server(dest) => Some(format!(
+                "gcu {g}: a command to {dest} behind a device server reported undelivered: its bytes may still run"
+            )),
             RouterEvent::Delivered { id } | RouterEvent::Undelivered { id, .. } => ledger
                 .untold
                 .remove(&id)
@@ -795,6 +821,15 @@ impl World {
                 ));
             }
             let stats = gcu.router.stats();
+            for sp in gcu.ports.iter().filter(|sp| sp.buffered) {
+                let retransmits = stats.ports.get(&sp.id).map_or(0, |p| p.line.retransmits);
+                if retransmits != 0 {
+                    return Err(format!(
+                        "gcu {g}: {retransmits} retransmissions into the device server of port {}",
+                        sp.id
+                    ));
+                }
+            }
             if stats.router.accepted != stats.router.finished() {
                 return Err(format!(
                     "gcu {g}: accepted {} != finished {}",

@@ -45,7 +45,13 @@ pub(super) struct Client {
     pub(super) acked: Option<(Address, u8)>,
     /// Which bytes toward it were damaged, and whether its framer holds some.
     pub(super) wire: ClientWire,
+    /// The last delivery report frame it took, and when.
+    pub(super) last_report: Option<(u64, Vec<u8>)>,
 }
+
+/// How long after a report the GCU may send it again (its link retry
+/// budget: retries + 1 ACK time-outs, plus the wire's jitter).
+const REPORT_REPEAT_WINDOW: u64 = 4 * 40 + 10;
 
 /// The damage on a client's incoming wire, tracked write by write so that
 /// an excuse (a phantom ACK or frame) is granted only for bytes a wire
@@ -295,6 +301,22 @@ impl World {
                         .then(|| DeliveryReport::parse(frame.payload()).ok())
                         .flatten();
                     if let Some(report) = report.filter(|_| self.clients[c].written.contains(f.as_bytes())) {
+                        // The GCU sends a report again when our ACK of it was
+                        // lost: a byte-identical one within its retry budget
+                        // (4 tries of 40 ms) is that copy, not a new outcome
+                        // (the next command may have the same address and
+                        // checksum).
+                        let now = self.now;
+                        let cl = &mut self.clients[c];
+                        let repeat = cl
+                            .last_report
+                            .as_ref()
+                            .is_some_and(|(at, bytes)| bytes == f.as_bytes() && now <= at + REPORT_REPEAT_WINDOW);
+                        cl.last_report = Some((now, f.as_bytes().to_vec()));
+                        if repeat {
+                            self.summary.repeated_reports += 1;
+                            continue;
+                        }
                         self.client_report(c, &report);
                         continue;
                     }

@@ -4,6 +4,15 @@
 
 use super::*;
 
+/// Per mille of writes to a buffered port that start a stall of its device
+/// server (fault: stalled line).
+const STALL_PM: u64 = 20;
+/// Per mille of device answers that leave late (fault: late answer), and
+/// how late (ms): past the GCU's tries (3 x 20 ms ACK time-outs plus wire
+/// time), within the late-answer guards the simulation draws.
+const LATE_PM: u64 = 5;
+const LATE_MS: (u64, u64) = (90, 150);
+
 /// Motion axes of a gimbal: pan, tilt, focus, zoom.
 pub(super) const AXES: usize = 4;
 
@@ -93,6 +102,11 @@ pub(super) struct SimPort {
     pub(super) bound: usize,
     pub(super) stop_bound: usize,
     pub(super) devices: Vec<Device>,
+    /// Behind a device server (`PortConfig::buffered`).
+    pub(super) buffered: bool,
+    /// Fault: the device server stopped reading until then; what the GCU
+    /// wrote meanwhile waits in it and reaches the bus afterwards, in order.
+    pub(super) stalled_until: u64,
 }
 
 impl World {
@@ -112,11 +126,47 @@ impl World {
         self.input(g, Input::PortOpened { port });
     }
 
+    /// When bytes the GCU wrote at `at` reach the bus of port `p`: later
+    /// while its device server stalls (fault: stalled line, sometimes
+    /// started by this write), FIFO kept.
+    pub(super) fn stalled_line(&mut self, g: usize, p: usize, at: u64) -> u64 {
+        let quiet = self.quiet;
+        let stall = !quiet && self.gcus[g].ports[p].buffered && self.rng.chance(STALL_PM);
+        let length = self.rng.range(100, 3_000);
+        let sp = &mut self.gcus[g].ports[p];
+        if stall && sp.stalled_until <= at {
+            sp.stalled_until = at + length;
+            self.summary.stalls += 1;
+        }
+        let at = at.max(sp.stalled_until);
+        let fifo = self
+            .fifo
+            .entry((Node::Port { g, p }, Node::Device { g, p, d: 0 }))
+            .or_insert(0);
+        *fifo = (*fifo).max(at);
+        at
+    }
+
     pub(super) fn device_writes(&mut self, g: usize, p: usize, d: usize, out: Vec<u8>, epoch: u64, bps: u32) {
         if out.is_empty() {
             return;
         }
         if let Some((at, bytes)) = self.wire(Node::Device { g, p, d }, Node::Port { g, p }, out) {
+            // Fault: the answer leaves late, after the GCU gave up on it
+            // (its retries and ACK time-outs) but within its late-answer
+            // guard; it must never be taken for the next command's.
+            let at = if !self.quiet && self.rng.chance(LATE_PM) {
+                let late = self.rng.range(LATE_MS.0, LATE_MS.1);
+                self.summary.late_answers += 1;
+                let fifo = self
+                    .fifo
+                    .entry((Node::Device { g, p, d }, Node::Port { g, p }))
+                    .or_insert(0);
+                *fifo = (*fifo).max(at + late);
+                at + late
+            } else {
+                at
+            };
             self.schedule(
                 at,
                 Ev::Bytes {
