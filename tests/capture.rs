@@ -8,7 +8,6 @@ mod support;
 use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::path::Path;
-use std::time::Duration;
 
 use nix::sys::signal::Signal;
 use support::capture::{Daemon, Program, require_tshark, tshark_fields, wait_until_read};
@@ -61,7 +60,8 @@ fn table(rows: &[Row]) -> String {
 /// Sends a `P?` frame to 5.1.1 whose checksum byte is wrong; returns what came back.
 fn send_bad_checksum(addr: &str) -> Vec<u8> {
     let mut s = TcpStream::connect(addr).expect("connect");
-    s.set_read_timeout(Some(Duration::from_millis(500))).expect("timeout");
+    // The NAK ends the read as soon as it comes; the time-out is only a hang guard.
+    s.set_read_timeout(Some(support::HANG_GUARD)).expect("timeout");
     s.write_all(&[0xF8, 5, 1, 1, 0, 2, b'P', b'?', 0x00]).expect("write");
     let mut buf = [0u8; 64];
     let n = s.read(&mut buf).unwrap_or(0);
