@@ -5,7 +5,7 @@
 
 mod support;
 
-use sagebrush_protocol::{Address, Command as Cmd};
+use sagebrush_protocol::{Address, Command as Cmd, OwnedEvent};
 use support::Sim;
 use support::gcud::{CLIENTS, Gcud, METRICS, WireClient, port_entry};
 
@@ -198,5 +198,66 @@ fn a_flooding_client_never_starves_a_simulated_port() {
     assert!(
         median < 40_000,
         "the flood starved the simulated port: {flood_per_query:?}"
+    );
+}
+
+/// Issue 20.5: a seeded bus whose gimbal sometimes answers 500 ms late
+/// (past gcud's four tries, about 300 ms at 9600 bit/s) and sometimes does
+/// not hear a command at all. A late ACK must never be taken for the next
+/// command's: every goto gcud ACKs to its client is one the gimbal heard
+/// (its own log: "rx frame" not followed by a silent fault). Before the
+/// late-answer guard a late ACK landed in the next goto's ACK wait: 2 of 60
+/// gotos ACKed that the gimbal never heard.
+#[test]
+fn a_late_answer_never_acknowledges_the_next_command() {
+    let sim = Sim::pty(&[
+        "--delay",
+        "0.25",
+        "--delay-ms",
+        "500",
+        "--silent",
+        "0.25",
+        "--seed",
+        "11",
+    ]);
+    let gcud = Gcud::start(&format!("[gcu]\ngroup = 5\n{CLIENTS}{METRICS}{}", port_entry(1, &sim)));
+    gcud.wait_for_log("port open port=1");
+    let mut client = WireClient::connect(&gcud.clients());
+    let mut acked = Vec::new();
+    for i in 0..60u16 {
+        let payload = format!("P{:04X}0000", 10 * (i + 1));
+        let goto = Cmd::parse(payload.as_bytes());
+        client.send(Address::new(5, 1, 1), 0, &goto);
+        match client.next() {
+            OwnedEvent::Ack => acked.push(payload),
+            OwnedEvent::Frame(report) => assert_eq!(report.frame().dest.port, 0, "a delivery report"),
+            other => panic!("goto {i}: {other:?}"),
+        }
+    }
+    let log = sim.log();
+    // What the gimbal heard: each frame it saw, unless a silent fault
+    // took it away right after.
+    let mut heard = std::collections::BTreeSet::new();
+    let lines: Vec<&str> = log.lines().collect();
+    for (n, line) in lines.iter().enumerate() {
+        if let Some(at) = line.find("rx frame dest=5.1.1 source=0 payload=") {
+            let payload = line[at + "rx frame dest=5.1.1 source=0 payload=".len()..]
+                .split_whitespace()
+                .next()
+                .unwrap_or_default();
+            let silent = lines
+                .get(n + 1)
+                .is_some_and(|l| l.contains("fault injected") && l.contains("silent"));
+            if !silent {
+                heard.insert(payload.to_owned());
+            }
+        }
+    }
+    let faults = log.matches("fault injected").count();
+    assert!(faults >= 10, "the seeded faults ran: {faults}");
+    let false_acks: Vec<&String> = acked.iter().filter(|p| !heard.contains(*p)).collect();
+    assert!(
+        false_acks.is_empty(),
+        "ACKed but never heard by the gimbal: {false_acks:?}\nacked {acked:?}"
     );
 }

@@ -21,11 +21,12 @@
 //!   needed a retransmission, the device may have executed the command
 //!   twice, or answered after the GCU gave up: the bus stays quiet for one
 //!   ACK time-out so that such an answer is not taken for the next
-//!   exchange's (it is ACKed and counted as unsolicited). After a device
-//!   that answered its last exchange went silent to every try, the bus
-//!   stays quiet for `PortConfig::late_answer_guard` (an address that never
-//!   answered, or a device already offline, gets no guard: a scan of empty
-//!   addresses stays fast and a dead device does not hold up its bus).
+//!   exchange's (it is ACKed and counted as unsolicited). After an ACK wait
+//!   of a device that answered its last exchange ran out (the exchange gave
+//!   up, or a later try was answered), the bus stays quiet for
+//!   `PortConfig::late_answer_guard` (an address that never answered, or a
+//!   device already offline, gets no guard: a scan of empty addresses stays
+//!   fast and a dead device does not hold up its bus).
 //! - Fair: the next job after the stops is the oldest of the origin (link,
 //!   i.e. client) served least recently, round robin; when the queue is
 //!   full, the origin holding the most jobs gives up its newest one for a
@@ -180,6 +181,8 @@ pub(crate) enum PortOut {
 struct Running {
     job: Job,
     txn: Transaction,
+    /// An ACK wait ran out: the device may still answer that try, late.
+    ack_timed_out: bool,
 }
 
 impl Running {
@@ -429,7 +432,11 @@ impl Port {
             self.stats.transactions += 1;
             self.device(dest.device).commands += 1;
             let step = txn.start(now);
-            self.active = Some(Running { job, txn });
+            self.active = Some(Running {
+                job,
+                txn,
+                ack_timed_out: false,
+            });
             self.active_step(now, step, None, out);
         }
     }
@@ -511,13 +518,14 @@ impl Port {
     fn finish(&mut self, now: u64, r: Running, outcome: Outcome, frame: Option<FrameBuf>, out: &mut Vec<PortOut>) {
         let device = r.device();
         let was_online = self.device_stats.get(&device).is_some_and(|d| d.online);
-        let quiet = if matches!(outcome, Outcome::Failed(TxFailure::NoAck)) && was_online {
-            // A device that answered its last exchange went silent: its
-            // answer may still come, late, and would be taken for the next
-            // command's ACK. (Once offline, a dead device does not hold
-            // the bus up again.)
+        let quiet = if r.ack_timed_out && was_online {
+            // A device that answered its last exchange let an ACK wait run
+            // out (given up, or answered a later try): its answer to that
+            // try may still come, late, and would be taken for the next
+            // command's ACK. (Once offline, a dead device does not hold the
+            // bus up again.)
             self.config.late_answer_guard
-        } else if r.txn.transmissions() > 1 || matches!(outcome, Outcome::Failed(TxFailure::NoAck)) {
+        } else if r.txn.transmissions() > 1 || r.ack_timed_out {
             // The device may have executed the command twice, or answer
             // after we gave up (with no retransmission too: retries = 0, a
             // device server): let that answer arrive while nothing can take
@@ -783,6 +791,7 @@ impl Port {
             .as_mut()
             .filter(|r| r.txn.deadline().is_some_and(|t| now >= t))
         {
+            r.ack_timed_out |= !r.txn.acknowledged();
             let step = r.txn.poll(now);
             self.active_step(now, step, None, out);
         }
