@@ -3,8 +3,11 @@
 //! (ARCHITECTURE "Layers", 3 and 4).
 
 mod admission;
+mod capture;
 mod config;
 mod daemon;
+mod descriptors;
+mod http;
 mod io;
 mod lines;
 mod metrics;
@@ -103,6 +106,16 @@ fn main() -> ExitCode {
     for w in &config.warnings {
         tracing::warn!("{w}");
     }
+    let descriptors = descriptors::Limit::raise();
+    let http = http::Limits {
+        max_connections: descriptors.http_connections(),
+    };
+    tracing::info!(
+        was = descriptors.was,
+        now = descriptors.now,
+        http_connections = http.max_connections,
+        "descriptor limit (RLIMIT_NOFILE)"
+    );
     let runtime = match tokio::runtime::Builder::new_current_thread().enable_all().build() {
         Ok(rt) => rt,
         Err(e) => {
@@ -110,7 +123,7 @@ fn main() -> ExitCode {
             return ExitCode::from(EXIT_START);
         }
     };
-    match runtime.block_on(daemon::run(config)) {
+    match runtime.block_on(daemon::run(config, http)) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             tracing::error!("{e}");
