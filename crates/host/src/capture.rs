@@ -484,7 +484,11 @@ impl Writer {
                     tracing::info!(file = %self.path.display(), "capture: the FIFO has a reader; writing");
                     self.file = Some(file);
                 }
-                Ok(None) => {}
+                Ok(None) => {
+                    // Stopped before anyone read: what waited is dropped, and counted.
+                    let waited = rx.try_iter().filter(|m| matches!(m, Msg::Bytes { .. })).count();
+                    self.shared.dropped.fetch_add(waited as u64, Ordering::Relaxed);
+                }
                 Err(e) => self.give_up(format!("cannot open {}: {e}", self.path.display()), true),
             }
             self.shared.waiting_for_reader.store(false, Ordering::Release);
@@ -1086,7 +1090,11 @@ mod tests {
         let i = c.interface("port 1", Role::Master);
         c.record(i, Direction::Inbound, SystemTime::now(), &[0x06]);
         let stats = c.stop(Duration::from_secs(5));
-        assert_eq!((stats.records, stats.stopped), (0, None), "nothing written, no error");
+        assert_eq!(
+            (stats.records, stats.dropped, stats.stopped),
+            (0, 1, None),
+            "nothing written, what waited counted, no error"
+        );
 
         let c = Capture::open(&fifo, CaptureConfig::default()).unwrap();
         let i = c.interface("port 1", Role::Master);
