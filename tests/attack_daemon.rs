@@ -162,6 +162,8 @@ fn descriptor_exhaustion_on_the_client_listener_is_logged_throttled() {
         64,
     );
     gcud.wait_for_log("port open port=1");
+    let told = gcud.wait_for_log("the descriptor limit is below");
+    assert!(told.contains("limit=64") && told.contains("needed=242"), "{told}");
     let mut client = WireClient::connect(&gcud.clients());
     let flood: Vec<TcpStream> = (0..120)
         .map(|_| TcpStream::connect(gcud.clients()).expect("connect"))

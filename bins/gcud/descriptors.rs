@@ -10,6 +10,8 @@ use nix::sys::resource::{Resource, getrlimit, setrlimit};
 /// The HTTP endpoint's connections at most: a few scrapers, a dashboard
 /// and a `gimbalctl gcud-status`.
 pub const HTTP_CONNECTIONS: usize = 16;
+/// Descriptors of the process itself, with room to spare.
+const BASE: u64 = 32;
 /// The HTTP endpoint gets at most this share of the descriptor limit.
 const HTTP_SHARE: u64 = 8;
 
@@ -32,6 +34,16 @@ impl Limit {
             false => soft,
         };
         Self { was: soft, now }
+    }
+
+    /// What the configuration may hold open at once, when the limit is
+    /// below it: every accepted connection (`[limits] max_connections`), a
+    /// descriptor per port and link, the HTTP endpoint's connections and
+    /// [`BASE`] for the process itself (listeners, the runtime, logs,
+    /// capture, simulated ports' pseudo-terminals).
+    pub fn shortfall(&self, connections: u64, lines: u64, http: usize) -> Option<u64> {
+        let needed = connections + lines + http as u64 + BASE;
+        (self.now != 0 && self.now < needed).then_some(needed)
     }
 
     /// HTTP connections open at once: [`HTTP_CONNECTIONS`], or an eighth of
@@ -57,5 +69,13 @@ mod tests {
         assert_eq!(cap(64), 8);
         assert_eq!(cap(4), 1);
         assert_eq!(cap(0), HTTP_CONNECTIONS, "unknown limit");
+    }
+
+    #[test]
+    fn a_limit_below_what_the_configuration_may_open_is_told() {
+        let limit = Limit { was: 64, now: 64 };
+        assert_eq!(limit.shortfall(32, 2, 8), Some(74));
+        assert_eq!(limit.shortfall(16, 2, 8), None);
+        assert_eq!(Limit { was: 0, now: 0 }.shortfall(32, 2, 8), None, "unknown limit");
     }
 }

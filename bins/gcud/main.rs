@@ -116,6 +116,15 @@ fn main() -> ExitCode {
         http_connections = http.max_connections,
         "descriptor limit (RLIMIT_NOFILE)"
     );
+    let lines = (config.ports.len() + config.links.len()) as u64;
+    if let Some(needed) = descriptors.shortfall(config.max_connections as u64, lines, http.max_connections) {
+        tracing::warn!(
+            limit = descriptors.now,
+            needed,
+            "the descriptor limit is below what [limits] max_connections, the ports, links and HTTP endpoint may \
+             hold open: connections beyond it wait to be accepted (raise LimitNOFILE)"
+        );
+    }
     let runtime = match tokio::runtime::Builder::new_current_thread().enable_all().build() {
         Ok(rt) => rt,
         Err(e) => {
