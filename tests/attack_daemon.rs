@@ -328,6 +328,21 @@ fn a_reload_whose_listener_cannot_bind_is_refused_whole() {
     let log = gcud.log();
     assert!(!log.contains("configuration unchanged"), "{log}");
     assert!(TcpStream::connect(addr).is_ok(), "gcu2 listens");
+
+    // A changed link keeping its address takes its listener over (binding
+    // anew would find the address in use by the link being replaced).
+    std::fs::write(
+        gcud.dir.path().join("gcud.toml"),
+        new.replace("role = \"downstream\"", "role = \"upstream\""),
+    )
+    .expect("write config");
+    signal(&gcud, Signal::SIGHUP);
+    gcud.wait_for_log("reload: link \"gcu2\": changed");
+    eventually("gcu2 to listen again", || {
+        gcud.log().matches("listening link=gcu2").count() == 2
+    });
+    assert_eq!(gcud.log().matches("reload refused").count(), 1, "{}", gcud.log());
+    assert!(TcpStream::connect(addr).is_ok(), "gcu2 listens on its address");
 }
 
 /// Point 9: a port on a TCP device server is not reported as ignoring a
