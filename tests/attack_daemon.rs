@@ -128,12 +128,23 @@ fn idle_http_connections_from_an_unlisted_peer_take_no_descriptors() {
     drop(attack);
 
     // An allowed peer's idle connections: capped, then timed out.
-    let idle: Vec<TcpStream> = (0..40).filter_map(|_| connect_from("127.0.0.1", &metrics)).collect();
+    let mut idle: Vec<TcpStream> = (0..40).filter_map(|_| connect_from("127.0.0.1", &metrics)).collect();
     let mut client = WireClient::connect(&gcud.clients());
     report(
         "with 40 idle HTTP connections from an allowed peer",
         &query_latencies(&mut client, 50),
     );
+    // The first (within the cap) is closed for sending no request head: the
+    // header time-out is 5 s; 30 s is generous on a loaded machine and
+    // still well below a connection's 60 s lifetime, which would close it too.
+    idle[0]
+        .set_read_timeout(Some(Duration::from_secs(30)))
+        .expect("timeout");
+    let closed = match idle[0].read(&mut [0u8; 64]) {
+        Ok(n) => n == 0,
+        Err(e) => e.kind() == std::io::ErrorKind::ConnectionReset,
+    };
+    assert!(closed, "an idle HTTP connection is closed by its header time-out");
     eventually("idle HTTP connections to time out and /healthz to answer", || {
         let mut s = TcpStream::connect(&metrics).expect("connect");
         s.set_read_timeout(Some(Duration::from_secs(10))).expect("timeout");
