@@ -29,6 +29,8 @@ enum Request {
         file: PathBuf,
         fallback: Option<CaptureSettings>,
         why: &'static str,
+        /// Told once the capture started (or could not).
+        done: Option<oneshot::Sender<()>>,
     },
     /// Stop the running capture, if any, and say when its file is complete.
     Stop {
@@ -60,9 +62,14 @@ impl CaptureControl {
             while let Some(request) = rx.recv().await {
                 let switch = switch.clone();
                 let done = tokio::task::spawn_blocking(move || match request {
-                    Request::Toggle { file, fallback, why } => {
+                    Request::Toggle {
+                        file,
+                        fallback,
+                        why,
+                        done,
+                    } => {
                         toggle(&switch, file, fallback, why);
-                        None
+                        done
                     }
                     Request::Stop { why, done } => {
                         if let Some(capture) = switch.stop() {
@@ -80,16 +87,32 @@ impl CaptureControl {
         Self { requests }
     }
 
-    /// Starts a capture, or stops the running one (SIGUSR1, or `[capture]
-    /// enabled` at start-up). Returns at once.
+    /// Starts a capture, or stops the running one (SIGUSR1). Returns at once.
     pub fn toggle(&self, config: &crate::config::Config, why: &'static str) {
         let request = Request::Toggle {
             file: config.file.clone(),
             fallback: config.capture.clone(),
             why,
+            done: None,
         };
         if self.requests.try_send(request).is_err() {
             warn!("{why}: the capture is still busy with earlier requests; this one is ignored");
+        }
+    }
+
+    /// `[capture] enabled`: starts the capture before the first line opens,
+    /// so that it holds every byte; waits until the file is created (a FIFO
+    /// is not opened yet: its writer waits for a reader, holding up nothing).
+    pub async fn start(&self, config: &crate::config::Config) {
+        let (done, started) = oneshot::channel();
+        let request = Request::Toggle {
+            file: config.file.clone(),
+            fallback: config.capture.clone(),
+            why: "start-up",
+            done: Some(done),
+        };
+        if self.requests.send(request).await.is_ok() {
+            let _ = started.await;
         }
     }
 

@@ -234,7 +234,7 @@ pub async fn run(mut config: Config, http_limits: crate::http::Limits) -> Result
     // Opened off this task: a FIFO nobody reads yet holds up nothing.
     let capture = CaptureControl::spawn(tasks.capture.clone());
     if config.capture.as_ref().is_some_and(|c| c.enabled) {
-        capture.toggle(&config, "start-up");
+        capture.start(&config).await;
     }
 
     // Listeners and the metrics endpoint bind now: a bad address is a start failure.
