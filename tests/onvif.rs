@@ -484,7 +484,7 @@ fn sigkill_of_gimbal_onvif_mid_move_and_the_gimbal_stops() {
         pan > 0.0 && pan < 150.0,
         "gcud's dead-man stopped it well short of the end: {pan}"
     );
-    stack.gcud.wait_for_log("down");
+    stack.gcud.wait_for_log("dead-man PS to 5.1.1");
 }
 
 #[test]
@@ -501,6 +501,8 @@ fn sigterm_stops_what_gimbal_onvif_started() {
     let (_, tilt) = stack.gcud.settled_position(MAST);
     assert!(tilt > 0.0 && tilt < 85.0, "stopped short of the tilt end: {tilt}");
     assert!(stack.log().contains("stopping:"), "{}", stack.log());
+    // gimbal-onvif stopped it itself: nothing was left for gcud's dead-man.
+    assert!(!stack.gcud.log().contains("dead-man"), "{}", stack.gcud.log());
 }
 
 #[test]
