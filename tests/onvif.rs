@@ -534,3 +534,70 @@ fn check_names_the_file_line_column_and_key_and_exits_2() {
     assert_eq!(bad.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("user[2].role: expected administrator, operator or user"));
 }
+
+#[test]
+fn the_shipped_configuration_documents_every_key_and_passes_check() {
+    let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/gimbal-onvif.toml"))
+        .expect("config/gimbal-onvif.toml");
+    // Every key the parser knows is in the file (set or commented out).
+    for key in [
+        "gcud",
+        "source_group",
+        "state_file",
+        "max_move_ms",
+        "poll_ms",
+        "enabled",
+        "listen",
+        "name",
+        "password",
+        "password_file",
+        "role",
+        "address",
+        "stream_uri",
+        "pan_deg",
+        "tilt_deg",
+    ] {
+        assert!(
+            text.lines()
+                .any(|l| l.trim_start_matches(['#', ' ']).starts_with(&format!("{key} ="))),
+            "config/gimbal-onvif.toml does not document {key}"
+        );
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let pass = dir.path().join("admin.pass");
+    std::fs::write(&pass, "s3cret\n").expect("password file");
+    let path = dir.path().join("gimbal-onvif.toml");
+    std::fs::write(
+        &path,
+        text.replace("/etc/gimbal-onvif/admin.pass", &pass.display().to_string()),
+    )
+    .expect("write");
+    let out = Command::new(env!("CARGO_BIN_EXE_gimbal-onvif"))
+        .args(["--check", "--config"])
+        .arg(&path)
+        .output()
+        .expect("run");
+    assert_eq!(out.status.code(), Some(0), "{out:?}");
+}
+
+#[test]
+fn the_shipped_unit_is_hardened_and_checks_its_configuration_first() {
+    let unit = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/gimbal-onvif.service"))
+        .expect("config/gimbal-onvif.service");
+    for line in [
+        "Type=notify",
+        "ExecStartPre=/usr/local/bin/gimbal-onvif --check --config /etc/gimbal-onvif/gimbal-onvif.toml",
+        "DynamicUser=yes",
+        "StateDirectory=gimbal-onvif",
+        "NoNewPrivileges=yes",
+        "CapabilityBoundingSet=",
+        "ProtectSystem=strict",
+        "PrivateDevices=yes",
+        "RestrictAddressFamilies=AF_INET AF_INET6 AF_UNIX",
+        "SystemCallFilter=@system-service",
+        "MemoryDenyWriteExecute=yes",
+        "KillSignal=SIGTERM",
+    ] {
+        assert!(unit.lines().any(|l| l.trim() == line), "the unit lacks {line:?}");
+    }
+}
