@@ -546,6 +546,7 @@ fn the_shipped_configuration_documents_every_key_and_passes_check() {
         "state_file",
         "max_move_ms",
         "poll_ms",
+        "nic_window_ms",
         "enabled",
         "listen",
         "name",

@@ -22,6 +22,7 @@ struct ConfigFile {
     state_file: Option<Spanned<String>>,
     max_move_ms: Option<Spanned<i64>>,
     poll_ms: Option<Spanned<i64>>,
+    nic_window_ms: Option<Spanned<i64>>,
     #[serde(default)]
     discovery: DiscoverySection,
     #[serde(default, rename = "user")]
@@ -94,6 +95,8 @@ pub struct Config {
     pub max_move: Duration,
     /// How often each gimbal's position is asked (`P?`) for GetStatus.
     pub poll: Duration,
+    /// How long after gcud's ACK a NIC may still come (1.4.2).
+    pub nic_window: Duration,
     pub discovery: Option<SocketAddr>,
     pub users: Vec<User>,
     pub gimbals: Vec<Gimbal>,
@@ -127,6 +130,10 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let poll_ms: u64 = match &raw.poll_ms {
         Some(v) => c.int(v, "poll_ms", 20, 10_000)?,
         None => 200,
+    };
+    let nic_window_ms: u64 = match &raw.nic_window_ms {
+        Some(v) => c.int(v, "nic_window_ms", 10, 1000)?,
+        None => 100,
     };
     let discovery = match raw.discovery.enabled.as_ref().map(|e| *e.get_ref()) {
         Some(false) => None,
@@ -257,6 +264,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         state_file: raw.state_file.map(|s| PathBuf::from(s.into_inner())),
         max_move: Duration::from_millis(max_move_ms),
         poll: Duration::from_millis(poll_ms),
+        nic_window: Duration::from_millis(nic_window_ms),
         discovery,
         users,
         gimbals,

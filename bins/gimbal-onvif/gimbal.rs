@@ -51,6 +51,9 @@ pub struct Gimbal {
     gcud: String,
     from: u8,
     max_move: Duration,
+    /// How long after an ACK a NIC may still come (gcud forwards the bus's
+    /// NIC as soon as it sees it).
+    nic_window: Duration,
     connection: tokio::sync::Mutex<Option<GcudClient>>,
     status: Mutex<Status>,
     motion: Mutex<Motion>,
@@ -72,12 +75,13 @@ pub fn to_generic(degrees: f64, travel: (f64, f64)) -> f64 {
 }
 
 impl Gimbal {
-    pub fn new(config: config::Gimbal, gcud: String, from: u8, max_move: Duration) -> Arc<Self> {
+    pub fn new(config: config::Gimbal, link: &config::Config) -> Arc<Self> {
         Arc::new(Self {
             config,
-            gcud,
-            from,
-            max_move,
+            gcud: link.gcud.clone(),
+            from: link.source_group,
+            max_move: link.max_move,
+            nic_window: link.nic_window,
             connection: tokio::sync::Mutex::new(None),
             status: Mutex::new(Status::default()),
             motion: Mutex::new(Motion::default()),
@@ -89,8 +93,9 @@ impl Gimbal {
     pub async fn send(&self, command: &Command<'_>) -> Result<Option<Vec<u8>>, CommandError> {
         let mut guard = self.connection.lock().await;
         if guard.is_none() {
+            let nic_window = self.nic_window.as_millis() as u64;
             *guard = Some(
-                GcudClient::connect(&self.gcud, self.from)
+                GcudClient::connect(&self.gcud, self.from, |p| p.nic_window = nic_window)
                     .await
                     .map_err(|e| CommandError::Io(format!("gcud at {} cannot be reached: {e}", self.gcud)))?,
             );

@@ -90,7 +90,7 @@ async fn run(config: config::Config) -> Result<(), String> {
     let mut served = Vec::new();
     let mut tasks = tokio::task::JoinSet::new();
     for g in &config.gimbals {
-        let gimbal = gimbal::Gimbal::new(g.clone(), config.gcud.clone(), config.source_group, config.max_move);
+        let gimbal = gimbal::Gimbal::new(g.clone(), &config);
         tasks.spawn(Arc::clone(&gimbal).poll(config.poll));
         let device = onvif::Device {
             gimbal: Arc::clone(&gimbal),

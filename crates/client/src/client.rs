@@ -72,10 +72,17 @@ pub type GcudClient = Client<TcpStream>;
 
 impl GcudClient {
     /// Connects to gcud's client listener at `addr` (`host:port`), with
-    /// the TCP time-outs of a link (1.4.2 over TCP, `timing::tcp_policy`).
-    pub async fn connect(addr: &str, from: u8) -> Result<Self, CommandError> {
+    /// the TCP time-outs of a link (1.4.2 over TCP, `timing::tcp_policy`)
+    /// changed by `tune`.
+    pub async fn connect(
+        addr: &str,
+        from: u8,
+        tune: impl FnOnce(&mut TransactionPolicy),
+    ) -> Result<Self, CommandError> {
         let stream = transport::connect_tcp(addr).await?;
-        Ok(Self::new(stream, timing::tcp_policy(), from))
+        let mut policy = timing::tcp_policy();
+        tune(&mut policy);
+        Ok(Self::new(stream, policy, from))
     }
 }
 
