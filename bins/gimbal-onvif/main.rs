@@ -1,7 +1,7 @@
-//! `gimbal-onvif`: an ONVIF PTZ front door in front of gcud (DESIGN "Front
-//! doors"). Each configured gimbal is its own ONVIF device (Device, Media
-//! and PTZ services) on its own address and port, found by WS-Discovery;
-//! every command goes to gcud's client listener over this program's own
+//! `gimbal-onvif`: an ONVIF PTZ front door in front of gcud (issue 21).
+//! Each configured gimbal is its own ONVIF device (Device, Media and PTZ
+//! services) on its own address and port, found by WS-Discovery; every
+//! command goes to gcud's client listener over this program's own
 //! connection, so gcud stays the only master of the buses.
 
 mod auth;
