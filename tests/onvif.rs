@@ -422,6 +422,10 @@ fn malformed_xml_and_bad_arguments_get_faults_and_move_nothing() {
         let text = r["body"].as_str().unwrap();
         assert!(text.contains("<s:Fault>") && text.contains("ter:WellFormed"), "{text}");
     }
+    // A body over 64 KiB is refused unread.
+    let big = format!("<x>{}</x>", "y".repeat(80 * 1024));
+    let r = stack.client("malformed", stack.mast, ("-", "-"), json!({ "body": big }));
+    assert_eq!(r["status"], 413, "{}", &r.to_string()[..200]);
     // Well-formed but unauthenticated: refused before anything is sent.
     let unsigned = "<?xml version=\"1.0\"?><e:Envelope xmlns:e=\"http://www.w3.org/2003/05/soap-envelope\"><e:Body><ContinuousMove xmlns=\"http://www.onvif.org/ver20/ptz/wsdl\"><ProfileToken>profile1</ProfileToken><Velocity><PanTilt x=\"1\" y=\"1\" xmlns=\"http://www.onvif.org/ver10/schema\"/></Velocity></ContinuousMove></e:Body></e:Envelope>";
     let r = stack.client("malformed", stack.mast, ("-", "-"), json!({ "body": unsigned }));

@@ -237,15 +237,26 @@ impl Gimbal {
         let mut moving = (false, false);
         for (v, axis, positive, negative, stop) in axes {
             let Some(v) = v else { continue };
-            if v == 0.0 {
-                self.send(&stop).await?;
-                continue;
+            let sent = if v == 0.0 {
+                self.send(&stop).await
+            } else {
+                match self.send(&Command::SetSpeed(axis, speed_of(v))).await {
+                    Ok(_) => self.send(if v > 0.0 { &positive } else { &negative }).await,
+                    Err(e) => Err(e),
+                }
+            };
+            if let Err(e) = sent {
+                // Never leave one axis moving with no time-out: the move failed as a whole.
+                if moving.0 || moving.1 {
+                    if let Err(stop) = self.stop(true).await {
+                        warn!(gimbal = %self.config.name, error = %stop, "stop after a failed move failed");
+                    }
+                }
+                return Err(e);
             }
-            self.send(&Command::SetSpeed(axis, speed_of(v))).await?;
-            self.send(if v > 0.0 { &positive } else { &negative }).await?;
             match axis {
-                Axis::Pan => moving.0 = true,
-                Axis::Tilt => moving.1 = true,
+                Axis::Pan => moving.0 |= v != 0.0,
+                Axis::Tilt => moving.1 |= v != 0.0,
             }
         }
         {
@@ -294,9 +305,10 @@ impl Gimbal {
         Ok(())
     }
 
-    /// Stops what this gimbal-onvif started (at SIGTERM).
+    /// Stops what this gimbal-onvif started (at SIGTERM): a continuous move,
+    /// or a positioning move still under way.
     pub async fn shutdown(&self) {
-        if self.moving() {
+        if self.moving() || self.status().changing {
             if let Err(e) = self.stop(true).await {
                 warn!(gimbal = %self.config.name, error = %e, "stop at shutdown failed");
             }

@@ -127,7 +127,7 @@ impl Device {
         require(&user, needed, &op.name)?;
         let body = match op.ns.as_str() {
             NS_DEVICE => self.device(op, host).await?,
-            NS_MEDIA => self.media(op, host)?,
+            NS_MEDIA => self.media(op)?,
             _ => self.ptz(op, now).await?,
         };
         Ok(soap::envelope(&body))
@@ -295,7 +295,7 @@ impl Device {
         )
     }
 
-    fn media(&self, op: &Element, host: &str) -> Result<String, Fault> {
+    fn media(&self, op: &Element) -> Result<String, Fault> {
         let g = &self.gimbal.config;
         let profile = || {
             format!(
@@ -346,10 +346,7 @@ impl Device {
                 };
                 format!("<trt:GetVideoSourcesResponse>{sources}</trt:GetVideoSourcesResponse>")
             }
-            _ => {
-                let _ = host;
-                return Err(not_supported(&op.name));
-            }
+            other => return Err(not_supported(other)),
         })
     }
 
@@ -651,6 +648,88 @@ pub fn scope_text(name: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use base64::Engine;
+    use proptest::prelude::*;
+
+    /// A device whose gcud is a closed port on loopback: every gimbal
+    /// command fails at once, as when gcud is down.
+    fn device() -> Device {
+        let text = r#"
+gcud = "127.0.0.1:9"
+[discovery]
+enabled = false
+[[user]]
+name = "admin"
+password = "pw"
+role = "administrator"
+[[gimbal]]
+name = "g"
+address = "5.1.1"
+listen = "127.0.0.1:0"
+"#;
+        let config = crate::config::parse(std::path::Path::new("t.toml"), text).unwrap();
+        Device {
+            gimbal: Gimbal::new(config.gimbals[0].clone(), &config),
+            auth: Arc::new(Authenticator::new(config.users.clone())),
+            presets: Arc::new(Presets::load(None).unwrap()),
+        }
+    }
+
+    /// An envelope signed for `admin` around `body`, with a fresh nonce.
+    fn signed(body: &str, nonce: u64) -> String {
+        let created = utc(OffsetDateTime::now_utc());
+        let mut h = Sha1::new();
+        h.update(nonce.to_be_bytes());
+        h.update(created.as_bytes());
+        h.update(b"pw");
+        let b64 = base64::engine::general_purpose::STANDARD;
+        format!(
+            r#"<s:Envelope xmlns:s="{}"><s:Header><Security><UsernameToken><Username>admin</Username><Password Type="x#PasswordDigest">{}</Password><Nonce>{}</Nonce><Created>{created}</Created></UsernameToken></Security></s:Header><s:Body>{body}</s:Body></s:Envelope>"#,
+            soap::NS_SOAP,
+            b64.encode(h.finalize()),
+            b64.encode(nonce.to_be_bytes())
+        )
+    }
+
+    fn runtime() -> tokio::runtime::Runtime {
+        tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap()
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+
+        /// Any bytes: a fault, never a panic.
+        #[test]
+        fn any_body_is_answered_without_panicking(body in proptest::collection::vec(any::<u8>(), 0..1024)) {
+            let d = device();
+            prop_assert!(runtime().block_on(d.handle(&body, "h:1")).is_err());
+        }
+
+        /// Any operation of the three services, with any arguments, signed:
+        /// a response or a fault, never a panic.
+        #[test]
+        fn any_signed_operation_is_answered_without_panicking(
+            service in prop::sample::select(vec![NS_DEVICE, NS_MEDIA, NS_PTZ]),
+            op in prop::sample::select(vec![
+                "GetStatus", "ContinuousMove", "AbsoluteMove", "RelativeMove", "Stop", "SetPreset",
+                "GotoPreset", "RemovePreset", "GetProfile", "GetStreamUri", "GetNode",
+                "GetConfigurationOptions", "GetDeviceInformation", "SetHomePosition", "Reboot",
+            ]),
+            token in prop::sample::select(vec!["profile1", "ptznode1", "ptzconfig1", "0", "300", "", "x"]),
+            x in "[-+0-9.eEn]{0,8}",
+            timeout in "P?T?[0-9.]{0,6}[SMHD]?",
+            nonce in any::<u64>(),
+        ) {
+            let body = format!(
+                r#"<{op} xmlns="{service}"><ProfileToken>{token}</ProfileToken><NodeToken>{token}</NodeToken><ConfigurationToken>{token}</ConfigurationToken><PresetToken>{token}</PresetToken><Velocity><PanTilt x="{x}" y="{x}"/></Velocity><Position><PanTilt x="{x}" y="0"/></Position><Translation><PanTilt x="{x}"/></Translation><Timeout>{timeout}</Timeout></{op}>"#
+            );
+            let d = device();
+            let _ = runtime().block_on(d.handle(signed(&body, nonce).as_bytes(), "h:1"));
+        }
+    }
 
     #[test]
     fn durations() {
