@@ -14,6 +14,9 @@ use tracing::{info, warn};
 
 use crate::config;
 
+/// The longest a connection to gcud may take to open.
+pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
+
 /// How often a gimbal that did not answer its last poll is asked again.
 pub const UNREACHABLE_POLL: Duration = Duration::from_secs(5);
 
@@ -94,10 +97,13 @@ impl Gimbal {
         let mut guard = self.connection.lock().await;
         if guard.is_none() {
             let nic_window = self.nic_window.as_millis() as u64;
+            let connect = GcudClient::connect(&self.gcud, self.from, |p| p.nic_window = nic_window);
+            let unreachable = |e: String| CommandError::Io(format!("gcud at {} cannot be reached: {e}", self.gcud));
             *guard = Some(
-                GcudClient::connect(&self.gcud, self.from, |p| p.nic_window = nic_window)
+                tokio::time::timeout(CONNECT_TIMEOUT, connect)
                     .await
-                    .map_err(|e| CommandError::Io(format!("gcud at {} cannot be reached: {e}", self.gcud)))?,
+                    .map_err(|_| unreachable(format!("no connection within {} s", CONNECT_TIMEOUT.as_secs())))?
+                    .map_err(|e| unreachable(e.to_string()))?,
             );
         }
         let client = guard.as_mut().expect("connected above");

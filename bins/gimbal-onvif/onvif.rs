@@ -36,6 +36,21 @@ pub struct Device {
     pub presets: Arc<Presets>,
 }
 
+/// The PTZ spaces of a node and of its configuration options (ONVIF PTZ
+/// 5.7, generic spaces only): pan/tilt position, translation and velocity
+/// over [-1, 1], speed over [0, 1].
+fn spaces() -> String {
+    let x = "<tt:XRange><tt:Min>-1</tt:Min><tt:Max>1</tt:Max></tt:XRange>";
+    let xy = format!("{x}<tt:YRange><tt:Min>-1</tt:Min><tt:Max>1</tt:Max></tt:YRange>");
+    format!(
+        "<tt:AbsolutePanTiltPositionSpace><tt:URI>{POSITION_SPACE}</tt:URI>{xy}</tt:AbsolutePanTiltPositionSpace>\
+         <tt:RelativePanTiltTranslationSpace><tt:URI>{TRANSLATION_SPACE}</tt:URI>{xy}</tt:RelativePanTiltTranslationSpace>\
+         <tt:ContinuousPanTiltVelocitySpace><tt:URI>{VELOCITY_SPACE}</tt:URI>{xy}</tt:ContinuousPanTiltVelocitySpace>\
+         <tt:PanTiltSpeedSpace><tt:URI>{SPEED_SPACE}</tt:URI><tt:XRange><tt:Min>0</tt:Min><tt:Max>1</tt:Max></tt:XRange>\
+         </tt:PanTiltSpeedSpace>"
+    )
+}
+
 /// A failure of the gimbal as a fault naming the reason (never a success).
 fn gimbal_fault(e: CommandError) -> Fault {
     let sub = match e {
@@ -351,17 +366,12 @@ impl Device {
     }
 
     fn node(&self) -> String {
-        let range = "<tt:XRange><tt:Min>-1</tt:Min><tt:Max>1</tt:Max></tt:XRange>";
-        let range2 = format!("{range}<tt:YRange><tt:Min>-1</tt:Min><tt:Max>1</tt:Max></tt:YRange>");
         format!(
-            "token=\"{NODE}\" FixedHomePosition=\"true\"><tt:Name>{}</tt:Name><tt:SupportedPTZSpaces>\
-             <tt:AbsolutePanTiltPositionSpace><tt:URI>{POSITION_SPACE}</tt:URI>{range2}</tt:AbsolutePanTiltPositionSpace>\
-             <tt:RelativePanTiltTranslationSpace><tt:URI>{TRANSLATION_SPACE}</tt:URI>{range2}</tt:RelativePanTiltTranslationSpace>\
-             <tt:ContinuousPanTiltVelocitySpace><tt:URI>{VELOCITY_SPACE}</tt:URI>{range2}</tt:ContinuousPanTiltVelocitySpace>\
-             <tt:PanTiltSpeedSpace><tt:URI>{SPEED_SPACE}</tt:URI><tt:XRange><tt:Min>0</tt:Min><tt:Max>1</tt:Max></tt:XRange>\
-             </tt:PanTiltSpeedSpace></tt:SupportedPTZSpaces><tt:MaximumNumberOfPresets>256</tt:MaximumNumberOfPresets>\
+            "token=\"{NODE}\" FixedHomePosition=\"true\"><tt:Name>{}</tt:Name>\
+             <tt:SupportedPTZSpaces>{}</tt:SupportedPTZSpaces><tt:MaximumNumberOfPresets>256</tt:MaximumNumberOfPresets>\
              <tt:HomeSupported>true</tt:HomeSupported>",
-            esc(&self.gimbal.config.name)
+            esc(&self.gimbal.config.name),
+            spaces()
         )
     }
 
@@ -405,14 +415,11 @@ impl Device {
                         self.ptz_configuration("tptz:PTZConfiguration")
                     )
                 } else {
-                    let node = self.node();
-                    let spaces = &node[node.find("<tt:SupportedPTZSpaces>").unwrap_or(0)
-                        ..node.find("<tt:MaximumNumberOfPresets>").unwrap_or(node.len())];
-                    let spaces = spaces.replace("SupportedPTZSpaces", "Spaces");
                     format!(
-                        "<tptz:GetConfigurationOptionsResponse><tptz:PTZConfigurationOptions>{spaces}\
+                        "<tptz:GetConfigurationOptionsResponse><tptz:PTZConfigurationOptions><tt:Spaces>{}</tt:Spaces>\
                          <tt:PTZTimeout><tt:Min>PT0.1S</tt:Min><tt:Max>PT{}S</tt:Max></tt:PTZTimeout>\
                          </tptz:PTZConfigurationOptions></tptz:GetConfigurationOptionsResponse>",
+                        spaces(),
                         g.max_move().as_secs_f64()
                     )
                 }
