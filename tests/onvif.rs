@@ -277,6 +277,15 @@ fn device_information_carries_the_gimbals_serial_and_profiles_the_stream_uri() {
     assert_eq!(profiles[0]["encoding"], "H264");
     assert_eq!(info["stream_uri"]["ok"], "rtsp://127.0.0.1:8554/mast-1");
     assert_eq!(info["hostname"], "mast-1");
+    // The device's clock, which clients compare with theirs before signing.
+    let now = time::OffsetDateTime::now_utc();
+    assert_eq!(info["utc"]["year"], now.year(), "{info}");
+    assert!(
+        info["utc"]["hour"].as_u64().is_some(),
+        "GetSystemDateAndTime without its Time: {info}"
+    );
+    assert_eq!(info["snapshot"], false);
+    assert_eq!(info["eflip"], false);
     assert!(info["scopes"].to_string().contains("type/ptz"), "{info}");
     assert_eq!(info["presets_max"], 256);
 }

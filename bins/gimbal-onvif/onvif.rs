@@ -152,15 +152,15 @@ impl Device {
         format!(
             "<tds:GetSystemDateAndTimeResponse><tds:SystemDateAndTime><tt:DateTimeType>NTP</tt:DateTimeType>\
              <tt:DaylightSavings>false</tt:DaylightSavings><tt:TimeZone><tt:TZ>UTC0</tt:TZ></tt:TimeZone>\
-             <tt:UTCDateTime><tt:Date><tt:Year>{}</tt:Year><tt:Month>{}</tt:Month><tt:Day>{}</tt:Day></tt:Date>\
-             <tt:Time><tt:Hour>{}</tt:Hour><tt:Minute>{}</tt:Minute><tt:Second>{}</tt:Second></tt:Time></tt:UTCDateTime>\
+             <tt:UTCDateTime><tt:Time><tt:Hour>{}</tt:Hour><tt:Minute>{}</tt:Minute><tt:Second>{}</tt:Second></tt:Time>\
+             <tt:Date><tt:Year>{}</tt:Year><tt:Month>{}</tt:Month><tt:Day>{}</tt:Day></tt:Date></tt:UTCDateTime>\
              </tds:SystemDateAndTime></tds:GetSystemDateAndTimeResponse>",
-            now.year(),
-            u8::from(now.month()),
-            now.day(),
             now.hour(),
             now.minute(),
-            now.second()
+            now.second(),
+            now.year(),
+            u8::from(now.month()),
+            now.day()
         )
     }
 
@@ -179,6 +179,12 @@ impl Device {
         let g = &self.gimbal.config;
         let url = |service: &str| format!("http://{host}/onvif/{service}");
         Ok(match op.name.as_str() {
+            "GetServiceCapabilities" => "<tds:GetServiceCapabilitiesResponse><tds:Capabilities>\
+                 <tds:Network IPFilter=\"false\" ZeroConfiguration=\"false\" IPVersion6=\"false\" DynDNS=\"false\"/>\
+                 <tds:Security UsernameToken=\"true\" HttpDigest=\"false\"/>\
+                 <tds:System DiscoveryResolve=\"false\" DiscoveryBye=\"true\" RemoteDiscovery=\"false\" SystemBackup=\"false\" \
+                 SystemLogging=\"false\" FirmwareUpgrade=\"false\"/></tds:Capabilities></tds:GetServiceCapabilitiesResponse>"
+                .to_owned(),
             "GetDeviceInformation" => {
                 let id = self.gimbal.identity().await.map_err(gimbal_fault)?;
                 let revision = id.revision.chars().map(String::from).collect::<Vec<_>>().join(".");
@@ -321,6 +327,11 @@ impl Device {
             )
         };
         Ok(match op.name.as_str() {
+            "GetServiceCapabilities" => "<trt:GetServiceCapabilitiesResponse><trt:Capabilities SnapshotUri=\"false\" \
+                 Rotation=\"false\"><trt:ProfileCapabilities MaximumNumberOfProfiles=\"1\"/><trt:StreamingCapabilities \
+                 RTPMulticast=\"false\" RTP_TCP=\"true\" RTP_RTSP_TCP=\"true\"/></trt:Capabilities>\
+                 </trt:GetServiceCapabilitiesResponse>"
+                .to_owned(),
             "GetProfiles" => format!(
                 "<trt:GetProfilesResponse><trt:Profiles {}</trt:Profiles></trt:GetProfilesResponse>",
                 profile()
@@ -379,6 +390,10 @@ impl Device {
         let g = &self.gimbal;
         let name = &g.config.name;
         Ok(match op.name.as_str() {
+            "GetServiceCapabilities" => "<tptz:GetServiceCapabilitiesResponse><tptz:Capabilities EFlip=\"false\" \
+                 Reverse=\"false\" GetCompatibleConfigurations=\"false\" MoveStatus=\"true\" StatusPosition=\"true\"/>\
+                 </tptz:GetServiceCapabilitiesResponse>"
+                .to_owned(),
             "GetNodes" => format!(
                 "<tptz:GetNodesResponse><tptz:PTZNode {}</tptz:PTZNode></tptz:GetNodesResponse>",
                 self.node()

@@ -108,6 +108,9 @@ async def step(name, host, port, user, password, args):
             }))
             if "ok" in uri:
                 uri = {"ok": uri["ok"].Uri}
+            clock = (await dev.GetSystemDateAndTime()).UTCDateTime
+            media_caps = await media.GetServiceCapabilities()
+            ptz_caps = await ptz.GetServiceCapabilities()
             hostname = await dev.GetHostname()
             scopes = await dev.GetScopes()
             nics = await dev.GetNetworkInterfaces()
@@ -123,6 +126,9 @@ async def step(name, host, port, user, password, args):
                 } for p in profiles],
                 "stream_uri": uri,
                 "hostname": hostname.Name,
+                "utc": {"year": clock.Date.Year, "hour": None if clock.Time is None else clock.Time.Hour},
+                "snapshot": media_caps.SnapshotUri,
+                "eflip": ptz_caps.EFlip,
                 "scopes": [str(s.ScopeItem) for s in scopes],
                 "mac": nics[0].Info.HwAddress,
                 "nodes": [n.token for n in nodes],
