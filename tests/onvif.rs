@@ -256,6 +256,19 @@ fn a_unicast_probe_finds_one_device_per_gimbal_with_its_address() {
         );
     }
     assert_ne!(matches[0]["epr"], matches[1]["epr"], "each gimbal has its own endpoint");
+    // A probe for one name's scope: only that gimbal answers.
+    let scoped = stack.client(
+        "discover",
+        stack.discovery,
+        ("-", "-"),
+        json!({ "expect": 2, "wait_s": 1.5, "scopes": ["onvif://www.onvif.org/name/absent"] }),
+    );
+    let matches = scoped["matches"].as_array().expect("matches");
+    assert_eq!(matches.len(), 1, "{scoped}");
+    assert_eq!(
+        matches[0]["xaddrs"],
+        json!([format!("http://127.0.0.1:{}/onvif/device_service", stack.absent)])
+    );
 }
 
 #[test]

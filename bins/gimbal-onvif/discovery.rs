@@ -12,7 +12,7 @@ use tokio::net::UdpSocket;
 use tracing::{debug, warn};
 
 use crate::config;
-use crate::onvif::scope_text;
+use crate::onvif::scopes;
 use crate::soap::{self, esc};
 
 pub const MULTICAST: Ipv4Addr = Ipv4Addr::new(239, 255, 255, 250);
@@ -98,11 +98,10 @@ impl Discovery {
         let host = SocketAddr::new(ip, g.listen.port());
         format!(
             "<a:EndpointReference><a:Address>{}</a:Address></a:EndpointReference><d:Types>{TYPES}</d:Types>\
-             <d:Scopes>onvif://www.onvif.org/type/ptz onvif://www.onvif.org/Profile/Streaming \
-             onvif://www.onvif.org/name/{} onvif://www.onvif.org/hardware/Sagebrush-gimbal</d:Scopes>\
-             <d:XAddrs>http://{host}/onvif/device_service</d:XAddrs><d:MetadataVersion>1</d:MetadataVersion>",
+             <d:Scopes>{}</d:Scopes><d:XAddrs>http://{host}/onvif/device_service</d:XAddrs>\
+             <d:MetadataVersion>1</d:MetadataVersion>",
             urn(&format!("gimbal-onvif {}", g.name)),
-            esc(&scope_text(&g.name))
+            esc(&scopes(g).join(" "))
         )
     }
 
@@ -129,16 +128,16 @@ impl Discovery {
                     continue;
                 }
             };
-            let Some(probe_id) = probe(&buf[..len]) else {
+            let Some(probe) = probe(&buf[..len]) else {
                 debug!(%peer, "WS-Discovery datagram that is no Probe we match: ignored");
                 continue;
             };
-            for g in &self.gimbals {
+            for g in self.gimbals.iter().filter(|g| in_scopes(&probe.scopes, &scopes(g))) {
                 let body = format!(
                     "<d:ProbeMatches><d:ProbeMatch>{}</d:ProbeMatch></d:ProbeMatches>",
                     self.description(g, self.ip_for(g, peer))
                 );
-                let reply = self.message("ProbeMatches", Some(&probe_id), &body);
+                let reply = self.message("ProbeMatches", Some(&probe.id), &body);
                 if let Err(e) = self.socket.send_to(reply.as_bytes(), peer).await {
                     warn!(%peer, error = %e, "cannot answer a Probe");
                 }
@@ -177,19 +176,43 @@ impl Discovery {
     }
 }
 
-/// The MessageID of a Probe we match: no Types, or one of ours
-/// (NetworkVideoTransmitter, Device), compared by local name.
-fn probe(datagram: &[u8]) -> Option<String> {
+/// A Probe we may answer: its MessageID and the scopes it asks for.
+#[derive(Debug, PartialEq)]
+struct Probe {
+    id: String,
+    scopes: Vec<String>,
+}
+
+/// Whether a device with scopes `ours` answers a probe for `wanted`: each
+/// wanted scope is one of ours or a leading run of its path segments
+/// (WS-Discovery 5.1, RFC 3986 matching, the default).
+fn in_scopes(wanted: &[String], ours: &[String]) -> bool {
+    wanted.iter().all(|w| {
+        let w = w.trim_end_matches('/');
+        ours.iter()
+            .any(|o| o.eq_ignore_ascii_case(w) || o.strip_prefix(w).is_some_and(|rest| rest.starts_with('/')))
+    })
+}
+
+/// A Probe we match: no Types, or one of ours (NetworkVideoTransmitter,
+/// Device), compared by local name.
+fn probe(datagram: &[u8]) -> Option<Probe> {
     let root = soap::parse(datagram).ok()?;
     let probe = root.path(&["Body", "Probe"]).filter(|p| p.ns == NS_DISCOVERY)?;
     let id = root.text_at(&["Header", "MessageID"])?.to_owned();
+    let scopes = probe
+        .text_at(&["Scopes"])
+        .unwrap_or_default()
+        .split_whitespace()
+        .map(str::to_owned)
+        .collect();
     let types = probe.text_at(&["Types"]).unwrap_or_default();
     let ours = ["NetworkVideoTransmitter", "Device"];
     let matches = types.split_whitespace().all(|t| {
         let local = t.rsplit(':').next().unwrap_or(t);
         ours.contains(&local)
     });
-    matches.then_some(id)
+    matches.then_some(Probe { id, scopes })
 }
 
 #[cfg(test)]
@@ -203,7 +226,18 @@ mod tests {
                 r#"<e:Envelope xmlns:e="http://www.w3.org/2003/05/soap-envelope" xmlns:w="{NS_ADDRESSING}" xmlns:d="{NS_DISCOVERY}" xmlns:dn="http://www.onvif.org/ver10/network/wsdl"><e:Header><w:MessageID>urn:uuid:1</w:MessageID></e:Header><e:Body><d:Probe>{types}</d:Probe></e:Body></e:Envelope>"#
             )
         };
-        assert_eq!(probe(p("").as_bytes()).as_deref(), Some("urn:uuid:1"));
+        assert_eq!(probe(p("").as_bytes()).map(|p| p.id).as_deref(), Some("urn:uuid:1"));
+        let scoped = probe(p("<d:Scopes>onvif://www.onvif.org/name/mast-1</d:Scopes>").as_bytes()).unwrap();
+        assert_eq!(scoped.scopes, ["onvif://www.onvif.org/name/mast-1"]);
+        let ours = [
+            "onvif://www.onvif.org/name/mast-1".to_owned(),
+            "onvif://www.onvif.org/type/ptz".to_owned(),
+        ];
+        assert!(in_scopes(&[], &ours));
+        assert!(in_scopes(&scoped.scopes, &ours));
+        assert!(in_scopes(&["onvif://www.onvif.org/type".to_owned()], &ours));
+        assert!(!in_scopes(&["onvif://www.onvif.org/name/mast".to_owned()], &ours));
+        assert!(!in_scopes(&["onvif://www.onvif.org/name/mast-2".to_owned()], &ours));
         assert!(probe(p("<d:Types>dn:NetworkVideoTransmitter</d:Types>").as_bytes()).is_some());
         assert!(probe(p("<d:Types>dn:Printer</d:Types>").as_bytes()).is_none());
         assert!(probe(b"<junk").is_none());

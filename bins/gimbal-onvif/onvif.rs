@@ -229,16 +229,7 @@ impl Device {
                 )
             }
             "GetScopes" => {
-                let mut scopes = vec![
-                    "onvif://www.onvif.org/type/ptz".to_owned(),
-                    "onvif://www.onvif.org/Profile/Streaming".to_owned(),
-                    format!("onvif://www.onvif.org/name/{}", scope_text(&g.name)),
-                    "onvif://www.onvif.org/hardware/Sagebrush-gimbal".to_owned(),
-                ];
-                if g.stream_uri.is_some() {
-                    scopes.push("onvif://www.onvif.org/type/video_encoder".to_owned());
-                }
-                let items: String = scopes
+                let items: String = scopes(g)
                     .iter()
                     .map(|s| {
                         format!(
@@ -654,8 +645,23 @@ pub fn needed_role(operation: &str) -> Role {
     }
 }
 
+/// A gimbal's device scopes (ONVIF Core 7.3.2.2): type, profile, name and
+/// hardware, as GetScopes and WS-Discovery give them.
+pub fn scopes(g: &crate::config::Gimbal) -> Vec<String> {
+    let mut scopes = vec![
+        "onvif://www.onvif.org/type/ptz".to_owned(),
+        "onvif://www.onvif.org/Profile/Streaming".to_owned(),
+        format!("onvif://www.onvif.org/name/{}", scope_text(&g.name)),
+        "onvif://www.onvif.org/hardware/Sagebrush-gimbal".to_owned(),
+    ];
+    if g.stream_uri.is_some() {
+        scopes.push("onvif://www.onvif.org/type/video_encoder".to_owned());
+    }
+    scopes
+}
+
 /// A name as a scope item (no spaces, percent-encoded).
-pub fn scope_text(name: &str) -> String {
+fn scope_text(name: &str) -> String {
     name.bytes()
         .map(|b| {
             if b.is_ascii_alphanumeric() || b"-_.~".contains(&b) {

@@ -191,12 +191,12 @@ async def malformed(host, port, args):
 
 def discover(host, port, args):
     """A unicast Probe built and read by WSDiscovery's message layer."""
-    from wsdiscovery import QName
+    from wsdiscovery import QName, Scope
     from wsdiscovery.actions.probe import constructProbe
     from wsdiscovery.message import createSOAPMessage, parseSOAPMessage
 
     types = [QName("http://www.onvif.org/ver10/network/wsdl", "NetworkVideoTransmitter", "dn")]
-    env = constructProbe(types, [])
+    env = constructProbe(types, [Scope(s) for s in args.get("scopes", [])])
     data = createSOAPMessage(env)
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sock.settimeout(1.0)
