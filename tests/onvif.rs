@@ -429,6 +429,44 @@ fn a_wrong_password_and_the_user_role_are_refused_and_nothing_moves() {
 }
 
 #[test]
+fn http_digest_authentication_works_as_the_alternative_to_ws_security() {
+    if !clients_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let status =
+        "<GetStatus xmlns=\"http://www.onvif.org/ver20/ptz/wsdl\"><ProfileToken>profile1</ProfileToken></GetStatus>";
+    let ok = stack.client("http_digest", stack.mast, VIEWER, json!({ "operation": status }));
+    assert_eq!(ok["status"], 200, "{ok}");
+    assert!(ok["body"].as_str().unwrap().contains("PTZStatus"), "{ok}");
+    let wrong = stack.client(
+        "http_digest",
+        stack.mast,
+        ("viewer", "wrong"),
+        json!({ "operation": status }),
+    );
+    assert_eq!(wrong["status"], 401, "{wrong}");
+    assert!(
+        wrong["challenge"]
+            .as_str()
+            .unwrap()
+            .starts_with("Digest realm=\"gimbal-onvif\""),
+        "{wrong}"
+    );
+    let mv = "<ContinuousMove xmlns=\"http://www.onvif.org/ver20/ptz/wsdl\"><ProfileToken>profile1</ProfileToken><Velocity><PanTilt xmlns=\"http://www.onvif.org/ver10/schema\" x=\"1\" y=\"0\"/></Velocity><Timeout>PT1S</Timeout></ContinuousMove>";
+    let refused = stack.client("http_digest", stack.mast, VIEWER, json!({ "operation": mv }));
+    assert_eq!(refused["status"], 400, "{refused}");
+    assert!(
+        refused["body"].as_str().unwrap().contains("ter:NotAuthorized"),
+        "{refused}"
+    );
+    assert_still(&stack, (0.0, 0.0), "after a refused digest-authenticated move");
+    let moved = stack.client("http_digest", stack.mast, OPERATOR, json!({ "operation": mv }));
+    assert_eq!(moved["status"], 200, "{moved}");
+    stack.wait_moving((0.0, 0.0));
+}
+
+#[test]
 fn malformed_xml_and_bad_arguments_get_faults_and_move_nothing() {
     if !clients_available() {
         return;

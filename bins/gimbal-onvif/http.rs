@@ -45,7 +45,8 @@ async fn soap(State(s): State<Served>, headers: HeaderMap, body: Bytes) -> Respo
         .filter(|h| h.len() <= 255 && h.bytes().all(|b| b.is_ascii_graphic()))
         .unwrap_or(&s.fallback_host)
         .to_owned();
-    let answer = match tokio::time::timeout(REQUEST_TIMEOUT, s.device.handle(&body, &host)).await {
+    let authorization = headers.get(header::AUTHORIZATION).and_then(|h| h.to_str().ok());
+    let answer = match tokio::time::timeout(REQUEST_TIMEOUT, s.device.handle(&body, &host, authorization)).await {
         Ok(answer) => answer,
         Err(_) => Err(Fault::receiver(
             &["ter:Action", "ter:Timeout"],
@@ -57,7 +58,14 @@ async fn soap(State(s): State<Served>, headers: HeaderMap, body: Bytes) -> Respo
         Err(fault) => {
             debug!(gimbal = %s.device.gimbal.config.name, reason = %fault.reason, "fault");
             let status = StatusCode::from_u16(fault.status()).unwrap_or(StatusCode::BAD_REQUEST);
-            (status, [(header::CONTENT_TYPE, SOAP)], fault.envelope()).into_response()
+            let mut response = (status, [(header::CONTENT_TYPE, SOAP)], fault.envelope()).into_response();
+            if fault.unauthenticated {
+                let challenge = s.device.auth.challenge(time::OffsetDateTime::now_utc());
+                if let Ok(value) = header::HeaderValue::from_str(&challenge) {
+                    response.headers_mut().insert(header::WWW_AUTHENTICATE, value);
+                }
+            }
+            response
         }
     }
 }

@@ -118,7 +118,8 @@ fn utc(now: OffsetDateTime) -> String {
 impl Device {
     /// Answers one request body: the response envelope, or a fault with
     /// its HTTP status.
-    pub async fn handle(&self, body: &[u8], host: &str) -> Result<String, Fault> {
+    /// `authorization` is the HTTP Authorization header (Digest), if any.
+    pub async fn handle(&self, body: &[u8], host: &str, authorization: Option<&str>) -> Result<String, Fault> {
         let request = soap::request(body).map_err(|reason| {
             Fault::sender(
                 &["ter:WellFormed"],
@@ -137,7 +138,9 @@ impl Device {
                 format!("{{{}}}{} is not an operation of this device", op.ns, op.name),
             ));
         }
-        let user = self.auth.check(request.header.as_ref(), now)?;
+        let user = self
+            .auth
+            .authenticate(request.header.as_ref(), authorization, "POST", now)?;
         let needed = needed_role(&op.name);
         require(&user, needed, &op.name)?;
         let body = match op.ns.as_str() {
@@ -181,7 +184,7 @@ impl Device {
         Ok(match op.name.as_str() {
             "GetServiceCapabilities" => "<tds:GetServiceCapabilitiesResponse><tds:Capabilities>\
                  <tds:Network IPFilter=\"false\" ZeroConfiguration=\"false\" IPVersion6=\"false\" DynDNS=\"false\"/>\
-                 <tds:Security UsernameToken=\"true\" HttpDigest=\"false\"/>\
+                 <tds:Security UsernameToken=\"true\" HttpDigest=\"true\"/>\
                  <tds:System DiscoveryResolve=\"false\" DiscoveryBye=\"true\" RemoteDiscovery=\"false\" SystemBackup=\"false\" \
                  SystemLogging=\"false\" FirmwareUpgrade=\"false\"/></tds:Capabilities></tds:GetServiceCapabilitiesResponse>"
                 .to_owned(),
@@ -733,7 +736,7 @@ listen = "127.0.0.1:0"
         #[test]
         fn any_body_is_answered_without_panicking(body in proptest::collection::vec(any::<u8>(), 0..1024)) {
             let d = device();
-            prop_assert!(runtime().block_on(d.handle(&body, "h:1")).is_err());
+            prop_assert!(runtime().block_on(d.handle(&body, "h:1", None)).is_err());
         }
 
         /// Any operation of the three services, with any arguments, signed:
@@ -755,7 +758,7 @@ listen = "127.0.0.1:0"
                 r#"<{op} xmlns="{service}"><ProfileToken>{token}</ProfileToken><NodeToken>{token}</NodeToken><ConfigurationToken>{token}</ConfigurationToken><PresetToken>{token}</PresetToken><Velocity><PanTilt x="{x}" y="{x}"/></Velocity><Position><PanTilt x="{x}" y="0"/></Position><Translation><PanTilt x="{x}"/></Translation><Timeout>{timeout}</Timeout></{op}>"#
             );
             let d = device();
-            let _ = runtime().block_on(d.handle(signed(&body, nonce).as_bytes(), "h:1"));
+            let _ = runtime().block_on(d.handle(signed(&body, nonce).as_bytes(), "h:1", None));
         }
     }
 

@@ -196,6 +196,9 @@ pub struct Fault {
     pub sender: bool,
     pub subcodes: Vec<&'static str>,
     pub reason: String,
+    /// No valid credentials came: HTTP 401 with a Digest challenge, so
+    /// that a client using HTTP Digest authentication knows to answer it.
+    pub unauthenticated: bool,
 }
 
 impl Fault {
@@ -204,6 +207,7 @@ impl Fault {
             sender: true,
             subcodes: subcodes.to_vec(),
             reason: reason.into(),
+            unauthenticated: false,
         }
     }
 
@@ -212,6 +216,7 @@ impl Fault {
             sender: false,
             subcodes: subcodes.to_vec(),
             reason: reason.into(),
+            unauthenticated: false,
         }
     }
 
@@ -220,9 +225,14 @@ impl Fault {
         Self::sender(&["ter:InvalidArgVal", detail], reason)
     }
 
-    /// The HTTP status: 400 for the sender's faults, 500 for the device's.
+    /// The HTTP status: 401 without valid credentials, 400 for the
+    /// sender's other faults, 500 for the device's.
     pub fn status(&self) -> u16 {
-        if self.sender { 400 } else { 500 }
+        match (self.unauthenticated, self.sender) {
+            (true, _) => 401,
+            (false, true) => 400,
+            (false, false) => 500,
+        }
     }
 
     /// The fault envelope.

@@ -87,6 +87,8 @@ async def step(name, host, port, user, password, args):
         return discover(host, port, args)
     if name == "malformed":
         return await malformed(host, port, args)
+    if name == "http_digest":
+        return await http_digest(host, port, user, password, args)
     if name == "login":
         return await attempt(login(host, port, user, password))
     cam = await camera(host, port, user, password)
@@ -187,6 +189,17 @@ async def malformed(host, port, args):
         r = await http.post(f"http://{host}:{port}/onvif/ptz_service", content=args["body"].encode(),
                             headers={"Content-Type": "application/soap+xml"})
     return {"status": r.status_code, "body": r.text}
+
+
+async def http_digest(host, port, user, password, args):
+    """A SOAP request with HTTP Digest authentication (httpx.DigestAuth) and no WS-Security."""
+    import httpx
+    body = ('<?xml version="1.0"?><s:Envelope xmlns:s="http://www.w3.org/2003/05/soap-envelope"><s:Body>'
+            + args["operation"] + '</s:Body></s:Envelope>')
+    async with httpx.AsyncClient(timeout=30, auth=httpx.DigestAuth(user, password)) as http:
+        r = await http.post(f"http://{host}:{port}/onvif/ptz_service", content=body.encode(),
+                            headers={"Content-Type": "application/soap+xml"})
+    return {"status": r.status_code, "body": r.text, "challenge": r.headers.get("www-authenticate")}
 
 
 def discover(host, port, args):
