@@ -79,6 +79,7 @@ name = "mast-1"
 address = "{MAST}"
 listen = "127.0.0.1:0"
 stream_uri = "rtsp://127.0.0.1:8554/mast-1"
+zoom = true
 [[gimbal]]
 name = "absent"
 address = "5.2.9"
@@ -184,6 +185,13 @@ impl Stack {
     /// The mast gimbal's position read on the bus side (gimbalctl via gcud).
     fn bus_position(&self) -> (f64, f64) {
         self.gcud.position(MAST)
+    }
+
+    /// The mast gimbal's lens zoom read on the bus side (`gimbalctl lens`).
+    fn bus_zoom(&self) -> u64 {
+        let out = self.gcud.ctl(&["--json", "--to", MAST, "lens"]);
+        assert_eq!(out.code, 0, "{out:?}");
+        out.json()["result"]["zoom"].as_u64().expect("zoom")
     }
 
     /// Samples the bus-side position until it moved away from `from`.
@@ -352,6 +360,63 @@ fn absolute_move_arrives_within_half_a_degree_and_get_status_agrees() {
     assert!((y * 90.0 - tilt).abs() <= 0.5, "GetStatus y {y} vs bus tilt {tilt}");
     assert_eq!(status["moving"], "IDLE", "{status}");
     assert!(status["error"].is_null(), "{status}");
+}
+
+#[test]
+fn zoom_moves_the_lens_continuously_with_its_timeout_and_to_a_position() {
+    if !clients_available() {
+        return;
+    }
+    let stack = Stack::start();
+    assert_eq!(stack.bus_zoom(), 0);
+    // Zoom in at lens speed 4 of 9 for 0.5 s; the whole travel takes 2 s at
+    // speed 9, so a move that ignored its Timeout (max_move_ms, 20 s) would
+    // end at 4095.
+    let r = stack.client(
+        "continuous",
+        stack.mast,
+        OPERATOR,
+        json!({ "x": 0.0, "y": 0.0, "zoom": 0.5, "timeout_s": 0.5 }),
+    );
+    assert_eq!(r["ok"], true, "{r}");
+    let mut last = stack.bus_zoom();
+    eventually("the zoom to stop", || {
+        std::thread::sleep(Duration::from_millis(200));
+        let now = stack.bus_zoom();
+        let still = now == last && now > 0;
+        last = now;
+        still
+    });
+    assert!(
+        last > 0 && last < 4095,
+        "zoomed in part of the way, then stopped: {last}"
+    );
+    assert_eq!(stack.bus_position(), (0.0, 0.0), "pan and tilt stayed");
+    // AbsoluteMove of the zoom alone: 0.25 of 0..4095.
+    let r = stack.client(
+        "absolute",
+        stack.mast,
+        OPERATOR,
+        json!({ "x": 0.0, "y": 0.0, "zoom": 0.25 }),
+    );
+    assert_eq!(r["ok"], true, "{r}");
+    eventually("the lens at 1024", || {
+        std::thread::sleep(Duration::from_millis(100));
+        stack.bus_zoom() == 1024
+    });
+    let status = stack.client("status", stack.mast, VIEWER, json!({}));
+    assert!(
+        (status["zoom"].as_f64().expect("zoom") - 0.25).abs() < 0.001,
+        "{status}"
+    );
+    // The gimbal without a lens refuses to zoom, before anything is sent.
+    let r = stack.client(
+        "continuous",
+        stack.absent,
+        OPERATOR,
+        json!({ "x": 0.0, "y": 0.0, "zoom": 0.5, "timeout_s": 0.5 }),
+    );
+    assert_eq!(fault_subcodes(&r), ["InvalidArgVal", "NoZoom"], "{r}");
 }
 
 #[test]
@@ -589,7 +654,7 @@ fn check_names_the_file_line_column_and_key_and_exits_2() {
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(
         err.contains(&format!(
-            "{}:27:11: gimbal[1].address: expected GROUP.PORT.DEVICE",
+            "{}:28:11: gimbal[1].address: expected GROUP.PORT.DEVICE",
             path.display()
         )),
         "{err}"
@@ -621,6 +686,7 @@ fn the_shipped_configuration_documents_every_key_and_passes_check() {
         "stream_uri",
         "pan_deg",
         "tilt_deg",
+        "zoom",
     ] {
         assert!(
             text.lines()

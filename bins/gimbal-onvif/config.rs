@@ -56,6 +56,7 @@ struct GimbalSection {
     stream_uri: Option<Spanned<String>>,
     pan_deg: Option<Spanned<Vec<f64>>>,
     tilt_deg: Option<Spanned<Vec<f64>>>,
+    zoom: Option<Spanned<bool>>,
 }
 
 /// What a user may do (ONVIF Core "User level"): a `User` reads, an
@@ -84,6 +85,8 @@ pub struct Gimbal {
     /// The travel ONVIF's generic space [-1, 1] maps onto, degrees.
     pub pan_deg: (f64, f64),
     pub tilt_deg: (f64, f64),
+    /// The gimbal has a lens: zoom through `ZI`/`ZO`/`ZS`, `Zn`, `V`, `V?`.
+    pub zoom: bool,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -253,6 +256,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             stream_uri,
             pan_deg,
             tilt_deg,
+            zoom: g.zoom.as_ref().is_some_and(|z| *z.get_ref()),
         });
     }
     if gimbals.is_empty() {

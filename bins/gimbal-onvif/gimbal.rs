@@ -8,7 +8,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use sagebrush_client::{CommandError, GcudClient};
-use sagebrush_protocol::{Angle, Axis, Command, Position, Reply, Speed};
+use sagebrush_protocol::{Angle, Axis, Command, LensPosition, LensSpeed, Position, Reply, Speed, U12};
 use tokio::time::Instant;
 use tracing::{info, warn};
 
@@ -27,6 +27,8 @@ pub struct Status {
     pub position: Option<Position>,
     /// Why the last poll failed, when it did.
     pub error: Option<String>,
+    /// The last `V?` answer (gimbals with `zoom`).
+    pub lens: Option<LensPosition>,
     /// The position changed between the last two polls.
     pub changing: bool,
 }
@@ -46,6 +48,7 @@ struct Motion {
     generation: u64,
     pan: bool,
     tilt: bool,
+    zoom: bool,
 }
 
 #[derive(Debug)]
@@ -67,6 +70,15 @@ pub fn speed_of(velocity: f64) -> Speed {
     let n = (velocity.abs() * 16.0).ceil().clamp(1.0, 16.0) as u8 - 1;
     Speed::new(n).unwrap_or(Speed::new(15).expect("in range"))
 }
+
+/// Lens speed (Table 16, 0..=9) for a generic zoom velocity 0 < |v| <= 1.
+pub fn lens_speed_of(velocity: f64) -> LensSpeed {
+    let n = (velocity.abs() * 10.0).ceil().clamp(1.0, 10.0) as u8 - 1;
+    LensSpeed::new(n).unwrap_or(LensSpeed::new(9).expect("in range"))
+}
+
+/// The lens's zoom range (Table 17, 12 bits) as ONVIF's generic 0..=1.
+pub const ZOOM_MAX: f64 = 4095.0;
 
 /// Generic position (-1..=1 over `travel`) to degrees, and back.
 pub fn to_degrees(x: f64, travel: (f64, f64)) -> f64 {
@@ -134,6 +146,39 @@ impl Gimbal {
         sagebrush_client::client::expect_position(&Command::QueryPosition, &payload)
     }
 
+    /// `V?`: the lens's zoom and focus (Table 17).
+    pub async fn lens(&self) -> Result<LensPosition, CommandError> {
+        let payload = self.query(&Command::QueryLens).await?;
+        match Reply::parse(&Command::QueryLens, &payload) {
+            Ok(Reply::Lens(l)) => Ok(l),
+            _ => Err(CommandError::BadReply(format!(
+                "V? result {:?} is not a Table 17 lens position",
+                String::from_utf8_lossy(&payload)
+            ))),
+        }
+    }
+
+    /// `V`: the lens to zoom `x` (0..=1 of its range), focus where it is.
+    pub async fn zoom_to(&self, x: f64) -> Result<(), CommandError> {
+        let focus = self.lens().await?.focus;
+        let zoom =
+            U12::new((x.clamp(0.0, 1.0) * ZOOM_MAX).round() as u16).map_err(|e| CommandError::Usage(e.to_string()))?;
+        self.send(&Command::LensGoTo(LensPosition { zoom, focus }))
+            .await
+            .map(drop)
+    }
+
+    /// What the poller reads: the position, and the lens when there is one.
+    async fn reading(&self) -> Result<(Position, Option<LensPosition>), CommandError> {
+        let position = self.position().await?;
+        let lens = if self.config.zoom {
+            Some(self.lens().await?)
+        } else {
+            None
+        };
+        Ok((position, lens))
+    }
+
     /// `D?`.
     pub async fn identity(&self) -> Result<Identity, CommandError> {
         let payload = self.query(&Command::Identify).await?;
@@ -157,7 +202,7 @@ impl Gimbal {
     /// Whether a continuous motion is in progress.
     pub fn moving(&self) -> bool {
         let m = *self.motion.lock().unwrap_or_else(|p| p.into_inner());
-        m.pan || m.tilt
+        m.pan || m.tilt || m.zoom
     }
 
     /// Polls `P?` every `every` until the task is dropped; a gimbal that
@@ -165,14 +210,15 @@ impl Gimbal {
     /// each unanswered poll holds its bus for all of gcud's retries.
     pub async fn poll(self: Arc<Self>, every: Duration) {
         loop {
-            let reading = self.position().await;
+            let reading = self.reading().await;
             let failed = reading.is_err();
             {
                 let mut s = self.status.lock().unwrap_or_else(|p| p.into_inner());
                 match reading {
-                    Ok(p) => {
-                        s.changing = s.position.is_some_and(|old| old != p);
+                    Ok((p, lens)) => {
+                        s.changing = s.position.is_some_and(|old| old != p) || (s.lens.is_some() && s.lens != lens);
                         s.position = Some(p);
+                        s.lens = lens;
                         s.error = None;
                     }
                     Err(e) => {
@@ -217,68 +263,87 @@ impl Gimbal {
         let old = *m;
         *m = Motion {
             generation: old.generation + 1,
-            pan: false,
-            tilt: false,
+            ..Motion::default()
         };
         old
     }
 
     /// ContinuousMove: each axis with `Some(v)` starts at proportional speed
-    /// |v| toward v's sign (`SPn`+`PR`/`PL`, `STn`+`TU`/`TD`), or stops when v
-    /// is 0; both are stopped after `timeout` (at most the configured
-    /// maximum), unless another move or a stop came first.
+    /// |v| toward v's sign (`SPn`+`PR`/`PL`, `STn`+`TU`/`TD`; the zoom at lens
+    /// speed `Zn`+`ZI`/`ZO`), or stops when v is 0; all are stopped after
+    /// `timeout` (at most the configured maximum), unless another move or a
+    /// stop came first.
     pub async fn continuous(
         self: &Arc<Self>,
         pan: Option<f64>,
         tilt: Option<f64>,
+        zoom: Option<f64>,
         timeout: Option<Duration>,
     ) -> Result<(), CommandError> {
         let generation = self.end_motion().generation + 1;
         // end_motion made `generation` current; a stop or another move while
         // this one starts makes it stale.
-        let axes = [
-            (pan, Axis::Pan, Command::PanRight, Command::PanLeft, Command::PanStop),
-            (tilt, Axis::Tilt, Command::TiltUp, Command::TiltDown, Command::TiltStop),
+        type Speed = fn(f64) -> Command<'static>;
+        let axes: [(Option<f64>, Speed, Command<'static>, Command<'static>, Command<'static>); 3] = [
+            (
+                pan,
+                |v| Command::SetSpeed(Axis::Pan, speed_of(v)),
+                Command::PanRight,
+                Command::PanLeft,
+                Command::PanStop,
+            ),
+            (
+                tilt,
+                |v| Command::SetSpeed(Axis::Tilt, speed_of(v)),
+                Command::TiltUp,
+                Command::TiltDown,
+                Command::TiltStop,
+            ),
+            (
+                zoom,
+                |v| Command::ZoomSpeed(lens_speed_of(v)),
+                Command::ZoomIn,
+                Command::ZoomOut,
+                Command::ZoomStop,
+            ),
         ];
-        let mut moving = (false, false);
-        for (v, axis, positive, negative, stop) in axes {
+        let mut moving = Motion {
+            generation,
+            ..Motion::default()
+        };
+        for (i, (v, speed, positive, negative, stop)) in axes.into_iter().enumerate() {
             let Some(v) = v else { continue };
             let sent = if v == 0.0 {
                 self.send(&stop).await
             } else {
-                match self.send(&Command::SetSpeed(axis, speed_of(v))).await {
+                match self.send(&speed(v)).await {
                     Ok(_) => self.send(if v > 0.0 { &positive } else { &negative }).await,
                     Err(e) => Err(e),
                 }
             };
             if let Err(e) = sent {
                 // Never leave one axis moving with no time-out: the move failed as a whole.
-                if moving.0 || moving.1 {
-                    if let Err(stop) = self.stop(true).await {
-                        warn!(gimbal = %self.config.name, error = %stop, "stop after a failed move failed");
-                    }
+                if let Err(stop) = self.stop_motion(moving).await {
+                    warn!(gimbal = %self.config.name, error = %stop, "stop after a failed move failed");
                 }
                 return Err(e);
             }
-            match axis {
-                Axis::Pan => moving.0 |= v != 0.0,
-                Axis::Tilt => moving.1 |= v != 0.0,
-            }
+            let axis = match i {
+                0 => &mut moving.pan,
+                1 => &mut moving.tilt,
+                _ => &mut moving.zoom,
+            };
+            *axis |= v != 0.0;
         }
         {
             let mut m = self.motion.lock().unwrap_or_else(|p| p.into_inner());
-            if m.generation == generation {
-                // Nothing replaced this move while it started.
-                *m = Motion {
-                    generation,
-                    pan: moving.0,
-                    tilt: moving.1,
-                };
-            } else {
+            if m.generation != generation {
+                // A stop or another move replaced this one while it started.
                 return Ok(());
             }
+            *m = moving;
         }
-        if moving.0 || moving.1 {
+        if moving.pan || moving.tilt || moving.zoom {
             let run = timeout.unwrap_or(self.max_move).min(self.max_move);
             let me = Arc::clone(self);
             tokio::spawn(async move {
@@ -286,7 +351,7 @@ impl Gimbal {
                 let m = *me.motion.lock().unwrap_or_else(|p| p.into_inner());
                 if m.generation == generation {
                     info!(gimbal = %me.config.name, ms = run.as_millis() as u64, "move time-out: stopping");
-                    if let Err(e) = me.stop(true).await {
+                    if let Err(e) = me.stop_motion(m).await {
                         warn!(gimbal = %me.config.name, error = %e, "the stop after a move's time-out failed");
                     }
                 }
@@ -295,17 +360,26 @@ impl Gimbal {
         Ok(())
     }
 
-    /// Stop: the pan/tilt motors (`PS` and `TS`), each confirmed by its
-    /// ACK; a stop that is not confirmed is sent once more, then an error.
-    pub async fn stop(&self, pan_tilt: bool) -> Result<(), CommandError> {
+    /// Stops the axes of `m` that move (pan and tilt together).
+    async fn stop_motion(&self, m: Motion) -> Result<(), CommandError> {
+        self.stop(m.pan || m.tilt, m.zoom).await
+    }
+
+    /// Stop: the pan/tilt motors (`PS` and `TS`) and the zoom (`ZS`), each
+    /// confirmed by its ACK; a stop that is not confirmed is sent once more,
+    /// then an error.
+    pub async fn stop(&self, pan_tilt: bool, zoom: bool) -> Result<(), CommandError> {
         self.end_motion();
-        if !pan_tilt {
-            return Ok(());
-        }
-        for stop in [Command::PanStop, Command::TiltStop] {
-            if let Err(first) = self.send(&stop).await {
+        let pan_tilt_stops = if pan_tilt {
+            &[Command::PanStop, Command::TiltStop][..]
+        } else {
+            &[]
+        };
+        let zoom_stop = if zoom { &[Command::ZoomStop][..] } else { &[] };
+        for stop in pan_tilt_stops.iter().chain(zoom_stop) {
+            if let Err(first) = self.send(stop).await {
                 warn!(gimbal = %self.config.name, error = %first, "stop not confirmed: sending it again");
-                self.send(&stop).await?;
+                self.send(stop).await?;
             }
         }
         Ok(())
@@ -315,7 +389,7 @@ impl Gimbal {
     /// or a positioning move still under way.
     pub async fn shutdown(&self) {
         if self.moving() || self.status().changing {
-            if let Err(e) = self.stop(true).await {
+            if let Err(e) = self.stop(true, self.config.zoom).await {
                 warn!(gimbal = %self.config.name, error = %e, "stop at shutdown failed");
             }
         }
@@ -338,5 +412,7 @@ mod tests {
         assert_eq!(speed_of(1.0).get(), 15);
         assert_eq!(speed_of(-0.01).get(), 0);
         assert_eq!(speed_of(0.5).get(), 7);
+        assert_eq!(lens_speed_of(1.0).get(), 9);
+        assert_eq!(lens_speed_of(0.05).get(), 0);
     }
 }

@@ -14,7 +14,7 @@ use time::format_description::well_known::Rfc3339;
 
 use crate::auth::{Authenticator, require};
 use crate::config::Role;
-use crate::gimbal::{Gimbal, to_degrees, to_generic};
+use crate::gimbal::{Gimbal, ZOOM_MAX, to_degrees, to_generic};
 use crate::presets::{self, Presets};
 use crate::soap::{self, Element, Fault, NS_DEVICE, NS_MEDIA, NS_PTZ, esc};
 
@@ -27,6 +27,9 @@ const POSITION_SPACE: &str = "http://www.onvif.org/ver10/tptz/PanTiltSpaces/Posi
 const TRANSLATION_SPACE: &str = "http://www.onvif.org/ver10/tptz/PanTiltSpaces/TranslationGenericSpace";
 const VELOCITY_SPACE: &str = "http://www.onvif.org/ver10/tptz/PanTiltSpaces/VelocityGenericSpace";
 const SPEED_SPACE: &str = "http://www.onvif.org/ver10/tptz/PanTiltSpaces/GenericSpeedSpace";
+const ZOOM_POSITION_SPACE: &str = "http://www.onvif.org/ver10/tptz/ZoomSpaces/PositionGenericSpace";
+const ZOOM_VELOCITY_SPACE: &str = "http://www.onvif.org/ver10/tptz/ZoomSpaces/VelocityGenericSpace";
+const ZOOM_SPEED_SPACE: &str = "http://www.onvif.org/ver10/tptz/ZoomSpaces/ZoomGenericSpeedSpace";
 
 /// Everything one gimbal's ONVIF device answers with.
 #[derive(Debug, Clone)]
@@ -37,17 +40,28 @@ pub struct Device {
 }
 
 /// The PTZ spaces of a node and of its configuration options (ONVIF PTZ
-/// 5.7, generic spaces only): pan/tilt position, translation and velocity
-/// over [-1, 1], speed over [0, 1].
-fn spaces() -> String {
+/// 5.7, generic spaces only, in the schema's order): pan/tilt position,
+/// translation and velocity over [-1, 1], speed over [0, 1]; with `zoom`,
+/// zoom position and speed over [0, 1] and velocity over [-1, 1].
+fn spaces(zoom: bool) -> String {
     let x = "<tt:XRange><tt:Min>-1</tt:Min><tt:Max>1</tt:Max></tt:XRange>";
+    let unit = "<tt:XRange><tt:Min>0</tt:Min><tt:Max>1</tt:Max></tt:XRange>";
     let xy = format!("{x}<tt:YRange><tt:Min>-1</tt:Min><tt:Max>1</tt:Max></tt:YRange>");
+    let zoomed = |element: &str, uri: &str, range: &str| {
+        if zoom {
+            format!("<tt:{element}><tt:URI>{uri}</tt:URI>{range}</tt:{element}>")
+        } else {
+            String::new()
+        }
+    };
     format!(
-        "<tt:AbsolutePanTiltPositionSpace><tt:URI>{POSITION_SPACE}</tt:URI>{xy}</tt:AbsolutePanTiltPositionSpace>\
+        "<tt:AbsolutePanTiltPositionSpace><tt:URI>{POSITION_SPACE}</tt:URI>{xy}</tt:AbsolutePanTiltPositionSpace>{}\
          <tt:RelativePanTiltTranslationSpace><tt:URI>{TRANSLATION_SPACE}</tt:URI>{xy}</tt:RelativePanTiltTranslationSpace>\
-         <tt:ContinuousPanTiltVelocitySpace><tt:URI>{VELOCITY_SPACE}</tt:URI>{xy}</tt:ContinuousPanTiltVelocitySpace>\
-         <tt:PanTiltSpeedSpace><tt:URI>{SPEED_SPACE}</tt:URI><tt:XRange><tt:Min>0</tt:Min><tt:Max>1</tt:Max></tt:XRange>\
-         </tt:PanTiltSpeedSpace>"
+         <tt:ContinuousPanTiltVelocitySpace><tt:URI>{VELOCITY_SPACE}</tt:URI>{xy}</tt:ContinuousPanTiltVelocitySpace>{}\
+         <tt:PanTiltSpeedSpace><tt:URI>{SPEED_SPACE}</tt:URI>{unit}</tt:PanTiltSpeedSpace>{}",
+        zoomed("AbsoluteZoomPositionSpace", ZOOM_POSITION_SPACE, unit),
+        zoomed("ContinuousZoomVelocitySpace", ZOOM_VELOCITY_SPACE, x),
+        zoomed("ZoomSpeedSpace", ZOOM_SPEED_SPACE, unit),
     )
 }
 
@@ -65,12 +79,17 @@ fn gimbal_fault(e: CommandError) -> Fault {
 
 /// A generic-space coordinate: a number within -1..=1.
 fn generic(e: &Element, attr: &str, what: &str) -> Result<Option<f64>, Fault> {
+    generic_from(e, attr, what, -1.0)
+}
+
+/// A generic-space coordinate within `low..=1`.
+fn generic_from(e: &Element, attr: &str, what: &str, low: f64) -> Result<Option<f64>, Fault> {
     let Some(text) = e.attr(attr) else { return Ok(None) };
     match text.trim().parse::<f64>() {
-        Ok(v) if (-1.0..=1.0).contains(&v) => Ok(Some(v)),
+        Ok(v) if (low..=1.0).contains(&v) => Ok(Some(v)),
         _ => Err(Fault::invalid_arg(
             "ter:InvalidPosition",
-            format!("{what} {attr}={text:?}: expected a number within -1..=1 (generic space)"),
+            format!("{what} {attr}={text:?}: expected a number within {low}..=1 (generic space)"),
         )),
     }
 }
@@ -297,17 +316,37 @@ impl Device {
         format!(
             "<{element} token=\"{PTZ_CONFIG}\"><tt:Name>{}</tt:Name><tt:UseCount>1</tt:UseCount>\
              <tt:NodeToken>{NODE}</tt:NodeToken>\
-             <tt:DefaultAbsolutePantTiltPositionSpace>{POSITION_SPACE}</tt:DefaultAbsolutePantTiltPositionSpace>\
+             <tt:DefaultAbsolutePantTiltPositionSpace>{POSITION_SPACE}</tt:DefaultAbsolutePantTiltPositionSpace>{}\
              <tt:DefaultRelativePanTiltTranslationSpace>{TRANSLATION_SPACE}</tt:DefaultRelativePanTiltTranslationSpace>\
-             <tt:DefaultContinuousPanTiltVelocitySpace>{VELOCITY_SPACE}</tt:DefaultContinuousPanTiltVelocitySpace>\
-             <tt:DefaultPTZSpeed><tt:PanTilt x=\"1\" y=\"1\" space=\"{SPEED_SPACE}\"/></tt:DefaultPTZSpeed>\
+             <tt:DefaultContinuousPanTiltVelocitySpace>{VELOCITY_SPACE}</tt:DefaultContinuousPanTiltVelocitySpace>{}\
+             <tt:DefaultPTZSpeed><tt:PanTilt x=\"1\" y=\"1\" space=\"{SPEED_SPACE}\"/>{}</tt:DefaultPTZSpeed>\
              <tt:DefaultPTZTimeout>PT{}S</tt:DefaultPTZTimeout>\
              <tt:PanTiltLimits><tt:Range><tt:URI>{POSITION_SPACE}</tt:URI><tt:XRange><tt:Min>-1</tt:Min><tt:Max>1</tt:Max>\
-             </tt:XRange><tt:YRange><tt:Min>-1</tt:Min><tt:Max>1</tt:Max></tt:YRange></tt:Range></tt:PanTiltLimits>\
+             </tt:XRange><tt:YRange><tt:Min>-1</tt:Min><tt:Max>1</tt:Max></tt:YRange></tt:Range></tt:PanTiltLimits>{}\
              </{element}>",
             esc(&self.gimbal.config.name),
-            self.gimbal.max_move().as_secs_f64()
+            self.zoomed(&format!(
+                "<tt:DefaultAbsoluteZoomPositionSpace>{ZOOM_POSITION_SPACE}</tt:DefaultAbsoluteZoomPositionSpace>"
+            )),
+            self.zoomed(&format!(
+                "<tt:DefaultContinuousZoomVelocitySpace>{ZOOM_VELOCITY_SPACE}</tt:DefaultContinuousZoomVelocitySpace>"
+            )),
+            self.zoomed(&format!("<tt:Zoom x=\"1\" space=\"{ZOOM_SPEED_SPACE}\"/>")),
+            self.gimbal.max_move().as_secs_f64(),
+            self.zoomed(&format!(
+                "<tt:ZoomLimits><tt:Range><tt:URI>{ZOOM_POSITION_SPACE}</tt:URI><tt:XRange><tt:Min>0</tt:Min>\
+                 <tt:Max>1</tt:Max></tt:XRange></tt:Range></tt:ZoomLimits>"
+            ))
         )
+    }
+
+    /// `xml` for a gimbal with a lens, nothing otherwise.
+    fn zoomed(&self, xml: &str) -> String {
+        if self.gimbal.config.zoom {
+            xml.to_owned()
+        } else {
+            String::new()
+        }
     }
 
     fn media(&self, op: &Element) -> Result<String, Fault> {
@@ -376,7 +415,7 @@ impl Device {
              <tt:SupportedPTZSpaces>{}</tt:SupportedPTZSpaces><tt:MaximumNumberOfPresets>256</tt:MaximumNumberOfPresets>\
              <tt:HomeSupported>true</tt:HomeSupported>",
             esc(&self.gimbal.config.name),
-            spaces()
+            spaces(self.gimbal.config.zoom)
         )
     }
 
@@ -428,7 +467,7 @@ impl Device {
                         "<tptz:GetConfigurationOptionsResponse><tptz:PTZConfigurationOptions><tt:Spaces>{}</tt:Spaces>\
                          <tt:PTZTimeout><tt:Min>PT0.1S</tt:Min><tt:Max>PT{}S</tt:Max></tt:PTZTimeout>\
                          </tptz:PTZConfigurationOptions></tptz:GetConfigurationOptionsResponse>",
-                        spaces(),
+                        spaces(self.gimbal.config.zoom),
                         g.max_move().as_secs_f64()
                     )
                 }
@@ -436,24 +475,34 @@ impl Device {
             "GetStatus" => {
                 self.profile_token(op)?;
                 let s = g.status();
+                let zoom = s
+                    .lens
+                    .map(|l| {
+                        format!(
+                            "<tt:Zoom x=\"{:.6}\" space=\"{ZOOM_POSITION_SPACE}\"/>",
+                            f64::from(l.zoom.get()) / ZOOM_MAX
+                        )
+                    })
+                    .unwrap_or_default();
                 let position = s
                     .position
                     .map(|p| {
                         format!(
-                            "<tt:Position><tt:PanTilt x=\"{:.6}\" y=\"{:.6}\" space=\"{POSITION_SPACE}\"/></tt:Position>",
+                            "<tt:Position><tt:PanTilt x=\"{:.6}\" y=\"{:.6}\" space=\"{POSITION_SPACE}\"/>{zoom}</tt:Position>",
                             to_generic(f64::from(p.pan.degrees()), g.config.pan_deg),
                             to_generic(f64::from(p.tilt.degrees()), g.config.tilt_deg)
                         )
                     })
                     .unwrap_or_default();
                 let moving = if g.moving() || s.changing { "MOVING" } else { "IDLE" };
+                let zoom_moving = self.zoomed(&format!("<tt:Zoom>{moving}</tt:Zoom>"));
                 let error = s
                     .error
                     .map(|e| format!("<tt:Error>{}</tt:Error>", esc(&e)))
                     .unwrap_or_default();
                 format!(
                     "<tptz:GetStatusResponse><tptz:PTZStatus>{position}<tt:MoveStatus><tt:PanTilt>{moving}</tt:PanTilt>\
-                     </tt:MoveStatus>{error}<tt:UtcTime>{}</tt:UtcTime></tptz:PTZStatus></tptz:GetStatusResponse>",
+                     {zoom_moving}</tt:MoveStatus>{error}<tt:UtcTime>{}</tt:UtcTime></tptz:PTZStatus></tptz:GetStatusResponse>",
                     utc(now)
                 )
             }
@@ -476,33 +525,55 @@ impl Device {
                     })?),
                     None => None,
                 };
-                if x.is_none() && y.is_none() {
+                let zoom = match op.path(&["Velocity", "Zoom"]) {
+                    Some(z) => self.zoom_arg(generic(z, "x", "Velocity Zoom")?)?,
+                    None => None,
+                };
+                if x.is_none() && y.is_none() && zoom.is_none() {
                     return Err(Fault::invalid_arg(
                         "ter:InvalidVelocity",
-                        "ContinuousMove without a Velocity PanTilt: this gimbal moves pan and tilt only",
+                        "ContinuousMove without a Velocity PanTilt or Zoom",
                     ));
                 }
-                g.continuous(x, y, timeout).await.map_err(gimbal_fault)?;
+                g.continuous(x, y, zoom, timeout).await.map_err(gimbal_fault)?;
                 "<tptz:ContinuousMoveResponse/>".to_owned()
             }
             "AbsoluteMove" => {
                 self.profile_token(op)?;
-                let target = op.path(&["Position", "PanTilt"]).ok_or_else(|| {
-                    Fault::invalid_arg("ter:InvalidPosition", "AbsoluteMove without a Position PanTilt")
-                })?;
-                let (x, y) = (
-                    generic(target, "x", "Position PanTilt")?,
-                    generic(target, "y", "Position PanTilt")?,
-                );
-                let (Some(x), Some(y)) = (x, y) else {
-                    return Err(Fault::invalid_arg(
-                        "ter:InvalidPosition",
-                        "Position PanTilt needs both x and y",
-                    ));
+                let target = op.path(&["Position", "PanTilt"]);
+                let zoom = match op.path(&["Position", "Zoom"]) {
+                    Some(z) => self.zoom_arg(generic_from(z, "x", "Position Zoom", 0.0)?)?,
+                    None => None,
                 };
-                g.go_to(to_degrees(x, g.config.pan_deg), to_degrees(y, g.config.tilt_deg))
-                    .await
-                    .map_err(gimbal_fault)?;
+                let pan_tilt = match target {
+                    Some(t) => match (
+                        generic(t, "x", "Position PanTilt")?,
+                        generic(t, "y", "Position PanTilt")?,
+                    ) {
+                        (Some(x), Some(y)) => Some((x, y)),
+                        _ => {
+                            return Err(Fault::invalid_arg(
+                                "ter:InvalidPosition",
+                                "Position PanTilt needs both x and y",
+                            ));
+                        }
+                    },
+                    None if zoom.is_some() => None,
+                    None => {
+                        return Err(Fault::invalid_arg(
+                            "ter:InvalidPosition",
+                            "AbsoluteMove without a Position PanTilt or Zoom",
+                        ));
+                    }
+                };
+                if let Some((x, y)) = pan_tilt {
+                    g.go_to(to_degrees(x, g.config.pan_deg), to_degrees(y, g.config.tilt_deg))
+                        .await
+                        .map_err(gimbal_fault)?;
+                }
+                if let Some(z) = zoom {
+                    g.zoom_to(z).await.map_err(gimbal_fault)?;
+                }
                 "<tptz:AbsoluteMoveResponse/>".to_owned()
             }
             "RelativeMove" => {
@@ -527,8 +598,10 @@ impl Device {
             }
             "Stop" => {
                 self.profile_token(op)?;
-                let pan_tilt = op.text_at(&["PanTilt"]).is_none_or(|v| v == "true" || v == "1");
-                g.stop(pan_tilt).await.map_err(gimbal_fault)?;
+                let flag = |name: &str| op.text_at(&[name]).is_none_or(|v| v == "true" || v == "1");
+                g.stop(flag("PanTilt"), flag("Zoom") && g.config.zoom)
+                    .await
+                    .map_err(gimbal_fault)?;
                 "<tptz:StopResponse/>".to_owned()
             }
             "GetPresets" => {
@@ -604,6 +677,22 @@ impl Device {
             }
             other => return Err(not_supported(other)),
         })
+    }
+
+    /// A zoom argument: refused unless the gimbal has a lens (a zero
+    /// velocity, "do not zoom", is taken from any client).
+    fn zoom_arg(&self, value: Option<f64>) -> Result<Option<f64>, Fault> {
+        match value {
+            Some(v) if !self.gimbal.config.zoom && v != 0.0 => Err(Fault::invalid_arg(
+                "ter:NoZoom",
+                format!(
+                    "gimbal {} has no lens configured (zoom = false)",
+                    self.gimbal.config.name
+                ),
+            )),
+            Some(_) if !self.gimbal.config.zoom => Ok(None),
+            v => Ok(v),
+        }
     }
 
     /// The preset a request's PresetToken names, which must have a name.

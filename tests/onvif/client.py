@@ -59,7 +59,9 @@ async def camera(host, port, user, password):
 
 def status_of(s):
     pos = s.Position.PanTilt if s.Position is not None else None
+    zoom = s.Position.Zoom if s.Position is not None else None
     return {
+        "zoom": None if zoom is None else zoom.x,
         "x": None if pos is None else pos.x,
         "y": None if pos is None else pos.y,
         "moving": None if s.MoveStatus is None else str(s.MoveStatus.PanTilt),
@@ -141,6 +143,8 @@ async def step(name, host, port, user, password, args):
             return status_of(await ptz.GetStatus({"ProfileToken": token}))
         if name == "continuous":
             req = {"ProfileToken": token, "Velocity": {"PanTilt": {"x": args["x"], "y": args["y"]}}}
+            if args.get("zoom") is not None:
+                req["Velocity"]["Zoom"] = {"x": args["zoom"]}
             if args.get("timeout_s") is not None:
                 req["Timeout"] = dt.timedelta(seconds=args["timeout_s"])
             result = await attempt(ptz.ContinuousMove(req))
@@ -150,8 +154,10 @@ async def step(name, host, port, user, password, args):
         if name == "stop":
             return await attempt(ptz.Stop({"ProfileToken": token, "PanTilt": True, "Zoom": True}))
         if name == "absolute":
-            moved = await attempt(ptz.AbsoluteMove({
-                "ProfileToken": token, "Position": {"PanTilt": {"x": args["x"], "y": args["y"]}}}))
+            position = {"PanTilt": {"x": args["x"], "y": args["y"]}}
+            if args.get("zoom") is not None:
+                position["Zoom"] = {"x": args["zoom"]}
+            moved = await attempt(ptz.AbsoluteMove({"ProfileToken": token, "Position": position}))
             if "ok" not in moved:
                 return moved
             return {"ok": True, "status": await wait_idle(ptz, token)}
