@@ -14,32 +14,8 @@ use sagebrush_protocol::link::TransactionPolicy;
 use serde::Deserialize;
 use toml::Spanned;
 
-/// A configuration error with its place in the file.
-#[derive(Debug)]
-pub struct ConfigError {
-    pub file: PathBuf,
-    /// 1-based line and column; 0 when the error concerns the whole file.
-    pub line: usize,
-    pub column: usize,
-    /// Dotted key path, e.g. `port[2].baud`; empty for the whole file.
-    pub key: String,
-    pub message: String,
-}
-
-impl fmt::Display for ConfigError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}", self.file.display())?;
-        if self.line > 0 {
-            write!(f, ":{}:{}", self.line, self.column)?;
-        }
-        if !self.key.is_empty() {
-            write!(f, ": {}", self.key)?;
-        }
-        write!(f, ": {}", self.message)
-    }
-}
-
-impl std::error::Error for ConfigError {}
+pub use sagebrush_client::config_file::ConfigError;
+use sagebrush_client::config_file::Source;
 
 /// The whole file, as written.
 #[derive(Debug, Deserialize)]
@@ -438,39 +414,19 @@ const DELIVERY_TIMEOUT_MS: MsRange = (50, 60_000);
 /// `motion_lease_ms` of a link: 100 ms to 10 minutes.
 const MOTION_LEASE_MS: MsRange = (100, 600_000);
 
-struct Checker<'a> {
-    file: &'a Path,
-    text: &'a str,
+/// The file being checked: `sagebrush_client::config_file::Source` (errors
+/// at a span, bounded integers, the serde pass) and gcud's own value checks.
+struct Checker<'a>(Source<'a>);
+
+impl<'a> std::ops::Deref for Checker<'a> {
+    type Target = Source<'a>;
+
+    fn deref(&self) -> &Source<'a> {
+        &self.0
+    }
 }
 
 impl Checker<'_> {
-    fn at(&self, span: Range<usize>, key: impl Into<String>, message: impl Into<String>) -> ConfigError {
-        let (line, column) = if span.start == 0 && span.end == 0 {
-            (0, 0)
-        } else {
-            line_column(self.text, span.start)
-        };
-        ConfigError {
-            file: self.file.to_owned(),
-            line,
-            column,
-            key: key.into(),
-            message: message.into(),
-        }
-    }
-
-    fn int<T: TryFrom<i64>>(&self, v: &Spanned<i64>, key: &str, min: i64, max: i64) -> Result<T, ConfigError> {
-        let value = *v.get_ref();
-        if value < min || value > max {
-            return Err(self.at(
-                v.span(),
-                key,
-                format!("expected an integer {min}..={max}, found {value}"),
-            ));
-        }
-        T::try_from(value).map_err(|_| self.at(v.span(), key, format!("expected an integer {min}..={max}")))
-    }
-
     fn text20(&self, v: &Spanned<String>, key: &str) -> Result<String, ConfigError> {
         let s = v.get_ref();
         if s.len() > 20 || !s.bytes().all(|b| (0x20..=0x7E).contains(&b)) {
@@ -716,103 +672,16 @@ fn check_log_filter(filter: &str) -> Result<(), String> {
     Ok(())
 }
 
-/// 1-based line and column of byte `offset` in `text`.
-fn line_column(text: &str, offset: usize) -> (usize, usize) {
-    let before = &text[..offset.min(text.len())];
-    let line = before.matches('\n').count() + 1;
-    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-    (line, column)
-}
-
-/// The largest configuration file read (a real one is a few KiB).
-pub const MAX_FILE_BYTES: u64 = 1024 * 1024;
-
-/// Reads and validates `file`. Only a regular file of at most
-/// [`MAX_FILE_BYTES`] is read: the kind and size are checked before any
-/// byte is read (a FIFO would block, `/dev/urandom` never ends), the file is
-/// opened non-blocking and checked again through its handle, and at most one
-/// byte more than the limit is read.
+/// Reads (bounded: `sagebrush_client::config_file::read`) and validates `file`.
 pub fn load(file: &Path) -> Result<Config, ConfigError> {
-    let text = read_bounded(file).map_err(|message| ConfigError {
-        file: file.to_owned(),
-        line: 0,
-        column: 0,
-        key: String::new(),
-        message,
-    })?;
+    let text = sagebrush_client::config_file::read(file)?;
     parse(file, &text)
-}
-
-fn read_bounded(file: &Path) -> Result<String, String> {
-    use std::io::Read;
-    use std::os::unix::fs::OpenOptionsExt;
-
-    fn kind(m: &std::fs::Metadata) -> Result<(), String> {
-        use std::os::unix::fs::FileTypeExt;
-        let t = m.file_type();
-        let what = if t.is_file() {
-            if m.len() > MAX_FILE_BYTES {
-                return Err(format!(
-                    "cannot read: larger than 1 MiB ({} bytes); expected a configuration file",
-                    m.len()
-                ));
-            }
-            return Ok(());
-        } else if t.is_dir() {
-            "a directory"
-        } else if t.is_fifo() {
-            "a FIFO"
-        } else if t.is_char_device() {
-            "a character device"
-        } else if t.is_block_device() {
-            "a block device"
-        } else if t.is_socket() {
-            "a socket"
-        } else {
-            "not a file"
-        };
-        Err(format!("cannot read: {what}, not a regular file"))
-    }
-
-    kind(&std::fs::metadata(file).map_err(|e| format!("cannot read: {e}"))?)?;
-    let handle = std::fs::OpenOptions::new()
-        .read(true)
-        .custom_flags(nix::fcntl::OFlag::O_NONBLOCK.bits())
-        .open(file)
-        .map_err(|e| format!("cannot read: {e}"))?;
-    // The path may have been replaced since: check what was opened.
-    kind(&handle.metadata().map_err(|e| format!("cannot read: {e}"))?)?;
-    let mut bytes = Vec::new();
-    handle
-        .take(MAX_FILE_BYTES + 1)
-        .read_to_end(&mut bytes)
-        .map_err(|e| format!("cannot read: {e}"))?;
-    if bytes.len() as u64 > MAX_FILE_BYTES {
-        return Err("cannot read: larger than 1 MiB; expected a configuration file".to_owned());
-    }
-    String::from_utf8(bytes).map_err(|e| format!("cannot read: not UTF-8 text ({e})"))
 }
 
 /// Parses and validates configuration `text` read from `file`.
 pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
-    let c = Checker { file, text };
-    let raw: ConfigFile = {
-        let de = toml::de::Deserializer::parse(text).map_err(|e| {
-            let span = e.span().unwrap_or(0..0);
-            c.at(span, "", e.message().trim().to_owned())
-        })?;
-        serde_path_to_error::deserialize(de).map_err(|e| {
-            // Spanned<T> shows up as an inner private field in the path.
-            let key = e.path().to_string().replace(".$__serde_spanned_private_value", "");
-            let inner = e.inner();
-            let span = inner.span().unwrap_or(0..0);
-            c.at(
-                span,
-                if key == "." { String::new() } else { key },
-                inner.message().trim().to_owned(),
-            )
-        })?
-    };
+    let c = Checker(Source::new(file, text));
+    let raw: ConfigFile = c.deserialize()?;
     validate(&c, raw)
 }
 
