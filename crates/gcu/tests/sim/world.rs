@@ -368,7 +368,7 @@ impl World {
                 written: BTreeSet::new(),
                 current: None,
                 abandoned: BTreeSet::new(),
-                acked: None,
+                tainted_acked: BTreeMap::new(),
                 wire: ClientWire::default(),
                 last_report: None,
             });
