@@ -48,7 +48,13 @@
 //! - A lost port fails its in-flight and queued jobs ([`DropReason::PortLost`]).
 //! - Behind a device server (`PortConfig::buffered`) nothing is
 //!   retransmitted and a missing ACK is `0B not confirmed`: the bytes may
-//!   wait in the server while it stalls and run when it resumes.
+//!   wait in the server while it stalls and run when it resumes. Their
+//!   answers then come whenever it resumes, and an ACK names no command, so
+//!   after such a give-up ([`Backlog`]) the first answer heard is nobody's:
+//!   the exchange on the bus at that moment is `0B not confirmed` as well,
+//!   and no exchange starts until the bus has been quiet for the late-answer
+//!   guard (at least one ACK time-out) since the last byte heard. What
+//!   arrives meanwhile is ACKed and counted as unsolicited, never relayed.
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -197,6 +203,20 @@ impl Running {
     }
 }
 
+/// Behind a device server: whether bytes of a given-up exchange may still
+/// be waiting in it (module doc; ARCHITECTURE "Delivery contract").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Backlog {
+    /// Every exchange was answered (or its address is known to be empty).
+    Clear,
+    /// An exchange went unanswered: its bytes may still run, and any answer
+    /// heard may be theirs.
+    Unsure,
+    /// The bus answered since: nothing starts until it has been quiet for
+    /// the guard since `last_heard`.
+    Draining { last_heard: u64 },
+}
+
 #[derive(Debug)]
 pub(crate) struct Port {
     pub id: u8,
@@ -218,6 +238,8 @@ pub(crate) struct Port {
     /// After an exchange that was retransmitted the device may answer a
     /// second time: no new exchange starts before this tick.
     settle_until: Option<u64>,
+    /// Behind a device server: given-up bytes perhaps still in it.
+    backlog: Backlog,
     /// Being closed (removed or reconfigured): only the GCU's own stops are taken.
     pub closing: bool,
     /// Round robin: when each origin (link) was last served, by `turn`.
@@ -254,6 +276,7 @@ impl Port {
             seen: BTreeSet::new(),
             acked_rates: BTreeMap::new(),
             settle_until: None,
+            backlog: Backlog::Clear,
             closing: false,
             served: BTreeMap::new(),
             turn: 0,
@@ -408,6 +431,12 @@ impl Port {
             return;
         }
         self.settle_until = None;
+        if let Some(until) = self.drained_at() {
+            if now < until {
+                return;
+            }
+            self.backlog = Backlog::Clear;
+        }
         while self.active.is_none() && self.open {
             // While a long wait is set aside only stops use the bus: another
             // exchange could take its result (same Table 3 header) or give it theirs.
@@ -530,6 +559,16 @@ impl Port {
         if quiet > 0 {
             let settle = now.saturating_add(quiet);
             self.settle_until = Some(self.settle_until.map_or(settle, |t| t.max(settle)));
+        }
+        let surely_absent = self.devices.as_ref().is_some_and(|list| !list.contains(&device));
+        if self.config.buffered
+            && matches!(outcome, Outcome::Failed(TxFailure::NoAck))
+            && !surely_absent
+            && self.backlog == Backlog::Clear
+        {
+            // Its bytes may wait in the device server and be answered
+            // whenever it resumes.
+            self.backlog = Backlog::Unsure;
         }
         let answered = !matches!(outcome, Outcome::Failed(_) | Outcome::Broadcast);
         if answered && device != WILDCARD {
@@ -671,6 +710,9 @@ impl Port {
     }
 
     fn on_event(&mut self, now: u64, event: OwnedEvent, out: &mut Vec<PortOut>) {
+        if self.backlog != Backlog::Clear {
+            self.heard_with_backlog(now, out);
+        }
         match event {
             OwnedEvent::Frame(frame) => {
                 self.stats.line.frames_in += 1;
@@ -734,7 +776,7 @@ impl Port {
             if r.txn.is_broadcast() {
                 let command = r.job.frame.frame();
                 let port_matches = view.dest.port == command.dest.port || view.dest.port == WILDCARD;
-                if port_matches && view.dest.group == command.source {
+                if port_matches && view.dest.group == command.source && self.backlog == Backlog::Clear {
                     // A device alone on its bus answering a broadcast.
                     let (id, origin) = (r.job.id, r.job.origin);
                     let d = self.device(view.dest.device);
@@ -769,6 +811,33 @@ impl Port {
             dest: view.dest,
             source: view.source,
         }));
+    }
+
+    /// When the bus will have been quiet long enough after answers heard
+    /// with a backlog, if it is draining one.
+    fn drained_at(&self) -> Option<u64> {
+        match self.backlog {
+            Backlog::Draining { last_heard } => {
+                Some(last_heard.saturating_add(self.config.late_answer_guard.max(self.policy.retry.ack_timeout)))
+            }
+            Backlog::Clear | Backlog::Unsure => None,
+        }
+    }
+
+    /// The bus answered while given-up bytes may have been waiting in the
+    /// device server: the answer may be theirs, so the exchange on the bus
+    /// is not confirmed either, and the bus drains before the next one.
+    fn heard_with_backlog(&mut self, now: u64, out: &mut Vec<PortOut>) {
+        self.backlog = Backlog::Draining { last_heard: now };
+        let Some(r) = self.active.take_if(|r| !r.txn.is_broadcast()) else {
+            return;
+        };
+        self.stats.line.timeouts += 1;
+        self.device(r.device()).unreachable += 1;
+        let failure = Undelivered::NotConfirmed;
+        out.extend(r.job.ids().map(|id| PortOut::Undelivered { id, failure }));
+        let outcome = CommandOutcome::Unreachable;
+        out.extend(r.job.ids().map(|id| PortOut::Finished { id, outcome }));
     }
 
     /// Time passed.
@@ -817,6 +886,7 @@ impl Port {
         let detached = self.detached.iter().filter_map(|r| r.txn.deadline()).min();
         let settle = self
             .settle_until
+            .max(self.drained_at())
             .filter(|_| self.active.is_none() && !self.queue.is_empty());
         [active, detached, settle, self.line.idle_deadline()]
             .into_iter()

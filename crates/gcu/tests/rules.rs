@@ -1216,3 +1216,81 @@ fn a_late_ack_is_never_taken_for_the_next_commands() {
     }
     assert_eq!(report.expect("a report").failure, Some(Undelivered::DeviceSilent));
 }
+
+/// Issue 20.2, seeds 21565, 22265 and 51013 of the network simulation:
+/// behind a device server that stalls, a command the GCU gave up on (`0B`)
+/// still runs when the server resumes, and its ACK and result come then.
+/// Neither may be taken for the command on the bus at that moment (another
+/// client's): that command is `0B not confirmed` too, the late result goes
+/// to nobody, and the bus serves again once it has been quiet.
+#[test]
+fn behind_a_stalled_device_server_a_late_answer_is_nobodys() {
+    const OTHER: LinkId = LinkId(6);
+    let mut h = H::with(&[1], |c| c.ports[0].buffered = true);
+    h.up(OTHER, LinkKind::Client);
+    let quiet_time = port_config(1).late_answer_guard.max(port_config(1).ack_timeout);
+    let reports = |out: &Outbox, link: LinkId| -> Vec<Vec<u8>> {
+        link_writes(out, link).into_iter().filter(|w| w.len() > 1).collect()
+    };
+    // Several inputs at one instant, into one outbox.
+    let at_once = |h: &mut H, inputs: &[(Option<LinkId>, Vec<u8>)]| {
+        let mut all = Outbox::new();
+        for (link, bytes) in inputs {
+            let input = match link {
+                Some(link) => Input::LinkBytes { link: *link, bytes },
+                None => Input::PortBytes { port: 1, bytes },
+            };
+            h.r.handle(h.now, input, &mut all);
+        }
+        all
+    };
+    // Client 1's query waits in the stalled server: no ACK, reported 0B.
+    let query = frame((G, 1, 3), 2, b"P?");
+    let out = h.link(CLIENT, &query);
+    assert_eq!(port_writes(&out, 1), vec![query.clone()]);
+    let mut told = Vec::new();
+    for _ in 0..100 {
+        told = reports(&h.wait(1), CLIENT);
+        if !told.is_empty() {
+            break;
+        }
+    }
+    assert_eq!(told, vec![report(&query, Some(Undelivered::NotConfirmed))]);
+    h.link(CLIENT, &[ACK]);
+    // The other client's AW (same source group, same device) goes out.
+    let aw = frame((G, 1, 3), 2, b"AW");
+    let mut written = port_writes(&h.link(OTHER, &aw), 1);
+    for _ in 0..100 {
+        if !written.is_empty() {
+            break;
+        }
+        written = port_writes(&h.wait(1), 1);
+    }
+    assert_eq!(written, vec![aw.clone()]);
+    // The server resumes: the query's ACK and result arrive now.
+    let late = at_once(&mut h, &[(None, vec![ACK]), (None, frame((2, 1, 3), G, b"00000000"))]);
+    assert!(
+        !link_writes(&late, OTHER).contains(&vec![ACK]),
+        "the query's late ACK is not the AW's"
+    );
+    assert_eq!(
+        reports(&late, OTHER),
+        vec![report(&aw, Some(Undelivered::NotConfirmed))],
+        "the AW is not confirmed, and the query's result is not its"
+    );
+    assert!(link_writes(&late, CLIENT).is_empty(), "client 1 was told already");
+    h.link(OTHER, &[ACK]);
+    // The AW's own answer comes during the quiet: nobody's either.
+    h.now += 2;
+    let quiet = at_once(&mut h, &[(None, vec![ACK]), (None, frame((2, 1, 3), G, b"0"))]);
+    assert_eq!(dropped(&quiet), vec![DropReason::Unsolicited]);
+    assert!(link_writes(&quiet, OTHER).is_empty() && link_writes(&quiet, CLIENT).is_empty());
+    // Quiet since the last byte heard, the bus serves again as usual.
+    let again = frame((G, 1, 3), 2, b"D?");
+    let out = h.link(OTHER, &again);
+    assert!(port_writes(&out, 1).is_empty(), "quiet after the late answers");
+    let out = h.wait(quiet_time);
+    assert_eq!(port_writes(&out, 1), vec![again]);
+    let out = h.port(1, &[ACK]);
+    assert_eq!(link_writes(&out, OTHER), vec![vec![ACK]], "delivered");
+}
