@@ -21,7 +21,9 @@
 //!   needed a retransmission, the device may have executed the command
 //!   twice, or answered after the GCU gave up: the bus stays quiet for one
 //!   ACK time-out so that such an answer is not taken for the next
-//!   exchange's (it is ACKed and counted as unsolicited). After a device
+//!   exchange's (it is ACKed and counted as unsolicited); so it does after
+//!   any give-up, a NAK one included, so that a dead-man stop's next round
+//!   is queued before other work starts. After a device
 //!   that answered its last exchange went silent to every try, the bus
 //!   stays quiet for `PortConfig::late_answer_guard` (an address that never
 //!   answered, or a device already offline, gets no guard: a scan of empty
@@ -546,12 +548,13 @@ impl Port {
             // command's ACK. (Once offline, a dead device does not hold
             // the bus up again.)
             self.config.late_answer_guard
-        } else if r.txn.transmissions() > 1 || matches!(outcome, Outcome::Failed(TxFailure::NoAck)) {
+        } else if r.txn.transmissions() > 1 || matches!(outcome, Outcome::Failed(_)) {
             // The device may have executed the command twice, or answer
             // after we gave up (with no retransmission too: retries = 0, a
             // device server): let that answer arrive while nothing can take
-            // it for its own (and a dead-man stop's next round be queued
-            // before other work starts).
+            // it for its own. And after any give-up, NAK included (no
+            // retransmission into a device server), a dead-man stop's next
+            // round is queued before other work starts (seeds 2089, 33315).
             self.policy.retry.ack_timeout
         } else {
             0

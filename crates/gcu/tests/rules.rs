@@ -1294,3 +1294,35 @@ fn behind_a_stalled_device_server_a_late_answer_is_nobodys() {
     let out = h.port(1, &[ACK]);
     assert_eq!(link_writes(&out, OTHER), vec![vec![ACK]], "delivered");
 }
+
+/// Seed 33315 of the network simulation: behind a device server nothing is
+/// retransmitted, so a dead-man stop the device NAKs is given up at once;
+/// its next round must still go out before other work queued meanwhile.
+#[test]
+fn a_nakked_dead_man_stop_goes_again_before_queued_work() {
+    const OTHER: LinkId = LinkId(6);
+    let mut h = H::with(&[1], |c| c.ports[0].buffered = true);
+    h.up(OTHER, LinkKind::Client);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"PL"));
+    h.port(1, &[ACK]);
+    h.wait(100);
+    let stop = frame((G, 1, 3), G, b"PS");
+    let out = h.go(Input::LinkDown { link: CLIENT });
+    assert_eq!(port_writes(&out, 1), vec![stop.clone()]);
+    // Another client's query queues behind the stop on the bus.
+    let query = frame((G, 1, 3), 2, b"P?");
+    assert!(port_writes(&h.link(OTHER, &query), 1).is_empty());
+    // The device NAKs the stop: given up (no retransmission into a server).
+    let mut wire = port_writes(&h.port(1, &[NAK]), 1);
+    for _ in 0..100 {
+        if !wire.is_empty() {
+            break;
+        }
+        wire = port_writes(&h.wait(1), 1);
+    }
+    assert_eq!(wire, vec![stop], "the stop's next round first");
+    // Acknowledged this time; then the query goes out.
+    let mut wire = port_writes(&h.port(1, &[ACK]), 1);
+    wire.extend(port_writes(&h.wait(100), 1));
+    assert_eq!(wire, vec![query], "then the query");
+}
