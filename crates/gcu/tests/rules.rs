@@ -682,6 +682,9 @@ fn other_groups_follow_static_then_learned_then_default_routes() {
     // Static route down: learned would be used; default down too: the
     // client hears that the route's link is down (07), not "no route" (06).
     h.go(Input::LinkDown { link: UP });
+    // The client takes the report of the first to9 (its link went down):
+    // the same frame after it is a new command.
+    h.link(CLIENT, &[ACK]);
     let a = h.link(CLIENT, &to9);
     assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::LinkDown)]);
     assert_eq!(dropped(&a), vec![DropReason::LinkDown]);
@@ -1325,4 +1328,49 @@ fn a_nakked_dead_man_stop_goes_again_before_queued_work() {
     let mut wire = port_writes(&h.port(1, &[ACK]), 1);
     wire.extend(port_writes(&h.wait(100), 1));
     assert_eq!(wire, vec![query], "then the query");
+}
+
+/// Seed 135037 of the network simulation: a client's command is reported
+/// undelivered, the report is damaged on its way, and the client (no ACK)
+/// retransmits the command. The report is still unacknowledged on the
+/// client's line, so the client has no outcome yet: the identical frame is
+/// its retransmission, never a new command (that one's ACK followed by the
+/// first one's repeated report would be two outcomes to the client).
+#[test]
+fn a_retransmission_while_its_report_is_unacknowledged_is_not_a_new_command() {
+    let mut h = H::new(&[1]);
+    let home = frame((G, 1, 3), 2, b"HO");
+    let said = report(&home, Some(Undelivered::DeviceSilent));
+    let mut port = port_writes(&h.link(CLIENT, &home), 1);
+    let mut told = Vec::new();
+    for _ in 0..1_000 {
+        let out = h.wait(1);
+        port.extend(port_writes(&out, 1));
+        told = link_writes(&out, CLIENT);
+        if !told.is_empty() {
+            break;
+        }
+    }
+    assert_eq!(told, vec![said.clone()], "silent device: reported");
+    assert_eq!(port.len(), 3, "three tries: {port:?}");
+    // The report was damaged on the way: the client retransmits its HO.
+    let out = h.link(CLIENT, &home);
+    assert!(accepted(out.actions()).is_empty(), "not a new command");
+    assert!(link_writes(&out, CLIENT).is_empty(), "no ACK");
+    assert_eq!(h.r.stats().links[&CLIENT].repeats, 1);
+    // The report comes again; acknowledged, the outcome is the client's.
+    let mut again = Vec::new();
+    for _ in 0..100 {
+        let out = h.wait(1);
+        assert!(port_writes(&out, 1).is_empty(), "not executed again");
+        again = link_writes(&out, CLIENT);
+        if !again.is_empty() {
+            break;
+        }
+    }
+    assert_eq!(again, vec![said]);
+    h.link(CLIENT, &[ACK]);
+    // After the outcome, an identical frame is a new command.
+    let out = h.link(CLIENT, &home);
+    assert_eq!(port_writes(&out, 1), vec![home]);
 }
