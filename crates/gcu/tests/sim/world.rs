@@ -285,6 +285,7 @@ impl World {
                 let stop_bound = rng.range(8, 32) as usize;
                 // Behind a device server that may stall (fault: stalled line).
                 let buffered = rng.chance(250);
+                let late_answer_guard = rng.range(0, 200);
                 config.ports.push(PortConfig {
                     bps: 9600,
                     retries: 2,
@@ -297,7 +298,7 @@ impl World {
                     stop_queue_bound: stop_bound,
                     idle_timeout: 10,
                     devices: devices_configured.then(|| ids.clone()),
-                    late_answer_guard: rng.range(0, 200),
+                    late_answer_guard,
                     buffered,
                     ..PortConfig::new(pid)
                 });
@@ -328,6 +329,7 @@ impl World {
                     devices,
                     buffered,
                     stalled_until: 0,
+                    late_answer_guard,
                 });
             }
             let router = Router::new(config).expect("generated config is valid");
