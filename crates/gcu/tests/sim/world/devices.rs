@@ -10,7 +10,7 @@ const STALL_PM: u64 = 20;
 /// Per mille of device answers that leave late (fault: late answer), and
 /// how late (ms): past the GCU's tries (3 x 20 ms ACK time-outs plus wire
 /// time). Only as late as the GCU promises to recognise (ARCHITECTURE
-/// "Late answers"): see [`World::late_answer_covered`].
+/// "Routing semantics", late answers): see [`World::late_answer_covered`].
 const LATE_PM: u64 = 5;
 const LATE_MS: (u64, u64) = (90, 150);
 /// The GCU gives up on a copy one ACK time-out (20) plus the frame's wire
@@ -156,14 +156,15 @@ impl World {
         at
     }
 
-    /// Whether an answer on port `p` of gcu `g` that leaves `late` ms late is one the
-    /// GCU promises to recognise (ARCHITECTURE "Late answers"): the spec
-    /// bounds no answer time, so only the late-answer guard protects the
-    /// next exchange, and an answer later than the guard cannot be told from
-    /// the next exchange's (seed 123077: a guard of 17 ms, answers 103 ms
-    /// late, taken for the next two commands and a broadcast's). The design
-    /// also gives no guard after a device that did not answer its last
-    /// exchange; 200,000 seeds pass with such late answers, so they stay.
+    /// Whether an answer on port `p` of gcu `g` that leaves `late` ms late
+    /// is one the GCU promises to recognise (ARCHITECTURE "Routing
+    /// semantics", late answers): the spec bounds no answer time, so only
+    /// the late-answer guard protects the next exchange, and an answer
+    /// later than the guard cannot be told from the next exchange's (seed
+    /// 123077: a guard of 17 ms, answers 103 ms late, taken for the next two
+    /// commands and a broadcast's). The design also gives no guard after a
+    /// device that did not answer its last exchange; 200,000 seeds pass with
+    /// such late answers, so they stay.
     fn late_answer_covered(&self, g: usize, p: usize, late: u64) -> bool {
         late <= self.gcus[g].ports[p].late_answer_guard + GIVE_UP_AFTER_ANSWER
     }
