@@ -510,6 +510,8 @@ impl World {
                 }
                 Action::Event(event) => self.on_event(g, event),
                 Action::LinkGone { link, stats } => {
+                    // The router forgets a gone link's counters: keep its repeats.
+                    self.summary.client_repeats += stats.repeats;
                     // Every frame it queued is accounted for when it leaves.
                     if stats.queued != stats.delivered + stats.failed || stats.queue_len != 0 {
                         self.violation(format!("gcu {g} {link} left with frames unaccounted {stats:?}"));
