@@ -25,7 +25,8 @@
 //!   any give-up, a NAK one included, so that a dead-man stop's next round
 //!   is queued before other work starts. After a device
 //!   that answered its last exchange went silent to every try, the bus
-//!   stays quiet for `PortConfig::late_answer_guard` (an address that never
+//!   stays quiet for `PortConfig::late_answer_guard`, at least one ACK
+//!   time-out like any give-up (an address that never
 //!   answered, or a device already offline, gets no guard: a scan of empty
 //!   addresses stays fast and a dead device does not hold up its bus).
 //! - Fair: the next job after the stops is the oldest of the origin (link,
@@ -546,8 +547,9 @@ impl Port {
             // A device that answered its last exchange went silent: its
             // answer may still come, late, and would be taken for the next
             // command's ACK. (Once offline, a dead device does not hold
-            // the bus up again.)
-            self.config.late_answer_guard
+            // the bus up again.) Never shorter than the ACK time-out of
+            // quiet after any give-up, below (a guard of 0: seed 232276).
+            self.config.late_answer_guard.max(self.policy.retry.ack_timeout)
         } else if r.txn.transmissions() > 1 || matches!(outcome, Outcome::Failed(_)) {
             // The device may have executed the command twice, or answer
             // after we gave up (with no retransmission too: retries = 0, a

@@ -1374,3 +1374,34 @@ fn a_retransmission_while_its_report_is_unacknowledged_is_not_a_new_command() {
     let out = h.link(CLIENT, &home);
     assert_eq!(port_writes(&out, 1), vec![home]);
 }
+
+/// Seed 232276 of the network simulation: with a late-answer guard of 0, a
+/// dead-man stop to a device that answered before went silent to every try;
+/// its next round must still go out before other work queued meanwhile (the
+/// one ACK time-out of quiet after any give-up holds with any guard).
+#[test]
+fn with_no_late_answer_guard_a_silent_dead_man_stop_still_goes_again_first() {
+    const OTHER: LinkId = LinkId(6);
+    let mut h = H::with(&[1], |c| c.ports[0].late_answer_guard = 0);
+    h.up(OTHER, LinkKind::Client);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"PL"));
+    h.port(1, &[ACK]);
+    h.wait(100);
+    let stop = frame((G, 1, 3), G, b"PS");
+    let out = h.go(Input::LinkDown { link: CLIENT });
+    assert_eq!(port_writes(&out, 1), vec![stop.clone()]);
+    let query = frame((G, 1, 3), 2, b"P?");
+    assert!(port_writes(&h.link(OTHER, &query), 1).is_empty());
+    // Silent to every try: the first write after the give-up is the stop.
+    let tries = u64::from(port_config(1).retries) + 1;
+    let mut wire = Vec::new();
+    for _ in 0..1_000 {
+        wire.extend(port_writes(&h.wait(1), 1));
+        if wire.len() as u64 > tries - 1 {
+            break;
+        }
+    }
+    assert_eq!(wire.len() as u64, tries, "{wire:?}");
+    assert_eq!(wire.last(), Some(&stop), "the stop's next round first: {wire:?}");
+    assert!(!wire.contains(&query), "{wire:?}");
+}
