@@ -156,17 +156,21 @@ impl World {
         at
     }
 
-    /// Whether an answer on port `p` of gcu `g` that leaves `late` ms late
-    /// is one the GCU promises to recognise (ARCHITECTURE "Routing
-    /// semantics", late answers): the spec bounds no answer time, so only
-    /// the late-answer guard protects the next exchange, and an answer
-    /// later than the guard cannot be told from the next exchange's (seed
-    /// 123077: a guard of 17 ms, answers 103 ms late, taken for the next two
-    /// commands and a broadcast's). The design also gives no guard after a
-    /// device that did not answer its last exchange; 200,000 seeds pass with
-    /// such late answers, so they stay.
-    fn late_answer_covered(&self, g: usize, p: usize, late: u64) -> bool {
-        late <= self.gcus[g].ports[p].late_answer_guard + GIVE_UP_AFTER_ANSWER
+    /// Whether an answer of device `d` on port `p` of gcu `g` that leaves
+    /// `late` ms late is one the GCU promises to recognise (ARCHITECTURE
+    /// "Routing semantics", late answers): the spec bounds no answer time,
+    /// so only the late-answer guard protects the next exchange, and only
+    /// after a device that answered its last exchange went silent ("an
+    /// address that never answered, or a device already offline, gets no
+    /// guard"; the router's registry says whether it did). An answer later
+    /// than the guard (seed 123077: a guard of 17 ms, answers 103 ms late),
+    /// or from a device with no guard (seed 320645: its first answers, late),
+    /// cannot be told from the next exchange's.
+    fn late_answer_covered(&self, g: usize, p: usize, d: usize, late: u64) -> bool {
+        let sp = &self.gcus[g].ports[p];
+        let key = (sp.id, sp.devices[d].gimbal.id);
+        let answered_last = self.gcus[g].router.stats().devices.get(&key).is_some_and(|s| s.online);
+        answered_last && late <= sp.late_answer_guard + GIVE_UP_AFTER_ANSWER
     }
 
     pub(super) fn device_writes(&mut self, g: usize, p: usize, d: usize, out: Vec<u8>, epoch: u64, bps: u32) {
@@ -179,7 +183,7 @@ impl World {
             // guard; it must never be taken for the next command's.
             let late = (!self.quiet && self.rng.chance(LATE_PM))
                 .then(|| self.rng.range(LATE_MS.0, LATE_MS.1))
-                .filter(|&late| self.late_answer_covered(g, p, late));
+                .filter(|&late| self.late_answer_covered(g, p, d, late));
             let at = if let Some(late) = late {
                 self.summary.late_answers += 1;
                 let fifo = self
