@@ -1298,13 +1298,12 @@ fn behind_a_stalled_device_server_a_late_answer_is_nobodys() {
     assert_eq!(link_writes(&out, OTHER), vec![vec![ACK]], "delivered");
 }
 
-/// Seed 33315 of the network simulation: behind a device server nothing is
-/// retransmitted, so a dead-man stop the device NAKs is given up at once;
-/// its next round must still go out before other work queued meanwhile.
-#[test]
-fn a_nakked_dead_man_stop_goes_again_before_queued_work() {
+/// A client's PL acknowledged on port 1, the client gone: the dead-man PS is
+/// on the bus, and another client's `P?` to the same device queued behind it.
+/// Returns the stop and the query frames.
+fn dead_man_stop_on_the_bus_and_a_query_behind(tweak: impl FnOnce(&mut RouterConfig)) -> (H, Vec<u8>, Vec<u8>) {
     const OTHER: LinkId = LinkId(6);
-    let mut h = H::with(&[1], |c| c.ports[0].buffered = true);
+    let mut h = H::with(&[1], tweak);
     h.up(OTHER, LinkKind::Client);
     h.link(CLIENT, &frame((G, 1, 3), 2, b"PL"));
     h.port(1, &[ACK]);
@@ -1312,9 +1311,20 @@ fn a_nakked_dead_man_stop_goes_again_before_queued_work() {
     let stop = frame((G, 1, 3), G, b"PS");
     let out = h.go(Input::LinkDown { link: CLIENT });
     assert_eq!(port_writes(&out, 1), vec![stop.clone()]);
-    // Another client's query queues behind the stop on the bus.
     let query = frame((G, 1, 3), 2, b"P?");
-    assert!(port_writes(&h.link(OTHER, &query), 1).is_empty());
+    assert!(
+        port_writes(&h.link(OTHER, &query), 1).is_empty(),
+        "queued behind the stop"
+    );
+    (h, stop, query)
+}
+
+/// Seed 33315 of the network simulation: behind a device server nothing is
+/// retransmitted, so a dead-man stop the device NAKs is given up at once;
+/// its next round must still go out before other work queued meanwhile.
+#[test]
+fn a_nakked_dead_man_stop_goes_again_before_queued_work() {
+    let (mut h, stop, query) = dead_man_stop_on_the_bus_and_a_query_behind(|c| c.ports[0].buffered = true);
     // The device NAKs the stop: given up (no retransmission into a server).
     let mut wire = port_writes(&h.port(1, &[NAK]), 1);
     for _ in 0..100 {
@@ -1381,17 +1391,7 @@ fn a_retransmission_while_its_report_is_unacknowledged_is_not_a_new_command() {
 /// one ACK time-out of quiet after any give-up holds with any guard).
 #[test]
 fn with_no_late_answer_guard_a_silent_dead_man_stop_still_goes_again_first() {
-    const OTHER: LinkId = LinkId(6);
-    let mut h = H::with(&[1], |c| c.ports[0].late_answer_guard = 0);
-    h.up(OTHER, LinkKind::Client);
-    h.link(CLIENT, &frame((G, 1, 3), 2, b"PL"));
-    h.port(1, &[ACK]);
-    h.wait(100);
-    let stop = frame((G, 1, 3), G, b"PS");
-    let out = h.go(Input::LinkDown { link: CLIENT });
-    assert_eq!(port_writes(&out, 1), vec![stop.clone()]);
-    let query = frame((G, 1, 3), 2, b"P?");
-    assert!(port_writes(&h.link(OTHER, &query), 1).is_empty());
+    let (mut h, stop, query) = dead_man_stop_on_the_bus_and_a_query_behind(|c| c.ports[0].late_answer_guard = 0);
     // Silent to every try: the first write after the give-up is the stop.
     let tries = u64::from(port_config(1).retries) + 1;
     let mut wire = Vec::new();
