@@ -134,6 +134,11 @@ impl Link {
         Ok(())
     }
 
+    /// Frames waiting or in flight on this link (not yet acknowledged).
+    pub fn unacknowledged(&self) -> impl Iterator<Item = &FrameBuf> {
+        self.queue.iter().map(|item| &item.frame)
+    }
+
     fn note_queue(&mut self) {
         self.stats.queue_len = self.queue.len();
         self.stats.queue_high_water = self.queue.high_water();

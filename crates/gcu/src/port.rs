@@ -21,12 +21,15 @@
 //!   needed a retransmission, the device may have executed the command
 //!   twice, or answered after the GCU gave up: the bus stays quiet for one
 //!   ACK time-out so that such an answer is not taken for the next
-//!   exchange's (it is ACKed and counted as unsolicited). After an ACK wait
-//!   of a device that answered its last exchange ran out (the exchange gave
-//!   up, or a later try was answered), the bus stays quiet for
-//!   `PortConfig::late_answer_guard` (an address that never answered, or a
-//!   device already offline, gets no guard: a scan of empty addresses stays
-//!   fast and a dead device does not hold up its bus).
+//!   exchange's (it is ACKed and counted as unsolicited); so it does after
+//!   any give-up, a NAK one included, so that a dead-man stop's next round
+//!   is queued before other work starts. After an ACK wait of a device that
+//!   answered its last exchange ran out (the exchange gave up, or a later
+//!   try was answered), the bus stays quiet for
+//!   `PortConfig::late_answer_guard`, at least one ACK time-out like any
+//!   give-up (an address that never answered, or a device already offline,
+//!   gets no guard: a scan of empty addresses stays fast and a dead device
+//!   does not hold up its bus).
 //! - Fair: the next job after the stops is the oldest of the origin (link,
 //!   i.e. client) served least recently, round robin; when the queue is
 //!   full, the origin holding the most jobs gives up its newest one for a
@@ -49,7 +52,13 @@
 //! - A lost port fails its in-flight and queued jobs ([`DropReason::PortLost`]).
 //! - Behind a device server (`PortConfig::buffered`) nothing is
 //!   retransmitted and a missing ACK is `0B not confirmed`: the bytes may
-//!   wait in the server while it stalls and run when it resumes.
+//!   wait in the server while it stalls and run when it resumes. Their
+//!   answers then come whenever it resumes, and an ACK names no command, so
+//!   after such a give-up ([`Backlog`]) the first answer heard is nobody's:
+//!   the exchange on the bus at that moment is `0B not confirmed` as well,
+//!   and no exchange starts until the bus has been quiet for the late-answer
+//!   guard (at least one ACK time-out) since the last byte heard. What
+//!   arrives meanwhile is ACKed and counted as unsolicited, never relayed.
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -200,6 +209,20 @@ impl Running {
     }
 }
 
+/// Behind a device server: whether bytes of a given-up exchange may still
+/// be waiting in it (module doc; ARCHITECTURE "Delivery contract").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Backlog {
+    /// Every exchange was answered (or its address is known to be empty).
+    Clear,
+    /// An exchange went unanswered: its bytes may still run, and any answer
+    /// heard may be theirs.
+    Unsure,
+    /// The bus answered since: nothing starts until it has been quiet for
+    /// the guard since `last_heard`.
+    Draining { last_heard: u64 },
+}
+
 #[derive(Debug)]
 pub(crate) struct Port {
     pub id: u8,
@@ -221,6 +244,8 @@ pub(crate) struct Port {
     /// After an exchange that was retransmitted the device may answer a
     /// second time: no new exchange starts before this tick.
     settle_until: Option<u64>,
+    /// Behind a device server: given-up bytes perhaps still in it.
+    backlog: Backlog,
     /// Being closed (removed or reconfigured): only the GCU's own stops are taken.
     pub closing: bool,
     /// Round robin: when each origin (link) was last served, by `turn`.
@@ -257,6 +282,7 @@ impl Port {
             seen: BTreeSet::new(),
             acked_rates: BTreeMap::new(),
             settle_until: None,
+            backlog: Backlog::Clear,
             closing: false,
             served: BTreeMap::new(),
             turn: 0,
@@ -411,6 +437,12 @@ impl Port {
             return;
         }
         self.settle_until = None;
+        if let Some(until) = self.drained_at() {
+            if now < until {
+                return;
+            }
+            self.backlog = Backlog::Clear;
+        }
         while self.active.is_none() && self.open {
             // While a long wait is set aside only stops use the bus: another
             // exchange could take its result (same Table 3 header) or give it theirs.
@@ -523,14 +555,16 @@ impl Port {
             // out (given up, or answered a later try): its answer to that
             // try may still come, late, and would be taken for the next
             // command's ACK. (Once offline, a dead device does not hold the
-            // bus up again.)
-            self.config.late_answer_guard
-        } else if r.txn.transmissions() > 1 || r.ack_timed_out {
+            // bus up again.) Never shorter than the ACK time-out of quiet
+            // after any give-up, below (a guard of 0: seed 232276).
+            self.config.late_answer_guard.max(self.policy.retry.ack_timeout)
+        } else if r.txn.transmissions() > 1 || r.ack_timed_out || matches!(outcome, Outcome::Failed(_)) {
             // The device may have executed the command twice, or answer
             // after we gave up (with no retransmission too: retries = 0, a
             // device server): let that answer arrive while nothing can take
-            // it for its own (and a dead-man stop's next round be queued
-            // before other work starts).
+            // it for its own. And after any give-up, NAK included (no
+            // retransmission into a device server), a dead-man stop's next
+            // round is queued before other work starts (seeds 2089, 33315).
             self.policy.retry.ack_timeout
         } else {
             0
@@ -538,6 +572,16 @@ impl Port {
         if quiet > 0 {
             let settle = now.saturating_add(quiet);
             self.settle_until = Some(self.settle_until.map_or(settle, |t| t.max(settle)));
+        }
+        let surely_absent = self.devices.as_ref().is_some_and(|list| !list.contains(&device));
+        if self.config.buffered
+            && matches!(outcome, Outcome::Failed(TxFailure::NoAck))
+            && !surely_absent
+            && self.backlog == Backlog::Clear
+        {
+            // Its bytes may wait in the device server and be answered
+            // whenever it resumes.
+            self.backlog = Backlog::Unsure;
         }
         let answered = !matches!(outcome, Outcome::Failed(_) | Outcome::Broadcast);
         if answered && device != WILDCARD {
@@ -690,6 +734,9 @@ impl Port {
     }
 
     fn on_event(&mut self, now: u64, event: OwnedEvent, out: &mut Vec<PortOut>) {
+        if self.backlog != Backlog::Clear {
+            self.heard_with_backlog(now, out);
+        }
         match event {
             OwnedEvent::Frame(frame) => {
                 self.stats.line.frames_in += 1;
@@ -753,7 +800,7 @@ impl Port {
             if r.txn.is_broadcast() {
                 let command = r.job.frame.frame();
                 let port_matches = view.dest.port == command.dest.port || view.dest.port == WILDCARD;
-                if port_matches && view.dest.group == command.source {
+                if port_matches && view.dest.group == command.source && self.backlog == Backlog::Clear {
                     // A device alone on its bus answering a broadcast.
                     let (id, origin) = (r.job.id, r.job.origin);
                     let d = self.device(view.dest.device);
@@ -788,6 +835,33 @@ impl Port {
             dest: view.dest,
             source: view.source,
         }));
+    }
+
+    /// When the bus will have been quiet long enough after answers heard
+    /// with a backlog, if it is draining one.
+    fn drained_at(&self) -> Option<u64> {
+        match self.backlog {
+            Backlog::Draining { last_heard } => {
+                Some(last_heard.saturating_add(self.config.late_answer_guard.max(self.policy.retry.ack_timeout)))
+            }
+            Backlog::Clear | Backlog::Unsure => None,
+        }
+    }
+
+    /// The bus answered while given-up bytes may have been waiting in the
+    /// device server: the answer may be theirs, so the exchange on the bus
+    /// is not confirmed either, and the bus drains before the next one.
+    fn heard_with_backlog(&mut self, now: u64, out: &mut Vec<PortOut>) {
+        self.backlog = Backlog::Draining { last_heard: now };
+        let Some(r) = self.active.take_if(|r| !r.txn.is_broadcast()) else {
+            return;
+        };
+        self.stats.line.timeouts += 1;
+        self.device(r.device()).unreachable += 1;
+        let failure = Undelivered::NotConfirmed;
+        out.extend(r.job.ids().map(|id| PortOut::Undelivered { id, failure }));
+        let outcome = CommandOutcome::Unreachable;
+        out.extend(r.job.ids().map(|id| PortOut::Finished { id, outcome }));
     }
 
     /// Time passed.
@@ -837,6 +911,7 @@ impl Port {
         let detached = self.detached.iter().filter_map(|r| r.txn.deadline()).min();
         let settle = self
             .settle_until
+            .max(self.drained_at())
             .filter(|_| self.active.is_none() && !self.queue.is_empty());
         [active, detached, settle, self.line.idle_deadline()]
             .into_iter()

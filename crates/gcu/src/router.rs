@@ -853,7 +853,8 @@ impl Router {
             AnswerMatch::None => {}
         }
         if client {
-            let repeat = self.awaiting.values().any(|a| a.link == link && a.frame == frame);
+            let repeat =
+                self.awaiting.values().any(|a| a.link == link && a.frame == frame) || self.report_on_its_way(link, &f);
             if repeat {
                 if let Some(l) = self.links.get_mut(&link) {
                     l.stats.repeats += 1;
@@ -865,6 +866,21 @@ impl Router {
         }
         self.routes.learn(source, link, kind);
         self.dispatch(now, Origin::Link { link, source }, Some(kind), frame, None, out);
+    }
+
+    /// Whether the report about `command` is still unacknowledged on the
+    /// client `link`: the client has no outcome yet, so an identical frame is
+    /// its retransmission (ARCHITECTURE "Delivery contract": a repeat gets
+    /// the original's outcome), not a new command. Its ACK followed by the
+    /// report's next copy would be two outcomes to the client.
+    fn report_on_its_way(&self, link: LinkId, command: &Frame<'_>) -> bool {
+        let Some(l) = self.links.get(&link) else { return false };
+        l.unacknowledged().any(|queued| {
+            let f = queued.frame();
+            f.dest == Address::new(command.source, LINK_PORT, CONTROL_UNIT)
+                && DeliveryReport::parse(f.payload())
+                    .is_ok_and(|r| r.dest == command.dest && r.command_checksum == command.checksum())
+        })
     }
 
     /// Writes a bare ACK on `link`.

@@ -285,6 +285,7 @@ impl World {
                 let stop_bound = rng.range(8, 32) as usize;
                 // Behind a device server that may stall (fault: stalled line).
                 let buffered = rng.chance(250);
+                let late_answer_guard = rng.range(0, 200);
                 config.ports.push(PortConfig {
                     bps: 9600,
                     retries: 2,
@@ -297,7 +298,7 @@ impl World {
                     stop_queue_bound: stop_bound,
                     idle_timeout: 10,
                     devices: devices_configured.then(|| ids.clone()),
-                    late_answer_guard: rng.range(0, 200),
+                    late_answer_guard,
                     buffered,
                     ..PortConfig::new(pid)
                 });
@@ -328,6 +329,7 @@ impl World {
                     devices,
                     buffered,
                     stalled_until: 0,
+                    late_answer_guard,
                 });
             }
             let router = Router::new(config).expect("generated config is valid");
@@ -368,7 +370,7 @@ impl World {
                 written: BTreeSet::new(),
                 current: None,
                 abandoned: BTreeSet::new(),
-                acked: None,
+                tainted_acked: BTreeMap::new(),
                 wire: ClientWire::default(),
                 last_report: None,
             });
@@ -508,6 +510,8 @@ impl World {
                 }
                 Action::Event(event) => self.on_event(g, event),
                 Action::LinkGone { link, stats } => {
+                    // The router forgets a gone link's counters: keep its repeats.
+                    self.summary.client_repeats += stats.repeats;
                     // Every frame it queued is accounted for when it leaves.
                     if stats.queued != stats.delivered + stats.failed || stats.queue_len != 0 {
                         self.violation(format!("gcu {g} {link} left with frames unaccounted {stats:?}"));

@@ -41,8 +41,10 @@ pub(super) struct Client {
     /// Commands it gave up on, or was told of: a report of one of them may
     /// come late, or again (its ACK of the report frame was lost).
     pub(super) abandoned: BTreeSet<(Address, u8)>,
-    /// The command it last took an ACK for.
-    pub(super) acked: Option<(Address, u8)>,
+    /// Commands it took an ACK for while its framer held damaged bytes
+    /// (perhaps a byte of a damaged frame, not the GCU's ACK), and when:
+    /// each may still get its report, after any number of later commands.
+    pub(super) tainted_acked: BTreeMap<(Address, u8), u64>,
     /// Which bytes toward it were damaged, and whether its framer holds some.
     pub(super) wire: ClientWire,
     /// The last delivery report frame it took, and when.
@@ -52,6 +54,11 @@ pub(super) struct Client {
 /// How long after a report the GCU may send it again (its link retry
 /// budget: retries + 1 ACK time-outs, plus the wire's jitter).
 const REPORT_REPEAT_WINDOW: u64 = 4 * 40 + 10;
+
+/// How long after a tainted ACK the command's report can still come: the
+/// GCU's delivery time-out (450) and its report's retry budget, with the
+/// wire's delays both ways. A report later than that is excused by nothing.
+const TAINTED_ACK_WINDOW: u64 = 450 + REPORT_REPEAT_WINDOW + 2 * 10;
 
 /// The damage on a client's incoming wire, tracked write by write so that
 /// an excuse (a phantom ACK or frame) is granted only for bytes a wire
@@ -67,8 +74,6 @@ pub(super) struct ClientWire {
     /// The framer has taken damaged bytes since the line was last idle
     /// (idle resets the framer: nothing of them is left after it).
     tainted: bool,
-    /// The ACK it took for `Client::acked` came while tainted.
-    pub(super) acked_tainted: bool,
 }
 
 impl ClientWire {
@@ -265,6 +270,10 @@ impl World {
     pub(super) fn client_receive(&mut self, c: usize, bytes: &[u8], damaged: bool) {
         let mut events = Vec::new();
         let now = self.now;
+        self.log(format_args!(
+            "client {c} <- {bytes:02X?}{}",
+            if damaged { " (damaged)" } else { "" }
+        ));
         self.summary.client_damaged_writes += u64::from(damaged);
         let cl = &mut self.clients[c];
         if now.saturating_sub(cl.last_rx) >= SILENCE {
@@ -337,8 +346,9 @@ impl World {
                 let wait = if *kind == ResultKind::None { 60 } else { 3_000 };
                 self.clients[c].state = ClientState::AwaitAnswer { until: now + wait };
                 let cl = &mut self.clients[c];
-                cl.acked = cl.current.take();
-                cl.wire.acked_tainted = tainted;
+                if let Some(key) = cl.current.take().filter(|_| tainted) {
+                    cl.tainted_acked.insert(key, now);
+                }
                 self.summary.tainted_acks += u64::from(tainted);
                 self.summary.client_delivered += 1;
                 self.log(format_args!("client {c}: ACK (delivered)"));
@@ -386,10 +396,13 @@ impl World {
         if report.failure.is_some() && cl.abandoned.contains(&key) {
             return;
         }
-        if cl.acked == Some(key) && cl.wire.acked_tainted {
-            // The ACK it took came with damaged bytes: a damaged frame's
-            // byte, not the GCU's. Only then is a report after an ACK excused.
-            cl.wire.acked_tainted = false;
+        let now = self.now;
+        cl.tainted_acked.retain(|_, at| now <= *at + TAINTED_ACK_WINDOW);
+        if cl.tainted_acked.remove(&key).is_some() {
+            // The ACK it took for this command came with damaged bytes: a
+            // damaged frame's byte, not the GCU's (later commands may have
+            // been ACKed since). Only then, and only within the time its
+            // report can take, is a report after an ACK excused.
             self.summary.phantom_acks += 1;
             cl.abandoned.insert(key);
             return;

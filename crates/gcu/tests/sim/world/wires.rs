@@ -46,6 +46,7 @@ impl World {
                 return self.violation(format!("gcu {g} wrote to disconnected client {link}"));
             }
             let epoch = self.clients[c].epoch;
+            self.log(format_args!("gcu {g} {link} (client {c}) <- {bytes:02X?}"));
             // Frame by frame: one write may carry an ACK and several frames.
             let mut framer: Framer = Framer::new();
             let written = &mut self.clients[c].written;
