@@ -15,8 +15,9 @@
 use nom::Parser;
 
 use crate::EncodeError;
+use crate::answer::{Answer, Shape};
+pub use crate::answer::{ResultKind, ResultTimeout};
 use crate::hex::{Writer, decimal, hex_n, hex_u8, hex_u16, hex_value, hex12, is_hex, offset_in};
-use crate::reply::Shape;
 use crate::units::{
     Acceleration, Angle, AuxConfig, AuxPort, AuxReadLen, Axis, DataRate, DeviceId, DigitalZoom, LensPosition,
     LensSpeed, Limits, Parity, Position, RangeError, Rate, RateGain, Relay, Speed,
@@ -44,63 +45,6 @@ impl<'a> AuxBytes<'a> {
     }
 }
 
-/// How long a result may take, as a class; the durations are the user's.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ResultTimeout {
-    /// Queries answered from memory.
-    Normal,
-    /// `IX`: the initialisation sequence moves both axes to their switches.
-    Long,
-}
-
-/// What follows the ACK of a command (Tables 4, 11, 16 "RESPONSE").
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ResultKind {
-    /// ACK only (a NIC may still follow).
-    None,
-    /// ACK + a result frame (or a NIC).
-    Required(ResultTimeout),
-    /// A rev 1.9 set/read command: a result only when it reads.
-    Optional,
-}
-
-/// A row's answer fact (the "RESPONSE" column): what follows the ACK and,
-/// when a result can, its shape. [`Command::result_kind`] and the reply
-/// dispatch ([`crate::Reply::parse`], [`crate::Reply::answers`]) both come
-/// from it, so a query cannot have a result kind without a reply shape.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub(crate) enum Answer {
-    /// ACK only.
-    Ack,
-    /// ACK and a result of this shape.
-    Result(ResultTimeout, Shape),
-    /// A rev 1.9 set/read command: a result of this shape when it reads.
-    Optional(Shape),
-}
-
-impl Answer {
-    /// An ACK and a result answered from memory.
-    const fn normal(shape: Shape) -> Self {
-        Answer::Result(ResultTimeout::Normal, shape)
-    }
-
-    pub(crate) const fn kind(self) -> ResultKind {
-        match self {
-            Answer::Ack => ResultKind::None,
-            Answer::Result(timeout, _) => ResultKind::Required(timeout),
-            Answer::Optional(_) => ResultKind::Optional,
-        }
-    }
-
-    /// The result's shape, if one can follow.
-    pub(crate) const fn shape(self) -> Option<Shape> {
-        match self {
-            Answer::Ack => None,
-            Answer::Result(_, shape) | Answer::Optional(shape) => Some(shape),
-        }
-    }
-}
-
 /// A row's motion fact (Tables 11, 16).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 enum Motion {
@@ -116,12 +60,12 @@ enum Motion {
 /// protocol-notes E13); the argument and reply bytes stay raw, no layout is guessed.
 /// A row is `Variant = "name", answer;`.
 macro_rules! extended_table {
-    ($( $(#[$doc:meta])* $Variant:ident = $name:literal, $answer:expr; )+) => {
+    ($( $(#[doc = $doc:literal])* $Variant:ident = $name:literal, $answer:expr; )+) => {
         /// Rev 1.9 commands published by name only (1.2, protocol-notes E13): their
         /// argument and reply bytes are kept raw, no layout is guessed.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
         pub enum Extended {
-            $( $(#[$doc])* $Variant, )+
+            $( $(#[doc = $doc])* $Variant, )+
         }
 
         impl Extended {
@@ -142,6 +86,14 @@ macro_rules! extended_table {
                 match self {
                     $( Extended::$Variant => $answer, )+
                 }
+            }
+
+            /// What the command does: its row's documentation (1.2).
+            pub fn description(self) -> &'static str {
+                let text: &'static str = match self {
+                    $( Extended::$Variant => concat!($($doc),+), )+
+                };
+                text.trim_start()
             }
         }
     };
@@ -235,13 +187,14 @@ macro_rules! command_table {
     // row, so a row missing a fact (or with one misspelt) matches none and
     // fails to compile.
     (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] [$($done:tt)*]
-        $(#[$doc:meta])* $Variant:ident => {
+        $(#[doc = $doc:literal])* $Variant:ident => {
             wire: $wire:tt, answer: $answer:expr, motion: $motion:expr $(,)?
         }
         $($rest:tt)*
     ) => {
         command_table!(@row [$(#[$meta])* $Command $lt $payload $w] [$($done)*
-            [$(#[$doc])* $Variant => {
+            [$(#[doc = $doc])* $Variant => {
+                wire: [$wire],
                 mnemonic: const { wire_name($wire) },
                 answer: $answer,
                 motion: $motion,
@@ -251,14 +204,15 @@ macro_rules! command_table {
         ] $($rest)*);
     };
     (@row $head:tt [$($done:tt)*]
-        $(#[$doc:meta])* $Variant:ident $( ( $($field:ident : $fty:ty),+ $(,)? ) )? => {
+        $(#[doc = $doc:literal])* $Variant:ident $( ( $($field:ident : $fty:ty),+ $(,)? ) )? => {
             mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
             parse: { $($arms:tt)* }, encode: { $($encode:tt)* } $(,)?
         }
         $($rest:tt)*
     ) => {
         command_table!(@row $head [$($done)*
-            [$(#[$doc])* $Variant $( ( $($field : $fty),+ ) )? => {
+            [$(#[doc = $doc])* $Variant $( ( $($field : $fty),+ ) )? => {
+                wire: [],
                 mnemonic: $mnemonic,
                 answer: $answer,
                 motion: $motion,
@@ -268,14 +222,15 @@ macro_rules! command_table {
         ] $($rest)*);
     };
     (@row $head:tt [$($done:tt)*]
-        $(#[$doc:meta])* $Variant:ident $( ( $($field:ident : $fty:ty),+ $(,)? ) )? => {
+        $(#[doc = $doc:literal])* $Variant:ident $( ( $($field:ident : $fty:ty),+ $(,)? ) )? => {
             mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
             parse: ( $parse:expr ), encode: { $($encode:tt)* } $(,)?
         }
         $($rest:tt)*
     ) => {
         command_table!(@row $head [$($done)*
-            [$(#[$doc])* $Variant $( ( $($field : $fty),+ ) )? => {
+            [$(#[doc = $doc])* $Variant $( ( $($field : $fty),+ ) )? => {
+                wire: [],
                 mnemonic: $mnemonic,
                 answer: $answer,
                 motion: $motion,
@@ -288,7 +243,8 @@ macro_rules! command_table {
 
     // Every row in one form: the enum and its functions.
     (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] [$(
-        [$(#[$doc:meta])* $Variant:ident $( ( $($field:ident : $fty:ty),+ ) )? => {
+        [$(#[doc = $doc:literal])* $Variant:ident $( ( $($field:ident : $fty:ty),+ ) )? => {
+            wire: [$($wire:literal)?],
             mnemonic: $mnemonic:expr,
             answer: $answer:expr,
             motion: $motion:expr,
@@ -299,10 +255,34 @@ macro_rules! command_table {
     )+]) => {
         $(#[$meta])*
         pub enum $Command<$lt> {
-            $( $(#[$doc])* $Variant $( ( $($fty),+ ) )?, )+
+            $( $(#[doc = $doc])* $Variant $( ( $($fty),+ ) )?, )+
+        }
+
+        impl $Command<'static> {
+            /// The rows without arguments, each with its wire bytes, in table order.
+            pub const FIXED: &'static [(&'static [u8], $Command<'static>)] = &[$($( ($wire, Self::$Variant), )?)+];
         }
 
         impl<$lt> $Command<$lt> {
+            /// Every row's variant name, in table order.
+            pub const ROWS: &'static [&'static str] = &[$(stringify!($Variant)),+];
+
+            /// The name of the command's row (one of [`Self::ROWS`]).
+            pub const fn row(&self) -> &'static str {
+                match *self {
+                    $( Self::$Variant { .. } => stringify!($Variant), )+
+                }
+            }
+
+            /// What the command does: its row's documentation (the spec
+            /// table's description, with the table it comes from).
+            pub fn description(&self) -> &'static str {
+                let text: &'static str = match *self {
+                    $( Self::$Variant { .. } => concat!($($doc),+), )+
+                };
+                text.trim_start()
+            }
+
             /// The row that takes `payload`, or why none does ([`no_row`]).
             fn parse_rows($payload: &$lt [u8]) -> Result<Self, CommandError> {
                 $($(

@@ -3,8 +3,10 @@
 #![forbid(unsafe_code)]
 
 pub mod address;
+mod answer;
 pub mod command;
 pub mod device;
+pub mod dissector;
 pub mod frame;
 pub mod framer;
 mod hex;

@@ -10,6 +10,7 @@ use nom::Parser;
 use nom::bytes::complete::take;
 
 use crate::EncodeError;
+use crate::answer::Shape;
 use crate::command::{Command, CommandError, found_text, whole};
 use crate::hex::{Writer, decimal, hex_n, hex_u8, hex_u16, hex_value, hex12};
 use crate::units::{Acceleration, Angle, DataRate, LensPosition, Limits, Position, RangeError, Rate, RateGain};
@@ -25,6 +26,13 @@ impl AwakeStatus {
     pub const TILT_NOT_INITIALIZED: u8 = 1 << 1;
     pub const MOTORS_OFF: u8 = 1 << 2;
     pub const ERROR: u8 = 1 << 3;
+    /// Table 5 by name: each bit's mask and meaning, lowest bit first.
+    pub const BITS: [(u8, &'static str); 4] = [
+        (Self::PAN_NOT_INITIALIZED, "azimuth not initialized"),
+        (Self::TILT_NOT_INITIALIZED, "elevation not initialized"),
+        (Self::MOTORS_OFF, "motors off"),
+        (Self::ERROR, "error condition"),
+    ];
     pub fn new(bits: u8) -> Result<Self, RangeError> {
         if bits > 0x0F {
             return Err(RangeError {
@@ -221,33 +229,6 @@ impl From<CommandError> for ReplyError {
             },
         }
     }
-}
-
-/// The shape of result a command expects: one per [`Reply`] variant. Each
-/// command's row in the command table (`command.rs`) names its shape in its
-/// answer fact; `Reply::parse` dispatches on it and `Reply::answers`
-/// compares with it, both exhaustively.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub(crate) enum Shape {
-    AwakeStatus,
-    MaxDataRate,
-    Identity,
-    Errors,
-    StatusBits,
-    RateGains,
-    Initialization,
-    Limits,
-    Relays,
-    Accelerations,
-    Acceleration,
-    Rates,
-    Rate,
-    VerifyHome,
-    Position,
-    Lens,
-    AuxCount,
-    AuxData,
-    Raw,
 }
 
 fn digit_or_raw(b: u8) -> Option<u8> {
