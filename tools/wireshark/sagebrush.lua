@@ -91,27 +91,23 @@ local field_list = {}
 for _, v in pairs(f) do field_list[#field_list + 1] = v end
 p.fields = field_list
 
-local e = {
-    bad_checksum = ProtoExpert.new("sagebrush.expert.bad_checksum", "Bad checksum",
-        expert.group.CHECKSUM, expert.severity.ERROR),
-    nak = ProtoExpert.new("sagebrush.expert.nak", "NAK: the command arrived damaged",
-        expert.group.RESPONSE_CODE, expert.severity.WARN),
-    nic = ProtoExpert.new("sagebrush.expert.nic", "NIC: command not implemented by the device",
-        expert.group.RESPONSE_CODE, expert.severity.WARN),
-    retransmission = ProtoExpert.new("sagebrush.expert.retransmission", "Retransmission",
-        expert.group.SEQUENCE, expert.severity.NOTE),
-    timeout = ProtoExpert.new("sagebrush.expert.timeout", "Time-out",
-        expert.group.SEQUENCE, expert.severity.WARN),
-    noise = ProtoExpert.new("sagebrush.expert.noise", "Noise bytes between frames",
-        expert.group.MALFORMED, expert.severity.NOTE),
-    swap = ProtoExpert.new("sagebrush.expert.swap", "Result header does not follow Table 3",
-        expert.group.PROTOCOL, expert.severity.WARN),
-    unpaired = ProtoExpert.new("sagebrush.expert.unpaired", "No command awaits this",
-        expert.group.SEQUENCE, expert.severity.NOTE),
-    undelivered = ProtoExpert.new("sagebrush.expert.undelivered", "Command not delivered",
-        expert.group.RESPONSE_CODE, expert.severity.WARN),
-}
-p.experts = { e.bad_checksum, e.nak, e.nic, e.retransmission, e.timeout, e.noise, e.swap, e.unpaired, e.undelivered }
+-- Expert infos: key = { text, group, severity }.
+local e, expert_list = {}, {}
+for key, d in pairs({
+    bad_checksum = { "Bad checksum", "CHECKSUM", "ERROR" },
+    nak = { "NAK: the command arrived damaged", "RESPONSE_CODE", "WARN" },
+    nic = { "NIC: command not implemented by the device", "RESPONSE_CODE", "WARN" },
+    retransmission = { "Retransmission", "SEQUENCE", "NOTE" },
+    timeout = { "Time-out", "SEQUENCE", "WARN" },
+    noise = { "Noise bytes between frames", "MALFORMED", "NOTE" },
+    swap = { "Result header does not follow Table 3", "PROTOCOL", "WARN" },
+    unpaired = { "No command awaits this", "SEQUENCE", "NOTE" },
+    undelivered = { "Command not delivered", "RESPONSE_CODE", "WARN" },
+}) do
+    e[key] = ProtoExpert.new("sagebrush.expert." .. key, d[1], expert.group[d[2]], expert.severity[d[3]])
+    expert_list[#expert_list + 1] = e[key]
+end
+p.experts = expert_list
 
 
 -- Table 2 meanings.

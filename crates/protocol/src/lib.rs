@@ -2,6 +2,8 @@
 #![no_std]
 #![forbid(unsafe_code)]
 
+mod code_table;
+
 pub mod address;
 mod answer;
 pub mod command;
