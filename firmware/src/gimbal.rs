@@ -10,7 +10,7 @@
 
 use sagebrush_protocol::{
     Angle, Axis as WireAxis, Command, DataRate, DeviceHandler, ErrorCodes, Extended, Identity, Position, Rate, Reply,
-    ReplyTo, Response, StatusBits,
+    ReplyTo, Response, Row, StatusBits,
 };
 
 /// Hard stops, hundredths of a degree: pan +-180.00, tilt +-90.00.
@@ -210,6 +210,42 @@ impl Gimbal {
 }
 
 impl DeviceHandler for Gimbal {
+    /// The rows `handle` answers other than with NIC: the endpoint NICs the
+    /// rest without reading their arguments (and links no parser for them).
+    fn implements(row: Row) -> bool {
+        matches!(
+            row,
+            Row::AwakeStatus
+                | Row::Identify
+                | Row::QueryErrors
+                | Row::QueryStatusBits
+                | Row::QueryMaxDataRate
+                | Row::SetDataRate
+                | Row::SetDeviceId
+                | Row::QueryPosition
+                | Row::GoTo
+                | Row::Home
+                | Row::PanLeft
+                | Row::PanRight
+                | Row::TiltDown
+                | Row::TiltUp
+                | Row::PanStop
+                | Row::TiltStop
+                | Row::StopMotion
+                | Row::Halt
+                | Row::Stop
+                | Row::Extended
+                | Row::SetRate
+                | Row::SetSpeed
+                | Row::QueryRates
+                | Row::QueryRate
+                | Row::StorePreset
+                | Row::GoToPreset
+                | Row::QueryPreset
+                | Row::QueryStoredPreset
+        )
+    }
+
     fn handle(&mut self, command: Command<'_>, reply_to: ReplyTo, now: u64) -> Response<'_> {
         self.advance(now);
         let position = |p: Position| Response::Reply(Reply::Position(p));

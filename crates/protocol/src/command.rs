@@ -148,9 +148,14 @@ impl Extended {
 
     /// The rev 1.9 command whose name starts `payload`, and its argument bytes.
     fn split(payload: &[u8]) -> Option<(Extended, &[u8])> {
+        let first = payload.first()?;
         for ext in Extended::ALL {
-            if let Some(args) = payload.strip_prefix(ext.name().as_bytes()) {
-                return Some((ext, args));
+            let name = ext.name().as_bytes();
+            // The first byte alone rules out most names, without a slice compare.
+            if name.first() == Some(first) {
+                if let Some(args) = payload.strip_prefix(name) {
+                    return Some((ext, args));
+                }
             }
         }
         None
@@ -263,14 +268,29 @@ macro_rules! command_table {
             pub const FIXED: &'static [(&'static [u8], $Command<'static>)] = &[$($( ($wire, Self::$Variant), )?)+];
         }
 
-        impl<$lt> $Command<$lt> {
-            /// Every row's variant name, in table order.
-            pub const ROWS: &'static [&'static str] = &[$(stringify!($Variant)),+];
+        /// The rows of the command table, one per [`Command`] variant.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        pub enum Row {
+            $( $Variant, )+
+        }
 
-            /// The name of the command's row (one of [`Self::ROWS`]).
-            pub const fn row(&self) -> &'static str {
+        impl Row {
+            /// Every row, in table order.
+            pub const ALL: [Row; [$(Row::$Variant),+].len()] = [$(Row::$Variant),+];
+
+            /// The row's variant name.
+            pub const fn name(self) -> &'static str {
+                match self {
+                    $( Row::$Variant => stringify!($Variant), )+
+                }
+            }
+        }
+
+        impl<$lt> $Command<$lt> {
+            /// The command's row.
+            pub const fn row(&self) -> Row {
                 match *self {
-                    $( Self::$Variant { .. } => stringify!($Variant), )+
+                    $( Self::$Variant { .. } => Row::$Variant, )+
                 }
             }
 
@@ -284,14 +304,24 @@ macro_rules! command_table {
             }
 
             /// The row that takes `payload`, or why none does ([`no_row`]).
-            fn parse_rows($payload: &$lt [u8]) -> Result<Self, CommandError> {
+            /// A payload of a row that `implemented` refuses fits no row:
+            /// its arguments are not read (nothing of them is linked when
+            /// `implemented` is known at compile time).
+            fn parse_rows<E: Failure>($payload: &$lt [u8], implemented: impl Fn(Row) -> bool) -> Result<Self, E> {
                 $($(
-                    if let Some(command) = $first {
-                        return Ok(command);
+                    if implemented(Row::$Variant) {
+                        if let Some(command) = $first {
+                            return Ok(command);
+                        }
                     }
                 )?)+
                 Ok(match $payload {
-                    $($( $pat $(if $guard)? => $command, )*)+
+                    $($( $pat $(if $guard)? => {
+                        if !implemented(Row::$Variant) {
+                            return Err(unknown($payload));
+                        }
+                        $command
+                    } )*)+
                     _ => return Err(no_row($payload)),
                 })
             }
@@ -354,45 +384,31 @@ fn axis(letter: u8) -> Option<Axis> {
 }
 
 /// `*xp..`: the auxiliary port digit at offset 2.
-fn aux_port(p: u8) -> Result<AuxPort, CommandError> {
+fn aux_port<E: Failure>(p: u8) -> Result<AuxPort, E> {
     match p {
         b'0' | b'1' => ranged("*xp", 2, AuxPort::new(p - b'0')),
-        _ => Err(CommandError::BadArgument {
-            command: "*xp..",
-            offset: 2,
-            found: Some(p),
-            expected: "auxiliary port '0' or '1'",
-        }),
+        _ => Err(E::bad_argument("*xp..", 2, Some(p), "auxiliary port '0' or '1'")),
     }
 }
 
 /// Why `payload` fits no row: empty, or `*xp` with a bad port or an
 /// operation no row takes (the port is checked first, as the rows do), or
 /// no command at all.
-fn no_row(payload: &[u8]) -> CommandError {
+fn no_row<E: Failure>(payload: &[u8]) -> E {
     match payload {
-        [] => CommandError::Empty,
         [b'*', b'x', p, op, ..] => match aux_port(*p) {
             Err(e) => e,
-            Ok(_) => CommandError::BadArgument {
-                command: "*xp..",
-                offset: 3,
-                found: Some(*op),
-                expected: "one of c, t, r, n, f (n and f alone)",
-            },
+            Ok(_) => E::bad_argument("*xp..", 3, Some(*op), "one of c, t, r, n, f (n and f alone)"),
         },
         _ => unknown(payload),
     }
 }
 
 /// The error for a payload that fits no row.
-fn unknown(payload: &[u8]) -> CommandError {
+fn unknown<E: Failure>(payload: &[u8]) -> E {
     match payload.first() {
-        Some(&first) => CommandError::Unknown {
-            first,
-            len: payload.len(),
-        },
-        None => CommandError::Empty,
+        Some(&first) => E::unknown(first, payload.len()),
+        None => E::empty(),
     }
 }
 
@@ -423,7 +439,7 @@ command_table! {
             motion: Motion::Other,
             parse: {
                 [b'#', ..] => {
-                    let id = whole("#NN", payload, 1, "two hex digits 01..FE", hex_u8)?;
+                    let id = arg("#NN", payload, 1, "two hex digits 01..FE", hex_u8)?;
                     Self::SetDeviceId(ranged("#NN", 1, DeviceId::new(id))?)
                 },
             },
@@ -469,7 +485,7 @@ command_table! {
             motion: Motion::Other,
             parse: {
                 [b'G', b'R', a, ..] if axis(*a).is_some() => {
-                    let v = whole("GRPnn/GRTnn", payload, 3, "two hex digits", hex_u8)?;
+                    let v = arg("GRPnn/GRTnn", payload, 3, "two hex digits", hex_u8)?;
                     Self::SetRateGain(axis(*a).unwrap_or(Axis::Pan), ranged("GRPnn/GRTnn", 3, RateGain::new(v))?)
                 },
             },
@@ -525,7 +541,7 @@ command_table! {
             motion: Motion::Other,
             parse: {
                 [b'L', b'S', ..] => {
-                    let (pan_ccw, pan_cw, tilt_ccw, tilt_cw) = whole("LS", payload, 2, "twelve hex digits", |i| {
+                    let (pan_ccw, pan_cw, tilt_ccw, tilt_cw) = arg("LS", payload, 2, "twelve hex digits", |i| {
                         (hex12, hex12, hex12, hex12).parse(i)
                     })?;
                     Self::SetLimits(Limits {
@@ -574,7 +590,7 @@ command_table! {
             motion: Motion::Other,
             parse: {
                 [b'A', a, ..] if axis(*a).is_some() => {
-                    let v = whole("APnnnn/ATnnnn", payload, 2, "four hex digits", hex_u16)?;
+                    let v = arg("APnnnn/ATnnnn", payload, 2, "four hex digits", hex_u16)?;
                     Self::SetAcceleration(axis(*a).unwrap_or(Axis::Pan), Acceleration(v))
                 },
             },
@@ -600,7 +616,7 @@ command_table! {
             motion: Motion::Other,
             parse: {
                 [b'P', _, _, _, _, _, _, _, _] => {
-                    let (pan, tilt) = whole("Paaaaeeee", payload, 1, "eight hex digits", |i| {
+                    let (pan, tilt) = arg("Paaaaeeee", payload, 1, "eight hex digits", |i| {
                         (hex_u16, hex_u16).parse(i)
                     })?;
                     Self::GoTo(Position::new(Angle(pan as i16), Angle(tilt as i16)))
@@ -627,7 +643,7 @@ command_table! {
             motion: Motion::Other,
             parse: {
                 [b'P', a, b] if is_hex(*a) && is_hex(*b) => {
-                    Self::GoToPreset(whole("Pnn", payload, 1, "two hex digits", hex_u8)?)
+                    Self::GoToPreset(arg("Pnn", payload, 1, "two hex digits", hex_u8)?)
                 },
             },
             encode: {
@@ -641,7 +657,7 @@ command_table! {
             answer: Answer::normal(Shape::Position),
             motion: Motion::Other,
             parse: {
-                [b'P', b'?', _, _] => Self::QueryPreset(whole("P?nn", payload, 2, "two hex digits", hex_u8)?),
+                [b'P', b'?', _, _] => Self::QueryPreset(arg("P?nn", payload, 2, "two hex digits", hex_u8)?),
             },
             encode: {
                 w.put(b"P?")?;
@@ -675,7 +691,7 @@ command_table! {
             motion: Motion::Other,
             parse: {
                 [b'R', a, ..] if axis(*a).is_some() => {
-                    let v = whole("RPnnnn/RTnnnn", payload, 2, "four hex digits", hex_u16)?;
+                    let v = arg("RPnnnn/RTnnnn", payload, 2, "four hex digits", hex_u16)?;
                     Self::SetRate(axis(*a).unwrap_or(Axis::Pan), Rate(v))
                 },
             },
@@ -694,7 +710,7 @@ command_table! {
             motion: Motion::Other,
             parse: {
                 [b'S', a, _] if axis(*a).is_some() => {
-                    let v = whole("SPn/STn", payload, 2, "one hex digit", hex_n(1))?;
+                    let v = arg("SPn/STn", payload, 2, "one hex digit", hex_n(1))?;
                     Self::SetSpeed(axis(*a).unwrap_or(Axis::Pan), ranged("SPn/STn", 2, Speed::new(v as u8))?)
                 },
             },
@@ -709,7 +725,7 @@ command_table! {
             answer: Answer::Ack,
             motion: Motion::Other,
             parse: {
-                [b'S', _, _] => Self::StorePreset(whole("Snn", payload, 1, "two hex digits", hex_u8)?),
+                [b'S', _, _] => Self::StorePreset(arg("Snn", payload, 1, "two hex digits", hex_u8)?),
             },
             encode: {
                 w.byte(b'S')?;
@@ -722,7 +738,7 @@ command_table! {
             answer: Answer::normal(Shape::Position),
             motion: Motion::Other,
             parse: {
-                [b'S', b'?', _, _] => Self::QueryStoredPreset(whole("S?nn", payload, 2, "two hex digits", hex_u8)?),
+                [b'S', b'?', _, _] => Self::QueryStoredPreset(arg("S?nn", payload, 2, "two hex digits", hex_u8)?),
             },
             encode: {
                 w.put(b"S?")?;
@@ -745,12 +761,7 @@ command_table! {
                     b'0' => Self::SetVectorMode(false),
                     b'1' => Self::SetVectorMode(true),
                     _ => {
-                        return Err(CommandError::BadArgument {
-                            command: "VMn",
-                            offset: 2,
-                            found: Some(*d),
-                            expected: "'0' or '1'",
-                        });
+                        return Err(E::bad_argument("VMn", 2, Some(*d), "'0' or '1'"));
                     }
                 },
             },
@@ -793,7 +804,7 @@ command_table! {
             motion: Motion::Other,
             parse: {
                 [b'V', _, _, _, _, _, _] => {
-                    let (zoom, focus) = whole("Vzzzfff", payload, 1, "six hex digits", |i| (hex12, hex12).parse(i))?;
+                    let (zoom, focus) = arg("Vzzzfff", payload, 1, "six hex digits", |i| (hex12, hex12).parse(i))?;
                     Self::LensGoTo(LensPosition { zoom, focus })
                 },
             },
@@ -884,7 +895,7 @@ command_table! {
             parse: {
                 [b'*', b'x', p, b'r', ..] => {
                     let port = aux_port(*p)?;
-                    let n = whole("*xprnnn", payload, 4, "decimal count 1..=256", |i| decimal(3).parse(i))?;
+                    let n = arg("*xprnnn", payload, 4, "decimal count 1..=256", |i| decimal(3).parse(i))?;
                     Self::AuxReceive(port, ranged("*xprnnn", 4, AuxReadLen::new(n as u16))?)
                 },
             },
@@ -973,21 +984,65 @@ pub(crate) fn found_text(found: Option<u8>) -> FoundText {
 
 type Res<'a, T> = nom::IResult<&'a [u8], T>;
 
+/// How a parse reports a payload that fits no row: [`CommandError`] says
+/// why (`parse_strict`, the host side); [`NoRow`] says nothing, so that
+/// [`Command::parse`] (a device answers NIC and needs no reason) builds no
+/// error value it would throw away.
+pub(crate) trait Failure: Sized {
+    fn empty() -> Self;
+    fn unknown(first: u8, len: usize) -> Self;
+    fn bad_argument(command: &'static str, offset: usize, found: Option<u8>, expected: &'static str) -> Self;
+    fn out_of_range(command: &'static str, offset: usize, error: RangeError) -> Self;
+}
+
+impl Failure for CommandError {
+    fn empty() -> Self {
+        CommandError::Empty
+    }
+    fn unknown(first: u8, len: usize) -> Self {
+        CommandError::Unknown { first, len }
+    }
+    fn bad_argument(command: &'static str, offset: usize, found: Option<u8>, expected: &'static str) -> Self {
+        CommandError::BadArgument {
+            command,
+            offset,
+            found,
+            expected,
+        }
+    }
+    fn out_of_range(command: &'static str, offset: usize, error: RangeError) -> Self {
+        CommandError::OutOfRange { command, offset, error }
+    }
+}
+
+/// A payload fits no row; why is not asked.
+pub(crate) struct NoRow;
+
+impl Failure for NoRow {
+    fn empty() -> Self {
+        NoRow
+    }
+    fn unknown(_: u8, _: usize) -> Self {
+        NoRow
+    }
+    fn bad_argument(_: &'static str, _: usize, _: Option<u8>, _: &'static str) -> Self {
+        NoRow
+    }
+    fn out_of_range(_: &'static str, _: usize, _: RangeError) -> Self {
+        NoRow
+    }
+}
+
 /// Runs `parser` over `payload[skip..]`, which it must consume entirely.
-pub(crate) fn whole<'a, T>(
+fn arg<'a, T, E: Failure>(
     command: &'static str,
     payload: &'a [u8],
     skip: usize,
     expected: &'static str,
     mut parser: impl FnMut(&'a [u8]) -> Res<'a, T>,
-) -> Result<T, CommandError> {
+) -> Result<T, E> {
     let input = payload.get(skip..).unwrap_or(&[]);
-    let bad = |at: &'a [u8], expected| CommandError::BadArgument {
-        command,
-        offset: offset_in(payload, at),
-        found: at.first().copied(),
-        expected,
-    };
+    let bad = |at: &'a [u8], expected| E::bad_argument(command, offset_in(payload, at), at.first().copied(), expected);
     match parser(input) {
         Ok(([], value)) => Ok(value),
         Ok((rest, _)) => Err(bad(rest, "end of payload")),
@@ -996,22 +1051,28 @@ pub(crate) fn whole<'a, T>(
     }
 }
 
-fn ranged<T>(command: &'static str, offset: usize, value: Result<T, RangeError>) -> Result<T, CommandError> {
-    value.map_err(|error| CommandError::OutOfRange { command, offset, error })
+/// [`arg`] saying why (the reply parser's argument reader).
+pub(crate) fn whole<'a, T>(
+    command: &'static str,
+    payload: &'a [u8],
+    skip: usize,
+    expected: &'static str,
+    parser: impl FnMut(&'a [u8]) -> Res<'a, T>,
+) -> Result<T, CommandError> {
+    arg(command, payload, skip, expected, parser)
+}
+
+fn ranged<T, E: Failure>(command: &'static str, offset: usize, value: Result<T, RangeError>) -> Result<T, E> {
+    value.map_err(|error| E::out_of_range(command, offset, error))
 }
 
 /// `,baud,dataBits,stopBits,parity` of `*xpc` (Table 18), from offset 4 of
 /// `payload`; every error names the field and the offset where it went wrong.
-fn aux_config(payload: &[u8]) -> Result<AuxConfig, CommandError> {
+fn aux_config<E: Failure>(payload: &[u8]) -> Result<AuxConfig, E> {
     const COMMAND: &str = "*xpc";
     let mut at = 4;
-    let mut field = |max: usize, expected: &'static str| -> Result<(usize, u32), CommandError> {
-        let bad = |offset: usize, expected| CommandError::BadArgument {
-            command: COMMAND,
-            offset,
-            found: payload.get(offset).copied(),
-            expected,
-        };
+    let mut field = |max: usize, expected: &'static str| -> Result<(usize, u32), E> {
+        let bad = |offset: usize, expected| E::bad_argument(COMMAND, offset, payload.get(offset).copied(), expected);
         if payload.get(at) != Some(&b',') {
             return Err(bad(at, "','"));
         }
@@ -1026,18 +1087,9 @@ fn aux_config(payload: &[u8]) -> Result<AuxConfig, CommandError> {
     let (stop_at, stop) = field(1, "stop bits 1 or 2")?;
     let (parity_at, parity) = field(1, "parity 0, 1 or 2")?;
     if at != payload.len() {
-        return Err(CommandError::BadArgument {
-            command: COMMAND,
-            offset: at,
-            found: payload.get(at).copied(),
-            expected: "end of command",
-        });
+        return Err(E::bad_argument(COMMAND, at, payload.get(at).copied(), "end of command"));
     }
-    let range = |offset, error| CommandError::OutOfRange {
-        command: COMMAND,
-        offset,
-        error,
-    };
+    let range = |offset, error| E::out_of_range(COMMAND, offset, error);
     let parity = match parity {
         0 => Parity::None,
         1 => Parity::Odd,
@@ -1065,12 +1117,19 @@ fn aux_config(payload: &[u8]) -> Result<AuxConfig, CommandError> {
 impl<'a> Command<'a> {
     /// Parses a payload; anything that fits no command is [`Command::Unknown`].
     pub fn parse(payload: &'a [u8]) -> Self {
-        Self::parse_strict(payload).unwrap_or(Command::Unknown(payload))
+        Self::parse_implemented(payload, |_| true)
+    }
+
+    /// [`Command::parse`] for a device that implements only the rows
+    /// `implemented` takes: any other command is [`Command::Unknown`]
+    /// without its arguments being read, as a device answers both with NIC.
+    pub fn parse_implemented(payload: &'a [u8], implemented: impl Fn(Row) -> bool) -> Self {
+        Self::parse_rows::<NoRow>(payload, implemented).unwrap_or(Command::Unknown(payload))
     }
 
     /// Parses a payload, saying what is wrong with one that fits no command.
     pub fn parse_strict(payload: &'a [u8]) -> Result<Self, CommandError> {
-        Self::parse_rows(payload)
+        Self::parse_rows::<CommandError>(payload, |_| true)
     }
 
     /// Writes the payload into `buf`; returns the written prefix.

@@ -90,7 +90,7 @@ fn command_row(out: &mut impl Write, command: &Command<'_>) -> fmt::Result {
         out,
         "    [{}] = {{ row = {}, answer = {}, description = {}",
         Lua(command.mnemonic()),
-        Lua(command.row()),
+        Lua(command.row().name()),
         Lua(answer.name()),
         Prose(command.description())
     )?;

@@ -18,7 +18,7 @@ pub mod report;
 pub mod units;
 
 pub use address::{Address, AddressParseError, CONTROL_UNIT, LINK_PORT, MCU_GROUP, WILDCARD};
-pub use command::{AuxBytes, Command, CommandError, Extended, ResultKind, ResultTimeout};
+pub use command::{AuxBytes, Command, CommandError, Extended, ResultKind, ResultTimeout, Row};
 pub use device::{DeviceEndpoint, DeviceHandler, EndpointConfig, EndpointStats, RESULT_RESENDS, ReplyTo, Response};
 pub use frame::{ACK, Frame, FrameBuf, FrameError, MAX_FRAME_LEN, MAX_PAYLOAD, NAK, NIC, START, checksum};
 pub use framer::{BadChecksum, Event, Framer, FramerStats, OwnedEvent};
