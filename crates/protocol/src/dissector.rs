@@ -144,8 +144,8 @@ pub fn write_lua_tables(out: &mut impl Write) -> fmt::Result {
         }
     }
     out.write_str(" }\n\n-- Table 5: awake status bits, lowest first.\nT.awake_bits = {\n")?;
-    for (bit, name) in AwakeStatus::BITS {
-        writeln!(out, "    {{ mask = {bit}, name = {} }},", Lua(name))?;
+    for (bit, _, meaning) in AwakeStatus::BITS {
+        writeln!(out, "    {{ mask = {bit}, name = {} }},", Lua(meaning))?;
     }
     out.write_str("}\n\n-- Delivery report codes (ARCHITECTURE \"Delivery contract\"): name and meaning.\nT.report_codes = {\n    [0x00] = { name = \"delivered\", meaning = \"delivered\" },\n")?;
     for u in Undelivered::ALL {

@@ -97,6 +97,40 @@ pub struct Rate(pub u16);
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct Acceleration(pub u16);
 
+/// The Table 12 quantities in hundredths of their unit: one conversion each
+/// way, rounding to the nearest hundredth and refusing what four hex digits
+/// cannot carry.
+macro_rules! hundredths {
+    ($($name:ident: $from:ident, $to:ident, $what:literal;)+) => {$(
+        impl $name {
+            #[doc = concat!("From ", $what, ", rounded to the nearest hundredth; refuses values outside 0..=655.35.")]
+            pub fn $from(value: f64) -> Result<Self, RangeError> {
+                let hundredths = value * 100.0;
+                if !(-0.5..65535.5).contains(&hundredths) {
+                    return Err(RangeError {
+                        what: concat!($what, " (hundredths)"),
+                        value: if hundredths.is_nan() { 0 } else { hundredths as i64 },
+                        min: 0,
+                        max: 65535,
+                    });
+                }
+                // Round half up without libm; the range check keeps it in u16.
+                Ok(Self((hundredths + 0.5) as u16))
+            }
+
+            #[doc = concat!("In ", $what, ".")]
+            pub fn $to(self) -> f64 {
+                f64::from(self.0) / 100.0
+            }
+        }
+    )+};
+}
+
+hundredths! {
+    Rate: from_degrees_per_second, degrees_per_second, "degrees per second";
+    Acceleration: from_degrees_per_second_squared, degrees_per_second_squared, "degrees per second squared";
+}
+
 /// The table of bounded wire values: one row `Name: repr, "what", min..=max;`
 /// per type, each a newtype whose constructor refuses what the wire format
 /// does not allow.
