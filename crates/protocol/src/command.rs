@@ -193,12 +193,13 @@ macro_rules! command_table {
     // fails to compile.
     (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] [$($done:tt)*]
         $(#[doc = $doc:literal])* $Variant:ident => {
-            wire: $wire:tt, answer: $answer:expr, motion: $motion:expr $(,)?
+            script: $script:literal, wire: $wire:tt, answer: $answer:expr, motion: $motion:expr $(,)?
         }
         $($rest:tt)*
     ) => {
         command_table!(@row [$(#[$meta])* $Command $lt $payload $w] [$($done)*
             [$(#[doc = $doc])* $Variant => {
+                script: $script,
                 wire: [$wire],
                 mnemonic: const { wire_name($wire) },
                 answer: $answer,
@@ -210,13 +211,14 @@ macro_rules! command_table {
     };
     (@row $head:tt [$($done:tt)*]
         $(#[doc = $doc:literal])* $Variant:ident $( ( $($field:ident : $fty:ty),+ $(,)? ) )? => {
-            mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
+            script: $script:literal, mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
             parse: { $($arms:tt)* }, encode: { $($encode:tt)* } $(,)?
         }
         $($rest:tt)*
     ) => {
         command_table!(@row $head [$($done)*
             [$(#[doc = $doc])* $Variant $( ( $($field : $fty),+ ) )? => {
+                script: $script,
                 wire: [],
                 mnemonic: $mnemonic,
                 answer: $answer,
@@ -228,13 +230,14 @@ macro_rules! command_table {
     };
     (@row $head:tt [$($done:tt)*]
         $(#[doc = $doc:literal])* $Variant:ident $( ( $($field:ident : $fty:ty),+ $(,)? ) )? => {
-            mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
+            script: $script:literal, mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
             parse: ( $parse:expr ), encode: { $($encode:tt)* } $(,)?
         }
         $($rest:tt)*
     ) => {
         command_table!(@row $head [$($done)*
             [$(#[doc = $doc])* $Variant $( ( $($field : $fty),+ ) )? => {
+                script: $script,
                 wire: [],
                 mnemonic: $mnemonic,
                 answer: $answer,
@@ -249,6 +252,7 @@ macro_rules! command_table {
     // Every row in one form: the enum and its functions.
     (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] [$(
         [$(#[doc = $doc:literal])* $Variant:ident $( ( $($field:ident : $fty:ty),+ ) )? => {
+            script: $script:literal,
             wire: [$($wire:literal)?],
             mnemonic: $mnemonic:expr,
             answer: $answer:expr,
@@ -284,6 +288,13 @@ macro_rules! command_table {
                     $( Row::$Variant => stringify!($Variant), )+
                 }
             }
+
+            /// The row's name for scripts (gimbalctl's and gcud's JSON).
+            pub const fn script_name(self) -> &'static str {
+                match self {
+                    $( Row::$Variant => $script, )+
+                }
+            }
         }
 
         impl<$lt> $Command<$lt> {
@@ -292,6 +303,11 @@ macro_rules! command_table {
                 match *self {
                     $( Self::$Variant { .. } => Row::$Variant, )+
                 }
+            }
+
+            /// The command's name for scripts: its row's script column.
+            pub const fn script_name(&self) -> &'static str {
+                self.row().script_name()
             }
 
             /// What the command does: its row's documentation (the spec
@@ -421,6 +437,7 @@ command_table! {
         // the patterns below (`VP`/`VS` + six bytes is not `Vzzzfff`).
         /// Rev 1.9 commands with their raw argument bytes (1.2, protocol-notes E13).
         Extended(ext: Extended, args: &'a [u8]) => {
+            script: "extended",
             mnemonic: ext.name(),
             answer: ext.answer(),
             motion: Motion::Other,
@@ -434,6 +451,7 @@ command_table! {
         // Table 4: general device control.
         /// `#NN`: set device address/ID (Table 4).
         SetDeviceId(id: DeviceId) => {
+            script: "set_device_id",
             mnemonic: "#NN",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -449,11 +467,12 @@ command_table! {
             },
         }
         /// `AW`: awake status (Table 4; result Table 5).
-        AwakeStatus => { wire: b"AW", answer: Answer::normal(Shape::AwakeStatus), motion: Motion::Other }
+        AwakeStatus => { script: "awake_status", wire: b"AW", answer: Answer::normal(Shape::AwakeStatus), motion: Motion::Other }
         /// `B?`: maximum data rate, `C0..CF` (Table 4).
-        QueryMaxDataRate => { wire: b"B?", answer: Answer::normal(Shape::MaxDataRate), motion: Motion::Other }
+        QueryMaxDataRate => { script: "query_max_data_rate", wire: b"B?", answer: Answer::normal(Shape::MaxDataRate), motion: Motion::Other }
         /// `C0..CF`: set communication data rate (Table 4; `C8..CF` reserved, protocol-notes E15).
         SetDataRate(rate: DataRate) => {
+            script: "set_data_rate",
             mnemonic: "Cn",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -470,13 +489,14 @@ command_table! {
             },
         }
         /// `D?`: identification (Table 4; result Table 6).
-        Identify => { wire: b"D?", answer: Answer::normal(Shape::Identity), motion: Motion::Other }
+        Identify => { script: "identify", wire: b"D?", answer: Answer::normal(Shape::Identity), motion: Motion::Other }
         /// `E?`: error codes (Table 4; result Table 6A).
-        QueryErrors => { wire: b"E?", answer: Answer::normal(Shape::Errors), motion: Motion::Other }
+        QueryErrors => { script: "query_errors", wire: b"E?", answer: Answer::normal(Shape::Errors), motion: Motion::Other }
         /// `I?`: status bits (Table 4; result Table 6B).
-        QueryStatusBits => { wire: b"I?", answer: Answer::normal(Shape::StatusBits), motion: Motion::Other }
+        QueryStatusBits => { script: "query_status_bits", wire: b"I?", answer: Answer::normal(Shape::StatusBits), motion: Motion::Other }
         /// `GRPnn` / `GRTnn`: set a rate gain (Table 4; value Table 7).
         SetRateGain(axis: Axis, gain: RateGain) => {
+            script: "set_rate_gain",
             mnemonic: match axis {
                 Axis::Pan => "GRPnn",
                 Axis::Tilt => "GRTnn",
@@ -495,15 +515,17 @@ command_table! {
             },
         }
         /// `G?`: rate gains (Table 4; result Table 8).
-        QueryRateGains => { wire: b"G?", answer: Answer::normal(Shape::RateGains), motion: Motion::Other }
+        QueryRateGains => { script: "query_rate_gains", wire: b"G?", answer: Answer::normal(Shape::RateGains), motion: Motion::Other }
         /// `IX`: initialisation (Table 4; result Table 9, which takes long).
         Initialize => {
+            script: "initialize",
             wire: b"IX",
             answer: Answer::Result(ResultTimeout::Long, Shape::Initialization),
             motion: Motion::Other,
         }
         /// `L0..L3`: open relay (Table 4).
         OpenRelay(relay: Relay) => {
+            script: "open_relay",
             mnemonic: "L0..L3",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -516,6 +538,7 @@ command_table! {
         }
         /// `L8..LB`: close relay (Table 4).
         CloseRelay(relay: Relay) => {
+            script: "close_relay",
             mnemonic: "L8..LB",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -531,11 +554,12 @@ command_table! {
             },
         }
         /// `LR`: relay status (Table 4; result Table 4A).
-        QueryRelays => { wire: b"LR", answer: Answer::normal(Shape::Relays), motion: Motion::Other }
+        QueryRelays => { script: "query_relays", wire: b"LR", answer: Answer::normal(Shape::Relays), motion: Motion::Other }
         /// `LC`: clear software limits (Table 4).
-        ClearLimits => { wire: b"LC", answer: Answer::Ack, motion: Motion::Other }
+        ClearLimits => { script: "clear_limits", wire: b"LC", answer: Answer::Ack, motion: Motion::Other }
         /// `LS` + 12 hex: set software limits (Table 4; values Table 10).
         SetLimits(limits: Limits) => {
+            script: "set_limits",
             mnemonic: "LS",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -560,13 +584,14 @@ command_table! {
             },
         }
         /// `L?`: software limits (Table 4; result Table 10).
-        QueryLimits => { wire: b"L?", answer: Answer::normal(Shape::Limits), motion: Motion::Other }
+        QueryLimits => { script: "query_limits", wire: b"L?", answer: Answer::normal(Shape::Limits), motion: Motion::Other }
 
         // Table 11: pan/tilt mount.
         /// `A?`: both accelerations (Table 11; result Table 13, protocol-notes E7).
-        QueryAccelerations => { wire: b"A?", answer: Answer::normal(Shape::Accelerations), motion: Motion::Other }
+        QueryAccelerations => { script: "query_accelerations", wire: b"A?", answer: Answer::normal(Shape::Accelerations), motion: Motion::Other }
         /// `AP?` / `AT?`: one axis (Table 11, protocol-notes E7). Before `APnnnn`.
         QueryAcceleration(axis: Axis) => {
+            script: "query_acceleration",
             mnemonic: match axis {
                 Axis::Pan => "AP?",
                 Axis::Tilt => "AT?",
@@ -582,6 +607,7 @@ command_table! {
         }
         /// `APnnnn` / `ATnnnn` (Table 11; value Table 12).
         SetAcceleration(axis: Axis, acceleration: Acceleration) => {
+            script: "set_acceleration",
             mnemonic: match axis {
                 Axis::Pan => "APnnnn",
                 Axis::Tilt => "ATnnnn",
@@ -600,17 +626,18 @@ command_table! {
             },
         }
         /// `HA`: halt, stores the position, motors off (Table 11).
-        Halt => { wire: b"HA", answer: Answer::Ack, motion: Motion::Stop }
+        Halt => { script: "halt", wire: b"HA", answer: Answer::Ack, motion: Motion::Stop }
         /// `HV`: verify home (Table 11; result Table 14).
-        VerifyHome => { wire: b"HV", answer: Answer::normal(Shape::VerifyHome), motion: Motion::Other }
+        VerifyHome => { script: "verify_home", wire: b"HV", answer: Answer::normal(Shape::VerifyHome), motion: Motion::Other }
         /// `HO`: go home (0, 0) (Table 11).
-        Home => { wire: b"HO", answer: Answer::Ack, motion: Motion::Other }
+        Home => { script: "home", wire: b"HO", answer: Answer::Ack, motion: Motion::Other }
         /// `HS`: stop, motors off (Table 11).
-        Stop => { wire: b"HS", answer: Answer::Ack, motion: Motion::Stop }
+        Stop => { script: "motors_stop", wire: b"HS", answer: Answer::Ack, motion: Motion::Stop }
         /// `P?`: current position (Table 11; result Table 15).
-        QueryPosition => { wire: b"P?", answer: Answer::normal(Shape::Position), motion: Motion::Other }
+        QueryPosition => { script: "query_position", wire: b"P?", answer: Answer::normal(Shape::Position), motion: Motion::Other }
         /// `Paaaaeeee`: go to position (Table 11; values Table 15).
         GoTo(position: Position) => {
+            script: "go_to",
             mnemonic: "Paaaaeeee",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -629,15 +656,16 @@ command_table! {
             },
         }
         /// `PL`: pan left (CW) until `PS` (Table 11).
-        PanLeft => { wire: b"PL", answer: Answer::Ack, motion: Motion::Until(Command::PanStop) }
+        PanLeft => { script: "pan_left", wire: b"PL", answer: Answer::Ack, motion: Motion::Until(Command::PanStop) }
         /// `PR`: pan right (CCW) until `PS` (Table 11).
-        PanRight => { wire: b"PR", answer: Answer::Ack, motion: Motion::Until(Command::PanStop) }
+        PanRight => { script: "pan_right", wire: b"PR", answer: Answer::Ack, motion: Motion::Until(Command::PanStop) }
         /// `PS`: pan stop (Table 11).
-        PanStop => { wire: b"PS", answer: Answer::Ack, motion: Motion::Stop }
+        PanStop => { script: "pan_stop", wire: b"PS", answer: Answer::Ack, motion: Motion::Stop }
         /// `PT`: stop motion (Table 11).
-        StopMotion => { wire: b"PT", answer: Answer::Ack, motion: Motion::Stop }
+        StopMotion => { script: "stop_motion", wire: b"PT", answer: Answer::Ack, motion: Motion::Stop }
         /// `Pnn`: go to preset (Table 11).
         GoToPreset(preset: u8) => {
+            script: "go_to_preset",
             mnemonic: "Pnn",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -653,6 +681,7 @@ command_table! {
         }
         /// `P?nn`: preset position (Table 11; result Table 15).
         QueryPreset(preset: u8) => {
+            script: "query_preset",
             mnemonic: "P?nn",
             answer: Answer::normal(Shape::Position),
             motion: Motion::Other,
@@ -665,9 +694,10 @@ command_table! {
             },
         }
         /// `R?`: both rates (Table 11; result Table 13, protocol-notes E7).
-        QueryRates => { wire: b"R?", answer: Answer::normal(Shape::Rates), motion: Motion::Other }
+        QueryRates => { script: "query_rates", wire: b"R?", answer: Answer::normal(Shape::Rates), motion: Motion::Other }
         /// `RP?` / `RT?`: one axis (Table 11, protocol-notes E7). Before `RPnnnn`.
         QueryRate(axis: Axis) => {
+            script: "query_rate",
             mnemonic: match axis {
                 Axis::Pan => "RP?",
                 Axis::Tilt => "RT?",
@@ -683,6 +713,7 @@ command_table! {
         }
         /// `RPnnnn` / `RTnnnn` (Table 11; value Table 12).
         SetRate(axis: Axis, rate: Rate) => {
+            script: "set_rate",
             mnemonic: match axis {
                 Axis::Pan => "RPnnnn",
                 Axis::Tilt => "RTnnnn",
@@ -702,6 +733,7 @@ command_table! {
         }
         /// `SP0..SPF` / `ST0..STF`: proportional speed (Table 11). Before `Snn`.
         SetSpeed(axis: Axis, speed: Speed) => {
+            script: "set_speed",
             mnemonic: match axis {
                 Axis::Pan => "SPn",
                 Axis::Tilt => "STn",
@@ -721,6 +753,7 @@ command_table! {
         }
         /// `Snn`: store current position as preset (Table 11).
         StorePreset(preset: u8) => {
+            script: "store_preset",
             mnemonic: "Snn",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -734,6 +767,7 @@ command_table! {
         }
         /// `S?nn`: position stored at preset (Table 11; result Table 15).
         QueryStoredPreset(preset: u8) => {
+            script: "query_stored_preset",
             mnemonic: "S?nn",
             answer: Answer::normal(Shape::Position),
             motion: Motion::Other,
@@ -746,13 +780,14 @@ command_table! {
             },
         }
         /// `TD`: tilt down (CW) until `TS` (Table 11).
-        TiltDown => { wire: b"TD", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop) }
+        TiltDown => { script: "tilt_down", wire: b"TD", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop) }
         /// `TS`: tilt stop (Table 11).
-        TiltStop => { wire: b"TS", answer: Answer::Ack, motion: Motion::Stop }
+        TiltStop => { script: "tilt_stop", wire: b"TS", answer: Answer::Ack, motion: Motion::Stop }
         /// `TU`: tilt up (CCW) until `TS` (Table 11).
-        TiltUp => { wire: b"TU", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop) }
+        TiltUp => { script: "tilt_up", wire: b"TU", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop) }
         /// `VMn`: vector motion on/off (Table 11).
         SetVectorMode(on: bool) => {
+            script: "set_vector_mode",
             mnemonic: "VMn",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -772,11 +807,12 @@ command_table! {
 
         // Table 16: camera.
         /// `CN`: camera and lens power on (Table 16).
-        CameraOn => { wire: b"CN", answer: Answer::Ack, motion: Motion::Other }
+        CameraOn => { script: "camera_on", wire: b"CN", answer: Answer::Ack, motion: Motion::Other }
         /// `CX`: camera and lens power off (Table 16).
-        CameraOff => { wire: b"CX", answer: Answer::Ack, motion: Motion::Other }
+        CameraOff => { script: "camera_off", wire: b"CX", answer: Answer::Ack, motion: Motion::Other }
         /// `F0..F9`: focus speed (Table 16).
         FocusSpeed(speed: LensSpeed) => {
+            script: "focus_speed",
             mnemonic: "Fn",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -788,17 +824,18 @@ command_table! {
             },
         }
         /// `FA`: auto-focus on (Table 16; not implemented by the gimbal).
-        AutoFocusOn => { wire: b"FA", answer: Answer::Ack, motion: Motion::Other }
+        AutoFocusOn => { script: "auto_focus_on", wire: b"FA", answer: Answer::Ack, motion: Motion::Other }
         /// `FF`: focus far until `FS` (Table 16).
-        FocusFar => { wire: b"FF", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop) }
+        FocusFar => { script: "focus_far", wire: b"FF", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop) }
         /// `FN`: focus near until `FS` (Table 16).
-        FocusNear => { wire: b"FN", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop) }
+        FocusNear => { script: "focus_near", wire: b"FN", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop) }
         /// `FS`: focus stop (Table 16).
-        FocusStop => { wire: b"FS", answer: Answer::Ack, motion: Motion::Stop }
+        FocusStop => { script: "focus_stop", wire: b"FS", answer: Answer::Ack, motion: Motion::Stop }
         /// `FX`: auto-focus off (Table 16; not implemented by the gimbal).
-        AutoFocusOff => { wire: b"FX", answer: Answer::Ack, motion: Motion::Other }
+        AutoFocusOff => { script: "auto_focus_off", wire: b"FX", answer: Answer::Ack, motion: Motion::Other }
         /// `Vzzzfff`: lens go-to (Table 16; values Table 17).
         LensGoTo(lens: LensPosition) => {
+            script: "lens_go_to",
             mnemonic: "Vzzzfff",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -815,9 +852,10 @@ command_table! {
             },
         }
         /// `V?`: lens position (Table 16; result Table 17).
-        QueryLens => { wire: b"V?", answer: Answer::normal(Shape::Lens), motion: Motion::Other }
+        QueryLens => { script: "query_lens", wire: b"V?", answer: Answer::normal(Shape::Lens), motion: Motion::Other }
         /// `Z0..Z9`: zoom speed (Table 16).
         ZoomSpeed(speed: LensSpeed) => {
+            script: "zoom_speed",
             mnemonic: "Zn",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -830,6 +868,7 @@ command_table! {
         }
         /// `ZA..ZF`: digital zoom (Table 16; not implemented by the gimbal).
         DigitalZoom(zoom: DigitalZoom) => {
+            script: "digital_zoom",
             mnemonic: "ZA..ZF",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -844,13 +883,14 @@ command_table! {
             },
         }
         /// `ZI`: zoom in until `ZS` (Table 16).
-        ZoomIn => { wire: b"ZI", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop) }
+        ZoomIn => { script: "zoom_in", wire: b"ZI", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop) }
         /// `ZO`: zoom out until `ZS` (Table 16).
-        ZoomOut => { wire: b"ZO", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop) }
+        ZoomOut => { script: "zoom_out", wire: b"ZO", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop) }
         /// `ZS`: zoom stop (Table 16).
-        ZoomStop => { wire: b"ZS", answer: Answer::Ack, motion: Motion::Stop }
+        ZoomStop => { script: "zoom_stop", wire: b"ZS", answer: Answer::Ack, motion: Motion::Stop }
         /// `*xpc,baud,data,stop,parity` (Table 16; fields Table 18).
         AuxConfigure(port: AuxPort, config: AuxConfig) => {
+            script: "aux_configure",
             mnemonic: "*xpc",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -873,6 +913,7 @@ command_table! {
         }
         /// `*xpt` + data (Table 16).
         AuxTransmit(port: AuxPort, data: AuxBytes<'a>) => {
+            script: "aux_transmit",
             mnemonic: "*xpt",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -889,6 +930,7 @@ command_table! {
         }
         /// `*xprnnn`: receive up to nnn bytes (Table 16; decimal, protocol-notes E14).
         AuxReceive(port: AuxPort, len: AuxReadLen) => {
+            script: "aux_receive",
             mnemonic: "*xprnnn",
             answer: Answer::normal(Shape::AuxData),
             motion: Motion::Other,
@@ -906,6 +948,7 @@ command_table! {
         }
         /// `*xpn`: characters waiting (Table 16; decimal, protocol-notes E14).
         AuxCount(port: AuxPort) => {
+            script: "aux_count",
             mnemonic: "*xpn",
             answer: Answer::normal(Shape::AuxCount),
             motion: Motion::Other,
@@ -918,6 +961,7 @@ command_table! {
         }
         /// `*xpf`: flush (Table 16).
         AuxFlush(port: AuxPort) => {
+            script: "aux_flush",
             mnemonic: "*xpf",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -932,6 +976,7 @@ command_table! {
         /// A payload that fits no command: a device answers it with NIC.
         /// No row parses to it: [`Command::parse`] gives it for what no row takes.
         Unknown(bytes: &'a [u8]) => {
+            script: "unknown",
             mnemonic: "unknown",
             answer: Answer::Ack,
             motion: Motion::Other,

@@ -88,9 +88,10 @@ fn command_row(out: &mut impl Write, command: &Command<'_>) -> fmt::Result {
     let answer = command.answer();
     write!(
         out,
-        "    [{}] = {{ row = {}, answer = {}, description = {}",
+        "    [{}] = {{ row = {}, script = {}, answer = {}, description = {}",
         Lua(command.mnemonic()),
         Lua(command.row().name()),
+        Lua(command.script_name()),
         Lua(answer.name()),
         Prose(command.description())
     )?;
