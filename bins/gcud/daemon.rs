@@ -13,12 +13,13 @@ use sagebrush_gcu::{
     Action, Input, Level, LinkConfig, LinkId, LinkKind, LinkStats, Outbox, Place, PortConfig, Router, RouterConfig,
     RouterEvent, SourceFilter,
 };
-use sagebrush_host::capture::{Capture, CaptureSwitch};
+use sagebrush_host::capture::CaptureSwitch;
 use tokio::net::TcpListener;
 use tokio::signal::unix::{SignalKind, signal};
 use tokio::sync::mpsc;
 
 use crate::admission::{Connections, Limits};
+use crate::capture::CaptureControl;
 use tokio::task::JoinHandle;
 use tokio::time::Instant;
 use tracing::{debug, error, info, warn};
@@ -130,21 +131,42 @@ struct Tasks {
     connections: Arc<Connections>,
     ports: HashMap<u8, JoinHandle<()>>,
     links: BTreeMap<String, JoinHandle<()>>,
+    /// The bound listeners, by link name, with the address configured (a
+    /// reload hands one over to the link that takes its address).
+    listeners: BTreeMap<String, (std::net::SocketAddr, Arc<TcpListener>)>,
     /// `[capture]`: every port and link task taps its bytes here.
     capture: Arc<CaptureSwitch>,
 }
 
 impl Tasks {
-    /// Starts a link; a listener binds now (an address in use is an error).
-    async fn start_link(&mut self, link: &Link, id: LinkId) -> Result<(), StartError> {
-        let task = match link.transport {
-            LinkTransport::Listen(addr) => {
-                let listener = TcpListener::bind(addr).await.map_err(|error| StartError::Listen {
-                    link: link.name.clone(),
-                    addr,
-                    error,
-                })?;
+    /// The listener of a `listen` link, bound now (`None` for other links):
+    /// the one a link closing in the same reload holds at that address, or
+    /// a new one (an address in use is an error).
+    async fn bind(&self, link: &Link, closing: &[&str]) -> Result<Option<Arc<TcpListener>>, StartError> {
+        let LinkTransport::Listen(addr) = link.transport else {
+            return Ok(None);
+        };
+        let held = self
+            .listeners
+            .iter()
+            .find(|(name, (at, _))| *at == addr && addr.port() != 0 && closing.contains(&name.as_str()));
+        if let Some((_, (_, listener))) = held {
+            return Ok(Some(listener.clone()));
+        }
+        let listener = TcpListener::bind(addr).await.map_err(|error| StartError::Listen {
+            link: link.name.clone(),
+            addr,
+            error,
+        })?;
+        Ok(Some(Arc::new(listener)))
+    }
+
+    /// Starts a link; a `listen` link accepts on `listener` (from [`Tasks::bind`]).
+    fn start_link(&mut self, link: &Link, id: LinkId, listener: Option<Arc<TcpListener>>) {
+        let task = match (link.transport.clone(), listener) {
+            (LinkTransport::Listen(addr), Some(listener)) => {
                 info!(link = %link.name, addr = %listener.local_addr().unwrap_or(addr), "listening");
+                self.listeners.insert(link.name.clone(), (addr, listener.clone()));
                 let connections = self.connections.clone();
                 tokio::spawn(io::accept_loop(
                     link.clone(),
@@ -164,10 +186,10 @@ impl Tasks {
         if let Some(old) = self.links.insert(link.name.clone(), task) {
             old.abort();
         }
-        Ok(())
     }
 
     fn stop_link(&mut self, name: &str) {
+        self.listeners.remove(name);
         if let Some(task) = self.links.remove(name) {
             task.abort();
         }
@@ -188,7 +210,7 @@ impl Tasks {
 }
 
 /// Runs the daemon until SIGTERM or SIGINT, then shuts down gracefully.
-pub async fn run(mut config: Config) -> Result<(), StartError> {
+pub async fn run(mut config: Config, http_limits: crate::http::Limits) -> Result<(), StartError> {
     let mut ids = LinkIds::default();
     let mut router = Router::new(router_config(&config, &mut ids)).map_err(|e| StartError::Router(e.to_string()))?;
     let start = Instant::now();
@@ -207,15 +229,19 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
         }),
         ports: HashMap::new(),
         links: BTreeMap::new(),
+        listeners: BTreeMap::new(),
         capture: CaptureSwitch::new(),
     };
+    // Opened off this task: a FIFO nobody reads yet holds up nothing.
+    let capture = CaptureControl::spawn(tasks.capture.clone());
     if config.capture.as_ref().is_some_and(|c| c.enabled) {
-        toggle_capture(&tasks.capture, &config);
+        capture.start(&config).await;
     }
 
     // Listeners and the metrics endpoint bind now: a bad address is a start failure.
     for link in &config.links {
-        tasks.start_link(link, ids.of(&link.name)).await?;
+        let listener = tasks.bind(link, &[]).await?;
+        tasks.start_link(link, ids.of(&link.name), listener);
     }
     if let Some(addr) = config.metrics {
         let listener = TcpListener::bind(addr)
@@ -231,10 +257,13 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
                 }
             }
         });
-        tokio::spawn(crate::metrics::serve(
+        let counters = Arc::new(crate::http::Counters::default());
+        tokio::spawn(crate::http::serve(
             listener,
             config.metrics_allow_peers.clone(),
-            scrape_tx,
+            http_limits,
+            crate::metrics::app(scrape_tx, counters.clone()),
+            counters,
         ));
     }
     for port in &config.ports {
@@ -320,6 +349,7 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
                         s.connections = tasks.connections.stats();
                         s.started_unix_ms = started_unix_ms;
                         s.shutting_down = stopping.is_some();
+                        s.capture = tasks.capture.current().map(|c| c.stats());
                         let _ = reply.send(s);
                     }
                 }
@@ -349,7 +379,7 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
                 let reloaded = Reload { config: &mut config, ids: &mut ids, router: &mut router, tasks: &mut tasks, lines: &mut lines, links: &mut links, closing: &mut closing };
                 reloaded.run(t, &mut actions).await;
             }
-            _ = sigusr1.recv() => toggle_capture(&tasks.capture, &config),
+            _ = sigusr1.recv() => capture.toggle(&config, "SIGUSR1"),
             () = sleep_until(
                 [stopping, closing.values().min().copied(), throttle.next_deadline()]
                     .into_iter()
@@ -407,52 +437,8 @@ pub async fn run(mut config: Config) -> Result<(), StartError> {
         }
     })
     .await;
-    if let Some(capture) = tasks.capture.stop() {
-        log_capture_stop(&capture, "gcud stopping");
-    }
+    capture.stop("gcud stopping").await;
     Ok(())
-}
-
-/// SIGUSR1: starts a capture with `[capture]` as the file reads now (the
-/// running settings if it cannot be read), or stops the running one (one
-/// that stopped by itself, on a write error or its budget, is replaced by a
-/// fresh one). A capture that cannot start is one error line; routing goes on.
-fn toggle_capture(switch: &CaptureSwitch, config: &Config) {
-    if let Some(capture) = switch.stop() {
-        let running = capture.is_active();
-        log_capture_stop(&capture, "SIGUSR1");
-        if running {
-            return;
-        }
-        // It had stopped by itself (write error, budget): start afresh.
-    }
-    let settings = match crate::config::load(&config.file) {
-        Ok(now) => now.capture,
-        Err(_) => config.capture.clone(),
-    };
-    let Some(settings) = settings else {
-        return warn!("SIGUSR1: no [capture] section in the configuration; nothing to capture to");
-    };
-    match Capture::open(&settings.file, settings.capture_config()) {
-        Ok(capture) => {
-            info!(file = %settings.file.display(), "capture started (SIGUSR1 stops it)");
-            switch.start(capture);
-        }
-        Err(e) => {
-            error!(file = %settings.file.display(), error = %e, "cannot start the capture; routing goes on without it")
-        }
-    }
-}
-
-fn log_capture_stop(capture: &Capture, why: &str) {
-    let stats = capture.stop(Duration::from_secs(2));
-    info!(
-        file = %capture.path().display(),
-        records = stats.records,
-        bytes = stats.bytes_written,
-        dropped = stats.dropped,
-        "capture stopped ({why})"
-    );
 }
 
 /// The counters a scrape renders: live links and those gone, per configured link.
@@ -496,6 +482,8 @@ fn snapshot(
         name: config.name.clone(),
         shutting_down: false,
         heap: stats::Heap::now(),
+        capture: None,
+        http: Default::default(),
     }
 }
 
@@ -544,6 +532,24 @@ impl Reload<'_> {
         if diff.is_empty() {
             return info!("configuration unchanged");
         }
+        // All or nothing: every new listener is bound before anything
+        // changes; one that cannot bind refuses the reload (a later SIGHUP
+        // tries again, as the running configuration still differs).
+        let closing: Vec<&str> = diff
+            .links_changed
+            .iter()
+            .map(|l| l.name.as_str())
+            .chain(diff.links_removed.iter().map(String::as_str))
+            .collect();
+        let mut bound = BTreeMap::new();
+        for link in diff.links_changed.iter().chain(&diff.links_added) {
+            match self.tasks.bind(link, &closing).await {
+                Ok(listener) => {
+                    bound.insert(link.name.clone(), listener);
+                }
+                Err(e) => return error!("reload refused, running configuration kept: {e}"),
+            }
+        }
         let reopen: Vec<u8> = diff.ports_changed.iter().map(|p| p.id).collect();
         if let Err(e) = self
             .router
@@ -591,9 +597,8 @@ impl Reload<'_> {
         }
         *self.config = new;
         for link in diff.links_changed.iter().chain(&diff.links_added) {
-            if let Err(e) = self.tasks.start_link(link, self.ids.of(&link.name)).await {
-                error!("reload: {e}");
-            }
+            let listener = bound.remove(&link.name).flatten();
+            self.tasks.start_link(link, self.ids.of(&link.name), listener);
         }
     }
 }

@@ -5,8 +5,11 @@
 //! (ARCHITECTURE "Layers", 3: transport).
 
 use std::io;
+use std::net::SocketAddr;
+use std::pin::Pin;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU32, Ordering};
+use std::task::{Context, Poll};
 use std::time::Duration;
 
 use sagebrush_gcu::LinkId;
@@ -14,6 +17,7 @@ use sagebrush_host::capture::{CaptureSwitch, Role, Tap};
 
 use crate::lines::{Ended, LineStream};
 use sagebrush_host::transport::{SerialOrTcp, connect_tcp, open_serial};
+use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{Notify, mpsc, oneshot};
 
@@ -21,6 +25,7 @@ use crate::admission::{Admission, Connections};
 use tracing::{debug, info, warn};
 
 use crate::config::{Link, LinkRole, LinkTransport, Port, PortTransport};
+use crate::throttle::Throttle;
 
 /// What the line tasks tell the router task: a line is open (the router
 /// task owns it from then on, module `lines`), or an accepted connection
@@ -78,16 +83,52 @@ impl LineStream for tokio_serial::SerialStream {
     }
 }
 
-impl LineStream for TcpStream {
+/// A port on a TCP device server (ser2net and the like): the server owns
+/// the serial line and its rate is configured there. The rate the port was
+/// opened at is remembered, so that only a change to another rate (after
+/// an acknowledged `C0..C7`, Table 4) is reported as not applied, not the
+/// router's setting of the rate it already has at every open.
+#[derive(Debug)]
+struct DeviceServer {
+    stream: TcpStream,
+    baud: u32,
+}
+
+impl LineStream for DeviceServer {
     fn set_baud(&mut self, baud: u32) -> io::Result<()> {
-        // The device server owns the serial line; its rate is configured there.
-        warn!(
-            baud,
-            "line rate change on a TCP device server port is not applied locally"
-        );
+        if baud != self.baud {
+            warn!(
+                from = self.baud,
+                baud, "line rate change on a TCP device server port is not applied locally: configure it on the server"
+            );
+            self.baud = baud;
+        }
         Ok(())
     }
 }
+
+impl AsyncRead for DeviceServer {
+    fn poll_read(self: Pin<&mut Self>, cx: &mut Context<'_>, buf: &mut ReadBuf<'_>) -> Poll<io::Result<()>> {
+        Pin::new(&mut self.get_mut().stream).poll_read(cx, buf)
+    }
+}
+
+impl AsyncWrite for DeviceServer {
+    fn poll_write(self: Pin<&mut Self>, cx: &mut Context<'_>, buf: &[u8]) -> Poll<io::Result<usize>> {
+        Pin::new(&mut self.get_mut().stream).poll_write(cx, buf)
+    }
+
+    fn poll_flush(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        Pin::new(&mut self.get_mut().stream).poll_flush(cx)
+    }
+
+    fn poll_shutdown(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        Pin::new(&mut self.get_mut().stream).poll_shutdown(cx)
+    }
+}
+
+/// An accepted or dialled link connection: no line rate.
+impl LineStream for TcpStream {}
 
 impl LineStream for tokio::io::DuplexStream {}
 
@@ -96,7 +137,10 @@ impl LineStream for SerialOrTcp {}
 async fn open_port(port: &Port, baud: u32) -> io::Result<Box<dyn LineStream>> {
     Ok(match &port.transport {
         PortTransport::Serial(path) => Box::new(open_serial(&path.to_string_lossy(), baud)?),
-        PortTransport::Tcp(addr) => Box::new(connect_tcp(addr).await?),
+        PortTransport::Tcp(addr) => Box::new(DeviceServer {
+            stream: connect_tcp(addr).await?,
+            baud,
+        }),
         #[cfg(feature = "sim")]
         PortTransport::Simulated(devices) => Box::new(crate::simulated::spawn(port.id, devices, baud)),
         #[cfg(not(feature = "sim"))]
@@ -281,24 +325,18 @@ pub async fn run_link(id: LinkId, link: Link, events: mpsc::Sender<IoEvent>, cap
 /// removed on reload).
 pub async fn accept_loop(
     link: Link,
-    listener: TcpListener,
+    listener: Arc<TcpListener>,
     connections: Arc<Connections>,
     events: mpsc::Sender<IoEvent>,
     capture: Arc<CaptureSwitch>,
 ) {
     let mut open = tokio::task::JoinSet::new();
+    let mut throttle = Throttle::default();
+    let place = format!("link {}", link.name);
     loop {
-        let accepted = tokio::select! {
-            accepted = listener.accept() => accepted,
+        let (stream, peer) = tokio::select! {
+            accepted = accept(&listener, &place, &mut throttle) => accepted,
             Some(_) = open.join_next() => continue,
-        };
-        let (stream, peer) = match accepted {
-            Ok(c) => c,
-            Err(e) => {
-                warn!(link = %link.name, error = %e, "accept failed");
-                tokio::time::sleep(Duration::from_millis(100)).await;
-                continue;
-            }
         };
         if !link.allow_peers.contains(&peer.ip()) {
             if connections.refuse_unlisted(peer.ip(), tokio::time::Instant::now()) {
@@ -337,6 +375,40 @@ pub async fn accept_loop(
             let id = LinkId(NEXT_LINK_ID.fetch_add(1, Ordering::Relaxed));
             serve_link(id, name, peer.to_string(), stream, &events, Some(admitted), tap).await;
         });
+    }
+}
+
+/// How long an accept loop pauses after a failed accept: descriptors ran
+/// out (EMFILE, ENFILE) and the listener stays readable, so retrying at
+/// once would spin.
+const ACCEPT_PAUSE: Duration = Duration::from_millis(100);
+
+/// The next connection on `listener`. A failed accept (descriptors ran out:
+/// EMFILE, ENFILE; or the peer gave up) is logged at most
+/// [`crate::throttle::BURST`] times per window and place, the rest summed up
+/// when the window ends, and retried after [`ACCEPT_PAUSE`]: nothing else
+/// waits for it, so routing goes on.
+pub async fn accept(listener: &TcpListener, place: &str, throttle: &mut Throttle) -> (TcpStream, SocketAddr) {
+    loop {
+        let summary_at = throttle.next_deadline();
+        let accepted = tokio::select! {
+            accepted = listener.accept() => Some(accepted),
+            () = async { match summary_at { Some(at) => tokio::time::sleep_until(at).await, None => std::future::pending().await } } => None,
+        };
+        for summary in throttle.summaries(tokio::time::Instant::now()) {
+            warn!("{summary}");
+        }
+        match accepted {
+            Some(Ok(connection)) => return connection,
+            Some(Err(e)) => {
+                let line = || format!("{place}: accept failed: {e}");
+                if throttle.allow("accept failed", place, line, tokio::time::Instant::now()) {
+                    warn!(%place, error = %e, "accept failed; retrying (logged at most {} times in {} s)", crate::throttle::BURST, crate::throttle::WINDOW.as_secs());
+                }
+                tokio::time::sleep(ACCEPT_PAUSE).await;
+            }
+            None => {}
+        }
     }
 }
 

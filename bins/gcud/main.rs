@@ -3,8 +3,11 @@
 //! (ARCHITECTURE "Layers", 3 and 4).
 
 mod admission;
+mod capture;
 mod config;
 mod daemon;
+mod descriptors;
+mod http;
 mod io;
 mod lines;
 mod metrics;
@@ -103,6 +106,25 @@ fn main() -> ExitCode {
     for w in &config.warnings {
         tracing::warn!("{w}");
     }
+    let descriptors = descriptors::Limit::raise();
+    let http = http::Limits {
+        max_connections: descriptors.http_connections(),
+    };
+    tracing::info!(
+        was = descriptors.was,
+        now = descriptors.now,
+        http_connections = http.max_connections,
+        "descriptor limit (RLIMIT_NOFILE)"
+    );
+    let lines = (config.ports.len() + config.links.len()) as u64;
+    if let Some(needed) = descriptors.shortfall(config.max_connections as u64, lines, http.max_connections) {
+        tracing::warn!(
+            limit = descriptors.now,
+            needed,
+            "the descriptor limit is below what [limits] max_connections, the ports, links and HTTP endpoint may \
+             hold open: connections beyond it wait to be accepted (raise LimitNOFILE)"
+        );
+    }
     // The router task yields after each bounded turn (daemon::Turn); the
     // I/O driver is polled every few scheduler ticks (61 by default), so
     // that a turn-by-turn flood cannot hide other sockets' readiness.
@@ -117,7 +139,7 @@ fn main() -> ExitCode {
             return ExitCode::from(EXIT_START);
         }
     };
-    match runtime.block_on(daemon::run(config)) {
+    match runtime.block_on(daemon::run(config, http)) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             tracing::error!("{e}");

@@ -1,6 +1,8 @@
 //! The optional Prometheus endpoint (`[metrics] listen`, loopback by
 //! default): `GET /metrics` in the OpenMetrics text format, encoded by
-//! `prometheus-client` from a snapshot of the router core's statistics.
+//! `prometheus-client` from a snapshot of the router core's statistics,
+//! `/status` and `/healthz`. Module `http` serves them (who may connect,
+//! how many, for how long).
 
 use std::fmt;
 
@@ -10,7 +12,6 @@ use prometheus_client::metrics::MetricType;
 use prometheus_client::metrics::counter::ConstCounter;
 use prometheus_client::metrics::gauge::ConstGauge;
 use prometheus_client::registry::Registry;
-use tokio::net::TcpListener;
 use tokio::sync::{mpsc, oneshot};
 
 /// Counter or gauge.
@@ -130,8 +131,8 @@ const HEALTH_WAIT: std::time::Duration = std::time::Duration::from_secs(1);
 /// What the HTTP handlers share.
 #[derive(Clone, Debug)]
 struct Endpoint {
-    allow_peers: crate::config::PeerAllowList,
     scrapes: ScrapeRequests,
+    http: std::sync::Arc<crate::http::Counters>,
 }
 
 impl Endpoint {
@@ -141,33 +142,21 @@ impl Endpoint {
     async fn snapshot(&self) -> Option<crate::stats::Snapshot> {
         let (tx, rx) = oneshot::channel();
         self.scrapes.send(tx).await.ok()?;
-        rx.await.ok()
+        let mut snapshot = rx.await.ok()?;
+        snapshot.http = self.http.stats();
+        Some(snapshot)
     }
 }
 
-/// Serves, to `[metrics] allow_peers` only (403 otherwise), until the
-/// process ends: `GET /metrics` (OpenMetrics text), `GET /status` (JSON,
-/// module `status`) and `GET /healthz` (200 `ok` while the router task
-/// answers within a second and gcud is not shutting down, 503 and why
-/// otherwise).
-pub async fn serve(listener: TcpListener, allow_peers: crate::config::PeerAllowList, scrapes: ScrapeRequests) {
-    use axum::extract::{ConnectInfo, Request, State};
+/// The pages, for module `http` to serve (to `[metrics] allow_peers`
+/// only): `GET /metrics` (OpenMetrics text), `GET /status` (JSON, module
+/// `status`) and `GET /healthz` (200 `ok` while the router task answers
+/// within a second and gcud is not shutting down, 503 and why otherwise).
+pub fn app(scrapes: ScrapeRequests, http: std::sync::Arc<crate::http::Counters>) -> axum::Router {
+    use axum::extract::State;
     use axum::http::StatusCode;
-    use axum::middleware::{self, Next};
     use axum::response::{IntoResponse, Response};
     use axum::routing::get;
-
-    async fn allowed(
-        State(endpoint): State<Endpoint>,
-        ConnectInfo(peer): ConnectInfo<std::net::SocketAddr>,
-        request: Request,
-        next: Next,
-    ) -> Response {
-        if !endpoint.allow_peers.contains(&peer.ip()) {
-            return (StatusCode::FORBIDDEN, "not in [metrics] allow_peers\n").into_response();
-        }
-        next.run(request).await
-    }
 
     async fn metrics(State(endpoint): State<Endpoint>) -> Response {
         let body = match endpoint.snapshot().await {
@@ -206,17 +195,11 @@ pub async fn serve(listener: TcpListener, allow_peers: crate::config::PeerAllowL
         }
     }
 
-    let endpoint = Endpoint { allow_peers, scrapes };
-    let app = axum::Router::new()
+    axum::Router::new()
         .route("/metrics", get(metrics))
         .route("/status", get(status))
         .route("/healthz", get(healthz))
-        .layer(middleware::from_fn_with_state(endpoint.clone(), allowed))
-        .with_state(endpoint)
-        .into_make_service_with_connect_info::<std::net::SocketAddr>();
-    if let Err(e) = axum::serve(listener, app).await {
-        tracing::error!(error = %e, "metrics endpoint stopped");
-    }
+        .with_state(Endpoint { scrapes, http })
 }
 
 #[cfg(test)]

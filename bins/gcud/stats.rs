@@ -36,6 +36,10 @@ pub struct Snapshot {
     /// SIGTERM/SIGINT received: new commands are refused.
     pub shutting_down: bool,
     pub heap: Heap,
+    /// The running capture's counters (SIGUSR1 or `[capture] enabled`), if any.
+    pub capture: Option<sagebrush_host::capture::CaptureStats>,
+    /// The HTTP endpoint's connections (filled in by the endpoint itself).
+    pub http: crate::http::HttpStats,
 }
 
 /// The process's heap, as the global allocator counts it.
@@ -289,6 +293,42 @@ pub fn render(snapshot: &Snapshot) -> String {
     closed.push(vec![("why", "evicted".to_owned())], c.evicted);
     closed.push(vec![("why", "idle".to_owned())], c.idle_closed);
     out.push(closed);
+    let h = &snapshot.http;
+    let mut http_open = Family::new(
+        "http_connections_open",
+        "HTTP endpoint connections open now.",
+        Kind::Gauge,
+    );
+    http_open.push(vec![], h.open);
+    out.push(http_open);
+    let mut http_refused = Family::new(
+        "http_connections_refused",
+        "HTTP endpoint connections closed at accept, by why.",
+        Kind::Counter,
+    );
+    http_refused.push(vec![("why", "allow_peers".to_owned())], h.refused_not_allowed);
+    http_refused.push(vec![("why", "max_connections".to_owned())], h.refused_cap);
+    out.push(http_refused);
+    let capture = snapshot.capture.clone().unwrap_or_default();
+    let mut capture_on = Family::new("capture_running", "Whether a capture is running.", Kind::Gauge);
+    capture_on.push(vec![], u64::from(snapshot.capture.is_some()));
+    out.push(capture_on);
+    for (name, help, value) in [
+        (
+            "capture_records",
+            "Records written by the running capture.",
+            capture.records,
+        ),
+        (
+            "capture_dropped",
+            "Chunks the running capture dropped: its queue was full (a slow disk, a FIFO without a reader or a stalled one).",
+            capture.dropped,
+        ),
+    ] {
+        let mut f = Family::new(name, help, Kind::Counter);
+        f.push(vec![], value);
+        out.push(f);
+    }
     let mut in_progress = Family::new("commands_in_progress", "Commands in progress now.", Kind::Gauge);
     in_progress.push(vec![], r.in_progress);
     out.push(in_progress);
@@ -527,6 +567,8 @@ mod tests {
                 allocations: 7,
                 bytes_in_use: 4096,
             },
+            capture: None,
+            http: Default::default(),
         };
         let text = render(&snapshot);
         assert!(text.contains("gcud_uptime_ms 42"), "{text}");

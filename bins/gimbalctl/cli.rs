@@ -97,7 +97,7 @@ pub struct Global {
     #[arg(
         long,
         global = true,
-        default_value = "warn,sagebrush_host::master=error",
+        default_value = "warn,sagebrush_client::master=error",
         value_name = "FILTER",
         help_heading = "Output (global)"
     )]

@@ -3,6 +3,7 @@
 
 use std::fmt;
 
+use sagebrush_client::CommandError;
 use sagebrush_protocol::Undelivered;
 use serde_json::Value;
 
@@ -120,5 +121,20 @@ impl fmt::Display for CtlError {
 impl From<std::io::Error> for CtlError {
     fn from(e: std::io::Error) -> Self {
         CtlError::Io(e.to_string())
+    }
+}
+
+impl From<CommandError> for CtlError {
+    fn from(e: CommandError) -> Self {
+        match e {
+            CommandError::Io(m) => CtlError::Io(m),
+            CommandError::Usage(m) => CtlError::Usage(m),
+            CommandError::Nak(m) => CtlError::Nak(m),
+            CommandError::NoAck(m) => CtlError::NoAck(m),
+            CommandError::Nic(m) => CtlError::Nic(m),
+            CommandError::NoResult(m) => CtlError::NoResult(m),
+            CommandError::BadReply(m) => CtlError::BadReply(m),
+            CommandError::Undelivered(failure, m) => CtlError::Undelivered(failure, m),
+        }
     }
 }

@@ -1,6 +1,6 @@
 //! `gimbalctl`: command Sagebrush pan-tilt gimbals (protocol rev 1.9) by
 //! hand, on a bus (`--serial`) or through a GCU daemon (`--tcp`). Built on
-//! the protocol crate's `Transaction` (via `sagebrush_host::master`). Exit codes
+//! the protocol crate's `Transaction` (via `sagebrush_client`). Exit codes
 //! are listed in [`cli::EXIT_CODES`].
 
 mod cli;
@@ -19,8 +19,8 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Parser;
+use sagebrush_client::master::Exchange;
 use sagebrush_host::hex::payload_text;
-use sagebrush_host::master::Exchange;
 use sagebrush_protocol::{Address, Command, Outcome, Reply};
 use serde_json::{Map, Value, json};
 
@@ -219,7 +219,7 @@ pub fn exchange_json(session: &Session, cmd: &Cmd, payload: &[u8], ex: &Exchange
         }
     }
     m.insert("dest".into(), session.to.to_string().into());
-    m.insert("source".into(), session.from.into());
+    m.insert("source".into(), session.from().into());
     m.insert("outcome".into(), outcome.into());
     m.insert("transmissions".into(), ex.transmissions.into());
     m.insert("naks_received".into(), ex.naks_received.into());

@@ -63,14 +63,7 @@ impl Arrived {
 }
 
 fn expect_position(command: &Command<'_>, payload: &[u8]) -> Result<Position, CtlError> {
-    match Reply::parse(command, payload) {
-        Ok(Reply::Position(p)) => Ok(p),
-        _ => Err(CtlError::BadReply(format!(
-            "{} result {:?} is not a Table 15 position",
-            command.mnemonic(),
-            String::from_utf8_lossy(payload)
-        ))),
-    }
+    Ok(sagebrush_client::client::expect_position(command, payload)?)
 }
 
 /// The target of a positioning command; a preset's is asked (P?nn) first.

@@ -31,11 +31,7 @@ fn hundredths(value: f64) -> u16 {
 
 /// The payload bytes of a command.
 pub fn encode(command: &Command<'_>) -> Result<Vec<u8>, CtlError> {
-    let mut buf = [0u8; MAX_PAYLOAD];
-    command
-        .encode(&mut buf)
-        .map(<[u8]>::to_vec)
-        .map_err(|e| CtlError::Usage(format!("cannot encode {}: {e}", command.mnemonic())))
+    Ok(sagebrush_client::client::encode(command)?)
 }
 
 /// The payload a one-exchange subcommand sends; `None` for the subcommands

@@ -126,7 +126,7 @@ impl Scan<'_> {
         &mut self,
         at: Address,
         first: &Value,
-        ex: &sagebrush_host::master::Exchange,
+        ex: &sagebrush_client::master::Exchange,
     ) -> Result<(), CtlError> {
         let extra = self.session.linger(LINGER).await?;
         let others: Vec<&FrameBuf> = extra

@@ -1,16 +1,17 @@
 //! One connection to a bus (serial, as master) or a GCU (TCP, as client)
-//! and the exchanges `gimbalctl` makes over it, with protocol failures
-//! turned into [`CtlError`]s that say what happened.
+//! and the exchanges `gimbalctl` makes over it ([`sagebrush_client::Client`]),
+//! with protocol failures turned into [`CtlError`]s that say what happened.
 
+use sagebrush_client::Client;
+use sagebrush_client::codec::Write;
+use sagebrush_client::master::Exchange;
 use sagebrush_host::capture::{Capture, CaptureSwitch, Role, Tapped, capture_to};
-use sagebrush_host::codec::Write;
-use sagebrush_host::master::{Exchange, Master};
 use sagebrush_host::timing;
 use sagebrush_host::transport::{self, SerialOrTcp};
 use std::time::Duration;
 
 use sagebrush_protocol::link::TransactionPolicy;
-use sagebrush_protocol::{Address, Command, FrameBuf, Outcome, OwnedEvent, TxFailure};
+use sagebrush_protocol::{Address, Command, FrameBuf, OwnedEvent};
 
 use crate::cli::Global;
 use crate::error::CtlError;
@@ -18,11 +19,10 @@ use crate::error::CtlError;
 /// A connection and the addressing of its commands.
 #[derive(Debug)]
 pub struct Session {
-    master: Master<Tapped<SerialOrTcp>>,
+    client: Client<Tapped<SerialOrTcp>>,
     /// `--capture FILE`: stopped (the file completed) when the session ends.
     capture: Option<Capture>,
     pub to: Address,
-    pub from: u8,
     /// What the line is (`tcp 127.0.0.1:4001`, `serial /dev/pts/3`).
     pub line: String,
     pub over_tcp: bool,
@@ -97,77 +97,28 @@ impl Session {
             None => CaptureSwitch::new().tap(described.clone(), Role::Master),
         };
         Ok(Self {
-            master: Master::new(Tapped::new(line, tap), policy),
+            client: Client::new(Tapped::new(line, tap), policy, g.from),
             capture: capture.map(|(_, capture)| capture),
             to,
-            from: g.from,
             line: described,
             over_tcp,
         })
     }
 
     /// One exchange of `payload`; failures become errors naming the device,
-    /// the command and what happened.
+    /// the command and what happened ([`CommandError`]).
     pub async fn exchange(&mut self, payload: &[u8]) -> Result<Exchange, CtlError> {
-        let frame = FrameBuf::new(self.to, self.from, payload).map_err(|e| CtlError::Usage(format!("payload: {e}")))?;
-        let command = Command::parse(payload);
-        let ex = self.master.transact(&frame, &command).await?;
-        let what = format!(
-            "{} ({})",
-            sagebrush_host::hex::payload_text(payload),
-            command.mnemonic()
-        );
-        let to = self.to;
-        let policy = *self.master.policy();
-        if let Some(report) = ex.undelivered {
-            let failure = report.failure.unwrap_or(sagebrush_protocol::Undelivered::NotConfirmed);
-            return Err(CtlError::Undelivered(
-                failure,
-                format!(
-                    "not delivered: {what} to {to}: {} (reported by GCU {})",
-                    failure.describe(),
-                    report.at_group
-                ),
-            ));
-        }
-        match ex.outcome {
-            Outcome::Acknowledged | Outcome::Broadcast | Outcome::Result => Ok(ex),
-            Outcome::Nic => Err(CtlError::Nic(format!(
-                "NIC: {to} does not implement or cannot apply {what}"
-            ))),
-            Outcome::NoResult => Err(CtlError::NoResult(format!(
-                "{to} acknowledged {what} but sent no result within {} ms",
-                if command.result_kind()
-                    == sagebrush_protocol::ResultKind::Required(sagebrush_protocol::ResultTimeout::Long)
-                {
-                    policy.long_result_timeout
-                } else {
-                    policy.result_timeout
-                }
-            ))),
-            Outcome::Failed(TxFailure::Nak) => Err(CtlError::Nak(format!(
-                "{to} answered NAK to {what} on all {} transmissions: the frame keeps arriving damaged (line noise? wrong --baud?)",
-                ex.transmissions
-            ))),
-            Outcome::Failed(TxFailure::NoAck) => Err(CtlError::NoAck(format!(
-                "no ACK from {to} for {what} after {} transmissions ({} ms each): check the address, the cabling and --baud",
-                ex.transmissions, policy.retry.ack_timeout
-            ))),
-        }
+        Ok(self.client.exchange(self.to, payload).await?)
+    }
+
+    /// The source group the commands carry (`--from`).
+    pub fn from(&self) -> u8 {
+        self.client.from
     }
 
     /// A query: its result payload.
     pub async fn query(&mut self, command: &Command<'_>) -> Result<Vec<u8>, CtlError> {
-        let payload = crate::request::encode(command)?;
-        let ex = self.exchange(&payload).await?;
-        match ex.result {
-            Some(frame) => Ok(frame.frame().payload().to_vec()),
-            None => Err(CtlError::NoResult(format!(
-                "{} sent no result for {}",
-                self.to,
-                command.mnemonic()
-            ))),
-        }
+        Ok(self.client.query(self.to, command).await?)
     }
 }
 
@@ -177,19 +128,19 @@ impl Session {
     /// Frames are acknowledged, hop by hop, like every intact frame.
     pub async fn linger(&mut self, window: Duration) -> Result<Lingered, CtlError> {
         let mut seen = Lingered::default();
-        let noise_before = self.master.noise_bytes();
+        let noise_before = self.client.master_mut().noise_bytes();
         let deadline = tokio::time::Instant::now() + window;
-        while let Some(event) = self.master.next_event(Some(deadline)).await? {
+        while let Some(event) = self.client.master_mut().next_event(Some(deadline)).await? {
             match event {
                 OwnedEvent::Frame(frame) => {
-                    self.master.write(Write::Ack).await?;
+                    self.client.master_mut().write(Write::Ack).await?;
                     seen.frames.push(frame);
                 }
                 OwnedEvent::Ack => seen.acks += 1,
                 _ => seen.other_bytes += 1,
             }
         }
-        seen.other_bytes += (self.master.noise_bytes() - noise_before) as u32;
+        seen.other_bytes += (self.client.master_mut().noise_bytes() - noise_before) as u32;
         Ok(seen)
     }
 }

@@ -178,7 +178,12 @@ impl WireClient {
                         e => pending.push(e.to_owned()),
                     });
                 }
-                Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {}
+                // A stop signal interrupts a read with a time-out (signal(7)).
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut | std::io::ErrorKind::Interrupted
+                    ) => {}
                 Err(e) => panic!("read from gcud: {e}"),
             }
         }

@@ -597,6 +597,16 @@ impl Port {
                 CommandOutcome::Unreachable
             }
         };
+        // An address that never answered anything (a scan's probe of an
+        // empty address) leaves no entry behind: the registry holds the
+        // devices that exist.
+        if self
+            .device_stats
+            .get(&device)
+            .is_some_and(|d| !d.online && d.last_seen.is_none())
+        {
+            self.device_stats.remove(&device);
+        }
         out.extend(r.job.ids().map(|id| PortOut::Finished { id, outcome }));
     }
 
@@ -617,6 +627,7 @@ impl Port {
         if let Some(error) = error {
             d.last_error = Some((now, error));
         }
+
         let (Some(result), Some(registry)) = (result, job.facts.registry) else {
             return;
         };

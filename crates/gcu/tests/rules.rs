@@ -367,6 +367,17 @@ fn the_device_registry_keeps_what_each_device_answered() {
     h.port(1, &[ACK]);
     h.wait(10);
     assert!(h.r.stats().devices[&(1, 12)].online);
+    // Issue 24: an address that never answered (a scan's probe) leaves no
+    // entry; one that only NAKed exists.
+    h.link(CLIENT, &frame((G, 1, 40), 2, b"D?"));
+    h.wait(1_000);
+    assert!(!h.r.stats().devices.contains_key(&(1, 40)), "never answered");
+    h.link(CLIENT, &frame((G, 1, 41), 2, b"D?"));
+    for _ in 0..=port_config(1).retries {
+        h.port(1, &[NAK]);
+    }
+    h.wait(1_000);
+    assert!(h.r.stats().devices.contains_key(&(1, 41)), "a NAK is an answer");
 }
 
 #[test]

@@ -16,6 +16,10 @@
 //!   frames them and writes whole blocks, so a file cut short by a killed
 //!   process ends on a block boundary. Rotation by size and count, a total
 //!   byte budget; a write error stops the capture with one error log.
+//! - A FIFO as the file (Wireshark reading live) is opened by the writer
+//!   thread, without blocking, once a reader has opened it; until then
+//!   chunks wait in the queue (and beyond it are dropped and counted). The
+//!   caller never opens or writes the FIFO.
 //! - [`CaptureSwitch`] and [`Tap`]: capture started and stopped at run time
 //!   (gcud's SIGUSR1); a tap costs one atomic load while capture is off.
 //!
@@ -150,6 +154,8 @@ enum Msg {
 struct Shared {
     active: AtomicBool,
     stopping: AtomicBool,
+    /// A FIFO without a reader yet: the writer thread polls for one.
+    waiting_for_reader: AtomicBool,
     records: AtomicU64,
     bytes: AtomicU64,
     dropped: AtomicU64,
@@ -173,19 +179,29 @@ impl Capture {
     /// Creates `path` (an existing regular file is rotated away first, kept as
     /// `NAME.1.EXT` when `rotate_count` > 1) and starts the writer thread.
     /// Errors creating the file are returned here; later write errors stop the
-    /// capture with one error log.
+    /// capture with one error log. A FIFO is not opened here: the writer
+    /// thread opens it once it has a reader ([`Capture::waits_for_reader`];
+    /// it is never rotated).
     pub fn open(path: impl AsRef<Path>, config: CaptureConfig) -> io::Result<Capture> {
         let path = path.as_ref().to_owned();
+        let fifo = is_fifo(&path);
         let config = CaptureConfig {
             rotate_count: config.rotate_count.max(1),
             queue: config.queue.max(1),
+            rotate_bytes: config.rotate_bytes.filter(|_| !fifo),
             ..config
         };
-        rotate_files(&path, config.rotate_count)?;
-        let file = create(&path)?;
+        let file = match fifo {
+            true => None,
+            false => {
+                rotate_files(&path, config.rotate_count)?;
+                Some(create(&path)?)
+            }
+        };
         let (tx, rx) = sync_channel(config.queue);
         let shared = Arc::new(Shared::default());
         shared.active.store(true, Ordering::Release);
+        shared.waiting_for_reader.store(fifo, Ordering::Release);
         let writer = Writer::new(path.clone(), config, file, shared.clone());
         std::thread::Builder::new()
             .name("capture".to_owned())
@@ -196,6 +212,11 @@ impl Capture {
     /// The file written (the current one of a rotation).
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// Whether the file is a FIFO that no reader has opened yet.
+    pub fn waits_for_reader(&self) -> bool {
+        self.shared.waiting_for_reader.load(Ordering::Acquire)
     }
 
     /// Declares an interface (a port, a link connection, a serial line).
@@ -268,6 +289,41 @@ impl Capture {
 
 fn create(path: &Path) -> io::Result<File> {
     OpenOptions::new().write(true).create(true).truncate(true).open(path)
+}
+
+fn is_fifo(path: &Path) -> bool {
+    use std::os::unix::fs::FileTypeExt;
+    std::fs::metadata(path).is_ok_and(|m| m.file_type().is_fifo())
+}
+
+/// How often the writer thread looks for a FIFO's reader.
+const READER_POLL: Duration = Duration::from_millis(50);
+
+/// Opens a FIFO for writing once it has a reader, without ever blocking in
+/// `open(2)`: a non-blocking open fails with `ENXIO` while nobody reads, so
+/// it is retried every [`READER_POLL`] until `stopping` is set (then
+/// `Ok(None)`). The open file blocks on writes again (on the writer
+/// thread only).
+fn open_fifo_when_read(path: &Path, stopping: &AtomicBool) -> io::Result<Option<File>> {
+    use nix::fcntl::{FcntlArg, OFlag, fcntl};
+    use std::os::unix::fs::OpenOptionsExt;
+    loop {
+        if stopping.load(Ordering::Acquire) {
+            return Ok(None);
+        }
+        match OpenOptions::new()
+            .write(true)
+            .custom_flags(OFlag::O_NONBLOCK.bits())
+            .open(path)
+        {
+            Ok(file) => {
+                fcntl(&file, FcntlArg::F_SETFL(OFlag::empty()))?;
+                return Ok(Some(file));
+            }
+            Err(e) if e.raw_os_error() == Some(nix::errno::Errno::ENXIO as i32) => std::thread::sleep(READER_POLL),
+            Err(e) => return Err(e),
+        }
+    }
 }
 
 /// `capture.pcapng` -> `capture.N.pcapng` (N = 0: the path itself).
@@ -403,11 +459,11 @@ struct Writer {
 }
 
 impl Writer {
-    fn new(path: PathBuf, config: CaptureConfig, file: File, shared: Arc<Shared>) -> Self {
+    fn new(path: PathBuf, config: CaptureConfig, file: Option<File>, shared: Arc<Shared>) -> Self {
         let mut w = Self {
             path,
             config,
-            file: Some(file),
+            file,
             file_bytes: 0,
             file_ifaces: HashMap::new(),
             streams: HashMap::new(),
@@ -421,6 +477,22 @@ impl Writer {
     }
 
     fn run(mut self, rx: Receiver<Msg>) {
+        if self.file.is_none() {
+            // A FIFO: chunks wait in the queue until it has a reader.
+            match open_fifo_when_read(&self.path, &self.shared.stopping) {
+                Ok(Some(file)) => {
+                    tracing::info!(file = %self.path.display(), "capture: the FIFO has a reader; writing");
+                    self.file = Some(file);
+                }
+                Ok(None) => {
+                    // Stopped before anyone read: what waited is dropped, and counted.
+                    let waited = rx.try_iter().filter(|m| matches!(m, Msg::Bytes { .. })).count();
+                    self.shared.dropped.fetch_add(waited as u64, Ordering::Relaxed);
+                }
+                Err(e) => self.give_up(format!("cannot open {}: {e}", self.path.display()), true),
+            }
+            self.shared.waiting_for_reader.store(false, Ordering::Release);
+        }
         let mut ended = false;
         while !ended && self.file.is_some() {
             match rx.recv_timeout(Duration::from_millis(50)) {
@@ -1005,6 +1077,42 @@ mod tests {
             "{stats:?}"
         );
         assert!(!c.is_active());
+    }
+
+    #[test]
+    fn a_fifo_is_opened_by_the_writer_once_it_has_a_reader() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("live.pcapng");
+        nix::unistd::mkfifo(&fifo, nix::sys::stat::Mode::from_bits_truncate(0o600)).unwrap();
+        // Nobody reads: open returns at once, and so does stop.
+        let c = Capture::open(&fifo, CaptureConfig::default()).unwrap();
+        assert!(c.waits_for_reader());
+        let i = c.interface("port 1", Role::Master);
+        c.record(i, Direction::Inbound, SystemTime::now(), &[0x06]);
+        let stats = c.stop(Duration::from_secs(5));
+        assert_eq!(
+            (stats.records, stats.dropped, stats.stopped),
+            (0, 1, None),
+            "nothing written, what waited counted, no error"
+        );
+
+        let c = Capture::open(&fifo, CaptureConfig::default()).unwrap();
+        let i = c.interface("port 1", Role::Master);
+        c.record(i, Direction::Inbound, SystemTime::now(), &[0x06]);
+        let copy = dir.path().join("copy.pcapng");
+        let (from, to) = (fifo.clone(), copy.clone());
+        let reader = std::thread::spawn(move || std::fs::write(to, std::fs::read(from).unwrap()).unwrap());
+        let started = Instant::now();
+        while c.waits_for_reader() && started.elapsed() < Duration::from_secs(30) {
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        assert!(!c.waits_for_reader(), "the writer opened the FIFO");
+        c.record(i, Direction::Outbound, SystemTime::now(), &[0x15]);
+        let stats = c.stop(Duration::from_secs(5));
+        reader.join().unwrap();
+        let (names, packets) = read(&copy);
+        assert_eq!(names, ["port 1"]);
+        assert_eq!(packets.len(), 2, "{stats:?}");
     }
 
     #[test]

@@ -1,0 +1,280 @@
+//! `cargo bench --bench onvif`: gimbal-onvif measured with real processes
+//! on 127.0.0.1 (issue 21's figures): `gimbalsim --tcp` <- a relay that
+//! watches the bus bytes <- gcud (the relay is its `tcp` port) <-
+//! gimbal-onvif <- SOAP requests signed with a UsernameToken digest, sent
+//! over one keep-alive HTTP connection each (ureq):
+//! 1. ContinuousMove: from the request's first byte to the first byte of
+//!    its motion command (`PR`/`PL`) reaching the bus, p50/p99 of
+//!    `ONVIF_BENCH_MOVES` moves (default 200), each followed by a Stop;
+//! 2. GetStatus: latency p50/p99 of `ONVIF_BENCH_STATUS` sequential
+//!    requests (default 2,000), then requests per second with 4 clients for
+//!    3 s.
+//!
+//! Figures are printed, never asserted: the machines are shared and noisy.
+
+#[allow(dead_code)] // TRANSACTION_BYTES is for the bus benchmarks
+mod support;
+
+use std::io::{Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::process::{Command, Stdio};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use base64::Engine;
+use base64::engine::general_purpose::STANDARD as B64;
+use sagebrush_protocol::{Event, Framer};
+use sha1::{Digest, Sha1};
+use support::{Proc, percentile};
+
+const USER: &str = "bench";
+const PASSWORD: &str = "bench-secret";
+
+fn env_count(name: &str, default: usize) -> usize {
+    std::env::var(name).ok().and_then(|v| v.parse().ok()).unwrap_or(default)
+}
+
+/// Waits for a line containing `text` in the log file; returns it.
+fn log_line(path: &std::path::Path, text: &str) -> String {
+    let started = Instant::now();
+    loop {
+        let log = std::fs::read_to_string(path).unwrap_or_default();
+        if let Some(line) = log.lines().find(|l| l.contains(text)) {
+            return line.to_owned();
+        }
+        assert!(
+            started.elapsed() < Duration::from_secs(30),
+            "no {text:?} in {}:\n{log}",
+            path.display()
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn addr_in(line: &str) -> String {
+    line.split("addr=")
+        .nth(1)
+        .and_then(|r| r.split_whitespace().next())
+        .expect("addr=")
+        .to_owned()
+}
+
+fn spawn(bin: &str, args: &[&str], log: &std::path::Path) -> Proc {
+    Proc(
+        Command::new(bin)
+            .args(args)
+            .env("RUST_LOG", "warn,gimbal_onvif=info,gcud=info")
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(log).expect("log"))
+            .spawn()
+            .expect("spawn"),
+    )
+}
+
+/// Relays gcud's port connection to the simulator, sending the instant each
+/// motion command (`PR`, `PL`) reaches the bus side.
+fn relay(listener: TcpListener, sim: String, motions: mpsc::Sender<Instant>) {
+    let (from_gcud, _) = listener.accept().expect("gcud connects to its port");
+    from_gcud.set_nodelay(true).expect("nodelay");
+    let to_sim = TcpStream::connect(&sim).expect("connect to gimbalsim");
+    to_sim.set_nodelay(true).expect("nodelay");
+    let (mut back_from, mut back_to) = (
+        to_sim.try_clone().expect("clone"),
+        from_gcud.try_clone().expect("clone"),
+    );
+    std::thread::spawn(move || std::io::copy(&mut back_from, &mut back_to));
+    let (mut from, mut to) = (from_gcud, to_sim);
+    let mut framer: Framer = Framer::default();
+    let mut buf = [0u8; 4096];
+    loop {
+        let n = match from.read(&mut buf) {
+            Ok(0) | Err(_) => return,
+            Ok(n) => n,
+        };
+        let at = Instant::now();
+        if to.write_all(&buf[..n]).is_err() {
+            return;
+        }
+        let mut rest = &buf[..n];
+        while !rest.is_empty() {
+            let taken = framer.push(rest);
+            rest = &rest[taken..];
+            while let Some(event) = framer.next_event() {
+                if let Event::Frame(f) = event {
+                    if matches!(f.payload(), b"PR" | b"PL") {
+                        let _ = motions.send(at);
+                    }
+                }
+            }
+            if taken == 0 {
+                break;
+            }
+        }
+    }
+}
+
+static NONCE: AtomicU64 = AtomicU64::new(1);
+
+/// A SOAP 1.2 request for `body`, signed with a fresh UsernameToken digest.
+fn envelope(body: &str) -> String {
+    let nonce = NONCE.fetch_add(1, Ordering::Relaxed).to_be_bytes();
+    let created = time::OffsetDateTime::now_utc()
+        .format(&time::format_description::well_known::Rfc3339)
+        .expect("time");
+    let mut h = Sha1::new();
+    h.update(nonce);
+    h.update(created.as_bytes());
+    h.update(PASSWORD.as_bytes());
+    format!(
+        r#"<?xml version="1.0"?><s:Envelope xmlns:s="http://www.w3.org/2003/05/soap-envelope" xmlns:tptz="http://www.onvif.org/ver20/ptz/wsdl" xmlns:tt="http://www.onvif.org/ver10/schema"><s:Header><Security xmlns="http://docs.oasis-open.org/wss/2004/01/oasis-200401-wss-wssecurity-secext-1.0.xsd"><UsernameToken><Username>{USER}</Username><Password Type="http://docs.oasis-open.org/wss/2004/01/oasis-200401-wss-username-token-profile-1.0#PasswordDigest">{}</Password><Nonce>{}</Nonce><Created xmlns="http://docs.oasis-open.org/wss/2004/01/oasis-200401-wss-wssecurity-utility-1.0.xsd">{created}</Created></UsernameToken></Security></s:Header><s:Body>{body}</s:Body></s:Envelope>"#,
+        B64.encode(h.finalize()),
+        B64.encode(nonce)
+    )
+}
+
+struct Client {
+    agent: ureq::Agent,
+    url: String,
+}
+
+impl Client {
+    fn new(port: u16) -> Self {
+        Self {
+            agent: ureq::Agent::config_builder()
+                .timeout_global(Some(Duration::from_secs(30)))
+                .build()
+                .into(),
+            url: format!("http://127.0.0.1:{port}/onvif/ptz_service"),
+        }
+    }
+
+    fn call(&self, body: &str) -> String {
+        let mut r = self
+            .agent
+            .post(&self.url)
+            .header("Content-Type", "application/soap+xml")
+            .send(envelope(body))
+            .unwrap_or_else(|e| panic!("{body}: {e}"));
+        r.body_mut().read_to_string().expect("body")
+    }
+}
+
+const STATUS: &str = "<tptz:GetStatus><tptz:ProfileToken>profile1</tptz:ProfileToken></tptz:GetStatus>";
+const STOP: &str = "<tptz:Stop><tptz:ProfileToken>profile1</tptz:ProfileToken></tptz:Stop>";
+
+fn main() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (_sim, sim_addr) = support::gimbalsim(env!("CARGO_BIN_EXE_gimbalsim"), &["--tcp", "127.0.0.1:0"]);
+    let port_listener = TcpListener::bind("127.0.0.1:0").expect("bind");
+    let port_addr = port_listener.local_addr().expect("addr").to_string();
+    let (motions_tx, motions) = mpsc::channel();
+    std::thread::spawn(move || relay(port_listener, sim_addr, motions_tx));
+
+    let gcud_config = dir.path().join("gcud.toml");
+    std::fs::write(
+        &gcud_config,
+        format!(
+            "[gcu]\ngroup = 5\n[[port]]\nid = 1\ntcp = \"{port_addr}\"\n[[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n"
+        ),
+    )
+    .expect("config");
+    let gcud_log = dir.path().join("gcud.log");
+    let _gcud = spawn(
+        env!("CARGO_BIN_EXE_gcud"),
+        &["--config", gcud_config.to_str().expect("path")],
+        &gcud_log,
+    );
+    let clients = addr_in(&log_line(&gcud_log, "listening link=clients"));
+
+    let onvif_config = dir.path().join("gimbal-onvif.toml");
+    std::fs::write(
+        &onvif_config,
+        format!(
+            "gcud = \"{clients}\"\nmax_move_ms = 60000\n[discovery]\nenabled = false\n[[user]]\nname = \"{USER}\"\n\
+             password = \"{PASSWORD}\"\nrole = \"operator\"\n[[gimbal]]\nname = \"bench\"\naddress = \"5.1.1\"\n\
+             listen = \"127.0.0.1:0\"\n"
+        ),
+    )
+    .expect("config");
+    let onvif_log = dir.path().join("gimbal-onvif.log");
+    let _onvif = spawn(
+        env!("CARGO_BIN_EXE_gimbal-onvif"),
+        &["--config", onvif_config.to_str().expect("path")],
+        &onvif_log,
+    );
+    let port: u16 = addr_in(&log_line(&onvif_log, "gimbal=bench addr="))
+        .rsplit(':')
+        .next()
+        .and_then(|p| p.parse().ok())
+        .expect("port");
+    let client = Client::new(port);
+    // Warm up: the connection to gcud, the first poll.
+    for _ in 0..20 {
+        client.call(STATUS);
+    }
+
+    let moves = env_count("ONVIF_BENCH_MOVES", 200);
+    let mut latencies = Vec::with_capacity(moves);
+    for i in 0..moves {
+        while motions.try_recv().is_ok() {}
+        let x = if i % 2 == 0 { "0.5" } else { "-0.5" };
+        let body = format!(
+            "<tptz:ContinuousMove><tptz:ProfileToken>profile1</tptz:ProfileToken><tptz:Velocity>\
+             <tt:PanTilt x=\"{x}\" y=\"0\"/></tptz:Velocity><tptz:Timeout>PT5S</tptz:Timeout></tptz:ContinuousMove>"
+        );
+        let sent = Instant::now();
+        client.call(&body);
+        let on_bus = motions
+            .recv_timeout(Duration::from_secs(30))
+            .expect("the motion on the bus");
+        latencies.push(on_bus.saturating_duration_since(sent));
+        client.call(STOP);
+    }
+    latencies.sort();
+    println!(
+        "ContinuousMove request -> first motion byte on the bus ({moves} moves): p50 {:.2} ms, p99 {:.2} ms",
+        percentile(&latencies, 0.5).as_secs_f64() * 1e3,
+        percentile(&latencies, 0.99).as_secs_f64() * 1e3
+    );
+
+    let n = env_count("ONVIF_BENCH_STATUS", 2000);
+    let mut latencies = Vec::with_capacity(n);
+    for _ in 0..n {
+        let started = Instant::now();
+        let text = client.call(STATUS);
+        latencies.push(started.elapsed());
+        assert!(text.contains("PTZStatus"), "{text}");
+    }
+    latencies.sort();
+    println!(
+        "GetStatus latency ({n} sequential): p50 {:.3} ms, p99 {:.3} ms",
+        percentile(&latencies, 0.5).as_secs_f64() * 1e3,
+        percentile(&latencies, 0.99).as_secs_f64() * 1e3
+    );
+
+    let window = Duration::from_secs(3);
+    let started = Instant::now();
+    let counts: Vec<usize> = std::thread::scope(|s| {
+        let workers: Vec<_> = (0..4)
+            .map(|_| {
+                s.spawn(|| {
+                    let c = Client::new(port);
+                    let mut done = 0;
+                    while started.elapsed() < window {
+                        c.call(STATUS);
+                        done += 1;
+                    }
+                    done
+                })
+            })
+            .collect();
+        workers.into_iter().map(|w| w.join().expect("worker")).collect()
+    });
+    let total: usize = counts.iter().sum();
+    println!(
+        "GetStatus throughput (4 clients, keep-alive, {} s): {:.0} requests/s",
+        window.as_secs(),
+        total as f64 / started.elapsed().as_secs_f64()
+    );
+}

@@ -1,0 +1,347 @@
+//! `gimbal-onvif --config FILE`: the TOML configuration (every key is
+//! documented in `config/gimbal-onvif.toml`), parsed with serde and then
+//! validated; every error names the file, the line and column, the key and
+//! what was expected (`--check` prints it and exits 2), through
+//! [`sagebrush_client::config_file`] as gcud's.
+
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use sagebrush_client::config_file::{self, ConfigError, Source};
+use sagebrush_protocol::Address;
+use serde::Deserialize;
+use toml::Spanned;
+
+/// The whole file, as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ConfigFile {
+    gcud: Spanned<String>,
+    source_group: Option<Spanned<i64>>,
+    state_file: Option<Spanned<String>>,
+    max_move_ms: Option<Spanned<i64>>,
+    poll_ms: Option<Spanned<i64>>,
+    nic_window_ms: Option<Spanned<i64>>,
+    #[serde(default)]
+    discovery: DiscoverySection,
+    #[serde(default, rename = "user")]
+    users: Vec<UserSection>,
+    #[serde(default, rename = "gimbal")]
+    gimbals: Vec<GimbalSection>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DiscoverySection {
+    enabled: Option<Spanned<bool>>,
+    listen: Option<Spanned<String>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct UserSection {
+    name: Spanned<String>,
+    password: Option<Spanned<String>>,
+    password_file: Option<Spanned<String>>,
+    role: Spanned<String>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GimbalSection {
+    name: Spanned<String>,
+    address: Spanned<String>,
+    listen: Spanned<String>,
+    stream_uri: Option<Spanned<String>>,
+    pan_deg: Option<Spanned<Vec<f64>>>,
+    tilt_deg: Option<Spanned<Vec<f64>>>,
+    zoom: Option<Spanned<bool>>,
+}
+
+/// What a user may do (ONVIF Core "User level"): a `User` reads, an
+/// `Operator` also moves the gimbal and uses presets, an `Administrator`
+/// does everything.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Role {
+    User,
+    Operator,
+    Administrator,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct User {
+    pub name: String,
+    pub password: String,
+    pub role: Role,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Gimbal {
+    pub name: String,
+    pub address: Address,
+    pub listen: SocketAddr,
+    pub stream_uri: Option<String>,
+    /// The travel ONVIF's generic space [-1, 1] maps onto, degrees.
+    pub pan_deg: (f64, f64),
+    pub tilt_deg: (f64, f64),
+    /// The gimbal has a lens: zoom through `ZI`/`ZO`/`ZS`, `Zn`, `V`, `V?`.
+    pub zoom: bool,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Config {
+    pub gcud: String,
+    pub source_group: u8,
+    pub state_file: Option<PathBuf>,
+    /// The longest a ContinuousMove without a Timeout runs.
+    pub max_move: Duration,
+    /// How often each gimbal's position is asked (`P?`) for GetStatus.
+    pub poll: Duration,
+    /// How long after gcud's ACK a NIC may still come (1.4.2).
+    pub nic_window: Duration,
+    pub discovery: Option<SocketAddr>,
+    pub users: Vec<User>,
+    pub gimbals: Vec<Gimbal>,
+}
+
+/// The WS-Discovery port and multicast group (WS-Discovery 1.1, 3.1.1).
+pub const DISCOVERY_DEFAULT: &str = "0.0.0.0:3702";
+
+/// Reads and validates `file`.
+pub fn load(file: &Path) -> Result<Config, ConfigError> {
+    let text = config_file::read(file)?;
+    parse(file, &text)
+}
+
+/// Parses and validates configuration `text` read from `file`.
+pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
+    let c = Source::new(file, text);
+    let raw: ConfigFile = c.deserialize()?;
+    let gcud = raw.gcud.get_ref().clone();
+    if gcud.parse::<SocketAddr>().is_err() && !gcud.contains(':') {
+        return Err(c.at(raw.gcud.span(), "gcud", "expected HOST:PORT of gcud's client listener"));
+    }
+    let source_group = match &raw.source_group {
+        Some(v) => c.int(v, "source_group", 0, 254)?,
+        None => 0,
+    };
+    let max_move_ms: u64 = match &raw.max_move_ms {
+        Some(v) => c.int(v, "max_move_ms", 100, 600_000)?,
+        None => 10_000,
+    };
+    let poll_ms: u64 = match &raw.poll_ms {
+        Some(v) => c.int(v, "poll_ms", 20, 10_000)?,
+        None => 200,
+    };
+    let nic_window_ms: u64 = match &raw.nic_window_ms {
+        Some(v) => c.int(v, "nic_window_ms", 10, 1000)?,
+        None => 100,
+    };
+    let discovery = match raw.discovery.enabled.as_ref().map(|e| *e.get_ref()) {
+        Some(false) => None,
+        _ => Some(match &raw.discovery.listen {
+            Some(l) => socket(&c, l, "discovery.listen")?,
+            None => DISCOVERY_DEFAULT.parse().expect("a socket address"),
+        }),
+    };
+    let mut users = Vec::new();
+    for (i, u) in raw.users.iter().enumerate() {
+        let key = format!("user[{i}]");
+        let name = u.name.get_ref().clone();
+        if name.is_empty() || users.iter().any(|x: &User| x.name == name) {
+            return Err(c.at(
+                u.name.span(),
+                format!("{key}.name"),
+                "expected a name, not empty and not repeated",
+            ));
+        }
+        let password = match (&u.password, &u.password_file) {
+            (Some(p), None) => p.get_ref().clone(),
+            (None, Some(f)) => {
+                let text = std::fs::read_to_string(f.get_ref()).map_err(|e| {
+                    c.at(
+                        f.span(),
+                        format!("{key}.password_file"),
+                        format!("cannot read {}: {e}", f.get_ref()),
+                    )
+                })?;
+                text.trim_end_matches(['\n', '\r']).to_owned()
+            }
+            _ => {
+                return Err(c.at(
+                    u.name.span(),
+                    key,
+                    "expected exactly one of `password` or `password_file`",
+                ));
+            }
+        };
+        if password.is_empty() {
+            return Err(c.at(
+                u.name.span(),
+                format!("{key}.password"),
+                "expected a password, not empty",
+            ));
+        }
+        let role = match u.role.get_ref().as_str() {
+            "administrator" => Role::Administrator,
+            "operator" => Role::Operator,
+            "user" => Role::User,
+            other => {
+                return Err(c.at(
+                    u.role.span(),
+                    format!("{key}.role"),
+                    format!("expected administrator, operator or user, found {other:?}"),
+                ));
+            }
+        };
+        users.push(User { name, password, role });
+    }
+    if users.is_empty() {
+        return Err(c.at(
+            0..0,
+            "user",
+            "expected at least one [[user]]: every operation but GetSystemDateAndTime needs credentials",
+        ));
+    }
+    let mut gimbals: Vec<Gimbal> = Vec::new();
+    for (i, g) in raw.gimbals.iter().enumerate() {
+        let key = format!("gimbal[{i}]");
+        let name = g.name.get_ref().clone();
+        if name.is_empty() || gimbals.iter().any(|x| x.name == name) {
+            return Err(c.at(
+                g.name.span(),
+                format!("{key}.name"),
+                "expected a name, not empty and not repeated",
+            ));
+        }
+        let address: Address = g.address.get_ref().parse().map_err(|_| {
+            c.at(
+                g.address.span(),
+                format!("{key}.address"),
+                "expected GROUP.PORT.DEVICE of one gimbal, e.g. \"5.1.1\"",
+            )
+        })?;
+        if [address.group, address.port, address.device].contains(&255) || address.device == 0 {
+            return Err(c.at(
+                g.address.span(),
+                format!("{key}.address"),
+                "expected the address of one gimbal (no wildcard 255, no control unit 0)",
+            ));
+        }
+        let listen = socket(&c, &g.listen, &format!("{key}.listen"))?;
+        if listen.port() != 0 && gimbals.iter().any(|x| x.listen == listen) {
+            return Err(c.at(
+                g.listen.span(),
+                format!("{key}.listen"),
+                "expected an address of its own: each gimbal is its own ONVIF device",
+            ));
+        }
+        let stream_uri = match &g.stream_uri {
+            Some(s) if !s.get_ref().contains("://") => {
+                return Err(c.at(
+                    s.span(),
+                    format!("{key}.stream_uri"),
+                    "expected a URI, e.g. rtsp://10.0.0.20/main",
+                ));
+            }
+            s => s.as_ref().map(|s| s.get_ref().clone()),
+        };
+        let pan_deg = travel(&c, g.pan_deg.as_ref(), &format!("{key}.pan_deg"), (-180.0, 180.0))?;
+        let tilt_deg = travel(&c, g.tilt_deg.as_ref(), &format!("{key}.tilt_deg"), (-90.0, 90.0))?;
+        gimbals.push(Gimbal {
+            name,
+            address,
+            listen,
+            stream_uri,
+            pan_deg,
+            tilt_deg,
+            zoom: g.zoom.as_ref().is_some_and(|z| *z.get_ref()),
+        });
+    }
+    if gimbals.is_empty() {
+        return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
+    }
+    Ok(Config {
+        gcud,
+        source_group,
+        state_file: raw.state_file.map(|s| PathBuf::from(s.into_inner())),
+        max_move: Duration::from_millis(max_move_ms),
+        poll: Duration::from_millis(poll_ms),
+        nic_window: Duration::from_millis(nic_window_ms),
+        discovery,
+        users,
+        gimbals,
+    })
+}
+
+fn socket(c: &Source<'_>, v: &Spanned<String>, key: &str) -> Result<SocketAddr, ConfigError> {
+    v.get_ref()
+        .parse()
+        .map_err(|_| c.at(v.span(), key, format!("expected IP:PORT, found {:?}", v.get_ref())))
+}
+
+/// `[low, high]` degrees within what a position can carry (±327.67°, Table 15).
+fn travel(
+    c: &Source<'_>,
+    v: Option<&Spanned<Vec<f64>>>,
+    key: &str,
+    default: (f64, f64),
+) -> Result<(f64, f64), ConfigError> {
+    let Some(v) = v else { return Ok(default) };
+    match v.get_ref().as_slice() {
+        [low, high] if low < high && *low >= -327.67 && *high <= 327.67 => Ok((*low, *high)),
+        _ => Err(c.at(
+            v.span(),
+            key,
+            "expected [LOW, HIGH] degrees, LOW < HIGH, within -327.67..=327.67 (Table 15)",
+        )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+gcud = "127.0.0.1:4001"
+[discovery]
+listen = "127.0.0.1:3702"
+[[user]]
+name = "admin"
+password = "secret"
+role = "administrator"
+[[gimbal]]
+name = "mast-1"
+address = "5.1.1"
+listen = "127.0.0.1:8081"
+pan_deg = [-170.0, 170.0]
+"#;
+
+    fn err(text: &str) -> String {
+        parse(Path::new("o.toml"), text).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn a_good_file_and_its_defaults() {
+        let c = parse(Path::new("o.toml"), GOOD).unwrap();
+        assert_eq!(c.gimbals[0].address, Address::new(5, 1, 1));
+        assert_eq!(c.gimbals[0].pan_deg, (-170.0, 170.0));
+        assert_eq!(c.gimbals[0].tilt_deg, (-90.0, 90.0));
+        assert_eq!(c.users[0].role, Role::Administrator);
+        assert_eq!(c.max_move, Duration::from_secs(10));
+    }
+
+    #[test]
+    fn errors_name_the_place_and_what_was_expected() {
+        assert_eq!(
+            err(&GOOD.replace("\"5.1.1\"", "\"5.1\"")),
+            "o.toml:11:11: gimbal[0].address: expected GROUP.PORT.DEVICE of one gimbal, e.g. \"5.1.1\""
+        );
+        assert!(err(&GOOD.replace("administrator", "root")).starts_with("o.toml:8:8: user[0].role: expected"));
+        assert!(err(&GOOD.replace("[-170.0, 170.0]", "[10.0, -10.0]")).starts_with("o.toml:13:11: gimbal[0].pan_deg"));
+        assert!(err(&GOOD.replace("listen = \"127.0.0.1:8081\"", "listen = \"8081\"")).contains("gimbal[0].listen"));
+        assert!(err(&format!("{GOOD}colour = 1\n")).contains("colour"));
+        assert!(err(&GOOD.replace("password = \"secret\"", "")).contains("exactly one of `password`"));
+    }
+}

@@ -1,0 +1,155 @@
+//! `gimbal-onvif`: an ONVIF PTZ front door in front of gcud (issue 21).
+//! Each configured gimbal is its own ONVIF device (Device, Media and PTZ
+//! services) on its own address and port, found by WS-Discovery; every
+//! command goes to gcud's client listener over this program's own
+//! connection, so gcud stays the only master of the buses.
+
+mod auth;
+mod config;
+mod discovery;
+mod gimbal;
+mod http;
+mod onvif;
+mod presets;
+mod soap;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+
+use clap::Parser;
+use tokio::signal::unix::{SignalKind, signal};
+use tracing::{error, info};
+
+/// Exit code of a configuration error (`--check` or start-up), as gcud's.
+const EXIT_CONFIG: u8 = 2;
+/// Exit code of a failure to start (an address in use, a state file).
+const EXIT_START: u8 = 1;
+
+/// ONVIF PTZ (Device, Media, PTZ) and WS-Discovery for the gimbals behind gcud.
+#[derive(Debug, Parser)]
+#[command(version)]
+struct Args {
+    /// The configuration file (config/gimbal-onvif.toml documents every key).
+    #[arg(long, value_name = "FILE")]
+    config: PathBuf,
+    /// Validate the configuration and exit: 0 valid, 2 invalid (file:line:column, key, what was expected).
+    #[arg(long)]
+    check: bool,
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    let config = match config::load(&args.config) {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("gimbal-onvif: {e}");
+            return ExitCode::from(EXIT_CONFIG);
+        }
+    };
+    if args.check {
+        println!(
+            "{}: valid ({} gimbal(s), {} user(s))",
+            args.config.display(),
+            config.gimbals.len(),
+            config.users.len()
+        );
+        return ExitCode::SUCCESS;
+    }
+    if let Err(e) = sagebrush_host::logging::init("info", false) {
+        eprintln!("gimbal-onvif: {e}");
+        return ExitCode::from(EXIT_CONFIG);
+    }
+    let runtime = match tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+    {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("gimbal-onvif: cannot start the runtime: {e}");
+            return ExitCode::from(EXIT_START);
+        }
+    };
+    match runtime.block_on(run(config)) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            error!("{e}");
+            eprintln!("gimbal-onvif: {e}");
+            ExitCode::from(EXIT_START)
+        }
+    }
+}
+
+async fn run(config: config::Config) -> Result<(), String> {
+    let presets = Arc::new(presets::Presets::load(config.state_file.clone())?);
+    let auth = Arc::new(auth::Authenticator::new(config.users.clone()));
+    let mut term = signal(SignalKind::terminate()).map_err(|e| e.to_string())?;
+    let mut int = signal(SignalKind::interrupt()).map_err(|e| e.to_string())?;
+    let mut gimbals = Vec::new();
+    let mut served = Vec::new();
+    let mut tasks = tokio::task::JoinSet::new();
+    for g in &config.gimbals {
+        let gimbal = gimbal::Gimbal::new(g.clone(), &config);
+        tasks.spawn(Arc::clone(&gimbal).poll(config.poll));
+        let device = onvif::Device {
+            gimbal: Arc::clone(&gimbal),
+            auth: Arc::clone(&auth),
+            presets: Arc::clone(&presets),
+        };
+        let (bound, server) = http::bind(g.listen, device).await.map_err(|e| {
+            format!(
+                "gimbal[{}] {}: cannot listen on {}: {e}",
+                gimbals.len(),
+                g.name,
+                g.listen
+            )
+        })?;
+        // Discovery announces where each device really listens (port 0 in tests).
+        served.push(config::Gimbal {
+            listen: bound,
+            ..g.clone()
+        });
+        let name = g.name.clone();
+        tasks.spawn(async move {
+            if let Err(e) = server.await {
+                error!(gimbal = %name, error = %e, "ONVIF server stopped");
+            }
+        });
+        gimbals.push(gimbal);
+    }
+    let discovery = match config.discovery {
+        Some(listen) => {
+            let d = discovery::Discovery::bind(listen, served)
+                .await
+                .map_err(|e| format!("discovery.listen {listen}: {e}"))?;
+            info!(addr = %d.local_addr().map_err(|e| e.to_string())?, "WS-Discovery listening");
+            Some(Arc::new(d))
+        }
+        None => None,
+    };
+    if let Some(d) = &discovery {
+        d.announce(true).await;
+        let d = Arc::clone(d);
+        tasks.spawn(async move { d.run().await });
+    }
+    let _ = sd_notify::notify(&[sd_notify::NotifyState::Ready]);
+    info!(gimbals = gimbals.len(), gcud = %config.gcud, "gimbal-onvif ready");
+    let signal = tokio::select! {
+        _ = term.recv() => "SIGTERM",
+        _ = int.recv() => "SIGINT",
+    };
+    info!(
+        signal,
+        "stopping: the motions this service started are stopped, then Bye"
+    );
+    let _ = sd_notify::notify(&[sd_notify::NotifyState::Stopping]);
+    for g in &gimbals {
+        g.shutdown().await;
+    }
+    if let Some(d) = &discovery {
+        d.announce(false).await;
+    }
+    tasks.abort_all();
+    Ok(())
+}

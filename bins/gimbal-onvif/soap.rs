@@ -1,0 +1,296 @@
+//! SOAP 1.2 envelopes (ONVIF Core 5.1): a request read with quick-xml into
+//! a small element tree (namespaces resolved, depth and size bounded), and
+//! responses and faults written with the ONVIF namespace prefixes.
+
+use quick_xml::escape::escape;
+use quick_xml::events::{BytesStart, Event};
+use quick_xml::name::ResolveResult;
+use quick_xml::reader::NsReader;
+
+pub const NS_SOAP: &str = "http://www.w3.org/2003/05/soap-envelope";
+pub const NS_DEVICE: &str = "http://www.onvif.org/ver10/device/wsdl";
+pub const NS_MEDIA: &str = "http://www.onvif.org/ver10/media/wsdl";
+pub const NS_PTZ: &str = "http://www.onvif.org/ver20/ptz/wsdl";
+
+/// Deepest element nesting read; an ONVIF request is a few levels deep.
+const MAX_DEPTH: usize = 32;
+/// Most elements read from one document.
+const MAX_ELEMENTS: usize = 4096;
+
+/// One element: its namespace and local name, attributes (local names),
+/// text and children.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Element {
+    pub ns: String,
+    pub name: String,
+    pub attrs: Vec<(String, String)>,
+    pub text: String,
+    pub children: Vec<Element>,
+}
+
+impl Element {
+    /// The first child named `name` (local name).
+    pub fn child(&self, name: &str) -> Option<&Element> {
+        self.children.iter().find(|c| c.name == name)
+    }
+
+    /// The child at the end of `path` of local names.
+    pub fn path(&self, path: &[&str]) -> Option<&Element> {
+        path.iter().try_fold(self, |e, name| e.child(name))
+    }
+
+    /// An attribute by local name.
+    pub fn attr(&self, name: &str) -> Option<&str> {
+        self.attrs.iter().find(|(k, _)| k == name).map(|(_, v)| v.as_str())
+    }
+
+    /// The trimmed text of the child at `path`.
+    pub fn text_at(&self, path: &[&str]) -> Option<&str> {
+        self.path(path).map(|e| e.text.trim())
+    }
+}
+
+/// Parses a whole document into its root element.
+pub fn parse(xml: &[u8]) -> Result<Element, String> {
+    let text = std::str::from_utf8(xml).map_err(|e| format!("not UTF-8: {e}"))?;
+    let mut reader = NsReader::from_str(text);
+    reader.config_mut().trim_text(false);
+    let mut stack: Vec<Element> = Vec::new();
+    let mut root = None;
+    let mut count = 0usize;
+    loop {
+        let position = reader.buffer_position();
+        let (resolved, event) = reader
+            .read_resolved_event()
+            .map_err(|e| format!("malformed XML after byte {position}: {e}"))?;
+        let empty = matches!(event, Event::Empty(_));
+        match event {
+            Event::Start(start) | Event::Empty(start) if root.is_none() => {
+                count += 1;
+                if count > MAX_ELEMENTS || stack.len() >= MAX_DEPTH {
+                    return Err(format!("more than {MAX_ELEMENTS} elements or {MAX_DEPTH} levels"));
+                }
+                let element = element_of(resolved, &start)?;
+                if empty {
+                    close(&mut stack, &mut root, element);
+                } else {
+                    stack.push(element);
+                }
+            }
+            Event::Start(_) | Event::Empty(_) => return Err("content after the root element".into()),
+            Event::End(_) => {
+                let element = stack.pop().ok_or("an end tag without its start")?;
+                close(&mut stack, &mut root, element);
+            }
+            Event::Text(t) => {
+                if let Some(top) = stack.last_mut() {
+                    let t = t.decode().map_err(|e| format!("malformed text: {e}"))?;
+                    let t = quick_xml::escape::unescape(&t).map_err(|e| format!("malformed text: {e}"))?;
+                    top.text.push_str(&t);
+                }
+            }
+            Event::CData(t) => {
+                if let Some(top) = stack.last_mut() {
+                    top.text.push_str(&String::from_utf8_lossy(&t));
+                }
+            }
+            Event::GeneralRef(r) => {
+                if let Some(top) = stack.last_mut() {
+                    let name = r.decode().map_err(|e| format!("malformed reference: {e}"))?;
+                    let text = quick_xml::escape::unescape(&format!("&{name};"))
+                        .map_err(|e| format!("unknown entity &{name};: {e}"))?
+                        .into_owned();
+                    top.text.push_str(&text);
+                }
+            }
+            Event::DocType(_) => return Err("a DOCTYPE is not accepted".into()),
+            Event::Eof => break,
+            _ => {}
+        }
+    }
+    if !stack.is_empty() {
+        return Err("the document ends inside an element".into());
+    }
+    root.ok_or_else(|| "no root element".into())
+}
+
+fn element_of(resolved: ResolveResult<'_>, start: &BytesStart<'_>) -> Result<Element, String> {
+    let ns = match resolved {
+        ResolveResult::Bound(ns) => String::from_utf8_lossy(ns.as_ref()).into_owned(),
+        ResolveResult::Unbound => String::new(),
+        ResolveResult::Unknown(p) => {
+            return Err(format!("undeclared namespace prefix {:?}", String::from_utf8_lossy(&p)));
+        }
+    };
+    let mut element = Element {
+        ns,
+        name: String::from_utf8_lossy(start.local_name().as_ref()).into_owned(),
+        ..Element::default()
+    };
+    for attr in start.attributes() {
+        let attr = attr.map_err(|e| format!("malformed attribute: {e}"))?;
+        let value = attr
+            .unescape_value()
+            .map_err(|e| format!("malformed attribute value: {e}"))?;
+        element.attrs.push((
+            String::from_utf8_lossy(attr.key.local_name().as_ref()).into_owned(),
+            value.into_owned(),
+        ));
+    }
+    Ok(element)
+}
+
+fn close(stack: &mut [Element], root: &mut Option<Element>, element: Element) {
+    match stack.last_mut() {
+        Some(parent) => parent.children.push(element),
+        None => *root = Some(element),
+    }
+}
+
+/// A request's envelope: its header and its one operation.
+#[derive(Debug)]
+pub struct Request {
+    pub header: Option<Element>,
+    pub operation: Element,
+}
+
+/// The envelope's parts, or a fault's reason.
+pub fn request(xml: &[u8]) -> Result<Request, String> {
+    let root = parse(xml)?;
+    if root.name != "Envelope" || root.ns != NS_SOAP {
+        return Err(format!(
+            "expected a SOAP 1.2 Envelope ({NS_SOAP}), found {{{}}}{}",
+            root.ns, root.name
+        ));
+    }
+    let header = root.child("Header").cloned();
+    let body = root.child("Body").ok_or("the envelope has no Body")?;
+    let operation = body.children.first().cloned().ok_or("the Body is empty")?;
+    Ok(Request { header, operation })
+}
+
+/// Text escaped for XML content and attributes.
+pub fn esc(text: &str) -> std::borrow::Cow<'_, str> {
+    escape(text)
+}
+
+const PREFIXES: &str = concat!(
+    r#"xmlns:s="http://www.w3.org/2003/05/soap-envelope" "#,
+    r#"xmlns:tds="http://www.onvif.org/ver10/device/wsdl" "#,
+    r#"xmlns:trt="http://www.onvif.org/ver10/media/wsdl" "#,
+    r#"xmlns:tptz="http://www.onvif.org/ver20/ptz/wsdl" "#,
+    r#"xmlns:tt="http://www.onvif.org/ver10/schema" "#,
+    r#"xmlns:ter="http://www.onvif.org/ver10/error""#
+);
+
+/// A response envelope around `body`.
+pub fn envelope(body: &str) -> String {
+    format!(r#"<?xml version="1.0" encoding="UTF-8"?><s:Envelope {PREFIXES}><s:Body>{body}</s:Body></s:Envelope>"#)
+}
+
+/// A SOAP fault (ONVIF Core 5.11.2): who is at fault, the ONVIF subcodes
+/// (`ter:InvalidArgVal`, `ter:NoProfile`, ...) and the reason in words.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Fault {
+    /// `Sender` (the request was wrong) or `Receiver` (the device failed).
+    pub sender: bool,
+    pub subcodes: Vec<&'static str>,
+    pub reason: String,
+    /// No valid credentials came: HTTP 401 with a Digest challenge, so
+    /// that a client using HTTP Digest authentication knows to answer it.
+    pub unauthenticated: bool,
+}
+
+impl Fault {
+    pub fn sender(subcodes: &[&'static str], reason: impl Into<String>) -> Self {
+        Self {
+            sender: true,
+            subcodes: subcodes.to_vec(),
+            reason: reason.into(),
+            unauthenticated: false,
+        }
+    }
+
+    pub fn receiver(subcodes: &[&'static str], reason: impl Into<String>) -> Self {
+        Self {
+            sender: false,
+            subcodes: subcodes.to_vec(),
+            reason: reason.into(),
+            unauthenticated: false,
+        }
+    }
+
+    /// An argument out of range or malformed (`ter:InvalidArgVal`).
+    pub fn invalid_arg(detail: &'static str, reason: impl Into<String>) -> Self {
+        Self::sender(&["ter:InvalidArgVal", detail], reason)
+    }
+
+    /// The HTTP status: 401 without valid credentials, 400 for the
+    /// sender's other faults, 500 for the device's.
+    pub fn status(&self) -> u16 {
+        match (self.unauthenticated, self.sender) {
+            (true, _) => 401,
+            (false, true) => 400,
+            (false, false) => 500,
+        }
+    }
+
+    /// The fault envelope.
+    pub fn envelope(&self) -> String {
+        let mut code = format!(
+            "<s:Value>s:{}</s:Value>",
+            if self.sender { "Sender" } else { "Receiver" }
+        );
+        let mut close = String::new();
+        for sub in &self.subcodes {
+            code.push_str(&format!("<s:Subcode><s:Value>{sub}</s:Value>"));
+            close.push_str("</s:Subcode>");
+        }
+        envelope(&format!(
+            r#"<s:Fault><s:Code>{code}{close}</s:Code><s:Reason><s:Text xml:lang="en">{}</s:Text></s:Reason></s:Fault>"#,
+            esc(&self.reason)
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_request_is_read_with_its_namespaces() {
+        let xml = br#"<?xml version="1.0"?><e:Envelope xmlns:e="http://www.w3.org/2003/05/soap-envelope"><e:Header><Security xmlns="x"><UsernameToken><Username>ad&amp;min</Username></UsernameToken></Security></e:Header><e:Body><GetStatus xmlns="http://www.onvif.org/ver20/ptz/wsdl"><ProfileToken>p1</ProfileToken></GetStatus></e:Body></e:Envelope>"#;
+        let r = request(xml).unwrap();
+        assert_eq!(r.operation.name, "GetStatus");
+        assert_eq!(r.operation.ns, NS_PTZ);
+        assert_eq!(r.operation.text_at(&["ProfileToken"]), Some("p1"));
+        let h = r.header.unwrap();
+        assert_eq!(h.text_at(&["Security", "UsernameToken", "Username"]), Some("ad&min"));
+    }
+
+    #[test]
+    fn malformed_documents_are_errors_never_panics() {
+        for bad in [
+            &b"<a><b></a>"[..],
+            b"<a>",
+            b"",
+            b"\xff\xfe",
+            b"<a/><b/>",
+            b"<x:a/>",
+            b"<!DOCTYPE a [<!ENTITY e 'x'>]><a>&e;</a>",
+            b"<Envelope xmlns=\"http://www.w3.org/2003/05/soap-envelope\"><Body/></Envelope>",
+        ] {
+            assert!(request(bad).is_err(), "{:?}", String::from_utf8_lossy(bad));
+        }
+        let deep = "<a>".repeat(100) + &"</a>".repeat(100);
+        assert!(parse(deep.as_bytes()).is_err());
+    }
+
+    #[test]
+    fn a_fault_carries_its_subcodes_and_escaped_reason() {
+        let f = Fault::invalid_arg("ter:NoProfile", "no profile <x>").envelope();
+        assert!(f.contains("<s:Value>s:Sender</s:Value><s:Subcode><s:Value>ter:InvalidArgVal</s:Value><s:Subcode><s:Value>ter:NoProfile</s:Value></s:Subcode></s:Subcode>"), "{f}");
+        assert!(f.contains("no profile &lt;x&gt;"));
+        parse(f.as_bytes()).unwrap();
+    }
+}

@@ -1,0 +1,186 @@
+//! One connection to a bus (as its master) or to gcud's client listener,
+//! and the exchanges made over it, each outcome other than success turned
+//! into a [`CommandError`] that says what happened (1.4.2, 1.4.3, and
+//! ARCHITECTURE "Delivery contract" for gcud's delivery reports).
+
+use sagebrush_host::hex::payload_text;
+use sagebrush_host::{timing, transport};
+use sagebrush_protocol::link::TransactionPolicy;
+use sagebrush_protocol::{
+    Address, Command, FrameBuf, MAX_PAYLOAD, Outcome, Position, Reply, ResultKind, ResultTimeout, TxFailure,
+    Undelivered,
+};
+use tokio::io::{AsyncRead, AsyncWrite};
+use tokio::net::TcpStream;
+
+use crate::master::{Exchange, Master};
+
+/// Why a command did not succeed, with a message naming the device, the
+/// command and what happened.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum CommandError {
+    /// The line or connection failed.
+    #[error("{0}")]
+    Io(String),
+    /// The command cannot be encoded or framed.
+    #[error("{0}")]
+    Usage(String),
+    /// NAK on every transmission.
+    #[error("{0}")]
+    Nak(String),
+    /// No ACK on any transmission.
+    #[error("{0}")]
+    NoAck(String),
+    /// The device answered NIC.
+    #[error("{0}")]
+    Nic(String),
+    /// Acknowledged, but no result in time.
+    #[error("{0}")]
+    NoResult(String),
+    /// A result that is not the command's.
+    #[error("{0}")]
+    BadReply(String),
+    /// A GCU reported that it could not deliver the command.
+    #[error("{1}")]
+    Undelivered(Undelivered, String),
+}
+
+impl From<std::io::Error> for CommandError {
+    fn from(e: std::io::Error) -> Self {
+        CommandError::Io(e.to_string())
+    }
+}
+
+/// The payload bytes of a command.
+pub fn encode(command: &Command<'_>) -> Result<Vec<u8>, CommandError> {
+    let mut buf = [0u8; MAX_PAYLOAD];
+    command
+        .encode(&mut buf)
+        .map(<[u8]>::to_vec)
+        .map_err(|e| CommandError::Usage(format!("cannot encode {}: {e}", command.mnemonic())))
+}
+
+/// A master on one stream, sending as `from` (the source group of 1.4.1).
+#[derive(Debug)]
+pub struct Client<S> {
+    master: Master<S>,
+    pub from: u8,
+}
+
+/// A client of gcud's client listener.
+pub type GcudClient = Client<TcpStream>;
+
+impl GcudClient {
+    /// Connects to gcud's client listener at `addr` (`host:port`), with
+    /// the TCP time-outs of a link (1.4.2 over TCP, `timing::tcp_policy`)
+    /// changed by `tune`.
+    pub async fn connect(
+        addr: &str,
+        from: u8,
+        tune: impl FnOnce(&mut TransactionPolicy),
+    ) -> Result<Self, CommandError> {
+        let stream = transport::connect_tcp(addr).await?;
+        let mut policy = timing::tcp_policy();
+        tune(&mut policy);
+        Ok(Self::new(stream, policy, from))
+    }
+}
+
+impl<S: AsyncRead + AsyncWrite + Unpin> Client<S> {
+    pub fn new(stream: S, policy: TransactionPolicy, from: u8) -> Self {
+        Self {
+            master: Master::new(stream, policy),
+            from,
+        }
+    }
+
+    /// The exchange machinery itself (reading what arrives between exchanges).
+    pub fn master_mut(&mut self) -> &mut Master<S> {
+        &mut self.master
+    }
+
+    /// One exchange of `payload` with `to`; every outcome but an ACK, a
+    /// result or a broadcast is an error naming the device, the command and
+    /// what happened.
+    pub async fn exchange(&mut self, to: Address, payload: &[u8]) -> Result<Exchange, CommandError> {
+        let frame = FrameBuf::new(to, self.from, payload).map_err(|e| CommandError::Usage(format!("payload: {e}")))?;
+        let command = Command::parse(payload);
+        let ex = self.master.transact(&frame, &command).await?;
+        let what = format!("{} ({})", payload_text(payload), command.mnemonic());
+        let policy = *self.master.policy();
+        if let Some(report) = ex.undelivered {
+            let failure = report.failure.unwrap_or(Undelivered::NotConfirmed);
+            return Err(CommandError::Undelivered(
+                failure,
+                format!(
+                    "not delivered: {what} to {to}: {} (reported by GCU {})",
+                    failure.describe(),
+                    report.at_group
+                ),
+            ));
+        }
+        match ex.outcome {
+            Outcome::Acknowledged | Outcome::Broadcast | Outcome::Result => Ok(ex),
+            Outcome::Nic => Err(CommandError::Nic(format!(
+                "NIC: {to} does not implement or cannot apply {what}"
+            ))),
+            Outcome::NoResult => Err(CommandError::NoResult(format!(
+                "{to} acknowledged {what} but sent no result within {} ms",
+                if command.result_kind() == ResultKind::Required(ResultTimeout::Long) {
+                    policy.long_result_timeout
+                } else {
+                    policy.result_timeout
+                }
+            ))),
+            Outcome::Failed(TxFailure::Nak) => Err(CommandError::Nak(format!(
+                "{to} answered NAK to {what} on all {} transmissions: the frame keeps arriving damaged (line noise? wrong --baud?)",
+                ex.transmissions
+            ))),
+            Outcome::Failed(TxFailure::NoAck) => Err(CommandError::NoAck(format!(
+                "no ACK from {to} for {what} after {} transmissions ({} ms each): check the address, the cabling and --baud",
+                ex.transmissions, policy.retry.ack_timeout
+            ))),
+        }
+    }
+
+    /// Sends `command` to `to`; done when it is acknowledged (or answered).
+    pub async fn send(&mut self, to: Address, command: &Command<'_>) -> Result<Exchange, CommandError> {
+        let payload = encode(command)?;
+        self.exchange(to, &payload).await
+    }
+
+    /// A query: its result payload.
+    pub async fn query(&mut self, to: Address, command: &Command<'_>) -> Result<Vec<u8>, CommandError> {
+        let ex = self.send(to, command).await?;
+        match ex.result {
+            Some(frame) => Ok(frame.frame().payload().to_vec()),
+            None => Err(CommandError::NoResult(format!(
+                "{to} sent no result for {}",
+                command.mnemonic()
+            ))),
+        }
+    }
+
+    /// A query whose answer is a Table 15 position (`P?`, `P?nn`, `S?nn`).
+    pub async fn query_position(&mut self, to: Address, command: &Command<'_>) -> Result<Position, CommandError> {
+        let payload = self.query(to, command).await?;
+        expect_position(command, &payload)
+    }
+
+    /// Where the gimbal at `to` points now (`P?`).
+    pub async fn position(&mut self, to: Address) -> Result<Position, CommandError> {
+        self.query_position(to, &Command::QueryPosition).await
+    }
+}
+
+/// `payload`, the result of `command`, as a Table 15 position.
+pub fn expect_position(command: &Command<'_>, payload: &[u8]) -> Result<Position, CommandError> {
+    match Reply::parse(command, payload) {
+        Ok(Reply::Position(p)) => Ok(p),
+        _ => Err(CommandError::BadReply(format!(
+            "{} result {:?} is not a Table 15 position",
+            command.mnemonic(),
+            String::from_utf8_lossy(payload)
+        ))),
+    }
+}

@@ -1,0 +1,19 @@
+//! What every program that commands gimbals shares, from a bus master
+//! (`gimbalctl --serial`) to gcud's front doors (`gimbalctl --tcp`,
+//! `gimbal-onvif`):
+//!
+//! - [`codec`]: the protocol crate's streaming framer as a tokio codec.
+//! - [`master`]: the master side of one command exchange (Figure 6) over
+//!   any stream, driving the protocol crate's `Transaction`.
+//! - [`client`]: a connection to a bus or to gcud's client listener: send a
+//!   command to an address and await its ACK, result or delivery report,
+//!   each failure a [`client::CommandError`]; poll the position.
+//! - [`config_file`]: TOML configuration read with bounds, every error at
+//!   its file:line:column with its key and what was expected.
+
+pub mod client;
+pub mod codec;
+pub mod config_file;
+pub mod master;
+
+pub use client::{Client, CommandError, GcudClient};

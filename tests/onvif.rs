@@ -1,0 +1,734 @@
+//! End-to-end tests of `gimbal-onvif` (issue 21): the real gcud with
+//! simulated gimbal buses, the real gimbal-onvif in front of it, driven by
+//! third-party clients from PyPI (`onvif-zeep-async`, which Home
+//! Assistant uses, and `WSDiscovery`'s message layer) through
+//! `tests/onvif/client.py`. What the gimbal did is read on the bus side,
+//! with `gimbalctl position` through gcud, never from gimbal-onvif's own
+//! account. Everything listens on 127.0.0.1; waits are polls with a hang
+//! guard, never wall-clock assertions.
+//!
+//! Without Python and the two packages the client tests are skipped with a
+//! notice, except under `CI=true`, where they fail.
+
+mod support;
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::{Value, json};
+use support::gcud::{CLIENTS, Gcud};
+use support::{HANG_GUARD, addr_field, eventually};
+
+const MAST: &str = "5.1.1";
+
+/// Whether the third-party clients can run here; under CI they must.
+fn clients_available() -> bool {
+    let ok = Command::new("python3")
+        .args(["-c", "import onvif, wsdiscovery, httpx"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !ok {
+        let msg = "python3 with onvif-zeep-async and WSDiscovery is missing (.ci/run installs them: \
+                   pip install onvif-zeep-async==4.3.0 WSDiscovery==2.1.2)";
+        if std::env::var("CI").is_ok_and(|v| v == "true") {
+            panic!("{msg}");
+        }
+        eprintln!("SKIPPED: {msg}");
+    }
+    ok
+}
+
+/// gcud with two simulated buses (the mast gimbal on bus 1; bus 2 has no
+/// device 9, the absent gimbal) and gimbal-onvif in front of it.
+struct Stack {
+    gcud: Gcud,
+    onvif: Option<Child>,
+    dir: tempfile::TempDir,
+    /// The ONVIF device ports of `mast-1` and `absent`, and the discovery port.
+    mast: u16,
+    absent: u16,
+    discovery: u16,
+}
+
+fn onvif_config(gcud: &str, state: &Path) -> String {
+    format!(
+        r#"gcud = "{gcud}"
+state_file = "{}"
+max_move_ms = 20000
+poll_ms = 100
+[discovery]
+enabled = true
+listen = "127.0.0.1:0"
+[[user]]
+name = "admin"
+password = "adm1n-secret"
+role = "administrator"
+[[user]]
+name = "op"
+password = "op-secret"
+role = "operator"
+[[user]]
+name = "viewer"
+password = "viewer-secret"
+role = "user"
+[[gimbal]]
+name = "mast-1"
+address = "{MAST}"
+listen = "127.0.0.1:0"
+stream_uri = "rtsp://127.0.0.1:8554/mast-1"
+zoom = true
+[[gimbal]]
+name = "absent"
+address = "5.2.9"
+listen = "127.0.0.1:0"
+"#,
+        state.display()
+    )
+}
+
+impl Stack {
+    fn start() -> Self {
+        let gcud = Gcud::start(&format!(
+            "[gcu]\ngroup = 5\n[[port]]\nid = 1\nsimulate = [1]\n[[port]]\nid = 2\nsimulate = [1]\n{CLIENTS}"
+        ));
+        let dir = tempfile::tempdir().expect("temp dir");
+        let mut stack = Self {
+            gcud,
+            onvif: None,
+            dir,
+            mast: 0,
+            absent: 0,
+            discovery: 0,
+        };
+        stack.spawn_onvif();
+        stack
+    }
+
+    fn log_path(&self) -> PathBuf {
+        self.dir.path().join("gimbal-onvif.log")
+    }
+
+    fn log(&self) -> String {
+        std::fs::read_to_string(self.log_path()).unwrap_or_default()
+    }
+
+    /// Starts gimbal-onvif (again) and learns its ports from its log.
+    fn spawn_onvif(&mut self) {
+        let config = self.dir.path().join("gimbal-onvif.toml");
+        std::fs::write(
+            &config,
+            onvif_config(&self.gcud.clients(), &self.dir.path().join("presets.toml")),
+        )
+        .expect("write config");
+        let _ = std::fs::remove_file(self.log_path());
+        let log = std::fs::File::create(self.log_path()).expect("log file");
+        let child = Command::new(env!("CARGO_BIN_EXE_gimbal-onvif"))
+            .arg("--config")
+            .arg(&config)
+            .env("RUST_LOG", "info")
+            .stdout(Stdio::null())
+            .stderr(Stdio::from(log))
+            .spawn()
+            .expect("spawn gimbal-onvif");
+        self.onvif = Some(child);
+        let log = self.log_path();
+        let line = support::wait_for_log_line(&log, "gimbal-onvif ready");
+        assert!(!line.is_empty());
+        let port = |what: &str| -> u16 {
+            let line = support::wait_for_log_line(&log, what);
+            let addr = addr_field(&line);
+            addr.rsplit(':').next().unwrap().parse().expect("port")
+        };
+        self.mast = port("gimbal=mast-1 addr=");
+        self.absent = port("gimbal=absent addr=");
+        self.discovery = port("WS-Discovery listening");
+    }
+
+    /// Sends `signal` to gimbal-onvif and waits for it to exit.
+    fn signal_onvif(&mut self, signal: nix::sys::signal::Signal) -> std::process::ExitStatus {
+        let mut child = self.onvif.take().expect("running");
+        let pid = nix::unistd::Pid::from_raw(child.id() as i32);
+        nix::sys::signal::kill(pid, signal).expect("signal");
+        let started = Instant::now();
+        loop {
+            if let Ok(Some(status)) = child.try_wait() {
+                return status;
+            }
+            assert!(started.elapsed() < HANG_GUARD, "gimbal-onvif did not exit on {signal}");
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    /// Runs one step of the third-party client against the device on `port`.
+    fn client(&self, step: &str, port: u16, user: (&str, &str), args: Value) -> Value {
+        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/onvif/client.py");
+        let out = Command::new("python3")
+            .arg(&script)
+            .args([step, "127.0.0.1", &port.to_string(), user.0, user.1, &args.to_string()])
+            .output()
+            .expect("run python3");
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "client step {step} failed: {}\nstdout: {stdout}\nstderr: {}\ngimbal-onvif log:\n{}",
+            out.status,
+            String::from_utf8_lossy(&out.stderr),
+            self.log()
+        );
+        serde_json::from_str(stdout.lines().last().unwrap_or_default())
+            .unwrap_or_else(|e| panic!("step {step}: not JSON ({e}): {stdout}"))
+    }
+
+    /// The mast gimbal's position read on the bus side (gimbalctl via gcud).
+    fn bus_position(&self) -> (f64, f64) {
+        self.gcud.position(MAST)
+    }
+
+    /// The mast gimbal's lens zoom read on the bus side (`gimbalctl lens`).
+    fn bus_zoom(&self) -> u64 {
+        let out = self.gcud.ctl(&["--json", "--to", MAST, "lens"]);
+        assert_eq!(out.code, 0, "{out:?}");
+        out.json()["result"]["zoom"].as_u64().expect("zoom")
+    }
+
+    /// Samples the bus-side position until it moved away from `from`.
+    fn wait_moving(&self, from: (f64, f64)) {
+        eventually("the gimbal to move", || {
+            std::thread::sleep(Duration::from_millis(50));
+            self.bus_position() != from
+        });
+    }
+}
+
+impl Drop for Stack {
+    fn drop(&mut self) {
+        if let Some(child) = &mut self.onvif {
+            support::terminate(child);
+        }
+    }
+}
+
+const ADMIN: (&str, &str) = ("admin", "adm1n-secret");
+const OPERATOR: (&str, &str) = ("op", "op-secret");
+const VIEWER: (&str, &str) = ("viewer", "viewer-secret");
+
+fn fault_subcodes(v: &Value) -> Vec<String> {
+    v["fault"]["subcodes"]
+        .as_array()
+        .unwrap_or_else(|| panic!("expected a SOAP fault, got {v}"))
+        .iter()
+        .map(|s| s.as_str().unwrap().to_owned())
+        .collect()
+}
+
+/// Position `(pan, tilt)` unchanged over about a second on the bus side.
+fn assert_still(stack: &Stack, at: (f64, f64), what: &str) {
+    for _ in 0..5 {
+        std::thread::sleep(Duration::from_millis(200));
+        assert_eq!(stack.bus_position(), at, "{what}: the gimbal moved");
+    }
+}
+
+// ---- the tests --------------------------------------------------------------
+
+#[test]
+fn a_unicast_probe_finds_one_device_per_gimbal_with_its_address() {
+    if !clients_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let found = stack.client("discover", stack.discovery, ("-", "-"), json!({ "expect": 2 }));
+    let matches = found["matches"].as_array().expect("matches");
+    assert_eq!(matches.len(), 2, "{found}");
+    for (name, port) in [("mast-1", stack.mast), ("absent", stack.absent)] {
+        let m = matches
+            .iter()
+            .find(|m| {
+                m["scopes"]
+                    .to_string()
+                    .contains(&format!("onvif://www.onvif.org/name/{name}"))
+            })
+            .unwrap_or_else(|| panic!("no ProbeMatch for {name}: {found}"));
+        assert_eq!(
+            m["xaddrs"],
+            json!([format!("http://127.0.0.1:{port}/onvif/device_service")]),
+            "{m}"
+        );
+        assert!(m["types"].to_string().contains("NetworkVideoTransmitter"), "{m}");
+        assert!(
+            m["scopes"].to_string().contains("onvif://www.onvif.org/type/ptz"),
+            "{m}"
+        );
+    }
+    assert_ne!(matches[0]["epr"], matches[1]["epr"], "each gimbal has its own endpoint");
+    // A probe for one name's scope: only that gimbal answers.
+    let scoped = stack.client(
+        "discover",
+        stack.discovery,
+        ("-", "-"),
+        json!({ "expect": 2, "wait_s": 1.5, "scopes": ["onvif://www.onvif.org/name/absent"] }),
+    );
+    let matches = scoped["matches"].as_array().expect("matches");
+    assert_eq!(matches.len(), 1, "{scoped}");
+    assert_eq!(
+        matches[0]["xaddrs"],
+        json!([format!("http://127.0.0.1:{}/onvif/device_service", stack.absent)])
+    );
+}
+
+#[test]
+fn device_information_carries_the_gimbals_serial_and_profiles_the_stream_uri() {
+    if !clients_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let id = stack.gcud.ctl(&["--json", "--to", MAST, "id"]).json();
+    let info = stack.client("info", stack.mast, VIEWER, json!({}));
+    let device = &info["device"]["ok"];
+    assert_eq!(device["SerialNumber"], id["result"]["serial"], "{info}");
+    assert_eq!(device["Model"], id["result"]["name"], "{info}");
+    assert_eq!(device["Manufacturer"], "Sagebrush");
+    assert_eq!(device["HardwareId"], MAST);
+    let profiles = info["profiles"].as_array().expect("profiles");
+    assert_eq!(profiles.len(), 1, "{info}");
+    assert_eq!(profiles[0]["ptz"], true);
+    assert_eq!(profiles[0]["encoding"], "H264");
+    assert_eq!(info["stream_uri"]["ok"], "rtsp://127.0.0.1:8554/mast-1");
+    assert_eq!(info["hostname"], "mast-1");
+    // The device's clock, which clients compare with theirs before signing.
+    let now = time::OffsetDateTime::now_utc();
+    assert_eq!(info["utc"]["year"], now.year(), "{info}");
+    assert!(
+        info["utc"]["hour"].as_u64().is_some(),
+        "GetSystemDateAndTime without its Time: {info}"
+    );
+    assert_eq!(info["snapshot"], false);
+    assert_eq!(info["eflip"], false);
+    assert!(info["scopes"].to_string().contains("type/ptz"), "{info}");
+    assert_eq!(info["presets_max"], 256);
+}
+
+#[test]
+fn continuous_move_with_a_timeout_stops_by_itself() {
+    if !clients_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let before = stack.bus_position();
+    assert_eq!(before, (0.0, 0.0));
+    // x = 0.5: speed 7 of 15, 60 °/s on the simulated gimbal; a move that
+    // ignored its 1 s Timeout would run on for max_move_ms (20 s) and end
+    // at the end of travel, 180°.
+    let moved = stack.client(
+        "continuous",
+        stack.mast,
+        OPERATOR,
+        json!({ "x": 0.5, "y": 0.0, "timeout_s": 1.0 }),
+    );
+    assert_eq!(moved["ok"], true, "{moved}");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(
+        pan > 20.0 && pan < 150.0,
+        "pan right by about 1 s at 60 °/s, then stopped short of the end: {pan}"
+    );
+    assert_eq!(tilt, 0.0);
+    assert!(stack.log().contains("move time-out: stopping"), "{}", stack.log());
+    assert_still(&stack, (pan, tilt), "after the time-out");
+}
+
+#[test]
+fn absolute_move_arrives_within_half_a_degree_and_get_status_agrees() {
+    if !clients_available() {
+        return;
+    }
+    let stack = Stack::start();
+    // Generic (0.25, -0.5) over pan [-180, 180] and tilt [-90, 90]: (45°, -45°).
+    let r = stack.client("absolute", stack.mast, OPERATOR, json!({ "x": 0.25, "y": -0.5 }));
+    assert_eq!(r["ok"], true, "{r}");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(
+        (pan - 45.0).abs() <= 0.5 && (tilt + 45.0).abs() <= 0.5,
+        "bus at {pan}, {tilt}"
+    );
+    let status = stack.client("status", stack.mast, VIEWER, json!({}));
+    let x = status["x"].as_f64().expect("x");
+    let y = status["y"].as_f64().expect("y");
+    assert!((x * 180.0 - pan).abs() <= 0.5, "GetStatus x {x} vs bus pan {pan}");
+    assert!((y * 90.0 - tilt).abs() <= 0.5, "GetStatus y {y} vs bus tilt {tilt}");
+    assert_eq!(status["moving"], "IDLE", "{status}");
+    assert!(status["error"].is_null(), "{status}");
+}
+
+#[test]
+fn zoom_moves_the_lens_continuously_with_its_timeout_and_to_a_position() {
+    if !clients_available() {
+        return;
+    }
+    let stack = Stack::start();
+    assert_eq!(stack.bus_zoom(), 0);
+    // Zoom in at lens speed 4 of 9 for 0.5 s; the whole travel takes 2 s at
+    // speed 9, so a move that ignored its Timeout (max_move_ms, 20 s) would
+    // end at 4095.
+    let r = stack.client(
+        "continuous",
+        stack.mast,
+        OPERATOR,
+        json!({ "x": 0.0, "y": 0.0, "zoom": 0.5, "timeout_s": 0.5 }),
+    );
+    assert_eq!(r["ok"], true, "{r}");
+    let mut last = stack.bus_zoom();
+    eventually("the zoom to stop", || {
+        std::thread::sleep(Duration::from_millis(200));
+        let now = stack.bus_zoom();
+        let still = now == last && now > 0;
+        last = now;
+        still
+    });
+    assert!(
+        last > 0 && last < 4095,
+        "zoomed in part of the way, then stopped: {last}"
+    );
+    assert_eq!(stack.bus_position(), (0.0, 0.0), "pan and tilt stayed");
+    // AbsoluteMove of the zoom alone: 0.25 of 0..4095.
+    let r = stack.client(
+        "absolute",
+        stack.mast,
+        OPERATOR,
+        json!({ "x": 0.0, "y": 0.0, "zoom": 0.25 }),
+    );
+    assert_eq!(r["ok"], true, "{r}");
+    eventually("the lens at 1024", || {
+        std::thread::sleep(Duration::from_millis(100));
+        stack.bus_zoom() == 1024
+    });
+    let status = stack.client("status", stack.mast, VIEWER, json!({}));
+    assert!(
+        (status["zoom"].as_f64().expect("zoom") - 0.25).abs() < 0.001,
+        "{status}"
+    );
+    // The gimbal without a lens refuses to zoom, before anything is sent.
+    let r = stack.client(
+        "continuous",
+        stack.absent,
+        OPERATOR,
+        json!({ "x": 0.0, "y": 0.0, "zoom": 0.5, "timeout_s": 0.5 }),
+    );
+    assert_eq!(fault_subcodes(&r), ["InvalidArgVal", "NoZoom"], "{r}");
+}
+
+#[test]
+fn presets_round_trip_and_their_names_survive_a_restart() {
+    if !clients_available() {
+        return;
+    }
+    let mut stack = Stack::start();
+    let r = stack.client("absolute", stack.mast, OPERATOR, json!({ "x": -0.5, "y": 0.5 }));
+    assert_eq!(r["ok"], true, "{r}");
+    let stored = stack.gcud.settled_position(MAST);
+    let set = stack.client("set_preset", stack.mast, OPERATOR, json!({ "name": "gate" }));
+    let token = set["ok"].as_str().unwrap_or_else(|| panic!("{set}")).to_owned();
+    let r = stack.client("absolute", stack.mast, OPERATOR, json!({ "x": 0.0, "y": 0.0 }));
+    assert_eq!(r["ok"], true, "{r}");
+    assert_eq!(stack.gcud.settled_position(MAST), (0.0, 0.0));
+
+    stack.signal_onvif(nix::sys::signal::Signal::SIGTERM);
+    stack.spawn_onvif();
+    let presets = stack.client("presets", stack.mast, VIEWER, json!({}));
+    assert_eq!(
+        presets["presets"],
+        json!([{ "token": token, "name": "gate" }]),
+        "{presets}"
+    );
+    let r = stack.client("goto_preset", stack.mast, OPERATOR, json!({ "token": token }));
+    assert_eq!(r["ok"], true, "{r}");
+    assert_eq!(
+        stack.gcud.settled_position(MAST),
+        stored,
+        "the preset is the gimbal's own"
+    );
+}
+
+#[test]
+fn stop_ends_a_continuous_move() {
+    if !clients_available() {
+        return;
+    }
+    let stack = Stack::start();
+    // 30 °/s without a Timeout: only Stop (or max_move_ms, 20 s) ends it
+    // before the end of travel at -180° (6 s).
+    let r = stack.client("continuous", stack.mast, OPERATOR, json!({ "x": -0.25, "y": 0.0 }));
+    assert_eq!(r["ok"], true, "{r}");
+    stack.wait_moving((0.0, 0.0));
+    let r = stack.client("stop", stack.mast, OPERATOR, json!({}));
+    assert!(r.get("ok").is_some(), "{r}");
+    let (pan, _) = stack.gcud.settled_position(MAST);
+    assert!(pan < 0.0 && pan > -175.0, "stopped on its way left: {pan}");
+    assert!(!stack.log().contains("move time-out"), "{}", stack.log());
+}
+
+#[test]
+fn a_wrong_password_and_the_user_role_are_refused_and_nothing_moves() {
+    if !clients_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let wrong = stack.client("login", stack.mast, ("op", "not-the-password"), json!({}));
+    assert_eq!(fault_subcodes(&wrong), ["NotAuthorized"], "{wrong}");
+    let viewer = stack.client(
+        "continuous",
+        stack.mast,
+        VIEWER,
+        json!({ "x": 1.0, "y": 1.0, "timeout_s": 5.0 }),
+    );
+    assert_eq!(fault_subcodes(&viewer), ["NotAuthorized"], "{viewer}");
+    assert!(
+        viewer["fault"]["message"].as_str().unwrap().contains("Operator"),
+        "{viewer}"
+    );
+    let viewer_abs = stack.client("absolute", stack.mast, VIEWER, json!({ "x": 0.5, "y": 0.5 }));
+    assert_eq!(fault_subcodes(&viewer_abs), ["NotAuthorized"], "{viewer_abs}");
+    assert_still(&stack, (0.0, 0.0), "after refused requests");
+}
+
+#[test]
+fn http_digest_authentication_works_as_the_alternative_to_ws_security() {
+    if !clients_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let status =
+        "<GetStatus xmlns=\"http://www.onvif.org/ver20/ptz/wsdl\"><ProfileToken>profile1</ProfileToken></GetStatus>";
+    let ok = stack.client("http_digest", stack.mast, VIEWER, json!({ "operation": status }));
+    assert_eq!(ok["status"], 200, "{ok}");
+    assert!(ok["body"].as_str().unwrap().contains("PTZStatus"), "{ok}");
+    let wrong = stack.client(
+        "http_digest",
+        stack.mast,
+        ("viewer", "wrong"),
+        json!({ "operation": status }),
+    );
+    assert_eq!(wrong["status"], 401, "{wrong}");
+    assert!(
+        wrong["challenge"]
+            .as_str()
+            .unwrap()
+            .starts_with("Digest realm=\"gimbal-onvif\""),
+        "{wrong}"
+    );
+    let mv = "<ContinuousMove xmlns=\"http://www.onvif.org/ver20/ptz/wsdl\"><ProfileToken>profile1</ProfileToken><Velocity><PanTilt xmlns=\"http://www.onvif.org/ver10/schema\" x=\"1\" y=\"0\"/></Velocity><Timeout>PT1S</Timeout></ContinuousMove>";
+    let refused = stack.client("http_digest", stack.mast, VIEWER, json!({ "operation": mv }));
+    assert_eq!(refused["status"], 400, "{refused}");
+    assert!(
+        refused["body"].as_str().unwrap().contains("ter:NotAuthorized"),
+        "{refused}"
+    );
+    assert_still(&stack, (0.0, 0.0), "after a refused digest-authenticated move");
+    let moved = stack.client("http_digest", stack.mast, OPERATOR, json!({ "operation": mv }));
+    assert_eq!(moved["status"], 200, "{moved}");
+    stack.wait_moving((0.0, 0.0));
+}
+
+#[test]
+fn malformed_xml_and_bad_arguments_get_faults_and_move_nothing() {
+    if !clients_available() {
+        return;
+    }
+    let stack = Stack::start();
+    for body in [
+        "<s:Envelope><oops",
+        "not xml at all",
+        "<?xml version=\"1.0\"?><e:Envelope xmlns:e=\"http://www.w3.org/2003/05/soap-envelope\"><e:Body><ContinuousMove xmlns=\"http://www.onvif.org/ver20/ptz/wsdl\"><ProfileToken>profile1</ProfileToken><Velocity><PanTilt x=\"1\" y=\"1\"/></Velocity></ContinuousMove></e:Body>",
+    ] {
+        let r = stack.client("malformed", stack.mast, ("-", "-"), json!({ "body": body }));
+        assert_eq!(r["status"], 400, "{r}");
+        let text = r["body"].as_str().unwrap();
+        assert!(text.contains("<s:Fault>") && text.contains("ter:WellFormed"), "{text}");
+    }
+    // A body over 64 KiB is refused unread.
+    let big = format!("<x>{}</x>", "y".repeat(80 * 1024));
+    let r = stack.client("malformed", stack.mast, ("-", "-"), json!({ "body": big }));
+    assert_eq!(r["status"], 413, "{}", &r.to_string()[..200]);
+    // Well-formed but unauthenticated: refused before anything is sent.
+    let unsigned = "<?xml version=\"1.0\"?><e:Envelope xmlns:e=\"http://www.w3.org/2003/05/soap-envelope\"><e:Body><ContinuousMove xmlns=\"http://www.onvif.org/ver20/ptz/wsdl\"><ProfileToken>profile1</ProfileToken><Velocity><PanTilt x=\"1\" y=\"1\" xmlns=\"http://www.onvif.org/ver10/schema\"/></Velocity></ContinuousMove></e:Body></e:Envelope>";
+    let r = stack.client("malformed", stack.mast, ("-", "-"), json!({ "body": unsigned }));
+    assert!(r["body"].as_str().unwrap().contains("ter:NotAuthorized"), "{r}");
+    let out_of_range = stack.client("out_of_range", stack.mast, ADMIN, json!({}));
+    assert_eq!(
+        fault_subcodes(&out_of_range),
+        ["InvalidArgVal", "InvalidPosition"],
+        "{out_of_range}"
+    );
+    let no_profile = stack.client("wrong_profile", stack.mast, ADMIN, json!({}));
+    assert_eq!(
+        fault_subcodes(&no_profile),
+        ["InvalidArgVal", "NoProfile"],
+        "{no_profile}"
+    );
+    assert_still(&stack, (0.0, 0.0), "after malformed requests");
+}
+
+#[test]
+fn a_configured_gimbal_absent_from_the_bus_gets_a_fault_not_a_success() {
+    if !clients_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let info = stack.client("info", stack.absent, ADMIN, json!({}));
+    let device = &info["device"];
+    assert_eq!(fault_subcodes(device), ["Action", "NotDelivered"], "{info}");
+    assert!(device["fault"]["message"].as_str().unwrap().contains("5.2.9"), "{info}");
+    let moved = stack.client(
+        "continuous",
+        stack.absent,
+        OPERATOR,
+        json!({ "x": 0.5, "y": 0.0, "timeout_s": 1.0 }),
+    );
+    assert_eq!(fault_subcodes(&moved), ["Action", "NotDelivered"], "{moved}");
+    let abs = stack.client("absolute", stack.absent, OPERATOR, json!({ "x": 0.5, "y": 0.0 }));
+    assert_eq!(fault_subcodes(&abs), ["Action", "NotDelivered"], "{abs}");
+    eventually("GetStatus to report the unreachable gimbal", || {
+        let status = stack.client("status", stack.absent, VIEWER, json!({}));
+        status["error"].as_str().is_some_and(|e| e.contains("not delivered"))
+    });
+}
+
+#[test]
+fn sigkill_of_gimbal_onvif_mid_move_and_the_gimbal_stops() {
+    if !clients_available() {
+        return;
+    }
+    let mut stack = Stack::start();
+    // 30 °/s for up to max_move_ms (20 s) if nothing stopped it: the end of
+    // travel, 180°, after 6 s.
+    let r = stack.client("continuous", stack.mast, OPERATOR, json!({ "x": 0.25, "y": 0.0 }));
+    assert_eq!(r["ok"], true, "{r}");
+    stack.wait_moving((0.0, 0.0));
+    let status = stack.signal_onvif(nix::sys::signal::Signal::SIGKILL);
+    assert!(!status.success());
+    let (pan, _) = stack.gcud.settled_position(MAST);
+    assert!(
+        pan > 0.0 && pan < 150.0,
+        "gcud's dead-man stopped it well short of the end: {pan}"
+    );
+    stack.gcud.wait_for_log("dead-man PS to 5.1.1");
+}
+
+#[test]
+fn sigterm_stops_what_gimbal_onvif_started() {
+    if !clients_available() {
+        return;
+    }
+    let mut stack = Stack::start();
+    let r = stack.client("continuous", stack.mast, OPERATOR, json!({ "x": 0.0, "y": 0.25 }));
+    assert_eq!(r["ok"], true, "{r}");
+    stack.wait_moving((0.0, 0.0));
+    let status = stack.signal_onvif(nix::sys::signal::Signal::SIGTERM);
+    assert!(status.success(), "{status}\n{}", stack.log());
+    let (_, tilt) = stack.gcud.settled_position(MAST);
+    assert!(tilt > 0.0 && tilt < 85.0, "stopped short of the tilt end: {tilt}");
+    assert!(stack.log().contains("stopping:"), "{}", stack.log());
+    // gimbal-onvif stopped it itself: nothing was left for gcud's dead-man.
+    assert!(!stack.gcud.log().contains("dead-man"), "{}", stack.gcud.log());
+}
+
+#[test]
+fn check_names_the_file_line_column_and_key_and_exits_2() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let good = onvif_config("127.0.0.1:4001", &dir.path().join("p.toml"));
+    let path = dir.path().join("o.toml");
+    let check = |text: &str| {
+        std::fs::write(&path, text).expect("write");
+        Command::new(env!("CARGO_BIN_EXE_gimbal-onvif"))
+            .args(["--check", "--config"])
+            .arg(&path)
+            .output()
+            .expect("run")
+    };
+    let ok = check(&good);
+    assert_eq!(ok.status.code(), Some(0), "{ok:?}");
+    let bad = check(&good.replace("address = \"5.2.9\"", "address = \"5.2\""));
+    assert_eq!(bad.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        err.contains(&format!(
+            "{}:28:11: gimbal[1].address: expected GROUP.PORT.DEVICE",
+            path.display()
+        )),
+        "{err}"
+    );
+    let bad = check(&good.replace("role = \"user\"", "role = \"guest\""));
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("user[2].role: expected administrator, operator or user"));
+}
+
+#[test]
+fn the_shipped_configuration_documents_every_key_and_passes_check() {
+    let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/gimbal-onvif.toml"))
+        .expect("config/gimbal-onvif.toml");
+    // Every key the parser knows is in the file (set or commented out).
+    for key in [
+        "gcud",
+        "source_group",
+        "state_file",
+        "max_move_ms",
+        "poll_ms",
+        "nic_window_ms",
+        "enabled",
+        "listen",
+        "name",
+        "password",
+        "password_file",
+        "role",
+        "address",
+        "stream_uri",
+        "pan_deg",
+        "tilt_deg",
+        "zoom",
+    ] {
+        assert!(
+            text.lines()
+                .any(|l| l.trim_start_matches(['#', ' ']).starts_with(&format!("{key} ="))),
+            "config/gimbal-onvif.toml does not document {key}"
+        );
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let pass = dir.path().join("admin.pass");
+    std::fs::write(&pass, "s3cret\n").expect("password file");
+    let path = dir.path().join("gimbal-onvif.toml");
+    std::fs::write(
+        &path,
+        text.replace("/etc/gimbal-onvif/admin.pass", &pass.display().to_string()),
+    )
+    .expect("write");
+    let out = Command::new(env!("CARGO_BIN_EXE_gimbal-onvif"))
+        .args(["--check", "--config"])
+        .arg(&path)
+        .output()
+        .expect("run");
+    assert_eq!(out.status.code(), Some(0), "{out:?}");
+}
+
+#[test]
+fn the_shipped_unit_is_hardened_and_checks_its_configuration_first() {
+    let unit = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/gimbal-onvif.service"))
+        .expect("config/gimbal-onvif.service");
+    for line in [
+        "Type=notify",
+        "ExecStartPre=/usr/local/bin/gimbal-onvif --check --config /etc/gimbal-onvif/gimbal-onvif.toml",
+        "DynamicUser=yes",
+        "StateDirectory=gimbal-onvif",
+        "NoNewPrivileges=yes",
+        "CapabilityBoundingSet=",
+        "ProtectSystem=strict",
+        "PrivateDevices=yes",
+        "RestrictAddressFamilies=AF_INET AF_INET6 AF_UNIX",
+        "SystemCallFilter=@system-service",
+        "MemoryDenyWriteExecute=yes",
+        "KillSignal=SIGTERM",
+    ] {
+        assert!(unit.lines().any(|l| l.trim() == line), "the unit lacks {line:?}");
+    }
+}

@@ -1,0 +1,252 @@
+"""Third-party ONVIF clients driving gimbal-onvif, for tests/onvif.rs.
+
+Usage: python3 client.py STEP HOST PORT USER PASSWORD [ARGS_JSON]
+
+Each STEP talks to one gimbal's ONVIF device through onvif-zeep-async
+(the library Home Assistant's ONVIF integration uses) or, for discovery,
+through WSDiscovery's message layer (the package Home Assistant uses for
+WS-Discovery) over a unicast UDP socket on loopback. It prints one JSON
+object on stdout: what the client saw, for the Rust test to assert on.
+Faults are results too: {"fault": {"subcodes": [...], "message": ...}}.
+Every wait is bounded.
+"""
+
+import asyncio
+import datetime as dt
+import json
+import socket
+import sys
+import time
+
+from onvif import ONVIFCamera
+from zeep.exceptions import Fault
+
+PROFILE = None
+
+
+def fault_of(err):
+    """The zeep Fault behind an error (onvif-zeep-async may wrap it)."""
+    seen = err
+    for _ in range(4):
+        if isinstance(seen, Fault):
+            return seen
+        seen = seen.__cause__ or seen.__context__
+        if seen is None:
+            break
+    return None
+
+
+def describe(err):
+    f = fault_of(err)
+    if f is None:
+        return {"error": f"{type(err).__name__}: {err}"}
+    subcodes = [q.localname if hasattr(q, "localname") else str(q) for q in (f.subcodes or [])]
+    return {"fault": {"code": str(f.code), "subcodes": subcodes, "message": f.message}}
+
+
+async def attempt(coro):
+    try:
+        return {"ok": await coro}
+    except Exception as err:  # a fault is a result here
+        return describe(err)
+
+
+async def camera(host, port, user, password):
+    cam = ONVIFCamera(host, port, user, password, no_cache=True)
+    await cam.update_xaddrs()
+    return cam
+
+
+def status_of(s):
+    pos = s.Position.PanTilt if s.Position is not None else None
+    zoom = s.Position.Zoom if s.Position is not None else None
+    return {
+        "zoom": None if zoom is None else zoom.x,
+        "x": None if pos is None else pos.x,
+        "y": None if pos is None else pos.y,
+        "moving": None if s.MoveStatus is None else str(s.MoveStatus.PanTilt),
+        "error": s.Error,
+        "utc": str(s.UtcTime),
+    }
+
+
+async def wait_idle(ptz, token, seconds=30.0):
+    """GetStatus until the move ends (IDLE twice in a row), at most `seconds`."""
+    deadline = time.monotonic() + seconds
+    idle = 0
+    last = None
+    while time.monotonic() < deadline:
+        last = status_of(await ptz.GetStatus({"ProfileToken": token}))
+        idle = idle + 1 if last["moving"] == "IDLE" else 0
+        if idle >= 2:
+            return last
+        await asyncio.sleep(0.2)
+    return {"timed_out": True, **(last or {})}
+
+
+async def step(name, host, port, user, password, args):
+    if name == "discover":
+        return discover(host, port, args)
+    if name == "malformed":
+        return await malformed(host, port, args)
+    if name == "http_digest":
+        return await http_digest(host, port, user, password, args)
+    if name == "login":
+        return await attempt(login(host, port, user, password))
+    cam = await camera(host, port, user, password)
+    try:
+        media = await cam.create_media_service()
+        ptz = await cam.create_ptz_service()
+        profiles = await media.GetProfiles()
+        token = profiles[0].token
+        if name == "info":
+            dev = await cam.create_devicemgmt_service()
+            info = await attempt(dev.GetDeviceInformation())
+            if "ok" in info:
+                i = info["ok"]
+                info = {"ok": {k: getattr(i, k) for k in
+                               ["Manufacturer", "Model", "FirmwareVersion", "SerialNumber", "HardwareId"]}}
+            uri = await attempt(media.GetStreamUri({
+                "ProfileToken": token,
+                "StreamSetup": {"Stream": "RTP-Unicast", "Transport": {"Protocol": "RTSP"}},
+            }))
+            if "ok" in uri:
+                uri = {"ok": uri["ok"].Uri}
+            clock = (await dev.GetSystemDateAndTime()).UTCDateTime
+            media_caps = await media.GetServiceCapabilities()
+            ptz_caps = await ptz.GetServiceCapabilities()
+            hostname = await dev.GetHostname()
+            scopes = await dev.GetScopes()
+            nics = await dev.GetNetworkInterfaces()
+            nodes = await ptz.GetNodes()
+            options = await ptz.GetConfigurationOptions({"ConfigurationToken": profiles[0].PTZConfiguration.token})
+            return {
+                "device": info,
+                "profiles": [{
+                    "token": p.token,
+                    "name": p.Name,
+                    "ptz": p.PTZConfiguration is not None,
+                    "encoding": None if p.VideoEncoderConfiguration is None else str(p.VideoEncoderConfiguration.Encoding),
+                } for p in profiles],
+                "stream_uri": uri,
+                "hostname": hostname.Name,
+                "utc": {"year": clock.Date.Year, "hour": None if clock.Time is None else clock.Time.Hour},
+                "snapshot": media_caps.SnapshotUri,
+                "eflip": ptz_caps.EFlip,
+                "scopes": [str(s.ScopeItem) for s in scopes],
+                "mac": nics[0].Info.HwAddress,
+                "nodes": [n.token for n in nodes],
+                "presets_max": nodes[0].MaximumNumberOfPresets,
+                "velocity_space": options.Spaces.ContinuousPanTiltVelocitySpace[0].URI,
+            }
+        if name == "status":
+            return status_of(await ptz.GetStatus({"ProfileToken": token}))
+        if name == "continuous":
+            req = {"ProfileToken": token, "Velocity": {"PanTilt": {"x": args["x"], "y": args["y"]}}}
+            if args.get("zoom") is not None:
+                req["Velocity"]["Zoom"] = {"x": args["zoom"]}
+            if args.get("timeout_s") is not None:
+                req["Timeout"] = dt.timedelta(seconds=args["timeout_s"])
+            result = await attempt(ptz.ContinuousMove(req))
+            if "ok" in result:
+                result = {"ok": True, "status": status_of(await ptz.GetStatus({"ProfileToken": token}))}
+            return result
+        if name == "stop":
+            return await attempt(ptz.Stop({"ProfileToken": token, "PanTilt": True, "Zoom": True}))
+        if name == "absolute":
+            position = {"PanTilt": {"x": args["x"], "y": args["y"]}}
+            if args.get("zoom") is not None:
+                position["Zoom"] = {"x": args["zoom"]}
+            moved = await attempt(ptz.AbsoluteMove({"ProfileToken": token, "Position": position}))
+            if "ok" not in moved:
+                return moved
+            return {"ok": True, "status": await wait_idle(ptz, token)}
+        if name == "set_preset":
+            r = await attempt(ptz.SetPreset({"ProfileToken": token, "PresetName": args["name"]}))
+            return {"ok": r["ok"]} if "ok" in r else r
+        if name == "goto_preset":
+            moved = await attempt(ptz.GotoPreset({"ProfileToken": token, "PresetToken": args["token"]}))
+            if "ok" not in moved:
+                return moved
+            return {"ok": True, "status": await wait_idle(ptz, token)}
+        if name == "presets":
+            presets = await ptz.GetPresets({"ProfileToken": token})
+            return {"presets": [{"token": p.token, "name": p.Name} for p in presets]}
+        if name == "out_of_range":
+            return await attempt(ptz.AbsoluteMove({
+                "ProfileToken": token, "Position": {"PanTilt": {"x": 2.5, "y": 0.0}}}))
+        if name == "wrong_profile":
+            return await attempt(ptz.GetStatus({"ProfileToken": "nope"}))
+        raise SystemExit(f"unknown step {name}")
+    finally:
+        await cam.close()
+
+
+async def login(host, port, user, password):
+    cam = await camera(host, port, user, password)
+    await cam.close()
+    return True
+
+
+async def malformed(host, port, args):
+    """Posts a broken body with the HTTP client zeep itself uses."""
+    import httpx
+    async with httpx.AsyncClient(timeout=30) as http:
+        r = await http.post(f"http://{host}:{port}/onvif/ptz_service", content=args["body"].encode(),
+                            headers={"Content-Type": "application/soap+xml"})
+    return {"status": r.status_code, "body": r.text}
+
+
+async def http_digest(host, port, user, password, args):
+    """A SOAP request with HTTP Digest authentication (httpx.DigestAuth) and no WS-Security."""
+    import httpx
+    body = ('<?xml version="1.0"?><s:Envelope xmlns:s="http://www.w3.org/2003/05/soap-envelope"><s:Body>'
+            + args["operation"] + '</s:Body></s:Envelope>')
+    async with httpx.AsyncClient(timeout=30, auth=httpx.DigestAuth(user, password)) as http:
+        r = await http.post(f"http://{host}:{port}/onvif/ptz_service", content=body.encode(),
+                            headers={"Content-Type": "application/soap+xml"})
+    return {"status": r.status_code, "body": r.text, "challenge": r.headers.get("www-authenticate")}
+
+
+def discover(host, port, args):
+    """A unicast Probe built and read by WSDiscovery's message layer."""
+    from wsdiscovery import QName, Scope
+    from wsdiscovery.actions.probe import constructProbe
+    from wsdiscovery.message import createSOAPMessage, parseSOAPMessage
+
+    types = [QName("http://www.onvif.org/ver10/network/wsdl", "NetworkVideoTransmitter", "dn")]
+    env = constructProbe(types, [Scope(s) for s in args.get("scopes", [])])
+    data = createSOAPMessage(env)
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.settimeout(1.0)
+    sock.bind(("127.0.0.1", 0))
+    sock.sendto(data.encode() if isinstance(data, str) else data, (host, port))
+    matches = []
+    deadline = time.monotonic() + args.get("wait_s", 3.0)
+    while time.monotonic() < deadline and len(matches) < args.get("expect", 1):
+        try:
+            reply, addr = sock.recvfrom(65536)
+        except socket.timeout:
+            continue
+        parsed = parseSOAPMessage(reply, addr[0])
+        if parsed is None or parsed.getRelatesTo() != env.getMessageId():
+            continue
+        for m in parsed.getProbeResolveMatches():
+            matches.append({
+                "epr": m.getEPR(),
+                "xaddrs": m.getXAddrs(),
+                "types": [t.getLocalname() for t in m.getTypes()],
+                "scopes": [s.getValue() for s in m.getScopes()],
+            })
+    return {"matches": matches}
+
+
+def main():
+    name, host, port, user, password = sys.argv[1:6]
+    args = json.loads(sys.argv[6]) if len(sys.argv) > 6 else {}
+    result = asyncio.run(asyncio.wait_for(step(name, host, int(port), user, password, args), 90))
+    print(json.dumps(result, default=str))
+
+
+if __name__ == "__main__":
+    main()
