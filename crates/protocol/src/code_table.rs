@@ -2,16 +2,15 @@
 //! of smoltcp's `enum_with_unknown!`). Each row is a variant with its code,
 //! its short snake_case name and its meaning for a person; `ALL`, `code`,
 //! `from_code`, `name` and `describe` are generated from the rows, so no
-//! list is kept by hand.
+//! list is kept by hand. The meaning also documents the variant, so a row
+//! needs no doc comment of its own.
 //!
 //! ```
 //! sagebrush_protocol::code_table! {
 //!     /// Why a thing happened.
 //!     #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 //!     pub enum Why: u8 {
-//!         /// It was asked for.
 //!         Asked = 1, "asked", "someone asked for it";
-//!         /// It ran out of time.
 //!         Late = 2, "late", "it ran out of time";
 //!     }
 //! }
@@ -33,7 +32,11 @@ macro_rules! code_table {
         $(#[$meta])*
         #[repr($repr)]
         $vis enum $Enum {
-            $( $(#[$doc])* $Variant = $code, )+
+            $(
+                $(#[$doc])*
+                #[doc = concat!("\n\nMeaning: ", $meaning, ".")]
+                $Variant = $code,
+            )+
         }
 
         impl $Enum {
