@@ -106,8 +106,8 @@ T.data_rates = { [0] = 1200, [1] = 2400, [2] = 4800, [3] = 9600, [4] = 19200, [5
 
 -- Table 5: awake status bits, lowest first.
 T.awake_bits = {
-    { mask = 1, name = "azimuth (pan) not initialized" },
-    { mask = 2, name = "elevation (tilt) not initialized" },
+    { mask = 1, name = "azimuth (pan) not initialised" },
+    { mask = 2, name = "elevation (tilt) not initialised" },
     { mask = 4, name = "motors off" },
     { mask = 8, name = "error condition" },
 }

@@ -32,12 +32,12 @@ impl AwakeStatus {
         (
             Self::PAN_NOT_INITIALIZED,
             "azimuth_not_initialized",
-            "azimuth (pan) not initialized",
+            "azimuth (pan) not initialised",
         ),
         (
             Self::TILT_NOT_INITIALIZED,
             "elevation_not_initialized",
-            "elevation (tilt) not initialized",
+            "elevation (tilt) not initialised",
         ),
         (Self::MOTORS_OFF, "motors_off", "motors off"),
         (Self::ERROR, "error", "error condition"),
