@@ -14,8 +14,14 @@
 # Exit status: non-zero if a build fails, a panic call site is linked into
 # either image (the protocol path is panic-free; this keeps it so), or the
 # bench image misbehaves.
+#
+# The measured figures in README.md (between the `measured by build.sh`
+# markers) must be what this run measured: a stale figure fails the build;
+# `./build.sh --update-readme` rewrites them.
 set -euo pipefail
 cd "$(dirname "$0")"
+update_readme=false
+[ "${1:-}" = --update-readme ] && update_readme=true
 
 missing=()
 for tool in /usr/bin/cargo /usr/bin/rustc arm-none-eabi-ld arm-none-eabi-size arm-none-eabi-nm \
@@ -106,5 +112,52 @@ for level in z s; do
 done
 echo "receive-path stack high-water (bench image, painted stack, opt-level z): $stack B; static RAM + that at opt-level z: $((RAM[z] + stack)) B (main loop and exception frames add about 140 B)"
 echo "receive path: $per_byte instructions per received byte (endpoint + gimbal handler), framer alone $framer_per_byte"
+echo "flash by component, opt-level z (objdump -l attribution):"
+components=$(python3 flash_by_component.py "target/$TARGET/release/gimbal" arm-none-eabi-objdump arm-none-eabi-size)
+echo "$components"
+
+# The README's measured block, as this run measured it.
+measured=$(cat <<MEASURED
+| | opt-level z | opt-level s |
+|---|---|---|
+| flash (vector table + text + rodata + data) | ${FLASH[z]} B | ${FLASH[s]} B |
+| static RAM (.data + .bss + .uninit) | ${RAM[z]} B | ${RAM[s]} B |
+| panic call sites linked | ${SITES[z]} | ${SITES[s]} |
+
+- Receive-path stack high-water (bench image, painted stack, opt-level z):
+  $stack B; static RAM + that: $((RAM[z] + stack)) B.
+- Instructions per received byte (QEMU \`-icount shift=0\`): $per_byte for
+  the endpoint with the gimbal handler, $framer_per_byte for the framer alone.
+- Flash by component at opt-level z (bytes, \`flash_by_component.py\`):
+
+\`\`\`text
+$components
+\`\`\`
+MEASURED
+)
+begin='<!-- measured by build.sh: do not edit; ./build.sh --update-readme rewrites it -->'
+end='<!-- end of measured -->'
+if $update_readme; then
+    python3 - "$begin" "$end" "$measured" <<'PY'
+import sys
+begin, end, measured = sys.argv[1:4]
+text = open("README.md").read()
+head, rest = text.split(begin, 1)
+_, tail = rest.split(end, 1)
+open("README.md", "w").write(head + begin + "\n" + measured + "\n" + end + tail)
+PY
+    echo "README.md: measured figures rewritten"
+fi
+in_readme=$(awk -v b="$begin" -v e="$end" '$0 == e { inside = 0 } inside { print } $0 == b { inside = 1 }' README.md)
+if [ "$in_readme" != "$measured" ]; then
+    echo "build.sh: FAIL: README.md's measured figures are stale (run ./build.sh --update-readme):" >&2
+    diff <(echo "$in_readme") <(echo "$measured") >&2 || true
+    status=1
+fi
+
 echo "targets: flash z <= 8192 B: $([ "${FLASH[z]}" -le 8192 ] && echo met || echo NOT met); RAM <= 2048 B: $([ $((RAM[z] + stack)) -le 2048 ] && echo met || echo NOT met); panic sites 0: $([ "${SITES[z]}" = 0 ] && [ "${SITES[s]}" = 0 ] && echo met || echo NOT met)"
+if [ "${FLASH[z]}" -gt 8192 ]; then
+    echo "build.sh: FAIL: flash at opt-level z is ${FLASH[z]} B, more than 8192 B" >&2
+    status=1
+fi
 exit $status

@@ -4,61 +4,31 @@
 //! `VS`, `F?`, `Z?`, `C?`), and the commands themselves as sent.
 
 use sagebrush_host::hex::payload_text;
-use sagebrush_protocol::{Angle, AwakeStatus, Axis, Command, DataRate, Extended, InitResults, Parity, Position, Reply};
+use sagebrush_protocol::{
+    Angle, AwakeStatus, Axis, Command, DataRate, ErrorCodes, Extended, InitResults, Parity, Position, Reply, StatusBits,
+};
 use serde_json::{Map, Value, json};
 
 fn deg(a: Angle) -> f64 {
     f64::from(a.0) / 100.0
 }
 
-fn hundredths(v: u16) -> f64 {
-    f64::from(v) / 100.0
-}
-
-/// Table 6A, bit -> name.
-pub const ERROR_BITS: [(u16, &str); 4] = [
-    (1, "center_reference"),
-    (1 << 4, "initialization"),
-    (1 << 5, "motor_timeout"),
-    (1 << 6, "temperature"),
-];
-/// Table 6B, bit -> name (low byte; the high byte is reserved).
-pub const STATUS_BITS: [(u16, &str); 8] = [
-    (1, "not_initialized"),
-    (1 << 1, "positive_limit_found"),
-    (1 << 2, "negative_limit_found"),
-    (1 << 3, "positive_center_found"),
-    (1 << 4, "negative_center_found"),
-    (1 << 5, "positive_hard_stop"),
-    (1 << 6, "negative_hard_stop"),
-    (1 << 7, "error_present"),
-];
-/// Table 5, bit -> name.
-const AWAKE_BITS: [(u8, &str, &str); 4] = [
-    (
-        AwakeStatus::PAN_NOT_INITIALIZED,
-        "azimuth_not_initialized",
-        "azimuth (pan) not initialised",
-    ),
-    (
-        AwakeStatus::TILT_NOT_INITIALIZED,
-        "elevation_not_initialized",
-        "elevation (tilt) not initialised",
-    ),
-    (AwakeStatus::MOTORS_OFF, "motors_off", "motors off"),
-    (AwakeStatus::ERROR, "error", "error condition"),
-];
-
-fn set_names(bits: u16, names: &[(u16, &'static str)]) -> Vec<&'static str> {
-    names.iter().filter(|(b, _)| bits & b != 0).map(|(_, n)| *n).collect()
+/// The names of the set bits, from a table's named bits (protocol crate:
+/// `ErrorCodes::BITS`, Table 6A; `StatusBits::BITS`, Table 6B).
+fn set_names<B: Copy + Into<u16>>(bits: u16, names: &[(B, &'static str, &'static str)]) -> Vec<&'static str> {
+    names
+        .iter()
+        .filter(|(b, _, _)| bits & (*b).into() != 0)
+        .map(|(_, n, _)| *n)
+        .collect()
 }
 
 /// One axis's bits as `{"raw": n, "<name>": bool, ...}` (every name present).
-pub fn named_bits(bits: u16, names: &[(u16, &'static str)]) -> Value {
+pub fn named_bits<B: Copy + Into<u16>>(bits: u16, names: &[(B, &'static str, &'static str)]) -> Value {
     let mut m = Map::new();
     m.insert("raw".into(), bits.into());
-    for (b, n) in names {
-        m.insert((*n).into(), (bits & b != 0).into());
+    for (b, n, _) in names {
+        m.insert((*n).into(), (bits & (*b).into() != 0).into());
     }
     Value::Object(m)
 }
@@ -105,7 +75,7 @@ fn init_ok(r: &InitResults) -> bool {
 /// Table 5.
 pub fn awake(s: AwakeStatus) -> (String, Value) {
     let b = s.bits();
-    let problems: Vec<&str> = AWAKE_BITS
+    let problems: Vec<&str> = AwakeStatus::BITS
         .iter()
         .filter(|(bit, _, _)| b & bit != 0)
         .map(|(_, _, text)| *text)
@@ -118,7 +88,7 @@ pub fn awake(s: AwakeStatus) -> (String, Value) {
     let mut m = Map::new();
     m.insert("code".into(), b.into());
     m.insert("hardware_ok".into(), (b == 0).into());
-    for (bit, name, _) in AWAKE_BITS {
+    for (bit, name, _) in AwakeStatus::BITS {
         m.insert(name.into(), (b & bit != 0).into());
     }
     (text, Value::Object(m))
@@ -196,19 +166,19 @@ pub fn describe(command: &Command<'_>, reply: &Reply<'_>) -> (String, Value) {
             (
                 format!(
                     "errors: pan {} ; tilt {}",
-                    list(&set_names(pan, &ERROR_BITS)),
-                    list(&set_names(tilt, &ERROR_BITS))
+                    list(&set_names(pan, &ErrorCodes::BITS)),
+                    list(&set_names(tilt, &ErrorCodes::BITS))
                 ),
-                json!({ "azimuth": named_bits(pan, &ERROR_BITS), "elevation": named_bits(tilt, &ERROR_BITS) }),
+                json!({ "azimuth": named_bits(pan, &ErrorCodes::BITS), "elevation": named_bits(tilt, &ErrorCodes::BITS) }),
             )
         }
         Reply::StatusBits(s) => (
             format!(
                 "status: pan {} ; tilt {}",
-                list(&set_names(s.pan, &STATUS_BITS)),
-                list(&set_names(s.tilt, &STATUS_BITS))
+                list(&set_names(s.pan, &StatusBits::BITS)),
+                list(&set_names(s.tilt, &StatusBits::BITS))
             ),
-            json!({ "azimuth": named_bits(s.pan, &STATUS_BITS), "elevation": named_bits(s.tilt, &STATUS_BITS) }),
+            json!({ "azimuth": named_bits(s.pan, &StatusBits::BITS), "elevation": named_bits(s.tilt, &StatusBits::BITS) }),
         ),
         Reply::RateGains(g) => {
             let (p, t) = (f64::from(g.pan.get()) / 10.0, f64::from(g.tilt.get()) / 10.0);
@@ -263,26 +233,26 @@ pub fn describe(command: &Command<'_>, reply: &Reply<'_>) -> (String, Value) {
         Reply::Accelerations { pan, tilt } => (
             format!(
                 "acceleration: pan {:.2} deg/s²  tilt {:.2} deg/s²",
-                hundredths(pan.0),
-                hundredths(tilt.0)
+                pan.degrees_per_second_squared(),
+                tilt.degrees_per_second_squared()
             ),
-            json!({ "pan_deg_s2": hundredths(pan.0), "tilt_deg_s2": hundredths(tilt.0) }),
+            json!({ "pan_deg_s2": pan.degrees_per_second_squared(), "tilt_deg_s2": tilt.degrees_per_second_squared() }),
         ),
         Reply::Acceleration(a) => (
-            format!("acceleration {:.2} deg/s²", hundredths(a.0)),
-            json!({ "deg_s2": hundredths(a.0) }),
+            format!("acceleration {:.2} deg/s²", a.degrees_per_second_squared()),
+            json!({ "deg_s2": a.degrees_per_second_squared() }),
         ),
         Reply::Rates { pan, tilt } => (
             format!(
                 "rate: pan {:.2} deg/s  tilt {:.2} deg/s",
-                hundredths(pan.0),
-                hundredths(tilt.0)
+                pan.degrees_per_second(),
+                tilt.degrees_per_second()
             ),
-            json!({ "pan_deg_s": hundredths(pan.0), "tilt_deg_s": hundredths(tilt.0) }),
+            json!({ "pan_deg_s": pan.degrees_per_second(), "tilt_deg_s": tilt.degrees_per_second() }),
         ),
         Reply::Rate(r) => (
-            format!("rate {:.2} deg/s", hundredths(r.0)),
-            json!({ "deg_s": hundredths(r.0) }),
+            format!("rate {:.2} deg/s", r.degrees_per_second()),
+            json!({ "deg_s": r.degrees_per_second() }),
         ),
         Reply::VerifyHome(h) => {
             let axes = |b: u8| json!({ "pan": b & 1 != 0, "tilt": b & 2 != 0 });
@@ -374,7 +344,7 @@ pub fn command_json(command: &Command<'_>, payload: &[u8]) -> Value {
         C::QueryLimits => ("query_limits", json!({})),
         C::SetAcceleration(a, v) => (
             "set_acceleration",
-            json!({ "axis": axis_name(*a), "accel_deg_s2": hundredths(v.0) }),
+            json!({ "axis": axis_name(*a), "accel_deg_s2": v.degrees_per_second_squared() }),
         ),
         C::QueryAccelerations => ("query_accelerations", json!({})),
         C::QueryAcceleration(a) => ("query_acceleration", json!({ "axis": axis_name(*a) })),
@@ -392,7 +362,7 @@ pub fn command_json(command: &Command<'_>, payload: &[u8]) -> Value {
         C::QueryPreset(n) => ("query_preset", json!({ "preset": n })),
         C::SetRate(a, r) => (
             "set_rate",
-            json!({ "axis": axis_name(*a), "rate_deg_s": hundredths(r.0) }),
+            json!({ "axis": axis_name(*a), "rate_deg_s": r.degrees_per_second() }),
         ),
         C::QueryRates => ("query_rates", json!({})),
         C::QueryRate(a) => ("query_rate", json!({ "axis": axis_name(*a) })),
@@ -464,12 +434,12 @@ pub fn acknowledged_text(command: &Command<'_>, sent: &str) -> String {
         C::SetRate(a, r) => format!(
             "{sent} acknowledged: {} rate {:.2} deg/s",
             axis_name(*a),
-            hundredths(r.0)
+            r.degrees_per_second()
         ),
         C::SetAcceleration(a, r) => format!(
             "{sent} acknowledged: {} acceleration {:.2} deg/s²",
             axis_name(*a),
-            hundredths(r.0)
+            r.degrees_per_second_squared()
         ),
         C::SetRateGain(a, g) => format!(
             "{sent} acknowledged: {} rate gain {:.1}",

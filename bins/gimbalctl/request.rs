@@ -24,11 +24,6 @@ fn range<T>(what: &str, value: Result<T, sagebrush_protocol::RangeError>) -> Res
     value.map_err(|e| CtlError::Usage(format!("{what}: {e}")))
 }
 
-/// Degrees (per second) to hundredths, as the wire carries them (Table 12).
-fn hundredths(value: f64) -> u16 {
-    (value * 100.0).round().clamp(0.0, 65535.0) as u16
-}
-
 /// The payload bytes of a command.
 pub fn encode(command: &Command<'_>) -> Result<Vec<u8>, CtlError> {
     Ok(sagebrush_client::client::encode(command)?)
@@ -74,7 +69,7 @@ pub fn payload(cmd: &Cmd) -> Result<Option<Vec<u8>>, CtlError> {
         Cmd::Rate {
             axis: Some(a),
             value: Some(v),
-        } => C::SetRate(axis(*a), Rate(hundredths(*v))),
+        } => C::SetRate(axis(*a), range("rate", Rate::from_degrees_per_second(*v))?),
         Cmd::Accel { axis: None, .. } => C::QueryAccelerations,
         Cmd::Accel {
             axis: Some(a),
@@ -83,7 +78,10 @@ pub fn payload(cmd: &Cmd) -> Result<Option<Vec<u8>>, CtlError> {
         Cmd::Accel {
             axis: Some(a),
             value: Some(v),
-        } => C::SetAcceleration(axis(*a), Acceleration(hundredths(*v))),
+        } => C::SetAcceleration(
+            axis(*a),
+            range("acceleration", Acceleration::from_degrees_per_second_squared(*v))?,
+        ),
         Cmd::Vector { state } => C::SetVectorMode(matches!(state, OnOff::On)),
         Cmd::Home { .. } => C::Home,
         Cmd::VerifyHome => C::VerifyHome,

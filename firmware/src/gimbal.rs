@@ -9,8 +9,8 @@
 //! millisecond with no rounding drift. Time is milliseconds (SysTick).
 
 use sagebrush_protocol::{
-    Angle, Axis as WireAxis, Command, DataRate, DeviceHandler, ErrorCodes, Extended, Identity, Position, Rate, Reply,
-    ReplyTo, Response, StatusBits,
+    Angle, AwakeStatus, Axis as WireAxis, Command, DataRate, DeviceHandler, ErrorCodes, Extended, Identity, Position,
+    Rate, Reply, ReplyTo, Response, Row, StatusBits,
 };
 
 /// Hard stops, hundredths of a degree: pan +-180.00, tilt +-90.00.
@@ -30,12 +30,6 @@ const MAX_STEP_MS: u64 = 1_000;
 const REVISION: [u8; 2] = *b"19";
 const NAME: &[u8] = b"SAGEBRUSH QEMU PT";
 const SERIAL: &[u8] = b"LM3S6965-0001";
-
-/// Status bits of Table 6B, low byte.
-const AT_POSITIVE_LIMIT: u16 = 1 << 1;
-const AT_NEGATIVE_LIMIT: u16 = 1 << 2;
-const POSITIVE_HARD_STOP: u16 = 1 << 5;
-const NEGATIVE_HARD_STOP: u16 = 1 << 6;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Motion {
@@ -117,11 +111,11 @@ impl Axis {
                 if self.position >= max {
                     self.position = max;
                     self.motion = Motion::Idle;
-                    self.status = AT_POSITIVE_LIMIT | POSITIVE_HARD_STOP;
+                    self.status = StatusBits::POSITIVE_LIMIT_FOUND | StatusBits::POSITIVE_HARD_STOP;
                 } else if self.position <= -max {
                     self.position = -max;
                     self.motion = Motion::Idle;
-                    self.status = AT_NEGATIVE_LIMIT | NEGATIVE_HARD_STOP;
+                    self.status = StatusBits::NEGATIVE_LIMIT_FOUND | StatusBits::NEGATIVE_HARD_STOP;
                 }
             }
         }
@@ -190,14 +184,14 @@ impl Gimbal {
         self.presets.get(usize::from(n)).copied()
     }
 
-    /// Table 5: bit 2 motors off, bit 3 an error condition.
+    /// Table 5: motors off, an error condition.
     fn awake_bits(&self) -> u8 {
         let mut bits = 0;
         if !self.motors_on {
-            bits |= 1 << 2;
+            bits |= AwakeStatus::MOTORS_OFF;
         }
         if self.errors() != (ErrorCodes { pan: 0, tilt: 0 }) {
-            bits |= 1 << 3;
+            bits |= AwakeStatus::ERROR;
         }
         bits
     }
@@ -210,11 +204,47 @@ impl Gimbal {
 }
 
 impl DeviceHandler for Gimbal {
+    /// The rows `handle` answers other than with NIC: the endpoint NICs the
+    /// rest without reading their arguments (and links no parser for them).
+    fn implements(row: Row) -> bool {
+        matches!(
+            row,
+            Row::AwakeStatus
+                | Row::Identify
+                | Row::QueryErrors
+                | Row::QueryStatusBits
+                | Row::QueryMaxDataRate
+                | Row::SetDataRate
+                | Row::SetDeviceId
+                | Row::QueryPosition
+                | Row::GoTo
+                | Row::Home
+                | Row::PanLeft
+                | Row::PanRight
+                | Row::TiltDown
+                | Row::TiltUp
+                | Row::PanStop
+                | Row::TiltStop
+                | Row::StopMotion
+                | Row::Halt
+                | Row::Stop
+                | Row::Extended
+                | Row::SetRate
+                | Row::SetSpeed
+                | Row::QueryRates
+                | Row::QueryRate
+                | Row::StorePreset
+                | Row::GoToPreset
+                | Row::QueryPreset
+                | Row::QueryStoredPreset
+        )
+    }
+
     fn handle(&mut self, command: Command<'_>, reply_to: ReplyTo, now: u64) -> Response<'_> {
         self.advance(now);
         let position = |p: Position| Response::Reply(Reply::Position(p));
         match command {
-            Command::AwakeStatus => match sagebrush_protocol::AwakeStatus::new(self.awake_bits()) {
+            Command::AwakeStatus => match AwakeStatus::new(self.awake_bits()) {
                 Ok(status) => Response::Reply(Reply::AwakeStatus(status)),
                 Err(_) => Response::Nic,
             },
@@ -226,7 +256,11 @@ impl DeviceHandler for Gimbal {
             },
             Command::QueryErrors => Response::Reply(Reply::Errors(self.errors())),
             Command::QueryStatusBits => {
-                let error = if self.awake_bits() & (1 << 3) != 0 { 1 << 7 } else { 0 };
+                let error = if self.awake_bits() & AwakeStatus::ERROR != 0 {
+                    StatusBits::ERROR_PRESENT
+                } else {
+                    0
+                };
                 Response::Reply(Reply::StatusBits(StatusBits {
                     pan: self.pan.status | error,
                     tilt: self.tilt.status | error,

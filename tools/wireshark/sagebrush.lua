@@ -8,12 +8,17 @@
 --   interface number (u32 big endian, the capturing program's own)
 -- then the raw bytes of the frame, byte or noise.
 --
--- Install: copy to ~/.local/lib/wireshark/plugins/ (or run
+-- Install: copy it and sagebrush_tables.lua (generated from the Rust tables;
+-- it must sit next to this file) to ~/.local/lib/wireshark/plugins/ (or run
 --   tshark -X lua_script:tools/wireshark/sagebrush.lua -r FILE).
 -- Pairing rules (results, ACK/NAK/NIC, reports, retransmissions, time-outs):
 -- docs/capture.md, "Pairing".
 
 local p = Proto("sagebrush", "Sagebrush gimbal protocol rev 1.9")
+
+-- The protocol's tables, generated from the Rust crate (sagebrush_tables.lua
+-- next to this file; crates/protocol/src/dissector.rs writes it).
+local T = dofile((debug.getinfo(1, "S").source:match("^@(.*[/\\])") or "") .. "sagebrush_tables.lua")
 
 local kinds = { [1] = "Frame", [2] = "ACK", [3] = "NAK", [4] = "NIC", [5] = "Noise", [6] = "Bad checksum" }
 local directions = { [1] = "Inbound (read by the capturer)", [2] = "Outbound (written by the capturer)" }
@@ -86,27 +91,23 @@ local field_list = {}
 for _, v in pairs(f) do field_list[#field_list + 1] = v end
 p.fields = field_list
 
-local e = {
-    bad_checksum = ProtoExpert.new("sagebrush.expert.bad_checksum", "Bad checksum",
-        expert.group.CHECKSUM, expert.severity.ERROR),
-    nak = ProtoExpert.new("sagebrush.expert.nak", "NAK: the command arrived damaged",
-        expert.group.RESPONSE_CODE, expert.severity.WARN),
-    nic = ProtoExpert.new("sagebrush.expert.nic", "NIC: command not implemented by the device",
-        expert.group.RESPONSE_CODE, expert.severity.WARN),
-    retransmission = ProtoExpert.new("sagebrush.expert.retransmission", "Retransmission",
-        expert.group.SEQUENCE, expert.severity.NOTE),
-    timeout = ProtoExpert.new("sagebrush.expert.timeout", "Time-out",
-        expert.group.SEQUENCE, expert.severity.WARN),
-    noise = ProtoExpert.new("sagebrush.expert.noise", "Noise bytes between frames",
-        expert.group.MALFORMED, expert.severity.NOTE),
-    swap = ProtoExpert.new("sagebrush.expert.swap", "Result header does not follow Table 3",
-        expert.group.PROTOCOL, expert.severity.WARN),
-    unpaired = ProtoExpert.new("sagebrush.expert.unpaired", "No command awaits this",
-        expert.group.SEQUENCE, expert.severity.NOTE),
-    undelivered = ProtoExpert.new("sagebrush.expert.undelivered", "Command not delivered",
-        expert.group.RESPONSE_CODE, expert.severity.WARN),
-}
-p.experts = { e.bad_checksum, e.nak, e.nic, e.retransmission, e.timeout, e.noise, e.swap, e.unpaired, e.undelivered }
+-- Expert infos: key = { text, group, severity }.
+local e, expert_list = {}, {}
+for key, d in pairs({
+    bad_checksum = { "Bad checksum", "CHECKSUM", "ERROR" },
+    nak = { "NAK: the command arrived damaged", "RESPONSE_CODE", "WARN" },
+    nic = { "NIC: command not implemented by the device", "RESPONSE_CODE", "WARN" },
+    retransmission = { "Retransmission", "SEQUENCE", "NOTE" },
+    timeout = { "Time-out", "SEQUENCE", "WARN" },
+    noise = { "Noise bytes between frames", "MALFORMED", "NOTE" },
+    swap = { "Result header does not follow Table 3", "PROTOCOL", "WARN" },
+    unpaired = { "No command awaits this", "SEQUENCE", "NOTE" },
+    undelivered = { "Command not delivered", "RESPONSE_CODE", "WARN" },
+}) do
+    e[key] = ProtoExpert.new("sagebrush.expert." .. key, d[1], expert.group[d[2]], expert.severity[d[3]])
+    expert_list[#expert_list + 1] = e[key]
+end
+p.experts = expert_list
 
 
 -- Table 2 meanings.
@@ -129,126 +130,105 @@ local function hexval(s)
 end
 local function signed16(v) if v >= 32768 then return v - 65536 end return v end
 
-local rates = { [0] = 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200 }
+local rates = T.data_rates
 
-local report_codes = {
-    [0x00] = "delivered", [0x01] = "device silent", [0x02] = "device NAK", [0x03] = "no such port",
-    [0x04] = "port closed", [0x05] = "queue full", [0x06] = "no route", [0x07] = "link down",
-    [0x08] = "shutting down", [0x09] = "source not allowed", [0x0A] = "loop", [0x0B] = "not confirmed",
-    [0x0C] = "expired",
-}
+local report_codes = {}
+for code, r in pairs(T.report_codes) do report_codes[code] = r.name:gsub("_", " ") end
 
 -- Commands (Tables 4, 11, 16, the rev 1.9 list), told apart by first
--- character and length as in crates/protocol/src/command.rs.
--- Returns mnemonic, description, result shape (nil: ACK only), and a list of
--- {field, value, offset, length} decoded arguments.
-local extended = { "HP", "VP", "VS", "F?", "Z?", "C?", "*dA", "*di", "*do", "*dl", "*dm", "*mr", "*me", "*mp",
-                   "*mu", "*sa", "*sgr", "*sgp", "*sl" }
-local extended_result = { ["VS"] = true, ["F?"] = true, ["Z?"] = true, ["C?"] = true, ["*dA"] = true,
-                          ["*di"] = true, ["*do"] = true, ["*dl"] = true }
-local fixed = {
-    ["AW"] = { "Request awake status", "awake" }, ["B?"] = { "Request maximum data rate", "maxrate" },
-    ["D?"] = { "Request ID information", "identity" }, ["E?"] = { "Request error codes", "errors" },
-    ["I?"] = { "Request status bits", "statusbits" }, ["G?"] = { "Rate gains request", "gains" },
-    ["IX"] = { "Initialization", "init" }, ["LR"] = { "Auxiliary relay status request", "relays" },
-    ["LC"] = { "Clear software limits" }, ["L?"] = { "Software limits request", "limits" },
-    ["A?"] = { "Request current acceleration settings", "accels" }, ["HA"] = { "Halt" },
-    ["HV"] = { "Verify home", "home" }, ["HO"] = { "Go to the home position" }, ["HS"] = { "Stop" },
-    ["P?"] = { "Current position query", "position" }, ["PL"] = { "Pan left (CW)" },
-    ["PR"] = { "Pan right (CCW)" }, ["PS"] = { "Pan stop" }, ["PT"] = { "Stop motion" },
-    ["R?"] = { "Request current rate settings", "rates" }, ["TD"] = { "Tilt down (CW)" },
-    ["TS"] = { "Tilt stop" }, ["TU"] = { "Tilt up (CCW)" }, ["CN"] = { "Camera power on" },
-    ["CX"] = { "Camera power off" }, ["FA"] = { "Auto-focus on" }, ["FF"] = { "Focus far" },
-    ["FN"] = { "Focus near" }, ["FS"] = { "Focus stop" }, ["FX"] = { "Auto-focus off" },
-    ["V?"] = { "Lens position request", "lens" }, ["ZI"] = { "Zoom in" }, ["ZO"] = { "Zoom out" },
-    ["ZS"] = { "Zoom stop" }, ["VM0"] = { "Vector motion off" }, ["VM1"] = { "Vector motion on" },
-}
-
+-- character and length as in crates/protocol/src/command.rs. Mnemonics,
+-- descriptions, answers and result shapes come from the generated tables.
+-- Returns mnemonic, description, result shape (nil: ACK only), whether the
+-- result is optional (a rev 1.9 set/read command answers only when it
+-- reads), and a list of {field, value, offset, length} decoded arguments.
 local function parse_command(s)
     local n = #s
     local a = {}
     local function arg(field, value, offset, len) a[#a + 1] = { field, value, offset, len } end
-    for _, name in ipairs(extended) do
-        if s:sub(1, #name) == name then
-            return name, "Rev 1.9 command (raw arguments)", extended_result[name] and "raw" or nil, a
+    local function row(m, extra)
+        local r = T.commands[m] or T.commands["unknown"]
+        return m, r.description .. (extra or ""), r.shape, r.answer == "optional", a
+    end
+    for _, ext in ipairs(T.extended) do
+        if s:sub(1, #ext.name) == ext.name then
+            return ext.name, ext.description .. " (raw arguments)", ext.shape, ext.answer == "optional", a
         end
     end
-    local fx = fixed[s]
-    if fx then return s, fx[1], fx[2], a end
+    if T.fixed[s] then return row(s) end
     local c = s:sub(1, 1)
     local axis_of = { P = "pan", T = "tilt" }
+    local ax = s:sub(2, 2)
     if c == "#" and n == 3 and hexval(s:sub(2, 3)) then
         arg(f.device_id, hexval(s:sub(2, 3)), 1, 2)
-        return "#NN", "Set device address/ID", nil, a
-    elseif c == "A" and n == 3 and axis_of[s:sub(2, 2)] and s:sub(3, 3) == "?" then
-        arg(f.axis, axis_of[s:sub(2, 2)], 1, 1)
-        return "A" .. s:sub(2, 2) .. "?", "Request acceleration (one axis)", "accel", a
-    elseif c == "A" and n == 6 and axis_of[s:sub(2, 2)] and hexval(s:sub(3, 6)) then
-        arg(f.axis, axis_of[s:sub(2, 2)], 1, 1)
+        return row("#NN")
+    elseif c == "A" and n == 3 and axis_of[ax] and s:sub(3, 3) == "?" then
+        arg(f.axis, axis_of[ax], 1, 1)
+        return row("A" .. ax .. "?")
+    elseif c == "A" and n == 6 and axis_of[ax] and hexval(s:sub(3, 6)) then
+        arg(f.axis, axis_of[ax], 1, 1)
         arg(f.accel, hexval(s:sub(3, 6)) / 100, 2, 4)
-        return "A" .. s:sub(2, 2) .. "nnnn", "Set acceleration for " .. axis_of[s:sub(2, 2)] .. " moves", nil, a
-    elseif c == "C" and n == 2 and hexval(s:sub(2, 2)) then
-        local code = hexval(s:sub(2, 2))
-        if rates[code] then arg(f.data_rate, rates[code], 1, 1) end
-        return "Cn", "Set communication data rate" .. (rates[code] and "" or " (reserved code)"), nil, a
-    elseif c == "F" and n == 2 and s:sub(2, 2):match("%d") then
-        arg(f.speed, tonumber(s:sub(2, 2)), 1, 1)
-        return "Fn", "Focus speed", nil, a
+        return row("A" .. ax .. "nnnn")
+    elseif c == "C" and n == 2 and hexval(ax) then
+        local bps = T.data_rates[hexval(ax)]
+        if bps then arg(f.data_rate, bps, 1, 1) end
+        return row("Cn", bps and "" or " [reserved code]")
+    elseif c == "F" and n == 2 and ax:match("%d") then
+        arg(f.speed, tonumber(ax), 1, 1)
+        return row("Fn")
     elseif s:sub(1, 2) == "GR" and n == 5 and axis_of[s:sub(3, 3)] and hexval(s:sub(4, 5)) then
         arg(f.axis, axis_of[s:sub(3, 3)], 2, 1)
         arg(f.gain, hexval(s:sub(4, 5)) / 10, 3, 2)
-        return "GR" .. s:sub(3, 3) .. "nn", "Set rate gain", nil, a
-    elseif c == "L" and n == 2 and s:sub(2, 2):match("[0-3]") then
-        return "L0..L3", "Open relay " .. s:sub(2, 2), nil, a
-    elseif c == "L" and n == 2 and s:sub(2, 2):match("[89ABab]") then
-        return "L8..LB", "Close relay " .. (hexval(s:sub(2, 2)) - 8), nil, a
+        return row("GR" .. s:sub(3, 3) .. "nn")
+    elseif c == "L" and n == 2 and ax:match("[0-3]") then
+        return row("L0..L3", " [relay " .. ax .. "]")
+    elseif c == "L" and n == 2 and ax:match("[89ABab]") then
+        return row("L8..LB", " [relay " .. (hexval(ax) - 8) .. "]")
     elseif s:sub(1, 2) == "LS" and n == 14 then
-        return "LS", "Set software limits", nil, a
+        return row("LS")
     elseif c == "P" and n == 3 and hexval(s:sub(2, 3)) then
         arg(f.preset, hexval(s:sub(2, 3)), 1, 2)
-        return "Pnn", "Go to preset", nil, a
+        return row("Pnn")
     elseif s:sub(1, 2) == "P?" and n == 4 and hexval(s:sub(3, 4)) then
         arg(f.preset, hexval(s:sub(3, 4)), 2, 2)
-        return "P?nn", "Get preset", "position", a
+        return row("P?nn")
     elseif c == "P" and n == 9 and hexval(s:sub(2, 9)) then
         arg(f.pan_deg, signed16(hexval(s:sub(2, 5))) / 100, 1, 4)
         arg(f.tilt_deg, signed16(hexval(s:sub(6, 9))) / 100, 5, 4)
-        return "Paaaaeeee", "Go to pan-tilt position", nil, a
-    elseif c == "R" and n == 3 and axis_of[s:sub(2, 2)] and s:sub(3, 3) == "?" then
-        arg(f.axis, axis_of[s:sub(2, 2)], 1, 1)
-        return "R" .. s:sub(2, 2) .. "?", "Request rate (one axis)", "rate", a
-    elseif c == "R" and n == 6 and axis_of[s:sub(2, 2)] and hexval(s:sub(3, 6)) then
-        arg(f.axis, axis_of[s:sub(2, 2)], 1, 1)
+        return row("Paaaaeeee")
+    elseif c == "R" and n == 3 and axis_of[ax] and s:sub(3, 3) == "?" then
+        arg(f.axis, axis_of[ax], 1, 1)
+        return row("R" .. ax .. "?")
+    elseif c == "R" and n == 6 and axis_of[ax] and hexval(s:sub(3, 6)) then
+        arg(f.axis, axis_of[ax], 1, 1)
         arg(f.rate, hexval(s:sub(3, 6)) / 100, 2, 4)
-        return "R" .. s:sub(2, 2) .. "nnnn", "Set discrete rate for " .. axis_of[s:sub(2, 2)] .. " moves", nil, a
+        return row("R" .. ax .. "nnnn")
     elseif s:sub(1, 2) == "S?" and n == 4 and hexval(s:sub(3, 4)) then
         arg(f.preset, hexval(s:sub(3, 4)), 2, 2)
-        return "S?nn", "Request position stored at preset", "position", a
-    elseif c == "S" and n == 3 and axis_of[s:sub(2, 2)] and hexval(s:sub(3, 3)) then
-        arg(f.axis, axis_of[s:sub(2, 2)], 1, 1)
+        return row("S?nn")
+    elseif c == "S" and n == 3 and axis_of[ax] and hexval(s:sub(3, 3)) then
+        arg(f.axis, axis_of[ax], 1, 1)
         arg(f.speed, hexval(s:sub(3, 3)), 2, 1)
-        return "S" .. s:sub(2, 2) .. "n", "Set proportional speed", nil, a
+        return row("S" .. ax .. "n")
     elseif c == "S" and n == 3 and hexval(s:sub(2, 3)) then
         arg(f.preset, hexval(s:sub(2, 3)), 1, 2)
-        return "Snn", "Store current position as preset", nil, a
+        return row("Snn")
+    elseif s:sub(1, 2) == "VM" and n == 3 and s:sub(3, 3):match("[01]") then
+        return row("VMn", s:sub(3, 3) == "1" and " [on]" or " [off]")
     elseif c == "V" and n == 7 and hexval(s:sub(2, 7)) then
         arg(f.zoom, hexval(s:sub(2, 4)), 1, 3)
         arg(f.focus, hexval(s:sub(5, 7)), 4, 3)
-        return "Vzzzfff", "Lens go-to", nil, a
-    elseif c == "Z" and n == 2 and s:sub(2, 2):match("%d") then
-        arg(f.speed, tonumber(s:sub(2, 2)), 1, 1)
-        return "Zn", "Zoom speed", nil, a
-    elseif c == "Z" and n == 2 and s:sub(2, 2):match("[A-Fa-f]") then
-        return "ZA..ZF", "Digital zoom", nil, a
+        return row("Vzzzfff")
+    elseif c == "Z" and n == 2 and ax:match("%d") then
+        arg(f.speed, tonumber(ax), 1, 1)
+        return row("Zn")
+    elseif c == "Z" and n == 2 and ax:match("[A-Fa-f]") then
+        return row("ZA..ZF")
     elseif s:sub(1, 2) == "*x" and n >= 4 then
-        local op = s:sub(4, 4)
-        local names = { c = { "*xpc", "Configure auxiliary serial port" }, t = { "*xpt", "Transmit to auxiliary port" },
-                        r = { "*xprnnn", "Receive from auxiliary port", "raw" }, n = { "*xpn", "Characters in auxiliary port buffer", "auxcount" },
-                        f = { "*xpf", "Flush auxiliary port buffer" } }
-        local m = names[op]
-        if m then return m[1], m[2] .. " " .. s:sub(3, 3), m[3], a end
+        local ops = { c = "*xpc", t = "*xpt", r = "*xprnnn", n = "*xpn", f = "*xpf" }
+        local m = ops[s:sub(4, 4)]
+        if m then return row(m, " [port " .. s:sub(3, 3) .. "]") end
     end
-    return "unknown", "Fits no command: a device answers NIC", nil, a
+    return row("unknown")
 end
 
 -- Decodes a result payload for the command's shape (crates/protocol/src/reply.rs).
@@ -296,10 +276,9 @@ local function decode_result(shape, cmd_payload, s, tree, range)
             tree:add(f.status, at(0, 1), v)
             if v == 0 then return "hardware functioning properly" end
             local bits = {}
-            if v % 2 == 1 then bits[#bits + 1] = "azimuth not initialized" end
-            if math.floor(v / 2) % 2 == 1 then bits[#bits + 1] = "elevation not initialized" end
-            if math.floor(v / 4) % 2 == 1 then bits[#bits + 1] = "motors off" end
-            if math.floor(v / 8) % 2 == 1 then bits[#bits + 1] = "error condition" end
+            for _, b in ipairs(T.awake_bits) do
+                if math.floor(v / b.mask) % 2 == 1 then bits[#bits + 1] = b.name end
+            end
             return table.concat(bits, ", ")
         end
     elseif shape == "maxrate" then
@@ -400,7 +379,7 @@ local function first_pass(pinfo, id, kind, dir, role, info)
         if last and last.bytes == info.bytes and not last.ack then
             n.retransmission_of = last.num
             n.timeout = string.format("no ACK/NAK to frame %d within %.0f ms: retransmitted", last.num, (now - last.time) * 1000)
-        elseif role == 1 and last and last.shape and not last.result and last.ack then
+        elseif role == 1 and last and last.shape and not last.optional and not last.result and last.ack then
             n.timeout = string.format("frame %d (%s) got no result before this command", last.num, last.mnemonic)
         end
         if role == 1 and not n.retransmission_of then
@@ -413,8 +392,18 @@ local function first_pass(pinfo, id, kind, dir, role, info)
                 end
             end
         end
+        if not n.retransmission_of then
+            -- A set/read command to this device that got no result before
+            -- a new command to it was a set: it awaits none any longer.
+            for _, old in ipairs(st.cmds) do
+                if old.optional and not old.result and old.port == info.port and old.device == info.device then
+                    old.shape = nil
+                end
+            end
+        end
         local c = { num = pinfo.number, bytes = info.bytes, time = now, group = info.group, port = info.port,
                     device = info.device, source = info.source, mnemonic = info.mnemonic, shape = info.shape,
+                    optional = info.optional,
                     payload = info.payload, checksum = info.checksum }
         if n.retransmission_of then
             c = last
@@ -580,10 +569,10 @@ function p.dissector(buf, pinfo, tree)
         info.report_address = payload:sub(4, 9)
         info.report_checksum = hexval(payload:sub(10, 11))
     end
-    local mnemonic, desc, shape, args
+    local mnemonic, desc, shape, optional, args
     if info.is_command then
-        mnemonic, desc, shape, args = parse_command(payload)
-        info.mnemonic, info.shape = mnemonic, shape
+        mnemonic, desc, shape, optional, args = parse_command(payload)
+        info.mnemonic, info.shape, info.optional = mnemonic, shape, optional
     end
     local n = pinfo.visited and notes[pinfo.number] or first_pass(pinfo, id, kind, dir, role, info)
     n = n or {}

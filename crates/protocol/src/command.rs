@@ -15,8 +15,9 @@
 use nom::Parser;
 
 use crate::EncodeError;
+use crate::answer::{Answer, Shape};
+pub use crate::answer::{ResultKind, ResultTimeout};
 use crate::hex::{Writer, decimal, hex_n, hex_u8, hex_u16, hex_value, hex12, is_hex, offset_in};
-use crate::reply::Shape;
 use crate::units::{
     Acceleration, Angle, AuxConfig, AuxPort, AuxReadLen, Axis, DataRate, DeviceId, DigitalZoom, LensPosition,
     LensSpeed, Limits, Parity, Position, RangeError, Rate, RateGain, Relay, Speed,
@@ -44,63 +45,6 @@ impl<'a> AuxBytes<'a> {
     }
 }
 
-/// How long a result may take, as a class; the durations are the user's.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ResultTimeout {
-    /// Queries answered from memory.
-    Normal,
-    /// `IX`: the initialisation sequence moves both axes to their switches.
-    Long,
-}
-
-/// What follows the ACK of a command (Tables 4, 11, 16 "RESPONSE").
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ResultKind {
-    /// ACK only (a NIC may still follow).
-    None,
-    /// ACK + a result frame (or a NIC).
-    Required(ResultTimeout),
-    /// A rev 1.9 set/read command: a result only when it reads.
-    Optional,
-}
-
-/// A row's answer fact (the "RESPONSE" column): what follows the ACK and,
-/// when a result can, its shape. [`Command::result_kind`] and the reply
-/// dispatch ([`crate::Reply::parse`], [`crate::Reply::answers`]) both come
-/// from it, so a query cannot have a result kind without a reply shape.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub(crate) enum Answer {
-    /// ACK only.
-    Ack,
-    /// ACK and a result of this shape.
-    Result(ResultTimeout, Shape),
-    /// A rev 1.9 set/read command: a result of this shape when it reads.
-    Optional(Shape),
-}
-
-impl Answer {
-    /// An ACK and a result answered from memory.
-    const fn normal(shape: Shape) -> Self {
-        Answer::Result(ResultTimeout::Normal, shape)
-    }
-
-    pub(crate) const fn kind(self) -> ResultKind {
-        match self {
-            Answer::Ack => ResultKind::None,
-            Answer::Result(timeout, _) => ResultKind::Required(timeout),
-            Answer::Optional(_) => ResultKind::Optional,
-        }
-    }
-
-    /// The result's shape, if one can follow.
-    pub(crate) const fn shape(self) -> Option<Shape> {
-        match self {
-            Answer::Ack => None,
-            Answer::Result(_, shape) | Answer::Optional(shape) => Some(shape),
-        }
-    }
-}
-
 /// A row's motion fact (Tables 11, 16).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 enum Motion {
@@ -116,12 +60,12 @@ enum Motion {
 /// protocol-notes E13); the argument and reply bytes stay raw, no layout is guessed.
 /// A row is `Variant = "name", answer;`.
 macro_rules! extended_table {
-    ($( $(#[$doc:meta])* $Variant:ident = $name:literal, $answer:expr; )+) => {
+    ($( $(#[doc = $doc:literal])* $Variant:ident = $name:literal, $answer:expr; )+) => {
         /// Rev 1.9 commands published by name only (1.2, protocol-notes E13): their
         /// argument and reply bytes are kept raw, no layout is guessed.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
         pub enum Extended {
-            $( $(#[$doc])* $Variant, )+
+            $( $(#[doc = $doc])* $Variant, )+
         }
 
         impl Extended {
@@ -142,6 +86,14 @@ macro_rules! extended_table {
                 match self {
                     $( Extended::$Variant => $answer, )+
                 }
+            }
+
+            /// What the command does: its row's documentation (1.2).
+            pub fn description(self) -> &'static str {
+                let text: &'static str = match self {
+                    $( Extended::$Variant => concat!($($doc),+), )+
+                };
+                text.trim_start()
             }
         }
     };
@@ -196,9 +148,14 @@ impl Extended {
 
     /// The rev 1.9 command whose name starts `payload`, and its argument bytes.
     fn split(payload: &[u8]) -> Option<(Extended, &[u8])> {
+        let first = payload.first()?;
         for ext in Extended::ALL {
-            if let Some(args) = payload.strip_prefix(ext.name().as_bytes()) {
-                return Some((ext, args));
+            let name = ext.name().as_bytes();
+            // The first byte alone rules out most names, without a slice compare.
+            if name.first() == Some(first) {
+                if let Some(args) = payload.strip_prefix(name) {
+                    return Some((ext, args));
+                }
             }
         }
         None
@@ -235,13 +192,15 @@ macro_rules! command_table {
     // row, so a row missing a fact (or with one misspelt) matches none and
     // fails to compile.
     (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] [$($done:tt)*]
-        $(#[$doc:meta])* $Variant:ident => {
-            wire: $wire:tt, answer: $answer:expr, motion: $motion:expr $(,)?
+        $(#[doc = $doc:literal])* $Variant:ident => {
+            script: $script:literal, wire: $wire:tt, answer: $answer:expr, motion: $motion:expr $(,)?
         }
         $($rest:tt)*
     ) => {
         command_table!(@row [$(#[$meta])* $Command $lt $payload $w] [$($done)*
-            [$(#[$doc])* $Variant => {
+            [$(#[doc = $doc])* $Variant => {
+                script: $script,
+                wire: [$wire],
                 mnemonic: const { wire_name($wire) },
                 answer: $answer,
                 motion: $motion,
@@ -251,14 +210,16 @@ macro_rules! command_table {
         ] $($rest)*);
     };
     (@row $head:tt [$($done:tt)*]
-        $(#[$doc:meta])* $Variant:ident $( ( $($field:ident : $fty:ty),+ $(,)? ) )? => {
-            mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
+        $(#[doc = $doc:literal])* $Variant:ident $( ( $($field:ident : $fty:ty),+ $(,)? ) )? => {
+            script: $script:literal, mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
             parse: { $($arms:tt)* }, encode: { $($encode:tt)* } $(,)?
         }
         $($rest:tt)*
     ) => {
         command_table!(@row $head [$($done)*
-            [$(#[$doc])* $Variant $( ( $($field : $fty),+ ) )? => {
+            [$(#[doc = $doc])* $Variant $( ( $($field : $fty),+ ) )? => {
+                script: $script,
+                wire: [],
                 mnemonic: $mnemonic,
                 answer: $answer,
                 motion: $motion,
@@ -268,14 +229,16 @@ macro_rules! command_table {
         ] $($rest)*);
     };
     (@row $head:tt [$($done:tt)*]
-        $(#[$doc:meta])* $Variant:ident $( ( $($field:ident : $fty:ty),+ $(,)? ) )? => {
-            mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
+        $(#[doc = $doc:literal])* $Variant:ident $( ( $($field:ident : $fty:ty),+ $(,)? ) )? => {
+            script: $script:literal, mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
             parse: ( $parse:expr ), encode: { $($encode:tt)* } $(,)?
         }
         $($rest:tt)*
     ) => {
         command_table!(@row $head [$($done)*
-            [$(#[$doc])* $Variant $( ( $($field : $fty),+ ) )? => {
+            [$(#[doc = $doc])* $Variant $( ( $($field : $fty),+ ) )? => {
+                script: $script,
+                wire: [],
                 mnemonic: $mnemonic,
                 answer: $answer,
                 motion: $motion,
@@ -288,7 +251,9 @@ macro_rules! command_table {
 
     // Every row in one form: the enum and its functions.
     (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] [$(
-        [$(#[$doc:meta])* $Variant:ident $( ( $($field:ident : $fty:ty),+ ) )? => {
+        [$(#[doc = $doc:literal])* $Variant:ident $( ( $($field:ident : $fty:ty),+ ) )? => {
+            script: $script:literal,
+            wire: [$($wire:literal)?],
             mnemonic: $mnemonic:expr,
             answer: $answer:expr,
             motion: $motion:expr,
@@ -299,19 +264,80 @@ macro_rules! command_table {
     )+]) => {
         $(#[$meta])*
         pub enum $Command<$lt> {
-            $( $(#[$doc])* $Variant $( ( $($fty),+ ) )?, )+
+            $( $(#[doc = $doc])* $Variant $( ( $($fty),+ ) )?, )+
+        }
+
+        impl $Command<'static> {
+            /// The rows without arguments, each with its wire bytes, in table order.
+            pub const FIXED: &'static [(&'static [u8], $Command<'static>)] = &[$($( ($wire, Self::$Variant), )?)+];
+        }
+
+        /// The rows of the command table, one per [`Command`] variant.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        pub enum Row {
+            $( $Variant, )+
+        }
+
+        impl Row {
+            /// Every row, in table order.
+            pub const ALL: [Row; [$(Row::$Variant),+].len()] = [$(Row::$Variant),+];
+
+            /// The row's variant name.
+            pub const fn name(self) -> &'static str {
+                match self {
+                    $( Row::$Variant => stringify!($Variant), )+
+                }
+            }
+
+            /// The row's name for scripts (gimbalctl's and gcud's JSON).
+            pub const fn script_name(self) -> &'static str {
+                match self {
+                    $( Row::$Variant => $script, )+
+                }
+            }
         }
 
         impl<$lt> $Command<$lt> {
+            /// The command's row.
+            pub const fn row(&self) -> Row {
+                match *self {
+                    $( Self::$Variant { .. } => Row::$Variant, )+
+                }
+            }
+
+            /// The command's name for scripts: its row's script column.
+            pub const fn script_name(&self) -> &'static str {
+                self.row().script_name()
+            }
+
+            /// What the command does: its row's documentation (the spec
+            /// table's description, with the table it comes from).
+            pub fn description(&self) -> &'static str {
+                let text: &'static str = match *self {
+                    $( Self::$Variant { .. } => concat!($($doc),+), )+
+                };
+                text.trim_start()
+            }
+
             /// The row that takes `payload`, or why none does ([`no_row`]).
-            fn parse_rows($payload: &$lt [u8]) -> Result<Self, CommandError> {
+            /// A payload of a row that `implemented` refuses fits no row:
+            /// its arguments are not read (nothing of them is linked when
+            /// `implemented` is known at compile time).
+            fn parse_rows<E: Failure>($payload: &$lt [u8], implemented: impl Fn(Row) -> bool) -> Result<Self, E> {
                 $($(
-                    if let Some(command) = $first {
-                        return Ok(command);
+                    if implemented(Row::$Variant) {
+                        if let Some(command) = $first {
+                            return Ok(command);
+                        }
                     }
                 )?)+
                 Ok(match $payload {
-                    $($( $pat $(if $guard)? => $command, )*)+
+                    $($( $pat $(if $guard)? => {
+                        if !implemented(Row::$Variant) {
+                            return Err(unknown($payload));
+                        }
+                        $command
+                    } )*)+
                     _ => return Err(no_row($payload)),
                 })
             }
@@ -374,45 +400,31 @@ fn axis(letter: u8) -> Option<Axis> {
 }
 
 /// `*xp..`: the auxiliary port digit at offset 2.
-fn aux_port(p: u8) -> Result<AuxPort, CommandError> {
+fn aux_port<E: Failure>(p: u8) -> Result<AuxPort, E> {
     match p {
         b'0' | b'1' => ranged("*xp", 2, AuxPort::new(p - b'0')),
-        _ => Err(CommandError::BadArgument {
-            command: "*xp..",
-            offset: 2,
-            found: Some(p),
-            expected: "auxiliary port '0' or '1'",
-        }),
+        _ => Err(E::bad_argument("*xp..", 2, Some(p), "auxiliary port '0' or '1'")),
     }
 }
 
 /// Why `payload` fits no row: empty, or `*xp` with a bad port or an
 /// operation no row takes (the port is checked first, as the rows do), or
 /// no command at all.
-fn no_row(payload: &[u8]) -> CommandError {
+fn no_row<E: Failure>(payload: &[u8]) -> E {
     match payload {
-        [] => CommandError::Empty,
         [b'*', b'x', p, op, ..] => match aux_port(*p) {
             Err(e) => e,
-            Ok(_) => CommandError::BadArgument {
-                command: "*xp..",
-                offset: 3,
-                found: Some(*op),
-                expected: "one of c, t, r, n, f (n and f alone)",
-            },
+            Ok(_) => E::bad_argument("*xp..", 3, Some(*op), "one of c, t, r, n, f (n and f alone)"),
         },
         _ => unknown(payload),
     }
 }
 
 /// The error for a payload that fits no row.
-fn unknown(payload: &[u8]) -> CommandError {
+fn unknown<E: Failure>(payload: &[u8]) -> E {
     match payload.first() {
-        Some(&first) => CommandError::Unknown {
-            first,
-            len: payload.len(),
-        },
-        None => CommandError::Empty,
+        Some(&first) => E::unknown(first, payload.len()),
+        None => E::empty(),
     }
 }
 
@@ -425,6 +437,7 @@ command_table! {
         // the patterns below (`VP`/`VS` + six bytes is not `Vzzzfff`).
         /// Rev 1.9 commands with their raw argument bytes (1.2, protocol-notes E13).
         Extended(ext: Extended, args: &'a [u8]) => {
+            script: "extended",
             mnemonic: ext.name(),
             answer: ext.answer(),
             motion: Motion::Other,
@@ -438,12 +451,13 @@ command_table! {
         // Table 4: general device control.
         /// `#NN`: set device address/ID (Table 4).
         SetDeviceId(id: DeviceId) => {
+            script: "set_device_id",
             mnemonic: "#NN",
             answer: Answer::Ack,
             motion: Motion::Other,
             parse: {
                 [b'#', ..] => {
-                    let id = whole("#NN", payload, 1, "two hex digits 01..FE", hex_u8)?;
+                    let id = arg("#NN", payload, 1, "two hex digits 01..FE", hex_u8)?;
                     Self::SetDeviceId(ranged("#NN", 1, DeviceId::new(id))?)
                 },
             },
@@ -453,11 +467,12 @@ command_table! {
             },
         }
         /// `AW`: awake status (Table 4; result Table 5).
-        AwakeStatus => { wire: b"AW", answer: Answer::normal(Shape::AwakeStatus), motion: Motion::Other }
+        AwakeStatus => { script: "awake_status", wire: b"AW", answer: Answer::normal(Shape::AwakeStatus), motion: Motion::Other }
         /// `B?`: maximum data rate, `C0..CF` (Table 4).
-        QueryMaxDataRate => { wire: b"B?", answer: Answer::normal(Shape::MaxDataRate), motion: Motion::Other }
+        QueryMaxDataRate => { script: "query_max_data_rate", wire: b"B?", answer: Answer::normal(Shape::MaxDataRate), motion: Motion::Other }
         /// `C0..CF`: set communication data rate (Table 4; `C8..CF` reserved, protocol-notes E15).
         SetDataRate(rate: DataRate) => {
+            script: "set_data_rate",
             mnemonic: "Cn",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -474,13 +489,14 @@ command_table! {
             },
         }
         /// `D?`: identification (Table 4; result Table 6).
-        Identify => { wire: b"D?", answer: Answer::normal(Shape::Identity), motion: Motion::Other }
+        Identify => { script: "identify", wire: b"D?", answer: Answer::normal(Shape::Identity), motion: Motion::Other }
         /// `E?`: error codes (Table 4; result Table 6A).
-        QueryErrors => { wire: b"E?", answer: Answer::normal(Shape::Errors), motion: Motion::Other }
+        QueryErrors => { script: "query_errors", wire: b"E?", answer: Answer::normal(Shape::Errors), motion: Motion::Other }
         /// `I?`: status bits (Table 4; result Table 6B).
-        QueryStatusBits => { wire: b"I?", answer: Answer::normal(Shape::StatusBits), motion: Motion::Other }
+        QueryStatusBits => { script: "query_status_bits", wire: b"I?", answer: Answer::normal(Shape::StatusBits), motion: Motion::Other }
         /// `GRPnn` / `GRTnn`: set a rate gain (Table 4; value Table 7).
         SetRateGain(axis: Axis, gain: RateGain) => {
+            script: "set_rate_gain",
             mnemonic: match axis {
                 Axis::Pan => "GRPnn",
                 Axis::Tilt => "GRTnn",
@@ -489,7 +505,7 @@ command_table! {
             motion: Motion::Other,
             parse: {
                 [b'G', b'R', a, ..] if axis(*a).is_some() => {
-                    let v = whole("GRPnn/GRTnn", payload, 3, "two hex digits", hex_u8)?;
+                    let v = arg("GRPnn/GRTnn", payload, 3, "two hex digits", hex_u8)?;
                     Self::SetRateGain(axis(*a).unwrap_or(Axis::Pan), ranged("GRPnn/GRTnn", 3, RateGain::new(v))?)
                 },
             },
@@ -499,15 +515,17 @@ command_table! {
             },
         }
         /// `G?`: rate gains (Table 4; result Table 8).
-        QueryRateGains => { wire: b"G?", answer: Answer::normal(Shape::RateGains), motion: Motion::Other }
+        QueryRateGains => { script: "query_rate_gains", wire: b"G?", answer: Answer::normal(Shape::RateGains), motion: Motion::Other }
         /// `IX`: initialisation (Table 4; result Table 9, which takes long).
         Initialize => {
+            script: "initialize",
             wire: b"IX",
             answer: Answer::Result(ResultTimeout::Long, Shape::Initialization),
             motion: Motion::Other,
         }
         /// `L0..L3`: open relay (Table 4).
         OpenRelay(relay: Relay) => {
+            script: "open_relay",
             mnemonic: "L0..L3",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -520,6 +538,7 @@ command_table! {
         }
         /// `L8..LB`: close relay (Table 4).
         CloseRelay(relay: Relay) => {
+            script: "close_relay",
             mnemonic: "L8..LB",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -535,17 +554,18 @@ command_table! {
             },
         }
         /// `LR`: relay status (Table 4; result Table 4A).
-        QueryRelays => { wire: b"LR", answer: Answer::normal(Shape::Relays), motion: Motion::Other }
+        QueryRelays => { script: "query_relays", wire: b"LR", answer: Answer::normal(Shape::Relays), motion: Motion::Other }
         /// `LC`: clear software limits (Table 4).
-        ClearLimits => { wire: b"LC", answer: Answer::Ack, motion: Motion::Other }
+        ClearLimits => { script: "clear_limits", wire: b"LC", answer: Answer::Ack, motion: Motion::Other }
         /// `LS` + 12 hex: set software limits (Table 4; values Table 10).
         SetLimits(limits: Limits) => {
+            script: "set_limits",
             mnemonic: "LS",
             answer: Answer::Ack,
             motion: Motion::Other,
             parse: {
                 [b'L', b'S', ..] => {
-                    let (pan_ccw, pan_cw, tilt_ccw, tilt_cw) = whole("LS", payload, 2, "twelve hex digits", |i| {
+                    let (pan_ccw, pan_cw, tilt_ccw, tilt_cw) = arg("LS", payload, 2, "twelve hex digits", |i| {
                         (hex12, hex12, hex12, hex12).parse(i)
                     })?;
                     Self::SetLimits(Limits {
@@ -564,13 +584,14 @@ command_table! {
             },
         }
         /// `L?`: software limits (Table 4; result Table 10).
-        QueryLimits => { wire: b"L?", answer: Answer::normal(Shape::Limits), motion: Motion::Other }
+        QueryLimits => { script: "query_limits", wire: b"L?", answer: Answer::normal(Shape::Limits), motion: Motion::Other }
 
         // Table 11: pan/tilt mount.
         /// `A?`: both accelerations (Table 11; result Table 13, protocol-notes E7).
-        QueryAccelerations => { wire: b"A?", answer: Answer::normal(Shape::Accelerations), motion: Motion::Other }
+        QueryAccelerations => { script: "query_accelerations", wire: b"A?", answer: Answer::normal(Shape::Accelerations), motion: Motion::Other }
         /// `AP?` / `AT?`: one axis (Table 11, protocol-notes E7). Before `APnnnn`.
         QueryAcceleration(axis: Axis) => {
+            script: "query_acceleration",
             mnemonic: match axis {
                 Axis::Pan => "AP?",
                 Axis::Tilt => "AT?",
@@ -586,6 +607,7 @@ command_table! {
         }
         /// `APnnnn` / `ATnnnn` (Table 11; value Table 12).
         SetAcceleration(axis: Axis, acceleration: Acceleration) => {
+            script: "set_acceleration",
             mnemonic: match axis {
                 Axis::Pan => "APnnnn",
                 Axis::Tilt => "ATnnnn",
@@ -594,7 +616,7 @@ command_table! {
             motion: Motion::Other,
             parse: {
                 [b'A', a, ..] if axis(*a).is_some() => {
-                    let v = whole("APnnnn/ATnnnn", payload, 2, "four hex digits", hex_u16)?;
+                    let v = arg("APnnnn/ATnnnn", payload, 2, "four hex digits", hex_u16)?;
                     Self::SetAcceleration(axis(*a).unwrap_or(Axis::Pan), Acceleration(v))
                 },
             },
@@ -604,23 +626,24 @@ command_table! {
             },
         }
         /// `HA`: halt, stores the position, motors off (Table 11).
-        Halt => { wire: b"HA", answer: Answer::Ack, motion: Motion::Stop }
+        Halt => { script: "halt", wire: b"HA", answer: Answer::Ack, motion: Motion::Stop }
         /// `HV`: verify home (Table 11; result Table 14).
-        VerifyHome => { wire: b"HV", answer: Answer::normal(Shape::VerifyHome), motion: Motion::Other }
+        VerifyHome => { script: "verify_home", wire: b"HV", answer: Answer::normal(Shape::VerifyHome), motion: Motion::Other }
         /// `HO`: go home (0, 0) (Table 11).
-        Home => { wire: b"HO", answer: Answer::Ack, motion: Motion::Other }
+        Home => { script: "home", wire: b"HO", answer: Answer::Ack, motion: Motion::Other }
         /// `HS`: stop, motors off (Table 11).
-        Stop => { wire: b"HS", answer: Answer::Ack, motion: Motion::Stop }
+        Stop => { script: "motors_stop", wire: b"HS", answer: Answer::Ack, motion: Motion::Stop }
         /// `P?`: current position (Table 11; result Table 15).
-        QueryPosition => { wire: b"P?", answer: Answer::normal(Shape::Position), motion: Motion::Other }
+        QueryPosition => { script: "query_position", wire: b"P?", answer: Answer::normal(Shape::Position), motion: Motion::Other }
         /// `Paaaaeeee`: go to position (Table 11; values Table 15).
         GoTo(position: Position) => {
+            script: "go_to",
             mnemonic: "Paaaaeeee",
             answer: Answer::Ack,
             motion: Motion::Other,
             parse: {
                 [b'P', _, _, _, _, _, _, _, _] => {
-                    let (pan, tilt) = whole("Paaaaeeee", payload, 1, "eight hex digits", |i| {
+                    let (pan, tilt) = arg("Paaaaeeee", payload, 1, "eight hex digits", |i| {
                         (hex_u16, hex_u16).parse(i)
                     })?;
                     Self::GoTo(Position::new(Angle(pan as i16), Angle(tilt as i16)))
@@ -633,21 +656,22 @@ command_table! {
             },
         }
         /// `PL`: pan left (CW) until `PS` (Table 11).
-        PanLeft => { wire: b"PL", answer: Answer::Ack, motion: Motion::Until(Command::PanStop) }
+        PanLeft => { script: "pan_left", wire: b"PL", answer: Answer::Ack, motion: Motion::Until(Command::PanStop) }
         /// `PR`: pan right (CCW) until `PS` (Table 11).
-        PanRight => { wire: b"PR", answer: Answer::Ack, motion: Motion::Until(Command::PanStop) }
+        PanRight => { script: "pan_right", wire: b"PR", answer: Answer::Ack, motion: Motion::Until(Command::PanStop) }
         /// `PS`: pan stop (Table 11).
-        PanStop => { wire: b"PS", answer: Answer::Ack, motion: Motion::Stop }
+        PanStop => { script: "pan_stop", wire: b"PS", answer: Answer::Ack, motion: Motion::Stop }
         /// `PT`: stop motion (Table 11).
-        StopMotion => { wire: b"PT", answer: Answer::Ack, motion: Motion::Stop }
+        StopMotion => { script: "stop_motion", wire: b"PT", answer: Answer::Ack, motion: Motion::Stop }
         /// `Pnn`: go to preset (Table 11).
         GoToPreset(preset: u8) => {
+            script: "go_to_preset",
             mnemonic: "Pnn",
             answer: Answer::Ack,
             motion: Motion::Other,
             parse: {
                 [b'P', a, b] if is_hex(*a) && is_hex(*b) => {
-                    Self::GoToPreset(whole("Pnn", payload, 1, "two hex digits", hex_u8)?)
+                    Self::GoToPreset(arg("Pnn", payload, 1, "two hex digits", hex_u8)?)
                 },
             },
             encode: {
@@ -657,11 +681,12 @@ command_table! {
         }
         /// `P?nn`: preset position (Table 11; result Table 15).
         QueryPreset(preset: u8) => {
+            script: "query_preset",
             mnemonic: "P?nn",
             answer: Answer::normal(Shape::Position),
             motion: Motion::Other,
             parse: {
-                [b'P', b'?', _, _] => Self::QueryPreset(whole("P?nn", payload, 2, "two hex digits", hex_u8)?),
+                [b'P', b'?', _, _] => Self::QueryPreset(arg("P?nn", payload, 2, "two hex digits", hex_u8)?),
             },
             encode: {
                 w.put(b"P?")?;
@@ -669,9 +694,10 @@ command_table! {
             },
         }
         /// `R?`: both rates (Table 11; result Table 13, protocol-notes E7).
-        QueryRates => { wire: b"R?", answer: Answer::normal(Shape::Rates), motion: Motion::Other }
+        QueryRates => { script: "query_rates", wire: b"R?", answer: Answer::normal(Shape::Rates), motion: Motion::Other }
         /// `RP?` / `RT?`: one axis (Table 11, protocol-notes E7). Before `RPnnnn`.
         QueryRate(axis: Axis) => {
+            script: "query_rate",
             mnemonic: match axis {
                 Axis::Pan => "RP?",
                 Axis::Tilt => "RT?",
@@ -687,6 +713,7 @@ command_table! {
         }
         /// `RPnnnn` / `RTnnnn` (Table 11; value Table 12).
         SetRate(axis: Axis, rate: Rate) => {
+            script: "set_rate",
             mnemonic: match axis {
                 Axis::Pan => "RPnnnn",
                 Axis::Tilt => "RTnnnn",
@@ -695,7 +722,7 @@ command_table! {
             motion: Motion::Other,
             parse: {
                 [b'R', a, ..] if axis(*a).is_some() => {
-                    let v = whole("RPnnnn/RTnnnn", payload, 2, "four hex digits", hex_u16)?;
+                    let v = arg("RPnnnn/RTnnnn", payload, 2, "four hex digits", hex_u16)?;
                     Self::SetRate(axis(*a).unwrap_or(Axis::Pan), Rate(v))
                 },
             },
@@ -706,6 +733,7 @@ command_table! {
         }
         /// `SP0..SPF` / `ST0..STF`: proportional speed (Table 11). Before `Snn`.
         SetSpeed(axis: Axis, speed: Speed) => {
+            script: "set_speed",
             mnemonic: match axis {
                 Axis::Pan => "SPn",
                 Axis::Tilt => "STn",
@@ -714,7 +742,7 @@ command_table! {
             motion: Motion::Other,
             parse: {
                 [b'S', a, _] if axis(*a).is_some() => {
-                    let v = whole("SPn/STn", payload, 2, "one hex digit", hex_n(1))?;
+                    let v = arg("SPn/STn", payload, 2, "one hex digit", hex_n(1))?;
                     Self::SetSpeed(axis(*a).unwrap_or(Axis::Pan), ranged("SPn/STn", 2, Speed::new(v as u8))?)
                 },
             },
@@ -725,11 +753,12 @@ command_table! {
         }
         /// `Snn`: store current position as preset (Table 11).
         StorePreset(preset: u8) => {
+            script: "store_preset",
             mnemonic: "Snn",
             answer: Answer::Ack,
             motion: Motion::Other,
             parse: {
-                [b'S', _, _] => Self::StorePreset(whole("Snn", payload, 1, "two hex digits", hex_u8)?),
+                [b'S', _, _] => Self::StorePreset(arg("Snn", payload, 1, "two hex digits", hex_u8)?),
             },
             encode: {
                 w.byte(b'S')?;
@@ -738,11 +767,12 @@ command_table! {
         }
         /// `S?nn`: position stored at preset (Table 11; result Table 15).
         QueryStoredPreset(preset: u8) => {
+            script: "query_stored_preset",
             mnemonic: "S?nn",
             answer: Answer::normal(Shape::Position),
             motion: Motion::Other,
             parse: {
-                [b'S', b'?', _, _] => Self::QueryStoredPreset(whole("S?nn", payload, 2, "two hex digits", hex_u8)?),
+                [b'S', b'?', _, _] => Self::QueryStoredPreset(arg("S?nn", payload, 2, "two hex digits", hex_u8)?),
             },
             encode: {
                 w.put(b"S?")?;
@@ -750,13 +780,14 @@ command_table! {
             },
         }
         /// `TD`: tilt down (CW) until `TS` (Table 11).
-        TiltDown => { wire: b"TD", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop) }
+        TiltDown => { script: "tilt_down", wire: b"TD", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop) }
         /// `TS`: tilt stop (Table 11).
-        TiltStop => { wire: b"TS", answer: Answer::Ack, motion: Motion::Stop }
+        TiltStop => { script: "tilt_stop", wire: b"TS", answer: Answer::Ack, motion: Motion::Stop }
         /// `TU`: tilt up (CCW) until `TS` (Table 11).
-        TiltUp => { wire: b"TU", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop) }
+        TiltUp => { script: "tilt_up", wire: b"TU", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop) }
         /// `VMn`: vector motion on/off (Table 11).
         SetVectorMode(on: bool) => {
+            script: "set_vector_mode",
             mnemonic: "VMn",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -765,12 +796,7 @@ command_table! {
                     b'0' => Self::SetVectorMode(false),
                     b'1' => Self::SetVectorMode(true),
                     _ => {
-                        return Err(CommandError::BadArgument {
-                            command: "VMn",
-                            offset: 2,
-                            found: Some(*d),
-                            expected: "'0' or '1'",
-                        });
+                        return Err(E::bad_argument("VMn", 2, Some(*d), "'0' or '1'"));
                     }
                 },
             },
@@ -781,11 +807,12 @@ command_table! {
 
         // Table 16: camera.
         /// `CN`: camera and lens power on (Table 16).
-        CameraOn => { wire: b"CN", answer: Answer::Ack, motion: Motion::Other }
+        CameraOn => { script: "camera_on", wire: b"CN", answer: Answer::Ack, motion: Motion::Other }
         /// `CX`: camera and lens power off (Table 16).
-        CameraOff => { wire: b"CX", answer: Answer::Ack, motion: Motion::Other }
+        CameraOff => { script: "camera_off", wire: b"CX", answer: Answer::Ack, motion: Motion::Other }
         /// `F0..F9`: focus speed (Table 16).
         FocusSpeed(speed: LensSpeed) => {
+            script: "focus_speed",
             mnemonic: "Fn",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -797,23 +824,24 @@ command_table! {
             },
         }
         /// `FA`: auto-focus on (Table 16; not implemented by the gimbal).
-        AutoFocusOn => { wire: b"FA", answer: Answer::Ack, motion: Motion::Other }
+        AutoFocusOn => { script: "auto_focus_on", wire: b"FA", answer: Answer::Ack, motion: Motion::Other }
         /// `FF`: focus far until `FS` (Table 16).
-        FocusFar => { wire: b"FF", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop) }
+        FocusFar => { script: "focus_far", wire: b"FF", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop) }
         /// `FN`: focus near until `FS` (Table 16).
-        FocusNear => { wire: b"FN", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop) }
+        FocusNear => { script: "focus_near", wire: b"FN", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop) }
         /// `FS`: focus stop (Table 16).
-        FocusStop => { wire: b"FS", answer: Answer::Ack, motion: Motion::Stop }
+        FocusStop => { script: "focus_stop", wire: b"FS", answer: Answer::Ack, motion: Motion::Stop }
         /// `FX`: auto-focus off (Table 16; not implemented by the gimbal).
-        AutoFocusOff => { wire: b"FX", answer: Answer::Ack, motion: Motion::Other }
+        AutoFocusOff => { script: "auto_focus_off", wire: b"FX", answer: Answer::Ack, motion: Motion::Other }
         /// `Vzzzfff`: lens go-to (Table 16; values Table 17).
         LensGoTo(lens: LensPosition) => {
+            script: "lens_go_to",
             mnemonic: "Vzzzfff",
             answer: Answer::Ack,
             motion: Motion::Other,
             parse: {
                 [b'V', _, _, _, _, _, _] => {
-                    let (zoom, focus) = whole("Vzzzfff", payload, 1, "six hex digits", |i| (hex12, hex12).parse(i))?;
+                    let (zoom, focus) = arg("Vzzzfff", payload, 1, "six hex digits", |i| (hex12, hex12).parse(i))?;
                     Self::LensGoTo(LensPosition { zoom, focus })
                 },
             },
@@ -824,9 +852,10 @@ command_table! {
             },
         }
         /// `V?`: lens position (Table 16; result Table 17).
-        QueryLens => { wire: b"V?", answer: Answer::normal(Shape::Lens), motion: Motion::Other }
+        QueryLens => { script: "query_lens", wire: b"V?", answer: Answer::normal(Shape::Lens), motion: Motion::Other }
         /// `Z0..Z9`: zoom speed (Table 16).
         ZoomSpeed(speed: LensSpeed) => {
+            script: "zoom_speed",
             mnemonic: "Zn",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -839,6 +868,7 @@ command_table! {
         }
         /// `ZA..ZF`: digital zoom (Table 16; not implemented by the gimbal).
         DigitalZoom(zoom: DigitalZoom) => {
+            script: "digital_zoom",
             mnemonic: "ZA..ZF",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -853,13 +883,14 @@ command_table! {
             },
         }
         /// `ZI`: zoom in until `ZS` (Table 16).
-        ZoomIn => { wire: b"ZI", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop) }
+        ZoomIn => { script: "zoom_in", wire: b"ZI", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop) }
         /// `ZO`: zoom out until `ZS` (Table 16).
-        ZoomOut => { wire: b"ZO", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop) }
+        ZoomOut => { script: "zoom_out", wire: b"ZO", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop) }
         /// `ZS`: zoom stop (Table 16).
-        ZoomStop => { wire: b"ZS", answer: Answer::Ack, motion: Motion::Stop }
+        ZoomStop => { script: "zoom_stop", wire: b"ZS", answer: Answer::Ack, motion: Motion::Stop }
         /// `*xpc,baud,data,stop,parity` (Table 16; fields Table 18).
         AuxConfigure(port: AuxPort, config: AuxConfig) => {
+            script: "aux_configure",
             mnemonic: "*xpc",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -882,6 +913,7 @@ command_table! {
         }
         /// `*xpt` + data (Table 16).
         AuxTransmit(port: AuxPort, data: AuxBytes<'a>) => {
+            script: "aux_transmit",
             mnemonic: "*xpt",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -898,13 +930,14 @@ command_table! {
         }
         /// `*xprnnn`: receive up to nnn bytes (Table 16; decimal, protocol-notes E14).
         AuxReceive(port: AuxPort, len: AuxReadLen) => {
+            script: "aux_receive",
             mnemonic: "*xprnnn",
             answer: Answer::normal(Shape::AuxData),
             motion: Motion::Other,
             parse: {
                 [b'*', b'x', p, b'r', ..] => {
                     let port = aux_port(*p)?;
-                    let n = whole("*xprnnn", payload, 4, "decimal count 1..=256", |i| decimal(3).parse(i))?;
+                    let n = arg("*xprnnn", payload, 4, "decimal count 1..=256", |i| decimal(3).parse(i))?;
                     Self::AuxReceive(port, ranged("*xprnnn", 4, AuxReadLen::new(n as u16))?)
                 },
             },
@@ -915,6 +948,7 @@ command_table! {
         }
         /// `*xpn`: characters waiting (Table 16; decimal, protocol-notes E14).
         AuxCount(port: AuxPort) => {
+            script: "aux_count",
             mnemonic: "*xpn",
             answer: Answer::normal(Shape::AuxCount),
             motion: Motion::Other,
@@ -927,6 +961,7 @@ command_table! {
         }
         /// `*xpf`: flush (Table 16).
         AuxFlush(port: AuxPort) => {
+            script: "aux_flush",
             mnemonic: "*xpf",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -941,6 +976,7 @@ command_table! {
         /// A payload that fits no command: a device answers it with NIC.
         /// No row parses to it: [`Command::parse`] gives it for what no row takes.
         Unknown(bytes: &'a [u8]) => {
+            script: "unknown",
             mnemonic: "unknown",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -993,21 +1029,65 @@ pub(crate) fn found_text(found: Option<u8>) -> FoundText {
 
 type Res<'a, T> = nom::IResult<&'a [u8], T>;
 
+/// How a parse reports a payload that fits no row: [`CommandError`] says
+/// why (`parse_strict`, the host side); [`NoRow`] says nothing, so that
+/// [`Command::parse`] (a device answers NIC and needs no reason) builds no
+/// error value it would throw away.
+pub(crate) trait Failure: Sized {
+    fn empty() -> Self;
+    fn unknown(first: u8, len: usize) -> Self;
+    fn bad_argument(command: &'static str, offset: usize, found: Option<u8>, expected: &'static str) -> Self;
+    fn out_of_range(command: &'static str, offset: usize, error: RangeError) -> Self;
+}
+
+impl Failure for CommandError {
+    fn empty() -> Self {
+        CommandError::Empty
+    }
+    fn unknown(first: u8, len: usize) -> Self {
+        CommandError::Unknown { first, len }
+    }
+    fn bad_argument(command: &'static str, offset: usize, found: Option<u8>, expected: &'static str) -> Self {
+        CommandError::BadArgument {
+            command,
+            offset,
+            found,
+            expected,
+        }
+    }
+    fn out_of_range(command: &'static str, offset: usize, error: RangeError) -> Self {
+        CommandError::OutOfRange { command, offset, error }
+    }
+}
+
+/// A payload fits no row; why is not asked.
+pub(crate) struct NoRow;
+
+impl Failure for NoRow {
+    fn empty() -> Self {
+        NoRow
+    }
+    fn unknown(_: u8, _: usize) -> Self {
+        NoRow
+    }
+    fn bad_argument(_: &'static str, _: usize, _: Option<u8>, _: &'static str) -> Self {
+        NoRow
+    }
+    fn out_of_range(_: &'static str, _: usize, _: RangeError) -> Self {
+        NoRow
+    }
+}
+
 /// Runs `parser` over `payload[skip..]`, which it must consume entirely.
-pub(crate) fn whole<'a, T>(
+fn arg<'a, T, E: Failure>(
     command: &'static str,
     payload: &'a [u8],
     skip: usize,
     expected: &'static str,
     mut parser: impl FnMut(&'a [u8]) -> Res<'a, T>,
-) -> Result<T, CommandError> {
+) -> Result<T, E> {
     let input = payload.get(skip..).unwrap_or(&[]);
-    let bad = |at: &'a [u8], expected| CommandError::BadArgument {
-        command,
-        offset: offset_in(payload, at),
-        found: at.first().copied(),
-        expected,
-    };
+    let bad = |at: &'a [u8], expected| E::bad_argument(command, offset_in(payload, at), at.first().copied(), expected);
     match parser(input) {
         Ok(([], value)) => Ok(value),
         Ok((rest, _)) => Err(bad(rest, "end of payload")),
@@ -1016,22 +1096,28 @@ pub(crate) fn whole<'a, T>(
     }
 }
 
-fn ranged<T>(command: &'static str, offset: usize, value: Result<T, RangeError>) -> Result<T, CommandError> {
-    value.map_err(|error| CommandError::OutOfRange { command, offset, error })
+/// [`arg`] saying why (the reply parser's argument reader).
+pub(crate) fn whole<'a, T>(
+    command: &'static str,
+    payload: &'a [u8],
+    skip: usize,
+    expected: &'static str,
+    parser: impl FnMut(&'a [u8]) -> Res<'a, T>,
+) -> Result<T, CommandError> {
+    arg(command, payload, skip, expected, parser)
+}
+
+fn ranged<T, E: Failure>(command: &'static str, offset: usize, value: Result<T, RangeError>) -> Result<T, E> {
+    value.map_err(|error| E::out_of_range(command, offset, error))
 }
 
 /// `,baud,dataBits,stopBits,parity` of `*xpc` (Table 18), from offset 4 of
 /// `payload`; every error names the field and the offset where it went wrong.
-fn aux_config(payload: &[u8]) -> Result<AuxConfig, CommandError> {
+fn aux_config<E: Failure>(payload: &[u8]) -> Result<AuxConfig, E> {
     const COMMAND: &str = "*xpc";
     let mut at = 4;
-    let mut field = |max: usize, expected: &'static str| -> Result<(usize, u32), CommandError> {
-        let bad = |offset: usize, expected| CommandError::BadArgument {
-            command: COMMAND,
-            offset,
-            found: payload.get(offset).copied(),
-            expected,
-        };
+    let mut field = |max: usize, expected: &'static str| -> Result<(usize, u32), E> {
+        let bad = |offset: usize, expected| E::bad_argument(COMMAND, offset, payload.get(offset).copied(), expected);
         if payload.get(at) != Some(&b',') {
             return Err(bad(at, "','"));
         }
@@ -1046,18 +1132,9 @@ fn aux_config(payload: &[u8]) -> Result<AuxConfig, CommandError> {
     let (stop_at, stop) = field(1, "stop bits 1 or 2")?;
     let (parity_at, parity) = field(1, "parity 0, 1 or 2")?;
     if at != payload.len() {
-        return Err(CommandError::BadArgument {
-            command: COMMAND,
-            offset: at,
-            found: payload.get(at).copied(),
-            expected: "end of command",
-        });
+        return Err(E::bad_argument(COMMAND, at, payload.get(at).copied(), "end of command"));
     }
-    let range = |offset, error| CommandError::OutOfRange {
-        command: COMMAND,
-        offset,
-        error,
-    };
+    let range = |offset, error| E::out_of_range(COMMAND, offset, error);
     let parity = match parity {
         0 => Parity::None,
         1 => Parity::Odd,
@@ -1085,12 +1162,19 @@ fn aux_config(payload: &[u8]) -> Result<AuxConfig, CommandError> {
 impl<'a> Command<'a> {
     /// Parses a payload; anything that fits no command is [`Command::Unknown`].
     pub fn parse(payload: &'a [u8]) -> Self {
-        Self::parse_strict(payload).unwrap_or(Command::Unknown(payload))
+        Self::parse_implemented(payload, |_| true)
+    }
+
+    /// [`Command::parse`] for a device that implements only the rows
+    /// `implemented` takes: any other command is [`Command::Unknown`]
+    /// without its arguments being read, as a device answers both with NIC.
+    pub fn parse_implemented(payload: &'a [u8], implemented: impl Fn(Row) -> bool) -> Self {
+        Self::parse_rows::<NoRow>(payload, implemented).unwrap_or(Command::Unknown(payload))
     }
 
     /// Parses a payload, saying what is wrong with one that fits no command.
     pub fn parse_strict(payload: &'a [u8]) -> Result<Self, CommandError> {
-        Self::parse_rows(payload)
+        Self::parse_rows::<CommandError>(payload, |_| true)
     }
 
     /// Writes the payload into `buf`; returns the written prefix.

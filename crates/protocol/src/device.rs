@@ -9,7 +9,7 @@
 
 use crate::EncodeError;
 use crate::address::{Address, WILDCARD};
-use crate::command::Command;
+use crate::command::{Command, Row};
 use crate::frame::{ACK, Frame, FrameBuf, NAK, NIC};
 use crate::framer::{DEFAULT_CAPACITY, Event, Framer};
 use crate::reply::Reply;
@@ -124,6 +124,18 @@ pub trait DeviceHandler {
     /// Executes `command`; `reply_to` is the header any result must carry
     /// and says whether the command is answered ([`ReplyTo::answered`]).
     fn handle(&mut self, command: Command<'_>, reply_to: ReplyTo, now: u64) -> Response<'_>;
+
+    /// Whether the device implements `row` at all. The endpoint answers NIC
+    /// to the others without reading their arguments (as it would after the
+    /// handler's NIC), so that a small device links no parser for them.
+    /// Every row by default.
+    fn implements(row: Row) -> bool
+    where
+        Self: Sized,
+    {
+        let _ = row;
+        true
+    }
 }
 
 /// Counters of an endpoint.
@@ -254,7 +266,7 @@ impl State {
     /// (up to [`RESULT_RESENDS`] times); any other traffic on the line (an
     /// ACK, any frame) means the master moved on, so a later NAK, meant for
     /// another device of a shared bus, never makes this one answer.
-    fn on_event(&mut self, event: Event<'_>, now: u64, handler: &mut impl DeviceHandler, out: &mut impl FnMut(&[u8])) {
+    fn on_event<H: DeviceHandler>(&mut self, event: Event<'_>, now: u64, handler: &mut H, out: &mut impl FnMut(&[u8])) {
         let Self {
             config,
             stats,
@@ -280,7 +292,7 @@ impl State {
                     }
                 };
                 send(&[ACK]);
-                let command = Command::parse(frame.payload());
+                let command = Command::parse_implemented(frame.payload(), H::implements);
                 if let Command::Unknown(_) = command {
                     stats.nics_sent += u64::from(answer);
                     send(&[NIC]);

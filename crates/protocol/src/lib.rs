@@ -2,9 +2,13 @@
 #![no_std]
 #![forbid(unsafe_code)]
 
+mod code_table;
+
 pub mod address;
+mod answer;
 pub mod command;
 pub mod device;
+pub mod dissector;
 pub mod frame;
 pub mod framer;
 mod hex;
@@ -14,7 +18,7 @@ pub mod report;
 pub mod units;
 
 pub use address::{Address, AddressParseError, CONTROL_UNIT, LINK_PORT, MCU_GROUP, WILDCARD};
-pub use command::{AuxBytes, Command, CommandError, Extended, ResultKind, ResultTimeout};
+pub use command::{AuxBytes, Command, CommandError, Extended, ResultKind, ResultTimeout, Row};
 pub use device::{DeviceEndpoint, DeviceHandler, EndpointConfig, EndpointStats, RESULT_RESENDS, ReplyTo, Response};
 pub use frame::{ACK, Frame, FrameBuf, FrameError, MAX_FRAME_LEN, MAX_PAYLOAD, NAK, NIC, START, checksum};
 pub use framer::{BadChecksum, Event, Framer, FramerStats, OwnedEvent};

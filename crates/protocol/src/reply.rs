@@ -10,6 +10,7 @@ use nom::Parser;
 use nom::bytes::complete::take;
 
 use crate::EncodeError;
+use crate::answer::Shape;
 use crate::command::{Command, CommandError, found_text, whole};
 use crate::hex::{Writer, decimal, hex_n, hex_u8, hex_u16, hex_value, hex12};
 use crate::units::{Acceleration, Angle, DataRate, LensPosition, Limits, Position, RangeError, Rate, RateGain};
@@ -25,6 +26,22 @@ impl AwakeStatus {
     pub const TILT_NOT_INITIALIZED: u8 = 1 << 1;
     pub const MOTORS_OFF: u8 = 1 << 2;
     pub const ERROR: u8 = 1 << 3;
+    /// Table 5 by name: each bit's mask, snake_case name and meaning,
+    /// lowest bit first.
+    pub const BITS: [(u8, &'static str, &'static str); 4] = [
+        (
+            Self::PAN_NOT_INITIALIZED,
+            "azimuth_not_initialized",
+            "azimuth (pan) not initialised",
+        ),
+        (
+            Self::TILT_NOT_INITIALIZED,
+            "elevation_not_initialized",
+            "elevation (tilt) not initialised",
+        ),
+        (Self::MOTORS_OFF, "motors_off", "motors off"),
+        (Self::ERROR, "error", "error condition"),
+    ];
     pub fn new(bits: u8) -> Result<Self, RangeError> {
         if bits > 0x0F {
             return Err(RangeError {
@@ -94,6 +111,20 @@ pub struct ErrorCodes {
     pub tilt: u8,
 }
 
+impl ErrorCodes {
+    pub const CENTER_REFERENCE: u8 = 1 << 0;
+    pub const INITIALIZATION: u8 = 1 << 4;
+    pub const MOTOR_TIMEOUT: u8 = 1 << 5;
+    pub const TEMPERATURE: u8 = 1 << 6;
+    /// Table 6A by name: each bit's mask, snake_case name and meaning.
+    pub const BITS: [(u8, &'static str, &'static str); 4] = [
+        (Self::CENTER_REFERENCE, "center_reference", "centre reference error"),
+        (Self::INITIALIZATION, "initialization", "initialization error"),
+        (Self::MOTOR_TIMEOUT, "motor_timeout", "motor time-out"),
+        (Self::TEMPERATURE, "temperature", "temperature error"),
+    ];
+}
+
 /// Status bits per axis, Table 6B (protocol-notes E3): low byte bit 0 not
 /// initialised, 1 + limit, 2 - limit, 3 + centre, 4 - centre, 5 + hard stop,
 /// 6 - hard stop, 7 error present; high byte reserved. Parsed from 2 + 2 or
@@ -102,6 +133,45 @@ pub struct ErrorCodes {
 pub struct StatusBits {
     pub pan: u16,
     pub tilt: u16,
+}
+
+impl StatusBits {
+    pub const NOT_INITIALIZED: u16 = 1 << 0;
+    pub const POSITIVE_LIMIT_FOUND: u16 = 1 << 1;
+    pub const NEGATIVE_LIMIT_FOUND: u16 = 1 << 2;
+    pub const POSITIVE_CENTER_FOUND: u16 = 1 << 3;
+    pub const NEGATIVE_CENTER_FOUND: u16 = 1 << 4;
+    pub const POSITIVE_HARD_STOP: u16 = 1 << 5;
+    pub const NEGATIVE_HARD_STOP: u16 = 1 << 6;
+    pub const ERROR_PRESENT: u16 = 1 << 7;
+    /// Table 6B by name (low byte; the high byte is reserved): each bit's
+    /// mask, snake_case name and meaning.
+    pub const BITS: [(u16, &'static str, &'static str); 8] = [
+        (Self::NOT_INITIALIZED, "not_initialized", "not initialized"),
+        (
+            Self::POSITIVE_LIMIT_FOUND,
+            "positive_limit_found",
+            "positive limit found",
+        ),
+        (
+            Self::NEGATIVE_LIMIT_FOUND,
+            "negative_limit_found",
+            "negative limit found",
+        ),
+        (
+            Self::POSITIVE_CENTER_FOUND,
+            "positive_center_found",
+            "positive centre found",
+        ),
+        (
+            Self::NEGATIVE_CENTER_FOUND,
+            "negative_center_found",
+            "negative centre found",
+        ),
+        (Self::POSITIVE_HARD_STOP, "positive_hard_stop", "positive hard stop"),
+        (Self::NEGATIVE_HARD_STOP, "negative_hard_stop", "negative hard stop"),
+        (Self::ERROR_PRESENT, "error_present", "error present"),
+    ];
 }
 
 /// Rate gains, Table 8 (protocol-notes E1, E6): pan and tilt gain x10 as 2 hex each,
@@ -221,33 +291,6 @@ impl From<CommandError> for ReplyError {
             },
         }
     }
-}
-
-/// The shape of result a command expects: one per [`Reply`] variant. Each
-/// command's row in the command table (`command.rs`) names its shape in its
-/// answer fact; `Reply::parse` dispatches on it and `Reply::answers`
-/// compares with it, both exhaustively.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub(crate) enum Shape {
-    AwakeStatus,
-    MaxDataRate,
-    Identity,
-    Errors,
-    StatusBits,
-    RateGains,
-    Initialization,
-    Limits,
-    Relays,
-    Accelerations,
-    Acceleration,
-    Rates,
-    Rate,
-    VerifyHome,
-    Position,
-    Lens,
-    AuxCount,
-    AuxData,
-    Raw,
 }
 
 fn digit_or_raw(b: u8) -> Option<u8> {

@@ -36,96 +36,36 @@ pub const REPORT_MARK: u8 = b'!';
 /// Payload length of a delivery report.
 pub const REPORT_LEN: usize = 13;
 
-/// Why a command was not delivered. The code is the report's `CC`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-#[repr(u8)]
-pub enum Undelivered {
-    /// The device did not acknowledge any transmission (no ACK after all retries).
-    DeviceSilent = 0x01,
-    /// The device answered every transmission with NAK.
-    DeviceNak = 0x02,
-    /// The destination port is not configured on that GCU.
-    NoSuchPort = 0x03,
-    /// The destination port is configured but not open (or was lost with the command on it).
-    PortClosed = 0x04,
-    /// A bounded queue on the way was full.
-    QueueFull = 0x05,
-    /// No route to the destination group.
-    NoRoute = 0x06,
-    /// The link toward the destination went down, or the next GCU never acknowledged.
-    LinkDown = 0x07,
-    /// The GCU is shutting down or closing the port: new commands are refused.
-    ShuttingDown = 0x08,
-    /// The sender may not speak as the frame's source group.
-    SourceNotAllowed = 0x09,
-    /// The only route leads back to where the command came from.
-    Loop = 0x0A,
-    /// Delivery was not confirmed in time (it may still execute): the next
-    /// GCU did not report it, or the device's ACK was still awaited.
-    NotConfirmed = 0x0B,
-    /// It waited in a queue until the sender's delivery time-out and was given up unsent.
-    Expired = 0x0C,
-}
-
-impl Undelivered {
-    pub const ALL: [Undelivered; 12] = [
-        Undelivered::DeviceSilent,
-        Undelivered::DeviceNak,
-        Undelivered::NoSuchPort,
-        Undelivered::PortClosed,
-        Undelivered::QueueFull,
-        Undelivered::NoRoute,
-        Undelivered::LinkDown,
-        Undelivered::ShuttingDown,
-        Undelivered::SourceNotAllowed,
-        Undelivered::Loop,
-        Undelivered::NotConfirmed,
-        Undelivered::Expired,
-    ];
-
-    /// The report's failure code.
-    pub const fn code(self) -> u8 {
-        self as u8
-    }
-
-    pub fn from_code(code: u8) -> Option<Self> {
-        Self::ALL.iter().copied().find(|u| u.code() == code)
-    }
-
-    /// A short snake_case name (metric labels, JSON).
-    pub const fn name(self) -> &'static str {
-        match self {
-            Undelivered::DeviceSilent => "device_silent",
-            Undelivered::DeviceNak => "device_nak",
-            Undelivered::NoSuchPort => "no_such_port",
-            Undelivered::PortClosed => "port_closed",
-            Undelivered::QueueFull => "queue_full",
-            Undelivered::NoRoute => "no_route",
-            Undelivered::LinkDown => "link_down",
-            Undelivered::ShuttingDown => "shutting_down",
-            Undelivered::SourceNotAllowed => "source_not_allowed",
-            Undelivered::Loop => "loop",
-            Undelivered::NotConfirmed => "not_confirmed",
-            Undelivered::Expired => "expired",
-        }
-    }
-
-    /// What it means, for a person.
-    pub const fn describe(self) -> &'static str {
-        match self {
-            Undelivered::DeviceSilent => "the device did not acknowledge it (silent after all retries)",
-            Undelivered::DeviceNak => "the device answered NAK to every transmission",
-            Undelivered::NoSuchPort => "no such port on the GCU",
-            Undelivered::PortClosed => "the port is not open",
-            Undelivered::QueueFull => "a queue on the way was full",
-            Undelivered::NoRoute => "no route to the destination group",
-            Undelivered::LinkDown => "the link toward the destination is down or did not acknowledge",
-            Undelivered::ShuttingDown => "the GCU is shutting down",
-            Undelivered::SourceNotAllowed => "the link may not speak as that source group",
-            Undelivered::Loop => "the only route leads back where the command came from",
-            Undelivered::NotConfirmed => "delivery was not confirmed in time (it may still execute)",
-            Undelivered::Expired => "it waited in a queue too long and was given up unsent",
-        }
+crate::code_table! {
+    /// Why a command was not delivered. The code is the report's `CC`; the
+    /// name labels metrics and JSON; the meaning is for a person.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+    pub enum Undelivered: u8 {
+        /// The device did not acknowledge any transmission (no ACK after all retries).
+        DeviceSilent = 0x01, "device_silent", "the device did not acknowledge it (silent after all retries)";
+        /// The device answered every transmission with NAK.
+        DeviceNak = 0x02, "device_nak", "the device answered NAK to every transmission";
+        /// The destination port is not configured on that GCU.
+        NoSuchPort = 0x03, "no_such_port", "no such port on the GCU";
+        /// The destination port is configured but not open (or was lost with the command on it).
+        PortClosed = 0x04, "port_closed", "the port is not open";
+        /// A bounded queue on the way was full.
+        QueueFull = 0x05, "queue_full", "a queue on the way was full";
+        /// No route to the destination group.
+        NoRoute = 0x06, "no_route", "no route to the destination group";
+        /// The link toward the destination went down, or the next GCU never acknowledged.
+        LinkDown = 0x07, "link_down", "the link toward the destination is down or did not acknowledge";
+        /// The GCU is shutting down or closing the port: new commands are refused.
+        ShuttingDown = 0x08, "shutting_down", "the GCU is shutting down";
+        /// The sender may not speak as the frame's source group.
+        SourceNotAllowed = 0x09, "source_not_allowed", "the link may not speak as that source group";
+        /// The only route leads back to where the command came from.
+        Loop = 0x0A, "loop", "the only route leads back where the command came from";
+        /// Delivery was not confirmed in time (it may still execute): the next
+        /// GCU did not report it, or the device's ACK was still awaited.
+        NotConfirmed = 0x0B, "not_confirmed", "delivery was not confirmed in time (it may still execute)";
+        /// It waited in a queue until the sender's delivery time-out and was given up unsent.
+        Expired = 0x0C, "expired", "it waited in a queue too long and was given up unsent";
     }
 }
 

@@ -97,8 +97,48 @@ pub struct Rate(pub u16);
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct Acceleration(pub u16);
 
+/// The Table 12 quantities in hundredths of their unit: one conversion each
+/// way, rounding to the nearest hundredth and refusing what four hex digits
+/// cannot carry.
+macro_rules! hundredths {
+    ($($name:ident: $from:ident, $to:ident, $what:literal;)+) => {$(
+        impl $name {
+            #[doc = concat!("From ", $what, ", rounded to the nearest hundredth; refuses values outside 0..=655.35.")]
+            pub fn $from(value: f64) -> Result<Self, RangeError> {
+                let hundredths = value * 100.0;
+                if !(-0.5..65535.5).contains(&hundredths) {
+                    return Err(RangeError {
+                        what: concat!($what, " (hundredths)"),
+                        value: if hundredths.is_nan() { 0 } else { hundredths as i64 },
+                        min: 0,
+                        max: 65535,
+                    });
+                }
+                // Round half up without libm; the range check keeps it in u16.
+                Ok(Self((hundredths + 0.5) as u16))
+            }
+
+            #[doc = concat!("In ", $what, ".")]
+            pub fn $to(self) -> f64 {
+                f64::from(self.0) / 100.0
+            }
+        }
+    )+};
+}
+
+hundredths! {
+    Rate: from_degrees_per_second, degrees_per_second, "degrees per second";
+    Acceleration: from_degrees_per_second_squared, degrees_per_second_squared, "degrees per second squared";
+}
+
+/// The table of bounded wire values: one row `Name: repr, "what", min..=max;`
+/// per type, each a newtype whose constructor refuses what the wire format
+/// does not allow.
 macro_rules! bounded {
-    ($(#[$doc:meta])* $name:ident, $repr:ty, $what:literal, $min:expr, $max:expr) => {
+    ($( $(#[$doc:meta])* $name:ident: $repr:ty, $what:literal, $min:literal..=$max:literal; )+) => {
+        $( bounded!(@one $(#[$doc])* $name, $repr, $what, $min, $max); )+
+    };
+    (@one $(#[$doc:meta])* $name:ident, $repr:ty, $what:literal, $min:expr, $max:expr) => {
         $(#[$doc])*
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
         pub struct $name($repr);
@@ -124,43 +164,27 @@ macro_rules! bounded {
     };
 }
 
-bounded!(
+bounded! {
     /// Proportional pan/tilt speed `SP0..SPF`, `ST0..STF`: 0 slowest, 15 fastest (Table 11).
-    Speed, u8, "proportional speed", 0, 15
-);
-bounded!(
+    Speed: u8, "proportional speed", 0..=15;
     /// Focus or zoom speed `F0..F9`, `Z0..Z9`: 0 slowest, 9 fastest (Table 16).
-    LensSpeed, u8, "lens speed", 0, 9
-);
-bounded!(
+    LensSpeed: u8, "lens speed", 0..=9;
     /// Rate gain times ten, 0.3..=3.0 -> 3..=30 (Table 7, protocol-notes E1).
-    RateGain, u8, "rate gain (x10)", 3, 30
-);
-bounded!(
+    RateGain: u8, "rate gain (x10)", 3..=30;
     /// A 12-bit value: lens zoom/focus position (Table 17) or a raw software
     /// limit (Table 10, protocol-notes E9: no unit is invented).
-    U12, u16, "12-bit value", 0, 4095
-);
-bounded!(
+    U12: u16, "12-bit value", 0..=4095;
     /// A device ID settable with `#NN`: 01..=FE (Table 4).
-    DeviceId, u8, "device ID", 1, 254
-);
-bounded!(
+    DeviceId: u8, "device ID", 1..=254;
     /// An auxiliary relay 0..=3 (Table 4 `L0..L3`, `L8..LB`).
-    Relay, u8, "relay", 0, 3
-);
-bounded!(
+    Relay: u8, "relay", 0..=3;
     /// An auxiliary serial port, 0 or 1 (Table 16 `*xp..`).
-    AuxPort, u8, "auxiliary port", 0, 1
-);
-bounded!(
+    AuxPort: u8, "auxiliary port", 0..=1;
     /// Digital zoom step `ZA..ZF` (Table 16, not implemented by the gimbal).
-    DigitalZoom, u8, "digital zoom", 10, 15
-);
-bounded!(
+    DigitalZoom: u8, "digital zoom", 10..=15;
     /// Most bytes `*xprnnn` may ask for: a result payload holds at most 256.
-    AuxReadLen, u16, "auxiliary read length", 1, 256
-);
+    AuxReadLen: u16, "auxiliary read length", 1..=256;
+}
 
 /// Communication data rate `C0..CF` (Table 4, protocol-notes E15).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

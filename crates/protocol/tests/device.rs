@@ -321,3 +321,54 @@ fn deferred_reply_to_an_unanswered_broadcast_is_not_sent() {
         .unwrap();
     assert_eq!(Frame::parse(&out).unwrap().0.dest, Address::new(2, 1, 12));
 }
+
+/// A device that implements only `AW` and `P?` (as the firmware declares
+/// its rows).
+#[derive(Default)]
+struct Small {
+    handled: Vec<String>,
+}
+
+impl DeviceHandler for Small {
+    fn handle(&mut self, command: Command<'_>, _: ReplyTo, _now: u64) -> Response<'_> {
+        self.handled.push(command.mnemonic().to_string());
+        match command {
+            Command::QueryPosition => Response::Reply(Reply::Position(Position::default())),
+            _ => Response::Done,
+        }
+    }
+
+    fn implements(row: Row) -> bool {
+        matches!(row, Row::AwakeStatus | Row::QueryPosition)
+    }
+}
+
+#[test]
+fn rows_a_device_does_not_implement_are_nic_without_reaching_it() {
+    let mut ep: DeviceEndpoint = DeviceEndpoint::new(EndpointConfig::single(12));
+    let mut small = Small::default();
+    let mut send = |payload: &[u8]| {
+        let mut out = Vec::new();
+        let bytes = frame(Address::new(5, 1, 12), 2, payload);
+        ep.receive(&bytes, 0, &mut small, &mut |b: &[u8]| out.extend_from_slice(b));
+        out
+    };
+    // Well-formed commands of other rows (a preset query next to the
+    // implemented `P?`, a rev 1.9 name, one with arguments to check).
+    for payload in [&b"HO"[..], b"P0064FF9C", b"RP0200", b"*me1", b"P?0A", b"#0C"] {
+        assert_eq!(send(payload), [ACK, NIC], "{}", String::from_utf8_lossy(payload));
+    }
+    let answered = send(b"P?");
+    assert_eq!(answered[0], ACK);
+    assert!(
+        answered.len() > 1 && answered[1] == START,
+        "P? answered with a result: {answered:?}"
+    );
+    assert_eq!(small.handled, ["P?"], "only implemented rows reach the handler");
+    // The table's own view: the same payloads parse in full for every row.
+    assert_eq!(Command::parse(b"HO"), Command::Home);
+    assert_eq!(
+        Command::parse_implemented(b"HO", |row| row == Row::AwakeStatus),
+        Command::Unknown(b"HO")
+    );
+}

@@ -8,42 +8,21 @@
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-/// A fault applied to one exchange.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Fault {
-    /// The ACK is lost on the way back (what follows it still goes).
-    DropAck,
-    /// The command arrives damaged: the device answers NAK and does not execute it.
-    Nak,
-    /// One byte of the answer is damaged (a payload byte of the result, or the ACK).
-    Corrupt,
-    /// The answer leaves late by [`FaultConfig::delay_ms`].
-    Delay,
-    /// The device does not hear the command at all: no answer.
-    Silent,
+sagebrush_protocol::code_table! {
+    /// A fault applied to one exchange; its code indexes the per-fault counters.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    pub enum Fault: u8 {
+        DropAck = 0, "drop_ack", "the ACK is lost on the way back (what follows it still goes)";
+        Nak = 1, "nak", "the command arrives damaged: the device answers NAK and does not execute it";
+        Corrupt = 2, "corrupt", "one byte of the answer is damaged (a payload byte of the result, or the ACK)";
+        Delay = 3, "delay", "the answer leaves late by `FaultConfig::delay_ms`";
+        Silent = 4, "silent", "the device does not hear the command at all: no answer";
+    }
 }
 
 impl Fault {
-    pub const ALL: [Fault; 5] = [Fault::DropAck, Fault::Nak, Fault::Corrupt, Fault::Delay, Fault::Silent];
-
-    pub const fn name(self) -> &'static str {
-        match self {
-            Fault::DropAck => "drop_ack",
-            Fault::Nak => "nak",
-            Fault::Corrupt => "corrupt",
-            Fault::Delay => "delay",
-            Fault::Silent => "silent",
-        }
-    }
-
     const fn index(self) -> usize {
-        match self {
-            Fault::DropAck => 0,
-            Fault::Nak => 1,
-            Fault::Corrupt => 2,
-            Fault::Delay => 3,
-            Fault::Silent => 4,
-        }
+        self.code() as usize
     }
 }
 
@@ -112,7 +91,7 @@ impl FaultConfig {
 pub struct Faults {
     config: FaultConfig,
     rng: ChaCha8Rng,
-    injected: [u64; 5],
+    injected: [u64; Fault::ALL.len()],
 }
 
 impl Faults {
@@ -120,7 +99,7 @@ impl Faults {
         Self {
             config,
             rng: ChaCha8Rng::seed_from_u64(config.seed),
-            injected: [0; 5],
+            injected: [0; Fault::ALL.len()],
         }
     }
 

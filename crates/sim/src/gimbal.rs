@@ -11,9 +11,9 @@
 //! commands while `IX` runs and lens commands while the camera is off.
 
 use sagebrush_protocol::{
-    Acceleration, Angle, AuxReadLen, Axis as AxisName, Command, DataRate, DeviceHandler, ErrorCodes, Extended,
-    HomeStatus, Identity, InitResults, LensPosition, Limits, Position, Rate, RateGain, RateGains, Reply, ReplyTo,
-    Response, StatusBits, U12,
+    Acceleration, Angle, AuxReadLen, AwakeStatus, Axis as AxisName, Command, DataRate, DeviceHandler, ErrorCodes,
+    Extended, HomeStatus, Identity, InitResults, LensPosition, Limits, Position, Rate, RateGain, RateGains, Reply,
+    ReplyTo, Response, StatusBits, U12,
 };
 
 use crate::aux::AuxSerial;
@@ -23,10 +23,10 @@ use crate::lens::LensDrive;
 
 /// Table 9: centre switch detected (bit 0) and limit switch hit (bit 3), no hard limit.
 const INIT_GOOD: u16 = 0x0009;
-/// Table 6A bit 4: initialisation error.
-const ERROR_INIT: u8 = 1 << 4;
-/// Table 6A bit 0: centre reference error.
-const ERROR_CENTER: u8 = 1 << 0;
+/// Table 6A: initialisation error.
+const ERROR_INIT: u8 = ErrorCodes::INITIALIZATION;
+/// Table 6A: centre reference error.
+const ERROR_CENTER: u8 = ErrorCodes::CENTER_REFERENCE;
 /// Every Table 10 field at its maximum: "no software limit".
 const NO_LIMIT: u16 = 0xFFF;
 /// Half width of the centre switch, hundredths of a degree (Table 14 "on centre switch").
@@ -379,13 +379,13 @@ impl Gimbal {
     fn awake_status(&self) -> u8 {
         let mut bits = 0;
         if !self.initialized {
-            bits |= 0b11;
+            bits |= AwakeStatus::PAN_NOT_INITIALIZED | AwakeStatus::TILT_NOT_INITIALIZED;
         }
         if !self.motors_on {
-            bits |= 1 << 2;
+            bits |= AwakeStatus::MOTORS_OFF;
         }
         if self.errors.pan != 0 || self.errors.tilt != 0 {
-            bits |= 1 << 3;
+            bits |= AwakeStatus::ERROR;
         }
         bits
     }
@@ -395,17 +395,20 @@ impl Gimbal {
         let mut bits = 0u16;
         if self.initialized {
             // Limits and centre found from both sides by the initialisation.
-            bits |= 0b1_1110;
+            bits |= StatusBits::POSITIVE_LIMIT_FOUND
+                | StatusBits::NEGATIVE_LIMIT_FOUND
+                | StatusBits::POSITIVE_CENTER_FOUND
+                | StatusBits::NEGATIVE_CENTER_FOUND;
         } else {
-            bits |= 1;
+            bits |= StatusBits::NOT_INITIALIZED;
         }
         match axis.hard_stop() {
-            Some(HardStop::Positive) => bits |= 1 << 5,
-            Some(HardStop::Negative) => bits |= 1 << 6,
+            Some(HardStop::Positive) => bits |= StatusBits::POSITIVE_HARD_STOP,
+            Some(HardStop::Negative) => bits |= StatusBits::NEGATIVE_HARD_STOP,
             None => {}
         }
         if errors != 0 {
-            bits |= 1 << 7;
+            bits |= StatusBits::ERROR_PRESENT;
         }
         bits
     }
@@ -485,7 +488,7 @@ impl Gimbal {
                 self.device = id.get();
                 Response::Done
             }
-            C::AwakeStatus => match sagebrush_protocol::AwakeStatus::new(self.awake_status()) {
+            C::AwakeStatus => match AwakeStatus::new(self.awake_status()) {
                 Ok(status) => Response::Reply(Reply::AwakeStatus(status)),
                 Err(_) => Response::Nic,
             },

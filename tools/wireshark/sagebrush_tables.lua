@@ -1,0 +1,132 @@
+-- GENERATED from the sagebrush-protocol crate's tables (crates/protocol/src/dissector.rs):
+-- do not edit. Regenerate: cargo run -p sagebrush-protocol --example gen_dissector_tables
+local T = {}
+
+-- Commands by mnemonic (Tables 4, 11, 16): answer is ack, result or optional
+-- (a rev 1.9 set/read command answers with a result only when it reads).
+T.commands = {
+    ["AW"] = { row = "AwakeStatus", script = "awake_status", answer = "result", description = "AW: awake status (Table 4; result Table 5).", shape = "awake" },
+    ["B?"] = { row = "QueryMaxDataRate", script = "query_max_data_rate", answer = "result", description = "B?: maximum data rate, C0..CF (Table 4).", shape = "maxrate" },
+    ["D?"] = { row = "Identify", script = "identify", answer = "result", description = "D?: identification (Table 4; result Table 6).", shape = "identity" },
+    ["E?"] = { row = "QueryErrors", script = "query_errors", answer = "result", description = "E?: error codes (Table 4; result Table 6A).", shape = "errors" },
+    ["I?"] = { row = "QueryStatusBits", script = "query_status_bits", answer = "result", description = "I?: status bits (Table 4; result Table 6B).", shape = "statusbits" },
+    ["G?"] = { row = "QueryRateGains", script = "query_rate_gains", answer = "result", description = "G?: rate gains (Table 4; result Table 8).", shape = "gains" },
+    ["IX"] = { row = "Initialize", script = "initialize", answer = "result", description = "IX: initialisation (Table 4; result Table 9, which takes long).", shape = "init" },
+    ["LR"] = { row = "QueryRelays", script = "query_relays", answer = "result", description = "LR: relay status (Table 4; result Table 4A).", shape = "relays" },
+    ["LC"] = { row = "ClearLimits", script = "clear_limits", answer = "ack", description = "LC: clear software limits (Table 4)." },
+    ["L?"] = { row = "QueryLimits", script = "query_limits", answer = "result", description = "L?: software limits (Table 4; result Table 10).", shape = "limits" },
+    ["A?"] = { row = "QueryAccelerations", script = "query_accelerations", answer = "result", description = "A?: both accelerations (Table 11; result Table 13, protocol-notes E7).", shape = "accels" },
+    ["HA"] = { row = "Halt", script = "halt", answer = "ack", description = "HA: halt, stores the position, motors off (Table 11)." },
+    ["HV"] = { row = "VerifyHome", script = "verify_home", answer = "result", description = "HV: verify home (Table 11; result Table 14).", shape = "home" },
+    ["HO"] = { row = "Home", script = "home", answer = "ack", description = "HO: go home (0, 0) (Table 11)." },
+    ["HS"] = { row = "Stop", script = "motors_stop", answer = "ack", description = "HS: stop, motors off (Table 11)." },
+    ["P?"] = { row = "QueryPosition", script = "query_position", answer = "result", description = "P?: current position (Table 11; result Table 15).", shape = "position" },
+    ["PL"] = { row = "PanLeft", script = "pan_left", answer = "ack", description = "PL: pan left (CW) until PS (Table 11)." },
+    ["PR"] = { row = "PanRight", script = "pan_right", answer = "ack", description = "PR: pan right (CCW) until PS (Table 11)." },
+    ["PS"] = { row = "PanStop", script = "pan_stop", answer = "ack", description = "PS: pan stop (Table 11)." },
+    ["PT"] = { row = "StopMotion", script = "stop_motion", answer = "ack", description = "PT: stop motion (Table 11)." },
+    ["R?"] = { row = "QueryRates", script = "query_rates", answer = "result", description = "R?: both rates (Table 11; result Table 13, protocol-notes E7).", shape = "rates" },
+    ["TD"] = { row = "TiltDown", script = "tilt_down", answer = "ack", description = "TD: tilt down (CW) until TS (Table 11)." },
+    ["TS"] = { row = "TiltStop", script = "tilt_stop", answer = "ack", description = "TS: tilt stop (Table 11)." },
+    ["TU"] = { row = "TiltUp", script = "tilt_up", answer = "ack", description = "TU: tilt up (CCW) until TS (Table 11)." },
+    ["CN"] = { row = "CameraOn", script = "camera_on", answer = "ack", description = "CN: camera and lens power on (Table 16)." },
+    ["CX"] = { row = "CameraOff", script = "camera_off", answer = "ack", description = "CX: camera and lens power off (Table 16)." },
+    ["FA"] = { row = "AutoFocusOn", script = "auto_focus_on", answer = "ack", description = "FA: auto-focus on (Table 16; not implemented by the gimbal)." },
+    ["FF"] = { row = "FocusFar", script = "focus_far", answer = "ack", description = "FF: focus far until FS (Table 16)." },
+    ["FN"] = { row = "FocusNear", script = "focus_near", answer = "ack", description = "FN: focus near until FS (Table 16)." },
+    ["FS"] = { row = "FocusStop", script = "focus_stop", answer = "ack", description = "FS: focus stop (Table 16)." },
+    ["FX"] = { row = "AutoFocusOff", script = "auto_focus_off", answer = "ack", description = "FX: auto-focus off (Table 16; not implemented by the gimbal)." },
+    ["V?"] = { row = "QueryLens", script = "query_lens", answer = "result", description = "V?: lens position (Table 16; result Table 17).", shape = "lens" },
+    ["ZI"] = { row = "ZoomIn", script = "zoom_in", answer = "ack", description = "ZI: zoom in until ZS (Table 16)." },
+    ["ZO"] = { row = "ZoomOut", script = "zoom_out", answer = "ack", description = "ZO: zoom out until ZS (Table 16)." },
+    ["ZS"] = { row = "ZoomStop", script = "zoom_stop", answer = "ack", description = "ZS: zoom stop (Table 16)." },
+    ["#NN"] = { row = "SetDeviceId", script = "set_device_id", answer = "ack", description = "#NN: set device address/ID (Table 4)." },
+    ["Cn"] = { row = "SetDataRate", script = "set_data_rate", answer = "ack", description = "C0..CF: set communication data rate (Table 4; C8..CF reserved, protocol-notes E15)." },
+    ["GRPnn"] = { row = "SetRateGain", script = "set_rate_gain", answer = "ack", description = "GRPnn / GRTnn: set a rate gain (Table 4; value Table 7)." },
+    ["GRTnn"] = { row = "SetRateGain", script = "set_rate_gain", answer = "ack", description = "GRPnn / GRTnn: set a rate gain (Table 4; value Table 7)." },
+    ["L0..L3"] = { row = "OpenRelay", script = "open_relay", answer = "ack", description = "L0..L3: open relay (Table 4)." },
+    ["L8..LB"] = { row = "CloseRelay", script = "close_relay", answer = "ack", description = "L8..LB: close relay (Table 4)." },
+    ["LS"] = { row = "SetLimits", script = "set_limits", answer = "ack", description = "LS + 12 hex: set software limits (Table 4; values Table 10)." },
+    ["AP?"] = { row = "QueryAcceleration", script = "query_acceleration", answer = "result", description = "AP? / AT?: one axis (Table 11, protocol-notes E7). Before APnnnn.", shape = "accel" },
+    ["AT?"] = { row = "QueryAcceleration", script = "query_acceleration", answer = "result", description = "AP? / AT?: one axis (Table 11, protocol-notes E7). Before APnnnn.", shape = "accel" },
+    ["APnnnn"] = { row = "SetAcceleration", script = "set_acceleration", answer = "ack", description = "APnnnn / ATnnnn (Table 11; value Table 12)." },
+    ["ATnnnn"] = { row = "SetAcceleration", script = "set_acceleration", answer = "ack", description = "APnnnn / ATnnnn (Table 11; value Table 12)." },
+    ["Paaaaeeee"] = { row = "GoTo", script = "go_to", answer = "ack", description = "Paaaaeeee: go to position (Table 11; values Table 15)." },
+    ["Pnn"] = { row = "GoToPreset", script = "go_to_preset", answer = "ack", description = "Pnn: go to preset (Table 11)." },
+    ["P?nn"] = { row = "QueryPreset", script = "query_preset", answer = "result", description = "P?nn: preset position (Table 11; result Table 15).", shape = "position" },
+    ["RP?"] = { row = "QueryRate", script = "query_rate", answer = "result", description = "RP? / RT?: one axis (Table 11, protocol-notes E7). Before RPnnnn.", shape = "rate" },
+    ["RT?"] = { row = "QueryRate", script = "query_rate", answer = "result", description = "RP? / RT?: one axis (Table 11, protocol-notes E7). Before RPnnnn.", shape = "rate" },
+    ["RPnnnn"] = { row = "SetRate", script = "set_rate", answer = "ack", description = "RPnnnn / RTnnnn (Table 11; value Table 12)." },
+    ["RTnnnn"] = { row = "SetRate", script = "set_rate", answer = "ack", description = "RPnnnn / RTnnnn (Table 11; value Table 12)." },
+    ["SPn"] = { row = "SetSpeed", script = "set_speed", answer = "ack", description = "SP0..SPF / ST0..STF: proportional speed (Table 11). Before Snn." },
+    ["STn"] = { row = "SetSpeed", script = "set_speed", answer = "ack", description = "SP0..SPF / ST0..STF: proportional speed (Table 11). Before Snn." },
+    ["Snn"] = { row = "StorePreset", script = "store_preset", answer = "ack", description = "Snn: store current position as preset (Table 11)." },
+    ["S?nn"] = { row = "QueryStoredPreset", script = "query_stored_preset", answer = "result", description = "S?nn: position stored at preset (Table 11; result Table 15).", shape = "position" },
+    ["VMn"] = { row = "SetVectorMode", script = "set_vector_mode", answer = "ack", description = "VMn: vector motion on/off (Table 11)." },
+    ["Fn"] = { row = "FocusSpeed", script = "focus_speed", answer = "ack", description = "F0..F9: focus speed (Table 16)." },
+    ["Vzzzfff"] = { row = "LensGoTo", script = "lens_go_to", answer = "ack", description = "Vzzzfff: lens go-to (Table 16; values Table 17)." },
+    ["Zn"] = { row = "ZoomSpeed", script = "zoom_speed", answer = "ack", description = "Z0..Z9: zoom speed (Table 16)." },
+    ["ZA..ZF"] = { row = "DigitalZoom", script = "digital_zoom", answer = "ack", description = "ZA..ZF: digital zoom (Table 16; not implemented by the gimbal)." },
+    ["*xpc"] = { row = "AuxConfigure", script = "aux_configure", answer = "ack", description = "*xpc,baud,data,stop,parity (Table 16; fields Table 18)." },
+    ["*xpt"] = { row = "AuxTransmit", script = "aux_transmit", answer = "ack", description = "*xpt + data (Table 16)." },
+    ["*xprnnn"] = { row = "AuxReceive", script = "aux_receive", answer = "result", description = "*xprnnn: receive up to nnn bytes (Table 16; decimal, protocol-notes E14).", shape = "auxdata" },
+    ["*xpn"] = { row = "AuxCount", script = "aux_count", answer = "result", description = "*xpn: characters waiting (Table 16; decimal, protocol-notes E14).", shape = "auxcount" },
+    ["*xpf"] = { row = "AuxFlush", script = "aux_flush", answer = "ack", description = "*xpf: flush (Table 16)." },
+    ["unknown"] = { row = "Unknown", script = "unknown", answer = "ack", description = "A payload that fits no command: a device answers it with NIC. No row parses to it: Command::parse gives it for what no row takes." },
+}
+
+-- Payloads of the rows without arguments (their mnemonic is their wire form).
+T.fixed = { ["AW"] = true, ["B?"] = true, ["D?"] = true, ["E?"] = true, ["I?"] = true, ["G?"] = true, ["IX"] = true, ["LR"] = true, ["LC"] = true, ["L?"] = true, ["A?"] = true, ["HA"] = true, ["HV"] = true, ["HO"] = true, ["HS"] = true, ["P?"] = true, ["PL"] = true, ["PR"] = true, ["PS"] = true, ["PT"] = true, ["R?"] = true, ["TD"] = true, ["TS"] = true, ["TU"] = true, ["CN"] = true, ["CX"] = true, ["FA"] = true, ["FF"] = true, ["FN"] = true, ["FS"] = true, ["FX"] = true, ["V?"] = true, ["ZI"] = true, ["ZO"] = true, ["ZS"] = true, }
+
+-- Rev 1.9 commands published by name only (1.2), matched as prefixes in this order.
+T.extended = {
+    { name = "HP", answer = "ack", description = "HP: go to the gimbal position saved by HA." },
+    { name = "VP", answer = "ack", description = "VP: go to the lens position saved by HA." },
+    { name = "VS", answer = "result", shape = "raw", description = "VS: camera and relay status." },
+    { name = "F?", answer = "result", shape = "raw", description = "F?: current focus speed number." },
+    { name = "Z?", answer = "result", shape = "raw", description = "Z?: current zoom speed number." },
+    { name = "C?", answer = "result", shape = "raw", description = "C?: lens software limits or preset position values." },
+    { name = "*dA", answer = "result", shape = "raw", description = "*dA: analog channel values." },
+    { name = "*di", answer = "result", shape = "raw", description = "*di: digital input values." },
+    { name = "*do", answer = "result", shape = "raw", description = "*do: digital output values." },
+    { name = "*dl", answer = "result", shape = "raw", description = "*dl: status messages." },
+    { name = "*dm", answer = "ack", description = "*dm: set loop mode." },
+    { name = "*mr", answer = "ack", description = "*mr: rate commands." },
+    { name = "*me", answer = "optional", shape = "raw", description = "*me: send/read position in encoder counts." },
+    { name = "*mp", answer = "optional", shape = "raw", description = "*mp: send/read position in floating point." },
+    { name = "*mu", answer = "optional", shape = "raw", description = "*mu: set/read user parameters." },
+    { name = "*sa", answer = "optional", shape = "raw", description = "*sa: set/read inertial gain." },
+    { name = "*sgr", answer = "optional", shape = "raw", description = "*sgr: set/read rate gain in floating point." },
+    { name = "*sgp", answer = "optional", shape = "raw", description = "*sgp: set/read position gain in floating point." },
+    { name = "*sl", answer = "optional", shape = "raw", description = "*sl: set/read rate/acceleration limits." },
+}
+
+-- Table 4 `Cn`: data rate codes, bit/s (8..F reserved).
+T.data_rates = { [0] = 1200, [1] = 2400, [2] = 4800, [3] = 9600, [4] = 19200, [5] = 38400, [6] = 57600, [7] = 115200, }
+
+-- Table 5: awake status bits, lowest first.
+T.awake_bits = {
+    { mask = 1, name = "azimuth (pan) not initialised" },
+    { mask = 2, name = "elevation (tilt) not initialised" },
+    { mask = 4, name = "motors off" },
+    { mask = 8, name = "error condition" },
+}
+
+-- Delivery report codes (ARCHITECTURE "Delivery contract"): name and meaning.
+T.report_codes = {
+    [0x00] = { name = "delivered", meaning = "delivered" },
+    [0x01] = { name = "device_silent", meaning = "the device did not acknowledge it (silent after all retries)" },
+    [0x02] = { name = "device_nak", meaning = "the device answered NAK to every transmission" },
+    [0x03] = { name = "no_such_port", meaning = "no such port on the GCU" },
+    [0x04] = { name = "port_closed", meaning = "the port is not open" },
+    [0x05] = { name = "queue_full", meaning = "a queue on the way was full" },
+    [0x06] = { name = "no_route", meaning = "no route to the destination group" },
+    [0x07] = { name = "link_down", meaning = "the link toward the destination is down or did not acknowledge" },
+    [0x08] = { name = "shutting_down", meaning = "the GCU is shutting down" },
+    [0x09] = { name = "source_not_allowed", meaning = "the link may not speak as that source group" },
+    [0x0A] = { name = "loop", meaning = "the only route leads back where the command came from" },
+    [0x0B] = { name = "not_confirmed", meaning = "delivery was not confirmed in time (it may still execute)" },
+    [0x0C] = { name = "expired", meaning = "it waited in a queue too long and was given up unsent" },
+}
+
+return T
