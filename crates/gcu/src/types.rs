@@ -279,90 +279,35 @@ pub enum CommandOutcome {
     Dropped(DropReason),
 }
 
-/// Why a frame or job was dropped. Every drop is counted under its reason.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum DropReason {
-    /// No static, learned or default route to the destination group.
-    NoRoute,
-    /// The only route leads back to the link the frame came from.
-    Loop,
-    /// Destination port not configured on this GCU.
-    UnknownPort,
-    /// Destination port configured but not open.
-    PortClosed,
-    /// The port vanished with the job in flight or queued.
-    PortLost,
-    /// A bounded queue (port or link) was full.
-    QueueFull,
-    /// A stop identical to one already queued on the port: merged into it.
-    DuplicateStop,
-    /// The link may not speak for this source group (or it is 255 or our own group).
-    SourceNotAllowed,
-    /// The link went down with the frame queued or in flight.
-    LinkDown,
-    /// The link peer never acknowledged the frame (retries exhausted).
-    LinkNoAck,
-    /// The link the answer should go back to is gone.
-    OriginGone,
-    /// A frame nobody was waiting for (a late or stray result, or a frame
-    /// for a group that is a local client's).
-    Unsolicited,
-    /// An answer (result or `?`) from another GCU that could belong to
-    /// forwarded commands of several origins (clients sharing a source group).
-    AmbiguousAnswer,
-    /// Too many forwarded commands awaiting answers: the oldest was forgotten.
-    PendingFull,
-    /// The GCU is shutting down: new commands are refused.
-    ShuttingDown,
-    /// Still queued when its client's delivery time-out passed: given up unsent.
-    Expired,
+sagebrush_protocol::code_table! {
+    /// Why a frame or job was dropped. Every drop is counted under its
+    /// reason (the code indexes [`crate::DropCounts`]; the name labels
+    /// metrics).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+    pub enum DropReason: u8 {
+        NoRoute = 0, "no_route", "no static, learned or default route to the destination group";
+        Loop = 1, "loop", "the only route leads back to the link the frame came from";
+        UnknownPort = 2, "unknown_port", "the destination port is not configured on this GCU";
+        PortClosed = 3, "port_closed", "the destination port is configured but not open";
+        PortLost = 4, "port_lost", "the port vanished with the job in flight or queued";
+        QueueFull = 5, "queue_full", "a bounded queue (port or link) was full";
+        DuplicateStop = 6, "duplicate_stop", "a stop identical to one already queued on the port: merged into it";
+        SourceNotAllowed = 7, "source_not_allowed", "the link may not speak for this source group (or it is 255 or our own group)";
+        LinkDown = 8, "link_down", "the link went down with the frame queued or in flight";
+        LinkNoAck = 9, "link_no_ack", "the link peer never acknowledged the frame (retries exhausted)";
+        OriginGone = 10, "origin_gone", "the link the answer should go back to is gone";
+        Unsolicited = 11, "unsolicited", "a frame nobody was waiting for (a late or stray result, or a frame for a group that is a local client's)";
+        AmbiguousAnswer = 12, "ambiguous_answer", "an answer from another GCU that could belong to forwarded commands of several origins";
+        PendingFull = 13, "pending_full", "too many forwarded commands awaiting answers: the oldest was forgotten";
+        ShuttingDown = 14, "shutting_down", "the GCU is shutting down: new commands are refused";
+        Expired = 15, "expired", "still queued when its client's delivery time-out passed: given up unsent";
+    }
 }
 
 impl DropReason {
-    pub const ALL: [DropReason; 16] = [
-        DropReason::NoRoute,
-        DropReason::Loop,
-        DropReason::UnknownPort,
-        DropReason::PortClosed,
-        DropReason::PortLost,
-        DropReason::QueueFull,
-        DropReason::DuplicateStop,
-        DropReason::SourceNotAllowed,
-        DropReason::LinkDown,
-        DropReason::LinkNoAck,
-        DropReason::OriginGone,
-        DropReason::Unsolicited,
-        DropReason::AmbiguousAnswer,
-        DropReason::PendingFull,
-        DropReason::ShuttingDown,
-        DropReason::Expired,
-    ];
-
     /// Index into [`crate::DropCounts`].
     pub const fn index(self) -> usize {
-        self as usize
-    }
-
-    /// A short snake_case name, for metric labels.
-    pub const fn name(self) -> &'static str {
-        match self {
-            DropReason::NoRoute => "no_route",
-            DropReason::Loop => "loop",
-            DropReason::UnknownPort => "unknown_port",
-            DropReason::PortClosed => "port_closed",
-            DropReason::PortLost => "port_lost",
-            DropReason::QueueFull => "queue_full",
-            DropReason::DuplicateStop => "duplicate_stop",
-            DropReason::SourceNotAllowed => "source_not_allowed",
-            DropReason::LinkDown => "link_down",
-            DropReason::LinkNoAck => "link_no_ack",
-            DropReason::OriginGone => "origin_gone",
-            DropReason::Unsolicited => "unsolicited",
-            DropReason::AmbiguousAnswer => "ambiguous_answer",
-            DropReason::PendingFull => "pending_full",
-            DropReason::ShuttingDown => "shutting_down",
-            DropReason::Expired => "expired",
-        }
+        self.code() as usize
     }
 
     /// What the origin of a command dropped for this reason is told
