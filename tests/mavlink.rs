@@ -441,3 +441,59 @@ fn check_names_the_file_line_column_and_key_and_exits_2() {
         "{err}"
     );
 }
+
+#[test]
+fn the_shipped_configuration_documents_every_key_and_passes_check() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/gimbal-mavlink.toml");
+    let text = std::fs::read_to_string(&path).expect("config/gimbal-mavlink.toml");
+    for key in [
+        "gcud",
+        "system_id",
+        "source_group",
+        "nic_window_ms",
+        "attitude_rate_hz",
+        "lease_ms",
+        "udp_listen",
+        "udp",
+        "name",
+        "address",
+        "component_id",
+        "pan_deg",
+        "tilt_deg",
+        "max_rate_dps",
+    ] {
+        assert!(
+            text.lines()
+                .any(|l| l.trim_start_matches(['#', ' ']).starts_with(&format!("{key} ="))),
+            "config/gimbal-mavlink.toml does not document {key}"
+        );
+    }
+    let out = Command::new(env!("CARGO_BIN_EXE_gimbal-mavlink"))
+        .args(["--check", "--config"])
+        .arg(&path)
+        .output()
+        .expect("run");
+    assert_eq!(out.status.code(), Some(0), "{out:?}");
+}
+
+#[test]
+fn the_shipped_unit_is_hardened_and_checks_its_configuration_first() {
+    let unit = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/gimbal-mavlink.service"))
+        .expect("config/gimbal-mavlink.service");
+    for line in [
+        "Type=notify",
+        "ExecStartPre=/usr/local/bin/gimbal-mavlink --check --config /etc/gimbal-mavlink/gimbal-mavlink.toml",
+        "ExecStart=/usr/local/bin/gimbal-mavlink --config /etc/gimbal-mavlink/gimbal-mavlink.toml",
+        "DynamicUser=yes",
+        "NoNewPrivileges=yes",
+        "CapabilityBoundingSet=",
+        "ProtectSystem=strict",
+        "PrivateDevices=yes",
+        "RestrictAddressFamilies=AF_INET AF_INET6 AF_UNIX",
+        "SystemCallFilter=@system-service",
+        "MemoryDenyWriteExecute=yes",
+        "KillSignal=SIGTERM",
+    ] {
+        assert!(unit.lines().any(|l| l.trim() == line), "the unit lacks {line:?}");
+    }
+}
