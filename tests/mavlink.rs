@@ -54,7 +54,9 @@ struct Stack {
     gcud: Gcud,
     mavlink: Option<Child>,
     dir: tempfile::TempDir,
+    /// The UDP endpoint's port, and the TCP endpoint's.
     port: u16,
+    tcp_port: u16,
 }
 
 fn mavlink_config(gcud: &str) -> String {
@@ -64,6 +66,8 @@ system_id = 1
 lease_ms = 1000
 [[endpoint]]
 udp_listen = "127.0.0.1:0"
+[[endpoint]]
+tcp_listen = "127.0.0.1:0"
 [[gimbal]]
 name = "mast-1"
 address = "{MAST}"
@@ -100,10 +104,13 @@ impl Stack {
             mavlink: Some(child),
             dir,
             port: 0,
+            tcp_port: 0,
         };
         support::wait_for_log_line(&stack.log_path(), "gimbal-mavlink ready");
         let line = support::wait_for_log_line(&stack.log_path(), "MAVLink UDP endpoint bound");
         stack.port = addr_field(&line).rsplit(':').next().unwrap().parse().expect("port");
+        let line = support::wait_for_log_line(&stack.log_path(), "MAVLink TCP endpoint listening");
+        stack.tcp_port = addr_field(&line).rsplit(':').next().unwrap().parse().expect("port");
         stack
     }
 
@@ -133,14 +140,19 @@ impl Stack {
         }
     }
 
-    /// Runs one step of the pymavlink ground station as `who`.
+    /// Runs one step of the pymavlink ground station as `who`, over UDP.
     fn gcs(&self, step: &str, who: (u8, u8), args: Value) -> Value {
+        self.gcs_over(&self.port.to_string(), step, who, args)
+    }
+
+    /// The same over `connection` (a UDP port, or pymavlink's `tcp:HOST:PORT`).
+    fn gcs_over(&self, connection: &str, step: &str, who: (u8, u8), args: Value) -> Value {
         let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/mavlink/gcs.py");
         let out = Command::new("python3")
             .arg(&script)
             .args([
                 step,
-                &self.port.to_string(),
+                connection,
                 &who.0.to_string(),
                 &who.1.to_string(),
                 &args.to_string(),
@@ -204,6 +216,26 @@ fn each_gimbal_sends_a_heartbeat_of_type_gimbal() {
         assert_eq!(hb["system"], 1, "{hb}");
         assert_eq!(hb["v2"], true, "MAVLink 2: {hb}");
     }
+}
+
+#[test]
+fn a_ground_station_over_tcp_sees_the_heartbeat_and_points_the_gimbal() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let tcp = format!("tcp:127.0.0.1:{}", stack.tcp_port);
+    let hb = stack.gcs_over(&tcp, "heartbeat", GCS, json!({}));
+    assert_eq!(hb["heartbeat"]["type"], 26, "{hb}");
+    let r = stack.gcs_over(&tcp, "pitchyaw", GCS, json!({ "pitch": -15.0, "yaw": 25.0 }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(
+        (pan - 25.0).abs() <= 0.5 && (tilt + 15.0).abs() <= 0.5,
+        "bus at {pan}, {tilt}"
+    );
+    let seen = stack.gcs_over(&tcp, "attitude", GCS, json!({ "pitch": -15.0, "yaw": 25.0 }));
+    assert_eq!(seen["reached"], true, "{seen}");
 }
 
 #[test]
@@ -437,7 +469,7 @@ fn check_names_the_file_line_column_and_key_and_exits_2() {
     assert_eq!(out.status.code(), Some(2), "{out:?}");
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains("m.toml:15:16: gimbal[1].component_id: expected a component id of its own"),
+        err.contains("m.toml:17:16: gimbal[1].component_id: expected a component id of its own"),
         "{err}"
     );
 }
@@ -455,6 +487,8 @@ fn the_shipped_configuration_documents_every_key_and_passes_check() {
         "lease_ms",
         "udp_listen",
         "udp",
+        "tcp_listen",
+        "tcp",
         "name",
         "address",
         "component_id",

@@ -57,6 +57,10 @@ pub enum Endpoint {
     UdpListen(SocketAddr),
     /// Sends to a ground station's address (and hears its answers).
     Udp(String),
+    /// Accepts TCP connections; sends to every one.
+    TcpListen(SocketAddr),
+    /// Keeps a TCP connection to a ground station open.
+    Tcp(String),
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -150,19 +154,21 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
                     .parse()
                     .map_err(|_| at(&format!("expected IP:PORT, found {:?}", value.get_ref())))?,
             ),
-            "udp"
-                if value
+            "tcp_listen" => Endpoint::TcpListen(
+                value
                     .get_ref()
-                    .rsplit_once(':')
-                    .is_some_and(|(_, p)| p.parse::<u16>().is_ok()) =>
-            {
-                Endpoint::Udp(value.get_ref().clone())
+                    .parse()
+                    .map_err(|_| at(&format!("expected IP:PORT, found {:?}", value.get_ref())))?,
+            ),
+            "udp" | "tcp" if !host_port(value.get_ref()) => {
+                return Err(at(&format!("expected HOST:PORT, found {:?}", value.get_ref())));
             }
-            "udp" => return Err(at(&format!("expected HOST:PORT, found {:?}", value.get_ref()))),
+            "udp" => Endpoint::Udp(value.get_ref().clone()),
+            "tcp" => Endpoint::Tcp(value.get_ref().clone()),
             _ => {
                 let _ = &e.baud;
                 return Err(at(
-                    "TCP and serial MAVLink endpoints are not supported yet (issue 25): use udp_listen or udp",
+                    "serial MAVLink endpoints are not supported yet (issue 25): use udp_listen, udp, tcp_listen or tcp",
                 ));
             }
         });
@@ -181,20 +187,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
                 "expected a name, not empty and not repeated",
             ));
         }
-        let address: Address = g.address.get_ref().parse().map_err(|_| {
-            c.at(
-                g.address.span(),
-                format!("{key}.address"),
-                "expected GROUP.PORT.DEVICE of one gimbal, e.g. \"5.1.1\"",
-            )
-        })?;
-        if [address.group, address.port, address.device].contains(&255) || address.device == 0 {
-            return Err(c.at(
-                g.address.span(),
-                format!("{key}.address"),
-                "expected the address of one gimbal (no wildcard 255, no control unit 0)",
-            ));
-        }
+        let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
         let component_id: u8 = c.int(&g.component_id, &format!("{key}.component_id"), 1, 255)?;
         if gimbals.iter().any(|x| x.component_id == component_id) {
             return Err(c.at(
@@ -203,8 +196,8 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
                 "expected a component id of its own (MAV_COMP_ID_GIMBAL 154, GIMBAL2..6 171..175)",
             ));
         }
-        let pan_deg = travel(&c, g.pan_deg.as_ref(), &format!("{key}.pan_deg"), (-180.0, 180.0))?;
-        let tilt_deg = travel(&c, g.tilt_deg.as_ref(), &format!("{key}.tilt_deg"), (-90.0, 90.0))?;
+        let pan_deg = c.travel(g.pan_deg.as_ref(), &format!("{key}.pan_deg"), (-180.0, 180.0))?;
+        let tilt_deg = c.travel(g.tilt_deg.as_ref(), &format!("{key}.tilt_deg"), (-90.0, 90.0))?;
         let max_rate_dps = match &g.max_rate_dps {
             Some(v) if *v.get_ref() > 0.0 && *v.get_ref() <= 655.35 => *v.get_ref(),
             Some(v) => {
@@ -240,22 +233,10 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     })
 }
 
-/// `[low, high]` degrees within what a position can carry (±327.67°, Table 15).
-fn travel(
-    c: &Source<'_>,
-    v: Option<&Spanned<Vec<f64>>>,
-    key: &str,
-    default: (f64, f64),
-) -> Result<(f64, f64), ConfigError> {
-    let Some(v) = v else { return Ok(default) };
-    match v.get_ref().as_slice() {
-        [low, high] if low < high && *low >= -327.67 && *high <= 327.67 => Ok((*low, *high)),
-        _ => Err(c.at(
-            v.span(),
-            key,
-            "expected [LOW, HIGH] degrees, LOW < HIGH, within -327.67..=327.67 (Table 15)",
-        )),
-    }
+/// Whether `v` looks like `HOST:PORT`.
+fn host_port(v: &str) -> bool {
+    v.rsplit_once(':')
+        .is_some_and(|(h, p)| !h.is_empty() && p.parse::<u16>().is_ok())
 }
 
 #[cfg(test)]
@@ -302,7 +283,14 @@ pan_deg = [-170.0, 170.0]
             err(&GOOD.replace("udp_listen = \"0.0.0.0:14560\"", "udp_listen = \"14560\""))
                 .contains("endpoint[0].udp_listen")
         );
-        assert!(err(&GOOD.replace("udp_listen", "tcp_listen")).contains("not supported yet"));
+        assert!(
+            err(&GOOD.replace("udp_listen = \"0.0.0.0:14560\"", "serial = \"/dev/ttyUSB0\""))
+                .contains("not supported yet")
+        );
+        assert!(
+            err(&GOOD.replace("udp_listen = \"0.0.0.0:14560\"", "tcp = \"gcs\""))
+                .contains("endpoint[0].tcp: expected HOST:PORT")
+        );
         assert!(err(&format!("{GOOD}colour = 1\n")).contains("colour"));
         assert!(
             err(&format!(

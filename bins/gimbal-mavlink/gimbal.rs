@@ -52,6 +52,8 @@ pub enum Work {
     Configure([f32; 4]),
     /// MAV_CMD_REQUEST_MESSAGE for a message id.
     Information(u32),
+    /// The program stops: stop the slew in force, then end the task.
+    Shutdown,
 }
 
 #[derive(Clone, Debug)]
@@ -150,6 +152,10 @@ impl Task {
             let lease_end = self.lease_end;
             tokio::select! {
                 job = jobs.recv() => match job {
+                    Some(Job { work: Work::Shutdown, .. }) => {
+                        self.stop_slew("shutting down").await;
+                        return;
+                    }
                     Some(job) => self.handle(job).await,
                     None => {
                         self.stop_slew("shutting down").await;
@@ -181,6 +187,7 @@ impl Task {
     async fn handle(&mut self, job: Job) {
         let Job { from, work } = job;
         match work {
+            Work::Shutdown => {}
             Work::Configure(params) => {
                 let mut control = self.control();
                 let result = match control.configure(from, params) {

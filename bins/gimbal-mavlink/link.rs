@@ -1,4 +1,4 @@
-//! MAVLink 2 over UDP: the endpoints (`udp_listen`: answer every address
+//! MAVLink 2 over UDP (TCP connections are `stream`'s): the endpoints (`udp_listen`: answer every address
 //! heard from; `udp`: a ground station's address), the outbox every
 //! component sends through (its own sequence numbers), and the counters of
 //! what came in. Frames are read and written by the `mavlink` crate.
@@ -15,6 +15,7 @@ use tokio::net::UdpSocket;
 use tracing::{debug, warn};
 
 use crate::config::Endpoint;
+use crate::stream::{Handler, Streams};
 
 /// The most peers a listening endpoint answers (the oldest heard is dropped).
 pub const MAX_PEERS: usize = 16;
@@ -74,11 +75,13 @@ pub struct Outbox {
     pub system_id: u8,
     started: Instant,
     ports: Vec<Port>,
+    /// The TCP connections (`stream`).
+    pub streams: Arc<Streams>,
     sequence: Mutex<HashMap<u8, u8>>,
 }
 
 impl Outbox {
-    /// Binds every endpoint.
+    /// Binds every UDP endpoint (the TCP ones are `stream`'s).
     pub async fn bind(system_id: u8, endpoints: &[Endpoint]) -> Result<Arc<Self>, String> {
         let mut ports = Vec::new();
         for (i, e) in endpoints.iter().enumerate() {
@@ -113,6 +116,7 @@ impl Outbox {
                         heard: Mutex::new(Vec::new()),
                     }
                 }
+                Endpoint::TcpListen(_) | Endpoint::Tcp(_) => continue,
             };
             ports.push(port);
         }
@@ -120,6 +124,7 @@ impl Outbox {
             system_id,
             started: Instant::now(),
             ports,
+            streams: Arc::new(Streams::default()),
             sequence: Mutex::new(HashMap::new()),
         }))
     }
@@ -153,6 +158,7 @@ impl Outbox {
             warn!(message = message.message_name(), error = %e, "cannot encode");
             return;
         }
+        self.streams.send(&bytes);
         for port in &self.ports {
             let peers: Vec<SocketAddr> = match port.fixed {
                 Some(to) => vec![to],
@@ -168,12 +174,7 @@ impl Outbox {
 
     /// Receives on endpoint `index` for ever, handing each intact message
     /// to `handle`.
-    pub async fn receive(
-        self: Arc<Self>,
-        index: usize,
-        stats: Arc<Stats>,
-        mut handle: impl FnMut(MavHeader, MavMessage),
-    ) {
+    pub async fn receive(self: Arc<Self>, index: usize, stats: Arc<Stats>, handle: Handler) {
         let port = &self.ports[index];
         let mut buf = vec![0u8; 65_536];
         loop {

@@ -13,6 +13,7 @@ mod inbox;
 mod link;
 mod motion;
 mod status;
+mod stream;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -103,46 +104,61 @@ async fn run(config: config::Config) -> Result<(), String> {
         handles.clone(),
         config.attitude_period,
     ));
+    // Answers that need no gimbal task (an unsupported command) go out
+    // through this queue, so that a receiver never waits on a send.
+    let (answers, mut answer_rx) = tokio::sync::mpsc::channel::<(u8, MavMessage)>(64);
+    let sender = Arc::clone(&outbox);
+    tasks.spawn(async move {
+        while let Some((component, message)) = answer_rx.recv().await {
+            sender.send(component, &message).await;
+        }
+    });
+    let handler: stream::Handler = {
+        let (handles, stats, system_id) = (handles.clone(), Arc::clone(&stats), config.system_id);
+        Arc::new(move |header, message| {
+            let route = inbox::route(&handles, system_id, header, &message);
+            inbox::count(&route, &stats);
+            match route {
+                inbox::Route::Gimbal(i, job) => {
+                    if handles[i].jobs.try_send(job).is_err() {
+                        let total = Stats::count(&stats.busy);
+                        warn!(gimbal = %handles[i].config.name, total, "request queue full: request dropped");
+                    }
+                }
+                inbox::Route::Answer(component, command, result) => {
+                    let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+                        command,
+                        result,
+                        target_system: header.system_id,
+                        target_component: header.component_id,
+                        ..COMMAND_ACK_DATA::DEFAULT
+                    });
+                    let _ = answers.try_send((component, ack));
+                }
+                inbox::Route::Ignore => {}
+            }
+        })
+    };
     for (index, addr) in outbox.local_addrs().into_iter().enumerate() {
         info!(endpoint = index, %addr, "MAVLink UDP endpoint bound");
-        let handles = handles.clone();
-        let (stats, out) = (Arc::clone(&stats), Arc::clone(&outbox));
-        let system_id = config.system_id;
-        // Answers that need no gimbal task (an unsupported command) go out
-        // through this queue, so that the receiver never waits on a send.
-        let (answers, mut answer_rx) = tokio::sync::mpsc::channel::<(u8, MavMessage)>(64);
-        let sender = Arc::clone(&outbox);
-        tasks.spawn(async move {
-            while let Some((component, message)) = answer_rx.recv().await {
-                sender.send(component, &message).await;
+        tasks.spawn(Arc::clone(&outbox).receive(index, Arc::clone(&stats), Arc::clone(&handler)));
+    }
+    for (i, endpoint) in config.endpoints.iter().enumerate() {
+        let (streams, stats, handler) = (Arc::clone(&outbox.streams), Arc::clone(&stats), Arc::clone(&handler));
+        match endpoint {
+            config::Endpoint::TcpListen(addr) => {
+                let listener = tokio::net::TcpListener::bind(addr)
+                    .await
+                    .map_err(|e| format!("endpoint[{i}] tcp_listen {addr}: {e}"))?;
+                let bound = listener.local_addr().map_err(|e| e.to_string())?;
+                info!(endpoint = i, addr = %bound, "MAVLink TCP endpoint listening");
+                tasks.spawn(stream::listen(listener, streams, stats, handler));
             }
-        });
-        tasks.spawn(
-            Arc::clone(&outbox).receive(index, Arc::clone(&stats), move |header, message| {
-                let route = inbox::route(&handles, system_id, header, &message);
-                inbox::count(&route, &stats);
-                match route {
-                    inbox::Route::Gimbal(i, job) => {
-                        if handles[i].jobs.try_send(job).is_err() {
-                            let total = Stats::count(&stats.busy);
-                            warn!(gimbal = %handles[i].config.name, total, "request queue full: request dropped");
-                        }
-                    }
-                    inbox::Route::Answer(component, command, result) => {
-                        let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
-                            command,
-                            result,
-                            target_system: header.system_id,
-                            target_component: header.component_id,
-                            ..COMMAND_ACK_DATA::DEFAULT
-                        });
-                        let _ = answers.try_send((component, ack));
-                    }
-                    inbox::Route::Ignore => {}
-                }
-            }),
-        );
-        let _ = out;
+            config::Endpoint::Tcp(to) => {
+                tasks.spawn(stream::connect(to.clone(), streams, stats, handler));
+            }
+            config::Endpoint::UdpListen(_) | config::Endpoint::Udp(_) => {}
+        }
     }
     let _ = sd_notify::notify(&[sd_notify::NotifyState::Ready]);
     info!(gimbals = handles.len(), gcud = %config.gcud, system_id = config.system_id, "gimbal-mavlink ready");
@@ -152,11 +168,18 @@ async fn run(config: config::Config) -> Result<(), String> {
     };
     info!(signal, "stopping: the slews this service started are stopped");
     let _ = sd_notify::notify(&[sd_notify::NotifyState::Stopping]);
-    // The receivers hold the other handles: stop them, then the gimbal
-    // tasks see their queues close and stop their slews.
+    // Receive no more; each gimbal task stops the slews it started.
     tasks.abort_all();
     while tasks.join_next().await.is_some() {}
-    drop(handles);
+    for h in &handles {
+        let _ = h
+            .jobs
+            .send(gimbal::Job {
+                from: (0, 0),
+                work: gimbal::Work::Shutdown,
+            })
+            .await;
+    }
     for t in gimbal_tasks {
         let _ = t.await;
     }

@@ -3,6 +3,7 @@ and ArduPilot's tooling is built on), driving gimbal-mavlink for
 tests/mavlink.rs.
 
 Usage: python3 gcs.py STEP PORT SYSID COMPID [ARGS_JSON]
+(PORT may also be a pymavlink connection string, tcp:127.0.0.1:PORT.)
 
 Each STEP opens a UDP socket to gimbal-mavlink's udp_listen endpoint on
 127.0.0.1:PORT as system SYSID, component COMPID, sends a HEARTBEAT (so
@@ -32,9 +33,9 @@ WAIT_S = 15.0
 
 
 def connect(port, sysid, compid):
-    m = mavutil.mavlink_connection(
-        f"udpout:127.0.0.1:{port}", source_system=sysid, source_component=compid, dialect="common"
-    )
+    """UDP to 127.0.0.1:PORT, or the connection PORT names (tcp:HOST:PORT)."""
+    url = port if ":" in port else f"udpout:127.0.0.1:{port}"
+    m = mavutil.mavlink_connection(url, source_system=sysid, source_component=compid, dialect="common")
     assert m.mavlink20(), "pymavlink speaks MAVLink 2"
     m.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
     return m
@@ -194,7 +195,7 @@ STEPS = {name[5:]: f for name, f in globals().items() if name.startswith("step_"
 
 
 def main():
-    step, port, sysid, compid = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
+    step, port, sysid, compid = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
     args = json.loads(sys.argv[5]) if len(sys.argv) > 5 else {}
     m = connect(port, sysid, compid)
     out = STEPS[step](m, args)
