@@ -59,11 +59,11 @@ struct Stack {
     tcp_port: u16,
 }
 
-fn mavlink_config(gcud: &str) -> String {
+fn mavlink_config(gcud: &str, lease_ms: u64) -> String {
     format!(
         r#"gcud = "{gcud}"
 system_id = 1
-lease_ms = 1000
+lease_ms = {lease_ms}
 [[endpoint]]
 udp_listen = "127.0.0.1:0"
 [[endpoint]]
@@ -84,12 +84,16 @@ component_id = 171
 
 impl Stack {
     fn start() -> Self {
+        Self::start_with_lease(1000)
+    }
+
+    fn start_with_lease(lease_ms: u64) -> Self {
         let gcud = Gcud::start(&format!(
             "[gcu]\ngroup = 5\n[[port]]\nid = 1\nsimulate = [1]\n[[port]]\nid = 2\nsimulate = [1]\n{CLIENTS}"
         ));
         let dir = tempfile::tempdir().expect("temp dir");
         let config = dir.path().join("gimbal-mavlink.toml");
-        std::fs::write(&config, mavlink_config(&gcud.clients())).expect("write config");
+        std::fs::write(&config, mavlink_config(&gcud.clients(), lease_ms)).expect("write config");
         let log = std::fs::File::create(dir.path().join("gimbal-mavlink.log")).expect("log file");
         let child = Command::new(env!("CARGO_BIN_EXE_gimbal-mavlink"))
             .arg("--config")
@@ -397,6 +401,25 @@ fn sigkill_of_gimbal_mavlink_mid_slew_and_the_gimbal_stops() {
 }
 
 #[test]
+fn sigterm_stops_the_slew_gimbal_mavlink_started() {
+    if !client_available() {
+        return;
+    }
+    let mut stack = Stack::start_with_lease(60_000);
+    // A 60 s lease: only gimbal-mavlink's own stop at SIGTERM ends it early.
+    let r = stack.gcs("pitchyaw", GCS, json!({ "pitch_rate": 20.0 }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    stack.wait_moving((0.0, 0.0));
+    let status = stack.signal(nix::sys::signal::Signal::SIGTERM);
+    assert!(status.success(), "{status:?}");
+    let (_, tilt) = stack.gcud.settled_position(MAST);
+    assert!(tilt > 0.0 && tilt < 80.0, "stopped short of the end: {tilt}");
+    assert!(stack.log().contains("why=\"shutting down\""), "{}", stack.log());
+    // gimbal-mavlink stopped it itself: nothing was left for gcud's dead-man.
+    assert!(!stack.gcud.log().contains("dead-man"), "{}", stack.gcud.log());
+}
+
+#[test]
 fn bad_input_is_counted_and_refused_never_a_panic_and_nothing_moves() {
     if !client_available() {
         return;
@@ -458,7 +481,7 @@ fn check_names_the_file_line_column_and_key_and_exits_2() {
     let path = dir.path().join("m.toml");
     std::fs::write(
         &path,
-        mavlink_config("127.0.0.1:4001").replace("component_id = 171", "component_id = 154"),
+        mavlink_config("127.0.0.1:4001", 1000).replace("component_id = 171", "component_id = 154"),
     )
     .expect("write");
     let out = Command::new(env!("CARGO_BIN_EXE_gimbal-mavlink"))
