@@ -7,6 +7,7 @@ use std::fmt;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
+use sagebrush_protocol::Address;
 use serde::de::DeserializeOwned;
 use toml::Spanned;
 
@@ -84,6 +85,45 @@ impl<'a> Source<'a> {
             ));
         }
         T::try_from(value).map_err(|_| self.at(v.span(), key, format!("expected an integer {min}..={max}")))
+    }
+
+    /// The address of one gimbal (`GROUP.PORT.DEVICE`, 1.4.1): no
+    /// wildcard 255, no control unit 0.
+    pub fn gimbal_address(&self, v: &Spanned<String>, key: &str) -> Result<Address, ConfigError> {
+        let address: Address = v.get_ref().parse().map_err(|_| {
+            self.at(
+                v.span(),
+                key,
+                "expected GROUP.PORT.DEVICE of one gimbal, e.g. \"5.1.1\"",
+            )
+        })?;
+        if [address.group, address.port, address.device].contains(&255) || address.device == 0 {
+            return Err(self.at(
+                v.span(),
+                key,
+                "expected the address of one gimbal (no wildcard 255, no control unit 0)",
+            ));
+        }
+        Ok(address)
+    }
+
+    /// A travel `[LOW, HIGH]` in degrees within what a position can carry
+    /// (±327.67°, Table 15); `default` when not given.
+    pub fn travel(
+        &self,
+        v: Option<&Spanned<Vec<f64>>>,
+        key: &str,
+        default: (f64, f64),
+    ) -> Result<(f64, f64), ConfigError> {
+        let Some(v) = v else { return Ok(default) };
+        match v.get_ref().as_slice() {
+            [low, high] if low < high && *low >= -327.67 && *high <= 327.67 => Ok((*low, *high)),
+            _ => Err(self.at(
+                v.span(),
+                key,
+                "expected [LOW, HIGH] degrees, LOW < HIGH, within -327.67..=327.67 (Table 15)",
+            )),
+        }
     }
 
     /// The text parsed as `T` (the TOML syntax, then the shape: unknown
@@ -205,6 +245,15 @@ mod tests {
         let src = Source::new(file, text);
         let doc: Doc = src.deserialize().unwrap();
         let e = src.int::<u8>(&doc.count, "count", 1, 254).unwrap_err();
+        let at = |s: &str| Spanned::new(1..2, s.to_owned());
+        assert_eq!(src.gimbal_address(&at("5.1.1"), "a"), Ok(Address::new(5, 1, 1)));
+        for bad in ["5.1", "5.1.0", "5.255.1", "x"] {
+            assert!(src.gimbal_address(&at(bad), "a").is_err(), "{bad}");
+        }
+        let travel = |v: Vec<f64>| src.travel(Some(&Spanned::new(1..2, v)), "t", (0.0, 1.0));
+        assert_eq!(travel(vec![-10.0, 10.0]), Ok((-10.0, 10.0)));
+        assert!(travel(vec![10.0, -10.0]).is_err() && travel(vec![0.0, 400.0]).is_err() && travel(vec![1.0]).is_err());
+        assert_eq!(src.travel(None, "t", (0.0, 1.0)), Ok((0.0, 1.0)));
         assert_eq!(
             e.to_string(),
             "x.toml:2:9: count: expected an integer 1..=254, found 300"

@@ -8,12 +8,16 @@
 //! - [`client`]: a connection to a bus or to gcud's client listener: send a
 //!   command to an address and await its ACK, result or delivery report,
 //!   each failure a [`client::CommandError`]; poll the position.
+//! - [`connection`]: one gimbal behind gcud over a connection of its own,
+//!   opened when needed and renewed after a failure; `P?` and `D?`.
 //! - [`config_file`]: TOML configuration read with bounds, every error at
 //!   its file:line:column with its key and what was expected.
 
 pub mod client;
 pub mod codec;
 pub mod config_file;
+pub mod connection;
 pub mod master;
 
 pub use client::{Client, CommandError, GcudClient};
+pub use connection::{GimbalConnection, Identity};

@@ -1,0 +1,302 @@
+//! `gimbal-mavlink --config FILE`: the TOML configuration (every key is
+//! documented in `config/gimbal-mavlink.toml`), parsed with serde and then
+//! validated; every error names the file, the line and column, the key and
+//! what was expected (`--check` prints it and exits 2), through
+//! [`sagebrush_client::config_file`] as gcud's and gimbal-onvif's.
+
+use std::net::SocketAddr;
+use std::path::Path;
+use std::time::Duration;
+
+use sagebrush_client::config_file::{self, ConfigError, Source};
+use sagebrush_protocol::Address;
+use serde::Deserialize;
+use toml::Spanned;
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ConfigFile {
+    gcud: Spanned<String>,
+    system_id: Spanned<i64>,
+    source_group: Option<Spanned<i64>>,
+    nic_window_ms: Option<Spanned<i64>>,
+    attitude_rate_hz: Option<Spanned<f64>>,
+    lease_ms: Option<Spanned<i64>>,
+    #[serde(default, rename = "endpoint")]
+    endpoints: Vec<EndpointSection>,
+    #[serde(default, rename = "gimbal")]
+    gimbals: Vec<GimbalSection>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct EndpointSection {
+    udp_listen: Option<Spanned<String>>,
+    udp: Option<Spanned<String>>,
+    tcp_listen: Option<Spanned<String>>,
+    tcp: Option<Spanned<String>>,
+    serial: Option<Spanned<String>>,
+    baud: Option<Spanned<i64>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GimbalSection {
+    name: Spanned<String>,
+    address: Spanned<String>,
+    component_id: Spanned<i64>,
+    pan_deg: Option<Spanned<Vec<f64>>>,
+    tilt_deg: Option<Spanned<Vec<f64>>>,
+    max_rate_dps: Option<Spanned<f64>>,
+}
+
+/// Where MAVLink comes and goes.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Endpoint {
+    /// Listens; sends to every address it has heard from.
+    UdpListen(SocketAddr),
+    /// Sends to a ground station's address (and hears its answers).
+    Udp(String),
+    /// Accepts TCP connections; sends to every one.
+    TcpListen(SocketAddr),
+    /// Keeps a TCP connection to a ground station open.
+    Tcp(String),
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Gimbal {
+    pub name: String,
+    pub address: Address,
+    /// The MAVLink component id of this gimbal manager and device.
+    pub component_id: u8,
+    /// Travel, degrees: pan (MAVLink yaw) and tilt (MAVLink pitch).
+    pub pan_deg: (f64, f64),
+    pub tilt_deg: (f64, f64),
+    /// Proportional speed F (Table 11) in degrees per second.
+    pub max_rate_dps: f64,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Config {
+    pub gcud: String,
+    pub system_id: u8,
+    pub source_group: u8,
+    pub nic_window: Duration,
+    /// GIMBAL_DEVICE_ATTITUDE_STATUS (and `P?` poll) period.
+    pub attitude_period: Duration,
+    /// A rate not refreshed within this is stopped.
+    pub lease: Duration,
+    pub endpoints: Vec<Endpoint>,
+    pub gimbals: Vec<Gimbal>,
+}
+
+/// Reads and validates `file`.
+pub fn load(file: &Path) -> Result<Config, ConfigError> {
+    let text = config_file::read(file)?;
+    parse(file, &text)
+}
+
+/// Parses and validates configuration `text` read from `file`.
+pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
+    let c = Source::new(file, text);
+    let raw: ConfigFile = c.deserialize()?;
+    let gcud = raw.gcud.get_ref().clone();
+    if !gcud.contains(':') {
+        return Err(c.at(raw.gcud.span(), "gcud", "expected HOST:PORT of gcud's client listener"));
+    }
+    let system_id = c.int(&raw.system_id, "system_id", 1, 255)?;
+    let source_group = match &raw.source_group {
+        Some(v) => c.int(v, "source_group", 0, 254)?,
+        None => 0,
+    };
+    let nic_window_ms: u64 = match &raw.nic_window_ms {
+        Some(v) => c.int(v, "nic_window_ms", 10, 1000)?,
+        None => 100,
+    };
+    let attitude_period = match &raw.attitude_rate_hz {
+        Some(v) if (0.2..=50.0).contains(v.get_ref()) => Duration::from_secs_f64(1.0 / v.get_ref()),
+        Some(v) => {
+            return Err(c.at(
+                v.span(),
+                "attitude_rate_hz",
+                format!("expected a rate 0.2..=50.0 Hz, found {}", v.get_ref()),
+            ));
+        }
+        None => Duration::from_millis(200),
+    };
+    let lease_ms: u64 = match &raw.lease_ms {
+        Some(v) => c.int(v, "lease_ms", 100, 60_000)?,
+        None => 1000,
+    };
+    let mut endpoints = Vec::new();
+    for (i, e) in raw.endpoints.iter().enumerate() {
+        let key = format!("endpoint[{i}]");
+        let given = [
+            e.udp_listen.as_ref().map(|v| ("udp_listen", v)),
+            e.udp.as_ref().map(|v| ("udp", v)),
+            e.tcp_listen.as_ref().map(|v| ("tcp_listen", v)),
+            e.tcp.as_ref().map(|v| ("tcp", v)),
+            e.serial.as_ref().map(|v| ("serial", v)),
+        ];
+        let mut given = given.into_iter().flatten();
+        let (Some((kind, value)), None) = (given.next(), given.next()) else {
+            return Err(c.at(
+                0..0,
+                key,
+                "expected exactly one of udp_listen, udp, tcp_listen, tcp or serial",
+            ));
+        };
+        let at = |m: &str| c.at(value.span(), format!("{key}.{kind}"), m.to_owned());
+        endpoints.push(match kind {
+            "udp_listen" => Endpoint::UdpListen(
+                value
+                    .get_ref()
+                    .parse()
+                    .map_err(|_| at(&format!("expected IP:PORT, found {:?}", value.get_ref())))?,
+            ),
+            "tcp_listen" => Endpoint::TcpListen(
+                value
+                    .get_ref()
+                    .parse()
+                    .map_err(|_| at(&format!("expected IP:PORT, found {:?}", value.get_ref())))?,
+            ),
+            "udp" | "tcp" if !host_port(value.get_ref()) => {
+                return Err(at(&format!("expected HOST:PORT, found {:?}", value.get_ref())));
+            }
+            "udp" => Endpoint::Udp(value.get_ref().clone()),
+            "tcp" => Endpoint::Tcp(value.get_ref().clone()),
+            _ => {
+                let _ = &e.baud;
+                return Err(at(
+                    "serial MAVLink endpoints are not supported yet (issue 25): use udp_listen, udp, tcp_listen or tcp",
+                ));
+            }
+        });
+    }
+    if endpoints.is_empty() {
+        return Err(c.at(0..0, "endpoint", "expected at least one [[endpoint]]"));
+    }
+    let mut gimbals: Vec<Gimbal> = Vec::new();
+    for (i, g) in raw.gimbals.iter().enumerate() {
+        let key = format!("gimbal[{i}]");
+        let name = g.name.get_ref().clone();
+        if name.is_empty() || gimbals.iter().any(|x| x.name == name) {
+            return Err(c.at(
+                g.name.span(),
+                format!("{key}.name"),
+                "expected a name, not empty and not repeated",
+            ));
+        }
+        let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
+        let component_id: u8 = c.int(&g.component_id, &format!("{key}.component_id"), 1, 255)?;
+        if gimbals.iter().any(|x| x.component_id == component_id) {
+            return Err(c.at(
+                g.component_id.span(),
+                format!("{key}.component_id"),
+                "expected a component id of its own (MAV_COMP_ID_GIMBAL 154, GIMBAL2..6 171..175)",
+            ));
+        }
+        let pan_deg = c.travel(g.pan_deg.as_ref(), &format!("{key}.pan_deg"), (-180.0, 180.0))?;
+        let tilt_deg = c.travel(g.tilt_deg.as_ref(), &format!("{key}.tilt_deg"), (-90.0, 90.0))?;
+        let max_rate_dps = match &g.max_rate_dps {
+            Some(v) if *v.get_ref() > 0.0 && *v.get_ref() <= 655.35 => *v.get_ref(),
+            Some(v) => {
+                return Err(c.at(
+                    v.span(),
+                    format!("{key}.max_rate_dps"),
+                    "expected degrees per second, above 0 and at most 655.35 (Table 12)",
+                ));
+            }
+            None => 120.0,
+        };
+        gimbals.push(Gimbal {
+            name,
+            address,
+            component_id,
+            pan_deg,
+            tilt_deg,
+            max_rate_dps,
+        });
+    }
+    if gimbals.is_empty() {
+        return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
+    }
+    Ok(Config {
+        gcud,
+        system_id,
+        source_group,
+        nic_window: Duration::from_millis(nic_window_ms),
+        attitude_period,
+        lease: Duration::from_millis(lease_ms),
+        endpoints,
+        gimbals,
+    })
+}
+
+/// Whether `v` looks like `HOST:PORT`.
+fn host_port(v: &str) -> bool {
+    v.rsplit_once(':')
+        .is_some_and(|(h, p)| !h.is_empty() && p.parse::<u16>().is_ok())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+gcud = "127.0.0.1:4001"
+system_id = 1
+[[endpoint]]
+udp_listen = "0.0.0.0:14560"
+[[gimbal]]
+name = "mast-1"
+address = "5.1.1"
+component_id = 154
+pan_deg = [-170.0, 170.0]
+"#;
+
+    fn err(text: &str) -> String {
+        parse(Path::new("m.toml"), text).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn a_good_file_and_its_defaults() {
+        let c = parse(Path::new("m.toml"), GOOD).unwrap();
+        assert_eq!(c.gimbals[0].address, Address::new(5, 1, 1));
+        assert_eq!(c.gimbals[0].pan_deg, (-170.0, 170.0));
+        assert_eq!(c.gimbals[0].tilt_deg, (-90.0, 90.0));
+        assert_eq!(c.gimbals[0].component_id, 154);
+        assert_eq!(c.attitude_period, Duration::from_millis(200));
+        assert_eq!(c.lease, Duration::from_secs(1));
+        assert_eq!(c.endpoints, [Endpoint::UdpListen("0.0.0.0:14560".parse().unwrap())]);
+    }
+
+    #[test]
+    fn errors_name_the_place_and_what_was_expected() {
+        assert_eq!(
+            err(&GOOD.replace("\"5.1.1\"", "\"5.1\"")),
+            "m.toml:8:11: gimbal[0].address: expected GROUP.PORT.DEVICE of one gimbal, e.g. \"5.1.1\""
+        );
+        assert!(err(&GOOD.replace("system_id = 1", "system_id = 0")).starts_with("m.toml:3:13: system_id: expected"));
+        assert!(err(&GOOD.replace("[-170.0, 170.0]", "[10.0, -10.0]")).starts_with("m.toml:10:11: gimbal[0].pan_deg"));
+        assert!(
+            err(&GOOD.replace("udp_listen = \"0.0.0.0:14560\"", "udp_listen = \"14560\""))
+                .contains("endpoint[0].udp_listen")
+        );
+        assert!(
+            err(&GOOD.replace("udp_listen = \"0.0.0.0:14560\"", "serial = \"/dev/ttyUSB0\""))
+                .contains("not supported yet")
+        );
+        assert!(
+            err(&GOOD.replace("udp_listen = \"0.0.0.0:14560\"", "tcp = \"gcs\""))
+                .contains("endpoint[0].tcp: expected HOST:PORT")
+        );
+        assert!(err(&format!("{GOOD}colour = 1\n")).contains("colour"));
+        assert!(
+            err(&format!(
+                "{GOOD}[[gimbal]]\nname = \"b\"\naddress = \"5.1.2\"\ncomponent_id = 154\n"
+            ))
+            .contains("gimbal[1].component_id")
+        );
+    }
+}

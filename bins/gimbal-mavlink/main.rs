@@ -1,0 +1,188 @@
+//! `gimbal-mavlink`: a MAVLink Gimbal Protocol v2 gimbal manager in front
+//! of gcud (issue 25). Each configured gimbal is a gimbal manager and
+//! gimbal device with its own component id; every command goes to gcud's
+//! client listener over that gimbal's own connection, so gcud stays the
+//! only master of the buses and its dead-man stops what this program
+//! started if it dies.
+
+mod config;
+mod control;
+mod frames;
+mod gimbal;
+mod inbox;
+mod link;
+mod motion;
+mod status;
+mod stream;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+
+use clap::Parser;
+use mavlink::dialects::common::{COMMAND_ACK_DATA, MavMessage};
+use tokio::signal::unix::{SignalKind, signal};
+use tracing::{error, info, warn};
+
+use crate::link::{Outbox, Stats};
+
+/// Exit code of a configuration error (`--check` or start-up), as gcud's.
+const EXIT_CONFIG: u8 = 2;
+/// Exit code of a failure to start (an address in use).
+const EXIT_START: u8 = 1;
+
+/// MAVLink Gimbal Protocol v2 (gimbal manager and device) for the gimbals behind gcud.
+#[derive(Debug, Parser)]
+#[command(version)]
+struct Args {
+    /// The configuration file (config/gimbal-mavlink.toml documents every key).
+    #[arg(long, value_name = "FILE")]
+    config: PathBuf,
+    /// Validate the configuration and exit: 0 valid, 2 invalid (file:line:column, key, what was expected).
+    #[arg(long)]
+    check: bool,
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    let config = match config::load(&args.config) {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("gimbal-mavlink: {e}");
+            return ExitCode::from(EXIT_CONFIG);
+        }
+    };
+    if args.check {
+        println!(
+            "{}: valid ({} gimbal(s), {} endpoint(s))",
+            args.config.display(),
+            config.gimbals.len(),
+            config.endpoints.len()
+        );
+        return ExitCode::SUCCESS;
+    }
+    if let Err(e) = sagebrush_host::logging::init("info", false) {
+        eprintln!("gimbal-mavlink: {e}");
+        return ExitCode::from(EXIT_CONFIG);
+    }
+    let runtime = match tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+    {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("gimbal-mavlink: cannot start the runtime: {e}");
+            return ExitCode::from(EXIT_START);
+        }
+    };
+    match runtime.block_on(run(config)) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            error!("{e}");
+            eprintln!("gimbal-mavlink: {e}");
+            ExitCode::from(EXIT_START)
+        }
+    }
+}
+
+async fn run(config: config::Config) -> Result<(), String> {
+    let mut term = signal(SignalKind::terminate()).map_err(|e| e.to_string())?;
+    let mut int = signal(SignalKind::interrupt()).map_err(|e| e.to_string())?;
+    let outbox = Outbox::bind(config.system_id, &config.endpoints).await?;
+    let stats = Arc::new(Stats::default());
+    let mut handles = Vec::new();
+    let mut gimbal_tasks = Vec::new();
+    for g in &config.gimbals {
+        let (handle, join) = gimbal::spawn(g, &config, Arc::clone(&outbox), Arc::clone(&stats));
+        handles.push(handle);
+        gimbal_tasks.push(join);
+    }
+    let mut tasks = tokio::task::JoinSet::new();
+    tasks.spawn(status::run(
+        Arc::clone(&outbox),
+        handles.clone(),
+        config.attitude_period,
+    ));
+    // Answers that need no gimbal task (an unsupported command) go out
+    // through this queue, so that a receiver never waits on a send.
+    let (answers, mut answer_rx) = tokio::sync::mpsc::channel::<(u8, MavMessage)>(64);
+    let sender = Arc::clone(&outbox);
+    tasks.spawn(async move {
+        while let Some((component, message)) = answer_rx.recv().await {
+            sender.send(component, &message).await;
+        }
+    });
+    let handler: stream::Handler = {
+        let (handles, stats, system_id) = (handles.clone(), Arc::clone(&stats), config.system_id);
+        Arc::new(move |header, message| {
+            let route = inbox::route(&handles, system_id, header, &message);
+            inbox::count(&route, &stats);
+            match route {
+                inbox::Route::Gimbal(i, job) => {
+                    if handles[i].jobs.try_send(job).is_err() {
+                        let total = Stats::count(&stats.busy);
+                        warn!(gimbal = %handles[i].config.name, total, "request queue full: request dropped");
+                    }
+                }
+                inbox::Route::Answer(component, command, result) => {
+                    let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+                        command,
+                        result,
+                        target_system: header.system_id,
+                        target_component: header.component_id,
+                        ..COMMAND_ACK_DATA::DEFAULT
+                    });
+                    let _ = answers.try_send((component, ack));
+                }
+                inbox::Route::Ignore => {}
+            }
+        })
+    };
+    for (index, addr) in outbox.local_addrs().into_iter().enumerate() {
+        info!(endpoint = index, %addr, "MAVLink UDP endpoint bound");
+        tasks.spawn(Arc::clone(&outbox).receive(index, Arc::clone(&stats), Arc::clone(&handler)));
+    }
+    for (i, endpoint) in config.endpoints.iter().enumerate() {
+        let (streams, stats, handler) = (Arc::clone(&outbox.streams), Arc::clone(&stats), Arc::clone(&handler));
+        match endpoint {
+            config::Endpoint::TcpListen(addr) => {
+                let listener = tokio::net::TcpListener::bind(addr)
+                    .await
+                    .map_err(|e| format!("endpoint[{i}] tcp_listen {addr}: {e}"))?;
+                let bound = listener.local_addr().map_err(|e| e.to_string())?;
+                info!(endpoint = i, addr = %bound, "MAVLink TCP endpoint listening");
+                tasks.spawn(stream::listen(listener, streams, stats, handler));
+            }
+            config::Endpoint::Tcp(to) => {
+                tasks.spawn(stream::connect(to.clone(), streams, stats, handler));
+            }
+            config::Endpoint::UdpListen(_) | config::Endpoint::Udp(_) => {}
+        }
+    }
+    let _ = sd_notify::notify(&[sd_notify::NotifyState::Ready]);
+    info!(gimbals = handles.len(), gcud = %config.gcud, system_id = config.system_id, "gimbal-mavlink ready");
+    let signal = tokio::select! {
+        _ = term.recv() => "SIGTERM",
+        _ = int.recv() => "SIGINT",
+    };
+    info!(signal, "stopping: the slews this service started are stopped");
+    let _ = sd_notify::notify(&[sd_notify::NotifyState::Stopping]);
+    // Receive no more; each gimbal task stops the slews it started.
+    tasks.abort_all();
+    while tasks.join_next().await.is_some() {}
+    for h in &handles {
+        let _ = h
+            .jobs
+            .send(gimbal::Job {
+                from: (0, 0),
+                work: gimbal::Work::Shutdown,
+            })
+            .await;
+    }
+    for t in gimbal_tasks {
+        let _ = t.await;
+    }
+    info!(counters = %stats.summary(), "stopped");
+    Ok(())
+}

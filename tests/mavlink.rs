@@ -1,0 +1,556 @@
+//! End-to-end tests of `gimbal-mavlink` (issue 25): the real gcud with
+//! simulated gimbal buses, the real gimbal-mavlink in front of it, driven
+//! by a third-party MAVLink library from PyPI (pymavlink) through
+//! `tests/mavlink/gcs.py`. What the gimbal did is read on the bus side,
+//! with `gimbalctl position` through gcud, never from gimbal-mavlink's own
+//! account. Everything is on 127.0.0.1; waits are polls with a hang guard,
+//! never wall-clock assertions.
+//!
+//! Without Python and pymavlink (and numpy, which its quaternion module
+//! needs) the client tests are skipped with a notice, except under
+//! `CI=true`, where they fail.
+
+mod support;
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::{Value, json};
+use support::gcud::{CLIENTS, Gcud};
+use support::{HANG_GUARD, addr_field, eventually};
+
+const MAST: &str = "5.1.1";
+/// MAV_RESULT values (common.xml).
+const ACCEPTED: i64 = 0;
+const DENIED: i64 = 2;
+const UNSUPPORTED: i64 = 3;
+const FAILED: i64 = 4;
+/// The ground station's ids, and another component of the same system.
+const GCS: (u8, u8) = (255, 190);
+const OTHER: (u8, u8) = (255, 191);
+
+fn client_available() -> bool {
+    let ok = Command::new("python3")
+        .args(["-c", "import pymavlink.mavutil, pymavlink.quaternion"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !ok {
+        let msg = "python3 with pymavlink and numpy is missing (.ci/run installs them: \
+                   pip install pymavlink==2.4.50 numpy==2.4.6)";
+        if std::env::var("CI").is_ok_and(|v| v == "true") {
+            panic!("{msg}");
+        }
+        eprintln!("SKIPPED: {msg}");
+    }
+    ok
+}
+
+/// gcud with two simulated buses (the mast gimbal on bus 1; bus 2 has no
+/// device 9, the absent gimbal) and gimbal-mavlink in front of it.
+struct Stack {
+    gcud: Gcud,
+    mavlink: Option<Child>,
+    dir: tempfile::TempDir,
+    /// The UDP endpoint's port, and the TCP endpoint's.
+    port: u16,
+    tcp_port: u16,
+}
+
+fn mavlink_config(gcud: &str, lease_ms: u64) -> String {
+    format!(
+        r#"gcud = "{gcud}"
+system_id = 1
+lease_ms = {lease_ms}
+[[endpoint]]
+udp_listen = "127.0.0.1:0"
+[[endpoint]]
+tcp_listen = "127.0.0.1:0"
+[[gimbal]]
+name = "mast-1"
+address = "{MAST}"
+component_id = 154
+pan_deg = [-180.0, 180.0]
+tilt_deg = [-90.0, 90.0]
+[[gimbal]]
+name = "absent"
+address = "5.2.9"
+component_id = 171
+"#
+    )
+}
+
+impl Stack {
+    fn start() -> Self {
+        Self::start_with_lease(1000)
+    }
+
+    fn start_with_lease(lease_ms: u64) -> Self {
+        let gcud = Gcud::start(&format!(
+            "[gcu]\ngroup = 5\n[[port]]\nid = 1\nsimulate = [1]\n[[port]]\nid = 2\nsimulate = [1]\n{CLIENTS}"
+        ));
+        let dir = tempfile::tempdir().expect("temp dir");
+        let config = dir.path().join("gimbal-mavlink.toml");
+        std::fs::write(&config, mavlink_config(&gcud.clients(), lease_ms)).expect("write config");
+        let log = std::fs::File::create(dir.path().join("gimbal-mavlink.log")).expect("log file");
+        let child = Command::new(env!("CARGO_BIN_EXE_gimbal-mavlink"))
+            .arg("--config")
+            .arg(&config)
+            .env("RUST_LOG", "info")
+            .stdout(Stdio::null())
+            .stderr(Stdio::from(log))
+            .spawn()
+            .expect("spawn gimbal-mavlink");
+        let mut stack = Self {
+            gcud,
+            mavlink: Some(child),
+            dir,
+            port: 0,
+            tcp_port: 0,
+        };
+        support::wait_for_log_line(&stack.log_path(), "gimbal-mavlink ready");
+        let line = support::wait_for_log_line(&stack.log_path(), "MAVLink UDP endpoint bound");
+        stack.port = addr_field(&line).rsplit(':').next().unwrap().parse().expect("port");
+        let line = support::wait_for_log_line(&stack.log_path(), "MAVLink TCP endpoint listening");
+        stack.tcp_port = addr_field(&line).rsplit(':').next().unwrap().parse().expect("port");
+        stack
+    }
+
+    fn log_path(&self) -> PathBuf {
+        self.dir.path().join("gimbal-mavlink.log")
+    }
+
+    fn log(&self) -> String {
+        std::fs::read_to_string(self.log_path()).unwrap_or_default()
+    }
+
+    /// Sends `signal` to gimbal-mavlink and waits for it to exit.
+    fn signal(&mut self, signal: nix::sys::signal::Signal) -> std::process::ExitStatus {
+        let mut child = self.mavlink.take().expect("running");
+        let pid = nix::unistd::Pid::from_raw(child.id() as i32);
+        nix::sys::signal::kill(pid, signal).expect("signal");
+        let started = Instant::now();
+        loop {
+            if let Ok(Some(status)) = child.try_wait() {
+                return status;
+            }
+            assert!(
+                started.elapsed() < HANG_GUARD,
+                "gimbal-mavlink did not exit on {signal}"
+            );
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    /// Runs one step of the pymavlink ground station as `who`, over UDP.
+    fn gcs(&self, step: &str, who: (u8, u8), args: Value) -> Value {
+        self.gcs_over(&self.port.to_string(), step, who, args)
+    }
+
+    /// The same over `connection` (a UDP port, or pymavlink's `tcp:HOST:PORT`).
+    fn gcs_over(&self, connection: &str, step: &str, who: (u8, u8), args: Value) -> Value {
+        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/mavlink/gcs.py");
+        let out = Command::new("python3")
+            .arg(&script)
+            .args([
+                step,
+                connection,
+                &who.0.to_string(),
+                &who.1.to_string(),
+                &args.to_string(),
+            ])
+            .output()
+            .expect("run python3");
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "gcs step {step} failed: {}\nstdout: {stdout}\nstderr: {}\ngimbal-mavlink log:\n{}",
+            out.status,
+            String::from_utf8_lossy(&out.stderr),
+            self.log()
+        );
+        serde_json::from_str(stdout.lines().last().unwrap_or_default())
+            .unwrap_or_else(|e| panic!("step {step}: not JSON ({e}): {stdout}"))
+    }
+
+    /// The mast gimbal's position read on the bus side (gimbalctl via gcud).
+    fn bus_position(&self) -> (f64, f64) {
+        self.gcud.position(MAST)
+    }
+
+    fn wait_moving(&self, from: (f64, f64)) {
+        eventually("the gimbal to move", || {
+            std::thread::sleep(Duration::from_millis(50));
+            self.bus_position() != from
+        });
+    }
+}
+
+impl Drop for Stack {
+    fn drop(&mut self) {
+        if let Some(child) = &mut self.mavlink {
+            support::terminate(child);
+        }
+    }
+}
+
+/// Position `(pan, tilt)` unchanged over about a second on the bus side.
+fn assert_still(stack: &Stack, at: (f64, f64), what: &str) {
+    for _ in 0..5 {
+        std::thread::sleep(Duration::from_millis(200));
+        assert_eq!(stack.bus_position(), at, "{what}: the gimbal moved");
+    }
+}
+
+// ---- the tests --------------------------------------------------------------
+
+#[test]
+fn each_gimbal_sends_a_heartbeat_of_type_gimbal() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start();
+    for component in [154, 171] {
+        let hb = stack.gcs("heartbeat", GCS, json!({ "component": component }));
+        let hb = &hb["heartbeat"];
+        assert_eq!(hb["type"], 26, "MAV_TYPE_GIMBAL: {hb}");
+        assert_eq!(hb["autopilot"], 8, "MAV_AUTOPILOT_INVALID: {hb}");
+        assert_eq!(hb["system"], 1, "{hb}");
+        assert_eq!(hb["v2"], true, "MAVLink 2: {hb}");
+    }
+}
+
+#[test]
+fn a_ground_station_over_tcp_sees_the_heartbeat_and_points_the_gimbal() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let tcp = format!("tcp:127.0.0.1:{}", stack.tcp_port);
+    let hb = stack.gcs_over(&tcp, "heartbeat", GCS, json!({}));
+    assert_eq!(hb["heartbeat"]["type"], 26, "{hb}");
+    let r = stack.gcs_over(&tcp, "pitchyaw", GCS, json!({ "pitch": -15.0, "yaw": 25.0 }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(
+        (pan - 25.0).abs() <= 0.5 && (tilt + 15.0).abs() <= 0.5,
+        "bus at {pan}, {tilt}"
+    );
+    let seen = stack.gcs_over(&tcp, "attitude", GCS, json!({ "pitch": -15.0, "yaw": 25.0 }));
+    assert_eq!(seen["reached"], true, "{seen}");
+}
+
+#[test]
+fn information_on_request_carries_the_gimbals_serial_and_travel() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let id = stack.gcud.ctl(&["--json", "--to", MAST, "id"]);
+    assert_eq!(id.code, 0, "{id:?}");
+    let serial = id.json()["result"]["serial"]
+        .as_str()
+        .expect("serial")
+        .trim()
+        .to_owned();
+    assert!(!serial.is_empty());
+    let info = stack.gcs("info", GCS, json!({}));
+    assert_eq!(info["manager_ack"], ACCEPTED, "{info}");
+    assert_eq!(info["device_ack"], ACCEPTED, "{info}");
+    let device = &info["device"];
+    assert_eq!(device["custom_name"], serial.as_str(), "{info}");
+    assert_eq!(device["vendor_name"], "Sagebrush", "{info}");
+    let manager = &info["manager"];
+    assert_eq!(manager["gimbal_device_id"], 154, "{info}");
+    let deg = |v: &Value| v.as_f64().expect("a number").to_degrees();
+    assert!((deg(&manager["pitch_min"]) + 90.0).abs() < 0.01, "{info}");
+    assert!((deg(&manager["yaw_max"]) - 180.0).abs() < 0.01, "{info}");
+    assert!((deg(&device["pitch_max"]) - 90.0).abs() < 0.01, "{info}");
+}
+
+#[test]
+fn angles_are_reached_within_half_a_degree_and_reported_with_the_right_signs() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start();
+    // The command: yaw 30° right, pitch 20° up.
+    let r = stack.gcs("pitchyaw", GCS, json!({ "pitch": 20.0, "yaw": 30.0 }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(
+        (pan - 30.0).abs() <= 0.5 && (tilt - 20.0).abs() <= 0.5,
+        "yaw right is pan right (positive), pitch up is tilt up: bus at {pan}, {tilt}"
+    );
+    let seen = stack.gcs("attitude", GCS, json!({ "pitch": 20.0, "yaw": 30.0 }));
+    assert_eq!(seen["reached"], true, "{seen}");
+    assert!(seen["attitude"]["roll"].as_f64().unwrap().abs() < 0.01, "{seen}");
+    // The message, in radians: yaw 45° left, pitch 10° down.
+    stack.gcs("set_pitchyaw", GCS, json!({ "pitch": -10.0, "yaw": -45.0 }));
+    let seen = stack.gcs("attitude", GCS, json!({ "pitch": -10.0, "yaw": -45.0 }));
+    assert_eq!(seen["reached"], true, "{seen}");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(
+        (pan + 45.0).abs() <= 0.5 && (tilt + 10.0).abs() <= 0.5,
+        "bus at {pan}, {tilt}"
+    );
+    // An attitude quaternion (pymavlink's): yaw 60° right, pitch 5° up.
+    stack.gcs("set_attitude", GCS, json!({ "pitch": 5.0, "yaw": 60.0 }));
+    let seen = stack.gcs("attitude", GCS, json!({ "pitch": 5.0, "yaw": 60.0 }));
+    assert_eq!(seen["reached"], true, "{seen}");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(
+        (pan - 60.0).abs() <= 0.5 && (tilt - 5.0).abs() <= 0.5,
+        "bus at {pan}, {tilt}"
+    );
+}
+
+#[test]
+fn a_rate_moves_the_gimbal_and_stops_when_not_refreshed() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start();
+    // 30 °/s right, refreshed every 0.2 s for 1 s; then nothing. Without
+    // the 1 s lease it would run on to the end of travel (180°) in 6 s.
+    stack.gcs(
+        "set_pitchyaw",
+        GCS,
+        json!({ "yaw_rate": 30.0, "count": 5, "every_s": 0.2 }),
+    );
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(pan > 10.0 && pan < 150.0, "moved right, then stopped: {pan}");
+    assert_eq!(tilt, 0.0);
+    assert!(stack.log().contains("rate lease expired"), "{}", stack.log());
+    assert_still(&stack, (pan, tilt), "after the lease");
+    // Pitch rate down through the command.
+    let r = stack.gcs("pitchyaw", GCS, json!({ "pitch_rate": -30.0 }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let (_, tilt) = stack.gcud.settled_position(MAST);
+    assert!(tilt < -5.0 && tilt > -80.0, "tilted down, then stopped: {tilt}");
+}
+
+#[test]
+fn control_taken_by_one_component_denies_another_and_nothing_moves() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let r = stack.gcs("configure", GCS, json!({ "params": [-2, -2, -1, -1] }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let st = stack.gcs("manager_status", GCS, json!({ "primary_sysid": 255 }));
+    assert_eq!(st["status"]["primary_control_compid"], 190, "{st}");
+    let r = stack.gcs("pitchyaw", OTHER, json!({ "pitch": 30.0, "yaw": 40.0 }));
+    assert_eq!(r["result"], DENIED, "{r}");
+    stack.gcs(
+        "set_pitchyaw",
+        OTHER,
+        json!({ "yaw_rate": 60.0, "count": 3, "every_s": 0.1 }),
+    );
+    let r = stack.gcs("configure", OTHER, json!({ "params": [-2, -2, -1, -1] }));
+    assert_eq!(r["result"], DENIED, "taking control from its holder: {r}");
+    assert_still(&stack, (0.0, 0.0), "commands from a component not in control");
+    // The holder moves it; after it releases, the other may.
+    let r = stack.gcs("pitchyaw", GCS, json!({ "pitch": 0.0, "yaw": 10.0 }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let r = stack.gcs("configure", GCS, json!({ "params": [-3, -3, -1, -1] }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let r = stack.gcs("pitchyaw", OTHER, json!({ "pitch": 0.0, "yaw": 20.0 }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let (pan, _) = stack.gcud.settled_position(MAST);
+    assert!((pan - 20.0).abs() <= 0.5, "{pan}");
+}
+
+#[test]
+fn an_absent_gimbal_gets_failed_not_accepted() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let r = stack.gcs("pitchyaw", GCS, json!({ "pitch": 10.0, "yaw": 10.0, "component": 171 }));
+    assert_eq!(r["result"], FAILED, "{r}");
+    let r = stack.gcs("pitchyaw", GCS, json!({ "yaw_rate": 10.0, "component": 171 }));
+    assert_eq!(r["result"], FAILED, "{r}");
+    let info = stack.gcs("info", GCS, json!({ "component": 171 }));
+    assert_eq!(info["device_ack"], FAILED, "D? unanswered: {info}");
+    let r = stack.gcs("unsupported", GCS, json!({}));
+    assert_eq!(r["result"], UNSUPPORTED, "{r}");
+}
+
+#[test]
+fn sigkill_of_gimbal_mavlink_mid_slew_and_the_gimbal_stops() {
+    if !client_available() {
+        return;
+    }
+    let mut stack = Stack::start();
+    // 30 °/s right; the lease would stop it after 1 s, but gimbal-mavlink
+    // is killed at once, so only gcud's dead-man can stop it.
+    let r = stack.gcs("pitchyaw", GCS, json!({ "yaw_rate": 30.0 }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    stack.wait_moving((0.0, 0.0));
+    let status = stack.signal(nix::sys::signal::Signal::SIGKILL);
+    assert!(!status.success());
+    let (pan, _) = stack.gcud.settled_position(MAST);
+    assert!(
+        pan > 0.0 && pan < 150.0,
+        "gcud's dead-man stopped it well short of the end: {pan}"
+    );
+    stack.gcud.wait_for_log("dead-man PS to 5.1.1");
+}
+
+#[test]
+fn sigterm_stops_the_slew_gimbal_mavlink_started() {
+    if !client_available() {
+        return;
+    }
+    let mut stack = Stack::start_with_lease(60_000);
+    // A 60 s lease: only gimbal-mavlink's own stop at SIGTERM ends it early.
+    let r = stack.gcs("pitchyaw", GCS, json!({ "pitch_rate": 20.0 }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    stack.wait_moving((0.0, 0.0));
+    let status = stack.signal(nix::sys::signal::Signal::SIGTERM);
+    assert!(status.success(), "{status:?}");
+    let (_, tilt) = stack.gcud.settled_position(MAST);
+    assert!(tilt > 0.0 && tilt < 80.0, "stopped short of the end: {tilt}");
+    assert!(stack.log().contains("why=\"shutting down\""), "{}", stack.log());
+    // gimbal-mavlink stopped it itself: nothing was left for gcud's dead-man.
+    assert!(!stack.gcud.log().contains("dead-man"), "{}", stack.gcud.log());
+}
+
+#[test]
+fn bad_input_is_counted_and_refused_never_a_panic_and_nothing_moves() {
+    if !client_available() {
+        return;
+    }
+    let mut stack = Stack::start();
+    let r = stack.gcs("garbage", GCS, json!({}));
+    assert_eq!(r["nan"], DENIED, "{r}");
+    assert_eq!(r["out_of_travel"], DENIED, "{r}");
+    assert_eq!(r["bad_configure"], DENIED, "{r}");
+    assert_eq!(r["alive"], true, "{r}");
+    // Random datagrams straight at the endpoint, fuzz style (a fixed seed).
+    let socket = std::net::UdpSocket::bind("127.0.0.1:0").expect("bind");
+    let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
+    for i in 0..500 {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        let len = (x % 300) as usize;
+        let mut bytes: Vec<u8> = (0..len).map(|k| (x >> (k % 56)) as u8 ^ k as u8).collect();
+        if i % 2 == 0 && !bytes.is_empty() {
+            bytes[0] = 0xFD; // a MAVLink 2 marker, the rest noise
+        }
+        socket.send_to(&bytes, ("127.0.0.1", stack.port)).expect("send");
+        if i % 10 == 0 {
+            // Paced, so that few are lost to the socket's receive buffer.
+            std::thread::sleep(Duration::from_millis(2));
+        }
+    }
+    assert_still(&stack, (0.0, 0.0), "after bad input");
+    let alive = stack.gcs("heartbeat", GCS, json!({}));
+    assert_eq!(alive["heartbeat"]["type"], 26, "{alive}");
+    let status = stack.signal(nix::sys::signal::Signal::SIGTERM);
+    assert!(status.success(), "{status:?}\n{}", stack.log());
+    let log = stack.log();
+    assert!(!log.contains("panicked"), "{log}");
+    let summary = log
+        .lines()
+        .find(|l| l.contains("counters="))
+        .unwrap_or_else(|| panic!("{log}"));
+    let counter = |name: &str| -> u64 {
+        let at = summary.find(&format!("{name}=")).unwrap_or_else(|| panic!("{summary}")) + name.len() + 1;
+        summary[at..]
+            .split(|c: char| !c.is_ascii_digit())
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    // 21 damaged heartbeats, noise, a frame of no dialect, and the random
+    // datagrams (none has a valid CRC; UDP may lose a few of them).
+    assert!(counter("damaged") >= 23 + 400, "{summary}");
+    assert!(counter("refused") >= 3, "{summary}");
+    assert!(counter("ignored") >= 1, "PARAM_REQUEST_LIST: {summary}");
+}
+
+#[test]
+fn check_names_the_file_line_column_and_key_and_exits_2() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("m.toml");
+    std::fs::write(
+        &path,
+        mavlink_config("127.0.0.1:4001", 1000).replace("component_id = 171", "component_id = 154"),
+    )
+    .expect("write");
+    let out = Command::new(env!("CARGO_BIN_EXE_gimbal-mavlink"))
+        .args(["--check", "--config"])
+        .arg(&path)
+        .output()
+        .expect("run");
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("m.toml:17:16: gimbal[1].component_id: expected a component id of its own"),
+        "{err}"
+    );
+}
+
+#[test]
+fn the_shipped_configuration_documents_every_key_and_passes_check() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/gimbal-mavlink.toml");
+    let text = std::fs::read_to_string(&path).expect("config/gimbal-mavlink.toml");
+    for key in [
+        "gcud",
+        "system_id",
+        "source_group",
+        "nic_window_ms",
+        "attitude_rate_hz",
+        "lease_ms",
+        "udp_listen",
+        "udp",
+        "tcp_listen",
+        "tcp",
+        "name",
+        "address",
+        "component_id",
+        "pan_deg",
+        "tilt_deg",
+        "max_rate_dps",
+    ] {
+        assert!(
+            text.lines()
+                .any(|l| l.trim_start_matches(['#', ' ']).starts_with(&format!("{key} ="))),
+            "config/gimbal-mavlink.toml does not document {key}"
+        );
+    }
+    let out = Command::new(env!("CARGO_BIN_EXE_gimbal-mavlink"))
+        .args(["--check", "--config"])
+        .arg(&path)
+        .output()
+        .expect("run");
+    assert_eq!(out.status.code(), Some(0), "{out:?}");
+}
+
+#[test]
+fn the_shipped_unit_is_hardened_and_checks_its_configuration_first() {
+    let unit = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/gimbal-mavlink.service"))
+        .expect("config/gimbal-mavlink.service");
+    for line in [
+        "Type=notify",
+        "ExecStartPre=/usr/local/bin/gimbal-mavlink --check --config /etc/gimbal-mavlink/gimbal-mavlink.toml",
+        "ExecStart=/usr/local/bin/gimbal-mavlink --config /etc/gimbal-mavlink/gimbal-mavlink.toml",
+        "DynamicUser=yes",
+        "NoNewPrivileges=yes",
+        "CapabilityBoundingSet=",
+        "ProtectSystem=strict",
+        "PrivateDevices=yes",
+        "RestrictAddressFamilies=AF_INET AF_INET6 AF_UNIX",
+        "SystemCallFilter=@system-service",
+        "MemoryDenyWriteExecute=yes",
+        "KillSignal=SIGTERM",
+    ] {
+        assert!(unit.lines().any(|l| l.trim() == line), "the unit lacks {line:?}");
+    }
+}

@@ -1,0 +1,206 @@
+"""A ground station made of pymavlink (the MAVLink library QGroundControl's
+and ArduPilot's tooling is built on), driving gimbal-mavlink for
+tests/mavlink.rs.
+
+Usage: python3 gcs.py STEP PORT SYSID COMPID [ARGS_JSON]
+(PORT may also be a pymavlink connection string, tcp:127.0.0.1:PORT.)
+
+Each STEP opens a UDP socket to gimbal-mavlink's udp_listen endpoint on
+127.0.0.1:PORT as system SYSID, component COMPID, sends a HEARTBEAT (so
+that gimbal-mavlink hears of it), does its part and prints one JSON
+object on stdout: what it saw, for the Rust test to assert on. Attitude
+quaternions are turned into Euler angles by pymavlink's own quaternion
+module. Every wait is bounded.
+"""
+
+import json
+import math
+import os
+import sys
+import time
+
+# MAVLink 2 and its message ids above 255 (the gimbal messages).
+os.environ["MAVLINK20"] = "1"
+
+from pymavlink import mavutil  # noqa: E402
+from pymavlink.quaternion import QuaternionBase  # noqa: E402
+
+mavutil.set_dialect("common")
+mavlink = mavutil.mavlink
+
+GIMBAL = 154
+WAIT_S = 15.0
+
+
+def connect(port, sysid, compid):
+    """UDP to 127.0.0.1:PORT, or the connection PORT names (tcp:HOST:PORT)."""
+    url = port if ":" in port else f"udpout:127.0.0.1:{port}"
+    m = mavutil.mavlink_connection(url, source_system=sysid, source_component=compid, dialect="common")
+    assert m.mavlink20(), "pymavlink speaks MAVLink 2"
+    m.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+    return m
+
+
+def wait(m, types, until=None, timeout=WAIT_S, component=GIMBAL):
+    """The first message of `types` from `component` for which `until` holds."""
+    end = time.monotonic() + timeout
+    beat = 0.0
+    while time.monotonic() < end:
+        if time.monotonic() - beat > 0.5:
+            # Keep gimbal-mavlink's peer entry for us fresh.
+            m.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+            beat = time.monotonic()
+        msg = m.recv_match(type=types, blocking=True, timeout=0.2)
+        if msg is None or msg.get_srcComponent() != component:
+            continue
+        if until is None or until(msg):
+            return msg
+    return None
+
+
+def ack(m, command, component=GIMBAL):
+    a = wait(m, "COMMAND_ACK", lambda a: a.command == command, component=component)
+    return None if a is None else a.result
+
+
+def attitude_of(msg):
+    roll, pitch, yaw = QuaternionBase(list(msg.q)).euler
+    return {"roll": math.degrees(roll), "pitch": math.degrees(pitch), "yaw": math.degrees(yaw),
+            "flags": msg.flags, "failure_flags": msg.failure_flags, "time_boot_ms": msg.time_boot_ms}
+
+
+def command(m, cmd, params, component=GIMBAL):
+    p = list(params) + [0.0] * (7 - len(params))
+    m.mav.command_long_send(1, component, cmd, 0, *p)
+    return ack(m, cmd, component)
+
+
+def step_heartbeat(m, a):
+    hb = wait(m, "HEARTBEAT", component=a.get("component", GIMBAL))
+    if hb is None:
+        return {"heartbeat": None}
+    return {"heartbeat": {"type": hb.type, "autopilot": hb.autopilot, "system": hb.get_srcSystem(),
+                          "component": hb.get_srcComponent(), "v2": m.mavlink20()}}
+
+
+def step_info(m, a):
+    comp = a.get("component", GIMBAL)
+    out = {}
+    for name, msgid in (("manager", 280), ("device", 283)):
+        m.mav.command_long_send(1, comp, mavlink.MAV_CMD_REQUEST_MESSAGE, 0, msgid, 0, 0, 0, 0, 0, 0)
+        out[name + "_ack"] = ack(m, mavlink.MAV_CMD_REQUEST_MESSAGE, comp)
+        if out[name + "_ack"] == mavlink.MAV_RESULT_ACCEPTED:
+            t = "GIMBAL_MANAGER_INFORMATION" if msgid == 280 else "GIMBAL_DEVICE_INFORMATION"
+            msg = wait(m, t, component=comp)
+            out[name] = None if msg is None else msg.to_dict()
+    return out
+
+
+def step_pitchyaw(m, a):
+    """MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW (degrees), the ACK's result."""
+    nan = float("nan")
+    p = [a.get("pitch", nan), a.get("yaw", nan), a.get("pitch_rate", nan), a.get("yaw_rate", nan), 0, 0,
+         a.get("device", 0)]
+    return {"result": command(m, mavlink.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, p, a.get("component", GIMBAL))}
+
+
+def step_set_pitchyaw(m, a):
+    """GIMBAL_MANAGER_SET_PITCHYAW (radians) sent `count` times every `every_s`."""
+    nan = float("nan")
+    rad = lambda k: math.radians(a[k]) if k in a else nan
+    for _ in range(a.get("count", 1)):
+        m.mav.gimbal_manager_set_pitchyaw_send(1, a.get("component", GIMBAL), 0, 0, rad("pitch"), rad("yaw"),
+                                               rad("pitch_rate"), rad("yaw_rate"))
+        time.sleep(a.get("every_s", 0.0))
+    return {"sent": a.get("count", 1)}
+
+
+def step_set_attitude(m, a):
+    q = QuaternionBase([0.0, math.radians(a["pitch"]), math.radians(a["yaw"])]).q
+    m.mav.gimbal_manager_set_attitude_send(1, a.get("component", GIMBAL), 0, 0, [float(x) for x in q], nan_(), nan_(),
+                                           nan_())
+    return {"q": [float(x) for x in q]}
+
+
+def nan_():
+    return float("nan")
+
+
+def step_attitude(m, a):
+    """Attitude status until within 0.5° of (pitch, yaw), or the last one seen."""
+    want = (a.get("pitch"), a.get("yaw"))
+    last = {}
+
+    def near(msg):
+        last.update(attitude_of(msg))
+        if want[0] is None:
+            return True
+        return abs(last["pitch"] - want[0]) <= 0.5 and abs(last["yaw"] - want[1]) <= 0.5
+
+    msg = wait(m, "GIMBAL_DEVICE_ATTITUDE_STATUS", near, timeout=a.get("timeout_s", WAIT_S))
+    return {"reached": msg is not None, "attitude": last}
+
+
+def step_rate(m, a):
+    """Attitude status arrival times over `seconds` (rate and jitter)."""
+    times = []
+    end = time.monotonic() + a.get("seconds", 3.0)
+    while time.monotonic() < end:
+        msg = m.recv_match(type="GIMBAL_DEVICE_ATTITUDE_STATUS", blocking=True, timeout=0.2)
+        if msg is not None and msg.get_srcComponent() == GIMBAL:
+            times.append(time.monotonic())
+    gaps = [b - a for a, b in zip(times, times[1:])]
+    return {"count": len(times), "gaps_ms": [g * 1000 for g in gaps]}
+
+
+def step_configure(m, a):
+    p = a.get("params", [-2, -2, -1, -1])
+    return {"result": command(m, mavlink.MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE, p + [0, 0, a.get("device", 0)],
+                              a.get("component", GIMBAL))}
+
+
+def step_manager_status(m, a):
+    st = wait(m, "GIMBAL_MANAGER_STATUS", lambda s: a.get("primary_sysid") is None
+              or s.primary_control_sysid == a["primary_sysid"])
+    return {"status": None if st is None else st.to_dict()}
+
+
+def step_garbage(m, a):
+    """Damaged frames, bytes that are no MAVLink, a message id no dialect
+    has, a message gimbal-mavlink does not handle; then a NaN and an
+    out-of-travel pitch. The two results, and whether a heartbeat still
+    comes."""
+    good = mavlink.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3).pack(m.mav)
+    for i in range(len(good)):
+        bad = bytearray(good)
+        bad[i] ^= 0x5A
+        m.write(bytes(bad))
+    m.write(b"\x00" * 40 + b"GET / HTTP/1.1\r\n\r\n")
+    m.write(bytes([0xFD, 4, 0, 0, 1, 1, 1, 0xFF, 0xFF, 0xFF, 1, 2, 3, 4, 0xAB, 0xCD]))
+    m.mav.param_request_list_send(1, GIMBAL)
+    nan = float("nan")
+    out = {}
+    out["nan"] = command(m, mavlink.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, [nan, float("inf"), nan, nan, 0, 0, 0])
+    out["out_of_travel"] = command(m, mavlink.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, [120.0, 0.0, nan, nan, 0, 0, 0])
+    out["bad_configure"] = command(m, mavlink.MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE, [nan, 3.5, -1, -1, 0, 0, 0])
+    out["alive"] = wait(m, "HEARTBEAT") is not None
+    return out
+
+
+def step_unsupported(m, a):
+    return {"result": command(m, mavlink.MAV_CMD_DO_SET_SERVO, [1, 1500])}
+
+
+STEPS = {name[5:]: f for name, f in globals().items() if name.startswith("step_")}
+
+
+def main():
+    step, port, sysid, compid = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
+    args = json.loads(sys.argv[5]) if len(sys.argv) > 5 else {}
+    m = connect(port, sysid, compid)
+    out = STEPS[step](m, args)
+    print(json.dumps(out, default=str))
+
+
+if __name__ == "__main__":
+    main()
