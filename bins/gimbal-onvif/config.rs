@@ -215,20 +215,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
                 "expected a name, not empty and not repeated",
             ));
         }
-        let address: Address = g.address.get_ref().parse().map_err(|_| {
-            c.at(
-                g.address.span(),
-                format!("{key}.address"),
-                "expected GROUP.PORT.DEVICE of one gimbal, e.g. \"5.1.1\"",
-            )
-        })?;
-        if [address.group, address.port, address.device].contains(&255) || address.device == 0 {
-            return Err(c.at(
-                g.address.span(),
-                format!("{key}.address"),
-                "expected the address of one gimbal (no wildcard 255, no control unit 0)",
-            ));
-        }
+        let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
         let listen = socket(&c, &g.listen, &format!("{key}.listen"))?;
         if listen.port() != 0 && gimbals.iter().any(|x| x.listen == listen) {
             return Err(c.at(
@@ -247,8 +234,8 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             }
             s => s.as_ref().map(|s| s.get_ref().clone()),
         };
-        let pan_deg = travel(&c, g.pan_deg.as_ref(), &format!("{key}.pan_deg"), (-180.0, 180.0))?;
-        let tilt_deg = travel(&c, g.tilt_deg.as_ref(), &format!("{key}.tilt_deg"), (-90.0, 90.0))?;
+        let pan_deg = c.travel(g.pan_deg.as_ref(), &format!("{key}.pan_deg"), (-180.0, 180.0))?;
+        let tilt_deg = c.travel(g.tilt_deg.as_ref(), &format!("{key}.tilt_deg"), (-90.0, 90.0))?;
         gimbals.push(Gimbal {
             name,
             address,
@@ -279,24 +266,6 @@ fn socket(c: &Source<'_>, v: &Spanned<String>, key: &str) -> Result<SocketAddr, 
     v.get_ref()
         .parse()
         .map_err(|_| c.at(v.span(), key, format!("expected IP:PORT, found {:?}", v.get_ref())))
-}
-
-/// `[low, high]` degrees within what a position can carry (±327.67°, Table 15).
-fn travel(
-    c: &Source<'_>,
-    v: Option<&Spanned<Vec<f64>>>,
-    key: &str,
-    default: (f64, f64),
-) -> Result<(f64, f64), ConfigError> {
-    let Some(v) = v else { return Ok(default) };
-    match v.get_ref().as_slice() {
-        [low, high] if low < high && *low >= -327.67 && *high <= 327.67 => Ok((*low, *high)),
-        _ => Err(c.at(
-            v.span(),
-            key,
-            "expected [LOW, HIGH] degrees, LOW < HIGH, within -327.67..=327.67 (Table 15)",
-        )),
-    }
 }
 
 #[cfg(test)]

@@ -33,13 +33,7 @@ pub struct Status {
     pub changing: bool,
 }
 
-/// The gimbal's identity block (`D?`, Table 6).
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Identity {
-    pub name: String,
-    pub serial: String,
-    pub revision: String,
-}
+pub use sagebrush_client::Identity;
 
 /// A continuous motion in progress: which axes, and its number (a newer
 /// move or a stop replaces it, so an older time-out stops nothing).
@@ -182,17 +176,7 @@ impl Gimbal {
     /// `D?`.
     pub async fn identity(&self) -> Result<Identity, CommandError> {
         let payload = self.query(&Command::Identify).await?;
-        match Reply::parse(&Command::Identify, &payload) {
-            Ok(Reply::Identity(id)) => Ok(Identity {
-                name: String::from_utf8_lossy(id.name()).into_owned(),
-                serial: String::from_utf8_lossy(id.serial()).into_owned(),
-                revision: String::from_utf8_lossy(&id.revision).into_owned(),
-            }),
-            _ => Err(CommandError::BadReply(format!(
-                "D? result {:?} is not a Table 6 identity",
-                String::from_utf8_lossy(&payload)
-            ))),
-        }
+        Identity::from_result(&payload)
     }
 
     pub fn status(&self) -> Status {

@@ -21,6 +21,23 @@ pub struct Identity {
     pub revision: String,
 }
 
+impl Identity {
+    /// The identity in a `D?` result's payload.
+    pub fn from_result(payload: &[u8]) -> Result<Self, CommandError> {
+        match Reply::parse(&Command::Identify, payload) {
+            Ok(Reply::Identity(id)) => Ok(Identity {
+                name: String::from_utf8_lossy(id.name()).into_owned(),
+                serial: String::from_utf8_lossy(id.serial()).into_owned(),
+                revision: String::from_utf8_lossy(&id.revision).into_owned(),
+            }),
+            _ => Err(CommandError::BadReply(format!(
+                "D? result {:?} is not a Table 6 identity",
+                String::from_utf8_lossy(payload)
+            ))),
+        }
+    }
+}
+
 /// A gimbal at `address` behind gcud at `gcud` (`host:port`).
 #[derive(Debug)]
 pub struct GimbalConnection {
@@ -90,16 +107,6 @@ impl GimbalConnection {
     /// `D?`: the gimbal's name, serial and revision (Table 6).
     pub async fn identity(&mut self) -> Result<Identity, CommandError> {
         let payload = self.query(&Command::Identify).await?;
-        match Reply::parse(&Command::Identify, &payload) {
-            Ok(Reply::Identity(id)) => Ok(Identity {
-                name: String::from_utf8_lossy(id.name()).into_owned(),
-                serial: String::from_utf8_lossy(id.serial()).into_owned(),
-                revision: String::from_utf8_lossy(&id.revision).into_owned(),
-            }),
-            _ => Err(CommandError::BadReply(format!(
-                "D? result {:?} is not a Table 6 identity",
-                String::from_utf8_lossy(&payload)
-            ))),
-        }
+        Identity::from_result(&payload)
     }
 }
