@@ -206,9 +206,25 @@ fn a_listen_address_in_use_is_a_warning_not_a_refusal() {
     );
     assert!(run.stdout.contains("valid"), "{}", run.stdout);
     drop(holder);
-    let run = gcud(&["--check"], &path);
-    assert_eq!(run.code, Some(0), "{}", run.stderr);
-    assert!(!run.stderr.contains("warning"), "free again: {}", run.stderr);
+    // Free again: no warning. Another test running in parallel may be
+    // handed the freed port by the system meanwhile (seen twice under
+    // load), so a warning counts only when the port is free after the
+    // check too; a real regression warns every time.
+    let mut runs = Vec::new();
+    for _ in 0..5 {
+        let run = gcud(&["--check"], &path);
+        assert_eq!(run.code, Some(0), "{}", run.stderr);
+        if !run.stderr.contains("warning") {
+            return;
+        }
+        let taken_by_another = std::net::TcpListener::bind(addr).is_err();
+        runs.push((run.stderr, taken_by_another));
+        if !taken_by_another {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(200));
+    }
+    panic!("free again, yet warned: {runs:?}");
 }
 
 #[test]
