@@ -44,12 +44,12 @@ fn fetch(http: &str) -> Result<Value, CtlError> {
 pub fn run(http: &str, as_json: bool) -> Result<(), CtlError> {
     let status = fetch(http)?;
     if as_json {
-        println!(
+        sagebrush_host::outln!(
             "{}",
             json!({ "ok": true, "command": "gcud-status", "http": http, "status": status })
         );
     } else {
-        print!("{}", text(&status, now_unix()));
+        sagebrush_host::out!("{}", text(&status, now_unix()));
     }
     Ok(())
 }

@@ -355,7 +355,7 @@ pub async fn scan(g: &Global, args: &ScanArgs) -> Result<(), CtlError> {
         }
     }
     if g.json {
-        println!(
+        sagebrush_host::outln!(
             "{}",
             json!({
                 "ok": true,
@@ -370,7 +370,7 @@ pub async fn scan(g: &Global, args: &ScanArgs) -> Result<(), CtlError> {
             })
         );
     } else {
-        println!("{}", text.join("\n"));
+        sagebrush_host::outln!("{}", text.join("\n"));
     }
     Ok(())
 }

@@ -1,0 +1,181 @@
+//! A new user's first hour (issue 24): every program exits quietly when
+//! whoever reads its stdout or stderr has gone (`gimbalctl --json watch |
+//! head -1`): its usual exit code, never Rust's panic (101).
+//!
+//! "Gone" is a pipe whose read end is closed before the program starts, so
+//! its first write fails with EPIPE every time (no race with a reader).
+
+mod support;
+
+use std::net::TcpListener;
+use std::os::fd::OwnedFd;
+use std::process::{Command, ExitStatus, Stdio};
+use std::time::{Duration, Instant};
+
+use support::HANG_GUARD;
+
+/// The write end of a pipe nobody reads any more.
+fn closed_pipe() -> Stdio {
+    let (reader, writer): (OwnedFd, OwnedFd) = nix::unistd::pipe().expect("pipe");
+    drop(reader);
+    Stdio::from(writer)
+}
+
+/// Waits (bounded by HANG_GUARD) for `child` to exit.
+fn wait(mut child: std::process::Child, what: &str) -> ExitStatus {
+    let started = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().expect("wait") {
+            return status;
+        }
+        if started.elapsed() > HANG_GUARD {
+            let _ = child.kill();
+            panic!("{what} did not exit");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Runs `bin args` with stdout to a closed pipe; its stderr as text.
+fn with_closed_stdout(bin: &str, args: &[&str]) -> (ExitStatus, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let stderr = dir.path().join("stderr");
+    let child = Command::new(bin)
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(closed_pipe())
+        .stderr(std::fs::File::create(&stderr).unwrap())
+        .spawn()
+        .expect("spawn");
+    let status = wait(child, bin);
+    (status, std::fs::read_to_string(&stderr).unwrap())
+}
+
+/// Runs `bin args` with stderr to a closed pipe (stdout discarded).
+fn with_closed_stderr(bin: &str, args: &[&str]) -> ExitStatus {
+    let child = Command::new(bin)
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(closed_pipe())
+        .spawn()
+        .expect("spawn");
+    wait(child, bin)
+}
+
+fn assert_quiet(what: &str, status: ExitStatus, want: i32, stderr: &str) {
+    assert!(!stderr.contains("panicked"), "{what} panicked:\n{stderr}");
+    assert_eq!(status.code(), Some(want), "{what}: {status:?}\n{stderr}");
+    assert!(
+        stderr.trim().is_empty(),
+        "{what} complained about its reader leaving:\n{stderr}"
+    );
+}
+
+#[test]
+fn gimbalctl_watch_ends_quietly_when_its_reader_leaves() {
+    let gcud = support::cli::DemoGcud::start();
+    let (status, stderr) = with_closed_stdout(
+        env!("CARGO_BIN_EXE_gimbalctl"),
+        &[
+            "--json",
+            "--tcp",
+            &gcud.clients,
+            "--to",
+            "5.1.1",
+            "watch",
+            "--rate",
+            "20",
+        ],
+    );
+    assert_quiet("gimbalctl --json watch", status, 0, &stderr);
+    let (status, stderr) = with_closed_stdout(env!("CARGO_BIN_EXE_gimbalctl"), &["--to", "5.1.1", "encode", "P?"]);
+    assert_quiet("gimbalctl encode", status, 0, &stderr);
+}
+
+#[test]
+fn gimbalctl_failing_with_a_closed_stderr_keeps_its_exit_code() {
+    // Nothing listens there: "cannot connect" (exit 1) goes to a closed stderr.
+    let port = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
+    let status = with_closed_stderr(
+        env!("CARGO_BIN_EXE_gimbalctl"),
+        &["--tcp", &port.to_string(), "--to", "5.1.1", "id"],
+    );
+    assert_eq!(status.code(), Some(1), "{status:?}");
+}
+
+#[test]
+fn gimbalsim_exits_quietly_on_a_closed_stdout_or_stderr() {
+    // Its first line (the endpoint) meets a closed stdout.
+    let (status, stderr) = with_closed_stdout(env!("CARGO_BIN_EXE_gimbalsim"), &["--tcp", "127.0.0.1:0"]);
+    assert_quiet("gimbalsim", status, 0, &stderr);
+    // A bad log filter: "gimbalsim: log filter ..." (exit 2) to a closed stderr.
+    let status = with_closed_stderr(env!("CARGO_BIN_EXE_gimbalsim"), &["--log", "no[such=filter"]);
+    assert_eq!(status.code(), Some(2), "{status:?}");
+}
+
+#[test]
+fn gcud_check_exits_quietly_on_a_closed_stdout_or_stderr() {
+    let demo = concat!(env!("CARGO_MANIFEST_DIR"), "/config/demo.toml");
+    let (status, stderr) = with_closed_stdout(env!("CARGO_BIN_EXE_gcud"), &["--check", "--config", demo]);
+    assert_quiet("gcud --check", status, 0, &stderr);
+    let dir = tempfile::tempdir().unwrap();
+    let broken = dir.path().join("gcud.toml");
+    std::fs::write(&broken, "[gcu]\ngroup = \"five\"\n").unwrap();
+    let status = with_closed_stderr(
+        env!("CARGO_BIN_EXE_gcud"),
+        &["--check", "--config", broken.to_str().unwrap()],
+    );
+    assert_eq!(status.code(), Some(2), "{status:?}");
+}
+
+#[test]
+fn gcud_serves_and_shuts_down_cleanly_with_stdout_and_stderr_closed() {
+    let dir = tempfile::tempdir().unwrap();
+    let clients = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
+    let config = dir.path().join("gcud.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "[gcu]\ngroup = 5\n\n[[port]]\nid = 1\nsimulate = [1]\n\n\
+             [[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"{clients}\"\n"
+        ),
+    )
+    .unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_gcud"))
+        .arg("--config")
+        .arg(&config)
+        .env("RUST_LOG", "debug")
+        .stdin(Stdio::null())
+        .stdout(closed_pipe())
+        .stderr(closed_pipe())
+        .spawn()
+        .expect("spawn gcud");
+    let pid = nix::unistd::Pid::from_raw(child.id() as i32);
+    // Every log line (DEBUG: per connection and per frame) meets EPIPE; it
+    // still answers.
+    let started = Instant::now();
+    let answered = loop {
+        let out = support::gimbalctl(&["--tcp", &clients.to_string(), "--to", "5.1.1", "id"]);
+        if out.code == 0 {
+            break out;
+        }
+        assert!(started.elapsed() < HANG_GUARD, "gcud never answered: {out:?}");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(answered.stdout.contains("SIM"), "{answered:?}");
+    nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGTERM).unwrap();
+    let status = wait(child, "gcud");
+    assert_eq!(status.code(), Some(0), "gcud after SIGTERM: {status:?}");
+}
+
+/// gimbal-onvif prints `--check`'s verdict with `println!`, which panics on
+/// a closed stdout: it needs `sagebrush_host::outln!` (crates/host/src/stdio.rs)
+/// in bins/gimbal-onvif/main.rs, which this branch does not own.
+#[test]
+#[ignore = "gimbal-onvif still uses println!: see the doc comment"]
+fn gimbal_onvif_check_exits_quietly_on_a_closed_stdout() {
+    let config = concat!(env!("CARGO_MANIFEST_DIR"), "/config/gimbal-onvif.toml");
+    let (status, stderr) = with_closed_stdout(env!("CARGO_BIN_EXE_gimbal-onvif"), &["--check", "--config", config]);
+    assert_quiet("gimbal-onvif --check", status, 0, &stderr);
+}
