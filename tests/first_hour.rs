@@ -179,3 +179,31 @@ fn gimbal_onvif_check_exits_quietly_on_a_closed_stdout() {
     let (status, stderr) = with_closed_stdout(env!("CARGO_BIN_EXE_gimbal-onvif"), &["--check", "--config", config]);
     assert_quiet("gimbal-onvif --check", status, 0, &stderr);
 }
+
+#[test]
+fn an_address_error_names_the_part_and_its_range() {
+    for (address, part) in [
+        ("5.1.300", "device \"300\""),
+        ("5.x.1", "port \"x\""),
+        ("256.1.1", "group \"256\""),
+    ] {
+        let out = support::gimbalctl(&["--to", address, "encode", "P?"]);
+        assert_eq!(out.code, 2, "{address}: {out:?}");
+        assert!(
+            out.stderr.contains(&format!("{part} is not a number 0..=255")),
+            "{address}: the error does not name the {part}: {out:?}"
+        );
+    }
+}
+
+#[test]
+fn for_takes_the_common_duration_forms() {
+    let gcud = support::cli::DemoGcud::start();
+    for duration in ["1sec", "300ms", "1s"] {
+        let out = gcud.ctl(&["--to", "5.1.1", "slew", "right", "--for", duration]);
+        assert_eq!(out.code, 0, "--for {duration}: {out:?}");
+    }
+    let out = gcud.ctl(&["--to", "5.1.1", "slew", "right", "--for", "2 fortnights"]);
+    assert_eq!(out.code, 2, "{out:?}");
+    assert!(out.stderr.contains("2s, 2sec, 500ms, 1m"), "{out:?}");
+}

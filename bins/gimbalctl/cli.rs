@@ -133,7 +133,7 @@ pub struct WaitArgs {
 /// `--for` / `--hold` of continuous motions.
 #[derive(Debug, Clone, Copy, Args)]
 pub struct JogArgs {
-    /// Move for DURATION (e.g. 2s, 500ms, 1.5s; 1ms..=1h), then send the stop and confirm it.
+    /// Move for DURATION (e.g. 2s, 2sec, 500ms, 1m; 1ms..=1h), then send the stop and confirm it.
     #[arg(long = "for", value_name = "DURATION", value_parser = parse_duration, conflicts_with = "hold")]
     pub duration: Option<Duration>,
     /// Keep the connection (and the motion) until Ctrl-C, SIGTERM or end of stdin, then stop and confirm (stdin from /dev/null ends it at once: use a terminal or a pipe).
@@ -784,9 +784,20 @@ impl Cmd {
     }
 }
 
+/// `G.P.D` (Table 2): an error names the part that is wrong (group, port
+/// or device) and its range.
 fn parse_address(text: &str) -> Result<Address, String> {
-    text.parse::<Address>()
-        .map_err(|e| format!("{text:?}: {e}; expected GROUP.PORT.DEVICE, each 0..=255, e.g. 5.1.1"))
+    const HINT: &str = "expected GROUP.PORT.DEVICE, each 0..=255, e.g. 5.1.1";
+    let parts: Vec<&str> = text.split('.').collect();
+    if parts.len() != 3 {
+        return Err(format!("{text:?} has {} part(s): {HINT}", parts.len()));
+    }
+    for (name, part) in ["group", "port", "device"].into_iter().zip(&parts) {
+        if part.trim().parse::<u8>().is_err() {
+            return Err(format!("{text:?}: {name} {part:?} is not a number 0..=255; {HINT}"));
+        }
+    }
+    text.parse::<Address>().map_err(|e| format!("{text:?}: {e}; {HINT}"))
 }
 
 /// `HOST:PORT` with a port 1..=65535.
@@ -906,23 +917,12 @@ fn parse_digital(text: &str) -> Result<u8, String> {
     }
 }
 
-/// `2s`, `500ms`, `1.5s`, `1m`: 1 ms ..= 1 h.
+/// `2s`, `2sec`, `500ms`, `1m`, `1m 30s` (humantime's forms): 1 ms ..= 1 h.
 pub fn parse_duration(text: &str) -> Result<Duration, String> {
-    const HINT: &str = "expected a duration like 2s, 500ms, 1.5s or 1m (1ms..=1h)";
-    let t = text.trim();
-    let (number, scale) = if let Some(n) = t.strip_suffix("ms") {
-        (n, 0.001)
-    } else if let Some(n) = t.strip_suffix('s') {
-        (n, 1.0)
-    } else if let Some(n) = t.strip_suffix('m') {
-        (n, 60.0)
-    } else {
-        return Err(format!("{text:?} has no unit: {HINT}"));
-    };
-    let v: f64 = number.trim().parse().map_err(|_| format!("{text:?}: {HINT}"))?;
-    let secs = v * scale;
-    if secs.is_finite() && (0.001..=3600.0).contains(&secs) {
-        Ok(Duration::from_secs_f64(secs))
+    const HINT: &str = "expected a duration like 2s, 2sec, 500ms, 1m or 1m30s (1ms..=1h)";
+    let d = humantime::parse_duration(text.trim()).map_err(|e| format!("{text:?}: {e}; {HINT}"))?;
+    if (Duration::from_millis(1)..=Duration::from_secs(3600)).contains(&d) {
+        Ok(d)
     } else {
         Err(format!("{text:?} is out of range: {HINT}"))
     }
@@ -973,7 +973,10 @@ mod tests {
     fn durations_host_ports_and_lists() {
         assert_eq!(parse_duration("2s"), Ok(Duration::from_secs(2)));
         assert_eq!(parse_duration("500ms"), Ok(Duration::from_millis(500)));
-        assert_eq!(parse_duration("1.5s"), Ok(Duration::from_millis(1500)));
+        assert_eq!(parse_duration("2sec"), Ok(Duration::from_secs(2)));
+        assert_eq!(parse_duration("1m"), Ok(Duration::from_secs(60)));
+        assert_eq!(parse_duration("1m 30s"), Ok(Duration::from_secs(90)));
+        assert!(parse_duration("2sec").is_ok() && parse_duration("1500ms").is_ok());
         assert!(parse_duration("2").is_err() && parse_duration("0s").is_err() && parse_duration("2h").is_err());
         assert!(parse_host_port("127.0.0.1").unwrap_err().contains("127.0.0.1:4001"));
         assert!(parse_host_port("127.0.0.1:0").is_err() && parse_host_port(":4001").is_err());
@@ -983,5 +986,10 @@ mod tests {
         assert_eq!(parse_preset("255"), Ok(255));
         assert_eq!(parse_preset("0xFF"), Ok(255));
         assert!(parse_preset("256").unwrap_err().contains("0..=255"));
+        let e = parse_address("5.1.300").unwrap_err();
+        assert!(e.contains("device \"300\" is not a number 0..=255"), "{e}");
+        assert!(parse_address("x.1.1").unwrap_err().contains("group \"x\""));
+        assert!(parse_address("5.256.1").unwrap_err().contains("port \"256\""));
+        assert!(parse_address("5.1").unwrap_err().contains("2 part(s)"));
     }
 }
