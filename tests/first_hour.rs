@@ -207,3 +207,51 @@ fn for_takes_the_common_duration_forms() {
     assert_eq!(out.code, 2, "{out:?}");
     assert!(out.stderr.contains("2s, 2sec, 500ms, 1m"), "{out:?}");
 }
+
+/// `gcud --check` on `text`: (exit code, stdout, stderr).
+fn check(text: &str) -> (Option<i32>, String, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("gcud.toml");
+    std::fs::write(&path, text).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_gcud"))
+        .arg("--check")
+        .arg("--config")
+        .arg(&path)
+        .output()
+        .expect("gcud --check runs");
+    let stderr = String::from_utf8_lossy(&out.stderr).replace(&path.display().to_string(), "gcud.toml");
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr,
+    )
+}
+
+#[test]
+fn check_refuses_what_routes_nothing_warns_of_absent_serial_paths_and_speaks_in_words() {
+    let (code, _, stderr) = check("[gcu]\ngroup = 5\n\n[[port]]\nid = 1\nsimulate = [1]\n");
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("gcud.toml: routes nothing: no [[link]]"), "{stderr}");
+
+    let link = "[[link]]\nname = \"c\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n";
+    let (code, stdout, stderr) = check(&format!(
+        "[gcu]\ngroup = 5\n{link}\n[[port]]\nid = 1\npath = \"/dev/no-such-gimbal-bus\"\n"
+    ));
+    assert_eq!(
+        code,
+        Some(0),
+        "an absent serial device is no error (it may be plugged in later): {stderr}"
+    );
+    assert!(stdout.contains("valid"), "{stdout}");
+    assert!(
+        stderr.contains("gcud: warning: gcud.toml:10:8: port[0].path: /dev/no-such-gimbal-bus does not exist now"),
+        "{stderr}"
+    );
+
+    let (code, _, stderr) = check("[gcu]\ngroup = \"five\"\n");
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(
+        stderr.contains("gcud.toml:2:9: gcu.group: expected an integer, found the string \"five\""),
+        "{stderr}"
+    );
+}

@@ -68,6 +68,7 @@ fn main() -> ExitCode {
         if args.against.is_none() {
             // A running gcud holds its own addresses: no probe against it.
             warnings.extend(config.probe_listeners());
+            warnings.extend(config.probe_serial_paths());
         }
         for w in &warnings {
             sagebrush_host::errln!("gcud: warning: {w}");
