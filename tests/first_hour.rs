@@ -205,7 +205,7 @@ fn for_takes_the_common_duration_forms() {
     }
     let out = gcud.ctl(&["--to", "5.1.1", "slew", "right", "--for", "2 fortnights"]);
     assert_eq!(out.code, 2, "{out:?}");
-    assert!(out.stderr.contains("2s, 2sec, 500ms, 1m"), "{out:?}");
+    assert!(out.stderr.contains("2s, 500ms, 2sec, 1m"), "{out:?}");
 }
 
 /// `gcud --check` on `text`: (exit code, stdout, stderr).
@@ -254,4 +254,53 @@ fn check_refuses_what_routes_nothing_warns_of_absent_serial_paths_and_speaks_in_
         stderr.contains("gcud.toml:2:9: gcu.group: expected an integer, found the string \"five\""),
         "{stderr}"
     );
+}
+
+#[test]
+fn the_demo_gimbals_have_distinct_serial_numbers() {
+    let gcud = support::cli::DemoGcud::start();
+    let serials: Vec<String> = ["5.1.1", "5.1.2", "5.2.1"]
+        .iter()
+        .map(|to| {
+            let v = gcud.json(&["--to", to, "id"]);
+            v["result"]["serial"]
+                .as_str()
+                .unwrap_or_else(|| panic!("{to}: {v}"))
+                .to_owned()
+        })
+        .collect();
+    let mut distinct = serials.clone();
+    distinct.sort();
+    distinct.dedup();
+    assert_eq!(distinct.len(), serials.len(), "serial numbers repeat: {serials:?}");
+}
+
+/// `gimbalctl gcud-status` needs no --http for the shipped configuration:
+/// its default is config/gcud.toml's (and the demo's) [metrics] listen.
+#[test]
+fn gcud_status_defaults_to_the_shipped_metrics_address() {
+    let out = support::gimbalctl(&["gcud-status", "--help"]);
+    // The --http option's own block of the help, up to the next option.
+    let http = out
+        .stdout
+        .split("      --http <HOST:PORT>")
+        .nth(1)
+        .and_then(|rest| rest.split("\n  -").next())
+        .unwrap_or_else(|| panic!("no --http in the help: {out:?}"));
+    let default = http
+        .split("[default: ")
+        .nth(1)
+        .and_then(|rest| rest.split(']').next())
+        .unwrap_or_else(|| panic!("--http has no default: {out:?}"))
+        .to_owned();
+    for config in ["config/gcud.toml", "config/demo.toml"] {
+        let text = std::fs::read_to_string(format!("{}/{config}", env!("CARGO_MANIFEST_DIR"))).unwrap();
+        let table: toml::Table = text.parse().unwrap();
+        assert_eq!(
+            table["metrics"]["listen"].as_str(),
+            Some(default.as_str()),
+            "{config}'s [metrics] listen is not gcud-status's default"
+        );
+    }
+    assert!(out.stdout.contains("GIMBALCTL_HTTP"), "{out:?}");
 }

@@ -401,11 +401,11 @@ and V?, and their last error (did not acknowledge, NAK, no result, NIC). --json 
 under \"status\" (the README documents its shape).
 
 Examples:
-  gimbalctl gcud-status --http 127.0.0.1:9187
-  gimbalctl --json gcud-status --http 127.0.0.1:9187")]
+  gimbalctl gcud-status                          # gcud's default 127.0.0.1:9187, or $GIMBALCTL_HTTP
+  gimbalctl --json gcud-status --http 10.0.0.5:9187")]
     GcudStatus {
-        /// gcud's [metrics] listen address HOST:PORT, e.g. 127.0.0.1:9187.
-        #[arg(long, env = "GIMBALCTL_HTTP", value_name = "HOST:PORT", value_parser = parse_host_port)]
+        /// gcud's [metrics] listen address HOST:PORT; the default is the shipped config/gcud.toml's.
+        #[arg(long, env = "GIMBALCTL_HTTP", default_value = GCUD_HTTP, value_name = "HOST:PORT", value_parser = parse_host_port)]
         http: String,
     },
     /// Print the frame for PAYLOAD as hex bytes (no I/O; needs --to).
@@ -800,6 +800,10 @@ fn parse_address(text: &str) -> Result<Address, String> {
     text.parse::<Address>().map_err(|e| format!("{text:?}: {e}; {HINT}"))
 }
 
+/// `gcud-status --http` by default: `[metrics] listen` of the shipped
+/// config/gcud.toml (and of config/demo.toml).
+pub const GCUD_HTTP: &str = "127.0.0.1:9187";
+
 /// `HOST:PORT` with a port 1..=65535.
 pub fn parse_host_port(text: &str) -> Result<String, String> {
     const HINT: &str = "expected HOST:PORT, e.g. 127.0.0.1:4001";
@@ -919,7 +923,7 @@ fn parse_digital(text: &str) -> Result<u8, String> {
 
 /// `2s`, `2sec`, `500ms`, `1m`, `1m 30s` (humantime's forms): 1 ms ..= 1 h.
 pub fn parse_duration(text: &str) -> Result<Duration, String> {
-    const HINT: &str = "expected a duration like 2s, 2sec, 500ms, 1m or 1m30s (1ms..=1h)";
+    const HINT: &str = "expected a duration like 2s, 500ms, 2sec, 1m or 1m30s (1ms..=1h)";
     let d = humantime::parse_duration(text.trim()).map_err(|e| format!("{text:?}: {e}; {HINT}"))?;
     if (Duration::from_millis(1)..=Duration::from_secs(3600)).contains(&d) {
         Ok(d)
