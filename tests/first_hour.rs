@@ -304,3 +304,18 @@ fn gcud_status_defaults_to_the_shipped_metrics_address() {
     }
     assert!(out.stdout.contains("GIMBALCTL_HTTP"), "{out:?}");
 }
+
+/// A scan says on stderr what it will ask before its first probe, and how
+/// each port went as it goes; stdout keeps only the result.
+#[test]
+fn scan_says_what_it_probes_on_stderr() {
+    let gcud = support::cli::DemoGcud::start();
+    let out = gcud.ctl(&["scan", "--gcus", "5", "--ports", "1-2", "--devices", "1-3,7"]);
+    assert_eq!(out.code, 0, "{out:?}");
+    assert!(
+        out.stderr.contains("D? to the GCU of groups 5") && out.stderr.contains("devices 1-3,7 on ports 1-2"),
+        "{out:?}"
+    );
+    assert!(out.stderr.contains("port 5.1: 2 found, 2 silent"), "{out:?}");
+    assert!(!out.stdout.contains("gimbalctl: scan:"), "{out:?}");
+}

@@ -455,6 +455,27 @@ pub struct ScanArgs {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct IdList(pub Vec<u8>);
 
+impl std::fmt::Display for IdList {
+    /// As it is written on the command line: runs as `1-4`, e.g. `1-4,7`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut ids = self.0.iter().copied().peekable();
+        let mut first = true;
+        while let Some(start) = ids.next() {
+            let mut end = start;
+            while ids.peek() == Some(&end.wrapping_add(1)) && end < u8::MAX {
+                end = ids.next().unwrap_or(end);
+            }
+            let sep = if first { "" } else { "," };
+            first = false;
+            match end == start {
+                true => write!(f, "{sep}{start}")?,
+                false => write!(f, "{sep}{start}-{end}")?,
+            }
+        }
+        Ok(())
+    }
+}
+
 #[derive(Debug, Subcommand)]
 pub enum PresetCmd {
     /// Store the current position as preset N (Snn).
@@ -986,6 +1007,8 @@ mod tests {
         assert!(parse_host_port("127.0.0.1:0").is_err() && parse_host_port(":4001").is_err());
         assert!(parse_host_port("[::1]:4001").is_ok() && parse_host_port("localhost:4001").is_ok());
         assert_eq!(parse_id_list("1-3,7,2"), Ok(IdList(vec![1, 2, 3, 7])));
+        assert_eq!(IdList(vec![1, 2, 3, 7, 9, 10]).to_string(), "1-3,7,9-10");
+        assert_eq!(parse_id_list("1-254").unwrap().to_string(), "1-254");
         assert!(parse_id_list("0-3").is_err() && parse_id_list("4-2").is_err());
         assert_eq!(parse_preset("255"), Ok(255));
         assert_eq!(parse_preset("0xFF"), Ok(255));
