@@ -105,30 +105,11 @@ fn udev_rule_keeps_modemmanager_away() {
 
 #[test]
 fn systemd_analyze_verify_accepts_the_unit() {
-    let probe = Command::new("systemd-analyze").arg("--version").output();
-    if !probe.is_ok_and(|o| o.status.success()) {
-        let missing = "systemd-analyze not found: the unit is not verified. Install it with \
-                       `sudo apt-get install -y systemd` (.ci/run does)";
-        assert!(std::env::var_os("CI").is_none(), "{missing}");
-        eprintln!("warning: {missing}");
+    if !systemd_analyze_present() {
         return;
     }
-    // ExecStart's /usr/local/bin/gcud may not be installed here: verify a copy
-    // running /bin/true instead (everything else unchanged).
-    let unit: String = read("gcud.service")
-        .lines()
-        .map(|line| {
-            for key in ["ExecStartPre=", "ExecStart="] {
-                if line.starts_with(key) {
-                    return format!("{key}/bin/true\n");
-                }
-            }
-            format!("{line}\n")
-        })
-        .collect();
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("gcud.service");
-    std::fs::write(&path, unit).unwrap();
+    let path = unit_copy(dir.path());
     let out = Command::new("systemd-analyze")
         .arg("verify")
         .arg("--man=no")
@@ -148,5 +129,84 @@ fn systemd_analyze_verify_accepts_the_unit() {
         out.status.success() && ours.is_empty(),
         "systemd-analyze verify refused the unit (exit {:?}):\n{stdout}{stderr}",
         out.status.code()
+    );
+}
+
+/// A copy of the unit running /bin/true (gcud may not be installed here),
+/// for systemd-analyze.
+fn unit_copy(dir: &std::path::Path) -> PathBuf {
+    let unit: String = read("gcud.service")
+        .lines()
+        .map(|line| {
+            for key in ["ExecStartPre=", "ExecStart="] {
+                if line.starts_with(key) {
+                    return format!("{key}/bin/true\n");
+                }
+            }
+            format!("{line}\n")
+        })
+        .collect();
+    let path = dir.join("gcud.service");
+    std::fs::write(&path, unit).unwrap();
+    path
+}
+
+/// True when systemd-analyze runs here; otherwise fails under CI and warns.
+fn systemd_analyze_present() -> bool {
+    let probe = Command::new("systemd-analyze").arg("--version").output();
+    if probe.is_ok_and(|o| o.status.success()) {
+        return true;
+    }
+    let missing = "systemd-analyze not found: the unit is not checked. Install it with \
+                   `sudo apt-get install -y systemd` (.ci/run does)";
+    assert!(std::env::var_os("CI").is_none(), "{missing}");
+    eprintln!("warning: {missing}");
+    false
+}
+
+#[test]
+fn unit_exposure_stays_at_or_below_1_6() {
+    if !systemd_analyze_present() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = unit_copy(dir.path());
+    let out = Command::new("systemd-analyze")
+        .args(["security", "--offline=true", "--no-pager"])
+        .arg(&path)
+        .output()
+        .expect("systemd-analyze runs");
+    let text = String::from_utf8_lossy(&out.stdout);
+    let line = text
+        .lines()
+        .find(|l| l.contains("Overall exposure level"))
+        .unwrap_or_else(|| panic!("no exposure level in:\n{text}{}", String::from_utf8_lossy(&out.stderr)));
+    let level: f64 = line
+        .split(':')
+        .nth(1)
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("unreadable exposure line {line:?}"));
+    assert!(level <= 1.6, "exposure rose above 1.6: {line}");
+}
+
+/// README.md and docs/capture.md put captures in /var/lib/gcud/, and the
+/// unit's ProtectSystem=strict leaves nothing else writable: the unit must
+/// make that directory (StateDirectory=gcud, writable by the DynamicUser).
+#[test]
+fn state_directory_is_where_the_documentation_puts_captures() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    for doc in ["README.md", "docs/capture.md"] {
+        let text = std::fs::read_to_string(root.join(doc)).unwrap();
+        assert!(text.contains("/var/lib/gcud/"), "{doc} no longer names /var/lib/gcud/");
+    }
+    let service = section(&read("gcud.service"), "Service");
+    assert!(
+        has(&service, "ProtectSystem=strict"),
+        "[Service] lacks ProtectSystem=strict"
+    );
+    assert!(
+        has(&service, "StateDirectory=gcud"),
+        "[Service] lacks StateDirectory=gcud: /var/lib/gcud/ is read-only under ProtectSystem=strict"
     );
 }

@@ -761,7 +761,8 @@ fn check_against_prints_what_a_reload_would_change() {
     let dir = tempfile::tempdir().expect("temp dir");
     let old = dir.path().join("old.toml");
     let new = dir.path().join("new.toml");
-    let head = "[gcu]\ngroup = 5\n[[port]]\nid = 1\nsimulate = [1]\n";
+    // A client link: a GCU without links routes nothing and is refused.
+    let head = format!("[gcu]\ngroup = 5\n{CLIENTS}[[port]]\nid = 1\nsimulate = [1]\n");
     std::fs::write(&old, format!("{head}[[port]]\nid = 2\nsimulate = [1]\n")).expect("write");
     std::fs::write(&new, format!("{head}[[port]]\nid = 3\nsimulate = [1]\n")).expect("write");
     let run = |a: &Path, b: &Path| {
@@ -984,7 +985,7 @@ fn a_spewing_bus_is_counted_exactly_and_logged_briefly() {
     let bus = std::net::TcpListener::bind("127.0.0.1:0").expect("bind the fake device server");
     let addr = bus.local_addr().expect("address");
     let gcud = Gcud::start(&format!(
-        "[gcu]\ngroup = 5\n{METRICS}[[port]]\nid = 1\ntcp = \"{addr}\"\n"
+        "[gcu]\ngroup = 5\n{CLIENTS}{METRICS}[[port]]\nid = 1\ntcp = \"{addr}\"\n"
     ));
     let (mut line, _) = bus.accept().expect("gcud connects");
     let stray = FrameBuf::new(Address::new(7, 1, 1), 5, b"00000000").expect("frame");
@@ -1037,7 +1038,9 @@ fn per_peer_cap_and_metrics_allow_peers_hold() {
     drop(held);
 
     // A peer outside `[metrics] allow_peers` is closed at accept, unanswered.
-    let closed = Gcud::start("[gcu]\ngroup = 5\n[metrics]\nlisten = \"127.0.0.1:0\"\nallow_peers = [\"::1\"]\n");
+    let closed = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n{CLIENTS}[metrics]\nlisten = \"127.0.0.1:0\"\nallow_peers = [\"::1\"]\n"
+    ));
     let metrics = closed.address("metrics at /metrics");
     for path in ["/metrics", "/status", "/healthz"] {
         let mut s = TcpStream::connect(&metrics).expect("connect");
@@ -1202,7 +1205,7 @@ fn journal_lines_carry_their_priority() {
 fn clean_sigterm_logs_no_warning() {
     // A real loss while running: the device end of the port goes away.
     let lost = Sim::pty(&[]);
-    let gcud = Gcud::start(&format!("[gcu]\ngroup = 5\n{}", port_entry(1, &lost)));
+    let gcud = Gcud::start(&format!("[gcu]\ngroup = 5\n{CLIENTS}{}", port_entry(1, &lost)));
     gcud.wait_for_log("port open port=1");
     drop(lost);
     let line = gcud.wait_for_log("port lost");

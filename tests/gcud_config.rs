@@ -86,11 +86,18 @@ fn refused(cases: &[(&str, &str, &str)]) {
     }
 }
 
-/// Each config passes `--check` (exit 0, "valid") with no warning.
+/// Each config passes `--check` (exit 0, "valid") with no warning; one
+/// without a [[link]] gets a loopback client link first (a GCU without
+/// links routes nothing and is refused).
 fn accepted(texts: &[&str]) {
     let dir = tempfile::tempdir().expect("temp dir");
     for (i, text) in texts.iter().enumerate() {
-        let path = write(dir.path(), &format!("good{i}.toml"), text);
+        let text = if text.contains("[[link]]") {
+            text.to_string()
+        } else {
+            format!("{text}{LINK_C}listen = \"127.0.0.1:0\"\n")
+        };
+        let path = write(dir.path(), &format!("good{i}.toml"), &text);
         let run = gcud(&["--check"], &path);
         assert_eq!(run.code, Some(0), "case {i} ({text:?}): {}", run.stderr);
         assert!(run.stdout.contains("valid"), "case {i}: {}", run.stdout);
@@ -398,7 +405,7 @@ fn config_paths_that_are_not_a_regular_file_of_at_most_1_mib_are_refused_without
     );
     refused_file(dir.path(), "cannot read: a directory, not a regular file");
     // One byte over the limit, though valid TOML: a comment pads it.
-    let mut text = "[gcu]\ngroup = 5\n#".to_owned();
+    let mut text = format!("[gcu]\ngroup = 5\n{LINK_C}listen = \"127.0.0.1:0\"\n#");
     text.push_str(&"x".repeat(1024 * 1024 - text.len() + 1));
     let big = write(dir.path(), "big.toml", &text);
     refused_file(

@@ -354,6 +354,9 @@ pub struct Config {
     /// Every TCP listen address with its place (`FILE:LINE:COLUMN: KEY`),
     /// for [`Config::probe_listeners`].
     pub listen_places: Vec<(SocketAddr, String)>,
+    /// Every serial device a port or link opens, with its place in the
+    /// file, for [`Config::probe_serial_paths`].
+    pub serial_places: Vec<(PathBuf, String)>,
 }
 
 impl Config {
@@ -371,6 +374,22 @@ impl Config {
                     "{place}: {addr} is in use on this machine now; start-up fails unless it is free by then"
                 )),
                 Err(e) => Some(format!("{place}: cannot listen on {addr} here now: {e}")),
+            })
+            .collect()
+    }
+
+    /// `--check` only: a warning for each serial device that does not exist
+    /// now. Not an error: an adapter may be plugged in later, and gcud
+    /// retries the port until it is.
+    pub fn probe_serial_paths(&self) -> Vec<String> {
+        self.serial_places
+            .iter()
+            .filter(|(path, _)| !path.exists())
+            .map(|(path, place)| {
+                format!(
+                    "{place}: {} does not exist now; gcud retries it until it is plugged in",
+                    path.display()
+                )
             })
             .collect()
     }
@@ -1049,6 +1068,17 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
         None => None,
     };
 
+    // A GCU that can route nothing is a mistake, not a configuration:
+    // commands come in over links only (devices never send one). Links
+    // without ports may still route (a hub, by learned routes).
+    if links.is_empty() {
+        return Err(c.at(
+            0..0,
+            "",
+            "routes nothing: no [[link]], so no command can reach this GCU \
+             (add a `listen` link for clients, or a `serial`/`connect` link to another GCU)",
+        ));
+    }
     Ok(Config {
         file: c.file.to_owned(),
         group,
@@ -1073,6 +1103,10 @@ fn validate(c: &Checker<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
         capture,
         warnings,
         listen_places: listeners.into_iter().map(|(addr, _, _, place)| (addr, place)).collect(),
+        serial_places: serial_lines
+            .into_iter()
+            .map(|(path, span, key)| (path, c.place(span, &key)))
+            .collect(),
     })
 }
 
@@ -1084,7 +1118,8 @@ mod tests {
         parse(Path::new("t.toml"), text).expect_err("config should be refused")
     }
 
-    const MINIMAL: &str = "[gcu]\ngroup = 5\n";
+    /// The least a GCU needs to route: a group and one link.
+    const MINIMAL: &str = "[gcu]\ngroup = 5\n[[link]]\nname = \"c\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n";
 
     #[test]
     fn minimal_config_gets_defaults_derived_from_the_baud() {
@@ -1095,6 +1130,25 @@ mod tests {
         assert_eq!(c.queue_depth, 16);
         let t = default_timing(1200);
         assert!(t.ack_timeout_ms > default_timing(115200).ack_timeout_ms);
+    }
+
+    #[test]
+    fn type_errors_are_in_words() {
+        let e = err("[gcu]\ngroup = \"five\"\n");
+        assert_eq!((e.key.as_str(), e.line, e.column), ("gcu.group", 2, 9), "{e}");
+        assert_eq!(e.message, "expected an integer, found the string \"five\"");
+        let e = err(&format!("{MINIMAL}[[port]]\nid = 1\nsimulate = 1\n"));
+        assert_eq!(e.message, "expected a list [...], found the integer `1`", "{e}");
+        let e = err("[gcu]\ngroup = 5\n[metrics]\nlisten = [\"a\"]\n");
+        assert_eq!(e.message, "expected a string in quotes, found a list", "{e}");
+    }
+
+    #[test]
+    fn a_gcu_without_links_routes_nothing_and_is_refused() {
+        let e = err("[gcu]\ngroup = 5\n[[port]]\nid = 1\nsimulate = [1]\n");
+        assert!(e.message.starts_with("routes nothing: no [[link]]"), "{e}");
+        // Links alone may route (a hub, by learned routes).
+        parse(Path::new("t.toml"), MINIMAL).unwrap();
     }
 
     #[test]
@@ -1167,7 +1221,9 @@ mod tests {
             assert_eq!(c.group, 5, "{name}");
         }
         let full = load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("config/gcud.toml")).unwrap();
-        // The device-server port: its rate; retries do not apply to it.
+        // A device-server port: nothing is retransmitted into it, so the
+        // shipped file sets no `retries` there ([port_defaults] retries = 3).
+        assert_eq!(full.ports[1].timing.retries, 3);
         assert_eq!(full.ports[1].timing.baud, 19200);
         assert_eq!(full.routes, vec![(7, "gcu7".to_owned())]);
     }
@@ -1178,7 +1234,7 @@ mod tests {
         assert_eq!(c.capture, None);
         let c = parse(
             Path::new("t.toml"),
-            "[gcu]\ngroup = 5\n[capture]\nfile = \"/tmp/g.pcapng\"\nrotate_bytes = 1048576\n",
+            &format!("{MINIMAL}[capture]\nfile = \"/tmp/g.pcapng\"\nrotate_bytes = 1048576\n"),
         )
         .unwrap();
         let cap = c.capture.unwrap();

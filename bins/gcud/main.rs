@@ -59,7 +59,7 @@ fn main() -> ExitCode {
     let config = match config::load(&args.config) {
         Ok(config) => config,
         Err(e) => {
-            eprintln!("gcud: {e}");
+            sagebrush_host::errln!("gcud: {e}");
             return ExitCode::from(EXIT_CONFIG);
         }
     };
@@ -68,28 +68,29 @@ fn main() -> ExitCode {
         if args.against.is_none() {
             // A running gcud holds its own addresses: no probe against it.
             warnings.extend(config.probe_listeners());
+            warnings.extend(config.probe_serial_paths());
         }
         for w in &warnings {
-            eprintln!("gcud: warning: {w}");
+            sagebrush_host::errln!("gcud: warning: {w}");
         }
     }
     if let Some(running) = &args.against {
         let running = match config::load(running) {
             Ok(running) => running,
             Err(e) => {
-                eprintln!("gcud: {e}");
+                sagebrush_host::errln!("gcud: {e}");
                 return ExitCode::from(EXIT_CONFIG);
             }
         };
         let diff = reload::Diff::between(&running, &config);
-        print!("{diff}");
+        sagebrush_host::out!("{diff}");
         return match diff.needs_restart.is_empty() {
             true => ExitCode::SUCCESS,
             false => ExitCode::from(EXIT_CONFIG),
         };
     }
     if args.check {
-        println!(
+        sagebrush_host::outln!(
             "{}: valid: group {}, {} port(s), {} link(s), {} route(s)",
             config.file.display(),
             config.group,
@@ -100,7 +101,7 @@ fn main() -> ExitCode {
         return ExitCode::SUCCESS;
     }
     if let Err(e) = sagebrush_host::logging::init(config.log_level.as_deref().unwrap_or("info"), false) {
-        eprintln!("gcud: {e}");
+        sagebrush_host::errln!("gcud: {e}");
         return ExitCode::from(EXIT_CONFIG);
     }
     for w in &config.warnings {
@@ -135,7 +136,7 @@ fn main() -> ExitCode {
     {
         Ok(rt) => rt,
         Err(e) => {
-            eprintln!("gcud: cannot start the async runtime: {e}");
+            sagebrush_host::errln!("gcud: cannot start the async runtime: {e}");
             return ExitCode::from(EXIT_START);
         }
     };
@@ -143,7 +144,7 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             tracing::error!("{e}");
-            eprintln!("gcud: {e}");
+            sagebrush_host::errln!("gcud: {e}");
             ExitCode::from(EXIT_START)
         }
     }

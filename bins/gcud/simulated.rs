@@ -17,6 +17,8 @@ pub fn spawn(port: u8, devices: &[u8], baud: u32) -> DuplexStream {
             .iter()
             .map(|&d| GimbalConfig {
                 name: format!("sim gimbal {port}.{d}"),
+                // Distinct per gimbal, as real units are (Table 6: at most 20 characters).
+                serial: format!("SIM-{port}.{d}"),
                 ..GimbalConfig::at(d)
             })
             .collect(),

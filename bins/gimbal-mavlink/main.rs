@@ -48,12 +48,12 @@ fn main() -> ExitCode {
     let config = match config::load(&args.config) {
         Ok(c) => c,
         Err(e) => {
-            eprintln!("gimbal-mavlink: {e}");
+            sagebrush_host::errln!("gimbal-mavlink: {e}");
             return ExitCode::from(EXIT_CONFIG);
         }
     };
     if args.check {
-        println!(
+        sagebrush_host::outln!(
             "{}: valid ({} gimbal(s), {} endpoint(s))",
             args.config.display(),
             config.gimbals.len(),
@@ -62,7 +62,7 @@ fn main() -> ExitCode {
         return ExitCode::SUCCESS;
     }
     if let Err(e) = sagebrush_host::logging::init("info", false) {
-        eprintln!("gimbal-mavlink: {e}");
+        sagebrush_host::errln!("gimbal-mavlink: {e}");
         return ExitCode::from(EXIT_CONFIG);
     }
     let runtime = match tokio::runtime::Builder::new_multi_thread()
@@ -72,7 +72,7 @@ fn main() -> ExitCode {
     {
         Ok(rt) => rt,
         Err(e) => {
-            eprintln!("gimbal-mavlink: cannot start the runtime: {e}");
+            sagebrush_host::errln!("gimbal-mavlink: cannot start the runtime: {e}");
             return ExitCode::from(EXIT_START);
         }
     };
@@ -80,7 +80,7 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             error!("{e}");
-            eprintln!("gimbal-mavlink: {e}");
+            sagebrush_host::errln!("gimbal-mavlink: {e}");
             ExitCode::from(EXIT_START)
         }
     }

@@ -43,12 +43,12 @@ fn main() -> ExitCode {
     let config = match config::load(&args.config) {
         Ok(c) => c,
         Err(e) => {
-            eprintln!("gimbal-onvif: {e}");
+            sagebrush_host::errln!("gimbal-onvif: {e}");
             return ExitCode::from(EXIT_CONFIG);
         }
     };
     if args.check {
-        println!(
+        sagebrush_host::outln!(
             "{}: valid ({} gimbal(s), {} user(s))",
             args.config.display(),
             config.gimbals.len(),
@@ -57,7 +57,7 @@ fn main() -> ExitCode {
         return ExitCode::SUCCESS;
     }
     if let Err(e) = sagebrush_host::logging::init("info", false) {
-        eprintln!("gimbal-onvif: {e}");
+        sagebrush_host::errln!("gimbal-onvif: {e}");
         return ExitCode::from(EXIT_CONFIG);
     }
     let runtime = match tokio::runtime::Builder::new_multi_thread()
@@ -67,7 +67,7 @@ fn main() -> ExitCode {
     {
         Ok(rt) => rt,
         Err(e) => {
-            eprintln!("gimbal-onvif: cannot start the runtime: {e}");
+            sagebrush_host::errln!("gimbal-onvif: cannot start the runtime: {e}");
             return ExitCode::from(EXIT_START);
         }
     };
@@ -75,7 +75,7 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             error!("{e}");
-            eprintln!("gimbal-onvif: {e}");
+            sagebrush_host::errln!("gimbal-onvif: {e}");
             ExitCode::from(EXIT_START)
         }
     }

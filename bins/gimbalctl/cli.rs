@@ -133,7 +133,7 @@ pub struct WaitArgs {
 /// `--for` / `--hold` of continuous motions.
 #[derive(Debug, Clone, Copy, Args)]
 pub struct JogArgs {
-    /// Move for DURATION (e.g. 2s, 500ms, 1.5s; 1ms..=1h), then send the stop and confirm it.
+    /// Move for DURATION (e.g. 2s, 2sec, 500ms, 1m; 1ms..=1h), then send the stop and confirm it.
     #[arg(long = "for", value_name = "DURATION", value_parser = parse_duration, conflicts_with = "hold")]
     pub duration: Option<Duration>,
     /// Keep the connection (and the motion) until Ctrl-C, SIGTERM or end of stdin, then stop and confirm (stdin from /dev/null ends it at once: use a terminal or a pipe).
@@ -401,11 +401,11 @@ and V?, and their last error (did not acknowledge, NAK, no result, NIC). --json 
 under \"status\" (the README documents its shape).
 
 Examples:
-  gimbalctl gcud-status --http 127.0.0.1:9187
-  gimbalctl --json gcud-status --http 127.0.0.1:9187")]
+  gimbalctl gcud-status                          # gcud's default 127.0.0.1:9187, or $GIMBALCTL_HTTP
+  gimbalctl --json gcud-status --http 10.0.0.5:9187")]
     GcudStatus {
-        /// gcud's [metrics] listen address HOST:PORT, e.g. 127.0.0.1:9187.
-        #[arg(long, env = "GIMBALCTL_HTTP", value_name = "HOST:PORT", value_parser = parse_host_port)]
+        /// gcud's [metrics] listen address HOST:PORT; the default is the shipped config/gcud.toml's.
+        #[arg(long, env = "GIMBALCTL_HTTP", default_value = GCUD_HTTP, value_name = "HOST:PORT", value_parser = parse_host_port)]
         http: String,
     },
     /// Print the frame for PAYLOAD as hex bytes (no I/O; needs --to).
@@ -454,6 +454,27 @@ pub struct ScanArgs {
 /// A set of IDs from `1-4,7`.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct IdList(pub Vec<u8>);
+
+impl std::fmt::Display for IdList {
+    /// As it is written on the command line: runs as `1-4`, e.g. `1-4,7`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut ids = self.0.iter().copied().peekable();
+        let mut first = true;
+        while let Some(start) = ids.next() {
+            let mut end = start;
+            while ids.peek() == Some(&end.wrapping_add(1)) && end < u8::MAX {
+                end = ids.next().unwrap_or(end);
+            }
+            let sep = if first { "" } else { "," };
+            first = false;
+            match end == start {
+                true => write!(f, "{sep}{start}")?,
+                false => write!(f, "{sep}{start}-{end}")?,
+            }
+        }
+        Ok(())
+    }
+}
 
 #[derive(Debug, Subcommand)]
 pub enum PresetCmd {
@@ -784,10 +805,25 @@ impl Cmd {
     }
 }
 
+/// `G.P.D` (Table 2): an error names the part that is wrong (group, port
+/// or device) and its range.
 fn parse_address(text: &str) -> Result<Address, String> {
-    text.parse::<Address>()
-        .map_err(|e| format!("{text:?}: {e}; expected GROUP.PORT.DEVICE, each 0..=255, e.g. 5.1.1"))
+    const HINT: &str = "expected GROUP.PORT.DEVICE, each 0..=255, e.g. 5.1.1";
+    let parts: Vec<&str> = text.split('.').collect();
+    if parts.len() != 3 {
+        return Err(format!("{text:?} has {} part(s): {HINT}", parts.len()));
+    }
+    for (name, part) in ["group", "port", "device"].into_iter().zip(&parts) {
+        if part.trim().parse::<u8>().is_err() {
+            return Err(format!("{text:?}: {name} {part:?} is not a number 0..=255; {HINT}"));
+        }
+    }
+    text.parse::<Address>().map_err(|e| format!("{text:?}: {e}; {HINT}"))
 }
+
+/// `gcud-status --http` by default: `[metrics] listen` of the shipped
+/// config/gcud.toml (and of config/demo.toml).
+pub const GCUD_HTTP: &str = "127.0.0.1:9187";
 
 /// `HOST:PORT` with a port 1..=65535.
 pub fn parse_host_port(text: &str) -> Result<String, String> {
@@ -906,23 +942,12 @@ fn parse_digital(text: &str) -> Result<u8, String> {
     }
 }
 
-/// `2s`, `500ms`, `1.5s`, `1m`: 1 ms ..= 1 h.
+/// `2s`, `2sec`, `500ms`, `1m`, `1m 30s` (humantime's forms): 1 ms ..= 1 h.
 pub fn parse_duration(text: &str) -> Result<Duration, String> {
-    const HINT: &str = "expected a duration like 2s, 500ms, 1.5s or 1m (1ms..=1h)";
-    let t = text.trim();
-    let (number, scale) = if let Some(n) = t.strip_suffix("ms") {
-        (n, 0.001)
-    } else if let Some(n) = t.strip_suffix('s') {
-        (n, 1.0)
-    } else if let Some(n) = t.strip_suffix('m') {
-        (n, 60.0)
-    } else {
-        return Err(format!("{text:?} has no unit: {HINT}"));
-    };
-    let v: f64 = number.trim().parse().map_err(|_| format!("{text:?}: {HINT}"))?;
-    let secs = v * scale;
-    if secs.is_finite() && (0.001..=3600.0).contains(&secs) {
-        Ok(Duration::from_secs_f64(secs))
+    const HINT: &str = "expected a duration like 2s, 500ms, 2sec, 1m or 1m30s (1ms..=1h)";
+    let d = humantime::parse_duration(text.trim()).map_err(|e| format!("{text:?}: {e}; {HINT}"))?;
+    if (Duration::from_millis(1)..=Duration::from_secs(3600)).contains(&d) {
+        Ok(d)
     } else {
         Err(format!("{text:?} is out of range: {HINT}"))
     }
@@ -973,15 +998,25 @@ mod tests {
     fn durations_host_ports_and_lists() {
         assert_eq!(parse_duration("2s"), Ok(Duration::from_secs(2)));
         assert_eq!(parse_duration("500ms"), Ok(Duration::from_millis(500)));
-        assert_eq!(parse_duration("1.5s"), Ok(Duration::from_millis(1500)));
+        assert_eq!(parse_duration("2sec"), Ok(Duration::from_secs(2)));
+        assert_eq!(parse_duration("1m"), Ok(Duration::from_secs(60)));
+        assert_eq!(parse_duration("1m 30s"), Ok(Duration::from_secs(90)));
+        assert!(parse_duration("2sec").is_ok() && parse_duration("1500ms").is_ok());
         assert!(parse_duration("2").is_err() && parse_duration("0s").is_err() && parse_duration("2h").is_err());
         assert!(parse_host_port("127.0.0.1").unwrap_err().contains("127.0.0.1:4001"));
         assert!(parse_host_port("127.0.0.1:0").is_err() && parse_host_port(":4001").is_err());
         assert!(parse_host_port("[::1]:4001").is_ok() && parse_host_port("localhost:4001").is_ok());
         assert_eq!(parse_id_list("1-3,7,2"), Ok(IdList(vec![1, 2, 3, 7])));
+        assert_eq!(IdList(vec![1, 2, 3, 7, 9, 10]).to_string(), "1-3,7,9-10");
+        assert_eq!(parse_id_list("1-254").unwrap().to_string(), "1-254");
         assert!(parse_id_list("0-3").is_err() && parse_id_list("4-2").is_err());
         assert_eq!(parse_preset("255"), Ok(255));
         assert_eq!(parse_preset("0xFF"), Ok(255));
         assert!(parse_preset("256").unwrap_err().contains("0..=255"));
+        let e = parse_address("5.1.300").unwrap_err();
+        assert!(e.contains("device \"300\" is not a number 0..=255"), "{e}");
+        assert!(parse_address("x.1.1").unwrap_err().contains("group \"x\""));
+        assert!(parse_address("5.256.1").unwrap_err().contains("port \"256\""));
+        assert!(parse_address("5.1").unwrap_err().contains("2 part(s)"));
     }
 }

@@ -28,7 +28,9 @@ pub fn encode(dest: Address, source: u8, payload: &str, as_json: bool) -> Result
     let frame =
         FrameBuf::new(dest, source, &bytes).map_err(|e| CtlError::Usage(format!("payload {payload:?}: {e}")))?;
     if let Err(e) = Command::parse_strict(&bytes) {
-        eprintln!("gimbalctl: note: {payload:?} is no rev 1.9 command ({e}); a device answers it with NIC");
+        sagebrush_host::errln!(
+            "gimbalctl: note: {payload:?} is no rev 1.9 command ({e}); a device answers it with NIC"
+        );
     }
     let hex = to_hex(frame.as_bytes());
     if as_json {
@@ -41,9 +43,9 @@ pub fn encode(dest: Address, source: u8, payload: &str, as_json: bool) -> Result
             "checksum": f.checksum(),
             "command": command_json(f.payload()),
         });
-        println!("{value}");
+        sagebrush_host::outln!("{value}");
     } else {
-        println!("{hex}");
+        sagebrush_host::outln!("{hex}");
     }
     Ok(())
 }
@@ -114,9 +116,9 @@ fn print(event: &Decoded, as_json: bool) {
         Decoded::Noise(n) => (format!("noise {n} byte(s)"), json!({ "kind": "noise", "bytes": n })),
     };
     if as_json {
-        println!("{value}");
+        sagebrush_host::outln!("{value}");
     } else {
-        println!("{text}");
+        sagebrush_host::outln!("{text}");
     }
 }
 

@@ -44,12 +44,12 @@ fn fetch(http: &str) -> Result<Value, CtlError> {
 pub fn run(http: &str, as_json: bool) -> Result<(), CtlError> {
     let status = fetch(http)?;
     if as_json {
-        println!(
+        sagebrush_host::outln!(
             "{}",
             json!({ "ok": true, "command": "gcud-status", "http": http, "status": status })
         );
     } else {
-        print!("{}", text(&status, now_unix()));
+        sagebrush_host::out!("{}", text(&status, now_unix()));
     }
     Ok(())
 }
@@ -140,7 +140,14 @@ fn text(s: &Value, now: f64) -> String {
             port["bad_checksums"],
             ago(&port["last_seen_unix"], now),
         ));
-        let devices = port["devices"].as_array().unwrap_or(&empty);
+        // Devices only: a row for the wildcard 255 (a broadcast) would read
+        // as an offline gimbal.
+        let devices: Vec<&Value> = port["devices"]
+            .as_array()
+            .unwrap_or(&empty)
+            .iter()
+            .filter(|d| d["device"].as_u64() != Some(255))
+            .collect();
         if devices.is_empty() {
             out.push_str("  no device addressed yet\n");
             continue;
@@ -230,6 +237,9 @@ mod tests {
                          {"device": 1, "address": "5.1.1", "online": true, "last_seen_unix": 1095.0,
                           "position": {"pan_deg": 12.5, "tilt_deg": -3.0, "unix": 1095.0}, "lens": null,
                           "last_error": null, "commands": 2, "unreachable": 0, "no_result": 0, "nics": 0},
+                         {"device": 255, "address": "5.1.255", "online": false, "last_seen_unix": null,
+                          "position": null, "lens": null, "commands": 1, "unreachable": 0, "no_result": 0, "nics": 0,
+                          "last_error": null},
                          {"device": 9, "address": "5.1.9", "online": false, "last_seen_unix": null,
                           "position": null, "lens": null, "commands": 1, "unreachable": 1, "no_result": 0, "nics": 0,
                           "last_error": {"error": "device_silent", "message": "did not acknowledge", "unix": 1098.0}}]}],
@@ -243,6 +253,7 @@ mod tests {
             one.contains("yes") && one.contains("pan 12.50° tilt -3.00° (5 s ago)"),
             "{one}"
         );
+        assert!(!text.contains("5.1.255"), "a wildcard row: {text}");
         let nine = text.lines().find(|l| l.contains("5.1.9")).expect("device 9");
         assert!(
             nine.contains("never") && nine.contains("did not acknowledge (2 s ago)"),

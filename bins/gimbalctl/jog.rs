@@ -56,11 +56,11 @@ pub async fn run(
     let started = tokio::time::Instant::now();
     if !as_json {
         match jog.duration {
-            Some(d) => eprintln!(
+            Some(d) => sagebrush_host::errln!(
                 "gimbalctl: {sent} acknowledged; {stop_sent} in {:.3} s",
                 d.as_secs_f64()
             ),
-            None => eprintln!(
+            None => sagebrush_host::errln!(
                 "gimbalctl: {sent} acknowledged; holding until Ctrl-C, SIGTERM or end of stdin, then {stop_sent}"
             ),
         }
@@ -108,9 +108,9 @@ pub async fn run(
         m.insert("stop_sent".into(), stop_sent.clone().into());
         m.insert("stop_outcome".into(), stop_outcome.into());
         m.insert("stop_transmissions".into(), stop_ex.transmissions.into());
-        println!("{}", Value::Object(m));
+        sagebrush_host::outln!("{}", Value::Object(m));
     } else {
-        println!(
+        sagebrush_host::outln!(
             "{sent} for {:.3} s (ended by {ended_by}), then {stop_sent} {stop_outcome}",
             held.as_secs_f64()
         );

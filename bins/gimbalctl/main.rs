@@ -39,7 +39,7 @@ fn main() -> ExitCode {
             if usage_error && std::env::args().any(|a| a == "--json") {
                 let text = e.render().to_string();
                 let first = text.lines().next().unwrap_or_default().trim_start_matches("error: ");
-                println!(
+                sagebrush_host::outln!(
                     "{}",
                     json!({ "ok": false, "command": null, "dest": null, "outcome": "usage",
                             "error": first, "exit_code": 2 })
@@ -50,7 +50,7 @@ fn main() -> ExitCode {
     };
     let as_json = cli.global.json;
     if let Err(e) = sagebrush_host::logging::init(&cli.global.log, false) {
-        eprintln!("gimbalctl: {e}");
+        sagebrush_host::errln!("gimbalctl: {e}");
         return ExitCode::from(2);
     }
     let result = match &cli.command {
@@ -84,9 +84,9 @@ fn main() -> ExitCode {
                 if let (Value::Object(m), Value::Object(extra)) = (&mut value, e.detail()) {
                     m.extend(extra);
                 }
-                println!("{value}");
+                sagebrush_host::outln!("{value}");
             }
-            eprintln!("gimbalctl: {e}");
+            sagebrush_host::errln!("gimbalctl: {e}");
             ExitCode::from(e.exit_code())
         }
     }
@@ -171,7 +171,7 @@ async fn run(cli: &Cli) -> Result<(), CtlError> {
     let raw = matches!(cli.command, Cmd::Raw { .. });
     let (text, mut value) = report(&session, &cli.command, &payload, &ex, raw)?;
     if cli.command.jog().is_some() && session.over_tcp && ex.outcome != Outcome::Broadcast {
-        eprintln!(
+        sagebrush_host::errln!(
             "gimbalctl: note: through gcud this motion stops as soon as gimbalctl exits (gcud's dead-man); \
              use --for DURATION or --hold to keep it going"
         );
@@ -184,19 +184,21 @@ async fn run(cli: &Cli) -> Result<(), CtlError> {
             }
         }
         if !g.json {
-            println!("{text}");
-            println!("{}", arrived.text());
+            sagebrush_host::outln!("{text}");
+            sagebrush_host::outln!("{}", arrived.text());
             return Ok(());
         }
     }
     if g.json {
-        println!("{value}");
+        sagebrush_host::outln!("{value}");
     } else {
-        println!("{text}");
+        sagebrush_host::outln!("{text}");
         if ex.transmissions > 1 || ex.naks_sent > 0 {
-            eprintln!(
+            sagebrush_host::errln!(
                 "gimbalctl: note: {} transmission(s), {} NAK(s) received, {} damaged result(s) NAKed",
-                ex.transmissions, ex.naks_received, ex.naks_sent
+                ex.transmissions,
+                ex.naks_received,
+                ex.naks_sent
             );
         }
     }

@@ -271,6 +271,23 @@ pub async fn scan(g: &Global, args: &ScanArgs) -> Result<(), CtlError> {
         collisions: Vec::new(),
         probes: 0,
     };
+    // What will be asked, before the first probe (a long scan is not silent).
+    if through_gcu {
+        sagebrush_host::errln!(
+            "gimbalctl: scan: D? to the GCU of groups {} (unrouted groups skipped), then to devices {} \
+             on ports {} of each GCU found (absent ports skipped); up to {} ms per silent address",
+            args.gcus,
+            args.devices,
+            args.ports,
+            timeout
+        );
+    } else {
+        let (group, port) = args.bus;
+        sagebrush_host::errln!(
+            "gimbalctl: scan: D? to devices {} at {group}.{port}; up to {timeout} ms per silent address",
+            args.devices
+        );
+    }
     let mut text = Vec::new();
     let mut gcus = Vec::new();
     let mut bus = Value::Null;
@@ -295,6 +312,10 @@ pub async fn scan(g: &Global, args: &ScanArgs) -> Result<(), CtlError> {
                         ports.push(json!({ "port": port, "state": u.name(), "devices": [], "silent": 0 }));
                     }
                     Ok((devices, silent)) => {
+                        sagebrush_host::errln!(
+                            "gimbalctl: scan: port {group}.{port}: {} found, {silent} silent",
+                            devices.len()
+                        );
                         text.push(format!("  port {port}"));
                         for d in &devices {
                             text.push(format!("    {}", device_line(d)));
@@ -355,7 +376,7 @@ pub async fn scan(g: &Global, args: &ScanArgs) -> Result<(), CtlError> {
         }
     }
     if g.json {
-        println!(
+        sagebrush_host::outln!(
             "{}",
             json!({
                 "ok": true,
@@ -370,7 +391,7 @@ pub async fn scan(g: &Global, args: &ScanArgs) -> Result<(), CtlError> {
             })
         );
     } else {
-        println!("{}", text.join("\n"));
+        sagebrush_host::outln!("{}", text.join("\n"));
     }
     Ok(())
 }

@@ -2,7 +2,7 @@
 //! at a rate and keeps one live line on a terminal; one line (or JSON
 //! object) per sample otherwise.
 
-use std::io::{IsTerminal, Write};
+use std::io::IsTerminal;
 use std::time::Duration;
 
 use sagebrush_protocol::{Command, Reply};
@@ -57,7 +57,7 @@ pub async fn watch(session: &mut Session, rate: f64, count: Option<u64>, as_json
         };
         if as_json {
             let lens = lens.map(|l| json!({ "zoom": l.zoom.get(), "focus": l.focus.get() }));
-            println!(
+            sagebrush_host::outln!(
                 "{}",
                 json!({ "sample": n, "position": position_json(&position), "lens": lens })
             );
@@ -67,15 +67,14 @@ pub async fn watch(session: &mut Session, rate: f64, count: Option<u64>, as_json
             });
             let line = format!("{}  {lens}", position_text(&position));
             if live {
-                print!("\r\x1b[2K{line}");
-                let _ = std::io::stdout().flush();
+                sagebrush_host::out!("\r\x1b[2K{line}");
             } else {
-                println!("{line}");
+                sagebrush_host::outln!("{line}");
             }
         }
     }
     if live {
-        println!();
+        sagebrush_host::outln!();
     }
     Ok(())
 }

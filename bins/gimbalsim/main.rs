@@ -12,31 +12,31 @@ use clap::Parser;
 fn main() -> ExitCode {
     let cli = cli::Cli::parse();
     if let Err(e) = sagebrush_host::logging::init(&cli.log, cli.log_json) {
-        eprintln!("gimbalsim: {e}");
+        sagebrush_host::errln!("gimbalsim: {e}");
         return ExitCode::from(2);
     }
     let config = match cli.bus_config() {
         Ok(config) => config,
         Err(e) => {
-            eprintln!("gimbalsim: {e}");
+            sagebrush_host::errln!("gimbalsim: {e}");
             return ExitCode::from(2);
         }
     };
     if let Err(e) = sagebrush_sim::Bus::new(config.clone(), 0) {
-        eprintln!("gimbalsim: {e}");
+        sagebrush_host::errln!("gimbalsim: {e}");
         return ExitCode::from(2);
     }
     let runtime = match tokio::runtime::Builder::new_current_thread().enable_all().build() {
         Ok(rt) => rt,
         Err(e) => {
-            eprintln!("gimbalsim: cannot start the runtime: {e}");
+            sagebrush_host::errln!("gimbalsim: cannot start the runtime: {e}");
             return ExitCode::from(1);
         }
     };
     match runtime.block_on(run::run(cli, config)) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("gimbalsim: {e}");
+            sagebrush_host::errln!("gimbalsim: {e}");
             ExitCode::from(1)
         }
     }

@@ -44,7 +44,7 @@ fn print_stats(bus: &Bus) {
         "noise_bytes": bus.noise_bytes(),
         "faults": faults,
     });
-    println!("stats {stats}");
+    sagebrush_host::outln!("stats {stats}");
 }
 
 /// Runs the simulator as the command line says.
@@ -128,7 +128,5 @@ pub async fn run(cli: Cli, config: BusConfig) -> Result<(), String> {
 
 /// The first line of standard output: where clients attach.
 fn announce(what: &str) {
-    use std::io::Write;
-    println!("{what}");
-    let _ = io::stdout().flush();
+    sagebrush_host::outln!("{what}");
 }

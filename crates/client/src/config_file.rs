@@ -141,10 +141,38 @@ impl<'a> Source<'a> {
             self.at(
                 span,
                 if key == "." { String::new() } else { key },
-                inner.message().trim().to_owned(),
+                in_words(inner.message().trim()),
             )
         })
     }
+}
+
+/// serde's type error (`invalid type: string "five", expected i64`) in the
+/// words of a TOML file: `expected an integer, found the string "five"`.
+fn in_words(message: &str) -> String {
+    let Some(rest) = message.strip_prefix("invalid type: ") else {
+        return message.to_owned();
+    };
+    let Some((found, expected)) = rest.rsplit_once(", expected ") else {
+        return message.to_owned();
+    };
+    let expected = match expected {
+        "i8" | "i16" | "i32" | "i64" | "u8" | "u16" | "u32" | "u64" | "usize" | "isize" => "an integer",
+        "f32" | "f64" => "a number",
+        "a boolean" | "bool" => "true or false",
+        "a sequence" => "a list [...]",
+        "a string" => "a string in quotes",
+        "a map" => "a table",
+        other => other,
+    };
+    let found = found
+        .replace("sequence", "a list")
+        .replace("map", "a table")
+        .replace("integer `", "the integer `")
+        .replace("string \"", "the string \"")
+        .replace("boolean `", "the boolean `")
+        .replace("floating point `", "the number `");
+    format!("expected {expected}, found {found}")
 }
 
 /// The largest configuration file read (a real one is a few KiB).

@@ -9,6 +9,7 @@
 //! - [`timing`]: time-outs derived from the line rate (1.4.2).
 //! - [`sim_line`]: a simulated bus served on a byte stream.
 //! - [`hex`]: hex text of wire bytes, as `gimbalctl encode/decode` use it.
+//! - [`stdio`]: stdout/stderr writes that end quietly on a closed pipe.
 //! - [`capture`]: pcapng capture of bus and link traffic for Wireshark
 //!   (`docs/capture.md`, `tools/wireshark/sagebrush.lua`).
 
@@ -18,5 +19,6 @@ pub mod logging;
 pub mod pty;
 #[cfg(feature = "sim")]
 pub mod sim_line;
+pub mod stdio;
 pub mod timing;
 pub mod transport;

@@ -32,7 +32,10 @@ pub fn init(default_filter: &str, json: bool) -> Result<(), String> {
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
         .with_ansi(std::io::stderr().is_terminal())
-        .with_target(false);
+        .with_target(false)
+        // A closed stderr (the reader of a pipe gone) loses the lines; the
+        // default would report that with `eprintln!`, which panics there.
+        .log_internal_errors(false);
     let journal = std::env::var_os("JOURNAL_STREAM").is_some();
     let result = match (json, journal) {
         (true, false) => builder.json().try_init(),

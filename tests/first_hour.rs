@@ -1,0 +1,341 @@
+//! A new user's first hour (issue 24): every program exits quietly when
+//! whoever reads its stdout or stderr has gone (`gimbalctl --json watch |
+//! head -1`): its usual exit code, never Rust's panic (101).
+//!
+//! "Gone" is a pipe whose read end is closed before the program starts, so
+//! its first write fails with EPIPE every time (no race with a reader).
+
+mod support;
+
+use std::net::TcpListener;
+use std::os::fd::OwnedFd;
+use std::process::{Command, ExitStatus, Stdio};
+use std::time::{Duration, Instant};
+
+use support::HANG_GUARD;
+
+/// The write end of a pipe nobody reads any more.
+fn closed_pipe() -> Stdio {
+    let (reader, writer): (OwnedFd, OwnedFd) = nix::unistd::pipe().expect("pipe");
+    drop(reader);
+    Stdio::from(writer)
+}
+
+/// Waits (bounded by HANG_GUARD) for `child` to exit.
+fn wait(mut child: std::process::Child, what: &str) -> ExitStatus {
+    let started = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().expect("wait") {
+            return status;
+        }
+        if started.elapsed() > HANG_GUARD {
+            let _ = child.kill();
+            panic!("{what} did not exit");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Runs `bin args` with stdout to a closed pipe; its stderr as text.
+fn with_closed_stdout(bin: &str, args: &[&str]) -> (ExitStatus, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let stderr = dir.path().join("stderr");
+    let child = Command::new(bin)
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(closed_pipe())
+        .stderr(std::fs::File::create(&stderr).unwrap())
+        .spawn()
+        .expect("spawn");
+    let status = wait(child, bin);
+    (status, std::fs::read_to_string(&stderr).unwrap())
+}
+
+/// Runs `bin args` with stderr to a closed pipe (stdout discarded).
+fn with_closed_stderr(bin: &str, args: &[&str]) -> ExitStatus {
+    let child = Command::new(bin)
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(closed_pipe())
+        .spawn()
+        .expect("spawn");
+    wait(child, bin)
+}
+
+fn assert_quiet(what: &str, status: ExitStatus, want: i32, stderr: &str) {
+    assert!(!stderr.contains("panicked"), "{what} panicked:\n{stderr}");
+    assert_eq!(status.code(), Some(want), "{what}: {status:?}\n{stderr}");
+    assert!(
+        stderr.trim().is_empty(),
+        "{what} complained about its reader leaving:\n{stderr}"
+    );
+}
+
+#[test]
+fn gimbalctl_watch_ends_quietly_when_its_reader_leaves() {
+    let gcud = support::cli::DemoGcud::start();
+    let (status, stderr) = with_closed_stdout(
+        env!("CARGO_BIN_EXE_gimbalctl"),
+        &[
+            "--json",
+            "--tcp",
+            &gcud.clients,
+            "--to",
+            "5.1.1",
+            "watch",
+            "--rate",
+            "20",
+        ],
+    );
+    assert_quiet("gimbalctl --json watch", status, 0, &stderr);
+    let (status, stderr) = with_closed_stdout(env!("CARGO_BIN_EXE_gimbalctl"), &["--to", "5.1.1", "encode", "P?"]);
+    assert_quiet("gimbalctl encode", status, 0, &stderr);
+}
+
+#[test]
+fn gimbalctl_failing_with_a_closed_stderr_keeps_its_exit_code() {
+    // Nothing listens there: "cannot connect" (exit 1) goes to a closed stderr.
+    let port = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
+    let status = with_closed_stderr(
+        env!("CARGO_BIN_EXE_gimbalctl"),
+        &["--tcp", &port.to_string(), "--to", "5.1.1", "id"],
+    );
+    assert_eq!(status.code(), Some(1), "{status:?}");
+}
+
+#[test]
+fn gimbalsim_exits_quietly_on_a_closed_stdout_or_stderr() {
+    // Its first line (the endpoint) meets a closed stdout.
+    let (status, stderr) = with_closed_stdout(env!("CARGO_BIN_EXE_gimbalsim"), &["--tcp", "127.0.0.1:0"]);
+    assert_quiet("gimbalsim", status, 0, &stderr);
+    // A bad log filter: "gimbalsim: log filter ..." (exit 2) to a closed stderr.
+    let status = with_closed_stderr(env!("CARGO_BIN_EXE_gimbalsim"), &["--log", "no[such=filter"]);
+    assert_eq!(status.code(), Some(2), "{status:?}");
+}
+
+#[test]
+fn gcud_check_exits_quietly_on_a_closed_stdout_or_stderr() {
+    let demo = concat!(env!("CARGO_MANIFEST_DIR"), "/config/demo.toml");
+    let (status, stderr) = with_closed_stdout(env!("CARGO_BIN_EXE_gcud"), &["--check", "--config", demo]);
+    assert_quiet("gcud --check", status, 0, &stderr);
+    let dir = tempfile::tempdir().unwrap();
+    let broken = dir.path().join("gcud.toml");
+    std::fs::write(&broken, "[gcu]\ngroup = \"five\"\n").unwrap();
+    let status = with_closed_stderr(
+        env!("CARGO_BIN_EXE_gcud"),
+        &["--check", "--config", broken.to_str().unwrap()],
+    );
+    assert_eq!(status.code(), Some(2), "{status:?}");
+}
+
+#[test]
+fn gcud_serves_and_shuts_down_cleanly_with_stdout_and_stderr_closed() {
+    let dir = tempfile::tempdir().unwrap();
+    let clients = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
+    let config = dir.path().join("gcud.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "[gcu]\ngroup = 5\n\n[[port]]\nid = 1\nsimulate = [1]\n\n\
+             [[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"{clients}\"\n"
+        ),
+    )
+    .unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_gcud"))
+        .arg("--config")
+        .arg(&config)
+        .env("RUST_LOG", "debug")
+        .stdin(Stdio::null())
+        .stdout(closed_pipe())
+        .stderr(closed_pipe())
+        .spawn()
+        .expect("spawn gcud");
+    let pid = nix::unistd::Pid::from_raw(child.id() as i32);
+    // Every log line (DEBUG: per connection and per frame) meets EPIPE; it
+    // still answers.
+    let started = Instant::now();
+    let answered = loop {
+        let out = support::gimbalctl(&["--tcp", &clients.to_string(), "--to", "5.1.1", "id"]);
+        if out.code == 0 {
+            break out;
+        }
+        assert!(started.elapsed() < HANG_GUARD, "gcud never answered: {out:?}");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(answered.stdout.contains("SIM"), "{answered:?}");
+    nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGTERM).unwrap();
+    let status = wait(child, "gcud");
+    assert_eq!(status.code(), Some(0), "gcud after SIGTERM: {status:?}");
+}
+
+/// The doors print `--check`'s verdict through `sagebrush_host::outln!`
+/// too: a closed stdout is no panic.
+#[test]
+fn the_doors_check_exits_quietly_on_a_closed_stdout() {
+    // The shipped gimbal-onvif file reads its password from /etc: point it
+    // at one here.
+    let dir = tempfile::tempdir().expect("temp dir");
+    let pass = dir.path().join("admin.pass");
+    std::fs::write(&pass, "s3cret\n").expect("password file");
+    let shipped = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/gimbal-onvif.toml"))
+        .expect("config/gimbal-onvif.toml");
+    let onvif = dir.path().join("gimbal-onvif.toml");
+    std::fs::write(
+        &onvif,
+        shipped.replace("/etc/gimbal-onvif/admin.pass", &pass.display().to_string()),
+    )
+    .expect("write");
+    let onvif = onvif.display().to_string();
+    for (name, bin, config) in [
+        ("gimbal-onvif", env!("CARGO_BIN_EXE_gimbal-onvif"), onvif.as_str()),
+        (
+            "gimbal-mavlink",
+            env!("CARGO_BIN_EXE_gimbal-mavlink"),
+            concat!(env!("CARGO_MANIFEST_DIR"), "/config/gimbal-mavlink.toml"),
+        ),
+    ] {
+        let (status, stderr) = with_closed_stdout(bin, &["--check", "--config", config]);
+        assert_quiet(&format!("{name} --check"), status, 0, &stderr);
+    }
+}
+
+#[test]
+fn an_address_error_names_the_part_and_its_range() {
+    for (address, part) in [
+        ("5.1.300", "device \"300\""),
+        ("5.x.1", "port \"x\""),
+        ("256.1.1", "group \"256\""),
+    ] {
+        let out = support::gimbalctl(&["--to", address, "encode", "P?"]);
+        assert_eq!(out.code, 2, "{address}: {out:?}");
+        assert!(
+            out.stderr.contains(&format!("{part} is not a number 0..=255")),
+            "{address}: the error does not name the {part}: {out:?}"
+        );
+    }
+}
+
+#[test]
+fn for_takes_the_common_duration_forms() {
+    let gcud = support::cli::DemoGcud::start();
+    for duration in ["1sec", "300ms", "1s"] {
+        let out = gcud.ctl(&["--to", "5.1.1", "slew", "right", "--for", duration]);
+        assert_eq!(out.code, 0, "--for {duration}: {out:?}");
+    }
+    let out = gcud.ctl(&["--to", "5.1.1", "slew", "right", "--for", "2 fortnights"]);
+    assert_eq!(out.code, 2, "{out:?}");
+    assert!(out.stderr.contains("2s, 500ms, 2sec, 1m"), "{out:?}");
+}
+
+/// `gcud --check` on `text`: (exit code, stdout, stderr).
+fn check(text: &str) -> (Option<i32>, String, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("gcud.toml");
+    std::fs::write(&path, text).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_gcud"))
+        .arg("--check")
+        .arg("--config")
+        .arg(&path)
+        .output()
+        .expect("gcud --check runs");
+    let stderr = String::from_utf8_lossy(&out.stderr).replace(&path.display().to_string(), "gcud.toml");
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr,
+    )
+}
+
+#[test]
+fn check_refuses_what_routes_nothing_warns_of_absent_serial_paths_and_speaks_in_words() {
+    let (code, _, stderr) = check("[gcu]\ngroup = 5\n\n[[port]]\nid = 1\nsimulate = [1]\n");
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("gcud.toml: routes nothing: no [[link]]"), "{stderr}");
+
+    let link = "[[link]]\nname = \"c\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n";
+    let (code, stdout, stderr) = check(&format!(
+        "[gcu]\ngroup = 5\n{link}\n[[port]]\nid = 1\npath = \"/dev/no-such-gimbal-bus\"\n"
+    ));
+    assert_eq!(
+        code,
+        Some(0),
+        "an absent serial device is no error (it may be plugged in later): {stderr}"
+    );
+    assert!(stdout.contains("valid"), "{stdout}");
+    assert!(
+        stderr.contains("gcud: warning: gcud.toml:10:8: port[0].path: /dev/no-such-gimbal-bus does not exist now"),
+        "{stderr}"
+    );
+
+    let (code, _, stderr) = check("[gcu]\ngroup = \"five\"\n");
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(
+        stderr.contains("gcud.toml:2:9: gcu.group: expected an integer, found the string \"five\""),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn the_demo_gimbals_have_distinct_serial_numbers() {
+    let gcud = support::cli::DemoGcud::start();
+    let serials: Vec<String> = ["5.1.1", "5.1.2", "5.2.1"]
+        .iter()
+        .map(|to| {
+            let v = gcud.json(&["--to", to, "id"]);
+            v["result"]["serial"]
+                .as_str()
+                .unwrap_or_else(|| panic!("{to}: {v}"))
+                .to_owned()
+        })
+        .collect();
+    let mut distinct = serials.clone();
+    distinct.sort();
+    distinct.dedup();
+    assert_eq!(distinct.len(), serials.len(), "serial numbers repeat: {serials:?}");
+}
+
+/// `gimbalctl gcud-status` needs no --http for the shipped configuration:
+/// its default is config/gcud.toml's (and the demo's) [metrics] listen.
+#[test]
+fn gcud_status_defaults_to_the_shipped_metrics_address() {
+    let out = support::gimbalctl(&["gcud-status", "--help"]);
+    // The --http option's own block of the help, up to the next option.
+    let http = out
+        .stdout
+        .split("      --http <HOST:PORT>")
+        .nth(1)
+        .and_then(|rest| rest.split("\n  -").next())
+        .unwrap_or_else(|| panic!("no --http in the help: {out:?}"));
+    let default = http
+        .split("[default: ")
+        .nth(1)
+        .and_then(|rest| rest.split(']').next())
+        .unwrap_or_else(|| panic!("--http has no default: {out:?}"))
+        .to_owned();
+    for config in ["config/gcud.toml", "config/demo.toml"] {
+        let text = std::fs::read_to_string(format!("{}/{config}", env!("CARGO_MANIFEST_DIR"))).unwrap();
+        let table: toml::Table = text.parse().unwrap();
+        assert_eq!(
+            table["metrics"]["listen"].as_str(),
+            Some(default.as_str()),
+            "{config}'s [metrics] listen is not gcud-status's default"
+        );
+    }
+    assert!(out.stdout.contains("GIMBALCTL_HTTP"), "{out:?}");
+}
+
+/// A scan says on stderr what it will ask before its first probe, and how
+/// each port went as it goes; stdout keeps only the result.
+#[test]
+fn scan_says_what_it_probes_on_stderr() {
+    let gcud = support::cli::DemoGcud::start();
+    let out = gcud.ctl(&["scan", "--gcus", "5", "--ports", "1-2", "--devices", "1-3,7"]);
+    assert_eq!(out.code, 0, "{out:?}");
+    assert!(
+        out.stderr.contains("D? to the GCU of groups 5") && out.stderr.contains("devices 1-3,7 on ports 1-2"),
+        "{out:?}"
+    );
+    assert!(out.stderr.contains("port 5.1: 2 found, 2 silent"), "{out:?}");
+    assert!(!out.stdout.contains("gimbalctl: scan:"), "{out:?}");
+}

@@ -1,0 +1,194 @@
+//! The Debian package (`[package.metadata.deb]` in Cargo.toml, built with
+//! cargo-deb): it holds every program, gcud's unit, the udev rule and the
+//! configurations (those under /etc as dpkg configuration files), and the
+//! configuration it installs passes `gcud --check` run from the package.
+//! Without cargo-deb the package test fails under CI (`CI` set; .ci/run
+//! installs it) and says loudly that it was not done elsewhere. .ci/run also
+//! installs the package with `dpkg -i` and checks the installed unit.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// `[package.metadata.deb] assets`: (source, destination) pairs.
+fn assets() -> Vec<(String, String)> {
+    let manifest: toml::Table = std::fs::read_to_string(root().join("Cargo.toml"))
+        .unwrap()
+        .parse()
+        .unwrap();
+    manifest["package"]["metadata"]["deb"]["assets"]
+        .as_array()
+        .expect("[package.metadata.deb] assets")
+        .iter()
+        .map(|a| {
+            let a = a.as_array().expect("an asset is [source, destination, mode]");
+            (a[0].as_str().unwrap().to_owned(), a[1].as_str().unwrap().to_owned())
+        })
+        .collect()
+}
+
+/// Where the package puts `source`: the destination, with a trailing `/`
+/// meaning "in this directory under the same name".
+fn installed_path(source: &str) -> Option<String> {
+    assets()
+        .into_iter()
+        .find(|(s, _)| s == source)
+        .map(|(s, d)| match d.strip_suffix('/') {
+            Some(dir) => format!("/{dir}/{}", Path::new(&s).file_name().unwrap().to_str().unwrap()),
+            None => format!("/{d}"),
+        })
+}
+
+#[test]
+fn package_metadata_ships_every_program_and_the_unit_finds_them() {
+    let manifest: toml::Table = std::fs::read_to_string(root().join("Cargo.toml"))
+        .unwrap()
+        .parse()
+        .unwrap();
+    let bins: Vec<&str> = manifest["bin"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| b["name"].as_str().unwrap())
+        .collect();
+    assert!(bins.len() >= 4, "{bins:?}");
+    for bin in &bins {
+        assert_eq!(
+            installed_path(&format!("target/release/{bin}")).as_deref(),
+            Some(format!("/usr/bin/{bin}").as_str()),
+            "the package does not install {bin} as /usr/bin/{bin}"
+        );
+    }
+    for (source, _) in assets() {
+        if !source.starts_with("target/") {
+            assert!(root().join(&source).is_file(), "asset {source} does not exist");
+        }
+    }
+    // The unit runs what the package installs, on the configuration it installs.
+    let gcud = installed_path("target/release/gcud").unwrap();
+    let config = installed_path("config/gcud.toml").expect("gcud.toml is not packaged");
+    assert_eq!(config, "/etc/gcud/gcud.toml");
+    let unit = std::fs::read_to_string(root().join("config/gcud.service")).unwrap();
+    for key in ["ExecStartPre=", "ExecStart="] {
+        let line = unit
+            .lines()
+            .find(|l| l.starts_with(key))
+            .unwrap_or_else(|| panic!("no {key}"));
+        let words: Vec<&str> = line[key.len()..].split_whitespace().collect();
+        assert_eq!(words[0], gcud, "{line}: the package installs gcud as {gcud}");
+        assert!(
+            words.windows(2).any(|w| w == ["--config", config.as_str()]),
+            "{line}: not {config}"
+        );
+    }
+}
+
+/// Runs `program args`, panicking with its output unless it succeeds.
+fn run(program: &str, args: &[&std::ffi::OsStr]) -> String {
+    let out = Command::new(program)
+        .args(args)
+        .output()
+        .unwrap_or_else(|e| panic!("{program}: {e}"));
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        out.status.success(),
+        "{program} {args:?} failed ({:?}):\n{text}",
+        out.status.code()
+    );
+    text
+}
+
+#[test]
+fn the_package_holds_programs_unit_rule_and_configuration_files() {
+    let probe = Command::new("cargo").args(["deb", "--version"]).output();
+    if !probe.is_ok_and(|o| o.status.success()) {
+        let missing = "cargo-deb not found: the Debian package is not built nor checked. Install it with \
+                       `cargo install cargo-deb --locked` (.ci/run does)";
+        assert!(std::env::var_os("CI").is_none(), "{missing}");
+        eprintln!("warning: {missing}");
+        return;
+    }
+    // The programs this test run built (`cargo test --release` builds them
+    // in target/release, where the package takes them from).
+    let gcud = PathBuf::from(env!("CARGO_BIN_EXE_gcud"));
+    if gcud.parent() != Some(&root().join("target/release")) {
+        eprintln!(
+            "warning: not a --release build ({}): the package is not built",
+            gcud.display()
+        );
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let deb = dir.path().join("sagebrush.deb");
+    let out = Command::new("cargo")
+        .args(["deb", "--no-build", "--output"])
+        .arg(&deb)
+        .current_dir(root())
+        .output()
+        .expect("cargo deb runs");
+    assert!(
+        out.status.success(),
+        "cargo deb failed:\n{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+
+    let listing = run("dpkg-deb", &["--contents".as_ref(), deb.as_os_str()]);
+    let files: Vec<&str> = listing
+        .lines()
+        .filter_map(|l| l.split_whitespace().nth(5))
+        .map(|p| p.trim_start_matches('.'))
+        .collect();
+    for want in [
+        "/usr/bin/gcud",
+        "/usr/bin/gimbalctl",
+        "/usr/bin/gimbal-onvif",
+        "/usr/bin/gimbalsim",
+        "/usr/lib/systemd/system/gcud.service",
+        "/etc/gcud/gcud.toml",
+        "/etc/gimbal-onvif/gimbal-onvif.toml",
+        "/etc/udev/rules.d/99-sagebrush-gimbal.rules",
+    ] {
+        assert!(files.contains(&want), "the package lacks {want}:\n{listing}");
+    }
+    // Everything under /etc is a configuration file: an edited one survives
+    // an upgrade.
+    let conffiles = run("dpkg-deb", &["--info".as_ref(), deb.as_os_str(), "conffiles".as_ref()]);
+    for etc in files.iter().filter(|f| f.starts_with("/etc/") && !f.ends_with('/')) {
+        assert!(
+            conffiles.lines().any(|l| l.trim() == *etc),
+            "{etc} is not a conffile:\n{conffiles}"
+        );
+    }
+    // Installed, not enabled: the user edits gcud.toml, then `systemctl enable --now gcud`.
+    let postinst = run("dpkg-deb", &["--info".as_ref(), deb.as_os_str(), "postinst".as_ref()]);
+    assert!(
+        !postinst.contains("systemctl --system start") && !postinst.contains("deb-systemd-invoke start"),
+        "{postinst}"
+    );
+
+    let tree = dir.path().join("tree");
+    run("dpkg-deb", &["--extract".as_ref(), deb.as_os_str(), tree.as_os_str()]);
+    assert_eq!(
+        std::fs::read_to_string(tree.join("usr/lib/systemd/system/gcud.service")).unwrap(),
+        std::fs::read_to_string(root().join("config/gcud.service")).unwrap(),
+        "the packaged unit is not config/gcud.service"
+    );
+    // The packaged gcud accepts the packaged configuration.
+    let check = run(
+        tree.join("usr/bin/gcud").to_str().unwrap(),
+        &[
+            "--check".as_ref(),
+            "--config".as_ref(),
+            tree.join("etc/gcud/gcud.toml").as_os_str(),
+        ],
+    );
+    assert!(check.contains("valid"), "{check}");
+}
