@@ -22,14 +22,9 @@ use std::sync::Arc;
 use clap::Parser;
 use mavlink::dialects::common::{COMMAND_ACK_DATA, MavMessage};
 use tokio::signal::unix::{SignalKind, signal};
-use tracing::{error, info, warn};
+use tracing::{info, warn};
 
 use crate::link::{Outbox, Stats};
-
-/// Exit code of a configuration error (`--check` or start-up), as gcud's.
-const EXIT_CONFIG: u8 = 2;
-/// Exit code of a failure to start (an address in use).
-const EXIT_START: u8 = 1;
 
 /// MAVLink Gimbal Protocol v2 (gimbal manager and device) for the gimbals behind gcud.
 #[derive(Debug, Parser)]
@@ -45,45 +40,14 @@ struct Args {
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    let config = match config::load(&args.config) {
-        Ok(c) => c,
-        Err(e) => {
-            sagebrush_host::errln!("gimbal-mavlink: {e}");
-            return ExitCode::from(EXIT_CONFIG);
-        }
-    };
-    if args.check {
-        sagebrush_host::outln!(
-            "{}: valid ({} gimbal(s), {} endpoint(s))",
-            args.config.display(),
-            config.gimbals.len(),
-            config.endpoints.len()
-        );
-        return ExitCode::SUCCESS;
-    }
-    if let Err(e) = sagebrush_host::logging::init("info", false) {
-        sagebrush_host::errln!("gimbal-mavlink: {e}");
-        return ExitCode::from(EXIT_CONFIG);
-    }
-    let runtime = match tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-    {
-        Ok(rt) => rt,
-        Err(e) => {
-            sagebrush_host::errln!("gimbal-mavlink: cannot start the runtime: {e}");
-            return ExitCode::from(EXIT_START);
-        }
-    };
-    match runtime.block_on(run(config)) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            error!("{e}");
-            sagebrush_host::errln!("gimbal-mavlink: {e}");
-            ExitCode::from(EXIT_START)
-        }
-    }
+    sagebrush_client::door::main(
+        "gimbal-mavlink",
+        &args.config,
+        args.check,
+        config::load,
+        |c| format!("{} gimbal(s), {} endpoint(s)", c.gimbals.len(), c.endpoints.len()),
+        run,
+    )
 }
 
 async fn run(config: config::Config) -> Result<(), String> {

@@ -21,11 +21,6 @@ use clap::Parser;
 use tokio::signal::unix::{SignalKind, signal};
 use tracing::{error, info};
 
-/// Exit code of a configuration error (`--check` or start-up), as gcud's.
-const EXIT_CONFIG: u8 = 2;
-/// Exit code of a failure to start (an address in use, a state file).
-const EXIT_START: u8 = 1;
-
 /// ONVIF PTZ (Device, Media, PTZ) and WS-Discovery for the gimbals behind gcud.
 #[derive(Debug, Parser)]
 #[command(version)]
@@ -40,45 +35,14 @@ struct Args {
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    let config = match config::load(&args.config) {
-        Ok(c) => c,
-        Err(e) => {
-            sagebrush_host::errln!("gimbal-onvif: {e}");
-            return ExitCode::from(EXIT_CONFIG);
-        }
-    };
-    if args.check {
-        sagebrush_host::outln!(
-            "{}: valid ({} gimbal(s), {} user(s))",
-            args.config.display(),
-            config.gimbals.len(),
-            config.users.len()
-        );
-        return ExitCode::SUCCESS;
-    }
-    if let Err(e) = sagebrush_host::logging::init("info", false) {
-        sagebrush_host::errln!("gimbal-onvif: {e}");
-        return ExitCode::from(EXIT_CONFIG);
-    }
-    let runtime = match tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-    {
-        Ok(rt) => rt,
-        Err(e) => {
-            sagebrush_host::errln!("gimbal-onvif: cannot start the runtime: {e}");
-            return ExitCode::from(EXIT_START);
-        }
-    };
-    match runtime.block_on(run(config)) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            error!("{e}");
-            sagebrush_host::errln!("gimbal-onvif: {e}");
-            ExitCode::from(EXIT_START)
-        }
-    }
+    sagebrush_client::door::main(
+        "gimbal-onvif",
+        &args.config,
+        args.check,
+        config::load,
+        |c| format!("{} gimbal(s), {} user(s)", c.gimbals.len(), c.users.len()),
+        run,
+    )
 }
 
 async fn run(config: config::Config) -> Result<(), String> {

@@ -12,11 +12,13 @@
 //!   opened when needed and renewed after a failure; `P?` and `D?`.
 //! - [`config_file`]: TOML configuration read with bounds, every error at
 //!   its file:line:column with its key and what was expected.
+//! - [`door`]: a front door's start-up (`--check`, exit codes, runtime).
 
 pub mod client;
 pub mod codec;
 pub mod config_file;
 pub mod connection;
+pub mod door;
 pub mod master;
 
 pub use client::{Client, CommandError, GcudClient};
