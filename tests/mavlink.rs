@@ -14,11 +14,11 @@ mod support;
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use serde_json::{Value, json};
 use support::gcud::{CLIENTS, Gcud};
-use support::{HANG_GUARD, addr_field, eventually};
+use support::{addr_field, eventually};
 
 const MAST: &str = "5.1.1";
 /// MAV_RESULT values (common.xml).
@@ -31,21 +31,10 @@ const GCS: (u8, u8) = (255, 190);
 const OTHER: (u8, u8) = (255, 191);
 
 fn client_available() -> bool {
-    let ok = Command::new("python3")
-        .args(["-c", "import pymavlink.mavutil, pymavlink.quaternion"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    if !ok {
-        let msg = "python3 with pymavlink and numpy is missing (.ci/run installs them: \
-                   pip install pymavlink==2.4.50 numpy==2.4.6)";
-        if std::env::var("CI").is_ok_and(|v| v == "true") {
-            panic!("{msg}");
-        }
-        eprintln!("SKIPPED: {msg}");
-    }
-    ok
+    support::door::python_client_available(
+        "pymavlink.mavutil, pymavlink.quaternion",
+        "pymavlink and numpy (pip install pymavlink==2.4.50 numpy==2.4.6)",
+    )
 }
 
 /// gcud with two simulated buses (the mast gimbal on bus 1; bus 2 has no
@@ -128,20 +117,7 @@ impl Stack {
 
     /// Sends `signal` to gimbal-mavlink and waits for it to exit.
     fn signal(&mut self, signal: nix::sys::signal::Signal) -> std::process::ExitStatus {
-        let mut child = self.mavlink.take().expect("running");
-        let pid = nix::unistd::Pid::from_raw(child.id() as i32);
-        nix::sys::signal::kill(pid, signal).expect("signal");
-        let started = Instant::now();
-        loop {
-            if let Ok(Some(status)) = child.try_wait() {
-                return status;
-            }
-            assert!(
-                started.elapsed() < HANG_GUARD,
-                "gimbal-mavlink did not exit on {signal}"
-            );
-            std::thread::sleep(Duration::from_millis(10));
-        }
+        support::door::signal_and_wait(self.mavlink.take().expect("running"), signal, "gimbal-mavlink")
     }
 
     /// Runs one step of the pymavlink ground station as `who`, over UDP.
@@ -151,28 +127,13 @@ impl Stack {
 
     /// The same over `connection` (a UDP port, or pymavlink's `tcp:HOST:PORT`).
     fn gcs_over(&self, connection: &str, step: &str, who: (u8, u8), args: Value) -> Value {
-        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/mavlink/gcs.py");
-        let out = Command::new("python3")
-            .arg(&script)
-            .args([
-                step,
-                connection,
-                &who.0.to_string(),
-                &who.1.to_string(),
-                &args.to_string(),
-            ])
-            .output()
-            .expect("run python3");
-        let stdout = String::from_utf8_lossy(&out.stdout);
-        assert!(
-            out.status.success(),
-            "gcs step {step} failed: {}\nstdout: {stdout}\nstderr: {}\ngimbal-mavlink log:\n{}",
-            out.status,
-            String::from_utf8_lossy(&out.stderr),
-            self.log()
-        );
-        serde_json::from_str(stdout.lines().last().unwrap_or_default())
-            .unwrap_or_else(|e| panic!("step {step}: not JSON ({e}): {stdout}"))
+        let (system, component, args) = (who.0.to_string(), who.1.to_string(), args.to_string());
+        support::door::python_step(
+            "tests/mavlink/gcs.py",
+            step,
+            &[connection, &system, &component, &args],
+            || self.log(),
+        )
     }
 
     /// The mast gimbal's position read on the bus side (gimbalctl via gcud).

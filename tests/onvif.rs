@@ -14,31 +14,20 @@ mod support;
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use serde_json::{Value, json};
 use support::gcud::{CLIENTS, Gcud};
-use support::{HANG_GUARD, addr_field, eventually};
+use support::{addr_field, eventually};
 
 const MAST: &str = "5.1.1";
 
 /// Whether the third-party clients can run here; under CI they must.
 fn clients_available() -> bool {
-    let ok = Command::new("python3")
-        .args(["-c", "import onvif, wsdiscovery, httpx"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    if !ok {
-        let msg = "python3 with onvif-zeep-async and WSDiscovery is missing (.ci/run installs them: \
-                   pip install onvif-zeep-async==4.3.0 WSDiscovery==2.1.2)";
-        if std::env::var("CI").is_ok_and(|v| v == "true") {
-            panic!("{msg}");
-        }
-        eprintln!("SKIPPED: {msg}");
-    }
-    ok
+    support::door::python_client_available(
+        "onvif, wsdiscovery, httpx",
+        "onvif-zeep-async and WSDiscovery (pip install onvif-zeep-async==4.3.0 WSDiscovery==2.1.2)",
+    )
 }
 
 /// gcud with two simulated buses (the mast gimbal on bus 1; bus 2 has no
@@ -149,37 +138,18 @@ impl Stack {
 
     /// Sends `signal` to gimbal-onvif and waits for it to exit.
     fn signal_onvif(&mut self, signal: nix::sys::signal::Signal) -> std::process::ExitStatus {
-        let mut child = self.onvif.take().expect("running");
-        let pid = nix::unistd::Pid::from_raw(child.id() as i32);
-        nix::sys::signal::kill(pid, signal).expect("signal");
-        let started = Instant::now();
-        loop {
-            if let Ok(Some(status)) = child.try_wait() {
-                return status;
-            }
-            assert!(started.elapsed() < HANG_GUARD, "gimbal-onvif did not exit on {signal}");
-            std::thread::sleep(Duration::from_millis(10));
-        }
+        support::door::signal_and_wait(self.onvif.take().expect("running"), signal, "gimbal-onvif")
     }
 
     /// Runs one step of the third-party client against the device on `port`.
     fn client(&self, step: &str, port: u16, user: (&str, &str), args: Value) -> Value {
-        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/onvif/client.py");
-        let out = Command::new("python3")
-            .arg(&script)
-            .args([step, "127.0.0.1", &port.to_string(), user.0, user.1, &args.to_string()])
-            .output()
-            .expect("run python3");
-        let stdout = String::from_utf8_lossy(&out.stdout);
-        assert!(
-            out.status.success(),
-            "client step {step} failed: {}\nstdout: {stdout}\nstderr: {}\ngimbal-onvif log:\n{}",
-            out.status,
-            String::from_utf8_lossy(&out.stderr),
-            self.log()
-        );
-        serde_json::from_str(stdout.lines().last().unwrap_or_default())
-            .unwrap_or_else(|e| panic!("step {step}: not JSON ({e}): {stdout}"))
+        let (port, args) = (port.to_string(), args.to_string());
+        support::door::python_step(
+            "tests/onvif/client.py",
+            step,
+            &["127.0.0.1", &port, user.0, user.1, &args],
+            || self.log(),
+        )
     }
 
     /// The mast gimbal's position read on the bus side (gimbalctl via gcud).

@@ -20,6 +20,7 @@ use std::time::{Duration, Instant};
 use serde_json::Value;
 
 pub mod cli;
+pub mod door;
 pub mod gcud;
 
 /// Only to avoid hanging on a broken build: never an assertion on speed.

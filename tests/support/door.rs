@@ -1,0 +1,69 @@
+//! What the front doors' end-to-end tests share (`tests/onvif.rs`,
+//! `tests/mavlink.rs`): whether the third-party Python client is installed
+//! (under `CI=true` it must be), one step of that client run as a script
+//! that prints JSON, and a door stopped by a signal.
+
+use std::path::Path;
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+
+use super::HANG_GUARD;
+
+/// Whether `python3 -c "import ..."` works; when it does not, a test is
+/// skipped with `hint` (how to install), and under `CI=true` it fails.
+pub fn python_client_available(imports: &str, hint: &str) -> bool {
+    let ok = Command::new("python3")
+        .args(["-c", &format!("import {imports}")])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !ok {
+        let msg = format!("python3 with {hint} is missing (.ci/run installs it)");
+        if std::env::var("CI").is_ok_and(|v| v == "true") {
+            panic!("{msg}");
+        }
+        eprintln!("SKIPPED: {msg}");
+    }
+    ok
+}
+
+/// Runs `script step args...` (a `tests/<door>/*.py` client step) and
+/// returns the JSON of its last stdout line; a failed step fails the test
+/// with the door's `log`.
+pub fn python_step(script: &str, step: &str, args: &[&str], log: impl FnOnce() -> String) -> Value {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join(script);
+    let out = Command::new("python3")
+        .arg(&script)
+        .arg(step)
+        .args(args)
+        .output()
+        .expect("run python3");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{} step {step} failed: {}\nstdout: {stdout}\nstderr: {}\ndoor log:\n{}",
+        script.display(),
+        out.status,
+        String::from_utf8_lossy(&out.stderr),
+        log()
+    );
+    serde_json::from_str(stdout.lines().last().unwrap_or_default())
+        .unwrap_or_else(|e| panic!("step {step}: not JSON ({e}): {stdout}"))
+}
+
+/// Sends `signal` to the door `child` and waits for it to exit.
+pub fn signal_and_wait(mut child: Child, signal: nix::sys::signal::Signal, name: &str) -> ExitStatus {
+    let pid = nix::unistd::Pid::from_raw(child.id() as i32);
+    nix::sys::signal::kill(pid, signal).expect("signal");
+    let started = Instant::now();
+    loop {
+        if let Ok(Some(status)) = child.try_wait() {
+            return status;
+        }
+        assert!(started.elapsed() < HANG_GUARD, "{name} did not exit on {signal}");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
