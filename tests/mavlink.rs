@@ -32,8 +32,8 @@ const OTHER: (u8, u8) = (255, 191);
 
 fn client_available() -> bool {
     support::door::python_client_available(
-        "pymavlink.mavutil, pymavlink.quaternion",
-        "pymavlink and numpy (pip install pymavlink==2.4.50 numpy==2.4.6)",
+        "pymavlink.mavutil, pymavlink.quaternion, serial",
+        "pymavlink, numpy and pyserial (pip install pymavlink==2.4.50 numpy==2.4.6 pyserial==3.5)",
     )
 }
 
@@ -48,7 +48,7 @@ struct Stack {
     tcp_port: u16,
 }
 
-fn mavlink_config(gcud: &str, lease_ms: u64) -> String {
+fn mavlink_config(gcud: &str, lease_ms: u64, extra_endpoint: &str) -> String {
     format!(
         r#"gcud = "{gcud}"
 system_id = 1
@@ -67,6 +67,7 @@ tilt_deg = [-90.0, 90.0]
 name = "absent"
 address = "5.2.9"
 component_id = 171
+{extra_endpoint}
 "#
     )
 }
@@ -77,12 +78,17 @@ impl Stack {
     }
 
     fn start_with_lease(lease_ms: u64) -> Self {
+        Self::start_with(lease_ms, "")
+    }
+
+    /// With one more `[[endpoint]]` (TOML text) after the UDP and TCP ones.
+    fn start_with(lease_ms: u64, extra_endpoint: &str) -> Self {
         let gcud = Gcud::start(&format!(
             "[gcu]\ngroup = 5\n[[port]]\nid = 1\nsimulate = [1]\n[[port]]\nid = 2\nsimulate = [1]\n{CLIENTS}"
         ));
         let dir = tempfile::tempdir().expect("temp dir");
         let config = dir.path().join("gimbal-mavlink.toml");
-        std::fs::write(&config, mavlink_config(&gcud.clients(), lease_ms)).expect("write config");
+        std::fs::write(&config, mavlink_config(&gcud.clients(), lease_ms, extra_endpoint)).expect("write config");
         let log = std::fs::File::create(dir.path().join("gimbal-mavlink.log")).expect("log file");
         let child = Command::new(env!("CARGO_BIN_EXE_gimbal-mavlink"))
             .arg("--config")
@@ -155,6 +161,24 @@ impl Drop for Stack {
             support::terminate(child);
         }
     }
+}
+
+/// The counters gimbal-mavlink logs when it stops, and a reader of one.
+fn counters(log: &str) -> (String, impl Fn(&str) -> u64 + use<>) {
+    let summary = log
+        .lines()
+        .find(|l| l.contains("counters="))
+        .unwrap_or_else(|| panic!("{log}"))
+        .to_owned();
+    let line = summary.replace("counters=", "counters= ");
+    let counter = move |name: &str| -> u64 {
+        let prefix = format!("{name}=");
+        line.split([' ', '"'])
+            .find_map(|token| token.strip_prefix(&prefix))
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("no counter {name} in {line}"))
+    };
+    (summary, counter)
 }
 
 /// Position `(pan, tilt)` unchanged over about a second on the bus side.
@@ -416,19 +440,7 @@ fn bad_input_is_counted_and_refused_never_a_panic_and_nothing_moves() {
     assert!(status.success(), "{status:?}\n{}", stack.log());
     let log = stack.log();
     assert!(!log.contains("panicked"), "{log}");
-    let summary = log
-        .lines()
-        .find(|l| l.contains("counters="))
-        .unwrap_or_else(|| panic!("{log}"));
-    let counter = |name: &str| -> u64 {
-        let at = summary.find(&format!("{name}=")).unwrap_or_else(|| panic!("{summary}")) + name.len() + 1;
-        summary[at..]
-            .split(|c: char| !c.is_ascii_digit())
-            .next()
-            .unwrap()
-            .parse()
-            .unwrap()
-    };
+    let (summary, counter) = counters(&log);
     // 21 damaged heartbeats, noise, a frame of no dialect, and the random
     // datagrams (none has a valid CRC; UDP may lose a few of them).
     assert!(counter("damaged") >= 23 + 400, "{summary}");
@@ -437,12 +449,86 @@ fn bad_input_is_counted_and_refused_never_a_panic_and_nothing_moves() {
 }
 
 #[test]
+fn bytes_without_an_intact_frame_on_tcp_are_counted_to_the_byte() {
+    if !client_available() {
+        return;
+    }
+    let mut stack = Stack::start();
+    let tcp = format!("tcp:127.0.0.1:{}", stack.tcp_port);
+    let r = stack.gcs_over(&tcp, "garbage", GCS, json!({}));
+    assert_eq!(r["nan"], DENIED, "{r}");
+    assert_eq!(r["out_of_travel"], DENIED, "{r}");
+    assert_eq!(r["alive"], true, "{r}");
+    assert_still(&stack, (0.0, 0.0), "after bad input over TCP");
+    let status = stack.signal(nix::sys::signal::Signal::SIGTERM);
+    assert!(status.success(), "{status:?}\n{}", stack.log());
+    let (summary, counter) = counters(&stack.log());
+    // TCP loses nothing: every byte written that is no intact frame is
+    // counted, and none of the intact frames around them.
+    let written = r["garbage_bytes"].as_u64().expect("garbage_bytes");
+    assert!(written > 400, "{r}");
+    assert_eq!(counter("damaged_bytes"), written, "{summary}");
+    assert!(counter("damaged") >= 1, "{summary}");
+    assert!(counter("ignored") >= 1, "PARAM_REQUEST_LIST: {summary}");
+}
+
+/// Two pseudo-terminals whose masters are joined, as a null-modem cable:
+/// what is written to one slave is read from the other.
+struct NullModem {
+    ends: (PathBuf, PathBuf),
+    _relay: tokio::runtime::Runtime,
+}
+
+impl NullModem {
+    fn new() -> Self {
+        let relay = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(1)
+            .enable_all()
+            .build()
+            .expect("runtime");
+        let ends = relay.block_on(async {
+            let mut a = sagebrush_host::pty::PtyMaster::open().expect("pty");
+            let mut b = sagebrush_host::pty::PtyMaster::open().expect("pty");
+            let ends = (a.slave_path().to_owned(), b.slave_path().to_owned());
+            tokio::spawn(async move {
+                let _ = tokio::io::copy_bidirectional(&mut a, &mut b).await;
+            });
+            ends
+        });
+        Self { ends, _relay: relay }
+    }
+}
+
+#[test]
+fn a_ground_station_on_a_serial_line_points_the_gimbal() {
+    if !client_available() {
+        return;
+    }
+    let cable = NullModem::new();
+    let stack = Stack::start_with(
+        1000,
+        &format!("[[endpoint]]\nserial = \"{}\"\nbaud = 115200", cable.ends.0.display()),
+    );
+    support::wait_for_log_line(&stack.log_path(), "MAVLink serial line open");
+    let serial = cable.ends.1.display().to_string();
+    let hb = stack.gcs_over(&serial, "heartbeat", GCS, json!({}));
+    assert_eq!(hb["heartbeat"]["type"], 26, "{hb}");
+    let r = stack.gcs_over(&serial, "pitchyaw", GCS, json!({ "pitch": 12.0, "yaw": -30.0 }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(
+        (pan + 30.0).abs() <= 0.5 && (tilt - 12.0).abs() <= 0.5,
+        "bus at {pan}, {tilt}"
+    );
+}
+
+#[test]
 fn check_names_the_file_line_column_and_key_and_exits_2() {
     let dir = tempfile::tempdir().expect("temp dir");
     let path = dir.path().join("m.toml");
     std::fs::write(
         &path,
-        mavlink_config("127.0.0.1:4001", 1000).replace("component_id = 171", "component_id = 154"),
+        mavlink_config("127.0.0.1:4001", 1000, "").replace("component_id = 171", "component_id = 154"),
     )
     .expect("write");
     let out = Command::new(env!("CARGO_BIN_EXE_gimbal-mavlink"))

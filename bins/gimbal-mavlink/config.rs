@@ -5,7 +5,7 @@
 //! [`sagebrush_client::config_file`] as gcud's and gimbal-onvif's.
 
 use std::net::SocketAddr;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use sagebrush_client::config_file::{self, ConfigError, Source};
@@ -61,7 +61,14 @@ pub enum Endpoint {
     TcpListen(SocketAddr),
     /// Keeps a TCP connection to a ground station open.
     Tcp(String),
+    /// A serial line (a telemetry radio, a flight controller's TELEM
+    /// port), opened again whenever it closes or is unplugged.
+    Serial { path: PathBuf, baud: u32 },
 }
+
+/// The serial line rate when `baud` is not given: telemetry radios' and
+/// flight controllers' TELEM ports' usual default.
+pub const DEFAULT_BAUD: u32 = 57_600;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Gimbal {
@@ -147,6 +154,13 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             ));
         };
         let at = |m: &str| c.at(value.span(), format!("{key}.{kind}"), m.to_owned());
+        if let (Some(b), false) = (&e.baud, kind == "serial") {
+            return Err(c.at(
+                b.span(),
+                format!("{key}.baud"),
+                "baud applies to a serial endpoint only",
+            ));
+        }
         endpoints.push(match kind {
             "udp_listen" => Endpoint::UdpListen(
                 value
@@ -165,12 +179,13 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             }
             "udp" => Endpoint::Udp(value.get_ref().clone()),
             "tcp" => Endpoint::Tcp(value.get_ref().clone()),
-            _ => {
-                let _ = &e.baud;
-                return Err(at(
-                    "serial MAVLink endpoints are not supported yet (issue 25): use udp_listen, udp, tcp_listen or tcp",
-                ));
-            }
+            _ => Endpoint::Serial {
+                path: PathBuf::from(value.get_ref()),
+                baud: match &e.baud {
+                    Some(b) => c.int(b, &format!("{key}.baud"), 50, 4_000_000)?,
+                    None => DEFAULT_BAUD,
+                },
+            },
         });
     }
     if endpoints.is_empty() {
@@ -272,6 +287,23 @@ pan_deg = [-170.0, 170.0]
     }
 
     #[test]
+    fn a_serial_endpoint_with_and_without_its_rate() {
+        let serial = |extra: &str| {
+            let text = GOOD.replace(
+                "udp_listen = \"0.0.0.0:14560\"",
+                &format!("serial = \"/dev/ttyUSB0\"{extra}"),
+            );
+            parse(Path::new("m.toml"), &text).unwrap().endpoints
+        };
+        let at = |baud| Endpoint::Serial {
+            path: "/dev/ttyUSB0".into(),
+            baud,
+        };
+        assert_eq!(serial(""), [at(DEFAULT_BAUD)]);
+        assert_eq!(serial("\nbaud = 921600"), [at(921_600)]);
+    }
+
+    #[test]
     fn errors_name_the_place_and_what_was_expected() {
         assert_eq!(
             err(&GOOD.replace("\"5.1.1\"", "\"5.1\"")),
@@ -284,8 +316,15 @@ pan_deg = [-170.0, 170.0]
                 .contains("endpoint[0].udp_listen")
         );
         assert!(
-            err(&GOOD.replace("udp_listen = \"0.0.0.0:14560\"", "serial = \"/dev/ttyUSB0\""))
-                .contains("not supported yet")
+            err(&GOOD.replace("udp_listen = \"0.0.0.0:14560\"", "serial = \"/dev/ttyUSB0\"\nbaud = 0"))
+                .starts_with("m.toml:6:8: endpoint[0].baud: expected")
+        );
+        assert!(
+            err(&GOOD.replace(
+                "udp_listen = \"0.0.0.0:14560\"",
+                "udp_listen = \"0.0.0.0:14560\"\nbaud = 9600"
+            ))
+            .contains("endpoint[0].baud: baud applies to a serial endpoint only")
         );
         assert!(
             err(&GOOD.replace("udp_listen = \"0.0.0.0:14560\"", "tcp = \"gcs\""))

@@ -1,4 +1,4 @@
-//! MAVLink 2 over UDP (TCP connections are `stream`'s): the endpoints (`udp_listen`: answer every address
+//! MAVLink 2 over UDP (TCP connections and serial lines are `stream`'s): the endpoints (`udp_listen`: answer every address
 //! heard from; `udp`: a ground station's address), the outbox every
 //! component sends through (its own sequence numbers), and the counters of
 //! what came in. Frames are read and written by the `mavlink` crate.
@@ -25,8 +25,11 @@ pub const MAX_PEERS: usize = 16;
 pub struct Stats {
     /// Intact MAVLink messages.
     pub received: AtomicU64,
-    /// Datagrams in which no intact frame was found (damaged, not MAVLink).
+    /// Datagrams (UDP), or runs of bytes between intact frames (TCP,
+    /// serial), in which no intact frame was found (damaged, not MAVLink).
     pub damaged: AtomicU64,
+    /// The bytes of those datagrams and runs.
+    pub damaged_bytes: AtomicU64,
     /// Intact messages that are not for this program or not handled here.
     pub ignored: AtomicU64,
     /// Requests refused for their content (out of travel, infinite, bad parameter).
@@ -44,12 +47,20 @@ impl Stats {
         counter.fetch_add(1, Ordering::Relaxed) + 1
     }
 
+    /// Counts a datagram or run of `bytes` bytes without an intact frame;
+    /// the damaged total so far.
+    pub fn count_damaged(&self, bytes: usize) -> u64 {
+        self.damaged_bytes.fetch_add(bytes as u64, Ordering::Relaxed);
+        Self::count(&self.damaged)
+    }
+
     pub fn summary(&self) -> String {
         let g = |c: &AtomicU64| c.load(Ordering::Relaxed);
         format!(
-            "received={} damaged={} ignored={} refused={} denied={} failed={} busy={}",
+            "received={} damaged={} damaged_bytes={} ignored={} refused={} denied={} failed={} busy={}",
             g(&self.received),
             g(&self.damaged),
+            g(&self.damaged_bytes),
             g(&self.ignored),
             g(&self.refused),
             g(&self.denied),
@@ -116,7 +127,7 @@ impl Outbox {
                         heard: Mutex::new(Vec::new()),
                     }
                 }
-                Endpoint::TcpListen(_) | Endpoint::Tcp(_) => continue,
+                Endpoint::TcpListen(_) | Endpoint::Tcp(_) | Endpoint::Serial { .. } => continue,
             };
             ports.push(port);
         }
@@ -187,7 +198,7 @@ impl Outbox {
             };
             let messages = decode(&buf[..n]);
             if messages.is_empty() {
-                let total = Stats::count(&stats.damaged);
+                let total = stats.count_damaged(n);
                 if total <= 10 || total.is_power_of_two() {
                     warn!(%from, bytes = n, total, "datagram without an intact MAVLink frame ignored");
                 }

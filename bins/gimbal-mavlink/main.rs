@@ -121,6 +121,9 @@ async fn run(config: config::Config) -> Result<(), String> {
             config::Endpoint::Tcp(to) => {
                 tasks.spawn(stream::connect(to.clone(), streams, stats, handler));
             }
+            config::Endpoint::Serial { path, baud } => {
+                tasks.spawn(stream::serial(path.clone(), *baud, streams, stats, handler));
+            }
             config::Endpoint::UdpListen(_) | config::Endpoint::Udp(_) => {}
         }
     }

@@ -1,20 +1,24 @@
-//! MAVLink 2 over TCP (`tcp_listen`, `tcp`): each connection's bytes are
-//! read into messages by the `mavlink` crate's reader (which keeps partial
-//! frames between reads) on a blocking thread, and every message this
-//! program sends goes to every connection through a bounded queue: a peer
-//! that does not read loses messages, it never stalls the others.
+//! MAVLink 2 over byte streams: TCP (`tcp_listen`, `tcp`) and serial lines
+//! (`serial`). Each connection's bytes are read into messages by the
+//! `mavlink` crate's reader (which keeps partial frames between reads) on a
+//! blocking thread; the bytes around intact frames (damaged frames, noise)
+//! are counted as `damaged`. Every message this program sends goes to every
+//! connection through a bounded queue: a peer that does not read loses
+//! messages, it never stalls the others.
 
 use std::io::{self, Read};
 use std::net::SocketAddr;
+use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use mavlink::MavHeader;
 use mavlink::dialects::common::MavMessage;
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use mavlink::{MAVLinkMessageRaw, MavHeader, Message};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::mpsc;
-use tracing::{info, warn};
+use tokio_serial::SerialPortBuilderExt;
+use tracing::{debug, info, warn};
 
 use crate::link::Stats;
 
@@ -25,7 +29,7 @@ pub type Handler = Arc<dyn Fn(MavHeader, MavMessage) + Send + Sync>;
 pub const MAX_CONNECTIONS: usize = 8;
 /// Messages waiting to be written to one connection.
 const QUEUE: usize = 256;
-/// How long a `tcp` endpoint waits before connecting again.
+/// How long a `tcp` or `serial` endpoint waits before connecting or opening again.
 pub const RECONNECT: Duration = Duration::from_secs(2);
 
 /// The open connections' write queues.
@@ -61,11 +65,15 @@ impl Streams {
     }
 }
 
-/// Chunks read from a socket, as the blocking `Read` the reader wants.
+/// Chunks read from a connection, as the blocking `Read` the reader wants.
+/// It hands out one byte per call, so that when the reader returns a frame
+/// it holds nothing beyond the frame's last byte: `handed` then tells
+/// exactly how many bytes came before the frame (see [`Framing`]).
 struct Chunks {
     rx: std::sync::mpsc::Receiver<Vec<u8>>,
     chunk: Vec<u8>,
     at: usize,
+    handed: Arc<std::sync::atomic::AtomicU64>,
 }
 
 impl Read for Chunks {
@@ -76,21 +84,64 @@ impl Read for Chunks {
                 Err(_) => return Ok(0),
             }
         }
-        let n = buf.len().min(self.chunk.len() - self.at);
-        buf[..n].copy_from_slice(&self.chunk[self.at..self.at + n]);
-        self.at += n;
-        Ok(n)
+        let Some(first) = buf.first_mut() else {
+            return Ok(0);
+        };
+        *first = self.chunk[self.at];
+        self.at += 1;
+        self.handed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        Ok(1)
     }
 }
 
-/// Serves one connection until it closes.
-async fn serve(stream: TcpStream, peer: SocketAddr, streams: Arc<Streams>, stats: Arc<Stats>, handler: Handler) {
+/// Where a stream's bytes went: into intact frames, or around them.
+#[derive(Debug, Default)]
+struct Framing {
+    /// Bytes handed to the reader when the last frame ended.
+    framed_up_to: u64,
+}
+
+impl Framing {
+    /// A frame of `len` bytes ended with byte `handed`: the bytes before it
+    /// since the last frame that were no intact frame (0 when none).
+    fn frame(&mut self, handed: u64, len: u64) -> u64 {
+        let skipped = handed.saturating_sub(len).saturating_sub(self.framed_up_to);
+        self.framed_up_to = handed;
+        skipped
+    }
+
+    /// The stream ended with byte `handed`: the bytes after the last frame.
+    fn end(&self, handed: u64) -> u64 {
+        handed.saturating_sub(self.framed_up_to)
+    }
+}
+
+/// The length of a raw frame, signature included.
+fn frame_len(raw: &MAVLinkMessageRaw) -> u64 {
+    match raw {
+        MAVLinkMessageRaw::V1(m) => m.raw_bytes().len() as u64,
+        MAVLinkMessageRaw::V2(m) => m.raw_bytes().len() as u64,
+    }
+}
+
+/// Counts one run of `bytes` that held no intact frame (logged while rare).
+fn damaged(stats: &Stats, peer: &str, bytes: u64) {
+    let total = stats.count_damaged(bytes as usize);
+    if total <= 10 || total.is_power_of_two() {
+        warn!(%peer, bytes, total, "bytes without an intact MAVLink frame skipped");
+    }
+}
+
+/// Serves one connection (a TCP socket, a serial line) until it closes.
+async fn serve<S>(stream: S, peer: String, streams: Arc<Streams>, stats: Arc<Stats>, handler: Handler)
+where
+    S: AsyncRead + AsyncWrite + Send + 'static,
+{
     let Some(mut out) = streams.add() else {
-        warn!(%peer, max = MAX_CONNECTIONS, "too many MAVLink TCP connections: refused");
+        warn!(%peer, max = MAX_CONNECTIONS, "too many MAVLink stream connections: refused");
         return;
     };
-    let _ = stream.set_nodelay(true);
-    let (mut rd, mut wr) = stream.into_split();
+    let (mut rd, mut wr) = tokio::io::split(stream);
     let writer = tokio::spawn(async move {
         while let Some(bytes) = out.recv().await {
             if wr.write_all(&bytes).await.is_err() {
@@ -100,24 +151,48 @@ async fn serve(stream: TcpStream, peer: SocketAddr, streams: Arc<Streams>, stats
     });
     let (chunk_tx, chunk_rx) = std::sync::mpsc::channel::<Vec<u8>>();
     let (msg_tx, mut msg_rx) = mpsc::channel::<(MavHeader, MavMessage)>(QUEUE);
-    let decoder = tokio::task::spawn_blocking(move || {
-        let mut reader = mavlink::MavlinkReader::new(Chunks {
-            rx: chunk_rx,
-            chunk: Vec::new(),
-            at: 0,
-        });
-        loop {
-            match reader.read_any_message::<MavMessage>() {
-                Ok(m) => {
-                    if msg_tx.blocking_send(m).is_err() {
-                        return;
-                    }
+    let decoder = {
+        let (stats, peer) = (Arc::clone(&stats), peer.clone());
+        tokio::task::spawn_blocking(move || {
+            let handed = Arc::new(std::sync::atomic::AtomicU64::new(0));
+            let mut reader = mavlink::MavlinkReader::new(Chunks {
+                rx: chunk_rx,
+                chunk: Vec::new(),
+                at: 0,
+                handed: Arc::clone(&handed),
+            });
+            let handed = move || handed.load(std::sync::atomic::Ordering::Relaxed);
+            let mut framing = Framing::default();
+            loop {
+                let raw = match reader.read_any_raw_message::<MavMessage>() {
+                    Ok(raw) => raw,
+                    Err(mavlink::error::MessageReadError::Parse(_)) => continue,
+                    Err(_) => break,
+                };
+                let skipped = framing.frame(handed(), frame_len(&raw));
+                if skipped > 0 {
+                    damaged(&stats, &peer, skipped);
                 }
-                Err(mavlink::error::MessageReadError::Parse(_)) => continue,
-                Err(_) => return,
+                let header = MavHeader {
+                    system_id: raw.system_id(),
+                    component_id: raw.component_id(),
+                    sequence: raw.sequence(),
+                };
+                match MavMessage::parse(raw.version(), raw.message_id(), raw.payload()) {
+                    Ok(message) => {
+                        if msg_tx.blocking_send((header, message)).is_err() {
+                            return;
+                        }
+                    }
+                    Err(_) => damaged(&stats, &peer, frame_len(&raw)),
+                }
             }
-        }
-    });
+            let trailing = framing.end(handed());
+            if trailing > 0 {
+                damaged(&stats, &peer, trailing);
+            }
+        })
+    };
     let dispatch = tokio::spawn(async move {
         while let Some((header, message)) = msg_rx.recv().await {
             Stats::count(&stats.received);
@@ -140,7 +215,7 @@ async fn serve(stream: TcpStream, peer: SocketAddr, streams: Arc<Streams>, stats
     writer.abort();
     let _ = decoder.await;
     let _ = dispatch.await;
-    info!(%peer, "MAVLink TCP connection closed");
+    info!(%peer, "MAVLink connection closed");
 }
 
 /// `tcp_listen`: accepts connections for ever.
@@ -149,9 +224,10 @@ pub async fn listen(listener: TcpListener, streams: Arc<Streams>, stats: Arc<Sta
         match listener.accept().await {
             Ok((stream, peer)) => {
                 info!(%peer, "MAVLink TCP connection accepted");
+                let _ = stream.set_nodelay(true);
                 tokio::spawn(serve(
                     stream,
-                    peer,
+                    peer.to_string(),
                     Arc::clone(&streams),
                     Arc::clone(&stats),
                     Arc::clone(&handler),
@@ -174,9 +250,10 @@ pub async fn connect(to: String, streams: Arc<Streams>, stats: Arc<Stats>, handl
                     .peer_addr()
                     .unwrap_or_else(|_| SocketAddr::from(([0, 0, 0, 0], 0)));
                 info!(%peer, "MAVLink TCP connected");
+                let _ = stream.set_nodelay(true);
                 serve(
                     stream,
-                    peer,
+                    peer.to_string(),
                     Arc::clone(&streams),
                     Arc::clone(&stats),
                     Arc::clone(&handler),
@@ -186,5 +263,54 @@ pub async fn connect(to: String, streams: Arc<Streams>, stats: Arc<Stats>, handl
             Err(e) => warn!(to = %to, error = %e, "MAVLink TCP connection failed"),
         }
         tokio::time::sleep(RECONNECT).await;
+    }
+}
+
+/// `serial`: keeps `path` open at `baud`, opening it again after
+/// [`RECONNECT`] when it closes or is not there (an adapter plugged in
+/// later). The first failure in a row is a warning, the rest are debug.
+pub async fn serial(path: PathBuf, baud: u32, streams: Arc<Streams>, stats: Arc<Stats>, handler: Handler) {
+    let name = path.display().to_string();
+    let mut failed = false;
+    loop {
+        match tokio_serial::new(name.as_str(), baud).open_native_async() {
+            Ok(port) => {
+                failed = false;
+                info!(path = %name, baud, "MAVLink serial line open");
+                serve(
+                    port,
+                    name.clone(),
+                    Arc::clone(&streams),
+                    Arc::clone(&stats),
+                    Arc::clone(&handler),
+                )
+                .await;
+            }
+            Err(e) if !failed => {
+                failed = true;
+                warn!(path = %name, baud, error = %e, "cannot open the MAVLink serial line; trying again every 2 s");
+            }
+            Err(e) => debug!(path = %name, error = %e, "cannot open the MAVLink serial line"),
+        }
+        tokio::time::sleep(RECONNECT).await;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bytes_around_frames_are_counted_once_each() {
+        let mut f = Framing::default();
+        // A 12-byte frame right at the start: nothing skipped.
+        assert_eq!(f.frame(12, 12), 0);
+        // 5 bytes of noise, then a 20-byte frame.
+        assert_eq!(f.frame(37, 20), 5);
+        // A frame right after it.
+        assert_eq!(f.frame(49, 12), 0);
+        // 3 bytes after the last frame when the stream ends.
+        assert_eq!(f.end(52), 3);
+        assert_eq!(f.end(49), 0);
     }
 }

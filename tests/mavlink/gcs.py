@@ -33,9 +33,14 @@ WAIT_S = 15.0
 
 
 def connect(port, sysid, compid):
-    """UDP to 127.0.0.1:PORT, or the connection PORT names (tcp:HOST:PORT)."""
-    url = port if ":" in port else f"udpout:127.0.0.1:{port}"
-    m = mavutil.mavlink_connection(url, source_system=sysid, source_component=compid, dialect="common")
+    """UDP to 127.0.0.1:PORT, or the connection PORT names (tcp:HOST:PORT,
+    or a serial device /dev/...: pymavlink's serial link, 115200 baud)."""
+    if port.startswith("/"):
+        m = mavutil.mavlink_connection(port, baud=115200, source_system=sysid, source_component=compid,
+                                       dialect="common")
+    else:
+        url = port if ":" in port else f"udpout:127.0.0.1:{port}"
+        m = mavutil.mavlink_connection(url, source_system=sysid, source_component=compid, dialect="common")
     assert m.mavlink20(), "pymavlink speaks MAVLink 2"
     m.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
     return m
@@ -171,15 +176,20 @@ def step_garbage(m, a):
     out-of-travel pitch. The two results, and whether a heartbeat still
     comes."""
     good = mavlink.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3).pack(m.mav)
+    garbage = []
     for i in range(len(good)):
         bad = bytearray(good)
         bad[i] ^= 0x5A
-        m.write(bytes(bad))
-    m.write(b"\x00" * 40 + b"GET / HTTP/1.1\r\n\r\n")
-    m.write(bytes([0xFD, 4, 0, 0, 1, 1, 1, 0xFF, 0xFF, 0xFF, 1, 2, 3, 4, 0xAB, 0xCD]))
+        garbage.append(bytes(bad))
+    garbage.append(b"\x00" * 40 + b"GET / HTTP/1.1\r\n\r\n")
+    garbage.append(bytes([0xFD, 4, 0, 0, 1, 1, 1, 0xFF, 0xFF, 0xFF, 1, 2, 3, 4, 0xAB, 0xCD]))
+    for g in garbage:
+        m.write(g)
     m.mav.param_request_list_send(1, GIMBAL)
     nan = float("nan")
-    out = {}
+    # Every byte written that is no intact frame (on a stream, all of it
+    # reaches gimbal-mavlink; over UDP a datagram may be lost).
+    out = {"garbage_bytes": sum(len(g) for g in garbage)}
     out["nan"] = command(m, mavlink.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, [nan, float("inf"), nan, nan, 0, 0, 0])
     out["out_of_travel"] = command(m, mavlink.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, [120.0, 0.0, nan, nan, 0, 0, 0])
     out["bad_configure"] = command(m, mavlink.MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE, [nan, 3.5, -1, -1, 0, 0, 0])
