@@ -15,35 +15,19 @@ mod motion;
 mod status;
 mod stream;
 
-use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 
-use clap::Parser;
 use mavlink::dialects::common::{COMMAND_ACK_DATA, MavMessage};
 use tokio::signal::unix::{SignalKind, signal};
 use tracing::{info, warn};
 
 use crate::link::{Outbox, Stats};
 
-/// MAVLink Gimbal Protocol v2 (gimbal manager and device) for the gimbals behind gcud.
-#[derive(Debug, Parser)]
-#[command(version)]
-struct Args {
-    /// The configuration file (config/gimbal-mavlink.toml documents every key).
-    #[arg(long, value_name = "FILE")]
-    config: PathBuf,
-    /// Validate the configuration and exit: 0 valid, 2 invalid (file:line:column, key, what was expected).
-    #[arg(long)]
-    check: bool,
-}
-
 fn main() -> ExitCode {
-    let args = Args::parse();
     sagebrush_client::door::main(
         "gimbal-mavlink",
-        &args.config,
-        args.check,
+        "MAVLink Gimbal Protocol v2 (gimbal manager and device) for the gimbals behind gcud.",
         config::load,
         |c| format!("{} gimbal(s), {} endpoint(s)", c.gimbals.len(), c.endpoints.len()),
         run,

@@ -13,32 +13,16 @@ mod onvif;
 mod presets;
 mod soap;
 
-use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 
-use clap::Parser;
 use tokio::signal::unix::{SignalKind, signal};
 use tracing::{error, info};
 
-/// ONVIF PTZ (Device, Media, PTZ) and WS-Discovery for the gimbals behind gcud.
-#[derive(Debug, Parser)]
-#[command(version)]
-struct Args {
-    /// The configuration file (config/gimbal-onvif.toml documents every key).
-    #[arg(long, value_name = "FILE")]
-    config: PathBuf,
-    /// Validate the configuration and exit: 0 valid, 2 invalid (file:line:column, key, what was expected).
-    #[arg(long)]
-    check: bool,
-}
-
 fn main() -> ExitCode {
-    let args = Args::parse();
     sagebrush_client::door::main(
         "gimbal-onvif",
-        &args.config,
-        args.check,
+        "ONVIF PTZ (Device, Media, PTZ) and WS-Discovery for the gimbals behind gcud.",
         config::load,
         |c| format!("{} gimbal(s), {} user(s)", c.gimbals.len(), c.users.len()),
         run,

@@ -1,13 +1,16 @@
-//! What a front door's `main` does once its arguments are read
-//! (ARCHITECTURE "Layers", `sagebrush-client`): load the configuration
+//! What a front door's `main` does (ARCHITECTURE "Layers",
+//! `sagebrush-client`): read its command line (`--config FILE`, `--check`,
+//! the same for every door), load the configuration
 //! (exit 2 with file:line:column on an error, as gcud), answer `--check`,
 //! start logging and a two-thread runtime, and run the door (exit 1 when it
 //! fails to start). Output goes through `sagebrush_host`'s quiet printing,
 //! so a closed stdout or stderr is no panic.
 
 use std::future::Future;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+
+use clap::{CommandFactory, FromArgMatches, Parser};
 
 use crate::config_file::ConfigError;
 
@@ -16,13 +19,24 @@ pub const EXIT_CONFIG: u8 = 2;
 /// Exit code of a failure to start (an address in use, a state file).
 pub const EXIT_START: u8 = 1;
 
-/// Runs the door `name` on the configuration at `file`: `load` reads it,
-/// `summary` says what a valid one holds (`--check`), `run` serves until
-/// the door stops.
-pub fn main<C, Fut>(
-    name: &str,
-    file: &Path,
+/// A front door's command line.
+#[derive(Debug, Parser)]
+#[command(version)]
+struct Args {
+    /// The configuration file (its help names the door's own).
+    #[arg(long, value_name = "FILE")]
+    config: PathBuf,
+    /// Validate the configuration and exit: 0 valid, 2 invalid (file:line:column, key, what was expected).
+    #[arg(long)]
     check: bool,
+}
+
+/// Runs the door `name` (described by `about` in its `--help`): reads its
+/// command line, then `load` reads the configuration, `summary` says what
+/// a valid one holds (`--check`), `run` serves until the door stops.
+pub fn main<C, Fut>(
+    name: &'static str,
+    about: &'static str,
     load: impl FnOnce(&Path) -> Result<C, ConfigError>,
     summary: impl FnOnce(&C) -> String,
     run: impl FnOnce(C) -> Fut,
@@ -30,6 +44,18 @@ pub fn main<C, Fut>(
 where
     Fut: Future<Output = Result<(), String>>,
 {
+    let matches = Args::command()
+        .name(name)
+        .bin_name(name)
+        .about(about)
+        .mut_arg("config", |a| {
+            a.help(format!(
+                "The configuration file (config/{name}.toml in the source tree, /etc/{name}/{name}.toml as packaged, documents every key)"
+            ))
+        })
+        .get_matches();
+    let args = Args::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    let (file, check) = (args.config.as_path(), args.check);
     let config = match load(file) {
         Ok(c) => c,
         Err(e) => {
