@@ -7,7 +7,7 @@
 
 use serde::Serialize;
 
-use crate::stats::{Snapshot, VERSION};
+use crate::snapshot::{Snapshot, VERSION, degrees, role_name};
 
 #[derive(Debug, Serialize)]
 pub struct Status {
@@ -120,8 +120,8 @@ impl Status {
                         online: d.online,
                         last_seen_unix: d.last_seen.map(|t| s.unix_seconds(t)),
                         position: d.position.map(|(t, p)| PositionSeen {
-                            pan_deg: f64::from(p.pan.0) / 100.0,
-                            tilt_deg: f64::from(p.tilt.0) / 100.0,
+                            pan_deg: degrees(p.pan),
+                            tilt_deg: degrees(p.tilt),
                             unix: s.unix_seconds(t),
                         }),
                         lens: d.lens.map(|(t, l)| LensSeen {
@@ -147,7 +147,7 @@ impl Status {
             .iter()
             .map(|(name, t)| Link {
                 link: name.clone(),
-                role: crate::stats::role_name(t.stats.kind),
+                role: role_name(t.stats.kind),
                 up: t.connections > 0,
                 connections: t.connections,
                 frames_in: t.stats.line.frames_in,
@@ -169,5 +169,20 @@ impl Status {
             ports,
             links,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::snapshot::fixture;
+
+    /// The document `gimbalctl gcud-status` and scripts read, for a
+    /// snapshot with every field set, byte for byte.
+    #[test]
+    fn every_field_renders_as_the_reviewed_document() {
+        let status = Status::of(&fixture::every_field_set());
+        let text = serde_json::to_string_pretty(&status).expect("JSON");
+        fixture::assert_reviewed("status.json", &text);
     }
 }
