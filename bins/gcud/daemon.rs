@@ -352,7 +352,9 @@ pub async fn run(mut config: Config, http_limits: crate::http::Limits) -> Result
                     IoEvent::Scrape(reply) => {
                         let state = RouterState {
                             router: &router,
-                            configured: config.links.iter().map(|l| (l.name.as_str(), link_kind(l))),
+                            configured: config.links.iter().map(|l| {
+                                (l.name.as_str(), link_kind(l), tasks.listeners.contains_key(&l.name))
+                            }),
                             name_of: |id| links.get(&id).map(|l| l.name.as_str()),
                             departed: &departed,
                             uptime_ms: now(Instant::now()),

@@ -592,6 +592,7 @@ mod tests {
         let mut clients = LinkTotals {
             stats: gone,
             connections: 1,
+            listening: true,
         };
         clients.stats.absorb(&live);
         let snapshot = Snapshot {

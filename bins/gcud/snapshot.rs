@@ -24,6 +24,17 @@ pub struct LinkTotals {
     pub stats: LinkStats,
     /// Connections up now.
     pub connections: u64,
+    /// A `listen` link whose listener is bound: it serves, connections
+    /// or not.
+    pub listening: bool,
+}
+
+impl LinkTotals {
+    /// Whether the link serves: a listener while it is bound, any other
+    /// link while it has a connection up.
+    pub fn up(&self) -> bool {
+        self.listening || self.connections > 0
+    }
 }
 
 /// The HTTP endpoint's connections (module `http` counts them).
@@ -81,7 +92,8 @@ impl Heap {
 /// What the router task reads a snapshot from.
 pub struct RouterState<'a, C, N> {
     pub router: &'a Router,
-    /// Each configured link: its name and kind.
+    /// Each configured link: its name, kind, and whether it is a listener
+    /// bound now.
     pub configured: C,
     /// The configured link name of a live link id.
     pub name_of: N,
@@ -97,14 +109,14 @@ impl Snapshot {
     /// starts empty, for the caller to fill in.
     pub fn take<'a, C, N>(state: RouterState<'a, C, N>, group: u8, name: &str) -> Self
     where
-        C: IntoIterator<Item = (&'a str, LinkKind)>,
+        C: IntoIterator<Item = (&'a str, LinkKind, bool)>,
         N: Fn(LinkId) -> Option<&'a str>,
     {
         let stats = state.router.stats();
         let mut links: BTreeMap<String, LinkTotals> = state
             .configured
             .into_iter()
-            .map(|(name, kind)| {
+            .map(|(name, kind, listening)| {
                 let mut gone = LinkStats::new(kind);
                 gone.up = false;
                 if let Some(d) = state.departed.get(name) {
@@ -113,6 +125,7 @@ impl Snapshot {
                 let totals = LinkTotals {
                     stats: gone,
                     connections: 0,
+                    listening,
                 };
                 (name.to_owned(), totals)
             })
@@ -290,7 +303,15 @@ pub mod fixture {
             stats.repeats = next();
             stats.delivered = next();
             stats.failed = next();
-            links.insert(name.to_owned(), LinkTotals { stats, connections });
+            let listening = kind == LinkKind::Client;
+            links.insert(
+                name.to_owned(),
+                LinkTotals {
+                    stats,
+                    connections,
+                    listening,
+                },
+            );
         }
         Snapshot {
             stats,

@@ -87,6 +87,8 @@ pub struct ErrorSeen {
 pub struct Link {
     pub link: String,
     pub role: &'static str,
+    /// Serving: a listener while it is bound (connections or not), any
+    /// other link while its connection is up.
     pub up: bool,
     pub connections: u64,
     pub frames_in: u64,
@@ -148,7 +150,7 @@ impl Status {
             .map(|(name, t)| Link {
                 link: name.clone(),
                 role: role_name(t.stats.kind),
-                up: t.connections > 0,
+                up: t.up(),
                 connections: t.connections,
                 frames_in: t.stats.line.frames_in,
                 frames_out: t.stats.line.frames_out,
@@ -184,5 +186,25 @@ mod tests {
         let status = Status::of(&fixture::every_field_set());
         let text = serde_json::to_string_pretty(&status).expect("JSON");
         fixture::assert_reviewed("status.json", &text);
+    }
+
+    /// Issue 24: a client listener serves while it is bound, before anyone
+    /// connects; a link that dials out is up only while connected.
+    #[test]
+    fn a_listener_is_up_while_it_serves() {
+        let mut snapshot = fixture::every_field_set();
+        for t in snapshot.links.values_mut() {
+            t.connections = 0;
+        }
+        let status = Status::of(&snapshot);
+        let up: Vec<(&str, &str, bool)> = status.links.iter().map(|l| (l.link.as_str(), l.role, l.up)).collect();
+        assert_eq!(
+            up,
+            [
+                ("clients", "client", true),
+                ("north", "upstream", false),
+                ("south", "downstream", false)
+            ]
+        );
     }
 }
