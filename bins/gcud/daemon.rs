@@ -28,7 +28,7 @@ use crate::config::{Config, Link, LinkRole, LinkTransport, Port, PortTransport};
 use crate::io::{self, IoEvent};
 use crate::lines::{LineEvent, LineId, Lines, Refused};
 use crate::reload::Diff;
-use crate::stats;
+use crate::snapshot::{RouterState, Snapshot};
 use crate::throttle::Throttle;
 
 /// Stable ids of configured links, by name: kept across reconnects and
@@ -81,12 +81,17 @@ fn router_config(config: &Config, ids: &mut LinkIds) -> RouterConfig {
     rc
 }
 
-fn link_config(link: &Link) -> LinkConfig {
-    let kind = match link.role {
+/// The router core's kind of a configured link.
+fn link_kind(link: &Link) -> LinkKind {
+    match link.role {
         LinkRole::Upstream => LinkKind::Upstream,
         LinkRole::Downstream => LinkKind::Downstream,
         LinkRole::Client => LinkKind::Client,
-    };
+    }
+}
+
+fn link_config(link: &Link) -> LinkConfig {
+    let kind = link_kind(link);
     let sources = match &link.allow_source_groups {
         Some(groups) => SourceFilter::Only(groups.clone()),
         None => SourceFilter::Any,
@@ -262,7 +267,7 @@ pub async fn run(mut config: Config, http_limits: crate::http::Limits) -> Result
             listener,
             config.metrics_allow_peers.clone(),
             http_limits,
-            crate::metrics::app(scrape_tx, counters.clone()),
+            crate::http::app(scrape_tx, counters.clone()),
             counters,
         ));
     }
@@ -345,7 +350,16 @@ pub async fn run(mut config: Config, http_limits: crate::http::Limits) -> Result
                         }
                     }
                     IoEvent::Scrape(reply) => {
-                        let mut s = snapshot(&router, &config, &links, &departed, now(Instant::now()));
+                        let state = RouterState {
+                            router: &router,
+                            configured: config.links.iter().map(|l| {
+                                (l.name.as_str(), link_kind(l), tasks.listeners.contains_key(&l.name))
+                            }),
+                            name_of: |id| links.get(&id).map(|l| l.name.as_str()),
+                            departed: &departed,
+                            uptime_ms: now(Instant::now()),
+                        };
+                        let mut s = Snapshot::take(state, config.group, &config.name);
                         s.connections = tasks.connections.stats();
                         s.started_unix_ms = started_unix_ms;
                         s.shutting_down = stopping.is_some();
@@ -439,52 +453,6 @@ pub async fn run(mut config: Config, http_limits: crate::http::Limits) -> Result
     .await;
     capture.stop("gcud stopping").await;
     Ok(())
-}
-
-/// The counters a scrape renders: live links and those gone, per configured link.
-fn snapshot(
-    router: &Router,
-    config: &Config,
-    links: &BTreeMap<LinkId, LinkInfo>,
-    departed: &BTreeMap<String, LinkStats>,
-    uptime_ms: u64,
-) -> stats::Snapshot {
-    let stats = router.stats();
-    let mut totals: BTreeMap<String, stats::LinkTotals> = config
-        .links
-        .iter()
-        .map(|l| {
-            let mut gone = LinkStats::new(link_config(l).kind);
-            gone.up = false;
-            if let Some(d) = departed.get(&l.name) {
-                gone.absorb(d);
-            }
-            let totals = stats::LinkTotals {
-                stats: gone,
-                connections: 0,
-            };
-            (l.name.clone(), totals)
-        })
-        .collect();
-    for (id, live) in &stats.links {
-        if let Some(t) = links.get(id).and_then(|info| totals.get_mut(&info.name)) {
-            t.stats.absorb(live);
-            t.connections += 1;
-        }
-    }
-    stats::Snapshot {
-        stats,
-        links: totals,
-        connections: Default::default(),
-        uptime_ms,
-        started_unix_ms: 0,
-        group: config.group,
-        name: config.name.clone(),
-        shutting_down: false,
-        heap: stats::Heap::now(),
-        capture: None,
-        http: Default::default(),
-    }
 }
 
 /// One SIGHUP (module `reload`): the file is read and checked as at start;

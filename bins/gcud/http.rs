@@ -1,6 +1,10 @@
-//! The HTTP endpoint's connections (`[metrics] listen`; the pages are
-//! module `metrics`'s): a peer outside `[metrics] allow_peers` is closed as
-//! soon as it is accepted, before a byte is read; at most
+//! The HTTP endpoint (`[metrics] listen`, loopback by default): its pages
+//! and its connections. The pages: `GET /metrics` (OpenMetrics text, module
+//! `metric_families`), `GET /status` (JSON, module `status`) and
+//! `GET /healthz`, each from a [`Snapshot`] the router task copies when
+//! asked and that is rendered off it. The connections: a peer outside
+//! `[metrics] allow_peers` is closed as soon as it is accepted, before a
+//! byte is read; at most
 //! [`Limits::max_connections`] are open at once (more are closed at accept);
 //! a request's head must arrive within [`HEADER_TIMEOUT`] of the connection
 //! opening or of the previous response (hyper's header read time-out, which
@@ -18,10 +22,11 @@ use std::time::Duration;
 use hyper_util::rt::{TokioIo, TokioTimer};
 use hyper_util::service::TowerToHyperService;
 use tokio::net::TcpListener;
-use tokio::sync::Semaphore;
+use tokio::sync::{Semaphore, mpsc, oneshot};
 use tracing::{debug, warn};
 
 use crate::config::PeerAllowList;
+use crate::snapshot::{HttpStats, Snapshot};
 use crate::throttle::Throttle;
 
 /// A request's head must arrive this soon after the connection opened or
@@ -40,14 +45,6 @@ pub struct Limits {
     pub max_connections: usize,
 }
 
-/// The endpoint's counters, as a scrape shows them.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct HttpStats {
-    pub open: u64,
-    pub refused_not_allowed: u64,
-    pub refused_cap: u64,
-}
-
 /// The live counters, shared with the pages that show them.
 #[derive(Debug, Default)]
 pub struct Counters {
@@ -64,6 +61,86 @@ impl Counters {
             refused_cap: self.refused_cap.load(Ordering::Relaxed),
         }
     }
+}
+
+/// A scrape asks the router task for a fresh snapshot through this channel.
+pub type ScrapeRequests = mpsc::Sender<oneshot::Sender<Snapshot>>;
+
+/// How long `/healthz` waits for the router task before calling it stuck.
+const HEALTH_WAIT: Duration = Duration::from_secs(1);
+
+/// What the HTTP handlers share.
+#[derive(Clone, Debug)]
+struct Endpoint {
+    scrapes: ScrapeRequests,
+    http: Arc<Counters>,
+}
+
+impl Endpoint {
+    /// A snapshot copied on the router task (counters only), or `None` if
+    /// the task is gone. Rendering happens off that task, so that a scrape
+    /// never stalls routing.
+    async fn snapshot(&self) -> Option<Snapshot> {
+        let (tx, rx) = oneshot::channel();
+        self.scrapes.send(tx).await.ok()?;
+        let mut snapshot = rx.await.ok()?;
+        snapshot.http = self.http.stats();
+        Some(snapshot)
+    }
+}
+
+/// The pages, for [`serve`] (to `[metrics] allow_peers` only):
+/// `GET /metrics` (OpenMetrics text), `GET /status` (JSON) and
+/// `GET /healthz` (200 `ok` while the router task answers within a second
+/// and gcud is not shutting down, 503 and why otherwise).
+pub fn app(scrapes: ScrapeRequests, http: Arc<Counters>) -> axum::Router {
+    use axum::extract::State;
+    use axum::http::StatusCode;
+    use axum::response::{IntoResponse, Response};
+    use axum::routing::get;
+
+    async fn metrics(State(endpoint): State<Endpoint>) -> Response {
+        let body = match endpoint.snapshot().await {
+            Some(s) => tokio::task::spawn_blocking(move || crate::metric_families::render(&s))
+                .await
+                .unwrap_or_default(),
+            None => String::new(),
+        };
+        (
+            [(
+                "content-type",
+                "application/openmetrics-text; version=1.0.0; charset=utf-8",
+            )],
+            body,
+        )
+            .into_response()
+    }
+
+    async fn status(State(endpoint): State<Endpoint>) -> Response {
+        match endpoint.snapshot().await {
+            Some(s) => axum::Json(crate::status::Status::of(&s)).into_response(),
+            None => (StatusCode::SERVICE_UNAVAILABLE, "gcud is stopping\n").into_response(),
+        }
+    }
+
+    async fn healthz(State(endpoint): State<Endpoint>) -> Response {
+        match tokio::time::timeout(HEALTH_WAIT, endpoint.snapshot()).await {
+            Ok(Some(s)) if s.shutting_down => (StatusCode::SERVICE_UNAVAILABLE, "shutting down\n").into_response(),
+            Ok(Some(_)) => (StatusCode::OK, "ok\n").into_response(),
+            Ok(None) => (StatusCode::SERVICE_UNAVAILABLE, "gcud is stopping\n").into_response(),
+            Err(_) => (
+                StatusCode::SERVICE_UNAVAILABLE,
+                "router task did not answer within 1 s\n",
+            )
+                .into_response(),
+        }
+    }
+
+    axum::Router::new()
+        .route("/metrics", get(metrics))
+        .route("/status", get(status))
+        .route("/healthz", get(healthz))
+        .with_state(Endpoint { scrapes, http })
 }
 
 /// Serves `app` on `listener` until the process ends.

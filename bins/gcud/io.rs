@@ -51,7 +51,7 @@ pub enum IoEvent {
     /// Close an accepted connection (its admission entry says why).
     CloseLink { id: LinkId, reason: &'static str },
     /// A metrics scrape wants a snapshot of the counters (rendered off the router task).
-    Scrape(oneshot::Sender<crate::stats::Snapshot>),
+    Scrape(oneshot::Sender<crate::snapshot::Snapshot>),
 }
 
 /// Exponential backoff: 250 ms doubling to 10 s.

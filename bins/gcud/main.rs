@@ -10,11 +10,12 @@ mod descriptors;
 mod http;
 mod io;
 mod lines;
-mod metrics;
+mod metric_families;
+mod openmetrics;
 mod reload;
 #[cfg(feature = "sim")]
 mod simulated;
-mod stats;
+mod snapshot;
 mod status;
 mod throttle;
 
@@ -48,7 +49,7 @@ struct Args {
     against: Option<PathBuf>,
 }
 
-/// Counts heap allocations for `gcud_heap_*` (module `stats`): the
+/// Counts heap allocations for `gcud_heap_*` (module `snapshot`): the
 /// data path's zero-allocation budget (ARCHITECTURE "Data path"), watched
 /// in the field and by `cargo bench --bench gcud`.
 #[global_allocator]

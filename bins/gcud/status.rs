@@ -7,7 +7,7 @@
 
 use serde::Serialize;
 
-use crate::stats::{Snapshot, VERSION};
+use crate::snapshot::{Snapshot, VERSION, degrees, role_name};
 
 #[derive(Debug, Serialize)]
 pub struct Status {
@@ -87,6 +87,8 @@ pub struct ErrorSeen {
 pub struct Link {
     pub link: String,
     pub role: &'static str,
+    /// Serving: a listener while it is bound (connections or not), any
+    /// other link while its connection is up.
     pub up: bool,
     pub connections: u64,
     pub frames_in: u64,
@@ -120,8 +122,8 @@ impl Status {
                         online: d.online,
                         last_seen_unix: d.last_seen.map(|t| s.unix_seconds(t)),
                         position: d.position.map(|(t, p)| PositionSeen {
-                            pan_deg: f64::from(p.pan.0) / 100.0,
-                            tilt_deg: f64::from(p.tilt.0) / 100.0,
+                            pan_deg: degrees(p.pan),
+                            tilt_deg: degrees(p.tilt),
                             unix: s.unix_seconds(t),
                         }),
                         lens: d.lens.map(|(t, l)| LensSeen {
@@ -147,8 +149,8 @@ impl Status {
             .iter()
             .map(|(name, t)| Link {
                 link: name.clone(),
-                role: crate::stats::role_name(t.stats.kind),
-                up: t.connections > 0,
+                role: role_name(t.stats.kind),
+                up: t.up(),
                 connections: t.connections,
                 frames_in: t.stats.line.frames_in,
                 frames_out: t.stats.line.frames_out,
@@ -169,5 +171,40 @@ impl Status {
             ports,
             links,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::snapshot::fixture;
+
+    /// The document `gimbalctl gcud-status` and scripts read, for a
+    /// snapshot with every field set, byte for byte.
+    #[test]
+    fn every_field_renders_as_the_reviewed_document() {
+        let status = Status::of(&fixture::every_field_set());
+        let text = serde_json::to_string_pretty(&status).expect("JSON");
+        fixture::assert_reviewed("status.json", &text);
+    }
+
+    /// Issue 24: a client listener serves while it is bound, before anyone
+    /// connects; a link that dials out is up only while connected.
+    #[test]
+    fn a_listener_is_up_while_it_serves() {
+        let mut snapshot = fixture::every_field_set();
+        for t in snapshot.links.values_mut() {
+            t.connections = 0;
+        }
+        let status = Status::of(&snapshot);
+        let up: Vec<(&str, &str, bool)> = status.links.iter().map(|l| (l.link.as_str(), l.role, l.up)).collect();
+        assert_eq!(
+            up,
+            [
+                ("clients", "client", true),
+                ("north", "upstream", false),
+                ("south", "downstream", false)
+            ]
+        );
     }
 }

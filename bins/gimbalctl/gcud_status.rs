@@ -140,13 +140,13 @@ fn text(s: &Value, now: f64) -> String {
             port["bad_checksums"],
             ago(&port["last_seen_unix"], now),
         ));
-        // Devices only: a row for the wildcard 255 (a broadcast) would read
-        // as an offline gimbal.
+        // Devices only: a row for the wildcard (255, a broadcast) would
+        // read as an offline gimbal.
         let devices: Vec<&Value> = port["devices"]
             .as_array()
             .unwrap_or(&empty)
             .iter()
-            .filter(|d| d["device"].as_u64() != Some(255))
+            .filter(|d| d["device"].as_u64() != Some(u64::from(sagebrush_protocol::WILDCARD)))
             .collect();
         if devices.is_empty() {
             out.push_str("  no device addressed yet\n");

@@ -1,0 +1,648 @@
+//! gcud's metric families, as one table: each family's name, type, unit
+//! and help are declared once below, beside how its samples are read from
+//! a [`Snapshot`] (per gcud, per port, per link, per device). Module
+//! `openmetrics` writes them out. The names are an interface: the tests
+//! under `tests/` and `config/grafana-dashboard.json` use them.
+
+use sagebrush_gcu::{DeviceStats, DropCounts, LineStats, PortStats};
+
+use crate::openmetrics::{Descriptor, Family, Labels, Unit, Value, encode};
+use crate::snapshot::{LinkTotals, Snapshot, VERSION, degrees, role_name};
+
+/// Every family's name starts `gcud_`.
+const PREFIX: &str = "gcud";
+
+/// One family of a table whose rows are `T`s (a port, a link, a device,
+/// or gcud itself): its declaration and how a row's samples are read.
+struct Column<T> {
+    family: Descriptor,
+    read: Read<T>,
+}
+
+enum Read<T> {
+    /// One sample per row, none where the row has no value.
+    One(fn(&T, &Snapshot) -> Option<Value>),
+    /// Samples split by one more label (its name, then each value with the
+    /// sample's).
+    By(&'static str, fn(&T, &Snapshot) -> Vec<(&'static str, Value)>),
+}
+
+const fn one<T>(family: Descriptor, read: fn(&T, &Snapshot) -> Option<Value>) -> Column<T> {
+    Column {
+        family,
+        read: Read::One(read),
+    }
+}
+
+const fn by<T>(
+    family: Descriptor,
+    label: &'static str,
+    read: fn(&T, &Snapshot) -> Vec<(&'static str, Value)>,
+) -> Column<T> {
+    Column {
+        family,
+        read: Read::By(label, read),
+    }
+}
+
+fn count(n: impl Into<u64>) -> Option<Value> {
+    Some(Value::Count(n.into()))
+}
+
+fn drops(d: &DropCounts) -> Vec<(&'static str, Value)> {
+    d.iter().map(|(reason, n)| (reason.name(), Value::Count(n))).collect()
+}
+
+/// gcud's identity: one sample, its labels the version, group and name.
+const BUILD_INFO: Descriptor =
+    Descriptor::gauge("build_info", "gcud's version and this GCU's group and name; always 1.");
+
+/// gcud as a whole: one row, no labels.
+const GCUD: &[Column<Snapshot>] = &[
+    one(
+        Descriptor::gauge("uptime", "Milliseconds since gcud started.").in_unit(Unit::Milliseconds),
+        |s, _| count(s.uptime_ms),
+    ),
+    one(
+        Descriptor::gauge("start_time", "When gcud started, seconds since the Unix epoch.").in_unit(Unit::Seconds),
+        |s, _| Some(Value::Real(s.unix_seconds(0))),
+    ),
+    one(
+        Descriptor::gauge(
+            "shutting_down",
+            "1 once SIGTERM/SIGINT was received (new commands are refused).",
+        ),
+        |s, _| count(s.shutting_down),
+    ),
+    one(
+        Descriptor::counter(
+            "heap_allocations",
+            "Heap allocations and reallocations since start (none per routed frame in steady state).",
+        ),
+        |s, _| count(s.heap.allocations),
+    ),
+    one(
+        Descriptor::gauge("heap", "Bytes of heap in use.").in_unit(Unit::Bytes),
+        |s, _| count(s.heap.bytes_in_use),
+    ),
+    by(
+        Descriptor::counter("commands", "Commands accepted from links, by outcome."),
+        "outcome",
+        |s, _| {
+            let r = &s.stats.router;
+            [
+                ("result", r.results),
+                ("nic", r.nics),
+                ("completed", r.completed),
+                ("no_result", r.no_result),
+                ("unreachable", r.unreachable),
+                ("forwarded", r.forwarded),
+            ]
+            .map(|(outcome, n)| (outcome, Value::Count(n)))
+            .to_vec()
+        },
+    ),
+    one(
+        Descriptor::counter("commands_accepted", "Commands accepted (dead-man stops included)."),
+        |s, _| count(s.stats.router.accepted),
+    ),
+    by(
+        Descriptor::counter(
+            "commands_delivery",
+            "Commands of links by what their origin was told (ARCHITECTURE \"Delivery contract\"): delivered, or why not.",
+        ),
+        "delivery",
+        |s, _| {
+            let r = &s.stats.router;
+            let undelivered = r.undelivered.iter().map(|(kind, n)| (kind.name(), Value::Count(n)));
+            std::iter::once(("delivered", Value::Count(r.delivered)))
+                .chain(undelivered)
+                .collect()
+        },
+    ),
+    by(
+        Descriptor::counter("commands_dropped", "Commands not executed, by reason."),
+        "reason",
+        |s, _| drops(&s.stats.router.dropped),
+    ),
+    by(
+        Descriptor::counter("router_frame_drops", "Frames dropped by the router, by reason."),
+        "reason",
+        |s, _| drops(&s.stats.router.frame_drops),
+    ),
+    one(
+        Descriptor::counter("results_relayed", "Result frames relayed back to their origin."),
+        |s, _| count(s.stats.router.results_relayed),
+    ),
+    one(
+        Descriptor::counter("broadcasts_flooded", "Group-255 copies flooded to downstream links."),
+        |s, _| count(s.stats.router.flooded),
+    ),
+    one(
+        Descriptor::counter("dead_man_stops", "Stops issued for motions of links that went down."),
+        |s, _| count(s.stats.router.dead_man_stops),
+    ),
+    one(
+        Descriptor::counter(
+            "lease_stops",
+            "Stops issued for motions whose link's motion lease ran out.",
+        ),
+        |s, _| count(s.stats.router.lease_stops),
+    ),
+    one(
+        Descriptor::counter("shutdown_stops", "Stops issued at shutdown for motions still running."),
+        |s, _| count(s.stats.router.shutdown_stops),
+    ),
+    one(
+        Descriptor::gauge("connections_open", "Accepted connections open now."),
+        |s, _| count(s.connections.open),
+    ),
+    one(
+        Descriptor::counter("connections_accepted", "Connections accepted."),
+        |s, _| count(s.connections.accepted),
+    ),
+    by(
+        Descriptor::counter("connections_refused", "Connections refused, by why."),
+        "why",
+        |s, _| {
+            let c = &s.connections;
+            vec![
+                ("max_connections", Value::Count(c.refused_total_cap)),
+                ("max_connections_per_peer", Value::Count(c.refused_peer_cap)),
+                ("allow_peers", Value::Count(c.refused_not_allowed)),
+            ]
+        },
+    ),
+    by(
+        Descriptor::counter("connections_closed", "Connections gcud closed, by why."),
+        "why",
+        |s, _| {
+            let c = &s.connections;
+            vec![
+                ("evicted", Value::Count(c.evicted)),
+                ("idle", Value::Count(c.idle_closed)),
+            ]
+        },
+    ),
+    one(
+        Descriptor::gauge("http_connections_open", "HTTP endpoint connections open now."),
+        |s, _| count(s.http.open),
+    ),
+    by(
+        Descriptor::counter(
+            "http_connections_refused",
+            "HTTP endpoint connections closed at accept, by why.",
+        ),
+        "why",
+        |s, _| {
+            let h = &s.http;
+            vec![
+                ("allow_peers", Value::Count(h.refused_not_allowed)),
+                ("max_connections", Value::Count(h.refused_cap)),
+            ]
+        },
+    ),
+    one(
+        Descriptor::gauge("capture_running", "Whether a capture is running."),
+        |s, _| count(s.capture.is_some()),
+    ),
+    one(
+        Descriptor::counter("capture_records", "Records written by the running capture."),
+        |s, _| count(s.capture.as_ref().map_or(0, |c| c.records)),
+    ),
+    one(
+        Descriptor::counter(
+            "capture_dropped",
+            "Chunks the running capture dropped: its queue was full (a slow disk, a FIFO without a reader or a stalled one).",
+        ),
+        |s, _| count(s.capture.as_ref().map_or(0, |c| c.dropped)),
+    ),
+    one(
+        Descriptor::gauge("commands_in_progress", "Commands in progress now."),
+        |s, _| count(s.stats.router.in_progress),
+    ),
+];
+
+/// A line's counters (ports and links alike), as families `port_...` and
+/// `link_...`.
+const LINE: &[Column<LineStats>] = &[
+    one(Descriptor::counter("frames_in", "Good frames received."), |l, _| {
+        count(l.frames_in)
+    }),
+    one(
+        Descriptor::counter("frames_out", "Frames written, retransmissions included."),
+        |l, _| count(l.frames_out),
+    ),
+    one(Descriptor::counter("bytes_in", "Bytes received."), |l, _| {
+        count(l.bytes_in)
+    }),
+    one(Descriptor::counter("bytes_out", "Bytes written."), |l, _| {
+        count(l.bytes_out)
+    }),
+    one(
+        Descriptor::counter("bad_checksums", "Frames received with a bad checksum (each NAKed)."),
+        |l, _| count(l.bad_checksums),
+    ),
+    one(Descriptor::counter("naks_sent", "NAKs written."), |l, _| {
+        count(l.naks_sent)
+    }),
+    one(Descriptor::counter("naks_received", "NAKs received."), |l, _| {
+        count(l.naks_received)
+    }),
+    one(
+        Descriptor::counter("stray_bytes", "ACK/NAK/NIC bytes nobody was waiting for."),
+        |l, _| count(l.stray_bytes),
+    ),
+    one(
+        Descriptor::counter("retransmits", "Frames written again after a NAK or ACK time-out."),
+        |l, _| count(l.retransmits),
+    ),
+    one(Descriptor::counter("timeouts", "ACK or result time-outs."), |l, _| {
+        count(l.timeouts)
+    }),
+    one(Descriptor::counter("nics_in", "NIC (?) received."), |l, _| {
+        count(l.nics_in)
+    }),
+    one(Descriptor::counter("nics_out", "NIC (?) written."), |l, _| {
+        count(l.nics_out)
+    }),
+    one(
+        Descriptor::counter("noise_bytes", "Noise bytes skipped by the framer."),
+        |l, _| count(l.noise_bytes),
+    ),
+    by(
+        Descriptor::counter("drops", "Frames or jobs dropped, by reason."),
+        "reason",
+        |l, _| drops(&l.drops),
+    ),
+    one(
+        Descriptor::gauge(
+            "last_seen_timestamp",
+            "When the last byte was received, seconds since the Unix epoch.",
+        )
+        .in_unit(Unit::Seconds),
+        |l, s| l.last_seen.map(|t| Value::Real(s.unix_seconds(t))),
+    ),
+];
+
+/// A port, beside its line's counters; labelled `port`.
+const PORT: &[Column<PortStats>] = &[
+    one(Descriptor::gauge("port_open", "Whether the port is open."), |p, _| {
+        count(p.open)
+    }),
+    one(Descriptor::gauge("port_bps", "Current line rate."), |p, _| count(p.bps)),
+    one(
+        Descriptor::gauge("port_queue_length", "Jobs waiting behind the one in flight."),
+        |p, _| count(p.queue_len as u64),
+    ),
+    one(
+        Descriptor::counter("port_transactions", "Transactions started."),
+        |p, _| count(p.transactions),
+    ),
+    one(
+        Descriptor::counter("port_rate_switches", "Line rate switches."),
+        |p, _| count(p.rate_switches),
+    ),
+];
+
+/// A configured link (its connections folded together), beside its line's
+/// counters; labelled `link` and `role`.
+const LINK: &[Column<LinkTotals>] = &[
+    one(
+        Descriptor::gauge("link_up", "Whether the link has a connection up."),
+        |t, _| count(t.connections > 0),
+    ),
+    one(Descriptor::gauge("link_connections", "Connections up now."), |t, _| {
+        count(t.connections)
+    }),
+    one(
+        Descriptor::counter(
+            "link_command_repeats",
+            "Retransmissions of a client's command awaiting delivery (not executed again).",
+        ),
+        |t, _| count(t.stats.repeats),
+    ),
+    one(
+        Descriptor::counter("link_frames_delivered", "Frames the peer acknowledged."),
+        |t, _| count(t.stats.delivered),
+    ),
+    one(
+        Descriptor::counter("link_frames_failed", "Frames given up or dropped with the link."),
+        |t, _| count(t.stats.failed),
+    ),
+];
+
+/// A device of the router core's registry; labelled `port` and `device`.
+const DEVICE: &[Column<DeviceStats>] = &[
+    one(
+        Descriptor::counter("device_commands", "Transactions addressed to the device."),
+        |d, _| count(d.commands),
+    ),
+    one(
+        Descriptor::counter("device_frames_out", "Command frames written to the device."),
+        |d, _| count(d.frames_out),
+    ),
+    one(
+        Descriptor::counter("device_frames_in", "Result frames from the device."),
+        |d, _| count(d.frames_in),
+    ),
+    one(
+        Descriptor::counter("device_retransmits", "Retransmissions to the device."),
+        |d, _| count(d.retransmits),
+    ),
+    one(
+        Descriptor::counter("device_unreachable", "Commands never acknowledged after all retries."),
+        |d, _| count(d.unreachable),
+    ),
+    one(
+        Descriptor::counter("device_no_result", "Acknowledged commands whose result never came."),
+        |d, _| count(d.no_result),
+    ),
+    one(Descriptor::counter("device_nics", "NIC answers from the device."), |d, _| {
+        count(d.nics)
+    }),
+    one(
+        Descriptor::gauge(
+            "device_online",
+            "1 if the device answered the last exchange addressed to it, 0 if it was silent.",
+        ),
+        |d, _| count(d.online),
+    ),
+    one(
+        Descriptor::gauge(
+            "device_last_seen_timestamp",
+            "When the device last answered (ACK, NAK, result or NIC), seconds since the Unix epoch.",
+        )
+        .in_unit(Unit::Seconds),
+        |d, s| d.last_seen.map(|t| Value::Real(s.unix_seconds(t))),
+    ),
+    one(
+        Descriptor::gauge(
+            "device_position_pan",
+            "Pan the device last answered to P? (Table 15), degrees.",
+        )
+        .in_unit(Unit::Degrees),
+        |d, _| d.position.map(|(_, p)| Value::Real(degrees(p.pan))),
+    ),
+    one(
+        Descriptor::gauge(
+            "device_position_tilt",
+            "Tilt the device last answered to P? (Table 15), degrees.",
+        )
+        .in_unit(Unit::Degrees),
+        |d, _| d.position.map(|(_, p)| Value::Real(degrees(p.tilt))),
+    ),
+    one(
+        Descriptor::gauge(
+            "device_position_timestamp",
+            "When the device last answered P?, seconds since the Unix epoch.",
+        )
+        .in_unit(Unit::Seconds),
+        |d, s| d.position.map(|(t, _)| Value::Real(s.unix_seconds(t))),
+    ),
+    one(
+        Descriptor::gauge(
+            "device_lens_zoom",
+            "Zoom position the device last answered to V? (Table 17), 0..4095.",
+        ),
+        |d, _| d.lens.map(|(_, l)| Value::Count(l.zoom.get().into())),
+    ),
+    one(
+        Descriptor::gauge(
+            "device_lens_focus",
+            "Focus position the device last answered to V? (Table 17), 0..4095.",
+        ),
+        |d, _| d.lens.map(|(_, l)| Value::Count(l.focus.get().into())),
+    ),
+    by(
+        Descriptor::gauge(
+            "device_last_error_timestamp",
+            "When the device's last exchange that did not end as asked ended, by what went wrong, seconds since the Unix epoch.",
+        )
+        .in_unit(Unit::Seconds),
+        "error",
+        |d, s| match d.last_error {
+            Some((t, error)) => vec![(error.name(), Value::Real(s.unix_seconds(t)))],
+            None => Vec::new(),
+        },
+    ),
+];
+
+/// The families of `columns` (under `scope`, if any), one sample or more
+/// per row.
+fn table<T>(
+    scope: Option<&str>,
+    columns: &[Column<T>],
+    rows: &[(Labels, &T)],
+    snapshot: &Snapshot,
+    out: &mut Vec<Family>,
+) {
+    for column in columns {
+        let mut family = match scope {
+            Some(scope) => Family::scoped(scope, column.family),
+            None => Family::new(column.family),
+        };
+        for (labels, row) in rows {
+            match &column.read {
+                Read::One(read) => {
+                    if let Some(value) = read(row, snapshot) {
+                        family.push(labels.clone(), value);
+                    }
+                }
+                Read::By(label, read) => {
+                    for (split, value) in read(row, snapshot) {
+                        let mut labels = labels.clone();
+                        labels.push((label, split.to_owned()));
+                        family.push(labels, value);
+                    }
+                }
+            }
+        }
+        out.push(family);
+    }
+}
+
+/// Everything, in the OpenMetrics text format.
+pub fn render(snapshot: &Snapshot) -> String {
+    let stats = &snapshot.stats;
+    let mut out = Vec::new();
+    let identity = vec![
+        ("version", VERSION.to_owned()),
+        ("group", snapshot.group.to_string()),
+        ("name", snapshot.name.clone()),
+    ];
+    let mut build = Family::new(BUILD_INFO);
+    build.push(identity, Value::Count(1));
+    out.push(build);
+    table(None, GCUD, &[(Vec::new(), snapshot)], snapshot, &mut out);
+
+    let ports: Vec<_> = stats
+        .ports
+        .iter()
+        .map(|(id, p)| (vec![("port", id.to_string())], p))
+        .collect();
+    let port_lines: Vec<_> = ports.iter().map(|(labels, p)| (labels.clone(), &p.line)).collect();
+    table(Some("port"), LINE, &port_lines, snapshot, &mut out);
+    table(None, PORT, &ports, snapshot, &mut out);
+
+    let links: Vec<_> = snapshot
+        .links
+        .iter()
+        .map(|(name, t)| {
+            let labels = vec![("link", name.clone()), ("role", role_name(t.stats.kind).to_owned())];
+            (labels, t)
+        })
+        .collect();
+    let link_lines: Vec<_> = links
+        .iter()
+        .map(|(labels, t)| (labels.clone(), &t.stats.line))
+        .collect();
+    table(Some("link"), LINE, &link_lines, snapshot, &mut out);
+    table(None, LINK, &links, snapshot, &mut out);
+
+    let devices: Vec<_> = stats
+        .devices
+        .iter()
+        .map(|((port, device), d)| (vec![("port", port.to_string()), ("device", device.to_string())], d))
+        .collect();
+    table(None, DEVICE, &devices, snapshot, &mut out);
+
+    encode(PREFIX, out)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::collections::BTreeMap;
+
+    use sagebrush_gcu::{LinkKind, LinkStats};
+
+    use super::*;
+    use crate::snapshot::{Heap, fixture};
+
+    /// The whole text for a snapshot with every field set: every name,
+    /// label and value the dashboard and the tests rely on, byte for byte.
+    #[test]
+    fn every_family_renders_as_the_reviewed_text() {
+        fixture::assert_reviewed("metrics.txt", &render(&fixture::every_field_set()));
+    }
+
+    #[test]
+    fn every_family_is_declared_once() {
+        let text = render(&fixture::every_field_set());
+        let mut names = std::collections::BTreeSet::new();
+        for line in text.lines().filter_map(|l| l.strip_prefix("# TYPE ")) {
+            assert!(names.insert(line.to_owned()), "{line} declared twice");
+        }
+    }
+    #[test]
+    fn renders_a_router_snapshot() {
+        let mut config = sagebrush_gcu::RouterConfig::new(5);
+        config.ports.push(sagebrush_gcu::PortConfig::new(1));
+        let mut router = sagebrush_gcu::Router::new(config).unwrap();
+        let mut actions = sagebrush_gcu::Outbox::new();
+        router.handle(0, sagebrush_gcu::Input::PortOpened { port: 1 }, &mut actions);
+        // A P? answered by device 3 at tick 1500: position and Unix times.
+        let client = sagebrush_gcu::LinkId(1);
+        let link = sagebrush_gcu::LinkConfig::new(LinkKind::Client, sagebrush_gcu::SourceFilter::Any);
+        router.handle(
+            0,
+            sagebrush_gcu::Input::LinkUp {
+                link: client,
+                config: link,
+            },
+            &mut actions,
+        );
+        let frame = |dest: (u8, u8, u8), source: u8, payload: &[u8]| {
+            let address = sagebrush_protocol::Address::new(dest.0, dest.1, dest.2);
+            sagebrush_protocol::FrameBuf::new(address, source, payload)
+                .unwrap()
+                .as_bytes()
+                .to_vec()
+        };
+        let command = frame((5, 1, 3), 0, b"P?");
+        router.handle(
+            0,
+            sagebrush_gcu::Input::LinkBytes {
+                link: client,
+                bytes: &command,
+            },
+            &mut actions,
+        );
+        router.handle(
+            0,
+            sagebrush_gcu::Input::PortBytes {
+                port: 1,
+                bytes: &[sagebrush_protocol::ACK],
+            },
+            &mut actions,
+        );
+        let result = frame((0, 1, 3), 5, b"EECF03E8");
+        router.handle(
+            1500,
+            sagebrush_gcu::Input::PortBytes {
+                port: 1,
+                bytes: &result,
+            },
+            &mut actions,
+        );
+        let mut gone = LinkStats::new(LinkKind::Client);
+        gone.line.frames_in = 3;
+        let mut live = LinkStats::new(LinkKind::Client);
+        live.line.frames_in = 4;
+        let mut clients = LinkTotals {
+            stats: gone,
+            connections: 1,
+            listening: true,
+        };
+        clients.stats.absorb(&live);
+        let snapshot = Snapshot {
+            stats: router.stats(),
+            links: BTreeMap::from([("clients".to_owned(), clients)]),
+            connections: Default::default(),
+            uptime_ms: 42,
+            started_unix_ms: 1_700_000_000_000,
+            group: 5,
+            name: "test gcu".to_owned(),
+            shutting_down: false,
+            heap: Heap {
+                allocations: 7,
+                bytes_in_use: 4096,
+            },
+            capture: None,
+            http: Default::default(),
+        };
+        let text = render(&snapshot);
+        assert!(text.contains("gcud_uptime_ms 42"), "{text}");
+        assert!(
+            text.contains(&format!(
+                "gcud_build_info{{version=\"{VERSION}\",group=\"5\",name=\"test gcu\"}} 1"
+            )),
+            "{text}"
+        );
+        assert!(text.contains("gcud_start_time_seconds 1700000000.0"), "{text}");
+        assert!(text.contains("gcud_heap_allocations_total 7"), "{text}");
+        assert!(text.contains("gcud_heap_bytes 4096"), "{text}");
+        let device = "{port=\"1\",device=\"3\"}";
+        for line in [
+            format!("gcud_device_online{device} 1"),
+            format!("gcud_device_position_pan_degrees{device} -44.01"),
+            format!("gcud_device_position_tilt_degrees{device} 10.0"),
+            format!("gcud_device_position_timestamp_seconds{device} 1700000001.5"),
+            format!("gcud_device_last_seen_timestamp_seconds{device} 1700000001.5"),
+            "gcud_port_last_seen_timestamp_seconds{port=\"1\"} 1700000001.5".to_owned(),
+        ] {
+            assert!(text.lines().any(|l| l == line), "{line} missing: {text}");
+        }
+        assert!(!text.contains("last_seen_ms"), "uptime-based times are gone: {text}");
+        assert!(
+            text.contains("gcud_link_frames_in_total{link=\"clients\",role=\"client\"} 7"),
+            "connections fold into their configured link: {text}"
+        );
+        assert!(text.contains("gcud_port_open{port=\"1\"} 1"), "{text}");
+        assert!(text.contains("gcud_port_retransmits_total{port=\"1\"} 0"), "{text}");
+        assert!(
+            text.contains("gcud_commands_dropped_total{reason=\"no_route\"} 0"),
+            "{text}"
+        );
+    }
+}
