@@ -19,6 +19,9 @@ use crate::config::{Config, Link, Port};
 pub enum Reread {
     /// SIGHUP: the new file is applied ([`Diff`]).
     Reload,
+    /// SIGUSR1: a capture starts with `[capture]` as the file reads now
+    /// (docs/capture.md).
+    Capture,
 }
 
 impl Reread {
@@ -29,6 +32,7 @@ impl Reread {
     pub fn read(self, file: &Path) -> Option<Config> {
         let (refused, prefix) = match self {
             Reread::Reload => ("reload refused", "reload"),
+            Reread::Capture => ("SIGUSR1: the configuration file is refused", "SIGUSR1"),
         };
         match crate::config::load(file) {
             Err(e) => {
