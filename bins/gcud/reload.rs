@@ -167,3 +167,40 @@ impl fmt::Display for Diff {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+
+    fn config(extra: &str) -> Config {
+        let text = format!(
+            "[gcu]\ngroup = 5\n{extra}\n[[link]]\nname = \"up\"\nrole = \"upstream\"\nconnect = \"127.0.0.1:1\"\n\
+             [[port]]\nid = 1\nsimulate = [1]\n"
+        );
+        crate::config::parse(Path::new("t.toml"), &text).expect("valid")
+    }
+
+    #[test]
+    fn keys_needing_a_restart_are_named_from_the_sections() {
+        let old = config("");
+        let new = config(
+            "default_route = \"up\"\nshutdown_grace_ms = 100\n[limits]\nqueue_depth = 8\n\
+             [link_timing]\nretries = 3\ndelivery_timeout_ms = 900\n[port_defaults]\nretries = 1\n",
+        );
+        let d = Diff::between(&old, &new);
+        assert_eq!(
+            d.needs_restart,
+            [
+                "gcu.shutdown_grace_ms",
+                "limits.queue_depth",
+                "link_timing.delivery_timeout_ms"
+            ]
+        );
+        assert!(d.routes_changed, "gcu.default_route is a route, applied by a reload");
+        assert_eq!(d.ports_changed.iter().map(|p| p.id).collect::<Vec<_>>(), [1]);
+        assert!(Diff::between(&old, &config("[limits]\nqueue_depth = 16\n")).is_empty());
+        assert_eq!(Diff::between(&old, &config("[metrics]\n")).needs_restart, ["metrics"]);
+    }
+}
