@@ -555,3 +555,41 @@ fn an_unwritable_capture_file_is_refused_up_front() {
         "{stderr}"
     );
 }
+
+/// SIGUSR1 reads the configuration file through the same path as SIGHUP:
+/// a broken file is one ERROR line naming its file:line:column and key, the
+/// same error a reload reports, and the capture starts with the running
+/// `[capture]` settings (docs/capture.md).
+#[test]
+fn sigusr1_and_sighup_report_a_broken_file_alike() {
+    let text = config("[capture]\nfile = \"{dir}/s.pcapng\"\nenabled = false\n");
+    let gcud = Daemon::start(&text);
+    let broken = format!(
+        "{}[[port]]\nid = \"three\"\n",
+        text.replace("{dir}", &gcud.dir.path().display().to_string())
+    );
+    std::fs::write(gcud.path("gcud.toml"), broken).expect("write config");
+    gcud.signal(Signal::SIGUSR1);
+    let refused = gcud.wait_for_log("SIGUSR1: the configuration file is refused, running configuration kept: ");
+    gcud.wait_for_log("capture started");
+    assert!(
+        gcud.path("s.pcapng").exists(),
+        "the running [capture] settings were used"
+    );
+    gcud.signal(Signal::SIGHUP);
+    let reload = gcud.wait_for_log("reload refused, running configuration kept: ");
+    let error = |line: &str, prefix: &str| line.split(prefix).nth(1).map(str::to_owned).unwrap_or_default();
+    let sigusr1 = error(&refused, "running configuration kept: ");
+    assert!(
+        sigusr1.contains("gcud.toml:17:6: port[1].id: expected an integer"),
+        "{refused}"
+    );
+    assert!(refused.contains("ERROR"), "{refused}");
+    assert_eq!(
+        sigusr1,
+        error(&reload, "running configuration kept: "),
+        "{}",
+        gcud.log()
+    );
+    assert!(reload.contains("ERROR"), "{reload}");
+}

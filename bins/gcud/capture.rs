@@ -139,9 +139,9 @@ fn toggle(switch: &CaptureSwitch, file: PathBuf, fallback: Option<CaptureSetting
             return;
         }
     }
-    let settings = match crate::config::load(&file) {
-        Ok(now) => now.capture,
-        Err(_) => fallback,
+    let settings = match crate::reload::Reread::Capture.read(&file) {
+        Some(now) => now.capture,
+        None => fallback,
     };
     let Some(settings) = settings else {
         return warn!("{why}: no [capture] section in the configuration; nothing to capture to");

@@ -9,10 +9,7 @@ use std::collections::{BTreeMap, HashMap};
 use std::sync::Arc;
 use std::time::Duration;
 
-use sagebrush_gcu::{
-    Action, Input, Level, LinkConfig, LinkId, LinkKind, LinkStats, Outbox, Place, PortConfig, Router, RouterConfig,
-    RouterEvent, SourceFilter,
-};
+use sagebrush_gcu::{Action, Input, Level, LinkId, LinkStats, Outbox, Place, Router, RouterEvent};
 use sagebrush_host::capture::CaptureSwitch;
 use tokio::net::TcpListener;
 use tokio::signal::unix::{SignalKind, signal};
@@ -24,10 +21,10 @@ use tokio::task::JoinHandle;
 use tokio::time::Instant;
 use tracing::{debug, error, info, warn};
 
-use crate::config::{Config, Link, LinkRole, LinkTransport, Port, PortTransport};
+use crate::config::{Config, Link, LinkTransport, Port};
 use crate::io::{self, IoEvent};
 use crate::lines::{LineEvent, LineId, Lines, Refused};
-use crate::reload::Diff;
+use crate::reload::{Diff, Reread};
 use crate::snapshot::{RouterState, Snapshot};
 use crate::throttle::Throttle;
 
@@ -41,65 +38,6 @@ impl LinkIds {
         let next = LinkId(self.0.values().map(|l| l.0).max().unwrap_or(0) + 1);
         *self.0.entry(name.to_owned()).or_insert(next)
     }
-}
-
-/// Builds the router core's configuration from the validated file.
-fn router_config(config: &Config, ids: &mut LinkIds) -> RouterConfig {
-    let mut rc = RouterConfig::new(config.group);
-    rc.name = config.name.clone();
-    rc.serial = config.serial.clone();
-    for port in &config.ports {
-        let t = port.timing;
-        let mut pc = PortConfig::new(port.id);
-        pc.bps = t.baud;
-        pc.retries = t.retries;
-        pc.ack_timeout = t.ack_timeout_ms;
-        pc.result_timeout = t.result_timeout_ms;
-        pc.long_result_timeout = t.long_result_timeout_ms;
-        pc.nic_window = t.nic_window_ms;
-        pc.broadcast_guard = t.broadcast_guard_ms;
-        // Every client that may connect can have a command waiting on
-        // every port (fair queuing drops a hog's work first).
-        pc.queue_bound = config.queue_depth.max(config.max_connections);
-        pc.idle_timeout = sagebrush_protocol::link::silence_ms(t.baud);
-        if let PortTransport::Simulated(devices) = &port.transport {
-            pc.devices = Some(devices.clone());
-        }
-        pc.buffered = matches!(port.transport, PortTransport::Tcp(_));
-        rc.ports.push(pc);
-    }
-    rc.links.retries = config.link_retries;
-    rc.links.ack_timeout = config.link_ack_timeout_ms;
-    rc.links.delivery_timeout = config.delivery_timeout_ms;
-    for link in &config.links {
-        ids.of(&link.name);
-    }
-    for (group, name) in &config.routes {
-        rc.static_routes.insert(*group, ids.of(name));
-    }
-    rc.default_upstream = config.default_route.as_ref().map(|name| ids.of(name));
-    rc
-}
-
-/// The router core's kind of a configured link.
-fn link_kind(link: &Link) -> LinkKind {
-    match link.role {
-        LinkRole::Upstream => LinkKind::Upstream,
-        LinkRole::Downstream => LinkKind::Downstream,
-        LinkRole::Client => LinkKind::Client,
-    }
-}
-
-fn link_config(link: &Link) -> LinkConfig {
-    let kind = link_kind(link);
-    let sources = match &link.allow_source_groups {
-        Some(groups) => SourceFilter::Only(groups.clone()),
-        None => SourceFilter::Any,
-    };
-    let mut lc = LinkConfig::new(kind, sources);
-    lc.lossless = !matches!(link.transport, LinkTransport::Serial { .. });
-    lc.motion_lease = link.motion_lease_ms;
-    lc
 }
 
 /// What the daemon knows of a live link, for logs and metrics.
@@ -217,7 +155,8 @@ impl Tasks {
 /// Runs the daemon until SIGTERM or SIGINT, then shuts down gracefully.
 pub async fn run(mut config: Config, http_limits: crate::http::Limits) -> Result<(), StartError> {
     let mut ids = LinkIds::default();
-    let mut router = Router::new(router_config(&config, &mut ids)).map_err(|e| StartError::Router(e.to_string()))?;
+    let mut router =
+        Router::new(config.router_config(|name| ids.of(name))).map_err(|e| StartError::Router(e.to_string()))?;
     let start = Instant::now();
     // Tick 0 on the wall clock, for the Unix timestamps of metrics and status.
     let started_unix_ms = std::time::SystemTime::now()
@@ -227,10 +166,10 @@ pub async fn run(mut config: Config, http_limits: crate::http::Limits) -> Result
     let mut tasks = Tasks {
         events: events_tx.clone(),
         connections: Connections::new(Limits {
-            max_total: config.max_connections,
-            max_per_peer: config.max_connections_per_peer,
-            cap_loopback: config.per_peer_cap_configured,
-            idle_timeout: Duration::from_millis(config.idle_timeout_ms),
+            max_total: config.limits.max_connections.get(),
+            max_per_peer: config.limits.per_peer(),
+            cap_loopback: config.limits.per_peer_configured(),
+            idle_timeout: config.limits.idle_timeout_ms.duration(),
         }),
         ports: HashMap::new(),
         links: BTreeMap::new(),
@@ -248,7 +187,8 @@ pub async fn run(mut config: Config, http_limits: crate::http::Limits) -> Result
         let listener = tasks.bind(link, &[]).await?;
         tasks.start_link(link, ids.of(&link.name), listener);
     }
-    if let Some(addr) = config.metrics {
+    if let Some(metrics) = &config.metrics {
+        let addr = metrics.listen;
         let listener = TcpListener::bind(addr)
             .await
             .map_err(|error| StartError::Metrics { addr, error })?;
@@ -265,7 +205,7 @@ pub async fn run(mut config: Config, http_limits: crate::http::Limits) -> Result
         let counters = Arc::new(crate::http::Counters::default());
         tokio::spawn(crate::http::serve(
             listener,
-            config.metrics_allow_peers.clone(),
+            metrics.allow_peers.clone(),
             http_limits,
             crate::http::app(scrape_tx, counters.clone()),
             counters,
@@ -284,7 +224,7 @@ pub async fn run(mut config: Config, http_limits: crate::http::Limits) -> Result
     let mut watchdog_tick = tokio::time::interval(watchdog.map_or(Duration::from_secs(3600), |d| d / 2));
     notify(&[sd_notify::NotifyState::Ready]);
     info!(
-        group = config.group,
+        group = config.gcu.group.get(),
         ports = config.ports.len(),
         links = config.links.len(),
         "gcud ready"
@@ -335,7 +275,7 @@ pub async fn run(mut config: Config, http_limits: crate::http::Limits) -> Result
                         if stopping.is_some() {
                             continue;
                         }
-                        let mut lc = link_config(configured);
+                        let mut lc = configured.router();
                         if matches!(configured.transport, LinkTransport::Listen(_)) {
                             // Routes naming the listener reach this connection.
                             lc.listener = Some(ids.of(&configured.name));
@@ -353,13 +293,13 @@ pub async fn run(mut config: Config, http_limits: crate::http::Limits) -> Result
                         let state = RouterState {
                             router: &router,
                             configured: config.links.iter().map(|l| {
-                                (l.name.as_str(), link_kind(l), tasks.listeners.contains_key(&l.name))
+                                (l.name.as_str(), l.kind, tasks.listeners.contains_key(&l.name))
                             }),
                             name_of: |id| links.get(&id).map(|l| l.name.as_str()),
                             departed: &departed,
                             uptime_ms: now(Instant::now()),
                         };
-                        let mut s = Snapshot::take(state, config.group, &config.name);
+                        let mut s = Snapshot::take(state, config.gcu.group.get(), config.gcu.name.get());
                         s.connections = tasks.connections.stats();
                         s.started_unix_ms = started_unix_ms;
                         s.shutting_down = stopping.is_some();
@@ -477,14 +417,8 @@ impl Reload<'_> {
             Err(_) => notify(&[sd_notify::NotifyState::Reloading]),
         }
         info!(file = %self.config.file.display(), "SIGHUP: reloading the configuration");
-        match crate::config::load(&self.config.file) {
-            Err(e) => error!("reload refused, running configuration kept: {e}"),
-            Ok(new) => {
-                for warning in &new.warnings {
-                    warn!("reload: {warning}");
-                }
-                self.apply(now, new, actions).await
-            }
+        if let Some(new) = Reread::Reload.read(&self.config.file) {
+            self.apply(now, new, actions).await
         }
         notify(&[sd_notify::NotifyState::Ready]);
     }
@@ -521,14 +455,14 @@ impl Reload<'_> {
         let reopen: Vec<u8> = diff.ports_changed.iter().map(|p| p.id).collect();
         if let Err(e) = self
             .router
-            .reconfigure(now, router_config(&new, self.ids), &reopen, actions)
+            .reconfigure(now, new.router_config(|name| self.ids.of(name)), &reopen, actions)
         {
             return error!("reload refused, running configuration kept: {e}");
         }
         for line in diff.to_string().lines() {
             info!("reload: {line}");
         }
-        let grace = Instant::now() + Duration::from_millis(new.shutdown_grace_ms);
+        let grace = Instant::now() + new.gcu.shutdown_grace_ms.duration();
         for port in diff
             .ports_changed
             .iter()
@@ -581,11 +515,11 @@ async fn sleep_until(deadline: Option<Instant>) {
 fn begin_shutdown(config: &Config, signal: &str) -> Instant {
     info!(
         signal,
-        grace_ms = config.shutdown_grace_ms,
+        grace_ms = config.gcu.shutdown_grace_ms.get(),
         "shutting down: no new connections or commands, stopping running motions, finishing in-flight work"
     );
     notify(&[sd_notify::NotifyState::Stopping]);
-    Instant::now() + Duration::from_millis(config.shutdown_grace_ms)
+    Instant::now() + config.gcu.shutdown_grace_ms.duration()
 }
 
 fn notify(state: &[sd_notify::NotifyState<'_>]) {

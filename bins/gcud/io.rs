@@ -12,7 +12,7 @@ use std::sync::atomic::{AtomicU32, Ordering};
 use std::task::{Context, Poll};
 use std::time::Duration;
 
-use sagebrush_gcu::LinkId;
+use sagebrush_gcu::{LinkId, LinkKind};
 use sagebrush_host::capture::{CaptureSwitch, Role, Tap};
 
 use crate::lines::{Ended, LineStream};
@@ -24,7 +24,7 @@ use tokio::sync::{Notify, mpsc, oneshot};
 use crate::admission::{Admission, Connections};
 use tracing::{debug, info, warn};
 
-use crate::config::{Link, LinkRole, LinkTransport, Port, PortTransport};
+use crate::config::{Link, LinkTransport, Port, PortTransport};
 use crate::throttle::Throttle;
 
 /// What the line tasks tell the router task: a line is open (the router
@@ -156,7 +156,7 @@ async fn open_port(port: &Port, baud: u32) -> io::Result<Box<dyn LineStream>> {
 /// once the router lets go of it (shutdown).
 pub async fn run_port(port: Port, events: mpsc::Sender<IoEvent>, capture: Arc<CaptureSwitch>) {
     let mut backoff = Backoff::new();
-    let mut baud = port.timing.baud;
+    let mut baud = port.baud();
     let mut last_error = String::new();
     loop {
         match open_port(&port, baud).await {
@@ -308,7 +308,7 @@ pub async fn run_link(id: LinkId, link: Link, events: mpsc::Sender<IoEvent>, cap
             Ok(stream) => {
                 backoff.reset();
                 info!(link = %link.name, %peer, "link connected");
-                let tap = capture.tap(format!("link {} {peer}", link.name), capture_role(link.role));
+                let tap = capture.tap(format!("link {} {peer}", link.name), capture_role(link.kind));
                 serve_link(id, link.name.clone(), peer.clone(), stream, &events, None, tap).await;
             }
             Err(e) => warn!(link = %link.name, %peer, error = %e, "cannot connect; retrying with backoff"),
@@ -370,7 +370,7 @@ pub async fn accept_loop(
             close,
             idle: false,
         };
-        let tap = capture.tap(format!("link {name} {peer}"), capture_role(link.role));
+        let tap = capture.tap(format!("link {name} {peer}"), capture_role(link.kind));
         open.spawn(async move {
             let id = LinkId(NEXT_LINK_ID.fetch_add(1, Ordering::Relaxed));
             serve_link(id, name, peer.to_string(), stream, &events, Some(admitted), tap).await;
@@ -413,9 +413,9 @@ pub async fn accept(listener: &TcpListener, place: &str, throttle: &mut Throttle
 }
 
 /// Which way commands flow on a link, for the capture (docs/capture.md).
-fn capture_role(role: LinkRole) -> Role {
-    match role {
-        LinkRole::Downstream => Role::Master,
-        LinkRole::Upstream | LinkRole::Client => Role::Responder,
+fn capture_role(kind: LinkKind) -> Role {
+    match kind {
+        LinkKind::Downstream => Role::Master,
+        LinkKind::Upstream | LinkKind::Client => Role::Responder,
     }
 }

@@ -94,14 +94,14 @@ fn main() -> ExitCode {
         sagebrush_host::outln!(
             "{}: valid: group {}, {} port(s), {} link(s), {} route(s)",
             config.file.display(),
-            config.group,
+            config.gcu.group.get(),
             config.ports.len(),
             config.links.len(),
-            config.routes.len()
+            config.routes.table.len()
         );
         return ExitCode::SUCCESS;
     }
-    if let Err(e) = sagebrush_host::logging::init(config.log_level.as_deref().unwrap_or("info"), false) {
+    if let Err(e) = sagebrush_host::logging::init(config.log.filter(), false) {
         sagebrush_host::errln!("gcud: {e}");
         return ExitCode::from(EXIT_CONFIG);
     }
@@ -119,7 +119,8 @@ fn main() -> ExitCode {
         "descriptor limit (RLIMIT_NOFILE)"
     );
     let lines = (config.ports.len() + config.links.len()) as u64;
-    if let Some(needed) = descriptors.shortfall(config.max_connections as u64, lines, http.max_connections) {
+    if let Some(needed) = descriptors.shortfall(config.limits.max_connections.get() as u64, lines, http.max_connections)
+    {
         tracing::warn!(
             limit = descriptors.now,
             needed,

@@ -7,8 +7,47 @@
 //! restart, and a file that changes it is refused as a whole.
 
 use std::fmt;
+use std::path::Path;
+
+use sagebrush_client::config_file::changed_keys;
+use tracing::{error, warn};
 
 use crate::config::{Config, Link, Port};
+
+/// Why the configuration file is read again while gcud runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Reread {
+    /// SIGHUP: the new file is applied ([`Diff`]).
+    Reload,
+    /// SIGUSR1: a capture starts with `[capture]` as the file reads now
+    /// (docs/capture.md).
+    Capture,
+}
+
+impl Reread {
+    /// The file as it reads now, checked as at start-up: SIGHUP and SIGUSR1
+    /// take this one path. Its warnings are logged; a file that cannot be
+    /// read or is invalid is logged (ERROR, `FILE:LINE:COLUMN: KEY:
+    /// message`) as refused, and `None` keeps the running configuration.
+    pub fn read(self, file: &Path) -> Option<Config> {
+        let (refused, prefix) = match self {
+            Reread::Reload => ("reload refused", "reload"),
+            Reread::Capture => ("SIGUSR1: the configuration file is refused", "SIGUSR1"),
+        };
+        match crate::config::load(file) {
+            Err(e) => {
+                error!("{refused}, running configuration kept: {e}");
+                None
+            }
+            Ok(new) => {
+                for warning in &new.warnings {
+                    warn!("{prefix}: {warning}");
+                }
+                Some(new)
+            }
+        }
+    }
+}
 
 /// The difference between the running configuration and a new one.
 #[derive(Debug, Default)]
@@ -20,73 +59,59 @@ pub struct Diff {
     pub links_changed: Vec<Link>,
     pub links_removed: Vec<String>,
     pub routes_changed: bool,
-    /// Keys whose change a reload cannot apply.
-    pub needs_restart: Vec<&'static str>,
+    /// Keys whose change a reload cannot apply (`SECTION.KEY`, named by
+    /// the sections' types).
+    pub needs_restart: Vec<String>,
+}
+
+/// Entries of `new` not in `old`, entries in both that differ, and the
+/// keys of entries of `old` not in `new`; entries are matched by `key`.
+fn compare<T: Clone + PartialEq, K: PartialEq>(
+    old: &[T],
+    new: &[T],
+    key: impl Fn(&T) -> K,
+) -> (Vec<T>, Vec<T>, Vec<K>) {
+    let (mut added, mut changed) = (Vec::new(), Vec::new());
+    for n in new {
+        match old.iter().find(|o| key(o) == key(n)) {
+            None => added.push(n.clone()),
+            Some(o) if o != n => changed.push(n.clone()),
+            Some(_) => {}
+        }
+    }
+    let removed = old
+        .iter()
+        .map(&key)
+        .filter(|k| !new.iter().any(|n| key(n) == *k))
+        .collect();
+    (added, changed, removed)
 }
 
 impl Diff {
-    /// What changes from `old` to `new`.
+    /// What changes from `old` to `new`: ports, links and routes are
+    /// applied; a changed key of any other section but `[capture]` (read
+    /// when a capture starts) needs a restart.
     pub fn between(old: &Config, new: &Config) -> Self {
-        let mut d = Diff::default();
-        for p in &new.ports {
-            match old.ports.iter().find(|o| o.id == p.id) {
-                None => d.ports_added.push(p.clone()),
-                Some(o) if o != p => d.ports_changed.push(p.clone()),
-                Some(_) => {}
-            }
+        let (ports_added, ports_changed, ports_removed) = compare(&old.ports, &new.ports, |p| p.id);
+        let (links_added, links_changed, links_removed) = compare(&old.links, &new.links, |l| l.name.clone());
+        let needs_restart = [
+            changed_keys("gcu", &old.gcu, &new.gcu),
+            changed_keys("log", &old.log, &new.log),
+            changed_keys("metrics", &old.metrics, &new.metrics),
+            changed_keys("limits", &old.limits, &new.limits),
+            changed_keys("link_timing", &old.link_timing, &new.link_timing),
+        ]
+        .concat();
+        Diff {
+            ports_added,
+            ports_changed,
+            ports_removed,
+            links_added,
+            links_changed,
+            links_removed,
+            routes_changed: old.routes != new.routes,
+            needs_restart,
         }
-        d.ports_removed = old
-            .ports
-            .iter()
-            .filter(|o| !new.ports.iter().any(|p| p.id == o.id))
-            .map(|o| o.id)
-            .collect();
-        for l in &new.links {
-            match old.links.iter().find(|o| o.name == l.name) {
-                None => d.links_added.push(l.clone()),
-                Some(o) if o != l => d.links_changed.push(l.clone()),
-                Some(_) => {}
-            }
-        }
-        d.links_removed = old
-            .links
-            .iter()
-            .filter(|o| !new.links.iter().any(|l| l.name == o.name))
-            .map(|o| o.name.clone())
-            .collect();
-        d.routes_changed = old.routes != new.routes || old.default_route != new.default_route;
-        let restart = [
-            ("gcu.group", old.group != new.group),
-            ("gcu.name", old.name != new.name),
-            ("gcu.serial", old.serial != new.serial),
-            ("gcu.shutdown_grace_ms", old.shutdown_grace_ms != new.shutdown_grace_ms),
-            ("log.level", old.log_level != new.log_level),
-            ("metrics.listen", old.metrics != new.metrics),
-            (
-                "metrics.allow_peers",
-                old.metrics_allow_peers != new.metrics_allow_peers,
-            ),
-            ("limits.queue_depth", old.queue_depth != new.queue_depth),
-            ("limits.max_connections", old.max_connections != new.max_connections),
-            (
-                "limits.max_connections_per_peer",
-                old.max_connections_per_peer != new.max_connections_per_peer
-                    || old.per_peer_cap_configured != new.per_peer_cap_configured,
-            ),
-            ("limits.idle_timeout_ms", old.idle_timeout_ms != new.idle_timeout_ms),
-            (
-                "link_timing",
-                old.link_retries != new.link_retries
-                    || old.link_ack_timeout_ms != new.link_ack_timeout_ms
-                    || old.delivery_timeout_ms != new.delivery_timeout_ms,
-            ),
-        ];
-        d.needs_restart = restart
-            .iter()
-            .filter(|(_, changed)| *changed)
-            .map(|(k, _)| *k)
-            .collect();
-        d
     }
 
     pub fn is_empty(&self) -> bool {
@@ -140,5 +165,42 @@ impl fmt::Display for Diff {
             writeln!(f, "routes: replaced")?;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+
+    fn config(extra: &str) -> Config {
+        let text = format!(
+            "[gcu]\ngroup = 5\n{extra}\n[[link]]\nname = \"up\"\nrole = \"upstream\"\nconnect = \"127.0.0.1:1\"\n\
+             [[port]]\nid = 1\nsimulate = [1]\n"
+        );
+        crate::config::parse(Path::new("t.toml"), &text).expect("valid")
+    }
+
+    #[test]
+    fn keys_needing_a_restart_are_named_from_the_sections() {
+        let old = config("");
+        let new = config(
+            "default_route = \"up\"\nshutdown_grace_ms = 100\n[limits]\nqueue_depth = 8\n\
+             [link_timing]\nretries = 3\ndelivery_timeout_ms = 900\n[port_defaults]\nretries = 1\n",
+        );
+        let d = Diff::between(&old, &new);
+        assert_eq!(
+            d.needs_restart,
+            [
+                "gcu.shutdown_grace_ms",
+                "limits.queue_depth",
+                "link_timing.delivery_timeout_ms"
+            ]
+        );
+        assert!(d.routes_changed, "gcu.default_route is a route, applied by a reload");
+        assert_eq!(d.ports_changed.iter().map(|p| p.id).collect::<Vec<_>>(), [1]);
+        assert!(Diff::between(&old, &config("[limits]\nqueue_depth = 16\n")).is_empty());
+        assert_eq!(Diff::between(&old, &config("[metrics]\n")).needs_restart, ["metrics"]);
     }
 }

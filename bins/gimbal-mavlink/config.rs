@@ -8,7 +8,7 @@ use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use sagebrush_client::config_file::{self, ConfigError, Source};
+use sagebrush_client::config_file::{self, ConfigError, Int, Millis, Source};
 use sagebrush_protocol::Address;
 use serde::Deserialize;
 use toml::Spanned;
@@ -17,11 +17,15 @@ use toml::Spanned;
 #[serde(deny_unknown_fields)]
 struct ConfigFile {
     gcud: Spanned<String>,
-    system_id: Spanned<i64>,
-    source_group: Option<Spanned<i64>>,
-    nic_window_ms: Option<Spanned<i64>>,
+    system_id: Int<u8, 1, 255>,
+    /// The source group gcud sees (0: the MCU).
+    #[serde(default)]
+    source_group: Int<u8, 0, 254>,
+    #[serde(default)]
+    nic_window_ms: Millis<10, 1000, 100>,
     attitude_rate_hz: Option<Spanned<f64>>,
-    lease_ms: Option<Spanned<i64>>,
+    #[serde(default)]
+    lease_ms: Millis<100, 60_000, 1000>,
     #[serde(default, rename = "endpoint")]
     endpoints: Vec<EndpointSection>,
     #[serde(default, rename = "gimbal")]
@@ -36,7 +40,9 @@ struct EndpointSection {
     tcp_listen: Option<Spanned<String>>,
     tcp: Option<Spanned<String>>,
     serial: Option<Spanned<String>>,
-    baud: Option<Spanned<i64>>,
+    /// A MAVLink serial line's rate: telemetry radios' and flight
+    /// controllers' TELEM ports' usual 57600 by default.
+    baud: Option<Int<u32, 50, 4_000_000, 57_600>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -44,7 +50,7 @@ struct EndpointSection {
 struct GimbalSection {
     name: Spanned<String>,
     address: Spanned<String>,
-    component_id: Spanned<i64>,
+    component_id: Int<u8, 1, 255>,
     pan_deg: Option<Spanned<Vec<f64>>>,
     tilt_deg: Option<Spanned<Vec<f64>>>,
     max_rate_dps: Option<Spanned<f64>>,
@@ -65,10 +71,6 @@ pub enum Endpoint {
     /// port), opened again whenever it closes or is unplugged.
     Serial { path: PathBuf, baud: u32 },
 }
-
-/// The serial line rate when `baud` is not given: telemetry radios' and
-/// flight controllers' TELEM ports' usual default.
-pub const DEFAULT_BAUD: u32 = 57_600;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Gimbal {
@@ -111,15 +113,6 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     if !gcud.contains(':') {
         return Err(c.at(raw.gcud.span(), "gcud", "expected HOST:PORT of gcud's client listener"));
     }
-    let system_id = c.int(&raw.system_id, "system_id", 1, 255)?;
-    let source_group = match &raw.source_group {
-        Some(v) => c.int(v, "source_group", 0, 254)?,
-        None => 0,
-    };
-    let nic_window_ms: u64 = match &raw.nic_window_ms {
-        Some(v) => c.int(v, "nic_window_ms", 10, 1000)?,
-        None => 100,
-    };
     let attitude_period = match &raw.attitude_rate_hz {
         Some(v) if (0.2..=50.0).contains(v.get_ref()) => Duration::from_secs_f64(1.0 / v.get_ref()),
         Some(v) => {
@@ -130,10 +123,6 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             ));
         }
         None => Duration::from_millis(200),
-    };
-    let lease_ms: u64 = match &raw.lease_ms {
-        Some(v) => c.int(v, "lease_ms", 100, 60_000)?,
-        None => 1000,
     };
     let mut endpoints = Vec::new();
     for (i, e) in raw.endpoints.iter().enumerate() {
@@ -181,10 +170,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             "tcp" => Endpoint::Tcp(value.get_ref().clone()),
             _ => Endpoint::Serial {
                 path: PathBuf::from(value.get_ref()),
-                baud: match &e.baud {
-                    Some(b) => c.int(b, &format!("{key}.baud"), 50, 4_000_000)?,
-                    None => DEFAULT_BAUD,
-                },
+                baud: e.baud.clone().unwrap_or_default().get(),
             },
         });
     }
@@ -203,7 +189,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             ));
         }
         let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
-        let component_id: u8 = c.int(&g.component_id, &format!("{key}.component_id"), 1, 255)?;
+        let component_id = g.component_id.get();
         if gimbals.iter().any(|x| x.component_id == component_id) {
             return Err(c.at(
                 g.component_id.span(),
@@ -238,11 +224,11 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     }
     Ok(Config {
         gcud,
-        system_id,
-        source_group,
-        nic_window: Duration::from_millis(nic_window_ms),
+        system_id: raw.system_id.get(),
+        source_group: raw.source_group.get(),
+        nic_window: raw.nic_window_ms.duration(),
         attitude_period,
-        lease: Duration::from_millis(lease_ms),
+        lease: raw.lease_ms.duration(),
         endpoints,
         gimbals,
     })
@@ -299,7 +285,7 @@ pan_deg = [-170.0, 170.0]
             path: "/dev/ttyUSB0".into(),
             baud,
         };
-        assert_eq!(serial(""), [at(DEFAULT_BAUD)]);
+        assert_eq!(serial(""), [at(57_600)]);
         assert_eq!(serial("\nbaud = 921600"), [at(921_600)]);
     }
 

@@ -8,7 +8,7 @@ use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use sagebrush_client::config_file::{self, ConfigError, Source};
+use sagebrush_client::config_file::{self, ConfigError, Int, Millis, Source};
 use sagebrush_protocol::Address;
 use serde::Deserialize;
 use toml::Spanned;
@@ -18,11 +18,16 @@ use toml::Spanned;
 #[serde(deny_unknown_fields)]
 struct ConfigFile {
     gcud: Spanned<String>,
-    source_group: Option<Spanned<i64>>,
+    /// The source group gcud sees (0: the MCU).
+    #[serde(default)]
+    source_group: Int<u8, 0, 254>,
     state_file: Option<Spanned<String>>,
-    max_move_ms: Option<Spanned<i64>>,
-    poll_ms: Option<Spanned<i64>>,
-    nic_window_ms: Option<Spanned<i64>>,
+    #[serde(default)]
+    max_move_ms: Millis<100, 600_000, 10_000>,
+    #[serde(default)]
+    poll_ms: Millis<20, 10_000, 200>,
+    #[serde(default)]
+    nic_window_ms: Millis<10, 1000, 100>,
     #[serde(default)]
     discovery: DiscoverySection,
     #[serde(default, rename = "user")]
@@ -122,22 +127,6 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     if gcud.parse::<SocketAddr>().is_err() && !gcud.contains(':') {
         return Err(c.at(raw.gcud.span(), "gcud", "expected HOST:PORT of gcud's client listener"));
     }
-    let source_group = match &raw.source_group {
-        Some(v) => c.int(v, "source_group", 0, 254)?,
-        None => 0,
-    };
-    let max_move_ms: u64 = match &raw.max_move_ms {
-        Some(v) => c.int(v, "max_move_ms", 100, 600_000)?,
-        None => 10_000,
-    };
-    let poll_ms: u64 = match &raw.poll_ms {
-        Some(v) => c.int(v, "poll_ms", 20, 10_000)?,
-        None => 200,
-    };
-    let nic_window_ms: u64 = match &raw.nic_window_ms {
-        Some(v) => c.int(v, "nic_window_ms", 10, 1000)?,
-        None => 100,
-    };
     let discovery = match raw.discovery.enabled.as_ref().map(|e| *e.get_ref()) {
         Some(false) => None,
         _ => Some(match &raw.discovery.listen {
@@ -251,11 +240,11 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     }
     Ok(Config {
         gcud,
-        source_group,
+        source_group: raw.source_group.get(),
         state_file: raw.state_file.map(|s| PathBuf::from(s.into_inner())),
-        max_move: Duration::from_millis(max_move_ms),
-        poll: Duration::from_millis(poll_ms),
-        nic_window: Duration::from_millis(nic_window_ms),
+        max_move: raw.max_move_ms.duration(),
+        poll: raw.poll_ms.duration(),
+        nic_window: raw.nic_window_ms.duration(),
         discovery,
         users,
         gimbals,

@@ -2,13 +2,25 @@
 //! column, the key and what was expected (`--check` prints it and exits 2):
 //! reading a file with bounds, parsing it into serde types whose values are
 //! [`toml::Spanned`], and locating a value's span for the checks after.
+//!
+//! A setting is typed where it is declared: [`Int`] (an integer within a
+//! range, with its default), [`Millis`] (a time in milliseconds, likewise)
+//! and [`Baud`] (a rate of the protocol) check their value as the file is
+//! parsed, so a value out of range is an error at its own line and column
+//! under its own key path, with no hand-written key name. Anything else
+//! checked while parsing goes through [`checked`]. [`changed_keys`] names
+//! the keys of a section that differ between two validated files (a
+//! reload, `--check --against`), from the section's type.
 
 use std::fmt;
+use std::marker::PhantomData;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::time::Duration;
 
-use sagebrush_protocol::Address;
-use serde::de::DeserializeOwned;
+use sagebrush_protocol::{Address, DataRate};
+use serde::de::{DeserializeOwned, Visitor};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use toml::Spanned;
 
 /// A configuration error with its place in the file.
@@ -72,19 +84,6 @@ impl<'a> Source<'a> {
             key: key.into(),
             message: message.into(),
         }
-    }
-
-    /// An integer within `min..=max`.
-    pub fn int<T: TryFrom<i64>>(&self, v: &Spanned<i64>, key: &str, min: i64, max: i64) -> Result<T, ConfigError> {
-        let value = *v.get_ref();
-        if value < min || value > max {
-            return Err(self.at(
-                v.span(),
-                key,
-                format!("expected an integer {min}..={max}, found {value}"),
-            ));
-        }
-        T::try_from(value).map_err(|_| self.at(v.span(), key, format!("expected an integer {min}..={max}")))
     }
 
     /// The address of one gimbal (`GROUP.PORT.DEVICE`, 1.4.1): no
@@ -175,6 +174,222 @@ fn in_words(message: &str) -> String {
     format!("expected {expected}, found {found}")
 }
 
+/// Parses a [`Spanned`] `R` and checks it: `check` turns the value into
+/// the setting or says, in words, what was expected. A refusal is an error
+/// at the value's own place (the TOML deserializer gives an error raised
+/// inside a newtype the span of that value, even inside a list) under the
+/// value's key path.
+pub fn checked<'de, D, R, V>(
+    deserializer: D,
+    check: impl FnOnce(&R) -> Result<V, String>,
+) -> Result<(V, Range<usize>), D::Error>
+where
+    D: Deserializer<'de>,
+    R: Deserialize<'de>,
+{
+    struct Check<F, R>(F, PhantomData<R>);
+    impl<'de, F, R, V> Visitor<'de> for Check<F, R>
+    where
+        F: FnOnce(&R) -> Result<V, String>,
+        R: Deserialize<'de>,
+    {
+        type Value = (V, Range<usize>);
+        fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            f.write_str("a value")
+        }
+        fn visit_newtype_struct<D: Deserializer<'de>>(self, d: D) -> Result<Self::Value, D::Error> {
+            let value = Spanned::<R>::deserialize(d)?;
+            let span = value.span();
+            (self.0)(value.get_ref())
+                .map(|v| (v, span))
+                .map_err(serde::de::Error::custom)
+        }
+    }
+    deserializer.deserialize_newtype_struct("Checked", Check(check, PhantomData))
+}
+
+/// The integer types an [`Int`] may hold.
+pub trait IntType: Copy + TryFrom<i64> + Serialize + fmt::Debug + PartialEq {}
+impl IntType for u8 {}
+impl IntType for u16 {}
+impl IntType for u32 {}
+impl IntType for u64 {}
+impl IntType for usize {}
+impl IntType for i64 {}
+
+/// An integer setting within `MIN..=MAX`, `DEFAULT` where the key is
+/// absent (a field `#[serde(default)]`; an `Option<Int<..>>` has none),
+/// with its place in the file. Two are equal when their values are.
+#[derive(Clone, Debug)]
+pub struct Int<T, const MIN: i64, const MAX: i64, const DEFAULT: i64 = MIN> {
+    value: T,
+    span: Range<usize>,
+}
+
+impl<T: IntType, const MIN: i64, const MAX: i64, const DEFAULT: i64> Int<T, MIN, MAX, DEFAULT> {
+    pub fn get(&self) -> T {
+        self.value
+    }
+
+    /// Where the value is in the file (`0..0`: the default).
+    pub fn span(&self) -> Range<usize> {
+        self.span.clone()
+    }
+
+    /// `value` if it is within the range, else what was expected.
+    fn check(value: i64) -> Result<T, String> {
+        let expected = || format!("expected an integer {MIN}..={MAX}, found {value}");
+        if !(MIN..=MAX).contains(&value) {
+            return Err(expected());
+        }
+        T::try_from(value).map_err(|_| expected())
+    }
+}
+
+impl<T: IntType, const MIN: i64, const MAX: i64, const DEFAULT: i64> Default for Int<T, MIN, MAX, DEFAULT> {
+    fn default() -> Self {
+        const { assert!(MIN <= DEFAULT && DEFAULT <= MAX, "the default is outside the range") };
+        match Self::check(DEFAULT) {
+            Ok(value) => Self { value, span: 0..0 },
+            Err(e) => unreachable!("{e}: the type cannot hold the range"),
+        }
+    }
+}
+
+impl<'de, T: IntType, const MIN: i64, const MAX: i64, const DEFAULT: i64> Deserialize<'de>
+    for Int<T, MIN, MAX, DEFAULT>
+{
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let (value, span) = checked(d, |v: &i64| Self::check(*v))?;
+        Ok(Self { value, span })
+    }
+}
+
+impl<T: IntType, const MIN: i64, const MAX: i64, const DEFAULT: i64> Serialize for Int<T, MIN, MAX, DEFAULT> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        self.value.serialize(s)
+    }
+}
+
+impl<T: IntType, const MIN: i64, const MAX: i64, const DEFAULT: i64> PartialEq for Int<T, MIN, MAX, DEFAULT> {
+    fn eq(&self, other: &Self) -> bool {
+        self.value == other.value
+    }
+}
+
+impl<T: IntType, const MIN: i64, const MAX: i64, const DEFAULT: i64> Eq for Int<T, MIN, MAX, DEFAULT> where T: Eq {}
+
+/// A time in milliseconds within `MIN..=MAX`, `DEFAULT` where the key is
+/// absent: an [`Int`] that reads as a [`Duration`] too.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(transparent)]
+pub struct Millis<const MIN: i64, const MAX: i64, const DEFAULT: i64 = MIN>(Int<u64, MIN, MAX, DEFAULT>);
+
+impl<const MIN: i64, const MAX: i64, const DEFAULT: i64> Millis<MIN, MAX, DEFAULT> {
+    /// The time in milliseconds (the router core's ticks).
+    pub fn get(&self) -> u64 {
+        self.0.get()
+    }
+
+    pub fn duration(&self) -> Duration {
+        Duration::from_millis(self.0.get())
+    }
+
+    pub fn span(&self) -> Range<usize> {
+        self.0.span()
+    }
+}
+
+/// A line rate of the protocol (1.5.1, Table 4), `DEFAULT` bit/s where the
+/// key is absent.
+#[derive(Clone, Debug)]
+pub struct Baud<const DEFAULT: u32 = 9600> {
+    bps: u32,
+    span: Range<usize>,
+}
+
+impl<const DEFAULT: u32> Baud<DEFAULT> {
+    /// Bits per second.
+    pub fn get(&self) -> u32 {
+        self.bps
+    }
+
+    pub fn span(&self) -> Range<usize> {
+        self.span.clone()
+    }
+
+    fn check(value: i64) -> Result<u32, String> {
+        u32::try_from(value)
+            .ok()
+            .and_then(DataRate::from_bits_per_second)
+            .and_then(DataRate::bits_per_second)
+            .ok_or_else(|| {
+                format!(
+                    "expected one of the protocol's rates 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200 (1.5.1), found {value}"
+                )
+            })
+    }
+}
+
+impl<const DEFAULT: u32> Default for Baud<DEFAULT> {
+    fn default() -> Self {
+        match Self::check(i64::from(DEFAULT)) {
+            Ok(bps) => Self { bps, span: 0..0 },
+            Err(e) => unreachable!("default: {e}"),
+        }
+    }
+}
+
+impl<'de, const DEFAULT: u32> Deserialize<'de> for Baud<DEFAULT> {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let (bps, span) = checked(d, |v: &i64| Self::check(*v))?;
+        Ok(Self { bps, span })
+    }
+}
+
+impl<const DEFAULT: u32> Serialize for Baud<DEFAULT> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        self.bps.serialize(s)
+    }
+}
+
+impl<const DEFAULT: u32> PartialEq for Baud<DEFAULT> {
+    fn eq(&self, other: &Self) -> bool {
+        self.bps == other.bps
+    }
+}
+
+impl<const DEFAULT: u32> Eq for Baud<DEFAULT> {}
+
+/// The keys of `section` whose values differ between `old` and `new`, as
+/// `SECTION.KEY`: the names are the serialised field names of the
+/// section's validated type, which are the file's keys. A section whose
+/// values cannot be told apart key by key is named whole.
+pub fn changed_keys<T: Serialize + PartialEq>(section: &str, old: &T, new: &T) -> Vec<String> {
+    if old == new {
+        return Vec::new();
+    }
+    let table = |v: &T| match toml::Value::try_from(v) {
+        Ok(toml::Value::Table(t)) => Some(t),
+        _ => None,
+    };
+    let (Some(old), Some(new)) = (table(old), table(new)) else {
+        return vec![section.to_owned()];
+    };
+    let mut keys: Vec<&String> = old.keys().collect();
+    keys.extend(new.keys().filter(|k| !old.contains_key(*k)));
+    let changed: Vec<String> = keys
+        .into_iter()
+        .filter(|k| old.get(*k) != new.get(*k))
+        .map(|k| format!("{section}.{k}"))
+        .collect();
+    if changed.is_empty() {
+        vec![section.to_owned()]
+    } else {
+        changed
+    }
+}
+
 /// The largest configuration file read (a real one is a few KiB).
 pub const MAX_FILE_BYTES: u64 = 1024 * 1024;
 
@@ -253,6 +468,7 @@ mod tests {
     struct Doc {
         #[allow(dead_code)]
         name: Spanned<String>,
+        #[allow(dead_code)]
         count: Spanned<i64>,
     }
 
@@ -271,8 +487,14 @@ mod tests {
 
         let text = "name = \"a\"\ncount = 300\n";
         let src = Source::new(file, text);
-        let doc: Doc = src.deserialize().unwrap();
-        let e = src.int::<u8>(&doc.count, "count", 1, 254).unwrap_err();
+        #[derive(Debug, Deserialize)]
+        struct Ranged {
+            #[allow(dead_code)]
+            name: Spanned<String>,
+            #[allow(dead_code)]
+            count: Int<u8, 1, 254>,
+        }
+        let e = src.deserialize::<Ranged>().unwrap_err();
         let at = |s: &str| Spanned::new(1..2, s.to_owned());
         assert_eq!(src.gimbal_address(&at("5.1.1"), "a"), Ok(Address::new(5, 1, 1)));
         for bad in ["5.1", "5.1.0", "5.255.1", "x"] {
@@ -285,6 +507,71 @@ mod tests {
         assert_eq!(
             e.to_string(),
             "x.toml:2:9: count: expected an integer 1..=254, found 300"
+        );
+    }
+
+    #[derive(Debug, Deserialize, Serialize, PartialEq)]
+    #[serde(deny_unknown_fields)]
+    struct Typed {
+        group: Int<u8, 1, 254>,
+        #[serde(default)]
+        depth: Int<usize, 1, 4096, 16>,
+        #[serde(default)]
+        wait_ms: Millis<10, 10_000, 200>,
+        lease_ms: Option<Millis<100, 600_000>>,
+        #[serde(default)]
+        baud: Baud,
+        list: Option<Vec<Int<u8, 0, 254>>>,
+    }
+
+    #[test]
+    fn typed_settings_check_their_range_at_their_place_and_default_when_absent() {
+        let file = Path::new("x.toml");
+        let parse = |text: &str| Source::new(file, text).deserialize::<Typed>();
+        let t = parse("group = 5\n").unwrap();
+        assert_eq!((t.group.get(), t.depth.get(), t.wait_ms.get()), (5, 16, 200));
+        assert_eq!((t.baud.get(), t.lease_ms, t.depth.span()), (9600, None, 0..0));
+        assert_eq!(t.wait_ms.duration(), Duration::from_millis(200));
+        let t = parse("group = 5\nlease_ms = 2000\nbaud = 19200\n").unwrap();
+        assert_eq!((t.lease_ms.map(|l| l.get()), t.baud.get()), (Some(2000), 19200));
+
+        let e = parse("group = 5\nwait_ms = 5\n").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "x.toml:2:11: wait_ms: expected an integer 10..=10000, found 5"
+        );
+        let e = parse("group = 255\n").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "x.toml:1:9: group: expected an integer 1..=254, found 255"
+        );
+        let e = parse("group = 5\nlist = [1, 300]\n").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "x.toml:2:12: list[1]: expected an integer 0..=254, found 300"
+        );
+        let e = parse("group = 5\nbaud = 9601\n").unwrap_err();
+        assert_eq!((e.line, e.column, e.key.as_str()), (2, 8, "baud"), "{e}");
+        assert!(e.message.contains("115200 (1.5.1), found 9601"), "{e}");
+        let e = parse("group = \"five\"\n").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "x.toml:1:9: group: expected an integer, found the string \"five\""
+        );
+    }
+
+    #[test]
+    fn changed_keys_are_named_from_the_type() {
+        let file = Path::new("x.toml");
+        let parse = |text: &str| Source::new(file, text).deserialize::<Typed>().unwrap();
+        let old = parse("group = 5\n");
+        assert_eq!(
+            changed_keys("t", &old, &parse("group = 5\ndepth = 16\n")),
+            Vec::<String>::new()
+        );
+        assert_eq!(
+            changed_keys("t", &old, &parse("group = 6\nlease_ms = 200\n")),
+            ["t.group", "t.lease_ms"]
         );
     }
 

@@ -211,11 +211,21 @@ pub struct LinkSettings {
     pub delivery_timeout: u64,
 }
 
+impl LinkSettings {
+    /// Default [`LinkSettings::retries`].
+    pub const RETRIES: u8 = 3;
+    /// Default [`LinkSettings::ack_timeout`], in milliseconds.
+    pub const ACK_TIMEOUT_MS: u64 = 200;
+    /// Default [`LinkSettings::delivery_timeout`], in milliseconds: below
+    /// gimbalctl's ACK time-out over TCP (1000 ms).
+    pub const DELIVERY_TIMEOUT_MS: u64 = 800;
+}
+
 impl Default for LinkSettings {
     fn default() -> Self {
         Self {
-            retries: 3,
-            ack_timeout: 200,
+            retries: Self::RETRIES,
+            ack_timeout: Self::ACK_TIMEOUT_MS,
             queue_bound: 64,
             stop_queue_bound: 64,
             idle_timeout: 100,
@@ -223,7 +233,7 @@ impl Default for LinkSettings {
             long_answer_timeout: 35_000,
             nic_answer_timeout: 1_500,
             max_pending: 1024,
-            delivery_timeout: 800,
+            delivery_timeout: Self::DELIVERY_TIMEOUT_MS,
         }
     }
 }
