@@ -2,9 +2,10 @@
 -- written by sagebrush_host::capture (gcud [capture], see docs/capture.md).
 --
 -- Link type LINKTYPE_USER0 (147). Each record: an 8-byte header
---   version (1), kind (1 frame, 2 ACK, 3 NAK, 4 NIC, 5 noise, 6 bad checksum),
---   direction (1 inbound, 2 outbound, seen from the capturing program),
---   role (0 unknown, 1 the capturer sends the commands, 2 it receives them),
+--   version (1), kind (frame, ACK, NAK, NIC, noise, bad checksum),
+--   direction (inbound, outbound, seen from the capturing program),
+--   role (unknown; master: the capturer sends the commands; responder: it
+--   receives them), whose codes are T.record_kinds, T.directions, T.roles,
 --   interface number (u32 big endian, the capturing program's own)
 -- then the raw bytes of the frame, byte or noise.
 --
@@ -20,10 +21,19 @@ local p = Proto("sagebrush", "Sagebrush gimbal protocol rev 1.9")
 -- next to this file; crates/protocol/src/dissector.rs writes it).
 local T = dofile((debug.getinfo(1, "S").source:match("^@(.*[/\\])") or "") .. "sagebrush_tables.lua")
 
-local kinds = { [1] = "Frame", [2] = "ACK", [3] = "NAK", [4] = "NIC", [5] = "Noise", [6] = "Bad checksum" }
-local directions = { [1] = "Inbound (read by the capturer)", [2] = "Outbound (written by the capturer)" }
-local roles = { [0] = "Unknown", [1] = "Capturer sends commands (port, downstream link, bus master)",
-                [2] = "Capturer receives commands (client or upstream link, device)" }
+-- The record header's codes by name (K.frame, D.inbound, R.master, ...) and
+-- their labels, from the generated tables (crates/protocol/src/capture_record.rs).
+local function codes(table)
+    local by_name, labels = {}, {}
+    for code, r in pairs(table) do
+        by_name[r.name] = code
+        labels[code] = r.name:gsub("_", " ") .. ": " .. r.meaning
+    end
+    return by_name, labels
+end
+local K, kinds = codes(T.record_kinds)
+local D, directions = codes(T.directions)
+local R, roles = codes(T.roles)
 
 local f = {
     version = ProtoField.uint8("sagebrush.version", "Record version"),
@@ -366,23 +376,23 @@ local function first_pass(pinfo, id, kind, dir, role, info)
     local st = iface_state(id)
     local n = { }
     local now = pinfo.abs_ts
-    local cmd_dir = (role == 1) and 2 or 1 -- the direction commands travel in
-    if kind == 6 and dir ~= cmd_dir then
+    local cmd_dir = (role == R.master) and D.outbound or D.inbound -- the direction commands travel in
+    if kind == K.bad_checksum and dir ~= cmd_dir then
         st.last_reply = { num = pinfo.number }
-    elseif kind == 6 then
+    elseif kind == K.bad_checksum then
         -- A damaged command: the NAK that follows answers it.
         local c = { num = pinfo.number, bytes = "", time = now, group = -1, port = -1, device = -1, damaged = true }
         st.cmds[#st.cmds + 1] = c
         if #st.cmds > WINDOW then table.remove(st.cmds, 1) end
-    elseif kind == 1 and info.is_command then
+    elseif kind == K.frame and info.is_command then
         local last = st.last
         if last and last.bytes == info.bytes and not last.ack then
             n.retransmission_of = last.num
             n.timeout = string.format("no ACK/NAK to frame %d within %.0f ms: retransmitted", last.num, (now - last.time) * 1000)
-        elseif role == 1 and last and last.shape and not last.optional and not last.result and last.ack then
+        elseif role == R.master and last and last.shape and not last.optional and not last.result and last.ack then
             n.timeout = string.format("frame %d (%s) got no result before this command", last.num, last.mnemonic)
         end
-        if role == 1 and not n.retransmission_of then
+        if role == R.master and not n.retransmission_of then
             -- Stop and wait: a new command means the master gave up the unacknowledged ones.
             for _, old in ipairs(st.cmds) do
                 if not old.ack and not old.done then
@@ -413,7 +423,7 @@ local function first_pass(pinfo, id, kind, dir, role, info)
             if #st.cmds > WINDOW then table.remove(st.cmds, 1) end
         end
         st.last = c
-    elseif kind == 1 and info.is_report then
+    elseif kind == K.frame and info.is_report then
         for i = #st.cmds, 1, -1 do
             local c = st.cmds[i]
             if string.format("%02X%02X%02X", c.group, c.port, c.device) == info.report_address
@@ -425,7 +435,7 @@ local function first_pass(pinfo, id, kind, dir, role, info)
             end
         end
         st.last_reply = { num = pinfo.number }
-    elseif kind == 1 then
+    elseif kind == K.frame then
         -- A result: the oldest command expecting one from that port and device,
         -- with the Table 3 swap first, then by port and device alone.
         local found, swapped
@@ -451,22 +461,22 @@ local function first_pass(pinfo, id, kind, dir, role, info)
             n.shape = found.shape
             n.cmd_mnemonic = found.mnemonic
         end
-    elseif (kind == 2 or kind == 3) and dir == cmd_dir and role ~= 0 then
+    elseif (kind == K.ack or kind == K.nak) and dir == cmd_dir and role ~= R.unknown then
         -- The command side acknowledges a result, report or damaged frame sent to it.
         local r = st.last_reply
         if r and not r.ack then
             n.ack_of = r.num
             r.ack = pinfo.number
         end
-    elseif kind == 2 or kind == 3 then
+    elseif kind == K.ack or kind == K.nak then
         for _, c in ipairs(st.cmds) do
             if not c.ack and not c.naked and not c.done then
                 n.ack_of = c.num
-                if kind == 2 then c.ack = pinfo.number else c.naked = c.damaged end
+                if kind == K.ack then c.ack = pinfo.number else c.naked = c.damaged end
                 break
             end
         end
-    elseif kind == 4 then
+    elseif kind == K.nic then
         for i = #st.cmds, 1, -1 do
             if st.cmds[i].ack then
                 n.ack_of = st.cmds[i].num
@@ -489,7 +499,7 @@ function p.dissector(buf, pinfo, tree)
     if buf:len() < 8 then return 0 end
     pinfo.cols.protocol = "Sagebrush"
     local version, kind, dir, role = buf(0, 1):uint(), buf(1, 1):uint(), buf(2, 1):uint(), buf(3, 1):uint()
-    local t = tree:add(p, buf(), "Sagebrush gimbal protocol, " .. (kinds[kind] or "record kind " .. kind))
+    local t = tree:add(p, buf(), "Sagebrush gimbal protocol, " .. (T.record_kinds[kind] and T.record_kinds[kind].name:gsub("_", " ") or "record kind " .. kind))
     local h = t:add(p, buf(0, 8), "Capture record header")
     h:add(f.version, buf(0, 1))
     h:add(f.kind, buf(1, 1))
@@ -501,23 +511,23 @@ function p.dissector(buf, pinfo, tree)
     local id = buf(4, 4):uint()
     if buf:len() == 8 then return buf:len() end
     local data = buf(8):tvb()
-    local arrow = dir == 1 and "<- " or "-> "
+    local arrow = dir == D.inbound and "<- " or "-> "
     local info = {}
     local summary
-    local cmd_dir = (role == 1) and 2 or 1
+    local cmd_dir = (role == R.master) and D.outbound or D.inbound
 
-    if kind == 5 then
+    if kind == K.noise then
         t:add(f.noise, data())
         t:add_proto_expert_info(e.noise, data:len() .. " noise byte(s)")
         pinfo.cols.info = arrow .. "noise, " .. data:len() .. " byte(s)"
         return buf:len()
-    elseif kind == 2 or kind == 3 or kind == 4 then
+    elseif kind == K.ack or kind == K.nak or kind == K.nic then
         local n = pinfo.visited and notes[pinfo.number] or first_pass(pinfo, id, kind, dir, role, info)
         n = n or {}
         summary = ({ [2] = "ACK", [3] = "NAK", [4] = "NIC (?)" })[kind]
         if n.ack_of then t:add(f.ack_of, n.ack_of) end
-        if kind == 3 then t:add_proto_expert_info(e.nak) end
-        if kind == 4 then t:add_proto_expert_info(e.nic) end
+        if kind == K.nak then t:add_proto_expert_info(e.nak) end
+        if kind == K.nic then t:add_proto_expert_info(e.nic) end
         if not n.ack_of then t:add_proto_expert_info(e.unpaired) end
         pinfo.cols.info = arrow .. summary .. (n.ack_of and (" to frame " .. n.ack_of) or "")
         return buf:len()
@@ -555,7 +565,7 @@ function p.dissector(buf, pinfo, tree)
     end
     t:add(f.payload, data(6, plen_here))
     local addr = string.format("%d.%d.%d from %d", g, po, d, src)
-    if kind == 6 then
+    if kind == K.bad_checksum then
         if not pinfo.visited then first_pass(pinfo, id, kind, dir, role, info) end
         pinfo.cols.info = arrow .. "BAD CHECKSUM " .. addr .. " " .. payload
         return buf:len()
@@ -563,8 +573,8 @@ function p.dissector(buf, pinfo, tree)
 
     info.bytes = data():string()
     info.group, info.port, info.device, info.source, info.payload, info.checksum = g, po, d, src, payload, ck
-    info.is_report = (dir ~= cmd_dir or role == 0) and po == 0 and d == 0 and #payload == 13 and payload:sub(1, 1) == "!"
-    info.is_command = not info.is_report and (role == 0 or dir == cmd_dir)
+    info.is_report = (dir ~= cmd_dir or role == R.unknown) and po == 0 and d == 0 and #payload == 13 and payload:sub(1, 1) == "!"
+    info.is_command = not info.is_report and (role == R.unknown or dir == cmd_dir)
     if info.is_report then
         info.report_address = payload:sub(4, 9)
         info.report_checksum = hexval(payload:sub(10, 11))

@@ -129,4 +129,27 @@ T.report_codes = {
     [0x0C] = { name = "expired", meaning = "it waited in a queue too long and was given up unsent" },
 }
 
+-- Capture record kinds (header byte 1, docs/capture.md).
+T.record_kinds = {
+    [1] = { name = "frame", meaning = "a frame whose checksum holds" },
+    [2] = { name = "ack", meaning = "an ACK byte" },
+    [3] = { name = "nak", meaning = "a NAK byte" },
+    [4] = { name = "nic", meaning = "a NIC byte (?)" },
+    [5] = { name = "noise", meaning = "bytes between frames that are part of nothing" },
+    [6] = { name = "bad_checksum", meaning = "a frame-sized candidate whose checksum failed: the bytes its length byte claims" },
+}
+
+-- Capture record directions (header byte 2), seen from the capturing program.
+T.directions = {
+    [1] = { name = "inbound", meaning = "read by the capturing program" },
+    [2] = { name = "outbound", meaning = "written by the capturing program" },
+}
+
+-- Capture record roles (header byte 3): which way commands flow on the line.
+T.roles = {
+    [0] = { name = "unknown", meaning = "not known to the capturing program" },
+    [1] = { name = "master", meaning = "the capturing program sends the commands: a gcud device port or downstream link, gimbalctl" },
+    [2] = { name = "responder", meaning = "the capturing program receives the commands: a gcud client or upstream link, gimbalsim" },
+}
+
 return T

@@ -3,7 +3,8 @@
 //! hand: every command row with its mnemonic, description, answer and
 //! result shape (Tables 4, 11, 16 "RESPONSE"), the rev 1.9 names in
 //! matching order (1.2), the data-rate codes (Table 4 `Cn`), the Table 5
-//! awake bits and the delivery report codes.
+//! awake bits, the delivery report codes and the capture record header's
+//! codes (kind, direction, role).
 //!
 //! `cargo run -p sagebrush-protocol --example gen_dissector_tables` writes
 //! the file; the `dissector_tables` test fails when the file in the tree
@@ -11,6 +12,7 @@
 
 use core::fmt::{self, Write};
 
+use crate::capture_record::{Direction, RecordKind, Role};
 use crate::command::{Command, Extended};
 use crate::reply::AwakeStatus;
 use crate::report::Undelivered;
@@ -158,5 +160,43 @@ pub fn write_lua_tables(out: &mut impl Write) -> fmt::Result {
             Lua(u.describe())
         )?;
     }
+    code_rows(
+        out,
+        "Capture record kinds (header byte 1, docs/capture.md).",
+        "T.record_kinds",
+        RecordKind::ALL.map(|k| (k.code(), k.name(), k.describe())),
+    )?;
+    code_rows(
+        out,
+        "Capture record directions (header byte 2), seen from the capturing program.",
+        "T.directions",
+        Direction::ALL.map(|d| (d.code(), d.name(), d.describe())),
+    )?;
+    code_rows(
+        out,
+        "Capture record roles (header byte 3): which way commands flow on the line.",
+        "T.roles",
+        Role::ALL.map(|r| (r.code(), r.name(), r.describe())),
+    )?;
     out.write_str("}\n\nreturn T\n")
+}
+
+/// Closes the table before, then `-- comment`, `table = {` and one row
+/// per code of a `code_table!`: its name and meaning.
+fn code_rows<const N: usize>(
+    out: &mut impl Write,
+    comment: &str,
+    table: &str,
+    rows: [(u8, &str, &str); N],
+) -> fmt::Result {
+    write!(out, "}}\n\n-- {comment}\n{table} = {{\n")?;
+    for (code, name, meaning) in rows {
+        writeln!(
+            out,
+            "    [{code}] = {{ name = {}, meaning = {} }},",
+            Lua(name),
+            Lua(meaning)
+        )?;
+    }
+    Ok(())
 }

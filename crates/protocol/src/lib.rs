@@ -6,6 +6,7 @@ mod code_table;
 
 pub mod address;
 mod answer;
+pub mod capture_record;
 pub mod command;
 pub mod device;
 pub mod dissector;

@@ -2,46 +2,10 @@
 //! (version [`RECORD_VERSION`], [`RecordKind`], [`Direction`], [`Role`],
 //! and the interface's number in the capturing program, u32 big endian),
 //! then the raw bytes of the frame, byte or noise. The three code tables
-//! are declared once each, as `code_table!`s, with their names for readers.
+//! are the protocol crate's (`sagebrush_protocol::capture_record`), where
+//! the Wireshark dissector's tables are written from.
 
-/// First byte of every record.
-pub const RECORD_VERSION: u8 = 1;
-/// Bytes of the record header before the raw bytes.
-pub const RECORD_HEADER_LEN: usize = 8;
-
-sagebrush_protocol::code_table! {
-    /// What a record holds (header byte 1).
-    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-    pub enum RecordKind: u8 {
-        Frame = 1, "frame", "a frame whose checksum holds";
-        Ack = 2, "ack", "an ACK byte";
-        Nak = 3, "nak", "a NAK byte";
-        Nic = 4, "nic", "a NIC byte (?)";
-        Noise = 5, "noise", "bytes between frames that are part of nothing";
-        BadChecksum = 6, "bad_checksum", "a frame-sized candidate whose checksum failed: the bytes its length byte claims";
-    }
-}
-
-sagebrush_protocol::code_table! {
-    /// Which way the bytes went, seen from the capturing program (header
-    /// byte 2; the same values as the EPB flags' direction bits).
-    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-    pub enum Direction: u8 {
-        Inbound = 1, "inbound", "read by the capturing program";
-        Outbound = 2, "outbound", "written by the capturing program";
-    }
-}
-
-sagebrush_protocol::code_table! {
-    /// Which way commands flow on the line (header byte 3), so that a reader
-    /// tells commands from results.
-    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-    pub enum Role: u8 {
-        Unknown = 0, "unknown", "not known to the capturing program";
-        Master = 1, "master", "the capturing program sends the commands: a gcud device port or downstream link, gimbalctl";
-        Responder = 2, "responder", "the capturing program receives the commands: a gcud client or upstream link, gimbalsim";
-    }
-}
+pub use sagebrush_protocol::capture_record::{Direction, RECORD_HEADER_LEN, RECORD_VERSION, RecordKind, Role};
 
 /// A record: its header, then `data`.
 pub fn record(kind: RecordKind, dir: Direction, role: Role, iface: u32, data: &[u8]) -> Vec<u8> {
