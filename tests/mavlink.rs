@@ -545,6 +545,31 @@ fn check_names_the_file_line_column_and_key_and_exits_2() {
 }
 
 #[test]
+fn check_warns_of_a_serial_device_absent_now_and_still_passes() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("m.toml");
+    let serial = "[[endpoint]]\nserial = \"/dev/no-such-mavlink-radio\"";
+    std::fs::write(&path, mavlink_config("127.0.0.1:4001", 1000, serial)).expect("write");
+    let out = Command::new(env!("CARGO_BIN_EXE_gimbal-mavlink"))
+        .args(["--check", "--config"])
+        .arg(&path)
+        .output()
+        .expect("run");
+    // Plugged in later, it is opened then: valid, with a warning at its place.
+    assert_eq!(out.status.code(), Some(0), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.starts_with("gimbal-mavlink: warning: "), "{err}");
+    assert!(
+        err.contains("m.toml:19:10: endpoint[2].serial: /dev/no-such-mavlink-radio does not exist now"),
+        "{err}"
+    );
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("valid (2 gimbal(s), 3 endpoint(s))"),
+        "{out:?}"
+    );
+}
+
+#[test]
 fn the_shipped_configuration_documents_every_key_and_passes_check() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/gimbal-mavlink.toml");
     let text = std::fs::read_to_string(&path).expect("config/gimbal-mavlink.toml");

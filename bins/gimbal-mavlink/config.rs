@@ -96,7 +96,20 @@ pub struct Config {
     /// A rate not refreshed within this is stopped.
     pub lease: Duration,
     pub endpoints: Vec<Endpoint>,
+    /// Each serial endpoint's device and place in the file (`--check`
+    /// warns of one absent now).
+    pub serial_places: Vec<(PathBuf, String)>,
     pub gimbals: Vec<Gimbal>,
+}
+
+impl sagebrush_client::door::Checked for Config {
+    fn summary(&self) -> String {
+        format!("{} gimbal(s), {} endpoint(s)", self.gimbals.len(), self.endpoints.len())
+    }
+
+    fn warnings(&self) -> Vec<String> {
+        config_file::absent_serial_devices(&self.serial_places, "gimbal-mavlink")
+    }
 }
 
 /// Reads and validates `file`.
@@ -125,6 +138,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         None => Duration::from_millis(200),
     };
     let mut endpoints = Vec::new();
+    let mut serial_places = Vec::new();
     for (i, e) in raw.endpoints.iter().enumerate() {
         let key = format!("endpoint[{i}]");
         let given = [
@@ -169,7 +183,11 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             "udp" => Endpoint::Udp(value.get_ref().clone()),
             "tcp" => Endpoint::Tcp(value.get_ref().clone()),
             _ => Endpoint::Serial {
-                path: PathBuf::from(value.get_ref()),
+                path: {
+                    let path = PathBuf::from(value.get_ref());
+                    serial_places.push((path.clone(), c.place(value.span(), &format!("{key}.serial"))));
+                    path
+                },
                 baud: e.baud.clone().unwrap_or_default().get(),
             },
         });
@@ -230,6 +248,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         attitude_period,
         lease: raw.lease_ms.duration(),
         endpoints,
+        serial_places,
         gimbals,
     })
 }

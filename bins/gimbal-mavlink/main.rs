@@ -29,7 +29,6 @@ fn main() -> ExitCode {
         "gimbal-mavlink",
         "MAVLink Gimbal Protocol v2 (gimbal manager and device) for the gimbals behind gcud.",
         config::load,
-        |c| format!("{} gimbal(s), {} endpoint(s)", c.gimbals.len(), c.endpoints.len()),
         run,
     )
 }

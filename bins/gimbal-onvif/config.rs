@@ -113,6 +113,12 @@ pub struct Config {
 /// The WS-Discovery port and multicast group (WS-Discovery 1.1, 3.1.1).
 pub const DISCOVERY_DEFAULT: &str = "0.0.0.0:3702";
 
+impl sagebrush_client::door::Checked for Config {
+    fn summary(&self) -> String {
+        format!("{} gimbal(s), {} user(s)", self.gimbals.len(), self.users.len())
+    }
+}
+
 /// Reads and validates `file`.
 pub fn load(file: &Path) -> Result<Config, ConfigError> {
     let text = config_file::read(file)?;

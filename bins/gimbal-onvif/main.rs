@@ -24,7 +24,6 @@ fn main() -> ExitCode {
         "gimbal-onvif",
         "ONVIF PTZ (Device, Media, PTZ) and WS-Discovery for the gimbals behind gcud.",
         config::load,
-        |c| format!("{} gimbal(s), {} user(s)", c.gimbals.len(), c.users.len()),
         run,
     )
 }

@@ -130,19 +130,9 @@ impl Config {
     }
 
     /// `--check` only: a warning for each serial device that does not exist
-    /// now. Not an error: an adapter may be plugged in later, and gcud
-    /// retries the port until it is.
+    /// now (`config_file::absent_serial_devices`).
     pub fn probe_serial_paths(&self) -> Vec<String> {
-        self.serial_places
-            .iter()
-            .filter(|(path, _)| !path.exists())
-            .map(|(path, place)| {
-                format!(
-                    "{place}: {} does not exist now; gcud retries it until it is plugged in",
-                    path.display()
-                )
-            })
-            .collect()
+        sagebrush_client::config_file::absent_serial_devices(&self.serial_places, "gcud")
     }
 }
 
@@ -159,7 +149,7 @@ struct Checks {
 impl Checks {
     /// Notes a listener at `span`; returns its place, `FILE:LINE:COLUMN: KEY`.
     fn listener(&mut self, c: &Source<'_>, addr: SocketAddr, span: Range<usize>, key: &str) -> String {
-        let place = place(c, span.clone(), key);
+        let place = c.place(span.clone(), key);
         self.listeners.push((addr, span, key.to_owned(), place.clone()));
         place
     }
@@ -218,12 +208,6 @@ impl Checks {
 }
 
 /// `FILE:LINE:COLUMN: KEY` of `span`, the start of a warning.
-fn place(c: &Source<'_>, span: Range<usize>, key: &str) -> String {
-    let mut place = c.at(span, key, "").to_string();
-    place.truncate(place.len() - 2);
-    place
-}
-
 /// Reads (bounded: `sagebrush_client::config_file::read`) and validates `file`.
 pub fn load(file: &Path) -> Result<Config, ConfigError> {
     let text = sagebrush_client::config_file::read(file)?;
@@ -293,7 +277,7 @@ fn validate(c: &Source<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
         listen_places: listeners.into_iter().map(|(addr, _, _, place)| (addr, place)).collect(),
         serial_places: serial_lines
             .into_iter()
-            .map(|(path, span, key)| (path, place(c, span, &key)))
+            .map(|(path, span, key)| (path, c.place(span, &key)))
             .collect(),
     })
 }

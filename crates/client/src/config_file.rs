@@ -58,6 +58,22 @@ pub fn line_column(text: &str, offset: usize) -> (usize, usize) {
     (line, column)
 }
 
+/// `--check` only: a warning for each serial device (with its place,
+/// [`Source::place`]) that does not exist now. Not an error: an adapter may
+/// be plugged in later, and `program` opens the line again until it is.
+pub fn absent_serial_devices(places: &[(PathBuf, String)], program: &str) -> Vec<String> {
+    places
+        .iter()
+        .filter(|(path, _)| !path.exists())
+        .map(|(path, place)| {
+            format!(
+                "{place}: {} does not exist now; {program} retries it until it is plugged in",
+                path.display()
+            )
+        })
+        .collect()
+}
+
 /// A file's text, to turn spans into places.
 #[derive(Debug, Clone, Copy)]
 pub struct Source<'a> {
@@ -84,6 +100,13 @@ impl<'a> Source<'a> {
             key: key.into(),
             message: message.into(),
         }
+    }
+
+    /// The place of `key` at `span`, `FILE:LINE:COLUMN: KEY`, for a warning.
+    pub fn place(&self, span: Range<usize>, key: &str) -> String {
+        let mut place = self.at(span, key, "").to_string();
+        place.truncate(place.len() - 2);
+        place
     }
 
     /// The address of one gimbal (`GROUP.PORT.DEVICE`, 1.4.1): no

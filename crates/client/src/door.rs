@@ -31,17 +31,29 @@ struct Args {
     check: bool,
 }
 
+/// What `--check` says of a door's valid configuration.
+pub trait Checked {
+    /// What it holds, in a few words.
+    fn summary(&self) -> String;
+
+    /// What is absent now but may be there at start, each at its place
+    /// (a serial device plugged in later): warnings, not errors.
+    fn warnings(&self) -> Vec<String> {
+        Vec::new()
+    }
+}
+
 /// Runs the door `name` (described by `about` in its `--help`): reads its
-/// command line, then `load` reads the configuration, `summary` says what
-/// a valid one holds (`--check`), `run` serves until the door stops.
+/// command line, then `load` reads the configuration (`--check` says what
+/// a valid one holds, and warns), `run` serves until the door stops.
 pub fn main<C, Fut>(
     name: &'static str,
     about: &'static str,
     load: impl FnOnce(&Path) -> Result<C, ConfigError>,
-    summary: impl FnOnce(&C) -> String,
     run: impl FnOnce(C) -> Fut,
 ) -> ExitCode
 where
+    C: Checked,
     Fut: Future<Output = Result<(), String>>,
 {
     let matches = Args::command()
@@ -64,7 +76,10 @@ where
         }
     };
     if check {
-        sagebrush_host::outln!("{}: valid ({})", file.display(), summary(&config));
+        for w in config.warnings() {
+            sagebrush_host::errln!("{name}: warning: {w}");
+        }
+        sagebrush_host::outln!("{}: valid ({})", file.display(), config.summary());
         return ExitCode::SUCCESS;
     }
     if let Err(e) = sagebrush_host::logging::init("info", false) {
