@@ -12,6 +12,7 @@ use std::os::fd::OwnedFd;
 use std::process::{Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
+use serde_json::Value;
 use support::HANG_GUARD;
 
 /// The write end of a pipe nobody reads any more.
@@ -338,4 +339,94 @@ fn scan_says_what_it_probes_on_stderr() {
     );
     assert!(out.stderr.contains("port 5.1: 2 found, 2 silent"), "{out:?}");
     assert!(!out.stdout.contains("gimbalctl: scan:"), "{out:?}");
+}
+
+/// `gimbalctl scan` with its defaults finishes on a demo-like gcud (the
+/// devices it asks by default are few enough; `--devices 1-254` on every
+/// port of the demo took minutes) and lists every simulated gimbal. The
+/// bound is the support's HANG_GUARD, generous on purpose (a shared machine).
+#[test]
+fn a_default_scan_finishes_and_lists_the_simulated_gimbals() {
+    let gcud = support::cli::DemoGcud::start();
+    let v = gcud.json(&["scan"]);
+    let found: Vec<&str> = v["gcus"]
+        .as_array()
+        .unwrap_or_else(|| panic!("{v}"))
+        .iter()
+        .flat_map(|g| g["ports"].as_array().into_iter().flatten())
+        .flat_map(|p| p["devices"].as_array().into_iter().flatten())
+        .filter_map(|d| d["address"].as_str())
+        .collect();
+    assert_eq!(found, ["5.1.1", "5.1.2", "5.2.1"], "{v}");
+    let closed: Vec<&Value> = v["gcus"][0]["ports"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|p| p["state"] == "port_closed")
+        .collect();
+    assert_eq!(closed.len(), 1, "port 3 (no such tty) is listed closed: {v}");
+}
+
+/// Ctrl-C (SIGINT) in a long scan prints what it found so far and exits
+/// 130; `--json` puts the findings in the failure object.
+#[test]
+fn an_interrupted_scan_prints_what_it_found_so_far() {
+    let gcud = support::cli::DemoGcud::start();
+    let dir = tempfile::tempdir().unwrap();
+    let (out_path, err_path) = (dir.path().join("stdout"), dir.path().join("stderr"));
+    // Every ID on ports 1-2: minutes, so the scan is still going when interrupted.
+    let child = Command::new(env!("CARGO_BIN_EXE_gimbalctl"))
+        .args([
+            "--json",
+            "--tcp",
+            &gcud.clients,
+            "scan",
+            "--gcus",
+            "5",
+            "--ports",
+            "1-2",
+            "--devices",
+            "1-254",
+        ])
+        .stdin(Stdio::null())
+        .stdout(std::fs::File::create(&out_path).unwrap())
+        .stderr(std::fs::File::create(&err_path).unwrap())
+        .spawn()
+        .expect("spawn gimbalctl");
+    let started = Instant::now();
+    while !std::fs::read_to_string(&err_path).unwrap().contains("found 5.1.2") {
+        assert!(
+            started.elapsed() < HANG_GUARD,
+            "the scan did not find 5.1.2: {}",
+            std::fs::read_to_string(&err_path).unwrap()
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    nix::sys::signal::kill(
+        nix::unistd::Pid::from_raw(child.id() as i32),
+        nix::sys::signal::Signal::SIGINT,
+    )
+    .unwrap();
+    let status = wait(child, "gimbalctl scan");
+    let (stdout, stderr) = (
+        std::fs::read_to_string(&out_path).unwrap(),
+        std::fs::read_to_string(&err_path).unwrap(),
+    );
+    assert_eq!(status.code(), Some(130), "{status:?}\n{stdout}\n{stderr}");
+    assert!(stderr.contains("interrupted by SIGINT"), "{stderr}");
+    let v: Value = serde_json::from_str(stdout.trim()).unwrap_or_else(|e| panic!("{e}: {stdout}"));
+    assert_eq!(
+        (v["ok"].as_bool(), v["outcome"].as_str()),
+        (Some(false), Some("interrupted")),
+        "{v}"
+    );
+    let port = &v["gcus"][0]["ports"][0];
+    let found: Vec<&str> = port["devices"]
+        .as_array()
+        .unwrap_or_else(|| panic!("{v}"))
+        .iter()
+        .filter_map(|d| d["address"].as_str())
+        .collect();
+    assert_eq!(found, ["5.1.1", "5.1.2"], "{v}");
+    assert!(port["asked"].as_u64().is_some_and(|n| (2..254).contains(&n)), "{v}");
 }

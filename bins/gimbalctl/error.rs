@@ -40,10 +40,11 @@ pub enum CtlError {
     WaitTimeout(String, Value),
     /// The stop after `--for`/`--hold` was not acknowledged (exit 22): why.
     StopUnconfirmed(String, Box<CtlError>),
-    /// `--capture`: SIGINT or SIGTERM ended the command once the capture
-    /// file was complete (exit 128 + the signal's number, 130 or 143, as a
-    /// shell reports a process killed by it).
-    Interrupted(String, u8),
+    /// SIGINT or SIGTERM ended the command (`--capture`: once the capture
+    /// file was complete; `scan`: with what it found so far as JSON
+    /// fields) (exit 128 + the signal's number, 130 or 143, as a shell
+    /// reports a process killed by it).
+    Interrupted(String, u8, Value),
 }
 
 impl CtlError {
@@ -60,7 +61,7 @@ impl CtlError {
             CtlError::StoppedShort(..) => EXIT_STOPPED_SHORT,
             CtlError::WaitTimeout(..) => EXIT_WAIT_TIMEOUT,
             CtlError::StopUnconfirmed(..) => EXIT_STOP_UNCONFIRMED,
-            CtlError::Interrupted(_, code) => *code,
+            CtlError::Interrupted(_, code, _) => *code,
         }
     }
 
@@ -85,7 +86,7 @@ impl CtlError {
     /// Extra typed JSON fields of this failure (merged into the error object).
     pub fn detail(&self) -> Value {
         match self {
-            CtlError::StoppedShort(_, v) | CtlError::WaitTimeout(_, v) => v.clone(),
+            CtlError::StoppedShort(_, v) | CtlError::WaitTimeout(_, v) | CtlError::Interrupted(_, _, v) => v.clone(),
             CtlError::StopUnconfirmed(_, why) => serde_json::json!({
                 "stop_outcome": why.kind(),
                 "stop_exit_code": why.exit_code(),
@@ -107,7 +108,7 @@ impl CtlError {
             | CtlError::StoppedShort(m, _)
             | CtlError::WaitTimeout(m, _)
             | CtlError::StopUnconfirmed(m, _)
-            | CtlError::Interrupted(m, _) => m,
+            | CtlError::Interrupted(m, _, _) => m,
         }
     }
 }

@@ -10,6 +10,7 @@ mod gcud_status;
 mod jog;
 mod motion;
 mod output;
+mod progress;
 mod request;
 mod scan;
 mod session;
@@ -107,11 +108,13 @@ fn destination(cli: &Cli) -> Result<Address, CtlError> {
 /// the process, so that the session, and the capture file with it, is
 /// completed (flushed and closed) before gimbalctl exits, 130 or 143 as a
 /// shell reports a process killed by them. What ends on a signal by itself
-/// keeps doing so: a jog with `--for`/`--hold` (it sends its stop first) and
-/// `watch` on Ctrl-C (a normal end).
+/// keeps doing so: a jog with `--for`/`--hold` (it sends its stop first),
+/// `scan` (it prints what it found so far) and `watch` on Ctrl-C (a normal end).
 async fn run_to_the_end_of_the_capture(cli: &Cli) -> Result<(), CtlError> {
     use tokio::signal::unix::{Signal, SignalKind, signal};
-    let handles_signals = cli.command.jog().is_some_and(|j| j.duration.is_some() || j.hold);
+    // A jog with --for/--hold sends its stop first; a scan prints what it found.
+    let handles_signals =
+        cli.command.jog().is_some_and(|j| j.duration.is_some() || j.hold) || matches!(cli.command, Cmd::Scan(_));
     if cli.global.capture.is_none() || handles_signals {
         return run(cli).await;
     }
@@ -135,7 +138,11 @@ async fn run_to_the_end_of_the_capture(cli: &Cli) -> Result<(), CtlError> {
         _ = interrupted(&mut int) => ("SIGINT", 130),
     };
     // `run` and its session are gone here: the capture file is complete.
-    Err(CtlError::Interrupted(format!("interrupted by {name}"), code))
+    Err(CtlError::Interrupted(
+        format!("interrupted by {name}"),
+        code,
+        Value::Null,
+    ))
 }
 
 async fn run(cli: &Cli) -> Result<(), CtlError> {
