@@ -430,3 +430,88 @@ fn an_interrupted_scan_prints_what_it_found_so_far() {
     assert_eq!(found, ["5.1.1", "5.1.2"], "{v}");
     assert!(port["asked"].as_u64().is_some_and(|n| (2..254).contains(&n)), "{v}");
 }
+
+/// INFO is the daemon's life (start, ports and links up and down, reload,
+/// shutdown): gimbalctl calls (a connection each, frames on the simulated
+/// buses, a dead-man stop, a silent device) add no INFO line. gcud runs the
+/// demo configuration as shipped (its `[log] level = "info"`, no RUST_LOG),
+/// on ports of its own.
+#[test]
+fn gimbalctl_calls_add_no_info_lines_to_the_daemons_log() {
+    let demo = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/demo.toml")).unwrap();
+    let config = demo
+        .replace("127.0.0.1:4001", "127.0.0.1:0")
+        .replace("127.0.0.1:9187", "127.0.0.1:0");
+    let dir = tempfile::tempdir().unwrap();
+    /// Stops gcud however the test ends.
+    struct Stopped(std::process::Child);
+    impl Drop for Stopped {
+        fn drop(&mut self) {
+            support::terminate(&mut self.0);
+        }
+    }
+    let mut gcud = Stopped(support::spawn_gcud_logging(dir.path(), &config, None));
+    let log_path = dir.path().join("gcud.log");
+    let clients = support::addr_field(&support::wait_for_log_line(&log_path, "listening link=clients"));
+    let ctl = |args: &[&str]| {
+        let mut full = vec!["--tcp", clients.as_str()];
+        full.extend_from_slice(args);
+        support::gimbalctl(&full)
+    };
+    // Both ports are open once their gimbals answer.
+    for to in ["5.1.1", "5.2.1"] {
+        support::eventually("the demo's gimbals to answer", || ctl(&["--to", to, "id"]).code == 0);
+    }
+    let info = |log: &str| -> Vec<String> {
+        log.lines()
+            .filter(|l| l.contains(" INFO "))
+            .map(str::to_owned)
+            .collect()
+    };
+    let before = info(&std::fs::read_to_string(&log_path).unwrap());
+    assert_eq!(ctl(&["--to", "5.1.1", "position"]).code, 0);
+    assert_eq!(ctl(&["--to", "5.2.1", "goto", "5", "5", "--wait"]).code, 0);
+    // A motion left running: gcud's dead-man stops it when gimbalctl leaves.
+    assert_eq!(ctl(&["--to", "5.1.2", "slew", "right"]).code, 0);
+    assert_eq!(ctl(&["--to", "5.1.9", "id"]).code, 8, "a silent device");
+    assert_eq!(
+        ctl(&["scan", "--gcus", "5", "--ports", "1-3", "--devices", "1-3"]).code,
+        0
+    );
+    support::eventually("the dead-man stop to be logged", || {
+        std::fs::read_to_string(&log_path).unwrap().contains("dead-man")
+    });
+    let after = info(&std::fs::read_to_string(&log_path).unwrap());
+    assert_eq!(after, before, "gimbalctl calls added INFO lines");
+    // Reload and shutdown are the daemon's life: INFO.
+    nix::sys::signal::kill(
+        nix::unistd::Pid::from_raw(gcud.0.id() as i32),
+        nix::sys::signal::Signal::SIGHUP,
+    )
+    .unwrap();
+    support::wait_for_log_line(&log_path, "configuration unchanged");
+    support::terminate(&mut gcud.0);
+    let log = std::fs::read_to_string(&log_path).unwrap();
+    let life = [
+        "descriptor limit",
+        "listening link=clients",
+        "metrics at /metrics",
+        "gcud ready",
+        "port open port=",
+        "port 1 opened",
+        "port 2 opened",
+        "line rate switched",
+        "SIGHUP: reloading",
+        "configuration unchanged",
+        "shutting down",
+        "in-flight transactions finished",
+        "port closed: gcud stopping",
+    ];
+    for line in info(&log) {
+        assert!(
+            life.iter().any(|l| line.contains(l)),
+            "not a life-cycle line at INFO: {line}\n{log}"
+        );
+    }
+    assert!(log.contains("shutting down") && log.contains("SIGHUP"), "{log}");
+}
