@@ -515,3 +515,17 @@ fn gimbalctl_calls_add_no_info_lines_to_the_daemons_log() {
     }
     assert!(log.contains("shutting down") && log.contains("SIGHUP"), "{log}");
 }
+
+/// A failure names the command once: `P?`, not `P? (P?)`; a command whose
+/// spec row is a template keeps it beside what was sent (`SP8 (SPn)`).
+#[test]
+fn an_error_names_the_command_once() {
+    let gcud = support::cli::DemoGcud::start();
+    let out = gcud.ctl(&["--to", "5.1.9", "position"]);
+    assert_eq!(out.code, 8, "{out:?}");
+    assert!(out.stderr.contains("not delivered: P? to 5.1.9"), "{out:?}");
+    assert!(!out.stderr.contains("P? (P?)"), "{out:?}");
+    let out = gcud.ctl(&["--to", "5.1.9", "speed", "pan", "8"]);
+    assert_eq!(out.code, 8, "{out:?}");
+    assert!(out.stderr.contains("not delivered: SP8 (SPn) to 5.1.9"), "{out:?}");
+}

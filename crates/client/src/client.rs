@@ -106,7 +106,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Client<S> {
         let frame = FrameBuf::new(to, self.from, payload).map_err(|e| CommandError::Usage(format!("payload: {e}")))?;
         let command = Command::parse(payload);
         let ex = self.master.transact(&frame, &command).await?;
-        let what = format!("{} ({})", payload_text(payload), command.mnemonic());
+        let what = command_named(payload, &command);
         let policy = *self.master.policy();
         if let Some(report) = ex.undelivered {
             let failure = report.failure.unwrap_or(Undelivered::NotConfirmed);
@@ -170,6 +170,16 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Client<S> {
     /// Where the gimbal at `to` points now (`P?`).
     pub async fn position(&mut self, to: Address) -> Result<Position, CommandError> {
         self.query_position(to, &Command::QueryPosition).await
+    }
+}
+
+/// How an error names a command: as sent (`P?`), once; with its spec row's
+/// mnemonic when that says more (`SP8 (SPn)`).
+fn command_named(payload: &[u8], command: &Command<'_>) -> String {
+    let sent = payload_text(payload);
+    match command.mnemonic() {
+        m if m == sent || m.is_empty() => sent,
+        m => format!("{sent} ({m})"),
     }
 }
 
