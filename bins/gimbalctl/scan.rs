@@ -113,7 +113,7 @@ impl Scan<'_> {
         self.progress
             .advance(1, format!("D? to {at}; {} device(s) found", self.devices_found()));
         let payload = crate::request::encode(&Command::Identify)?;
-        let result = self.session.exchange(&payload).await;
+        let result = self.session.exchange(&Command::Identify, &payload).await;
         let probe = match result {
             Ok(ex) => match &ex.result {
                 Some(frame) => {
