@@ -528,26 +528,40 @@ impl Found {
     }
 }
 
+/// A scan interrupted while connecting: nothing found, nothing asked.
+fn interrupted_before_a_probe(signal: &str, code: u8) -> CtlError {
+    CtlError::Interrupted(
+        format!("scan interrupted by {signal} while connecting, before its first probe"),
+        code,
+        Value::Null,
+    )
+}
+
 pub async fn scan(g: &Global, args: &ScanArgs) -> Result<(), CtlError> {
     use tokio::signal::unix::{SignalKind, signal};
-    // From here on SIGINT and SIGTERM end the scan with what it found printed.
-    let mut int = signal(SignalKind::interrupt())?;
-    let mut term = signal(SignalKind::terminate())?;
     let started = Instant::now();
     let timeout = args.timeout;
     // Through a GCU the ACK waits for the device (and a report says why
     // not) within gcud's delivery time-out, shorter than the TCP default
     // ACK time-out: that one stays, or a late report would meet the next probe.
     let to_gcu = g.tcp.is_some() && !args.direct;
-    let session = Session::open_with(g, Address::new(255, 0, 0), |p| {
+    // From here on SIGINT and SIGTERM end the scan: with what it found printed,
+    // and a --capture file completed (the session is dropped first).
+    let mut int = signal(SignalKind::interrupt())?;
+    let mut term = signal(SignalKind::terminate())?;
+    let open = Session::open_with(g, Address::new(255, 0, 0), |p| {
         p.retry.retries = 0;
         p.result_timeout = timeout;
         p.nic_window = p.nic_window.min(timeout);
         if !to_gcu {
             p.retry.ack_timeout = timeout;
         }
-    })
-    .await?;
+    });
+    let session = tokio::select! {
+        session = open => session?,
+        _ = int.recv() => return Err(interrupted_before_a_probe("SIGINT", 130)),
+        _ = term.recv() => return Err(interrupted_before_a_probe("SIGTERM", 143)),
+    };
     let through_gcu = session.over_tcp && !args.direct;
     let line = session.line.clone();
     // The identity probes planned so far: more as GCUs answer.
