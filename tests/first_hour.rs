@@ -529,3 +529,26 @@ fn an_error_names_the_command_once() {
     assert_eq!(out.code, 8, "{out:?}");
     assert!(out.stderr.contains("not delivered: SP8 (SPn) to 5.1.9"), "{out:?}");
 }
+
+/// A scan that nothing answers exits 4 (documented in `gimbalctl --help`),
+/// its empty result printed: here no GCU of groups 1-3 (gcud is group 5).
+#[test]
+fn a_scan_that_nothing_answers_exits_4() {
+    let gcud = support::cli::DemoGcud::start();
+    let out = gcud.ctl(&["--json", "scan", "--gcus", "1-3"]);
+    assert_eq!(out.code, 4, "{out:?}");
+    let v = out.json();
+    assert_eq!(
+        (v["ok"].as_bool(), v["outcome"].as_str()),
+        (Some(false), Some("no_ack")),
+        "{v}"
+    );
+    assert_eq!(v["gcus"], serde_json::json!([]), "{v}");
+    assert!(out.stderr.contains("nothing answered D?"), "{out:?}");
+    let text = gcud.ctl(&["scan", "--gcus", "1-3"]);
+    assert_eq!(text.code, 4, "{text:?}");
+    assert!(
+        text.stdout.contains("no GCU answered D? at any of 3 groups"),
+        "{text:?}"
+    );
+}

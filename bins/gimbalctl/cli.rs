@@ -20,7 +20,7 @@ Exit codes:
    1  I/O error: cannot open the serial port or connect, the line closed
    2  bad arguments (the message names the argument and its range)
    3  NAK after all retries (the command kept arriving damaged)
-   4  no ACK after all retries (nothing answered; scan: no device answered)
+   4  no ACK after all retries (nothing answered; scan: no GCU or device answered D?)
    5  NIC: the device does not implement or cannot apply the command
    6  no result: acknowledged, but the result did not come in time
    7  malformed result: a result came that is not the command's

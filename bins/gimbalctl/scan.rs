@@ -614,6 +614,16 @@ pub async fn scan(g: &Global, args: &ScanArgs) -> Result<(), CtlError> {
     s.progress.clear();
     let fields = s.found.json(&line, started.elapsed());
     let Some((signal, code)) = interrupted else {
+        if s.found.gcus.is_empty() && s.devices_found() == 0 {
+            // Nothing answered: the tree says so on stdout, the exit code to scripts.
+            if !g.json {
+                sagebrush_host::outln!("{}", s.found.text(args, &line, false));
+            }
+            return Err(CtlError::NothingAnswered(
+                format!("scan: nothing answered D? at the {} address(es) asked", s.found.probes),
+                Value::Object(fields),
+            ));
+        }
         if g.json {
             let mut value = json!({ "ok": true, "command": "scan" });
             if let Value::Object(m) = &mut value {
