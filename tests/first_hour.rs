@@ -12,6 +12,7 @@ use std::os::fd::OwnedFd;
 use std::process::{Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
+use serde_json::Value;
 use support::HANG_GUARD;
 
 /// The write end of a pipe nobody reads any more.
@@ -338,4 +339,216 @@ fn scan_says_what_it_probes_on_stderr() {
     );
     assert!(out.stderr.contains("port 5.1: 2 found, 2 silent"), "{out:?}");
     assert!(!out.stdout.contains("gimbalctl: scan:"), "{out:?}");
+}
+
+/// `gimbalctl scan` with its defaults finishes on a demo-like gcud (the
+/// devices it asks by default are few enough; `--devices 1-254` on every
+/// port of the demo took minutes) and lists every simulated gimbal. The
+/// bound is the support's HANG_GUARD, generous on purpose (a shared machine).
+#[test]
+fn a_default_scan_finishes_and_lists_the_simulated_gimbals() {
+    let gcud = support::cli::DemoGcud::start();
+    let v = gcud.json(&["scan"]);
+    let found: Vec<&str> = v["gcus"]
+        .as_array()
+        .unwrap_or_else(|| panic!("{v}"))
+        .iter()
+        .flat_map(|g| g["ports"].as_array().into_iter().flatten())
+        .flat_map(|p| p["devices"].as_array().into_iter().flatten())
+        .filter_map(|d| d["address"].as_str())
+        .collect();
+    assert_eq!(found, ["5.1.1", "5.1.2", "5.2.1"], "{v}");
+    let closed: Vec<&Value> = v["gcus"][0]["ports"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|p| p["state"] == "port_closed")
+        .collect();
+    assert_eq!(closed.len(), 1, "port 3 (no such tty) is listed closed: {v}");
+}
+
+/// Ctrl-C (SIGINT) in a long scan prints what it found so far and exits
+/// 130; `--json` puts the findings in the failure object.
+#[test]
+fn an_interrupted_scan_prints_what_it_found_so_far() {
+    let gcud = support::cli::DemoGcud::start();
+    let dir = tempfile::tempdir().unwrap();
+    let (out_path, err_path) = (dir.path().join("stdout"), dir.path().join("stderr"));
+    // Every ID on ports 1-2: minutes, so the scan is still going when interrupted.
+    let child = Command::new(env!("CARGO_BIN_EXE_gimbalctl"))
+        .args([
+            "--json",
+            "--tcp",
+            &gcud.clients,
+            "scan",
+            "--gcus",
+            "5",
+            "--ports",
+            "1-2",
+            "--devices",
+            "1-254",
+        ])
+        .stdin(Stdio::null())
+        .stdout(std::fs::File::create(&out_path).unwrap())
+        .stderr(std::fs::File::create(&err_path).unwrap())
+        .spawn()
+        .expect("spawn gimbalctl");
+    let started = Instant::now();
+    while !std::fs::read_to_string(&err_path).unwrap().contains("found 5.1.2") {
+        assert!(
+            started.elapsed() < HANG_GUARD,
+            "the scan did not find 5.1.2: {}",
+            std::fs::read_to_string(&err_path).unwrap()
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    nix::sys::signal::kill(
+        nix::unistd::Pid::from_raw(child.id() as i32),
+        nix::sys::signal::Signal::SIGINT,
+    )
+    .unwrap();
+    let status = wait(child, "gimbalctl scan");
+    let (stdout, stderr) = (
+        std::fs::read_to_string(&out_path).unwrap(),
+        std::fs::read_to_string(&err_path).unwrap(),
+    );
+    assert_eq!(status.code(), Some(130), "{status:?}\n{stdout}\n{stderr}");
+    assert!(stderr.contains("interrupted by SIGINT"), "{stderr}");
+    let v: Value = serde_json::from_str(stdout.trim()).unwrap_or_else(|e| panic!("{e}: {stdout}"));
+    assert_eq!(
+        (v["ok"].as_bool(), v["outcome"].as_str()),
+        (Some(false), Some("interrupted")),
+        "{v}"
+    );
+    let port = &v["gcus"][0]["ports"][0];
+    let found: Vec<&str> = port["devices"]
+        .as_array()
+        .unwrap_or_else(|| panic!("{v}"))
+        .iter()
+        .filter_map(|d| d["address"].as_str())
+        .collect();
+    assert_eq!(found, ["5.1.1", "5.1.2"], "{v}");
+    assert!(port["asked"].as_u64().is_some_and(|n| (2..254).contains(&n)), "{v}");
+}
+
+/// INFO is the daemon's life (start, ports and links up and down, reload,
+/// shutdown): gimbalctl calls (a connection each, frames on the simulated
+/// buses, a dead-man stop, a silent device) add no INFO line. gcud runs the
+/// demo configuration as shipped (its `[log] level = "info"`, no RUST_LOG),
+/// on ports of its own.
+#[test]
+fn gimbalctl_calls_add_no_info_lines_to_the_daemons_log() {
+    let demo = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/demo.toml")).unwrap();
+    let config = demo
+        .replace("127.0.0.1:4001", "127.0.0.1:0")
+        .replace("127.0.0.1:9187", "127.0.0.1:0");
+    let dir = tempfile::tempdir().unwrap();
+    /// Stops gcud however the test ends.
+    struct Stopped(std::process::Child);
+    impl Drop for Stopped {
+        fn drop(&mut self) {
+            support::terminate(&mut self.0);
+        }
+    }
+    let mut gcud = Stopped(support::spawn_gcud_logging(dir.path(), &config, None));
+    let log_path = dir.path().join("gcud.log");
+    let clients = support::addr_field(&support::wait_for_log_line(&log_path, "listening link=clients"));
+    let ctl = |args: &[&str]| {
+        let mut full = vec!["--tcp", clients.as_str()];
+        full.extend_from_slice(args);
+        support::gimbalctl(&full)
+    };
+    // Both ports are open once their gimbals answer.
+    for to in ["5.1.1", "5.2.1"] {
+        support::eventually("the demo's gimbals to answer", || ctl(&["--to", to, "id"]).code == 0);
+    }
+    let info = |log: &str| -> Vec<String> {
+        log.lines()
+            .filter(|l| l.contains(" INFO "))
+            .map(str::to_owned)
+            .collect()
+    };
+    let before = info(&std::fs::read_to_string(&log_path).unwrap());
+    assert_eq!(ctl(&["--to", "5.1.1", "position"]).code, 0);
+    assert_eq!(ctl(&["--to", "5.2.1", "goto", "5", "5", "--wait"]).code, 0);
+    // A motion left running: gcud's dead-man stops it when gimbalctl leaves.
+    assert_eq!(ctl(&["--to", "5.1.2", "slew", "right"]).code, 0);
+    assert_eq!(ctl(&["--to", "5.1.9", "id"]).code, 8, "a silent device");
+    assert_eq!(
+        ctl(&["scan", "--gcus", "5", "--ports", "1-3", "--devices", "1-3"]).code,
+        0
+    );
+    support::eventually("the dead-man stop to be logged", || {
+        std::fs::read_to_string(&log_path).unwrap().contains("dead-man")
+    });
+    let after = info(&std::fs::read_to_string(&log_path).unwrap());
+    assert_eq!(after, before, "gimbalctl calls added INFO lines");
+    // Reload and shutdown are the daemon's life: INFO.
+    nix::sys::signal::kill(
+        nix::unistd::Pid::from_raw(gcud.0.id() as i32),
+        nix::sys::signal::Signal::SIGHUP,
+    )
+    .unwrap();
+    support::wait_for_log_line(&log_path, "configuration unchanged");
+    support::terminate(&mut gcud.0);
+    let log = std::fs::read_to_string(&log_path).unwrap();
+    let life = [
+        "descriptor limit",
+        "listening link=clients",
+        "metrics at /metrics",
+        "gcud ready",
+        "port open port=",
+        "port 1 opened",
+        "port 2 opened",
+        "line rate switched",
+        "SIGHUP: reloading",
+        "configuration unchanged",
+        "shutting down",
+        "in-flight transactions finished",
+        "port closed: gcud stopping",
+    ];
+    for line in info(&log) {
+        assert!(
+            life.iter().any(|l| line.contains(l)),
+            "not a life-cycle line at INFO: {line}\n{log}"
+        );
+    }
+    assert!(log.contains("shutting down") && log.contains("SIGHUP"), "{log}");
+}
+
+/// A failure names the command once: `P?`, not `P? (P?)`; a command whose
+/// spec row is a template keeps it beside what was sent (`SP8 (SPn)`).
+#[test]
+fn an_error_names_the_command_once() {
+    let gcud = support::cli::DemoGcud::start();
+    let out = gcud.ctl(&["--to", "5.1.9", "position"]);
+    assert_eq!(out.code, 8, "{out:?}");
+    assert!(out.stderr.contains("not delivered: P? to 5.1.9"), "{out:?}");
+    assert!(!out.stderr.contains("P? (P?)"), "{out:?}");
+    let out = gcud.ctl(&["--to", "5.1.9", "speed", "pan", "8"]);
+    assert_eq!(out.code, 8, "{out:?}");
+    assert!(out.stderr.contains("not delivered: SP8 (SPn) to 5.1.9"), "{out:?}");
+}
+
+/// A scan that nothing answers exits 4 (documented in `gimbalctl --help`),
+/// its empty result printed: here no GCU of groups 1-3 (gcud is group 5).
+#[test]
+fn a_scan_that_nothing_answers_exits_4() {
+    let gcud = support::cli::DemoGcud::start();
+    let out = gcud.ctl(&["--json", "scan", "--gcus", "1-3"]);
+    assert_eq!(out.code, 4, "{out:?}");
+    let v = out.json();
+    assert_eq!(
+        (v["ok"].as_bool(), v["outcome"].as_str()),
+        (Some(false), Some("no_ack")),
+        "{v}"
+    );
+    assert_eq!(v["gcus"], serde_json::json!([]), "{v}");
+    assert!(out.stderr.contains("nothing answered D?"), "{out:?}");
+    let text = gcud.ctl(&["scan", "--gcus", "1-3"]);
+    assert_eq!(text.code, 4, "{text:?}");
+    assert!(
+        text.stdout.contains("no GCU answered D? at any of 3 groups"),
+        "{text:?}"
+    );
 }

@@ -1219,7 +1219,7 @@ fn clean_sigterm_logs_no_warning() {
     // A client connection still open when the signal comes.
     let held = TcpStream::connect(gcud.clients()).expect("connect");
     eventually("the held connection to be up", || {
-        gcud.log().lines().filter(|l| l.contains(" up (clients ")).count() == 2
+        gcud.log().lines().filter(|l| l.contains("client connected")).count() == 2
     });
     let (status, log) = gcud.terminate();
     drop(held);

@@ -611,8 +611,8 @@ fn the_shipped_unit_is_hardened_and_checks_its_configuration_first() {
         .expect("config/gimbal-mavlink.service");
     for line in [
         "Type=notify",
-        "ExecStartPre=/usr/local/bin/gimbal-mavlink --check --config /etc/gimbal-mavlink/gimbal-mavlink.toml",
-        "ExecStart=/usr/local/bin/gimbal-mavlink --config /etc/gimbal-mavlink/gimbal-mavlink.toml",
+        "ExecStartPre=/usr/bin/gimbal-mavlink --check --config /etc/gimbal-mavlink/gimbal-mavlink.toml",
+        "ExecStart=/usr/bin/gimbal-mavlink --config /etc/gimbal-mavlink/gimbal-mavlink.toml",
         "DynamicUser=yes",
         "NoNewPrivileges=yes",
         "CapabilityBoundingSet=",

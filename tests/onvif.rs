@@ -687,7 +687,7 @@ fn the_shipped_unit_is_hardened_and_checks_its_configuration_first() {
         .expect("config/gimbal-onvif.service");
     for line in [
         "Type=notify",
-        "ExecStartPre=/usr/local/bin/gimbal-onvif --check --config /etc/gimbal-onvif/gimbal-onvif.toml",
+        "ExecStartPre=/usr/bin/gimbal-onvif --check --config /etc/gimbal-onvif/gimbal-onvif.toml",
         "DynamicUser=yes",
         "StateDirectory=gimbal-onvif",
         "NoNewPrivileges=yes",

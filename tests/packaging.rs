@@ -1,5 +1,6 @@
 //! The Debian package (`[package.metadata.deb]` in Cargo.toml, built with
-//! cargo-deb): it holds every program, gcud's unit, the udev rule and the
+//! cargo-deb): it holds every program, the units of gcud and the front doors
+//! (each running the program and configuration the package installs), the udev rule and the
 //! configurations (those under /etc as dpkg configuration files), and the
 //! configuration it installs passes `gcud --check` run from the package.
 //! Without cargo-deb the package test fails under CI (`CI` set; .ci/run
@@ -67,24 +68,41 @@ fn package_metadata_ships_every_program_and_the_unit_finds_them() {
             assert!(root().join(&source).is_file(), "asset {source} does not exist");
         }
     }
-    // The unit runs what the package installs, on the configuration it installs.
-    let gcud = installed_path("target/release/gcud").unwrap();
-    let config = installed_path("config/gcud.toml").expect("gcud.toml is not packaged");
-    assert_eq!(config, "/etc/gcud/gcud.toml");
-    let unit = std::fs::read_to_string(root().join("config/gcud.service")).unwrap();
-    for key in ["ExecStartPre=", "ExecStart="] {
-        let line = unit
-            .lines()
-            .find(|l| l.starts_with(key))
-            .unwrap_or_else(|| panic!("no {key}"));
-        let words: Vec<&str> = line[key.len()..].split_whitespace().collect();
-        assert_eq!(words[0], gcud, "{line}: the package installs gcud as {gcud}");
-        assert!(
-            words.windows(2).any(|w| w == ["--config", config.as_str()]),
-            "{line}: not {config}"
-        );
+    // Each unit runs what the package installs, on the configuration it installs.
+    let units: Vec<&str> = manifest["package"]["metadata"]["deb"]["systemd-units"]
+        .as_array()
+        .expect("[[package.metadata.deb.systemd-units]]")
+        .iter()
+        .map(|u| u["unit-name"].as_str().expect("unit-name"))
+        .collect();
+    assert_eq!(units, UNITS, "the package's units");
+    for unit_name in UNITS {
+        let program = installed_path(&format!("target/release/{unit_name}")).unwrap();
+        let config = installed_path(&format!("config/{unit_name}.toml"))
+            .unwrap_or_else(|| panic!("{unit_name}.toml is not packaged"));
+        assert_eq!(config, format!("/etc/{unit_name}/{unit_name}.toml"));
+        let unit = std::fs::read_to_string(root().join(format!("config/{unit_name}.service"))).unwrap();
+        for key in ["ExecStartPre=", "ExecStart="] {
+            let line = unit
+                .lines()
+                .find(|l| l.starts_with(key))
+                .unwrap_or_else(|| panic!("{unit_name}.service: no {key}"));
+            let words: Vec<&str> = line[key.len()..].split_whitespace().collect();
+            assert_eq!(
+                words[0], program,
+                "{unit_name}.service: {line}: the package installs {unit_name} as {program}"
+            );
+            assert!(
+                words.windows(2).any(|w| w == ["--config", config.as_str()]),
+                "{unit_name}.service: {line}: not {config}"
+            );
+        }
     }
 }
+
+/// The units the package installs: the daemon and the two front doors, each
+/// `config/NAME.service` running `/usr/bin/NAME` on `/etc/NAME/NAME.toml`.
+const UNITS: [&str; 3] = ["gcud", "gimbal-onvif", "gimbal-mavlink"];
 
 /// Runs `program args`, panicking with its output unless it succeeds.
 fn run(program: &str, args: &[&std::ffi::OsStr]) -> String {
@@ -150,10 +168,14 @@ fn the_package_holds_programs_unit_rule_and_configuration_files() {
         "/usr/bin/gcud",
         "/usr/bin/gimbalctl",
         "/usr/bin/gimbal-onvif",
+        "/usr/bin/gimbal-mavlink",
         "/usr/bin/gimbalsim",
         "/usr/lib/systemd/system/gcud.service",
+        "/usr/lib/systemd/system/gimbal-onvif.service",
+        "/usr/lib/systemd/system/gimbal-mavlink.service",
         "/etc/gcud/gcud.toml",
         "/etc/gimbal-onvif/gimbal-onvif.toml",
+        "/etc/gimbal-mavlink/gimbal-mavlink.toml",
         "/etc/udev/rules.d/99-sagebrush-gimbal.rules",
     ] {
         assert!(files.contains(&want), "the package lacks {want}:\n{listing}");
@@ -176,11 +198,13 @@ fn the_package_holds_programs_unit_rule_and_configuration_files() {
 
     let tree = dir.path().join("tree");
     run("dpkg-deb", &["--extract".as_ref(), deb.as_os_str(), tree.as_os_str()]);
-    assert_eq!(
-        std::fs::read_to_string(tree.join("usr/lib/systemd/system/gcud.service")).unwrap(),
-        std::fs::read_to_string(root().join("config/gcud.service")).unwrap(),
-        "the packaged unit is not config/gcud.service"
-    );
+    for unit in UNITS {
+        assert_eq!(
+            std::fs::read_to_string(tree.join(format!("usr/lib/systemd/system/{unit}.service"))).unwrap(),
+            std::fs::read_to_string(root().join(format!("config/{unit}.service"))).unwrap(),
+            "the packaged unit is not config/{unit}.service"
+        );
+    }
     // The packaged gcud accepts the packaged configuration.
     let check = run(
         tree.join("usr/bin/gcud").to_str().unwrap(),

@@ -266,7 +266,7 @@ async fn serve_link<S: LineStream + 'static>(
         tokio::select! {
             ended = &mut end => {
                 let reason = ended.map_or_else(|_| "closed by the router".to_owned(), |e| e.reason);
-                info!(%id, %peer, %reason, "link closed");
+                debug!(%id, %peer, %reason, "link closed");
                 return;
             }
             () = async { match &admitted { Some(a) => a.close.notified().await, None => std::future::pending().await } } => {
@@ -284,7 +284,7 @@ async fn serve_link<S: LineStream + 'static>(
     };
     let _ = events.send(IoEvent::CloseLink { id, reason: closing }).await;
     drop(admitted);
-    info!(%id, %peer, reason = closing, "link closed");
+    debug!(%id, %peer, reason = closing, "link closed");
 }
 
 /// Runs one configured link for as long as the daemon runs.
@@ -361,7 +361,7 @@ pub async fn accept_loop(
         if let Err(e) = sagebrush_host::transport::tune_tcp(&stream) {
             warn!(link = %link.name, %peer, error = %e, "cannot set TCP_NODELAY/keepalive");
         }
-        info!(link = %link.name, %peer, "client connected");
+        debug!(link = %link.name, %peer, "client connected");
         let events = events.clone();
         let name = link.name.clone();
         let admitted = Admitted {

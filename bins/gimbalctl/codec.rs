@@ -13,10 +13,10 @@ fn address_json(a: &Address) -> Value {
     json!({ "group": a.group, "port": a.port, "device": a.device })
 }
 
-/// The typed parse of a payload, or null for one that fits no command.
-pub fn command_json(payload: &[u8]) -> Value {
-    match Command::parse_strict(payload) {
-        Ok(c) => crate::output::command_json(&c, payload),
+/// A payload's typed command as JSON, or null for one that fits no command.
+fn command_json<E>(command: &Result<Command<'_>, E>) -> Value {
+    match command {
+        Ok(c) => crate::output::command_json(c),
         Err(_) => Value::Null,
     }
 }
@@ -27,7 +27,8 @@ pub fn encode(dest: Address, source: u8, payload: &str, as_json: bool) -> Result
         .map_err(|e| CtlError::Usage(format!("payload {payload:?}: {e}")))?;
     let frame =
         FrameBuf::new(dest, source, &bytes).map_err(|e| CtlError::Usage(format!("payload {payload:?}: {e}")))?;
-    if let Err(e) = Command::parse_strict(&bytes) {
+    let command = Command::parse_strict(&bytes);
+    if let Err(e) = &command {
         sagebrush_host::errln!(
             "gimbalctl: note: {payload:?} is no rev 1.9 command ({e}); a device answers it with NIC"
         );
@@ -41,7 +42,7 @@ pub fn encode(dest: Address, source: u8, payload: &str, as_json: bool) -> Result
             "source": f.source,
             "payload": payload_text(f.payload()),
             "checksum": f.checksum(),
-            "command": command_json(f.payload()),
+            "command": command_json(&command),
         });
         sagebrush_host::outln!("{value}");
     } else {
@@ -66,7 +67,7 @@ fn print(event: &Decoded, as_json: bool) {
             let f = frame.frame();
             let command = Command::parse_strict(f.payload());
             let typed = match &command {
-                Ok(c) => match crate::output::command_json(c, f.payload()) {
+                Ok(c) => match crate::output::command_json(c) {
                     Value::Object(m) => m
                         .iter()
                         .filter(|(k, _)| k.as_str() != "mnemonic")
@@ -91,7 +92,7 @@ fn print(event: &Decoded, as_json: bool) {
                     "payload": payload_text(f.payload()),
                     "length": f.payload().len(),
                     "checksum": f.checksum(),
-                    "command": command_json(f.payload()),
+                    "command": command_json(&command),
                 }),
             )
         }

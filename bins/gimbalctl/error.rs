@@ -26,6 +26,9 @@ pub enum CtlError {
     Nak(String),
     /// No ACK after all retries (exit 4).
     NoAck(String),
+    /// `scan`: nothing answered D? at any address asked (exit 4); the
+    /// scan's JSON fields.
+    NothingAnswered(String, Value),
     /// The device answered NIC (exit 5).
     Nic(String),
     /// ACKed but no result in time (exit 6).
@@ -40,10 +43,11 @@ pub enum CtlError {
     WaitTimeout(String, Value),
     /// The stop after `--for`/`--hold` was not acknowledged (exit 22): why.
     StopUnconfirmed(String, Box<CtlError>),
-    /// `--capture`: SIGINT or SIGTERM ended the command once the capture
-    /// file was complete (exit 128 + the signal's number, 130 or 143, as a
-    /// shell reports a process killed by it).
-    Interrupted(String, u8),
+    /// SIGINT or SIGTERM ended the command (`--capture`: once the capture
+    /// file was complete; `scan`: with what it found so far as JSON
+    /// fields) (exit 128 + the signal's number, 130 or 143, as a shell
+    /// reports a process killed by it).
+    Interrupted(String, u8, Value),
 }
 
 impl CtlError {
@@ -52,7 +56,7 @@ impl CtlError {
             CtlError::Io(_) => 1,
             CtlError::Usage(_) => 2,
             CtlError::Nak(_) => 3,
-            CtlError::NoAck(_) => 4,
+            CtlError::NoAck(_) | CtlError::NothingAnswered(..) => 4,
             CtlError::Nic(_) => 5,
             CtlError::NoResult(_) => 6,
             CtlError::BadReply(_) => 7,
@@ -60,7 +64,7 @@ impl CtlError {
             CtlError::StoppedShort(..) => EXIT_STOPPED_SHORT,
             CtlError::WaitTimeout(..) => EXIT_WAIT_TIMEOUT,
             CtlError::StopUnconfirmed(..) => EXIT_STOP_UNCONFIRMED,
-            CtlError::Interrupted(_, code) => *code,
+            CtlError::Interrupted(_, code, _) => *code,
         }
     }
 
@@ -70,7 +74,7 @@ impl CtlError {
             CtlError::Io(_) => "io",
             CtlError::Usage(_) => "usage",
             CtlError::Nak(_) => "nak",
-            CtlError::NoAck(_) => "no_ack",
+            CtlError::NoAck(_) | CtlError::NothingAnswered(..) => "no_ack",
             CtlError::Nic(_) => "nic",
             CtlError::NoResult(_) => "no_result",
             CtlError::BadReply(_) => "bad_result",
@@ -85,7 +89,10 @@ impl CtlError {
     /// Extra typed JSON fields of this failure (merged into the error object).
     pub fn detail(&self) -> Value {
         match self {
-            CtlError::StoppedShort(_, v) | CtlError::WaitTimeout(_, v) => v.clone(),
+            CtlError::StoppedShort(_, v)
+            | CtlError::WaitTimeout(_, v)
+            | CtlError::Interrupted(_, _, v)
+            | CtlError::NothingAnswered(_, v) => v.clone(),
             CtlError::StopUnconfirmed(_, why) => serde_json::json!({
                 "stop_outcome": why.kind(),
                 "stop_exit_code": why.exit_code(),
@@ -100,6 +107,7 @@ impl CtlError {
             | CtlError::Usage(m)
             | CtlError::Nak(m)
             | CtlError::NoAck(m)
+            | CtlError::NothingAnswered(m, _)
             | CtlError::Nic(m)
             | CtlError::NoResult(m)
             | CtlError::BadReply(m)
@@ -107,7 +115,7 @@ impl CtlError {
             | CtlError::StoppedShort(m, _)
             | CtlError::WaitTimeout(m, _)
             | CtlError::StopUnconfirmed(m, _)
-            | CtlError::Interrupted(m, _) => m,
+            | CtlError::Interrupted(m, _, _) => m,
         }
     }
 }

@@ -6,13 +6,14 @@
 use std::time::Duration;
 
 use sagebrush_host::hex::payload_text;
-use sagebrush_protocol::{Command, Outcome, Undelivered};
+use sagebrush_protocol::{Outcome, Undelivered};
 use serde_json::Value;
 use tokio::io::AsyncReadExt;
 use tokio::signal::unix::{SignalKind, signal};
 
 use crate::cli::{Cmd, JogArgs};
 use crate::error::CtlError;
+use crate::request::Request;
 use crate::session::Session;
 
 /// Resolves when stdin reaches its end (or cannot be read).
@@ -30,11 +31,11 @@ async fn stdin_closed() {
 pub async fn run(
     session: &mut Session,
     cmd: &Cmd,
-    payload: &[u8],
+    request: &Request<'_>,
     jog: JogArgs,
     as_json: bool,
 ) -> Result<(), CtlError> {
-    let command = Command::parse(payload);
+    let (command, payload) = (&request.command, &request.payload[..]);
     let stop = command
         .stopped_by()
         .ok_or_else(|| CtlError::Usage(format!("{} is no continuous motion", command.mnemonic())))?;
@@ -43,12 +44,12 @@ pub async fn run(
     // Listening before the start: a SIGTERM at any time after it stops the motion.
     let mut term = signal(SignalKind::terminate())?;
     let mut int = signal(SignalKind::interrupt())?;
-    let ex = match session.exchange(payload).await {
+    let ex = match session.exchange(command, payload).await {
         Ok(ex) => ex,
         Err(e) => {
             // Not confirmed may still execute: stop it anyway, then say why the start failed.
             if matches!(e, CtlError::Undelivered(Undelivered::NotConfirmed, _)) {
-                let _ = session.exchange(&stop_payload).await;
+                let _ = session.exchange(&stop, &stop_payload).await;
             }
             return Err(e);
         }
@@ -78,7 +79,7 @@ pub async fn run(
         },
     };
     let held = started.elapsed();
-    let stop_ex = session.exchange(&stop_payload).await.map_err(|e| {
+    let stop_ex = session.exchange(&stop, &stop_payload).await.map_err(|e| {
         CtlError::StopUnconfirmed(
             format!(
                 "the stop {stop_sent} after {sent} ({:.3} s, ended by {ended_by}) was not acknowledged: {e}; \
@@ -98,7 +99,7 @@ pub async fn run(
         } else {
             "acknowledged"
         };
-        let mut m = crate::exchange_json(session, cmd, payload, &ex, outcome);
+        let mut m = crate::exchange_json(session, cmd, request, &ex, outcome);
         m.insert("held_ms".into(), (held.as_millis() as u64).into());
         m.insert(
             "for_ms".into(),

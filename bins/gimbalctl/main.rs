@@ -10,6 +10,7 @@ mod gcud_status;
 mod jog;
 mod motion;
 mod output;
+mod progress;
 mod request;
 mod scan;
 mod session;
@@ -21,11 +22,12 @@ use std::time::Duration;
 use clap::Parser;
 use sagebrush_client::master::Exchange;
 use sagebrush_host::hex::payload_text;
-use sagebrush_protocol::{Address, Command, Outcome, Reply};
+use sagebrush_protocol::{Address, Outcome, Reply};
 use serde_json::{Map, Value, json};
 
 use crate::cli::{Cli, Cmd};
 use crate::error::CtlError;
+use crate::request::Request;
 use crate::session::Session;
 
 fn main() -> ExitCode {
@@ -107,11 +109,13 @@ fn destination(cli: &Cli) -> Result<Address, CtlError> {
 /// the process, so that the session, and the capture file with it, is
 /// completed (flushed and closed) before gimbalctl exits, 130 or 143 as a
 /// shell reports a process killed by them. What ends on a signal by itself
-/// keeps doing so: a jog with `--for`/`--hold` (it sends its stop first) and
-/// `watch` on Ctrl-C (a normal end).
+/// keeps doing so: a jog with `--for`/`--hold` (it sends its stop first),
+/// `scan` (it prints what it found so far) and `watch` on Ctrl-C (a normal end).
 async fn run_to_the_end_of_the_capture(cli: &Cli) -> Result<(), CtlError> {
     use tokio::signal::unix::{Signal, SignalKind, signal};
-    let handles_signals = cli.command.jog().is_some_and(|j| j.duration.is_some() || j.hold);
+    // A jog with --for/--hold sends its stop first; a scan prints what it found.
+    let handles_signals =
+        cli.command.jog().is_some_and(|j| j.duration.is_some() || j.hold) || matches!(cli.command, Cmd::Scan(_));
     if cli.global.capture.is_none() || handles_signals {
         return run(cli).await;
     }
@@ -135,7 +139,11 @@ async fn run_to_the_end_of_the_capture(cli: &Cli) -> Result<(), CtlError> {
         _ = interrupted(&mut int) => ("SIGINT", 130),
     };
     // `run` and its session are gone here: the capture file is complete.
-    Err(CtlError::Interrupted(format!("interrupted by {name}"), code))
+    Err(CtlError::Interrupted(
+        format!("interrupted by {name}"),
+        code,
+        Value::Null,
+    ))
 }
 
 async fn run(cli: &Cli) -> Result<(), CtlError> {
@@ -144,7 +152,8 @@ async fn run(cli: &Cli) -> Result<(), CtlError> {
         return scan::scan(g, args).await;
     }
     let to = destination(cli)?;
-    let payload = request::payload(&cli.command)?;
+    let data = request::data(&cli.command)?;
+    let request = request::request(&cli.command, &data)?;
     let wait = cli.command.wait();
     if wait.is_some() && (to.device == 255 || to.port == 255 || to.group == 255) {
         return Err(CtlError::Usage(format!(
@@ -155,21 +164,20 @@ async fn run(cli: &Cli) -> Result<(), CtlError> {
     if let Cmd::Watch { rate, count } = cli.command {
         return watch::watch(&mut session, rate, count, g.json).await;
     }
-    let Some(payload) = payload else {
+    let Some(request) = request else {
         return Err(CtlError::Usage("this subcommand sends nothing".into()));
     };
     if let Some(j) = cli.command.jog().filter(|j| j.duration.is_some() || j.hold) {
-        return jog::run(&mut session, &cli.command, &payload, j, g.json).await;
+        return jog::run(&mut session, &cli.command, &request, j, g.json).await;
     }
-    let command = Command::parse(&payload);
     // A preset's position, known before the recall, is what --wait aims at.
     let target = match wait {
-        Some(_) => Some(motion::target(&mut session, &command).await?),
+        Some(_) => Some(motion::target(&mut session, &request.command).await?),
         None => None,
     };
-    let ex = session.exchange(&payload).await?;
+    let ex = session.exchange(&request.command, &request.payload).await?;
     let raw = matches!(cli.command, Cmd::Raw { .. });
-    let (text, mut value) = report(&session, &cli.command, &payload, &ex, raw)?;
+    let (text, mut value) = report(&session, &cli.command, &request, &ex, raw)?;
     if cli.command.jog().is_some() && session.over_tcp && ex.outcome != Outcome::Broadcast {
         sagebrush_host::errln!(
             "gimbalctl: note: through gcud this motion stops as soon as gimbalctl exits (gcud's dead-man); \
@@ -206,14 +214,19 @@ async fn run(cli: &Cli) -> Result<(), CtlError> {
 }
 
 /// The JSON fields every exchange has: what was asked, what was sent, how it went.
-pub fn exchange_json(session: &Session, cmd: &Cmd, payload: &[u8], ex: &Exchange, outcome: &str) -> Map<String, Value> {
-    let command = Command::parse(payload);
+pub fn exchange_json(
+    session: &Session,
+    cmd: &Cmd,
+    request: &Request<'_>,
+    ex: &Exchange,
+    outcome: &str,
+) -> Map<String, Value> {
     let mut m = Map::new();
     m.insert("ok".into(), true.into());
     m.insert("command".into(), cmd.name().into());
-    m.insert("sent".into(), payload_text(payload).into());
-    m.insert("mnemonic".into(), command.mnemonic().into());
-    if let Value::Object(args) = output::command_json(&command, payload) {
+    m.insert("sent".into(), payload_text(&request.payload).into());
+    m.insert("mnemonic".into(), request.command.mnemonic().into());
+    if let Value::Object(args) = output::command_json(&request.command) {
         for (k, v) in args {
             if k != "name" && k != "mnemonic" {
                 m.insert(k, v);
@@ -232,15 +245,21 @@ pub fn exchange_json(session: &Session, cmd: &Cmd, payload: &[u8], ex: &Exchange
 }
 
 /// The text and JSON of a successful exchange.
-fn report(session: &Session, cmd: &Cmd, payload: &[u8], ex: &Exchange, raw: bool) -> Result<(String, Value), CtlError> {
-    let command = Command::parse(payload);
-    let sent = payload_text(payload);
+fn report(
+    session: &Session,
+    cmd: &Cmd,
+    request: &Request<'_>,
+    ex: &Exchange,
+    raw: bool,
+) -> Result<(String, Value), CtlError> {
+    let command = &request.command;
+    let sent = payload_text(&request.payload);
     let (text, result, outcome) = match &ex.result {
         Some(frame) => {
             let p = frame.frame().payload();
-            match Reply::parse(&command, p) {
+            match Reply::parse(command, p) {
                 Ok(reply) => {
-                    let (t, v) = output::describe(&command, &reply);
+                    let (t, v) = output::describe(command, &reply);
                     (t, v, "result")
                 }
                 Err(_) if raw => (payload_text(p), json!({ "raw": payload_text(p) }), "result"),
@@ -262,9 +281,9 @@ fn report(session: &Session, cmd: &Cmd, payload: &[u8], ex: &Exchange, raw: bool
             Value::Null,
             "broadcast",
         ),
-        None => (output::acknowledged_text(&command, &sent), Value::Null, "acknowledged"),
+        None => (output::acknowledged_text(command, &sent), Value::Null, "acknowledged"),
     };
-    let mut m = exchange_json(session, cmd, payload, ex, outcome);
+    let mut m = exchange_json(session, cmd, request, ex, outcome);
     m.insert("result".into(), result);
     m.insert(
         "result_payload".into(),

@@ -312,104 +312,85 @@ fn parity_name(p: Parity) -> &'static str {
     }
 }
 
-/// A command as typed JSON: `name` (snake_case), `mnemonic` (the spec
-/// table's row) and its arguments with units in their names.
-pub fn command_json(command: &Command<'_>, payload: &[u8]) -> Value {
+/// A command as typed JSON: `name` (the command table's script name,
+/// [`Command::script_name`]), `mnemonic` (the spec table's row) and its
+/// arguments with units in their names.
+pub fn command_json(command: &Command<'_>) -> Value {
     use Command as C;
-    let (name, args) = match command {
-        C::SetDeviceId(id) => ("set_device_id", json!({ "device_id": id.get() })),
-        C::AwakeStatus => ("awake_status", json!({})),
-        C::QueryMaxDataRate => ("query_max_data_rate", json!({})),
-        C::SetDataRate(r) => ("set_data_rate", json!({ "code": r.code(), "bps": r.bits_per_second() })),
-        C::Identify => ("identify", json!({})),
-        C::QueryErrors => ("query_errors", json!({})),
-        C::QueryStatusBits => ("query_status_bits", json!({})),
-        C::SetRateGain(a, g) => (
-            "set_rate_gain",
-            json!({ "axis": axis_name(*a), "gain": f64::from(g.get()) / 10.0 }),
-        ),
-        C::QueryRateGains => ("query_rate_gains", json!({})),
-        C::Initialize => ("initialize", json!({})),
-        C::OpenRelay(r) => ("open_relay", json!({ "relay": r.get() })),
-        C::CloseRelay(r) => ("close_relay", json!({ "relay": r.get() })),
-        C::QueryRelays => ("query_relays", json!({})),
-        C::ClearLimits => ("clear_limits", json!({})),
-        C::SetLimits(l) => (
-            "set_limits",
-            json!({
-                "pan_ccw_raw": l.pan_ccw.get(), "pan_cw_raw": l.pan_cw.get(),
-                "tilt_ccw_raw": l.tilt_ccw.get(), "tilt_cw_raw": l.tilt_cw.get(),
-            }),
-        ),
-        C::QueryLimits => ("query_limits", json!({})),
-        C::SetAcceleration(a, v) => (
-            "set_acceleration",
-            json!({ "axis": axis_name(*a), "accel_deg_s2": v.degrees_per_second_squared() }),
-        ),
-        C::QueryAccelerations => ("query_accelerations", json!({})),
-        C::QueryAcceleration(a) => ("query_acceleration", json!({ "axis": axis_name(*a) })),
-        C::Halt => ("halt", json!({})),
-        C::VerifyHome => ("verify_home", json!({})),
-        C::Home => ("home", json!({ "pan_deg": 0.0, "tilt_deg": 0.0 })),
-        C::Stop => ("motors_stop", json!({})),
-        C::QueryPosition => ("query_position", json!({})),
-        C::GoTo(p) => ("go_to", position_json(p)),
-        C::PanLeft => ("pan_left", json!({})),
-        C::PanRight => ("pan_right", json!({})),
-        C::PanStop => ("pan_stop", json!({})),
-        C::StopMotion => ("stop_motion", json!({})),
-        C::GoToPreset(n) => ("go_to_preset", json!({ "preset": n })),
-        C::QueryPreset(n) => ("query_preset", json!({ "preset": n })),
-        C::SetRate(a, r) => (
-            "set_rate",
-            json!({ "axis": axis_name(*a), "rate_deg_s": r.degrees_per_second() }),
-        ),
-        C::QueryRates => ("query_rates", json!({})),
-        C::QueryRate(a) => ("query_rate", json!({ "axis": axis_name(*a) })),
-        C::StorePreset(n) => ("store_preset", json!({ "preset": n })),
-        C::SetSpeed(a, s) => ("set_speed", json!({ "axis": axis_name(*a), "speed": s.get() })),
-        C::QueryStoredPreset(n) => ("query_stored_preset", json!({ "preset": n })),
-        C::TiltDown => ("tilt_down", json!({})),
-        C::TiltStop => ("tilt_stop", json!({})),
-        C::TiltUp => ("tilt_up", json!({})),
-        C::SetVectorMode(on) => ("set_vector_mode", json!({ "on": on })),
-        C::CameraOn => ("camera_on", json!({})),
-        C::CameraOff => ("camera_off", json!({})),
-        C::FocusSpeed(s) => ("focus_speed", json!({ "speed": s.get() })),
-        C::AutoFocusOn => ("auto_focus_on", json!({})),
-        C::FocusFar => ("focus_far", json!({})),
-        C::FocusNear => ("focus_near", json!({})),
-        C::FocusStop => ("focus_stop", json!({})),
-        C::AutoFocusOff => ("auto_focus_off", json!({})),
-        C::LensGoTo(l) => ("lens_go_to", json!({ "zoom": l.zoom.get(), "focus": l.focus.get() })),
-        C::QueryLens => ("query_lens", json!({})),
-        C::ZoomSpeed(s) => ("zoom_speed", json!({ "speed": s.get() })),
-        C::DigitalZoom(z) => ("digital_zoom", json!({ "step": format!("{:X}", z.get()) })),
-        C::ZoomIn => ("zoom_in", json!({})),
-        C::ZoomOut => ("zoom_out", json!({})),
-        C::ZoomStop => ("zoom_stop", json!({})),
-        C::AuxConfigure(p, c) => (
-            "aux_configure",
-            json!({
-                "aux_port": p.get(), "baud": c.baud(), "data_bits": c.data_bits(),
-                "stop_bits": c.stop_bits(), "parity": parity_name(c.parity()),
-            }),
-        ),
-        C::AuxTransmit(p, _) => (
-            "aux_transmit",
-            json!({ "aux_port": p.get(), "data": payload_text(payload.get(4..).unwrap_or_default()) }),
-        ),
-        C::AuxReceive(p, n) => ("aux_receive", json!({ "aux_port": p.get(), "max_bytes": n.get() })),
-        C::AuxCount(p) => ("aux_count", json!({ "aux_port": p.get() })),
-        C::AuxFlush(p) => ("aux_flush", json!({ "aux_port": p.get() })),
-        C::Extended(ext, arg) => (
-            "extended",
-            json!({ "extended": ext.name(), "argument": payload_text(arg) }),
-        ),
-        C::Unknown(_) => ("unknown", json!({})),
+    let args = match command {
+        C::SetDeviceId(id) => json!({ "device_id": id.get() }),
+        C::SetDataRate(r) => json!({ "code": r.code(), "bps": r.bits_per_second() }),
+        C::SetRateGain(a, g) => json!({ "axis": axis_name(*a), "gain": f64::from(g.get()) / 10.0 }),
+        C::OpenRelay(r) => json!({ "relay": r.get() }),
+        C::CloseRelay(r) => json!({ "relay": r.get() }),
+        C::SetLimits(l) => json!({
+            "pan_ccw_raw": l.pan_ccw.get(), "pan_cw_raw": l.pan_cw.get(),
+            "tilt_ccw_raw": l.tilt_ccw.get(), "tilt_cw_raw": l.tilt_cw.get(),
+        }),
+        C::SetAcceleration(a, v) => json!({ "axis": axis_name(*a), "accel_deg_s2": v.degrees_per_second_squared() }),
+        C::QueryAcceleration(a) => json!({ "axis": axis_name(*a) }),
+        C::Home => json!({ "pan_deg": 0.0, "tilt_deg": 0.0 }),
+        C::GoTo(p) => position_json(p),
+        C::GoToPreset(n) => json!({ "preset": n }),
+        C::QueryPreset(n) => json!({ "preset": n }),
+        C::SetRate(a, r) => json!({ "axis": axis_name(*a), "rate_deg_s": r.degrees_per_second() }),
+        C::QueryRate(a) => json!({ "axis": axis_name(*a) }),
+        C::StorePreset(n) => json!({ "preset": n }),
+        C::SetSpeed(a, s) => json!({ "axis": axis_name(*a), "speed": s.get() }),
+        C::QueryStoredPreset(n) => json!({ "preset": n }),
+        C::SetVectorMode(on) => json!({ "on": on }),
+        C::FocusSpeed(s) => json!({ "speed": s.get() }),
+        C::LensGoTo(l) => json!({ "zoom": l.zoom.get(), "focus": l.focus.get() }),
+        C::ZoomSpeed(s) => json!({ "speed": s.get() }),
+        C::DigitalZoom(z) => json!({ "step": format!("{:X}", z.get()) }),
+        C::AuxConfigure(p, c) => json!({
+            "aux_port": p.get(), "baud": c.baud(), "data_bits": c.data_bits(),
+            "stop_bits": c.stop_bits(), "parity": parity_name(c.parity()),
+        }),
+        C::AuxTransmit(p, data) => json!({ "aux_port": p.get(), "data": payload_text(data.bytes()) }),
+        C::AuxReceive(p, n) => json!({ "aux_port": p.get(), "max_bytes": n.get() }),
+        C::AuxCount(p) => json!({ "aux_port": p.get() }),
+        C::AuxFlush(p) => json!({ "aux_port": p.get() }),
+        C::Extended(ext, arg) => json!({ "extended": ext.name(), "argument": payload_text(arg) }),
+        // No arguments.
+        C::Unknown(_)
+        | C::AwakeStatus
+        | C::QueryMaxDataRate
+        | C::Identify
+        | C::QueryErrors
+        | C::QueryStatusBits
+        | C::QueryRateGains
+        | C::Initialize
+        | C::QueryRelays
+        | C::ClearLimits
+        | C::QueryLimits
+        | C::QueryAccelerations
+        | C::Halt
+        | C::VerifyHome
+        | C::Stop
+        | C::QueryPosition
+        | C::PanLeft
+        | C::PanRight
+        | C::PanStop
+        | C::StopMotion
+        | C::QueryRates
+        | C::TiltDown
+        | C::TiltStop
+        | C::TiltUp
+        | C::CameraOn
+        | C::CameraOff
+        | C::AutoFocusOn
+        | C::FocusFar
+        | C::FocusNear
+        | C::FocusStop
+        | C::AutoFocusOff
+        | C::QueryLens
+        | C::ZoomIn
+        | C::ZoomOut
+        | C::ZoomStop => json!({}),
     };
     let mut m = Map::new();
-    m.insert("name".into(), name.into());
+    m.insert("name".into(), command.script_name().into());
     m.insert("mnemonic".into(), command.mnemonic().into());
     if let Value::Object(args) = args {
         m.extend(args);

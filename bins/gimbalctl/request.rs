@@ -29,9 +29,40 @@ pub fn encode(command: &Command<'_>) -> Result<Vec<u8>, CtlError> {
     Ok(sagebrush_client::client::encode(command)?)
 }
 
-/// The payload a one-exchange subcommand sends; `None` for the subcommands
-/// that are not one exchange (watch, scan, gcud-status, encode, decode).
-pub fn payload(cmd: &Cmd) -> Result<Option<Vec<u8>>, CtlError> {
+/// What a one-exchange subcommand sends: the command it built, handed on
+/// as built (never read back from its bytes), and its payload.
+#[derive(Debug)]
+pub struct Request<'a> {
+    pub command: Command<'a>,
+    pub payload: Vec<u8>,
+}
+
+/// The bytes a subcommand gives as text with `\xNN` escapes (`aux N send`'s
+/// data, `raw`'s payload), which its command borrows; empty for the others.
+pub fn data(cmd: &Cmd) -> Result<Vec<u8>, CtlError> {
+    match cmd {
+        Cmd::Raw { payload } => {
+            let bytes = payload_bytes(payload).map_err(|e| CtlError::Usage(format!("payload {payload:?}: {e}")))?;
+            if bytes.is_empty() || bytes.len() > MAX_PAYLOAD {
+                return Err(CtlError::Usage(format!(
+                    "payload of {} bytes: a frame carries 1..=256",
+                    bytes.len()
+                )));
+            }
+            Ok(bytes)
+        }
+        Cmd::Aux {
+            action: AuxCmd::Send { data },
+            ..
+        } => payload_bytes(data).map_err(|e| CtlError::Usage(format!("data {data:?}: {e}"))),
+        _ => Ok(Vec::new()),
+    }
+}
+
+/// The request of a one-exchange subcommand, its byte arguments in `data`
+/// (from [`data`]); `None` for the subcommands that are not one exchange
+/// (watch, scan, gcud-status, encode, decode).
+pub fn request<'a>(cmd: &Cmd, data: &'a [u8]) -> Result<Option<Request<'a>>, CtlError> {
     use Command as C;
     let command = match cmd {
         Cmd::Position => C::QueryPosition,
@@ -153,30 +184,25 @@ pub fn payload(cmd: &Cmd) -> Result<Option<Vec<u8>>, CtlError> {
             C::SetDataRate(DataRate::from_bits_per_second(*bps).ok_or_else(|| CtlError::Usage(format!("{bps} bit/s")))?)
         }
         Cmd::SetAddress { id } => C::SetDeviceId(range("device ID", DeviceId::new(*id))?),
-        Cmd::Aux { port, action } => {
-            let port = range("auxiliary port", AuxPort::new(*port))?;
-            return aux(port, action).map(Some);
-        }
-        Cmd::Raw { payload } => {
-            let bytes = payload_bytes(payload).map_err(|e| CtlError::Usage(format!("payload {payload:?}: {e}")))?;
-            if bytes.is_empty() || bytes.len() > MAX_PAYLOAD {
-                return Err(CtlError::Usage(format!(
-                    "payload of {} bytes: a frame carries 1..=256",
-                    bytes.len()
-                )));
-            }
-            return Ok(Some(bytes));
+        Cmd::Aux { port, action } => aux(range("auxiliary port", AuxPort::new(*port))?, action, data)?,
+        Cmd::Raw { .. } => {
+            // Bytes the user gave, sent as they are: what they say is read once, here.
+            return Ok(Some(Request {
+                command: C::parse(data),
+                payload: data.to_vec(),
+            }));
         }
         Cmd::Watch { .. } | Cmd::Scan(_) | Cmd::GcudStatus { .. } | Cmd::Encode { .. } | Cmd::Decode { .. } => {
             return Ok(None);
         }
     };
-    encode(&command).map(Some)
+    let payload = encode(&command)?;
+    Ok(Some(Request { command, payload }))
 }
 
-fn aux(port: AuxPort, action: &AuxCmd) -> Result<Vec<u8>, CtlError> {
+fn aux<'a>(port: AuxPort, action: &AuxCmd, data: &'a [u8]) -> Result<Command<'a>, CtlError> {
     use Command as C;
-    match action {
+    Ok(match action {
         AuxCmd::Configure {
             baud,
             data_bits,
@@ -192,14 +218,66 @@ fn aux(port: AuxPort, action: &AuxCmd) -> Result<Vec<u8>, CtlError> {
                 "auxiliary port settings",
                 AuxConfig::new(*baud, *data_bits, *stop_bits, parity),
             )?;
-            encode(&C::AuxConfigure(port, config))
+            C::AuxConfigure(port, config)
         }
-        AuxCmd::Send { data } => {
-            let bytes = payload_bytes(data).map_err(|e| CtlError::Usage(format!("data {data:?}: {e}")))?;
-            encode(&C::AuxTransmit(port, range("data", AuxBytes::new(&bytes))?))
+        AuxCmd::Send { .. } => C::AuxTransmit(port, range("data", AuxBytes::new(data))?),
+        AuxCmd::Read { max } => C::AuxReceive(port, range("read length", AuxReadLen::new(*max))?),
+        AuxCmd::Count => C::AuxCount(port),
+        AuxCmd::Flush => C::AuxFlush(port),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Commands are read once (issue 23): gimbalctl hands on the command it
+    /// built. Bytes are read as a command only where they come from the user
+    /// (`raw` here; `encode` and `decode` in codec.rs), never the encoding
+    /// of a command built a moment before.
+    #[test]
+    fn no_module_reads_back_a_command_it_built() {
+        let modules = [
+            ("main.rs", include_str!("main.rs")),
+            ("jog.rs", include_str!("jog.rs")),
+            ("motion.rs", include_str!("motion.rs")),
+            ("output.rs", include_str!("output.rs")),
+            ("scan.rs", include_str!("scan.rs")),
+            ("session.rs", include_str!("session.rs")),
+            ("watch.rs", include_str!("watch.rs")),
+        ];
+        for (name, text) in modules {
+            for call in ["Command::parse(", "Command::parse_strict(", "C::parse("] {
+                assert!(
+                    !text.contains(call),
+                    "{name} reads a command back from bytes ({call}...)"
+                );
+            }
         }
-        AuxCmd::Read { max } => encode(&C::AuxReceive(port, range("read length", AuxReadLen::new(*max))?)),
-        AuxCmd::Count => encode(&C::AuxCount(port)),
-        AuxCmd::Flush => encode(&C::AuxFlush(port)),
+        let this = include_str!("request.rs");
+        let code = this.split("#[cfg(test)]").next().unwrap_or_default();
+        assert_eq!(
+            code.matches("C::parse(").count(),
+            1,
+            "request.rs reads bytes only for `raw`"
+        );
+    }
+
+    /// The request carries the command as built, and its encoding.
+    #[test]
+    fn a_request_is_the_built_command_and_its_payload() {
+        use crate::cli::Cli;
+        use clap::Parser;
+        for (args, sent) in [
+            (&["gimbalctl", "speed", "pan", "8"][..], "SP8"),
+            (&["gimbalctl", "aux", "1", "send", "hi\\x01"], "*x1thi\u{1}"),
+            (&["gimbalctl", "raw", "P?"], "P?"),
+        ] {
+            let cli = Cli::try_parse_from(args).unwrap();
+            let data = data(&cli.command).unwrap();
+            let request = request(&cli.command, &data).unwrap().unwrap();
+            assert_eq!(String::from_utf8_lossy(&request.payload), sent, "{args:?}");
+            assert_eq!(encode(&request.command).unwrap(), request.payload, "{args:?}");
+        }
     }
 }

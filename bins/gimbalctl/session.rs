@@ -105,10 +105,11 @@ impl Session {
         })
     }
 
-    /// One exchange of `payload`; failures become errors naming the device,
-    /// the command and what happened ([`CommandError`]).
-    pub async fn exchange(&mut self, payload: &[u8]) -> Result<Exchange, CtlError> {
-        Ok(self.client.exchange(self.to, payload).await?)
+    /// One exchange of `command`, whose payload is `payload` (its encoding,
+    /// not read again); failures become errors naming the device, the
+    /// command and what happened ([`CommandError`]).
+    pub async fn exchange(&mut self, command: &Command<'_>, payload: &[u8]) -> Result<Exchange, CtlError> {
+        Ok(self.client.exchange_command(self.to, command, payload).await?)
     }
 
     /// The source group the commands carry (`--from`).

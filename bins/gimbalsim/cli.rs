@@ -116,8 +116,9 @@ pub struct Cli {
     #[arg(long)]
     pub max_faults: Option<u64>,
 
-    /// Log filter (RUST_LOG syntax); RUST_LOG wins when set.
-    #[arg(long, default_value = "info")]
+    /// Log filter (RUST_LOG syntax); RUST_LOG wins when set. The default shows every frame
+    /// (the bus's frame lines are DEBUG, so that gcud's simulated ports keep them out of INFO).
+    #[arg(long, default_value = "info,sagebrush_sim=debug")]
     pub log: String,
     /// Log as JSON lines.
     #[arg(long)]

@@ -86,7 +86,9 @@ impl DemoGcud {
              [[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n",
             dir.path().join("no-such-tty").display()
         );
-        let child = super::spawn_gcud(dir.path(), &config);
+        // The router's DEBUG lines too: accepted connections going up and down.
+        let filter = format!("{},gcud::daemon=debug", super::GCUD_LOG);
+        let child = super::spawn_gcud_logging(dir.path(), &config, Some(&filter));
         let mut gcud = Self {
             child,
             dir,

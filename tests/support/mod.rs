@@ -30,16 +30,31 @@ pub fn gimbalsim_bin() -> &'static str {
     env!("CARGO_BIN_EXE_gimbalsim")
 }
 
+/// gcud's log filter in the tests: INFO (the daemon's life), plus the DEBUG
+/// lines the helpers read: the simulated gimbals' frames
+/// ([`frames_received`]) and accepted connections coming and going
+/// (`client connected`, `link closed`).
+pub const GCUD_LOG: &str = "info,sagebrush_sim::bus=debug,gcud::io=debug";
+
 /// Writes `config` to `dir/gcud.toml` and starts the real gcud on it,
-/// its log (`RUST_LOG=info`) going to `dir/gcud.log`.
+/// its log ([`GCUD_LOG`]) going to `dir/gcud.log`.
 pub fn spawn_gcud(dir: &Path, config: &str) -> Child {
+    spawn_gcud_logging(dir, config, Some(GCUD_LOG))
+}
+
+/// [`spawn_gcud`] with `RUST_LOG` set to `filter`, or unset (the
+/// configuration's `[log] level` applies) for `None`.
+pub fn spawn_gcud_logging(dir: &Path, config: &str, filter: Option<&str>) -> Child {
     let path = dir.join("gcud.toml");
     std::fs::write(&path, config).expect("write config");
     let log = std::fs::File::create(dir.join("gcud.log")).expect("log file");
-    Command::new(env!("CARGO_BIN_EXE_gcud"))
-        .arg("--config")
+    let mut gcud = Command::new(env!("CARGO_BIN_EXE_gcud"));
+    match filter {
+        Some(filter) => gcud.env("RUST_LOG", filter),
+        None => gcud.env_remove("RUST_LOG"),
+    };
+    gcud.arg("--config")
         .arg(&path)
-        .env("RUST_LOG", "info")
         .stdout(Stdio::null())
         .stderr(Stdio::from(log))
         .spawn()

@@ -99,14 +99,24 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Client<S> {
         &mut self.master
     }
 
-    /// One exchange of `payload` with `to`; every outcome but an ACK, a
-    /// result or a broadcast is an error naming the device, the command and
-    /// what happened.
+    /// One exchange of `payload` (bytes from elsewhere: read once here)
+    /// with `to`; see [`Client::exchange_command`].
     pub async fn exchange(&mut self, to: Address, payload: &[u8]) -> Result<Exchange, CommandError> {
+        self.exchange_command(to, &Command::parse(payload), payload).await
+    }
+
+    /// One exchange of `command`, whose payload is `payload` (its encoding,
+    /// not read again), with `to`; every outcome but an ACK, a result or a
+    /// broadcast is an error naming the device, the command and what happened.
+    pub async fn exchange_command(
+        &mut self,
+        to: Address,
+        command: &Command<'_>,
+        payload: &[u8],
+    ) -> Result<Exchange, CommandError> {
         let frame = FrameBuf::new(to, self.from, payload).map_err(|e| CommandError::Usage(format!("payload: {e}")))?;
-        let command = Command::parse(payload);
-        let ex = self.master.transact(&frame, &command).await?;
-        let what = format!("{} ({})", payload_text(payload), command.mnemonic());
+        let ex = self.master.transact(&frame, command).await?;
+        let what = command_named(payload, command);
         let policy = *self.master.policy();
         if let Some(report) = ex.undelivered {
             let failure = report.failure.unwrap_or(Undelivered::NotConfirmed);
@@ -146,7 +156,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Client<S> {
     /// Sends `command` to `to`; done when it is acknowledged (or answered).
     pub async fn send(&mut self, to: Address, command: &Command<'_>) -> Result<Exchange, CommandError> {
         let payload = encode(command)?;
-        self.exchange(to, &payload).await
+        self.exchange_command(to, command, &payload).await
     }
 
     /// A query: its result payload.
@@ -170,6 +180,16 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Client<S> {
     /// Where the gimbal at `to` points now (`P?`).
     pub async fn position(&mut self, to: Address) -> Result<Position, CommandError> {
         self.query_position(to, &Command::QueryPosition).await
+    }
+}
+
+/// How an error names a command: as sent (`P?`), once; with its spec row's
+/// mnemonic when that says more (`SP8 (SPn)`).
+fn command_named(payload: &[u8], command: &Command<'_>) -> String {
+    let sent = payload_text(payload);
+    match command.mnemonic() {
+        m if m == sent || m.is_empty() => sent,
+        m => format!("{sent} ({m})"),
     }
 }
 

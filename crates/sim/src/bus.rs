@@ -453,7 +453,7 @@ fn corrupt_frame(frame: &mut [u8], faults: &mut Faults) {
 
 fn log_frame(what: &'static str, frame: &Frame<'_>) {
     let command = Command::parse(frame.payload());
-    info!(
+    debug!(
         dest = %frame.dest,
         source = frame.source,
         payload = %String::from_utf8_lossy(frame.payload()).escape_debug(),
@@ -466,16 +466,16 @@ fn log_outgoing(out: &Outgoing) {
     match out.bytes.as_slice() {
         [] => {}
         [ACK] => debug!("tx ACK"),
-        [NAK] => info!("tx NAK"),
-        [NIC] => info!("tx NIC"),
+        [NAK] => debug!("tx NAK"),
+        [NIC] => debug!("tx NIC"),
         bytes => match Frame::parse(bytes) {
-            Ok((frame, _)) => info!(
+            Ok((frame, _)) => debug!(
                 dest = %frame.dest,
                 source = frame.source,
                 payload = %String::from_utf8_lossy(frame.payload()).escape_debug(),
                 "tx result"
             ),
-            Err(_) => info!(bytes = ?bytes, "tx damaged bytes"),
+            Err(_) => debug!(bytes = ?bytes, "tx damaged bytes"),
         },
     }
     if let Some(rate) = out.switch_to {
