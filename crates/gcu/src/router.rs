@@ -27,7 +27,6 @@ use crate::types::{Action, CommandId, CommandOutcome, DropReason, Input, LinkId,
 /// port; a port-255 command has one per configured port).
 #[derive(Debug)]
 struct Progress {
-    origin: Origin,
     remaining: usize,
     results: usize,
     nics: usize,
@@ -41,9 +40,8 @@ struct Progress {
 }
 
 impl Progress {
-    fn new(origin: Origin, jobs: usize) -> Self {
+    fn new(jobs: usize) -> Self {
         Self {
-            origin,
             remaining: jobs,
             results: 0,
             nics: 0,
@@ -88,15 +86,41 @@ impl Progress {
     }
 }
 
-/// A link's command whose origin has not yet been told whether it was
-/// delivered (ARCHITECTURE "Delivery contract").
+/// One command in flight, from its acceptance until it finished and its
+/// origin was told whether it was delivered: everything the router keeps
+/// about it, under its id.
 #[derive(Debug)]
-struct Awaiting {
-    link: LinkId,
-    /// A client link: the answer is the withheld ACK, or a report when undelivered.
-    client: bool,
+struct InFlight {
+    origin: Origin,
+    /// The command frame as accepted (a report names its checksum; a
+    /// client's retransmission is byte-identical).
     frame: FrameBuf,
     command: &'static str,
+    /// Its origin link has not yet been told whether it was delivered
+    /// (ARCHITECTURE "Delivery contract").
+    delivery: Option<Delivery>,
+    /// Executed on local ports: its jobs, until they all ended.
+    jobs: Option<Progress>,
+    /// A stop the GCU issued itself: the link whose motion it ends, and
+    /// which round of sending it this is (module-level `DEAD_MAN_ROUNDS`).
+    dead_man: Option<(LinkId, u8)>,
+    /// Its [`RouterEvent::Finished`] was sent.
+    finished: bool,
+}
+
+impl InFlight {
+    /// Nothing is left to do or tell about it.
+    fn done(&self) -> bool {
+        self.finished && self.delivery.is_none()
+    }
+}
+
+/// What the origin link of a command in flight awaits.
+#[derive(Clone, Copy, Debug)]
+struct Delivery {
+    /// A client link: the answer is the withheld ACK, or a report when
+    /// undelivered; a link to another GCU gets a report either way.
+    client: bool,
     /// When a client must be told at the latest (`delivery_timeout`).
     deadline: Option<u64>,
 }
@@ -117,11 +141,8 @@ pub struct Router {
     routes: RoutingTable,
     reverse: ReversePath,
     deadman: DeadMan,
-    commands: ById<Progress>,
-    /// Dead-man stops in progress: the stop, the link it is for, its round.
-    dead_man_rounds: ById<DeadManRound>,
-    /// Links' commands whose origin awaits the delivery outcome.
-    awaiting: ById<Awaiting>,
+    /// Commands in flight, by id.
+    in_flight: ById<InFlight>,
     /// [`Input::Shutdown`] came: new commands are refused.
     stopping: bool,
     /// New configurations of ports that are closing (reconfigured).
@@ -152,10 +173,6 @@ enum StopCause {
 /// router gives up on a device that never acknowledges it.
 const DEAD_MAN_ROUNDS: u8 = 5;
 
-/// A stop the GCU issued itself: the stop, the link whose motion it ends,
-/// and which round of sending it this is.
-type DeadManRound = (Box<FrameBuf>, LinkId, u8);
-
 /// Scratch vectors kept for reuse, per kind (calls nest a few deep).
 const SCRATCH_KEPT: usize = 4;
 
@@ -173,9 +190,7 @@ impl Router {
                 (u64::from(config.links.retries) + 1) * config.links.ack_timeout,
             ),
             deadman: DeadMan::default(),
-            commands: ById::new(),
-            dead_man_rounds: ById::new(),
-            awaiting: ById::new(),
+            in_flight: ById::new(),
             stopping: false,
             replacements: BTreeMap::new(),
             next_id: 0,
@@ -263,14 +278,14 @@ impl Router {
             .chain(links)
             .chain(self.reverse.next_deadline())
             .chain(self.deadman.next_deadline())
-            .chain(self.awaiting.values().filter_map(|a| a.deadline))
+            .chain(self.in_flight.values().filter_map(|c| c.delivery?.deadline))
             .min()
     }
 
     /// A snapshot of every counter.
     pub fn stats(&self) -> Stats {
         let mut router = self.stats;
-        router.in_progress = self.commands.len() as u64;
+        router.in_progress = self.in_progress() as u64;
         let links = self.links.iter().map(|(&id, l)| (id, l.stats)).collect();
         Stats {
             router,
@@ -296,7 +311,7 @@ impl Router {
 
     /// Commands accepted and not yet finished.
     pub fn in_progress(&self) -> usize {
-        self.commands.len()
+        self.in_flight.values().filter(|c| c.jobs.is_some()).count()
     }
 
     /// Forwarded commands still owed a delivery report or a result (what
@@ -422,9 +437,9 @@ impl Router {
             self.resolve(now, id, Err(failure), self.group, out);
         }
         let overdue: Vec<CommandId> = self
-            .awaiting
+            .in_flight
             .iter()
-            .filter(|(_, a)| a.deadline.is_some_and(|t| now >= t))
+            .filter(|(_, c)| c.delivery.and_then(|d| d.deadline).is_some_and(|t| now >= t))
             .map(|(&id, _)| id)
             .collect();
         for id in overdue {
@@ -481,7 +496,7 @@ impl Router {
                 PortOut::Relay { id, origin, reply } => self.relay_result(now, port, id, origin, reply, out),
                 PortOut::Delivered { id } => self.resolve(now, id, Ok(()), self.group, out),
                 PortOut::Undelivered { id, failure } => {
-                    if let Some(p) = self.commands.get_mut(&id) {
+                    if let Some(p) = self.jobs_of(id) {
                         p.failure = Some(failure);
                     }
                 }
@@ -499,32 +514,65 @@ impl Router {
                 LinkOut::Write(wire) => out.write_link(link, &wire),
                 LinkOut::FirstSent(key) => self.reverse.sent(key, now, &self.in_force),
                 LinkOut::Resent(key) => self.reverse.resent(key),
-                LinkOut::Failed(item, reason) => {
-                    if let Some(key) = item.pending {
-                        // Transmitted: the next GCU may have it and execute it.
-                        let settled = self.reverse.command_of(key);
-                        self.reverse.cancel(key);
-                        if let Some((id, transmitted)) = settled {
-                            let failure = match transmitted {
-                                true => Undelivered::NotConfirmed,
-                                false => reason.undelivered(),
-                            };
-                            self.resolve(now, id, Err(failure), self.group, out);
-                        }
-                    }
-                    let f = item.frame.frame();
-                    out.push(Action::Event(RouterEvent::Dropped {
-                        reason,
-                        at: Place::Link(link),
-                        dest: f.dest,
-                        source: f.source,
-                    }));
-                }
+                LinkOut::Failed(item, reason) => self.dropped_on_link(now, link, &item, reason, out),
             }
         }
         if self.link_scratch.len() < SCRATCH_KEPT {
             self.link_scratch.push(outs);
         }
+    }
+
+    /// A frame `link` dropped (it went down, or gave up on the frame): a
+    /// forwarded command's origin is told, once. Transmitted, the next GCU
+    /// may have it and execute it: not confirmed.
+    fn dropped_on_link(&mut self, now: u64, link: LinkId, item: &Outgoing, reason: DropReason, out: &mut Outbox) {
+        if let Some(key) = item.pending {
+            let settled = self.reverse.command_of(key);
+            self.reverse.cancel(key);
+            if let Some((id, transmitted)) = settled {
+                let failure = match transmitted {
+                    true => Undelivered::NotConfirmed,
+                    false => reason.undelivered(),
+                };
+                self.resolve(now, id, Err(failure), self.group, out);
+            }
+        }
+        let f = item.frame.frame();
+        out.push(Action::Event(RouterEvent::Dropped {
+            reason,
+            at: Place::Link(link),
+            dest: f.dest,
+            source: f.source,
+        }));
+    }
+
+    /// Forwards `frame` on `link` with a reverse-path entry: `back` is where
+    /// its answers go back to (its origin) and the command whose delivery
+    /// the next GCU's report decides, if any. A full reverse path forgets an
+    /// entry first; a command it still owed a report is not confirmed.
+    fn forward(
+        &mut self,
+        now: u64,
+        link: LinkId,
+        frame: &FrameBuf,
+        forwarded: Forwarded,
+        back: (Origin, Option<CommandId>),
+        out: &mut Outbox,
+    ) -> Result<(), DropReason> {
+        let (origin, settles) = back;
+        let f = frame.frame();
+        let (key, evicted) = self.reverse.insert(link, origin, &f, forwarded, settles);
+        if let Some(unreported) = evicted {
+            self.drop_frame(DropReason::PendingFull, Place::Router, f.dest, f.source, out);
+            if let Some(old) = unreported {
+                self.resolve(now, old, Err(Undelivered::NotConfirmed), self.group, out);
+            }
+        }
+        let sent = self.send_on_link(now, link, frame.clone(), Some(key), origin == Origin::Internal, out);
+        if sent.is_err() {
+            self.reverse.cancel(key);
+        }
+        sent
     }
 
     /// Queues `frame` on `link`.
@@ -577,8 +625,16 @@ impl Router {
     /// (whose frame was ACKed hop by hop) gets a report either way.
     /// `at_group`: the GCU where delivery failed.
     fn resolve(&mut self, now: u64, id: CommandId, delivery: Result<(), Undelivered>, at_group: u8, out: &mut Outbox) {
-        let Some(a) = self.awaiting.remove(&id) else { return };
-        let f = a.frame.frame();
+        let Some(c) = self.in_flight.get_mut(&id) else { return };
+        // Only a link's command awaits its delivery outcome.
+        let (Some(awaited), Origin::Link { link, .. }) = (c.delivery.take(), c.origin) else {
+            return;
+        };
+        let (frame, command) = (c.frame.clone(), c.command);
+        if c.done() {
+            self.in_flight.remove(&id);
+        }
+        let f = frame.frame();
         match delivery {
             Ok(()) => {
                 self.stats.delivered += 1;
@@ -588,25 +644,17 @@ impl Router {
                 self.stats.undelivered.add(failure);
                 out.push(Action::Event(RouterEvent::Undelivered {
                     id,
-                    origin: Origin::Link {
-                        link: a.link,
-                        source: f.source,
-                    },
+                    origin: Origin::Link { link, source: f.source },
                     dest: f.dest,
-                    command: a.command,
+                    command,
                     failure,
                 }));
             }
         }
-        if a.client && delivery.is_ok() {
-            if let Some(l) = self.links.get_mut(&a.link) {
-                let mut lo = self.link_scratch.pop().unwrap_or_default();
-                l.ack(&mut lo);
-                self.link_outs(now, a.link, lo, out);
-            }
-            return;
+        if awaited.client && delivery.is_ok() {
+            return self.ack(now, link, out);
         }
-        self.report(now, a.link, &f, delivery.err(), at_group, out);
+        self.report(now, link, &f, delivery.err(), at_group, out);
     }
 
     /// A client's delivery time-out passed: jobs still queued are given up
@@ -623,7 +671,7 @@ impl Router {
             }
             self.port_outs(now, port, po, out);
         }
-        let still_running = self.commands.contains_key(&id) || !cancelled;
+        let still_running = self.jobs_of(id).is_some() || !cancelled;
         let failure = match still_running {
             true => Undelivered::NotConfirmed,
             false => Undelivered::Expired,
@@ -661,8 +709,16 @@ impl Router {
         id
     }
 
+    /// Command `id` ended (its one [`RouterEvent::Finished`]); its record
+    /// stays while its origin still awaits the delivery outcome.
     fn finish(&mut self, id: CommandId, outcome: CommandOutcome, out: &mut Outbox) {
-        self.dead_man_rounds.remove(&id);
+        if let Some(c) = self.in_flight.get_mut(&id) {
+            c.finished = true;
+            c.dead_man = None;
+            if c.done() {
+                self.in_flight.remove(&id);
+            }
+        }
         self.stats.count(outcome);
         out.push(Action::Event(RouterEvent::Finished { id, outcome }));
     }
@@ -681,7 +737,7 @@ impl Router {
     ) {
         let Origin::Link { link, source } = origin else {
             // The router's own command: the answer is taken, not relayed.
-            if let Some(p) = self.commands.get_mut(&id) {
+            if let Some(p) = self.jobs_of(id) {
                 p.results += 1;
             }
             return;
@@ -696,7 +752,7 @@ impl Router {
             true => self.send_on_link(now, link, reply, None, false, out),
             false => Err(DropReason::OriginGone),
         };
-        let progress = self.commands.get_mut(&id);
+        let progress = self.in_flight.get_mut(&id).and_then(|c| c.jobs.as_mut());
         match sent {
             Ok(()) => {
                 self.stats.results_relayed += 1;
@@ -714,7 +770,7 @@ impl Router {
     }
 
     fn job_finished(&mut self, now: u64, id: CommandId, outcome: CommandOutcome, out: &mut Outbox) {
-        let Some(p) = self.commands.get_mut(&id) else { return };
+        let Some(p) = self.jobs_of(id) else { return };
         match outcome {
             CommandOutcome::Result | CommandOutcome::Forwarded(_) => {}
             CommandOutcome::Nic => p.nics += 1,
@@ -727,30 +783,36 @@ impl Router {
         if p.remaining > 0 {
             return;
         }
-        let Some(p) = self.commands.remove(&id) else { return };
+        let Some(c) = self.in_flight.get_mut(&id) else { return };
+        let Some(p) = c.jobs.take() else { return };
+        let (origin, dead_man) = (c.origin, c.dead_man);
         let mut outcome = p.outcome();
         self.resolve(now, id, p.delivery(outcome), self.group, out);
         if outcome == CommandOutcome::Nic {
-            if let Err(reason) = self.nic_to(now, p.origin, out) {
+            if let Err(reason) = self.nic_to(now, origin, out) {
                 outcome = CommandOutcome::Dropped(reason);
             }
         }
-        let dead_man = self.dead_man_rounds.remove(&id);
-        self.finish(id, outcome, out);
         // A safety stop that no device acknowledged is sent again: the
         // motion it ends goes on until one does.
-        if let Some((frame, link, round)) = dead_man {
-            if outcome == CommandOutcome::Unreachable && round < DEAD_MAN_ROUNDS {
-                let f = frame.frame();
-                out.push(Action::Event(RouterEvent::DeadManStop {
-                    link,
-                    dest: f.dest,
-                    stop: Command::parse(f.payload()).mnemonic(),
-                }));
-                let again = (frame.clone(), link, round + 1);
-                self.dispatch(now, Origin::Internal, None, *frame, Some(again), out);
-            }
+        let again = match dead_man {
+            Some((link, round)) if outcome == CommandOutcome::Unreachable && round < DEAD_MAN_ROUNDS => self
+                .in_flight
+                .get_mut(&id)
+                .map(|c| (c.frame.clone(), c.command, link, round + 1)),
+            _ => None,
+        };
+        self.finish(id, outcome, out);
+        if let Some((frame, stop, link, round)) = again {
+            let dest = frame.frame().dest;
+            out.push(Action::Event(RouterEvent::DeadManStop { link, dest, stop }));
+            self.dispatch(now, Origin::Internal, None, frame, Some((link, round)), out);
         }
+    }
+
+    /// The jobs of command `id` on local ports, while they run.
+    fn jobs_of(&mut self, id: CommandId) -> Option<&mut Progress> {
+        self.in_flight.get_mut(&id)?.jobs.as_mut()
     }
 
     /// Routes what a link received; the vector goes back to the scratch pool.
@@ -853,8 +915,11 @@ impl Router {
             AnswerMatch::None => {}
         }
         if client {
-            let repeat =
-                self.awaiting.values().any(|a| a.link == link && a.frame == frame) || self.report_on_its_way(link, &f);
+            let repeat = self
+                .in_flight
+                .values()
+                .any(|c| c.delivery.is_some() && c.origin.link() == Some(link) && c.frame == frame)
+                || self.report_on_its_way(link, &f);
             if repeat {
                 if let Some(l) = self.links.get_mut(&link) {
                     l.stats.repeats += 1;
@@ -917,13 +982,26 @@ impl Router {
         origin: Origin,
         kind: Option<LinkKind>,
         frame: FrameBuf,
-        dead_man: Option<DeadManRound>,
+        dead_man: Option<(LinkId, u8)>,
         out: &mut Outbox,
     ) -> CommandId {
         let id = self.next_command_id();
-        if let Some(round) = dead_man {
-            self.dead_man_rounds.insert(id, round);
-        }
+        let client = kind == Some(LinkKind::Client);
+        self.in_flight.insert(
+            id,
+            InFlight {
+                origin,
+                command: Command::parse(frame.frame().payload()).mnemonic(),
+                frame: frame.clone(),
+                delivery: origin.link().map(|_| Delivery {
+                    client,
+                    deadline: client.then(|| now.saturating_add(self.settings.delivery_timeout)),
+                }),
+                jobs: None,
+                dead_man,
+                finished: false,
+            },
+        );
         self.route_command(now, id, origin, kind, frame, out);
         id
     }
@@ -949,17 +1027,6 @@ impl Router {
             command: command.mnemonic(),
         }));
         if let Origin::Link { link, .. } = origin {
-            self.awaiting.insert(
-                id,
-                Awaiting {
-                    link,
-                    client: kind == Some(LinkKind::Client),
-                    frame: frame.clone(),
-                    command: command.mnemonic(),
-                    deadline: (kind == Some(LinkKind::Client))
-                        .then(|| now.saturating_add(self.settings.delivery_timeout)),
-                },
-            );
             if self.stopping {
                 self.drop_frame(DropReason::ShuttingDown, Place::Router, dest, f.source, out);
                 self.finish(id, CommandOutcome::Dropped(DropReason::ShuttingDown), out);
@@ -992,24 +1059,12 @@ impl Router {
                 Ok(next)
             }
         });
-        let outcome = match route {
-            Ok(next) => {
-                let settles = origin.link().map(|_| id);
-                let (key, evicted) = self.reverse.insert(next, origin, &f, forwarded, settles);
-                if let Some(unreported) = evicted {
-                    self.drop_frame(DropReason::PendingFull, Place::Router, dest, f.source, out);
-                    if let Some(old) = unreported {
-                        self.resolve(now, old, Err(Undelivered::NotConfirmed), self.group, out);
-                    }
-                }
-                match self.send_on_link(now, next, frame.clone(), Some(key), origin == Origin::Internal, out) {
-                    Ok(()) => CommandOutcome::Forwarded(next),
-                    Err(reason) => {
-                        self.reverse.cancel(key);
-                        CommandOutcome::Dropped(reason)
-                    }
-                }
-            }
+        let settles = origin.link().map(|_| id);
+        let outcome = match route.and_then(|next| {
+            self.forward(now, next, &frame, forwarded, (origin, settles), out)
+                .map(|()| next)
+        }) {
+            Ok(next) => CommandOutcome::Forwarded(next),
             Err(reason) => CommandOutcome::Dropped(reason),
         };
         if let CommandOutcome::Dropped(reason) = outcome {
@@ -1031,19 +1086,9 @@ impl Router {
             .collect();
         let f = frame.frame();
         for link in targets {
-            let (key, evicted) = self.reverse.insert(link, origin, &f, forwarded, None);
-            if let Some(unreported) = evicted {
-                self.drop_frame(DropReason::PendingFull, Place::Router, f.dest, f.source, out);
-                if let Some(old) = unreported {
-                    self.resolve(now, old, Err(Undelivered::NotConfirmed), self.group, out);
-                }
-            }
-            match self.send_on_link(now, link, frame.clone(), Some(key), origin == Origin::Internal, out) {
+            match self.forward(now, link, frame, forwarded, (origin, None), out) {
                 Ok(()) => self.stats.flooded += 1,
-                Err(reason) => {
-                    self.reverse.cancel(key);
-                    self.drop_frame(reason, Place::Link(link), f.dest, f.source, out);
-                }
+                Err(reason) => self.drop_frame(reason, Place::Link(link), f.dest, f.source, out),
             }
         }
     }
@@ -1093,7 +1138,9 @@ impl Router {
             self.resolve(now, id, Err(Undelivered::NoSuchPort), self.group, out);
             return self.finish(id, CommandOutcome::Dropped(DropReason::UnknownPort), out);
         }
-        self.commands.insert(id, Progress::new(origin, targets));
+        if let Some(c) = self.in_flight.get_mut(&id) {
+            c.jobs = Some(Progress::new(targets));
+        }
         let mut after = None;
         while let Some(port) = match one {
             Some(port) => (after.is_none()).then_some(port),
@@ -1113,24 +1160,7 @@ impl Router {
             return;
         };
         for item in l.shut_down() {
-            if let Some(key) = item.pending {
-                let settled = self.reverse.command_of(key);
-                self.reverse.cancel(key);
-                if let Some((id, transmitted)) = settled {
-                    let failure = match transmitted {
-                        true => Undelivered::NotConfirmed,
-                        false => Undelivered::LinkDown,
-                    };
-                    self.resolve(now, id, Err(failure), self.group, out);
-                }
-            }
-            let f = item.frame.frame();
-            out.push(Action::Event(RouterEvent::Dropped {
-                reason: DropReason::LinkDown,
-                at: Place::Link(link),
-                dest: f.dest,
-                source: f.source,
-            }));
+            self.dropped_on_link(now, link, &item, DropReason::LinkDown, out);
         }
         out.push(Action::LinkGone {
             link,
@@ -1138,7 +1168,12 @@ impl Router {
         });
         self.routes.forget(link);
         // Nobody is left to tell whether these were delivered.
-        self.awaiting.retain(|_, a| a.link != link);
+        self.in_flight.retain(|_, c| {
+            if c.origin.link() == Some(link) {
+                c.delivery = None;
+            }
+            !c.done()
+        });
         out.push(Action::Event(RouterEvent::LinkState { link, up: false }));
         let ports: Vec<u8> = self.ports.keys().copied().collect();
         for port in ports {
@@ -1201,8 +1236,7 @@ impl Router {
         let Ok(frame) = FrameBuf::build(dest, self.group, |buf| stop.encode(buf).map(<[u8]>::len)) else {
             return;
         };
-        let round = (Box::new(frame.clone()), link, 1);
-        self.dispatch(now, Origin::Internal, None, frame, Some(round), out);
+        self.dispatch(now, Origin::Internal, None, frame, Some((link, 1)), out);
     }
 }
 
