@@ -57,7 +57,7 @@
 //!   crate's `Transmitter` on NAK or ACK time-out, up to the configured count
 //!   (one unacknowledged frame per link at a time).
 //! - **Routing** (module `routing`): destination group G or 255 -> port 0 is the
-//!   GCU itself (module `local`: `AW`, `D?`, NIC otherwise), ports 1..=254 one
+//!   GCU itself (module `router::self_answer`: `AW`, `D?`, NIC otherwise), ports 1..=254 one
 //!   port (unknown: dropped, [`DropReason::UnknownPort`]), port 255 every
 //!   port. Group 255 from an upstream or client link is also flooded to every
 //!   downstream link, never back to its origin. Other groups: static route,
@@ -128,12 +128,12 @@
 //! prints its seed and the command replaying it with a trace
 //! (`GCU_SIM_SEED=<seed> ... -- --nocapture`).
 
+mod boundary;
 mod by_id;
 mod config;
 mod deadman;
 mod line;
 mod link;
-mod local;
 mod outbox;
 mod port;
 mod queue;
@@ -143,10 +143,11 @@ mod routing;
 mod stats;
 mod types;
 
+pub use boundary::{Action, Input};
 pub use config::{ConfigError, LinkConfig, LinkKind, LinkSettings, PortConfig, RouterConfig, SourceFilter};
 pub use outbox::Outbox;
 pub use router::Router;
 pub use stats::{
     DeviceError, DeviceStats, DropCounts, LineStats, LinkStats, PortStats, RouterStats, Stats, UndeliveredCounts,
 };
-pub use types::{Action, CommandId, CommandOutcome, DropReason, Input, Level, LinkId, Origin, Place, RouterEvent};
+pub use types::{CommandId, CommandOutcome, DropReason, Level, LinkId, Origin, Place, RouterEvent};

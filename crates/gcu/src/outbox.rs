@@ -9,7 +9,8 @@ use std::ops::{Deref, Range};
 
 use sagebrush_protocol::{ACK, FrameBuf, NAK, NIC};
 
-use crate::types::{Action, LinkId};
+use crate::boundary::Action;
+use crate::types::LinkId;
 
 /// The actions of one or more [`crate::Router::handle`] calls; executed,
 /// then [`Outbox::clear`]ed (capacity kept).
