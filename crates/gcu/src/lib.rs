@@ -130,6 +130,7 @@
 
 mod boundary;
 mod by_id;
+mod command;
 mod config;
 mod deadman;
 mod line;

@@ -30,7 +30,7 @@ impl Router {
         let (Some(awaited), Origin::Link { link, .. }) = (c.delivery.take(), c.origin) else {
             return;
         };
-        let (frame, command) = (c.frame.clone(), c.command);
+        let (frame, command) = (c.command.frame.clone(), c.command.facts.mnemonic);
         if c.done() {
             self.in_flight.remove(&id);
         }
@@ -97,7 +97,7 @@ impl Router {
         };
         let to = Address::new(command.source, LINK_PORT, CONTROL_UNIT);
         if let Ok(frame) = FrameBuf::new(to, self.group, &report.encode()) {
-            if let Err(reason) = self.send_on_link(now, link, frame, None, false, out) {
+            if let Err(reason) = self.send_on_link(now, link, frame, out) {
                 self.drop_frame(reason, Place::Link(link), to, self.group, out);
             }
         }

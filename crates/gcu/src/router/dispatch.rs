@@ -2,29 +2,29 @@
 //! in-flight record, where it goes (the GCU's ports, another GCU, or
 //! nowhere: dropped and reported), and its one end.
 
-use sagebrush_protocol::{Command, FrameBuf, Undelivered, WILDCARD};
+use sagebrush_protocol::{Undelivered, WILDCARD};
 
 use crate::boundary::Action;
+use crate::command::ReadCommand;
 use crate::config::LinkKind;
 use crate::outbox::Outbox;
-use crate::port::CommandFacts;
-use crate::reverse::Forwarded;
 use crate::types::{CommandId, CommandOutcome, DropReason, LinkId, Origin, Place, RouterEvent};
 
 use super::Router;
 use super::in_flight::{Delivery, InFlight, Progress};
 
 impl Router {
-    /// A command frame accepted from `origin` (a link of `kind`, or the
-    /// router itself): gives it the next command id and returns it. A stop
-    /// the GCU issued itself is registered under that id before routing,
-    /// since the command may end inside this call.
+    /// A command accepted from `origin` (a link of `kind`, or the router
+    /// itself), read once: gives it the next command id and its in-flight
+    /// record, and returns the id. A stop the GCU issued itself carries
+    /// its round in the record before routing, since the command may end
+    /// inside this call.
     pub(super) fn dispatch(
         &mut self,
         now: u64,
         origin: Origin,
         kind: Option<LinkKind>,
-        frame: FrameBuf,
+        command: ReadCommand,
         dead_man: Option<(LinkId, u8)>,
         out: &mut Outbox,
     ) -> CommandId {
@@ -34,8 +34,7 @@ impl Router {
             id,
             InFlight {
                 origin,
-                command: Command::parse(frame.frame().payload()).mnemonic(),
-                frame: frame.clone(),
+                command: command.clone(),
                 delivery: origin.link().map(|_| Delivery {
                     client,
                     deadline: client.then(|| now.saturating_add(self.settings.delivery_timeout)),
@@ -45,7 +44,7 @@ impl Router {
                 finished: false,
             },
         );
-        self.route_command(now, id, origin, kind, frame, out);
+        self.route_command(now, id, origin, kind, command, out);
         id
     }
 
@@ -56,40 +55,34 @@ impl Router {
         id: CommandId,
         origin: Origin,
         kind: Option<LinkKind>,
-        frame: FrameBuf,
+        command: ReadCommand,
         out: &mut Outbox,
     ) {
-        let f = frame.frame();
-        let dest = f.dest;
-        let command = Command::parse(f.payload());
+        let f = command.frame.frame();
+        let (dest, source) = (f.dest, f.source);
         self.stats.accepted += 1;
         out.push(Action::Event(RouterEvent::Accepted {
             id,
             origin,
             dest,
-            command: command.mnemonic(),
+            command: command.facts.mnemonic,
         }));
         if let Origin::Link { link, .. } = origin {
             if self.stopping {
-                self.drop_frame(DropReason::ShuttingDown, Place::Router, dest, f.source, out);
+                self.drop_frame(DropReason::ShuttingDown, Place::Router, dest, source, out);
                 self.finish(id, CommandOutcome::Dropped(DropReason::ShuttingDown), out);
                 return self.resolve(now, id, Err(Undelivered::ShuttingDown), self.group, out);
             }
             let lease = self.links.get(&link).and_then(|l| l.config.motion_lease);
-            self.deadman.on_command(now, link, lease, dest, &command);
+            self.deadman.on_command(now, link, lease, dest, &command.facts);
         }
-        let facts = CommandFacts::of(&command);
-        let forwarded = Forwarded {
-            kind: facts.kind,
-            stop: facts.stop,
-        };
         if dest.group == self.group || dest.group == WILDCARD {
             if dest.group == WILDCARD && kind != Some(LinkKind::Downstream) {
-                self.flood(now, origin, &frame, forwarded, out);
+                self.flood(now, origin, &command, out);
             }
-            return self.execute_local(now, id, origin, frame, facts, out);
+            return self.execute_local(now, id, origin, command, out);
         }
-        self.route_to_link(now, id, origin, frame, forwarded, out);
+        self.route_to_link(now, id, origin, command, out);
     }
 
     fn next_command_id(&mut self) -> CommandId {

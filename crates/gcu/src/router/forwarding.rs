@@ -6,10 +6,10 @@
 use sagebrush_protocol::{FrameBuf, Undelivered};
 
 use crate::boundary::Action;
+use crate::command::ReadCommand;
 use crate::config::LinkKind;
 use crate::link::Outgoing;
 use crate::outbox::Outbox;
-use crate::reverse::Forwarded;
 use crate::types::{CommandId, CommandOutcome, DropReason, LinkId, Origin, Place, RouterEvent};
 
 use super::Router;
@@ -22,11 +22,10 @@ impl Router {
         now: u64,
         id: CommandId,
         origin: Origin,
-        frame: FrameBuf,
-        forwarded: Forwarded,
+        command: ReadCommand,
         out: &mut Outbox,
     ) {
-        let f = frame.frame();
+        let f = command.frame.frame();
         let dest = f.dest;
         let up = |l: LinkId| self.links.contains_key(&l);
         let any_upstream = self
@@ -42,13 +41,11 @@ impl Router {
             }
         });
         let settles = origin.link().map(|_| id);
-        let outcome = match route.and_then(|next| {
-            self.forward(now, next, &frame, forwarded, (origin, settles), out)
-                .map(|()| next)
-        }) {
-            Ok(next) => CommandOutcome::Forwarded(next),
-            Err(reason) => CommandOutcome::Dropped(reason),
-        };
+        let outcome =
+            match route.and_then(|next| self.forward(now, next, &command, (origin, settles), out).map(|()| next)) {
+                Ok(next) => CommandOutcome::Forwarded(next),
+                Err(reason) => CommandOutcome::Dropped(reason),
+            };
         if let CommandOutcome::Dropped(reason) = outcome {
             self.drop_frame(reason, Place::Router, dest, f.source, out);
             self.resolve(now, id, Err(reason.undelivered()), self.group, out);
@@ -57,7 +54,7 @@ impl Router {
         self.finish(id, outcome, out);
     }
 
-    /// Forwards `frame` on `link` with a reverse-path entry: `back` is where
+    /// Forwards `command` on `link` with a reverse-path entry: `back` is where
     /// its answers go back to (its origin) and the command whose delivery
     /// the next GCU's report decides, if any. A full reverse path forgets an
     /// entry first; a command it still owed a report is not confirmed.
@@ -65,21 +62,28 @@ impl Router {
         &mut self,
         now: u64,
         link: LinkId,
-        frame: &FrameBuf,
-        forwarded: Forwarded,
+        command: &ReadCommand,
         back: (Origin, Option<CommandId>),
         out: &mut Outbox,
     ) -> Result<(), DropReason> {
         let (origin, settles) = back;
-        let f = frame.frame();
-        let (key, evicted) = self.reverse.insert(link, origin, &f, forwarded, settles);
+        let f = command.frame.frame();
+        let (key, evicted) = self.reverse.insert(link, origin, &f, command.facts, settles);
         if let Some(unreported) = evicted {
             self.drop_frame(DropReason::PendingFull, Place::Router, f.dest, f.source, out);
             if let Some(old) = unreported {
                 self.resolve(now, old, Err(Undelivered::NotConfirmed), self.group, out);
             }
         }
-        let sent = self.send_on_link(now, link, frame.clone(), Some(key), origin == Origin::Internal, out);
+        // A forwarded stop overtakes the frames waiting on the link; the
+        // GCU's own stops always fit.
+        let item = Outgoing {
+            frame: command.frame.clone(),
+            pending: Some(key),
+            stop: command.facts.stop,
+            dead_man: origin == Origin::Internal,
+        };
+        let sent = self.enqueue_on_link(now, link, item, out);
         if sent.is_err() {
             self.reverse.cancel(key);
         }
@@ -88,16 +92,16 @@ impl Router {
 
     /// Group 255 from upstream (or a client, or the router itself) is
     /// copied to every downstream link, never back where it came from.
-    pub(super) fn flood(&mut self, now: u64, origin: Origin, frame: &FrameBuf, forwarded: Forwarded, out: &mut Outbox) {
+    pub(super) fn flood(&mut self, now: u64, origin: Origin, command: &ReadCommand, out: &mut Outbox) {
         let targets: Vec<LinkId> = self
             .links
             .iter()
             .filter(|&(&id, l)| l.config.kind == LinkKind::Downstream && Some(id) != origin.link())
             .map(|(&id, _)| id)
             .collect();
-        let f = frame.frame();
+        let f = command.frame.frame();
         for link in targets {
-            match self.forward(now, link, frame, forwarded, (origin, None), out) {
+            match self.forward(now, link, command, (origin, None), out) {
                 Ok(()) => self.stats.flooded += 1,
                 Err(reason) => self.drop_frame(reason, Place::Link(link), f.dest, f.source, out),
             }
@@ -148,7 +152,7 @@ impl Router {
         let f = frame.frame();
         let (dest, source) = (f.dest, f.source);
         let sent = match self.links.contains_key(&link) {
-            true => self.send_on_link(now, link, frame, None, false, out),
+            true => self.send_on_link(now, link, frame, out),
             false => Err(DropReason::OriginGone),
         };
         match sent {

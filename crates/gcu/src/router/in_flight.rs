@@ -2,7 +2,9 @@
 //! record from the command's acceptance until it finished and its origin
 //! was told whether it was delivered (ARCHITECTURE "Delivery contract").
 
-use sagebrush_protocol::{FrameBuf, Undelivered};
+use sagebrush_protocol::Undelivered;
+
+use crate::command::ReadCommand;
 
 use crate::types::{CommandOutcome, DropReason, LinkId, Origin};
 
@@ -80,9 +82,8 @@ impl Progress {
 pub(super) struct InFlight {
     pub(super) origin: Origin,
     /// The command frame as accepted (a report names its checksum; a
-    /// client's retransmission is byte-identical).
-    pub(super) frame: FrameBuf,
-    pub(super) command: &'static str,
+    /// client's retransmission is byte-identical) and its facts, read then.
+    pub(super) command: ReadCommand,
     /// Its origin link has not yet been told whether it was delivered
     /// (ARCHITECTURE "Delivery contract").
     pub(super) delivery: Option<Delivery>,
@@ -107,8 +108,7 @@ impl InFlight {
     pub(super) fn stop_again(&self, outcome: CommandOutcome) -> Option<StopRound> {
         let (link, round) = self.dead_man?;
         (outcome == CommandOutcome::Unreachable && round < DEAD_MAN_ROUNDS).then(|| StopRound {
-            frame: self.frame.clone(),
-            stop: self.command,
+            stop: self.command.clone(),
             link,
             round: round + 1,
         })
@@ -128,8 +128,7 @@ pub(super) struct Delivery {
 /// The next round of a stop the GCU issued itself.
 #[derive(Debug)]
 pub(super) struct StopRound {
-    pub(super) frame: FrameBuf,
-    pub(super) stop: &'static str,
+    pub(super) stop: ReadCommand,
     /// The link whose motion it ends.
     pub(super) link: LinkId,
     pub(super) round: u8,

@@ -5,6 +5,7 @@
 use sagebrush_protocol::{Address, Command, FrameBuf};
 
 use crate::boundary::Action;
+use crate::command::ReadCommand;
 use crate::config::{ConfigError, LinkConfig, RouterConfig};
 use crate::deadman::OwnedStop;
 use crate::link::Link;
@@ -229,35 +230,22 @@ impl Router {
     /// The first round of a stop the GCU issues itself (dead-man, lease,
     /// shutdown) for the motion `link` owned at `dest`; an unacknowledged
     /// one is sent again (module-level `DEAD_MAN_ROUNDS`).
-    fn issue_stop(
-        &mut self,
-        now: u64,
-        dest: Address,
-        stop: Command<'static>,
-        link: LinkId,
-        out: &mut Outbox,
-    ) {
+    fn issue_stop(&mut self, now: u64, dest: Address, stop: Command<'static>, link: LinkId, out: &mut Outbox) {
         let Ok(frame) = FrameBuf::build(dest, self.group, |buf| stop.encode(buf).map(<[u8]>::len)) else {
             return;
         };
-        self.dispatch(now, Origin::Internal, None, frame, Some((link, 1)), out);
+        let stop = ReadCommand::built(&stop, frame);
+        self.dispatch(now, Origin::Internal, None, stop, Some((link, 1)), out);
     }
 
     /// Sends a stop the GCU issued itself once more (its next round).
     pub(super) fn send_stop_round(&mut self, now: u64, round: StopRound, out: &mut Outbox) {
-        let dest = round.frame.frame().dest;
+        let StopRound { stop, link, round } = round;
         out.push(Action::Event(RouterEvent::DeadManStop {
-            link: round.link,
-            dest,
-            stop: round.stop,
+            link,
+            dest: stop.frame.frame().dest,
+            stop: stop.facts.mnemonic,
         }));
-        self.dispatch(
-            now,
-            Origin::Internal,
-            None,
-            round.frame,
-            Some((round.link, round.round)),
-            out,
-        );
+        self.dispatch(now, Origin::Internal, None, stop, Some((link, round)), out);
     }
 }

@@ -5,8 +5,9 @@
 
 use sagebrush_protocol::{Address, FrameBuf, LINK_PORT, Undelivered, WILDCARD};
 
+use crate::command::ReadCommand;
 use crate::outbox::Outbox;
-use crate::port::{CommandFacts, Job};
+use crate::port::Job;
 use crate::types::{CommandId, CommandOutcome, DropReason, Origin, Place};
 
 use super::Router;
@@ -22,10 +23,10 @@ impl Router {
         now: u64,
         id: CommandId,
         origin: Origin,
-        frame: FrameBuf,
-        facts: CommandFacts,
+        command: ReadCommand,
         out: &mut Outbox,
     ) {
+        let ReadCommand { frame, facts } = command;
         let f = frame.frame();
         let dest = f.dest;
         // One port, or every port (a broadcast to port 255): counted first,
@@ -33,9 +34,9 @@ impl Router {
         let one = match dest.port {
             LINK_PORT => {
                 self.resolve(now, id, Ok(()), self.group, out);
-                let outcome = match answer(self.group, &self.name, &self.serial, &f) {
+                let outcome = match answer(self.group, &self.name, &self.serial, &f, facts.row) {
                     SelfAnswer::Result(reply) => match origin {
-                        Origin::Link { link, .. } => match self.send_on_link(now, link, *reply, None, false, out) {
+                        Origin::Link { link, .. } => match self.send_on_link(now, link, *reply, out) {
                             Ok(()) => CommandOutcome::Result,
                             Err(_) => CommandOutcome::Dropped(DropReason::OriginGone),
                         },
@@ -100,7 +101,7 @@ impl Router {
         reply.set_header(Address::new(source, answered_port, answered.device), self.group);
         let dest = reply.frame().dest;
         let sent = match self.links.contains_key(&link) {
-            true => self.send_on_link(now, link, reply, None, false, out),
+            true => self.send_on_link(now, link, reply, out),
             false => Err(DropReason::OriginGone),
         };
         let progress = self.in_flight.get_mut(&id).and_then(|c| c.jobs.as_mut());

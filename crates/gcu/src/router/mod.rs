@@ -29,7 +29,7 @@ mod self_answer;
 use std::collections::BTreeMap;
 use std::ops::Bound;
 
-use sagebrush_protocol::{Address, Command, FrameBuf};
+use sagebrush_protocol::{Address, FrameBuf};
 
 use crate::boundary::{Action, Input};
 use crate::by_id::ById;
@@ -305,32 +305,25 @@ impl Router {
         }
     }
 
-    /// Queues `frame` on `link`.
-    fn send_on_link(
-        &mut self,
-        now: u64,
-        link: LinkId,
-        frame: FrameBuf,
-        pending: Option<u64>,
-        dead_man: bool,
-        out: &mut Outbox,
-    ) -> Result<(), DropReason> {
+    /// Queues a frame that is no forwarded command (an answer, a report)
+    /// on `link`.
+    fn send_on_link(&mut self, now: u64, link: LinkId, frame: FrameBuf, out: &mut Outbox) -> Result<(), DropReason> {
+        let item = Outgoing {
+            frame,
+            pending: None,
+            stop: false,
+            dead_man: false,
+        };
+        self.enqueue_on_link(now, link, item, out)
+    }
+
+    /// Queues `item` on `link`.
+    fn enqueue_on_link(&mut self, now: u64, link: LinkId, item: Outgoing, out: &mut Outbox) -> Result<(), DropReason> {
         let Some(l) = self.links.get_mut(&link) else {
             return Err(DropReason::LinkDown);
         };
-        // Only forwarded commands carry a reverse-path entry; their stops go first.
-        let stop = pending.is_some() && Command::parse(frame.frame().payload()).is_stop();
         let mut lo = self.link_scratch.pop().unwrap_or_default();
-        let queued = l.enqueue(
-            now,
-            Outgoing {
-                frame,
-                pending,
-                stop,
-                dead_man,
-            },
-            &mut lo,
-        );
+        let queued = l.enqueue(now, item, &mut lo);
         self.link_outs(now, link, lo, out);
         queued
     }

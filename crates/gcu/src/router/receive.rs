@@ -4,6 +4,7 @@
 
 use sagebrush_protocol::{Address, CONTROL_UNIT, DeliveryReport, FrameBuf, LINK_PORT, Undelivered, WILDCARD};
 
+use crate::command::ReadCommand;
 use crate::config::LinkKind;
 use crate::link::Received;
 use crate::outbox::Outbox;
@@ -129,7 +130,7 @@ impl Router {
             let repeat = self
                 .in_flight
                 .values()
-                .any(|c| c.delivery.is_some() && c.origin.link() == Some(link) && c.frame == frame)
+                .any(|c| c.delivery.is_some() && c.origin.link() == Some(link) && c.command.frame == frame)
                 || self.report_on_its_way(link, &f);
             if repeat {
                 if let Some(l) = self.links.get_mut(&link) {
@@ -141,6 +142,7 @@ impl Router {
             self.ack(now, link, out);
         }
         self.routes.learn(source, link, kind);
-        self.dispatch(now, Origin::Link { link, source }, Some(kind), frame, None, out);
+        let command = ReadCommand::read(frame);
+        self.dispatch(now, Origin::Link { link, source }, Some(kind), command, None, out);
     }
 }
