@@ -3,7 +3,7 @@
 
 use crate::config::LinkConfig;
 use crate::stats::LinkStats;
-use crate::types::{LinkId, RouterEvent};
+use crate::types::{LineId, LinkId, RouterEvent};
 
 /// One thing that happened outside the router, fed to [`crate::Router::handle`].
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -16,15 +16,13 @@ pub enum Input<'a> {
     /// A serial port vanished (USB unplugged, I/O error): its in-flight and
     /// queued transactions fail with [`crate::DropReason::PortLost`].
     PortLost { port: u8 },
-    /// Bytes read from a serial port, in any chunking.
-    PortBytes { port: u8, bytes: &'a [u8] },
+    /// Bytes read from a port or link, in any chunking.
+    Bytes { line: LineId, bytes: &'a [u8] },
     /// A link connected. An id that is already up is first taken down.
     LinkUp { link: LinkId, config: LinkConfig },
     /// A link disconnected: its queue is dropped, its learned routes
     /// forgotten, and the continuous motions it started are stopped (dead-man).
     LinkDown { link: LinkId },
-    /// Bytes read from a link, in any chunking.
-    LinkBytes { link: LinkId, bytes: &'a [u8] },
     /// The daemon is shutting down (ARCHITECTURE "Safety"): every continuous
     /// motion started through this GCU and not yet stopped gets its stop,
     /// and new commands from links are refused
@@ -36,12 +34,10 @@ pub enum Input<'a> {
 /// What the daemon does for the router.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Action {
-    /// Write these bytes to the serial port: a span of the
+    /// Write these bytes to the port or link: a span of the
     /// [`crate::Outbox`]'s buffer ([`crate::Outbox::bytes`]).
-    WritePort { port: u8, bytes: std::ops::Range<usize> },
-    /// Write these bytes to the link (a span, as above).
-    WriteLink {
-        link: LinkId,
+    Write {
+        line: LineId,
         bytes: std::ops::Range<usize>,
     },
     /// Switch the serial port's own line rate (bits per second).

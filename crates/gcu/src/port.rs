@@ -678,15 +678,11 @@ impl Port {
             self.stats.line.stray_bytes += bytes.len() as u64;
             return;
         }
-        self.stats.line.bytes_in += bytes.len() as u64;
-        if !bytes.is_empty() {
-            self.stats.line.last_seen = Some(now);
-        }
+        self.line.heard(now, bytes, &mut self.stats.line);
         let mut rest = bytes;
-        while let Some(event) = self.line.next_event(now, &mut rest) {
+        while let Some(event) = self.line.next_event(now, &mut rest, &mut self.stats.line) {
             self.on_event(now, event, out);
         }
-        self.stats.line.noise_bytes = self.line.noise_bytes();
         self.maybe_detach(now, out);
     }
 
@@ -696,15 +692,10 @@ impl Port {
         }
         match event {
             OwnedEvent::Frame(frame) => {
-                self.stats.line.frames_in += 1;
                 self.write(Wire::Ack, out);
                 self.on_frame(now, frame, out);
             }
-            OwnedEvent::BadChecksum(_) => {
-                self.stats.line.bad_checksums += 1;
-                self.stats.line.naks_sent += 1;
-                self.write(Wire::Nak, out);
-            }
+            OwnedEvent::BadChecksum(_) => self.write(Wire::Nak, out),
             OwnedEvent::Ack | OwnedEvent::Nak => {
                 let (fe, nak) = match event {
                     OwnedEvent::Nak => (Event::Nak, true),
@@ -824,10 +815,9 @@ impl Port {
     /// Time passed.
     pub fn poll(&mut self, now: u64, out: &mut Vec<PortOut>) {
         self.line.poll(now);
-        while let Some(event) = self.line.next_event(now, &mut &[][..]) {
+        while let Some(event) = self.line.next_event(now, &mut &[][..], &mut self.stats.line) {
             self.on_event(now, event, out);
         }
-        self.stats.line.noise_bytes = self.line.noise_bytes();
         if let Some(r) = self
             .active
             .as_mut()

@@ -19,6 +19,25 @@ impl fmt::Display for LinkId {
     }
 }
 
+/// A line of the GCU: a serial port (a bus it is the master of) or a link.
+/// Both are lines of one kind at the router's boundary (bytes in, writes
+/// out: [`crate::Input::Bytes`], [`crate::Action::Write`]); what differs
+/// between them stays in the router core's modules `port` and `link`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum LineId {
+    Port(u8),
+    Link(LinkId),
+}
+
+impl fmt::Display for LineId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            LineId::Port(port) => write!(f, "port {port}"),
+            LineId::Link(link) => link.fmt(f),
+        }
+    }
+}
+
 /// Sequence number of a command accepted by this router (also given to the
 /// dead-man stops it issues itself). Every id ends in exactly one
 /// [`RouterEvent::Finished`].

@@ -41,7 +41,7 @@ use crate::port::{Port, PortOut};
 use crate::reverse::ReversePath;
 use crate::routing::RoutingTable;
 use crate::stats::{RouterStats, Stats};
-use crate::types::{CommandId, DropReason, LinkId, Origin, Place, RouterEvent};
+use crate::types::{CommandId, DropReason, LineId, LinkId, Origin, Place, RouterEvent};
 
 use in_flight::InFlight;
 
@@ -134,11 +134,17 @@ impl Router {
                 self.port_state(port, false, out);
                 self.with_port(now, port, out, |p, _, po| p.lose(po));
             }
-            Input::PortBytes { port, bytes } => self.with_port(now, port, out, |p, now, po| p.receive(now, bytes, po)),
+            Input::Bytes {
+                line: LineId::Port(port),
+                bytes,
+            } => self.with_port(now, port, out, |p, now, po| p.receive(now, bytes, po)),
+            Input::Bytes {
+                line: LineId::Link(link),
+                bytes,
+            } => self.link_bytes(now, link, bytes, out),
             Input::LinkUp { link, config } => self.link_up(now, link, config, out),
             Input::LinkDown { link } => self.link_down(now, link, out),
             Input::Shutdown => self.shut_down(now, out),
-            Input::LinkBytes { link, bytes } => self.link_bytes(now, link, bytes, out),
         }
         self.poll(now, out);
     }
@@ -273,7 +279,7 @@ impl Router {
     fn port_outs(&mut self, now: u64, port: u8, mut outs: Vec<PortOut>, out: &mut Outbox) {
         for o in outs.drain(..) {
             match o {
-                PortOut::Write(wire) => out.write_port(port, &wire),
+                PortOut::Write(wire) => out.write(LineId::Port(port), &wire),
                 PortOut::SetRate(bps) => out.push(Action::SetPortRate { port, bps }),
                 PortOut::Event(e) => out.push(Action::Event(e)),
                 PortOut::Relay { id, origin, reply } => self.relay_result(now, port, id, origin, reply, out),
@@ -294,7 +300,7 @@ impl Router {
     fn link_outs(&mut self, now: u64, link: LinkId, mut outs: Vec<LinkOut>, out: &mut Outbox) {
         for o in outs.drain(..) {
             match o {
-                LinkOut::Write(wire) => out.write_link(link, &wire),
+                LinkOut::Write(wire) => out.write(LineId::Link(link), &wire),
                 LinkOut::FirstSent(key) => self.reverse.sent(key, now, &self.in_force),
                 LinkOut::Resent(key) => self.reverse.resent(key),
                 LinkOut::Failed(item, reason) => self.dropped_on_link(now, link, &item, reason, out),
