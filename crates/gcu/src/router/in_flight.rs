@@ -5,7 +5,6 @@
 use sagebrush_protocol::Undelivered;
 
 use crate::command::ReadCommand;
-
 use crate::types::{CommandOutcome, DropReason, LinkId, Origin};
 
 /// Rounds of a dead-man stop (each with the port's retries) before the
@@ -90,7 +89,7 @@ pub(super) struct InFlight {
     /// Executed on local ports: its jobs, until they all ended.
     pub(super) jobs: Option<Progress>,
     /// A stop the GCU issued itself: the link whose motion it ends, and
-    /// which round of sending it this is (module-level `DEAD_MAN_ROUNDS`).
+    /// which round of sending it this is (at most `DEAD_MAN_ROUNDS`).
     pub(super) dead_man: Option<(LinkId, u8)>,
     /// Its [`crate::RouterEvent::Finished`] was sent.
     pub(super) finished: bool,

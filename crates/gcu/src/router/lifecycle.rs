@@ -229,7 +229,7 @@ impl Router {
 
     /// The first round of a stop the GCU issues itself (dead-man, lease,
     /// shutdown) for the motion `link` owned at `dest`; an unacknowledged
-    /// one is sent again (module-level `DEAD_MAN_ROUNDS`).
+    /// one is sent again (module `in_flight`: `DEAD_MAN_ROUNDS`).
     fn issue_stop(&mut self, now: u64, dest: Address, stop: Command<'static>, link: LinkId, out: &mut Outbox) {
         let Ok(frame) = FrameBuf::build(dest, self.group, |buf| stop.encode(buf).map(<[u8]>::len)) else {
             return;
