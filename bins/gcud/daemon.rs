@@ -312,8 +312,7 @@ pub async fn run(mut config: Config, http_limits: crate::http::Limits) -> Result
                 let t = now(Instant::now());
                 turn.read(&event).await;
                 match event {
-                    LineEvent::Read(LineId::Port(port), n) => router.handle(t, Input::PortBytes { port, bytes: lines.read(n) }, &mut actions),
-                    LineEvent::Read(LineId::Link(link), n) => router.handle(t, Input::LinkBytes { link, bytes: lines.read(n) }, &mut actions),
+                    LineEvent::Read(line, n) => router.handle(t, Input::Bytes { line, bytes: lines.read(n) }, &mut actions),
                     LineEvent::Closed(LineId::Port(port)) => router.handle(t, Input::PortLost { port }, &mut actions),
                     LineEvent::Closed(LineId::Link(link)) => router.handle(t, Input::LinkDown { link }, &mut actions),
                 }
@@ -528,6 +527,30 @@ fn notify(state: &[sd_notify::NotifyState<'_>]) {
     }
 }
 
+/// A write a line did not take: logged, throttled per port or configured
+/// link, when the line is behind (its peer is not reading).
+fn write_refused(line: LineId, refused: Refused, links: &BTreeMap<LinkId, LinkInfo>, throttle: &mut Throttle) {
+    let (place, text) = match line {
+        LineId::Port(port) => (format!("port {port}"), "the port is not taking bytes"),
+        LineId::Link(link) => (
+            links.get(&link).map_or_else(|| link.to_string(), |l| l.name.clone()),
+            "the peer is not reading",
+        ),
+    };
+    match refused {
+        Refused::Behind => {
+            let message = || match line {
+                LineId::Port(_) => format!("{place}: {text} (limit reached): bytes dropped"),
+                LineId::Link(link) => format!("{link} ({place}): {text} (limit reached): bytes dropped"),
+            };
+            if throttle.allow("writer behind", &place, message, Instant::now()) {
+                warn!(%line, "{text} (limit reached): bytes dropped");
+            }
+        }
+        Refused::Closed => debug!(%line, "write to a closed line dropped"),
+    }
+}
+
 /// Carries out the router's actions in order: writes are queued on their
 /// lines straight from the Outbox's buffer. A link gone leaves its counters
 /// with its configured link and nothing else behind.
@@ -541,27 +564,11 @@ fn execute(
     let mut gone = Vec::new();
     for action in actions.actions() {
         match action {
-            Action::WritePort { port, bytes } => match lines.write(LineId::Port(*port), actions.bytes(bytes)) {
-                Ok(()) => {}
-                Err(Refused::Behind) => {
-                    let line = || format!("port {port}: the port is not taking bytes (limit reached): bytes dropped");
-                    if throttle.allow("writer behind", &format!("port {port}"), line, Instant::now()) {
-                        warn!(port, "the port is not taking bytes (limit reached): bytes dropped");
-                    }
+            Action::Write { line, bytes } => {
+                if let Err(refused) = lines.write(*line, actions.bytes(bytes)) {
+                    write_refused(*line, refused, links, throttle);
                 }
-                Err(Refused::Closed) => debug!(port, "write to a closed port dropped"),
-            },
-            Action::WriteLink { link, bytes } => match lines.write(LineId::Link(*link), actions.bytes(bytes)) {
-                Ok(()) => {}
-                Err(Refused::Behind) => {
-                    let place = links.get(link).map_or_else(|| link.to_string(), |l| l.name.clone());
-                    let line = || format!("{link} ({place}): the peer is not reading (limit reached): bytes dropped");
-                    if throttle.allow("writer behind", &place, line, Instant::now()) {
-                        warn!(%link, "the peer is not reading (limit reached): bytes dropped");
-                    }
-                }
-                Err(Refused::Closed) => debug!(%link, "write to a closed link dropped"),
-            },
+            }
             Action::SetPortRate { port, bps } => match lines.set_baud(*port, *bps) {
                 Ok(()) => info!(port, baud = bps, "line rate switched"),
                 Err(reason) => error!(port, bps, %reason, "port lost: cannot switch its line rate; reopening"),

@@ -12,7 +12,7 @@ use std::pin::Pin;
 use std::sync::Arc;
 use std::task::{Context, Poll};
 
-use sagebrush_gcu::LinkId;
+pub use sagebrush_gcu::LineId;
 use sagebrush_host::capture::Tap;
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio::sync::oneshot;
@@ -25,13 +25,6 @@ pub trait LineStream: AsyncRead + AsyncWrite + Unpin + Send + std::fmt::Debug {
     fn set_baud(&mut self, _baud: u32) -> io::Result<()> {
         Ok(())
     }
-}
-
-/// Which line.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-pub enum LineId {
-    Port(u8),
-    Link(LinkId),
 }
 
 /// How a line ended, told to the task that opened it.

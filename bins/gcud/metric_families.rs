@@ -562,16 +562,16 @@ mod tests {
         let command = frame((5, 1, 3), 0, b"P?");
         router.handle(
             0,
-            sagebrush_gcu::Input::LinkBytes {
-                link: client,
+            sagebrush_gcu::Input::Bytes {
+                line: sagebrush_gcu::LineId::Link(client),
                 bytes: &command,
             },
             &mut actions,
         );
         router.handle(
             0,
-            sagebrush_gcu::Input::PortBytes {
-                port: 1,
+            sagebrush_gcu::Input::Bytes {
+                line: sagebrush_gcu::LineId::Port(1),
                 bytes: &[sagebrush_protocol::ACK],
             },
             &mut actions,
@@ -579,8 +579,8 @@ mod tests {
         let result = frame((0, 1, 3), 5, b"EECF03E8");
         router.handle(
             1500,
-            sagebrush_gcu::Input::PortBytes {
-                port: 1,
+            sagebrush_gcu::Input::Bytes {
+                line: sagebrush_gcu::LineId::Port(1),
                 bytes: &result,
             },
             &mut actions,

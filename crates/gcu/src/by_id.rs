@@ -35,10 +35,12 @@ impl<V> ById<V> {
         Some(&mut self.entries[at].1)
     }
 
+    #[cfg(test)]
     pub fn contains_key(&self, id: &CommandId) -> bool {
         self.entries.binary_search_by_key(id, |(k, _)| *k).is_ok()
     }
 
+    #[cfg(test)]
     pub fn len(&self) -> usize {
         self.entries.len()
     }

@@ -16,8 +16,9 @@
 
 use std::collections::BTreeMap;
 
-use sagebrush_protocol::{Address, Command};
+use sagebrush_protocol::{Address, Command, Row};
 
+use crate::command::CommandFacts;
 use crate::types::LinkId;
 
 /// The axes a continuous motion runs on, named by the command that stops it.
@@ -56,15 +57,16 @@ pub(crate) struct DeadMan {
 }
 
 impl DeadMan {
-    /// A command for `dest` was accepted from `link` at `now`; `lease` is
+    /// A command for `dest` was accepted from `link` at `now` (its facts:
+    /// the stops have no arguments, so their row names them); `lease` is
     /// that link's motion lease.
-    pub fn on_command(&mut self, now: u64, link: LinkId, lease: Option<u64>, dest: Address, command: &Command<'_>) {
+    pub fn on_command(&mut self, now: u64, link: LinkId, lease: Option<u64>, dest: Address, command: &CommandFacts) {
         for ((d, _), owner) in self.owners.iter_mut() {
             if *d == dest && owner.link == link {
                 owner.refreshed = now;
             }
         }
-        if let Some(axis) = command.stopped_by().as_ref().and_then(axis_of_stop) {
+        if let Some(axis) = command.stopped_by.as_ref().and_then(axis_of_stop) {
             let owner = Owner {
                 link,
                 refreshed: now,
@@ -73,9 +75,9 @@ impl DeadMan {
             self.owners.insert((dest, axis), owner);
             return;
         }
-        if let Some(axis) = axis_of_stop(command) {
+        if let Some(axis) = STOPS.iter().position(|s| s.row() == command.row) {
             self.owners.remove(&(dest, axis));
-        } else if matches!(command, Command::Halt | Command::Stop | Command::StopMotion) {
+        } else if matches!(command.row, Row::Halt | Row::Stop | Row::StopMotion) {
             for stop in [Command::PanStop, Command::TiltStop] {
                 if let Some(axis) = axis_of_stop(&stop) {
                     self.owners.remove(&(dest, axis));
@@ -133,13 +135,17 @@ mod tests {
 
     const A: Address = Address::new(3, 1, 4);
 
+    fn facts(command: Command<'static>) -> CommandFacts {
+        CommandFacts::of(&command)
+    }
+
     #[test]
     fn motion_owned_by_last_starter_until_stopped() {
         let mut dm = DeadMan::default();
-        dm.on_command(0, LinkId(1), None, A, &Command::PanLeft);
-        dm.on_command(0, LinkId(1), None, A, &Command::ZoomIn);
-        dm.on_command(0, LinkId(2), None, A, &Command::PanRight);
-        dm.on_command(0, LinkId(1), None, A, &Command::QueryPosition);
+        dm.on_command(0, LinkId(1), None, A, &facts(Command::PanLeft));
+        dm.on_command(0, LinkId(1), None, A, &facts(Command::ZoomIn));
+        dm.on_command(0, LinkId(2), None, A, &facts(Command::PanRight));
+        dm.on_command(0, LinkId(1), None, A, &facts(Command::QueryPosition));
         assert_eq!(dm.link_down(LinkId(1)), vec![(LinkId(1), A, Command::ZoomStop)]);
         assert_eq!(dm.link_down(LinkId(2)), vec![(LinkId(2), A, Command::PanStop)]);
         assert_eq!(dm.len(), 0);
@@ -148,13 +154,13 @@ mod tests {
     #[test]
     fn stops_end_ownership() {
         let mut dm = DeadMan::default();
-        dm.on_command(0, LinkId(1), None, A, &Command::PanLeft);
-        dm.on_command(0, LinkId(1), None, A, &Command::TiltUp);
-        dm.on_command(0, LinkId(1), None, A, &Command::FocusFar);
-        dm.on_command(0, LinkId(2), None, A, &Command::Halt);
+        dm.on_command(0, LinkId(1), None, A, &facts(Command::PanLeft));
+        dm.on_command(0, LinkId(1), None, A, &facts(Command::TiltUp));
+        dm.on_command(0, LinkId(1), None, A, &facts(Command::FocusFar));
+        dm.on_command(0, LinkId(2), None, A, &facts(Command::Halt));
         assert_eq!(dm.link_down(LinkId(1)), vec![(LinkId(1), A, Command::FocusStop)]);
-        dm.on_command(0, LinkId(1), None, A, &Command::ZoomOut);
-        dm.on_command(0, LinkId(1), None, A, &Command::ZoomStop);
+        dm.on_command(0, LinkId(1), None, A, &facts(Command::ZoomOut));
+        dm.on_command(0, LinkId(1), None, A, &facts(Command::ZoomStop));
         assert!(dm.link_down(LinkId(1)).is_empty());
     }
 
@@ -162,15 +168,15 @@ mod tests {
     fn a_lease_runs_out_unless_the_owner_speaks_to_the_device() {
         let mut dm = DeadMan::default();
         let b = Address::new(3, 1, 5);
-        dm.on_command(0, LinkId(1), Some(100), A, &Command::PanLeft);
-        dm.on_command(0, LinkId(2), None, b, &Command::TiltUp);
+        dm.on_command(0, LinkId(1), Some(100), A, &facts(Command::PanLeft));
+        dm.on_command(0, LinkId(2), None, b, &facts(Command::TiltUp));
         assert_eq!(dm.next_deadline(), Some(100));
         // Another link's command, or one to another device, does not refresh it.
-        dm.on_command(60, LinkId(2), None, A, &Command::QueryPosition);
-        dm.on_command(60, LinkId(1), Some(100), b, &Command::QueryPosition);
+        dm.on_command(60, LinkId(2), None, A, &facts(Command::QueryPosition));
+        dm.on_command(60, LinkId(1), Some(100), b, &facts(Command::QueryPosition));
         assert!(dm.expired(99).is_empty());
         // Any command of the owner to the device does.
-        dm.on_command(90, LinkId(1), Some(100), A, &Command::QueryPosition);
+        dm.on_command(90, LinkId(1), Some(100), A, &facts(Command::QueryPosition));
         assert!(dm.expired(150).is_empty());
         assert_eq!(dm.expired(190), vec![(LinkId(1), A, Command::PanStop)]);
         assert_eq!(dm.next_deadline(), None, "a link without a lease never expires");

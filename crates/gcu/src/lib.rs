@@ -16,8 +16,7 @@
 //! router.handle(0, Input::LinkUp { link: LinkId(1), config: LinkConfig::new(LinkKind::Client, SourceFilter::Any) }, &mut out);
 //! for action in out.actions() {
 //!     match action {
-//!         Action::WritePort { port, bytes } => { let _ = out.bytes(bytes); /* write them to the serial port */ }
-//!         Action::WriteLink { link, bytes } => { let _ = out.bytes(bytes); /* write them to the link */ }
+//!         Action::Write { line, bytes } => { let _ = out.bytes(bytes); /* write them to the port or link */ }
 //!         Action::SetPortRate { port, bps } => { /* reconfigure the serial port */ }
 //!         Action::LinkGone { link, stats } => { /* fold its counters into its configured link's */ }
 //!         Action::Event(event) => { /* log at event.level(), e.g. through tracing */ }
@@ -25,14 +24,15 @@
 //! }
 //! out.clear();
 //! // Sleep until router.next_deadline(), or until bytes arrive, then call
-//! // router.handle(now, Input::Tick / Input::PortBytes { .. } / ..).
+//! // router.handle(now, Input::Tick / Input::Bytes { line, bytes } / ..).
 //! let _ = router.next_deadline();
 //! let _ = router.stats();
 //! ```
 //!
 //! - One [`Router`] value, [`Router::new`] with a validated [`RouterConfig`].
 //! - [`Router::handle`]`(now, input, &mut outbox)` for every [`Input`]:
-//!   bytes read from a port or link (any chunking), port opened/lost, link
+//!   bytes read from a port or link ([`Input::Bytes`] names its [`LineId`];
+//!   any chunking), port opened/lost, link
 //!   up (with its [`LinkKind`] and [`SourceFilter`]) or down, or a plain
 //!   [`Input::Tick`]. Actions are appended in the order they must be executed.
 //! - Timers: after each call, arm one timer at [`Router::next_deadline`] and
@@ -57,7 +57,7 @@
 //!   crate's `Transmitter` on NAK or ACK time-out, up to the configured count
 //!   (one unacknowledged frame per link at a time).
 //! - **Routing** (module `routing`): destination group G or 255 -> port 0 is the
-//!   GCU itself (module `local`: `AW`, `D?`, NIC otherwise), ports 1..=254 one
+//!   GCU itself (module `router::self_answer`: `AW`, `D?`, NIC otherwise), ports 1..=254 one
 //!   port (unknown: dropped, [`DropReason::UnknownPort`]), port 255 every
 //!   port. Group 255 from an upstream or client link is also flooded to every
 //!   downstream link, never back to its origin. Other groups: static route,
@@ -128,12 +128,13 @@
 //! prints its seed and the command replaying it with a trace
 //! (`GCU_SIM_SEED=<seed> ... -- --nocapture`).
 
+mod boundary;
 mod by_id;
+mod command;
 mod config;
 mod deadman;
 mod line;
 mod link;
-mod local;
 mod outbox;
 mod port;
 mod queue;
@@ -143,10 +144,11 @@ mod routing;
 mod stats;
 mod types;
 
+pub use boundary::{Action, Input};
 pub use config::{ConfigError, LinkConfig, LinkKind, LinkSettings, PortConfig, RouterConfig, SourceFilter};
 pub use outbox::Outbox;
 pub use router::Router;
 pub use stats::{
     DeviceError, DeviceStats, DropCounts, LineStats, LinkStats, PortStats, RouterStats, Stats, UndeliveredCounts,
 };
-pub use types::{Action, CommandId, CommandOutcome, DropReason, Input, Level, LinkId, Origin, Place, RouterEvent};
+pub use types::{CommandId, CommandOutcome, DropReason, Level, LineId, LinkId, Origin, Place, RouterEvent};

@@ -2,9 +2,14 @@
 //! crate's streaming [`Framer`] plus the silence hook (protocol-notes "Framing": a
 //! partial candidate is abandoned once the line has been idle), turning
 //! bytes into the protocol crate's [`OwnedEvent`]s, which the router can
-//! keep while it mutates itself.
+//! keep while it mutates itself. It is the receive prologue both kinds of
+//! line share: what it counts (bytes, frames, damaged frames, noise, when
+//! the line was last heard) is counted here once; what a frame or an ACK
+//! means differs between a port and a link (modules `port`, `link`).
 
-use sagebrush_protocol::{Framer, OwnedEvent};
+use sagebrush_protocol::{Event, Framer, OwnedEvent};
+
+use crate::stats::LineStats;
 
 /// The receive side of one line: bytes in, framer events out, a partial
 /// frame abandoned after silence.
@@ -27,17 +32,37 @@ impl LineReceiver {
         }
     }
 
+    /// Bytes read from the line at `now`: counted, and when the line was
+    /// last heard. Take the events they complete with [`LineReceiver::next_event`].
+    pub fn heard(&mut self, now: u64, bytes: &[u8], stats: &mut LineStats) {
+        stats.bytes_in += bytes.len() as u64;
+        if !bytes.is_empty() {
+            stats.last_seen = Some(now);
+        }
+    }
+
     /// The next event, taking bytes received at `now` from the front of
     /// `rest` as the framer has room for them; `None` once `rest` is used up
     /// and nothing more is decided. Events come out one at a time, so that
     /// receiving needs no list of them. After [`LineReceiver::poll`], pass an
-    /// empty `rest` to collect what the silence decided.
-    pub fn next_event(&mut self, now: u64, rest: &mut &[u8]) -> Option<OwnedEvent> {
+    /// empty `rest` to collect what the silence decided. Frames and damaged
+    /// frames are counted in `stats` (the caller answers a damaged one
+    /// with a NAK: `naks_sent`), and the noise skipped once nothing is left.
+    pub fn next_event(&mut self, now: u64, rest: &mut &[u8], stats: &mut LineStats) -> Option<OwnedEvent> {
         loop {
             if let Some(event) = self.framer.next_event() {
+                match event {
+                    Event::Frame(_) => stats.frames_in += 1,
+                    Event::BadChecksum(_) => {
+                        stats.bad_checksums += 1;
+                        stats.naks_sent += 1;
+                    }
+                    _ => {}
+                }
                 return Some(event.to_owned());
             }
             if rest.is_empty() {
+                stats.noise_bytes = self.framer.skipped_bytes();
                 return None;
             }
             self.last_rx = Some(now);
@@ -47,6 +72,7 @@ impl LineReceiver {
             // The framer always has room once its events are taken; this
             // only bounds the loop.
             if taken == 0 {
+                stats.noise_bytes = self.framer.skipped_bytes();
                 return None;
             }
         }
@@ -77,6 +103,7 @@ impl LineReceiver {
     }
 
     /// Noise bytes skipped so far.
+    #[cfg(test)]
     pub fn noise_bytes(&self) -> u64 {
         self.framer.skipped_bytes()
     }
@@ -90,24 +117,28 @@ mod tests {
     #[test]
     fn partial_frame_abandoned_after_silence_then_rescanned() {
         let mut line = LineReceiver::new(10);
+        let mut stats = LineStats::default();
         let frame = FrameBuf::new(Address::new(1, 2, 3), 0, b"AW").unwrap();
         // A truncated frame: the ACK after it is taken for its length byte.
         let mut bytes = frame.as_bytes()[..5].to_vec();
         bytes.push(ACK);
         let mut rest = &bytes[..];
-        assert_eq!(line.next_event(0, &mut rest), None);
+        assert_eq!(line.next_event(0, &mut rest, &mut stats), None);
         assert!(rest.is_empty(), "every byte taken");
         assert_eq!(line.idle_deadline(), Some(10));
         line.poll(9);
-        assert_eq!(line.next_event(9, &mut &[][..]), None);
+        assert_eq!(line.next_event(9, &mut &[][..], &mut stats), None);
         // Abandoned: the bytes of a damaged candidate are not acknowledgements.
         line.poll(10);
-        assert_eq!(line.next_event(10, &mut &[][..]), None);
+        assert_eq!(line.next_event(10, &mut &[][..], &mut stats), None);
         assert!(line.noise_bytes() >= 6);
         assert_eq!(line.idle_deadline(), None);
         let wire = frame.as_bytes().to_vec();
         let mut rest = &wire[..];
-        assert_eq!(line.next_event(11, &mut rest), Some(OwnedEvent::Frame(frame)));
-        assert_eq!(line.next_event(11, &mut rest), None);
+        assert_eq!(
+            line.next_event(11, &mut rest, &mut stats),
+            Some(OwnedEvent::Frame(frame))
+        );
+        assert_eq!(line.next_event(11, &mut rest, &mut stats), None);
     }
 }

@@ -206,29 +206,21 @@ impl Link {
     /// Bytes from the peer: ACK/NAK what they complete, hand frames and `?`
     /// over in `received` (the caller's, reused).
     pub fn receive(&mut self, now: u64, bytes: &[u8], out: &mut Vec<LinkOut>, received: &mut Vec<Received>) {
-        self.stats.line.bytes_in += bytes.len() as u64;
-        if !bytes.is_empty() {
-            self.stats.line.last_seen = Some(now);
-        }
+        self.line.heard(now, bytes, &mut self.stats.line);
         self.on_events(now, bytes, out, received);
     }
 
     /// Takes the events `bytes` (or the silence, with none) complete.
     fn on_events(&mut self, now: u64, bytes: &[u8], out: &mut Vec<LinkOut>, received: &mut Vec<Received>) {
         let mut rest = bytes;
-        while let Some(event) = self.line.next_event(now, &mut rest) {
+        while let Some(event) = self.line.next_event(now, &mut rest, &mut self.stats.line) {
             match event {
                 OwnedEvent::Frame(frame) => {
                     // The router writes the ACK: at once, or once the
                     // command is delivered (ARCHITECTURE "Delivery contract").
-                    self.stats.line.frames_in += 1;
                     received.push(Received::Frame(frame));
                 }
-                OwnedEvent::BadChecksum(_) => {
-                    self.stats.line.bad_checksums += 1;
-                    self.stats.line.naks_sent += 1;
-                    self.write(Wire::Nak, out);
-                }
+                OwnedEvent::BadChecksum(_) => self.write(Wire::Nak, out),
                 OwnedEvent::Ack if self.queue.head_pinned() => {
                     let step = self.tx.on_ack();
                     self.step(step, out);
@@ -247,7 +239,6 @@ impl Link {
             }
             self.transmit_next(now, out);
         }
-        self.stats.line.noise_bytes = self.line.noise_bytes();
     }
 
     /// Time passed: retransmit or give up the head, abandon a stale partial frame.

@@ -9,7 +9,8 @@ use std::ops::{Deref, Range};
 
 use sagebrush_protocol::{ACK, FrameBuf, NAK, NIC};
 
-use crate::types::{Action, LinkId};
+use crate::boundary::Action;
+use crate::types::LineId;
 
 /// The actions of one or more [`crate::Router::handle`] calls; executed,
 /// then [`Outbox::clear`]ed (capacity kept).
@@ -29,7 +30,7 @@ impl Outbox {
         &self.actions
     }
 
-    /// The bytes of a [`Action::WritePort`] or [`Action::WriteLink`] span.
+    /// The bytes of an [`Action::Write`] span.
     pub fn bytes(&self, span: &Range<usize>) -> &[u8] {
         self.bytes.get(span.clone()).unwrap_or_default()
     }
@@ -44,27 +45,16 @@ impl Outbox {
         self.actions.push(action);
     }
 
-    pub(crate) fn write_port(&mut self, port: u8, wire: &Wire) {
+    /// Appends a write to `line`, merged into the previous action when
+    /// that wrote to the same line just before.
+    pub(crate) fn write(&mut self, line: LineId, wire: &Wire) {
         let start = self.bytes.len();
         self.bytes.extend_from_slice(wire.as_bytes());
         let end = self.bytes.len();
         match self.actions.last_mut() {
-            Some(Action::WritePort { port: last, bytes }) if *last == port && bytes.end == start => bytes.end = end,
-            _ => self.actions.push(Action::WritePort {
-                port,
-                bytes: start..end,
-            }),
-        }
-    }
-
-    pub(crate) fn write_link(&mut self, link: LinkId, wire: &Wire) {
-        let start = self.bytes.len();
-        self.bytes.extend_from_slice(wire.as_bytes());
-        let end = self.bytes.len();
-        match self.actions.last_mut() {
-            Some(Action::WriteLink { link: last, bytes }) if *last == link && bytes.end == start => bytes.end = end,
-            _ => self.actions.push(Action::WriteLink {
-                link,
+            Some(Action::Write { line: last, bytes }) if *last == line && bytes.end == start => bytes.end = end,
+            _ => self.actions.push(Action::Write {
+                line,
                 bytes: start..end,
             }),
         }
@@ -107,26 +97,26 @@ impl Wire {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::types::LinkId;
     use sagebrush_protocol::Address;
 
     #[test]
     fn consecutive_writes_to_one_line_merge_and_order_is_kept() {
         let frame = FrameBuf::new(Address::new(5, 1, 3), 0, b"P?").unwrap();
         let mut out = Outbox::new();
-        out.write_port(1, &Wire::Ack);
-        out.write_port(1, &Wire::Frame(frame.clone()));
+        out.write(LineId::Port(1), &Wire::Ack);
+        out.write(LineId::Port(1), &Wire::Frame(frame.clone()));
         out.push(Action::SetPortRate { port: 1, bps: 19_200 });
-        out.write_port(1, &Wire::Nak);
-        out.write_link(LinkId(7), &Wire::Nic);
-        out.write_port(2, &Wire::Ack);
+        out.write(LineId::Port(1), &Wire::Nak);
+        out.write(LineId::Link(LinkId(7)), &Wire::Nic);
+        out.write(LineId::Port(2), &Wire::Ack);
         let mut first = vec![ACK];
         first.extend_from_slice(frame.as_bytes());
         let writes: Vec<(String, Vec<u8>)> = out
             .actions()
             .iter()
             .map(|a| match a {
-                Action::WritePort { port, bytes } => (format!("port {port}"), out.bytes(bytes).to_vec()),
-                Action::WriteLink { link, bytes } => (format!("{link}"), out.bytes(bytes).to_vec()),
+                Action::Write { line, bytes } => (format!("{line}"), out.bytes(bytes).to_vec()),
                 other => (format!("{other:?}"), Vec::new()),
             })
             .collect();

@@ -64,56 +64,17 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use sagebrush_protocol::link::TransactionPolicy;
 use sagebrush_protocol::{
-    Command, DataRate, Event, FrameBuf, OwnedEvent, Reply, RetryPolicy, Transaction, TransactionStep, TxFailure,
-    WILDCARD,
+    DataRate, Event, FrameBuf, OwnedEvent, Reply, RetryPolicy, Transaction, TransactionStep, TxFailure, WILDCARD,
 };
 use sagebrush_protocol::{Outcome, ResultKind, ResultTimeout, Undelivered};
 
+use crate::command::CommandFacts;
 use crate::config::PortConfig;
 use crate::line::LineReceiver;
 use crate::outbox::Wire;
 use crate::queue::{Queued, StopFirstQueue};
 use crate::stats::{DeviceError, DeviceStats, PortStats};
 use crate::types::{CommandId, CommandOutcome, DropReason, Origin, RouterEvent};
-
-/// What a job's command is, read once when the router accepts it (Tables
-/// 4, 11, 16 through the protocol crate's command table).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) struct CommandFacts {
-    pub stop: bool,
-    /// Starts a continuous motion (cancelled when its origin link goes down).
-    pub motion: bool,
-    pub kind: ResultKind,
-    /// A `C0`..`C7` rate change.
-    pub rate: Option<DataRate>,
-    /// `P?` or `V?`: the device registry keeps the answer.
-    pub registry: Option<Registry>,
-}
-
-/// Which answer the device registry keeps.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum Registry {
-    /// `P?`, Table 15.
-    Position,
-    /// `V?`, Table 17.
-    Lens,
-}
-
-impl CommandFacts {
-    pub fn of(command: &Command<'_>) -> Self {
-        Self {
-            stop: command.is_stop(),
-            motion: command.stopped_by().is_some(),
-            kind: command.result_kind(),
-            rate: command.data_rate_change(),
-            registry: match command {
-                Command::QueryPosition => Some(Registry::Position),
-                Command::QueryLens => Some(Registry::Lens),
-                _ => None,
-            },
-        }
-    }
-}
 
 /// One command exchange waiting for or holding a bus.
 #[derive(Clone, Debug)]
@@ -425,7 +386,7 @@ impl Port {
     pub fn cancel_motions(&mut self, link: crate::LinkId, out: &mut Vec<PortOut>) {
         let cancel = self
             .queue
-            .remove_where(|j| j.facts.motion && j.origin.link() == Some(link));
+            .remove_where(|j| j.facts.stopped_by.is_some() && j.origin.link() == Some(link));
         for job in cancel {
             self.drop_job(job, DropReason::OriginGone, out);
         }
@@ -672,14 +633,10 @@ impl Port {
             d.last_error = Some((now, error));
         }
 
-        let (Some(result), Some(registry)) = (result, job.facts.registry) else {
+        let Some(result) = result.filter(|_| job.facts.registry) else {
             return;
         };
-        let command = match registry {
-            Registry::Position => Command::QueryPosition,
-            Registry::Lens => Command::QueryLens,
-        };
-        match Reply::parse(&command, result.frame().payload()) {
+        match Reply::parse_expected(&job.facts.reply, result.frame().payload()) {
             Ok(Reply::Position(p)) => d.position = Some((now, p)),
             Ok(Reply::Lens(l)) => d.lens = Some((now, l)),
             _ => {}
@@ -721,15 +678,11 @@ impl Port {
             self.stats.line.stray_bytes += bytes.len() as u64;
             return;
         }
-        self.stats.line.bytes_in += bytes.len() as u64;
-        if !bytes.is_empty() {
-            self.stats.line.last_seen = Some(now);
-        }
+        self.line.heard(now, bytes, &mut self.stats.line);
         let mut rest = bytes;
-        while let Some(event) = self.line.next_event(now, &mut rest) {
+        while let Some(event) = self.line.next_event(now, &mut rest, &mut self.stats.line) {
             self.on_event(now, event, out);
         }
-        self.stats.line.noise_bytes = self.line.noise_bytes();
         self.maybe_detach(now, out);
     }
 
@@ -739,15 +692,10 @@ impl Port {
         }
         match event {
             OwnedEvent::Frame(frame) => {
-                self.stats.line.frames_in += 1;
                 self.write(Wire::Ack, out);
                 self.on_frame(now, frame, out);
             }
-            OwnedEvent::BadChecksum(_) => {
-                self.stats.line.bad_checksums += 1;
-                self.stats.line.naks_sent += 1;
-                self.write(Wire::Nak, out);
-            }
+            OwnedEvent::BadChecksum(_) => self.write(Wire::Nak, out),
             OwnedEvent::Ack | OwnedEvent::Nak => {
                 let (fe, nak) = match event {
                     OwnedEvent::Nak => (Event::Nak, true),
@@ -867,10 +815,9 @@ impl Port {
     /// Time passed.
     pub fn poll(&mut self, now: u64, out: &mut Vec<PortOut>) {
         self.line.poll(now);
-        while let Some(event) = self.line.next_event(now, &mut &[][..]) {
+        while let Some(event) = self.line.next_event(now, &mut &[][..], &mut self.stats.line) {
             self.on_event(now, event, out);
         }
-        self.stats.line.noise_bytes = self.line.noise_bytes();
         if let Some(r) = self
             .active
             .as_mut()

@@ -68,9 +68,10 @@
 use std::collections::VecDeque;
 
 use sagebrush_protocol::{
-    Address, Command, DeliveryReport, Frame, FrameBuf, Reply, ResultKind, ResultTimeout, Undelivered, WILDCARD,
+    Address, DeliveryReport, Frame, FrameBuf, Reply, ResultKind, ResultTimeout, Undelivered, WILDCARD,
 };
 
+use crate::command::CommandFacts;
 use crate::config::LinkSettings;
 use crate::types::{CommandId, LinkId, Origin};
 
@@ -82,9 +83,11 @@ struct Pending {
     /// Source group of the forwarded frame.
     source: u8,
     dest: Address,
-    kind: ResultKind,
-    /// The forwarded frame, to check that an answer fits its command.
-    forwarded: FrameBuf,
+    /// The forwarded command's facts, read when it was accepted (an answer
+    /// must fit it).
+    facts: CommandFacts,
+    /// The forwarded frame's checksum (the next GCU's report names it).
+    checksum: u8,
     /// Set at the first transmission on `out_link`.
     expires: Option<u64>,
     /// An answer went back already.
@@ -96,9 +99,6 @@ struct Pending {
     /// The command whose delivery the next GCU's report settles (a link's
     /// command; not a flood copy or the GCU's own stop).
     command: Option<CommandId>,
-    /// A stop or halt: it overtakes queued work at the next GCU, so its
-    /// report says nothing about the transactions before it.
-    stop: bool,
     /// The next GCU's delivery report: `Some(true)` delivered.
     reported: Option<bool>,
     /// The next GCU reported a later command on the same port: this
@@ -128,17 +128,17 @@ impl Pending {
     /// still to come. (A `?` that may follow a command without result, or
     /// more answers of a fan-out, are not worth waiting for.)
     fn owed(&self) -> bool {
-        !self.told() || matches!(self.kind, ResultKind::Required(_)) && !self.answered && self.waiting()
+        !self.told() || matches!(self.facts.kind, ResultKind::Required(_)) && !self.answered && self.waiting()
     }
 
     fn answered_by(&self, frame: &Frame<'_>) -> bool {
         let level = |want: u8, got: u8| want == WILDCARD || want == got;
-        self.kind != ResultKind::None
+        self.facts.kind != ResultKind::None
             && frame.dest.group == self.source
             && level(self.dest.port, frame.dest.port)
             && level(self.dest.device, frame.dest.device)
             && level(self.dest.group, frame.source)
-            && Reply::parse(&Command::parse(self.forwarded.frame().payload()), frame.payload()).is_ok()
+            && Reply::parse_expected(&self.facts.reply, frame.payload()).is_ok()
     }
 }
 
@@ -182,7 +182,7 @@ impl ReversePath {
         out_link: LinkId,
         origin: Origin,
         frame: &Frame<'_>,
-        facts: Forwarded,
+        facts: CommandFacts,
         command: Option<CommandId>,
     ) -> (u64, Option<Option<CommandId>>) {
         let mut evicted = None;
@@ -204,14 +204,13 @@ impl ReversePath {
             origin,
             source: frame.source,
             dest: frame.dest,
-            kind: facts.kind,
-            forwarded: FrameBuf::from_frame(frame),
+            facts,
+            checksum: frame.checksum(),
             expires: None,
             answered: false,
             resent: false,
             last_answer: None,
             command,
-            stop: facts.stop,
             reported: None,
             closed: false,
         });
@@ -237,12 +236,14 @@ impl ReversePath {
                 && e.reported.is_none()
                 && e.source == to
                 && e.dest == report.dest
-                && e.forwarded.frame().checksum() == report.command_checksum
+                && e.checksum == report.command_checksum
         })?;
         let delivered = report.failure.is_none();
         let entry = &mut self.entries[at];
         entry.reported = Some(delivered);
-        let (command, stop, dest, key) = (entry.command, entry.stop, entry.dest, entry.key);
+        // A stop overtakes queued work at the next GCU: its report says
+        // nothing about the transactions before it.
+        let (command, stop, dest, key) = (entry.command, entry.facts.stop, entry.dest, entry.key);
         if delivered && !stop && dest.port != WILDCARD {
             for e in self.entries.iter_mut().take(at) {
                 if e.out_link == link && e.source == to && e.dest.port == dest.port && e.reported == Some(true) {
@@ -257,7 +258,7 @@ impl ReversePath {
     /// The frame of `key` was transmitted for the first time at `now`.
     pub fn sent(&mut self, key: u64, now: u64, settings: &LinkSettings) {
         if let Some(e) = self.entries.iter_mut().find(|e| e.key == key) {
-            let wait = match e.kind {
+            let wait = match e.facts.kind {
                 ResultKind::None => settings.nic_answer_timeout,
                 ResultKind::Required(ResultTimeout::Long) => settings.long_answer_timeout,
                 ResultKind::Required(ResultTimeout::Normal) | ResultKind::Optional => settings.answer_timeout,
@@ -402,18 +403,10 @@ impl ReversePath {
     }
 }
 
-/// What the reverse path keeps of a forwarded command (read once when the
-/// router accepted it, `port::CommandFacts`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) struct Forwarded {
-    pub kind: ResultKind,
-    /// A stop or halt (it overtakes queued work at the next GCU).
-    pub stop: bool,
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use sagebrush_protocol::Command;
 
     const L: LinkId = LinkId(1);
     thread_local!(static CLOCK: std::cell::Cell<u64> = const { std::cell::Cell::new(10_000) });
@@ -426,8 +419,13 @@ mod tests {
         })
     }
 
-    fn fwd(kind: ResultKind) -> Forwarded {
-        Forwarded { kind, stop: false }
+    /// The facts of `frame`'s command, with the result kind a test gives it.
+    fn fwd(frame: &Frame<'_>, kind: ResultKind) -> CommandFacts {
+        CommandFacts {
+            kind,
+            stop: false,
+            ..CommandFacts::read(frame.payload())
+        }
     }
 
     fn origin(link: u32) -> Origin {
@@ -446,14 +444,14 @@ mod tests {
             L,
             origin(10),
             &cmd,
-            fwd(ResultKind::Required(ResultTimeout::Normal)),
+            fwd(&cmd, ResultKind::Required(ResultTimeout::Normal)),
             None,
         );
         let (b, _) = rp.insert(
             L,
             origin(11),
             &cmd,
-            fwd(ResultKind::Required(ResultTimeout::Normal)),
+            fwd(&cmd, ResultKind::Required(ResultTimeout::Normal)),
             None,
         );
         let result = Frame::new(Address::new(2, 1, 12), 5, b"00000000").unwrap();
@@ -489,7 +487,7 @@ mod tests {
             L,
             origin(10),
             &cmd,
-            fwd(ResultKind::Required(ResultTimeout::Normal)),
+            fwd(&cmd, ResultKind::Required(ResultTimeout::Normal)),
             None,
         );
         rp.sent(a, 0, &settings);
@@ -500,7 +498,7 @@ mod tests {
             L,
             origin(11),
             &cmd,
-            fwd(ResultKind::Required(ResultTimeout::Normal)),
+            fwd(&cmd, ResultKind::Required(ResultTimeout::Normal)),
             None,
         );
         rp.sent(b, 1, &settings);
@@ -520,7 +518,7 @@ mod tests {
             L,
             origin(10),
             &cmd,
-            fwd(ResultKind::Required(ResultTimeout::Normal)),
+            fwd(&cmd, ResultKind::Required(ResultTimeout::Normal)),
             None,
         );
         rp.sent(a, 0, &settings);
@@ -530,7 +528,7 @@ mod tests {
             L,
             origin(11),
             &cmd,
-            fwd(ResultKind::Required(ResultTimeout::Normal)),
+            fwd(&cmd, ResultKind::Required(ResultTimeout::Normal)),
             None,
         );
         rp.sent(b, 1010, &settings);
@@ -553,7 +551,7 @@ mod tests {
             L,
             origin(12),
             &cmd,
-            fwd(ResultKind::Required(ResultTimeout::Normal)),
+            fwd(&cmd, ResultKind::Required(ResultTimeout::Normal)),
             None,
         );
         rp.sent(c, 1410, &settings);
@@ -570,14 +568,14 @@ mod tests {
             L,
             origin(10),
             &position,
-            fwd(ResultKind::Required(ResultTimeout::Normal)),
+            fwd(&position, ResultKind::Required(ResultTimeout::Normal)),
             None,
         );
         let (b, _) = rp.insert(
             L,
             origin(11),
             &identify,
-            fwd(ResultKind::Required(ResultTimeout::Normal)),
+            fwd(&identify, ResultKind::Required(ResultTimeout::Normal)),
             None,
         );
         rp.sent(a, 0, &settings);
@@ -599,8 +597,8 @@ mod tests {
         let exact = Frame::new(Address::new(5, 1, 12), 2, b"*mu1").unwrap();
         let wildcard = Frame::new(Address::new(5, 1, 255), 2, b"*mu2").unwrap();
         let kind = ResultKind::Optional;
-        let (a, _) = rp.insert(L, origin(10), &wildcard, fwd(kind), None);
-        let (b, _) = rp.insert(L, origin(11), &exact, fwd(kind), None);
+        let (a, _) = rp.insert(L, origin(10), &wildcard, fwd(&wildcard, kind), None);
+        let (b, _) = rp.insert(L, origin(11), &exact, fwd(&exact, kind), None);
         rp.sent(a, 0, &settings);
         rp.sent(b, 0, &settings);
         let result = Frame::new(Address::new(2, 1, 12), 5, b"1").unwrap();
@@ -619,9 +617,9 @@ mod tests {
         let settings = LinkSettings::default();
         let mut rp = ReversePath::new(8, 200);
         let cmd = Frame::new(Address::new(5, 1, 12), 2, b"PL").unwrap();
-        let (a, _) = rp.insert(L, origin(10), &cmd, fwd(ResultKind::None), None);
+        let (a, _) = rp.insert(L, origin(10), &cmd, fwd(&cmd, ResultKind::None), None);
         rp.sent(a, 0, &settings);
-        let (b, _) = rp.insert(L, origin(11), &cmd, fwd(ResultKind::None), None);
+        let (b, _) = rp.insert(L, origin(11), &cmd, fwd(&cmd, ResultKind::None), None);
         rp.sent(b, 0, &settings);
         assert_eq!(rp.match_nic(L), AnswerMatch::Ambiguous);
         rp.cancel(b);
@@ -630,14 +628,14 @@ mod tests {
             AnswerMatch::Ambiguous,
             "b was transmitted: its answer may come"
         );
-        let (d, _) = rp.insert(L, origin(12), &cmd, fwd(ResultKind::None), None);
+        let (d, _) = rp.insert(L, origin(12), &cmd, fwd(&cmd, ResultKind::None), None);
         rp.cancel(d);
         rp.expire(settings.nic_answer_timeout);
         assert_eq!(rp.len(), 0, "b expired, d was never transmitted");
-        let (a, _) = rp.insert(L, origin(10), &cmd, fwd(ResultKind::None), None);
+        let (a, _) = rp.insert(L, origin(10), &cmd, fwd(&cmd, ResultKind::None), None);
         rp.sent(a, 0, &settings);
         assert_eq!(rp.match_nic(L), AnswerMatch::One(origin(10)));
-        let (c, _) = rp.insert(L, origin(10), &cmd, fwd(ResultKind::None), None);
+        let (c, _) = rp.insert(L, origin(10), &cmd, fwd(&cmd, ResultKind::None), None);
         rp.sent(c, 5, &settings);
         assert_eq!(rp.next_deadline(), Some(settings.nic_answer_timeout));
         rp.expire(settings.nic_answer_timeout);
@@ -653,13 +651,13 @@ mod tests {
         let mut rp = ReversePath::new(2, 200);
         let cmd = Frame::new(Address::new(5, 1, 12), 2, b"PL").unwrap();
         let other = Frame::new(Address::new(5, 1, 13), 2, b"P?").unwrap();
-        let (a, evicted) = rp.insert(L, origin(1), &cmd, fwd(ResultKind::None), None);
+        let (a, evicted) = rp.insert(L, origin(1), &cmd, fwd(&cmd, ResultKind::None), None);
         assert_eq!(evicted, None);
         let (b, evicted) = rp.insert(
             L,
             origin(2),
             &other,
-            fwd(ResultKind::Required(ResultTimeout::Normal)),
+            fwd(&other, ResultKind::Required(ResultTimeout::Normal)),
             None,
         );
         assert_eq!(evicted, None);
@@ -668,7 +666,7 @@ mod tests {
         let answer = Frame::new(Address::new(2, 1, 13), 5, b"00000000").unwrap();
         assert_eq!(rp.match_result(later(), L, &answer, true), AnswerMatch::One(origin(2)));
         assert_eq!(
-            rp.insert(L, origin(1), &cmd, fwd(ResultKind::None), None).1,
+            rp.insert(L, origin(1), &cmd, fwd(&cmd, ResultKind::None), None).1,
             None,
             "the answered entry is settled: forgetting it is no drop"
         );
@@ -699,12 +697,12 @@ mod tests {
             .map(|n| FrameBuf::build(at, 2, |b| Command::QueryPreset(n).encode(b).map(<[u8]>::len)).unwrap())
             .collect();
         let query = Frame::new(at, 2, b"P?").unwrap();
-        let normal = fwd(ResultKind::Required(ResultTimeout::Normal));
+        let normal = |f: &Frame<'_>| fwd(f, ResultKind::Required(ResultTimeout::Normal));
         for p in &presets {
-            let (k, _) = rp.insert(L, origin(10), &p.frame(), normal, Some(CommandId(k_of(p))));
+            let (k, _) = rp.insert(L, origin(10), &p.frame(), normal(&p.frame()), Some(CommandId(k_of(p))));
             rp.sent(k, 0, &settings);
         }
-        let (k, _) = rp.insert(L, origin(11), &query, normal, Some(CommandId(99)));
+        let (k, _) = rp.insert(L, origin(11), &query, normal(&query), Some(CommandId(99)));
         rp.sent(k, 0, &settings);
         let answer = Frame::new(Address::new(2, 1, 12), 5, b"00640064").unwrap();
         // Unreported, two origins wait: an answer now cannot be placed.
@@ -751,9 +749,9 @@ mod tests {
         let settings = LinkSettings::default();
         let mut rp = ReversePath::new(8, 200);
         let cmd = Frame::new(Address::new(5, 1, 12), 2, b"P?").unwrap();
-        let normal = fwd(ResultKind::Required(ResultTimeout::Normal));
-        let (a, _) = rp.insert(L, origin(10), &cmd, normal, Some(CommandId(1)));
-        let (b, _) = rp.insert(L, origin(11), &cmd, normal, Some(CommandId(2)));
+        let normal = |f: &Frame<'_>| fwd(f, ResultKind::Required(ResultTimeout::Normal));
+        let (a, _) = rp.insert(L, origin(10), &cmd, normal(&cmd), Some(CommandId(1)));
+        let (b, _) = rp.insert(L, origin(11), &cmd, normal(&cmd), Some(CommandId(2)));
         rp.sent(a, 0, &settings);
         rp.sent(b, 0, &settings);
         let answer = Frame::new(Address::new(2, 1, 12), 5, b"00000000").unwrap();

@@ -1,11 +1,10 @@
-//! What goes in and out of the [`crate::Router`]: inputs, actions, log
-//! events, command outcomes and drop reasons.
+//! The router core's vocabulary: link and command ids, origins, log
+//! events, command outcomes and drop reasons (its inputs and actions, which
+//! speak it, are in module `boundary`).
 
 use core::fmt;
 
 use sagebrush_protocol::{Address, Undelivered};
-
-use crate::config::LinkConfig;
 
 /// A link's identity, assigned by the daemon. Keep it stable for configured
 /// peers (a serial line, an outbound TCP client) so that static routes and
@@ -17,6 +16,25 @@ pub struct LinkId(pub u32);
 impl fmt::Display for LinkId {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "link#{}", self.0)
+    }
+}
+
+/// A line of the GCU: a serial port (a bus it is the master of) or a link.
+/// Both are lines of one kind at the router's boundary (bytes in, writes
+/// out: [`crate::Input::Bytes`], [`crate::Action::Write`]); what differs
+/// between them stays in the router core's modules `port` and `link`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum LineId {
+    Port(u8),
+    Link(LinkId),
+}
+
+impl fmt::Display for LineId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            LineId::Port(port) => write!(f, "port {port}"),
+            LineId::Link(link) => link.fmt(f),
+        }
     }
 }
 
@@ -51,55 +69,6 @@ impl Origin {
             Origin::Internal => None,
         }
     }
-}
-
-/// One thing that happened outside the router, fed to [`crate::Router::handle`].
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum Input<'a> {
-    /// Only time passed (the timer armed at [`crate::Router::next_deadline`] fired).
-    Tick,
-    /// A serial port was opened (or re-opened after it was lost). The router
-    /// answers with [`Action::SetPortRate`] for the rate it believes the bus runs at.
-    PortOpened { port: u8 },
-    /// A serial port vanished (USB unplugged, I/O error): its in-flight and
-    /// queued transactions fail with [`DropReason::PortLost`].
-    PortLost { port: u8 },
-    /// Bytes read from a serial port, in any chunking.
-    PortBytes { port: u8, bytes: &'a [u8] },
-    /// A link connected. An id that is already up is first taken down.
-    LinkUp { link: LinkId, config: LinkConfig },
-    /// A link disconnected: its queue is dropped, its learned routes
-    /// forgotten, and the continuous motions it started are stopped (dead-man).
-    LinkDown { link: LinkId },
-    /// Bytes read from a link, in any chunking.
-    LinkBytes { link: LinkId, bytes: &'a [u8] },
-    /// The daemon is shutting down (ARCHITECTURE "Safety"): every continuous
-    /// motion started through this GCU and not yet stopped gets its stop,
-    /// and new commands from links are refused
-    /// ([`Undelivered::ShuttingDown`]). Answers still travel. The daemon
-    /// exits once [`crate::Router::in_progress`] is 0 (or its grace ran out).
-    Shutdown,
-}
-
-/// What the daemon does for the router.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum Action {
-    /// Write these bytes to the serial port: a span of the
-    /// [`crate::Outbox`]'s buffer ([`crate::Outbox::bytes`]).
-    WritePort { port: u8, bytes: std::ops::Range<usize> },
-    /// Write these bytes to the link (a span, as above).
-    WriteLink {
-        link: LinkId,
-        bytes: std::ops::Range<usize>,
-    },
-    /// Switch the serial port's own line rate (bits per second).
-    SetPortRate { port: u8, bps: u32 },
-    /// The link went down and the router forgot it: its final counters,
-    /// for the daemon to fold into what it keeps per configured link
-    /// (state stays bounded by what is live).
-    LinkGone { link: LinkId, stats: Box<crate::LinkStats> },
-    /// Something worth logging or counting; see [`RouterEvent::level`].
-    Event(RouterEvent),
 }
 
 /// How loud a [`RouterEvent`] is.

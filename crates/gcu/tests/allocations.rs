@@ -9,7 +9,9 @@
 
 use std::alloc::System;
 
-use sagebrush_gcu::{Input, LinkConfig, LinkId, LinkKind, Outbox, PortConfig, Router, RouterConfig, SourceFilter};
+use sagebrush_gcu::{
+    Input, LineId, LinkConfig, LinkId, LinkKind, Outbox, PortConfig, Router, RouterConfig, SourceFilter,
+};
 use sagebrush_protocol::{ACK, Address, FrameBuf};
 use stats_alloc::{INSTRUMENTED_SYSTEM, Region, StatsAlloc};
 
@@ -41,25 +43,32 @@ fn main() {
         now += 10;
         router.handle(
             now,
-            Input::LinkBytes {
-                link: CLIENT,
+            Input::Bytes {
+                line: LineId::Link(CLIENT),
                 bytes: command.as_bytes(),
             },
             out,
         );
-        router.handle(now, Input::PortBytes { port: 1, bytes: &[ACK] }, out);
         router.handle(
             now,
-            Input::PortBytes {
-                port: 1,
+            Input::Bytes {
+                line: LineId::Port(1),
+                bytes: &[ACK],
+            },
+            out,
+        );
+        router.handle(
+            now,
+            Input::Bytes {
+                line: LineId::Port(1),
                 bytes: result.as_bytes(),
             },
             out,
         );
         router.handle(
             now,
-            Input::LinkBytes {
-                link: CLIENT,
+            Input::Bytes {
+                line: LineId::Link(CLIENT),
                 bytes: &[ACK],
             },
             out,

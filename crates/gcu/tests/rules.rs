@@ -2,8 +2,8 @@
 //! the public `Router` API with hand-written bytes.
 
 use sagebrush_gcu::{
-    Action, CommandId, CommandOutcome, DropReason, Input, LinkConfig, LinkId, LinkKind, Outbox, PortConfig, Router,
-    RouterConfig, RouterEvent, SourceFilter,
+    Action, CommandId, CommandOutcome, DropReason, Input, LineId, LinkConfig, LinkId, LinkKind, Outbox, PortConfig,
+    Router, RouterConfig, RouterEvent, SourceFilter,
 };
 use sagebrush_protocol::link::wire_ms;
 use sagebrush_protocol::{ACK, Address, DeliveryReport, Event, Frame, FrameBuf, Framer, NAK, NIC, Undelivered};
@@ -90,11 +90,17 @@ impl H {
     }
 
     fn link(&mut self, link: LinkId, bytes: &[u8]) -> Outbox {
-        self.go(Input::LinkBytes { link, bytes })
+        self.go(Input::Bytes {
+            line: LineId::Link(link),
+            bytes,
+        })
     }
 
     fn port(&mut self, port: u8, bytes: &[u8]) -> Outbox {
-        self.go(Input::PortBytes { port, bytes })
+        self.go(Input::Bytes {
+            line: LineId::Port(port),
+            bytes,
+        })
     }
 
     /// Advances time by `ticks`, firing every deadline on the way.
@@ -132,14 +138,20 @@ fn writes(out: &Outbox, to: impl Fn(&Action) -> Option<&std::ops::Range<usize>>)
 
 fn port_writes(out: &Outbox, port: u8) -> Vec<Vec<u8>> {
     writes(out, |a| match a {
-        Action::WritePort { port: p, bytes } if *p == port => Some(bytes),
+        Action::Write {
+            line: LineId::Port(p),
+            bytes,
+        } if *p == port => Some(bytes),
         _ => None,
     })
 }
 
 fn link_writes(out: &Outbox, link: LinkId) -> Vec<Vec<u8>> {
     writes(out, |a| match a {
-        Action::WriteLink { link: l, bytes } if *l == link => Some(bytes),
+        Action::Write {
+            line: LineId::Link(l),
+            bytes,
+        } if *l == link => Some(bytes),
         _ => None,
     })
 }
@@ -213,12 +225,21 @@ fn port_opened_reports_its_rate_and_unknown_inputs_are_counted() {
     let mut r = Router::new(config).unwrap();
     let a = r.handle_once(0, Input::PortOpened { port: 1 });
     assert!(a.contains(&Action::SetPortRate { port: 1, bps: 38400 }));
-    assert!(r.handle_once(0, Input::PortBytes { port: 9, bytes: b"x" }).is_empty());
     assert!(
         r.handle_once(
             0,
-            Input::LinkBytes {
-                link: LinkId(9),
+            Input::Bytes {
+                line: LineId::Port(9),
+                bytes: b"x"
+            }
+        )
+        .is_empty()
+    );
+    assert!(
+        r.handle_once(
+            0,
+            Input::Bytes {
+                line: LineId::Link(LinkId(9)),
                 bytes: b"x"
             }
         )
@@ -1251,8 +1272,14 @@ fn behind_a_stalled_device_server_a_late_answer_is_nobodys() {
         let mut all = Outbox::new();
         for (link, bytes) in inputs {
             let input = match link {
-                Some(link) => Input::LinkBytes { link: *link, bytes },
-                None => Input::PortBytes { port: 1, bytes },
+                Some(link) => Input::Bytes {
+                    line: LineId::Link(*link),
+                    bytes,
+                },
+                None => Input::Bytes {
+                    line: LineId::Port(1),
+                    bytes,
+                },
             };
             h.r.handle(h.now, input, &mut all);
         }

@@ -24,7 +24,9 @@ pub use device::{DeviceEndpoint, DeviceHandler, EndpointConfig, EndpointStats, R
 pub use frame::{ACK, Frame, FrameBuf, FrameError, MAX_FRAME_LEN, MAX_PAYLOAD, NAK, NIC, START, checksum};
 pub use framer::{BadChecksum, Event, Framer, FramerStats, OwnedEvent};
 pub use link::{Outcome, RetryPolicy, Transaction, TransactionPolicy, TransactionStep, Transmitter, TxFailure, TxStep};
-pub use reply::{AwakeStatus, ErrorCodes, HomeStatus, Identity, InitResults, RateGains, Reply, ReplyError, StatusBits};
+pub use reply::{
+    AwakeStatus, ErrorCodes, ExpectedReply, HomeStatus, Identity, InitResults, RateGains, Reply, ReplyError, StatusBits,
+};
 pub use report::{DeliveryReport, NotAReport, REPORT_LEN, REPORT_MARK, Undelivered};
 pub use units::{
     Acceleration, Angle, AuxConfig, AuxPort, AuxReadLen, Axis, DataRate, DeviceId, DigitalZoom, LensPosition,

@@ -10,7 +10,7 @@ use nom::Parser;
 use nom::bytes::complete::take;
 
 use crate::EncodeError;
-use crate::answer::Shape;
+use crate::answer::{Answer, ResultKind, Shape};
 use crate::command::{Command, CommandError, found_text, whole};
 use crate::hex::{Writer, decimal, hex_n, hex_u8, hex_u16, hex_value, hex12};
 use crate::units::{Acceleration, Angle, DataRate, LensPosition, Limits, Position, RangeError, Rate, RateGain};
@@ -297,25 +297,69 @@ fn digit_or_raw(b: u8) -> Option<u8> {
     hex_value(b).or(if b <= 0x0F { Some(b) } else { None })
 }
 
+/// The longest echo of a command recognised in front of its result.
+const ECHO_MAX: usize = 16;
+
+/// What a command's result looks like, read from the command once: its
+/// row's answer fact, its mnemonic, and the command's bytes where a device
+/// may echo them in front of the result (protocol-notes E6). Owned and
+/// `Copy`, so it travels with a command whose bytes are kept elsewhere (a
+/// router's forwarded frame): [`Reply::parse_expected`] reads a result by
+/// it exactly as [`Reply::parse`] reads one by the command.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ExpectedReply {
+    name: &'static str,
+    answer: Answer,
+    echo: [u8; ECHO_MAX],
+    /// 0: no echo is recognised (a raw result, or a command too long).
+    echo_len: u8,
+}
+
+impl ExpectedReply {
+    /// What a result of `command` looks like.
+    pub fn of(command: &Command<'_>) -> Self {
+        let answer = command.answer();
+        let mut echo = [0u8; ECHO_MAX];
+        let echo_len = match answer.shape() {
+            Some(shape) if !matches!(shape, Shape::AuxData | Shape::Raw) => {
+                command.encode(&mut echo).map_or(0, |bytes| bytes.len() as u8)
+            }
+            _ => 0,
+        };
+        Self {
+            name: command.mnemonic(),
+            answer,
+            echo,
+            echo_len,
+        }
+    }
+
+    /// What follows the command's ACK ([`Command::result_kind`]).
+    pub fn result_kind(&self) -> ResultKind {
+        self.answer.kind()
+    }
+}
+
 impl<'a> Reply<'a> {
     /// Parses `payload` as the result of `command`.
     pub fn parse(command: &Command<'_>, payload: &'a [u8]) -> Result<Self, ReplyError> {
-        let name = command.mnemonic();
-        let shape = command.answer().shape().ok_or(ReplyError::NoResult { command: name })?;
-        // An echo of the command in front of the result (protocol-notes E6).
+        Self::parse_expected(&ExpectedReply::of(command), payload)
+    }
+
+    /// Parses `payload` as the result [`ExpectedReply`] describes.
+    pub fn parse_expected(expected: &ExpectedReply, payload: &'a [u8]) -> Result<Self, ReplyError> {
+        let name = expected.name;
+        let shape = expected.answer.shape().ok_or(ReplyError::NoResult { command: name })?;
         if payload.is_empty() {
             // A frame never carries an empty payload (Table 1: 1..=256 bytes).
             return Err(malformed(name, 0, None, "a result of at least one byte"));
         }
-        let mut skip = 0;
-        if !matches!(shape, Shape::AuxData | Shape::Raw) {
-            let mut echo = [0u8; 16];
-            if let Ok(echo) = command.encode(&mut echo) {
-                if payload.len() > echo.len() && payload.starts_with(echo) {
-                    skip = echo.len();
-                }
-            }
-        }
+        // An echo of the command in front of the result (protocol-notes E6).
+        let echo = &expected.echo[..usize::from(expected.echo_len)];
+        let skip = match !echo.is_empty() && payload.len() > echo.len() && payload.starts_with(echo) {
+            true => echo.len(),
+            false => 0,
+        };
         let body = &payload[skip..];
         let with_letter = |letter: u8, bare_len: usize| {
             if body.len() == bare_len + 1 && body.first() == Some(&letter) {

@@ -5,8 +5,8 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use sagebrush_gcu::{
-    Action, CommandId, Input, LinkConfig, LinkId, LinkKind, Outbox, PortConfig, Router, RouterConfig, RouterEvent,
-    SourceFilter,
+    Action, CommandId, Input, LineId, LinkConfig, LinkId, LinkKind, Outbox, PortConfig, Router, RouterConfig,
+    RouterEvent, SourceFilter,
 };
 use sagebrush_protocol::{
     ACK, Address, AwakeStatus, Command, DeliveryReport, DeviceEndpoint, DeviceHandler, EndpointConfig, Extended,
@@ -473,7 +473,10 @@ impl World {
     fn apply(&mut self, g: usize, out: Outbox) {
         for action in out.actions().iter().cloned() {
             match action {
-                Action::WritePort { port, bytes } => {
+                Action::Write {
+                    line: LineId::Port(port),
+                    bytes,
+                } => {
                     let bytes = out.bytes(&bytes).to_vec();
                     self.log(format_args!("gcu {g} port {port} <- {bytes:02X?}"));
                     let Some(p) = self.gcus[g].ports.iter().position(|sp| sp.id == port) else {
@@ -502,7 +505,10 @@ impl World {
                         }
                     }
                 }
-                Action::WriteLink { link, bytes } => self.write_link(g, link, out.bytes(&bytes).to_vec()),
+                Action::Write {
+                    line: LineId::Link(link),
+                    bytes,
+                } => self.write_link(g, link, out.bytes(&bytes).to_vec()),
                 Action::SetPortRate { port, bps } => {
                     if let Some(sp) = self.gcus[g].ports.iter_mut().find(|sp| sp.id == port) {
                         sp.bps = bps;

@@ -152,7 +152,13 @@ impl World {
                 }
                 let port = sp.id;
                 self.log(format_args!("gcu {g} port {port} -> {bytes:02X?}"));
-                self.input(g, Input::PortBytes { port, bytes: &bytes });
+                self.input(
+                    g,
+                    Input::Bytes {
+                        line: LineId::Port(port),
+                        bytes: &bytes,
+                    },
+                );
             }
             Node::Link { g, link } => {
                 let Some(pair) = self
@@ -163,13 +169,25 @@ impl World {
                     // A client's link.
                     if let Some(c) = self.clients.iter().position(|cl| cl.gcu == g && cl.link == link) {
                         if self.clients[c].epoch == epoch && self.clients[c].connected {
-                            self.input(g, Input::LinkBytes { link, bytes: &bytes });
+                            self.input(
+                                g,
+                                Input::Bytes {
+                                    line: LineId::Link(link),
+                                    bytes: &bytes,
+                                },
+                            );
                         }
                     }
                     return;
                 };
                 if pair.epoch == epoch && pair.up {
-                    self.input(g, Input::LinkBytes { link, bytes: &bytes });
+                    self.input(
+                        g,
+                        Input::Bytes {
+                            line: LineId::Link(link),
+                            bytes: &bytes,
+                        },
+                    );
                 }
             }
             Node::Client { c } => {

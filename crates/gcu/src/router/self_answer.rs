@@ -6,7 +6,7 @@
 //! command's source, port 0, device as addressed (a wildcard replaced by 0,
 //! the control unit, so the answer names who answered), source = our group.
 
-use sagebrush_protocol::{Address, AwakeStatus, CONTROL_UNIT, Command, Frame, FrameBuf, Identity, Reply, WILDCARD};
+use sagebrush_protocol::{Address, AwakeStatus, CONTROL_UNIT, Frame, FrameBuf, Identity, Reply, Row, WILDCARD};
 
 /// The GCU's own answer to a command for port 0.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -15,10 +15,11 @@ pub(crate) enum SelfAnswer {
     Nic,
 }
 
-pub(crate) fn answer(group: u8, name: &str, serial: &str, frame: &Frame<'_>) -> SelfAnswer {
-    let reply = match Command::parse(frame.payload()) {
-        Command::AwakeStatus => AwakeStatus::new(0).map(Reply::AwakeStatus).ok(),
-        Command::Identify => Identity::new(group, *b"19", name.trim_end().as_bytes(), serial.trim_end().as_bytes())
+/// The answer to `frame`, a command of table row `row` (read when it was accepted).
+pub(crate) fn answer(group: u8, name: &str, serial: &str, frame: &Frame<'_>, row: Row) -> SelfAnswer {
+    let reply = match row {
+        Row::AwakeStatus => AwakeStatus::new(0).map(Reply::AwakeStatus).ok(),
+        Row::Identify => Identity::new(group, *b"19", name.trim_end().as_bytes(), serial.trim_end().as_bytes())
             .map(Reply::Identity)
             .ok(),
         _ => None,
@@ -41,11 +42,12 @@ pub(crate) fn answer(group: u8, name: &str, serial: &str, frame: &Frame<'_>) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use sagebrush_protocol::Command;
 
     #[test]
     fn answers_aw_and_id_nic_otherwise() {
         let aw = Frame::new(Address::new(5, 0, 255), 2, b"AW").unwrap();
-        let SelfAnswer::Result(r) = answer(5, "gcu five", "SN1", &aw) else {
+        let SelfAnswer::Result(r) = answer(5, "gcu five", "SN1", &aw, Row::AwakeStatus) else {
             panic!("AW must be answered")
         };
         assert_eq!(r.frame().dest, Address::new(2, 0, 0));
@@ -55,7 +57,7 @@ mod tests {
             Ok(Reply::AwakeStatus(AwakeStatus::new(0).unwrap()))
         );
         let id = Frame::new(Address::new(5, 0, 0), 2, b"D?").unwrap();
-        let SelfAnswer::Result(r) = answer(5, "gcu five", "SN1", &id) else {
+        let SelfAnswer::Result(r) = answer(5, "gcu five", "SN1", &id, Row::Identify) else {
             panic!("D? must be answered")
         };
         let Ok(Reply::Identity(ident)) = Reply::parse(&Command::Identify, r.frame().payload()) else {
@@ -66,6 +68,6 @@ mod tests {
             (5, &b"gcu five"[..], &b"SN1"[..])
         );
         let other = Frame::new(Address::new(5, 0, 0), 2, b"PL").unwrap();
-        assert_eq!(answer(5, "x", "y", &other), SelfAnswer::Nic);
+        assert_eq!(answer(5, "x", "y", &other, Row::PanLeft), SelfAnswer::Nic);
     }
 }

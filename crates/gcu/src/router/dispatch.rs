@@ -1,0 +1,112 @@
+//! A command accepted (from a link, or the GCU's own stop): its id, its
+//! in-flight record, where it goes (the GCU's ports, another GCU, or
+//! nowhere: dropped and reported), and its one end.
+
+use sagebrush_protocol::{Undelivered, WILDCARD};
+
+use crate::boundary::Action;
+use crate::command::ReadCommand;
+use crate::config::LinkKind;
+use crate::outbox::Outbox;
+use crate::types::{CommandId, CommandOutcome, DropReason, LinkId, Origin, Place, RouterEvent};
+
+use super::Router;
+use super::in_flight::{Delivery, InFlight, Progress};
+
+impl Router {
+    /// A command accepted from `origin` (a link of `kind`, or the router
+    /// itself), read once: gives it the next command id and its in-flight
+    /// record, and returns the id. A stop the GCU issued itself carries
+    /// its round in the record before routing, since the command may end
+    /// inside this call.
+    pub(super) fn dispatch(
+        &mut self,
+        now: u64,
+        origin: Origin,
+        kind: Option<LinkKind>,
+        command: ReadCommand,
+        dead_man: Option<(LinkId, u8)>,
+        out: &mut Outbox,
+    ) -> CommandId {
+        let id = self.next_command_id();
+        let client = kind == Some(LinkKind::Client);
+        self.in_flight.insert(
+            id,
+            InFlight {
+                origin,
+                command: command.clone(),
+                delivery: origin.link().map(|_| Delivery {
+                    client,
+                    deadline: client.then(|| now.saturating_add(self.settings.delivery_timeout)),
+                }),
+                jobs: None,
+                dead_man,
+                finished: false,
+            },
+        );
+        self.route_command(now, id, origin, kind, command, out);
+        id
+    }
+
+    /// Routes command `id`: locally, to a link, or dropped and reported.
+    fn route_command(
+        &mut self,
+        now: u64,
+        id: CommandId,
+        origin: Origin,
+        kind: Option<LinkKind>,
+        command: ReadCommand,
+        out: &mut Outbox,
+    ) {
+        let f = command.frame.frame();
+        let (dest, source) = (f.dest, f.source);
+        self.stats.accepted += 1;
+        out.push(Action::Event(RouterEvent::Accepted {
+            id,
+            origin,
+            dest,
+            command: command.facts.mnemonic,
+        }));
+        if let Origin::Link { link, .. } = origin {
+            if self.stopping {
+                self.drop_frame(DropReason::ShuttingDown, Place::Router, dest, source, out);
+                self.finish(id, CommandOutcome::Dropped(DropReason::ShuttingDown), out);
+                return self.resolve(now, id, Err(Undelivered::ShuttingDown), self.group, out);
+            }
+            let lease = self.links.get(&link).and_then(|l| l.config.motion_lease);
+            self.deadman.on_command(now, link, lease, dest, &command.facts);
+        }
+        if dest.group == self.group || dest.group == WILDCARD {
+            if dest.group == WILDCARD && kind != Some(LinkKind::Downstream) {
+                self.flood(now, origin, &command, out);
+            }
+            return self.execute_local(now, id, origin, command, out);
+        }
+        self.route_to_link(now, id, origin, command, out);
+    }
+
+    fn next_command_id(&mut self) -> CommandId {
+        let id = CommandId(self.next_id);
+        self.next_id += 1;
+        id
+    }
+
+    /// Command `id` ended (its one [`RouterEvent::Finished`]); its record
+    /// stays while its origin still awaits the delivery outcome.
+    pub(super) fn finish(&mut self, id: CommandId, outcome: CommandOutcome, out: &mut Outbox) {
+        if let Some(c) = self.in_flight.get_mut(&id) {
+            c.finished = true;
+            c.dead_man = None;
+            if c.done() {
+                self.in_flight.remove(&id);
+            }
+        }
+        self.stats.count(outcome);
+        out.push(Action::Event(RouterEvent::Finished { id, outcome }));
+    }
+
+    /// The jobs of command `id` on local ports, while they run.
+    pub(super) fn jobs_of(&mut self, id: CommandId) -> Option<&mut Progress> {
+        self.in_flight.get_mut(&id)?.jobs.as_mut()
+    }
+}

@@ -1,0 +1,134 @@
+//! What the router keeps about a command in flight, under its id: one
+//! record from the command's acceptance until it finished and its origin
+//! was told whether it was delivered (ARCHITECTURE "Delivery contract").
+
+use sagebrush_protocol::Undelivered;
+
+use crate::command::ReadCommand;
+use crate::types::{CommandOutcome, DropReason, LinkId, Origin};
+
+/// Rounds of a dead-man stop (each with the port's retries) before the
+/// router gives up on a device that never acknowledges it.
+const DEAD_MAN_ROUNDS: u8 = 5;
+
+/// Progress of one accepted command executed on local ports (one job per
+/// port; a port-255 command has one per configured port).
+#[derive(Debug)]
+pub(super) struct Progress {
+    pub(super) remaining: usize,
+    pub(super) results: usize,
+    pub(super) nics: usize,
+    pub(super) completed: usize,
+    pub(super) no_result: usize,
+    pub(super) unreachable: usize,
+    /// Why a result or `?` could not be handed to the origin, or a job was dropped.
+    pub(super) dropped: Option<DropReason>,
+    /// Why a job's device did not acknowledge it.
+    pub(super) failure: Option<Undelivered>,
+}
+
+impl Progress {
+    pub(super) fn new(jobs: usize) -> Self {
+        Self {
+            remaining: jobs,
+            results: 0,
+            nics: 0,
+            completed: 0,
+            no_result: 0,
+            unreachable: 0,
+            dropped: None,
+            failure: None,
+        }
+    }
+
+    /// The one outcome of all jobs: any result relayed wins; then a NIC when
+    /// nothing completed (one `?` is relayed); then completed, no result,
+    /// unreachable, dropped.
+    pub(super) fn outcome(&self) -> CommandOutcome {
+        if self.results > 0 {
+            CommandOutcome::Result
+        } else if self.nics > 0 && self.completed == 0 {
+            CommandOutcome::Nic
+        } else if self.completed > 0 {
+            CommandOutcome::Completed
+        } else if self.no_result > 0 {
+            CommandOutcome::NoResult
+        } else if self.unreachable > 0 {
+            CommandOutcome::Unreachable
+        } else {
+            CommandOutcome::Dropped(self.dropped.unwrap_or(DropReason::UnknownPort))
+        }
+    }
+
+    /// Whether the jobs' outcome means the command reached a device.
+    pub(super) fn delivery(&self, outcome: CommandOutcome) -> Result<(), Undelivered> {
+        match outcome {
+            CommandOutcome::Result
+            | CommandOutcome::Nic
+            | CommandOutcome::Completed
+            | CommandOutcome::NoResult
+            | CommandOutcome::Forwarded(_) => Ok(()),
+            CommandOutcome::Unreachable => Err(self.failure.unwrap_or(Undelivered::DeviceSilent)),
+            CommandOutcome::Dropped(reason) => Err(reason.undelivered()),
+        }
+    }
+}
+
+/// One command in flight, from its acceptance until it finished and its
+/// origin was told whether it was delivered: everything the router keeps
+/// about it, under its id.
+#[derive(Debug)]
+pub(super) struct InFlight {
+    pub(super) origin: Origin,
+    /// The command frame as accepted (a report names its checksum; a
+    /// client's retransmission is byte-identical) and its facts, read then.
+    pub(super) command: ReadCommand,
+    /// Its origin link has not yet been told whether it was delivered
+    /// (ARCHITECTURE "Delivery contract").
+    pub(super) delivery: Option<Delivery>,
+    /// Executed on local ports: its jobs, until they all ended.
+    pub(super) jobs: Option<Progress>,
+    /// A stop the GCU issued itself: the link whose motion it ends, and
+    /// which round of sending it this is (at most `DEAD_MAN_ROUNDS`).
+    pub(super) dead_man: Option<(LinkId, u8)>,
+    /// Its [`crate::RouterEvent::Finished`] was sent.
+    pub(super) finished: bool,
+}
+
+impl InFlight {
+    /// Nothing is left to do or tell about it.
+    pub(super) fn done(&self) -> bool {
+        self.finished && self.delivery.is_none()
+    }
+
+    /// A stop the GCU issued itself that ended `outcome`: its next round,
+    /// when no device acknowledged it and rounds are left (the motion it
+    /// ends goes on until one does).
+    pub(super) fn stop_again(&self, outcome: CommandOutcome) -> Option<StopRound> {
+        let (link, round) = self.dead_man?;
+        (outcome == CommandOutcome::Unreachable && round < DEAD_MAN_ROUNDS).then(|| StopRound {
+            stop: self.command.clone(),
+            link,
+            round: round + 1,
+        })
+    }
+}
+
+/// What the origin link of a command in flight awaits.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Delivery {
+    /// A client link: the answer is the withheld ACK, or a report when
+    /// undelivered; a link to another GCU gets a report either way.
+    pub(super) client: bool,
+    /// When a client must be told at the latest (`delivery_timeout`).
+    pub(super) deadline: Option<u64>,
+}
+
+/// The next round of a stop the GCU issued itself.
+#[derive(Debug)]
+pub(super) struct StopRound {
+    pub(super) stop: ReadCommand,
+    /// The link whose motion it ends.
+    pub(super) link: LinkId,
+    pub(super) round: u8,
+}

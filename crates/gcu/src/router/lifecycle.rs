@@ -1,0 +1,251 @@
+//! Ports and links coming and going, reload and shutdown (ARCHITECTURE
+//! "Safety"): the dead-man, lease and shutdown stops the GCU issues
+//! itself, and a closing port's stops before it closes.
+
+use sagebrush_protocol::{Address, Command, FrameBuf};
+
+use crate::boundary::Action;
+use crate::command::ReadCommand;
+use crate::config::{ConfigError, LinkConfig, RouterConfig};
+use crate::deadman::OwnedStop;
+use crate::link::Link;
+use crate::outbox::Outbox;
+use crate::port::Port;
+use crate::stats::LinkStats;
+use crate::types::{DropReason, LinkId, Origin, RouterEvent};
+
+use super::Router;
+use super::in_flight::StopRound;
+
+/// Why the GCU stops a motion it did not get a stop for.
+#[derive(Clone, Copy, Debug)]
+enum StopCause {
+    /// Its link went down, or its port is closing.
+    DeadMan,
+    /// The daemon shuts down.
+    Shutdown,
+    /// Its link's motion lease ran out.
+    Lease,
+}
+
+impl Router {
+    pub(super) fn port_state(&self, port: u8, open: bool, out: &mut Outbox) {
+        if self.ports.contains_key(&port) {
+            out.push(Action::Event(RouterEvent::PortState { port, open }));
+        }
+    }
+
+    /// Applies a changed configuration (ARCHITECTURE "Safety": a port is closed
+    /// or reconfigured only after its motions were stopped). Routes are
+    /// replaced at once; a new port is added (closed until
+    /// [`crate::Input::PortOpened`]); a removed or changed port starts closing:
+    /// it takes no new commands (refused as shutting down), every motion
+    /// owned on it gets its stop, and once it is idle
+    /// ([`Router::closed_ports`]) the daemon closes it and calls
+    /// [`Router::port_closed`], which installs the changed port's new
+    /// configuration. `reopen`: ports whose I/O the daemon changes (a
+    /// new device path, say) although their router configuration is the
+    /// same; they close and come back too. Other ports whose configuration
+    /// did not change are not touched. The group, name, serial and link
+    /// settings cannot change.
+    pub fn reconfigure(
+        &mut self,
+        now: u64,
+        config: RouterConfig,
+        reopen: &[u8],
+        out: &mut Outbox,
+    ) -> Result<(), ConfigError> {
+        config.validate()?;
+        if config.group != self.group {
+            return Err(ConfigError::NotReloadable("the group"));
+        }
+        if config.name != self.name || config.serial != self.serial {
+            return Err(ConfigError::NotReloadable("the name or serial"));
+        }
+        if config.links != self.settings {
+            return Err(ConfigError::NotReloadable("the link settings"));
+        }
+        self.in_force = self.settings.with_answer_time_for(&config.ports);
+        self.routes
+            .set_configured(config.static_routes, config.default_upstream);
+        for (&id, port) in &mut self.ports {
+            let same = config.ports.iter().any(|p| p.id == id && *p == port.config);
+            port.closing = !same || reopen.contains(&id);
+        }
+        self.replacements = config
+            .ports
+            .into_iter()
+            .filter(|p| self.ports.get(&p.id).is_none_or(|old| old.closing))
+            .map(|p| (p.id, p))
+            .collect();
+        let added: Vec<u8> = self
+            .replacements
+            .keys()
+            .copied()
+            .filter(|id| !self.ports.contains_key(id))
+            .collect();
+        for id in added {
+            if let Some(p) = self.replacements.remove(&id) {
+                self.ports.insert(id, Port::new(&p));
+            }
+        }
+        let closing: Vec<u8> = self
+            .ports
+            .iter()
+            .filter(|(_, p)| p.closing)
+            .map(|(&id, _)| id)
+            .collect();
+        for port in closing {
+            let stops = self.deadman.take_port(port);
+            self.stop_motions(now, stops, StopCause::DeadMan, out);
+        }
+        self.poll(now, out);
+        Ok(())
+    }
+
+    /// Ports that are closing and idle: the daemon may close them now.
+    pub fn closed_ports(&self) -> Vec<u8> {
+        self.ports
+            .iter()
+            .filter(|(_, p)| p.closing && p.is_idle())
+            .map(|(&id, _)| id)
+            .collect()
+    }
+
+    /// Whether `port` is configured (and not closing).
+    pub fn has_port(&self, port: u8) -> bool {
+        self.ports.get(&port).is_some_and(|p| !p.closing)
+    }
+
+    /// The daemon closed a closing port (idle, or its grace ran out: what
+    /// is left on it fails as [`DropReason::PortLost`]). A changed port
+    /// comes back with its new configuration, closed until opened.
+    pub fn port_closed(&mut self, now: u64, port: u8, out: &mut Outbox) {
+        if !self.ports.get(&port).is_some_and(|p| p.closing) {
+            return;
+        }
+        self.with_port(now, port, out, |p, _, po| p.lose(po));
+        self.ports.remove(&port);
+        if let Some(config) = self.replacements.remove(&port) {
+            self.ports.insert(port, Port::new(&config));
+        }
+    }
+
+    /// A link came up (an id that is up is first taken down).
+    pub(super) fn link_up(&mut self, now: u64, link: LinkId, config: LinkConfig, out: &mut Outbox) {
+        if self.links.contains_key(&link) {
+            self.link_down(now, link, out);
+        }
+        let stats = LinkStats::new(config.kind);
+        if let Some(listener) = config.listener {
+            self.routes.accepted(listener, link);
+        }
+        self.links.insert(link, Link::new(config, &self.settings, stats));
+        out.push(Action::Event(RouterEvent::LinkState { link, up: true }));
+    }
+
+    /// A link went down: drop its queue, forget its routes, cancel the
+    /// motions it queued and stop the motions it owns (dead-man).
+    pub(super) fn link_down(&mut self, now: u64, link: LinkId, out: &mut Outbox) {
+        let Some(mut l) = self.links.remove(&link) else {
+            self.unknown_inputs += 1;
+            return;
+        };
+        for item in l.shut_down() {
+            self.dropped_on_link(now, link, &item, DropReason::LinkDown, out);
+        }
+        out.push(Action::LinkGone {
+            link,
+            stats: Box::new(l.stats),
+        });
+        self.routes.forget(link);
+        // Nobody is left to tell whether these were delivered.
+        self.in_flight.retain(|_, c| {
+            if c.origin.link() == Some(link) {
+                c.delivery = None;
+            }
+            !c.done()
+        });
+        out.push(Action::Event(RouterEvent::LinkState { link, up: false }));
+        let ports: Vec<u8> = self.ports.keys().copied().collect();
+        for port in ports {
+            self.with_port(now, port, out, |p, _, po| p.cancel_motions(link, po));
+        }
+        let stops = self.deadman.link_down(link);
+        self.stop_motions(now, stops, StopCause::DeadMan, out);
+    }
+
+    /// Shutdown (ARCHITECTURE "Safety"): refuse new commands from now on, and
+    /// stop every motion still owned by a link.
+    pub(super) fn shut_down(&mut self, now: u64, out: &mut Outbox) {
+        if self.stopping {
+            return;
+        }
+        self.stopping = true;
+        let stops = self.deadman.take_all();
+        self.stop_motions(now, stops, StopCause::Shutdown, out);
+    }
+
+    /// Stops motions the GCU takes back (each logged and counted by cause).
+    /// Stops the motions whose lease ran out by `now`.
+    pub(super) fn stop_expired_leases(&mut self, now: u64, out: &mut Outbox) {
+        let expired = self.deadman.expired(now);
+        self.stop_motions(now, expired, StopCause::Lease, out);
+    }
+
+    fn stop_motions(&mut self, now: u64, stops: Vec<OwnedStop>, cause: StopCause, out: &mut Outbox) {
+        for (link, dest, stop) in stops {
+            let stop_name = stop.mnemonic();
+            let event = match cause {
+                StopCause::DeadMan => {
+                    self.stats.dead_man_stops += 1;
+                    RouterEvent::DeadManStop {
+                        link,
+                        dest,
+                        stop: stop_name,
+                    }
+                }
+                StopCause::Shutdown => {
+                    self.stats.shutdown_stops += 1;
+                    RouterEvent::DeadManStop {
+                        link,
+                        dest,
+                        stop: stop_name,
+                    }
+                }
+                StopCause::Lease => {
+                    self.stats.lease_stops += 1;
+                    RouterEvent::LeaseExpired {
+                        link,
+                        dest,
+                        stop: stop_name,
+                    }
+                }
+            };
+            out.push(Action::Event(event));
+            self.issue_stop(now, dest, stop, link, out);
+        }
+    }
+
+    /// The first round of a stop the GCU issues itself (dead-man, lease,
+    /// shutdown) for the motion `link` owned at `dest`; an unacknowledged
+    /// one is sent again (module `in_flight`: `DEAD_MAN_ROUNDS`).
+    fn issue_stop(&mut self, now: u64, dest: Address, stop: Command<'static>, link: LinkId, out: &mut Outbox) {
+        let Ok(frame) = FrameBuf::build(dest, self.group, |buf| stop.encode(buf).map(<[u8]>::len)) else {
+            return;
+        };
+        let stop = ReadCommand::built(&stop, frame);
+        self.dispatch(now, Origin::Internal, None, stop, Some((link, 1)), out);
+    }
+
+    /// Sends a stop the GCU issued itself once more (its next round).
+    pub(super) fn send_stop_round(&mut self, now: u64, round: StopRound, out: &mut Outbox) {
+        let StopRound { stop, link, round } = round;
+        out.push(Action::Event(RouterEvent::DeadManStop {
+            link,
+            dest: stop.frame.frame().dest,
+            stop: stop.facts.mnemonic,
+        }));
+        self.dispatch(now, Origin::Internal, None, stop, Some((link, round)), out);
+    }
+}

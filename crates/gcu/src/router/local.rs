@@ -1,0 +1,155 @@
+//! Commands for this GCU's group (ARCHITECTURE "Routing semantics"): port
+//! 0 is the GCU itself (module `self_answer`), 1..=254 one port's job, 255
+//! a job on every port; their results relayed with the Table 3 header and
+//! the jobs' outcomes folded into the command's one outcome.
+
+use sagebrush_protocol::{Address, FrameBuf, LINK_PORT, Undelivered, WILDCARD};
+
+use crate::command::ReadCommand;
+use crate::outbox::Outbox;
+use crate::port::Job;
+use crate::types::{CommandId, CommandOutcome, DropReason, Origin, Place};
+
+use super::Router;
+use super::after_key;
+use super::in_flight::Progress;
+use super::self_answer::{SelfAnswer, answer};
+
+impl Router {
+    /// Destination group G or 255: port 0 is the GCU itself, 1..=254 one
+    /// port, 255 every port.
+    pub(super) fn execute_local(
+        &mut self,
+        now: u64,
+        id: CommandId,
+        origin: Origin,
+        command: ReadCommand,
+        out: &mut Outbox,
+    ) {
+        let ReadCommand { frame, facts } = command;
+        let f = frame.frame();
+        let dest = f.dest;
+        // One port, or every port (a broadcast to port 255): counted first,
+        // then each found afresh, with no list of targets.
+        let one = match dest.port {
+            LINK_PORT => {
+                self.resolve(now, id, Ok(()), self.group, out);
+                let outcome = match answer(self.group, &self.name, &self.serial, &f, facts.row) {
+                    SelfAnswer::Result(reply) => match origin {
+                        Origin::Link { link, .. } => match self.send_on_link(now, link, *reply, out) {
+                            Ok(()) => CommandOutcome::Result,
+                            Err(_) => CommandOutcome::Dropped(DropReason::OriginGone),
+                        },
+                        Origin::Internal => CommandOutcome::Completed,
+                    },
+                    SelfAnswer::Nic => match self.nic_to(now, origin, out) {
+                        Ok(()) => CommandOutcome::Nic,
+                        Err(reason) => CommandOutcome::Dropped(reason),
+                    },
+                };
+                return self.finish(id, outcome, out);
+            }
+            WILDCARD => None,
+            port => Some(port),
+        };
+        let targets = match one {
+            Some(port) => usize::from(self.ports.contains_key(&port)),
+            None => self.ports.len(),
+        };
+        if targets == 0 {
+            self.drop_frame(DropReason::UnknownPort, Place::Router, dest, f.source, out);
+            self.resolve(now, id, Err(Undelivered::NoSuchPort), self.group, out);
+            return self.finish(id, CommandOutcome::Dropped(DropReason::UnknownPort), out);
+        }
+        if let Some(c) = self.in_flight.get_mut(&id) {
+            c.jobs = Some(Progress::new(targets));
+        }
+        let mut after = None;
+        while let Some(port) = match one {
+            Some(port) => (after.is_none()).then_some(port),
+            None => self.ports.range(after_key(after)).next().map(|(&id, _)| id),
+        } {
+            let job = Job::new(id, origin, frame.clone(), facts);
+            self.with_port(now, port, out, |p, now, po| p.enqueue(now, job, po));
+            after = Some(port);
+        }
+    }
+
+    /// A result of job `id` from `port`: back to the origin with the Table 3
+    /// header (destination group = the command's source group, port and
+    /// device as answered, source group = G, checksum recomputed).
+    pub(super) fn relay_result(
+        &mut self,
+        now: u64,
+        port: u8,
+        id: CommandId,
+        origin: Origin,
+        mut reply: FrameBuf,
+        out: &mut Outbox,
+    ) {
+        let Origin::Link { link, source } = origin else {
+            // The router's own command: the answer is taken, not relayed.
+            if let Some(p) = self.jobs_of(id) {
+                p.results += 1;
+            }
+            return;
+        };
+        // A result means the device had the command: the ACK goes first.
+        self.resolve(now, id, Ok(()), self.group, out);
+        let answered = reply.frame().dest;
+        let answered_port = if answered.port == WILDCARD { port } else { answered.port };
+        reply.set_header(Address::new(source, answered_port, answered.device), self.group);
+        let dest = reply.frame().dest;
+        let sent = match self.links.contains_key(&link) {
+            true => self.send_on_link(now, link, reply, out),
+            false => Err(DropReason::OriginGone),
+        };
+        let progress = self.in_flight.get_mut(&id).and_then(|c| c.jobs.as_mut());
+        match sent {
+            Ok(()) => {
+                self.stats.results_relayed += 1;
+                if let Some(p) = progress {
+                    p.results += 1;
+                }
+            }
+            Err(reason) => {
+                if let Some(p) = progress {
+                    p.dropped = Some(reason);
+                }
+                self.drop_frame(reason, Place::Link(link), dest, self.group, out);
+            }
+        }
+    }
+
+    pub(super) fn job_finished(&mut self, now: u64, id: CommandId, outcome: CommandOutcome, out: &mut Outbox) {
+        let Some(p) = self.jobs_of(id) else { return };
+        match outcome {
+            CommandOutcome::Result | CommandOutcome::Forwarded(_) => {}
+            CommandOutcome::Nic => p.nics += 1,
+            CommandOutcome::Completed => p.completed += 1,
+            CommandOutcome::NoResult => p.no_result += 1,
+            CommandOutcome::Unreachable => p.unreachable += 1,
+            CommandOutcome::Dropped(reason) => p.dropped = Some(reason),
+        }
+        p.remaining = p.remaining.saturating_sub(1);
+        if p.remaining > 0 {
+            return;
+        }
+        let Some(c) = self.in_flight.get_mut(&id) else { return };
+        let Some(p) = c.jobs.take() else { return };
+        let origin = c.origin;
+        let mut outcome = p.outcome();
+        self.resolve(now, id, p.delivery(outcome), self.group, out);
+        if outcome == CommandOutcome::Nic {
+            if let Err(reason) = self.nic_to(now, origin, out) {
+                outcome = CommandOutcome::Dropped(reason);
+            }
+        }
+        // A safety stop that no device acknowledged is sent again (module `lifecycle`).
+        let again = self.in_flight.get_mut(&id).and_then(|c| c.stop_again(outcome));
+        self.finish(id, outcome, out);
+        if let Some(round) = again {
+            self.send_stop_round(now, round, out);
+        }
+    }
+}

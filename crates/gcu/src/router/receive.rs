@@ -1,0 +1,148 @@
+//! What links receive (ARCHITECTURE "Delivery contract"): answers to
+//! forwarded commands, delivery reports of other GCUs, and commands
+//! (a client's retransmission recognised as a repeat).
+
+use sagebrush_protocol::{Address, CONTROL_UNIT, DeliveryReport, FrameBuf, LINK_PORT, Undelivered, WILDCARD};
+
+use crate::command::ReadCommand;
+use crate::config::LinkKind;
+use crate::link::Received;
+use crate::outbox::Outbox;
+use crate::reverse::AnswerMatch;
+use crate::types::{DropReason, LinkId, Origin, Place};
+
+use super::{Router, SCRATCH_KEPT};
+
+impl Router {
+    /// Bytes read from `link`.
+    pub(super) fn link_bytes(&mut self, now: u64, link: LinkId, bytes: &[u8], out: &mut Outbox) {
+        let Some(l) = self.links.get_mut(&link) else {
+            self.unknown_inputs += 1;
+            return;
+        };
+        let mut lo = self.link_scratch.pop().unwrap_or_default();
+        let mut received = self.received_scratch.pop().unwrap_or_default();
+        l.receive(now, bytes, &mut lo, &mut received);
+        self.link_outs(now, link, lo, out);
+        self.route_received(now, link, received, out);
+    }
+
+    /// Routes what a link received; the vector goes back to the scratch pool.
+    pub(super) fn route_received(&mut self, now: u64, link: LinkId, mut received: Vec<Received>, out: &mut Outbox) {
+        for r in received.drain(..) {
+            self.on_received(now, link, r, out);
+        }
+        if self.received_scratch.len() < SCRATCH_KEPT {
+            self.received_scratch.push(received);
+        }
+    }
+
+    fn on_received(&mut self, now: u64, link: LinkId, received: Received, out: &mut Outbox) {
+        match received {
+            Received::Frame(frame) => self.on_link_frame(now, link, frame, out),
+            // A client answers no command: its `?` is a byte in the wrong
+            // direction, counted as stray, not a dropped frame.
+            Received::Nic if self.links.get(&link).is_some_and(|l| l.config.kind == LinkKind::Client) => {
+                if let Some(l) = self.links.get_mut(&link) {
+                    l.stats.line.stray_bytes += 1;
+                }
+            }
+            Received::Nic => match self.reverse.match_nic(link) {
+                AnswerMatch::One(origin) => {
+                    if self.nic_to(now, origin, out).is_err() {
+                        self.drop_frame(DropReason::OriginGone, Place::Link(link), Address::new(0, 0, 0), 0, out);
+                    }
+                }
+                AnswerMatch::None => self.drop_frame(
+                    DropReason::Unsolicited,
+                    Place::Link(link),
+                    Address::new(0, 0, 0),
+                    0,
+                    out,
+                ),
+                AnswerMatch::Ambiguous => self.drop_frame(
+                    DropReason::AmbiguousAnswer,
+                    Place::Link(link),
+                    Address::new(0, 0, 0),
+                    0,
+                    out,
+                ),
+            },
+        }
+    }
+
+    /// A frame from a link. ARCHITECTURE "Delivery contract": answers
+    /// (results, delivery reports) and every frame of a link to another GCU
+    /// are ACKed at once, hop by hop; a client's command is ACKed only once
+    /// it is delivered (a repeat of it meanwhile is its retransmission, not
+    /// a new command), or answered with a report instead.
+    fn on_link_frame(&mut self, now: u64, link: LinkId, frame: FrameBuf, out: &mut Outbox) {
+        let Some(l) = self.links.get_mut(&link) else { return };
+        let kind = l.config.kind;
+        let client = kind == LinkKind::Client;
+        let f = frame.frame();
+        let (dest, source) = (f.dest, f.source);
+        // A client acts for this GCU and may speak as its group (Figure 7: a
+        // command issued from GCU-2, answered with destination group 2); a
+        // link to another GCU never may (a loop or a spoof).
+        let own_group = source == self.group && !client;
+        if source == WILDCARD || own_group || !l.config.allowed_sources.allows(source) {
+            l.stats.line.drops.add(DropReason::SourceNotAllowed);
+            if !client {
+                self.ack(now, link, out);
+            }
+            self.drop_frame(DropReason::SourceNotAllowed, Place::Link(link), dest, source, out);
+            if source != WILDCARD {
+                self.stats.undelivered.add(Undelivered::SourceNotAllowed);
+                self.report(now, link, &f, Some(Undelivered::SourceNotAllowed), self.group, out);
+            }
+            return;
+        }
+        // A report from another GCU is never a command (a report about a
+        // report would bounce between two GCUs forever) nor a result (an
+        // extended command's result may look like anything): it settles
+        // what it fits, or is dropped.
+        let report = (!client && dest.port == LINK_PORT && dest.device == CONTROL_UNIT)
+            .then(|| DeliveryReport::parse(f.payload()).ok())
+            .flatten();
+        if let Some(report) = report {
+            self.ack(now, link, out);
+            match self.reverse.match_report(link, dest.group, &report) {
+                Some(Some(id)) => self.resolve(now, id, report.failure.map_or(Ok(()), Err), report.at_group, out),
+                Some(None) => {}
+                None => self.drop_frame(DropReason::Unsolicited, Place::Link(link), dest, source, out),
+            }
+            return;
+        }
+        let repeats = self.links.get(&link).is_some_and(|l| !l.config.lossless);
+        match self.reverse.match_result(now, link, &f, repeats) {
+            AnswerMatch::One(origin) => {
+                self.ack(now, link, out);
+                return self.relay_forwarded(now, link, origin, frame, out);
+            }
+            AnswerMatch::Ambiguous => {
+                self.ack(now, link, out);
+                return self.drop_frame(DropReason::AmbiguousAnswer, Place::Link(link), dest, source, out);
+            }
+            AnswerMatch::None => {}
+        }
+        if client {
+            let repeat = self
+                .in_flight
+                .values()
+                .any(|c| c.delivery.is_some() && c.origin.link() == Some(link) && c.command.frame == frame)
+                || self.report_on_its_way(link, &f);
+            if repeat {
+                if let Some(l) = self.links.get_mut(&link) {
+                    l.stats.repeats += 1;
+                }
+                return;
+            }
+        } else {
+            self.ack(now, link, out);
+        }
+        self.routes.learn(source, link, kind);
+        let command = ReadCommand::read(frame);
+        self.dispatch(now, Origin::Link { link, source }, Some(kind), command, None, out);
+    }
+}
