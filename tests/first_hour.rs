@@ -468,7 +468,14 @@ fn gimbalctl_calls_add_no_info_lines_to_the_daemons_log() {
             .map(str::to_owned)
             .collect()
     };
+    let warnings = |log: &str| -> Vec<String> {
+        log.lines()
+            .filter(|l| l.contains(" WARN "))
+            .map(str::to_owned)
+            .collect()
+    };
     let before = info(&std::fs::read_to_string(&log_path).unwrap());
+    let warned_before = warnings(&std::fs::read_to_string(&log_path).unwrap());
     assert_eq!(ctl(&["--to", "5.1.1", "position"]).code, 0);
     assert_eq!(ctl(&["--to", "5.2.1", "goto", "5", "5", "--wait"]).code, 0);
     // A motion left running: gcud's dead-man stops it when gimbalctl leaves.
@@ -483,6 +490,16 @@ fn gimbalctl_calls_add_no_info_lines_to_the_daemons_log() {
     });
     let after = info(&std::fs::read_to_string(&log_path).unwrap());
     assert_eq!(after, before, "gimbalctl calls added INFO lines");
+    // A silent address and a scan's probes are their clients' to report,
+    // no warning; the dead-man stop is one.
+    let warned: Vec<String> = warnings(&std::fs::read_to_string(&log_path).unwrap())
+        .into_iter()
+        .filter(|l| !warned_before.contains(l))
+        .collect();
+    assert!(
+        !warned.is_empty() && warned.iter().all(|l| l.contains("dead-man")),
+        "WARN lines added: {warned:#?}"
+    );
     // Reload and shutdown are the daemon's life: INFO.
     nix::sys::signal::kill(
         nix::unistd::Pid::from_raw(gcud.0.id() as i32),

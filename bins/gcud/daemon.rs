@@ -629,6 +629,9 @@ fn log_event(event: &RouterEvent, links: &BTreeMap<LinkId, LinkInfo>, throttle: 
                 RouterEvent::DeadManStop { link, .. } | RouterEvent::LeaseExpired { link, .. } => {
                     ("stop".to_owned(), name(link))
                 }
+                RouterEvent::DeviceState { port, device, .. } => {
+                    ("device silent".to_owned(), format!("{port}.{device}"))
+                }
                 other => (format!("{:?}", std::mem::discriminant(other)), String::new()),
             };
             if throttle.allow(&kind, &place, || format!("{event}{context}"), Instant::now()) {

@@ -545,12 +545,17 @@ impl Port {
             self.backlog = Backlog::Unsure;
         }
         let answered = !matches!(outcome, Outcome::Failed(_) | Outcome::Broadcast);
+        let before = (
+            self.device_stats.get(&device).is_some_and(|d| d.online),
+            self.seen.contains(&device),
+        );
         if answered && device != WILDCARD {
             self.seen.insert(device);
             self.device(device).last_seen = Some(now);
         }
         if device != WILDCARD {
             self.learn(now, device, &r.job, outcome, frame.as_ref());
+            self.tell_device_state(device, before, out);
         }
         let outcome = match outcome {
             Outcome::Result => {
@@ -613,6 +618,22 @@ impl Port {
             self.device_stats.remove(&device);
         }
         out.extend(r.job.ids().map(|id| PortOut::Finished { id, outcome }));
+    }
+
+    /// A change of `device`'s answering (the registry's `online`) since
+    /// `before` (online, answered since the port opened), as one
+    /// [`RouterEvent::DeviceState`].
+    fn tell_device_state(&self, device: u8, before: (bool, bool), out: &mut Vec<PortOut>) {
+        let online = self.device_stats.get(&device).is_some_and(|d| d.online);
+        let (was_online, answered_before) = before;
+        if online != was_online {
+            out.push(PortOut::Event(RouterEvent::DeviceState {
+                port: self.config.id,
+                device,
+                online,
+                first: !answered_before,
+            }));
+        }
     }
 
     /// What an exchange tells about its device (the device registry):

@@ -136,6 +136,16 @@ pub enum RouterEvent {
     LinkState { link: LinkId, up: bool },
     /// A port was opened or lost.
     PortState { port: u8, open: bool },
+    /// A device on `port` began answering (`first`: for the first time)
+    /// or, having answered, went silent (no ACK after all retries). Said
+    /// once per change, not per command: the commands' own outcomes are
+    /// their clients' (delivery reports) and the metrics'.
+    DeviceState {
+        port: u8,
+        device: u8,
+        online: bool,
+        first: bool,
+    },
     /// The command `id` from a link was delivered: its origin got the ACK
     /// (client links) or a report `00` (links to other GCUs).
     Delivered { id: CommandId },
@@ -165,14 +175,32 @@ impl RouterEvent {
             | RouterEvent::Queued { .. }
             | RouterEvent::Started { .. }
             | RouterEvent::Delivered { .. } => Level::Debug,
+            // What one command met is its sender's to report (a delivery
+            // report) and the metrics' to count: a device that does not
+            // answer is told once (DeviceState), a port once (PortState),
+            // and an address with no port or route is the sender's. What
+            // is the GCU's own trouble (full queues, links that fail,
+            // stops it issued) stays a warning.
             RouterEvent::Finished { outcome, .. } => match outcome {
-                CommandOutcome::Dropped(_) | CommandOutcome::Unreachable => Level::Warn,
+                CommandOutcome::Dropped(reason) if !reason.is_the_senders() => Level::Warn,
                 _ => Level::Debug,
             },
-            RouterEvent::Dropped { .. }
-            | RouterEvent::DeadManStop { .. }
-            | RouterEvent::Undelivered { .. }
-            | RouterEvent::LeaseExpired { .. } => Level::Warn,
+            RouterEvent::Undelivered { failure, .. } => match failure {
+                Undelivered::DeviceSilent
+                | Undelivered::DeviceNak
+                | Undelivered::NotConfirmed
+                | Undelivered::NoSuchPort
+                | Undelivered::PortClosed
+                | Undelivered::NoRoute => Level::Debug,
+                _ => Level::Warn,
+            },
+            RouterEvent::Dropped { reason, .. } if reason.is_the_senders() => Level::Debug,
+            RouterEvent::DeviceState { online: false, .. } => Level::Warn,
+            RouterEvent::DeviceState { first: false, .. } => Level::Info,
+            RouterEvent::DeviceState { .. } => Level::Debug,
+            RouterEvent::Dropped { .. } | RouterEvent::DeadManStop { .. } | RouterEvent::LeaseExpired { .. } => {
+                Level::Warn
+            }
             RouterEvent::RateSwitched { .. } | RouterEvent::LinkState { .. } | RouterEvent::PortState { .. } => {
                 Level::Info
             }
@@ -206,6 +234,16 @@ impl fmt::Display for RouterEvent {
             RouterEvent::DeadManStop { link, dest, stop } => write!(f, "{link} down: dead-man {stop} to {dest}"),
             RouterEvent::LinkState { link, up } => write!(f, "{link} {}", if *up { "up" } else { "down" }),
             RouterEvent::PortState { port, open } => write!(f, "port {port} {}", if *open { "opened" } else { "lost" }),
+            RouterEvent::DeviceState {
+                port,
+                device,
+                online,
+                first,
+            } => match (online, first) {
+                (false, _) => write!(f, "port {port} device {device} went silent: no ACK after all retries"),
+                (true, true) => write!(f, "port {port} device {device} answers"),
+                (true, false) => write!(f, "port {port} device {device} answers again"),
+            },
             RouterEvent::Delivered { id } => write!(f, "command {} delivered", id.0),
             RouterEvent::Undelivered {
                 id,
@@ -274,6 +312,12 @@ sagebrush_protocol::code_table! {
 }
 
 impl DropReason {
+    /// A drop for the sender's address (no port, no route, a port not
+    /// open), not for the GCU's own trouble: logged at DEBUG, counted.
+    pub const fn is_the_senders(self) -> bool {
+        matches!(self, Self::NoRoute | Self::UnknownPort | Self::PortClosed)
+    }
+
     /// Index into [`crate::DropCounts`].
     pub const fn index(self) -> usize {
         self.code() as usize

@@ -1443,3 +1443,88 @@ fn with_no_late_answer_guard_a_silent_dead_man_stop_still_goes_again_first() {
     assert_eq!(wire.last(), Some(&stop), "the stop's next round first: {wire:?}");
     assert!(!wire.contains(&query), "{wire:?}");
 }
+
+/// Issue 24 (quiet logs): a device's answering is told once per change
+/// (`DeviceState`), at WARN when one that answered goes silent, not once
+/// per command to it; an address that never answered (a scan's probe) is
+/// no device and no warning at all.
+#[test]
+fn a_device_going_silent_is_told_once_and_a_silent_probe_not_at_all() {
+    use sagebrush_gcu::Level;
+    let mut h = H::new(&[1]);
+    let mut events: Vec<RouterEvent> = Vec::new();
+    fn keep(events: &mut Vec<RouterEvent>, out: &Outbox) {
+        for a in out.actions() {
+            if let Action::Event(e) = a {
+                events.push(e.clone());
+            }
+        }
+    }
+    let state = |events: &[RouterEvent]| -> Vec<(u8, bool, bool, Level)> {
+        events
+            .iter()
+            .filter_map(|e| match e {
+                RouterEvent::DeviceState {
+                    device, online, first, ..
+                } => Some((*device, *online, *first, e.level())),
+                _ => None,
+            })
+            .collect()
+    };
+    // It answers: once, at DEBUG (a device appearing is no warning).
+    keep(&mut events, &h.link(CLIENT, &frame((G, 1, 12), 2, b"PL")));
+    keep(&mut events, &h.port(1, &[ACK]));
+    keep(&mut events, &h.wait(10));
+    keep(&mut events, &h.link(CLIENT, &frame((G, 1, 12), 2, b"PS")));
+    keep(&mut events, &h.port(1, &[ACK]));
+    keep(&mut events, &h.wait(10));
+    assert_eq!(state(&events), vec![(12, true, true, Level::Debug)]);
+    // Silent to three commands: one WARN, and the commands' own ends are DEBUG.
+    events.clear();
+    for _ in 0..3 {
+        keep(&mut events, &h.link(CLIENT, &frame((G, 1, 12), 2, b"PL")));
+        keep(&mut events, &h.wait(1_000));
+    }
+    assert_eq!(state(&events), vec![(12, false, false, Level::Warn)]);
+    // (This test's client never acknowledges its reports: those drops
+    // are the client's, not the device's.)
+    let warnings: Vec<String> = events
+        .iter()
+        .filter(|e| e.level() == Level::Warn)
+        .filter(|e| {
+            !matches!(
+                e,
+                RouterEvent::Dropped {
+                    reason: DropReason::LinkNoAck,
+                    ..
+                }
+            )
+        })
+        .map(|e| e.to_string())
+        .collect();
+    assert_eq!(warnings, ["port 1 device 12 went silent: no ACK after all retries"]);
+    // It answers again: INFO, once.
+    events.clear();
+    keep(&mut events, &h.link(CLIENT, &frame((G, 1, 12), 2, b"PS")));
+    keep(&mut events, &h.port(1, &[ACK]));
+    keep(&mut events, &h.wait(10));
+    assert_eq!(state(&events), vec![(12, true, false, Level::Info)]);
+    // A scan's probes of empty addresses: nothing above DEBUG.
+    events.clear();
+    for device in 20..25 {
+        keep(&mut events, &h.link(CLIENT, &frame((G, 1, device), 2, b"D?")));
+        keep(&mut events, &h.wait(1_000));
+    }
+    assert!(state(&events).is_empty(), "{events:?}");
+    assert!(
+        events.iter().all(|e| e.level() == Level::Debug
+            || matches!(
+                e,
+                RouterEvent::Dropped {
+                    reason: DropReason::LinkNoAck,
+                    ..
+                }
+            )),
+        "{events:?}"
+    );
+}
