@@ -1,7 +1,7 @@
 //! The capture record header's code tables (docs/capture.md): what a
 //! record holds, which way its bytes went and which way commands flow on
 //! its line. `sagebrush_host::capture` writes records with them; the
-//! Wireshark dissector's tables are generated from them ([`crate::dissector`]).
+//! Wireshark dissector's tables are generated from them (by the `dissector` module).
 //! A format of this workspace, not of the spec: declared here so that the
 //! dissector has one source for every table it reads.
 
