@@ -5,7 +5,6 @@
 mod admission;
 mod capture;
 mod config;
-mod daemon;
 mod descriptors;
 mod http;
 mod io;
@@ -13,6 +12,7 @@ mod lines;
 mod metric_families;
 mod openmetrics;
 mod reload;
+mod router_task;
 #[cfg(feature = "sim")]
 mod simulated;
 mod snapshot;
@@ -128,7 +128,7 @@ fn main() -> ExitCode {
              hold open: connections beyond it wait to be accepted (raise LimitNOFILE)"
         );
     }
-    // The router task yields after each bounded turn (daemon::Turn); the
+    // The router task yields after each bounded turn (router_task::Turn); the
     // I/O driver is polled every few scheduler ticks (61 by default), so
     // that a turn-by-turn flood cannot hide other sockets' readiness.
     let runtime = match tokio::runtime::Builder::new_current_thread()
@@ -142,7 +142,7 @@ fn main() -> ExitCode {
             return ExitCode::from(EXIT_START);
         }
     };
-    match runtime.block_on(daemon::run(config, http)) {
+    match runtime.block_on(router_task::run(config, http)) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             tracing::error!("{e}");

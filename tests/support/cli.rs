@@ -87,7 +87,7 @@ impl DemoGcud {
             dir.path().join("no-such-tty").display()
         );
         // The router's DEBUG lines too: accepted connections going up and down.
-        let filter = format!("{},gcud::daemon=debug", super::GCUD_LOG);
+        let filter = format!("{},gcud::router_task=debug", super::GCUD_LOG);
         let child = super::spawn_gcud_logging(dir.path(), &config, Some(&filter));
         let mut gcud = Self {
             child,
