@@ -18,11 +18,11 @@ mod door;
 #[allow(dead_code)] // TRANSACTION_BYTES is for the bus benchmarks
 mod support;
 
-use std::net::{TcpListener, UdpSocket};
+use std::net::UdpSocket;
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-use door::{addr_in, env_count, log_line, relay, spawn};
+use door::{addr_in, env_count, log_line};
 use mavlink::dialects::common::{COMMAND_LONG_DATA, HEARTBEAT_DATA, MavCmd, MavMessage, MavResult};
 use mavlink::{MavHeader, MavlinkVersion};
 use support::percentile;
@@ -79,43 +79,15 @@ fn receive(socket: UdpSocket, out: mpsc::Sender<(Instant, MavMessage)>) {
 }
 
 fn main() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let (_sim, sim_addr) = support::gimbalsim(env!("CARGO_BIN_EXE_gimbalsim"), &["--tcp", "127.0.0.1:0"]);
-    let port_listener = TcpListener::bind("127.0.0.1:0").expect("bind");
-    let port_addr = port_listener.local_addr().expect("addr").to_string();
-    let (motions_tx, motions) = mpsc::channel();
-    std::thread::spawn(move || relay(port_listener, sim_addr, motions_tx));
-
-    let gcud_config = dir.path().join("gcud.toml");
-    std::fs::write(
-        &gcud_config,
-        format!(
-            "[gcu]\ngroup = 5\n[[port]]\nid = 1\ntcp = \"{port_addr}\"\n[[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n"
-        ),
-    )
-    .expect("config");
-    let gcud_log = dir.path().join("gcud.log");
-    let _gcud = spawn(
-        env!("CARGO_BIN_EXE_gcud"),
-        &["--config", gcud_config.to_str().expect("path")],
-        &gcud_log,
-    );
-    let clients = addr_in(&log_line(&gcud_log, "listening link=clients"));
-
-    let config = dir.path().join("gimbal-mavlink.toml");
-    std::fs::write(
-        &config,
-        format!(
+    let mut stack = door::Stack::start(env!("CARGO_BIN_EXE_gimbalsim"), env!("CARGO_BIN_EXE_gcud"));
+    let clients = stack.clients.clone();
+    let log = stack.door(
+        env!("CARGO_BIN_EXE_gimbal-mavlink"),
+        "gimbal-mavlink",
+        &format!(
             "gcud = \"{clients}\"\nsystem_id = 1\nlease_ms = 60000\n[[endpoint]]\nudp_listen = \"127.0.0.1:0\"\n\
              [[gimbal]]\nname = \"bench\"\naddress = \"5.1.1\"\ncomponent_id = 154\n"
         ),
-    )
-    .expect("config");
-    let log = dir.path().join("gimbal-mavlink.log");
-    let _mavlink = spawn(
-        env!("CARGO_BIN_EXE_gimbal-mavlink"),
-        &["--config", config.to_str().expect("path")],
-        &log,
     );
     let to = addr_in(&log_line(&log, "MAVLink UDP endpoint bound"));
     let socket = UdpSocket::bind("127.0.0.1:0").expect("bind");
@@ -146,11 +118,12 @@ fn main() {
     let moves = env_count("MAVLINK_BENCH_MOVES", 100);
     let mut latencies = Vec::with_capacity(moves);
     for i in 0..moves {
-        while motions.try_recv().is_ok() {}
+        while stack.motions.try_recv().is_ok() {}
         while incoming.try_recv().is_ok() {}
         let sent = Instant::now();
         gcs.yaw_rate(if i % 2 == 0 { 30.0 } else { -30.0 });
-        let on_bus = motions
+        let on_bus = stack
+            .motions
             .recv_timeout(Duration::from_secs(30))
             .expect("the motion on the bus");
         latencies.push(on_bus.saturating_duration_since(sent));

@@ -17,14 +17,12 @@ mod door;
 #[allow(dead_code)] // TRANSACTION_BYTES is for the bus benchmarks
 mod support;
 
-use std::net::TcpListener;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use base64::Engine;
 use base64::engine::general_purpose::STANDARD as B64;
-use door::{addr_in, env_count, log_line, relay, spawn};
+use door::{addr_in, env_count, log_line};
 use sha1::{Digest, Sha1};
 use support::percentile;
 
@@ -81,44 +79,16 @@ const STATUS: &str = "<tptz:GetStatus><tptz:ProfileToken>profile1</tptz:ProfileT
 const STOP: &str = "<tptz:Stop><tptz:ProfileToken>profile1</tptz:ProfileToken></tptz:Stop>";
 
 fn main() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let (_sim, sim_addr) = support::gimbalsim(env!("CARGO_BIN_EXE_gimbalsim"), &["--tcp", "127.0.0.1:0"]);
-    let port_listener = TcpListener::bind("127.0.0.1:0").expect("bind");
-    let port_addr = port_listener.local_addr().expect("addr").to_string();
-    let (motions_tx, motions) = mpsc::channel();
-    std::thread::spawn(move || relay(port_listener, sim_addr, motions_tx));
-
-    let gcud_config = dir.path().join("gcud.toml");
-    std::fs::write(
-        &gcud_config,
-        format!(
-            "[gcu]\ngroup = 5\n[[port]]\nid = 1\ntcp = \"{port_addr}\"\n[[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n"
-        ),
-    )
-    .expect("config");
-    let gcud_log = dir.path().join("gcud.log");
-    let _gcud = spawn(
-        env!("CARGO_BIN_EXE_gcud"),
-        &["--config", gcud_config.to_str().expect("path")],
-        &gcud_log,
-    );
-    let clients = addr_in(&log_line(&gcud_log, "listening link=clients"));
-
-    let onvif_config = dir.path().join("gimbal-onvif.toml");
-    std::fs::write(
-        &onvif_config,
-        format!(
+    let mut stack = door::Stack::start(env!("CARGO_BIN_EXE_gimbalsim"), env!("CARGO_BIN_EXE_gcud"));
+    let clients = stack.clients.clone();
+    let onvif_log = stack.door(
+        env!("CARGO_BIN_EXE_gimbal-onvif"),
+        "gimbal-onvif",
+        &format!(
             "gcud = \"{clients}\"\nmax_move_ms = 60000\n[discovery]\nenabled = false\n[[user]]\nname = \"{USER}\"\n\
              password = \"{PASSWORD}\"\nrole = \"operator\"\n[[gimbal]]\nname = \"bench\"\naddress = \"5.1.1\"\n\
              listen = \"127.0.0.1:0\"\n"
         ),
-    )
-    .expect("config");
-    let onvif_log = dir.path().join("gimbal-onvif.log");
-    let _onvif = spawn(
-        env!("CARGO_BIN_EXE_gimbal-onvif"),
-        &["--config", onvif_config.to_str().expect("path")],
-        &onvif_log,
     );
     let port: u16 = addr_in(&log_line(&onvif_log, "gimbal=bench addr="))
         .rsplit(':')
@@ -134,7 +104,7 @@ fn main() {
     let moves = env_count("ONVIF_BENCH_MOVES", 200);
     let mut latencies = Vec::with_capacity(moves);
     for i in 0..moves {
-        while motions.try_recv().is_ok() {}
+        while stack.motions.try_recv().is_ok() {}
         let x = if i % 2 == 0 { "0.5" } else { "-0.5" };
         let body = format!(
             "<tptz:ContinuousMove><tptz:ProfileToken>profile1</tptz:ProfileToken><tptz:Velocity>\
@@ -142,7 +112,8 @@ fn main() {
         );
         let sent = Instant::now();
         client.call(&body);
-        let on_bus = motions
+        let on_bus = stack
+            .motions
             .recv_timeout(Duration::from_secs(30))
             .expect("the motion on the bus");
         latencies.push(on_bus.saturating_duration_since(sent));

@@ -13,6 +13,57 @@ use sagebrush_protocol::{Event, Framer};
 
 use crate::support::Proc;
 
+/// gimbalsim behind the [`relay`], gcud with the relay as its `tcp` port 1
+/// and a client listener, and then the door: the bench's whole stack.
+pub struct Stack {
+    pub dir: tempfile::TempDir,
+    /// gcud's client listener, for the door's `gcud` key.
+    pub clients: String,
+    /// The instant each motion command reaches the bus side.
+    pub motions: mpsc::Receiver<Instant>,
+    procs: Vec<Proc>,
+}
+
+impl Stack {
+    /// gimbalsim, the relay and gcud, running.
+    pub fn start(gimbalsim: &str, gcud: &str) -> Self {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let (sim, sim_addr) = crate::support::gimbalsim(gimbalsim, &["--tcp", "127.0.0.1:0"]);
+        let port_listener = TcpListener::bind("127.0.0.1:0").expect("bind");
+        let port_addr = port_listener.local_addr().expect("addr").to_string();
+        let (motions_tx, motions) = mpsc::channel();
+        std::thread::spawn(move || relay(port_listener, sim_addr, motions_tx));
+        let config = dir.path().join("gcud.toml");
+        std::fs::write(
+            &config,
+            format!(
+                "[gcu]\ngroup = 5\n[[port]]\nid = 1\ntcp = \"{port_addr}\"\n[[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n"
+            ),
+        )
+        .expect("config");
+        let log = dir.path().join("gcud.log");
+        let gcud = spawn(gcud, &["--config", config.to_str().expect("path")], &log);
+        let clients = addr_in(&log_line(&log, "listening link=clients"));
+        Self {
+            dir,
+            clients,
+            motions,
+            procs: vec![sim, gcud],
+        }
+    }
+
+    /// Starts the door `bin` (`name`) on configuration `config`; returns
+    /// its log file's path.
+    pub fn door(&mut self, bin: &str, name: &str, config: &str) -> std::path::PathBuf {
+        let path = self.dir.path().join(format!("{name}.toml"));
+        std::fs::write(&path, config).expect("config");
+        let log = self.dir.path().join(format!("{name}.log"));
+        self.procs
+            .push(spawn(bin, &["--config", path.to_str().expect("path")], &log));
+        log
+    }
+}
+
 pub fn env_count(name: &str, default: usize) -> usize {
     std::env::var(name).ok().and_then(|v| v.parse().ok()).unwrap_or(default)
 }

@@ -73,7 +73,8 @@ struct Chunks {
     rx: std::sync::mpsc::Receiver<Vec<u8>>,
     chunk: Vec<u8>,
     at: usize,
-    handed: Arc<std::sync::atomic::AtomicU64>,
+    /// Bytes handed to the reader so far.
+    handed: u64,
 }
 
 impl Read for Chunks {
@@ -89,7 +90,7 @@ impl Read for Chunks {
         };
         *first = self.chunk[self.at];
         self.at += 1;
-        self.handed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.handed += 1;
         Ok(1)
     }
 }
@@ -154,14 +155,12 @@ where
     let decoder = {
         let (stats, peer) = (Arc::clone(&stats), peer.clone());
         tokio::task::spawn_blocking(move || {
-            let handed = Arc::new(std::sync::atomic::AtomicU64::new(0));
             let mut reader = mavlink::MavlinkReader::new(Chunks {
                 rx: chunk_rx,
                 chunk: Vec::new(),
                 at: 0,
-                handed: Arc::clone(&handed),
+                handed: 0,
             });
-            let handed = move || handed.load(std::sync::atomic::Ordering::Relaxed);
             let mut framing = Framing::default();
             loop {
                 let raw = match reader.read_any_raw_message::<MavMessage>() {
@@ -169,7 +168,7 @@ where
                     Err(mavlink::error::MessageReadError::Parse(_)) => continue,
                     Err(_) => break,
                 };
-                let skipped = framing.frame(handed(), frame_len(&raw));
+                let skipped = framing.frame(reader.get_ref().handed, frame_len(&raw));
                 if skipped > 0 {
                     damaged(&stats, &peer, skipped);
                 }
@@ -187,7 +186,7 @@ where
                     Err(_) => damaged(&stats, &peer, frame_len(&raw)),
                 }
             }
-            let trailing = framing.end(handed());
+            let trailing = framing.end(reader.get_ref().handed);
             if trailing > 0 {
                 damaged(&stats, &peer, trailing);
             }
