@@ -377,12 +377,7 @@ fn sigkill_of_gimbal_mavlink_mid_slew_and_the_gimbal_stops() {
     stack.wait_moving((0.0, 0.0));
     let status = stack.signal(nix::sys::signal::Signal::SIGKILL);
     assert!(!status.success());
-    let (pan, _) = stack.gcud.settled_position(MAST);
-    assert!(
-        pan > 0.0 && pan < 150.0,
-        "gcud's dead-man stopped it well short of the end: {pan}"
-    );
-    stack.gcud.wait_for_log("dead-man PS to 5.1.1");
+    support::door::assert_dead_man_stopped(&stack.gcud, MAST);
 }
 
 #[test]

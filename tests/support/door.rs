@@ -1,7 +1,8 @@
 //! What the front doors' end-to-end tests share (`tests/onvif.rs`,
 //! `tests/mavlink.rs`): whether the third-party Python client is installed
 //! (under `CI=true` it must be), one step of that client run as a script
-//! that prints JSON, and a door stopped by a signal.
+//! that prints JSON, a door stopped by a signal, and gcud's dead-man stop
+//! of a slew the door left running.
 
 use std::path::Path;
 use std::process::{Child, Command, ExitStatus, Stdio};
@@ -66,4 +67,16 @@ pub fn signal_and_wait(mut child: Child, signal: nix::sys::signal::Signal, name:
         assert!(started.elapsed() < HANG_GUARD, "{name} did not exit on {signal}");
         std::thread::sleep(Duration::from_millis(10));
     }
+}
+
+/// After the door that started a 30 °/s pan slew on `address` was killed:
+/// the gimbal, read on the bus side, stopped well short of its end of
+/// travel (180°, 6 s away), and gcud says it issued the dead-man stop.
+pub fn assert_dead_man_stopped(gcud: &super::gcud::Gcud, address: &str) {
+    let (pan, _) = gcud.settled_position(address);
+    assert!(
+        pan > 0.0 && pan < 150.0,
+        "gcud's dead-man stopped it well short of the end: {pan}"
+    );
+    gcud.wait_for_log(&format!("dead-man PS to {address}"));
 }
