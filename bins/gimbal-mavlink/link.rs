@@ -47,11 +47,15 @@ impl Stats {
         counter.fetch_add(1, Ordering::Relaxed) + 1
     }
 
-    /// Counts a datagram or run of `bytes` bytes without an intact frame;
-    /// the damaged total so far.
-    pub fn count_damaged(&self, bytes: usize) -> u64 {
+    /// Counts a datagram (UDP) or run (TCP, serial) of `bytes` bytes from
+    /// `from` without an intact frame; logged while rare (the first ten,
+    /// then at each power of two).
+    pub fn damaged(&self, from: &dyn std::fmt::Display, bytes: usize) {
         self.damaged_bytes.fetch_add(bytes as u64, Ordering::Relaxed);
-        Self::count(&self.damaged)
+        let total = Self::count(&self.damaged);
+        if total <= 10 || total.is_power_of_two() {
+            warn!(%from, bytes, total, "bytes without an intact MAVLink frame ignored");
+        }
     }
 
     pub fn summary(&self) -> String {
@@ -198,10 +202,7 @@ impl Outbox {
             };
             let messages = decode(&buf[..n]);
             if messages.is_empty() {
-                let total = stats.count_damaged(n);
-                if total <= 10 || total.is_power_of_two() {
-                    warn!(%from, bytes = n, total, "datagram without an intact MAVLink frame ignored");
-                }
+                stats.damaged(&from, n);
                 continue;
             }
             if port.fixed.is_none() {

@@ -125,14 +125,6 @@ fn frame_len(raw: &MAVLinkMessageRaw) -> u64 {
     }
 }
 
-/// Counts one run of `bytes` that held no intact frame (logged while rare).
-fn damaged(stats: &Stats, peer: &str, bytes: u64) {
-    let total = stats.count_damaged(bytes as usize);
-    if total <= 10 || total.is_power_of_two() {
-        warn!(%peer, bytes, total, "bytes without an intact MAVLink frame skipped");
-    }
-}
-
 /// Serves one connection (a TCP socket, a serial line) until it closes.
 async fn serve<S>(stream: S, peer: String, streams: Arc<Streams>, stats: Arc<Stats>, handler: Handler)
 where
@@ -170,7 +162,7 @@ where
                 };
                 let skipped = framing.frame(reader.get_ref().handed, frame_len(&raw));
                 if skipped > 0 {
-                    damaged(&stats, &peer, skipped);
+                    stats.damaged(&peer, skipped as usize);
                 }
                 let header = MavHeader {
                     system_id: raw.system_id(),
@@ -183,12 +175,12 @@ where
                             return;
                         }
                     }
-                    Err(_) => damaged(&stats, &peer, frame_len(&raw)),
+                    Err(_) => stats.damaged(&peer, frame_len(&raw) as usize),
                 }
             }
             let trailing = framing.end(reader.get_ref().handed);
             if trailing > 0 {
-                damaged(&stats, &peer, trailing);
+                stats.damaged(&peer, trailing as usize);
             }
         })
     };
