@@ -526,11 +526,7 @@ fn check_names_the_file_line_column_and_key_and_exits_2() {
         mavlink_config("127.0.0.1:4001", 1000, "").replace("component_id = 171", "component_id = 154"),
     )
     .expect("write");
-    let out = Command::new(env!("CARGO_BIN_EXE_gimbal-mavlink"))
-        .args(["--check", "--config"])
-        .arg(&path)
-        .output()
-        .expect("run");
+    let out = support::door::check(env!("CARGO_BIN_EXE_gimbal-mavlink"), &path);
     assert_eq!(out.status.code(), Some(2), "{out:?}");
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -545,11 +541,7 @@ fn check_warns_of_a_serial_device_absent_now_and_still_passes() {
     let path = dir.path().join("m.toml");
     let serial = "[[endpoint]]\nserial = \"/dev/no-such-mavlink-radio\"";
     std::fs::write(&path, mavlink_config("127.0.0.1:4001", 1000, serial)).expect("write");
-    let out = Command::new(env!("CARGO_BIN_EXE_gimbal-mavlink"))
-        .args(["--check", "--config"])
-        .arg(&path)
-        .output()
-        .expect("run");
+    let out = support::door::check(env!("CARGO_BIN_EXE_gimbal-mavlink"), &path);
     // Plugged in later, it is opened then: valid, with a warning at its place.
     assert_eq!(out.status.code(), Some(0), "{out:?}");
     let err = String::from_utf8_lossy(&out.stderr);
@@ -592,32 +584,27 @@ fn the_shipped_configuration_documents_every_key_and_passes_check() {
             "config/gimbal-mavlink.toml does not document {key}"
         );
     }
-    let out = Command::new(env!("CARGO_BIN_EXE_gimbal-mavlink"))
-        .args(["--check", "--config"])
-        .arg(&path)
-        .output()
-        .expect("run");
+    let out = support::door::check(env!("CARGO_BIN_EXE_gimbal-mavlink"), &path);
     assert_eq!(out.status.code(), Some(0), "{out:?}");
 }
 
 #[test]
 fn the_shipped_unit_is_hardened_and_checks_its_configuration_first() {
-    let unit = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/gimbal-mavlink.service"))
-        .expect("config/gimbal-mavlink.service");
-    for line in [
-        "Type=notify",
-        "ExecStartPre=/usr/bin/gimbal-mavlink --check --config /etc/gimbal-mavlink/gimbal-mavlink.toml",
-        "ExecStart=/usr/bin/gimbal-mavlink --config /etc/gimbal-mavlink/gimbal-mavlink.toml",
-        "DynamicUser=yes",
-        "NoNewPrivileges=yes",
-        "CapabilityBoundingSet=",
-        "ProtectSystem=strict",
-        "PrivateDevices=yes",
-        "RestrictAddressFamilies=AF_INET AF_INET6 AF_UNIX",
-        "SystemCallFilter=@system-service",
-        "MemoryDenyWriteExecute=yes",
-        "KillSignal=SIGTERM",
-    ] {
-        assert!(unit.lines().any(|l| l.trim() == line), "the unit lacks {line:?}");
-    }
+    support::door::assert_unit_has(
+        "gimbal-mavlink.service",
+        &[
+            "Type=notify",
+            "ExecStartPre=/usr/bin/gimbal-mavlink --check --config /etc/gimbal-mavlink/gimbal-mavlink.toml",
+            "ExecStart=/usr/bin/gimbal-mavlink --config /etc/gimbal-mavlink/gimbal-mavlink.toml",
+            "DynamicUser=yes",
+            "NoNewPrivileges=yes",
+            "CapabilityBoundingSet=",
+            "ProtectSystem=strict",
+            "PrivateDevices=yes",
+            "RestrictAddressFamilies=AF_INET AF_INET6 AF_UNIX",
+            "SystemCallFilter=@system-service",
+            "MemoryDenyWriteExecute=yes",
+            "KillSignal=SIGTERM",
+        ],
+    );
 }

@@ -606,11 +606,7 @@ fn check_names_the_file_line_column_and_key_and_exits_2() {
     let path = dir.path().join("o.toml");
     let check = |text: &str| {
         std::fs::write(&path, text).expect("write");
-        Command::new(env!("CARGO_BIN_EXE_gimbal-onvif"))
-            .args(["--check", "--config"])
-            .arg(&path)
-            .output()
-            .expect("run")
+        support::door::check(env!("CARGO_BIN_EXE_gimbal-onvif"), &path)
     };
     let ok = check(&good);
     assert_eq!(ok.status.code(), Some(0), "{ok:?}");
@@ -668,32 +664,27 @@ fn the_shipped_configuration_documents_every_key_and_passes_check() {
         text.replace("/etc/gimbal-onvif/admin.pass", &pass.display().to_string()),
     )
     .expect("write");
-    let out = Command::new(env!("CARGO_BIN_EXE_gimbal-onvif"))
-        .args(["--check", "--config"])
-        .arg(&path)
-        .output()
-        .expect("run");
+    let out = support::door::check(env!("CARGO_BIN_EXE_gimbal-onvif"), &path);
     assert_eq!(out.status.code(), Some(0), "{out:?}");
 }
 
 #[test]
 fn the_shipped_unit_is_hardened_and_checks_its_configuration_first() {
-    let unit = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/gimbal-onvif.service"))
-        .expect("config/gimbal-onvif.service");
-    for line in [
-        "Type=notify",
-        "ExecStartPre=/usr/bin/gimbal-onvif --check --config /etc/gimbal-onvif/gimbal-onvif.toml",
-        "DynamicUser=yes",
-        "StateDirectory=gimbal-onvif",
-        "NoNewPrivileges=yes",
-        "CapabilityBoundingSet=",
-        "ProtectSystem=strict",
-        "PrivateDevices=yes",
-        "RestrictAddressFamilies=AF_INET AF_INET6 AF_UNIX",
-        "SystemCallFilter=@system-service",
-        "MemoryDenyWriteExecute=yes",
-        "KillSignal=SIGTERM",
-    ] {
-        assert!(unit.lines().any(|l| l.trim() == line), "the unit lacks {line:?}");
-    }
+    support::door::assert_unit_has(
+        "gimbal-onvif.service",
+        &[
+            "Type=notify",
+            "ExecStartPre=/usr/bin/gimbal-onvif --check --config /etc/gimbal-onvif/gimbal-onvif.toml",
+            "DynamicUser=yes",
+            "StateDirectory=gimbal-onvif",
+            "NoNewPrivileges=yes",
+            "CapabilityBoundingSet=",
+            "ProtectSystem=strict",
+            "PrivateDevices=yes",
+            "RestrictAddressFamilies=AF_INET AF_INET6 AF_UNIX",
+            "SystemCallFilter=@system-service",
+            "MemoryDenyWriteExecute=yes",
+            "KillSignal=SIGTERM",
+        ],
+    );
 }

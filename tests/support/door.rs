@@ -1,8 +1,9 @@
 //! What the front doors' end-to-end tests share (`tests/onvif.rs`,
 //! `tests/mavlink.rs`): whether the third-party Python client is installed
 //! (under `CI=true` it must be), one step of that client run as a script
-//! that prints JSON, a door stopped by a signal, and gcud's dead-man stop
-//! of a slew the door left running.
+//! that prints JSON, a door stopped by a signal, gcud's dead-man stop of a
+//! slew the door left running, `--check` run on a file and the lines a
+//! shipped unit must hold.
 
 use std::path::Path;
 use std::process::{Child, Command, ExitStatus, Stdio};
@@ -79,4 +80,22 @@ pub fn assert_dead_man_stopped(gcud: &super::gcud::Gcud, address: &str) {
         "gcud's dead-man stopped it well short of the end: {pan}"
     );
     gcud.wait_for_log(&format!("dead-man PS to {address}"));
+}
+
+/// `bin --check --config path`, its output.
+pub fn check(bin: &str, path: &Path) -> std::process::Output {
+    Command::new(bin)
+        .args(["--check", "--config"])
+        .arg(path)
+        .output()
+        .expect("run --check")
+}
+
+/// The shipped unit `config/NAME` holds each of `lines` (trimmed) as a line.
+pub fn assert_unit_has(name: &str, lines: &[&str]) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config").join(name);
+    let unit = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    for line in lines {
+        assert!(unit.lines().any(|l| l.trim() == *line), "the unit lacks {line:?}");
+    }
 }
