@@ -290,24 +290,39 @@ sagebrush_protocol::code_table! {
     /// Why a frame or job was dropped. Every drop is counted under its
     /// reason (the code indexes [`crate::DropCounts`]; the name labels
     /// metrics).
-    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
     pub enum DropReason: u8 {
-        NoRoute = 0, "no_route", "no static, learned or default route to the destination group";
-        Loop = 1, "loop", "the only route leads back to the link the frame came from";
-        UnknownPort = 2, "unknown_port", "the destination port is not configured on this GCU";
-        PortClosed = 3, "port_closed", "the destination port is configured but not open";
-        PortLost = 4, "port_lost", "the port vanished with the job in flight or queued";
-        QueueFull = 5, "queue_full", "a bounded queue (port or link) was full";
-        DuplicateStop = 6, "duplicate_stop", "a stop identical to one already queued on the port: merged into it";
-        SourceNotAllowed = 7, "source_not_allowed", "the link may not speak for this source group (or it is 255 or our own group)";
-        LinkDown = 8, "link_down", "the link went down with the frame queued or in flight";
-        LinkNoAck = 9, "link_no_ack", "the link peer never acknowledged the frame (retries exhausted)";
-        OriginGone = 10, "origin_gone", "the link the answer should go back to is gone";
-        Unsolicited = 11, "unsolicited", "a frame nobody was waiting for (a late or stray result, or a frame for a group that is a local client's)";
-        AmbiguousAnswer = 12, "ambiguous_answer", "an answer from another GCU that could belong to forwarded commands of several origins";
-        PendingFull = 13, "pending_full", "too many forwarded commands awaiting answers: the oldest was forgotten";
-        ShuttingDown = 14, "shutting_down", "the GCU is shutting down: new commands are refused";
-        Expired = 15, "expired", "still queued when its client's delivery time-out passed: given up unsent";
+        /// no static, learned or default route to the destination group
+        NoRoute,
+        /// the only route leads back to the link the frame came from
+        Loop,
+        /// the destination port is not configured on this GCU
+        UnknownPort,
+        /// the destination port is configured but not open
+        PortClosed,
+        /// the port vanished with the job in flight or queued
+        PortLost,
+        /// a bounded queue (port or link) was full
+        QueueFull,
+        /// a stop identical to one already queued on the port: merged into it
+        DuplicateStop,
+        /// the link may not speak for this source group (or it is 255 or our own group)
+        SourceNotAllowed,
+        /// the link went down with the frame queued or in flight
+        LinkDown,
+        /// the link peer never acknowledged the frame (retries exhausted)
+        LinkNoAck,
+        /// the link the answer should go back to is gone
+        OriginGone,
+        /// a frame nobody was waiting for (a late or stray result, or a frame for a group that is a local client's)
+        Unsolicited,
+        /// an answer from another GCU that could belong to forwarded commands of several origins
+        AmbiguousAnswer,
+        /// too many forwarded commands awaiting answers: the oldest was forgotten
+        PendingFull,
+        /// the GCU is shutting down: new commands are refused
+        ShuttingDown,
+        /// still queued when its client's delivery time-out passed: given up unsent
+        Expired,
     }
 }
 

@@ -12,34 +12,42 @@ pub const RECORD_HEADER_LEN: usize = 8;
 
 crate::code_table! {
     /// What a record holds (header byte 1).
-    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
     pub enum RecordKind: u8 {
-        Frame = 1, "frame", "a frame whose checksum holds";
-        Ack = 2, "ack", "an ACK byte";
-        Nak = 3, "nak", "a NAK byte";
-        Nic = 4, "nic", "a NIC byte (?)";
-        Noise = 5, "noise", "bytes between frames that are part of nothing";
-        BadChecksum = 6, "bad_checksum", "a frame-sized candidate whose checksum failed: the bytes its length byte claims";
+        /// a frame whose checksum holds
+        Frame = 1,
+        /// an ACK byte
+        Ack = 2,
+        /// a NAK byte
+        Nak = 3,
+        /// a NIC byte (?)
+        Nic = 4,
+        /// bytes between frames that are part of nothing
+        Noise = 5,
+        /// a frame-sized candidate whose checksum failed: the bytes its length byte claims
+        BadChecksum = 6,
     }
 }
 
 crate::code_table! {
     /// Which way the bytes went, seen from the capturing program (header
     /// byte 2; the same values as the EPB flags' direction bits).
-    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
     pub enum Direction: u8 {
-        Inbound = 1, "inbound", "read by the capturing program";
-        Outbound = 2, "outbound", "written by the capturing program";
+        /// read by the capturing program
+        Inbound = 1,
+        /// written by the capturing program
+        Outbound = 2,
     }
 }
 
 crate::code_table! {
     /// Which way commands flow on the line (header byte 3), so that a reader
     /// tells commands from results.
-    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
     pub enum Role: u8 {
-        Unknown = 0, "unknown", "not known to the capturing program";
-        Master = 1, "master", "the capturing program sends the commands: a gcud device port or downstream link, gimbalctl";
-        Responder = 2, "responder", "the capturing program receives the commands: a gcud client or upstream link, gimbalsim";
+        /// not known to the capturing program
+        Unknown = 0,
+        /// the capturing program sends the commands: a gcud device port or downstream link, gimbalctl
+        Master = 1,
+        /// the capturing program receives the commands: a gcud client or upstream link, gimbalsim
+        Responder = 2,
     }
 }

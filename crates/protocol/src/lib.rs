@@ -3,6 +3,8 @@
 #![forbid(unsafe_code)]
 
 mod code_table;
+#[doc(hidden)]
+pub use code_table::{snake_case_bytes, snake_case_len};
 
 pub mod address;
 mod answer;

@@ -39,33 +39,31 @@ pub const REPORT_LEN: usize = 13;
 crate::code_table! {
     /// Why a command was not delivered. The code is the report's `CC`; the
     /// name labels metrics and JSON; the meaning is for a person.
-    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
     pub enum Undelivered: u8 {
-        /// The device did not acknowledge any transmission (no ACK after all retries).
-        DeviceSilent = 0x01, "device_silent", "the device did not acknowledge it (silent after all retries)";
-        /// The device answered every transmission with NAK.
-        DeviceNak = 0x02, "device_nak", "the device answered NAK to every transmission";
-        /// The destination port is not configured on that GCU.
-        NoSuchPort = 0x03, "no_such_port", "no such port on the GCU";
-        /// The destination port is configured but not open (or was lost with the command on it).
-        PortClosed = 0x04, "port_closed", "the port is not open";
-        /// A bounded queue on the way was full.
-        QueueFull = 0x05, "queue_full", "a queue on the way was full";
-        /// No route to the destination group.
-        NoRoute = 0x06, "no_route", "no route to the destination group";
-        /// The link toward the destination went down, or the next GCU never acknowledged.
-        LinkDown = 0x07, "link_down", "the link toward the destination is down or did not acknowledge";
-        /// The GCU is shutting down or closing the port: new commands are refused.
-        ShuttingDown = 0x08, "shutting_down", "the GCU is shutting down";
-        /// The sender may not speak as the frame's source group.
-        SourceNotAllowed = 0x09, "source_not_allowed", "the link may not speak as that source group";
-        /// The only route leads back to where the command came from.
-        Loop = 0x0A, "loop", "the only route leads back where the command came from";
-        /// Delivery was not confirmed in time (it may still execute): the next
-        /// GCU did not report it, or the device's ACK was still awaited.
-        NotConfirmed = 0x0B, "not_confirmed", "delivery was not confirmed in time (it may still execute)";
-        /// It waited in a queue until the sender's delivery time-out and was given up unsent.
-        Expired = 0x0C, "expired", "it waited in a queue too long and was given up unsent";
+        /// the device did not acknowledge it (silent after all retries)
+        DeviceSilent = 0x01,
+        /// the device answered NAK to every transmission
+        DeviceNak = 0x02,
+        /// no such port on the GCU
+        NoSuchPort = 0x03,
+        /// the port is not open
+        PortClosed = 0x04,
+        /// a queue on the way was full
+        QueueFull = 0x05,
+        /// no route to the destination group
+        NoRoute = 0x06,
+        /// the link toward the destination is down or did not acknowledge
+        LinkDown = 0x07,
+        /// the GCU is shutting down
+        ShuttingDown = 0x08,
+        /// the link may not speak as that source group
+        SourceNotAllowed = 0x09,
+        /// the only route leads back where the command came from
+        Loop = 0x0A,
+        /// delivery was not confirmed in time (it may still execute)
+        NotConfirmed = 0x0B,
+        /// it waited in a queue too long and was given up unsent
+        Expired = 0x0C,
     }
 }
 

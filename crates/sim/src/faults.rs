@@ -10,13 +10,17 @@ use rand_chacha::ChaCha8Rng;
 
 sagebrush_protocol::code_table! {
     /// A fault applied to one exchange; its code indexes the per-fault counters.
-    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
     pub enum Fault: u8 {
-        DropAck = 0, "drop_ack", "the ACK is lost on the way back (what follows it still goes)";
-        Nak = 1, "nak", "the command arrives damaged: the device answers NAK and does not execute it";
-        Corrupt = 2, "corrupt", "one byte of the answer is damaged (a payload byte of the result, or the ACK)";
-        Delay = 3, "delay", "the answer leaves late by `FaultConfig::delay_ms`";
-        Silent = 4, "silent", "the device does not hear the command at all: no answer";
+        /// the ACK is lost on the way back (what follows it still goes)
+        DropAck,
+        /// the command arrives damaged: the device answers NAK and does not execute it
+        Nak,
+        /// one byte of the answer is damaged (a payload byte of the result, or the ACK)
+        Corrupt,
+        /// the answer leaves late by `FaultConfig::delay_ms`
+        Delay,
+        /// the device does not hear the command at all: no answer
+        Silent,
     }
 }
 
