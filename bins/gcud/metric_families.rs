@@ -49,6 +49,18 @@ fn count(n: impl Into<u64>) -> Option<Value> {
     Some(Value::Count(n.into()))
 }
 
+/// A family whose one sample is the row's field of the same name (after
+/// the table's prefix, if any): `field!(counter "device_" nics, "help")` is
+/// `gcud_device_nics`, read from `row.nics`.
+macro_rules! field {
+    ($kind:ident $($prefix:literal)? $field:ident, $help:literal) => {
+        one(
+            Descriptor::$kind(concat!($($prefix,)? stringify!($field)), $help),
+            |row, _| count(row.$field),
+        )
+    };
+}
+
 fn drops(d: &DropCounts) -> Vec<(&'static str, Value)> {
     d.iter().map(|(reason, n)| (reason.name(), Value::Count(n))).collect()
 }
@@ -67,13 +79,7 @@ const GCUD: &[Column<Snapshot>] = &[
         Descriptor::gauge("start_time", "When gcud started, seconds since the Unix epoch.").in_unit(Unit::Seconds),
         |s, _| Some(Value::Real(s.unix_seconds(0))),
     ),
-    one(
-        Descriptor::gauge(
-            "shutting_down",
-            "1 once SIGTERM/SIGINT was received (new commands are refused).",
-        ),
-        |s, _| count(s.shutting_down),
-    ),
+    field!(gauge shutting_down, "1 once SIGTERM/SIGINT was received (new commands are refused)."),
     one(
         Descriptor::counter(
             "heap_allocations",
@@ -226,50 +232,19 @@ const GCUD: &[Column<Snapshot>] = &[
 /// A line's counters (ports and links alike), as families `port_...` and
 /// `link_...`.
 const LINE: &[Column<LineStats>] = &[
-    one(Descriptor::counter("frames_in", "Good frames received."), |l, _| {
-        count(l.frames_in)
-    }),
-    one(
-        Descriptor::counter("frames_out", "Frames written, retransmissions included."),
-        |l, _| count(l.frames_out),
-    ),
-    one(Descriptor::counter("bytes_in", "Bytes received."), |l, _| {
-        count(l.bytes_in)
-    }),
-    one(Descriptor::counter("bytes_out", "Bytes written."), |l, _| {
-        count(l.bytes_out)
-    }),
-    one(
-        Descriptor::counter("bad_checksums", "Frames received with a bad checksum (each NAKed)."),
-        |l, _| count(l.bad_checksums),
-    ),
-    one(Descriptor::counter("naks_sent", "NAKs written."), |l, _| {
-        count(l.naks_sent)
-    }),
-    one(Descriptor::counter("naks_received", "NAKs received."), |l, _| {
-        count(l.naks_received)
-    }),
-    one(
-        Descriptor::counter("stray_bytes", "ACK/NAK/NIC bytes nobody was waiting for."),
-        |l, _| count(l.stray_bytes),
-    ),
-    one(
-        Descriptor::counter("retransmits", "Frames written again after a NAK or ACK time-out."),
-        |l, _| count(l.retransmits),
-    ),
-    one(Descriptor::counter("timeouts", "ACK or result time-outs."), |l, _| {
-        count(l.timeouts)
-    }),
-    one(Descriptor::counter("nics_in", "NIC (?) received."), |l, _| {
-        count(l.nics_in)
-    }),
-    one(Descriptor::counter("nics_out", "NIC (?) written."), |l, _| {
-        count(l.nics_out)
-    }),
-    one(
-        Descriptor::counter("noise_bytes", "Noise bytes skipped by the framer."),
-        |l, _| count(l.noise_bytes),
-    ),
+    field!(counter frames_in, "Good frames received."),
+    field!(counter frames_out, "Frames written, retransmissions included."),
+    field!(counter bytes_in, "Bytes received."),
+    field!(counter bytes_out, "Bytes written."),
+    field!(counter bad_checksums, "Frames received with a bad checksum (each NAKed)."),
+    field!(counter naks_sent, "NAKs written."),
+    field!(counter naks_received, "NAKs received."),
+    field!(counter stray_bytes, "ACK/NAK/NIC bytes nobody was waiting for."),
+    field!(counter retransmits, "Frames written again after a NAK or ACK time-out."),
+    field!(counter timeouts, "ACK or result time-outs."),
+    field!(counter nics_in, "NIC (?) received."),
+    field!(counter nics_out, "NIC (?) written."),
+    field!(counter noise_bytes, "Noise bytes skipped by the framer."),
     by(
         Descriptor::counter("drops", "Frames or jobs dropped, by reason."),
         "reason",
@@ -287,22 +262,14 @@ const LINE: &[Column<LineStats>] = &[
 
 /// A port, beside its line's counters; labelled `port`.
 const PORT: &[Column<PortStats>] = &[
-    one(Descriptor::gauge("port_open", "Whether the port is open."), |p, _| {
-        count(p.open)
-    }),
-    one(Descriptor::gauge("port_bps", "Current line rate."), |p, _| count(p.bps)),
+    field!(gauge "port_" open, "Whether the port is open."),
+    field!(gauge "port_" bps, "Current line rate."),
     one(
         Descriptor::gauge("port_queue_length", "Jobs waiting behind the one in flight."),
         |p, _| count(p.queue_len as u64),
     ),
-    one(
-        Descriptor::counter("port_transactions", "Transactions started."),
-        |p, _| count(p.transactions),
-    ),
-    one(
-        Descriptor::counter("port_rate_switches", "Line rate switches."),
-        |p, _| count(p.rate_switches),
-    ),
+    field!(counter "port_" transactions, "Transactions started."),
+    field!(counter "port_" rate_switches, "Line rate switches."),
 ];
 
 /// A configured link (its connections folded together), beside its line's
@@ -312,9 +279,7 @@ const LINK: &[Column<LinkTotals>] = &[
         Descriptor::gauge("link_up", "Whether the link has a connection up."),
         |t, _| count(t.connections > 0),
     ),
-    one(Descriptor::gauge("link_connections", "Connections up now."), |t, _| {
-        count(t.connections)
-    }),
+    field!(gauge "link_" connections, "Connections up now."),
     one(
         Descriptor::counter(
             "link_command_repeats",
@@ -334,40 +299,14 @@ const LINK: &[Column<LinkTotals>] = &[
 
 /// A device of the router core's registry; labelled `port` and `device`.
 const DEVICE: &[Column<DeviceStats>] = &[
-    one(
-        Descriptor::counter("device_commands", "Transactions addressed to the device."),
-        |d, _| count(d.commands),
-    ),
-    one(
-        Descriptor::counter("device_frames_out", "Command frames written to the device."),
-        |d, _| count(d.frames_out),
-    ),
-    one(
-        Descriptor::counter("device_frames_in", "Result frames from the device."),
-        |d, _| count(d.frames_in),
-    ),
-    one(
-        Descriptor::counter("device_retransmits", "Retransmissions to the device."),
-        |d, _| count(d.retransmits),
-    ),
-    one(
-        Descriptor::counter("device_unreachable", "Commands never acknowledged after all retries."),
-        |d, _| count(d.unreachable),
-    ),
-    one(
-        Descriptor::counter("device_no_result", "Acknowledged commands whose result never came."),
-        |d, _| count(d.no_result),
-    ),
-    one(Descriptor::counter("device_nics", "NIC answers from the device."), |d, _| {
-        count(d.nics)
-    }),
-    one(
-        Descriptor::gauge(
-            "device_online",
-            "1 if the device answered the last exchange addressed to it, 0 if it was silent.",
-        ),
-        |d, _| count(d.online),
-    ),
+    field!(counter "device_" commands, "Transactions addressed to the device."),
+    field!(counter "device_" frames_out, "Command frames written to the device."),
+    field!(counter "device_" frames_in, "Result frames from the device."),
+    field!(counter "device_" retransmits, "Retransmissions to the device."),
+    field!(counter "device_" unreachable, "Commands never acknowledged after all retries."),
+    field!(counter "device_" no_result, "Acknowledged commands whose result never came."),
+    field!(counter "device_" nics, "NIC answers from the device."),
+    field!(gauge "device_" online, "1 if the device answered the last exchange addressed to it, 0 if it was silent."),
     one(
         Descriptor::gauge(
             "device_last_seen_timestamp",
