@@ -7,6 +7,23 @@ use std::time::Duration;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use sagebrush_protocol::{Address, DataRate};
 
+/// A subcommand's examples for its `after_help`: one `gimbalctl` line per
+/// argument; a bare line talks to the demo's first gimbal through gcud
+/// (`--tcp 127.0.0.1:4001 --to 5.1.1`), a line after `gimbalctl` is
+/// written out whole.
+macro_rules! examples {
+    (@lines $(,)?) => { "" };
+    (@lines gimbalctl $line:literal $(, $($rest:tt)*)?) => {
+        concat!("\n  gimbalctl ", $line, examples!(@lines $($($rest)*)?))
+    };
+    (@lines $line:literal $(, $($rest:tt)*)?) => {
+        concat!("\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 ", $line, examples!(@lines $($($rest)*)?))
+    };
+    ($($line:tt)+) => {
+        concat!("Examples:", examples!(@lines $($line)+))
+    };
+}
+
 /// Exit code: `--wait` saw the mount stop away from its target.
 pub const EXIT_STOPPED_SHORT: u8 = 20;
 /// Exit code: `--wait` gave up while the mount was still moving.
@@ -49,7 +66,7 @@ Exit codes:
 #[command(
     name = "gimbalctl",
     version,
-    after_help = concat!("Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 goto 45 -10 --wait\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 slew right --for 2s\n  gimbalctl --serial /dev/ttyUSB0 --to 1.1.1 position\n  gimbalctl --tcp 127.0.0.1:4001 scan --devices 1-8\n\n", "Run `gimbalctl help <SUBCOMMAND>` for a subcommand's arguments and examples."),
+    after_help = concat!(examples!("goto 45 -10 --wait", "slew right --for 2s", gimbalctl "--serial /dev/ttyUSB0 --to 1.1.1 position", gimbalctl "--tcp 127.0.0.1:4001 scan --devices 1-8"), "\n\nRun `gimbalctl help <SUBCOMMAND>` for a subcommand's arguments and examples."),
     after_long_help = EXIT_CODES
 )]
 pub struct Cli {
@@ -147,13 +164,13 @@ pub struct JogArgs {
 pub enum Cmd {
     /// Current pan/tilt position in degrees (P?, Table 15).
     #[command(
-        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 position\n  gimbalctl --json --serial /dev/ttyUSB0 --to 1.1.1 position"
+        after_help = examples!("position", gimbalctl "--json --serial /dev/ttyUSB0 --to 1.1.1 position")
     )]
     Position,
     /// Go to an absolute position in degrees (Paaaaeeee, Table 15).
     #[command(
         allow_negative_numbers = true,
-        after_help = "Angles are hundredths of a degree on the wire (16-bit two's complement): -327.68..=327.67.\n\nExamples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 goto 45 -10 --wait\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 goto -12.25 3.5"
+        after_help = concat!("Angles are hundredths of a degree on the wire (16-bit two's complement): -327.68..=327.67.\n\n", examples!("goto 45 -10 --wait", "goto -12.25 3.5"))
     )]
     Goto {
         /// Pan (azimuth), degrees -327.68..=327.67 (+ = counter-clockwise, right).
@@ -168,13 +185,13 @@ pub enum Cmd {
     /// Presets 0..255 (decimal, or hex with 0x): store, recall, query (Snn, Pnn, P?nn, S?nn).
     #[command(
         subcommand,
-        after_help = "Preset numbers are decimal 0..255 in and out (hex with a 0x prefix accepted); the wire carries two hex digits (preset 255 = FF).\n\nExamples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 preset store 12\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 preset recall 12 --wait\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 preset query 0x0C"
+        after_help = concat!("Preset numbers are decimal 0..255 in and out (hex with a 0x prefix accepted); the wire carries two hex digits (preset 255 = FF).\n\n", examples!("preset store 12", "preset recall 12 --wait", "preset query 0x0C"))
     )]
     Preset(PresetCmd),
     /// Slew continuously (PL, PR, TU, TD); see --for/--hold and the dead-man below.
     #[command(after_help = concat!(
         "Continuous motion and gcud's dead-man: through gcud (--tcp) a motion is stopped as soon as the connection that started it closes, i.e. when gimbalctl exits. Without --for or --hold the motion therefore lasts only an instant through gcud; on a bus (--serial) it goes on until its stop command (PS or TS, `gimbalctl stop`).",
-        "\n\nExamples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 slew right --for 2s\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 slew up --hold      # until Ctrl-C\n  gimbalctl --serial /dev/ttyUSB0 --to 1.1.1 slew left          # until `stop pan`"
+        "\n\n", examples!("slew right --for 2s", "slew up --hold      # until Ctrl-C", gimbalctl "--serial /dev/ttyUSB0 --to 1.1.1 slew left          # until `stop pan`")
     ))]
     Slew {
         /// left = pan clockwise (PL), right = pan counter-clockwise (PR), up = tilt up (TU), down = tilt down (TD).
@@ -184,7 +201,7 @@ pub enum Cmd {
     },
     /// Stop: all motion (PT, default), one axis (PS, TS), the lens (FS, ZS) or the motors (HS).
     #[command(
-        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 stop\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 stop pan"
+        after_help = examples!("stop", "stop pan")
     )]
     Stop {
         /// all = PT, pan = PS, tilt = TS, zoom = ZS, focus = FS, motors = HS (motors off).
@@ -192,11 +209,11 @@ pub enum Cmd {
         what: StopWhat,
     },
     /// Halt: stop dead, store the position for recall-halt, motors off (HA).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 halt")]
+    #[command(after_help = examples!("halt"))]
     Halt,
     /// Go back to the position saved by halt (HP; VP with --lens).
     #[command(
-        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 recall-halt\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 recall-halt --lens"
+        after_help = examples!("recall-halt", "recall-halt --lens")
     )]
     RecallHalt {
         /// The lens position instead (VP).
@@ -205,7 +222,7 @@ pub enum Cmd {
     },
     /// Proportional speed for pan or tilt moves (SPn, STn).
     #[command(
-        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 speed pan 8     # sends SP8\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 speed tilt F    # sends STF"
+        after_help = examples!("speed pan 8     # sends SP8", "speed tilt F    # sends STF")
     )]
     Speed {
         /// pan (SPn) or tilt (STn).
@@ -217,7 +234,7 @@ pub enum Cmd {
     /// Query (R?, RP?, RT?) or set (RPnnnn, RTnnnn) discrete rates, degrees per second.
     #[command(
         allow_negative_numbers = true,
-        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 rate\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 rate pan 10.25   # sends RP0401"
+        after_help = examples!("rate", "rate pan 10.25   # sends RP0401")
     )]
     Rate {
         /// pan or tilt; both when omitted (query only).
@@ -229,7 +246,7 @@ pub enum Cmd {
     /// Query (A?, AP?, AT?) or set (APnnnn, ATnnnn) accelerations, degrees per second squared.
     #[command(
         allow_negative_numbers = true,
-        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 accel\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 accel tilt 80"
+        after_help = examples!("accel", "accel tilt 80")
     )]
     Accel {
         /// pan or tilt; both when omitted (query only).
@@ -239,28 +256,28 @@ pub enum Cmd {
         value: Option<f64>,
     },
     /// Vector moves: both axes arrive together (VM1 / VM0).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 vector on")]
+    #[command(after_help = examples!("vector on"))]
     Vector {
         /// on (VM1) or off (VM0).
         state: OnOff,
     },
     /// Go home, pan 0 tilt 0 (HO).
     #[command(
-        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 home --wait\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.255.255 home   # every gimbal of GCU 5 (no ACK: written)"
+        after_help = examples!("home --wait", gimbalctl "--tcp 127.0.0.1:4001 --to 5.255.255 home   # every gimbal of GCU 5 (no ACK: written)")
     )]
     Home {
         #[command(flatten)]
         wait: WaitArgs,
     },
     /// Verify home (HV, Table 14).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 verify-home")]
+    #[command(after_help = examples!("verify-home"))]
     VerifyHome,
     /// Run the initialisation sequence and report Table 9 (IX); waits up to --init-timeout.
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 init")]
+    #[command(after_help = examples!("init"))]
     Init,
     /// Software limits: query (L?), set raw 12-bit values (LS) or clear (LC).
     #[command(
-        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 limits\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 limits set 100 50 30 20\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 limits clear"
+        after_help = examples!("limits", "limits set 100 50 30 20", "limits clear")
     )]
     Limits {
         #[command(subcommand)]
@@ -268,7 +285,7 @@ pub enum Cmd {
     },
     /// Rate gains: query (G?) or set 0.3..=3.0 (GRPnn, GRTnn).
     #[command(
-        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 gains\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 gains set tilt 1.5   # sends GRT0F"
+        after_help = examples!("gains", "gains set tilt 1.5   # sends GRT0F")
     )]
     Gains {
         #[command(subcommand)]
@@ -276,7 +293,7 @@ pub enum Cmd {
     },
     /// Auxiliary relays 0..=3: status (LR), open (L0..L3), close (L8..LB).
     #[command(
-        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 relay\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 relay close 2"
+        after_help = examples!("relay", "relay close 2")
     )]
     Relay {
         #[command(subcommand)]
@@ -284,7 +301,7 @@ pub enum Cmd {
     },
     /// Lens position: query (V?) or go to zoom/focus 0..=4095 (Vzzzfff, Table 17).
     #[command(
-        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 lens\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 lens goto 2048 100 --wait"
+        after_help = examples!("lens", "lens goto 2048 100 --wait")
     )]
     Lens {
         #[command(subcommand)]
@@ -292,7 +309,7 @@ pub enum Cmd {
     },
     /// Camera and lens power (CN, CX) or camera/relay status (VS).
     #[command(
-        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 camera status\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 camera on"
+        after_help = examples!("camera status", "camera on")
     )]
     Camera {
         /// on (CN: lens and camera relay on), off (CX), status (VS: camera power and relays).
@@ -301,7 +318,7 @@ pub enum Cmd {
     /// Focus: far, near (continuous, see --for/--hold), stop, speed 0..=9, auto on/off (FF, FN, FS, Fn, F?, FA, FX).
     #[command(after_help = concat!(
         "Focus far/near are continuous motions: through gcud (--tcp) gcud's dead-man stops them as soon as the connection that started them closes (when gimbalctl exits). Use --for or --hold; on a bus (--serial) they go on until `focus stop` (FS).",
-        "\n\nExamples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 focus far --for 500ms\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 focus speed 9\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 focus speed        # query (F?)"
+        "\n\n", examples!("focus far --for 500ms", "focus speed 9", "focus speed        # query (F?)")
     ))]
     Focus {
         #[command(subcommand)]
@@ -310,7 +327,7 @@ pub enum Cmd {
     /// Zoom: in, out (continuous, see --for/--hold), stop, speed 0..=9, digital A..F (ZI, ZO, ZS, Zn, Z?, ZA..ZF).
     #[command(after_help = concat!(
         "Zoom in/out are continuous motions: through gcud (--tcp) gcud's dead-man stops them as soon as the connection that started them closes (when gimbalctl exits). Use --for or --hold; on a bus (--serial) they go on until `zoom stop` (ZS).",
-        "\n\nExamples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 zoom in --for 1s\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 zoom out --hold\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 zoom speed 5"
+        "\n\n", examples!("zoom in --for 1s", "zoom out --hold", "zoom speed 5")
     ))]
     Zoom {
         #[command(subcommand)]
@@ -318,21 +335,21 @@ pub enum Cmd {
     },
     /// Identification block: ID, revision, name, serial (D?, Table 6).
     #[command(
-        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 id\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.0.0 id      # the GCU itself"
+        after_help = examples!("id", gimbalctl "--tcp 127.0.0.1:4001 --to 5.0.0 id      # the GCU itself")
     )]
     Id,
     /// Awake status: axes initialised, motors, error (AW, Table 5).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 status")]
+    #[command(after_help = examples!("status"))]
     Status,
     /// Error bits per axis, by name (E?, Table 6A).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 errors")]
+    #[command(after_help = examples!("errors"))]
     Errors,
     /// Status bits per axis, by name (I?, Table 6B).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 status-bits")]
+    #[command(after_help = examples!("status-bits"))]
     StatusBits,
     /// Maximum data rate (B?) or switch the device's rate (C0..C7).
     #[command(
-        after_help = "Examples:\n  gimbalctl --serial /dev/ttyUSB0 --to 1.1.1 data-rate\n  gimbalctl --serial /dev/ttyUSB0 --to 1.1.1 data-rate 38400   # then use --baud 38400"
+        after_help = examples!(gimbalctl "--serial /dev/ttyUSB0 --to 1.1.1 data-rate", gimbalctl "--serial /dev/ttyUSB0 --to 1.1.1 data-rate 38400   # then use --baud 38400")
     )]
     DataRate {
         /// New rate in bit/s: 1200, 2400, 4800, 9600, 19200, 38400, 57600 or 115200; query when omitted.
@@ -340,7 +357,7 @@ pub enum Cmd {
         bps: Option<u32>,
     },
     /// Program the device's address (#NN); best with only one device on the bus.
-    #[command(after_help = "Examples:\n  gimbalctl --serial /dev/ttyUSB0 --to 1.1.255 set-address 9")]
+    #[command(after_help = examples!(gimbalctl "--serial /dev/ttyUSB0 --to 1.1.255 set-address 9"))]
     SetAddress {
         /// New device ID 1..=254.
         #[arg(value_parser = clap::value_parser!(u8).range(1..=254), value_name = "ID")]
@@ -348,7 +365,7 @@ pub enum Cmd {
     },
     /// Auxiliary serial port 0 or 1 (*xpc, *xpt, *xpr, *xpn, *xpf, Table 18).
     #[command(
-        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 aux 1 configure 19200 8 1 even\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 aux 1 send 'ping\\x0D'\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 aux 1 read 16"
+        after_help = examples!("aux 1 configure 19200 8 1 even", "aux 1 send 'ping\\x0D'", "aux 1 read 16")
     )]
     Aux {
         /// Auxiliary port 0 or 1.
@@ -359,7 +376,7 @@ pub enum Cmd {
     },
     /// Send any payload (\xNN escapes allowed) and show what comes back.
     #[command(
-        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 raw 'P?'\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 raw VS"
+        after_help = examples!("raw 'P?'", "raw VS")
     )]
     Raw {
         /// Payload, 1..=256 bytes of text; \xNN for any byte.
@@ -368,7 +385,7 @@ pub enum Cmd {
     },
     /// Poll position and lens and keep one live line (JSON: one object per sample).
     #[command(
-        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 watch\n  gimbalctl --json --tcp 127.0.0.1:4001 --to 5.1.1 watch --rate 10 --count 20"
+        after_help = examples!("watch", gimbalctl "--json --tcp 127.0.0.1:4001 --to 5.1.1 watch --rate 10 --count 20")
     )]
     Watch {
         /// Samples per second, more than 0 and at most 100.
@@ -417,7 +434,7 @@ Examples:
         http: String,
     },
     /// Print the frame for PAYLOAD as hex bytes (no I/O; needs --to).
-    #[command(after_help = "Examples:\n  gimbalctl encode --to 5.1.12 --from 2 'P?'     # F8 05 01 0C 02 02 50 3F A5")]
+    #[command(after_help = examples!(gimbalctl "encode --to 5.1.12 --from 2 'P?'     # F8 05 01 0C 02 02 50 3F A5"))]
     Encode {
         /// Payload, 1..=256 bytes of text; \xNN for any byte.
         #[arg(value_name = "PAYLOAD")]
@@ -491,7 +508,7 @@ impl std::fmt::Display for IdList {
 pub enum PresetCmd {
     /// Store the current position as preset N (Snn).
     #[command(
-        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 preset store 12\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 preset store 0xFF   # preset 255 (SFF)"
+        after_help = examples!("preset store 12", "preset store 0xFF   # preset 255 (SFF)")
     )]
     Store {
         /// Preset 0..=255 (decimal, or 0x00..=0xFF).
@@ -499,7 +516,7 @@ pub enum PresetCmd {
         n: u8,
     },
     /// Go to preset N (Pnn).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 preset recall 12 --wait")]
+    #[command(after_help = examples!("preset recall 12 --wait"))]
     Recall {
         /// Preset 0..=255 (decimal, or 0x00..=0xFF).
         #[arg(value_parser = parse_preset, value_name = "N")]
@@ -508,14 +525,14 @@ pub enum PresetCmd {
         wait: WaitArgs,
     },
     /// Position of preset N (P?nn).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 preset query 12")]
+    #[command(after_help = examples!("preset query 12"))]
     Query {
         /// Preset 0..=255 (decimal, or 0x00..=0xFF).
         #[arg(value_parser = parse_preset, value_name = "N")]
         n: u8,
     },
     /// Position stored at preset N (S?nn).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 preset stored 12")]
+    #[command(after_help = examples!("preset stored 12"))]
     Stored {
         /// Preset 0..=255 (decimal, or 0x00..=0xFF).
         #[arg(value_parser = parse_preset, value_name = "N")]
@@ -526,7 +543,7 @@ pub enum PresetCmd {
 #[derive(Debug, Subcommand)]
 pub enum LimitsCmd {
     /// Set raw 12-bit limits, each 0..=4095 (Table 10; the unit is the device's).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 limits set 100 50 30 20")]
+    #[command(after_help = examples!("limits set 100 50 30 20"))]
     Set {
         /// Pan counter-clockwise (+) limit, raw 0..=4095.
         #[arg(value_parser = clap::value_parser!(u16).range(0..=4095))]
@@ -542,14 +559,14 @@ pub enum LimitsCmd {
         tilt_cw: u16,
     },
     /// Clear the software limits (LC).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 limits clear")]
+    #[command(after_help = examples!("limits clear"))]
     Clear,
 }
 
 #[derive(Debug, Subcommand)]
 pub enum GainsCmd {
     /// Set a rate gain (Table 7).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 gains set pan 1.5   # GRP0F")]
+    #[command(after_help = examples!("gains set pan 1.5   # GRP0F"))]
     Set {
         /// pan (GRPnn) or tilt (GRTnn).
         axis: AxisArg,
@@ -562,14 +579,14 @@ pub enum GainsCmd {
 #[derive(Debug, Subcommand)]
 pub enum RelayCmd {
     /// Open (switch off) relay N (L0..L3).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 relay open 2   # L2")]
+    #[command(after_help = examples!("relay open 2   # L2"))]
     Open {
         /// Relay 0..=3.
         #[arg(value_parser = clap::value_parser!(u8).range(0..=3), value_name = "N")]
         n: u8,
     },
     /// Close (switch on) relay N (L8..LB).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 relay close 2   # LA")]
+    #[command(after_help = examples!("relay close 2   # LA"))]
     Close {
         /// Relay 0..=3.
         #[arg(value_parser = clap::value_parser!(u8).range(0..=3), value_name = "N")]
@@ -580,7 +597,7 @@ pub enum RelayCmd {
 #[derive(Debug, Subcommand)]
 pub enum LensCmd {
     /// Go to zoom and focus positions (Table 17).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 lens goto 2048 100 --wait")]
+    #[command(after_help = examples!("lens goto 2048 100 --wait"))]
     Goto {
         /// Zoom position 0..=4095 (12 bits, the lens's own unit).
         #[arg(value_parser = clap::value_parser!(u16).range(0..=4095))]
@@ -596,23 +613,23 @@ pub enum LensCmd {
 #[derive(Debug, Subcommand)]
 pub enum FocusCmd {
     /// Focus far, continuously (FF) until `focus stop`; see --for/--hold.
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 focus far --for 500ms")]
+    #[command(after_help = examples!("focus far --for 500ms"))]
     Far {
         #[command(flatten)]
         jog: JogArgs,
     },
     /// Focus near, continuously (FN) until `focus stop`; see --for/--hold.
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 focus near --hold")]
+    #[command(after_help = examples!("focus near --hold"))]
     Near {
         #[command(flatten)]
         jog: JogArgs,
     },
     /// Stop focusing (FS).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 focus stop")]
+    #[command(after_help = examples!("focus stop"))]
     Stop,
     /// Set the focus speed (Fn), or query it (F?) without a value.
     #[command(
-        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 focus speed 9\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 focus speed   # query (F?)"
+        after_help = examples!("focus speed 9", "focus speed   # query (F?)")
     )]
     Speed {
         /// Speed 0..=9 (0 = slowest, 9 = fastest).
@@ -620,33 +637,33 @@ pub enum FocusCmd {
         n: Option<u8>,
     },
     /// Auto-focus on (FA; "not implemented" in rev 1.9, devices answer NIC).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 focus auto-on")]
+    #[command(after_help = examples!("focus auto-on"))]
     AutoOn,
     /// Auto-focus off (FX; "not implemented" in rev 1.9, devices answer NIC).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 focus auto-off")]
+    #[command(after_help = examples!("focus auto-off"))]
     AutoOff,
 }
 
 #[derive(Debug, Subcommand)]
 pub enum ZoomCmd {
     /// Zoom in, continuously (ZI) until `zoom stop`; see --for/--hold.
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 zoom in --for 1s")]
+    #[command(after_help = examples!("zoom in --for 1s"))]
     In {
         #[command(flatten)]
         jog: JogArgs,
     },
     /// Zoom out, continuously (ZO) until `zoom stop`; see --for/--hold.
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 zoom out --hold")]
+    #[command(after_help = examples!("zoom out --hold"))]
     Out {
         #[command(flatten)]
         jog: JogArgs,
     },
     /// Stop zooming (ZS).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 zoom stop")]
+    #[command(after_help = examples!("zoom stop"))]
     Stop,
     /// Set the zoom speed (Zn), or query it (Z?) without a value.
     #[command(
-        after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 zoom speed 5\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 zoom speed   # query (Z?)"
+        after_help = examples!("zoom speed 5", "zoom speed   # query (Z?)")
     )]
     Speed {
         /// Speed 0..=9 (0 = slowest, 9 = fastest).
@@ -654,7 +671,7 @@ pub enum ZoomCmd {
         n: Option<u8>,
     },
     /// Digital zoom step (ZA..ZF; "not implemented" in rev 1.9).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 zoom digital A")]
+    #[command(after_help = examples!("zoom digital A"))]
     Digital {
         /// Step A..=F.
         #[arg(value_parser = parse_digital, value_name = "STEP")]
@@ -665,7 +682,7 @@ pub enum ZoomCmd {
 #[derive(Debug, Subcommand)]
 pub enum AuxCmd {
     /// Line settings (Table 18).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 aux 1 configure 19200 8 1 even")]
+    #[command(after_help = examples!("aux 1 configure 19200 8 1 even"))]
     Configure {
         /// Baud rate of the auxiliary port, 1..=115200 bit/s.
         baud: u32,
@@ -679,23 +696,23 @@ pub enum AuxCmd {
         parity: ParityArg,
     },
     /// Transmit DATA (1..=200 bytes, \xNN escapes allowed).
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 aux 1 send 'ping\\x0D'")]
+    #[command(after_help = examples!("aux 1 send 'ping\\x0D'"))]
     Send {
         /// Bytes to send, 1..=200 (text; \xNN for any byte).
         data: String,
     },
     /// Receive up to MAX bytes.
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 aux 1 read 16")]
+    #[command(after_help = examples!("aux 1 read 16"))]
     Read {
         /// Bytes 1..=256.
         #[arg(value_parser = clap::value_parser!(u16).range(1..=256))]
         max: u16,
     },
     /// Characters waiting.
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 aux 1 count")]
+    #[command(after_help = examples!("aux 1 count"))]
     Count,
     /// Drop what is waiting.
-    #[command(after_help = "Examples:\n  gimbalctl --tcp 127.0.0.1:4001 --to 5.1.1 aux 1 flush")]
+    #[command(after_help = examples!("aux 1 flush"))]
     Flush,
 }
 
