@@ -249,6 +249,67 @@ macro_rules! command_table {
         ] $($rest)*);
     };
 
+    // A per-axis query (Table 11, protocol-notes E7): its letter, the axis
+    // letter, `?`.
+    (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] [$($done:tt)*]
+        $(#[doc = $doc:literal])* $Variant:ident(axis: Axis) => {
+            script: $script:literal, axis_query: ($letter:literal, $pan:literal, $tilt:literal),
+            answer: $answer:expr, motion: $motion:expr $(,)?
+        }
+        $($rest:tt)*
+    ) => {
+        command_table!(@row [$(#[$meta])* $Command $lt $payload $w] [$($done)*
+            [$(#[doc = $doc])* $Variant(axis: Axis) => {
+                script: $script,
+                wire: [],
+                mnemonic: match axis {
+                    Axis::Pan => $pan,
+                    Axis::Tilt => $tilt,
+                },
+                answer: $answer,
+                motion: $motion,
+                arms: {
+                    [$letter, a, b'?'] if axis(*a).is_some() => Self::$Variant(axis(*a).unwrap_or(Axis::Pan)),
+                },
+                encode: {
+                    $w.put(&[$letter, axis.letter(), b'?'])?;
+                },
+            }]
+        ] $($rest)*);
+    };
+    // A per-axis setting (Table 11; value Table 12): its letter, the axis
+    // letter, four hex digits.
+    (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] [$($done:tt)*]
+        $(#[doc = $doc:literal])* $Variant:ident(axis: Axis, $value:ident: $Value:ident) => {
+            script: $script:literal, axis_value: ($letter:literal, $pan:literal, $tilt:literal),
+            answer: $answer:expr, motion: $motion:expr $(,)?
+        }
+        $($rest:tt)*
+    ) => {
+        command_table!(@row [$(#[$meta])* $Command $lt $payload $w] [$($done)*
+            [$(#[doc = $doc])* $Variant(axis: Axis, $value: $Value) => {
+                script: $script,
+                wire: [],
+                mnemonic: match axis {
+                    Axis::Pan => $pan,
+                    Axis::Tilt => $tilt,
+                },
+                answer: $answer,
+                motion: $motion,
+                arms: {
+                    [$letter, a, ..] if axis(*a).is_some() => {
+                        let v = arg(concat!($pan, "/", $tilt), $payload, 2, "four hex digits", hex_u16)?;
+                        Self::$Variant(axis(*a).unwrap_or(Axis::Pan), $Value(v))
+                    },
+                },
+                encode: {
+                    $w.put(&[$letter, axis.letter()])?;
+                    $w.hex($value.0.into(), 4)?;
+                },
+            }]
+        ] $($rest)*);
+    };
+
     // Every row in one form: the enum and its functions.
     (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] [$(
         [$(#[doc = $doc:literal])* $Variant:ident $( ( $($field:ident : $fty:ty),+ ) )? => {
@@ -590,41 +651,9 @@ command_table! {
         /// `A?`: both accelerations (Table 11; result Table 13, protocol-notes E7).
         QueryAccelerations => { script: "query_accelerations", wire: b"A?", answer: Answer::normal(Shape::Accelerations), motion: Motion::Other }
         /// `AP?` / `AT?`: one axis (Table 11, protocol-notes E7). Before `APnnnn`.
-        QueryAcceleration(axis: Axis) => {
-            script: "query_acceleration",
-            mnemonic: match axis {
-                Axis::Pan => "AP?",
-                Axis::Tilt => "AT?",
-            },
-            answer: Answer::normal(Shape::Acceleration),
-            motion: Motion::Other,
-            parse: {
-                [b'A', a, b'?'] if axis(*a).is_some() => Self::QueryAcceleration(axis(*a).unwrap_or(Axis::Pan)),
-            },
-            encode: {
-                w.put(&[b'A', axis.letter(), b'?'])?;
-            },
-        }
+        QueryAcceleration(axis: Axis) => { script: "query_acceleration", axis_query: (b'A', "AP?", "AT?"), answer: Answer::normal(Shape::Acceleration), motion: Motion::Other }
         /// `APnnnn` / `ATnnnn` (Table 11; value Table 12).
-        SetAcceleration(axis: Axis, acceleration: Acceleration) => {
-            script: "set_acceleration",
-            mnemonic: match axis {
-                Axis::Pan => "APnnnn",
-                Axis::Tilt => "ATnnnn",
-            },
-            answer: Answer::Ack,
-            motion: Motion::Other,
-            parse: {
-                [b'A', a, ..] if axis(*a).is_some() => {
-                    let v = arg("APnnnn/ATnnnn", payload, 2, "four hex digits", hex_u16)?;
-                    Self::SetAcceleration(axis(*a).unwrap_or(Axis::Pan), Acceleration(v))
-                },
-            },
-            encode: {
-                w.put(&[b'A', axis.letter()])?;
-                w.hex(acceleration.0.into(), 4)?;
-            },
-        }
+        SetAcceleration(axis: Axis, acceleration: Acceleration) => { script: "set_acceleration", axis_value: (b'A', "APnnnn", "ATnnnn"), answer: Answer::Ack, motion: Motion::Other }
         /// `HA`: halt, stores the position, motors off (Table 11).
         Halt => { script: "halt", wire: b"HA", answer: Answer::Ack, motion: Motion::Stop }
         /// `HV`: verify home (Table 11; result Table 14).
@@ -696,41 +725,9 @@ command_table! {
         /// `R?`: both rates (Table 11; result Table 13, protocol-notes E7).
         QueryRates => { script: "query_rates", wire: b"R?", answer: Answer::normal(Shape::Rates), motion: Motion::Other }
         /// `RP?` / `RT?`: one axis (Table 11, protocol-notes E7). Before `RPnnnn`.
-        QueryRate(axis: Axis) => {
-            script: "query_rate",
-            mnemonic: match axis {
-                Axis::Pan => "RP?",
-                Axis::Tilt => "RT?",
-            },
-            answer: Answer::normal(Shape::Rate),
-            motion: Motion::Other,
-            parse: {
-                [b'R', a, b'?'] if axis(*a).is_some() => Self::QueryRate(axis(*a).unwrap_or(Axis::Pan)),
-            },
-            encode: {
-                w.put(&[b'R', axis.letter(), b'?'])?;
-            },
-        }
+        QueryRate(axis: Axis) => { script: "query_rate", axis_query: (b'R', "RP?", "RT?"), answer: Answer::normal(Shape::Rate), motion: Motion::Other }
         /// `RPnnnn` / `RTnnnn` (Table 11; value Table 12).
-        SetRate(axis: Axis, rate: Rate) => {
-            script: "set_rate",
-            mnemonic: match axis {
-                Axis::Pan => "RPnnnn",
-                Axis::Tilt => "RTnnnn",
-            },
-            answer: Answer::Ack,
-            motion: Motion::Other,
-            parse: {
-                [b'R', a, ..] if axis(*a).is_some() => {
-                    let v = arg("RPnnnn/RTnnnn", payload, 2, "four hex digits", hex_u16)?;
-                    Self::SetRate(axis(*a).unwrap_or(Axis::Pan), Rate(v))
-                },
-            },
-            encode: {
-                w.put(&[b'R', axis.letter()])?;
-                w.hex(rate.0.into(), 4)?;
-            },
-        }
+        SetRate(axis: Axis, rate: Rate) => { script: "set_rate", axis_value: (b'R', "RPnnnn", "RTnnnn"), answer: Answer::Ack, motion: Motion::Other }
         /// `SP0..SPF` / `ST0..STF`: proportional speed (Table 11). Before `Snn`.
         SetSpeed(axis: Axis, speed: Speed) => {
             script: "set_speed",
