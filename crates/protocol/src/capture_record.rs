@@ -4,6 +4,9 @@
 //! Wireshark dissector's tables are generated from them (by the `dissector` module).
 //! A format of this workspace, not of the spec: declared here so that the
 //! dissector has one source for every table it reads.
+//!
+//! Each table gives its first code; the others run on in row order, so a
+//! new row goes at the end and files written before it keep their meaning.
 
 /// First byte of every record.
 pub const RECORD_VERSION: u8 = 1;
@@ -16,15 +19,15 @@ crate::code_table! {
         /// a frame whose checksum holds
         Frame = 1,
         /// an ACK byte
-        Ack = 2,
+        Ack,
         /// a NAK byte
-        Nak = 3,
+        Nak,
         /// a NIC byte (?)
-        Nic = 4,
+        Nic,
         /// bytes between frames that are part of nothing
-        Noise = 5,
+        Noise,
         /// a frame-sized candidate whose checksum failed: the bytes its length byte claims
-        BadChecksum = 6,
+        BadChecksum,
     }
 }
 
@@ -35,7 +38,7 @@ crate::code_table! {
         /// read by the capturing program
         Inbound = 1,
         /// written by the capturing program
-        Outbound = 2,
+        Outbound,
     }
 }
 
@@ -46,8 +49,8 @@ crate::code_table! {
         /// not known to the capturing program
         Unknown = 0,
         /// the capturing program sends the commands: a gcud device port or downstream link, gimbalctl
-        Master = 1,
+        Master,
         /// the capturing program receives the commands: a gcud client or upstream link, gimbalsim
-        Responder = 2,
+        Responder,
     }
 }

@@ -5,7 +5,8 @@
 //! kept by hand:
 //! - `ALL`, the rows in table order;
 //! - `code` and `from_code` (a row without `= code` takes the next one, as
-//!   Rust's own discriminants do);
+//!   Rust's own discriminants do: a table of a format's codes gives its
+//!   first code, and a new row goes at the end);
 //! - `name`, the variant in snake_case (metric labels, JSON, the dissector);
 //! - `describe`, the doc comment: the meaning for a person.
 //!

@@ -37,33 +37,34 @@ pub const REPORT_MARK: u8 = b'!';
 pub const REPORT_LEN: usize = 13;
 
 crate::code_table! {
-    /// Why a command was not delivered. The code is the report's `CC`; the
-    /// name labels metrics and JSON; the meaning is for a person.
+    /// Why a command was not delivered. The code is the report's `CC`,
+    /// from 0x01 in row order (a new reason goes at the end); the name
+    /// labels metrics and JSON; the meaning is for a person.
     pub enum Undelivered: u8 {
         /// the device did not acknowledge it (silent after all retries)
         DeviceSilent = 0x01,
         /// the device answered NAK to every transmission
-        DeviceNak = 0x02,
+        DeviceNak,
         /// no such port on the GCU
-        NoSuchPort = 0x03,
+        NoSuchPort,
         /// the port is not open
-        PortClosed = 0x04,
+        PortClosed,
         /// a queue on the way was full
-        QueueFull = 0x05,
+        QueueFull,
         /// no route to the destination group
-        NoRoute = 0x06,
+        NoRoute,
         /// the link toward the destination is down or did not acknowledge
-        LinkDown = 0x07,
+        LinkDown,
         /// the GCU is shutting down
-        ShuttingDown = 0x08,
+        ShuttingDown,
         /// the link may not speak as that source group
-        SourceNotAllowed = 0x09,
+        SourceNotAllowed,
         /// the only route leads back where the command came from
-        Loop = 0x0A,
+        Loop,
         /// delivery was not confirmed in time (it may still execute)
-        NotConfirmed = 0x0B,
+        NotConfirmed,
         /// it waited in a queue too long and was given up unsent
-        Expired = 0x0C,
+        Expired,
     }
 }
 
