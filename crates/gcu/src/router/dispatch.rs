@@ -13,6 +13,14 @@ use crate::types::{CommandId, CommandOutcome, DropReason, LinkId, Origin, Place,
 use super::Router;
 use super::in_flight::{Delivery, InFlight, Progress};
 
+/// A command the router accepted: its id, where it came from and what it
+/// says, as it goes to the GCU's ports or to another GCU.
+pub(super) struct Accepted {
+    pub id: CommandId,
+    pub origin: Origin,
+    pub command: ReadCommand,
+}
+
 impl Router {
     /// A command accepted from `origin` (a link of `kind`, or the router
     /// itself), read once: gives it the next command id and its in-flight
@@ -44,20 +52,13 @@ impl Router {
                 finished: false,
             },
         );
-        self.route_command(now, id, origin, kind, command, out);
+        self.route_command(now, Accepted { id, origin, command }, kind, out);
         id
     }
 
     /// Routes command `id`: locally, to a link, or dropped and reported.
-    fn route_command(
-        &mut self,
-        now: u64,
-        id: CommandId,
-        origin: Origin,
-        kind: Option<LinkKind>,
-        command: ReadCommand,
-        out: &mut Outbox,
-    ) {
+    fn route_command(&mut self, now: u64, accepted: Accepted, kind: Option<LinkKind>, out: &mut Outbox) {
+        let (id, origin, command) = (accepted.id, accepted.origin, &accepted.command);
         let f = command.frame.frame();
         let (dest, source) = (f.dest, f.source);
         self.stats.accepted += 1;
@@ -78,11 +79,11 @@ impl Router {
         }
         if dest.group == self.group || dest.group == WILDCARD {
             if dest.group == WILDCARD && kind != Some(LinkKind::Downstream) {
-                self.flood(now, origin, &command, out);
+                self.flood(now, origin, command, out);
             }
-            return self.execute_local(now, id, origin, command, out);
+            return self.execute_local(now, accepted, out);
         }
-        self.route_to_link(now, id, origin, command, out);
+        self.route_to_link(now, accepted, out);
     }
 
     fn next_command_id(&mut self) -> CommandId {

@@ -13,18 +13,13 @@ use crate::outbox::Outbox;
 use crate::types::{CommandId, CommandOutcome, DropReason, LinkId, Origin, Place, RouterEvent};
 
 use super::Router;
+use super::dispatch::Accepted;
 
 impl Router {
     /// Command `id` for another group: forwarded on the route's link (its
     /// delivery is settled by the next GCU's report), or dropped and reported.
-    pub(super) fn route_to_link(
-        &mut self,
-        now: u64,
-        id: CommandId,
-        origin: Origin,
-        command: ReadCommand,
-        out: &mut Outbox,
-    ) {
+    pub(super) fn route_to_link(&mut self, now: u64, accepted: Accepted, out: &mut Outbox) {
+        let Accepted { id, origin, command } = accepted;
         let f = command.frame.frame();
         let dest = f.dest;
         let up = |l: LinkId| self.links.contains_key(&l);

@@ -12,21 +12,19 @@ use crate::types::{CommandId, CommandOutcome, DropReason, Origin, Place};
 
 use super::Router;
 use super::after_key;
+use super::dispatch::Accepted;
 use super::in_flight::Progress;
 use super::self_answer::{SelfAnswer, answer};
 
 impl Router {
     /// Destination group G or 255: port 0 is the GCU itself, 1..=254 one
     /// port, 255 every port.
-    pub(super) fn execute_local(
-        &mut self,
-        now: u64,
-        id: CommandId,
-        origin: Origin,
-        command: ReadCommand,
-        out: &mut Outbox,
-    ) {
-        let ReadCommand { frame, facts } = command;
+    pub(super) fn execute_local(&mut self, now: u64, accepted: Accepted, out: &mut Outbox) {
+        let Accepted {
+            id,
+            origin,
+            command: ReadCommand { frame, facts },
+        } = accepted;
         let f = frame.frame();
         let dest = f.dest;
         // One port, or every port (a broadcast to port 255): counted first,
