@@ -239,13 +239,13 @@ impl Task {
                     time_boot_ms,
                     cap_flags: GimbalManagerCapFlags::GIMBAL_MANAGER_CAP_FLAGS_HAS_PITCH_AXIS
                         | GimbalManagerCapFlags::GIMBAL_MANAGER_CAP_FLAGS_HAS_YAW_AXIS,
-                    roll_min: 0.0,
-                    roll_max: 0.0,
                     pitch_min,
                     pitch_max,
                     yaw_min,
                     yaw_max,
                     gimbal_device_id: g.component_id,
+                    // No roll axis: its limits stay 0.
+                    ..Default::default()
                 },
             )),
             283 => {
@@ -264,23 +264,20 @@ impl Task {
                 Ok(MavMessage::GIMBAL_DEVICE_INFORMATION(GIMBAL_DEVICE_INFORMATION_DATA {
                     uid: uid(&id.serial),
                     time_boot_ms,
-                    firmware_version: 0,
-                    hardware_version: 0,
-                    roll_min: 0.0,
-                    roll_max: 0.0,
                     pitch_min,
                     pitch_max,
                     yaw_min,
                     yaw_max,
                     cap_flags: GimbalDeviceCapFlagsU16::GIMBAL_DEVICE_CAP_FLAGS_HAS_PITCH_AXIS
                         | GimbalDeviceCapFlagsU16::GIMBAL_DEVICE_CAP_FLAGS_HAS_YAW_AXIS,
-                    custom_cap_flags: 0,
                     vendor_name: "Sagebrush".into(),
                     model_name: id.name.trim().into(),
                     custom_name: id.serial.trim().into(),
                     gimbal_device_id: g.component_id,
                     cap_flags2: GimbalDeviceCapFlags::GIMBAL_DEVICE_CAP_FLAGS_HAS_PITCH_AXIS
                         | GimbalDeviceCapFlags::GIMBAL_DEVICE_CAP_FLAGS_HAS_YAW_AXIS,
+                    // No roll axis (its limits stay 0), no versions, no custom flags.
+                    ..Default::default()
                 }))
             }
             _ => {
