@@ -264,48 +264,4 @@ fn socket(c: &Source<'_>, v: &Spanned<String>, key: &str) -> Result<SocketAddr, 
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    const GOOD: &str = r#"
-gcud = "127.0.0.1:4001"
-[discovery]
-listen = "127.0.0.1:3702"
-[[user]]
-name = "admin"
-password = "secret"
-role = "administrator"
-[[gimbal]]
-name = "mast-1"
-address = "5.1.1"
-listen = "127.0.0.1:8081"
-pan_deg = [-170.0, 170.0]
-"#;
-
-    fn err(text: &str) -> String {
-        parse(Path::new("o.toml"), text).unwrap_err().to_string()
-    }
-
-    #[test]
-    fn a_good_file_and_its_defaults() {
-        let c = parse(Path::new("o.toml"), GOOD).unwrap();
-        assert_eq!(c.gimbals[0].address, Address::new(5, 1, 1));
-        assert_eq!(c.gimbals[0].pan_deg, (-170.0, 170.0));
-        assert_eq!(c.gimbals[0].tilt_deg, (-90.0, 90.0));
-        assert_eq!(c.users[0].role, Role::Administrator);
-        assert_eq!(c.max_move, Duration::from_secs(10));
-    }
-
-    #[test]
-    fn errors_name_the_place_and_what_was_expected() {
-        assert_eq!(
-            err(&GOOD.replace("\"5.1.1\"", "\"5.1\"")),
-            "o.toml:11:11: gimbal[0].address: expected GROUP.PORT.DEVICE of one gimbal, e.g. \"5.1.1\""
-        );
-        assert!(err(&GOOD.replace("administrator", "root")).starts_with("o.toml:8:8: user[0].role: expected"));
-        assert!(err(&GOOD.replace("[-170.0, 170.0]", "[10.0, -10.0]")).starts_with("o.toml:13:11: gimbal[0].pan_deg"));
-        assert!(err(&GOOD.replace("listen = \"127.0.0.1:8081\"", "listen = \"8081\"")).contains("gimbal[0].listen"));
-        assert!(err(&format!("{GOOD}colour = 1\n")).contains("colour"));
-        assert!(err(&GOOD.replace("password = \"secret\"", "")).contains("exactly one of `password`"));
-    }
-}
+mod tests;

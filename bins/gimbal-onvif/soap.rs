@@ -254,43 +254,4 @@ impl Fault {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_request_is_read_with_its_namespaces() {
-        let xml = br#"<?xml version="1.0"?><e:Envelope xmlns:e="http://www.w3.org/2003/05/soap-envelope"><e:Header><Security xmlns="x"><UsernameToken><Username>ad&amp;min</Username></UsernameToken></Security></e:Header><e:Body><GetStatus xmlns="http://www.onvif.org/ver20/ptz/wsdl"><ProfileToken>p1</ProfileToken></GetStatus></e:Body></e:Envelope>"#;
-        let r = request(xml).unwrap();
-        assert_eq!(r.operation.name, "GetStatus");
-        assert_eq!(r.operation.ns, NS_PTZ);
-        assert_eq!(r.operation.text_at(&["ProfileToken"]), Some("p1"));
-        let h = r.header.unwrap();
-        assert_eq!(h.text_at(&["Security", "UsernameToken", "Username"]), Some("ad&min"));
-    }
-
-    #[test]
-    fn malformed_documents_are_errors_never_panics() {
-        for bad in [
-            &b"<a><b></a>"[..],
-            b"<a>",
-            b"",
-            b"\xff\xfe",
-            b"<a/><b/>",
-            b"<x:a/>",
-            b"<!DOCTYPE a [<!ENTITY e 'x'>]><a>&e;</a>",
-            b"<Envelope xmlns=\"http://www.w3.org/2003/05/soap-envelope\"><Body/></Envelope>",
-        ] {
-            assert!(request(bad).is_err(), "{:?}", String::from_utf8_lossy(bad));
-        }
-        let deep = "<a>".repeat(100) + &"</a>".repeat(100);
-        assert!(parse(deep.as_bytes()).is_err());
-    }
-
-    #[test]
-    fn a_fault_carries_its_subcodes_and_escaped_reason() {
-        let f = Fault::invalid_arg("ter:NoProfile", "no profile <x>").envelope();
-        assert!(f.contains("<s:Value>s:Sender</s:Value><s:Subcode><s:Value>ter:InvalidArgVal</s:Value><s:Subcode><s:Value>ter:NoProfile</s:Value></s:Subcode></s:Subcode>"), "{f}");
-        assert!(f.contains("no profile &lt;x&gt;"));
-        parse(f.as_bytes()).unwrap();
-    }
-}
+mod tests;
