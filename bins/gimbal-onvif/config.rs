@@ -202,14 +202,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let mut gimbals: Vec<Gimbal> = Vec::new();
     for (i, g) in raw.gimbals.iter().enumerate() {
         let key = format!("gimbal[{i}]");
-        let name = g.name.get_ref().clone();
-        if name.is_empty() || gimbals.iter().any(|x| x.name == name) {
-            return Err(c.at(
-                g.name.span(),
-                format!("{key}.name"),
-                "expected a name, not empty and not repeated",
-            ));
-        }
+        let name = c.gimbal_name(&g.name, &key, gimbals.iter().map(|x| x.name.as_str()))?;
         let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
         let listen = socket(&c, &g.listen, &format!("{key}.listen"))?;
         if listen.port() != 0 && gimbals.iter().any(|x| x.listen == listen) {
@@ -229,8 +222,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             }
             s => s.as_ref().map(|s| s.get_ref().clone()),
         };
-        let pan_deg = c.travel(g.pan_deg.as_ref(), &format!("{key}.pan_deg"), (-180.0, 180.0))?;
-        let tilt_deg = c.travel(g.tilt_deg.as_ref(), &format!("{key}.tilt_deg"), (-90.0, 90.0))?;
+        let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), &key)?;
         gimbals.push(Gimbal {
             name,
             address,

@@ -81,6 +81,9 @@ pub struct Source<'a> {
     pub text: &'a str,
 }
 
+/// A travel `[LOW, HIGH]`, degrees.
+pub type Travel = (f64, f64);
+
 impl<'a> Source<'a> {
     pub fn new(file: &'a Path, text: &'a str) -> Self {
         Self { file, text }
@@ -129,14 +132,42 @@ impl<'a> Source<'a> {
         Ok(address)
     }
 
+    /// A gimbal's name (`key.name`): not empty, and none of the names
+    /// `before` it.
+    pub fn gimbal_name<'n>(
+        &self,
+        v: &Spanned<String>,
+        key: &str,
+        mut before: impl Iterator<Item = &'n str>,
+    ) -> Result<String, ConfigError> {
+        let name = v.get_ref();
+        if name.is_empty() || before.any(|b| b == name) {
+            return Err(self.at(
+                v.span(),
+                format!("{key}.name"),
+                "expected a name, not empty and not repeated",
+            ));
+        }
+        Ok(name.clone())
+    }
+
+    /// A gimbal's travel (`key.pan_deg`, `key.tilt_deg`): pan, by default
+    /// -180..180, and tilt, by default -90..90.
+    pub fn pan_tilt_travel(
+        &self,
+        pan: Option<&Spanned<Vec<f64>>>,
+        tilt: Option<&Spanned<Vec<f64>>>,
+        key: &str,
+    ) -> Result<(Travel, Travel), ConfigError> {
+        Ok((
+            self.travel(pan, &format!("{key}.pan_deg"), (-180.0, 180.0))?,
+            self.travel(tilt, &format!("{key}.tilt_deg"), (-90.0, 90.0))?,
+        ))
+    }
+
     /// A travel `[LOW, HIGH]` in degrees within what a position can carry
     /// (±327.67°, Table 15); `default` when not given.
-    pub fn travel(
-        &self,
-        v: Option<&Spanned<Vec<f64>>>,
-        key: &str,
-        default: (f64, f64),
-    ) -> Result<(f64, f64), ConfigError> {
+    fn travel(&self, v: Option<&Spanned<Vec<f64>>>, key: &str, default: (f64, f64)) -> Result<(f64, f64), ConfigError> {
         let Some(v) = v else { return Ok(default) };
         match v.get_ref().as_slice() {
             [low, high] if low < high && *low >= -327.67 && *high <= 327.67 => Ok((*low, *high)),
