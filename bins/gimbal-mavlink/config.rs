@@ -112,20 +112,11 @@ impl sagebrush_client::door::Checked for Config {
     }
 }
 
-/// Reads and validates `file`.
-pub fn load(file: &Path) -> Result<Config, ConfigError> {
-    let text = config_file::read(file)?;
-    parse(file, &text)
-}
-
 /// Parses and validates configuration `text` read from `file`.
 pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let c = Source::new(file, text);
     let raw: ConfigFile = c.deserialize()?;
-    let gcud = raw.gcud.get_ref().clone();
-    if !gcud.contains(':') {
-        return Err(c.at(raw.gcud.span(), "gcud", "expected HOST:PORT of gcud's client listener"));
-    }
+    let gcud = c.gcud_address(&raw.gcud)?;
     let attitude_period = match &raw.attitude_rate_hz {
         Some(v) if (0.2..=50.0).contains(v.get_ref()) => Duration::from_secs_f64(1.0 / v.get_ref()),
         Some(v) => {

@@ -28,7 +28,7 @@ fn main() -> ExitCode {
     sagebrush_client::door::main(
         "gimbal-mavlink",
         "MAVLink Gimbal Protocol v2 (gimbal manager and device) for the gimbals behind gcud.",
-        config::load,
+        config::parse,
         run,
     )
 }

@@ -8,7 +8,7 @@ use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use sagebrush_client::config_file::{self, ConfigError, Int, Millis, Source};
+use sagebrush_client::config_file::{ConfigError, Int, Millis, Source};
 use sagebrush_protocol::Address;
 use serde::Deserialize;
 use toml::Spanned;
@@ -119,20 +119,11 @@ impl sagebrush_client::door::Checked for Config {
     }
 }
 
-/// Reads and validates `file`.
-pub fn load(file: &Path) -> Result<Config, ConfigError> {
-    let text = config_file::read(file)?;
-    parse(file, &text)
-}
-
 /// Parses and validates configuration `text` read from `file`.
 pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let c = Source::new(file, text);
     let raw: ConfigFile = c.deserialize()?;
-    let gcud = raw.gcud.get_ref().clone();
-    if gcud.parse::<SocketAddr>().is_err() && !gcud.contains(':') {
-        return Err(c.at(raw.gcud.span(), "gcud", "expected HOST:PORT of gcud's client listener"));
-    }
+    let gcud = c.gcud_address(&raw.gcud)?;
     let discovery = match raw.discovery.enabled.as_ref().map(|e| *e.get_ref()) {
         Some(false) => None,
         _ => Some(match &raw.discovery.listen {

@@ -23,7 +23,7 @@ fn main() -> ExitCode {
     sagebrush_client::door::main(
         "gimbal-onvif",
         "ONVIF PTZ (Device, Media, PTZ) and WS-Discovery for the gimbals behind gcud.",
-        config::load,
+        config::parse,
         run,
     )
 }

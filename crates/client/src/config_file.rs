@@ -112,6 +112,14 @@ impl<'a> Source<'a> {
         place
     }
 
+    /// gcud's client listener, `HOST:PORT` (`gcud`).
+    pub fn gcud_address(&self, v: &Spanned<String>) -> Result<String, ConfigError> {
+        if !v.get_ref().contains(':') {
+            return Err(self.at(v.span(), "gcud", "expected HOST:PORT of gcud's client listener"));
+        }
+        Ok(v.get_ref().clone())
+    }
+
     /// The address of one gimbal (`GROUP.PORT.DEVICE`, 1.4.1): no
     /// wildcard 255, no control unit 0.
     pub fn gimbal_address(&self, v: &Spanned<String>, key: &str) -> Result<Address, ConfigError> {

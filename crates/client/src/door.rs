@@ -12,7 +12,7 @@ use std::process::ExitCode;
 
 use clap::{CommandFactory, FromArgMatches, Parser};
 
-use crate::config_file::ConfigError;
+use crate::config_file::{self, ConfigError};
 
 /// Exit code of a configuration error (`--check` or start-up), as gcud's.
 pub const EXIT_CONFIG: u8 = 2;
@@ -44,12 +44,13 @@ pub trait Checked {
 }
 
 /// Runs the door `name` (described by `about` in its `--help`): reads its
-/// command line, then `load` reads the configuration (`--check` says what
-/// a valid one holds, and warns), `run` serves until the door stops.
+/// command line, then reads the configuration file, which `parse`
+/// validates (`--check` says what a valid one holds, and warns), and `run`
+/// serves until the door stops.
 pub fn main<C, Fut>(
     name: &'static str,
     about: &'static str,
-    load: impl FnOnce(&Path) -> Result<C, ConfigError>,
+    parse: impl FnOnce(&Path, &str) -> Result<C, ConfigError>,
     run: impl FnOnce(C) -> Fut,
 ) -> ExitCode
 where
@@ -68,7 +69,7 @@ where
         .get_matches();
     let args = Args::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     let (file, check) = (args.config.as_path(), args.check);
-    let config = match load(file) {
+    let config = match config_file::read(file).and_then(|text| parse(file, &text)) {
         Ok(c) => c,
         Err(e) => {
             sagebrush_host::errln!("{name}: {e}");
