@@ -12,14 +12,18 @@ use stats_alloc::{INSTRUMENTED_SYSTEM, Region, StatsAlloc};
 #[global_allocator]
 static GLOBAL: &StatsAlloc<System> = &INSTRUMENTED_SYSTEM;
 
+/// A gimbal that answers with each kind of response: a result (position
+/// or identity), done, or NIC.
 struct Gimbal {
     position: Position,
+    identity: Identity<'static>,
 }
 
 impl DeviceHandler for Gimbal {
     fn handle(&mut self, command: Command<'_>, _reply_to: ReplyTo, _now: u64) -> Response<'_> {
         match command {
             Command::QueryPosition => Response::Reply(Reply::Position(self.position)),
+            Command::Identify => Response::Reply(Reply::Identity(self.identity)),
             Command::GoTo(p) => {
                 self.position = p;
                 Response::Done
@@ -83,6 +87,7 @@ fn exercise(stream: &[u8]) -> usize {
     let mut endpoint: DeviceEndpoint = DeviceEndpoint::new(EndpointConfig::single(12));
     let mut gimbal = Gimbal {
         position: Position::default(),
+        identity: Identity::new(12, *b"19", b"PTU-D300", b"SN1").unwrap(),
     };
     let mut out = [0u8; 1024];
     let mut out_len = 0;
@@ -121,6 +126,7 @@ fn main() {
     let mut stream = Vec::new();
     for (i, payload) in [
         &b"P?"[..],
+        b"D?",
         b"P0064FF9C",
         b"GRP0F",
         b"QQ",
