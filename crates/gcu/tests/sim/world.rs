@@ -23,77 +23,64 @@ mod wires;
 use clients::{Client, ClientState, ClientWire};
 use devices::{Device, Gimbal, SimPort, motion_axis};
 
-/// What a run did, summed over seeds (and compared for determinism).
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct Summary {
-    pub accepted: u64,
-    pub results: u64,
-    pub nics: u64,
-    pub completed: u64,
-    pub no_result: u64,
-    pub unreachable: u64,
-    pub forwarded: u64,
-    pub dropped: u64,
-    pub dead_man_stops: u64,
-    pub rate_switches: u64,
-    pub retransmits: u64,
-    pub client_results: u64,
-    pub nonce_results: u64,
-    pub final_motions_checked: u64,
-    pub phantom_frames: u64,
-    /// Client commands the client saw ACKed (delivered).
-    pub client_delivered: u64,
-    /// Client commands the client saw reported as not delivered.
-    pub client_undelivered: u64,
-    /// Client commands the client gave up on (no ACK, no report in its budget).
-    pub client_gave_up: u64,
-    /// Retransmissions of a client's command that the GCU recognised.
-    pub client_repeats: u64,
-    /// ACKs a client took that were bytes of a damaged frame (its report came after).
-    pub phantom_acks: u64,
-    /// Writes to clients that a wire damaged: the only excuse for a phantom.
-    pub client_damaged_writes: u64,
-    /// ACKs a client took while its framer held damaged bytes: the most
-    /// phantom ACKs there can be.
-    pub tainted_acks: u64,
-    /// Fault: device servers that stopped reading for a while.
-    pub stalls: u64,
-    /// Reports a client got again (its ACK of the first was lost).
-    pub repeated_reports: u64,
-    /// Fault: device answers that left after the GCU gave up on them.
-    pub late_answers: u64,
-    pub end_time: u64,
+/// What a run did, summed over seeds (and compared for determinism):
+/// `Summary` has a `u64` per counter below, which `add` adds, and the
+/// latest end time. Declared as a list so that no counter is left out of
+/// the sum.
+macro_rules! summary {
+    ($($(#[doc = $doc:literal])* $counter:ident,)+) => {
+        #[derive(Clone, Debug, Default, PartialEq, Eq)]
+        pub struct Summary {
+            $($(#[doc = $doc])* pub $counter: u64,)+
+            pub end_time: u64,
+        }
+
+        impl Summary {
+            pub fn add(&mut self, o: &Summary) {
+                $(self.$counter += o.$counter;)+
+                self.end_time = self.end_time.max(o.end_time);
+            }
+        }
+    };
 }
 
-impl Summary {
-    pub fn add(&mut self, o: &Summary) {
-        self.accepted += o.accepted;
-        self.stalls += o.stalls;
-        self.repeated_reports += o.repeated_reports;
-        self.late_answers += o.late_answers;
-        self.results += o.results;
-        self.nics += o.nics;
-        self.completed += o.completed;
-        self.no_result += o.no_result;
-        self.unreachable += o.unreachable;
-        self.forwarded += o.forwarded;
-        self.dropped += o.dropped;
-        self.dead_man_stops += o.dead_man_stops;
-        self.rate_switches += o.rate_switches;
-        self.retransmits += o.retransmits;
-        self.client_results += o.client_results;
-        self.nonce_results += o.nonce_results;
-        self.final_motions_checked += o.final_motions_checked;
-        self.phantom_frames += o.phantom_frames;
-        self.client_delivered += o.client_delivered;
-        self.client_undelivered += o.client_undelivered;
-        self.client_gave_up += o.client_gave_up;
-        self.client_repeats += o.client_repeats;
-        self.phantom_acks += o.phantom_acks;
-        self.client_damaged_writes += o.client_damaged_writes;
-        self.tainted_acks += o.tainted_acks;
-        self.end_time = self.end_time.max(o.end_time);
-    }
+summary! {
+    accepted,
+    results,
+    nics,
+    completed,
+    no_result,
+    unreachable,
+    forwarded,
+    dropped,
+    dead_man_stops,
+    rate_switches,
+    retransmits,
+    client_results,
+    nonce_results,
+    final_motions_checked,
+    phantom_frames,
+    /// Client commands the client saw ACKed (delivered).
+    client_delivered,
+    /// Client commands the client saw reported as not delivered.
+    client_undelivered,
+    /// Client commands the client gave up on (no ACK, no report in its budget).
+    client_gave_up,
+    /// Retransmissions of a client's command that the GCU recognised.
+    client_repeats,
+    /// ACKs a client took that were bytes of a damaged frame (its report came after).
+    phantom_acks,
+    /// Writes to clients that a wire damaged: the only excuse for a phantom.
+    client_damaged_writes,
+    /// ACKs a client took while its framer held damaged bytes: the most
+    /// phantom ACKs there can be.
+    tainted_acks,
+    /// Fault: device servers that stopped reading for a while.
+    stalls,
+    /// Reports a client got again (its ACK of the first was lost).
+    repeated_reports,
+    /// Fault: device answers that left after the GCU gave up on them.
+    late_answers,
 }
 
 // ---------------------------------------------------------------- GCUs, clients
