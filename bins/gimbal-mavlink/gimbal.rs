@@ -20,8 +20,9 @@ use tracing::{info, warn};
 
 use crate::config::{self, Config};
 use crate::control::{Control, Refused, Sender};
-use crate::link::{Outbox, Stats};
+use crate::link::Outbox;
 use crate::motion::{self, Plan};
+use crate::stats::Stats;
 
 /// How often a gimbal that did not answer its last poll is asked again
 /// (each unanswered poll holds its bus for all of gcud's retries).

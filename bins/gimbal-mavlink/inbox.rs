@@ -8,8 +8,8 @@ use tracing::{debug, warn};
 
 use crate::frames;
 use crate::gimbal::{Handle, Job, Work};
-use crate::link::Stats;
 use crate::motion::Request;
+use crate::stats::Stats;
 
 /// Where a message goes.
 #[derive(Debug)]

@@ -12,6 +12,7 @@ mod gimbal;
 mod inbox;
 mod link;
 mod motion;
+mod stats;
 mod status;
 mod stream;
 
@@ -22,7 +23,8 @@ use mavlink::dialects::common::{COMMAND_ACK_DATA, MavMessage};
 use tokio::signal::unix::{SignalKind, signal};
 use tracing::{info, warn};
 
-use crate::link::{Outbox, Stats};
+use crate::link::Outbox;
+use crate::stats::Stats;
 
 fn main() -> ExitCode {
     sagebrush_client::door::main(

@@ -20,7 +20,7 @@ use tokio::sync::mpsc;
 use tokio_serial::SerialPortBuilderExt;
 use tracing::{debug, info, warn};
 
-use crate::link::Stats;
+use crate::stats::Stats;
 
 /// What is done with each intact message that comes in.
 pub type Handler = Arc<dyn Fn(MavHeader, MavMessage) + Send + Sync>;
