@@ -11,7 +11,8 @@ mod support;
 use std::time::{Duration, SystemTime};
 
 use sagebrush_host::capture::{Capture, CaptureConfig, Direction, Role};
-use sagebrush_protocol::{ACK, Address, Command, Extended, Frame, ResultKind};
+use sagebrush_protocol::dissector::ARGUMENT_SAMPLES;
+use sagebrush_protocol::{ACK, Address, Axis, Command, Extended, Frame, ResultKind};
 use support::capture::tshark_fields;
 
 /// A bus master's conversation with device 5.1.1: each command, and the
@@ -86,5 +87,52 @@ fn set_read_commands_pair_their_results_and_sets_take_none() {
         assert_eq!(&paired[3], command, "result {row:?} paired with frame {to}:\n{table}");
         // The command row names it by the table's mnemonic.
         assert_eq!(paired[2], Command::parse(command.as_bytes()).mnemonic(), "{table}");
+    }
+}
+
+/// The dissector tells commands apart by hand (first character and
+/// length): every row's sample, as the protocol crate encodes it, must get
+/// the mnemonic the protocol crate's parser gives it, and its arguments
+/// (the per-axis rows' axis and value among them) must be decoded.
+#[test]
+fn every_row_is_recognised_as_the_protocol_crate_parses_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("rows.pcapng");
+    let capture = Capture::open(&path, CaptureConfig::default()).expect("open capture");
+    let port = capture.interface("port 1 test", Role::Master);
+    let mut at = SystemTime::UNIX_EPOCH + Duration::from_secs(1_000_000);
+    let mut payloads: Vec<Vec<u8>> = Command::FIXED.iter().map(|(wire, _)| wire.to_vec()).collect();
+    payloads.extend(ARGUMENT_SAMPLES.iter().map(|s| s.to_vec()));
+    payloads.extend(Extended::ALL.iter().map(|e| e.name().as_bytes().to_vec()));
+    for payload in &payloads {
+        at += Duration::from_millis(20);
+        let text = String::from_utf8(payload.clone()).expect("ASCII sample");
+        capture.record(port, Direction::Outbound, at, &frame(Address::new(5, 1, 1), 0, &text));
+    }
+    capture.stop(Duration::from_secs(10));
+
+    let (rows, code, stderr) = tshark_fields(
+        &path,
+        &["sagebrush.cmd", "sagebrush.axis", "sagebrush.rate", "sagebrush.accel"],
+    );
+    assert_eq!(code, 0, "tshark: {stderr}");
+    assert_eq!(rows.len(), payloads.len(), "one row per frame: {rows:?}");
+    for (row, payload) in rows.iter().zip(&payloads) {
+        let command = Command::parse(payload);
+        assert_eq!(row[0], command.mnemonic(), "{row:?}");
+        // The per-axis rows' arguments: the axis, then the value in
+        // degrees per second (squared), hundredths on the wire (Table 12).
+        let (axis, rate, accel) = match command {
+            Command::QueryRate(a) | Command::QueryAcceleration(a) => (Some(a), None, None),
+            Command::SetRate(a, v) => (Some(a), Some(v.0), None),
+            Command::SetAcceleration(a, v) => (Some(a), None, Some(v.0)),
+            Command::SetSpeed(a, _) | Command::SetRateGain(a, _) => (Some(a), None, None),
+            _ => (None, None, None),
+        };
+        let name = |a: Axis| if a == Axis::Pan { "pan" } else { "tilt" };
+        let degrees = |v: Option<u16>| v.map_or(String::new(), |v| (f64::from(v) / 100.0).to_string());
+        assert_eq!(row[1], axis.map_or("", name), "axis of {row:?}");
+        assert_eq!(row[2], degrees(rate), "rate of {row:?}");
+        assert_eq!(row[3], degrees(accel), "acceleration of {row:?}");
     }
 }
