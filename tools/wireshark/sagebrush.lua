@@ -168,16 +168,19 @@ local function parse_command(s)
     local c = s:sub(1, 1)
     local axis_of = { P = "pan", T = "tilt" }
     local ax = s:sub(2, 2)
-    if c == "#" and n == 3 and hexval(s:sub(2, 3)) then
+    -- Per-axis queries and settings (Table 11; values Table 12, hundredths):
+    -- the letter, the axis, then ? or four hex digits.
+    local per_axis_value = { A = f.accel, R = f.rate }
+    if per_axis_value[c] and axis_of[ax] and n == 3 and s:sub(3, 3) == "?" then
+        arg(f.axis, axis_of[ax], 1, 1)
+        return row(c .. ax .. "?")
+    elseif per_axis_value[c] and axis_of[ax] and n == 6 and hexval(s:sub(3, 6)) then
+        arg(f.axis, axis_of[ax], 1, 1)
+        arg(per_axis_value[c], hexval(s:sub(3, 6)) / 100, 2, 4)
+        return row(c .. ax .. "nnnn")
+    elseif c == "#" and n == 3 and hexval(s:sub(2, 3)) then
         arg(f.device_id, hexval(s:sub(2, 3)), 1, 2)
         return row("#NN")
-    elseif c == "A" and n == 3 and axis_of[ax] and s:sub(3, 3) == "?" then
-        arg(f.axis, axis_of[ax], 1, 1)
-        return row("A" .. ax .. "?")
-    elseif c == "A" and n == 6 and axis_of[ax] and hexval(s:sub(3, 6)) then
-        arg(f.axis, axis_of[ax], 1, 1)
-        arg(f.accel, hexval(s:sub(3, 6)) / 100, 2, 4)
-        return row("A" .. ax .. "nnnn")
     elseif c == "C" and n == 2 and hexval(ax) then
         local bps = T.data_rates[hexval(ax)]
         if bps then arg(f.data_rate, bps, 1, 1) end
@@ -205,13 +208,6 @@ local function parse_command(s)
         arg(f.pan_deg, signed16(hexval(s:sub(2, 5))) / 100, 1, 4)
         arg(f.tilt_deg, signed16(hexval(s:sub(6, 9))) / 100, 5, 4)
         return row("Paaaaeeee")
-    elseif c == "R" and n == 3 and axis_of[ax] and s:sub(3, 3) == "?" then
-        arg(f.axis, axis_of[ax], 1, 1)
-        return row("R" .. ax .. "?")
-    elseif c == "R" and n == 6 and axis_of[ax] and hexval(s:sub(3, 6)) then
-        arg(f.axis, axis_of[ax], 1, 1)
-        arg(f.rate, hexval(s:sub(3, 6)) / 100, 2, 4)
-        return row("R" .. ax .. "nnnn")
     elseif s:sub(1, 2) == "S?" and n == 4 and hexval(s:sub(3, 4)) then
         arg(f.preset, hexval(s:sub(3, 4)), 2, 2)
         return row("S?nn")
