@@ -249,54 +249,37 @@ macro_rules! command_table {
         ] $($rest)*);
     };
 
-    // A per-axis query (Table 11, protocol-notes E7): its letter, the axis
-    // letter, `?`.
-    (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] [$($done:tt)*]
+    // Per-axis rows (Table 11, protocol-notes E7), written out as rows of
+    // the form above: the letter, the axis letter, then `?` (a query) or
+    // four hex digits (a setting, value Table 12).
+    (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] $done:tt
         $(#[doc = $doc:literal])* $Variant:ident(axis: Axis) => {
             script: $script:literal, axis_query: ($letter:literal, $pan:literal, $tilt:literal),
             answer: $answer:expr, motion: $motion:expr $(,)?
         }
         $($rest:tt)*
     ) => {
-        command_table!(@row [$(#[$meta])* $Command $lt $payload $w] [$($done)*
-            [$(#[doc = $doc])* $Variant(axis: Axis) => {
-                script: $script,
-                wire: [],
-                mnemonic: match axis {
-                    Axis::Pan => $pan,
-                    Axis::Tilt => $tilt,
-                },
-                answer: $answer,
-                motion: $motion,
-                arms: {
+        command_table!(@row [$(#[$meta])* $Command $lt $payload $w] $done
+            $(#[doc = $doc])* $Variant(axis: Axis) => {
+                script: $script, mnemonic: axis.pick($pan, $tilt), answer: $answer, motion: $motion,
+                parse: {
                     [$letter, a, b'?'] if axis(*a).is_some() => Self::$Variant(axis(*a).unwrap_or(Axis::Pan)),
                 },
-                encode: {
-                    $w.put(&[$letter, axis.letter(), b'?'])?;
-                },
-            }]
-        ] $($rest)*);
+                encode: { $w.put(&[$letter, axis.letter(), b'?'])?; },
+            }
+            $($rest)*);
     };
-    // A per-axis setting (Table 11; value Table 12): its letter, the axis
-    // letter, four hex digits.
-    (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] [$($done:tt)*]
+    (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] $done:tt
         $(#[doc = $doc:literal])* $Variant:ident(axis: Axis, $value:ident: $Value:ident) => {
             script: $script:literal, axis_value: ($letter:literal, $pan:literal, $tilt:literal),
             answer: $answer:expr, motion: $motion:expr $(,)?
         }
         $($rest:tt)*
     ) => {
-        command_table!(@row [$(#[$meta])* $Command $lt $payload $w] [$($done)*
-            [$(#[doc = $doc])* $Variant(axis: Axis, $value: $Value) => {
-                script: $script,
-                wire: [],
-                mnemonic: match axis {
-                    Axis::Pan => $pan,
-                    Axis::Tilt => $tilt,
-                },
-                answer: $answer,
-                motion: $motion,
-                arms: {
+        command_table!(@row [$(#[$meta])* $Command $lt $payload $w] $done
+            $(#[doc = $doc])* $Variant(axis: Axis, $value: $Value) => {
+                script: $script, mnemonic: axis.pick($pan, $tilt), answer: $answer, motion: $motion,
+                parse: {
                     [$letter, a, ..] if axis(*a).is_some() => {
                         let v = arg(concat!($pan, "/", $tilt), $payload, 2, "four hex digits", hex_u16)?;
                         Self::$Variant(axis(*a).unwrap_or(Axis::Pan), $Value(v))
@@ -306,8 +289,8 @@ macro_rules! command_table {
                     $w.put(&[$letter, axis.letter()])?;
                     $w.hex($value.0.into(), 4)?;
                 },
-            }]
-        ] $($rest)*);
+            }
+            $($rest)*);
     };
 
     // Every row in one form: the enum and its functions.
@@ -558,10 +541,7 @@ command_table! {
         /// `GRPnn` / `GRTnn`: set a rate gain (Table 4; value Table 7).
         SetRateGain(axis: Axis, gain: RateGain) => {
             script: "set_rate_gain",
-            mnemonic: match axis {
-                Axis::Pan => "GRPnn",
-                Axis::Tilt => "GRTnn",
-            },
+            mnemonic: axis.pick("GRPnn", "GRTnn"),
             answer: Answer::Ack,
             motion: Motion::Other,
             parse: {
@@ -731,10 +711,7 @@ command_table! {
         /// `SP0..SPF` / `ST0..STF`: proportional speed (Table 11). Before `Snn`.
         SetSpeed(axis: Axis, speed: Speed) => {
             script: "set_speed",
-            mnemonic: match axis {
-                Axis::Pan => "SPn",
-                Axis::Tilt => "STn",
-            },
+            mnemonic: axis.pick("SPn", "STn"),
             answer: Answer::Ack,
             motion: Motion::Other,
             parse: {

@@ -27,6 +27,14 @@ pub enum Axis {
 }
 
 impl Axis {
+    /// `pan` or `tilt`, for this axis (a per-axis row's mnemonic).
+    pub(crate) const fn pick(self, pan: &'static str, tilt: &'static str) -> &'static str {
+        match self {
+            Axis::Pan => pan,
+            Axis::Tilt => tilt,
+        }
+    }
+
     pub(crate) const fn letter(self) -> u8 {
         match self {
             Axis::Pan => b'P',
