@@ -117,9 +117,13 @@ pub fn app(scrapes: ScrapeRequests, http: Arc<Counters>) -> axum::Router {
     }
 
     async fn status(State(endpoint): State<Endpoint>) -> Response {
-        match endpoint.snapshot().await {
-            Some(s) => axum::Json(crate::status::Status::of(&s)).into_response(),
-            None => (StatusCode::SERVICE_UNAVAILABLE, "gcud is stopping\n").into_response(),
+        let Some(s) = endpoint.snapshot().await else {
+            return (StatusCode::SERVICE_UNAVAILABLE, "gcud is stopping\n").into_response();
+        };
+        // Rendered off the router task, as /metrics is: the registry can be long.
+        match tokio::task::spawn_blocking(move || serde_json::to_vec(&crate::status::Status::of(&s))).await {
+            Ok(Ok(body)) => ([("content-type", "application/json")], body).into_response(),
+            _ => (StatusCode::INTERNAL_SERVER_ERROR, "status not rendered\n").into_response(),
         }
     }
 
