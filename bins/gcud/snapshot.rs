@@ -191,7 +191,10 @@ pub mod fixture {
     /// A snapshot with every field set, each counter to a distinct value
     /// (so that a value read from the wrong field shows).
     pub fn every_field_set() -> Snapshot {
-        use sagebrush_gcu::{DeviceError, DeviceStats, LineStats, LinkKind, LinkStats, PortStats, RouterStats, Stats};
+        use sagebrush_gcu::{
+            DeviceError, DeviceStats, DropCounts, LineStats, LinkKind, LinkStats, PortStats, RouterStats, Stats,
+            UndeliveredCounts,
+        };
         use sagebrush_protocol::{Angle, LensPosition, Position, U12};
         let mut n = 0u64;
         let mut next = || {
@@ -212,7 +215,7 @@ pub mod fixture {
             nics_in: next(),
             nics_out: next(),
             noise_bytes: next(),
-            drops: Default::default(),
+            drops: DropCounts::from_fn(|_| next()),
             last_seen,
         };
         let router = RouterStats {
@@ -230,7 +233,9 @@ pub mod fixture {
             shutdown_stops: next(),
             delivered: next(),
             in_progress: next(),
-            ..Default::default()
+            dropped: DropCounts::from_fn(|_| next()),
+            frame_drops: DropCounts::from_fn(|_| next()),
+            undelivered: UndeliveredCounts::from_fn(|_| next()),
         };
         let mut stats = Stats {
             router,
@@ -242,7 +247,7 @@ pub mod fixture {
                 open,
                 bps: 9600 * u32::from(id),
                 queue_len: next() as usize,
-                queue_high_water: 0,
+                queue_high_water: next() as usize,
                 transactions: next(),
                 rate_switches: next(),
             };

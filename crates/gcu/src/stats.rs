@@ -14,6 +14,10 @@ use crate::types::{CommandOutcome, DropReason, LinkId};
 pub struct DropCounts([u64; DropReason::ALL.len()]);
 
 impl DropCounts {
+    /// Counts given per reason.
+    pub fn from_fn(mut count: impl FnMut(DropReason) -> u64) -> Self {
+        Self(DropReason::ALL.map(&mut count))
+    }
     pub fn get(&self, reason: DropReason) -> u64 {
         self.0[reason.index()]
     }
@@ -261,6 +265,10 @@ pub struct RouterStats {
 pub struct UndeliveredCounts([u64; Undelivered::ALL.len()]);
 
 impl UndeliveredCounts {
+    /// Counts given per kind.
+    pub fn from_fn(mut count: impl FnMut(Undelivered) -> u64) -> Self {
+        Self(Undelivered::ALL.map(&mut count))
+    }
     pub fn get(&self, kind: Undelivered) -> u64 {
         Undelivered::ALL
             .iter()
