@@ -23,11 +23,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::Parser;
-
-/// Exit code for a configuration error (`--check` or start-up).
-const EXIT_CONFIG: u8 = 2;
-/// Exit code for a failure to start (a listener cannot bind, ...).
-const EXIT_START: u8 = 1;
+use sagebrush_client::door::{EXIT_CONFIG, EXIT_START};
 
 #[derive(Debug, Parser)]
 #[command(

@@ -109,7 +109,7 @@ impl Session {
     /// not read again); failures become errors naming the device, the
     /// command and what happened ([`CommandError`]).
     pub async fn exchange(&mut self, command: &Command<'_>, payload: &[u8]) -> Result<Exchange, CtlError> {
-        Ok(self.client.exchange_command(self.to, command, payload).await?)
+        Ok(self.client.exchange(self.to, command, payload).await?)
     }
 
     /// The source group the commands carry (`--from`).

@@ -99,16 +99,10 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Client<S> {
         &mut self.master
     }
 
-    /// One exchange of `payload` (bytes from elsewhere: read once here)
-    /// with `to`; see [`Client::exchange_command`].
-    pub async fn exchange(&mut self, to: Address, payload: &[u8]) -> Result<Exchange, CommandError> {
-        self.exchange_command(to, &Command::parse(payload), payload).await
-    }
-
     /// One exchange of `command`, whose payload is `payload` (its encoding,
     /// not read again), with `to`; every outcome but an ACK, a result or a
     /// broadcast is an error naming the device, the command and what happened.
-    pub async fn exchange_command(
+    pub async fn exchange(
         &mut self,
         to: Address,
         command: &Command<'_>,
@@ -156,7 +150,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Client<S> {
     /// Sends `command` to `to`; done when it is acknowledged (or answered).
     pub async fn send(&mut self, to: Address, command: &Command<'_>) -> Result<Exchange, CommandError> {
         let payload = encode(command)?;
-        self.exchange_command(to, command, &payload).await
+        self.exchange(to, command, &payload).await
     }
 
     /// A query: its result payload.

@@ -14,7 +14,8 @@ use clap::{CommandFactory, FromArgMatches, Parser};
 
 use crate::config_file::{self, ConfigError};
 
-/// Exit code of a configuration error (`--check` or start-up), as gcud's.
+/// Exit code of a configuration error (`--check` or start-up), for gcud
+/// and every door.
 pub const EXIT_CONFIG: u8 = 2;
 /// Exit code of a failure to start (an address in use, a state file).
 pub const EXIT_START: u8 = 1;
