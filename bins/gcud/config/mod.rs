@@ -171,7 +171,7 @@ impl Checks {
                     span.clone(),
                     key.clone(),
                     format!(
-                        "{} is the serial device {first_key} = {:?} (line {}, column {}) already opens:                      one device is one port or one link",
+                        "{} is the serial device {first_key} = {:?} (line {}, column {}) already opens: one device is one port or one link",
                         path.display(),
                         first.display().to_string(),
                         at.line,
@@ -207,7 +207,6 @@ impl Checks {
     }
 }
 
-/// `FILE:LINE:COLUMN: KEY` of `span`, the start of a warning.
 /// Reads (bounded: `sagebrush_client::config_file::read`) and validates `file`.
 pub fn load(file: &Path) -> Result<Config, ConfigError> {
     let text = sagebrush_client::config_file::read(file)?;
@@ -374,6 +373,11 @@ mod tests {
         assert!(
             e.message.contains("port[0].path") && e.message.contains("line 5, column 8"),
             "{e}"
+        );
+        assert_eq!(
+            e.message,
+            "/dev/x is the serial device port[0].path = \"/dev/x\" (line 5, column 8) already opens: \
+             one device is one port or one link"
         );
         let e = err(
             "[gcu]\ngroup = 5\n[[port]]\nid = 1\npath = \"/dev/x\"\n[[link]]\nname = \"up\"\nrole = \"upstream\"\nserial = \"/dev/x\"\n",
