@@ -164,7 +164,7 @@ local function parse_command(s)
             return ext.name, ext.description .. " (raw arguments)", ext.shape, ext.answer == "optional", a
         end
     end
-    if T.fixed[s] then return row(s) end
+    if T.commands[s] and T.commands[s].fixed then return row(s) end
     local c = s:sub(1, 1)
     local axis_of = { P = "pan", T = "tilt" }
     local ax = s:sub(2, 2)
@@ -492,11 +492,12 @@ local function checksum(buf, from, to)
 end
 
 function p.dissector(buf, pinfo, tree)
-    if buf:len() < 8 then return 0 end
+    local header = T.record_header_len
+    if buf:len() < header then return 0 end
     pinfo.cols.protocol = "Sagebrush"
     local version, kind, dir, role = buf(0, 1):uint(), buf(1, 1):uint(), buf(2, 1):uint(), buf(3, 1):uint()
     local t = tree:add(p, buf(), "Sagebrush gimbal protocol, " .. (T.record_kinds[kind] and T.record_kinds[kind].name:gsub("_", " ") or "record kind " .. kind))
-    local h = t:add(p, buf(0, 8), "Capture record header")
+    local h = t:add(p, buf(0, header), "Capture record header")
     h:add(f.version, buf(0, 1))
     h:add(f.kind, buf(1, 1))
     h:add(f.direction, buf(2, 1))
@@ -505,8 +506,8 @@ function p.dissector(buf, pinfo, tree)
     -- Pairing state is per interface: by the record's own interface number,
     -- which (unlike frame.interface_id) is there on a first pass without a tree.
     local id = buf(4, 4):uint()
-    if buf:len() == 8 then return buf:len() end
-    local data = buf(8):tvb()
+    if buf:len() == header then return buf:len() end
+    local data = buf(header):tvb()
     local arrow = dir == D.inbound and "<- " or "-> "
     local info = {}
     local summary
@@ -520,7 +521,7 @@ function p.dissector(buf, pinfo, tree)
     elseif kind == K.ack or kind == K.nak or kind == K.nic then
         local n = pinfo.visited and notes[pinfo.number] or first_pass(pinfo, id, kind, dir, role, info)
         n = n or {}
-        summary = ({ [2] = "ACK", [3] = "NAK", [4] = "NIC (?)" })[kind]
+        summary = ({ [K.ack] = "ACK", [K.nak] = "NAK", [K.nic] = "NIC (?)" })[kind]
         if n.ack_of then t:add(f.ack_of, n.ack_of) end
         if kind == K.nak then t:add_proto_expert_info(e.nak) end
         if kind == K.nic then t:add_proto_expert_info(e.nic) end
@@ -569,7 +570,7 @@ function p.dissector(buf, pinfo, tree)
 
     info.bytes = data():string()
     info.group, info.port, info.device, info.source, info.payload, info.checksum = g, po, d, src, payload, ck
-    info.is_report = (dir ~= cmd_dir or role == R.unknown) and po == 0 and d == 0 and #payload == 13 and payload:sub(1, 1) == "!"
+    info.is_report = (dir ~= cmd_dir or role == R.unknown) and po == 0 and d == 0 and #payload == T.report_len and payload:sub(1, 1) == T.report_mark
     info.is_command = not info.is_report and (role == R.unknown or dir == cmd_dir)
     if info.is_report then
         info.report_address = payload:sub(4, 9)

@@ -326,13 +326,6 @@ macro_rules! command_table {
             /// Every row, in table order.
             pub const ALL: [Row; [$(Row::$Variant),+].len()] = [$(Row::$Variant),+];
 
-            /// The row's variant name.
-            pub const fn name(self) -> &'static str {
-                match self {
-                    $( Row::$Variant => stringify!($Variant), )+
-                }
-            }
-
             /// The row's name for scripts (gimbalctl's and gcud's JSON).
             pub const fn script_name(self) -> &'static str {
                 match self {

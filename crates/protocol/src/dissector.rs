@@ -12,10 +12,10 @@
 
 use core::fmt::{self, Write};
 
-use crate::capture_record::{Direction, RecordKind, Role};
+use crate::capture_record::{Direction, RECORD_HEADER_LEN, RecordKind, Role};
 use crate::command::{Command, Extended};
 use crate::reply::AwakeStatus;
-use crate::report::Undelivered;
+use crate::report::{REPORT_LEN, REPORT_MARK, Undelivered};
 use crate::units::DataRate;
 
 /// One command of every row that takes arguments, one per mnemonic (both
@@ -86,19 +86,21 @@ fn literal(f: &mut fmt::Formatter<'_>, text: impl Iterator<Item = char>) -> fmt:
     f.write_char('"')
 }
 
-fn command_row(out: &mut impl Write, command: &Command<'_>) -> fmt::Result {
+/// One command's row; `fixed`: its mnemonic is its whole wire form.
+fn command_row(out: &mut impl Write, command: &Command<'_>, fixed: bool) -> fmt::Result {
     let answer = command.answer();
     write!(
         out,
-        "    [{}] = {{ row = {}, script = {}, answer = {}, description = {}",
+        "    [{}] = {{ answer = {}, description = {}",
         Lua(command.mnemonic()),
-        Lua(command.row().name()),
-        Lua(command.script_name()),
         Lua(answer.name()),
         Prose(command.description())
     )?;
     if let Some(shape) = answer.shape() {
         write!(out, ", shape = {}", Lua(shape.name()))?;
+    }
+    if fixed {
+        out.write_str(", fixed = true")?;
     }
     out.write_str(" },\n")
 }
@@ -110,22 +112,19 @@ pub fn write_lua_tables(out: &mut impl Write) -> fmt::Result {
          -- do not edit. Regenerate: cargo run -p sagebrush-protocol --example gen_dissector_tables\n\
          local T = {}\n\n\
          -- Commands by mnemonic (Tables 4, 11, 16): answer is ack, result or optional\n\
-         -- (a rev 1.9 set/read command answers with a result only when it reads).\n\
+         -- (a rev 1.9 set/read command answers with a result only when it reads);\n\
+         -- fixed: the row takes no arguments (its mnemonic is its wire form).\n\
          T.commands = {\n",
     )?;
     for (_, command) in Command::FIXED {
-        command_row(out, command)?;
+        command_row(out, command, true)?;
     }
     for sample in ARGUMENT_SAMPLES {
-        command_row(out, &Command::parse(sample))?;
+        command_row(out, &Command::parse(sample), false)?;
     }
-    command_row(out, &Command::Unknown(&[]))?;
-    out.write_str("}\n\n-- Payloads of the rows without arguments (their mnemonic is their wire form).\nT.fixed = {")?;
-    for (wire, _) in Command::FIXED {
-        write!(out, " [{}] = true,", Lua(core::str::from_utf8(wire).unwrap_or("?")))?;
-    }
+    command_row(out, &Command::Unknown(&[]), false)?;
     out.write_str(
-        " }\n\n-- Rev 1.9 commands published by name only (1.2), matched as prefixes in this order.\nT.extended = {\n",
+        "}\n\n-- Rev 1.9 commands published by name only (1.2), matched as prefixes in this order.\nT.extended = {\n",
     )?;
     for ext in Extended::ALL {
         let answer = ext.answer();
@@ -150,7 +149,13 @@ pub fn write_lua_tables(out: &mut impl Write) -> fmt::Result {
     for (bit, _, meaning) in AwakeStatus::BITS {
         writeln!(out, "    {{ mask = {bit}, name = {} }},", Lua(meaning))?;
     }
-    out.write_str("}\n\n-- Delivery report codes (ARCHITECTURE \"Delivery contract\"): name and meaning.\nT.report_codes = {\n    [0x00] = { name = \"delivered\", meaning = \"delivered\" },\n")?;
+    write!(
+        out,
+        "}}\n\n-- A delivery report's payload: its mark and length (ARCHITECTURE \"Delivery contract\").\n\
+         T.report_mark = {}\nT.report_len = {REPORT_LEN}\n",
+        Lua(core::str::from_utf8(&[REPORT_MARK]).unwrap_or("!"))
+    )?;
+    out.write_str("\n-- Delivery report codes: name and meaning.\nT.report_codes = {\n    [0x00] = { name = \"delivered\", meaning = \"delivered\" },\n")?;
     for u in Undelivered::ALL {
         writeln!(
             out,
@@ -178,7 +183,11 @@ pub fn write_lua_tables(out: &mut impl Write) -> fmt::Result {
         "T.roles",
         Role::ALL.map(|r| (r.code(), r.name(), r.describe())),
     )?;
-    out.write_str("}\n\nreturn T\n")
+    write!(
+        out,
+        "}}\n\n-- Bytes of the capture record header before the raw bytes (docs/capture.md).\n\
+         T.record_header_len = {RECORD_HEADER_LEN}\n\nreturn T\n"
+    )
 }
 
 /// Closes the table before, then `-- comment`, `table = {` and one row
