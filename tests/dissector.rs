@@ -113,13 +113,23 @@ fn every_row_is_recognised_as_the_protocol_crate_parses_it() {
 
     let (rows, code, stderr) = tshark_fields(
         &path,
-        &["sagebrush.cmd", "sagebrush.axis", "sagebrush.rate", "sagebrush.accel"],
+        &[
+            "sagebrush.cmd",
+            "sagebrush.axis",
+            "sagebrush.rate",
+            "sagebrush.accel",
+            "sagebrush.cmd.description",
+        ],
     );
     assert_eq!(code, 0, "tshark: {stderr}");
     assert_eq!(rows.len(), payloads.len(), "one row per frame: {rows:?}");
+    let unknown = Command::Unknown(&[]).description().replace(['`', '[', ']'], "");
     for (row, payload) in rows.iter().zip(&payloads) {
         let command = Command::parse(payload);
         assert_eq!(row[0], command.mnemonic(), "{row:?}");
+        // Its row of the generated table, not the unknown one's (a
+        // mnemonic missing from the table falls back to that).
+        assert!(!row[4].starts_with(&unknown), "{row:?} described as unknown");
         // The per-axis rows' arguments: the axis, then the value in
         // degrees per second (squared), hundredths on the wire (Table 12).
         let (axis, rate, accel) = match command {

@@ -42,3 +42,30 @@ fn samples_cover_every_row() {
     let missing: Vec<_> = rows.difference(&covered).collect();
     assert!(missing.is_empty(), "rows without a dissector sample: {missing:?}");
 }
+
+/// The generated table is keyed by mnemonic, and a per-axis row has one
+/// per axis: where a sample names an axis (`P` or `T` at byte 1 or 2) and
+/// the other axis is a command of the same row, that one is a sample too.
+#[test]
+fn samples_name_both_axes_of_a_per_axis_row() {
+    for sample in ARGUMENT_SAMPLES {
+        let row = Command::parse(sample).row();
+        for at in 1..=2.min(sample.len() - 1) {
+            let other = match sample[at] {
+                b'P' => b'T',
+                b'T' => b'P',
+                _ => continue,
+            };
+            let mut twin = sample.to_vec();
+            twin[at] = other;
+            if Command::parse_strict(&twin).is_ok_and(|c| c.row() == row) {
+                assert!(
+                    ARGUMENT_SAMPLES.contains(&twin.as_slice()),
+                    "{:?} is a sample, {:?} (the other axis) is not",
+                    String::from_utf8_lossy(sample),
+                    String::from_utf8_lossy(&twin)
+                );
+            }
+        }
+    }
+}
