@@ -92,14 +92,31 @@ impl Diff {
     /// applied; a changed key of any other section but `[capture]` (read
     /// when a capture starts) needs a restart.
     pub fn between(old: &Config, new: &Config) -> Self {
-        let (ports_added, ports_changed, ports_removed) = compare(&old.ports, &new.ports, |p| p.id);
-        let (links_added, links_changed, links_removed) = compare(&old.links, &new.links, |l| l.name.clone());
+        // Every section is named here, so that a new one is a compile
+        // error until it is applied, read later or refused.
+        let Config {
+            file: _,
+            gcu,
+            log,
+            metrics,
+            limits,
+            link_timing,
+            ports,
+            links,
+            routes,
+            capture: _,
+            warnings: _,
+            listen_places: _,
+            serial_places: _,
+        } = new;
+        let (ports_added, ports_changed, ports_removed) = compare(&old.ports, ports, |p| p.id);
+        let (links_added, links_changed, links_removed) = compare(&old.links, links, |l| l.name.clone());
         let needs_restart = [
-            changed_keys("gcu", &old.gcu, &new.gcu),
-            changed_keys("log", &old.log, &new.log),
-            changed_keys("metrics", &old.metrics, &new.metrics),
-            changed_keys("limits", &old.limits, &new.limits),
-            changed_keys("link_timing", &old.link_timing, &new.link_timing),
+            changed_keys("gcu", &old.gcu, gcu),
+            changed_keys("log", &old.log, log),
+            changed_keys("metrics", &old.metrics, metrics),
+            changed_keys("limits", &old.limits, limits),
+            changed_keys("link_timing", &old.link_timing, link_timing),
         ]
         .concat();
         Diff {
@@ -109,7 +126,7 @@ impl Diff {
             links_added,
             links_changed,
             links_removed,
-            routes_changed: old.routes != new.routes,
+            routes_changed: old.routes != *routes,
             needs_restart,
         }
     }
