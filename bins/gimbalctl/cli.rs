@@ -5,7 +5,8 @@
 use std::time::Duration;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use sagebrush_protocol::{Address, DataRate};
+use sagebrush_host::transport::parse_baud;
+use sagebrush_protocol::Address;
 
 /// A subcommand's examples for its `after_help`: one `gimbalctl` line per
 /// argument; a bare line talks to the demo's first gimbal through gcud
@@ -871,16 +872,6 @@ pub fn parse_host_port(text: &str) -> Result<String, String> {
         Ok(p) if p > 0 => Ok(text.to_string()),
         _ => Err(format!("{text:?}: port {port:?} is not 1..=65535; {HINT}")),
     }
-}
-
-pub fn parse_baud(text: &str) -> Result<u32, String> {
-    const RATES: &str = "1200, 2400, 4800, 9600, 19200, 38400, 57600 or 115200";
-    let bps: u32 = text
-        .parse()
-        .map_err(|_| format!("{text:?} is not a number of bit/s ({RATES})"))?;
-    DataRate::from_bits_per_second(bps)
-        .map(|_| bps)
-        .ok_or_else(|| format!("{bps} bit/s is not a protocol rate ({RATES})"))
 }
 
 fn parse_angle(what: &str, text: &str) -> Result<f64, String> {

@@ -2,6 +2,7 @@
 //! it, line pacing and fault injection.
 
 use clap::{ArgGroup, Parser};
+use sagebrush_host::transport::parse_baud;
 use sagebrush_protocol::DataRate;
 use sagebrush_sim::{BusConfig, FaultConfig, GimbalConfig};
 
@@ -123,13 +124,6 @@ pub struct Cli {
     /// Log as JSON lines.
     #[arg(long)]
     pub log_json: bool,
-}
-
-fn parse_baud(text: &str) -> Result<u32, String> {
-    let bps: u32 = text.parse().map_err(|_| format!("{text:?} is not a number of bit/s"))?;
-    DataRate::from_bits_per_second(bps).map(|_| bps).ok_or_else(|| {
-        format!("{bps} bit/s is not a protocol rate (1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200)")
-    })
 }
 
 fn parse_probability(text: &str) -> Result<f64, String> {

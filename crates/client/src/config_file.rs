@@ -385,11 +385,7 @@ impl<const DEFAULT: u32> Baud<DEFAULT> {
             .ok()
             .and_then(DataRate::from_bits_per_second)
             .and_then(DataRate::bits_per_second)
-            .ok_or_else(|| {
-                format!(
-                    "expected one of the protocol's rates 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200 (1.5.1), found {value}"
-                )
-            })
+            .ok_or_else(|| format!("{}, found {value}", sagebrush_protocol::NotAProtocolRate))
     }
 }
 
@@ -614,7 +610,7 @@ mod tests {
         );
         let e = parse("group = 5\nbaud = 9601\n").unwrap_err();
         assert_eq!((e.line, e.column, e.key.as_str()), (2, 8, "baud"), "{e}");
-        assert!(e.message.contains("115200 (1.5.1), found 9601"), "{e}");
+        assert!(e.message.contains("57600, 115200, found 9601"), "{e}");
         let e = parse("group = \"five\"\n").unwrap_err();
         assert_eq!(
             e.to_string(),

@@ -11,6 +11,15 @@ use tokio_serial::{
     ClearBuffer, DataBits, FlowControl, Parity, SerialPort, SerialPortBuilderExt, SerialStream, StopBits,
 };
 
+/// A `--baud` argument: one of the protocol's line rates, in bit/s
+/// (a clap value parser).
+pub fn parse_baud(text: &str) -> Result<u32, String> {
+    text.parse::<sagebrush_protocol::DataRate>()
+        .ok()
+        .and_then(sagebrush_protocol::DataRate::bits_per_second)
+        .ok_or_else(|| format!("{text:?}: {}", sagebrush_protocol::NotAProtocolRate))
+}
+
 /// Opens `path` as a serial line at `baud`, 8 data bits, no parity, one
 /// stop bit (1.5.1), discarding whatever was waiting in its buffers. The
 /// port is opened non-exclusively so that a pseudo-terminal left in use by

@@ -32,7 +32,7 @@ pub use reply::{
 pub use report::{DeliveryReport, NotAReport, REPORT_LEN, REPORT_MARK, Undelivered};
 pub use units::{
     Acceleration, Angle, AuxConfig, AuxPort, AuxReadLen, Axis, DataRate, DeviceId, DigitalZoom, LensPosition,
-    LensSpeed, Limits, Parity, Position, RangeError, Rate, RateGain, Relay, Speed, U12,
+    LensSpeed, Limits, NotAProtocolRate, Parity, Position, RangeError, Rate, RateGain, Relay, Speed, U12,
 };
 
 /// Why an encoder could not write.

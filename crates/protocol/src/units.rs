@@ -283,6 +283,33 @@ impl DataRate {
     }
 }
 
+/// A line rate in bit/s as text: one of the protocol's rates.
+impl core::str::FromStr for DataRate {
+    type Err = NotAProtocolRate;
+
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        text.parse()
+            .ok()
+            .and_then(DataRate::from_bits_per_second)
+            .ok_or(NotAProtocolRate)
+    }
+}
+
+/// A text that is not one of the protocol's rates; it says which they are.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct NotAProtocolRate;
+
+impl core::fmt::Display for NotAProtocolRate {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str("expected one of the protocol's rates in bit/s (Table 4):")?;
+        let rates = (0..=15).filter_map(|code| DataRate::from_code(code).and_then(DataRate::bits_per_second));
+        for (i, bps) in rates.enumerate() {
+            write!(f, "{} {bps}", if i == 0 { "" } else { "," })?;
+        }
+        Ok(())
+    }
+}
+
 /// Lens zoom and focus positions, 12 bits each (Table 17).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct LensPosition {

@@ -1,5 +1,6 @@
-//! Table 12 unit types: rates and accelerations in their physical units.
-use sagebrush_protocol::{Acceleration, Rate};
+//! Unit types: Table 12 rates and accelerations in their physical units,
+//! Table 4 line rates read from text.
+use sagebrush_protocol::{Acceleration, DataRate, NotAProtocolRate, Rate};
 
 #[test]
 fn rates_and_accelerations_convert_both_ways_and_refuse_what_the_wire_cannot_carry() {
@@ -22,4 +23,17 @@ fn rates_and_accelerations_convert_both_ways_and_refuse_what_the_wire_cannot_car
         assert!(e.to_string().contains("degrees per second"), "{e}");
         assert!(Acceleration::from_degrees_per_second_squared(bad).is_err(), "{bad}");
     }
+}
+
+#[test]
+fn a_line_rate_is_read_from_text_and_a_wrong_one_lists_the_rates() {
+    assert_eq!("9600".parse::<DataRate>(), Ok(DataRate::Bps9600));
+    assert_eq!("115200".parse::<DataRate>(), Ok(DataRate::Bps115200));
+    for wrong in ["9601", "", "fast", "-9600", "8"] {
+        assert_eq!(wrong.parse::<DataRate>(), Err(NotAProtocolRate), "{wrong:?}");
+    }
+    assert_eq!(
+        NotAProtocolRate.to_string(),
+        "expected one of the protocol's rates in bit/s (Table 4): 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200"
+    );
 }
