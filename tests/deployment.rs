@@ -8,6 +8,8 @@
 use std::path::PathBuf;
 use std::process::Command;
 
+mod support;
+
 fn read(name: &str) -> String {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("config").join(name);
     std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
@@ -104,17 +106,14 @@ fn udev_rule_keeps_modemmanager_away() {
     }
 }
 
-/// The units the Debian package installs (Cargo.toml's systemd-units).
-const UNITS: [&str; 3] = ["gcud.service", "gimbal-onvif.service", "gimbal-mavlink.service"];
-
 #[test]
 fn systemd_analyze_verify_accepts_the_units() {
     if !systemd_analyze_present() {
         return;
     }
-    for unit in UNITS {
+    for unit in support::PACKAGED_UNITS.map(|name| format!("{name}.service")) {
         let dir = tempfile::tempdir().unwrap();
-        let path = unit_copy(dir.path(), unit);
+        let path = unit_copy(dir.path(), &unit);
         let out = Command::new("systemd-analyze")
             .arg("verify")
             .arg("--man=no")
@@ -128,7 +127,7 @@ fn systemd_analyze_verify_accepts_the_units() {
         let ours: Vec<&str> = stderr
             .lines()
             .chain(stdout.lines())
-            .filter(|l| l.contains(unit))
+            .filter(|l| l.contains(&unit))
             .collect();
         assert!(
             out.status.success() && ours.is_empty(),
@@ -175,9 +174,9 @@ fn unit_exposure_stays_at_or_below_1_6() {
     if !systemd_analyze_present() {
         return;
     }
-    for unit in UNITS {
+    for unit in support::PACKAGED_UNITS.map(|name| format!("{name}.service")) {
         let dir = tempfile::tempdir().unwrap();
-        let path = unit_copy(dir.path(), unit);
+        let path = unit_copy(dir.path(), &unit);
         let out = Command::new("systemd-analyze")
             .args(["security", "--offline=true", "--no-pager"])
             .arg(&path)

@@ -10,6 +10,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+mod support;
+
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
@@ -100,9 +102,7 @@ fn package_metadata_ships_every_program_and_the_unit_finds_them() {
     }
 }
 
-/// The units the package installs: the daemon and the two front doors, each
-/// `config/NAME.service` running `/usr/bin/NAME` on `/etc/NAME/NAME.toml`.
-const UNITS: [&str; 3] = ["gcud", "gimbal-onvif", "gimbal-mavlink"];
+use support::PACKAGED_UNITS as UNITS;
 
 /// Runs `program args`, panicking with its output unless it succeeds.
 fn run(program: &str, args: &[&std::ffi::OsStr]) -> String {
