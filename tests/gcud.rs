@@ -550,7 +550,7 @@ fn a_spec_client_gets_no_ack_for_an_undelivered_command() {
     let gcud = Gcud::start(&format!("[gcu]\ngroup = 5\n{CLIENTS}{}", port_entry(1, &sim)));
     gcud.wait_for_log("port open port=1");
     let mut client = WireClient::connect(&gcud.clients());
-    client.send(Address::new(5, 1, 2), 0, &Cmd::Stop);
+    client.send(Address::new(5, 1, 2), 0, &Cmd::MotorsStop);
     let OwnedEvent::Frame(report) = client.next() else {
         panic!("expected a delivery report, not an ACK");
     };
@@ -560,7 +560,8 @@ fn a_spec_client_gets_no_ack_for_an_undelivered_command() {
     let parsed = sagebrush_protocol::DeliveryReport::parse(report_frame.payload()).expect("a report");
     assert_eq!(parsed.failure, Some(sagebrush_protocol::Undelivered::DeviceSilent));
     assert_eq!(parsed.dest, Address::new(5, 1, 2));
-    let sent = FrameBuf::build(Address::new(5, 1, 2), 0, |b| Cmd::Stop.encode(b).map(<[u8]>::len)).expect("encode");
+    let sent =
+        FrameBuf::build(Address::new(5, 1, 2), 0, |b| Cmd::MotorsStop.encode(b).map(<[u8]>::len)).expect("encode");
     assert_eq!(
         parsed.command_checksum,
         sent.frame().checksum(),

@@ -367,7 +367,7 @@ pub fn command_json(command: &Command<'_>) -> Value {
         | C::QueryAccelerations
         | C::Halt
         | C::VerifyHome
-        | C::Stop
+        | C::MotorsStop
         | C::QueryPosition
         | C::PanLeft
         | C::PanRight

@@ -86,7 +86,7 @@ pub fn request<'a>(cmd: &Cmd, data: &'a [u8]) -> Result<Option<Request<'a>>, Ctl
             StopWhat::Tilt => C::TiltStop,
             StopWhat::Zoom => C::ZoomStop,
             StopWhat::Focus => C::FocusStop,
-            StopWhat::Motors => C::Stop,
+            StopWhat::Motors => C::MotorsStop,
         },
         Cmd::Halt => C::Halt,
         Cmd::RecallHalt { lens: false } => C::Extended(Extended::GoToHaltPosition, b""),

@@ -227,7 +227,7 @@ impl DeviceHandler for Gimbal {
                 | Row::TiltStop
                 | Row::StopMotion
                 | Row::Halt
-                | Row::Stop
+                | Row::MotorsStop
                 | Row::Extended
                 | Row::SetRate
                 | Row::SetSpeed
@@ -304,7 +304,7 @@ impl DeviceHandler for Gimbal {
                 self.tilt.stop();
                 Response::Done
             }
-            Command::Halt | Command::Stop => {
+            Command::Halt | Command::MotorsStop => {
                 if command == Command::Halt {
                     self.halt_position = self.position();
                 }

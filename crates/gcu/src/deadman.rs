@@ -77,7 +77,7 @@ impl DeadMan {
         }
         if let Some(axis) = STOPS.iter().position(|s| s.row() == command.row) {
             self.owners.remove(&(dest, axis));
-        } else if matches!(command.row, Row::Halt | Row::Stop | Row::StopMotion) {
+        } else if matches!(command.row, Row::Halt | Row::MotorsStop | Row::StopMotion) {
             for stop in [Command::PanStop, Command::TiltStop] {
                 if let Some(axis) = axis_of_stop(&stop) {
                     self.owners.remove(&(dest, axis));

@@ -176,6 +176,13 @@ impl Extended {
 ///   `encode` writes the fields with the writer. The fields are bound by
 ///   name in `mnemonic`, `answer`, `motion` and `encode`.
 ///
+/// - `axis_query: (letter, pan, tilt)` or `axis_value: (letter, pan, tilt)`
+///   for a per-axis query or four-hex-digit setting, written out as the
+///   form above.
+///
+/// The row's name for scripts is its variant in snake_case (`MotorsStop`:
+/// `motors_stop`); its description is its doc comment.
+///
 /// All pattern arms form one `match`, in table order, so of two rows whose
 /// patterns overlap the more specific comes first (`AP?` before `APnnnn`).
 macro_rules! command_table {
@@ -193,13 +200,12 @@ macro_rules! command_table {
     // fails to compile.
     (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] [$($done:tt)*]
         $(#[doc = $doc:literal])* $Variant:ident => {
-            script: $script:literal, wire: $wire:tt, answer: $answer:expr, motion: $motion:expr $(,)?
+            wire: $wire:tt, answer: $answer:expr, motion: $motion:expr $(,)?
         }
         $($rest:tt)*
     ) => {
         command_table!(@row [$(#[$meta])* $Command $lt $payload $w] [$($done)*
             [$(#[doc = $doc])* $Variant => {
-                script: $script,
                 wire: [$wire],
                 mnemonic: const { wire_name($wire) },
                 answer: $answer,
@@ -211,14 +217,13 @@ macro_rules! command_table {
     };
     (@row $head:tt [$($done:tt)*]
         $(#[doc = $doc:literal])* $Variant:ident $( ( $($field:ident : $fty:ty),+ $(,)? ) )? => {
-            script: $script:literal, mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
+            mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
             parse: { $($arms:tt)* }, encode: { $($encode:tt)* } $(,)?
         }
         $($rest:tt)*
     ) => {
         command_table!(@row $head [$($done)*
             [$(#[doc = $doc])* $Variant $( ( $($field : $fty),+ ) )? => {
-                script: $script,
                 wire: [],
                 mnemonic: $mnemonic,
                 answer: $answer,
@@ -230,14 +235,13 @@ macro_rules! command_table {
     };
     (@row $head:tt [$($done:tt)*]
         $(#[doc = $doc:literal])* $Variant:ident $( ( $($field:ident : $fty:ty),+ $(,)? ) )? => {
-            script: $script:literal, mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
+            mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
             parse: ( $parse:expr ), encode: { $($encode:tt)* } $(,)?
         }
         $($rest:tt)*
     ) => {
         command_table!(@row $head [$($done)*
             [$(#[doc = $doc])* $Variant $( ( $($field : $fty),+ ) )? => {
-                script: $script,
                 wire: [],
                 mnemonic: $mnemonic,
                 answer: $answer,
@@ -254,14 +258,14 @@ macro_rules! command_table {
     // four hex digits (a setting, value Table 12).
     (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] $done:tt
         $(#[doc = $doc:literal])* $Variant:ident(axis: Axis) => {
-            script: $script:literal, axis_query: ($letter:literal, $pan:literal, $tilt:literal),
+            axis_query: ($letter:literal, $pan:literal, $tilt:literal),
             answer: $answer:expr, motion: $motion:expr $(,)?
         }
         $($rest:tt)*
     ) => {
         command_table!(@row [$(#[$meta])* $Command $lt $payload $w] $done
             $(#[doc = $doc])* $Variant(axis: Axis) => {
-                script: $script, mnemonic: axis.pick($pan, $tilt), answer: $answer, motion: $motion,
+                mnemonic: axis.pick($pan, $tilt), answer: $answer, motion: $motion,
                 parse: {
                     [$letter, a, b'?'] if axis(*a).is_some() => Self::$Variant(axis(*a).unwrap_or(Axis::Pan)),
                 },
@@ -271,14 +275,14 @@ macro_rules! command_table {
     };
     (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] $done:tt
         $(#[doc = $doc:literal])* $Variant:ident(axis: Axis, $value:ident: $Value:ident) => {
-            script: $script:literal, axis_value: ($letter:literal, $pan:literal, $tilt:literal),
+            axis_value: ($letter:literal, $pan:literal, $tilt:literal),
             answer: $answer:expr, motion: $motion:expr $(,)?
         }
         $($rest:tt)*
     ) => {
         command_table!(@row [$(#[$meta])* $Command $lt $payload $w] $done
             $(#[doc = $doc])* $Variant(axis: Axis, $value: $Value) => {
-                script: $script, mnemonic: axis.pick($pan, $tilt), answer: $answer, motion: $motion,
+                mnemonic: axis.pick($pan, $tilt), answer: $answer, motion: $motion,
                 parse: {
                     [$letter, a, ..] if axis(*a).is_some() => {
                         let v = arg(concat!($pan, "/", $tilt), $payload, 2, "four hex digits", hex_u16)?;
@@ -296,7 +300,6 @@ macro_rules! command_table {
     // Every row in one form: the enum and its functions.
     (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] [$(
         [$(#[doc = $doc:literal])* $Variant:ident $( ( $($field:ident : $fty:ty),+ ) )? => {
-            script: $script:literal,
             wire: [$($wire:literal)?],
             mnemonic: $mnemonic:expr,
             answer: $answer:expr,
@@ -326,10 +329,11 @@ macro_rules! command_table {
             /// Every row, in table order.
             pub const ALL: [Row; [$(Row::$Variant),+].len()] = [$(Row::$Variant),+];
 
-            /// The row's name for scripts (gimbalctl's and gcud's JSON).
+            /// The row's name for scripts (gimbalctl's and gcud's JSON): the
+            /// variant in snake_case.
             pub const fn script_name(self) -> &'static str {
                 match self {
-                    $( Row::$Variant => $script, )+
+                    $( Row::$Variant => $crate::snake_case!($Variant), )+
                 }
             }
         }
@@ -474,7 +478,6 @@ command_table! {
         // the patterns below (`VP`/`VS` + six bytes is not `Vzzzfff`).
         /// Rev 1.9 commands with their raw argument bytes (1.2, protocol-notes E13).
         Extended(ext: Extended, args: &'a [u8]) => {
-            script: "extended",
             mnemonic: ext.name(),
             answer: ext.answer(),
             motion: Motion::Other,
@@ -488,7 +491,6 @@ command_table! {
         // Table 4: general device control.
         /// `#NN`: set device address/ID (Table 4).
         SetDeviceId(id: DeviceId) => {
-            script: "set_device_id",
             mnemonic: "#NN",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -504,12 +506,11 @@ command_table! {
             },
         }
         /// `AW`: awake status (Table 4; result Table 5).
-        AwakeStatus => { script: "awake_status", wire: b"AW", answer: Answer::normal(Shape::AwakeStatus), motion: Motion::Other }
+        AwakeStatus => { wire: b"AW", answer: Answer::normal(Shape::AwakeStatus), motion: Motion::Other }
         /// `B?`: maximum data rate, `C0..CF` (Table 4).
-        QueryMaxDataRate => { script: "query_max_data_rate", wire: b"B?", answer: Answer::normal(Shape::MaxDataRate), motion: Motion::Other }
+        QueryMaxDataRate => { wire: b"B?", answer: Answer::normal(Shape::MaxDataRate), motion: Motion::Other }
         /// `C0..CF`: set communication data rate (Table 4; `C8..CF` reserved, protocol-notes E15).
         SetDataRate(rate: DataRate) => {
-            script: "set_data_rate",
             mnemonic: "Cn",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -526,14 +527,13 @@ command_table! {
             },
         }
         /// `D?`: identification (Table 4; result Table 6).
-        Identify => { script: "identify", wire: b"D?", answer: Answer::normal(Shape::Identity), motion: Motion::Other }
+        Identify => { wire: b"D?", answer: Answer::normal(Shape::Identity), motion: Motion::Other }
         /// `E?`: error codes (Table 4; result Table 6A).
-        QueryErrors => { script: "query_errors", wire: b"E?", answer: Answer::normal(Shape::Errors), motion: Motion::Other }
+        QueryErrors => { wire: b"E?", answer: Answer::normal(Shape::Errors), motion: Motion::Other }
         /// `I?`: status bits (Table 4; result Table 6B).
-        QueryStatusBits => { script: "query_status_bits", wire: b"I?", answer: Answer::normal(Shape::StatusBits), motion: Motion::Other }
+        QueryStatusBits => { wire: b"I?", answer: Answer::normal(Shape::StatusBits), motion: Motion::Other }
         /// `GRPnn` / `GRTnn`: set a rate gain (Table 4; value Table 7).
         SetRateGain(axis: Axis, gain: RateGain) => {
-            script: "set_rate_gain",
             mnemonic: axis.pick("GRPnn", "GRTnn"),
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -549,17 +549,15 @@ command_table! {
             },
         }
         /// `G?`: rate gains (Table 4; result Table 8).
-        QueryRateGains => { script: "query_rate_gains", wire: b"G?", answer: Answer::normal(Shape::RateGains), motion: Motion::Other }
+        QueryRateGains => { wire: b"G?", answer: Answer::normal(Shape::RateGains), motion: Motion::Other }
         /// `IX`: initialisation (Table 4; result Table 9, which takes long).
         Initialize => {
-            script: "initialize",
             wire: b"IX",
             answer: Answer::Result(ResultTimeout::Long, Shape::Initialization),
             motion: Motion::Other,
         }
         /// `L0..L3`: open relay (Table 4).
         OpenRelay(relay: Relay) => {
-            script: "open_relay",
             mnemonic: "L0..L3",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -572,7 +570,6 @@ command_table! {
         }
         /// `L8..LB`: close relay (Table 4).
         CloseRelay(relay: Relay) => {
-            script: "close_relay",
             mnemonic: "L8..LB",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -588,12 +585,11 @@ command_table! {
             },
         }
         /// `LR`: relay status (Table 4; result Table 4A).
-        QueryRelays => { script: "query_relays", wire: b"LR", answer: Answer::normal(Shape::Relays), motion: Motion::Other }
+        QueryRelays => { wire: b"LR", answer: Answer::normal(Shape::Relays), motion: Motion::Other }
         /// `LC`: clear software limits (Table 4).
-        ClearLimits => { script: "clear_limits", wire: b"LC", answer: Answer::Ack, motion: Motion::Other }
+        ClearLimits => { wire: b"LC", answer: Answer::Ack, motion: Motion::Other }
         /// `LS` + 12 hex: set software limits (Table 4; values Table 10).
         SetLimits(limits: Limits) => {
-            script: "set_limits",
             mnemonic: "LS",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -618,28 +614,27 @@ command_table! {
             },
         }
         /// `L?`: software limits (Table 4; result Table 10).
-        QueryLimits => { script: "query_limits", wire: b"L?", answer: Answer::normal(Shape::Limits), motion: Motion::Other }
+        QueryLimits => { wire: b"L?", answer: Answer::normal(Shape::Limits), motion: Motion::Other }
 
         // Table 11: pan/tilt mount.
         /// `A?`: both accelerations (Table 11; result Table 13, protocol-notes E7).
-        QueryAccelerations => { script: "query_accelerations", wire: b"A?", answer: Answer::normal(Shape::Accelerations), motion: Motion::Other }
+        QueryAccelerations => { wire: b"A?", answer: Answer::normal(Shape::Accelerations), motion: Motion::Other }
         /// `AP?` / `AT?`: one axis (Table 11, protocol-notes E7). Before `APnnnn`.
-        QueryAcceleration(axis: Axis) => { script: "query_acceleration", axis_query: (b'A', "AP?", "AT?"), answer: Answer::normal(Shape::Acceleration), motion: Motion::Other }
+        QueryAcceleration(axis: Axis) => { axis_query: (b'A', "AP?", "AT?"), answer: Answer::normal(Shape::Acceleration), motion: Motion::Other }
         /// `APnnnn` / `ATnnnn` (Table 11; value Table 12).
-        SetAcceleration(axis: Axis, acceleration: Acceleration) => { script: "set_acceleration", axis_value: (b'A', "APnnnn", "ATnnnn"), answer: Answer::Ack, motion: Motion::Other }
+        SetAcceleration(axis: Axis, acceleration: Acceleration) => { axis_value: (b'A', "APnnnn", "ATnnnn"), answer: Answer::Ack, motion: Motion::Other }
         /// `HA`: halt, stores the position, motors off (Table 11).
-        Halt => { script: "halt", wire: b"HA", answer: Answer::Ack, motion: Motion::Stop }
+        Halt => { wire: b"HA", answer: Answer::Ack, motion: Motion::Stop }
         /// `HV`: verify home (Table 11; result Table 14).
-        VerifyHome => { script: "verify_home", wire: b"HV", answer: Answer::normal(Shape::VerifyHome), motion: Motion::Other }
+        VerifyHome => { wire: b"HV", answer: Answer::normal(Shape::VerifyHome), motion: Motion::Other }
         /// `HO`: go home (0, 0) (Table 11).
-        Home => { script: "home", wire: b"HO", answer: Answer::Ack, motion: Motion::Other }
+        Home => { wire: b"HO", answer: Answer::Ack, motion: Motion::Other }
         /// `HS`: stop, motors off (Table 11).
-        Stop => { script: "motors_stop", wire: b"HS", answer: Answer::Ack, motion: Motion::Stop }
+        MotorsStop => { wire: b"HS", answer: Answer::Ack, motion: Motion::Stop }
         /// `P?`: current position (Table 11; result Table 15).
-        QueryPosition => { script: "query_position", wire: b"P?", answer: Answer::normal(Shape::Position), motion: Motion::Other }
+        QueryPosition => { wire: b"P?", answer: Answer::normal(Shape::Position), motion: Motion::Other }
         /// `Paaaaeeee`: go to position (Table 11; values Table 15).
         GoTo(position: Position) => {
-            script: "go_to",
             mnemonic: "Paaaaeeee",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -658,16 +653,15 @@ command_table! {
             },
         }
         /// `PL`: pan left (CW) until `PS` (Table 11).
-        PanLeft => { script: "pan_left", wire: b"PL", answer: Answer::Ack, motion: Motion::Until(Command::PanStop) }
+        PanLeft => { wire: b"PL", answer: Answer::Ack, motion: Motion::Until(Command::PanStop) }
         /// `PR`: pan right (CCW) until `PS` (Table 11).
-        PanRight => { script: "pan_right", wire: b"PR", answer: Answer::Ack, motion: Motion::Until(Command::PanStop) }
+        PanRight => { wire: b"PR", answer: Answer::Ack, motion: Motion::Until(Command::PanStop) }
         /// `PS`: pan stop (Table 11).
-        PanStop => { script: "pan_stop", wire: b"PS", answer: Answer::Ack, motion: Motion::Stop }
+        PanStop => { wire: b"PS", answer: Answer::Ack, motion: Motion::Stop }
         /// `PT`: stop motion (Table 11).
-        StopMotion => { script: "stop_motion", wire: b"PT", answer: Answer::Ack, motion: Motion::Stop }
+        StopMotion => { wire: b"PT", answer: Answer::Ack, motion: Motion::Stop }
         /// `Pnn`: go to preset (Table 11).
         GoToPreset(preset: u8) => {
-            script: "go_to_preset",
             mnemonic: "Pnn",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -683,7 +677,6 @@ command_table! {
         }
         /// `P?nn`: preset position (Table 11; result Table 15).
         QueryPreset(preset: u8) => {
-            script: "query_preset",
             mnemonic: "P?nn",
             answer: Answer::normal(Shape::Position),
             motion: Motion::Other,
@@ -696,14 +689,13 @@ command_table! {
             },
         }
         /// `R?`: both rates (Table 11; result Table 13, protocol-notes E7).
-        QueryRates => { script: "query_rates", wire: b"R?", answer: Answer::normal(Shape::Rates), motion: Motion::Other }
+        QueryRates => { wire: b"R?", answer: Answer::normal(Shape::Rates), motion: Motion::Other }
         /// `RP?` / `RT?`: one axis (Table 11, protocol-notes E7). Before `RPnnnn`.
-        QueryRate(axis: Axis) => { script: "query_rate", axis_query: (b'R', "RP?", "RT?"), answer: Answer::normal(Shape::Rate), motion: Motion::Other }
+        QueryRate(axis: Axis) => { axis_query: (b'R', "RP?", "RT?"), answer: Answer::normal(Shape::Rate), motion: Motion::Other }
         /// `RPnnnn` / `RTnnnn` (Table 11; value Table 12).
-        SetRate(axis: Axis, rate: Rate) => { script: "set_rate", axis_value: (b'R', "RPnnnn", "RTnnnn"), answer: Answer::Ack, motion: Motion::Other }
+        SetRate(axis: Axis, rate: Rate) => { axis_value: (b'R', "RPnnnn", "RTnnnn"), answer: Answer::Ack, motion: Motion::Other }
         /// `SP0..SPF` / `ST0..STF`: proportional speed (Table 11). Before `Snn`.
         SetSpeed(axis: Axis, speed: Speed) => {
-            script: "set_speed",
             mnemonic: axis.pick("SPn", "STn"),
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -720,7 +712,6 @@ command_table! {
         }
         /// `Snn`: store current position as preset (Table 11).
         StorePreset(preset: u8) => {
-            script: "store_preset",
             mnemonic: "Snn",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -734,7 +725,6 @@ command_table! {
         }
         /// `S?nn`: position stored at preset (Table 11; result Table 15).
         QueryStoredPreset(preset: u8) => {
-            script: "query_stored_preset",
             mnemonic: "S?nn",
             answer: Answer::normal(Shape::Position),
             motion: Motion::Other,
@@ -747,14 +737,13 @@ command_table! {
             },
         }
         /// `TD`: tilt down (CW) until `TS` (Table 11).
-        TiltDown => { script: "tilt_down", wire: b"TD", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop) }
+        TiltDown => { wire: b"TD", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop) }
         /// `TS`: tilt stop (Table 11).
-        TiltStop => { script: "tilt_stop", wire: b"TS", answer: Answer::Ack, motion: Motion::Stop }
+        TiltStop => { wire: b"TS", answer: Answer::Ack, motion: Motion::Stop }
         /// `TU`: tilt up (CCW) until `TS` (Table 11).
-        TiltUp => { script: "tilt_up", wire: b"TU", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop) }
+        TiltUp => { wire: b"TU", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop) }
         /// `VMn`: vector motion on/off (Table 11).
         SetVectorMode(on: bool) => {
-            script: "set_vector_mode",
             mnemonic: "VMn",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -774,12 +763,11 @@ command_table! {
 
         // Table 16: camera.
         /// `CN`: camera and lens power on (Table 16).
-        CameraOn => { script: "camera_on", wire: b"CN", answer: Answer::Ack, motion: Motion::Other }
+        CameraOn => { wire: b"CN", answer: Answer::Ack, motion: Motion::Other }
         /// `CX`: camera and lens power off (Table 16).
-        CameraOff => { script: "camera_off", wire: b"CX", answer: Answer::Ack, motion: Motion::Other }
+        CameraOff => { wire: b"CX", answer: Answer::Ack, motion: Motion::Other }
         /// `F0..F9`: focus speed (Table 16).
         FocusSpeed(speed: LensSpeed) => {
-            script: "focus_speed",
             mnemonic: "Fn",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -791,18 +779,17 @@ command_table! {
             },
         }
         /// `FA`: auto-focus on (Table 16; not implemented by the gimbal).
-        AutoFocusOn => { script: "auto_focus_on", wire: b"FA", answer: Answer::Ack, motion: Motion::Other }
+        AutoFocusOn => { wire: b"FA", answer: Answer::Ack, motion: Motion::Other }
         /// `FF`: focus far until `FS` (Table 16).
-        FocusFar => { script: "focus_far", wire: b"FF", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop) }
+        FocusFar => { wire: b"FF", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop) }
         /// `FN`: focus near until `FS` (Table 16).
-        FocusNear => { script: "focus_near", wire: b"FN", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop) }
+        FocusNear => { wire: b"FN", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop) }
         /// `FS`: focus stop (Table 16).
-        FocusStop => { script: "focus_stop", wire: b"FS", answer: Answer::Ack, motion: Motion::Stop }
+        FocusStop => { wire: b"FS", answer: Answer::Ack, motion: Motion::Stop }
         /// `FX`: auto-focus off (Table 16; not implemented by the gimbal).
-        AutoFocusOff => { script: "auto_focus_off", wire: b"FX", answer: Answer::Ack, motion: Motion::Other }
+        AutoFocusOff => { wire: b"FX", answer: Answer::Ack, motion: Motion::Other }
         /// `Vzzzfff`: lens go-to (Table 16; values Table 17).
         LensGoTo(lens: LensPosition) => {
-            script: "lens_go_to",
             mnemonic: "Vzzzfff",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -819,10 +806,9 @@ command_table! {
             },
         }
         /// `V?`: lens position (Table 16; result Table 17).
-        QueryLens => { script: "query_lens", wire: b"V?", answer: Answer::normal(Shape::Lens), motion: Motion::Other }
+        QueryLens => { wire: b"V?", answer: Answer::normal(Shape::Lens), motion: Motion::Other }
         /// `Z0..Z9`: zoom speed (Table 16).
         ZoomSpeed(speed: LensSpeed) => {
-            script: "zoom_speed",
             mnemonic: "Zn",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -835,7 +821,6 @@ command_table! {
         }
         /// `ZA..ZF`: digital zoom (Table 16; not implemented by the gimbal).
         DigitalZoom(zoom: DigitalZoom) => {
-            script: "digital_zoom",
             mnemonic: "ZA..ZF",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -850,14 +835,13 @@ command_table! {
             },
         }
         /// `ZI`: zoom in until `ZS` (Table 16).
-        ZoomIn => { script: "zoom_in", wire: b"ZI", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop) }
+        ZoomIn => { wire: b"ZI", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop) }
         /// `ZO`: zoom out until `ZS` (Table 16).
-        ZoomOut => { script: "zoom_out", wire: b"ZO", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop) }
+        ZoomOut => { wire: b"ZO", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop) }
         /// `ZS`: zoom stop (Table 16).
-        ZoomStop => { script: "zoom_stop", wire: b"ZS", answer: Answer::Ack, motion: Motion::Stop }
+        ZoomStop => { wire: b"ZS", answer: Answer::Ack, motion: Motion::Stop }
         /// `*xpc,baud,data,stop,parity` (Table 16; fields Table 18).
         AuxConfigure(port: AuxPort, config: AuxConfig) => {
-            script: "aux_configure",
             mnemonic: "*xpc",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -880,7 +864,6 @@ command_table! {
         }
         /// `*xpt` + data (Table 16).
         AuxTransmit(port: AuxPort, data: AuxBytes<'a>) => {
-            script: "aux_transmit",
             mnemonic: "*xpt",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -897,7 +880,6 @@ command_table! {
         }
         /// `*xprnnn`: receive up to nnn bytes (Table 16; decimal, protocol-notes E14).
         AuxReceive(port: AuxPort, len: AuxReadLen) => {
-            script: "aux_receive",
             mnemonic: "*xprnnn",
             answer: Answer::normal(Shape::AuxData),
             motion: Motion::Other,
@@ -915,7 +897,6 @@ command_table! {
         }
         /// `*xpn`: characters waiting (Table 16; decimal, protocol-notes E14).
         AuxCount(port: AuxPort) => {
-            script: "aux_count",
             mnemonic: "*xpn",
             answer: Answer::normal(Shape::AuxCount),
             motion: Motion::Other,
@@ -928,7 +909,6 @@ command_table! {
         }
         /// `*xpf`: flush (Table 16).
         AuxFlush(port: AuxPort) => {
-            script: "aux_flush",
             mnemonic: "*xpf",
             answer: Answer::Ack,
             motion: Motion::Other,
@@ -943,7 +923,6 @@ command_table! {
         /// A payload that fits no command: a device answers it with NIC.
         /// No row parses to it: [`Command::parse`] gives it for what no row takes.
         Unknown(bytes: &'a [u8]) => {
-            script: "unknown",
             mnemonic: "unknown",
             answer: Answer::Ack,
             motion: Motion::Other,

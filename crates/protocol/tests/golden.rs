@@ -320,7 +320,7 @@ fn commands_table11_pan_tilt() {
     both_ways(b"HA", C::Halt);
     both_ways(b"HV", C::VerifyHome);
     both_ways(b"HO", C::Home);
-    both_ways(b"HS", C::Stop);
+    both_ways(b"HS", C::MotorsStop);
     both_ways(b"P?", C::QueryPosition);
     // E8: signed hundredths of a degree.
     both_ways(b"P0064FF9C", C::GoTo(Position::new(Angle(100), Angle(-100))));

@@ -578,7 +578,7 @@ impl Gimbal {
                 self.motors_off();
                 Response::Done
             }
-            C::Stop => {
+            C::MotorsStop => {
                 self.motors_off();
                 Response::Done
             }

@@ -39,7 +39,7 @@ pub(super) fn stopped_axes(c: &Command<'_>) -> &'static [usize] {
         Command::TiltStop => &[1],
         Command::FocusStop => &[2],
         Command::ZoomStop => &[3],
-        Command::Halt | Command::Stop | Command::StopMotion => &[0, 1],
+        Command::Halt | Command::MotorsStop | Command::StopMotion => &[0, 1],
         _ => &[],
     }
 }
