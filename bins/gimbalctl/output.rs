@@ -58,18 +58,7 @@ fn rate_text(r: DataRate) -> String {
 
 /// Table 9: one direction's result word.
 fn init_json(word: u16) -> Value {
-    json!({
-        "raw": word,
-        "center_switch_detected": word & 1 != 0,
-        "hard_limit_detected": word & 4 != 0,
-        "limit_switch_hit": word & 8 != 0,
-    })
-}
-
-fn init_ok(r: &InitResults) -> bool {
-    [r.pan_ccw, r.pan_cw, r.tilt_ccw, r.tilt_cw]
-        .iter()
-        .all(|w| w & 1 != 0 && w & 4 == 0)
+    named_bits(word, &InitResults::BITS)
 }
 
 /// Table 5.
@@ -188,7 +177,7 @@ pub fn describe(command: &Command<'_>, reply: &Reply<'_>) -> (String, Value) {
             )
         }
         Reply::Initialization(r) => {
-            let ok = init_ok(&r);
+            let ok = r.succeeded();
             (
                 format!(
                     "initialisation {}: pan ccw {:04X} cw {:04X}  tilt ccw {:04X} cw {:04X}",

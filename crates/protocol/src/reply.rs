@@ -194,6 +194,33 @@ pub struct InitResults {
     pub tilt_cw: u16,
 }
 
+impl InitResults {
+    /// Table 9, one direction's word: the centre switch was detected.
+    pub const CENTER_SWITCH_DETECTED: u16 = 1 << 0;
+    /// Table 9: a hard limit was detected (the initialisation failed).
+    pub const HARD_LIMIT_DETECTED: u16 = 1 << 2;
+    /// Table 9: the limit switch was hit.
+    pub const LIMIT_SWITCH_HIT: u16 = 1 << 3;
+    /// Table 9 by name: each bit's mask, snake_case name and meaning.
+    pub const BITS: [(u16, &'static str, &'static str); 3] = [
+        (
+            Self::CENTER_SWITCH_DETECTED,
+            "center_switch_detected",
+            "centre switch detected",
+        ),
+        (Self::HARD_LIMIT_DETECTED, "hard_limit_detected", "hard limit detected"),
+        (Self::LIMIT_SWITCH_HIT, "limit_switch_hit", "limit switch hit"),
+    ];
+
+    /// Whether every direction found its centre without a hard limit: the
+    /// initialisation succeeded (otherwise the gimbal turns its motors off).
+    pub fn succeeded(&self) -> bool {
+        [self.pan_ccw, self.pan_cw, self.tilt_ccw, self.tilt_cw]
+            .iter()
+            .all(|w| w & Self::CENTER_SWITCH_DETECTED != 0 && w & Self::HARD_LIMIT_DETECTED == 0)
+    }
+}
+
 /// Verify-home result, Table 14: three digits, each bit 0 = pan, bit 1 =
 /// tilt: limit switch found, centre switch found, count correct. Parsed
 /// from hex digits or raw bytes 0..=15; emitted as hex digits.

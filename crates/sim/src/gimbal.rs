@@ -21,8 +21,8 @@ use crate::axis::{Axis, HardStop, STEP_MS};
 use crate::config::GimbalConfig;
 use crate::lens::LensDrive;
 
-/// Table 9: centre switch detected (bit 0) and limit switch hit (bit 3), no hard limit.
-const INIT_GOOD: u16 = 0x0009;
+/// Table 9: centre switch detected and limit switch hit, no hard limit.
+const INIT_GOOD: u16 = InitResults::CENTER_SWITCH_DETECTED | InitResults::LIMIT_SWITCH_HIT;
 /// Table 6A: initialisation error.
 const ERROR_INIT: u8 = ErrorCodes::INITIALIZATION;
 /// Table 6A: centre reference error.
