@@ -413,6 +413,13 @@ fn no_ack_retransmits_up_to_the_count_then_unreachable() {
     let a = h.wait(100);
     assert_eq!(port_writes(&a, 1), vec![cmd.clone()], "retries = 2");
     assert_eq!(finished(&a), vec![CommandOutcome::Unreachable]);
+    // The client hears 01, never an ACK (unacknowledged, the report goes
+    // again within the wait).
+    let told = link_writes(&a, CLIENT);
+    assert!(
+        !told.is_empty() && told.iter().all(|w| *w == report(&cmd, Some(Undelivered::DeviceSilent))),
+        "{told:?}"
+    );
     let s = h.r.stats();
     assert_eq!(s.devices[&(1, 3)].retransmits, 2);
     assert_eq!(s.devices[&(1, 3)].unreachable, 1);
@@ -610,21 +617,46 @@ fn bounded_port_queue_drops_with_counter_and_warning_and_stops_have_their_own_ro
 #[test]
 fn unknown_and_closed_ports_are_dropped_and_counted() {
     let mut h = H::new(&[1]);
-    let a = h.link(CLIENT, &frame((G, 9, 3), 2, b"AW"));
+    let to_port_9 = frame((G, 9, 3), 2, b"AW");
+    let a = h.link(CLIENT, &to_port_9);
     assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::UnknownPort)]);
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        vec![report(&to_port_9, Some(Undelivered::NoSuchPort))]
+    );
+    h.link(CLIENT, &[ACK]);
     h.go(Input::PortLost { port: 1 });
-    let a = h.link(CLIENT, &frame((G, 1, 3), 2, b"AW"));
+    let to_port_1 = frame((G, 1, 3), 2, b"AW");
+    let a = h.link(CLIENT, &to_port_1);
     assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::PortClosed)]);
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        vec![report(&to_port_1, Some(Undelivered::PortClosed))]
+    );
     assert_eq!(h.r.stats().router.dropped.get(DropReason::UnknownPort), 1);
 }
 
 #[test]
 fn lost_port_fails_in_flight_and_queued_then_recovers() {
     let mut h = H::new(&[1]);
-    h.link(CLIENT, &frame((G, 1, 3), 2, b"P?"));
-    h.link(CLIENT, &frame((G, 1, 3), 2, b"HO"));
+    let in_flight = frame((G, 1, 3), 2, b"P?");
+    let queued = frame((G, 1, 3), 2, b"HO");
+    h.link(CLIENT, &in_flight);
+    h.link(CLIENT, &queued);
     let a = h.go(Input::PortLost { port: 1 });
     assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::PortLost); 2]);
+    // The client hears both, one unacknowledged report at a time: the port
+    // is closed (04).
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        vec![report(&in_flight, Some(Undelivered::PortClosed))]
+    );
+    let a = h.link(CLIENT, &[ACK]);
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        vec![report(&queued, Some(Undelivered::PortClosed))]
+    );
+    h.link(CLIENT, &[ACK]);
     assert_eq!(h.r.stats().ports[&1].line.drops.get(DropReason::PortLost), 2);
     let a = h.go(Input::PortOpened { port: 1 });
     assert!(a.contains(&Action::SetPortRate { port: 1, bps: 9600 }));
@@ -713,11 +745,18 @@ fn other_groups_follow_static_then_learned_then_default_routes() {
     assert_eq!(link_writes(&a, UP), vec![to9.clone()]);
     // Static route down: learned would be used; default down too: the
     // client hears that the route's link is down (07), not "no route" (06).
-    h.go(Input::LinkDown { link: UP });
+    let a = h.go(Input::LinkDown { link: UP });
+    // The first to9 was written to UP and not yet ACKed there: it may have
+    // got through, so the client hears "not confirmed" (0B), not 07.
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        vec![report(&to9, Some(Undelivered::NotConfirmed))]
+    );
     // The client takes the report of the first to9 (its link went down):
     // the same frame after it is a new command.
     h.link(CLIENT, &[ACK]);
     let a = h.link(CLIENT, &to9);
+    assert_eq!(link_writes(&a, CLIENT), vec![report(&to9, Some(Undelivered::LinkDown))]);
     assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::LinkDown)]);
     assert_eq!(dropped(&a), vec![DropReason::LinkDown]);
     assert_eq!(h.r.stats().router.frame_drops.get(DropReason::LinkDown), 1);
