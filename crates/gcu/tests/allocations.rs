@@ -6,6 +6,8 @@
 //!   and result, the result relayed back and acknowledged;
 //! - to another group over a downstream link: the `P?` forwarded, the link's
 //!   ACK, the next GCU's delivery report and result relayed back;
+//! - to group 255: the GCU answers `AW` itself and floods it downstream,
+//!   where the next GCU answers too;
 //! - to port 0: the GCU answers `AW` itself.
 //!
 //! Each is repeated after a warm-up so that every buffer (the caller's
@@ -98,6 +100,8 @@ fn transactions() -> Vec<Transaction> {
     let port_result = frame((0, 1, 3), G, b"00640000");
     let to_next = frame((NEXT, 1, 3), 0, b"P?");
     let next_result = frame((0, 1, 3), NEXT, b"00640000");
+    let flood = frame((255, 0, 0), 0, b"AW");
+    let next_awake = frame((0, 0, 0), NEXT, b"0");
     let to_self = frame((G, 0, 0), 0, b"AW");
     vec![
         Transaction::new(
@@ -116,6 +120,16 @@ fn transactions() -> Vec<Transaction> {
                 (down, &[ACK]),
                 (down, delivered(&to_next).as_bytes()),
                 (down, next_result.as_bytes()),
+                (client, &[ACK]),
+            ],
+        ),
+        Transaction::new(
+            "group-255 AW (answered here, flooded downstream, answered there)",
+            vec![
+                (client, flood.as_bytes()),
+                (down, &[ACK]),
+                (client, &[ACK]),
+                (down, next_awake.as_bytes()),
                 (client, &[ACK]),
             ],
         ),
