@@ -37,15 +37,16 @@ impl Router {
         out: &mut Outbox,
     ) -> CommandId {
         let id = self.next_command_id();
-        let client = kind == Some(LinkKind::Client);
         self.in_flight.insert(
             id,
             InFlight {
                 origin,
                 command: command.clone(),
-                delivery: origin.link().map(|_| Delivery {
-                    client,
-                    deadline: client.then(|| now.saturating_add(self.settings.delivery_timeout)),
+                delivery: origin.link().map(|_| match kind {
+                    Some(LinkKind::Client) => Delivery::Client {
+                        deadline: now.saturating_add(self.settings.delivery_timeout),
+                    },
+                    _ => Delivery::Gcu,
                 }),
                 jobs: None,
                 dead_man,

@@ -116,12 +116,22 @@ impl InFlight {
 
 /// What the origin link of a command in flight awaits.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Delivery {
-    /// A client link: the answer is the withheld ACK, or a report when
-    /// undelivered; a link to another GCU gets a report either way.
-    pub(super) client: bool,
-    /// When a client must be told at the latest (`delivery_timeout`).
-    pub(super) deadline: Option<u64>,
+pub(super) enum Delivery {
+    /// A client link: the withheld ACK, or a report when undelivered, by
+    /// `deadline` at the latest (`delivery_timeout`).
+    Client { deadline: u64 },
+    /// A link to another GCU: a report either way.
+    Gcu,
+}
+
+impl Delivery {
+    /// When the origin must be told at the latest, if there is a limit.
+    pub(super) fn deadline(self) -> Option<u64> {
+        match self {
+            Delivery::Client { deadline } => Some(deadline),
+            Delivery::Gcu => None,
+        }
+    }
 }
 
 /// The next round of a stop the GCU issued itself.

@@ -43,7 +43,7 @@ use crate::routing::RoutingTable;
 use crate::stats::{RouterStats, Stats};
 use crate::types::{CommandId, DropReason, LineId, LinkId, Origin, Place, RouterEvent};
 
-use in_flight::InFlight;
+use in_flight::{Delivery, InFlight};
 
 /// The GCU router core. See the crate documentation for how a daemon drives it.
 #[derive(Debug)]
@@ -164,7 +164,7 @@ impl Router {
             .chain(links)
             .chain(self.reverse.next_deadline())
             .chain(self.deadman.next_deadline())
-            .chain(self.in_flight.values().filter_map(|c| c.delivery?.deadline))
+            .chain(self.in_flight.values().filter_map(|c| c.delivery?.deadline()))
             .min()
     }
 
@@ -229,7 +229,7 @@ impl Router {
         let overdue: Vec<CommandId> = self
             .in_flight
             .iter()
-            .filter(|(_, c)| c.delivery.and_then(|d| d.deadline).is_some_and(|t| now >= t))
+            .filter(|(_, c)| c.delivery.and_then(Delivery::deadline).is_some_and(|t| now >= t))
             .map(|(&id, _)| id)
             .collect();
         for id in overdue {
