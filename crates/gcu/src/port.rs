@@ -190,6 +190,10 @@ pub(crate) struct Port {
     /// What it was made from (a reload compares it).
     pub config: PortConfig,
     policy: TransactionPolicy,
+    /// Quiet after a late answer may still come: `late_answer_guard`, never
+    /// shorter than the ACK time-out of quiet after any give-up (a guard
+    /// of 0: seed 232276).
+    late_answer_quiet: u64,
     devices: Option<Vec<u8>>,
     line: LineReceiver,
     open: bool,
@@ -233,6 +237,7 @@ impl Port {
             id: config.id,
             config: config.clone(),
             policy,
+            late_answer_quiet: config.late_answer_guard.max(config.ack_timeout),
             devices: config.devices.clone(),
             line: LineReceiver::new(config.idle_timeout),
             open: false,
@@ -516,9 +521,8 @@ impl Port {
             // out (given up, or answered a later try): its answer to that
             // try may still come, late, and would be taken for the next
             // command's ACK. (Once offline, a dead device does not hold the
-            // bus up again.) Never shorter than the ACK time-out of quiet
-            // after any give-up, below (a guard of 0: seed 232276).
-            self.config.late_answer_guard.max(self.policy.retry.ack_timeout)
+            // bus up again.)
+            self.late_answer_quiet
         } else if r.txn.transmissions() > 1 || r.ack_timed_out || matches!(outcome, Outcome::Failed(_)) {
             // The device may have executed the command twice, or answer
             // after we gave up (with no retransmission too: retries = 0, a
@@ -545,10 +549,7 @@ impl Port {
             self.backlog = Backlog::Unsure;
         }
         let answered = !matches!(outcome, Outcome::Failed(_) | Outcome::Broadcast);
-        let before = (
-            self.device_stats.get(&device).is_some_and(|d| d.online),
-            self.seen.contains(&device),
-        );
+        let before = (was_online, self.seen.contains(&device));
         if answered && device != WILDCARD {
             self.seen.insert(device);
             self.device(device).last_seen = Some(now);
@@ -810,9 +811,7 @@ impl Port {
     /// with a backlog, if it is draining one.
     fn drained_at(&self) -> Option<u64> {
         match self.backlog {
-            Backlog::Draining { last_heard } => {
-                Some(last_heard.saturating_add(self.config.late_answer_guard.max(self.policy.retry.ack_timeout)))
-            }
+            Backlog::Draining { last_heard } => Some(last_heard.saturating_add(self.late_answer_quiet)),
             Backlog::Clear | Backlog::Unsure => None,
         }
     }
