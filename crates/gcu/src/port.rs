@@ -265,8 +265,11 @@ impl Port {
         out.push(PortOut::Write(wire));
     }
 
-    fn device(&mut self, device: u8) -> &mut DeviceStats {
-        self.device_stats.entry(device).or_default()
+    /// The registry's entry of `device`, made on first use; none for the
+    /// wildcard (a broadcast), which is no device (gcud's /status would
+    /// list it as an offline gimbal).
+    fn device(&mut self, device: u8) -> Option<&mut DeviceStats> {
+        (device != WILDCARD).then(|| self.device_stats.entry(device).or_default())
     }
 
     fn note_queue(&mut self) {
@@ -428,7 +431,9 @@ impl Port {
                 stop: job.facts.stop,
             }));
             self.stats.transactions += 1;
-            self.device(dest.device).commands += 1;
+            if let Some(d) = self.device(dest.device) {
+                d.commands += 1;
+            }
             let step = txn.start(now);
             self.active = Some(Running {
                 job,
@@ -491,10 +496,11 @@ impl Port {
                 let retransmit = r.txn.transmissions() > 1;
                 let device = r.device();
                 self.stats.line.frames_out += 1;
-                let d = self.device(device);
-                d.frames_out += 1;
+                if let Some(d) = self.device(device) {
+                    d.frames_out += 1;
+                    d.retransmits += u64::from(retransmit);
+                }
                 if retransmit {
-                    d.retransmits += 1;
                     self.stats.line.retransmits += 1;
                 }
                 self.write(frame, out);
@@ -552,16 +558,18 @@ impl Port {
         let before = (was_online, self.seen.contains(&device));
         if answered && device != WILDCARD {
             self.seen.insert(device);
-            self.device(device).last_seen = Some(now);
+            if let Some(d) = self.device(device) {
+                d.last_seen = Some(now);
+            }
         }
-        if device != WILDCARD {
-            self.learn(now, device, &r.job, outcome, frame.as_ref());
-            self.tell_device_state(device, before, out);
-        }
+        self.learn(now, device, &r.job, outcome, frame.as_ref());
+        self.tell_device_state(device, before, out);
         let outcome = match outcome {
             Outcome::Result => {
                 if let Some(reply) = frame {
-                    self.device(device).frames_in += 1;
+                    if let Some(d) = self.device(device) {
+                        d.frames_in += 1;
+                    }
                     out.push(PortOut::Relay {
                         id: r.job.id,
                         origin: r.job.origin,
@@ -571,7 +579,9 @@ impl Port {
                 CommandOutcome::Result
             }
             Outcome::Nic => {
-                self.device(device).nics += 1;
+                if let Some(d) = self.device(device) {
+                    d.nics += 1;
+                }
                 CommandOutcome::Nic
             }
             Outcome::Acknowledged => {
@@ -586,7 +596,9 @@ impl Port {
             }
             Outcome::NoResult => {
                 self.stats.line.timeouts += 1;
-                self.device(device).no_result += 1;
+                if let Some(d) = self.device(device) {
+                    d.no_result += 1;
+                }
                 CommandOutcome::NoResult
             }
             Outcome::Failed(failure) => {
@@ -603,7 +615,9 @@ impl Port {
                     }
                     TxFailure::Nak => Undelivered::DeviceNak,
                 };
-                self.device(device).unreachable += 1;
+                if let Some(d) = self.device(device) {
+                    d.unreachable += 1;
+                }
                 out.extend(r.job.ids().map(|id| PortOut::Undelivered { id, failure }));
                 CommandOutcome::Unreachable
             }
@@ -641,7 +655,7 @@ impl Port {
     /// whether it answers, its last error, and the position or lens
     /// position it answered to `P?` (Table 15) or `V?` (Table 17).
     fn learn(&mut self, now: u64, device: u8, job: &Job, outcome: Outcome, result: Option<&FrameBuf>) {
-        let d = self.device(device);
+        let Some(d) = self.device(device) else { return };
         let error = match outcome {
             Outcome::Broadcast => return,
             Outcome::Failed(TxFailure::NoAck) => Some(DeviceError::Silent),
@@ -737,7 +751,9 @@ impl Port {
                         if r.txn.acknowledged() {
                             Self::delivered(&r.job, out);
                         }
-                        self.device(device).last_seen = Some(now);
+                        if let Some(d) = self.device(device) {
+                            d.last_seen = Some(now);
+                        }
                         self.active_step(now, step, None, out);
                     }
                     None => self.stats.line.stray_bytes += 1,
@@ -773,9 +789,10 @@ impl Port {
                 if port_matches && view.dest.group == command.source && self.backlog == Backlog::Clear {
                     // A device alone on its bus answering a broadcast.
                     let (id, origin) = (r.job.id, r.job.origin);
-                    let d = self.device(view.dest.device);
-                    d.frames_in += 1;
-                    d.last_seen = Some(now);
+                    if let Some(d) = self.device(view.dest.device) {
+                        d.frames_in += 1;
+                        d.last_seen = Some(now);
+                    }
                     out.push(PortOut::Relay {
                         id,
                         origin,
@@ -825,7 +842,9 @@ impl Port {
             return;
         };
         self.stats.line.timeouts += 1;
-        self.device(r.device()).unreachable += 1;
+        if let Some(d) = self.device(r.device()) {
+            d.unreachable += 1;
+        }
         let failure = Undelivered::NotConfirmed;
         out.extend(r.job.ids().map(|id| PortOut::Undelivered { id, failure }));
         let outcome = CommandOutcome::Unreachable;

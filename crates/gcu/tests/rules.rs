@@ -493,6 +493,30 @@ fn device_255_written_once_without_ack_then_guard() {
     assert_eq!(port_writes(&a, 1), vec![next]);
 }
 
+/// The device registry (gcud's /status and metrics) holds devices: a
+/// broadcast to device 255 adds no row for the wildcard, which would read
+/// as an offline gimbal, neither while it is on the bus nor after.
+#[test]
+fn a_broadcast_adds_no_wildcard_device_to_the_registry() {
+    let mut h = H::new(&[1]);
+    let broadcast = frame((G, 1, 255), 2, b"PL");
+    let a = h.link(CLIENT, &broadcast);
+    assert_eq!(port_writes(&a, 1), vec![broadcast]);
+    let devices = |h: &H| h.r.stats().devices.keys().copied().collect::<Vec<_>>();
+    assert_eq!(devices(&h), vec![], "while the broadcast is on the bus");
+    let a = h.wait(20);
+    assert_eq!(finished(&a), vec![CommandOutcome::Completed]);
+    assert_eq!(devices(&h), vec![], "after it");
+    assert_eq!(h.r.stats().ports[&1].transactions, 1, "counted on its port");
+    // A device that answers is in the registry; the wildcard still is not.
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"AW"));
+    h.port(1, &[ACK]);
+    h.port(1, &frame((2, 1, 3), G, b"0"));
+    h.link(CLIENT, &[ACK]);
+    h.link(CLIENT, &frame((G, 1, 255), 2, b"PS"));
+    assert_eq!(devices(&h), vec![(1, 3)]);
+}
+
 #[test]
 fn a_late_or_duplicate_result_is_never_taken_for_the_next_exchange() {
     let mut h = H::new(&[1]);
