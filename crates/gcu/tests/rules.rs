@@ -1114,6 +1114,36 @@ fn unacknowledged_dead_man_stop_is_sent_again() {
     assert_eq!(h.r.stats().router.dead_man_stops, 1, "one motion stopped");
 }
 
+/// A lease stop no device acknowledges goes again like a dead-man stop,
+/// and every round is told as what it is: a lease that ran out, counted
+/// once (one motion stopped), never a dead-man stop.
+#[test]
+fn unacknowledged_lease_stop_is_sent_again_and_told_as_a_lease_stop() {
+    let mut h = H::new(&[1]);
+    h.go(Input::LinkUp {
+        link: LinkId(9),
+        config: LinkConfig {
+            motion_lease: Some(500),
+            ..LinkConfig::new(LinkKind::Client, SourceFilter::Any)
+        },
+    });
+    h.link(LinkId(9), &frame((G, 1, 3), 2, b"PL"));
+    h.port(1, &[ACK]);
+    let a = h.wait(60_000);
+    let stop = frame((G, 1, 3), G, b"PS");
+    let retries = u64::from(port_config(1).retries);
+    let sent = port_writes(&a, 1).iter().filter(|w| **w == stop).count() as u64;
+    assert_eq!(sent, 5 * (retries + 1), "five rounds of {} transmissions", retries + 1);
+    let leases = a
+        .iter()
+        .filter(|x| matches!(x, Action::Event(RouterEvent::LeaseExpired { stop: "PS", .. })))
+        .count();
+    assert_eq!(leases, 5, "each round told as a lease stop");
+    assert_eq!(dead_man_stops(&a), vec![], "no round is a dead-man stop");
+    let s = h.r.stats().router;
+    assert_eq!((s.lease_stops, s.dead_man_stops), (1, 0), "one motion stopped");
+}
+
 #[test]
 fn reconfigure_leaves_unchanged_ports_alone_and_stops_motions_before_closing_a_port() {
     let mut h = H::new(&[1, 2]);
