@@ -714,7 +714,7 @@ impl Port {
             self.stats.line.stray_bytes += bytes.len() as u64;
             return;
         }
-        self.line.heard(now, bytes, &mut self.stats.line);
+        LineReceiver::heard(now, bytes, &mut self.stats.line);
         let mut rest = bytes;
         while let Some(event) = self.line.next_event(now, &mut rest, &mut self.stats.line) {
             self.on_event(now, event, out);
