@@ -140,14 +140,7 @@ fn text(s: &Value, now: f64) -> String {
             port["bad_checksums"],
             ago(&port["last_seen_unix"], now),
         ));
-        // Devices only: a row for the wildcard (255, a broadcast) would
-        // read as an offline gimbal.
-        let devices: Vec<&Value> = port["devices"]
-            .as_array()
-            .unwrap_or(&empty)
-            .iter()
-            .filter(|d| d["device"].as_u64() != Some(u64::from(sagebrush_protocol::WILDCARD)))
-            .collect();
+        let devices = port["devices"].as_array().unwrap_or(&empty);
         if devices.is_empty() {
             out.push_str("  no device addressed yet\n");
             continue;
@@ -237,9 +230,6 @@ mod tests {
                          {"device": 1, "address": "5.1.1", "online": true, "last_seen_unix": 1095.0,
                           "position": {"pan_deg": 12.5, "tilt_deg": -3.0, "unix": 1095.0}, "lens": null,
                           "last_error": null, "commands": 2, "unreachable": 0, "no_result": 0, "nics": 0},
-                         {"device": 255, "address": "5.1.255", "online": false, "last_seen_unix": null,
-                          "position": null, "lens": null, "commands": 1, "unreachable": 0, "no_result": 0, "nics": 0,
-                          "last_error": null},
                          {"device": 9, "address": "5.1.9", "online": false, "last_seen_unix": null,
                           "position": null, "lens": null, "commands": 1, "unreachable": 1, "no_result": 0, "nics": 0,
                           "last_error": {"error": "device_silent", "message": "did not acknowledge", "unix": 1098.0}}]}],
@@ -253,7 +243,6 @@ mod tests {
             one.contains("yes") && one.contains("pan 12.50° tilt -3.00° (5 s ago)"),
             "{one}"
         );
-        assert!(!text.contains("5.1.255"), "a wildcard row: {text}");
         let nine = text.lines().find(|l| l.contains("5.1.9")).expect("device 9");
         assert!(
             nine.contains("never") && nine.contains("did not acknowledge (2 s ago)"),

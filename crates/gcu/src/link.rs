@@ -206,7 +206,7 @@ impl Link {
     /// Bytes from the peer: ACK/NAK what they complete, hand frames and `?`
     /// over in `received` (the caller's, reused).
     pub fn receive(&mut self, now: u64, bytes: &[u8], out: &mut Vec<LinkOut>, received: &mut Vec<Received>) {
-        self.line.heard(now, bytes, &mut self.stats.line);
+        LineReceiver::heard(now, bytes, &mut self.stats.line);
         self.on_events(now, bytes, out, received);
     }
 

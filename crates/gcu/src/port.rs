@@ -190,6 +190,10 @@ pub(crate) struct Port {
     /// What it was made from (a reload compares it).
     pub config: PortConfig,
     policy: TransactionPolicy,
+    /// Quiet after a late answer may still come: `late_answer_guard`, never
+    /// shorter than the ACK time-out of quiet after any give-up (a guard
+    /// of 0: seed 232276).
+    late_answer_quiet: u64,
     devices: Option<Vec<u8>>,
     line: LineReceiver,
     open: bool,
@@ -233,6 +237,7 @@ impl Port {
             id: config.id,
             config: config.clone(),
             policy,
+            late_answer_quiet: config.late_answer_guard.max(config.ack_timeout),
             devices: config.devices.clone(),
             line: LineReceiver::new(config.idle_timeout),
             open: false,
@@ -260,8 +265,11 @@ impl Port {
         out.push(PortOut::Write(wire));
     }
 
-    fn device(&mut self, device: u8) -> &mut DeviceStats {
-        self.device_stats.entry(device).or_default()
+    /// The registry's entry of `device`, made on first use; none for the
+    /// wildcard (a broadcast), which is no device (gcud's /status would
+    /// list it as an offline gimbal).
+    fn device(&mut self, device: u8) -> Option<&mut DeviceStats> {
+        (device != WILDCARD).then(|| self.device_stats.entry(device).or_default())
     }
 
     fn note_queue(&mut self) {
@@ -423,7 +431,9 @@ impl Port {
                 stop: job.facts.stop,
             }));
             self.stats.transactions += 1;
-            self.device(dest.device).commands += 1;
+            if let Some(d) = self.device(dest.device) {
+                d.commands += 1;
+            }
             let step = txn.start(now);
             self.active = Some(Running {
                 job,
@@ -486,10 +496,11 @@ impl Port {
                 let retransmit = r.txn.transmissions() > 1;
                 let device = r.device();
                 self.stats.line.frames_out += 1;
-                let d = self.device(device);
-                d.frames_out += 1;
+                if let Some(d) = self.device(device) {
+                    d.frames_out += 1;
+                    d.retransmits += u64::from(retransmit);
+                }
                 if retransmit {
-                    d.retransmits += 1;
                     self.stats.line.retransmits += 1;
                 }
                 self.write(frame, out);
@@ -516,9 +527,8 @@ impl Port {
             // out (given up, or answered a later try): its answer to that
             // try may still come, late, and would be taken for the next
             // command's ACK. (Once offline, a dead device does not hold the
-            // bus up again.) Never shorter than the ACK time-out of quiet
-            // after any give-up, below (a guard of 0: seed 232276).
-            self.config.late_answer_guard.max(self.policy.retry.ack_timeout)
+            // bus up again.)
+            self.late_answer_quiet
         } else if r.txn.transmissions() > 1 || r.ack_timed_out || matches!(outcome, Outcome::Failed(_)) {
             // The device may have executed the command twice, or answer
             // after we gave up (with no retransmission too: retries = 0, a
@@ -545,22 +555,21 @@ impl Port {
             self.backlog = Backlog::Unsure;
         }
         let answered = !matches!(outcome, Outcome::Failed(_) | Outcome::Broadcast);
-        let before = (
-            self.device_stats.get(&device).is_some_and(|d| d.online),
-            self.seen.contains(&device),
-        );
+        let before = (was_online, self.seen.contains(&device));
         if answered && device != WILDCARD {
             self.seen.insert(device);
-            self.device(device).last_seen = Some(now);
+            if let Some(d) = self.device(device) {
+                d.last_seen = Some(now);
+            }
         }
-        if device != WILDCARD {
-            self.learn(now, device, &r.job, outcome, frame.as_ref());
-            self.tell_device_state(device, before, out);
-        }
+        self.learn(now, device, &r.job, outcome, frame.as_ref());
+        self.tell_device_state(device, before, out);
         let outcome = match outcome {
             Outcome::Result => {
                 if let Some(reply) = frame {
-                    self.device(device).frames_in += 1;
+                    if let Some(d) = self.device(device) {
+                        d.frames_in += 1;
+                    }
                     out.push(PortOut::Relay {
                         id: r.job.id,
                         origin: r.job.origin,
@@ -570,7 +579,9 @@ impl Port {
                 CommandOutcome::Result
             }
             Outcome::Nic => {
-                self.device(device).nics += 1;
+                if let Some(d) = self.device(device) {
+                    d.nics += 1;
+                }
                 CommandOutcome::Nic
             }
             Outcome::Acknowledged => {
@@ -585,7 +596,9 @@ impl Port {
             }
             Outcome::NoResult => {
                 self.stats.line.timeouts += 1;
-                self.device(device).no_result += 1;
+                if let Some(d) = self.device(device) {
+                    d.no_result += 1;
+                }
                 CommandOutcome::NoResult
             }
             Outcome::Failed(failure) => {
@@ -602,7 +615,9 @@ impl Port {
                     }
                     TxFailure::Nak => Undelivered::DeviceNak,
                 };
-                self.device(device).unreachable += 1;
+                if let Some(d) = self.device(device) {
+                    d.unreachable += 1;
+                }
                 out.extend(r.job.ids().map(|id| PortOut::Undelivered { id, failure }));
                 CommandOutcome::Unreachable
             }
@@ -640,7 +655,7 @@ impl Port {
     /// whether it answers, its last error, and the position or lens
     /// position it answered to `P?` (Table 15) or `V?` (Table 17).
     fn learn(&mut self, now: u64, device: u8, job: &Job, outcome: Outcome, result: Option<&FrameBuf>) {
-        let d = self.device(device);
+        let Some(d) = self.device(device) else { return };
         let error = match outcome {
             Outcome::Broadcast => return,
             Outcome::Failed(TxFailure::NoAck) => Some(DeviceError::Silent),
@@ -699,7 +714,7 @@ impl Port {
             self.stats.line.stray_bytes += bytes.len() as u64;
             return;
         }
-        self.line.heard(now, bytes, &mut self.stats.line);
+        LineReceiver::heard(now, bytes, &mut self.stats.line);
         let mut rest = bytes;
         while let Some(event) = self.line.next_event(now, &mut rest, &mut self.stats.line) {
             self.on_event(now, event, out);
@@ -736,7 +751,9 @@ impl Port {
                         if r.txn.acknowledged() {
                             Self::delivered(&r.job, out);
                         }
-                        self.device(device).last_seen = Some(now);
+                        if let Some(d) = self.device(device) {
+                            d.last_seen = Some(now);
+                        }
                         self.active_step(now, step, None, out);
                     }
                     None => self.stats.line.stray_bytes += 1,
@@ -772,9 +789,10 @@ impl Port {
                 if port_matches && view.dest.group == command.source && self.backlog == Backlog::Clear {
                     // A device alone on its bus answering a broadcast.
                     let (id, origin) = (r.job.id, r.job.origin);
-                    let d = self.device(view.dest.device);
-                    d.frames_in += 1;
-                    d.last_seen = Some(now);
+                    if let Some(d) = self.device(view.dest.device) {
+                        d.frames_in += 1;
+                        d.last_seen = Some(now);
+                    }
                     out.push(PortOut::Relay {
                         id,
                         origin,
@@ -810,9 +828,7 @@ impl Port {
     /// with a backlog, if it is draining one.
     fn drained_at(&self) -> Option<u64> {
         match self.backlog {
-            Backlog::Draining { last_heard } => {
-                Some(last_heard.saturating_add(self.config.late_answer_guard.max(self.policy.retry.ack_timeout)))
-            }
+            Backlog::Draining { last_heard } => Some(last_heard.saturating_add(self.late_answer_quiet)),
             Backlog::Clear | Backlog::Unsure => None,
         }
     }
@@ -826,7 +842,9 @@ impl Port {
             return;
         };
         self.stats.line.timeouts += 1;
-        self.device(r.device()).unreachable += 1;
+        if let Some(d) = self.device(r.device()) {
+            d.unreachable += 1;
+        }
         let failure = Undelivered::NotConfirmed;
         out.extend(r.job.ids().map(|id| PortOut::Undelivered { id, failure }));
         let outcome = CommandOutcome::Unreachable;

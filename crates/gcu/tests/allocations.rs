@@ -1,85 +1,146 @@
 //! Heap allocations per routed transaction in the router core
-//! (ARCHITECTURE "Data path": none in steady state): a client's `P?` to a
-//! device on a port, its ACK, the device's ACK and result, the result
-//! relayed back and acknowledged, repeated after a warm-up so that every
-//! buffer (the caller's `Outbox` included) has grown. An allocation count
-//! is exact, not a timing, so it is asserted: any allocation per routed
-//! frame fails. `cargo test -p sagebrush-gcu --release --test allocations`
-//! prints the figure (no test harness: nothing else runs in the process).
+//! (ARCHITECTURE "Data path": none in steady state), for each way a
+//! command goes:
+//!
+//! - to a port: a client's `P?` to a device, its ACK, the device's ACK
+//!   and result, the result relayed back and acknowledged;
+//! - to another group over a downstream link: the `P?` forwarded, the link's
+//!   ACK, the next GCU's delivery report and result relayed back;
+//! - to group 255: the GCU answers `AW` itself and floods it downstream,
+//!   where the next GCU answers too;
+//! - to port 0: the GCU answers `AW` itself.
+//!
+//! Each is repeated after a warm-up so that every buffer (the caller's
+//! `Outbox` included) has grown. An allocation count is exact, not a
+//! timing, so it is asserted: any allocation per routed frame fails.
+//! `cargo test -p sagebrush-gcu --release --test allocations` prints the
+//! figures (no test harness: nothing else runs in the process).
 
 use std::alloc::System;
 
 use sagebrush_gcu::{
     Input, LineId, LinkConfig, LinkId, LinkKind, Outbox, PortConfig, Router, RouterConfig, SourceFilter,
 };
-use sagebrush_protocol::{ACK, Address, FrameBuf};
+use sagebrush_protocol::{ACK, Address, DeliveryReport, FrameBuf};
 use stats_alloc::{INSTRUMENTED_SYSTEM, Region, StatsAlloc};
 
 #[global_allocator]
 static GLOBAL: &StatsAlloc<System> = &INSTRUMENTED_SYSTEM;
 
+/// This GCU's group, and the next GCU's, behind `DOWN`.
+const G: u8 = 5;
+const NEXT: u8 = 7;
 const CLIENT: LinkId = LinkId(1);
+const DOWN: LinkId = LinkId(2);
 
-fn main() {
-    let mut config = RouterConfig::new(5);
+/// Warm-up transactions, then measured ones.
+const WARM_UP: u64 = 1000;
+const N: u64 = 10_000;
+
+fn frame(dest: (u8, u8, u8), source: u8, payload: &[u8]) -> FrameBuf {
+    FrameBuf::new(Address::new(dest.0, dest.1, dest.2), source, payload).expect("frame")
+}
+
+/// The delivery report the next GCU sends about `command`: delivered.
+fn delivered(command: &FrameBuf) -> FrameBuf {
+    let f = command.frame();
+    let payload = DeliveryReport {
+        failure: None,
+        dest: f.dest,
+        command_checksum: f.checksum(),
+        at_group: NEXT,
+    }
+    .encode();
+    frame((f.source, 0, 0), NEXT, &payload)
+}
+
+/// One way a command goes: the bytes each line delivers to the router, in order.
+struct Transaction {
+    name: &'static str,
+    steps: Vec<(LineId, Vec<u8>)>,
+}
+
+impl Transaction {
+    fn new(name: &'static str, steps: Vec<(LineId, &[u8])>) -> Self {
+        let steps = steps.into_iter().map(|(line, bytes)| (line, bytes.to_vec())).collect();
+        Self { name, steps }
+    }
+
+    /// Runs it once at `*now`, then lets every time-out pass.
+    fn run(&self, router: &mut Router, now: &mut u64, out: &mut Outbox) {
+        *now += 10;
+        for (line, bytes) in &self.steps {
+            router.handle(*now, Input::Bytes { line: *line, bytes }, out);
+        }
+        *now += 1000;
+        router.handle(*now, Input::Tick, out);
+        out.clear();
+    }
+}
+
+fn router() -> Router {
+    let mut config = RouterConfig::new(G);
     config.ports.push(PortConfig::new(1));
+    config.static_routes.insert(NEXT, DOWN);
     let mut router = Router::new(config).expect("valid config");
     let mut out = Outbox::new();
     router.handle(0, Input::PortOpened { port: 1 }, &mut out);
-    let link = LinkConfig::new(LinkKind::Client, SourceFilter::Any);
-    router.handle(
-        0,
-        Input::LinkUp {
-            link: CLIENT,
-            config: link,
-        },
-        &mut out,
-    );
-    out.clear();
-    let command = FrameBuf::new(Address::new(5, 1, 3), 0, b"P?").expect("frame");
-    let result = FrameBuf::new(Address::new(0, 1, 3), 5, b"00640000").expect("frame");
-    let mut now = 0u64;
-    let mut transaction = |router: &mut Router, out: &mut Outbox| {
-        now += 10;
-        router.handle(
-            now,
-            Input::Bytes {
-                line: LineId::Link(CLIENT),
-                bytes: command.as_bytes(),
-            },
-            out,
-        );
-        router.handle(
-            now,
-            Input::Bytes {
-                line: LineId::Port(1),
-                bytes: &[ACK],
-            },
-            out,
-        );
-        router.handle(
-            now,
-            Input::Bytes {
-                line: LineId::Port(1),
-                bytes: result.as_bytes(),
-            },
-            out,
-        );
-        router.handle(
-            now,
-            Input::Bytes {
-                line: LineId::Link(CLIENT),
-                bytes: &[ACK],
-            },
-            out,
-        );
-        now += 1000;
-        router.handle(now, Input::Tick, out);
-        out.clear();
-    };
-    for _ in 0..1000 {
-        transaction(&mut router, &mut out);
+    for (link, kind) in [(CLIENT, LinkKind::Client), (DOWN, LinkKind::Downstream)] {
+        let config = LinkConfig::new(kind, SourceFilter::Any);
+        router.handle(0, Input::LinkUp { link, config }, &mut out);
     }
+    router
+}
+
+fn transactions() -> Vec<Transaction> {
+    let client = LineId::Link(CLIENT);
+    let down = LineId::Link(DOWN);
+    let port = LineId::Port(1);
+    let to_port = frame((G, 1, 3), 0, b"P?");
+    let port_result = frame((0, 1, 3), G, b"00640000");
+    let to_next = frame((NEXT, 1, 3), 0, b"P?");
+    let next_result = frame((0, 1, 3), NEXT, b"00640000");
+    let flood = frame((255, 0, 0), 0, b"AW");
+    let next_awake = frame((0, 0, 0), NEXT, b"0");
+    let to_self = frame((G, 0, 0), 0, b"AW");
+    vec![
+        Transaction::new(
+            "routed P? (client -> port -> result back)",
+            vec![
+                (client, to_port.as_bytes()),
+                (port, &[ACK]),
+                (port, port_result.as_bytes()),
+                (client, &[ACK]),
+            ],
+        ),
+        Transaction::new(
+            "forwarded P? (client -> downstream GCU -> report and result back)",
+            vec![
+                (client, to_next.as_bytes()),
+                (down, &[ACK]),
+                (down, delivered(&to_next).as_bytes()),
+                (down, next_result.as_bytes()),
+                (client, &[ACK]),
+            ],
+        ),
+        Transaction::new(
+            "group-255 AW (answered here, flooded downstream, answered there)",
+            vec![
+                (client, flood.as_bytes()),
+                (down, &[ACK]),
+                (client, &[ACK]),
+                (down, next_awake.as_bytes()),
+                (client, &[ACK]),
+            ],
+        ),
+        Transaction::new(
+            "AW to port 0 (answered by the GCU itself)",
+            vec![(client, to_self.as_bytes()), (client, &[ACK])],
+        ),
+    ]
+}
+
+fn main() {
     // The canary: the counting allocator must see an allocation made here,
     // or a zero below would prove nothing (the allocator not installed).
     let region = Region::new(GLOBAL);
@@ -89,31 +150,57 @@ fn main() {
         canary.allocations, 1,
         "the counting allocator must see a Box: {canary:?}"
     );
-    // And one inside the router's own work: an Outbox that must grow.
-    let mut fresh = Outbox::new();
-    let region = Region::new(GLOBAL);
-    transaction(&mut router, &mut fresh);
-    let first = region.change();
-    assert!(
-        first.allocations + first.reallocations > 0,
-        "a fresh Outbox grows while routing, and the count must show it: {first:?}"
-    );
-    const N: u64 = 10_000;
-    let region = Region::new(GLOBAL);
-    for _ in 0..N {
-        transaction(&mut router, &mut out);
+    for t in transactions() {
+        let mut router = router();
+        let mut out = Outbox::new();
+        let mut now = 0u64;
+        for _ in 0..WARM_UP {
+            t.run(&mut router, &mut now, &mut out);
+        }
+        // And one inside the router's own work: an Outbox that must grow.
+        let mut fresh = Outbox::new();
+        let region = Region::new(GLOBAL);
+        t.run(&mut router, &mut now, &mut fresh);
+        let first = region.change();
+        assert!(
+            first.allocations + first.reallocations > 0,
+            "{}: a fresh Outbox grows while routing, and the count must show it: {first:?}",
+            t.name
+        );
+        let before = router.stats();
+        let region = Region::new(GLOBAL);
+        for _ in 0..N {
+            t.run(&mut router, &mut now, &mut out);
+        }
+        let stats = region.change();
+        let after = router.stats();
+        // Every transaction went the whole way: nothing dropped, each finished
+        // and its answers relayed.
+        let (b, a) = (before.router, after.router);
+        assert_eq!(
+            a.finished() - b.finished(),
+            N,
+            "{}: every command finished: {a:?}",
+            t.name
+        );
+        assert_eq!(a.frame_drops, b.frame_drops, "{}: nothing dropped: {a:?}", t.name);
+        assert_eq!(a.dropped, b.dropped, "{}: nothing dropped: {a:?}", t.name);
+        assert!(
+            a.results + a.results_relayed >= b.results + b.results_relayed + N,
+            "{}: every command answered: {a:?}",
+            t.name
+        );
+        println!(
+            "router core, {}: {:.2} allocations, {:.0} bytes allocated per transaction ({N} transactions)",
+            t.name,
+            stats.allocations as f64 / N as f64,
+            stats.bytes_allocated as f64 / N as f64,
+        );
+        assert_eq!(
+            stats.allocations + stats.reallocations,
+            0,
+            "{}: the router core allocated while routing: {stats:?}",
+            t.name
+        );
     }
-    let stats = region.change();
-    assert_eq!(router.stats().router.results, 1000 + 1 + N, "every P? was answered");
-    println!(
-        "router core, routed P? (client -> port -> result back): {:.2} allocations, {:.0} bytes allocated per transaction ({} transactions)",
-        stats.allocations as f64 / N as f64,
-        stats.bytes_allocated as f64 / N as f64,
-        N
-    );
-    assert_eq!(
-        stats.allocations + stats.reallocations,
-        0,
-        "the router core allocated while routing: {stats:?}"
-    );
 }

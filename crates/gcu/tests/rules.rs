@@ -413,6 +413,13 @@ fn no_ack_retransmits_up_to_the_count_then_unreachable() {
     let a = h.wait(100);
     assert_eq!(port_writes(&a, 1), vec![cmd.clone()], "retries = 2");
     assert_eq!(finished(&a), vec![CommandOutcome::Unreachable]);
+    // The client hears 01, never an ACK (unacknowledged, the report goes
+    // again within the wait).
+    let told = link_writes(&a, CLIENT);
+    assert!(
+        !told.is_empty() && told.iter().all(|w| *w == report(&cmd, Some(Undelivered::DeviceSilent))),
+        "{told:?}"
+    );
     let s = h.r.stats();
     assert_eq!(s.devices[&(1, 3)].retransmits, 2);
     assert_eq!(s.devices[&(1, 3)].unreachable, 1);
@@ -484,6 +491,30 @@ fn device_255_written_once_without_ack_then_guard() {
     let a = h.wait(1);
     assert_eq!(finished(&a), vec![CommandOutcome::Completed]);
     assert_eq!(port_writes(&a, 1), vec![next]);
+}
+
+/// The device registry (gcud's /status and metrics) holds devices: a
+/// broadcast to device 255 adds no row for the wildcard, which would read
+/// as an offline gimbal, neither while it is on the bus nor after.
+#[test]
+fn a_broadcast_adds_no_wildcard_device_to_the_registry() {
+    let mut h = H::new(&[1]);
+    let broadcast = frame((G, 1, 255), 2, b"PL");
+    let a = h.link(CLIENT, &broadcast);
+    assert_eq!(port_writes(&a, 1), vec![broadcast]);
+    let devices = |h: &H| h.r.stats().devices.keys().copied().collect::<Vec<_>>();
+    assert_eq!(devices(&h), vec![], "while the broadcast is on the bus");
+    let a = h.wait(20);
+    assert_eq!(finished(&a), vec![CommandOutcome::Completed]);
+    assert_eq!(devices(&h), vec![], "after it");
+    assert_eq!(h.r.stats().ports[&1].transactions, 1, "counted on its port");
+    // A device that answers is in the registry; the wildcard still is not.
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"AW"));
+    h.port(1, &[ACK]);
+    h.port(1, &frame((2, 1, 3), G, b"0"));
+    h.link(CLIENT, &[ACK]);
+    h.link(CLIENT, &frame((G, 1, 255), 2, b"PS"));
+    assert_eq!(devices(&h), vec![(1, 3)]);
 }
 
 #[test]
@@ -610,21 +641,46 @@ fn bounded_port_queue_drops_with_counter_and_warning_and_stops_have_their_own_ro
 #[test]
 fn unknown_and_closed_ports_are_dropped_and_counted() {
     let mut h = H::new(&[1]);
-    let a = h.link(CLIENT, &frame((G, 9, 3), 2, b"AW"));
+    let to_port_9 = frame((G, 9, 3), 2, b"AW");
+    let a = h.link(CLIENT, &to_port_9);
     assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::UnknownPort)]);
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        vec![report(&to_port_9, Some(Undelivered::NoSuchPort))]
+    );
+    h.link(CLIENT, &[ACK]);
     h.go(Input::PortLost { port: 1 });
-    let a = h.link(CLIENT, &frame((G, 1, 3), 2, b"AW"));
+    let to_port_1 = frame((G, 1, 3), 2, b"AW");
+    let a = h.link(CLIENT, &to_port_1);
     assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::PortClosed)]);
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        vec![report(&to_port_1, Some(Undelivered::PortClosed))]
+    );
     assert_eq!(h.r.stats().router.dropped.get(DropReason::UnknownPort), 1);
 }
 
 #[test]
 fn lost_port_fails_in_flight_and_queued_then_recovers() {
     let mut h = H::new(&[1]);
-    h.link(CLIENT, &frame((G, 1, 3), 2, b"P?"));
-    h.link(CLIENT, &frame((G, 1, 3), 2, b"HO"));
+    let in_flight = frame((G, 1, 3), 2, b"P?");
+    let queued = frame((G, 1, 3), 2, b"HO");
+    h.link(CLIENT, &in_flight);
+    h.link(CLIENT, &queued);
     let a = h.go(Input::PortLost { port: 1 });
     assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::PortLost); 2]);
+    // The client hears both, one unacknowledged report at a time: the port
+    // is closed (04).
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        vec![report(&in_flight, Some(Undelivered::PortClosed))]
+    );
+    let a = h.link(CLIENT, &[ACK]);
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        vec![report(&queued, Some(Undelivered::PortClosed))]
+    );
+    h.link(CLIENT, &[ACK]);
     assert_eq!(h.r.stats().ports[&1].line.drops.get(DropReason::PortLost), 2);
     let a = h.go(Input::PortOpened { port: 1 });
     assert!(a.contains(&Action::SetPortRate { port: 1, bps: 9600 }));
@@ -713,11 +769,18 @@ fn other_groups_follow_static_then_learned_then_default_routes() {
     assert_eq!(link_writes(&a, UP), vec![to9.clone()]);
     // Static route down: learned would be used; default down too: the
     // client hears that the route's link is down (07), not "no route" (06).
-    h.go(Input::LinkDown { link: UP });
+    let a = h.go(Input::LinkDown { link: UP });
+    // The first to9 was written to UP and not yet ACKed there: it may have
+    // got through, so the client hears "not confirmed" (0B), not 07.
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        vec![report(&to9, Some(Undelivered::NotConfirmed))]
+    );
     // The client takes the report of the first to9 (its link went down):
     // the same frame after it is a new command.
     h.link(CLIENT, &[ACK]);
     let a = h.link(CLIENT, &to9);
+    assert_eq!(link_writes(&a, CLIENT), vec![report(&to9, Some(Undelivered::LinkDown))]);
     assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::LinkDown)]);
     assert_eq!(dropped(&a), vec![DropReason::LinkDown]);
     assert_eq!(h.r.stats().router.frame_drops.get(DropReason::LinkDown), 1);
@@ -1049,6 +1112,36 @@ fn unacknowledged_dead_man_stop_is_sent_again() {
     let unreachable = h.r.stats().router.unreachable;
     assert_eq!(unreachable, 5, "each round ends unreachable");
     assert_eq!(h.r.stats().router.dead_man_stops, 1, "one motion stopped");
+}
+
+/// A lease stop no device acknowledges goes again like a dead-man stop,
+/// and every round is told as what it is: a lease that ran out, counted
+/// once (one motion stopped), never a dead-man stop.
+#[test]
+fn unacknowledged_lease_stop_is_sent_again_and_told_as_a_lease_stop() {
+    let mut h = H::new(&[1]);
+    h.go(Input::LinkUp {
+        link: LinkId(9),
+        config: LinkConfig {
+            motion_lease: Some(500),
+            ..LinkConfig::new(LinkKind::Client, SourceFilter::Any)
+        },
+    });
+    h.link(LinkId(9), &frame((G, 1, 3), 2, b"PL"));
+    h.port(1, &[ACK]);
+    let a = h.wait(60_000);
+    let stop = frame((G, 1, 3), G, b"PS");
+    let retries = u64::from(port_config(1).retries);
+    let sent = port_writes(&a, 1).iter().filter(|w| **w == stop).count() as u64;
+    assert_eq!(sent, 5 * (retries + 1), "five rounds of {} transmissions", retries + 1);
+    let leases = a
+        .iter()
+        .filter(|x| matches!(x, Action::Event(RouterEvent::LeaseExpired { stop: "PS", .. })))
+        .count();
+    assert_eq!(leases, 5, "each round told as a lease stop");
+    assert_eq!(dead_man_stops(&a), vec![], "no round is a dead-man stop");
+    let s = h.r.stats().router;
+    assert_eq!((s.lease_stops, s.dead_man_stops), (1, 0), "one motion stopped");
 }
 
 #[test]

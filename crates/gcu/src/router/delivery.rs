@@ -10,6 +10,7 @@ use crate::outbox::Outbox;
 use crate::types::{CommandId, DropReason, LinkId, Origin, Place, RouterEvent};
 
 use super::Router;
+use super::in_flight::Delivery;
 
 impl Router {
     /// Tells the origin of command `id` whether it was delivered, once
@@ -51,7 +52,7 @@ impl Router {
                 }));
             }
         }
-        if awaited.client && delivery.is_ok() {
+        if matches!(awaited, Delivery::Client { .. }) && delivery.is_ok() {
             return self.ack(now, link, out);
         }
         self.report(now, link, &f, delivery.err(), at_group, out);

@@ -8,10 +8,10 @@ use crate::boundary::Action;
 use crate::command::ReadCommand;
 use crate::config::LinkKind;
 use crate::outbox::Outbox;
-use crate::types::{CommandId, CommandOutcome, DropReason, LinkId, Origin, Place, RouterEvent};
+use crate::types::{CommandId, CommandOutcome, DropReason, Origin, Place, RouterEvent};
 
 use super::Router;
-use super::in_flight::{Delivery, InFlight, Progress};
+use super::in_flight::{Delivery, InFlight, IssuedStop, Progress};
 
 /// A command the router accepted: its id, where it came from and what it
 /// says, as it goes to the GCU's ports or to another GCU.
@@ -33,22 +33,23 @@ impl Router {
         origin: Origin,
         kind: Option<LinkKind>,
         command: ReadCommand,
-        dead_man: Option<(LinkId, u8)>,
+        issued_stop: Option<IssuedStop>,
         out: &mut Outbox,
     ) -> CommandId {
         let id = self.next_command_id();
-        let client = kind == Some(LinkKind::Client);
         self.in_flight.insert(
             id,
             InFlight {
                 origin,
                 command: command.clone(),
-                delivery: origin.link().map(|_| Delivery {
-                    client,
-                    deadline: client.then(|| now.saturating_add(self.settings.delivery_timeout)),
+                delivery: origin.link().map(|_| match kind {
+                    Some(LinkKind::Client) => Delivery::Client {
+                        deadline: now.saturating_add(self.settings.delivery_timeout),
+                    },
+                    _ => Delivery::Gcu,
                 }),
                 jobs: None,
-                dead_man,
+                issued_stop,
                 finished: false,
             },
         );
@@ -97,7 +98,7 @@ impl Router {
     pub(super) fn finish(&mut self, id: CommandId, outcome: CommandOutcome, out: &mut Outbox) {
         if let Some(c) = self.in_flight.get_mut(&id) {
             c.finished = true;
-            c.dead_man = None;
+            c.issued_stop = None;
             if c.done() {
                 self.in_flight.remove(&id);
             }

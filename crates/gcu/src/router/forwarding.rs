@@ -13,6 +13,7 @@ use crate::outbox::Outbox;
 use crate::types::{CommandId, CommandOutcome, DropReason, LinkId, Origin, Place, RouterEvent};
 
 use super::Router;
+use super::after_key;
 use super::dispatch::Accepted;
 
 impl Router {
@@ -87,15 +88,18 @@ impl Router {
 
     /// Group 255 from upstream (or a client, or the router itself) is
     /// copied to every downstream link, never back where it came from.
+    /// Each found afresh after the last (forwarding may change the links),
+    /// with no list of targets.
     pub(super) fn flood(&mut self, now: u64, origin: Origin, command: &ReadCommand, out: &mut Outbox) {
-        let targets: Vec<LinkId> = self
-            .links
-            .iter()
-            .filter(|&(&id, l)| l.config.kind == LinkKind::Downstream && Some(id) != origin.link())
-            .map(|(&id, _)| id)
-            .collect();
         let f = command.frame.frame();
-        for link in targets {
+        let mut after = None;
+        while let Some(link) = self
+            .links
+            .range(after_key(after))
+            .find(|&(&id, l)| l.config.kind == LinkKind::Downstream && Some(id) != origin.link())
+            .map(|(&id, _)| id)
+        {
+            after = Some(link);
             match self.forward(now, link, command, (origin, None), out) {
                 Ok(()) => self.stats.flooded += 1,
                 Err(reason) => self.drop_frame(reason, Place::Link(link), f.dest, f.source, out),

@@ -88,9 +88,8 @@ pub(super) struct InFlight {
     pub(super) delivery: Option<Delivery>,
     /// Executed on local ports: its jobs, until they all ended.
     pub(super) jobs: Option<Progress>,
-    /// A stop the GCU issued itself: the link whose motion it ends, and
-    /// which round of sending it this is (at most `DEAD_MAN_ROUNDS`).
-    pub(super) dead_man: Option<(LinkId, u8)>,
+    /// A stop the GCU issued itself: whose motion it ends, why, and its round.
+    pub(super) issued_stop: Option<IssuedStop>,
     /// Its [`crate::RouterEvent::Finished`] was sent.
     pub(super) finished: bool,
 }
@@ -105,30 +104,61 @@ impl InFlight {
     /// when no device acknowledged it and rounds are left (the motion it
     /// ends goes on until one does).
     pub(super) fn stop_again(&self, outcome: CommandOutcome) -> Option<StopRound> {
-        let (link, round) = self.dead_man?;
-        (outcome == CommandOutcome::Unreachable && round < DEAD_MAN_ROUNDS).then(|| StopRound {
+        let issued = self.issued_stop?;
+        (outcome == CommandOutcome::Unreachable && issued.round < DEAD_MAN_ROUNDS).then(|| StopRound {
             stop: self.command.clone(),
-            link,
-            round: round + 1,
+            issued: IssuedStop {
+                round: issued.round + 1,
+                ..issued
+            },
         })
     }
 }
 
 /// What the origin link of a command in flight awaits.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Delivery {
-    /// A client link: the answer is the withheld ACK, or a report when
-    /// undelivered; a link to another GCU gets a report either way.
-    pub(super) client: bool,
-    /// When a client must be told at the latest (`delivery_timeout`).
-    pub(super) deadline: Option<u64>,
+pub(super) enum Delivery {
+    /// A client link: the withheld ACK, or a report when undelivered, by
+    /// `deadline` at the latest (`delivery_timeout`).
+    Client { deadline: u64 },
+    /// A link to another GCU: a report either way.
+    Gcu,
+}
+
+impl Delivery {
+    /// When the origin must be told at the latest, if there is a limit.
+    pub(super) fn deadline(self) -> Option<u64> {
+        match self {
+            Delivery::Client { deadline } => Some(deadline),
+            Delivery::Gcu => None,
+        }
+    }
+}
+
+/// Why the GCU stops a motion it did not get a stop for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum StopCause {
+    /// Its link went down, or its port is closing.
+    DeadMan,
+    /// The daemon shuts down.
+    Shutdown,
+    /// Its link's motion lease ran out.
+    Lease,
+}
+
+/// A stop the GCU issued itself (ARCHITECTURE "Safety").
+#[derive(Clone, Copy, Debug)]
+pub(super) struct IssuedStop {
+    /// The link whose motion it ends.
+    pub(super) link: LinkId,
+    pub(super) cause: StopCause,
+    /// Which round of sending it this is, from 1 (at most `DEAD_MAN_ROUNDS`).
+    pub(super) round: u8,
 }
 
 /// The next round of a stop the GCU issued itself.
 #[derive(Debug)]
 pub(super) struct StopRound {
     pub(super) stop: ReadCommand,
-    /// The link whose motion it ends.
-    pub(super) link: LinkId,
-    pub(super) round: u8,
+    pub(super) issued: IssuedStop,
 }

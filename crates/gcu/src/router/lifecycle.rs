@@ -2,7 +2,7 @@
 //! "Safety"): the dead-man, lease and shutdown stops the GCU issues
 //! itself, and a closing port's stops before it closes.
 
-use sagebrush_protocol::{Address, Command, FrameBuf};
+use sagebrush_protocol::FrameBuf;
 
 use crate::boundary::Action;
 use crate::command::ReadCommand;
@@ -15,18 +15,7 @@ use crate::stats::LinkStats;
 use crate::types::{DropReason, LinkId, Origin, RouterEvent};
 
 use super::Router;
-use super::in_flight::StopRound;
-
-/// Why the GCU stops a motion it did not get a stop for.
-#[derive(Clone, Copy, Debug)]
-enum StopCause {
-    /// Its link went down, or its port is closing.
-    DeadMan,
-    /// The daemon shuts down.
-    Shutdown,
-    /// Its link's motion lease ran out.
-    Lease,
-}
+use super::in_flight::{IssuedStop, StopCause, StopRound};
 
 impl Router {
     pub(super) fn port_state(&self, port: u8, open: bool, out: &mut Outbox) {
@@ -186,66 +175,49 @@ impl Router {
         self.stop_motions(now, stops, StopCause::Shutdown, out);
     }
 
-    /// Stops motions the GCU takes back (each logged and counted by cause).
     /// Stops the motions whose lease ran out by `now`.
     pub(super) fn stop_expired_leases(&mut self, now: u64, out: &mut Outbox) {
         let expired = self.deadman.expired(now);
         self.stop_motions(now, expired, StopCause::Lease, out);
     }
 
+    /// Stops motions the GCU takes back, for `cause`: the first round of
+    /// each stop; an unacknowledged one is sent again (module `in_flight`:
+    /// `DEAD_MAN_ROUNDS`).
     fn stop_motions(&mut self, now: u64, stops: Vec<OwnedStop>, cause: StopCause, out: &mut Outbox) {
         for (link, dest, stop) in stops {
-            let stop_name = stop.mnemonic();
-            let event = match cause {
-                StopCause::DeadMan => {
-                    self.stats.dead_man_stops += 1;
-                    RouterEvent::DeadManStop {
-                        link,
-                        dest,
-                        stop: stop_name,
-                    }
-                }
-                StopCause::Shutdown => {
-                    self.stats.shutdown_stops += 1;
-                    RouterEvent::DeadManStop {
-                        link,
-                        dest,
-                        stop: stop_name,
-                    }
-                }
-                StopCause::Lease => {
-                    self.stats.lease_stops += 1;
-                    RouterEvent::LeaseExpired {
-                        link,
-                        dest,
-                        stop: stop_name,
-                    }
-                }
+            let Ok(frame) = FrameBuf::build(dest, self.group, |buf| stop.encode(buf).map(<[u8]>::len)) else {
+                continue;
             };
-            out.push(Action::Event(event));
-            self.issue_stop(now, dest, stop, link, out);
+            let stop = ReadCommand::built(&stop, frame);
+            self.send_stop(now, stop, IssuedStop { link, cause, round: 1 }, out);
         }
-    }
-
-    /// The first round of a stop the GCU issues itself (dead-man, lease,
-    /// shutdown) for the motion `link` owned at `dest`; an unacknowledged
-    /// one is sent again (module `in_flight`: `DEAD_MAN_ROUNDS`).
-    fn issue_stop(&mut self, now: u64, dest: Address, stop: Command<'static>, link: LinkId, out: &mut Outbox) {
-        let Ok(frame) = FrameBuf::build(dest, self.group, |buf| stop.encode(buf).map(<[u8]>::len)) else {
-            return;
-        };
-        let stop = ReadCommand::built(&stop, frame);
-        self.dispatch(now, Origin::Internal, None, stop, Some((link, 1)), out);
     }
 
     /// Sends a stop the GCU issued itself once more (its next round).
     pub(super) fn send_stop_round(&mut self, now: u64, round: StopRound, out: &mut Outbox) {
-        let StopRound { stop, link, round } = round;
-        out.push(Action::Event(RouterEvent::DeadManStop {
-            link,
-            dest: stop.frame.frame().dest,
-            stop: stop.facts.mnemonic,
-        }));
-        self.dispatch(now, Origin::Internal, None, stop, Some((link, round)), out);
+        self.send_stop(now, round.stop, round.issued, out);
+    }
+
+    /// A round of a stop the GCU issued itself: logged as its cause says
+    /// (each round), counted by cause (once per motion, at its first round),
+    /// and sent.
+    fn send_stop(&mut self, now: u64, stop: ReadCommand, issued: IssuedStop, out: &mut Outbox) {
+        let IssuedStop { link, cause, round } = issued;
+        let (dest, name) = (stop.frame.frame().dest, stop.facts.mnemonic);
+        let counter = match cause {
+            StopCause::DeadMan => &mut self.stats.dead_man_stops,
+            StopCause::Shutdown => &mut self.stats.shutdown_stops,
+            StopCause::Lease => &mut self.stats.lease_stops,
+        };
+        if round == 1 {
+            *counter += 1;
+        }
+        let event = match cause {
+            StopCause::DeadMan | StopCause::Shutdown => RouterEvent::DeadManStop { link, dest, stop: name },
+            StopCause::Lease => RouterEvent::LeaseExpired { link, dest, stop: name },
+        };
+        out.push(Action::Event(event));
+        self.dispatch(now, Origin::Internal, None, stop, Some(issued), out);
     }
 }

@@ -14,7 +14,7 @@ use super::Router;
 use super::after_key;
 use super::dispatch::Accepted;
 use super::in_flight::Progress;
-use super::self_answer::{SelfAnswer, answer};
+use super::self_answer::answer;
 
 impl Router {
     /// Destination group G or 255: port 0 is the GCU itself, 1..=254 one
@@ -33,14 +33,14 @@ impl Router {
             LINK_PORT => {
                 self.resolve(now, id, Ok(()), self.group, out);
                 let outcome = match answer(self.group, &self.name, &self.serial, &f, facts.row) {
-                    SelfAnswer::Result(reply) => match origin {
-                        Origin::Link { link, .. } => match self.send_on_link(now, link, *reply, out) {
+                    Some(reply) => match origin {
+                        Origin::Link { link, .. } => match self.send_on_link(now, link, reply, out) {
                             Ok(()) => CommandOutcome::Result,
                             Err(_) => CommandOutcome::Dropped(DropReason::OriginGone),
                         },
                         Origin::Internal => CommandOutcome::Completed,
                     },
-                    SelfAnswer::Nic => match self.nic_to(now, origin, out) {
+                    None => match self.nic_to(now, origin, out) {
                         Ok(()) => CommandOutcome::Nic,
                         Err(reason) => CommandOutcome::Dropped(reason),
                     },

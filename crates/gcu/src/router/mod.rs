@@ -43,7 +43,7 @@ use crate::routing::RoutingTable;
 use crate::stats::{RouterStats, Stats};
 use crate::types::{CommandId, DropReason, LineId, LinkId, Origin, Place, RouterEvent};
 
-use in_flight::InFlight;
+use in_flight::{Delivery, InFlight};
 
 /// The GCU router core. See the crate documentation for how a daemon drives it.
 #[derive(Debug)]
@@ -164,7 +164,7 @@ impl Router {
             .chain(links)
             .chain(self.reverse.next_deadline())
             .chain(self.deadman.next_deadline())
-            .chain(self.in_flight.values().filter_map(|c| c.delivery?.deadline))
+            .chain(self.in_flight.values().filter_map(|c| c.delivery?.deadline()))
             .min()
     }
 
@@ -222,6 +222,41 @@ impl Router {
         self.port_outs(now, port, po, out);
     }
 
+    /// Runs `f` on `link` with a scratch vector for what it writes and
+    /// does, then carries that out (module `link`: [`LinkOut`]); `None`
+    /// when the link is not up.
+    fn with_link<T>(
+        &mut self,
+        now: u64,
+        link: LinkId,
+        out: &mut Outbox,
+        f: impl FnOnce(&mut Link, &mut Vec<LinkOut>) -> T,
+    ) -> Option<T> {
+        let l = self.links.get_mut(&link)?;
+        let mut lo = self.link_scratch.pop().unwrap_or_default();
+        let done = f(l, &mut lo);
+        self.link_outs(now, link, lo, out);
+        Some(done)
+    }
+
+    /// [`Router::with_link`] for what may complete frames (bytes read, the
+    /// silence hook): what the link received is routed after its outputs.
+    /// Whether the link is up.
+    fn with_link_receiving(
+        &mut self,
+        now: u64,
+        link: LinkId,
+        out: &mut Outbox,
+        f: impl FnOnce(&mut Link, &mut Vec<LinkOut>, &mut Vec<Received>),
+    ) -> bool {
+        let mut received = self.received_scratch.pop().unwrap_or_default();
+        let up = self
+            .with_link(now, link, out, |l, lo| f(l, lo, &mut received))
+            .is_some();
+        self.route_received(now, link, received, out);
+        up
+    }
+
     fn poll(&mut self, now: u64, out: &mut Outbox) {
         for (id, failure) in self.reverse.expire(now) {
             self.resolve(now, id, Err(failure), self.group, out);
@@ -229,7 +264,7 @@ impl Router {
         let overdue: Vec<CommandId> = self
             .in_flight
             .iter()
-            .filter(|(_, c)| c.delivery.and_then(|d| d.deadline).is_some_and(|t| now >= t))
+            .filter(|(_, c)| c.delivery.and_then(Delivery::deadline).is_some_and(|t| now >= t))
             .map(|(&id, _)| id)
             .collect();
         for id in overdue {
@@ -257,12 +292,7 @@ impl Router {
             .map(|(&id, _)| id)
         {
             after = Some(link);
-            let Some(l) = self.links.get_mut(&link) else { continue };
-            let mut lo = self.link_scratch.pop().unwrap_or_default();
-            let mut received = self.received_scratch.pop().unwrap_or_default();
-            l.poll(now, &mut lo, &mut received);
-            self.link_outs(now, link, lo, out);
-            self.route_received(now, link, received, out);
+            self.with_link_receiving(now, link, out, |l, lo, received| l.poll(now, lo, received));
         }
     }
 
@@ -325,13 +355,8 @@ impl Router {
 
     /// Queues `item` on `link`.
     fn enqueue_on_link(&mut self, now: u64, link: LinkId, item: Outgoing, out: &mut Outbox) -> Result<(), DropReason> {
-        let Some(l) = self.links.get_mut(&link) else {
-            return Err(DropReason::LinkDown);
-        };
-        let mut lo = self.link_scratch.pop().unwrap_or_default();
-        let queued = l.enqueue(now, item, &mut lo);
-        self.link_outs(now, link, lo, out);
-        queued
+        self.with_link(now, link, out, |l, lo| l.enqueue(now, item, lo))
+            .unwrap_or(Err(DropReason::LinkDown))
     }
 
     /// Writes a bare `?` to the origin (ARCHITECTURE "Routing semantics": a NIC is relayed as a bare `?`).
@@ -339,22 +364,13 @@ impl Router {
         let Origin::Link { link, .. } = origin else {
             return Ok(());
         };
-        let Some(l) = self.links.get_mut(&link) else {
-            return Err(DropReason::OriginGone);
-        };
-        let mut lo = self.link_scratch.pop().unwrap_or_default();
-        l.write_nic(&mut lo);
-        self.link_outs(now, link, lo, out);
-        Ok(())
+        self.with_link(now, link, out, |l, lo| l.write_nic(lo))
+            .ok_or(DropReason::OriginGone)
     }
 
     /// Writes a bare ACK on `link`.
     fn ack(&mut self, now: u64, link: LinkId, out: &mut Outbox) {
-        if let Some(l) = self.links.get_mut(&link) {
-            let mut lo = self.link_scratch.pop().unwrap_or_default();
-            l.ack(&mut lo);
-            self.link_outs(now, link, lo, out);
-        }
+        self.with_link(now, link, out, |l, lo| l.ack(lo));
     }
 }
 

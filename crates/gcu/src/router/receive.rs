@@ -16,15 +16,9 @@ use super::{Router, SCRATCH_KEPT};
 impl Router {
     /// Bytes read from `link`.
     pub(super) fn link_bytes(&mut self, now: u64, link: LinkId, bytes: &[u8], out: &mut Outbox) {
-        let Some(l) = self.links.get_mut(&link) else {
+        if !self.with_link_receiving(now, link, out, |l, lo, received| l.receive(now, bytes, lo, received)) {
             self.unknown_inputs += 1;
-            return;
-        };
-        let mut lo = self.link_scratch.pop().unwrap_or_default();
-        let mut received = self.received_scratch.pop().unwrap_or_default();
-        l.receive(now, bytes, &mut lo, &mut received);
-        self.link_outs(now, link, lo, out);
-        self.route_received(now, link, received, out);
+        }
     }
 
     /// Routes what a link received; the vector goes back to the scratch pool.

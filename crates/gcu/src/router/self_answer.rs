@@ -8,15 +8,9 @@
 
 use sagebrush_protocol::{Address, AwakeStatus, CONTROL_UNIT, Frame, FrameBuf, Identity, Reply, Row, WILDCARD};
 
-/// The GCU's own answer to a command for port 0.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub(crate) enum SelfAnswer {
-    Result(Box<FrameBuf>),
-    Nic,
-}
-
-/// The answer to `frame`, a command of table row `row` (read when it was accepted).
-pub(crate) fn answer(group: u8, name: &str, serial: &str, frame: &Frame<'_>, row: Row) -> SelfAnswer {
+/// The GCU's own answer to `frame`, a command of table row `row` (read
+/// when it was accepted): its result, or `None` for a NIC.
+pub(crate) fn answer(group: u8, name: &str, serial: &str, frame: &Frame<'_>, row: Row) -> Option<FrameBuf> {
     let reply = match row {
         Row::AwakeStatus => AwakeStatus::new(0).map(Reply::AwakeStatus).ok(),
         Row::Identify => Identity::new(group, *b"19", name.trim_end().as_bytes(), serial.trim_end().as_bytes())
@@ -24,19 +18,14 @@ pub(crate) fn answer(group: u8, name: &str, serial: &str, frame: &Frame<'_>, row
             .ok(),
         _ => None,
     };
-    let Some(reply) = reply else {
-        return SelfAnswer::Nic;
-    };
+    let reply = reply?;
     let device = if frame.dest.device == WILDCARD {
         CONTROL_UNIT
     } else {
         frame.dest.device
     };
     let dest = Address::new(frame.source, frame.dest.port, device);
-    match FrameBuf::build(dest, group, |buf| reply.encode(buf).map(<[u8]>::len)) {
-        Ok(buf) => SelfAnswer::Result(Box::new(buf)),
-        Err(_) => SelfAnswer::Nic,
-    }
+    FrameBuf::build(dest, group, |buf| reply.encode(buf).map(<[u8]>::len)).ok()
 }
 
 #[cfg(test)]
@@ -47,7 +36,7 @@ mod tests {
     #[test]
     fn answers_aw_and_id_nic_otherwise() {
         let aw = Frame::new(Address::new(5, 0, 255), 2, b"AW").unwrap();
-        let SelfAnswer::Result(r) = answer(5, "gcu five", "SN1", &aw, Row::AwakeStatus) else {
+        let Some(r) = answer(5, "gcu five", "SN1", &aw, Row::AwakeStatus) else {
             panic!("AW must be answered")
         };
         assert_eq!(r.frame().dest, Address::new(2, 0, 0));
@@ -57,7 +46,7 @@ mod tests {
             Ok(Reply::AwakeStatus(AwakeStatus::new(0).unwrap()))
         );
         let id = Frame::new(Address::new(5, 0, 0), 2, b"D?").unwrap();
-        let SelfAnswer::Result(r) = answer(5, "gcu five", "SN1", &id, Row::Identify) else {
+        let Some(r) = answer(5, "gcu five", "SN1", &id, Row::Identify) else {
             panic!("D? must be answered")
         };
         let Ok(Reply::Identity(ident)) = Reply::parse(&Command::Identify, r.frame().payload()) else {
@@ -68,6 +57,6 @@ mod tests {
             (5, &b"gcu five"[..], &b"SN1"[..])
         );
         let other = Frame::new(Address::new(5, 0, 0), 2, b"PL").unwrap();
-        assert_eq!(answer(5, "x", "y", &other, Row::PanLeft), SelfAnswer::Nic);
+        assert_eq!(answer(5, "x", "y", &other, Row::PanLeft), None);
     }
 }
