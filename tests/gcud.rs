@@ -583,7 +583,7 @@ fn sigterm_stops_a_running_slew_before_exit() {
     let (_, client) = start_slew(&gcud, &Cmd::PanLeft);
     let (status, log) = gcud.terminate();
     assert!(status.is_some_and(|s| s.success()), "exit status {status:?}\n{log}");
-    assert!(log.contains("dead-man PS to 5.1.1"), "{log}");
+    assert!(log.contains("shutting down: PS to 5.1.1"), "{log}");
     assert!(log.contains("in-flight transactions finished"), "{log}");
     // gcud is gone and the client still connected: the gimbal stands still.
     let first = sim.position();

@@ -600,7 +600,7 @@ fn log_event(event: &RouterEvent, links: &BTreeMap<LinkId, LinkInfo>, throttle: 
     let name = |link: &LinkId| links.get(link).map_or_else(|| link.to_string(), |l| l.name.clone());
     // Events about a link name it as configured, with its peer.
     let context = match event {
-        RouterEvent::LinkState { link, .. } | RouterEvent::DeadManStop { link, .. } => links
+        RouterEvent::LinkState { link, .. } | RouterEvent::IssuedStop { link, .. } => links
             .get(link)
             .map_or_else(String::new, |l| format!(" ({} {})", l.name, l.peer)),
         _ => String::new(),
@@ -626,9 +626,7 @@ fn log_event(event: &RouterEvent, links: &BTreeMap<LinkId, LinkInfo>, throttle: 
                     origin.link().as_ref().map_or_else(String::new, name),
                 ),
                 RouterEvent::Finished { outcome, .. } => (format!("finished {outcome:?}"), String::new()),
-                RouterEvent::DeadManStop { link, .. } | RouterEvent::LeaseExpired { link, .. } => {
-                    ("stop".to_owned(), name(link))
-                }
+                RouterEvent::IssuedStop { link, .. } => ("stop".to_owned(), name(link)),
                 RouterEvent::DeviceState { port, device, .. } => {
                     ("device silent".to_owned(), format!("{port}.{device}"))
                 }

@@ -151,4 +151,4 @@ pub use router::Router;
 pub use stats::{
     DeviceError, DeviceStats, DropCounts, LineStats, LinkStats, PortStats, RouterStats, Stats, UndeliveredCounts,
 };
-pub use types::{CommandId, CommandOutcome, DropReason, Level, LineId, LinkId, Origin, Place, RouterEvent};
+pub use types::{CommandId, CommandOutcome, DropReason, Level, LineId, LinkId, Origin, Place, RouterEvent, StopCause};

@@ -126,11 +126,13 @@ pub enum RouterEvent {
     },
     /// A port's line rate was switched after a `C0`..`C7` change.
     RateSwitched { port: u8, bps: u32 },
-    /// A link went down while owning a continuous motion: this stop was issued.
-    DeadManStop {
+    /// The GCU issued `stop` for a continuous motion of `link`, for `cause`
+    /// (ARCHITECTURE "Safety"); said for each round it is sent.
+    IssuedStop {
         link: LinkId,
         dest: Address,
         stop: &'static str,
+        cause: StopCause,
     },
     /// A link came up or went down.
     LinkState { link: LinkId, up: bool },
@@ -159,12 +161,17 @@ pub enum RouterEvent {
         command: &'static str,
         failure: Undelivered,
     },
-    /// A continuous motion's lease ran out (`motion_lease` of its link): this stop was issued.
-    LeaseExpired {
-        link: LinkId,
-        dest: Address,
-        stop: &'static str,
-    },
+}
+
+/// Why the GCU stops a motion it did not get a stop for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StopCause {
+    /// Its link went down, or its port is closing.
+    DeadMan,
+    /// The daemon shuts down.
+    Shutdown,
+    /// Its link's motion lease ran out.
+    Lease,
 }
 
 impl RouterEvent {
@@ -198,9 +205,7 @@ impl RouterEvent {
             RouterEvent::DeviceState { online: false, .. } => Level::Warn,
             RouterEvent::DeviceState { first: false, .. } => Level::Info,
             RouterEvent::DeviceState { .. } => Level::Debug,
-            RouterEvent::Dropped { .. } | RouterEvent::DeadManStop { .. } | RouterEvent::LeaseExpired { .. } => {
-                Level::Warn
-            }
+            RouterEvent::Dropped { .. } | RouterEvent::IssuedStop { .. } => Level::Warn,
             RouterEvent::RateSwitched { .. } | RouterEvent::LinkState { .. } | RouterEvent::PortState { .. } => {
                 Level::Info
             }
@@ -231,7 +236,16 @@ impl fmt::Display for RouterEvent {
                 source,
             } => write!(f, "dropped frame for {dest} from group {source} at {at}: {reason:?}"),
             RouterEvent::RateSwitched { port, bps } => write!(f, "port {port} switched to {bps} bps"),
-            RouterEvent::DeadManStop { link, dest, stop } => write!(f, "{link} down: dead-man {stop} to {dest}"),
+            RouterEvent::IssuedStop {
+                link,
+                dest,
+                stop,
+                cause,
+            } => match cause {
+                StopCause::DeadMan => write!(f, "{link} down: dead-man {stop} to {dest}"),
+                StopCause::Lease => write!(f, "{link}: motion lease over, {stop} to {dest}"),
+                StopCause::Shutdown => write!(f, "shutting down: {stop} to {dest} (a motion of {link})"),
+            },
             RouterEvent::LinkState { link, up } => write!(f, "{link} {}", if *up { "up" } else { "down" }),
             RouterEvent::PortState { port, open } => write!(f, "port {port} {}", if *open { "opened" } else { "lost" }),
             RouterEvent::DeviceState {
@@ -257,9 +271,6 @@ impl fmt::Display for RouterEvent {
                 id.0,
                 failure.describe()
             ),
-            RouterEvent::LeaseExpired { link, dest, stop } => {
-                write!(f, "{link}: motion lease over, {stop} to {dest}")
-            }
         }
     }
 }

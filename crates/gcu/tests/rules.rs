@@ -3,7 +3,7 @@
 
 use sagebrush_gcu::{
     Action, CommandId, CommandOutcome, DropReason, Input, LineId, LinkConfig, LinkId, LinkKind, Outbox, PortConfig,
-    Router, RouterConfig, RouterEvent, SourceFilter,
+    Router, RouterConfig, RouterEvent, SourceFilter, StopCause,
 };
 use sagebrush_protocol::link::wire_ms;
 use sagebrush_protocol::{ACK, Address, DeliveryReport, Event, Frame, FrameBuf, Framer, NAK, NIC, Undelivered};
@@ -171,7 +171,12 @@ fn dead_man_stops(actions: &[Action]) -> Vec<(Address, &'static str)> {
     actions
         .iter()
         .filter_map(|x| match x {
-            Action::Event(RouterEvent::DeadManStop { dest, stop, .. }) => Some((*dest, *stop)),
+            Action::Event(RouterEvent::IssuedStop {
+                dest,
+                stop,
+                cause: StopCause::DeadMan | StopCause::Shutdown,
+                ..
+            }) => Some((*dest, *stop)),
             _ => None,
         })
         .collect()
@@ -1136,7 +1141,16 @@ fn unacknowledged_lease_stop_is_sent_again_and_told_as_a_lease_stop() {
     assert_eq!(sent, 5 * (retries + 1), "five rounds of {} transmissions", retries + 1);
     let leases = a
         .iter()
-        .filter(|x| matches!(x, Action::Event(RouterEvent::LeaseExpired { stop: "PS", .. })))
+        .filter(|x| {
+            matches!(
+                x,
+                Action::Event(RouterEvent::IssuedStop {
+                    stop: "PS",
+                    cause: StopCause::Lease,
+                    ..
+                })
+            )
+        })
         .count();
     assert_eq!(leases, 5, "each round told as a lease stop");
     assert_eq!(dead_man_stops(&a), vec![], "no round is a dead-man stop");

@@ -135,23 +135,12 @@ impl Delivery {
     }
 }
 
-/// Why the GCU stops a motion it did not get a stop for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum StopCause {
-    /// Its link went down, or its port is closing.
-    DeadMan,
-    /// The daemon shuts down.
-    Shutdown,
-    /// Its link's motion lease ran out.
-    Lease,
-}
-
 /// A stop the GCU issued itself (ARCHITECTURE "Safety").
 #[derive(Clone, Copy, Debug)]
 pub(super) struct IssuedStop {
     /// The link whose motion it ends.
     pub(super) link: LinkId,
-    pub(super) cause: StopCause,
+    pub(super) cause: crate::types::StopCause,
     /// Which round of sending it this is, from 1 (at most `DEAD_MAN_ROUNDS`).
     pub(super) round: u8,
 }

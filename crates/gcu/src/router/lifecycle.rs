@@ -15,7 +15,8 @@ use crate::stats::LinkStats;
 use crate::types::{DropReason, LinkId, Origin, RouterEvent};
 
 use super::Router;
-use super::in_flight::{IssuedStop, StopCause, StopRound};
+use super::in_flight::{IssuedStop, StopRound};
+use crate::types::StopCause;
 
 impl Router {
     pub(super) fn port_state(&self, port: u8, open: bool, out: &mut Outbox) {
@@ -213,11 +214,12 @@ impl Router {
         if round == 1 {
             *counter += 1;
         }
-        let event = match cause {
-            StopCause::DeadMan | StopCause::Shutdown => RouterEvent::DeadManStop { link, dest, stop: name },
-            StopCause::Lease => RouterEvent::LeaseExpired { link, dest, stop: name },
-        };
-        out.push(Action::Event(event));
+        out.push(Action::Event(RouterEvent::IssuedStop {
+            link,
+            dest,
+            stop: name,
+            cause,
+        }));
         self.dispatch(now, Origin::Internal, None, stop, Some(issued), out);
     }
 }
