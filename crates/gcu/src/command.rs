@@ -5,7 +5,7 @@
 //! transactions, the GCU's own answers and the reverse path. Nothing after
 //! acceptance parses the command again.
 
-use sagebrush_protocol::{Command, DataRate, ExpectedReply, FrameBuf, ResultKind, Row};
+use sagebrush_protocol::{Command, DataRate, ExpectedReply, FrameBuf, Row};
 
 /// A command frame and what was read from it when the router accepted it.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -35,17 +35,14 @@ impl ReadCommand {
 pub(crate) struct CommandFacts {
     /// Its row of the command table (the GCU itself answers `AW` and `D?`).
     pub row: Row,
-    /// Its mnemonic, for logs.
-    pub mnemonic: &'static str,
     /// A stop or halt: it overtakes queued work.
     pub stop: bool,
     /// For a continuous motion, the stop that ends it (Tables 11, 16): the
     /// dead-man owns it, and a queued one is cancelled when its origin link
     /// goes down.
     pub stopped_by: Option<Command<'static>>,
-    /// What follows its ACK.
-    pub kind: ResultKind,
-    /// What its result looks like (an answer from another GCU must fit it).
+    /// What follows its ACK, what its result looks like (an answer from
+    /// another GCU must fit it) and its mnemonic.
     pub reply: ExpectedReply,
     /// A `C0`..`C7` rate change.
     pub rate: Option<DataRate>,
@@ -63,10 +60,8 @@ impl CommandFacts {
     pub fn of(command: &Command<'_>) -> Self {
         Self {
             row: command.row(),
-            mnemonic: command.mnemonic(),
             stop: command.is_stop(),
             stopped_by: command.stopped_by(),
-            kind: command.result_kind(),
             reply: ExpectedReply::of(command),
             rate: command.data_rate_change(),
             registry: matches!(command, Command::QueryPosition | Command::QueryLens),

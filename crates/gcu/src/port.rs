@@ -424,7 +424,7 @@ impl Port {
             // The ACK clock starts now, at the write: the frame's own wire
             // time is added to the wait.
             let policy = self.policy.for_frame(job.frame.as_bytes().len(), self.stats.bps);
-            let mut txn = Transaction::expecting(dest, job.facts.kind, policy);
+            let mut txn = Transaction::expecting(dest, job.facts.reply.result_kind(), policy);
             out.push(PortOut::Event(RouterEvent::Started {
                 id: job.id,
                 port: self.id,
@@ -475,7 +475,7 @@ impl Port {
     fn maybe_detach(&mut self, now: u64, out: &mut Vec<PortOut>) {
         let stop_waiting = self.queue.front().is_some_and(|j| j.facts.stop);
         let long_wait = self.active.as_ref().is_some_and(|r| {
-            r.job.facts.kind == ResultKind::Required(ResultTimeout::Long)
+            r.job.facts.reply.result_kind() == ResultKind::Required(ResultTimeout::Long)
                 && !r.txn.is_broadcast()
                 && r.txn.acknowledged()
                 && r.txn.outcome().is_none()

@@ -128,12 +128,13 @@ impl Pending {
     /// still to come. (A `?` that may follow a command without result, or
     /// more answers of a fan-out, are not worth waiting for.)
     fn owed(&self) -> bool {
-        !self.told() || matches!(self.facts.kind, ResultKind::Required(_)) && !self.answered && self.waiting()
+        !self.told()
+            || matches!(self.facts.reply.result_kind(), ResultKind::Required(_)) && !self.answered && self.waiting()
     }
 
     fn answered_by(&self, frame: &Frame<'_>) -> bool {
         let level = |want: u8, got: u8| want == WILDCARD || want == got;
-        self.facts.kind != ResultKind::None
+        self.facts.reply.result_kind() != ResultKind::None
             && frame.dest.group == self.source
             && level(self.dest.port, frame.dest.port)
             && level(self.dest.device, frame.dest.device)
@@ -258,7 +259,7 @@ impl ReversePath {
     /// The frame of `key` was transmitted for the first time at `now`.
     pub fn sent(&mut self, key: u64, now: u64, settings: &LinkSettings) {
         if let Some(e) = self.entries.iter_mut().find(|e| e.key == key) {
-            let wait = match e.facts.kind {
+            let wait = match e.facts.reply.result_kind() {
                 ResultKind::None => settings.nic_answer_timeout,
                 ResultKind::Required(ResultTimeout::Long) => settings.long_answer_timeout,
                 ResultKind::Required(ResultTimeout::Normal) | ResultKind::Optional => settings.answer_timeout,

@@ -365,6 +365,11 @@ impl ExpectedReply {
     pub fn result_kind(&self) -> ResultKind {
         self.answer.kind()
     }
+
+    /// The command's mnemonic ([`Command::mnemonic`]).
+    pub fn mnemonic(&self) -> &'static str {
+        self.name
+    }
 }
 
 impl<'a> Reply<'a> {

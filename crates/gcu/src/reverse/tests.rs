@@ -12,13 +12,14 @@ fn later() -> u64 {
     })
 }
 
-/// The facts of `frame`'s command, with the result kind a test gives it.
+/// The facts of `frame`'s command, whose result kind the test states.
 fn fwd(frame: &Frame<'_>, kind: ResultKind) -> CommandFacts {
-    CommandFacts {
-        kind,
+    let facts = CommandFacts {
         stop: false,
         ..CommandFacts::read(frame.payload())
-    }
+    };
+    assert_eq!(facts.reply.result_kind(), kind, "{frame:?}");
+    facts
 }
 
 fn origin(link: u32) -> Origin {

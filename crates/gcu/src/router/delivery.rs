@@ -31,7 +31,7 @@ impl Router {
         let (Some(awaited), Origin::Link { link, .. }) = (c.delivery.take(), c.origin) else {
             return;
         };
-        let (frame, command) = (c.command.frame.clone(), c.command.facts.mnemonic);
+        let (frame, command) = (c.command.frame.clone(), c.command.facts.reply.mnemonic());
         if c.done() {
             self.in_flight.remove(&id);
         }

@@ -67,7 +67,7 @@ impl Router {
             id,
             origin,
             dest,
-            command: command.facts.mnemonic,
+            command: command.facts.reply.mnemonic(),
         }));
         if let Origin::Link { link, .. } = origin {
             if self.stopping {

@@ -205,7 +205,7 @@ impl Router {
     /// and sent.
     fn send_stop(&mut self, now: u64, stop: ReadCommand, issued: IssuedStop, out: &mut Outbox) {
         let IssuedStop { link, cause, round } = issued;
-        let (dest, name) = (stop.frame.frame().dest, stop.facts.mnemonic);
+        let (dest, name) = (stop.frame.frame().dest, stop.facts.reply.mnemonic());
         let counter = match cause {
             StopCause::DeadMan => &mut self.stats.dead_man_stops,
             StopCause::Shutdown => &mut self.stats.shutdown_stops,
