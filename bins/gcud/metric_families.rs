@@ -7,7 +7,7 @@
 use sagebrush_gcu::{DeviceStats, DropCounts, LineStats, PortStats};
 
 use crate::openmetrics::{Descriptor, Family, Labels, Unit, Value, encode};
-use crate::snapshot::{LinkTotals, Snapshot, VERSION, degrees, role_name};
+use crate::snapshot::{LinkTotals, Snapshot, VERSION, degrees};
 
 /// Every family's name starts `gcud_`.
 const PREFIX: &str = "gcud";
@@ -428,7 +428,7 @@ pub fn render(snapshot: &Snapshot) -> String {
         .links
         .iter()
         .map(|(name, t)| {
-            let labels = vec![("link", name.clone()), ("role", role_name(t.stats.kind).to_owned())];
+            let labels = vec![("link", name.clone()), ("role", t.stats.kind.name().to_owned())];
             (labels, t)
         })
         .collect();

@@ -157,15 +157,6 @@ impl Snapshot {
     }
 }
 
-/// A link's role as the configuration spells it.
-pub fn role_name(kind: LinkKind) -> &'static str {
-    match kind {
-        LinkKind::Upstream => "upstream",
-        LinkKind::Downstream => "downstream",
-        LinkKind::Client => "client",
-    }
-}
-
 /// An angle in degrees (Table 15's centidegrees, exactly as `f64`).
 pub fn degrees(angle: Angle) -> f64 {
     f64::from(angle.0) / 100.0

@@ -7,7 +7,7 @@
 
 use serde::Serialize;
 
-use crate::snapshot::{Snapshot, VERSION, degrees, role_name};
+use crate::snapshot::{Snapshot, VERSION, degrees};
 
 #[derive(Debug, Serialize)]
 pub struct Status {
@@ -149,7 +149,7 @@ impl Status {
             .iter()
             .map(|(name, t)| Link {
                 link: name.clone(),
-                role: role_name(t.stats.kind),
+                role: t.stats.kind.name(),
                 up: t.up(),
                 connections: t.connections,
                 frames_in: t.stats.line.frames_in,

@@ -49,13 +49,11 @@ pub(super) struct Role(LinkKind);
 
 impl<'de> Deserialize<'de> for Role {
     fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        let (kind, _) = checked(d, |role: &String| match role.as_str() {
-            "upstream" => Ok(LinkKind::Upstream),
-            "downstream" => Ok(LinkKind::Downstream),
-            "client" => Ok(LinkKind::Client),
-            other => Err(format!(
-                "unknown variant `{other}`, expected one of `upstream`, `downstream`, `client`"
-            )),
+        let (kind, _) = checked(d, |role: &String| {
+            LinkKind::ALL.into_iter().find(|k| k.name() == role).ok_or_else(|| {
+                let names: Vec<String> = LinkKind::ALL.iter().map(|k| format!("`{}`", k.name())).collect();
+                format!("unknown variant `{role}`, expected one of {}", names.join(", "))
+            })
         })?;
         Ok(Self(kind))
     }

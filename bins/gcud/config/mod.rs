@@ -367,6 +367,16 @@ mod tests {
     }
 
     #[test]
+    fn a_link_role_is_one_of_the_router_cores_kinds() {
+        let e = err("[gcu]\ngroup = 5\n[[link]]\nname = \"c\"\nrole = \"sideways\"\nlisten = \"127.0.0.1:0\"\n");
+        assert_eq!((e.key.as_str(), e.line), ("link[0].role", 5), "{e}");
+        assert_eq!(
+            e.message,
+            "unknown variant `sideways`, expected one of `upstream`, `downstream`, `client`"
+        );
+    }
+
+    #[test]
     fn one_serial_device_is_one_port_or_one_link() {
         let e = err("[gcu]\ngroup = 5\n[[port]]\nid = 1\npath = \"/dev/x\"\n[[port]]\nid = 2\npath = \"/dev/x\"\n");
         assert_eq!((e.key.as_str(), e.line, e.column), ("port[1].path", 8, 8), "{e}");

@@ -10,19 +10,21 @@ use sagebrush_protocol::{DataRate, Identity, MCU_GROUP, WILDCARD};
 
 use crate::types::LinkId;
 
-/// Which side of the GCU a link faces. Group-255 frames arriving on an
-/// upstream or client link are flooded to every downstream link, never back
-/// where they came from; frames from a downstream link are not flooded.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum LinkKind {
-    /// Toward the MCU (or a GCU nearer to it).
-    Upstream,
-    /// Toward another GCU further from the MCU.
-    Downstream,
-    /// A local client (operator tool) speaking as an MCU: it sends
-    /// commands and gets answers back along the reverse path; its source
-    /// group is never a routing destination.
-    Client,
+sagebrush_protocol::code_table! {
+    /// Which side of the GCU a link faces (its name is gcud's `role`).
+    /// Group-255 frames arriving on an upstream or client link are flooded
+    /// to every downstream link, never back where they came from; frames
+    /// from a downstream link are not flooded.
+    pub enum LinkKind: u8 {
+        /// toward the MCU (or a GCU nearer to it)
+        Upstream,
+        /// toward another GCU further from the MCU
+        Downstream,
+        /// a local client (operator tool) speaking as an MCU: it sends
+        /// commands and gets answers back along the reverse path; its source
+        /// group is never a routing destination
+        Client,
+    }
 }
 
 /// Source groups a link may speak for, so that a client cannot speak as
