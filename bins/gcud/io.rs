@@ -215,7 +215,7 @@ fn describe(t: &PortTransport) -> String {
 /// client link keeps the id the daemon gave its name (below this) across
 /// reconnects and reloads, so that static routes and the default upstream
 /// survive them.
-pub const FIRST_ACCEPTED_ID: u32 = 1 << 16;
+const FIRST_ACCEPTED_ID: u32 = 1 << 16;
 static NEXT_LINK_ID: AtomicU32 = AtomicU32::new(FIRST_ACCEPTED_ID);
 
 /// An accepted connection's place in the admission table.

@@ -607,10 +607,6 @@ fn log_event(event: &RouterEvent, links: &BTreeMap<LinkId, LinkInfo>, throttle: 
     };
     match event.level() {
         Level::Debug => debug!("{event}{context}"),
-        // An accepted connection coming and going is not the daemon's life (its listener is).
-        Level::Info if matches!(event, RouterEvent::LinkState { link, .. } if link.0 >= io::FIRST_ACCEPTED_ID) => {
-            debug!("{event}{context}")
-        }
         Level::Info => info!("{event}{context}"),
         Level::Warn => {
             let (kind, place) = match event {

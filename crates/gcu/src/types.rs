@@ -135,7 +135,13 @@ pub enum RouterEvent {
         cause: StopCause,
     },
     /// A link came up or went down.
-    LinkState { link: LinkId, up: bool },
+    LinkState {
+        link: LinkId,
+        up: bool,
+        /// A connection accepted on a listener (its coming and going is
+        /// not the daemon's life: DEBUG), not a configured link.
+        accepted: bool,
+    },
     /// A port was opened or lost.
     PortState { port: u8, open: bool },
     /// A device on `port` began answering (`first`: for the first time)
@@ -206,6 +212,7 @@ impl RouterEvent {
             RouterEvent::DeviceState { first: false, .. } => Level::Info,
             RouterEvent::DeviceState { .. } => Level::Debug,
             RouterEvent::Dropped { .. } | RouterEvent::IssuedStop { .. } => Level::Warn,
+            RouterEvent::LinkState { accepted: true, .. } => Level::Debug,
             RouterEvent::RateSwitched { .. } | RouterEvent::LinkState { .. } | RouterEvent::PortState { .. } => {
                 Level::Info
             }
@@ -246,7 +253,7 @@ impl fmt::Display for RouterEvent {
                 StopCause::Lease => write!(f, "{link}: motion lease over, {stop} to {dest}"),
                 StopCause::Shutdown => write!(f, "shutting down: {stop} to {dest} (a motion of {link})"),
             },
-            RouterEvent::LinkState { link, up } => write!(f, "{link} {}", if *up { "up" } else { "down" }),
+            RouterEvent::LinkState { link, up, .. } => write!(f, "{link} {}", if *up { "up" } else { "down" }),
             RouterEvent::PortState { port, open } => write!(f, "port {port} {}", if *open { "opened" } else { "lost" }),
             RouterEvent::DeviceState {
                 port,

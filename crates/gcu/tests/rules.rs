@@ -1635,3 +1635,37 @@ fn a_device_going_silent_is_told_once_and_a_silent_probe_not_at_all() {
         "{events:?}"
     );
 }
+
+/// A configured link coming and going is the daemon's life (INFO); a
+/// connection accepted on a listener is not (DEBUG), up or down.
+#[test]
+fn accepted_connections_come_and_go_at_debug_configured_links_at_info() {
+    use sagebrush_gcu::Level;
+    let mut h = H::new(&[1]);
+    let levels = |o: &Outbox| -> Vec<(bool, Level)> {
+        o.actions()
+            .iter()
+            .filter_map(|a| match a {
+                Action::Event(e @ RouterEvent::LinkState { up, .. }) => Some((*up, e.level())),
+                _ => None,
+            })
+            .collect()
+    };
+    let configured = h.go(Input::LinkUp {
+        link: LinkId(8),
+        config: LinkConfig::new(LinkKind::Upstream, SourceFilter::Any),
+    });
+    assert_eq!(levels(&configured), vec![(true, Level::Info)]);
+    let accepted = h.go(Input::LinkUp {
+        link: LinkId(70_000),
+        config: LinkConfig {
+            listener: Some(LinkId(8)),
+            ..LinkConfig::new(LinkKind::Client, SourceFilter::Any)
+        },
+    });
+    assert_eq!(levels(&accepted), vec![(true, Level::Debug)]);
+    let gone = h.go(Input::LinkDown { link: LinkId(70_000) });
+    assert_eq!(levels(&gone), vec![(false, Level::Debug)]);
+    let gone = h.go(Input::LinkDown { link: LinkId(8) });
+    assert_eq!(levels(&gone), vec![(false, Level::Info)]);
+}

@@ -127,11 +127,16 @@ impl Router {
             self.link_down(now, link, out);
         }
         let stats = LinkStats::new(config.kind);
+        let accepted = config.listener.is_some();
         if let Some(listener) = config.listener {
             self.routes.accepted(listener, link);
         }
         self.links.insert(link, Link::new(config, &self.settings, stats));
-        out.push(Action::Event(RouterEvent::LinkState { link, up: true }));
+        out.push(Action::Event(RouterEvent::LinkState {
+            link,
+            up: true,
+            accepted,
+        }));
     }
 
     /// A link went down: drop its queue, forget its routes, cancel the
@@ -156,7 +161,11 @@ impl Router {
             }
             !c.done()
         });
-        out.push(Action::Event(RouterEvent::LinkState { link, up: false }));
+        out.push(Action::Event(RouterEvent::LinkState {
+            link,
+            up: false,
+            accepted: l.config.listener.is_some(),
+        }));
         let ports: Vec<u8> = self.ports.keys().copied().collect();
         for port in ports {
             self.with_port(now, port, out, |p, _, po| p.cancel_motions(link, po));

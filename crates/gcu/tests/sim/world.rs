@@ -541,7 +541,7 @@ impl World {
                 .remove(&id)
                 .is_none()
                 .then(|| format!("gcu {g}: {id:?} told twice, or never accepted from a link")),
-            RouterEvent::LinkState { link, up: false } => {
+            RouterEvent::LinkState { link, up: false, .. } => {
                 ledger.untold.retain(|_, l| *l != link);
                 None
             }
