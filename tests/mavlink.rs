@@ -1,10 +1,11 @@
 //! End-to-end tests of `gimbal-mavlink` (issue 25): the real gcud with
-//! simulated gimbal buses, the real gimbal-mavlink in front of it, driven
-//! by a third-party MAVLink library from PyPI (pymavlink) through
-//! `tests/mavlink/gcs.py`. What the gimbal did is read on the bus side,
-//! with `gimbalctl position` through gcud, never from gimbal-mavlink's own
-//! account. Everything is on 127.0.0.1; waits are polls with a hang guard,
-//! never wall-clock assertions.
+//! simulated gimbal buses, the real gimbal-mavlink in front of it, driven by
+//! a third-party MAVLink library from PyPI (pymavlink) through
+//! `tests/mavlink/gcs.py`. What the gimbal did is read on the bus side, with
+//! `gimbalctl position` through gcud and the frames the simulated gimbal
+//! received (their source group tells gimbal-mavlink's own stops from gcud's
+//! dead-man), never from gimbal-mavlink's own account. Everything is on
+//! 127.0.0.1; waits are polls with a hang guard, never wall-clock assertions.
 //!
 //! Without Python and pymavlink (and numpy, which its quaternion module
 //! needs) the client tests are skipped with a notice, except under
@@ -17,7 +18,8 @@ use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
 use serde_json::{Value, json};
-use support::gcud::{CLIENTS, Gcud};
+use support::door::DOOR_GROUP;
+use support::gcud::Gcud;
 use support::{addr_field, eventually};
 
 const MAST: &str = "5.1.1";
@@ -83,12 +85,11 @@ impl Stack {
 
     /// With one more `[[endpoint]]` (TOML text) after the UDP and TCP ones.
     fn start_with(lease_ms: u64, extra_endpoint: &str) -> Self {
-        let gcud = Gcud::start(&format!(
-            "[gcu]\ngroup = 5\n[[port]]\nid = 1\nsimulate = [1]\n[[port]]\nid = 2\nsimulate = [1]\n{CLIENTS}"
-        ));
+        let gcud = support::door::start_gcud();
         let dir = tempfile::tempdir().expect("temp dir");
         let config = dir.path().join("gimbal-mavlink.toml");
-        std::fs::write(&config, mavlink_config(&gcud.clients(), lease_ms, extra_endpoint)).expect("write config");
+        let text = mavlink_config(&gcud.clients(), lease_ms, extra_endpoint);
+        std::fs::write(&config, format!("source_group = {DOOR_GROUP}\n{text}")).expect("write config");
         let log = std::fs::File::create(dir.path().join("gimbal-mavlink.log")).expect("log file");
         let child = Command::new(env!("CARGO_BIN_EXE_gimbal-mavlink"))
             .arg("--config")
@@ -308,6 +309,9 @@ fn a_rate_moves_the_gimbal_and_stops_when_not_refreshed() {
     let (pan, tilt) = stack.gcud.settled_position(MAST);
     assert!(pan > 10.0 && pan < 150.0, "moved right, then stopped: {pan}");
     assert_eq!(tilt, 0.0);
+    // On the bus: gimbal-mavlink's own PS after the PR, none from gcud.
+    support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "PS");
+    support::door::assert_no_stop_from_gcud(&stack.gcud, MAST);
     assert!(stack.log().contains("rate lease expired"), "{}", stack.log());
     assert_still(&stack, (pan, tilt), "after the lease");
     // Pitch rate down through the command.
@@ -394,8 +398,11 @@ fn sigterm_stops_the_slew_gimbal_mavlink_started() {
     assert!(status.success(), "{status:?}");
     let (_, tilt) = stack.gcud.settled_position(MAST);
     assert!(tilt > 0.0 && tilt < 80.0, "stopped short of the end: {tilt}");
+    // gimbal-mavlink stopped it itself, on the bus: its TS after the TU,
+    // and nothing from gcud's group (its dead-man) once its connection closed.
+    support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "TS");
+    support::door::assert_no_stop_from_gcud(&stack.gcud, MAST);
     assert!(stack.log().contains("why=\"shutting down\""), "{}", stack.log());
-    // gimbal-mavlink stopped it itself: nothing was left for gcud's dead-man.
     assert!(!stack.gcud.log().contains("dead-man"), "{}", stack.gcud.log());
 }
 

@@ -1,11 +1,12 @@
 //! End-to-end tests of `gimbal-onvif` (issue 21): the real gcud with
 //! simulated gimbal buses, the real gimbal-onvif in front of it, driven by
-//! third-party clients from PyPI (`onvif-zeep-async`, which Home
-//! Assistant uses, and `WSDiscovery`'s message layer) through
-//! `tests/onvif/client.py`. What the gimbal did is read on the bus side,
-//! with `gimbalctl position` through gcud, never from gimbal-onvif's own
-//! account. Everything listens on 127.0.0.1; waits are polls with a hang
-//! guard, never wall-clock assertions.
+//! third-party clients from PyPI (`onvif-zeep-async`, which Home Assistant
+//! uses, and `WSDiscovery`'s message layer) through `tests/onvif/client.py`.
+//! What the gimbal did is read on the bus side, with `gimbalctl position`
+//! through gcud and the frames the simulated gimbal received (their source
+//! group tells gimbal-onvif's own stops from gcud's dead-man), never from
+//! gimbal-onvif's own account. Everything listens on 127.0.0.1; waits are
+//! polls with a hang guard, never wall-clock assertions.
 //!
 //! Without Python and the two packages the client tests are skipped with a
 //! notice, except under `CI=true`, where they fail.
@@ -17,7 +18,8 @@ use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
 use serde_json::{Value, json};
-use support::gcud::{CLIENTS, Gcud};
+use support::door::DOOR_GROUP;
+use support::gcud::Gcud;
 use support::{addr_field, eventually};
 
 const MAST: &str = "5.1.1";
@@ -80,9 +82,7 @@ listen = "127.0.0.1:0"
 
 impl Stack {
     fn start() -> Self {
-        let gcud = Gcud::start(&format!(
-            "[gcu]\ngroup = 5\n[[port]]\nid = 1\nsimulate = [1]\n[[port]]\nid = 2\nsimulate = [1]\n{CLIENTS}"
-        ));
+        let gcud = support::door::start_gcud();
         let dir = tempfile::tempdir().expect("temp dir");
         let mut stack = Self {
             gcud,
@@ -109,7 +109,10 @@ impl Stack {
         let config = self.dir.path().join("gimbal-onvif.toml");
         std::fs::write(
             &config,
-            onvif_config(&self.gcud.clients(), &self.dir.path().join("presets.toml")),
+            format!(
+                "source_group = {DOOR_GROUP}\n{}",
+                onvif_config(&self.gcud.clients(), &self.dir.path().join("presets.toml"))
+            ),
         )
         .expect("write config");
         let _ = std::fs::remove_file(self.log_path());
@@ -305,6 +308,9 @@ fn continuous_move_with_a_timeout_stops_by_itself() {
         "pan right by about 1 s at 60 °/s, then stopped short of the end: {pan}"
     );
     assert_eq!(tilt, 0.0);
+    // On the bus: gimbal-onvif's own PS after the PR, none from gcud.
+    support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "PS");
+    support::door::assert_no_stop_from_gcud(&stack.gcud, MAST);
     assert!(stack.log().contains("move time-out: stopping"), "{}", stack.log());
     assert_still(&stack, (pan, tilt), "after the time-out");
 }
@@ -436,6 +442,8 @@ fn stop_ends_a_continuous_move() {
     assert!(r.get("ok").is_some(), "{r}");
     let (pan, _) = stack.gcud.settled_position(MAST);
     assert!(pan < 0.0 && pan > -175.0, "stopped on its way left: {pan}");
+    support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "PS");
+    support::door::assert_no_stop_from_gcud(&stack.gcud, MAST);
     assert!(!stack.log().contains("move time-out"), "{}", stack.log());
 }
 
@@ -594,8 +602,11 @@ fn sigterm_stops_what_gimbal_onvif_started() {
     assert!(status.success(), "{status}\n{}", stack.log());
     let (_, tilt) = stack.gcud.settled_position(MAST);
     assert!(tilt > 0.0 && tilt < 85.0, "stopped short of the tilt end: {tilt}");
+    // gimbal-onvif stopped it itself, on the bus: its TS after the TU, and
+    // nothing from gcud's group (its dead-man) once its connection closed.
+    support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "TS");
+    support::door::assert_no_stop_from_gcud(&stack.gcud, MAST);
     assert!(stack.log().contains("stopping:"), "{}", stack.log());
-    // gimbal-onvif stopped it itself: nothing was left for gcud's dead-man.
     assert!(!stack.gcud.log().contains("dead-man"), "{}", stack.gcud.log());
 }
 
