@@ -525,6 +525,40 @@ fn a_ground_station_on_a_serial_line_points_the_gimbal() {
 }
 
 #[test]
+fn a_serial_line_plugged_in_while_tcp_peers_fill_their_limit_still_opens() {
+    if !client_available() {
+        return;
+    }
+    let cable = NullModem::new();
+    // The radio's device node appears only after the TCP peers connected.
+    let plug = tempfile::tempdir().expect("temp dir");
+    let radio = plug.path().join("radio");
+    let stack = Stack::start_with(
+        1000,
+        &format!("[[endpoint]]\nserial = \"{}\"\nbaud = 115200", radio.display()),
+    );
+    // As many TCP peers as gimbal-mavlink serves (stream::MAX_CONNECTIONS).
+    let peers: Vec<std::net::TcpStream> = (0..8)
+        .map(|_| std::net::TcpStream::connect(("127.0.0.1", stack.tcp_port)).expect("connect"))
+        .collect();
+    eventually("the 8 TCP peers to be accepted", || {
+        std::thread::sleep(Duration::from_millis(50));
+        stack.log().matches("MAVLink TCP connection accepted").count() == 8
+    });
+    std::os::unix::fs::symlink(&cable.ends.0, &radio).expect("plug the radio in");
+    support::wait_for_log_line(&stack.log_path(), "MAVLink serial line open");
+    let serial = cable.ends.1.display().to_string();
+    let hb = stack.gcs_over(&serial, "heartbeat", GCS, json!({}));
+    assert_eq!(hb["heartbeat"]["type"], 26, "{hb}\n{}", stack.log());
+    let r = stack.gcs_over(&serial, "pitchyaw", GCS, json!({ "pitch": 0.0, "yaw": 15.0 }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let (pan, _) = stack.gcud.settled_position(MAST);
+    assert!((pan - 15.0).abs() <= 0.5, "bus at {pan}");
+    assert!(!stack.log().contains("refused"), "{}", stack.log());
+    drop(peers);
+}
+
+#[test]
 fn check_names_the_file_line_column_and_key_and_exits_2() {
     let dir = tempfile::tempdir().expect("temp dir");
     let path = dir.path().join("m.toml");
