@@ -167,6 +167,20 @@ impl Stack {
         out.json()["result"]["zoom"].as_u64().expect("zoom")
     }
 
+    /// The lens zoom once it stopped changing (read on the bus side) and
+    /// left 0.
+    fn settled_zoom(&self) -> u64 {
+        let mut last = self.bus_zoom();
+        eventually("the zoom to stop", || {
+            std::thread::sleep(Duration::from_millis(200));
+            let now = self.bus_zoom();
+            let still = now == last && now > 0;
+            last = now;
+            still
+        });
+        last
+    }
+
     /// Samples the bus-side position until it moved away from `from`.
     fn wait_moving(&self, from: (f64, f64)) {
         eventually("the gimbal to move", || {
@@ -355,31 +369,31 @@ fn zoom_moves_the_lens_continuously_with_its_timeout_and_to_a_position() {
         json!({ "x": 0.0, "y": 0.0, "zoom": 0.5, "timeout_s": 0.5 }),
     );
     assert_eq!(r["ok"], true, "{r}");
-    let mut last = stack.bus_zoom();
-    eventually("the zoom to stop", || {
-        std::thread::sleep(Duration::from_millis(200));
-        let now = stack.bus_zoom();
-        let still = now == last && now > 0;
-        last = now;
-        still
-    });
+    let last = stack.settled_zoom();
     assert!(
         last > 0 && last < 4095,
         "zoomed in part of the way, then stopped: {last}"
     );
     assert_eq!(stack.bus_position(), (0.0, 0.0), "pan and tilt stayed");
-    // AbsoluteMove of the zoom alone: 0.25 of 0..4095.
-    let r = stack.client(
-        "absolute",
-        stack.mast,
-        OPERATOR,
-        json!({ "x": 0.0, "y": 0.0, "zoom": 0.25 }),
-    );
+    // AbsoluteMove of the zoom alone (no PanTilt): 0.25 of 0..4095, and
+    // no GO on the bus.
+    let r = stack.client("absolute", stack.mast, OPERATOR, json!({ "zoom": 0.25 }));
     assert_eq!(r["ok"], true, "{r}");
     eventually("the lens at 1024", || {
         std::thread::sleep(Duration::from_millis(100));
         stack.bus_zoom() == 1024
     });
+    let received = stack.gcud.received(MAST);
+    assert!(
+        received
+            .iter()
+            .any(|(from, p)| *from == DOOR_GROUP && p.starts_with('V') && p != "V?"),
+        "the lens was sent its position: {received:?}"
+    );
+    assert!(
+        !received.iter().any(|(_, p)| p.starts_with("GO")),
+        "pan and tilt were not commanded: {received:?}"
+    );
     let status = stack.client("status", stack.mast, VIEWER, json!({}));
     assert!(
         (status["zoom"].as_f64().expect("zoom") - 0.25).abs() < 0.001,
@@ -444,6 +458,31 @@ fn stop_ends_a_continuous_move() {
     assert!(pan < 0.0 && pan > -175.0, "stopped on its way left: {pan}");
     support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "PS");
     support::door::assert_no_stop_from_gcud(&stack.gcud, MAST);
+    assert!(!stack.log().contains("move time-out"), "{}", stack.log());
+}
+
+#[test]
+fn stop_ends_a_zoom_without_a_timeout() {
+    if !clients_available() {
+        return;
+    }
+    let stack = Stack::start();
+    // The zoom alone (no PanTilt) at lens speed 1 of 9, without a Timeout:
+    // only Stop (or max_move_ms, 20 s) ends it before 4095.
+    let r = stack.client("continuous", stack.mast, OPERATOR, json!({ "zoom": 0.2 }));
+    assert_eq!(r["ok"], true, "{r}");
+    eventually("the zoom to move", || {
+        std::thread::sleep(Duration::from_millis(50));
+        stack.bus_zoom() > 0
+    });
+    let r = stack.client("stop", stack.mast, OPERATOR, json!({ "pan_tilt": false, "zoom": true }));
+    assert!(r.get("ok").is_some(), "{r}");
+    // On the bus: gimbal-onvif's ZS after the ZI, none from gcud.
+    support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "ZS");
+    support::door::assert_no_stop_from_gcud(&stack.gcud, MAST);
+    let zoom = stack.settled_zoom();
+    assert!(zoom > 0 && zoom < 4095, "stopped on its way in: {zoom}");
+    assert_eq!(stack.bus_position(), (0.0, 0.0), "pan and tilt stayed");
     assert!(!stack.log().contains("move time-out"), "{}", stack.log());
 }
 
