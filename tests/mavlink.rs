@@ -14,13 +14,12 @@
 mod support;
 
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
 use serde_json::{Value, json};
-use support::door::DOOR_GROUP;
+use support::door::{DOOR_GROUP, Door};
+use support::eventually;
 use support::gcud::Gcud;
-use support::{addr_field, eventually};
 
 const MAST: &str = "5.1.1";
 /// MAV_RESULT values (common.xml).
@@ -42,9 +41,9 @@ fn client_available() -> bool {
 /// gcud with two simulated buses (the mast gimbal on bus 1; bus 2 has no
 /// device 9, the absent gimbal) and gimbal-mavlink in front of it.
 struct Stack {
+    /// Declared first: dropped (stopped) before gcud.
+    mavlink: Door,
     gcud: Gcud,
-    mavlink: Option<Child>,
-    dir: tempfile::TempDir,
     /// The UDP endpoint's port, and the TCP endpoint's.
     port: u16,
     tcp_port: u16,
@@ -86,45 +85,27 @@ impl Stack {
     /// With one more `[[endpoint]]` (TOML text) after the UDP and TCP ones.
     fn start_with(lease_ms: u64, extra_endpoint: &str) -> Self {
         let gcud = support::door::start_gcud();
-        let dir = tempfile::tempdir().expect("temp dir");
-        let config = dir.path().join("gimbal-mavlink.toml");
-        let text = mavlink_config(&gcud.clients(), lease_ms, extra_endpoint);
-        std::fs::write(&config, format!("source_group = {DOOR_GROUP}\n{text}")).expect("write config");
-        let log = std::fs::File::create(dir.path().join("gimbal-mavlink.log")).expect("log file");
-        let child = Command::new(env!("CARGO_BIN_EXE_gimbal-mavlink"))
-            .arg("--config")
-            .arg(&config)
-            .env("RUST_LOG", "info")
-            .stdout(Stdio::null())
-            .stderr(Stdio::from(log))
-            .spawn()
-            .expect("spawn gimbal-mavlink");
-        let mut stack = Self {
+        let mut mavlink = Door::new("gimbal-mavlink", env!("CARGO_BIN_EXE_gimbal-mavlink"));
+        let config = mavlink_config(&gcud.clients(), lease_ms, extra_endpoint);
+        mavlink.start(&format!("source_group = {DOOR_GROUP}\n{config}"));
+        Self {
+            port: mavlink.port("MAVLink UDP endpoint bound"),
+            tcp_port: mavlink.port("MAVLink TCP endpoint listening"),
+            mavlink,
             gcud,
-            mavlink: Some(child),
-            dir,
-            port: 0,
-            tcp_port: 0,
-        };
-        support::wait_for_log_line(&stack.log_path(), "gimbal-mavlink ready");
-        let line = support::wait_for_log_line(&stack.log_path(), "MAVLink UDP endpoint bound");
-        stack.port = addr_field(&line).rsplit(':').next().unwrap().parse().expect("port");
-        let line = support::wait_for_log_line(&stack.log_path(), "MAVLink TCP endpoint listening");
-        stack.tcp_port = addr_field(&line).rsplit(':').next().unwrap().parse().expect("port");
-        stack
+        }
     }
 
     fn log_path(&self) -> PathBuf {
-        self.dir.path().join("gimbal-mavlink.log")
+        self.mavlink.log_path()
     }
 
     fn log(&self) -> String {
-        std::fs::read_to_string(self.log_path()).unwrap_or_default()
+        self.mavlink.log()
     }
 
-    /// Sends `signal` to gimbal-mavlink and waits for it to exit.
     fn signal(&mut self, signal: nix::sys::signal::Signal) -> std::process::ExitStatus {
-        support::door::signal_and_wait(self.mavlink.take().expect("running"), signal, "gimbal-mavlink")
+        self.mavlink.signal(signal)
     }
 
     /// Runs one step of the pymavlink ground station as `who`, over UDP.
@@ -143,24 +124,8 @@ impl Stack {
         )
     }
 
-    /// The mast gimbal's position read on the bus side (gimbalctl via gcud).
-    fn bus_position(&self) -> (f64, f64) {
-        self.gcud.position(MAST)
-    }
-
     fn wait_moving(&self, from: (f64, f64)) {
-        eventually("the gimbal to move", || {
-            std::thread::sleep(Duration::from_millis(50));
-            self.bus_position() != from
-        });
-    }
-}
-
-impl Drop for Stack {
-    fn drop(&mut self) {
-        if let Some(child) = &mut self.mavlink {
-            support::terminate(child);
-        }
+        support::door::wait_moving(&self.gcud, MAST, from);
     }
 }
 
@@ -184,10 +149,7 @@ fn counters(log: &str) -> (String, impl Fn(&str) -> u64 + use<>) {
 
 /// Position `(pan, tilt)` unchanged over about a second on the bus side.
 fn assert_still(stack: &Stack, at: (f64, f64), what: &str) {
-    for _ in 0..5 {
-        std::thread::sleep(Duration::from_millis(200));
-        assert_eq!(stack.bus_position(), at, "{what}: the gimbal moved");
-    }
+    support::door::assert_still(&stack.gcud, MAST, at, what);
 }
 
 // ---- the tests --------------------------------------------------------------

@@ -13,14 +13,13 @@
 
 mod support;
 
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::path::Path;
 use std::time::Duration;
 
 use serde_json::{Value, json};
-use support::door::DOOR_GROUP;
+use support::door::{DOOR_GROUP, Door};
+use support::eventually;
 use support::gcud::Gcud;
-use support::{addr_field, eventually};
 
 const MAST: &str = "5.1.1";
 
@@ -35,9 +34,9 @@ fn clients_available() -> bool {
 /// gcud with two simulated buses (the mast gimbal on bus 1; bus 2 has no
 /// device 9, the absent gimbal) and gimbal-onvif in front of it.
 struct Stack {
+    /// Declared first: dropped (stopped) before gcud.
+    onvif: Door,
     gcud: Gcud,
-    onvif: Option<Child>,
-    dir: tempfile::TempDir,
     /// The ONVIF device ports of `mast-1` and `absent`, and the discovery port.
     mast: u16,
     absent: u16,
@@ -82,12 +81,9 @@ listen = "127.0.0.1:0"
 
 impl Stack {
     fn start() -> Self {
-        let gcud = support::door::start_gcud();
-        let dir = tempfile::tempdir().expect("temp dir");
         let mut stack = Self {
-            gcud,
-            onvif: None,
-            dir,
+            onvif: Door::new("gimbal-onvif", env!("CARGO_BIN_EXE_gimbal-onvif")),
+            gcud: support::door::start_gcud(),
             mast: 0,
             absent: 0,
             discovery: 0,
@@ -96,52 +92,19 @@ impl Stack {
         stack
     }
 
-    fn log_path(&self) -> PathBuf {
-        self.dir.path().join("gimbal-onvif.log")
-    }
-
     fn log(&self) -> String {
-        std::fs::read_to_string(self.log_path()).unwrap_or_default()
+        self.onvif.log()
     }
 
-    /// Starts gimbal-onvif (again) and learns its ports from its log.
+    /// Starts gimbal-onvif (again, on the same state file) and learns its
+    /// ports from its log.
     fn spawn_onvif(&mut self) {
-        let config = self.dir.path().join("gimbal-onvif.toml");
-        std::fs::write(
-            &config,
-            format!(
-                "source_group = {DOOR_GROUP}\n{}",
-                onvif_config(&self.gcud.clients(), &self.dir.path().join("presets.toml"))
-            ),
-        )
-        .expect("write config");
-        let _ = std::fs::remove_file(self.log_path());
-        let log = std::fs::File::create(self.log_path()).expect("log file");
-        let child = Command::new(env!("CARGO_BIN_EXE_gimbal-onvif"))
-            .arg("--config")
-            .arg(&config)
-            .env("RUST_LOG", "info")
-            .stdout(Stdio::null())
-            .stderr(Stdio::from(log))
-            .spawn()
-            .expect("spawn gimbal-onvif");
-        self.onvif = Some(child);
-        let log = self.log_path();
-        let line = support::wait_for_log_line(&log, "gimbal-onvif ready");
-        assert!(!line.is_empty());
-        let port = |what: &str| -> u16 {
-            let line = support::wait_for_log_line(&log, what);
-            let addr = addr_field(&line);
-            addr.rsplit(':').next().unwrap().parse().expect("port")
-        };
-        self.mast = port("gimbal=mast-1 addr=");
-        self.absent = port("gimbal=absent addr=");
-        self.discovery = port("WS-Discovery listening");
-    }
-
-    /// Sends `signal` to gimbal-onvif and waits for it to exit.
-    fn signal_onvif(&mut self, signal: nix::sys::signal::Signal) -> std::process::ExitStatus {
-        support::door::signal_and_wait(self.onvif.take().expect("running"), signal, "gimbal-onvif")
+        let state = self.onvif.dir.path().join("presets.toml");
+        let config = onvif_config(&self.gcud.clients(), &state);
+        self.onvif.start(&format!("source_group = {DOOR_GROUP}\n{config}"));
+        self.mast = self.onvif.port("gimbal=mast-1 addr=");
+        self.absent = self.onvif.port("gimbal=absent addr=");
+        self.discovery = self.onvif.port("WS-Discovery listening");
     }
 
     /// Runs one step of the third-party client against the device on `port`.
@@ -153,11 +116,6 @@ impl Stack {
             &["127.0.0.1", &port, user.0, user.1, &args],
             || self.log(),
         )
-    }
-
-    /// The mast gimbal's position read on the bus side (gimbalctl via gcud).
-    fn bus_position(&self) -> (f64, f64) {
-        self.gcud.position(MAST)
     }
 
     /// The mast gimbal's lens zoom read on the bus side (`gimbalctl lens`).
@@ -181,20 +139,12 @@ impl Stack {
         last
     }
 
-    /// Samples the bus-side position until it moved away from `from`.
-    fn wait_moving(&self, from: (f64, f64)) {
-        eventually("the gimbal to move", || {
-            std::thread::sleep(Duration::from_millis(50));
-            self.bus_position() != from
-        });
+    fn bus_position(&self) -> (f64, f64) {
+        self.gcud.position(MAST)
     }
-}
 
-impl Drop for Stack {
-    fn drop(&mut self) {
-        if let Some(child) = &mut self.onvif {
-            support::terminate(child);
-        }
+    fn wait_moving(&self, from: (f64, f64)) {
+        support::door::wait_moving(&self.gcud, MAST, from);
     }
 }
 
@@ -213,10 +163,7 @@ fn fault_subcodes(v: &Value) -> Vec<String> {
 
 /// Position `(pan, tilt)` unchanged over about a second on the bus side.
 fn assert_still(stack: &Stack, at: (f64, f64), what: &str) {
-    for _ in 0..5 {
-        std::thread::sleep(Duration::from_millis(200));
-        assert_eq!(stack.bus_position(), at, "{what}: the gimbal moved");
-    }
+    support::door::assert_still(&stack.gcud, MAST, at, what);
 }
 
 // ---- the tests --------------------------------------------------------------
@@ -424,7 +371,7 @@ fn presets_round_trip_and_their_names_survive_a_restart() {
     assert_eq!(r["ok"], true, "{r}");
     assert_eq!(stack.gcud.settled_position(MAST), (0.0, 0.0));
 
-    stack.signal_onvif(nix::sys::signal::Signal::SIGTERM);
+    stack.onvif.signal(nix::sys::signal::Signal::SIGTERM);
     stack.spawn_onvif();
     let presets = stack.client("presets", stack.mast, VIEWER, json!({}));
     assert_eq!(
@@ -623,7 +570,7 @@ fn sigkill_of_gimbal_onvif_mid_move_and_the_gimbal_stops() {
     let r = stack.client("continuous", stack.mast, OPERATOR, json!({ "x": 0.25, "y": 0.0 }));
     assert_eq!(r["ok"], true, "{r}");
     stack.wait_moving((0.0, 0.0));
-    let status = stack.signal_onvif(nix::sys::signal::Signal::SIGKILL);
+    let status = stack.onvif.signal(nix::sys::signal::Signal::SIGKILL);
     assert!(!status.success());
     support::door::assert_dead_man_stopped(&stack.gcud, MAST);
 }
@@ -637,7 +584,7 @@ fn sigterm_stops_what_gimbal_onvif_started() {
     let r = stack.client("continuous", stack.mast, OPERATOR, json!({ "x": 0.0, "y": 0.25 }));
     assert_eq!(r["ok"], true, "{r}");
     stack.wait_moving((0.0, 0.0));
-    let status = stack.signal_onvif(nix::sys::signal::Signal::SIGTERM);
+    let status = stack.onvif.signal(nix::sys::signal::Signal::SIGTERM);
     assert!(status.success(), "{status}\n{}", stack.log());
     let (_, tilt) = stack.gcud.settled_position(MAST);
     assert!(tilt > 0.0 && tilt < 85.0, "stopped short of the tilt end: {tilt}");

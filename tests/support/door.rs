@@ -1,12 +1,14 @@
 //! What the front doors' end-to-end tests share (`tests/onvif.rs`,
-//! `tests/mavlink.rs`): whether the third-party Python client is installed
-//! (under `CI=true` it must be), one step of that client run as a script that
-//! prints JSON, a door stopped by a signal, the stops that reached the
-//! simulated bus after a motion and from whom (the door's own or gcud's
-//! dead-man), gcud's dead-man stop of a slew the door left running,
-//! `--check` run on a file and the lines a shipped unit must hold.
+//! `tests/mavlink.rs`): the gcud with two simulated buses they stand in front
+//! of ([`start_gcud`]), a door binary run on a configuration with its log and
+//! stopped by a signal ([`Door`]), whether the third-party Python client is
+//! installed (under `CI=true` it must be), one step of that client run as a
+//! script that prints JSON, the gimbal's motion and stillness read on the bus
+//! side, the stops that reached the simulated bus after a motion and from
+//! whom (the door's own or gcud's dead-man), `--check` run on a file and the
+//! lines a shipped unit must hold.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
@@ -57,17 +59,105 @@ pub fn python_step(script: &str, step: &str, args: &[&str], log: impl FnOnce() -
         .unwrap_or_else(|e| panic!("step {step}: not JSON ({e}): {stdout}"))
 }
 
-/// Sends `signal` to the door `child` and waits for it to exit.
-pub fn signal_and_wait(mut child: Child, signal: nix::sys::signal::Signal, name: &str) -> ExitStatus {
-    let pid = nix::unistd::Pid::from_raw(child.id() as i32);
-    nix::sys::signal::kill(pid, signal).expect("signal");
-    let started = Instant::now();
-    loop {
-        if let Ok(Some(status)) = child.try_wait() {
-            return status;
+/// A door binary (`gimbal-onvif`, `gimbal-mavlink`) run on a configuration
+/// written to its private directory, its log (`RUST_LOG=info`) in
+/// `NAME.log` there; SIGTERM on drop.
+pub struct Door {
+    name: &'static str,
+    bin: &'static str,
+    child: Option<Child>,
+    pub dir: tempfile::TempDir,
+}
+
+impl Door {
+    /// Not running yet: [`Door::start`] runs it.
+    pub fn new(name: &'static str, bin: &'static str) -> Self {
+        Self {
+            name,
+            bin,
+            child: None,
+            dir: tempfile::tempdir().expect("temp dir"),
         }
-        assert!(started.elapsed() < HANG_GUARD, "{name} did not exit on {signal}");
-        std::thread::sleep(Duration::from_millis(10));
+    }
+
+    /// Writes `config` to `NAME.toml`, starts the door on it with a fresh
+    /// log, and waits for its `NAME ready` line.
+    pub fn start(&mut self, config: &str) {
+        let path = self.dir.path().join(format!("{}.toml", self.name));
+        std::fs::write(&path, config).expect("write config");
+        let log = std::fs::File::create(self.log_path()).expect("log file");
+        let child = Command::new(self.bin)
+            .arg("--config")
+            .arg(&path)
+            .env("RUST_LOG", "info")
+            .stdout(Stdio::null())
+            .stderr(Stdio::from(log))
+            .spawn()
+            .unwrap_or_else(|e| panic!("spawn {}: {e}", self.name));
+        self.child = Some(child);
+        super::wait_for_log_line(&self.log_path(), &format!("{} ready", self.name));
+    }
+
+    pub fn log_path(&self) -> PathBuf {
+        self.dir.path().join(format!("{}.log", self.name))
+    }
+
+    pub fn log(&self) -> String {
+        std::fs::read_to_string(self.log_path()).unwrap_or_default()
+    }
+
+    /// The port of the `addr=` field of the log line holding `what`.
+    pub fn port(&self, what: &str) -> u16 {
+        let line = super::wait_for_log_line(&self.log_path(), what);
+        super::addr_field(&line)
+            .rsplit(':')
+            .next()
+            .and_then(|p| p.parse().ok())
+            .unwrap_or_else(|| panic!("no port in {line:?}"))
+    }
+
+    /// Sends `signal` and waits for the door to exit.
+    pub fn signal(&mut self, signal: nix::sys::signal::Signal) -> ExitStatus {
+        let mut child = self
+            .child
+            .take()
+            .unwrap_or_else(|| panic!("{} is not running", self.name));
+        let pid = nix::unistd::Pid::from_raw(child.id() as i32);
+        nix::sys::signal::kill(pid, signal).expect("signal");
+        let started = Instant::now();
+        loop {
+            if let Ok(Some(status)) = child.try_wait() {
+                return status;
+            }
+            assert!(started.elapsed() < HANG_GUARD, "{} did not exit on {signal}", self.name);
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+}
+
+impl Drop for Door {
+    fn drop(&mut self) {
+        if let Some(child) = &mut self.child {
+            super::terminate(child);
+        }
+    }
+}
+
+/// Samples gimbal `address`'s position on the bus side until it moved
+/// away from `from`.
+pub fn wait_moving(gcud: &super::gcud::Gcud, address: &str, from: (f64, f64)) {
+    super::eventually("the gimbal to move", || {
+        std::thread::sleep(Duration::from_millis(50));
+        gcud.position(address) != from
+    });
+}
+
+/// Gimbal `address`'s position `at` unchanged over about a second on the
+/// bus side.
+pub fn assert_still(gcud: &super::gcud::Gcud, address: &str, at: (f64, f64), what: &str) {
+    for _ in 0..5 {
+        std::thread::sleep(Duration::from_millis(200));
+        assert_eq!(gcud.position(address), at, "{what}: the gimbal moved");
     }
 }
 
