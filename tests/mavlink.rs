@@ -1,10 +1,11 @@
 //! End-to-end tests of `gimbal-mavlink` (issue 25): the real gcud with
-//! simulated gimbal buses, the real gimbal-mavlink in front of it, driven
-//! by a third-party MAVLink library from PyPI (pymavlink) through
-//! `tests/mavlink/gcs.py`. What the gimbal did is read on the bus side,
-//! with `gimbalctl position` through gcud, never from gimbal-mavlink's own
-//! account. Everything is on 127.0.0.1; waits are polls with a hang guard,
-//! never wall-clock assertions.
+//! simulated gimbal buses, the real gimbal-mavlink in front of it, driven by
+//! a third-party MAVLink library from PyPI (pymavlink) through
+//! `tests/mavlink/gcs.py`. What the gimbal did is read on the bus side, with
+//! `gimbalctl position` through gcud and the frames the simulated gimbal
+//! received (their source group tells gimbal-mavlink's own stops from gcud's
+//! dead-man), never from gimbal-mavlink's own account. Everything is on
+//! 127.0.0.1; waits are polls with a hang guard, never wall-clock assertions.
 //!
 //! Without Python and pymavlink (and numpy, which its quaternion module
 //! needs) the client tests are skipped with a notice, except under
@@ -13,12 +14,12 @@
 mod support;
 
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
 use serde_json::{Value, json};
-use support::gcud::{CLIENTS, Gcud};
-use support::{addr_field, eventually};
+use support::door::{DOOR_GROUP, Door};
+use support::eventually;
+use support::gcud::Gcud;
 
 const MAST: &str = "5.1.1";
 /// MAV_RESULT values (common.xml).
@@ -40,9 +41,9 @@ fn client_available() -> bool {
 /// gcud with two simulated buses (the mast gimbal on bus 1; bus 2 has no
 /// device 9, the absent gimbal) and gimbal-mavlink in front of it.
 struct Stack {
+    /// Declared first: dropped (stopped) before gcud.
+    mavlink: Door,
     gcud: Gcud,
-    mavlink: Option<Child>,
-    dir: tempfile::TempDir,
     /// The UDP endpoint's port, and the TCP endpoint's.
     port: u16,
     tcp_port: u16,
@@ -83,47 +84,28 @@ impl Stack {
 
     /// With one more `[[endpoint]]` (TOML text) after the UDP and TCP ones.
     fn start_with(lease_ms: u64, extra_endpoint: &str) -> Self {
-        let gcud = Gcud::start(&format!(
-            "[gcu]\ngroup = 5\n[[port]]\nid = 1\nsimulate = [1]\n[[port]]\nid = 2\nsimulate = [1]\n{CLIENTS}"
-        ));
-        let dir = tempfile::tempdir().expect("temp dir");
-        let config = dir.path().join("gimbal-mavlink.toml");
-        std::fs::write(&config, mavlink_config(&gcud.clients(), lease_ms, extra_endpoint)).expect("write config");
-        let log = std::fs::File::create(dir.path().join("gimbal-mavlink.log")).expect("log file");
-        let child = Command::new(env!("CARGO_BIN_EXE_gimbal-mavlink"))
-            .arg("--config")
-            .arg(&config)
-            .env("RUST_LOG", "info")
-            .stdout(Stdio::null())
-            .stderr(Stdio::from(log))
-            .spawn()
-            .expect("spawn gimbal-mavlink");
-        let mut stack = Self {
+        let gcud = support::door::start_gcud();
+        let mut mavlink = Door::new("gimbal-mavlink", env!("CARGO_BIN_EXE_gimbal-mavlink"));
+        let config = mavlink_config(&gcud.clients(), lease_ms, extra_endpoint);
+        mavlink.start(&format!("source_group = {DOOR_GROUP}\n{config}"));
+        Self {
+            port: mavlink.port("MAVLink UDP endpoint bound"),
+            tcp_port: mavlink.port("MAVLink TCP endpoint listening"),
+            mavlink,
             gcud,
-            mavlink: Some(child),
-            dir,
-            port: 0,
-            tcp_port: 0,
-        };
-        support::wait_for_log_line(&stack.log_path(), "gimbal-mavlink ready");
-        let line = support::wait_for_log_line(&stack.log_path(), "MAVLink UDP endpoint bound");
-        stack.port = addr_field(&line).rsplit(':').next().unwrap().parse().expect("port");
-        let line = support::wait_for_log_line(&stack.log_path(), "MAVLink TCP endpoint listening");
-        stack.tcp_port = addr_field(&line).rsplit(':').next().unwrap().parse().expect("port");
-        stack
+        }
     }
 
     fn log_path(&self) -> PathBuf {
-        self.dir.path().join("gimbal-mavlink.log")
+        self.mavlink.log_path()
     }
 
     fn log(&self) -> String {
-        std::fs::read_to_string(self.log_path()).unwrap_or_default()
+        self.mavlink.log()
     }
 
-    /// Sends `signal` to gimbal-mavlink and waits for it to exit.
     fn signal(&mut self, signal: nix::sys::signal::Signal) -> std::process::ExitStatus {
-        support::door::signal_and_wait(self.mavlink.take().expect("running"), signal, "gimbal-mavlink")
+        self.mavlink.signal(signal)
     }
 
     /// Runs one step of the pymavlink ground station as `who`, over UDP.
@@ -142,24 +124,8 @@ impl Stack {
         )
     }
 
-    /// The mast gimbal's position read on the bus side (gimbalctl via gcud).
-    fn bus_position(&self) -> (f64, f64) {
-        self.gcud.position(MAST)
-    }
-
     fn wait_moving(&self, from: (f64, f64)) {
-        eventually("the gimbal to move", || {
-            std::thread::sleep(Duration::from_millis(50));
-            self.bus_position() != from
-        });
-    }
-}
-
-impl Drop for Stack {
-    fn drop(&mut self) {
-        if let Some(child) = &mut self.mavlink {
-            support::terminate(child);
-        }
+        support::door::wait_moving(&self.gcud, MAST, from);
     }
 }
 
@@ -183,10 +149,7 @@ fn counters(log: &str) -> (String, impl Fn(&str) -> u64 + use<>) {
 
 /// Position `(pan, tilt)` unchanged over about a second on the bus side.
 fn assert_still(stack: &Stack, at: (f64, f64), what: &str) {
-    for _ in 0..5 {
-        std::thread::sleep(Duration::from_millis(200));
-        assert_eq!(stack.bus_position(), at, "{what}: the gimbal moved");
-    }
+    support::door::assert_still(&stack.gcud, MAST, at, what);
 }
 
 // ---- the tests --------------------------------------------------------------
@@ -308,6 +271,9 @@ fn a_rate_moves_the_gimbal_and_stops_when_not_refreshed() {
     let (pan, tilt) = stack.gcud.settled_position(MAST);
     assert!(pan > 10.0 && pan < 150.0, "moved right, then stopped: {pan}");
     assert_eq!(tilt, 0.0);
+    // On the bus: gimbal-mavlink's own PS after the PR, none from gcud.
+    support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "PS");
+    support::door::assert_no_stop_from_gcud(&stack.gcud, MAST);
     assert!(stack.log().contains("rate lease expired"), "{}", stack.log());
     assert_still(&stack, (pan, tilt), "after the lease");
     // Pitch rate down through the command.
@@ -394,8 +360,11 @@ fn sigterm_stops_the_slew_gimbal_mavlink_started() {
     assert!(status.success(), "{status:?}");
     let (_, tilt) = stack.gcud.settled_position(MAST);
     assert!(tilt > 0.0 && tilt < 80.0, "stopped short of the end: {tilt}");
+    // gimbal-mavlink stopped it itself, on the bus: its TS after the TU,
+    // and nothing from gcud's group (its dead-man) once its connection closed.
+    support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "TS");
+    support::door::assert_no_stop_from_gcud(&stack.gcud, MAST);
     assert!(stack.log().contains("why=\"shutting down\""), "{}", stack.log());
-    // gimbal-mavlink stopped it itself: nothing was left for gcud's dead-man.
     assert!(!stack.gcud.log().contains("dead-man"), "{}", stack.gcud.log());
 }
 
@@ -518,6 +487,40 @@ fn a_ground_station_on_a_serial_line_points_the_gimbal() {
 }
 
 #[test]
+fn a_serial_line_plugged_in_while_tcp_peers_fill_their_limit_still_opens() {
+    if !client_available() {
+        return;
+    }
+    let cable = NullModem::new();
+    // The radio's device node appears only after the TCP peers connected.
+    let plug = tempfile::tempdir().expect("temp dir");
+    let radio = plug.path().join("radio");
+    let stack = Stack::start_with(
+        1000,
+        &format!("[[endpoint]]\nserial = \"{}\"\nbaud = 115200", radio.display()),
+    );
+    // As many TCP peers as gimbal-mavlink serves (stream::MAX_CONNECTIONS).
+    let peers: Vec<std::net::TcpStream> = (0..8)
+        .map(|_| std::net::TcpStream::connect(("127.0.0.1", stack.tcp_port)).expect("connect"))
+        .collect();
+    eventually("the 8 TCP peers to be accepted", || {
+        std::thread::sleep(Duration::from_millis(50));
+        stack.log().matches("MAVLink TCP connection accepted").count() == 8
+    });
+    std::os::unix::fs::symlink(&cable.ends.0, &radio).expect("plug the radio in");
+    support::wait_for_log_line(&stack.log_path(), "MAVLink serial line open");
+    let serial = cable.ends.1.display().to_string();
+    let hb = stack.gcs_over(&serial, "heartbeat", GCS, json!({}));
+    assert_eq!(hb["heartbeat"]["type"], 26, "{hb}\n{}", stack.log());
+    let r = stack.gcs_over(&serial, "pitchyaw", GCS, json!({ "pitch": 0.0, "yaw": 15.0 }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let (pan, _) = stack.gcud.settled_position(MAST);
+    assert!((pan - 15.0).abs() <= 0.5, "bus at {pan}");
+    assert!(!stack.log().contains("refused"), "{}", stack.log());
+    drop(peers);
+}
+
+#[test]
 fn check_names_the_file_line_column_and_key_and_exits_2() {
     let dir = tempfile::tempdir().expect("temp dir");
     let path = dir.path().join("m.toml");
@@ -600,7 +603,16 @@ fn the_shipped_unit_is_hardened_and_checks_its_configuration_first() {
             "NoNewPrivileges=yes",
             "CapabilityBoundingSet=",
             "ProtectSystem=strict",
-            "PrivateDevices=yes",
+            // Serial endpoints: tty devices only, as gcud.service.
+            "SupplementaryGroups=dialout",
+            "DevicePolicy=closed",
+            "DeviceAllow=char-ttyUSB rw",
+            "DeviceAllow=char-ttyS rw",
+            "DeviceAllow=char-ttyACM rw",
+            "DeviceAllow=char-ttyAMA rw",
+            "DeviceAllow=char-ttyTHS rw",
+            "DeviceAllow=char-ttymxc rw",
+            "DeviceAllow=char-ttyO rw",
             "RestrictAddressFamilies=AF_INET AF_INET6 AF_UNIX",
             "SystemCallFilter=@system-service",
             "MemoryDenyWriteExecute=yes",

@@ -1,24 +1,25 @@
 //! End-to-end tests of `gimbal-onvif` (issue 21): the real gcud with
 //! simulated gimbal buses, the real gimbal-onvif in front of it, driven by
-//! third-party clients from PyPI (`onvif-zeep-async`, which Home
-//! Assistant uses, and `WSDiscovery`'s message layer) through
-//! `tests/onvif/client.py`. What the gimbal did is read on the bus side,
-//! with `gimbalctl position` through gcud, never from gimbal-onvif's own
-//! account. Everything listens on 127.0.0.1; waits are polls with a hang
-//! guard, never wall-clock assertions.
+//! third-party clients from PyPI (`onvif-zeep-async`, which Home Assistant
+//! uses, and `WSDiscovery`'s message layer) through `tests/onvif/client.py`.
+//! What the gimbal did is read on the bus side, with `gimbalctl position`
+//! through gcud and the frames the simulated gimbal received (their source
+//! group tells gimbal-onvif's own stops from gcud's dead-man), never from
+//! gimbal-onvif's own account. Everything listens on 127.0.0.1; waits are
+//! polls with a hang guard, never wall-clock assertions.
 //!
 //! Without Python and the two packages the client tests are skipped with a
 //! notice, except under `CI=true`, where they fail.
 
 mod support;
 
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::path::Path;
 use std::time::Duration;
 
 use serde_json::{Value, json};
-use support::gcud::{CLIENTS, Gcud};
-use support::{addr_field, eventually};
+use support::door::{DOOR_GROUP, Door};
+use support::eventually;
+use support::gcud::Gcud;
 
 const MAST: &str = "5.1.1";
 
@@ -33,9 +34,9 @@ fn clients_available() -> bool {
 /// gcud with two simulated buses (the mast gimbal on bus 1; bus 2 has no
 /// device 9, the absent gimbal) and gimbal-onvif in front of it.
 struct Stack {
+    /// Declared first: dropped (stopped) before gcud.
+    onvif: Door,
     gcud: Gcud,
-    onvif: Option<Child>,
-    dir: tempfile::TempDir,
     /// The ONVIF device ports of `mast-1` and `absent`, and the discovery port.
     mast: u16,
     absent: u16,
@@ -80,14 +81,9 @@ listen = "127.0.0.1:0"
 
 impl Stack {
     fn start() -> Self {
-        let gcud = Gcud::start(&format!(
-            "[gcu]\ngroup = 5\n[[port]]\nid = 1\nsimulate = [1]\n[[port]]\nid = 2\nsimulate = [1]\n{CLIENTS}"
-        ));
-        let dir = tempfile::tempdir().expect("temp dir");
         let mut stack = Self {
-            gcud,
-            onvif: None,
-            dir,
+            onvif: Door::new("gimbal-onvif", env!("CARGO_BIN_EXE_gimbal-onvif")),
+            gcud: support::door::start_gcud(),
             mast: 0,
             absent: 0,
             discovery: 0,
@@ -96,49 +92,19 @@ impl Stack {
         stack
     }
 
-    fn log_path(&self) -> PathBuf {
-        self.dir.path().join("gimbal-onvif.log")
-    }
-
     fn log(&self) -> String {
-        std::fs::read_to_string(self.log_path()).unwrap_or_default()
+        self.onvif.log()
     }
 
-    /// Starts gimbal-onvif (again) and learns its ports from its log.
+    /// Starts gimbal-onvif (again, on the same state file) and learns its
+    /// ports from its log.
     fn spawn_onvif(&mut self) {
-        let config = self.dir.path().join("gimbal-onvif.toml");
-        std::fs::write(
-            &config,
-            onvif_config(&self.gcud.clients(), &self.dir.path().join("presets.toml")),
-        )
-        .expect("write config");
-        let _ = std::fs::remove_file(self.log_path());
-        let log = std::fs::File::create(self.log_path()).expect("log file");
-        let child = Command::new(env!("CARGO_BIN_EXE_gimbal-onvif"))
-            .arg("--config")
-            .arg(&config)
-            .env("RUST_LOG", "info")
-            .stdout(Stdio::null())
-            .stderr(Stdio::from(log))
-            .spawn()
-            .expect("spawn gimbal-onvif");
-        self.onvif = Some(child);
-        let log = self.log_path();
-        let line = support::wait_for_log_line(&log, "gimbal-onvif ready");
-        assert!(!line.is_empty());
-        let port = |what: &str| -> u16 {
-            let line = support::wait_for_log_line(&log, what);
-            let addr = addr_field(&line);
-            addr.rsplit(':').next().unwrap().parse().expect("port")
-        };
-        self.mast = port("gimbal=mast-1 addr=");
-        self.absent = port("gimbal=absent addr=");
-        self.discovery = port("WS-Discovery listening");
-    }
-
-    /// Sends `signal` to gimbal-onvif and waits for it to exit.
-    fn signal_onvif(&mut self, signal: nix::sys::signal::Signal) -> std::process::ExitStatus {
-        support::door::signal_and_wait(self.onvif.take().expect("running"), signal, "gimbal-onvif")
+        let state = self.onvif.dir.path().join("presets.toml");
+        let config = onvif_config(&self.gcud.clients(), &state);
+        self.onvif.start(&format!("source_group = {DOOR_GROUP}\n{config}"));
+        self.mast = self.onvif.port("gimbal=mast-1 addr=");
+        self.absent = self.onvif.port("gimbal=absent addr=");
+        self.discovery = self.onvif.port("WS-Discovery listening");
     }
 
     /// Runs one step of the third-party client against the device on `port`.
@@ -152,11 +118,6 @@ impl Stack {
         )
     }
 
-    /// The mast gimbal's position read on the bus side (gimbalctl via gcud).
-    fn bus_position(&self) -> (f64, f64) {
-        self.gcud.position(MAST)
-    }
-
     /// The mast gimbal's lens zoom read on the bus side (`gimbalctl lens`).
     fn bus_zoom(&self) -> u64 {
         let out = self.gcud.ctl(&["--json", "--to", MAST, "lens"]);
@@ -164,20 +125,26 @@ impl Stack {
         out.json()["result"]["zoom"].as_u64().expect("zoom")
     }
 
-    /// Samples the bus-side position until it moved away from `from`.
-    fn wait_moving(&self, from: (f64, f64)) {
-        eventually("the gimbal to move", || {
-            std::thread::sleep(Duration::from_millis(50));
-            self.bus_position() != from
+    /// The lens zoom once it stopped changing (read on the bus side) and
+    /// left 0.
+    fn settled_zoom(&self) -> u64 {
+        let mut last = self.bus_zoom();
+        eventually("the zoom to stop", || {
+            std::thread::sleep(Duration::from_millis(200));
+            let now = self.bus_zoom();
+            let still = now == last && now > 0;
+            last = now;
+            still
         });
+        last
     }
-}
 
-impl Drop for Stack {
-    fn drop(&mut self) {
-        if let Some(child) = &mut self.onvif {
-            support::terminate(child);
-        }
+    fn bus_position(&self) -> (f64, f64) {
+        self.gcud.position(MAST)
+    }
+
+    fn wait_moving(&self, from: (f64, f64)) {
+        support::door::wait_moving(&self.gcud, MAST, from);
     }
 }
 
@@ -196,10 +163,7 @@ fn fault_subcodes(v: &Value) -> Vec<String> {
 
 /// Position `(pan, tilt)` unchanged over about a second on the bus side.
 fn assert_still(stack: &Stack, at: (f64, f64), what: &str) {
-    for _ in 0..5 {
-        std::thread::sleep(Duration::from_millis(200));
-        assert_eq!(stack.bus_position(), at, "{what}: the gimbal moved");
-    }
+    support::door::assert_still(&stack.gcud, MAST, at, what);
 }
 
 // ---- the tests --------------------------------------------------------------
@@ -305,6 +269,9 @@ fn continuous_move_with_a_timeout_stops_by_itself() {
         "pan right by about 1 s at 60 °/s, then stopped short of the end: {pan}"
     );
     assert_eq!(tilt, 0.0);
+    // On the bus: gimbal-onvif's own PS after the PR, none from gcud.
+    support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "PS");
+    support::door::assert_no_stop_from_gcud(&stack.gcud, MAST);
     assert!(stack.log().contains("move time-out: stopping"), "{}", stack.log());
     assert_still(&stack, (pan, tilt), "after the time-out");
 }
@@ -349,31 +316,31 @@ fn zoom_moves_the_lens_continuously_with_its_timeout_and_to_a_position() {
         json!({ "x": 0.0, "y": 0.0, "zoom": 0.5, "timeout_s": 0.5 }),
     );
     assert_eq!(r["ok"], true, "{r}");
-    let mut last = stack.bus_zoom();
-    eventually("the zoom to stop", || {
-        std::thread::sleep(Duration::from_millis(200));
-        let now = stack.bus_zoom();
-        let still = now == last && now > 0;
-        last = now;
-        still
-    });
+    let last = stack.settled_zoom();
     assert!(
         last > 0 && last < 4095,
         "zoomed in part of the way, then stopped: {last}"
     );
     assert_eq!(stack.bus_position(), (0.0, 0.0), "pan and tilt stayed");
-    // AbsoluteMove of the zoom alone: 0.25 of 0..4095.
-    let r = stack.client(
-        "absolute",
-        stack.mast,
-        OPERATOR,
-        json!({ "x": 0.0, "y": 0.0, "zoom": 0.25 }),
-    );
+    // AbsoluteMove of the zoom alone (no PanTilt): 0.25 of 0..4095, and
+    // no GO on the bus.
+    let r = stack.client("absolute", stack.mast, OPERATOR, json!({ "zoom": 0.25 }));
     assert_eq!(r["ok"], true, "{r}");
     eventually("the lens at 1024", || {
         std::thread::sleep(Duration::from_millis(100));
         stack.bus_zoom() == 1024
     });
+    let received = stack.gcud.received(MAST);
+    assert!(
+        received
+            .iter()
+            .any(|(from, p)| *from == DOOR_GROUP && p.starts_with('V') && p != "V?"),
+        "the lens was sent its position: {received:?}"
+    );
+    assert!(
+        !received.iter().any(|(_, p)| p.starts_with("GO")),
+        "pan and tilt were not commanded: {received:?}"
+    );
     let status = stack.client("status", stack.mast, VIEWER, json!({}));
     assert!(
         (status["zoom"].as_f64().expect("zoom") - 0.25).abs() < 0.001,
@@ -404,7 +371,7 @@ fn presets_round_trip_and_their_names_survive_a_restart() {
     assert_eq!(r["ok"], true, "{r}");
     assert_eq!(stack.gcud.settled_position(MAST), (0.0, 0.0));
 
-    stack.signal_onvif(nix::sys::signal::Signal::SIGTERM);
+    stack.onvif.signal(nix::sys::signal::Signal::SIGTERM);
     stack.spawn_onvif();
     let presets = stack.client("presets", stack.mast, VIEWER, json!({}));
     assert_eq!(
@@ -436,6 +403,33 @@ fn stop_ends_a_continuous_move() {
     assert!(r.get("ok").is_some(), "{r}");
     let (pan, _) = stack.gcud.settled_position(MAST);
     assert!(pan < 0.0 && pan > -175.0, "stopped on its way left: {pan}");
+    support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "PS");
+    support::door::assert_no_stop_from_gcud(&stack.gcud, MAST);
+    assert!(!stack.log().contains("move time-out"), "{}", stack.log());
+}
+
+#[test]
+fn stop_ends_a_zoom_without_a_timeout() {
+    if !clients_available() {
+        return;
+    }
+    let stack = Stack::start();
+    // The zoom alone (no PanTilt) at lens speed 1 of 9, without a Timeout:
+    // only Stop (or max_move_ms, 20 s) ends it before 4095.
+    let r = stack.client("continuous", stack.mast, OPERATOR, json!({ "zoom": 0.2 }));
+    assert_eq!(r["ok"], true, "{r}");
+    eventually("the zoom to move", || {
+        std::thread::sleep(Duration::from_millis(50));
+        stack.bus_zoom() > 0
+    });
+    let r = stack.client("stop", stack.mast, OPERATOR, json!({ "pan_tilt": false, "zoom": true }));
+    assert!(r.get("ok").is_some(), "{r}");
+    // On the bus: gimbal-onvif's ZS after the ZI, none from gcud.
+    support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "ZS");
+    support::door::assert_no_stop_from_gcud(&stack.gcud, MAST);
+    let zoom = stack.settled_zoom();
+    assert!(zoom > 0 && zoom < 4095, "stopped on its way in: {zoom}");
+    assert_eq!(stack.bus_position(), (0.0, 0.0), "pan and tilt stayed");
     assert!(!stack.log().contains("move time-out"), "{}", stack.log());
 }
 
@@ -576,7 +570,7 @@ fn sigkill_of_gimbal_onvif_mid_move_and_the_gimbal_stops() {
     let r = stack.client("continuous", stack.mast, OPERATOR, json!({ "x": 0.25, "y": 0.0 }));
     assert_eq!(r["ok"], true, "{r}");
     stack.wait_moving((0.0, 0.0));
-    let status = stack.signal_onvif(nix::sys::signal::Signal::SIGKILL);
+    let status = stack.onvif.signal(nix::sys::signal::Signal::SIGKILL);
     assert!(!status.success());
     support::door::assert_dead_man_stopped(&stack.gcud, MAST);
 }
@@ -590,12 +584,15 @@ fn sigterm_stops_what_gimbal_onvif_started() {
     let r = stack.client("continuous", stack.mast, OPERATOR, json!({ "x": 0.0, "y": 0.25 }));
     assert_eq!(r["ok"], true, "{r}");
     stack.wait_moving((0.0, 0.0));
-    let status = stack.signal_onvif(nix::sys::signal::Signal::SIGTERM);
+    let status = stack.onvif.signal(nix::sys::signal::Signal::SIGTERM);
     assert!(status.success(), "{status}\n{}", stack.log());
     let (_, tilt) = stack.gcud.settled_position(MAST);
     assert!(tilt > 0.0 && tilt < 85.0, "stopped short of the tilt end: {tilt}");
+    // gimbal-onvif stopped it itself, on the bus: its TS after the TU, and
+    // nothing from gcud's group (its dead-man) once its connection closed.
+    support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "TS");
+    support::door::assert_no_stop_from_gcud(&stack.gcud, MAST);
     assert!(stack.log().contains("stopping:"), "{}", stack.log());
-    // gimbal-onvif stopped it itself: nothing was left for gcud's dead-man.
     assert!(!stack.gcud.log().contains("dead-man"), "{}", stack.gcud.log());
 }
 

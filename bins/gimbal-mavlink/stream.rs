@@ -25,42 +25,58 @@ use crate::stats::Stats;
 /// What is done with each intact message that comes in.
 pub type Handler = Arc<dyn Fn(MavHeader, MavMessage) + Send + Sync>;
 
-/// The most TCP connections served at once (each has a reader thread).
+/// The most connections accepted on `tcp_listen` endpoints served at once
+/// (each has a reader thread). The configured `tcp` and `serial` endpoints
+/// never count against it: peers on the network cannot lock them out.
 pub const MAX_CONNECTIONS: usize = 8;
 /// Messages waiting to be written to one connection.
 const QUEUE: usize = 256;
 /// How long a `tcp` or `serial` endpoint waits before connecting or opening again.
 pub const RECONNECT: Duration = Duration::from_secs(2);
 
+/// How a connection came to be: accepted from a peer (a `tcp_listen`
+/// endpoint, at most [`MAX_CONNECTIONS`] at once), or opened for a
+/// configured `tcp` or `serial` endpoint (one each, outside that limit).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Opened {
+    Accepted,
+    Configured,
+}
+
+/// One open connection's write queue (frames to send), and how it opened.
+type Conn = (mpsc::Sender<Arc<[u8]>>, Opened);
+
 /// The open connections' write queues.
 #[derive(Debug, Default)]
 pub struct Streams {
-    conns: Mutex<Vec<mpsc::Sender<Arc<[u8]>>>>,
+    conns: Mutex<Vec<Conn>>,
 }
 
 impl Streams {
     /// Queues `bytes` (one frame) for every open connection.
     pub fn send(&self, bytes: &[u8]) {
         let mut conns = self.conns.lock().unwrap_or_else(|p| p.into_inner());
-        conns.retain(|c| !c.is_closed());
+        conns.retain(|(c, _)| !c.is_closed());
         if conns.is_empty() {
             return;
         }
         let bytes: Arc<[u8]> = bytes.into();
-        for c in conns.iter() {
+        for (c, _) in conns.iter() {
             let _ = c.try_send(Arc::clone(&bytes));
         }
     }
 
-    /// A new connection's queue, or `None` when [`MAX_CONNECTIONS`] are open.
-    fn add(&self) -> Option<mpsc::Receiver<Arc<[u8]>>> {
+    /// A new connection's queue, or `None` for an accepted one when
+    /// [`MAX_CONNECTIONS`] accepted ones are open.
+    fn add(&self, opened: Opened) -> Option<mpsc::Receiver<Arc<[u8]>>> {
         let mut conns = self.conns.lock().unwrap_or_else(|p| p.into_inner());
-        conns.retain(|c| !c.is_closed());
-        if conns.len() >= MAX_CONNECTIONS {
+        conns.retain(|(c, _)| !c.is_closed());
+        let accepted = conns.iter().filter(|(_, o)| *o == Opened::Accepted).count();
+        if opened == Opened::Accepted && accepted >= MAX_CONNECTIONS {
             return None;
         }
         let (tx, rx) = mpsc::channel(QUEUE);
-        conns.push(tx);
+        conns.push((tx, opened));
         Some(rx)
     }
 }
@@ -126,12 +142,12 @@ fn frame_len(raw: &MAVLinkMessageRaw) -> u64 {
 }
 
 /// Serves one connection (a TCP socket, a serial line) until it closes.
-async fn serve<S>(stream: S, peer: String, streams: Arc<Streams>, stats: Arc<Stats>, handler: Handler)
+async fn serve<S>(stream: S, opened: Opened, peer: String, streams: Arc<Streams>, stats: Arc<Stats>, handler: Handler)
 where
     S: AsyncRead + AsyncWrite + Send + 'static,
 {
-    let Some(mut out) = streams.add() else {
-        warn!(%peer, max = MAX_CONNECTIONS, "too many MAVLink stream connections: refused");
+    let Some(mut out) = streams.add(opened) else {
+        warn!(%peer, max = MAX_CONNECTIONS, "too many MAVLink TCP connections accepted: refused");
         return;
     };
     let (mut rd, mut wr) = tokio::io::split(stream);
@@ -218,6 +234,7 @@ pub async fn listen(listener: TcpListener, streams: Arc<Streams>, stats: Arc<Sta
                 let _ = stream.set_nodelay(true);
                 tokio::spawn(serve(
                     stream,
+                    Opened::Accepted,
                     peer.to_string(),
                     Arc::clone(&streams),
                     Arc::clone(&stats),
@@ -244,6 +261,7 @@ pub async fn connect(to: String, streams: Arc<Streams>, stats: Arc<Stats>, handl
                 let _ = stream.set_nodelay(true);
                 serve(
                     stream,
+                    Opened::Configured,
                     peer.to_string(),
                     Arc::clone(&streams),
                     Arc::clone(&stats),
@@ -270,6 +288,7 @@ pub async fn serial(path: PathBuf, baud: u32, streams: Arc<Streams>, stats: Arc<
                 info!(path = %name, baud, "MAVLink serial line open");
                 serve(
                     port,
+                    Opened::Configured,
                     name.clone(),
                     Arc::clone(&streams),
                     Arc::clone(&stats),
@@ -290,6 +309,26 @@ pub async fn serial(path: PathBuf, baud: u32, streams: Arc<Streams>, stats: Arc<
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn accepted_connections_at_their_limit_leave_room_for_configured_ones() {
+        let streams = Streams::default();
+        let accepted: Vec<_> = (0..MAX_CONNECTIONS)
+            .map(|_| streams.add(Opened::Accepted).expect("room"))
+            .collect();
+        assert!(streams.add(Opened::Accepted).is_none(), "the limit holds");
+        let serial = streams
+            .add(Opened::Configured)
+            .expect("a serial line is never locked out");
+        let tcp = streams.add(Opened::Configured).expect("nor a configured tcp endpoint");
+        assert!(
+            streams.add(Opened::Accepted).is_none(),
+            "configured ones take no accepted slot"
+        );
+        drop(accepted);
+        assert!(streams.add(Opened::Accepted).is_some(), "closed ones free their slots");
+        drop((serial, tcp));
+    }
 
     #[test]
     fn bytes_around_frames_are_counted_once_each() {

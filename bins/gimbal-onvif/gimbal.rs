@@ -7,15 +7,12 @@
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use sagebrush_client::{CommandError, GcudClient};
-use sagebrush_protocol::{Angle, Axis, Command, LensPosition, LensSpeed, Position, Reply, Speed, U12};
+use sagebrush_client::{CommandError, GimbalConnection};
+use sagebrush_protocol::{Angle, Axis, Command, LensPosition, LensSpeed, Position, Speed, U12};
 use tokio::time::Instant;
 use tracing::{info, warn};
 
 use crate::config;
-
-/// The longest a connection to gcud may take to open.
-pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
 
 /// How often a gimbal that did not answer its last poll is asked again.
 pub const UNREACHABLE_POLL: Duration = Duration::from_secs(5);
@@ -48,13 +45,9 @@ struct Motion {
 #[derive(Debug)]
 pub struct Gimbal {
     pub config: config::Gimbal,
-    gcud: String,
-    from: u8,
     max_move: Duration,
-    /// How long after an ACK a NIC may still come (gcud forwards the bus's
-    /// NIC as soon as it sees it).
-    nic_window: Duration,
-    connection: tokio::sync::Mutex<Option<GcudClient>>,
+    /// This gimbal's own connection to gcud, one command at a time.
+    connection: tokio::sync::Mutex<GimbalConnection>,
     status: Mutex<Status>,
     motion: Mutex<Motion>,
 }
@@ -85,13 +78,11 @@ pub fn to_generic(degrees: f64, travel: (f64, f64)) -> f64 {
 
 impl Gimbal {
     pub fn new(config: config::Gimbal, link: &config::Config) -> Arc<Self> {
+        let connection = GimbalConnection::new(&link.gcud, link.source_group, config.address, link.nic_window);
         Arc::new(Self {
             config,
-            gcud: link.gcud.clone(),
-            from: link.source_group,
             max_move: link.max_move,
-            nic_window: link.nic_window,
-            connection: tokio::sync::Mutex::new(None),
+            connection: tokio::sync::Mutex::new(connection),
             status: Mutex::new(Status::default()),
             motion: Mutex::new(Motion::default()),
         })
@@ -100,56 +91,17 @@ impl Gimbal {
     /// Sends `command` over this gimbal's connection (opened when needed;
     /// dropped when it fails, so the next command opens a fresh one).
     pub async fn send(&self, command: &Command<'_>) -> Result<Option<Vec<u8>>, CommandError> {
-        let mut guard = self.connection.lock().await;
-        if guard.is_none() {
-            let nic_window = self.nic_window.as_millis() as u64;
-            let connect = GcudClient::connect(&self.gcud, self.from, |p| p.nic_window = nic_window);
-            let unreachable = |e: String| CommandError::Io(format!("gcud at {} cannot be reached: {e}", self.gcud));
-            *guard = Some(
-                tokio::time::timeout(CONNECT_TIMEOUT, connect)
-                    .await
-                    .map_err(|_| unreachable(format!("no connection within {} s", CONNECT_TIMEOUT.as_secs())))?
-                    .map_err(|e| unreachable(e.to_string()))?,
-            );
-        }
-        let client = guard.as_mut().expect("connected above");
-        match client.send(self.config.address, command).await {
-            Ok(ex) => Ok(ex.result.map(|f| f.frame().payload().to_vec())),
-            Err(e) => {
-                if matches!(e, CommandError::Io(_)) {
-                    *guard = None;
-                }
-                Err(e)
-            }
-        }
-    }
-
-    async fn query(&self, command: &Command<'_>) -> Result<Vec<u8>, CommandError> {
-        self.send(command).await?.ok_or_else(|| {
-            CommandError::NoResult(format!(
-                "{} sent no result for {}",
-                self.config.address,
-                command.mnemonic()
-            ))
-        })
+        self.connection.lock().await.send(command).await
     }
 
     /// `P?` now.
     pub async fn position(&self) -> Result<Position, CommandError> {
-        let payload = self.query(&Command::QueryPosition).await?;
-        sagebrush_client::client::expect_position(&Command::QueryPosition, &payload)
+        self.connection.lock().await.position().await
     }
 
     /// `V?`: the lens's zoom and focus (Table 17).
     pub async fn lens(&self) -> Result<LensPosition, CommandError> {
-        let payload = self.query(&Command::QueryLens).await?;
-        match Reply::parse(&Command::QueryLens, &payload) {
-            Ok(Reply::Lens(l)) => Ok(l),
-            _ => Err(CommandError::BadReply(format!(
-                "V? result {:?} is not a Table 17 lens position",
-                String::from_utf8_lossy(&payload)
-            ))),
-        }
+        self.connection.lock().await.lens().await
     }
 
     /// `V`: the lens to zoom `x` (0..=1 of its range), focus where it is.
@@ -175,8 +127,7 @@ impl Gimbal {
 
     /// `D?`.
     pub async fn identity(&self) -> Result<Identity, CommandError> {
-        let payload = self.query(&Command::Identify).await?;
-        Identity::from_result(&payload)
+        self.connection.lock().await.identity().await
     }
 
     pub fn status(&self) -> Status {

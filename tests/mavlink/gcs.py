@@ -146,18 +146,6 @@ def step_attitude(m, a):
     return {"reached": msg is not None, "attitude": last}
 
 
-def step_rate(m, a):
-    """Attitude status arrival times over `seconds` (rate and jitter)."""
-    times = []
-    end = time.monotonic() + a.get("seconds", 3.0)
-    while time.monotonic() < end:
-        msg = m.recv_match(type="GIMBAL_DEVICE_ATTITUDE_STATUS", blocking=True, timeout=0.2)
-        if msg is not None and msg.get_srcComponent() == GIMBAL:
-            times.append(time.monotonic())
-    gaps = [b - a for a, b in zip(times, times[1:])]
-    return {"count": len(times), "gaps_ms": [g * 1000 for g in gaps]}
-
-
 def step_configure(m, a):
     p = a.get("params", [-2, -2, -1, -1])
     return {"result": command(m, mavlink.MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE, p + [0, 0, a.get("device", 0)],

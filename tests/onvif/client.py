@@ -142,7 +142,7 @@ async def step(name, host, port, user, password, args):
         if name == "status":
             return status_of(await ptz.GetStatus({"ProfileToken": token}))
         if name == "continuous":
-            req = {"ProfileToken": token, "Velocity": {"PanTilt": {"x": args["x"], "y": args["y"]}}}
+            req = {"ProfileToken": token, "Velocity": pan_tilt_of(args)}
             if args.get("zoom") is not None:
                 req["Velocity"]["Zoom"] = {"x": args["zoom"]}
             if args.get("timeout_s") is not None:
@@ -152,9 +152,11 @@ async def step(name, host, port, user, password, args):
                 result = {"ok": True, "status": status_of(await ptz.GetStatus({"ProfileToken": token}))}
             return result
         if name == "stop":
-            return await attempt(ptz.Stop({"ProfileToken": token, "PanTilt": True, "Zoom": True}))
+            return await attempt(ptz.Stop({"ProfileToken": token,
+                                           "PanTilt": args.get("pan_tilt", True),
+                                           "Zoom": args.get("zoom", True)}))
         if name == "absolute":
-            position = {"PanTilt": {"x": args["x"], "y": args["y"]}}
+            position = pan_tilt_of(args)
             if args.get("zoom") is not None:
                 position["Zoom"] = {"x": args["zoom"]}
             moved = await attempt(ptz.AbsoluteMove({"ProfileToken": token, "Position": position}))
@@ -180,6 +182,13 @@ async def step(name, host, port, user, password, args):
         raise SystemExit(f"unknown step {name}")
     finally:
         await cam.close()
+
+
+def pan_tilt_of(args):
+    """A PanTilt vector when the step gives x and y; none for the zoom alone."""
+    if args.get("x") is None and args.get("y") is None:
+        return {}
+    return {"PanTilt": {"x": args["x"], "y": args["y"]}}
 
 
 async def login(host, port, user, password):

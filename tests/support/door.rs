@@ -1,11 +1,14 @@
 //! What the front doors' end-to-end tests share (`tests/onvif.rs`,
-//! `tests/mavlink.rs`): whether the third-party Python client is installed
-//! (under `CI=true` it must be), one step of that client run as a script
-//! that prints JSON, a door stopped by a signal, gcud's dead-man stop of a
-//! slew the door left running, `--check` run on a file and the lines a
-//! shipped unit must hold.
+//! `tests/mavlink.rs`): the gcud with two simulated buses they stand in front
+//! of ([`start_gcud`]), a door binary run on a configuration with its log and
+//! stopped by a signal ([`Door`]), whether the third-party Python client is
+//! installed (under `CI=true` it must be), one step of that client run as a
+//! script that prints JSON, the gimbal's motion and stillness read on the bus
+//! side, the stops that reached the simulated bus after a motion and from
+//! whom (the door's own or gcud's dead-man), `--check` run on a file and the
+//! lines a shipped unit must hold.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
@@ -56,29 +59,189 @@ pub fn python_step(script: &str, step: &str, args: &[&str], log: impl FnOnce() -
         .unwrap_or_else(|e| panic!("step {step}: not JSON ({e}): {stdout}"))
 }
 
-/// Sends `signal` to the door `child` and waits for it to exit.
-pub fn signal_and_wait(mut child: Child, signal: nix::sys::signal::Signal, name: &str) -> ExitStatus {
-    let pid = nix::unistd::Pid::from_raw(child.id() as i32);
-    nix::sys::signal::kill(pid, signal).expect("signal");
+/// A door binary (`gimbal-onvif`, `gimbal-mavlink`) run on a configuration
+/// written to its private directory, its log (`RUST_LOG=info`) in
+/// `NAME.log` there; SIGTERM on drop.
+pub struct Door {
+    name: &'static str,
+    bin: &'static str,
+    child: Option<Child>,
+    pub dir: tempfile::TempDir,
+}
+
+impl Door {
+    /// Not running yet: [`Door::start`] runs it.
+    pub fn new(name: &'static str, bin: &'static str) -> Self {
+        Self {
+            name,
+            bin,
+            child: None,
+            dir: tempfile::tempdir().expect("temp dir"),
+        }
+    }
+
+    /// Writes `config` to `NAME.toml`, starts the door on it with a fresh
+    /// log, and waits for its `NAME ready` line.
+    pub fn start(&mut self, config: &str) {
+        let path = self.dir.path().join(format!("{}.toml", self.name));
+        std::fs::write(&path, config).expect("write config");
+        let log = std::fs::File::create(self.log_path()).expect("log file");
+        let child = Command::new(self.bin)
+            .arg("--config")
+            .arg(&path)
+            .env("RUST_LOG", "info")
+            .stdout(Stdio::null())
+            .stderr(Stdio::from(log))
+            .spawn()
+            .unwrap_or_else(|e| panic!("spawn {}: {e}", self.name));
+        self.child = Some(child);
+        super::wait_for_log_line(&self.log_path(), &format!("{} ready", self.name));
+    }
+
+    pub fn log_path(&self) -> PathBuf {
+        self.dir.path().join(format!("{}.log", self.name))
+    }
+
+    pub fn log(&self) -> String {
+        std::fs::read_to_string(self.log_path()).unwrap_or_default()
+    }
+
+    /// The port of the `addr=` field of the log line holding `what`.
+    pub fn port(&self, what: &str) -> u16 {
+        let line = super::wait_for_log_line(&self.log_path(), what);
+        super::addr_field(&line)
+            .rsplit(':')
+            .next()
+            .and_then(|p| p.parse().ok())
+            .unwrap_or_else(|| panic!("no port in {line:?}"))
+    }
+
+    /// Sends `signal` and waits for the door to exit.
+    pub fn signal(&mut self, signal: nix::sys::signal::Signal) -> ExitStatus {
+        let mut child = self
+            .child
+            .take()
+            .unwrap_or_else(|| panic!("{} is not running", self.name));
+        let pid = nix::unistd::Pid::from_raw(child.id() as i32);
+        nix::sys::signal::kill(pid, signal).expect("signal");
+        let started = Instant::now();
+        loop {
+            if let Ok(Some(status)) = child.try_wait() {
+                return status;
+            }
+            assert!(started.elapsed() < HANG_GUARD, "{} did not exit on {signal}", self.name);
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+}
+
+impl Drop for Door {
+    fn drop(&mut self) {
+        if let Some(child) = &mut self.child {
+            super::terminate(child);
+        }
+    }
+}
+
+/// Samples gimbal `address`'s position on the bus side until it moved
+/// away from `from`.
+pub fn wait_moving(gcud: &super::gcud::Gcud, address: &str, from: (f64, f64)) {
+    super::eventually("the gimbal to move", || {
+        std::thread::sleep(Duration::from_millis(50));
+        gcud.position(address) != from
+    });
+}
+
+/// Gimbal `address`'s position `at` unchanged over about a second on the
+/// bus side.
+pub fn assert_still(gcud: &super::gcud::Gcud, address: &str, at: (f64, f64), what: &str) {
+    for _ in 0..5 {
+        std::thread::sleep(Duration::from_millis(200));
+        assert_eq!(gcud.position(address), at, "{what}: the gimbal moved");
+    }
+}
+
+/// gcud's group in the doors' tests: the stops gcud issues itself
+/// (dead-man) come from it.
+pub const GCUD_GROUP: u8 = 5;
+
+/// The source group the doors' test configurations give them: neither
+/// gimbalctl's 0 nor gcud's own, so the bus tells their frames apart.
+pub const DOOR_GROUP: u8 = 7;
+
+/// gcud (group [`GCUD_GROUP`]) with two simulated buses, the mast gimbal
+/// (device 1) on port 1 and port 2 without the doors' absent device 9,
+/// and a client listener that allows gimbalctl's group 0 and
+/// [`DOOR_GROUP`].
+pub fn start_gcud() -> super::gcud::Gcud {
+    super::gcud::Gcud::start(&format!(
+        "[gcu]\ngroup = {GCUD_GROUP}\n[[port]]\nid = 1\nsimulate = [1]\n[[port]]\nid = 2\nsimulate = [1]\n\
+         {}allow_source_groups = [0, {DOOR_GROUP}]\n",
+        super::gcud::CLIENTS
+    ))
+}
+
+/// The motion commands the doors send (Table 11 and 16: pan, tilt, zoom).
+fn is_motion(payload: &str) -> bool {
+    matches!(payload, "PR" | "PL" | "TU" | "TD" | "ZI" | "ZO")
+}
+
+/// The stops (`PS`, `TS`, `ZS`).
+fn is_stop(payload: &str) -> bool {
+    matches!(payload, "PS" | "TS" | "ZS")
+}
+
+/// What gimbal `address` received after the last motion command it
+/// received, by the simulated bus's own record: (source group, payload).
+fn after_last_motion(gcud: &super::gcud::Gcud, address: &str) -> Vec<(u8, String)> {
+    let received = gcud.received(address);
+    let last = received
+        .iter()
+        .rposition(|(_, p)| is_motion(p))
+        .unwrap_or_else(|| panic!("{address} received no motion: {received:?}"));
+    received[last + 1..].to_vec()
+}
+
+/// Waits until the stop `stop` from source group `from` reached gimbal
+/// `address` (read on the bus) after the last motion it received.
+pub fn wait_for_stop(gcud: &super::gcud::Gcud, address: &str, from: u8, stop: &str) {
     let started = Instant::now();
     loop {
-        if let Ok(Some(status)) = child.try_wait() {
-            return status;
+        let after = after_last_motion(gcud, address);
+        if after.iter().any(|(source, p)| *source == from && p == stop) {
+            return;
         }
-        assert!(started.elapsed() < HANG_GUARD, "{name} did not exit on {signal}");
-        std::thread::sleep(Duration::from_millis(10));
+        assert!(
+            started.elapsed() < HANG_GUARD,
+            "no {stop} from group {from} reached {address} after its last motion; it received {:?}\ngcud log:\n{}",
+            gcud.received(address),
+            gcud.log()
+        );
+        std::thread::sleep(Duration::from_millis(20));
     }
+}
+
+/// No stop from gcud's own group reached gimbal `address` (read on the
+/// bus): whatever stopped it, gcud's dead-man did not.
+pub fn assert_no_stop_from_gcud(gcud: &super::gcud::Gcud, address: &str) {
+    let received = gcud.received(address);
+    assert!(
+        !received.iter().any(|(source, p)| *source == GCUD_GROUP && is_stop(p)),
+        "gcud (group {GCUD_GROUP}) stopped {address}: {received:?}"
+    );
 }
 
 /// After the door that started a 30 °/s pan slew on `address` was killed:
 /// the gimbal, read on the bus side, stopped well short of its end of
-/// travel (180°, 6 s away), and gcud says it issued the dead-man stop.
+/// travel (180°, 6 s away); the `PS` that reached it after the slew came
+/// from gcud's group (its dead-man), and gcud says it issued it.
 pub fn assert_dead_man_stopped(gcud: &super::gcud::Gcud, address: &str) {
     let (pan, _) = gcud.settled_position(address);
     assert!(
         pan > 0.0 && pan < 150.0,
         "gcud's dead-man stopped it well short of the end: {pan}"
     );
+    wait_for_stop(gcud, address, GCUD_GROUP, "PS");
     gcud.wait_for_log(&format!("dead-man PS to {address}"));
 }
 

@@ -37,6 +37,13 @@ impl Gcud {
         super::wait_for_log_line(&self.dir.path().join("gcud.log"), text)
     }
 
+    /// What the simulated gimbal `dest` (on a `simulate` port) received,
+    /// by the bus's own record ([`super::frames_received`], logged under
+    /// [`super::GCUD_LOG`]): (source group, payload) per frame, in order.
+    pub fn received(&self, dest: &str) -> Vec<(u8, String)> {
+        super::frames_received(&self.log(), dest)
+    }
+
     /// The address a listener link (or the metrics endpoint) was bound to.
     pub fn address(&self, what: &str) -> String {
         super::addr_field(&self.wait_for_log(what))

@@ -6,7 +6,7 @@
 
 use std::time::Duration;
 
-use sagebrush_protocol::{Address, Command, Position, Reply};
+use sagebrush_protocol::{Address, Command, LensPosition, Position, Reply};
 
 use crate::client::{CommandError, GcudClient, expect_position};
 
@@ -61,11 +61,6 @@ impl GimbalConnection {
         }
     }
 
-    /// Whether a connection is open now.
-    pub fn is_connected(&self) -> bool {
-        self.client.is_some()
-    }
-
     /// Sends `command`; its result payload, if it has one.
     pub async fn send(&mut self, command: &Command<'_>) -> Result<Option<Vec<u8>>, CommandError> {
         if self.client.is_none() {
@@ -102,6 +97,18 @@ impl GimbalConnection {
     pub async fn position(&mut self) -> Result<Position, CommandError> {
         let payload = self.query(&Command::QueryPosition).await?;
         expect_position(&Command::QueryPosition, &payload)
+    }
+
+    /// `V?`: the lens's zoom and focus (Table 17).
+    pub async fn lens(&mut self) -> Result<LensPosition, CommandError> {
+        let payload = self.query(&Command::QueryLens).await?;
+        match Reply::parse(&Command::QueryLens, &payload) {
+            Ok(Reply::Lens(lens)) => Ok(lens),
+            _ => Err(CommandError::BadReply(format!(
+                "V? result {:?} is not a Table 17 lens position",
+                String::from_utf8_lossy(&payload)
+            ))),
+        }
     }
 
     /// `D?`: the gimbal's name, serial and revision (Table 6).
