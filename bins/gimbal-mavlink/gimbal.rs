@@ -12,6 +12,7 @@ use mavlink::dialects::common::{
     COMMAND_ACK_DATA, GIMBAL_DEVICE_INFORMATION_DATA, GIMBAL_MANAGER_INFORMATION_DATA, GimbalDeviceCapFlags,
     GimbalDeviceCapFlagsU16, GimbalManagerCapFlags, MavCmd, MavMessage, MavResult,
 };
+use sagebrush_client::connection::UNREACHABLE_POLL;
 use sagebrush_client::{CommandError, GimbalConnection, Identity};
 use sagebrush_protocol::{Angle, Axis, Command, Position};
 use tokio::sync::mpsc;
@@ -23,10 +24,6 @@ use crate::control::{Control, Refused, Sender};
 use crate::link::Outbox;
 use crate::motion::{self, Plan};
 use crate::stats::Stats;
-
-/// How often a gimbal that did not answer its last poll is asked again
-/// (each unanswered poll holds its bus for all of gcud's retries).
-pub const UNREACHABLE_POLL: Duration = Duration::from_secs(5);
 
 /// Requests waiting for one gimbal; more are refused as busy.
 pub const QUEUE: usize = 64;
@@ -397,13 +394,8 @@ impl Task {
         }
         info!(gimbal = %self.config.name, why, "stopping the slew");
         self.slew = Slew::default();
-        for stop in [Command::PanStop, Command::TiltStop] {
-            if let Err(first) = self.connection.send(&stop).await {
-                warn!(gimbal = %self.config.name, error = %first, "stop not confirmed: sending it again");
-                if let Err(e) = self.connection.send(&stop).await {
-                    warn!(gimbal = %self.config.name, error = %e, "stop failed");
-                }
-            }
+        if let Err(e) = self.connection.stop(&[Command::PanStop, Command::TiltStop]).await {
+            warn!(gimbal = %self.config.name, error = %e, "stop failed");
         }
     }
 }

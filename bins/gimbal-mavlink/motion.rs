@@ -86,8 +86,7 @@ pub fn plan(request: &Request, gimbal: &Gimbal) -> Result<Plan, Invalid> {
 /// Proportional speed (Table 11) nearest above `dps` when speed F is
 /// `max_dps` and speed n is `max_dps * (n + 1) / 16`; faster is F.
 pub fn speed_for(dps: f64, max_dps: f64) -> Speed {
-    let n = ((dps.abs() / max_dps) * 16.0).ceil().clamp(1.0, 16.0) as u8 - 1;
-    Speed::new(n).unwrap_or(Speed::new(Speed::MAX).expect("in range"))
+    sagebrush_client::connection::proportional_speed(dps / max_dps)
 }
 
 #[cfg(test)]

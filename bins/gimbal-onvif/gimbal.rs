@@ -7,15 +7,13 @@
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
+use sagebrush_client::connection::{UNREACHABLE_POLL, proportional_speed};
 use sagebrush_client::{CommandError, GimbalConnection};
 use sagebrush_protocol::{Angle, Axis, Command, LensPosition, LensSpeed, Position, Speed, U12};
 use tokio::time::Instant;
 use tracing::{info, warn};
 
 use crate::config;
-
-/// How often a gimbal that did not answer its last poll is asked again.
-pub const UNREACHABLE_POLL: Duration = Duration::from_secs(5);
 
 /// What GetStatus reports, kept by the poller.
 #[derive(Clone, Debug, Default)]
@@ -54,8 +52,7 @@ pub struct Gimbal {
 
 /// Proportional speed (Table 11, 0..=15) for a generic velocity 0 < |v| <= 1.
 pub fn speed_of(velocity: f64) -> Speed {
-    let n = (velocity.abs() * 16.0).ceil().clamp(1.0, 16.0) as u8 - 1;
-    Speed::new(n).unwrap_or(Speed::new(15).expect("in range"))
+    proportional_speed(velocity)
 }
 
 /// Lens speed (Table 16, 0..=9) for a generic zoom velocity 0 < |v| <= 1.
@@ -305,19 +302,17 @@ impl Gimbal {
     /// then an error.
     pub async fn stop(&self, pan_tilt: bool, zoom: bool) -> Result<(), CommandError> {
         self.end_motion();
-        let pan_tilt_stops = if pan_tilt {
-            &[Command::PanStop, Command::TiltStop][..]
-        } else {
-            &[]
-        };
-        let zoom_stop = if zoom { &[Command::ZoomStop][..] } else { &[] };
-        for stop in pan_tilt_stops.iter().chain(zoom_stop) {
-            if let Err(first) = self.send(stop).await {
-                warn!(gimbal = %self.config.name, error = %first, "stop not confirmed: sending it again");
-                self.send(stop).await?;
-            }
-        }
-        Ok(())
+        let stops = [
+            (pan_tilt, Command::PanStop),
+            (pan_tilt, Command::TiltStop),
+            (zoom, Command::ZoomStop),
+        ];
+        let stops: Vec<Command<'_>> = stops
+            .into_iter()
+            .filter(|(wanted, _)| *wanted)
+            .map(|(_, c)| c)
+            .collect();
+        self.connection.lock().await.stop(&stops).await
     }
 
     /// Stops what this gimbal-onvif started (at SIGTERM): a continuous move,

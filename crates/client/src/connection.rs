@@ -6,12 +6,25 @@
 
 use std::time::Duration;
 
-use sagebrush_protocol::{Address, Command, LensPosition, Position, Reply};
+use sagebrush_protocol::{Address, Command, LensPosition, Position, Reply, Speed};
+use tracing::warn;
 
 use crate::client::{CommandError, GcudClient, expect_position};
 
 /// The longest a connection to gcud may take to open.
 pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// How often a gimbal that does not answer is polled at the most: each
+/// poll of a silent gimbal costs gcud's retries on its bus.
+pub const UNREACHABLE_POLL: Duration = Duration::from_secs(5);
+
+/// The proportional speed (Table 11, `0..=15`) for `fraction` of the
+/// fastest: speed n covers up to (n + 1) / 16 of it; 0 or less is the
+/// slowest, 1 or more the fastest.
+pub fn proportional_speed(fraction: f64) -> Speed {
+    let n = (fraction.abs() * 16.0).ceil().clamp(1.0, 16.0) as u8 - 1;
+    Speed::new(n).unwrap_or(Speed::new(Speed::MAX).expect("in range"))
+}
 
 /// The gimbal's identity block (`D?`, Table 6), as text.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -109,6 +122,22 @@ impl GimbalConnection {
                 String::from_utf8_lossy(&payload)
             ))),
         }
+    }
+
+    /// Sends each of `stops`, each confirmed by its ACK: a stop not
+    /// confirmed is sent once more, and every stop is sent whatever became
+    /// of the one before; the first failure is the error.
+    pub async fn stop(&mut self, stops: &[Command<'_>]) -> Result<(), CommandError> {
+        let mut failed = None;
+        for stop in stops {
+            if let Err(first) = self.send(stop).await {
+                warn!(gimbal = %self.address, error = %first, "{} not confirmed: sending it again", stop.mnemonic());
+                if let Err(e) = self.send(stop).await {
+                    failed.get_or_insert(e);
+                }
+            }
+        }
+        failed.map_or(Ok(()), Err)
     }
 
     /// `D?`: the gimbal's name, serial and revision (Table 6).
