@@ -8,7 +8,7 @@ use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use sagebrush_client::config_file::{ConfigError, Int, Millis, Source};
+use sagebrush_client::config_file::{ConfigError, Int, Millis, Source, listeners_clash};
 use sagebrush_protocol::Address;
 use serde::Deserialize;
 use toml::Spanned;
@@ -196,7 +196,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         let name = c.gimbal_name(&g.name, &key, gimbals.iter().map(|x| x.name.as_str()))?;
         let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
         let listen = socket(&c, &g.listen, &format!("{key}.listen"))?;
-        if listen.port() != 0 && gimbals.iter().any(|x| x.listen == listen) {
+        if gimbals.iter().any(|x| listeners_clash(&x.listen, &listen)) {
             return Err(c.at(
                 g.listen.span(),
                 format!("{key}.listen"),

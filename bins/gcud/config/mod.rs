@@ -27,7 +27,7 @@ use std::net::SocketAddr;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-use sagebrush_client::config_file::Source;
+use sagebrush_client::config_file::{Source, listeners_clash};
 use sagebrush_gcu::{LinkId, RouterConfig};
 use serde::Deserialize;
 
@@ -189,7 +189,9 @@ impl Checks {
         let mut by_place: Vec<_> = self.listeners.iter().collect();
         by_place.sort_by_key(|(_, span, _, _)| span.start);
         for (i, (addr, span, key, _)) in by_place.iter().enumerate() {
-            if let Some((first, first_span, first_key, _)) = by_place[..i].iter().find(|(a, ..)| net::clash(a, addr)) {
+            if let Some((first, first_span, first_key, _)) =
+                by_place[..i].iter().find(|(a, ..)| listeners_clash(a, addr))
+            {
                 let line = match c.at(first_span.clone(), "", "").line {
                     0 => "by default".to_owned(),
                     n => format!("line {n}"),
@@ -284,7 +286,8 @@ fn validate(c: &Source<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use net::{clash, loopback};
+    use net::loopback;
+    use sagebrush_client::config_file::listeners_clash as clash;
     use std::net::IpAddr;
 
     fn err(text: &str) -> ConfigError {

@@ -122,11 +122,3 @@ pub(super) fn loopback() -> PeerAllowList {
         IpNet::from(IpAddr::from(std::net::Ipv6Addr::LOCALHOST)),
     ])
 }
-
-/// Whether listeners on `a` and `b` cannot both bind: the same port (not 0)
-/// on the same address, or one of them on the unspecified address that
-/// covers the other (`0.0.0.0` covers IPv4, `::` covers both on Linux).
-pub(super) fn clash(a: &SocketAddr, b: &SocketAddr) -> bool {
-    let covers = |x: IpAddr, y: IpAddr| x.is_unspecified() && (x.is_ipv6() || y.is_ipv4());
-    a.port() == b.port() && a.port() != 0 && (a.ip() == b.ip() || covers(a.ip(), b.ip()) || covers(b.ip(), a.ip()))
-}

@@ -41,3 +41,25 @@ fn errors_name_the_place_and_what_was_expected() {
     assert!(err(&format!("{GOOD}colour = 1\n")).contains("colour"));
     assert!(err(&GOOD.replace("password = \"secret\"", "")).contains("exactly one of `password`"));
 }
+
+#[test]
+fn two_gimbals_cannot_listen_where_one_binds_already() {
+    let second =
+        |listen: &str| format!("{GOOD}[[gimbal]]\nname = \"mast-2\"\naddress = \"5.1.2\"\nlisten = \"{listen}\"\n");
+    // 0.0.0.0 covers 127.0.0.1: both could not bind.
+    let e = err(&second("0.0.0.0:8081"));
+    assert!(
+        e.starts_with("o.toml:17:10: gimbal[1].listen: expected an address of its own"),
+        "{e}"
+    );
+    assert!(parse(Path::new("o.toml"), &second("127.0.0.1:8082")).is_ok());
+    // Port 0: each gets a port of its own.
+    let both_any = GOOD.replace("127.0.0.1:8081", "127.0.0.1:0");
+    assert!(
+        parse(
+            Path::new("o.toml"),
+            &format!("{both_any}[[gimbal]]\nname = \"mast-2\"\naddress = \"5.1.2\"\nlisten = \"127.0.0.1:0\"\n")
+        )
+        .is_ok()
+    );
+}

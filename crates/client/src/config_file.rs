@@ -14,6 +14,7 @@
 
 use std::fmt;
 use std::marker::PhantomData;
+use std::net::{IpAddr, SocketAddr};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -79,6 +80,14 @@ pub fn absent_serial_devices(places: &[(PathBuf, String)], program: &str) -> Vec
 pub struct Source<'a> {
     pub file: &'a Path,
     pub text: &'a str,
+}
+
+/// Whether listeners on `a` and `b` cannot both bind: the same port (not 0)
+/// on the same address, or one of them on the unspecified address that
+/// covers the other (`0.0.0.0` covers IPv4, `::` covers both on Linux).
+pub fn listeners_clash(a: &SocketAddr, b: &SocketAddr) -> bool {
+    let covers = |x: IpAddr, y: IpAddr| x.is_unspecified() && (x.is_ipv6() || y.is_ipv4());
+    a.port() == b.port() && a.port() != 0 && (a.ip() == b.ip() || covers(a.ip(), b.ip()) || covers(b.ip(), a.ip()))
 }
 
 /// A travel `[LOW, HIGH]`, degrees.
