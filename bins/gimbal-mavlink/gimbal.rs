@@ -125,7 +125,8 @@ pub fn spawn(
     )
 }
 
-fn ack(command: MavCmd, result: MavResult, to: Sender) -> MavMessage {
+/// COMMAND_ACK of `command` to `to`: the one answer builder for every refusal and result.
+pub fn ack(command: MavCmd, result: MavResult, to: Sender) -> MavMessage {
     MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
         command,
         result,

@@ -19,7 +19,7 @@ mod stream;
 use std::process::ExitCode;
 use std::sync::Arc;
 
-use mavlink::dialects::common::{COMMAND_ACK_DATA, MavMessage};
+use mavlink::dialects::common::MavMessage;
 use tokio::signal::unix::{SignalKind, signal};
 use tracing::{info, warn};
 
@@ -75,13 +75,7 @@ async fn run(config: config::Config) -> Result<(), String> {
                     }
                 }
                 inbox::Route::Answer(component, command, result) => {
-                    let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
-                        command,
-                        result,
-                        target_system: header.system_id,
-                        target_component: header.component_id,
-                        ..COMMAND_ACK_DATA::DEFAULT
-                    });
+                    let ack = gimbal::ack(command, result, (header.system_id, header.component_id));
                     let _ = answers.try_send((component, ack));
                 }
                 inbox::Route::Ignore => {}
