@@ -330,6 +330,24 @@ fn an_absent_gimbal_gets_failed_not_accepted() {
     assert_eq!(r["result"], UNSUPPORTED, "{r}");
 }
 
+/// README: the attitude status carries COMMS_ERROR while the gimbal does
+/// not answer; one that never answered reports an unknown attitude with it,
+/// read by pymavlink (its own COMMS_ERROR constant).
+#[test]
+fn an_absent_gimbal_reports_comms_error_in_its_attitude_status() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let absent = stack.gcs("attitude", GCS, json!({ "component": 171 }));
+    assert_eq!(absent["reached"], true, "an attitude status from 171: {absent}");
+    assert_eq!(absent["attitude"]["comms_error"], true, "{absent}");
+    assert!(absent["attitude"]["pitch"].is_null(), "no attitude is known: {absent}");
+    let present = stack.gcs("attitude", GCS, json!({ "component": 154 }));
+    assert_eq!(present["attitude"]["comms_error"], false, "{present}");
+    assert!(present["attitude"]["pitch"].is_f64(), "{present}");
+}
+
 #[test]
 fn sigkill_of_gimbal_mavlink_mid_slew_and_the_gimbal_stops() {
     if !client_available() {

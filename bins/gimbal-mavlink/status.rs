@@ -45,15 +45,23 @@ fn manager_status(h: &Handle, time_boot_ms: u32) -> MavMessage {
     })
 }
 
-/// The attitude status of the last `P?`, if there was one.
+/// The attitude status of the last `P?`; for a gimbal that never answered
+/// one, an unknown attitude (a NaN quaternion) with COMMS_ERROR, once a
+/// poll found it silent; nothing before its first poll.
 pub fn attitude_status(h: &Handle, time_boot_ms: u32) -> Option<MavMessage> {
     let shared = h.shared();
-    let p = shared.position?;
-    let (yaw, pitch) = frames::yaw_pitch_rad(f64::from(p.pan.degrees()), f64::from(p.tilt.degrees()));
+    let q = match shared.position {
+        Some(p) => {
+            let (yaw, pitch) = frames::yaw_pitch_rad(f64::from(p.pan.degrees()), f64::from(p.tilt.degrees()));
+            frames::quaternion(pitch, yaw)
+        }
+        None if shared.unreachable => [f32::NAN; 4],
+        None => return None,
+    };
     Some(MavMessage::GIMBAL_DEVICE_ATTITUDE_STATUS(
         GIMBAL_DEVICE_ATTITUDE_STATUS_DATA {
             time_boot_ms,
-            q: frames::quaternion(pitch, yaw),
+            q,
             angular_velocity_x: f32::NAN,
             angular_velocity_y: f32::NAN,
             angular_velocity_z: f32::NAN,

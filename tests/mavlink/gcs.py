@@ -69,9 +69,15 @@ def ack(m, command, component=GIMBAL):
 
 
 def attitude_of(msg):
+    """The status's angles (None for an unknown attitude: a NaN quaternion)
+    and flags, COMMS_ERROR read with pymavlink's own constant."""
+    comms_error = bool(msg.failure_flags & mavlink.GIMBAL_DEVICE_ERROR_FLAGS_COMMS_ERROR)
+    seen = {"flags": msg.flags, "failure_flags": msg.failure_flags, "comms_error": comms_error,
+            "time_boot_ms": msg.time_boot_ms}
+    if any(math.isnan(c) for c in msg.q):
+        return {**seen, "roll": None, "pitch": None, "yaw": None}
     roll, pitch, yaw = QuaternionBase(list(msg.q)).euler
-    return {"roll": math.degrees(roll), "pitch": math.degrees(pitch), "yaw": math.degrees(yaw),
-            "flags": msg.flags, "failure_flags": msg.failure_flags, "time_boot_ms": msg.time_boot_ms}
+    return {**seen, "roll": math.degrees(roll), "pitch": math.degrees(pitch), "yaw": math.degrees(yaw)}
 
 
 def command(m, cmd, params, component=GIMBAL):
@@ -142,7 +148,8 @@ def step_attitude(m, a):
             return True
         return abs(last["pitch"] - want[0]) <= 0.5 and abs(last["yaw"] - want[1]) <= 0.5
 
-    msg = wait(m, "GIMBAL_DEVICE_ATTITUDE_STATUS", near, timeout=a.get("timeout_s", WAIT_S))
+    msg = wait(m, "GIMBAL_DEVICE_ATTITUDE_STATUS", near, timeout=a.get("timeout_s", WAIT_S),
+               component=a.get("component", GIMBAL))
     return {"reached": msg is not None, "attitude": last}
 
 
