@@ -20,7 +20,6 @@ use std::process::ExitCode;
 use std::sync::Arc;
 
 use mavlink::dialects::common::MavMessage;
-use tokio::signal::unix::{SignalKind, signal};
 use tracing::{info, warn};
 
 use crate::link::Outbox;
@@ -36,8 +35,7 @@ fn main() -> ExitCode {
 }
 
 async fn run(config: config::Config) -> Result<(), String> {
-    let mut term = signal(SignalKind::terminate()).map_err(|e| e.to_string())?;
-    let mut int = signal(SignalKind::interrupt()).map_err(|e| e.to_string())?;
+    let signals = sagebrush_client::door::Signals::install()?;
     let outbox = Outbox::bind(config.system_id, &config.endpoints).await?;
     let stats = Arc::new(Stats::default());
     let mut handles = Vec::new();
@@ -106,14 +104,9 @@ async fn run(config: config::Config) -> Result<(), String> {
             config::Endpoint::UdpListen(_) | config::Endpoint::Udp(_) => {}
         }
     }
-    let _ = sd_notify::notify(&[sd_notify::NotifyState::Ready]);
     info!(gimbals = handles.len(), gcud = %config.gcud, system_id = config.system_id, "gimbal-mavlink ready");
-    let signal = tokio::select! {
-        _ = term.recv() => "SIGTERM",
-        _ = int.recv() => "SIGINT",
-    };
+    let signal = signals.ready_then_wait().await;
     info!(signal, "stopping: the slews this service started are stopped");
-    let _ = sd_notify::notify(&[sd_notify::NotifyState::Stopping]);
     // Receive no more; each gimbal task stops the slews it started.
     tasks.abort_all();
     while tasks.join_next().await.is_some() {}

@@ -16,7 +16,6 @@ mod soap;
 use std::process::ExitCode;
 use std::sync::Arc;
 
-use tokio::signal::unix::{SignalKind, signal};
 use tracing::{error, info};
 
 fn main() -> ExitCode {
@@ -31,8 +30,7 @@ fn main() -> ExitCode {
 async fn run(config: config::Config) -> Result<(), String> {
     let presets = Arc::new(presets::Presets::load(config.state_file.clone())?);
     let auth = Arc::new(auth::Authenticator::new(config.users.clone()));
-    let mut term = signal(SignalKind::terminate()).map_err(|e| e.to_string())?;
-    let mut int = signal(SignalKind::interrupt()).map_err(|e| e.to_string())?;
+    let signals = sagebrush_client::door::Signals::install()?;
     let mut gimbals = Vec::new();
     let mut served = Vec::new();
     let mut tasks = tokio::task::JoinSet::new();
@@ -80,17 +78,12 @@ async fn run(config: config::Config) -> Result<(), String> {
         let d = Arc::clone(d);
         tasks.spawn(async move { d.run().await });
     }
-    let _ = sd_notify::notify(&[sd_notify::NotifyState::Ready]);
     info!(gimbals = gimbals.len(), gcud = %config.gcud, "gimbal-onvif ready");
-    let signal = tokio::select! {
-        _ = term.recv() => "SIGTERM",
-        _ = int.recv() => "SIGINT",
-    };
+    let signal = signals.ready_then_wait().await;
     info!(
         signal,
         "stopping: the motions this service started are stopped, then Bye"
     );
-    let _ = sd_notify::notify(&[sd_notify::NotifyState::Stopping]);
     for g in &gimbals {
         g.shutdown().await;
     }

@@ -108,3 +108,35 @@ where
         }
     }
 }
+
+/// SIGTERM and SIGINT, caught from before the door binds anything (so a
+/// signal during start-up is not lost), and systemd's READY and STOPPING
+/// around the wait for them.
+#[derive(Debug)]
+pub struct Signals {
+    term: tokio::signal::unix::Signal,
+    int: tokio::signal::unix::Signal,
+}
+
+impl Signals {
+    /// Catches SIGTERM and SIGINT from now on.
+    pub fn install() -> Result<Self, String> {
+        use tokio::signal::unix::{SignalKind, signal};
+        Ok(Self {
+            term: signal(SignalKind::terminate()).map_err(|e| e.to_string())?,
+            int: signal(SignalKind::interrupt()).map_err(|e| e.to_string())?,
+        })
+    }
+
+    /// Tells systemd the door is ready, waits for SIGTERM or SIGINT, tells
+    /// systemd it is stopping, and names the signal.
+    pub async fn ready_then_wait(mut self) -> &'static str {
+        let _ = sd_notify::notify(&[sd_notify::NotifyState::Ready]);
+        let signal = tokio::select! {
+            _ = self.term.recv() => "SIGTERM",
+            _ = self.int.recv() => "SIGINT",
+        };
+        let _ = sd_notify::notify(&[sd_notify::NotifyState::Stopping]);
+        signal
+    }
+}
