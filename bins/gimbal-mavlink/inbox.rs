@@ -19,6 +19,9 @@ pub enum Route {
     /// A command for one of our components that no gimbal takes: answer
     /// it with this result.
     Answer(u8, MavCmd, MavResult),
+    /// For gimbal number `usize`, but refused for its content (no answer
+    /// message exists for it): why.
+    Refused(usize, &'static str),
     /// Not for us, or nothing to do.
     Ignore,
 }
@@ -107,13 +110,7 @@ pub fn route(handles: &[Handle], system_id: u8, header: MavHeader, message: &Mav
                             pan_dps: f32::NAN,
                         }
                     }
-                    // Not a quaternion: refused as an infinite angle would be.
-                    None => Request {
-                        tilt_deg: f32::INFINITY,
-                        pan_deg: f32::NAN,
-                        tilt_dps: f32::NAN,
-                        pan_dps: f32::NAN,
-                    },
+                    None => return Route::Refused(i, "q is not a rotation quaternion"),
                 }
             };
             Route::Gimbal(i, job(Work::Move { request, ack: None }))
@@ -164,7 +161,7 @@ pub fn count(route: &Route, stats: &Stats) {
         Route::Ignore => {
             Stats::count(&stats.ignored);
         }
-        Route::Answer(_, _, MavResult::MAV_RESULT_DENIED) => {
+        Route::Answer(_, _, MavResult::MAV_RESULT_DENIED) | Route::Refused(..) => {
             Stats::count(&stats.refused);
         }
         Route::Answer(..) => {

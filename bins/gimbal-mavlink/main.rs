@@ -76,6 +76,9 @@ async fn run(config: config::Config) -> Result<(), String> {
                     let ack = gimbal::ack(command, result, (header.system_id, header.component_id));
                     let _ = answers.try_send((component, ack));
                 }
+                inbox::Route::Refused(i, why) => {
+                    warn!(gimbal = %handles[i].config.name, from = ?(header.system_id, header.component_id), why, "request refused");
+                }
                 inbox::Route::Ignore => {}
             }
         })
