@@ -274,7 +274,7 @@ fn a_rate_moves_the_gimbal_and_stops_when_not_refreshed() {
     // On the bus: gimbal-mavlink's own PS after the PR, none from gcud.
     support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "PS");
     support::door::assert_no_stop_from_gcud(&stack.gcud, MAST);
-    assert!(stack.log().contains("rate lease expired"), "{}", stack.log());
+    assert!(stack.log().contains("move time-out: stopping"), "{}", stack.log());
     assert_still(&stack, (pan, tilt), "after the lease");
     // Pitch rate down through the command.
     let r = stack.gcs("pitchyaw", GCS, json!({ "pitch_rate": -30.0 }));
@@ -382,7 +382,11 @@ fn sigterm_stops_the_slew_gimbal_mavlink_started() {
     // and nothing from gcud's group (its dead-man) once its connection closed.
     support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "TS");
     support::door::assert_no_stop_from_gcud(&stack.gcud, MAST);
-    assert!(stack.log().contains("why=\"shutting down\""), "{}", stack.log());
+    assert!(
+        stack.log().contains("stopping what this service started"),
+        "{}",
+        stack.log()
+    );
     assert!(!stack.gcud.log().contains("dead-man"), "{}", stack.gcud.log());
 }
 

@@ -1,9 +1,10 @@
 //! One gimbal as a MAVLink gimbal manager and gimbal device: a task that
-//! owns its connection to gcud (so gcud's dead-man stops its motions if
-//! this program dies), carries out requests one at a time in arrival
-//! order, polls `P?` for the attitude status, and stops a rate that was
-//! not refreshed within the lease (UDP has no connection whose loss could
-//! stop it).
+//! takes the requests for it in arrival order and hands the motions to the
+//! gimbal's session (`sagebrush_client::session`: the connection to gcud,
+//! the rate in force with its lease, stops first, rates coalesced newest
+//! wins, the polled attitude). Nothing waits behind a motion: a request
+//! that needs an answer is answered by a task of its own, at most
+//! [`ANSWERING`] at once.
 
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -12,11 +13,11 @@ use mavlink::dialects::common::{
     COMMAND_ACK_DATA, GIMBAL_DEVICE_INFORMATION_DATA, GIMBAL_MANAGER_INFORMATION_DATA, GimbalDeviceCapFlags,
     GimbalDeviceCapFlagsU16, GimbalManagerCapFlags, MavCmd, MavMessage, MavResult,
 };
-use sagebrush_client::connection::UNREACHABLE_POLL;
-use sagebrush_client::{CommandError, GimbalConnection, Identity};
-use sagebrush_protocol::{Angle, Axis, Command, Position};
+use sagebrush_client::session::{Drive, GcudReachability, GimbalSession, SessionConfig, Velocity};
+use sagebrush_client::{CommandError, Identity};
+use sagebrush_protocol::{Angle, Command, Position};
 use tokio::sync::mpsc;
-use tokio::time::Instant;
+use tokio::task::JoinSet;
 use tracing::{info, warn};
 
 use crate::config::{self, Config};
@@ -25,10 +26,15 @@ use crate::link::Outbox;
 use crate::motion::{self, Plan};
 use crate::stats::Stats;
 
-/// Requests waiting for one gimbal; more are refused as busy.
+/// Requests waiting for one gimbal's task; it takes each at once (motions
+/// are posted to the session, never awaited), so the queue fills only if
+/// the task itself stalls.
 pub const QUEUE: usize = 64;
+/// Requests awaiting their outcome to be answered, at most; more are
+/// answered MAV_RESULT_TEMPORARILY_REJECTED at once.
+pub const ANSWERING: usize = 16;
 
-/// What the emitter reports, kept by the gimbal task.
+/// What the emitter reports.
 #[derive(Clone, Debug, Default)]
 pub struct Shared {
     pub position: Option<Position>,
@@ -64,61 +70,75 @@ pub struct Job {
 #[derive(Debug, Clone)]
 pub struct Handle {
     pub config: config::Gimbal,
+    /// Who controls the gimbal.
     pub shared: Arc<Mutex<Shared>>,
+    pub session: Arc<GimbalSession>,
     pub jobs: mpsc::Sender<Job>,
 }
 
 impl Handle {
+    /// The control, with the position and reachability the session polled.
     pub fn shared(&self) -> Shared {
-        self.shared.lock().unwrap_or_else(|p| p.into_inner()).clone()
+        let status = self.session.status();
+        Shared {
+            position: status.position,
+            unreachable: status.error.is_some(),
+            control: self.shared.lock().unwrap_or_else(|p| p.into_inner()).control,
+        }
     }
-}
-
-/// The rates in force (degrees per second, 0 when the axis is not slewing).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-struct Slew {
-    pan: f64,
-    tilt: f64,
 }
 
 struct Task {
     config: config::Gimbal,
-    connection: GimbalConnection,
+    session: Arc<GimbalSession>,
     shared: Arc<Mutex<Shared>>,
     outbox: Arc<Outbox>,
     stats: Arc<Stats>,
     lease: Duration,
-    slew: Slew,
-    /// When the rates in force end unless refreshed.
-    lease_end: Option<Instant>,
-    identity: Option<Identity>,
+    /// Requests being carried out whose answer is owed.
+    answering: JoinSet<()>,
 }
 
-/// Starts the task of gimbal `g`; it ends when every handle is dropped.
+/// Starts the task of gimbal `g` and its session; it ends at
+/// [`Work::Shutdown`] or when every handle is dropped.
 pub fn spawn(
     g: &config::Gimbal,
     config: &Config,
     outbox: Arc<Outbox>,
     stats: Arc<Stats>,
+    reach: Arc<GcudReachability>,
 ) -> (Handle, tokio::task::JoinHandle<()>) {
     let (tx, rx) = mpsc::channel(QUEUE);
     let shared = Arc::new(Mutex::new(Shared::default()));
+    let (session, _) = GimbalSession::start(
+        SessionConfig {
+            gcud: config.gcud.clone(),
+            from: config.source_group,
+            address: g.address,
+            nic_window: config.nic_window,
+            poll: config.attitude_period,
+            lens: false,
+            // A rate runs no longer than its lease unless renewed.
+            max_move: config.lease,
+            name: g.name.clone(),
+        },
+        reach,
+    );
     let task = Task {
         config: g.clone(),
-        connection: GimbalConnection::new(&config.gcud, config.source_group, g.address, config.nic_window),
+        session: Arc::clone(&session),
         shared: Arc::clone(&shared),
         outbox,
         stats,
         lease: config.lease,
-        slew: Slew::default(),
-        lease_end: None,
-        identity: None,
+        answering: JoinSet::new(),
     };
-    let join = tokio::spawn(task.run(rx, config.attitude_period));
+    let join = tokio::spawn(task.run(rx));
     (
         Handle {
             config: g.clone(),
             shared,
+            session,
             jobs: tx,
         },
         join,
@@ -137,50 +157,57 @@ pub fn ack(command: MavCmd, result: MavResult, to: Sender) -> MavMessage {
 }
 
 impl Task {
-    fn update(&self, f: impl FnOnce(&mut Shared)) {
-        f(&mut self.shared.lock().unwrap_or_else(|p| p.into_inner()));
-    }
-
     fn control(&self) -> Control {
         self.shared.lock().unwrap_or_else(|p| p.into_inner()).control
     }
 
-    async fn run(mut self, mut jobs: mpsc::Receiver<Job>, poll: Duration) {
-        let mut next_poll = Instant::now();
+    async fn run(mut self, mut jobs: mpsc::Receiver<Job>) {
         loop {
-            let lease_end = self.lease_end;
             tokio::select! {
                 job = jobs.recv() => match job {
-                    Some(Job { work: Work::Shutdown, .. }) => {
-                        self.stop_slew("shutting down").await;
-                        return;
-                    }
+                    Some(Job { work: Work::Shutdown, .. }) | None => break,
                     Some(job) => self.handle(job).await,
-                    None => {
-                        self.stop_slew("shutting down").await;
-                        return;
-                    }
                 },
-                () = tokio::time::sleep_until(lease_end.unwrap_or_else(Instant::now)), if lease_end.is_some() => {
-                    self.stop_slew("rate lease expired").await;
-                }
-                () = tokio::time::sleep_until(next_poll) => {
-                    let reading = self.connection.position().await;
-                    let failed = reading.is_err();
-                    self.update(|s| {
-                        s.unreachable = failed;
-                        if let Ok(p) = reading {
-                            s.position = Some(p);
-                        }
-                    });
-                    next_poll = Instant::now() + if failed { UNREACHABLE_POLL.max(poll) } else { poll };
-                }
+                Some(_) = self.answering.join_next(), if !self.answering.is_empty() => {}
             }
         }
+        info!(gimbal = %self.config.name, "stopping what this service started");
+        self.session.shutdown().await;
+        self.answering.abort_all();
     }
 
     async fn reply(&self, message: MavMessage) {
         self.outbox.send(self.config.component_id, &message).await;
+    }
+
+    /// Answers `command` to `to` with the outcome of `work`, carried out by
+    /// a task of its own; at most [`ANSWERING`] at once.
+    async fn answer_later(
+        &mut self,
+        command: MavCmd,
+        to: Sender,
+        work: impl Future<Output = Result<Option<MavMessage>, MavResult>> + Send + 'static,
+    ) {
+        if self.answering.len() >= ANSWERING {
+            Stats::count(&self.stats.busy);
+            self.reply(ack(command, MavResult::MAV_RESULT_TEMPORARILY_REJECTED, to))
+                .await;
+            return;
+        }
+        let (outbox, component) = (Arc::clone(&self.outbox), self.config.component_id);
+        self.answering.spawn(async move {
+            match work.await {
+                Ok(message) => {
+                    outbox
+                        .send(component, &ack(command, MavResult::MAV_RESULT_ACCEPTED, to))
+                        .await;
+                    if let Some(m) = message {
+                        outbox.send(component, &m).await;
+                    }
+                }
+                Err(result) => outbox.send(component, &ack(command, result, to)).await,
+            }
+        });
     }
 
     async fn handle(&mut self, job: Job) {
@@ -192,7 +219,7 @@ impl Task {
                 let result = match control.configure(from, params) {
                     Ok(()) => {
                         info!(gimbal = %self.config.name, ?from, primary = ?control.primary, secondary = ?control.secondary, "control configured");
-                        self.update(|s| s.control = control);
+                        self.shared.lock().unwrap_or_else(|p| p.into_inner()).control = control;
                         MavResult::MAV_RESULT_ACCEPTED
                     }
                     Err(Refused::HeldByAnother) => {
@@ -209,194 +236,180 @@ impl Task {
             }
             Work::Information(id) => {
                 let command = MavCmd::MAV_CMD_REQUEST_MESSAGE;
-                match self.information(id).await {
-                    Ok(message) => {
-                        self.reply(ack(command, MavResult::MAV_RESULT_ACCEPTED, from)).await;
-                        self.reply(message).await;
-                    }
-                    Err(result) => self.reply(ack(command, result, from)).await,
-                }
+                let (config, session, stats) =
+                    (self.config.clone(), Arc::clone(&self.session), Arc::clone(&self.stats));
+                let time_boot_ms = self.outbox.boot_ms();
+                self.answer_later(command, from, async move {
+                    information(&config, &session, &stats, id, time_boot_ms).await.map(Some)
+                })
+                .await;
             }
             Work::Move { request, ack: command } => {
-                let result = self.move_by(from, &request).await;
-                if let Some(command) = command {
-                    self.reply(ack(command, result, from)).await;
+                let Some(plan) = self.admit(from, &request) else {
+                    if let Some(command) = command {
+                        self.reply(ack(command, MavResult::MAV_RESULT_DENIED, from)).await;
+                    }
+                    return;
+                };
+                let rates = matches!(plan, Plan::Rates { .. });
+                let outcome = self.start(from, plan);
+                if command.is_none() && rates {
+                    // Posted; nobody to answer (the session logs a failure and stops the slew).
+                    return;
                 }
-            }
-        }
-    }
-
-    /// The information message `id`, or the result that says why not.
-    async fn information(&mut self, id: u32) -> Result<MavMessage, MavResult> {
-        let g = &self.config;
-        let (pitch_min, pitch_max) = (g.tilt_deg.0.to_radians() as f32, g.tilt_deg.1.to_radians() as f32);
-        let (yaw_min, yaw_max) = (g.pan_deg.0.to_radians() as f32, g.pan_deg.1.to_radians() as f32);
-        let time_boot_ms = self.outbox.boot_ms();
-        match id {
-            280 => Ok(MavMessage::GIMBAL_MANAGER_INFORMATION(
-                GIMBAL_MANAGER_INFORMATION_DATA {
-                    time_boot_ms,
-                    cap_flags: GimbalManagerCapFlags::GIMBAL_MANAGER_CAP_FLAGS_HAS_PITCH_AXIS
-                        | GimbalManagerCapFlags::GIMBAL_MANAGER_CAP_FLAGS_HAS_YAW_AXIS,
-                    pitch_min,
-                    pitch_max,
-                    yaw_min,
-                    yaw_max,
-                    gimbal_device_id: g.component_id,
-                    // No roll axis: its limits stay 0.
-                    ..Default::default()
-                },
-            )),
-            283 => {
-                if self.identity.is_none() {
-                    match self.connection.identity().await {
-                        Ok(id) => self.identity = Some(id),
+                let (name, stats) = (self.config.name.clone(), Arc::clone(&self.stats));
+                let done = async move {
+                    match outcome.await {
+                        Ok(()) => Ok(None),
                         Err(e) => {
-                            Stats::count(&self.stats.failed);
-                            warn!(gimbal = %self.config.name, error = %e, "D? for GIMBAL_DEVICE_INFORMATION failed");
-                            return Err(MavResult::MAV_RESULT_FAILED);
+                            Stats::count(&stats.failed);
+                            warn!(gimbal = %name, error = %e, "command failed");
+                            Err(MavResult::MAV_RESULT_FAILED)
                         }
                     }
+                };
+                match command {
+                    Some(command) => self.answer_later(command, from, done).await,
+                    // A goto with no answer owed, carried out beside the others.
+                    None if self.answering.len() < ANSWERING => drop(self.answering.spawn(async move {
+                        let _ = done.await;
+                    })),
+                    None => {
+                        Stats::count(&self.stats.busy);
+                    }
                 }
-                let id = self.identity.as_ref().expect("fetched above");
-                let g = &self.config;
-                Ok(MavMessage::GIMBAL_DEVICE_INFORMATION(GIMBAL_DEVICE_INFORMATION_DATA {
-                    uid: uid(&id.serial),
-                    time_boot_ms,
-                    pitch_min,
-                    pitch_max,
-                    yaw_min,
-                    yaw_max,
-                    cap_flags: GimbalDeviceCapFlagsU16::GIMBAL_DEVICE_CAP_FLAGS_HAS_PITCH_AXIS
-                        | GimbalDeviceCapFlagsU16::GIMBAL_DEVICE_CAP_FLAGS_HAS_YAW_AXIS,
-                    vendor_name: "Sagebrush".into(),
-                    model_name: id.name.trim().into(),
-                    custom_name: id.serial.trim().into(),
-                    gimbal_device_id: g.component_id,
-                    cap_flags2: GimbalDeviceCapFlags::GIMBAL_DEVICE_CAP_FLAGS_HAS_PITCH_AXIS
-                        | GimbalDeviceCapFlags::GIMBAL_DEVICE_CAP_FLAGS_HAS_YAW_AXIS,
-                    // No roll axis (its limits stay 0), no versions, no custom flags.
-                    ..Default::default()
-                }))
-            }
-            _ => {
-                Stats::count(&self.stats.ignored);
-                Err(MavResult::MAV_RESULT_UNSUPPORTED)
             }
         }
     }
 
-    /// A pitch/yaw request from `from`, with its honest result.
-    async fn move_by(&mut self, from: Sender, request: &motion::Request) -> MavResult {
+    /// The plan for a pitch/yaw request from `from`, or None when refused
+    /// (not in control, or not a motion this gimbal can make).
+    fn admit(&self, from: Sender, request: &motion::Request) -> Option<Plan> {
         if !self.control().allows(from) {
             Stats::count(&self.stats.denied);
             warn!(gimbal = %self.config.name, ?from, "not in control: denied");
-            return MavResult::MAV_RESULT_DENIED;
+            return None;
         }
-        let plan = match motion::plan(request, &self.config) {
-            Ok(p) => p,
+        match motion::plan(request, &self.config) {
+            Ok(p) => Some(p),
             Err(e) => {
                 Stats::count(&self.stats.refused);
                 warn!(gimbal = %self.config.name, ?from, error = %e, "request refused");
-                return MavResult::MAV_RESULT_DENIED;
+                None
             }
+        }
+    }
+
+    /// Posts `plan` to the session now (in arrival order); the future
+    /// tells its outcome.
+    fn start(&self, from: Sender, plan: Plan) -> impl Future<Output = Result<(), CommandError>> + Send + 'static {
+        let session = Arc::clone(&self.session);
+        let max_dps = self.config.max_rate_dps;
+        let rates = match plan {
+            Plan::Rates { pan, tilt } => {
+                let drive = |rate: f64| {
+                    let speed = motion::speed_for(rate, max_dps);
+                    if rate == 0.0 {
+                        Drive::Stop
+                    } else if rate > 0.0 {
+                        Drive::Forward(speed)
+                    } else {
+                        Drive::Back(speed)
+                    }
+                };
+                let velocity = Velocity {
+                    pan: pan.map(drive),
+                    tilt: tilt.map(drive),
+                    zoom: None,
+                };
+                let owner = format!("MAVLink {}/{}", from.0, from.1);
+                Some(session.post_velocity(velocity, Some(self.lease), &owner))
+            }
+            _ => None,
         };
-        let done = match plan {
-            Plan::Nothing => Ok(()),
-            Plan::GoTo { pan, tilt } => self.go_to(pan, tilt).await,
-            Plan::Rates { pan, tilt } => self.rates(pan, tilt).await,
-        };
-        match done {
-            Ok(()) => MavResult::MAV_RESULT_ACCEPTED,
-            Err(e) => {
-                Stats::count(&self.stats.failed);
-                warn!(gimbal = %self.config.name, error = %e, "command failed");
+        async move {
+            match (plan, rates) {
+                (_, Some(outcome)) => outcome
+                    .await
+                    .unwrap_or_else(|_| Err(CommandError::Io("session ended".into()))),
+                (Plan::GoTo { pan, tilt }, None) => go_to(&session, pan, tilt).await,
+                _ => Ok(()),
+            }
+        }
+    }
+}
+
+/// `GO` there; an axis with `None` keeps its angle (read with `P?`).
+async fn go_to(session: &GimbalSession, pan: Option<f64>, tilt: Option<f64>) -> Result<(), CommandError> {
+    let now = match (pan, tilt) {
+        (Some(_), Some(_)) => Position::default(),
+        _ => {
+            let payload = session.send(Command::QueryPosition).await?.unwrap_or_default();
+            sagebrush_client::client::expect_position(&Command::QueryPosition, &payload)?
+        }
+    };
+    let angle = |deg: Option<f64>, current: Angle| match deg {
+        Some(d) => Angle::from_degrees(d as f32).map_err(|e| CommandError::Usage(e.to_string())),
+        None => Ok(current),
+    };
+    session
+        .go_to(Position::new(angle(pan, now.pan)?, angle(tilt, now.tilt)?))
+        .await
+}
+
+/// The information message `id`, or the result that says why not.
+async fn information(
+    g: &config::Gimbal,
+    session: &GimbalSession,
+    stats: &Stats,
+    id: u32,
+    time_boot_ms: u32,
+) -> Result<MavMessage, MavResult> {
+    let (pitch_min, pitch_max) = (g.tilt_deg.0.to_radians() as f32, g.tilt_deg.1.to_radians() as f32);
+    let (yaw_min, yaw_max) = (g.pan_deg.0.to_radians() as f32, g.pan_deg.1.to_radians() as f32);
+    match id {
+        280 => Ok(MavMessage::GIMBAL_MANAGER_INFORMATION(
+            GIMBAL_MANAGER_INFORMATION_DATA {
+                time_boot_ms,
+                cap_flags: GimbalManagerCapFlags::GIMBAL_MANAGER_CAP_FLAGS_HAS_PITCH_AXIS
+                    | GimbalManagerCapFlags::GIMBAL_MANAGER_CAP_FLAGS_HAS_YAW_AXIS,
+                pitch_min,
+                pitch_max,
+                yaw_min,
+                yaw_max,
+                gimbal_device_id: g.component_id,
+                // No roll axis: its limits stay 0.
+                ..Default::default()
+            },
+        )),
+        283 => {
+            let id: Identity = session.identity().await.map_err(|e| {
+                Stats::count(&stats.failed);
+                warn!(gimbal = %g.name, error = %e, "D? for GIMBAL_DEVICE_INFORMATION failed");
                 MavResult::MAV_RESULT_FAILED
-            }
+            })?;
+            Ok(MavMessage::GIMBAL_DEVICE_INFORMATION(GIMBAL_DEVICE_INFORMATION_DATA {
+                uid: uid(&id.serial),
+                time_boot_ms,
+                pitch_min,
+                pitch_max,
+                yaw_min,
+                yaw_max,
+                cap_flags: GimbalDeviceCapFlagsU16::GIMBAL_DEVICE_CAP_FLAGS_HAS_PITCH_AXIS
+                    | GimbalDeviceCapFlagsU16::GIMBAL_DEVICE_CAP_FLAGS_HAS_YAW_AXIS,
+                vendor_name: "Sagebrush".into(),
+                model_name: id.name.trim().into(),
+                custom_name: id.serial.trim().into(),
+                gimbal_device_id: g.component_id,
+                cap_flags2: GimbalDeviceCapFlags::GIMBAL_DEVICE_CAP_FLAGS_HAS_PITCH_AXIS
+                    | GimbalDeviceCapFlags::GIMBAL_DEVICE_CAP_FLAGS_HAS_YAW_AXIS,
+                // No roll axis (its limits stay 0), no versions, no custom flags.
+                ..Default::default()
+            }))
         }
-    }
-
-    async fn go_to(&mut self, pan: Option<f64>, tilt: Option<f64>) -> Result<(), CommandError> {
-        self.slew = Slew::default();
-        self.lease_end = None;
-        let now = match (pan, tilt) {
-            (Some(_), Some(_)) => Position::default(),
-            _ => self.connection.position().await?,
-        };
-        let angle = |deg: Option<f64>, current: Angle| match deg {
-            Some(d) => Angle::from_degrees(d as f32).map_err(|e| CommandError::Usage(e.to_string())),
-            None => Ok(current),
-        };
-        let target = Position::new(angle(pan, now.pan)?, angle(tilt, now.tilt)?);
-        self.connection.send(&Command::GoTo(target)).await.map(drop)
-    }
-
-    /// Sets the rates asked for; an unchanged rate only renews the lease.
-    async fn rates(&mut self, pan: Option<f64>, tilt: Option<f64>) -> Result<(), CommandError> {
-        let want = Slew {
-            pan: pan.unwrap_or(self.slew.pan),
-            tilt: tilt.unwrap_or(self.slew.tilt),
-        };
-        let axes = [
-            (
-                want.pan,
-                self.slew.pan,
-                Axis::Pan,
-                Command::PanRight,
-                Command::PanLeft,
-                Command::PanStop,
-            ),
-            (
-                want.tilt,
-                self.slew.tilt,
-                Axis::Tilt,
-                Command::TiltUp,
-                Command::TiltDown,
-                Command::TiltStop,
-            ),
-        ];
-        for (rate, old, axis, positive, negative, stop) in axes {
-            if rate == old {
-                continue;
-            }
-            let sent = if rate == 0.0 {
-                self.connection.send(&stop).await.map(drop)
-            } else {
-                let speed = motion::speed_for(rate, self.config.max_rate_dps);
-                let turn = old == 0.0 || rate.signum() != old.signum();
-                match self.connection.send(&Command::SetSpeed(axis, speed)).await {
-                    Ok(_) if turn => self
-                        .connection
-                        .send(if rate > 0.0 { &positive } else { &negative })
-                        .await
-                        .map(drop),
-                    other => other.map(drop),
-                }
-            };
-            if let Err(e) = sent {
-                // Never leave an axis moving that the caller was told failed.
-                self.stop_slew("a rate command failed").await;
-                return Err(e);
-            }
-            match axis {
-                Axis::Pan => self.slew.pan = rate,
-                Axis::Tilt => self.slew.tilt = rate,
-            }
-        }
-        self.lease_end = (self.slew != Slew::default()).then(|| Instant::now() + self.lease);
-        Ok(())
-    }
-
-    /// Stops both axes if a rate is in force.
-    async fn stop_slew(&mut self, why: &str) {
-        self.lease_end = None;
-        if self.slew == Slew::default() {
-            return;
-        }
-        info!(gimbal = %self.config.name, why, "stopping the slew");
-        self.slew = Slew::default();
-        if let Err(e) = self.connection.stop(&[Command::PanStop, Command::TiltStop]).await {
-            warn!(gimbal = %self.config.name, error = %e, "stop failed");
+        _ => {
+            Stats::count(&stats.ignored);
+            Err(MavResult::MAV_RESULT_UNSUPPORTED)
         }
     }
 }

@@ -40,8 +40,9 @@ async fn run(config: config::Config) -> Result<(), String> {
     let stats = Arc::new(Stats::default());
     let mut handles = Vec::new();
     let mut gimbal_tasks = Vec::new();
+    let reach = Arc::new(sagebrush_client::session::GcudReachability::default());
     for g in &config.gimbals {
-        let (handle, join) = gimbal::spawn(g, &config, Arc::clone(&outbox), Arc::clone(&stats));
+        let (handle, join) = gimbal::spawn(g, &config, Arc::clone(&outbox), Arc::clone(&stats), Arc::clone(&reach));
         handles.push(handle);
         gimbal_tasks.push(join);
     }

@@ -1,53 +1,26 @@
-//! One gimbal behind gcud, as gimbal-onvif drives it: its own connection
-//! to gcud's client listener (which carries every motion, so gcud's
-//! dead-man stops them if gimbal-onvif dies), the position polled with
-//! `P?` so that GetStatus answers at once, and continuous moves that never
-//! outlive their time-out.
+//! One gimbal behind gcud, as gimbal-onvif drives it: ONVIF's generic
+//! spaces and velocities turned into Sagebrush terms for the gimbal's
+//! session (`sagebrush_client::session`), which owns the connection to
+//! gcud, the motion in progress with its Timeout, the stops and the
+//! polled position GetStatus answers from.
 
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 use std::time::Duration;
 
-use sagebrush_client::connection::{UNREACHABLE_POLL, proportional_speed};
-use sagebrush_client::{CommandError, GimbalConnection};
-use sagebrush_protocol::{Angle, Axis, Command, LensPosition, LensSpeed, Position, Speed, U12};
-use tokio::time::Instant;
-use tracing::{info, warn};
+use sagebrush_client::connection::proportional_speed;
+use sagebrush_client::session::{Axes, Drive, GcudReachability, GimbalSession, Motion, SessionConfig, Velocity};
+use sagebrush_client::{CommandError, Identity};
+use sagebrush_protocol::{Angle, Command, LensPosition, LensSpeed, Position, Reply, Speed, U12};
 
 use crate::config;
 
-/// What GetStatus reports, kept by the poller.
-#[derive(Clone, Debug, Default)]
-pub struct Status {
-    /// The last `P?` answer.
-    pub position: Option<Position>,
-    /// Why the last poll failed, when it did.
-    pub error: Option<String>,
-    /// The last `V?` answer (gimbals with `zoom`).
-    pub lens: Option<LensPosition>,
-    /// The position changed between the last two polls.
-    pub changing: bool,
-}
-
-pub use sagebrush_client::Identity;
-
-/// A continuous motion in progress: which axes, and its number (a newer
-/// move or a stop replaces it, so an older time-out stops nothing).
-#[derive(Clone, Copy, Debug, Default)]
-struct Motion {
-    generation: u64,
-    pan: bool,
-    tilt: bool,
-    zoom: bool,
-}
+pub use sagebrush_client::session::Status;
 
 #[derive(Debug)]
 pub struct Gimbal {
     pub config: config::Gimbal,
     max_move: Duration,
-    /// This gimbal's own connection to gcud, one command at a time.
-    connection: tokio::sync::Mutex<GimbalConnection>,
-    status: Mutex<Status>,
-    motion: Mutex<Motion>,
+    session: Arc<GimbalSession>,
 }
 
 /// Proportional speed (Table 11, 0..=15) for a generic velocity 0 < |v| <= 1.
@@ -59,6 +32,17 @@ pub fn speed_of(velocity: f64) -> Speed {
 pub fn lens_speed_of(velocity: f64) -> LensSpeed {
     let n = (velocity.abs() * 10.0).ceil().clamp(1.0, 10.0) as u8 - 1;
     LensSpeed::new(n).unwrap_or(LensSpeed::new(9).expect("in range"))
+}
+
+/// A generic velocity as a drive: 0 stops, the sign is the direction.
+fn drive<S>(v: f64, speed: impl Fn(f64) -> S) -> Drive<S> {
+    if v == 0.0 {
+        Drive::Stop
+    } else if v > 0.0 {
+        Drive::Forward(speed(v))
+    } else {
+        Drive::Back(speed(v))
+    }
 }
 
 /// The lens's zoom range (Table 17, 12 bits) as ONVIF's generic 0..=1.
@@ -74,31 +58,50 @@ pub fn to_generic(degrees: f64, travel: (f64, f64)) -> f64 {
 }
 
 impl Gimbal {
-    pub fn new(config: config::Gimbal, link: &config::Config) -> Arc<Self> {
-        let connection = GimbalConnection::new(&link.gcud, link.source_group, config.address, link.nic_window);
+    /// The gimbal and its session (started here; `reach` is shared by
+    /// every gimbal of this door).
+    pub fn new(config: config::Gimbal, link: &config::Config, reach: Arc<GcudReachability>) -> Arc<Self> {
+        let (session, _task) = GimbalSession::start(
+            SessionConfig {
+                gcud: link.gcud.clone(),
+                from: link.source_group,
+                address: config.address,
+                nic_window: link.nic_window,
+                poll: link.poll,
+                lens: config.zoom,
+                max_move: link.max_move,
+                name: config.name.clone(),
+            },
+            reach,
+        );
         Arc::new(Self {
             config,
             max_move: link.max_move,
-            connection: tokio::sync::Mutex::new(connection),
-            status: Mutex::new(Status::default()),
-            motion: Mutex::new(Motion::default()),
+            session,
         })
     }
 
-    /// Sends `command` over this gimbal's connection (opened when needed;
-    /// dropped when it fails, so the next command opens a fresh one).
-    pub async fn send(&self, command: &Command<'_>) -> Result<Option<Vec<u8>>, CommandError> {
-        self.connection.lock().await.send(command).await
+    /// Sends `command` (a preset to store) after the motions and stops.
+    pub async fn send(&self, command: &Command<'static>) -> Result<Option<Vec<u8>>, CommandError> {
+        self.session.send(*command).await
     }
 
     /// `P?` now.
     pub async fn position(&self) -> Result<Position, CommandError> {
-        self.connection.lock().await.position().await
+        let payload = self.session.send(Command::QueryPosition).await?.unwrap_or_default();
+        sagebrush_client::client::expect_position(&Command::QueryPosition, &payload)
     }
 
     /// `V?`: the lens's zoom and focus (Table 17).
     pub async fn lens(&self) -> Result<LensPosition, CommandError> {
-        self.connection.lock().await.lens().await
+        let payload = self.session.send(Command::QueryLens).await?.unwrap_or_default();
+        match Reply::parse(&Command::QueryLens, &payload) {
+            Ok(Reply::Lens(lens)) => Ok(lens),
+            _ => Err(CommandError::BadReply(format!(
+                "V? result {:?} is not a Table 17 lens position",
+                String::from_utf8_lossy(&payload)
+            ))),
+        }
     }
 
     /// `V`: the lens to zoom `x` (0..=1 of its range), focus where it is.
@@ -111,77 +114,39 @@ impl Gimbal {
             .map(drop)
     }
 
-    /// What the poller reads: the position, and the lens when there is one.
-    async fn reading(&self) -> Result<(Position, Option<LensPosition>), CommandError> {
-        let position = self.position().await?;
-        let lens = if self.config.zoom {
-            Some(self.lens().await?)
-        } else {
-            None
-        };
-        Ok((position, lens))
-    }
-
-    /// `D?`.
+    /// `D?`, asked once.
     pub async fn identity(&self) -> Result<Identity, CommandError> {
-        self.connection.lock().await.identity().await
+        self.session.identity().await
     }
 
     pub fn status(&self) -> Status {
-        self.status.lock().unwrap_or_else(|p| p.into_inner()).clone()
+        self.session.status()
     }
 
-    /// Whether a continuous motion is in progress.
-    pub fn moving(&self) -> bool {
-        let m = *self.motion.lock().unwrap_or_else(|p| p.into_inner());
-        m.pan || m.tilt || m.zoom
-    }
-
-    /// Polls `P?` every `every` until the task is dropped; a gimbal that
-    /// does not answer is asked again only after [`UNREACHABLE_POLL`], since
-    /// each unanswered poll holds its bus for all of gcud's retries.
-    pub async fn poll(self: Arc<Self>, every: Duration) {
-        loop {
-            let reading = self.reading().await;
-            let failed = reading.is_err();
-            {
-                let mut s = self.status.lock().unwrap_or_else(|p| p.into_inner());
-                match reading {
-                    Ok((p, lens)) => {
-                        s.changing = s.position.is_some_and(|old| old != p) || (s.lens.is_some() && s.lens != lens);
-                        s.position = Some(p);
-                        s.lens = lens;
-                        s.error = None;
-                    }
-                    Err(e) => {
-                        s.changing = false;
-                        s.error = Some(e.to_string());
-                    }
-                }
-            }
-            tokio::time::sleep(if failed { UNREACHABLE_POLL.max(every) } else { every }).await;
+    /// ONVIF's MoveStatus of the pan/tilt: IDLE, MOVING, or UNKNOWN while
+    /// a stop is owed that gcud could not be reached for.
+    pub fn move_status(&self) -> &'static str {
+        match self.session.status().motion {
+            Motion::Idle => "IDLE",
+            Motion::Moving => "MOVING",
+            Motion::Unknown => "UNKNOWN",
         }
     }
 
     /// `GO` to a position in degrees (Table 15).
     pub async fn go_to(&self, pan: f64, tilt: f64) -> Result<(), CommandError> {
         let angle = |deg: f64| Angle::from_degrees(deg as f32).map_err(|e| CommandError::Usage(e.to_string()));
-        self.end_motion();
-        self.send(&Command::GoTo(Position::new(angle(pan)?, angle(tilt)?)))
-            .await
-            .map(drop)
+        self.session.go_to(Position::new(angle(pan)?, angle(tilt)?)).await
     }
 
     /// `Pnn`: to a preset the gimbal stored (Table 11).
     pub async fn go_to_preset(&self, n: u8) -> Result<(), CommandError> {
-        self.end_motion();
-        self.send(&Command::GoToPreset(n)).await.map(drop)
+        self.session.go_to_preset(n).await
     }
 
     /// `HO`: to the fixed home position.
     pub async fn go_home(&self) -> Result<(), CommandError> {
-        self.end_motion();
-        self.send(&Command::Home).await.map(drop)
+        self.session.home().await
     }
 
     /// The longest a continuous move runs.
@@ -189,140 +154,42 @@ impl Gimbal {
         self.max_move
     }
 
-    /// A new motion number; the motion before it is over.
-    fn end_motion(&self) -> Motion {
-        let mut m = self.motion.lock().unwrap_or_else(|p| p.into_inner());
-        let old = *m;
-        *m = Motion {
-            generation: old.generation + 1,
-            ..Motion::default()
-        };
-        old
-    }
-
-    /// ContinuousMove: each axis with `Some(v)` starts at proportional speed
+    /// ContinuousMove: each axis with `Some(v)` moves at proportional speed
     /// |v| toward v's sign (`SPn`+`PR`/`PL`, `STn`+`TU`/`TD`; the zoom at lens
-    /// speed `Zn`+`ZI`/`ZO`), or stops when v is 0; all are stopped after
-    /// `timeout` (at most the configured maximum), unless another move or a
-    /// stop came first.
+    /// speed `Zn`+`ZI`/`ZO`), or stops when v is 0; whatever moves is
+    /// stopped after `timeout` (at most the configured maximum), unless
+    /// another move or a stop came first.
     pub async fn continuous(
-        self: &Arc<Self>,
+        &self,
         pan: Option<f64>,
         tilt: Option<f64>,
         zoom: Option<f64>,
         timeout: Option<Duration>,
     ) -> Result<(), CommandError> {
-        let generation = self.end_motion().generation + 1;
-        // end_motion made `generation` current; a stop or another move while
-        // this one starts makes it stale.
-        type Speed = fn(f64) -> Command<'static>;
-        let axes: [(Option<f64>, Speed, Command<'static>, Command<'static>, Command<'static>); 3] = [
-            (
-                pan,
-                |v| Command::SetSpeed(Axis::Pan, speed_of(v)),
-                Command::PanRight,
-                Command::PanLeft,
-                Command::PanStop,
-            ),
-            (
-                tilt,
-                |v| Command::SetSpeed(Axis::Tilt, speed_of(v)),
-                Command::TiltUp,
-                Command::TiltDown,
-                Command::TiltStop,
-            ),
-            (
-                zoom,
-                |v| Command::ZoomSpeed(lens_speed_of(v)),
-                Command::ZoomIn,
-                Command::ZoomOut,
-                Command::ZoomStop,
-            ),
-        ];
-        let mut moving = Motion {
-            generation,
-            ..Motion::default()
+        let velocity = Velocity {
+            pan: pan.map(|v| drive(v, speed_of)),
+            tilt: tilt.map(|v| drive(v, speed_of)),
+            zoom: zoom.map(|v| drive(v, lens_speed_of)),
         };
-        for (i, (v, speed, positive, negative, stop)) in axes.into_iter().enumerate() {
-            let Some(v) = v else { continue };
-            let sent = if v == 0.0 {
-                self.send(&stop).await
-            } else {
-                match self.send(&speed(v)).await {
-                    Ok(_) => self.send(if v > 0.0 { &positive } else { &negative }).await,
-                    Err(e) => Err(e),
-                }
-            };
-            if let Err(e) = sent {
-                // Never leave one axis moving with no time-out: the move failed as a whole.
-                if let Err(stop) = self.stop_motion(moving).await {
-                    warn!(gimbal = %self.config.name, error = %stop, "stop after a failed move failed");
-                }
-                return Err(e);
-            }
-            let axis = match i {
-                0 => &mut moving.pan,
-                1 => &mut moving.tilt,
-                _ => &mut moving.zoom,
-            };
-            *axis |= v != 0.0;
-        }
-        {
-            let mut m = self.motion.lock().unwrap_or_else(|p| p.into_inner());
-            if m.generation != generation {
-                // A stop or another move replaced this one while it started.
-                return Ok(());
-            }
-            *m = moving;
-        }
-        if moving.pan || moving.tilt || moving.zoom {
-            let run = timeout.unwrap_or(self.max_move).min(self.max_move);
-            let me = Arc::clone(self);
-            tokio::spawn(async move {
-                tokio::time::sleep_until(Instant::now() + run).await;
-                let m = *me.motion.lock().unwrap_or_else(|p| p.into_inner());
-                if m.generation == generation {
-                    info!(gimbal = %me.config.name, ms = run.as_millis() as u64, "move time-out: stopping");
-                    if let Err(e) = me.stop_motion(m).await {
-                        warn!(gimbal = %me.config.name, error = %e, "the stop after a move's time-out failed");
-                    }
-                }
-            });
-        }
-        Ok(())
+        self.session.velocity(velocity, timeout, "ONVIF ContinuousMove").await
     }
 
-    /// Stops the axes of `m` that move (pan and tilt together).
-    async fn stop_motion(&self, m: Motion) -> Result<(), CommandError> {
-        self.stop(m.pan || m.tilt, m.zoom).await
-    }
-
-    /// Stop: the pan/tilt motors (`PS` and `TS`) and the zoom (`ZS`), each
-    /// confirmed by its ACK; a stop that is not confirmed is sent once more,
-    /// then an error.
+    /// Stop: the pan/tilt motors (`PS` and `TS`) and the zoom (`ZS`), sent
+    /// before anything else and until the bus confirms them.
     pub async fn stop(&self, pan_tilt: bool, zoom: bool) -> Result<(), CommandError> {
-        self.end_motion();
-        let stops = [
-            (pan_tilt, Command::PanStop),
-            (pan_tilt, Command::TiltStop),
-            (zoom, Command::ZoomStop),
-        ];
-        let stops: Vec<Command<'_>> = stops
-            .into_iter()
-            .filter(|(wanted, _)| *wanted)
-            .map(|(_, c)| c)
-            .collect();
-        self.connection.lock().await.stop(&stops).await
+        self.session
+            .stop(Axes {
+                pan: pan_tilt,
+                tilt: pan_tilt,
+                zoom,
+            })
+            .await
     }
 
     /// Stops what this gimbal-onvif started (at SIGTERM): a continuous move,
     /// or a positioning move still under way.
     pub async fn shutdown(&self) {
-        if self.moving() || self.status().changing {
-            if let Err(e) = self.stop(true, self.config.zoom).await {
-                warn!(gimbal = %self.config.name, error = %e, "stop at shutdown failed");
-            }
-        }
+        self.session.shutdown().await;
     }
 }
 

@@ -34,9 +34,9 @@ async fn run(config: config::Config) -> Result<(), String> {
     let mut gimbals = Vec::new();
     let mut served = Vec::new();
     let mut tasks = tokio::task::JoinSet::new();
+    let reach = Arc::new(sagebrush_client::session::GcudReachability::default());
     for g in &config.gimbals {
-        let gimbal = gimbal::Gimbal::new(g.clone(), &config);
-        tasks.spawn(Arc::clone(&gimbal).poll(config.poll));
+        let gimbal = gimbal::Gimbal::new(g.clone(), &config, Arc::clone(&reach));
         let device = onvif::Device {
             gimbal: Arc::clone(&gimbal),
             auth: Arc::clone(&auth),

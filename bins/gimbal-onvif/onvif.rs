@@ -494,7 +494,7 @@ impl Device {
                         )
                     })
                     .unwrap_or_default();
-                let moving = if g.moving() || s.changing { "MOVING" } else { "IDLE" };
+                let moving = g.move_status();
                 let zoom_moving = self.zoomed(&format!("<tt:Zoom>{moving}</tt:Zoom>"));
                 let error = s
                     .error
@@ -788,8 +788,13 @@ address = "5.1.1"
 listen = "127.0.0.1:0"
 "#;
         let config = crate::config::parse(std::path::Path::new("t.toml"), text).unwrap();
+        // The gimbal's session task is spawned on a runtime that never runs
+        // it: these tests answer without the gimbal.
+        static IDLE: std::sync::LazyLock<tokio::runtime::Runtime> =
+            std::sync::LazyLock::new(|| tokio::runtime::Builder::new_current_thread().build().expect("runtime"));
+        let _idle = IDLE.enter();
         Device {
-            gimbal: Gimbal::new(config.gimbals[0].clone(), &config),
+            gimbal: Gimbal::new(config.gimbals[0].clone(), &config, Default::default()),
             auth: Arc::new(Authenticator::new(config.users.clone())),
             presets: Arc::new(Presets::load(None).unwrap()),
         }

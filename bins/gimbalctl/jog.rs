@@ -6,7 +6,7 @@
 use std::time::Duration;
 
 use sagebrush_host::hex::payload_text;
-use sagebrush_protocol::{Outcome, Undelivered};
+use sagebrush_protocol::{Command, Outcome, Undelivered};
 use serde_json::Value;
 use tokio::io::AsyncReadExt;
 use tokio::signal::unix::{SignalKind, signal};
@@ -66,17 +66,30 @@ pub async fn run(
             ),
         }
     }
-    let ended_by = match jog.duration {
-        Some(d) => tokio::select! {
-            _ = tokio::time::sleep(d) => "duration",
-            _ = term.recv() => "signal",
-            _ = int.recv() => "signal",
-        },
-        None => tokio::select! {
-            _ = term.recv() => "signal",
-            _ = int.recv() => "signal",
-            _ = stdin_closed() => "stdin",
-        },
+    // Held by this connection: through gcud, `P?` every REFRESH renews the
+    // motion lease of the client listener (ARCHITECTURE "Safety"), so a
+    // gimbalctl that hangs lets gcud stop the motion.
+    let refresh = sagebrush_client::session::REFRESH;
+    let until = jog.duration.map(|d| started + d);
+    let stdin_end = stdin_closed();
+    tokio::pin!(stdin_end);
+    let ended_by = loop {
+        let tick = until.map_or(refresh, |u| {
+            u.saturating_duration_since(tokio::time::Instant::now()).min(refresh)
+        });
+        tokio::select! {
+            _ = tokio::time::sleep(tick) => {}
+            _ = term.recv() => break "signal",
+            _ = int.recv() => break "signal",
+            _ = &mut stdin_end, if jog.duration.is_none() => break "stdin",
+        }
+        if until.is_some_and(|u| u <= tokio::time::Instant::now()) {
+            break "duration";
+        }
+        if !session.to.has_wildcard() {
+            // Its answer does not matter: the stop below is what is checked.
+            let _ = session.exchange(&Command::QueryPosition, b"P?").await;
+        }
     };
     let held = started.elapsed();
     let stop_ex = session.exchange(&stop, &stop_payload).await.map_err(|e| {

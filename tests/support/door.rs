@@ -98,6 +98,14 @@ impl Door {
         super::wait_for_log_line(&self.log_path(), &format!("{} ready", self.name));
     }
 
+    /// The running door's process id.
+    pub fn pid(&self) -> u32 {
+        self.child
+            .as_ref()
+            .unwrap_or_else(|| panic!("{} is not running", self.name))
+            .id()
+    }
+
     pub fn log_path(&self) -> PathBuf {
         self.dir.path().join(format!("{}.log", self.name))
     }

@@ -10,6 +10,9 @@
 //!   each failure a [`client::CommandError`]; poll the position.
 //! - [`connection`]: one gimbal behind gcud over a connection of its own,
 //!   opened when needed and renewed after a failure; `P?` and `D?`.
+//! - [`session`]: one gimbal as every front door drives it: the motion
+//!   as one object with its deadline, stops first and owed until the bus
+//!   confirms them, velocities coalesced, one cached poll.
 //! - [`config_file`]: TOML configuration read with bounds, every error at
 //!   its file:line:column with its key and what was expected.
 //! - [`door`]: a front door's start-up (`--check`, exit codes, runtime).
@@ -20,6 +23,7 @@ pub mod config_file;
 pub mod connection;
 pub mod door;
 pub mod master;
+pub mod session;
 
 pub use client::{Client, CommandError, GcudClient};
 pub use connection::{GimbalConnection, Identity};
