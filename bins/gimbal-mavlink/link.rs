@@ -394,7 +394,9 @@ impl Net {
                 if a.command == MavCmd::MAV_CMD_REQUEST_MESSAGE && a.result == MavResult::MAV_RESULT_ACCEPTED {
                     lock(&self.requested).insert(component, to);
                 }
-                (to.0 != 0).then_some(to)
+                // Even to system 0 (no valid sender has it, but one that
+                // claims it is still the asker): never everyone.
+                Some(to)
             }
             MavMessage::GIMBAL_MANAGER_INFORMATION(_) | MavMessage::GIMBAL_DEVICE_INFORMATION(_) => {
                 lock(&self.requested).remove(&component)
@@ -840,6 +842,12 @@ mod tests {
         assert_eq!(
             net.addressee(154, &MavMessage::HEARTBEAT(HEARTBEAT_DATA::default())),
             None
+        );
+        let to_zero = crate::gimbal::ack(MavCmd::MAV_CMD_DO_SET_SERVO, MavResult::MAV_RESULT_UNSUPPORTED, (0, 0));
+        assert_eq!(
+            net.addressee(154, &to_zero),
+            Some((0, 0)),
+            "an ACK is never for everyone"
         );
     }
 
