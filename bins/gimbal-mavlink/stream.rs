@@ -82,7 +82,8 @@ pub enum Admitted {
 }
 
 /// Who may hold an accepted connection: the interface a listener admits
-/// by, so that the shared bounded listener's table can replace [`Slots`].
+/// by, so that the shared bounded listener's table can replace [`Slots`]
+/// (the same calls as its `Connections`: admit, touch, idle_at, left).
 pub trait Admission: Send + Sync + std::fmt::Debug {
     /// A newcomer from `peer` at `now`.
     fn admit(&self, peer: IpAddr, now: Instant) -> Admitted;
@@ -90,8 +91,8 @@ pub trait Admission: Send + Sync + std::fmt::Debug {
     fn touch(&self, key: u64, now: Instant);
     /// When connection `key` falls idle, if it is still admitted.
     fn idle_at(&self, key: u64) -> Option<Instant>;
-    /// Connection `key` closed.
-    fn left(&self, key: u64);
+    /// Connection `key` closed; `idle`: for its idle time-out.
+    fn left(&self, key: u64, idle: bool);
 }
 
 #[derive(Debug)]
@@ -176,7 +177,7 @@ impl Admission for Slots {
             .map(|s| s.last_active + self.idle_timeout)
     }
 
-    fn left(&self, key: u64) {
+    fn left(&self, key: u64, _idle: bool) {
         lock(&self.open).1.retain(|s| s.key != key);
     }
 }
@@ -341,7 +342,7 @@ async fn serve<S>(
     streams.remove(id);
     writer.abort();
     if let Some(k) = key {
-        streams.admission.left(k);
+        streams.admission.left(k, end == End::Idle);
     }
     match end {
         End::Closed => info!(%peer, "MAVLink connection closed"),
