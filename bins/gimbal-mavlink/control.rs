@@ -139,13 +139,19 @@ pub const HEARD_PER_PEER: usize = 16;
 #[derive(Clone, Copy, Debug)]
 struct Entry<P> {
     who: Sender,
-    peer: P,
+    /// None once that peer is gone (its connection closed, its UDP slot
+    /// taken): kept for the lapse, but the first to go when room is needed.
+    peer: Option<P>,
     last: Instant,
 }
 
 /// The components heard: where (peer `P`, so that an answer goes to the
 /// asker only) and when last (for the lapse), bounded by [`HEARD_MAX`] in
-/// all and [`HEARD_PER_PEER`] per peer; the least recently heard goes first.
+/// all and [`HEARD_PER_PEER`] per live peer. When room is needed, the
+/// least recently heard of a peer that is gone goes first, then the least
+/// recently heard of all: as live peers are bounded (8 TCP, 16 UDP per
+/// endpoint, the configured ones) and so are their entries, peers that come
+/// and go cannot push out a component heard on a live one.
 #[derive(Debug)]
 pub struct Heard<P> {
     entries: Vec<Entry<P>>,
@@ -160,24 +166,28 @@ impl<P> Default for Heard<P> {
 impl<P: Copy + PartialEq> Heard<P> {
     /// `who` was heard on `peer` at `now`.
     pub fn hear(&mut self, who: Sender, peer: P, now: Instant) {
-        let fresh = Entry { who, peer, last: now };
+        let fresh = Entry {
+            who,
+            peer: Some(peer),
+            last: now,
+        };
         if let Some(e) = self.entries.iter_mut().find(|e| e.who == who) {
             *e = fresh;
             return;
         }
-        let oldest = |of_peer: bool| {
+        let oldest = |of: Option<Option<P>>| {
             self.entries
                 .iter()
                 .enumerate()
-                .filter(|(_, e)| !of_peer || e.peer == peer)
+                .filter(|(_, e)| of.is_none_or(|p| e.peer == p))
                 .min_by_key(|(_, e)| e.last)
                 .map(|(i, _)| i)
         };
-        let of_peer = self.entries.iter().filter(|e| e.peer == peer).count();
+        let of_peer = self.entries.iter().filter(|e| e.peer == Some(peer)).count();
         let replace = if of_peer >= HEARD_PER_PEER {
-            oldest(true)
+            oldest(Some(Some(peer)))
         } else if self.entries.len() >= HEARD_MAX {
-            oldest(false)
+            oldest(Some(None)).or_else(|| oldest(None))
         } else {
             None
         };
@@ -187,14 +197,22 @@ impl<P: Copy + PartialEq> Heard<P> {
         }
     }
 
-    /// Where `who` was heard last.
+    /// Where `who` was heard last, if that peer is still there.
     pub fn peer(&self, who: Sender) -> Option<P> {
-        self.entries.iter().find(|e| e.who == who).map(|e| e.peer)
+        self.entries.iter().find(|e| e.who == who).and_then(|e| e.peer)
     }
 
     /// Whether `who` was heard (and is still remembered).
     pub fn knows(&self, who: Sender) -> bool {
-        self.peer(who).is_some()
+        self.entries.iter().any(|e| e.who == who)
+    }
+
+    /// `peer` is gone: its components stay remembered (for the lapse) but
+    /// no answer goes there, and they are the first to make room.
+    pub fn forget(&mut self, peer: P) {
+        for e in self.entries.iter_mut().filter(|e| e.peer == Some(peer)) {
+            e.peer = None;
+        }
     }
 
     /// Whether `who` was heard within `within` before `now`.
@@ -296,10 +314,17 @@ mod heard_tests {
         assert!(heard.knows(GCS), "another peer's component stays");
         assert_eq!(heard.peer(GCS), Some(1));
         assert_eq!(heard.len(), 1 + HEARD_PER_PEER);
-        // Ever new peers: the table stays bounded, the least recently heard go.
+        // Ever new peers, each gone after one message: the table stays
+        // bounded and they make room for each other, never taking the place
+        // of a component on a live peer, however long ago it was heard.
         for p in 3..2_000u16 {
             heard.hear((p as u8, (p >> 8) as u8 + 1), p, t0 + Duration::from_secs(100));
+            heard.forget(p);
         }
         assert!(heard.len() <= HEARD_MAX);
+        assert_eq!(heard.peer(GCS), Some(1), "on a live peer: kept");
+        heard.forget(1);
+        assert_eq!(heard.peer(GCS), None, "its peer gone: no answer goes there");
+        assert!(heard.knows(GCS), "but it is remembered");
     }
 }

@@ -408,6 +408,15 @@ impl Net {
 
 // ---- UDP ---------------------------------------------------------------------
 
+/// Whether a UDP address has a slot.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Admit {
+    Yes,
+    /// Yes, in the slot of this address, silent for [`PEER_IDLE`].
+    Replacing(SocketAddr),
+    No,
+}
+
 /// The addresses a `udp_listen` endpoint answers (see the module's rule).
 #[derive(Debug, Default)]
 struct UdpPeers {
@@ -417,14 +426,14 @@ struct UdpPeers {
 
 impl UdpPeers {
     /// `from` sent an intact frame at `now`: whether it has (or now took) a slot.
-    fn admit(&mut self, from: SocketAddr, now: Instant) -> bool {
+    fn admit(&mut self, from: SocketAddr, now: Instant) -> Admit {
         if let Some(p) = self.peers.iter_mut().find(|(a, _)| *a == from) {
             p.1 = now;
-            return true;
+            return Admit::Yes;
         }
         if self.peers.len() < MAX_PEERS {
             self.peers.push((from, now));
-            return true;
+            return Admit::Yes;
         }
         let idlest = self
             .peers
@@ -432,10 +441,11 @@ impl UdpPeers {
             .min_by_key(|(_, last)| *last)
             .expect("MAX_PEERS > 0");
         if now.saturating_duration_since(idlest.1) >= PEER_IDLE {
+            let gone = idlest.0;
             *idlest = (from, now);
-            return true;
+            return Admit::Replacing(gone);
         }
-        false
+        Admit::No
     }
 
     fn addrs(&self) -> Vec<SocketAddr> {
@@ -594,7 +604,17 @@ impl Outbox {
                 stats.damaged(&from, n);
                 continue;
             }
-            if port.fixed.is_none() && !lock(&port.peers).admit(from, Instant::now()) {
+            let admitted = match port.fixed {
+                Some(_) => Admit::Yes,
+                None => lock(&port.peers).admit(from, Instant::now()),
+            };
+            if let Admit::Replacing(gone) = admitted {
+                lock(&self.net.heard).forget(Peer::Udp {
+                    port: index,
+                    addr: gone,
+                });
+            }
+            if admitted == Admit::No {
                 Stats::count(&stats.udp_refused);
                 if may_warn("datagram from a new address while every peer is active", &from.ip()) {
                     warn!(%from, max = MAX_PEERS, idle_s = PEER_IDLE.as_secs(), "datagram from a new address while every peer was heard recently: dropped");
@@ -856,21 +876,25 @@ mod tests {
         let mut peers = UdpPeers::default();
         let t0 = Instant::now();
         let gcs: SocketAddr = "127.0.0.1:14550".parse().unwrap();
-        assert!(peers.admit(gcs, t0));
+        assert_eq!(peers.admit(gcs, t0), Admit::Yes);
         let mut admitted = 0;
         for (i, port) in (20_000u16..30_000).enumerate() {
             let now = t0 + Duration::from_millis(i as u64);
             if i % 1000 == 0 {
-                assert!(peers.admit(gcs, now), "the ground station beats every second");
+                assert_eq!(
+                    peers.admit(gcs, now),
+                    Admit::Yes,
+                    "the ground station beats every second"
+                );
             }
-            admitted += usize::from(peers.admit(SocketAddr::from(([127, 0, 0, 1], port)), now));
+            admitted += usize::from(peers.admit(SocketAddr::from(([127, 0, 0, 1], port)), now) != Admit::No);
         }
         assert!(peers.addrs().contains(&gcs));
         // Only the free slots, then one per slot silent for PEER_IDLE.
         assert!(admitted < MAX_PEERS * 3, "{admitted}");
         let later = t0 + Duration::from_secs(60);
         assert!(
-            peers.admit("127.0.0.1:9".parse().unwrap(), later),
+            matches!(peers.admit("127.0.0.1:9".parse().unwrap(), later), Admit::Replacing(_)),
             "a silent slot is taken"
         );
     }

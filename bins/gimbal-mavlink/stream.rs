@@ -340,6 +340,7 @@ async fn serve<S>(
         stats.damaged(&peer, run);
     }
     streams.remove(id);
+    lock(&streams.net.heard).forget(Peer::Stream(id));
     writer.abort();
     if let Some(k) = key {
         streams.admission.left(k, end == End::Idle);
