@@ -456,10 +456,14 @@ fn a_flood_of_refused_messages_writes_a_bounded_number_of_log_lines() {
         [200.0, 7.0, 201.0, 8.0],
     );
     let unknown = unknown_command(GCS, 64_000);
-    for _ in 0..EACH {
+    for i in 0..EACH {
         s.send_to(&configure, to).unwrap();
         s.send_to(&unknown, to).unwrap();
         s.send_to(b"\xfd\x09 not MAVLink at all", to).unwrap();
+        if i % 50 == 0 {
+            // Paced, so that few are lost in the loopback's buffers.
+            std::thread::sleep(Duration::from_millis(1));
+        }
     }
     let counters = stack.stop_counters();
     let log = stack.log();
@@ -468,10 +472,11 @@ fn a_flood_of_refused_messages_writes_a_bounded_number_of_log_lines() {
         "FIGURES: {} refused messages and damaged datagrams, {lines} log lines; {counters}",
         3 * EACH
     );
-    // The door saw them (UDP on loopback may drop a few under load).
-    assert!(counter(&counters, "refused") > EACH / 2, "{counters}");
-    assert!(counter(&counters, "unsupported") > EACH / 2, "{counters}");
-    assert!(counter(&counters, "damaged") > EACH / 2, "{counters}");
+    // The door saw a thousand or more of each (UDP on a busy loopback may
+    // lose some): a hundred times the lines one kind may write in a window.
+    for kind in ["refused", "unsupported", "damaged"] {
+        assert!(counter(&counters, kind) >= 1000, "{kind}: {counters}");
+    }
     // Ten per kind and place per window, a summary, the stop's own lines.
     assert!(lines < 100, "{lines} lines logged:\n{log}");
 }
