@@ -465,11 +465,15 @@ fn a_flood_of_refused_messages_writes_a_bounded_number_of_log_lines() {
             std::thread::sleep(Duration::from_millis(1));
         }
     }
+    // A peer connecting and leaving again and again.
+    for _ in 0..300 {
+        drop(TcpStream::connect(("127.0.0.1", stack.tcp_port)).expect("connect"));
+    }
     let counters = stack.stop_counters();
     let log = stack.log();
     let lines = log.lines().count() - lines_before;
     eprintln!(
-        "FIGURES: {} refused messages and damaged datagrams, {lines} log lines; {counters}",
+        "FIGURES: {} refused messages and damaged datagrams and 300 TCP connections, {lines} log lines; {counters}",
         3 * EACH
     );
     // The door saw a thousand or more of each (UDP on a busy loopback may

@@ -346,7 +346,12 @@ async fn serve<S>(
         streams.admission.left(k, end == End::Idle);
     }
     match end {
-        End::Closed => info!(%peer, "MAVLink connection closed"),
+        // A peer connecting again and again writes a bounded number of lines.
+        End::Closed => {
+            if may_warn("MAVLink connection closed", &peer_ip(&peer)) {
+                info!(%peer, "MAVLink connection closed");
+            }
+        }
         End::Evicted => {
             Stats::count(&stats.tcp_evicted);
             if may_warn("MAVLink connection closed for a newcomer", &peer) {
@@ -362,13 +367,21 @@ async fn serve<S>(
     }
 }
 
+/// The address part of a peer's name (`IP:PORT`, or a serial device).
+fn peer_ip(peer: &str) -> &str {
+    peer.parse::<SocketAddr>()
+        .map_or(peer, |_| peer.rsplit_once(':').map_or(peer, |(ip, _)| ip))
+}
+
 /// `tcp_listen`: accepts connections for ever, as [`Admission`] admits them.
 pub async fn listen(listener: TcpListener, streams: Arc<Streams>, stats: Arc<Stats>, handler: Handler) {
     loop {
         match listener.accept().await {
             Ok((stream, peer)) => match streams.admission.admit(peer.ip(), Instant::now()) {
                 Admitted::Yes { key, close, evicted } => {
-                    info!(%peer, ?evicted, "MAVLink TCP connection accepted");
+                    if may_warn("MAVLink TCP connection accepted", &peer.ip()) {
+                        info!(%peer, ?evicted, "MAVLink TCP connection accepted");
+                    }
                     let _ = stream.set_nodelay(true);
                     tokio::spawn(serve(
                         stream,
