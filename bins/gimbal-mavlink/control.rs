@@ -6,6 +6,19 @@
 //! component holds it, commands from any other are denied, and taking
 //! control from another owner is denied until it releases (the primary
 //! owner may also clear the secondary).
+//!
+//! Two rules keep any one peer from locking every ground station out
+//! (issue 31): control is only given to a component that has been heard
+//! ([`Heard`]: any intact message from that system and component id, the
+//! CONFIGURE's own sender included), and an owner that stays silent for
+//! [`LAPSE`] loses control ([`Control::lapse`]), so another ground station
+//! can take it.
+
+use std::time::{Duration, Instant};
+
+/// An owner not heard for this long loses control (ground stations send a
+/// heartbeat every second: five missed).
+pub const LAPSE: Duration = Duration::from_secs(5);
 
 /// A MAVLink system and component id.
 pub type Sender = (u8, u8);
@@ -54,7 +67,36 @@ fn slot(sysid: f32, compid: f32, sender: Sender) -> Result<Slot, Refused> {
     })
 }
 
+/// The components a CONFIGURE from `sender` would give control to, other
+/// than `sender` itself (each must have been heard).
+pub fn named(sender: Sender, params: [f32; 4]) -> Result<Vec<Sender>, Refused> {
+    let slots = [slot(params[0], params[1], sender)?, slot(params[2], params[3], sender)?];
+    Ok(slots
+        .into_iter()
+        .filter_map(|s| match s {
+            Slot::Take(who) if who != sender => Some(who),
+            _ => None,
+        })
+        .collect())
+}
+
 impl Control {
+    /// Ends the control of each owner that `heard_within` says was not
+    /// heard within the lapse time; returns who lost it.
+    pub fn lapse(&mut self, heard_within: impl Fn(Sender) -> bool) -> Vec<Sender> {
+        let mut lapsed = Vec::new();
+        for owner in [&mut self.primary, &mut self.secondary] {
+            match *owner {
+                Some(who) if !heard_within(who) => {
+                    *owner = None;
+                    lapsed.push(who);
+                }
+                _ => {}
+            }
+        }
+        lapsed
+    }
+
     /// Whether `sender` may command the gimbal now.
     pub fn allows(&self, sender: Sender) -> bool {
         match (self.primary, self.secondary) {
@@ -86,6 +128,103 @@ impl Control {
         }
         *self = next;
         Ok(())
+    }
+}
+
+/// Components remembered at most, and per peer (a link, a UDP address):
+/// a peer that invents ids churns its own entries, never another's.
+pub const HEARD_MAX: usize = 512;
+pub const HEARD_PER_PEER: usize = 16;
+
+#[derive(Clone, Copy, Debug)]
+struct Entry<P> {
+    who: Sender,
+    /// None once that peer is gone (its connection closed, its UDP slot
+    /// taken): kept for the lapse, but the first to go when room is needed.
+    peer: Option<P>,
+    last: Instant,
+}
+
+/// The components heard: where (peer `P`, so that an answer goes to the
+/// asker only) and when last (for the lapse), bounded by [`HEARD_MAX`] in
+/// all and [`HEARD_PER_PEER`] per live peer. When room is needed, the
+/// least recently heard of a peer that is gone goes first, then the least
+/// recently heard of all: as live peers are bounded (8 TCP, 16 UDP per
+/// endpoint, the configured ones) and so are their entries, peers that come
+/// and go cannot push out a component heard on a live one.
+#[derive(Debug)]
+pub struct Heard<P> {
+    entries: Vec<Entry<P>>,
+}
+
+impl<P> Default for Heard<P> {
+    fn default() -> Self {
+        Self { entries: Vec::new() }
+    }
+}
+
+impl<P: Copy + PartialEq> Heard<P> {
+    /// `who` was heard on `peer` at `now`.
+    pub fn hear(&mut self, who: Sender, peer: P, now: Instant) {
+        let fresh = Entry {
+            who,
+            peer: Some(peer),
+            last: now,
+        };
+        if let Some(e) = self.entries.iter_mut().find(|e| e.who == who) {
+            *e = fresh;
+            return;
+        }
+        let oldest = |of: Option<Option<P>>| {
+            self.entries
+                .iter()
+                .enumerate()
+                .filter(|(_, e)| of.is_none_or(|p| e.peer == p))
+                .min_by_key(|(_, e)| e.last)
+                .map(|(i, _)| i)
+        };
+        let of_peer = self.entries.iter().filter(|e| e.peer == Some(peer)).count();
+        let replace = if of_peer >= HEARD_PER_PEER {
+            oldest(Some(Some(peer)))
+        } else if self.entries.len() >= HEARD_MAX {
+            oldest(Some(None)).or_else(|| oldest(None))
+        } else {
+            None
+        };
+        match replace {
+            Some(i) => self.entries[i] = fresh,
+            None => self.entries.push(fresh),
+        }
+    }
+
+    /// Where `who` was heard last, if that peer is still there.
+    pub fn peer(&self, who: Sender) -> Option<P> {
+        self.entries.iter().find(|e| e.who == who).and_then(|e| e.peer)
+    }
+
+    /// Whether `who` was heard (and is still remembered).
+    pub fn knows(&self, who: Sender) -> bool {
+        self.entries.iter().any(|e| e.who == who)
+    }
+
+    /// `peer` is gone: its components stay remembered (for the lapse) but
+    /// no answer goes there, and they are the first to make room.
+    pub fn forget(&mut self, peer: P) {
+        for e in self.entries.iter_mut().filter(|e| e.peer == Some(peer)) {
+            e.peer = None;
+        }
+    }
+
+    /// Whether `who` was heard within `within` before `now`.
+    pub fn heard_within(&self, who: Sender, within: Duration, now: Instant) -> bool {
+        self.entries
+            .iter()
+            .any(|e| e.who == who && now.saturating_duration_since(e.last) < within)
+    }
+
+    #[cfg(test)]
+    pub fn len(&self) -> usize {
+        self.entries.len()
     }
 }
 
@@ -131,5 +270,61 @@ mod tests {
             assert_eq!(c.configure(GCS, bad), Err(Refused::BadParameter), "{bad:?}");
             assert_eq!(c, Control::default());
         }
+    }
+}
+
+#[cfg(test)]
+mod heard_tests {
+    use super::*;
+
+    const GCS: Sender = (255, 190);
+
+    #[test]
+    fn control_lapses_for_an_owner_not_heard_within_the_lapse() {
+        let mut heard = Heard::default();
+        let t0 = Instant::now();
+        let lapse = Duration::from_secs(5);
+        heard.hear(GCS, 1u8, t0);
+        let mut c = Control::default();
+        c.configure(GCS, [-2.0, -2.0, -1.0, -1.0]).unwrap();
+        let heard = &heard;
+        let at = |t: Instant| move |who| heard.heard_within(who, lapse, t);
+        assert!(c.lapse(at(t0 + Duration::from_secs(4))).is_empty(), "heard 4 s ago");
+        assert_eq!(c.lapse(at(t0 + lapse)), vec![GCS], "silent for the lapse time");
+        assert_eq!(c, Control::default(), "anyone may take it now");
+    }
+
+    #[test]
+    fn only_components_other_than_the_sender_are_named() {
+        assert_eq!(named(GCS, [-2.0, -2.0, -1.0, -1.0]), Ok(vec![]));
+        assert_eq!(named(GCS, [200.0, 7.0, 201.0, 8.0]), Ok(vec![(200, 7), (201, 8)]));
+        assert_eq!(named(GCS, [255.0, 190.0, -3.0, -3.0]), Ok(vec![]));
+        assert_eq!(named(GCS, [1.5, 1.0, -1.0, -1.0]), Err(Refused::BadParameter));
+    }
+
+    #[test]
+    fn a_peer_inventing_ids_churns_only_its_own_entries() {
+        let mut heard = Heard::default();
+        let t0 = Instant::now();
+        heard.hear(GCS, 1u16, t0);
+        for i in 0..10_000u32 {
+            let who = ((i % 250) as u8 + 1, (i / 250) as u8);
+            heard.hear(who, 2u16, t0 + Duration::from_millis(u64::from(i) + 1));
+        }
+        assert!(heard.knows(GCS), "another peer's component stays");
+        assert_eq!(heard.peer(GCS), Some(1));
+        assert_eq!(heard.len(), 1 + HEARD_PER_PEER);
+        // Ever new peers, each gone after one message: the table stays
+        // bounded and they make room for each other, never taking the place
+        // of a component on a live peer, however long ago it was heard.
+        for p in 3..2_000u16 {
+            heard.hear((p as u8, (p >> 8) as u8 + 1), p, t0 + Duration::from_secs(100));
+            heard.forget(p);
+        }
+        assert!(heard.len() <= HEARD_MAX);
+        assert_eq!(heard.peer(GCS), Some(1), "on a live peer: kept");
+        heard.forget(1);
+        assert_eq!(heard.peer(GCS), None, "its peer gone: no answer goes there");
+        assert!(heard.knows(GCS), "but it is remembered");
     }
 }

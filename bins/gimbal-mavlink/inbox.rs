@@ -9,7 +9,7 @@ use tracing::{debug, warn};
 use crate::frames;
 use crate::gimbal::{Handle, Job, Work};
 use crate::motion::Request;
-use crate::stats::Stats;
+use crate::stats::{Stats, may_warn};
 
 /// Where a message goes.
 #[derive(Debug)]
@@ -149,7 +149,9 @@ fn command(handles: &[Handle], system_id: u8, from: (u8, u8), c: &COMMAND_LONG_D
             None => Route::Answer(handles[i].config.component_id, c.command, MavResult::MAV_RESULT_DENIED),
         },
         other => {
-            warn!(command = ?other, ?from, "command not supported");
+            if may_warn("command not supported", &format_args!("{from:?}")) {
+                warn!(command = ?other, ?from, "command not supported");
+            }
             Route::Answer(handles[i].config.component_id, other, MavResult::MAV_RESULT_UNSUPPORTED)
         }
     }
@@ -163,6 +165,10 @@ pub fn count(route: &Route, stats: &Stats) {
         }
         Route::Answer(_, _, MavResult::MAV_RESULT_DENIED) | Route::Refused(..) => {
             Stats::count(&stats.refused);
+        }
+        Route::Answer(_, _, MavResult::MAV_RESULT_UNSUPPORTED) => {
+            Stats::count(&stats.ignored);
+            Stats::count(&stats.unsupported);
         }
         Route::Answer(..) => {
             Stats::count(&stats.ignored);

@@ -1,7 +1,10 @@
 //! What every gimbal component says on its own: HEARTBEAT (1 Hz, type
 //! gimbal), GIMBAL_MANAGER_STATUS (5 Hz, with the control owners) and
 //! GIMBAL_DEVICE_ATTITUDE_STATUS (at the configured rate, from the last
-//! `P?`, as a quaternion in MAVLink's frame: see `frames`).
+//! `P?`, as a quaternion in MAVLink's frame: see `frames`). At each
+//! manager status it also ends the control of an owner silent for
+//! `control::LAPSE` (so the status shows who holds control now) and writes
+//! the summaries of the throttled warnings.
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -11,10 +14,13 @@ use mavlink::dialects::common::{
     GimbalManagerFlags, HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState, MavType,
 };
 use tokio::time::MissedTickBehavior;
+use tracing::info;
 
+use crate::control::{self, Sender};
 use crate::frames;
 use crate::gimbal::Handle;
 use crate::link::Outbox;
+use crate::stats;
 
 pub const HEARTBEAT: Duration = Duration::from_secs(1);
 pub const MANAGER_STATUS: Duration = Duration::from_millis(200);
@@ -80,8 +86,22 @@ pub fn attitude_status(h: &Handle, time_boot_ms: u32) -> Option<MavMessage> {
     ))
 }
 
+/// Ends the control of each owner of `h` that `heard_within` says was silent.
+fn lapse(h: &Handle, heard_within: impl Fn(Sender) -> bool) {
+    let lapsed = h
+        .shared
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .control
+        .lapse(heard_within);
+    for owner in lapsed {
+        info!(gimbal = %h.config.name, ?owner, lapse_s = control::LAPSE.as_secs(), "control lapsed: its owner was not heard");
+    }
+}
+
 /// Sends the three streams for ever.
 pub async fn run(outbox: Arc<Outbox>, handles: Vec<Handle>, attitude: Duration) {
+    outbox.net.set_components(handles.iter().map(|h| h.config.component_id));
     let tick = |d| {
         let mut i = tokio::time::interval(d);
         i.set_missed_tick_behavior(MissedTickBehavior::Delay);
@@ -93,8 +113,12 @@ pub async fn run(outbox: Arc<Outbox>, handles: Vec<Handle>, attitude: Duration) 
             _ = hb.tick() => for h in &handles {
                 outbox.send(h.config.component_id, &heartbeat()).await;
             },
-            _ = ms.tick() => for h in &handles {
-                outbox.send(h.config.component_id, &manager_status(h, outbox.boot_ms())).await;
+            _ = ms.tick() => {
+                stats::flush_warnings();
+                for h in &handles {
+                    lapse(h, |who| outbox.net.heard_within(who, control::LAPSE));
+                    outbox.send(h.config.component_id, &manager_status(h, outbox.boot_ms())).await;
+                }
             },
             _ = at.tick() => for h in &handles {
                 if let Some(m) = attitude_status(h, outbox.boot_ms()) {

@@ -1,155 +1,280 @@
 //! MAVLink 2 over byte streams: TCP (`tcp_listen`, `tcp`) and serial lines
-//! (`serial`). Each connection's bytes are read into messages by the
-//! `mavlink` crate's reader (which keeps partial frames between reads) on a
-//! blocking thread; the bytes around intact frames (damaged frames, noise)
-//! are counted as `damaged`. Every message this program sends goes to every
-//! connection through a bounded queue: a peer that does not read loses
-//! messages, it never stalls the others.
+//! (`serial`).
+//!
+//! Each connection is read into one buffer of [`BUFFER`] bytes and its
+//! frames are read in place (`link::scan`) before more is read: when the
+//! router is slower than the peer, the socket is simply not read (TCP's
+//! own flow control holds the peer back), so a connection never holds
+//! more than that buffer and its write queue, and nothing is left when it
+//! closes. The bytes around intact frames (damaged frames, noise) are
+//! counted as `damaged`, one count per run between frames.
+//!
+//! Every message this program sends to everyone goes to every connection
+//! through a bounded queue: a peer that does not read loses messages, it
+//! never stalls the others; an answer goes to the asker's connection only.
+//!
+//! Accepted connections (`tcp_listen`) are admitted by [`Admission`] (the
+//! rules of gcud's admission table, which the shared bounded listener
+//! takes over): at most [`MAX_CONNECTIONS`]; when they are all taken, the
+//! one idle the longest, if idle for at least [`MIN_IDLE_TO_EVICT`], is
+//! closed for the newcomer (else the newcomer is refused); at most
+//! [`MAX_PER_PEER`] from one address off this machine; a connection that
+//! sends nothing for [`IDLE_TIMEOUT`] is closed. The configured `tcp` and
+//! `serial` endpoints never count against these: peers on the network
+//! cannot lock them out.
 
-use std::io::{self, Read};
-use std::net::SocketAddr;
+use std::net::{IpAddr, SocketAddr};
 use std::path::PathBuf;
-use std::sync::{Arc, Mutex};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
+use mavlink::MavHeader;
 use mavlink::dialects::common::MavMessage;
-use mavlink::{MAVLinkMessageRaw, MavHeader, Message};
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
-use tokio::sync::mpsc;
+use tokio::sync::{Notify, mpsc};
+use tokio::time::Instant;
 use tokio_serial::SerialPortBuilderExt;
 use tracing::{debug, info, warn};
 
-use crate::stats::Stats;
+use crate::link::{self, MAX_FRAME, Net, Peer, Scan, Screened};
+use crate::stats::{Stats, may_warn};
 
 /// What is done with each intact message that comes in.
 pub type Handler = Arc<dyn Fn(MavHeader, MavMessage) + Send + Sync>;
 
-/// The most connections accepted on `tcp_listen` endpoints served at once
-/// (each has a reader thread). The configured `tcp` and `serial` endpoints
-/// never count against it: peers on the network cannot lock them out.
+/// The most connections accepted on `tcp_listen` endpoints open at once.
 pub const MAX_CONNECTIONS: usize = 8;
+/// The most accepted connections from one address off this machine (every
+/// local client is the same loopback address, so it is not capped).
+pub const MAX_PER_PEER: usize = MAX_CONNECTIONS / 2;
+/// An accepted connection idle for less than this is never closed for a newcomer.
+pub const MIN_IDLE_TO_EVICT: Duration = Duration::from_secs(1);
+/// An accepted connection that sent nothing for this long is closed
+/// (ground stations send a heartbeat every second).
+pub const IDLE_TIMEOUT: Duration = Duration::from_secs(30);
+/// A connection's read buffer: the most of a peer's bytes held at once.
+pub const BUFFER: usize = 8192;
 /// Messages waiting to be written to one connection.
 const QUEUE: usize = 256;
 /// How long a `tcp` or `serial` endpoint waits before connecting or opening again.
 pub const RECONNECT: Duration = Duration::from_secs(2);
 
-/// How a connection came to be: accepted from a peer (a `tcp_listen`
-/// endpoint, at most [`MAX_CONNECTIONS`] at once), or opened for a
-/// configured `tcp` or `serial` endpoint (one each, outside that limit).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Opened {
-    Accepted,
-    Configured,
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
-/// One open connection's write queue (frames to send), and how it opened.
-type Conn = (mpsc::Sender<Arc<[u8]>>, Opened);
+// ---- admission -----------------------------------------------------------------
 
-/// The open connections' write queues.
-#[derive(Debug, Default)]
+/// What happened to a newcomer.
+#[derive(Debug)]
+pub enum Admitted {
+    /// Admitted as `key`; `close` is notified when it must close (evicted
+    /// for a newcomer). `evicted`: the address of the one closed for it.
+    Yes {
+        key: u64,
+        close: Arc<Notify>,
+        evicted: Option<IpAddr>,
+    },
+    /// Refused, and why.
+    No(&'static str),
+}
+
+/// Who may hold an accepted connection: the interface a listener admits
+/// by, so that the shared bounded listener's table can replace [`Slots`]
+/// (the same calls as its `Connections`: admit, touch, idle_at, left).
+pub trait Admission: Send + Sync + std::fmt::Debug {
+    /// A newcomer from `peer` at `now`.
+    fn admit(&self, peer: IpAddr, now: Instant) -> Admitted;
+    /// Connection `key` received bytes at `now`.
+    fn touch(&self, key: u64, now: Instant);
+    /// When connection `key` falls idle, if it is still admitted.
+    fn idle_at(&self, key: u64) -> Option<Instant>;
+    /// Connection `key` closed; `idle`: for its idle time-out.
+    fn left(&self, key: u64, idle: bool);
+}
+
+#[derive(Debug)]
+struct Slot {
+    key: u64,
+    peer: IpAddr,
+    last_active: Instant,
+    close: Arc<Notify>,
+}
+
+/// The rules of the module's documentation, as a table.
+#[derive(Debug)]
+pub struct Slots {
+    max: usize,
+    per_peer: usize,
+    idle_timeout: Duration,
+    open: Mutex<(u64, Vec<Slot>)>,
+}
+
+impl Slots {
+    pub fn new(max: usize, per_peer: usize, idle_timeout: Duration) -> Self {
+        Self {
+            max,
+            per_peer,
+            idle_timeout,
+            open: Mutex::new((0, Vec::new())),
+        }
+    }
+}
+
+impl Default for Slots {
+    fn default() -> Self {
+        Self::new(MAX_CONNECTIONS, MAX_PER_PEER, IDLE_TIMEOUT)
+    }
+}
+
+impl Admission for Slots {
+    fn admit(&self, peer: IpAddr, now: Instant) -> Admitted {
+        let mut guard = lock(&self.open);
+        let (next, open) = &mut *guard;
+        if !peer.is_loopback() && open.iter().filter(|s| s.peer == peer).count() >= self.per_peer {
+            return Admitted::No("the most connections from one address are open");
+        }
+        let mut evicted = None;
+        if open.len() >= self.max {
+            let idlest = open
+                .iter()
+                .enumerate()
+                .filter(|(_, s)| now.saturating_duration_since(s.last_active) >= MIN_IDLE_TO_EVICT)
+                .min_by_key(|(_, s)| s.last_active)
+                .map(|(i, _)| i);
+            let Some(i) = idlest else {
+                return Admitted::No("every connection is open and busy");
+            };
+            let victim = open.swap_remove(i);
+            victim.close.notify_one();
+            evicted = Some(victim.peer);
+        }
+        let key = *next;
+        *next += 1;
+        let close = Arc::new(Notify::new());
+        open.push(Slot {
+            key,
+            peer,
+            last_active: now,
+            close: Arc::clone(&close),
+        });
+        Admitted::Yes { key, close, evicted }
+    }
+
+    fn touch(&self, key: u64, now: Instant) {
+        if let Some(s) = lock(&self.open).1.iter_mut().find(|s| s.key == key) {
+            s.last_active = now;
+        }
+    }
+
+    fn idle_at(&self, key: u64) -> Option<Instant> {
+        lock(&self.open)
+            .1
+            .iter()
+            .find(|s| s.key == key)
+            .map(|s| s.last_active + self.idle_timeout)
+    }
+
+    fn left(&self, key: u64, _idle: bool) {
+        lock(&self.open).1.retain(|s| s.key != key);
+    }
+}
+
+// ---- the open connections ------------------------------------------------------
+
+/// One frame to write.
+type Out = Arc<[u8]>;
+
+/// One open connection's write queue.
+#[derive(Debug)]
+struct Conn {
+    id: u64,
+    tx: mpsc::Sender<Out>,
+}
+
+/// The open connections' write queues, and who may hold an accepted one.
+#[derive(Debug)]
 pub struct Streams {
+    net: Arc<Net>,
     conns: Mutex<Vec<Conn>>,
+    next: AtomicU64,
+    admission: Box<dyn Admission>,
 }
 
 impl Streams {
+    pub fn new(net: Arc<Net>) -> Self {
+        Self::with_admission(net, Box::new(Slots::default()))
+    }
+
+    pub fn with_admission(net: Arc<Net>, admission: Box<dyn Admission>) -> Self {
+        Self {
+            net,
+            conns: Mutex::default(),
+            next: AtomicU64::new(0),
+            admission,
+        }
+    }
+
     /// Queues `bytes` (one frame) for every open connection.
     pub fn send(&self, bytes: &[u8]) {
-        let mut conns = self.conns.lock().unwrap_or_else(|p| p.into_inner());
-        conns.retain(|(c, _)| !c.is_closed());
+        let conns = lock(&self.conns);
         if conns.is_empty() {
             return;
         }
         let bytes: Arc<[u8]> = bytes.into();
-        for (c, _) in conns.iter() {
-            let _ = c.try_send(Arc::clone(&bytes));
+        for c in conns.iter() {
+            let _ = c.tx.try_send(Arc::clone(&bytes));
         }
     }
 
-    /// A new connection's queue, or `None` for an accepted one when
-    /// [`MAX_CONNECTIONS`] accepted ones are open.
-    fn add(&self, opened: Opened) -> Option<mpsc::Receiver<Arc<[u8]>>> {
-        let mut conns = self.conns.lock().unwrap_or_else(|p| p.into_inner());
-        conns.retain(|(c, _)| !c.is_closed());
-        let accepted = conns.iter().filter(|(_, o)| *o == Opened::Accepted).count();
-        if opened == Opened::Accepted && accepted >= MAX_CONNECTIONS {
-            return None;
+    /// Queues `bytes` for connection `id` alone, if it is open.
+    pub fn send_to(&self, id: u64, bytes: &[u8]) {
+        if let Some(c) = lock(&self.conns).iter().find(|c| c.id == id) {
+            let _ = c.tx.try_send(bytes.into());
         }
+    }
+
+    /// A new connection: its id, a sender into its queue and the queue.
+    fn add(&self) -> (u64, mpsc::Sender<Out>, mpsc::Receiver<Out>) {
+        let id = self.next.fetch_add(1, Ordering::Relaxed);
         let (tx, rx) = mpsc::channel(QUEUE);
-        conns.push((tx, opened));
-        Some(rx)
+        lock(&self.conns).push(Conn { id, tx: tx.clone() });
+        (id, tx, rx)
+    }
+
+    fn remove(&self, id: u64) {
+        lock(&self.conns).retain(|c| c.id != id);
+    }
+
+    #[cfg(test)]
+    fn open(&self) -> usize {
+        lock(&self.conns).len()
     }
 }
 
-/// Chunks read from a connection, as the blocking `Read` the reader wants.
-/// It hands out one byte per call, so that when the reader returns a frame
-/// it holds nothing beyond the frame's last byte: `handed` then tells
-/// exactly how many bytes came before the frame (see [`Framing`]).
-struct Chunks {
-    rx: std::sync::mpsc::Receiver<Vec<u8>>,
-    chunk: Vec<u8>,
-    at: usize,
-    /// Bytes handed to the reader so far.
-    handed: u64,
+/// How a connection ends.
+#[derive(Debug, PartialEq, Eq)]
+enum End {
+    Closed,
+    Evicted,
+    Idle,
 }
 
-impl Read for Chunks {
-    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
-        while self.at == self.chunk.len() {
-            match self.rx.recv() {
-                Ok(chunk) => (self.chunk, self.at) = (chunk, 0),
-                Err(_) => return Ok(0),
-            }
-        }
-        let Some(first) = buf.first_mut() else {
-            return Ok(0);
-        };
-        *first = self.chunk[self.at];
-        self.at += 1;
-        self.handed += 1;
-        Ok(1)
-    }
-}
-
-/// Where a stream's bytes went: into intact frames, or around them.
-#[derive(Debug, Default)]
-struct Framing {
-    /// Bytes handed to the reader when the last frame ended.
-    framed_up_to: u64,
-}
-
-impl Framing {
-    /// A frame of `len` bytes ended with byte `handed`: the bytes before it
-    /// since the last frame that were no intact frame (0 when none).
-    fn frame(&mut self, handed: u64, len: u64) -> u64 {
-        let skipped = handed.saturating_sub(len).saturating_sub(self.framed_up_to);
-        self.framed_up_to = handed;
-        skipped
-    }
-
-    /// The stream ended with byte `handed`: the bytes after the last frame.
-    fn end(&self, handed: u64) -> u64 {
-        handed.saturating_sub(self.framed_up_to)
-    }
-}
-
-/// The length of a raw frame, signature included.
-fn frame_len(raw: &MAVLinkMessageRaw) -> u64 {
-    match raw {
-        MAVLinkMessageRaw::V1(m) => m.raw_bytes().len() as u64,
-        MAVLinkMessageRaw::V2(m) => m.raw_bytes().len() as u64,
-    }
-}
-
-/// Serves one connection (a TCP socket, a serial line) until it closes.
-async fn serve<S>(stream: S, opened: Opened, peer: String, streams: Arc<Streams>, stats: Arc<Stats>, handler: Handler)
-where
+/// Serves one connection (a TCP socket, a serial line) until it closes,
+/// is evicted for a newcomer (`admitted`: its key and notice) or falls idle.
+async fn serve<S>(
+    stream: S,
+    admitted: Option<(u64, Arc<Notify>)>,
+    peer: String,
+    streams: Arc<Streams>,
+    stats: Arc<Stats>,
+    handler: Handler,
+) where
     S: AsyncRead + AsyncWrite + Send + 'static,
 {
-    let Some(mut out) = streams.add(opened) else {
-        warn!(%peer, max = MAX_CONNECTIONS, "too many MAVLink TCP connections accepted: refused");
-        return;
-    };
+    let (id, answers, mut out) = streams.add();
     let (mut rd, mut wr) = tokio::io::split(stream);
     let writer = tokio::spawn(async move {
         while let Some(bytes) = out.recv().await {
@@ -158,91 +283,126 @@ where
             }
         }
     });
-    let (chunk_tx, chunk_rx) = std::sync::mpsc::channel::<Vec<u8>>();
-    let (msg_tx, mut msg_rx) = mpsc::channel::<(MavHeader, MavMessage)>(QUEUE);
-    let decoder = {
-        let (stats, peer) = (Arc::clone(&stats), peer.clone());
-        tokio::task::spawn_blocking(move || {
-            let mut reader = mavlink::MavlinkReader::new(Chunks {
-                rx: chunk_rx,
-                chunk: Vec::new(),
-                at: 0,
-                handed: 0,
-            });
-            let mut framing = Framing::default();
-            loop {
-                let raw = match reader.read_any_raw_message::<MavMessage>() {
-                    Ok(raw) => raw,
-                    Err(mavlink::error::MessageReadError::Parse(_)) => continue,
-                    Err(_) => break,
-                };
-                let skipped = framing.frame(reader.get_ref().handed, frame_len(&raw));
-                if skipped > 0 {
-                    stats.damaged(&peer, skipped as usize);
-                }
-                let header = MavHeader {
-                    system_id: raw.system_id(),
-                    component_id: raw.component_id(),
-                    sequence: raw.sequence(),
-                };
-                match MavMessage::parse(raw.version(), raw.message_id(), raw.payload()) {
-                    Ok(message) => {
-                        if msg_tx.blocking_send((header, message)).is_err() {
-                            return;
-                        }
-                    }
-                    Err(_) => stats.damaged(&peer, frame_len(&raw) as usize),
-                }
-            }
-            let trailing = framing.end(reader.get_ref().handed);
-            if trailing > 0 {
-                stats.damaged(&peer, trailing as usize);
-            }
-        })
-    };
-    let dispatch = tokio::spawn(async move {
-        while let Some((header, message)) = msg_rx.recv().await {
-            Stats::count(&stats.received);
-            handler(header, message);
+    let mut buf = vec![0u8; BUFFER];
+    let mut len = 0;
+    // Bytes since the last intact frame that were none.
+    let mut run = 0usize;
+    let key = admitted.as_ref().map(|(k, _)| *k);
+    let close = admitted.map(|(_, c)| c);
+    let end = loop {
+        let idle_at = key.and_then(|k| streams.admission.idle_at(k));
+        let read = tokio::select! {
+            read = rd.read(&mut buf[len..]) => read,
+            () = async { close.as_ref().expect("admitted").notified().await }, if close.is_some() => break End::Evicted,
+            () = tokio::time::sleep_until(idle_at.unwrap_or_else(Instant::now)), if idle_at.is_some() => break End::Idle,
+        };
+        let n = match read {
+            Ok(0) | Err(_) => break End::Closed,
+            Ok(n) => n,
+        };
+        if let Some(k) = key {
+            streams.admission.touch(k, Instant::now());
         }
-    });
-    let mut buf = vec![0u8; 4096];
-    loop {
-        match rd.read(&mut buf).await {
-            Ok(0) | Err(_) => break,
-            Ok(n) => {
-                if chunk_tx.send(buf[..n].to_vec()).is_err() {
+        len += n;
+        let mut at = 0;
+        loop {
+            match link::scan(&buf[at..len]) {
+                Scan::Frame { skip, len: frame } => {
+                    run += skip;
+                    if run > 0 {
+                        stats.damaged(&peer, run);
+                        run = 0;
+                    }
+                    let decoded = link::decode(&buf[at + skip..at + skip + frame]);
+                    match streams.net.screen(decoded, Peer::Stream(id), &peer, &stats) {
+                        Screened::Handle(header, message) => handler(header, message),
+                        Screened::Answer(bytes) => {
+                            let _ = answers.try_send(bytes.into());
+                        }
+                        Screened::Drop => {}
+                    }
+                    at += skip + frame;
+                }
+                Scan::Partial { skip } => {
+                    run += skip;
+                    at += skip;
                     break;
                 }
             }
         }
+        // What is left may be the head of a frame: shorter than one.
+        debug_assert!(len - at < MAX_FRAME);
+        buf.copy_within(at..len, 0);
+        len -= at;
+    };
+    run += len;
+    if run > 0 {
+        stats.damaged(&peer, run);
     }
-    // The reader sees the end, then the dispatcher; the writer stops now.
-    drop(chunk_tx);
+    streams.remove(id);
+    lock(&streams.net.heard).forget(Peer::Stream(id));
     writer.abort();
-    let _ = decoder.await;
-    let _ = dispatch.await;
-    info!(%peer, "MAVLink connection closed");
+    if let Some(k) = key {
+        streams.admission.left(k, end == End::Idle);
+    }
+    match end {
+        // A peer connecting again and again writes a bounded number of lines.
+        End::Closed => {
+            if may_warn("MAVLink connection closed", &peer_ip(&peer)) {
+                info!(%peer, "MAVLink connection closed");
+            }
+        }
+        End::Evicted => {
+            Stats::count(&stats.tcp_evicted);
+            if may_warn("MAVLink connection closed for a newcomer", &peer) {
+                warn!(%peer, idle_s = MIN_IDLE_TO_EVICT.as_secs(), "MAVLink connection idle the longest closed for a newcomer");
+            }
+        }
+        End::Idle => {
+            Stats::count(&stats.tcp_idle_closed);
+            if may_warn("MAVLink connection idle: closed", &peer) {
+                warn!(%peer, idle_s = IDLE_TIMEOUT.as_secs(), "MAVLink connection sent nothing: closed");
+            }
+        }
+    }
 }
 
-/// `tcp_listen`: accepts connections for ever.
+/// The address part of a peer's name (`IP:PORT`, or a serial device).
+fn peer_ip(peer: &str) -> &str {
+    peer.parse::<SocketAddr>()
+        .map_or(peer, |_| peer.rsplit_once(':').map_or(peer, |(ip, _)| ip))
+}
+
+/// `tcp_listen`: accepts connections for ever, as [`Admission`] admits them.
 pub async fn listen(listener: TcpListener, streams: Arc<Streams>, stats: Arc<Stats>, handler: Handler) {
     loop {
         match listener.accept().await {
-            Ok((stream, peer)) => {
-                info!(%peer, "MAVLink TCP connection accepted");
-                let _ = stream.set_nodelay(true);
-                tokio::spawn(serve(
-                    stream,
-                    Opened::Accepted,
-                    peer.to_string(),
-                    Arc::clone(&streams),
-                    Arc::clone(&stats),
-                    Arc::clone(&handler),
-                ));
-            }
+            Ok((stream, peer)) => match streams.admission.admit(peer.ip(), Instant::now()) {
+                Admitted::Yes { key, close, evicted } => {
+                    if may_warn("MAVLink TCP connection accepted", &peer.ip()) {
+                        info!(%peer, ?evicted, "MAVLink TCP connection accepted");
+                    }
+                    let _ = stream.set_nodelay(true);
+                    tokio::spawn(serve(
+                        stream,
+                        Some((key, close)),
+                        peer.to_string(),
+                        Arc::clone(&streams),
+                        Arc::clone(&stats),
+                        Arc::clone(&handler),
+                    ));
+                }
+                Admitted::No(why) => {
+                    Stats::count(&stats.tcp_refused);
+                    if may_warn("MAVLink TCP connection refused", &peer.ip()) {
+                        warn!(%peer, max = MAX_CONNECTIONS, why, "MAVLink TCP connection refused");
+                    }
+                }
+            },
             Err(e) => {
-                warn!(error = %e, "accept failed");
+                if may_warn("accept failed", &"tcp_listen") {
+                    warn!(error = %e, "accept failed");
+                }
                 tokio::time::sleep(Duration::from_millis(100)).await;
             }
         }
@@ -261,7 +421,7 @@ pub async fn connect(to: String, streams: Arc<Streams>, stats: Arc<Stats>, handl
                 let _ = stream.set_nodelay(true);
                 serve(
                     stream,
-                    Opened::Configured,
+                    None,
                     peer.to_string(),
                     Arc::clone(&streams),
                     Arc::clone(&stats),
@@ -269,7 +429,11 @@ pub async fn connect(to: String, streams: Arc<Streams>, stats: Arc<Stats>, handl
                 )
                 .await;
             }
-            Err(e) => warn!(to = %to, error = %e, "MAVLink TCP connection failed"),
+            Err(e) => {
+                if may_warn("MAVLink TCP connection failed", &to) {
+                    warn!(to = %to, error = %e, "MAVLink TCP connection failed");
+                }
+            }
         }
         tokio::time::sleep(RECONNECT).await;
     }
@@ -288,7 +452,7 @@ pub async fn serial(path: PathBuf, baud: u32, streams: Arc<Streams>, stats: Arc<
                 info!(path = %name, baud, "MAVLink serial line open");
                 serve(
                     port,
-                    Opened::Configured,
+                    None,
                     name.clone(),
                     Arc::clone(&streams),
                     Arc::clone(&stats),
@@ -310,37 +474,90 @@ pub async fn serial(path: PathBuf, baud: u32, streams: Arc<Streams>, stats: Arc<
 mod tests {
     use super::*;
 
-    #[test]
-    fn accepted_connections_at_their_limit_leave_room_for_configured_ones() {
-        let streams = Streams::default();
-        let accepted: Vec<_> = (0..MAX_CONNECTIONS)
-            .map(|_| streams.add(Opened::Accepted).expect("room"))
+    const FAR: [u8; 4] = [192, 0, 2, 1];
+
+    #[tokio::test]
+    async fn the_longest_idle_makes_room_for_a_newcomer_busy_ones_never() {
+        let slots = Slots::default();
+        let local = IpAddr::from([127, 0, 0, 1]);
+        let t0 = Instant::now();
+        let keys: Vec<u64> = (0..MAX_CONNECTIONS)
+            .map(|i| match slots.admit(local, t0 + Duration::from_millis(i as u64)) {
+                Admitted::Yes { key, evicted: None, .. } => key,
+                other => panic!("{other:?}"),
+            })
             .collect();
-        assert!(streams.add(Opened::Accepted).is_none(), "the limit holds");
-        let serial = streams
-            .add(Opened::Configured)
-            .expect("a serial line is never locked out");
-        let tcp = streams.add(Opened::Configured).expect("nor a configured tcp endpoint");
-        assert!(
-            streams.add(Opened::Accepted).is_none(),
-            "configured ones take no accepted slot"
+        // All busy (active under a second ago): the newcomer is refused.
+        assert!(matches!(
+            slots.admit(local, t0 + Duration::from_millis(500)),
+            Admitted::No(_)
+        ));
+        // Every one idle, the first touched again: the second goes.
+        let later = t0 + Duration::from_secs(2);
+        slots.touch(keys[0], later);
+        let Admitted::Yes { evicted, .. } = slots.admit(local, later) else {
+            panic!("refused")
+        };
+        assert_eq!(evicted, Some(local));
+        assert!(slots.idle_at(keys[1]).is_none(), "the second was evicted");
+        assert!(slots.idle_at(keys[0]).is_some(), "the first, active, stays");
+        assert_eq!(
+            slots.idle_at(keys[2]),
+            Some(t0 + Duration::from_millis(2) + IDLE_TIMEOUT)
         );
-        drop(accepted);
-        assert!(streams.add(Opened::Accepted).is_some(), "closed ones free their slots");
-        drop((serial, tcp));
     }
 
-    #[test]
-    fn bytes_around_frames_are_counted_once_each() {
-        let mut f = Framing::default();
-        // A 12-byte frame right at the start: nothing skipped.
-        assert_eq!(f.frame(12, 12), 0);
-        // 5 bytes of noise, then a 20-byte frame.
-        assert_eq!(f.frame(37, 20), 5);
-        // A frame right after it.
-        assert_eq!(f.frame(49, 12), 0);
-        // 3 bytes after the last frame when the stream ends.
-        assert_eq!(f.end(52), 3);
-        assert_eq!(f.end(49), 0);
+    #[tokio::test]
+    async fn one_address_off_this_machine_holds_at_most_its_share() {
+        let slots = Slots::default();
+        let far = IpAddr::from(FAR);
+        let now = Instant::now();
+        for _ in 0..MAX_PER_PEER {
+            assert!(matches!(slots.admit(far, now), Admitted::Yes { .. }));
+        }
+        assert!(matches!(slots.admit(far, now), Admitted::No(_)));
+        assert!(matches!(
+            slots.admit(IpAddr::from([192, 0, 2, 2]), now),
+            Admitted::Yes { .. }
+        ));
+    }
+
+    #[tokio::test]
+    async fn a_connection_holds_one_buffer_and_leaves_nothing_when_it_closes() {
+        let streams = Arc::new(Streams::new(Arc::new(Net::new(1))));
+        let stats = Arc::new(Stats::default());
+        let (mut ours, theirs) = tokio::io::duplex(1024);
+        let handled = Arc::new(AtomicU64::new(0));
+        let h = Arc::clone(&handled);
+        let handler: Handler = Arc::new(move |_, _| {
+            h.fetch_add(1, Ordering::Relaxed);
+        });
+        let task = tokio::spawn(serve(
+            theirs,
+            None,
+            "test".into(),
+            Arc::clone(&streams),
+            Arc::clone(&stats),
+            handler,
+        ));
+        let beat = link::encode(
+            MavHeader {
+                system_id: 255,
+                component_id: 190,
+                sequence: 0,
+            },
+            &MavMessage::HEARTBEAT(Default::default()),
+        );
+        // Noise, a frame split in two writes, noise at the end.
+        ours.write_all(b"noise").await.unwrap();
+        ours.write_all(&beat[..5]).await.unwrap();
+        ours.write_all(&beat[5..]).await.unwrap();
+        ours.write_all(&[0xFE, 0x20, 1, 2]).await.unwrap();
+        drop(ours);
+        task.await.unwrap();
+        assert_eq!(handled.load(Ordering::Relaxed), 1);
+        assert_eq!(stats.damaged_bytes.load(Ordering::Relaxed), 5 + 4);
+        assert_eq!(stats.damaged.load(Ordering::Relaxed), 2, "one count per run");
+        assert_eq!(streams.open(), 0, "nothing left");
     }
 }

@@ -196,6 +196,49 @@ def step_unsupported(m, a):
     return {"result": command(m, mavlink.MAV_CMD_DO_SET_SERVO, [1, 1500])}
 
 
+def step_command_id(m, a):
+    """A COMMAND_LONG with any command id (one the dialect may not know), the ACK's result."""
+    return {"result": command(m, a["id"], a.get("params", []), a.get("component", GIMBAL))}
+
+
+def step_watch(m, a):
+    """Heartbeats every `beat_s` (as QGroundControl), for `duration_s`: how
+    many attitude statuses of the gimbal came. Writes `ready_file` once
+    connected, so the test starts its flood after the ground station was heard."""
+    if "ready_file" in a:
+        with open(a["ready_file"], "w") as f:
+            f.write("connected")
+    end = time.monotonic() + a["duration_s"]
+    beat, statuses = 0.0, 0
+    while time.monotonic() < end:
+        if time.monotonic() - beat >= a.get("beat_s", 1.0):
+            m.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+            beat = time.monotonic()
+        msg = m.recv_match(type="GIMBAL_DEVICE_ATTITUDE_STATUS", blocking=True, timeout=0.1)
+        if msg is not None and msg.get_srcComponent() == GIMBAL:
+            statuses += 1
+    return {"statuses": statuses}
+
+
+def step_request_once(m, a):
+    """One MAV_CMD_REQUEST_MESSAGE for GIMBAL_MANAGER_INFORMATION; then
+    everything that came for `listen_s`: how many ACKs of it and how many
+    information messages (one of each is the answer)."""
+    m.mav.command_long_send(1, GIMBAL, mavlink.MAV_CMD_REQUEST_MESSAGE, 0, 280, 0, 0, 0, 0, 0, 0)
+    end = time.monotonic() + a.get("listen_s", 2.0)
+    acks, infos, result = 0, 0, None
+    while time.monotonic() < end:
+        msg = m.recv_match(type=["COMMAND_ACK", "GIMBAL_MANAGER_INFORMATION"], blocking=True, timeout=0.1)
+        if msg is None or msg.get_srcComponent() != GIMBAL:
+            continue
+        if msg.get_type() == "COMMAND_ACK" and msg.command == mavlink.MAV_CMD_REQUEST_MESSAGE:
+            acks += 1
+            result = msg.result
+        elif msg.get_type() == "GIMBAL_MANAGER_INFORMATION":
+            infos += 1
+    return {"acks": acks, "infos": infos, "result": result}
+
+
 STEPS = {name[5:]: f for name, f in globals().items() if name.startswith("step_")}
 
 
