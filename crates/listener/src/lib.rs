@@ -1,5 +1,6 @@
-//! The bounded listener (DESIGN "Front doors"): every socket that faces the
-//! LAN has a cap on connections (in all and per peer), header, body and
+//! The bounded listener (ARCHITECTURE "Bounded and fair under load"):
+//! every socket that faces the LAN has a cap on connections (in all and per
+//! peer), header, body and
 //! idle time-outs, bounded buffers and rate-limited logging. gcud's client
 //! listeners admit through [`admission`]; gimbal-onvif serves HTTP through
 //! [`http`]; [`rate`] holds the token buckets that bound what one user or
