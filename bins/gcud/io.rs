@@ -19,9 +19,9 @@ use crate::lines::{Ended, LineStream};
 use sagebrush_host::transport::{SerialOrTcp, connect_tcp, open_serial};
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio::net::{TcpListener, TcpStream};
-use tokio::sync::{Notify, mpsc, oneshot};
+use tokio::sync::{mpsc, oneshot};
 
-use crate::admission::{Admission, Connections};
+use crate::admission::{Admitted, Connections, Ending};
 use tracing::{debug, info, warn};
 
 use crate::config::{Link, LinkTransport, Port, PortTransport};
@@ -218,23 +218,6 @@ fn describe(t: &PortTransport) -> String {
 const FIRST_ACCEPTED_ID: u32 = 1 << 16;
 static NEXT_LINK_ID: AtomicU32 = AtomicU32::new(FIRST_ACCEPTED_ID);
 
-/// An accepted connection's place in the admission table.
-/// Leaves the table when dropped, however the connection ends (its task
-/// aborted by a reload included).
-struct Admitted {
-    table: Arc<Connections>,
-    key: u64,
-    close: Arc<Notify>,
-    /// Closed for its idle time-out.
-    idle: bool,
-}
-
-impl Drop for Admitted {
-    fn drop(&mut self) {
-        self.table.left(self.key, self.idle);
-    }
-}
-
 /// Hands one link connection to the router task and waits until it ends
 /// (an accepted one also ends when evicted or idle too long: the router
 /// task is asked to close it).
@@ -254,33 +237,23 @@ async fn serve_link<S: LineStream + 'static>(
         peer: peer.clone(),
         stream: Box::new(stream),
         tap,
-        admission: admitted.as_ref().map(|a| (a.table.clone(), a.key)),
+        admission: admitted.as_ref().map(Admitted::entry),
         ended,
     };
     if events.send(opened).await.is_err() {
         return;
     }
     let mut admitted = admitted;
-    let idle_at = |a: &Option<Admitted>| a.as_ref().and_then(|a| a.table.idle_at(a.key));
-    let closing = loop {
-        tokio::select! {
-            ended = &mut end => {
-                let reason = ended.map_or_else(|_| "closed by the router".to_owned(), |e| e.reason);
-                debug!(%id, %peer, %reason, "link closed");
-                return;
-            }
-            () = async { match &admitted { Some(a) => a.close.notified().await, None => std::future::pending().await } } => {
-                break "evicted for a newcomer (limits.max_connections)";
-            }
-            () = async { match idle_at(&admitted) { Some(at) => tokio::time::sleep_until(at).await, None => std::future::pending().await } } => {
-                if idle_at(&admitted).is_some_and(|at| at <= tokio::time::Instant::now()) {
-                    if let Some(a) = admitted.as_mut() {
-                        a.idle = true;
-                    }
-                    break "idle (limits.idle_timeout_ms)";
-                }
-            }
+    let closing = tokio::select! {
+        ended = &mut end => {
+            let reason = ended.map_or_else(|_| "closed by the router".to_owned(), |e| e.reason);
+            debug!(%id, %peer, %reason, "link closed");
+            return;
         }
+        ending = async { match admitted.as_mut() { Some(a) => a.ended().await, None => std::future::pending().await } } => match ending {
+            Ending::Evicted => "evicted for a newcomer (limits.max_connections)",
+            Ending::Idle => "idle (limits.idle_timeout_ms)",
+        },
     };
     let _ = events.send(IoEvent::CloseLink { id, reason: closing }).await;
     drop(admitted);
@@ -321,7 +294,7 @@ pub async fn run_link(id: LinkId, link: Link, events: mpsc::Sender<IoEvent>, cap
 }
 
 /// Accepts connections: allow-listed peers only, admitted by the shared
-/// table (module `admission`). The connections end with this task (a link
+/// table (crate `sagebrush-listener`, re-exported as module `admission`). The connections end with this task (a link
 /// removed on reload).
 pub async fn accept_loop(
     link: Link,
@@ -344,14 +317,14 @@ pub async fn accept_loop(
             }
             continue;
         }
-        let (key, close) = match connections.admit(peer.ip(), tokio::time::Instant::now()) {
-            Admission::Admitted { key, close, evicted } => {
+        let admitted = match Admitted::admit(&connections, peer.ip()) {
+            Ok((admitted, evicted)) => {
                 if let Some(victim) = evicted {
                     warn!(link = %link.name, peer = %victim, newcomer = %peer, "connection evicted: idle the longest at limits.max_connections (logged once a minute per peer)");
                 }
-                (key, close)
+                admitted
             }
-            Admission::Refused { why, log } => {
+            Err((why, log)) => {
                 if log {
                     warn!(link = %link.name, %peer, "connection refused: {why} (logged once a minute per peer; gcud_connections_refused_total counts them all)");
                 }
@@ -364,12 +337,6 @@ pub async fn accept_loop(
         debug!(link = %link.name, %peer, "client connected");
         let events = events.clone();
         let name = link.name.clone();
-        let admitted = Admitted {
-            table: connections.clone(),
-            key,
-            close,
-            idle: false,
-        };
         let tap = capture.tap(format!("link {name} {peer}"), capture_role(link.kind));
         open.spawn(async move {
             let id = LinkId(NEXT_LINK_ID.fetch_add(1, Ordering::Relaxed));

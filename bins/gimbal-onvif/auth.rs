@@ -3,12 +3,21 @@
 //! of SHA-1 over the nonce, Created and the password; Created is within
 //! [`WINDOW`] of our clock, and a nonce is never accepted twice), or HTTP
 //! Digest (RFC 7616, MD5, qop=auth: our nonces carry their time and a keyed
-//! hash, live [`WINDOW`], and each nonce count is accepted once).
-//! Plain-text passwords are refused.
+//! hash, live [`WINDOW`], and each nonce count is accepted once, for the
+//! request URI it was computed over). Plain-text passwords are refused.
+//!
+//! Bounds (`[auth]`): every nonce accepted is remembered as long as a token
+//! carrying it could be accepted (twice [`WINDOW`]); when `nonce_cache` of
+//! them are remembered, new requests are refused with a fault until old
+//! ones expire (a flood never makes the door forget one early). Each user
+//! has a token bucket (`requests_per_s`, `burst`): past it, requests are
+//! refused with a fault before anything is remembered or sent to a gimbal.
 
-use std::collections::{HashSet, VecDeque};
+use std::collections::{HashMap, HashSet, VecDeque};
 use std::sync::Mutex;
 use std::time::Duration;
+
+use sagebrush_listener::rate::TokenBucket;
 
 use base64::Engine;
 use base64::engine::general_purpose::STANDARD as B64;
@@ -16,19 +25,22 @@ use sha1::{Digest, Sha1};
 use time::OffsetDateTime;
 use time::format_description::well_known::Rfc3339;
 
-use crate::config::{Role, User};
+use crate::config::{AuthBounds, Role, User, Users};
 use crate::soap::{Element, Fault};
 
 /// How far Created may be from our clock, either way.
 pub const WINDOW: Duration = Duration::from_secs(300);
-/// Nonces remembered (each for [`WINDOW`] twice over); beyond this many the
-/// oldest is forgotten, and a token that old is refused by its Created.
-const NONCES_CAP: usize = 65_536;
+/// The only WS-Security password type accepted (UsernameToken Profile 1.0, 4.1).
+pub const PASSWORD_DIGEST: &str =
+    "http://docs.oasis-open.org/wss/2004/01/oasis-200401-wss-username-token-profile-1.0#PasswordDigest";
 
 #[derive(Debug)]
 pub struct Authenticator {
     users: Vec<User>,
+    bounds: AuthBounds,
     seen: Mutex<Nonces>,
+    /// Per user name: its request bucket.
+    rates: Mutex<HashMap<String, TokenBucket>>,
     /// The key of our HTTP Digest nonces, new at every start.
     secret: [u8; 16],
 }
@@ -42,6 +54,14 @@ struct Nonces {
 
 fn not_authorized(reason: impl Into<String>) -> Fault {
     Fault::sender(&["ter:NotAuthorized"], reason)
+}
+
+/// Credentials came and were wrong for user `name` (logged as a failed login).
+fn login_failed(name: &str, reason: impl Into<String>) -> Fault {
+    Fault {
+        login_failed: Some(name.to_owned()),
+        ..unauthenticated(reason)
+    }
 }
 
 /// No valid credentials: a 401 with a Digest challenge.
@@ -86,7 +106,7 @@ fn digest_fields(header: &str) -> Option<Vec<(String, String)>> {
 }
 
 impl Authenticator {
-    pub fn new(users: Vec<User>) -> Self {
+    pub fn new(users: Users) -> Self {
         let mut secret = [0u8; 16];
         if getrandom::fill(&mut secret).is_err() {
             // No system randomness: a key from the clock and the process,
@@ -95,8 +115,10 @@ impl Authenticator {
             secret.copy_from_slice(&Sha1::digest(seed.as_bytes())[..16]);
         }
         Self {
-            users,
+            users: users.list,
+            bounds: users.bounds,
             seen: Mutex::new(Nonces::default()),
+            rates: Mutex::new(HashMap::new()),
             secret,
         }
     }
@@ -118,26 +140,54 @@ impl Authenticator {
     }
 
     /// The user of a request: from its WS-Security header when it has one,
-    /// else from its HTTP Digest `authorization` of `method uri`.
+    /// else from its HTTP Digest `authorization` of `method uri` (the
+    /// request's own target).
     pub fn authenticate(
         &self,
         header: Option<&Element>,
         authorization: Option<&str>,
         method: &str,
+        uri: &str,
         now: OffsetDateTime,
     ) -> Result<(String, Role), Fault> {
         let has_token = header.and_then(|h| h.path(&["Security", "UsernameToken"])).is_some();
         match authorization {
-            Some(a) if !has_token && a.trim_start().starts_with("Digest") => self.check_http_digest(a, method, now),
+            Some(a) if !has_token && a.trim_start().starts_with("Digest") => {
+                self.check_http_digest(a, method, uri, now)
+            }
             _ => self.check(header, now),
         }
     }
 
-    /// HTTP Digest (RFC 7616, MD5, qop=auth) with one of our nonces.
+    /// Takes one request from `user`'s bucket, or refuses it.
+    fn spend(&self, user: &str) -> Result<(), Fault> {
+        let mut rates = self.rates.lock().unwrap_or_else(|p| p.into_inner());
+        let now = tokio::time::Instant::now();
+        let AuthBounds {
+            requests_per_s, burst, ..
+        } = self.bounds;
+        let bucket = rates
+            .entry(user.to_owned())
+            .or_insert_with(|| TokenBucket::new(f64::from(requests_per_s), f64::from(burst), now));
+        if bucket.take(now) {
+            Ok(())
+        } else {
+            Err(Fault::sender(
+                &["ter:TooManyRequests"],
+                format!(
+                    "user {user:?} sent more than {requests_per_s} requests a second (burst {burst}): [auth] requests_per_s"
+                ),
+            ))
+        }
+    }
+
+    /// HTTP Digest (RFC 7616, MD5, qop=auth) with one of our nonces, over
+    /// `method` and the request's target `request_uri`.
     pub fn check_http_digest(
         &self,
         authorization: &str,
         method: &str,
+        request_uri: &str,
         now: OffsetDateTime,
     ) -> Result<(String, Role), Fault> {
         let fields = digest_fields(authorization).ok_or_else(|| unauthenticated("malformed Digest authorization"))?;
@@ -164,6 +214,12 @@ impl Authenticator {
         if !matches!(field("algorithm"), "" | "MD5") {
             return Err(unauthenticated("Digest authorization: only algorithm MD5 is offered"));
         }
+        if uri != request_uri {
+            return Err(login_failed(
+                name,
+                "Digest authorization: its uri is not this request's target",
+            ));
+        }
         let (stamp, mac) = nonce.split_once('.').unwrap_or_default();
         let issued = i64::from_str_radix(stamp, 16)
             .ok()
@@ -181,8 +237,9 @@ impl Authenticator {
             md5_hex(&format!("{ha1}:{nonce}:{nc}:{cnonce}:auth:{ha2}")) == response
         });
         let Some(user) = user.filter(|_| valid) else {
-            return Err(unauthenticated("wrong user name or password"));
+            return Err(login_failed(name, "wrong user name or password"));
         };
+        self.spend(&user.name)?;
         self.remember(&format!("{nonce}:{nc}:{cnonce}"), now)?;
         Ok((user.name.clone(), user.role))
     }
@@ -198,10 +255,10 @@ impl Authenticator {
         let password = token
             .child("Password")
             .ok_or_else(|| not_authorized("the UsernameToken has no Password"))?;
-        if !password.attr("Type").is_some_and(|t| t.ends_with("#PasswordDigest")) {
-            return Err(not_authorized(
-                "only PasswordDigest is accepted, never a plain-text password",
-            ));
+        if password.attr("Type") != Some(PASSWORD_DIGEST) {
+            return Err(not_authorized(format!(
+                "only the Password Type {PASSWORD_DIGEST} is accepted, never a plain-text password"
+            )));
         }
         let nonce = token.text_at(&["Nonce"]).unwrap_or_default();
         let created = token.text_at(&["Created"]).unwrap_or_default();
@@ -227,18 +284,22 @@ impl Authenticator {
             B64.encode(h.finalize()) == password.text.trim()
         });
         let Some(user) = user.filter(|_| valid) else {
-            return Err(unauthenticated("wrong user name or password"));
+            return Err(login_failed(name, "wrong user name or password"));
         };
+        self.spend(&user.name)?;
         self.remember(nonce, now)?;
         Ok((user.name.clone(), user.role))
     }
 
-    /// Refuses a nonce already accepted (a replay).
+    /// Refuses a nonce already accepted (a replay). A nonce is remembered
+    /// for twice [`WINDOW`] (a token is accepted while its Created is
+    /// within [`WINDOW`] of our clock either way); when `nonce_cache` are
+    /// remembered, the request is refused rather than one forgotten early.
     fn remember(&self, nonce: &str, now: OffsetDateTime) -> Result<(), Fault> {
         let mut guard = self.seen.lock().unwrap_or_else(|p| p.into_inner());
         let Nonces { order, set } = &mut *guard;
         while let Some((old, at)) = order.front() {
-            if order.len() >= NONCES_CAP || (now - *at).unsigned_abs() > WINDOW * 2 {
+            if (now - *at).unsigned_abs() > WINDOW * 2 {
                 set.remove(old);
                 order.pop_front();
             } else {
@@ -247,6 +308,16 @@ impl Authenticator {
         }
         if set.contains(nonce) {
             return Err(not_authorized("this Nonce was already used (a replayed request)"));
+        }
+        if order.len() >= self.bounds.nonce_cache {
+            return Err(Fault::sender(
+                &["ter:TooManyRequests"],
+                format!(
+                    "{} nonces of the last {} s are remembered, the most [auth] nonce_cache allows: retry later",
+                    order.len(),
+                    (WINDOW * 2).as_secs()
+                ),
+            ));
         }
         set.insert(nonce.to_owned());
         order.push_back((nonce.to_owned(), now));
@@ -271,14 +342,33 @@ mod tests {
     use super::*;
     use crate::soap;
 
+    fn users(requests_per_s: u32, burst: u32, nonce_cache: usize) -> Users {
+        Users {
+            list: vec![User {
+                name: "op".into(),
+                password: "pw".into(),
+                role: Role::Operator,
+            }],
+            bounds: AuthBounds {
+                requests_per_s,
+                burst,
+                nonce_cache,
+            },
+        }
+    }
+
     fn header(user: &str, password: &str, nonce: &[u8], created: &str) -> Element {
+        header_typed(user, password, nonce, created, PASSWORD_DIGEST)
+    }
+
+    fn header_typed(user: &str, password: &str, nonce: &[u8], created: &str, kind: &str) -> Element {
         let mut h = Sha1::new();
         h.update(nonce);
         h.update(created.as_bytes());
         h.update(password.as_bytes());
         let digest = B64.encode(h.finalize());
         let xml = format!(
-            r#"<Header><Security><UsernameToken><Username>{user}</Username><Password Type="http://docs.oasis-open.org/wss/2004/01/oasis-200401-wss-username-token-profile-1.0#PasswordDigest">{digest}</Password><Nonce>{}</Nonce><Created>{created}</Created></UsernameToken></Security></Header>"#,
+            r#"<Header><Security><UsernameToken><Username>{user}</Username><Password Type="{kind}">{digest}</Password><Nonce>{}</Nonce><Created>{created}</Created></UsernameToken></Security></Header>"#,
             B64.encode(nonce)
         );
         soap::parse(xml.as_bytes()).unwrap()
@@ -286,11 +376,7 @@ mod tests {
 
     #[test]
     fn http_digest_challenge_answer_replay_and_staleness() {
-        let a = Authenticator::new(vec![User {
-            name: "op".into(),
-            password: "pw".into(),
-            role: Role::Operator,
-        }]);
+        let a = Authenticator::new(users(1000, 1000, 1000));
         let now = OffsetDateTime::parse("2026-01-01T00:00:00Z", &Rfc3339).unwrap();
         let challenge = a.challenge(now);
         let nonce = challenge
@@ -308,37 +394,48 @@ mod tests {
             )
         };
         assert_eq!(
-            a.check_http_digest(&answer("pw", "00000001"), "POST", now).unwrap().1,
+            a.check_http_digest(&answer("pw", "00000001"), "POST", "/onvif/ptz_service", now)
+                .unwrap()
+                .1,
             Role::Operator
         );
         assert!(
-            a.check_http_digest(&answer("pw", "00000001"), "POST", now).is_err(),
+            a.check_http_digest(&answer("pw", "00000001"), "POST", "/onvif/ptz_service", now)
+                .is_err(),
             "replayed nc"
         );
-        assert!(a.check_http_digest(&answer("pw", "00000002"), "POST", now).is_ok());
-        let wrong = a.check_http_digest(&answer("no", "00000003"), "POST", now).unwrap_err();
+        assert!(
+            a.check_http_digest(&answer("pw", "00000002"), "POST", "/onvif/ptz_service", now)
+                .is_ok()
+        );
+        let wrong = a
+            .check_http_digest(&answer("no", "00000003"), "POST", "/onvif/ptz_service", now)
+            .unwrap_err();
         assert_eq!(wrong.status(), 401);
         let later = now + Duration::from_secs(600);
         assert!(
-            a.check_http_digest(&answer("pw", "00000004"), "POST", later).is_err(),
+            a.check_http_digest(&answer("pw", "00000004"), "POST", "/onvif/ptz_service", later)
+                .is_err(),
             "stale nonce"
         );
         let forged = answer("pw", "00000005").replace(&nonce[..4], "0000");
         assert!(
-            a.check_http_digest(&forged, "POST", now).is_err(),
+            a.check_http_digest(&forged, "POST", "/onvif/ptz_service", now).is_err(),
             "a nonce we did not issue"
         );
-        assert!(a.check_http_digest("Digest garbage", "POST", now).is_err());
-        assert!(a.check_http_digest("Digest a=\"", "POST", now).is_err());
+        assert!(
+            a.check_http_digest("Digest garbage", "POST", "/onvif/ptz_service", now)
+                .is_err()
+        );
+        assert!(
+            a.check_http_digest("Digest a=\"", "POST", "/onvif/ptz_service", now)
+                .is_err()
+        );
     }
 
     #[test]
     fn digest_window_replay_and_roles() {
-        let a = Authenticator::new(vec![User {
-            name: "op".into(),
-            password: "pw".into(),
-            role: Role::Operator,
-        }]);
+        let a = Authenticator::new(users(1000, 1000, 1000));
         let now = OffsetDateTime::parse("2026-01-01T00:00:00Z", &Rfc3339).unwrap();
         let ok = header("op", "pw", b"n1", "2026-01-01T00:00:10Z");
         let who = a.check(Some(&ok), now).unwrap();
@@ -359,5 +456,89 @@ mod tests {
         assert!(a.check(None, now).is_err());
         assert!(require(&who, Role::Operator, "move").is_ok());
         assert!(require(&who, Role::Administrator, "reboot").is_err());
+    }
+
+    #[test]
+    fn the_password_type_is_matched_exactly() {
+        let a = Authenticator::new(users(1000, 1000, 1000));
+        let now = OffsetDateTime::parse("2026-01-01T00:00:00Z", &Rfc3339).unwrap();
+        let created = "2026-01-01T00:00:10Z";
+        let forged = format!("urn:anything{}", &PASSWORD_DIGEST[PASSWORD_DIGEST.find('#').unwrap()..]);
+        assert!(
+            a.check(Some(&header_typed("op", "pw", b"t1", created, &forged)), now)
+                .is_err()
+        );
+        assert!(a.check(Some(&header("op", "pw", b"t2", created)), now).is_ok());
+    }
+
+    #[test]
+    fn a_digest_for_another_uri_is_refused() {
+        let a = Authenticator::new(users(1000, 1000, 1000));
+        let now = OffsetDateTime::parse("2026-01-01T00:00:00Z", &Rfc3339).unwrap();
+        let challenge = a.challenge(now);
+        let nonce = challenge
+            .split("nonce=\"")
+            .nth(1)
+            .unwrap()
+            .trim_end_matches('"')
+            .to_owned();
+        let ha1 = md5_hex(&format!("op:{REALM}:pw"));
+        let ha2 = md5_hex("POST:/onvif/device_service");
+        let response = md5_hex(&format!("{ha1}:{nonce}:00000001:abc:auth:{ha2}"));
+        let header = format!(
+            r#"Digest username="op", realm="{REALM}", nonce="{nonce}", uri="/onvif/device_service", qop=auth, nc=00000001, cnonce="abc", response="{response}""#
+        );
+        let refused = a
+            .check_http_digest(&header, "POST", "/onvif/ptz_service", now)
+            .unwrap_err();
+        assert_eq!(refused.login_failed.as_deref(), Some("op"));
+        assert!(
+            a.check_http_digest(&header, "POST", "/onvif/device_service", now)
+                .is_ok()
+        );
+    }
+
+    #[test]
+    fn a_full_nonce_cache_refuses_newcomers_and_forgets_nothing_early() {
+        let a = Authenticator::new(users(1000, 1000, 16));
+        let now = OffsetDateTime::parse("2026-01-01T00:00:00Z", &Rfc3339).unwrap();
+        let created = "2026-01-01T00:00:10Z";
+        let first = header("op", "pw", b"first", created);
+        assert!(a.check(Some(&first), now).is_ok());
+        for i in 0..15u32 {
+            assert!(
+                a.check(Some(&header("op", "pw", &i.to_be_bytes(), created)), now)
+                    .is_ok()
+            );
+        }
+        let full = a
+            .check(Some(&header("op", "pw", b"one more", created)), now)
+            .unwrap_err();
+        assert_eq!(full.subcodes, ["ter:TooManyRequests"]);
+        assert!(
+            a.check(Some(&first), now).is_err(),
+            "the first nonce is still remembered"
+        );
+        let later = now + WINDOW * 2 + Duration::from_secs(1);
+        let fresh = header("op", "pw", b"fresh", "2026-01-01T00:10:01Z");
+        assert!(a.check(Some(&fresh), later).is_ok(), "expired nonces made room");
+    }
+
+    #[test]
+    fn a_user_past_its_rate_is_refused_before_its_nonce_is_remembered() {
+        let a = Authenticator::new(users(1, 3, 1000));
+        let now = OffsetDateTime::parse("2026-01-01T00:00:00Z", &Rfc3339).unwrap();
+        let created = "2026-01-01T00:00:10Z";
+        let refused = (0..10u32)
+            .filter(|i| {
+                a.check(Some(&header("op", "pw", &i.to_be_bytes(), created)), now)
+                    .is_err()
+            })
+            .count();
+        assert!(
+            refused >= 6,
+            "at most the burst and what refilled meanwhile: {refused} refused"
+        );
+        assert_eq!(a.seen.lock().unwrap().order.len(), 10 - refused);
     }
 }

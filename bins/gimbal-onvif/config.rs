@@ -30,6 +30,10 @@ struct ConfigFile {
     nic_window_ms: Millis<10, 1000, 100>,
     #[serde(default)]
     discovery: DiscoverySection,
+    #[serde(default)]
+    http: HttpSection,
+    #[serde(default)]
+    auth: AuthSection,
     #[serde(default, rename = "user")]
     users: Vec<UserSection>,
     #[serde(default, rename = "gimbal")]
@@ -41,6 +45,36 @@ struct ConfigFile {
 struct DiscoverySection {
     enabled: Option<Spanned<bool>>,
     listen: Option<Spanned<String>>,
+    #[serde(default)]
+    answers_per_s: Int<u32, 1, 10_000, 20>,
+    #[serde(default)]
+    answers_per_source_per_s: Int<u32, 1, 10_000, 2>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct HttpSection {
+    #[serde(default)]
+    max_connections: Int<usize, 1, 100_000, 512>,
+    #[serde(default)]
+    max_connections_per_peer: Int<usize, 1, 100_000, 64>,
+    #[serde(default)]
+    header_timeout_ms: Millis<100, 600_000, 5000>,
+    #[serde(default)]
+    body_timeout_ms: Millis<100, 600_000, 10_000>,
+    #[serde(default)]
+    idle_timeout_ms: Millis<1000, 3_600_000, 60_000>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AuthSection {
+    #[serde(default)]
+    requests_per_s: Int<u32, 1, 1_000_000, 20>,
+    #[serde(default)]
+    burst: Int<u32, 1, 1_000_000, 40>,
+    #[serde(default)]
+    nonce_cache: Int<usize, 16, 10_000_000, 65_536>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -87,11 +121,59 @@ pub struct Gimbal {
     pub address: Address,
     pub listen: SocketAddr,
     pub stream_uri: Option<String>,
+    /// The bounds of the HTTP listeners (`[http]`, the same for every gimbal).
+    pub http: HttpBounds,
     /// The travel ONVIF's generic space [-1, 1] maps onto, degrees.
     pub pan_deg: (f64, f64),
     pub tilt_deg: (f64, f64),
     /// The gimbal has a lens: zoom through `ZI`/`ZO`/`ZS`, `Zn`, `V`, `V?`.
     pub zoom: bool,
+}
+
+/// `[http]`: the bounded listener of the gimbals' ONVIF devices. The
+/// connection caps hold for all the devices together (one table).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HttpBounds {
+    pub max_connections: usize,
+    pub max_connections_per_peer: usize,
+    pub header_timeout: Duration,
+    pub body_timeout: Duration,
+    pub idle_timeout: Duration,
+}
+
+/// `[auth]`: what one user may make the door spend, and the replay memory.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AuthBounds {
+    /// Authenticated requests a second per user (token bucket rate).
+    pub requests_per_s: u32,
+    /// Requests a user may make at once before the rate applies.
+    pub burst: u32,
+    /// WS-Security nonces (and HTTP Digest nonce counts) remembered at
+    /// most; when full, new requests are refused, none is forgotten early.
+    pub nonce_cache: usize,
+}
+
+/// The users and the bounds their requests are held to.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Users {
+    pub list: Vec<User>,
+    pub bounds: AuthBounds,
+}
+
+/// `[discovery]` when enabled: where, and how often it answers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DiscoveryConfig {
+    pub listen: SocketAddr,
+    /// Probe answers a second in all (token bucket, burst one second's worth).
+    pub answers_per_s: u32,
+    /// Probe answers a second to one source address.
+    pub answers_per_source_per_s: u32,
+}
+
+impl std::fmt::Display for DiscoveryConfig {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.listen.fmt(f)
+    }
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -105,8 +187,8 @@ pub struct Config {
     pub poll: Duration,
     /// How long after gcud's ACK a NIC may still come (1.4.2).
     pub nic_window: Duration,
-    pub discovery: Option<SocketAddr>,
-    pub users: Vec<User>,
+    pub discovery: Option<DiscoveryConfig>,
+    pub users: Users,
     pub gimbals: Vec<Gimbal>,
 }
 
@@ -115,7 +197,7 @@ pub const DISCOVERY_DEFAULT: &str = "0.0.0.0:3702";
 
 impl sagebrush_client::door::Checked for Config {
     fn summary(&self) -> String {
-        format!("{} gimbal(s), {} user(s)", self.gimbals.len(), self.users.len())
+        format!("{} gimbal(s), {} user(s)", self.gimbals.len(), self.users.list.len())
     }
 }
 
@@ -126,11 +208,23 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let gcud = c.gcud_address(&raw.gcud)?;
     let discovery = match raw.discovery.enabled.as_ref().map(|e| *e.get_ref()) {
         Some(false) => None,
-        _ => Some(match &raw.discovery.listen {
-            Some(l) => socket(&c, l, "discovery.listen")?,
-            None => DISCOVERY_DEFAULT.parse().expect("a socket address"),
+        _ => Some(DiscoveryConfig {
+            listen: match &raw.discovery.listen {
+                Some(l) => socket(&c, l, "discovery.listen")?,
+                None => DISCOVERY_DEFAULT.parse().expect("a socket address"),
+            },
+            answers_per_s: raw.discovery.answers_per_s.get(),
+            answers_per_source_per_s: raw.discovery.answers_per_source_per_s.get(),
         }),
     };
+    let http = HttpBounds {
+        max_connections: raw.http.max_connections.get(),
+        max_connections_per_peer: raw.http.max_connections_per_peer.get(),
+        header_timeout: raw.http.header_timeout_ms.duration(),
+        body_timeout: raw.http.body_timeout_ms.duration(),
+        idle_timeout: raw.http.idle_timeout_ms.duration(),
+    };
+    let state_file = state_file(&c, raw.state_file.as_ref())?;
     let mut users = Vec::new();
     for (i, u) in raw.users.iter().enumerate() {
         let key = format!("user[{i}]");
@@ -221,6 +315,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             stream_uri,
             pan_deg,
             tilt_deg,
+            http,
             zoom: g.zoom.as_ref().is_some_and(|z| *z.get_ref()),
         });
     }
@@ -230,14 +325,73 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     Ok(Config {
         gcud,
         source_group: raw.source_group.get(),
-        state_file: raw.state_file.map(|s| PathBuf::from(s.into_inner())),
+        state_file,
         max_move: raw.max_move_ms.duration(),
         poll: raw.poll_ms.duration(),
         nic_window: raw.nic_window_ms.duration(),
         discovery,
-        users,
+        users: Users {
+            list: users,
+            bounds: AuthBounds {
+                requests_per_s: raw.auth.requests_per_s.get(),
+                burst: raw.auth.burst.get(),
+                nonce_cache: raw.auth.nonce_cache.get(),
+            },
+        },
         gimbals,
     })
+}
+
+/// The preset state file: `state_file`, else `$STATE_DIRECTORY/presets.toml`
+/// when systemd gives the unit a state directory, else none. Its folder
+/// must exist and be writable by this process (the names are written there
+/// at every SetPreset; finding out then would lose one).
+fn state_file(c: &Source<'_>, key: Option<&Spanned<String>>) -> Result<Option<PathBuf>, ConfigError> {
+    let (path, span, key) = match key {
+        Some(s) => (PathBuf::from(s.get_ref()), s.span(), "state_file"),
+        None => match std::env::var_os("STATE_DIRECTORY") {
+            // systemd may list several, separated by ':'; the first is ours.
+            Some(dirs) => match dirs.to_string_lossy().split(':').next() {
+                Some(dir) if !dir.is_empty() => (
+                    Path::new(dir).join("presets.toml"),
+                    0..0,
+                    "state_file (default $STATE_DIRECTORY/presets.toml)",
+                ),
+                _ => return Ok(None),
+            },
+            None => return Ok(None),
+        },
+    };
+    let folder = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if !folder.is_dir() {
+        return Err(c.at(
+            span,
+            key,
+            format!(
+                "{}: its folder {} does not exist (create it, or give a path in an existing folder)",
+                path.display(),
+                folder.display()
+            ),
+        ));
+    }
+    if let Err(e) = nix::unistd::access(&folder, nix::unistd::AccessFlags::W_OK) {
+        return Err(c.at(
+            span,
+            key,
+            format!(
+                "{}: its folder {} is not writable by this process: {e}",
+                path.display(),
+                folder.display()
+            ),
+        ));
+    }
+    if path.is_dir() {
+        return Err(c.at(span, key, format!("{}: is a folder, expected a file", path.display())));
+    }
+    Ok(Some(path))
 }
 
 fn socket(c: &Source<'_>, v: &Spanned<String>, key: &str) -> Result<SocketAddr, ConfigError> {

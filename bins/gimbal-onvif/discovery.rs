@@ -3,10 +3,23 @@
 //! per gimbal (its own endpoint reference, XAddrs and scopes); Hello at
 //! start and Bye at stop go to the multicast group only when listening on
 //! the unspecified address (a unicast `listen` answers unicast probes only).
+//!
+//! Never an amplifier: only a well-formed Probe is answered (a SOAP 1.2
+//! envelope, its Action, if any, the discovery Probe's, a Probe element in
+//! the discovery namespace, a MessageID of at most [`MAX_MESSAGE_ID`]
+//! bytes, which is all the answer echoes), and answers go out at a bounded
+//! rate: `answers_per_s` in all and `answers_per_source_per_s` to one
+//! source address (token buckets, a second's worth of burst), so whatever
+//! the probes, forged sources included, the bytes sent a second are
+//! bounded. Probes over the rate are dropped, counted and logged at most
+//! once per [`DROPPED_LOG_EVERY`].
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Duration;
 
+use sagebrush_listener::rate::{KeyedBuckets, LogGate, TokenBucket};
 use sha1::{Digest, Sha1};
 use tokio::net::UdpSocket;
 use tracing::{debug, warn};
@@ -20,6 +33,14 @@ const NS_DISCOVERY: &str = "http://schemas.xmlsoap.org/ws/2005/04/discovery";
 const NS_ADDRESSING: &str = "http://schemas.xmlsoap.org/ws/2004/08/addressing";
 /// The largest datagram read (a Probe is well under 2 KiB).
 const MAX_DATAGRAM: usize = 8192;
+/// The longest MessageID answered (the answer's RelatesTo echoes it).
+pub const MAX_MESSAGE_ID: usize = 256;
+/// Scopes a Probe may ask for, at most.
+const MAX_SCOPES: usize = 32;
+/// Source addresses whose answer rate is remembered at once.
+const SOURCES: usize = 4096;
+/// Probes dropped over the rate are logged at most this often.
+const DROPPED_LOG_EVERY: Duration = Duration::from_secs(10);
 /// The types a video management system probes for.
 const TYPES: &str = "dn:NetworkVideoTransmitter tds:Device";
 
@@ -49,10 +70,23 @@ pub struct Discovery {
     multicast: bool,
     instance: u64,
     messages: AtomicU64,
+    rates: Mutex<Rates>,
+    /// Probes answered, and dropped over the rate.
+    answered: AtomicU64,
+    dropped: AtomicU64,
+}
+
+/// The answer rates: in all, and per source address.
+#[derive(Debug)]
+struct Rates {
+    all: TokenBucket,
+    per_source: KeyedBuckets<IpAddr>,
+    log: LogGate<()>,
 }
 
 impl Discovery {
-    pub async fn bind(listen: SocketAddr, gimbals: Vec<config::Gimbal>) -> std::io::Result<Self> {
+    pub async fn bind(config: config::DiscoveryConfig, gimbals: Vec<config::Gimbal>) -> std::io::Result<Self> {
+        let listen = config.listen;
         let socket = UdpSocket::bind(listen).await?;
         let multicast = listen.ip().is_unspecified();
         if multicast {
@@ -67,7 +101,39 @@ impl Discovery {
             multicast,
             instance,
             messages: AtomicU64::new(0),
+            rates: Mutex::new(Rates {
+                all: TokenBucket::new(
+                    f64::from(config.answers_per_s),
+                    f64::from(config.answers_per_s),
+                    tokio::time::Instant::now(),
+                ),
+                per_source: KeyedBuckets::new(
+                    f64::from(config.answers_per_source_per_s),
+                    f64::from(config.answers_per_source_per_s),
+                    SOURCES,
+                ),
+                log: LogGate::new(DROPPED_LOG_EVERY, 1),
+            }),
+            answered: AtomicU64::new(0),
+            dropped: AtomicU64::new(0),
         })
+    }
+
+    /// Whether a Probe from `peer` may be answered now (both rates allow it).
+    fn may_answer(&self, peer: SocketAddr) -> bool {
+        let now = tokio::time::Instant::now();
+        let mut rates = self.rates.lock().unwrap_or_else(|p| p.into_inner());
+        // The source's bucket first: a flood from one source does not spend
+        // the tokens of all the others.
+        if rates.per_source.take(&peer.ip(), now) && rates.all.take(now) {
+            self.answered.fetch_add(1, Ordering::Relaxed);
+            return true;
+        }
+        let dropped = self.dropped.fetch_add(1, Ordering::Relaxed) + 1;
+        if let Some(more) = rates.log.allow(&(), now) {
+            warn!(%peer, dropped, more, answered = self.answered.load(Ordering::Relaxed), "WS-Discovery Probe dropped: over discovery.answers_per_s or answers_per_source_per_s (logged at most once in {} s)", DROPPED_LOG_EVERY.as_secs());
+        }
+        false
     }
 
     pub fn local_addr(&self) -> std::io::Result<SocketAddr> {
@@ -132,6 +198,9 @@ impl Discovery {
                 debug!(%peer, "WS-Discovery datagram that is no Probe we match: ignored");
                 continue;
             };
+            if peer.port() == 0 || peer.ip().is_unspecified() || peer.ip().is_multicast() || !self.may_answer(peer) {
+                continue;
+            }
             for g in self.gimbals.iter().filter(|g| in_scopes(&probe.scopes, &scopes(g))) {
                 let body = format!(
                     "<d:ProbeMatches><d:ProbeMatch>{}</d:ProbeMatch></d:ProbeMatches>",
@@ -194,18 +263,34 @@ fn in_scopes(wanted: &[String], ours: &[String]) -> bool {
     })
 }
 
-/// A Probe we match: no Types, or one of ours (NetworkVideoTransmitter,
-/// Device), compared by local name.
+/// A Probe we match: a SOAP 1.2 envelope whose Action, if any, is the
+/// discovery Probe's, whose MessageID is at most [`MAX_MESSAGE_ID`] bytes,
+/// with a Probe of the discovery namespace asking for no Types or ours
+/// (NetworkVideoTransmitter, Device, compared by local name).
 fn probe(datagram: &[u8]) -> Option<Probe> {
     let root = soap::parse(datagram).ok()?;
+    if root.name != "Envelope" || root.ns != soap::NS_SOAP {
+        return None;
+    }
     let probe = root.path(&["Body", "Probe"]).filter(|p| p.ns == NS_DISCOVERY)?;
+    if let Some(action) = root.path(&["Header", "Action"]) {
+        if action.text.trim() != format!("{NS_DISCOVERY}/Probe") {
+            return None;
+        }
+    }
     let id = root.text_at(&["Header", "MessageID"])?.to_owned();
-    let scopes = probe
+    if id.is_empty() || id.len() > MAX_MESSAGE_ID {
+        return None;
+    }
+    let scopes: Vec<String> = probe
         .text_at(&["Scopes"])
         .unwrap_or_default()
         .split_whitespace()
         .map(str::to_owned)
         .collect();
+    if scopes.len() > MAX_SCOPES {
+        return None;
+    }
     let types = probe.text_at(&["Types"]).unwrap_or_default();
     let ours = ["NetworkVideoTransmitter", "Device"];
     let matches = types.split_whitespace().all(|t| {
@@ -241,6 +326,25 @@ mod tests {
         assert!(probe(p("<d:Types>dn:NetworkVideoTransmitter</d:Types>").as_bytes()).is_some());
         assert!(probe(p("<d:Types>dn:Printer</d:Types>").as_bytes()).is_none());
         assert!(probe(b"<junk").is_none());
+        let other_ns = p("").replace(NS_DISCOVERY, "http://schemas.xmlsoap.org/ws/2005/04/other");
+        assert!(probe(other_ns.as_bytes()).is_none(), "a Probe of another namespace");
+        let soap11 = p("").replace(
+            "http://www.w3.org/2003/05/soap-envelope",
+            "http://schemas.xmlsoap.org/soap/envelope/",
+        );
+        assert!(probe(soap11.as_bytes()).is_none(), "not a SOAP 1.2 envelope");
+        let long_id = p("").replace("urn:uuid:1", &"x".repeat(MAX_MESSAGE_ID + 1));
+        assert!(probe(long_id.as_bytes()).is_none(), "a MessageID longer than the limit");
+        let wrong_action = p("").replace(
+            "<e:Header>",
+            &format!("<e:Header><w:Action>{NS_DISCOVERY}/Resolve</w:Action>"),
+        );
+        assert!(probe(wrong_action.as_bytes()).is_none(), "another Action");
+        let right_action = p("").replace(
+            "<e:Header>",
+            &format!("<e:Header><w:Action>{NS_DISCOVERY}/Probe</w:Action>"),
+        );
+        assert!(probe(right_action.as_bytes()).is_some());
         assert_eq!(urn("a"), urn("a"));
         assert_ne!(urn("a"), urn("b"));
         assert_eq!(urn("a").len(), "urn:uuid:".len() + 36);

@@ -1,22 +1,31 @@
-//! Each gimbal's ONVIF device on its own HTTP listener (axum): POSTed SOAP
-//! to `/onvif/device_service`, `/onvif/media_service` or
-//! `/onvif/ptz_service` (the operation, not the path, says what is asked),
-//! with the body, the connections and each request's time bounded.
+//! Each gimbal's ONVIF device on its own HTTP listener: POSTed SOAP to
+//! `/onvif/device_service`, `/onvif/media_service` or `/onvif/ptz_service`
+//! (the operation, not the path, says what is asked). The connections go
+//! through the bounded listener (crate `sagebrush-listener`, `[http]`): one
+//! admission table for every gimbal's device (a total cap that evicts the
+//! longest-idle connection for a newcomer, a per-peer cap that holds for
+//! loopback peers too), header, body and idle time-outs, bounded buffers;
+//! the body is at most [`MAX_BODY`] and each request's work at most
+//! [`REQUEST_TIMEOUT`]. Failed logins are logged with the peer's address,
+//! at most once per [`FAILED_LOGIN_LOG_EVERY`] per peer.
 
-use std::net::SocketAddr;
-use std::sync::Arc;
+use std::net::{IpAddr, Ipv6Addr, SocketAddr};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Duration;
 
 use axum::Router;
 use axum::body::Bytes;
-use axum::extract::{DefaultBodyLimit, State};
-use axum::http::{HeaderMap, StatusCode, header};
+use axum::extract::{DefaultBodyLimit, Extension, State};
+use axum::http::{HeaderMap, StatusCode, Uri, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::post;
+use sagebrush_listener::rate::LogGate;
+use sagebrush_listener::{BoundedListener, Connections, HttpLimits, Limits, Local, Peer};
 use tokio::sync::Semaphore;
-use tracing::{debug, info};
+use tracing::{debug, info, warn};
 
-use crate::onvif::Device;
+use crate::config::HttpBounds;
+use crate::onvif::{Device, Origin};
 use crate::soap::Fault;
 
 /// The largest request body (an ONVIF request is a few KiB).
@@ -25,28 +34,89 @@ pub const MAX_BODY: usize = 64 * 1024;
 pub const MAX_CONCURRENT: usize = 16;
 /// The longest one request may take, gimbal exchanges included.
 pub const REQUEST_TIMEOUT: Duration = Duration::from_secs(30);
+/// Failed logins from one peer are logged at most this often (the line
+/// says how many were held back since the last one).
+pub const FAILED_LOGIN_LOG_EVERY: Duration = Duration::from_secs(10);
+/// Peers remembered for that at most.
+const LOGGED_PEERS: usize = 1024;
+
+/// The admission table every gimbal's device shares (the caps are for all
+/// of them together), made by the first [`bind`] from `[http]`, which is
+/// the same for every gimbal.
+static TABLE: OnceLock<Arc<Connections>> = OnceLock::new();
+
+fn table(bounds: &HttpBounds) -> Arc<Connections> {
+    Arc::clone(TABLE.get_or_init(|| {
+        Connections::new(Limits {
+            max_total: bounds.max_connections,
+            max_per_peer: bounds.max_connections_per_peer,
+            // A door faces the LAN: every address is its own peer, loopback too.
+            cap_loopback: true,
+            idle_timeout: bounds.idle_timeout,
+        })
+    }))
+}
 
 #[derive(Debug, Clone)]
 struct Served {
     device: Device,
-    fallback_host: String,
     permits: Arc<Semaphore>,
+    failed_logins: Arc<Mutex<LogGate<IpAddr>>>,
 }
 
 const SOAP: &str = "application/soap+xml; charset=utf-8";
 
-async fn soap(State(s): State<Served>, headers: HeaderMap, body: Bytes) -> Response {
+/// Whether `host` is a well-formed Host header value: an IPv4 address or
+/// a DNS name (letters, digits, hyphens in dot-separated labels), or an
+/// IPv6 address in brackets, each with an optional port. Anything else is
+/// never written into an answer.
+pub fn valid_host(host: &str) -> bool {
+    let port_ok =
+        |p: &str| !p.is_empty() && p.len() <= 5 && p.bytes().all(|b| b.is_ascii_digit()) && p.parse::<u16>().is_ok();
+    if let Some(rest) = host.strip_prefix('[') {
+        return rest.split_once(']').is_some_and(|(ip, after)| {
+            ip.parse::<Ipv6Addr>().is_ok() && (after.is_empty() || after.strip_prefix(':').is_some_and(port_ok))
+        });
+    }
+    let (name, port) = match host.rsplit_once(':') {
+        Some((name, port)) => (name, Some(port)),
+        None => (host, None),
+    };
+    let label_ok = |l: &str| {
+        !l.is_empty()
+            && l.len() <= 63
+            && !l.starts_with('-')
+            && !l.ends_with('-')
+            && l.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'-')
+    };
+    !name.is_empty() && name.len() <= 253 && name.split('.').all(label_ok) && port.is_none_or(port_ok)
+}
+
+async fn soap(
+    State(s): State<Served>,
+    Extension(Peer(peer)): Extension<Peer>,
+    Extension(Local(local)): Extension<Local>,
+    uri: Uri,
+    headers: HeaderMap,
+    body: Bytes,
+) -> Response {
     let Ok(_permit) = s.permits.acquire().await else {
         return StatusCode::SERVICE_UNAVAILABLE.into_response();
     };
+    let local_host = local.to_string();
     let host = headers
         .get(header::HOST)
         .and_then(|h| h.to_str().ok())
-        .filter(|h| h.len() <= 255 && h.bytes().all(|b| b.is_ascii_graphic()))
-        .unwrap_or(&s.fallback_host)
-        .to_owned();
-    let authorization = headers.get(header::AUTHORIZATION).and_then(|h| h.to_str().ok());
-    let answer = match tokio::time::timeout(REQUEST_TIMEOUT, s.device.handle(&body, &host, authorization)).await {
+        .filter(|h| valid_host(h))
+        .unwrap_or(&local_host);
+    let target = uri.path_and_query().map_or(uri.path(), |p| p.as_str());
+    let origin = Origin {
+        host,
+        local: local.ip(),
+        uri: target,
+        authorization: headers.get(header::AUTHORIZATION).and_then(|h| h.to_str().ok()),
+    };
+    let answer = match tokio::time::timeout(REQUEST_TIMEOUT, s.device.handle(&body, &origin)).await {
         Ok(answer) => answer,
         Err(_) => Err(Fault::receiver(
             &["ter:Action", "ter:Timeout"],
@@ -56,7 +126,17 @@ async fn soap(State(s): State<Served>, headers: HeaderMap, body: Bytes) -> Respo
     match answer {
         Ok(xml) => ([(header::CONTENT_TYPE, SOAP)], xml).into_response(),
         Err(fault) => {
-            debug!(gimbal = %s.device.gimbal.config.name, reason = %fault.reason, "fault");
+            debug!(gimbal = %s.device.gimbal.config.name, %peer, reason = %fault.reason, "fault");
+            if let Some(user) = &fault.login_failed {
+                let gate = s
+                    .failed_logins
+                    .lock()
+                    .unwrap_or_else(|p| p.into_inner())
+                    .allow(&peer.ip(), tokio::time::Instant::now());
+                if let Some(held_back) = gate {
+                    warn!(gimbal = %s.device.gimbal.config.name, %peer, user = ?user, reason = %fault.reason, held_back, "failed login (logged at most once in {} s per peer; held_back: failed logins from it since the last line)", FAILED_LOGIN_LOG_EVERY.as_secs());
+                }
+            }
             let status = StatusCode::from_u16(fault.status()).unwrap_or(StatusCode::BAD_REQUEST);
             let mut response = (status, [(header::CONTENT_TYPE, SOAP)], fault.envelope()).into_response();
             if fault.unauthenticated {
@@ -71,7 +151,8 @@ async fn soap(State(s): State<Served>, headers: HeaderMap, body: Bytes) -> Respo
 }
 
 /// Binds `listen` (so that an address in use is an error at start) and
-/// returns the server to run.
+/// returns the server to run: the device's app served through the bounded
+/// listener with the gimbal's `[http]` bounds.
 pub async fn bind(
     listen: SocketAddr,
     device: Device,
@@ -79,10 +160,11 @@ pub async fn bind(
     let listener = tokio::net::TcpListener::bind(listen).await?;
     let local = listener.local_addr()?;
     let device_name = device.gimbal.config.name.clone();
+    let bounds = device.gimbal.config.http;
     let served = Served {
         device,
-        fallback_host: local.to_string(),
         permits: Arc::new(Semaphore::new(MAX_CONCURRENT)),
+        failed_logins: Arc::new(Mutex::new(LogGate::new(FAILED_LOGIN_LOG_EVERY, LOGGED_PEERS))),
     };
     let app = Router::new()
         .route("/onvif/device_service", post(soap))
@@ -90,6 +172,39 @@ pub async fn bind(
         .route("/onvif/ptz_service", post(soap))
         .layer(DefaultBodyLimit::max(MAX_BODY))
         .with_state(served);
+    let limits = HttpLimits {
+        header_timeout: bounds.header_timeout,
+        body_timeout: bounds.body_timeout,
+        ..HttpLimits::default()
+    };
+    let listener = BoundedListener::new(listener, table(&bounds), format!("gimbal {device_name}"));
     info!(gimbal = %device_name, addr = %local, "ONVIF device listening");
-    Ok((local, async move { axum::serve(listener, app).await }))
+    Ok((local, async move {
+        sagebrush_listener::serve_http(listener, limits, app).await;
+        Ok(())
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::valid_host;
+
+    #[test]
+    fn only_well_formed_hosts_are_written_into_answers() {
+        for good in [
+            "10.0.0.5",
+            "10.0.0.5:8081",
+            "[::1]:80",
+            "[fe80::1]",
+            "cam-1.example",
+            "cam:1",
+        ] {
+            assert!(valid_host(good), "{good}");
+        }
+        for bad in [
+            "", "a\"><x/>", "h:1/../x", "h:99999", "h:", "[::1", "[zz]:80", "-a.b", "a..b", "h\u{1}", "h:80:80", "a b",
+        ] {
+            assert!(!valid_host(bad), "{bad:?}");
+        }
+    }
 }

@@ -31,6 +31,22 @@ const ZOOM_POSITION_SPACE: &str = "http://www.onvif.org/ver10/tptz/ZoomSpaces/Po
 const ZOOM_VELOCITY_SPACE: &str = "http://www.onvif.org/ver10/tptz/ZoomSpaces/VelocityGenericSpace";
 const ZOOM_SPEED_SPACE: &str = "http://www.onvif.org/ver10/tptz/ZoomSpaces/ZoomGenericSpeedSpace";
 
+/// Where a request came in: what the answer may say about it.
+#[derive(Debug, Clone, Copy)]
+pub struct Origin<'a> {
+    /// The host (and port) the client reached, for the service addresses:
+    /// its Host header when that is a well-formed host, else the address
+    /// the connection was accepted on (module `http` decides).
+    pub host: &'a str,
+    /// The local address the connection was accepted on.
+    pub local: std::net::IpAddr,
+    /// The request's target (path and query), which an HTTP Digest answer
+    /// must have been computed over.
+    pub uri: &'a str,
+    /// The HTTP Authorization header (Digest), if any.
+    pub authorization: Option<&'a str>,
+}
+
 /// Everything one gimbal's ONVIF device answers with.
 #[derive(Debug, Clone)]
 pub struct Device {
@@ -135,10 +151,9 @@ fn utc(now: OffsetDateTime) -> String {
 }
 
 impl Device {
-    /// Answers one request body: the response envelope, or a fault with
-    /// its HTTP status.
-    /// `authorization` is the HTTP Authorization header (Digest), if any.
-    pub async fn handle(&self, body: &[u8], host: &str, authorization: Option<&str>) -> Result<String, Fault> {
+    /// Answers one request body that came in at `origin`: the response
+    /// envelope, or a fault with its HTTP status.
+    pub async fn handle(&self, body: &[u8], origin: &Origin<'_>) -> Result<String, Fault> {
         let request = soap::request(body).map_err(|reason| {
             Fault::sender(
                 &["ter:WellFormed"],
@@ -159,11 +174,11 @@ impl Device {
         }
         let user = self
             .auth
-            .authenticate(request.header.as_ref(), authorization, "POST", now)?;
+            .authenticate(request.header.as_ref(), origin.authorization, "POST", origin.uri, now)?;
         let needed = needed_role(&op.name);
         require(&user, needed, &op.name)?;
         let body = match op.ns.as_str() {
-            NS_DEVICE => self.device(op, host).await?,
+            NS_DEVICE => self.device(op, origin).await?,
             NS_MEDIA => self.media(op)?,
             _ => self.ptz(op, now).await?,
         };
@@ -197,9 +212,9 @@ impl Device {
         mac.iter().map(|b| format!("{b:02x}")).collect::<Vec<_>>().join(":")
     }
 
-    async fn device(&self, op: &Element, host: &str) -> Result<String, Fault> {
+    async fn device(&self, op: &Element, origin: &Origin<'_>) -> Result<String, Fault> {
         let g = &self.gimbal.config;
-        let url = |service: &str| format!("http://{host}/onvif/{service}");
+        let url = |service: &str| esc(&format!("http://{}/onvif/{service}", origin.host)).into_owned();
         Ok(match op.name.as_str() {
             "GetServiceCapabilities" => "<tds:GetServiceCapabilitiesResponse><tds:Capabilities>\
                  <tds:Network IPFilter=\"false\" ZeroConfiguration=\"false\" IPVersion6=\"false\" DynDNS=\"false\"/>\
@@ -268,10 +283,7 @@ impl Device {
                 esc(&g.name)
             ),
             "GetNetworkInterfaces" => {
-                let ip = host
-                    .rsplit_once(':')
-                    .map_or(host, |(ip, _)| ip)
-                    .trim_matches(['[', ']']);
+                let ip = origin.local.to_string();
                 format!(
                     "<tds:GetNetworkInterfacesResponse><tds:NetworkInterfaces token=\"eth0\"><tt:Enabled>true</tt:Enabled>\
                      <tt:Info><tt:Name>eth0</tt:Name><tt:HwAddress>{}</tt:HwAddress><tt:MTU>1500</tt:MTU></tt:Info>\
@@ -279,7 +291,7 @@ impl Device {
                      <tt:PrefixLength>24</tt:PrefixLength></tt:Manual><tt:DHCP>false</tt:DHCP></tt:Config></tt:IPv4>\
                      </tds:NetworkInterfaces></tds:GetNetworkInterfacesResponse>",
                     self.hw_address(),
-                    esc(ip)
+                    esc(&ip)
                 )
             }
             other => return Err(not_supported(other)),
@@ -638,6 +650,12 @@ impl Device {
                         format!("PresetName longer than {} characters", presets::MAX_NAME),
                     ));
                 }
+                if let Some(bad) = label.chars().find(|&c| c.is_control() || !soap::xml_char(c)) {
+                    return Err(Fault::invalid_arg(
+                        "ter:InvalidPresetName",
+                        format!("PresetName holds the control character U+{:04X}", u32::from(bad)),
+                    ));
+                }
                 if self.presets.list(name).iter().any(|(m, l)| *l == label && *m != n) {
                     return Err(Fault::invalid_arg(
                         "ter:PresetExist",
@@ -809,12 +827,20 @@ listen = "127.0.0.1:0"
         h.update(b"pw");
         let b64 = base64::engine::general_purpose::STANDARD;
         format!(
-            r#"<s:Envelope xmlns:s="{}"><s:Header><Security><UsernameToken><Username>admin</Username><Password Type="x#PasswordDigest">{}</Password><Nonce>{}</Nonce><Created>{created}</Created></UsernameToken></Security></s:Header><s:Body>{body}</s:Body></s:Envelope>"#,
+            r#"<s:Envelope xmlns:s="{}"><s:Header><Security><UsernameToken><Username>admin</Username><Password Type="{}">{}</Password><Nonce>{}</Nonce><Created>{created}</Created></UsernameToken></Security></s:Header><s:Body>{body}</s:Body></s:Envelope>"#,
             soap::NS_SOAP,
+            crate::auth::PASSWORD_DIGEST,
             b64.encode(h.finalize()),
             b64.encode(nonce.to_be_bytes())
         )
     }
+
+    const ORIGIN: Origin<'static> = Origin {
+        host: "h:1",
+        local: std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST),
+        uri: "/onvif/device_service",
+        authorization: None,
+    };
 
     fn runtime() -> tokio::runtime::Runtime {
         tokio::runtime::Builder::new_current_thread()
@@ -830,7 +856,7 @@ listen = "127.0.0.1:0"
         #[test]
         fn any_body_is_answered_without_panicking(body in proptest::collection::vec(any::<u8>(), 0..1024)) {
             let d = device();
-            prop_assert!(runtime().block_on(d.handle(&body, "h:1", None)).is_err());
+            prop_assert!(runtime().block_on(d.handle(&body, &ORIGIN)).is_err());
         }
 
         /// Any operation of the three services, with any arguments, signed:
@@ -852,7 +878,7 @@ listen = "127.0.0.1:0"
                 r#"<{op} xmlns="{service}"><ProfileToken>{token}</ProfileToken><NodeToken>{token}</NodeToken><ConfigurationToken>{token}</ConfigurationToken><PresetToken>{token}</PresetToken><Velocity><PanTilt x="{x}" y="{x}"/></Velocity><Position><PanTilt x="{x}" y="0"/></Position><Translation><PanTilt x="{x}"/></Translation><Timeout>{timeout}</Timeout></{op}>"#
             );
             let d = device();
-            let _ = runtime().block_on(d.handle(signed(&body, nonce).as_bytes(), "h:1", None));
+            let _ = runtime().block_on(d.handle(signed(&body, nonce).as_bytes(), &ORIGIN));
         }
     }
 

@@ -169,9 +169,25 @@ pub fn request(xml: &[u8]) -> Result<Request, String> {
     Ok(Request { header, operation })
 }
 
-/// Text escaped for XML content and attributes.
+/// Text for XML content and attributes: every character XML 1.0 does not
+/// allow at all (control characters but tab, newline and carriage return;
+/// U+FFFE, U+FFFF), which no escape can carry, is written as U+FFFD, and
+/// the rest goes through quick-xml's escaping (`<`, `>`, `&`, quotes).
 pub fn esc(text: &str) -> std::borrow::Cow<'_, str> {
-    escape(text)
+    if text.chars().all(xml_char) {
+        escape(text)
+    } else {
+        let clean: String = text
+            .chars()
+            .map(|c| if xml_char(c) { c } else { char::REPLACEMENT_CHARACTER })
+            .collect();
+        std::borrow::Cow::Owned(escape(&clean).into_owned())
+    }
+}
+
+/// Whether XML 1.0 allows `c` in a document (its `Char` production).
+pub fn xml_char(c: char) -> bool {
+    matches!(c, '\t' | '\n' | '\r' | '\u{20}'..='\u{D7FF}' | '\u{E000}'..='\u{FFFD}' | '\u{10000}'..)
 }
 
 const PREFIXES: &str = concat!(
@@ -199,6 +215,9 @@ pub struct Fault {
     /// No valid credentials came: HTTP 401 with a Digest challenge, so
     /// that a client using HTTP Digest authentication knows to answer it.
     pub unauthenticated: bool,
+    /// Credentials came and were wrong: the user name they named (the
+    /// door logs a failed login with the peer's address).
+    pub login_failed: Option<String>,
 }
 
 impl Fault {
@@ -208,6 +227,7 @@ impl Fault {
             subcodes: subcodes.to_vec(),
             reason: reason.into(),
             unauthenticated: false,
+            login_failed: None,
         }
     }
 
@@ -217,6 +237,7 @@ impl Fault {
             subcodes: subcodes.to_vec(),
             reason: reason.into(),
             unauthenticated: false,
+            login_failed: None,
         }
     }
 

@@ -25,7 +25,7 @@ fn a_good_file_and_its_defaults() {
     assert_eq!(c.gimbals[0].address, Address::new(5, 1, 1));
     assert_eq!(c.gimbals[0].pan_deg, (-170.0, 170.0));
     assert_eq!(c.gimbals[0].tilt_deg, (-90.0, 90.0));
-    assert_eq!(c.users[0].role, Role::Administrator);
+    assert_eq!(c.users.list[0].role, Role::Administrator);
     assert_eq!(c.max_move, Duration::from_secs(10));
 }
 
@@ -62,4 +62,40 @@ fn two_gimbals_cannot_listen_where_one_binds_already() {
         )
         .is_ok()
     );
+}
+
+#[test]
+fn the_bounds_have_defaults_and_take_their_keys() {
+    let c = parse(Path::new("o.toml"), GOOD).unwrap();
+    let g = &c.gimbals[0];
+    assert_eq!(g.http.max_connections, 512);
+    assert_eq!(g.http.header_timeout, Duration::from_secs(5));
+    assert_eq!(c.users.bounds.nonce_cache, 65_536);
+    assert_eq!(c.discovery.unwrap().answers_per_s, 20);
+    let text = GOOD.replace(
+        "[discovery]\n",
+        "[http]\nmax_connections = 10\nheader_timeout_ms = 800\n[auth]\nrequests_per_s = 5\nnonce_cache = 100\n[discovery]\nanswers_per_source_per_s = 7\n",
+    );
+    let c = parse(Path::new("o.toml"), &text).unwrap();
+    assert_eq!(c.gimbals[0].http.max_connections, 10);
+    assert_eq!(c.gimbals[0].http.header_timeout, Duration::from_millis(800));
+    assert_eq!((c.users.bounds.requests_per_s, c.users.bounds.nonce_cache), (5, 100));
+    assert_eq!(c.discovery.unwrap().answers_per_source_per_s, 7);
+    assert!(
+        err(&GOOD.replace("[discovery]\n", "[http]\nmax_connections = 0\n[discovery]\n"))
+            .contains("http.max_connections")
+    );
+}
+
+#[test]
+fn a_state_file_in_a_missing_folder_is_refused_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("nowhere").join("presets.toml");
+    let text = format!("state_file = \"{}\"\n{GOOD}", missing.display());
+    let e = err(&text);
+    assert!(e.contains("o.toml:1:14: state_file:"), "{e}");
+    assert!(e.contains(&format!("{}: its folder", missing.display())), "{e}");
+    assert!(e.contains("does not exist"), "{e}");
+    let fine = format!("state_file = \"{}\"\n{GOOD}", dir.path().join("presets.toml").display());
+    assert!(parse(Path::new("o.toml"), &fine).is_ok());
 }

@@ -36,3 +36,12 @@ fn a_fault_carries_its_subcodes_and_escaped_reason() {
     assert!(f.contains("no profile &lt;x&gt;"));
     parse(f.as_bytes()).unwrap();
 }
+
+#[test]
+fn text_that_xml_cannot_carry_is_replaced_and_markup_escaped() {
+    assert_eq!(esc("gate \u{1}<b>&\"2\""), "gate \u{FFFD}&lt;b&gt;&amp;&quot;2&quot;");
+    assert_eq!(esc("tab\tok\u{FFFE}"), "tab\tok\u{FFFD}");
+    let doc = envelope(&format!("<tt:Name>{}</tt:Name>", esc("a\u{0}\u{1b}[31m<x>")));
+    parse(doc.as_bytes()).unwrap();
+    assert!(!doc.contains('\u{0}') && !doc.contains('\u{1b}'));
+}

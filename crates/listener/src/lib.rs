@@ -1,0 +1,19 @@
+//! The bounded listener (ARCHITECTURE "Bounded and fair under load"):
+//! every socket that faces the LAN has a cap on connections (in all and per
+//! peer), header, body and idle time-outs, bounded buffers and rate-limited
+//! logging. gcud's client listeners admit through [`admission`];
+//! gimbal-onvif serves HTTP through [`http`]; [`rate`] holds the token
+//! buckets that bound what one user or one source may make a door spend.
+//!
+//! A door adopts it in three steps (what gimbal-mavlink's TCP listener
+//! needs): one [`Connections`] table per program, a [`BoundedListener`]
+//! per socket, and per accepted connection the [`Admitted`] guard: its
+//! [`Admitted::track`]ed stream touches the entry when bytes move, and
+//! [`Admitted::ended`] resolves when it must close (evicted or idle).
+
+pub mod admission;
+pub mod http;
+pub mod rate;
+
+pub use admission::{Admission, AdmissionStats, Admitted, Connections, Ending, Limits, Tracked};
+pub use http::{BoundedListener, HttpLimits, Local, Peer, serve_http};
