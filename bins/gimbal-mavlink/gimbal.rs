@@ -24,7 +24,7 @@ use crate::config::{self, Config};
 use crate::control::{Control, Refused, Sender};
 use crate::link::Outbox;
 use crate::motion::{self, Plan};
-use crate::stats::Stats;
+use crate::stats::{Stats, may_warn};
 
 /// Requests waiting for one gimbal's task; it takes each at once (motions
 /// are posted to the session, never awaited), so the queue fills only if
@@ -176,8 +176,9 @@ impl Task {
         self.answering.abort_all();
     }
 
-    async fn reply(&self, message: MavMessage) {
-        self.outbox.send(self.config.component_id, &message).await;
+    /// An answer to `to` alone, on the peer it was heard on.
+    async fn reply(&self, message: MavMessage, to: Sender) {
+        self.outbox.answer(self.config.component_id, &message, to).await;
     }
 
     /// Answers `command` to `to` with the outcome of `work`, carried out by
@@ -190,7 +191,7 @@ impl Task {
     ) {
         if self.answering.len() >= ANSWERING {
             Stats::count(&self.stats.busy);
-            self.reply(ack(command, MavResult::MAV_RESULT_TEMPORARILY_REJECTED, to))
+            self.reply(ack(command, MavResult::MAV_RESULT_TEMPORARILY_REJECTED, to), to)
                 .await;
             return;
         }
@@ -199,13 +200,13 @@ impl Task {
             match work.await {
                 Ok(message) => {
                     outbox
-                        .send(component, &ack(command, MavResult::MAV_RESULT_ACCEPTED, to))
+                        .answer(component, &ack(command, MavResult::MAV_RESULT_ACCEPTED, to), to)
                         .await;
                     if let Some(m) = message {
-                        outbox.send(component, &m).await;
+                        outbox.answer(component, &m, to).await;
                     }
                 }
-                Err(result) => outbox.send(component, &ack(command, result, to)).await,
+                Err(result) => outbox.answer(component, &ack(command, result, to), to).await,
             }
         });
     }
@@ -215,11 +216,15 @@ impl Task {
         match work {
             Work::Shutdown => {}
             Work::Configure(params) => {
-                let mut control = self.control();
-                let result = match control.configure(from, params) {
-                    Ok(()) => {
+                // Read and changed in one step: the status task's lapse
+                // check may clear an owner meanwhile.
+                let configured = {
+                    let mut shared = self.shared.lock().unwrap_or_else(|p| p.into_inner());
+                    shared.control.configure(from, params).map(|()| shared.control)
+                };
+                let result = match configured {
+                    Ok(control) => {
                         info!(gimbal = %self.config.name, ?from, primary = ?control.primary, secondary = ?control.secondary, "control configured");
-                        self.shared.lock().unwrap_or_else(|p| p.into_inner()).control = control;
                         MavResult::MAV_RESULT_ACCEPTED
                     }
                     Err(Refused::HeldByAnother) => {
@@ -231,7 +236,7 @@ impl Task {
                         MavResult::MAV_RESULT_DENIED
                     }
                 };
-                self.reply(ack(MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE, result, from))
+                self.reply(ack(MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE, result, from), from)
                     .await;
             }
             Work::Information(id) => {
@@ -247,7 +252,7 @@ impl Task {
             Work::Move { request, ack: command } => {
                 let Some(plan) = self.admit(from, &request) else {
                     if let Some(command) = command {
-                        self.reply(ack(command, MavResult::MAV_RESULT_DENIED, from)).await;
+                        self.reply(ack(command, MavResult::MAV_RESULT_DENIED, from), from).await;
                     }
                     return;
                 };
@@ -263,7 +268,9 @@ impl Task {
                         Ok(()) => Ok(None),
                         Err(e) => {
                             Stats::count(&stats.failed);
-                            warn!(gimbal = %name, error = %e, "command failed");
+                            if may_warn("command failed", &name) {
+                                warn!(gimbal = %name, error = %e, "command failed");
+                            }
                             Err(MavResult::MAV_RESULT_FAILED)
                         }
                     }
@@ -287,14 +294,18 @@ impl Task {
     fn admit(&self, from: Sender, request: &motion::Request) -> Option<Plan> {
         if !self.control().allows(from) {
             Stats::count(&self.stats.denied);
-            warn!(gimbal = %self.config.name, ?from, "not in control: denied");
+            if may_warn("not in control: denied", &self.config.name) {
+                warn!(gimbal = %self.config.name, ?from, "not in control: denied");
+            }
             return None;
         }
         match motion::plan(request, &self.config) {
             Ok(p) => Some(p),
             Err(e) => {
                 Stats::count(&self.stats.refused);
-                warn!(gimbal = %self.config.name, ?from, error = %e, "request refused");
+                if may_warn("request refused", &self.config.name) {
+                    warn!(gimbal = %self.config.name, ?from, error = %e, "request refused");
+                }
                 None
             }
         }
@@ -385,7 +396,9 @@ async fn information(
         283 => {
             let id: Identity = session.identity().await.map_err(|e| {
                 Stats::count(&stats.failed);
-                warn!(gimbal = %g.name, error = %e, "D? for GIMBAL_DEVICE_INFORMATION failed");
+                if may_warn("D? for GIMBAL_DEVICE_INFORMATION failed", &g.name) {
+                    warn!(gimbal = %g.name, error = %e, "D? for GIMBAL_DEVICE_INFORMATION failed");
+                }
                 MavResult::MAV_RESULT_FAILED
             })?;
             Ok(MavMessage::GIMBAL_DEVICE_INFORMATION(GIMBAL_DEVICE_INFORMATION_DATA {

@@ -70,7 +70,9 @@ async fn run(config: config::Config) -> Result<(), String> {
                 inbox::Route::Gimbal(i, job) => {
                     if handles[i].jobs.try_send(job).is_err() {
                         let total = Stats::count(&stats.busy);
-                        warn!(gimbal = %handles[i].config.name, total, "request queue full: request dropped");
+                        if stats::may_warn("request queue full", &handles[i].config.name) {
+                            warn!(gimbal = %handles[i].config.name, total, "request queue full: request dropped");
+                        }
                     }
                 }
                 inbox::Route::Answer(component, command, result) => {
@@ -78,7 +80,9 @@ async fn run(config: config::Config) -> Result<(), String> {
                     let _ = answers.try_send((component, ack));
                 }
                 inbox::Route::Refused(i, why) => {
-                    warn!(gimbal = %handles[i].config.name, from = ?(header.system_id, header.component_id), why, "request refused");
+                    if stats::may_warn("request refused", &handles[i].config.name) {
+                        warn!(gimbal = %handles[i].config.name, from = ?(header.system_id, header.component_id), why, "request refused");
+                    }
                 }
                 inbox::Route::Ignore => {}
             }

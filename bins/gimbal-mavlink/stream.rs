@@ -13,17 +13,17 @@
 //! through a bounded queue: a peer that does not read loses messages, it
 //! never stalls the others; an answer goes to the asker's connection only.
 //!
-//! Accepted connections (`tcp_listen`) are admitted by [`Admission`] (the
-//! rules of gcud's admission table, which the shared bounded listener
-//! takes over): at most [`MAX_CONNECTIONS`]; when they are all taken, the
-//! one idle the longest, if idle for at least [`MIN_IDLE_TO_EVICT`], is
+//! Accepted connections (`tcp_listen`) are admitted by the shared bounded
+//! listener's table (`sagebrush_listener::Connections`, gcud's and
+//! gimbal-onvif's too): at most [`MAX_CONNECTIONS`]; when they are all taken, the
+//! one idle the longest, if idle for at least `sagebrush_listener::admission::MIN_IDLE_TO_EVICT`, is
 //! closed for the newcomer (else the newcomer is refused); at most
 //! [`MAX_PER_PEER`] from one address off this machine; a connection that
 //! sends nothing for [`IDLE_TIMEOUT`] is closed. The configured `tcp` and
 //! `serial` endpoints never count against these: peers on the network
 //! cannot lock them out.
 
-use std::net::{IpAddr, SocketAddr};
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -31,6 +31,7 @@ use std::time::Duration;
 
 use mavlink::MavHeader;
 use mavlink::dialects::common::MavMessage;
+use sagebrush_listener::{Admission, Connections, Limits};
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{Notify, mpsc};
@@ -49,8 +50,6 @@ pub const MAX_CONNECTIONS: usize = 8;
 /// The most accepted connections from one address off this machine (every
 /// local client is the same loopback address, so it is not capped).
 pub const MAX_PER_PEER: usize = MAX_CONNECTIONS / 2;
-/// An accepted connection idle for less than this is never closed for a newcomer.
-pub const MIN_IDLE_TO_EVICT: Duration = Duration::from_secs(1);
 /// An accepted connection that sent nothing for this long is closed
 /// (ground stations send a heartbeat every second).
 pub const IDLE_TIMEOUT: Duration = Duration::from_secs(30);
@@ -63,123 +62,6 @@ pub const RECONNECT: Duration = Duration::from_secs(2);
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|p| p.into_inner())
-}
-
-// ---- admission -----------------------------------------------------------------
-
-/// What happened to a newcomer.
-#[derive(Debug)]
-pub enum Admitted {
-    /// Admitted as `key`; `close` is notified when it must close (evicted
-    /// for a newcomer). `evicted`: the address of the one closed for it.
-    Yes {
-        key: u64,
-        close: Arc<Notify>,
-        evicted: Option<IpAddr>,
-    },
-    /// Refused, and why.
-    No(&'static str),
-}
-
-/// Who may hold an accepted connection: the interface a listener admits
-/// by, so that the shared bounded listener's table can replace [`Slots`]
-/// (the same calls as its `Connections`: admit, touch, idle_at, left).
-pub trait Admission: Send + Sync + std::fmt::Debug {
-    /// A newcomer from `peer` at `now`.
-    fn admit(&self, peer: IpAddr, now: Instant) -> Admitted;
-    /// Connection `key` received bytes at `now`.
-    fn touch(&self, key: u64, now: Instant);
-    /// When connection `key` falls idle, if it is still admitted.
-    fn idle_at(&self, key: u64) -> Option<Instant>;
-    /// Connection `key` closed; `idle`: for its idle time-out.
-    fn left(&self, key: u64, idle: bool);
-}
-
-#[derive(Debug)]
-struct Slot {
-    key: u64,
-    peer: IpAddr,
-    last_active: Instant,
-    close: Arc<Notify>,
-}
-
-/// The rules of the module's documentation, as a table.
-#[derive(Debug)]
-pub struct Slots {
-    max: usize,
-    per_peer: usize,
-    idle_timeout: Duration,
-    open: Mutex<(u64, Vec<Slot>)>,
-}
-
-impl Slots {
-    pub fn new(max: usize, per_peer: usize, idle_timeout: Duration) -> Self {
-        Self {
-            max,
-            per_peer,
-            idle_timeout,
-            open: Mutex::new((0, Vec::new())),
-        }
-    }
-}
-
-impl Default for Slots {
-    fn default() -> Self {
-        Self::new(MAX_CONNECTIONS, MAX_PER_PEER, IDLE_TIMEOUT)
-    }
-}
-
-impl Admission for Slots {
-    fn admit(&self, peer: IpAddr, now: Instant) -> Admitted {
-        let mut guard = lock(&self.open);
-        let (next, open) = &mut *guard;
-        if !peer.is_loopback() && open.iter().filter(|s| s.peer == peer).count() >= self.per_peer {
-            return Admitted::No("the most connections from one address are open");
-        }
-        let mut evicted = None;
-        if open.len() >= self.max {
-            let idlest = open
-                .iter()
-                .enumerate()
-                .filter(|(_, s)| now.saturating_duration_since(s.last_active) >= MIN_IDLE_TO_EVICT)
-                .min_by_key(|(_, s)| s.last_active)
-                .map(|(i, _)| i);
-            let Some(i) = idlest else {
-                return Admitted::No("every connection is open and busy");
-            };
-            let victim = open.swap_remove(i);
-            victim.close.notify_one();
-            evicted = Some(victim.peer);
-        }
-        let key = *next;
-        *next += 1;
-        let close = Arc::new(Notify::new());
-        open.push(Slot {
-            key,
-            peer,
-            last_active: now,
-            close: Arc::clone(&close),
-        });
-        Admitted::Yes { key, close, evicted }
-    }
-
-    fn touch(&self, key: u64, now: Instant) {
-        if let Some(s) = lock(&self.open).1.iter_mut().find(|s| s.key == key) {
-            s.last_active = now;
-        }
-    }
-
-    fn idle_at(&self, key: u64) -> Option<Instant> {
-        lock(&self.open)
-            .1
-            .iter()
-            .find(|s| s.key == key)
-            .map(|s| s.last_active + self.idle_timeout)
-    }
-
-    fn left(&self, key: u64, _idle: bool) {
-        lock(&self.open).1.retain(|s| s.key != key);
-    }
 }
 
 // ---- the open connections ------------------------------------------------------
@@ -200,20 +82,22 @@ pub struct Streams {
     net: Arc<Net>,
     conns: Mutex<Vec<Conn>>,
     next: AtomicU64,
-    admission: Box<dyn Admission>,
+    /// Who may hold an accepted connection: the shared bounded listener's table.
+    admission: Arc<Connections>,
 }
 
 impl Streams {
     pub fn new(net: Arc<Net>) -> Self {
-        Self::with_admission(net, Box::new(Slots::default()))
-    }
-
-    pub fn with_admission(net: Arc<Net>, admission: Box<dyn Admission>) -> Self {
         Self {
             net,
             conns: Mutex::default(),
             next: AtomicU64::new(0),
-            admission,
+            admission: Connections::new(Limits {
+                max_total: MAX_CONNECTIONS,
+                max_per_peer: MAX_PER_PEER,
+                cap_loopback: false,
+                idle_timeout: IDLE_TIMEOUT,
+            }),
         }
     }
 
@@ -355,7 +239,7 @@ async fn serve<S>(
         End::Evicted => {
             Stats::count(&stats.tcp_evicted);
             if may_warn("MAVLink connection closed for a newcomer", &peer) {
-                warn!(%peer, idle_s = MIN_IDLE_TO_EVICT.as_secs(), "MAVLink connection idle the longest closed for a newcomer");
+                warn!(%peer, idle_s = sagebrush_listener::admission::MIN_IDLE_TO_EVICT.as_secs(), "MAVLink connection idle the longest closed for a newcomer");
             }
         }
         End::Idle => {
@@ -373,12 +257,12 @@ fn peer_ip(peer: &str) -> &str {
         .map_or(peer, |_| peer.rsplit_once(':').map_or(peer, |(ip, _)| ip))
 }
 
-/// `tcp_listen`: accepts connections for ever, as [`Admission`] admits them.
+/// `tcp_listen`: accepts connections for ever, as the admission table admits them.
 pub async fn listen(listener: TcpListener, streams: Arc<Streams>, stats: Arc<Stats>, handler: Handler) {
     loop {
         match listener.accept().await {
             Ok((stream, peer)) => match streams.admission.admit(peer.ip(), Instant::now()) {
-                Admitted::Yes { key, close, evicted } => {
+                Admission::Admitted { key, close, evicted } => {
                     if may_warn("MAVLink TCP connection accepted", &peer.ip()) {
                         info!(%peer, ?evicted, "MAVLink TCP connection accepted");
                     }
@@ -392,7 +276,7 @@ pub async fn listen(listener: TcpListener, streams: Arc<Streams>, stats: Arc<Sta
                         Arc::clone(&handler),
                     ));
                 }
-                Admitted::No(why) => {
+                Admission::Refused { why, .. } => {
                     Stats::count(&stats.tcp_refused);
                     if may_warn("MAVLink TCP connection refused", &peer.ip()) {
                         warn!(%peer, max = MAX_CONNECTIONS, why, "MAVLink TCP connection refused");
@@ -473,54 +357,6 @@ pub async fn serial(path: PathBuf, baud: u32, streams: Arc<Streams>, stats: Arc<
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    const FAR: [u8; 4] = [192, 0, 2, 1];
-
-    #[tokio::test]
-    async fn the_longest_idle_makes_room_for_a_newcomer_busy_ones_never() {
-        let slots = Slots::default();
-        let local = IpAddr::from([127, 0, 0, 1]);
-        let t0 = Instant::now();
-        let keys: Vec<u64> = (0..MAX_CONNECTIONS)
-            .map(|i| match slots.admit(local, t0 + Duration::from_millis(i as u64)) {
-                Admitted::Yes { key, evicted: None, .. } => key,
-                other => panic!("{other:?}"),
-            })
-            .collect();
-        // All busy (active under a second ago): the newcomer is refused.
-        assert!(matches!(
-            slots.admit(local, t0 + Duration::from_millis(500)),
-            Admitted::No(_)
-        ));
-        // Every one idle, the first touched again: the second goes.
-        let later = t0 + Duration::from_secs(2);
-        slots.touch(keys[0], later);
-        let Admitted::Yes { evicted, .. } = slots.admit(local, later) else {
-            panic!("refused")
-        };
-        assert_eq!(evicted, Some(local));
-        assert!(slots.idle_at(keys[1]).is_none(), "the second was evicted");
-        assert!(slots.idle_at(keys[0]).is_some(), "the first, active, stays");
-        assert_eq!(
-            slots.idle_at(keys[2]),
-            Some(t0 + Duration::from_millis(2) + IDLE_TIMEOUT)
-        );
-    }
-
-    #[tokio::test]
-    async fn one_address_off_this_machine_holds_at_most_its_share() {
-        let slots = Slots::default();
-        let far = IpAddr::from(FAR);
-        let now = Instant::now();
-        for _ in 0..MAX_PER_PEER {
-            assert!(matches!(slots.admit(far, now), Admitted::Yes { .. }));
-        }
-        assert!(matches!(slots.admit(far, now), Admitted::No(_)));
-        assert!(matches!(
-            slots.admit(IpAddr::from([192, 0, 2, 2]), now),
-            Admitted::Yes { .. }
-        ));
-    }
 
     #[tokio::test]
     async fn a_connection_holds_one_buffer_and_leaves_nothing_when_it_closes() {

@@ -10,7 +10,7 @@
 //! at most once per [`FAILED_LOGIN_LOG_EVERY`] per peer.
 
 use std::net::{IpAddr, Ipv6Addr, SocketAddr};
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use axum::Router;
@@ -41,20 +41,15 @@ pub const FAILED_LOGIN_LOG_EVERY: Duration = Duration::from_secs(10);
 const LOGGED_PEERS: usize = 1024;
 
 /// The admission table every gimbal's device shares (the caps are for all
-/// of them together), made by the first [`bind`] from `[http]`, which is
-/// the same for every gimbal.
-static TABLE: OnceLock<Arc<Connections>> = OnceLock::new();
-
-fn table(bounds: &HttpBounds) -> Arc<Connections> {
-    Arc::clone(TABLE.get_or_init(|| {
-        Connections::new(Limits {
-            max_total: bounds.max_connections,
-            max_per_peer: bounds.max_connections_per_peer,
-            // A door faces the LAN: every address is its own peer, loopback too.
-            cap_loopback: true,
-            idle_timeout: bounds.idle_timeout,
-        })
-    }))
+/// of them together), from `[http]`.
+pub fn table(bounds: &HttpBounds) -> Arc<Connections> {
+    Connections::new(Limits {
+        max_total: bounds.max_connections,
+        max_per_peer: bounds.max_connections_per_peer,
+        // A door faces the LAN: every address is its own peer, loopback too.
+        cap_loopback: true,
+        idle_timeout: bounds.idle_timeout,
+    })
 }
 
 #[derive(Debug, Clone)]
@@ -156,6 +151,7 @@ async fn soap(
 pub async fn bind(
     listen: SocketAddr,
     device: Device,
+    table: Arc<Connections>,
 ) -> std::io::Result<(SocketAddr, impl Future<Output = std::io::Result<()>>)> {
     let listener = tokio::net::TcpListener::bind(listen).await?;
     let local = listener.local_addr()?;
@@ -177,7 +173,7 @@ pub async fn bind(
         body_timeout: bounds.body_timeout,
         ..HttpLimits::default()
     };
-    let listener = BoundedListener::new(listener, table(&bounds), format!("gimbal {device_name}"));
+    let listener = BoundedListener::new(listener, table, format!("gimbal {device_name}"));
     info!(gimbal = %device_name, addr = %local, "ONVIF device listening");
     Ok((local, async move {
         sagebrush_listener::serve_http(listener, limits, app).await;

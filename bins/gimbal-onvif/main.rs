@@ -35,6 +35,8 @@ async fn run(config: config::Config) -> Result<(), String> {
     let mut served = Vec::new();
     let mut tasks = tokio::task::JoinSet::new();
     let reach = Arc::new(sagebrush_client::session::GcudReachability::default());
+    // One admission table for every gimbal's device: the caps are for all.
+    let table = config.gimbals.first().map(|g| http::table(&g.http));
     for g in &config.gimbals {
         let gimbal = gimbal::Gimbal::new(g.clone(), &config, Arc::clone(&reach));
         let device = onvif::Device {
@@ -42,14 +44,16 @@ async fn run(config: config::Config) -> Result<(), String> {
             auth: Arc::clone(&auth),
             presets: Arc::clone(&presets),
         };
-        let (bound, server) = http::bind(g.listen, device).await.map_err(|e| {
-            format!(
-                "gimbal[{}] {}: cannot listen on {}: {e}",
-                gimbals.len(),
-                g.name,
-                g.listen
-            )
-        })?;
+        let (bound, server) = http::bind(g.listen, device, Arc::clone(table.as_ref().expect("a gimbal")))
+            .await
+            .map_err(|e| {
+                format!(
+                    "gimbal[{}] {}: cannot listen on {}: {e}",
+                    gimbals.len(),
+                    g.name,
+                    g.listen
+                )
+            })?;
         // Discovery announces where each device really listens (port 0 in tests).
         served.push(config::Gimbal {
             listen: bound,
