@@ -87,7 +87,9 @@ impl Stack {
         let gcud = support::door::start_gcud();
         let mut mavlink = Door::new("gimbal-mavlink", env!("CARGO_BIN_EXE_gimbal-mavlink"));
         let config = mavlink_config(&gcud.clients(), lease_ms, extra_endpoint);
-        mavlink.start(&format!("source_group = {DOOR_GROUP}\n{config}"));
+        // Each client step is a process of its own, so a holder of control
+        // is silent between steps: a lapse longer than any test.
+        mavlink.start(&format!("source_group = {DOOR_GROUP}\ncontrol_lapse_ms = 60000\n{config}"));
         Self {
             port: mavlink.port("MAVLink UDP endpoint bound"),
             tcp_port: mavlink.port("MAVLink TCP endpoint listening"),

@@ -30,7 +30,7 @@ const UNSUPPORTED: i64 = 3;
 /// Two ground stations (two components of one system).
 const GCS: (u8, u8) = (255, 190);
 const OTHER: (u8, u8) = (255, 191);
-/// gimbal-mavlink's control lapse (`control::LAPSE`, the README says it).
+/// gimbal-mavlink's control lapse (`control_lapse_ms`' default, the README says it).
 const LAPSE: Duration = Duration::from_secs(5);
 const MB: u64 = 1 << 20;
 

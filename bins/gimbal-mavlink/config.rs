@@ -26,6 +26,8 @@ struct ConfigFile {
     attitude_rate_hz: Option<Spanned<f64>>,
     #[serde(default)]
     lease_ms: Millis<100, 60_000, 1000>,
+    #[serde(default)]
+    control_lapse_ms: Millis<1000, 600_000, 5000>,
     #[serde(default, rename = "endpoint")]
     endpoints: Vec<EndpointSection>,
     #[serde(default, rename = "gimbal")]
@@ -95,6 +97,8 @@ pub struct Config {
     pub attitude_period: Duration,
     /// A rate not refreshed within this is stopped.
     pub lease: Duration,
+    /// A control owner not heard for this long loses control.
+    pub control_lapse: Duration,
     pub endpoints: Vec<Endpoint>,
     /// Each serial endpoint's device and place in the file (`--check`
     /// warns of one absent now).
@@ -230,6 +234,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         nic_window: raw.nic_window_ms.duration(),
         attitude_period,
         lease: raw.lease_ms.duration(),
+        control_lapse: raw.control_lapse_ms.duration(),
         endpoints,
         serial_places,
         gimbals,

@@ -11,14 +11,10 @@
 //! (issue 31): control is only given to a component that has been heard
 //! ([`Heard`]: any intact message from that system and component id, the
 //! CONFIGURE's own sender included), and an owner that stays silent for
-//! [`LAPSE`] loses control ([`Control::lapse`]), so another ground station
-//! can take it.
+//! `control_lapse_ms` (5 s by default: five missed heartbeats) loses
+//! control ([`Control::lapse`]), so another ground station can take it.
 
 use std::time::{Duration, Instant};
-
-/// An owner not heard for this long loses control (ground stations send a
-/// heartbeat every second: five missed).
-pub const LAPSE: Duration = Duration::from_secs(5);
 
 /// A MAVLink system and component id.
 pub type Sender = (u8, u8);

@@ -51,6 +51,7 @@ async fn run(config: config::Config) -> Result<(), String> {
         Arc::clone(&outbox),
         handles.clone(),
         config.attitude_period,
+        config.control_lapse,
     ));
     // Answers that need no gimbal task (an unsupported command) go out
     // through this queue, so that a receiver never waits on a send.

@@ -3,7 +3,7 @@
 //! GIMBAL_DEVICE_ATTITUDE_STATUS (at the configured rate, from the last
 //! `P?`, as a quaternion in MAVLink's frame: see `frames`). At each
 //! manager status it also ends the control of an owner silent for
-//! `control::LAPSE` (so the status shows who holds control now) and writes
+//! `control_lapse_ms` (so the status shows who holds control now) and writes
 //! the summaries of the throttled warnings.
 
 use std::sync::Arc;
@@ -16,7 +16,7 @@ use mavlink::dialects::common::{
 use tokio::time::MissedTickBehavior;
 use tracing::info;
 
-use crate::control::{self, Sender};
+use crate::control::Sender;
 use crate::frames;
 use crate::gimbal::Handle;
 use crate::link::Outbox;
@@ -87,7 +87,7 @@ pub fn attitude_status(h: &Handle, time_boot_ms: u32) -> Option<MavMessage> {
 }
 
 /// Ends the control of each owner of `h` that `heard_within` says was silent.
-fn lapse(h: &Handle, heard_within: impl Fn(Sender) -> bool) {
+fn lapse(h: &Handle, after: Duration, heard_within: impl Fn(Sender) -> bool) {
     let lapsed = h
         .shared
         .lock()
@@ -95,12 +95,13 @@ fn lapse(h: &Handle, heard_within: impl Fn(Sender) -> bool) {
         .control
         .lapse(heard_within);
     for owner in lapsed {
-        info!(gimbal = %h.config.name, ?owner, lapse_s = control::LAPSE.as_secs(), "control lapsed: its owner was not heard");
+        info!(gimbal = %h.config.name, ?owner, lapse_ms = after.as_millis() as u64, "control lapsed: its owner was not heard");
     }
 }
 
 /// Sends the three streams for ever.
-pub async fn run(outbox: Arc<Outbox>, handles: Vec<Handle>, attitude: Duration) {
+/// `lapse`: a control owner not heard for this long loses control.
+pub async fn run(outbox: Arc<Outbox>, handles: Vec<Handle>, attitude: Duration, lapse_after: Duration) {
     outbox.net.set_components(handles.iter().map(|h| h.config.component_id));
     let tick = |d| {
         let mut i = tokio::time::interval(d);
@@ -116,7 +117,7 @@ pub async fn run(outbox: Arc<Outbox>, handles: Vec<Handle>, attitude: Duration) 
             _ = ms.tick() => {
                 stats::flush_warnings();
                 for h in &handles {
-                    lapse(h, |who| outbox.net.heard_within(who, control::LAPSE));
+                    lapse(h, lapse_after, |who| outbox.net.heard_within(who, lapse_after));
                     outbox.send(h.config.component_id, &manager_status(h, outbox.boot_ms())).await;
                 }
             },

@@ -791,7 +791,7 @@ mod tests {
 
     /// A device whose gcud is a closed port on loopback: every gimbal
     /// command fails at once, as when gcud is down.
-    fn device() -> Device {
+    fn device(rt: &tokio::runtime::Runtime) -> Device {
         let text = r#"
 gcud = "127.0.0.1:9"
 [discovery]
@@ -806,11 +806,9 @@ address = "5.1.1"
 listen = "127.0.0.1:0"
 "#;
         let config = crate::config::parse(std::path::Path::new("t.toml"), text).unwrap();
-        // The gimbal's session task is spawned on a runtime that never runs
-        // it: these tests answer without the gimbal.
-        static IDLE: std::sync::LazyLock<tokio::runtime::Runtime> =
-            std::sync::LazyLock::new(|| tokio::runtime::Builder::new_current_thread().build().expect("runtime"));
-        let _idle = IDLE.enter();
+        // The gimbal's session runs on `rt`, where the test blocks: its gcud
+        // (the discard port) refuses, so every command fails at once.
+        let _rt = rt.enter();
         Device {
             gimbal: Gimbal::new(config.gimbals[0].clone(), &config, Default::default()),
             auth: Arc::new(Authenticator::new(config.users.clone())),
@@ -855,8 +853,9 @@ listen = "127.0.0.1:0"
         /// Any bytes: a fault, never a panic.
         #[test]
         fn any_body_is_answered_without_panicking(body in proptest::collection::vec(any::<u8>(), 0..1024)) {
-            let d = device();
-            prop_assert!(runtime().block_on(d.handle(&body, &ORIGIN)).is_err());
+            let rt = runtime();
+            let d = device(&rt);
+            prop_assert!(rt.block_on(d.handle(&body, &ORIGIN)).is_err());
         }
 
         /// Any operation of the three services, with any arguments, signed:
@@ -877,8 +876,9 @@ listen = "127.0.0.1:0"
             let body = format!(
                 r#"<{op} xmlns="{service}"><ProfileToken>{token}</ProfileToken><NodeToken>{token}</NodeToken><ConfigurationToken>{token}</ConfigurationToken><PresetToken>{token}</PresetToken><Velocity><PanTilt x="{x}" y="{x}"/></Velocity><Position><PanTilt x="{x}" y="0"/></Position><Translation><PanTilt x="{x}"/></Translation><Timeout>{timeout}</Timeout></{op}>"#
             );
-            let d = device();
-            let _ = runtime().block_on(d.handle(signed(&body, nonce).as_bytes(), &ORIGIN));
+            let rt = runtime();
+            let d = device(&rt);
+            let _ = rt.block_on(d.handle(signed(&body, nonce).as_bytes(), &ORIGIN));
         }
     }
 

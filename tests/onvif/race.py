@@ -12,8 +12,8 @@ Steps:
   posted, the request K: "stop", "absolute", "home", "zoom_stop" (Stop with
   PanTilt=false) or "zero_x" (a ContinuousMove whose only velocity is x=0,
   after a tilt move instead of a pan move). Reports each request's outcome.
-- flood_then_stop {"moves": 40, "hz": 20}: ContinuousMoves with a changing
-  pan velocity posted at that rate, none awaited, then a Stop: reports
+- flood_then_stop {"moves": 40, "hz": 20}: ContinuousMoves (Timeout 1 s)
+  with a changing pan velocity posted at that rate, none awaited, then a Stop: reports
   when the Stop was posted and answered (monotonic seconds).
 """
 
@@ -60,11 +60,15 @@ async def race(ptz, token, args):
     rng = random.Random(args.get("seed", 1))
     kind = args["kind"]
     results = []
-    for _ in range(args["trials"]):
+    for trial in range(args["trials"]):
         delay = rng.uniform(0.0, 0.1)
         # Slow enough that an escaped move is still moving 3 s later: 30 deg/s
         # pan (6 s to the end of travel), 15 deg/s tilt (6 s to its end).
-        velocity = {"PanTilt": {"x": 0.0, "y": 0.1}} if kind == "zero_x" else {"PanTilt": {"x": 0.25, "y": 0.0}}
+        # The direction alternates, so that moves that legitimately run
+        # their Timeout do not add up to the end of travel.
+        sign = 1.0 if trial % 2 == 0 else -1.0
+        velocity = ({"PanTilt": {"x": 0.0, "y": 0.1 * sign}} if kind == "zero_x"
+                    else {"PanTilt": {"x": 0.25 * sign, "y": 0.0}})
         move = asyncio.ensure_future(outcome(ptz.ContinuousMove(
             {"ProfileToken": token, "Velocity": velocity, "Timeout": dt.timedelta(seconds=2)})))
         await asyncio.sleep(delay)
@@ -95,8 +99,12 @@ async def flood_then_stop(ptz, token, args):
     period = 1.0 / args.get("hz", 20)
     for i in range(args.get("moves", 40)):
         x = 0.3 + 0.7 * ((i % 7) / 6.0)
+        # Timeout 1 s: a move that reaches the door after the Stop (HTTP
+        # requests on separate connections may overtake one another) is a
+        # newer move, and ends by itself.
         posted.append(asyncio.ensure_future(outcome(ptz.ContinuousMove(
-            {"ProfileToken": token, "Velocity": {"PanTilt": {"x": x, "y": 0.0}}}))))
+            {"ProfileToken": token, "Velocity": {"PanTilt": {"x": x, "y": 0.0}},
+             "Timeout": dt.timedelta(seconds=1)}))))
         await asyncio.sleep(period)
     stop_posted = time.monotonic()
     stop = await outcome(ptz.Stop({"ProfileToken": token, "PanTilt": True, "Zoom": True}))

@@ -1,5 +1,5 @@
-//! One gimbal as every front door drives it (DESIGN "Front doors", the
-//! gimbal session): one task owns the gimbal's connection to gcud and is
+//! One gimbal as every front door drives it (ARCHITECTURE "Front doors",
+//! the gimbal session): one task owns the gimbal's connection to gcud and is
 //! the only sender on it, and the doors post what they want:
 //!
 //! - **a motion is one object**: the velocity in force per axis, its owner
@@ -47,7 +47,9 @@ pub const QUEUE: usize = 8;
 /// An owed stop is sent again this often while gcud cannot be reached.
 const STOP_RETRY: Duration = Duration::from_millis(200);
 /// A caller of [`GimbalSession::stop`] is told the stop failed after this
-/// many attempts; the stop stays owed and is sent on until confirmed.
+/// many attempts. While gcud cannot be reached the stop stays owed and is
+/// sent on until confirmed; a stop gcud reports undelivered (the gimbal
+/// silent) is given up after this many.
 const STOP_ATTEMPTS_ANSWERED: u32 = 2;
 
 /// Where a session's gimbal is and how it is driven.
@@ -338,6 +340,15 @@ impl State {
         if self.deadline.is_some_and(|d| d <= now) {
             self.deadline = None;
             let moving = self.moving();
+            if let Some(w) = self.wish.take() {
+                // Its time ran out before it could be carried out (a stop owed first).
+                answer(
+                    w.replies,
+                    Err(CommandError::Io(
+                        "the move's time ran out before it could start".to_owned(),
+                    )),
+                );
+            }
             if moving.any() {
                 info!(gimbal = name, owner = %self.owner, "move time-out: stopping");
                 self.owe_stop(moving);
@@ -531,6 +542,10 @@ impl GimbalSession {
     /// [`STOP_ATTEMPTS_ANSWERED`] failed attempts the caller is told, and
     /// the stop stays owed until confirmed.
     pub async fn stop(&self, axes: Axes) -> Result<(), CommandError> {
+        if !axes.any() {
+            // Nothing to stop (a zoom stop for a gimbal without a lens).
+            return Ok(());
+        }
         let (tx, rx) = oneshot::channel();
         {
             let mut s = self.state();
@@ -734,6 +749,21 @@ impl GimbalSession {
                             if !s.stops_owed.any() {
                                 let replies = std::mem::take(&mut s.stop_replies);
                                 answer(replies, Err(CommandError::Nic(e)));
+                            }
+                        }
+                        Err(e)
+                            if !matches!(e, CommandError::Io(_)) && s.stop_failures + 1 >= STOP_ATTEMPTS_ANSWERED =>
+                        {
+                            // gcud answered, the gimbal did not confirm (absent,
+                            // noise): tried again once; owing it for ever would
+                            // hold every other command of this gimbal.
+                            warn!(gimbal = %self.config.name, error = %e, "{} not confirmed after {STOP_ATTEMPTS_ANSWERED} attempts: given up", command.mnemonic());
+                            s.stops_owed = s.stops_owed.without(axes);
+                            s.stop_failures = 0;
+                            s.stop_retry_at = None;
+                            if !s.stops_owed.any() {
+                                let replies = std::mem::take(&mut s.stop_replies);
+                                answer(replies, Err(e));
                             }
                         }
                         Err(e) => {
