@@ -85,7 +85,8 @@ fn main() {
         env!("CARGO_BIN_EXE_gimbal-onvif"),
         "gimbal-onvif",
         &format!(
-            "gcud = \"{clients}\"\nmax_move_ms = 60000\n[discovery]\nenabled = false\n[[user]]\nname = \"{USER}\"\n\
+            "gcud = \"{clients}\"\nmax_move_ms = 60000\n[discovery]\nenabled = false\n\
+             [auth]\nrequests_per_s = 1000000\nburst = 1000000\n[[user]]\nname = \"{USER}\"\n\
              password = \"{PASSWORD}\"\nrole = \"operator\"\n[[gimbal]]\nname = \"bench\"\naddress = \"5.1.1\"\n\
              listen = \"127.0.0.1:0\"\n"
         ),
