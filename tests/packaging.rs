@@ -129,8 +129,7 @@ fn the_package_holds_programs_unit_rule_and_configuration_files() {
     if !probe.is_ok_and(|o| o.status.success()) {
         let missing = "cargo-deb not found: the Debian package is not built nor checked. Install it with \
                        `cargo install cargo-deb --locked` (.ci/run does)";
-        assert!(std::env::var_os("CI").is_none(), "{missing}");
-        eprintln!("warning: {missing}");
+        support::tool_missing(missing);
         return;
     }
     // The programs this test run built (`cargo test --release` builds them

@@ -2,7 +2,7 @@
 //! `tests/mavlink.rs`): the gcud with two simulated buses they stand in front
 //! of ([`start_gcud`]), a door binary run on a configuration with its log and
 //! stopped by a signal ([`Door`]), whether the third-party Python client is
-//! installed (under `CI=true` it must be), one step of that client run as a
+//! installed (a test fails when it is not, unless skipping is asked for), one step of that client run as a
 //! script that prints JSON, the gimbal's motion and stillness read on the bus
 //! side, the stops that reached the simulated bus after a motion and from
 //! whom (the door's own or gcud's dead-man), `--check` run on a file and the
@@ -16,8 +16,9 @@ use serde_json::Value;
 
 use super::HANG_GUARD;
 
-/// Whether `python3 -c "import ..."` works; when it does not, a test is
-/// skipped with `hint` (how to install), and under `CI=true` it fails.
+/// Whether `python3 -c "import ..."` works; when it does not, the test
+/// fails saying how to install `hint` ([`super::tool_missing`]), unless
+/// skipping is asked for.
 pub fn python_client_available(imports: &str, hint: &str) -> bool {
     let ok = Command::new("python3")
         .args(["-c", &format!("import {imports}")])
@@ -26,11 +27,9 @@ pub fn python_client_available(imports: &str, hint: &str) -> bool {
         .status()
         .is_ok_and(|s| s.success());
     if !ok {
-        let msg = format!("python3 with {hint} is missing (.ci/run installs it)");
-        if std::env::var("CI").is_ok_and(|v| v == "true") {
-            panic!("{msg}");
-        }
-        eprintln!("SKIPPED: {msg}");
+        super::tool_missing(&format!(
+            "python3 with {hint} is missing (install as README.md's quick start says; .ci/run does)"
+        ));
     }
     ok
 }

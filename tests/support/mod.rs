@@ -29,6 +29,23 @@ pub mod gcud;
 /// systemd-units; `tests/deployment.rs` verifies each unit).
 pub const PACKAGED_UNITS: [&str; 3] = ["gcud", "gimbal-onvif", "gimbal-mavlink"];
 
+/// The environment variable that lets a test whose third-party tool is
+/// missing (a door's Python client, tshark, cargo-deb, systemd-analyze)
+/// be skipped; without it such a test fails, saying how to install the
+/// tool, so that a green run never hides a test that checked nothing.
+pub const SKIP_MISSING_TOOLS: &str = "SAGEBRUSH_SKIP_MISSING_TOOLS";
+
+/// A test's tool is missing (`what`, with how to install it): the test
+/// fails, unless [`SKIP_MISSING_TOOLS`] is `1`, when it says SKIPPED and
+/// the caller returns without checking anything.
+pub fn tool_missing(what: &str) {
+    if std::env::var(SKIP_MISSING_TOOLS).is_ok_and(|v| v == "1") {
+        eprintln!("SKIPPED ({SKIP_MISSING_TOOLS}=1): {what}");
+        return;
+    }
+    panic!("{what}; or set {SKIP_MISSING_TOOLS}=1 to skip the tests that need it");
+}
+
 /// Only to avoid hanging on a broken build: never an assertion on speed.
 pub const HANG_GUARD: Duration = Duration::from_secs(60);
 
