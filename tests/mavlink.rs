@@ -89,7 +89,9 @@ impl Stack {
         let config = mavlink_config(&gcud.clients(), lease_ms, extra_endpoint);
         // Each client step is a process of its own, so a holder of control
         // is silent between steps: a lapse longer than any test.
-        mavlink.start(&format!("source_group = {DOOR_GROUP}\ncontrol_lapse_ms = 60000\n{config}"));
+        mavlink.start(&format!(
+            "source_group = {DOOR_GROUP}\ncontrol_lapse_ms = 60000\n{config}"
+        ));
         Self {
             port: mavlink.port("MAVLink UDP endpoint bound"),
             tcp_port: mavlink.port("MAVLink TCP endpoint listening"),

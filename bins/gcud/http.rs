@@ -27,7 +27,7 @@ use tracing::{debug, warn};
 
 use crate::config::PeerAllowList;
 use crate::snapshot::{HttpStats, Snapshot};
-use crate::throttle::Throttle;
+use sagebrush_host::throttle::Throttle;
 
 /// A request's head must arrive this soon after the connection opened or
 /// the previous response was sent (a scraper sends it at once).

@@ -25,7 +25,7 @@ use crate::admission::{Admitted, Connections, Ending};
 use tracing::{debug, info, warn};
 
 use crate::config::{Link, LinkTransport, Port, PortTransport};
-use crate::throttle::Throttle;
+use sagebrush_host::throttle::Throttle;
 
 /// What the line tasks tell the router task: a line is open (the router
 /// task owns it from then on, module `lines`), or an accepted connection
@@ -352,7 +352,7 @@ const ACCEPT_PAUSE: Duration = Duration::from_millis(100);
 
 /// The next connection on `listener`. A failed accept (descriptors ran out:
 /// EMFILE, ENFILE; or the peer gave up) is logged at most
-/// [`crate::throttle::BURST`] times per window and place, the rest summed up
+/// [`sagebrush_host::throttle::BURST`] times per window and place, the rest summed up
 /// when the window ends, and retried after [`ACCEPT_PAUSE`]: nothing else
 /// waits for it, so routing goes on.
 pub async fn accept(listener: &TcpListener, place: &str, throttle: &mut Throttle) -> (TcpStream, SocketAddr) {
@@ -370,7 +370,7 @@ pub async fn accept(listener: &TcpListener, place: &str, throttle: &mut Throttle
             Some(Err(e)) => {
                 let line = || format!("{place}: accept failed: {e}");
                 if throttle.allow("accept failed", place, line, tokio::time::Instant::now()) {
-                    warn!(%place, error = %e, "accept failed; retrying (logged at most {} times in {} s)", crate::throttle::BURST, crate::throttle::WINDOW.as_secs());
+                    warn!(%place, error = %e, "accept failed; retrying (logged at most {} times in {} s)", sagebrush_host::throttle::BURST, sagebrush_host::throttle::WINDOW.as_secs());
                 }
                 tokio::time::sleep(ACCEPT_PAUSE).await;
             }

@@ -17,7 +17,6 @@ mod router_task;
 mod simulated;
 mod snapshot;
 mod status;
-mod throttle;
 
 use std::path::PathBuf;
 use std::process::ExitCode;

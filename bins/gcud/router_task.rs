@@ -26,7 +26,7 @@ use crate::io::{self, IoEvent};
 use crate::lines::{LineEvent, LineId, Lines, Refused};
 use crate::reload::{Diff, Reread};
 use crate::snapshot::{RouterState, Snapshot};
-use crate::throttle::Throttle;
+use sagebrush_host::throttle::Throttle;
 
 /// Stable ids of configured links, by name: kept across reconnects and
 /// reloads, so that routes keep pointing at the right link.

@@ -20,5 +20,6 @@ pub mod pty;
 #[cfg(feature = "sim")]
 pub mod sim_line;
 pub mod stdio;
+pub mod throttle;
 pub mod timing;
 pub mod transport;

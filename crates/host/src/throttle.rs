@@ -1,7 +1,9 @@
-//! Logs that survive a flood: repeated warnings of one kind from one place
-//! (a port, a link, the router) are written at most [`BURST`] times per
-//! [`WINDOW`]; the rest are counted and summarised once the window ends
-//! ("... repeated 83112 times in 10 s"). The metrics keep the exact numbers.
+//! Logs that survive a flood, for gcud and the doors alike: repeated
+//! warnings of one kind from one place (a port, a link, a peer's address,
+//! a gimbal) are written at most [`BURST`] times per [`WINDOW`]; the rest
+//! are counted and summarised once the window ends ("... repeated 83112
+//! times in 10 s"). The places tracked are bounded: past [`MAX_KEYS`], new
+//! places of a kind share one window. The metrics keep the exact numbers.
 
 use std::collections::HashMap;
 use std::time::Duration;
@@ -12,8 +14,10 @@ use tokio::time::Instant;
 pub const BURST: u32 = 10;
 /// The window.
 pub const WINDOW: Duration = Duration::from_secs(10);
-/// Kinds and places tracked at once; beyond, the oldest window is summarised early.
-const MAX_KEYS: usize = 4096;
+/// Kinds and places tracked at once; beyond, new places share one window.
+pub const MAX_KEYS: usize = 4096;
+/// The place of the window that places beyond [`MAX_KEYS`] share.
+const OTHER_PLACES: &str = "other places";
 
 #[derive(Debug)]
 struct Window {
@@ -34,18 +38,16 @@ impl Throttle {
     /// Whether a warning of `kind` at `place` may be written now; if not,
     /// it is counted (with its text, for the summary).
     pub fn allow(&mut self, kind: &str, place: &str, line: impl FnOnce() -> String, now: Instant) -> bool {
-        if self.windows.len() >= MAX_KEYS && !self.windows.contains_key(&(kind.to_owned(), place.to_owned())) {
-            return true; // never lose a new kind of warning for bookkeeping's sake
+        let mut key = (kind.to_owned(), place.to_owned());
+        if self.windows.len() >= MAX_KEYS - 1 && !self.windows.contains_key(&key) {
+            key.1 = OTHER_PLACES.to_owned();
         }
-        let w = self
-            .windows
-            .entry((kind.to_owned(), place.to_owned()))
-            .or_insert_with(|| Window {
-                start: now,
-                written: 0,
-                suppressed: 0,
-                last: String::new(),
-            });
+        let w = self.windows.entry(key).or_insert_with(|| Window {
+            start: now,
+            written: 0,
+            suppressed: 0,
+            last: String::new(),
+        });
         if w.written < BURST {
             w.written += 1;
             return true;
@@ -102,5 +104,20 @@ mod tests {
             t.allow("dropped unsolicited", "port 1", String::new, t0 + WINDOW),
             "a new window"
         );
+    }
+
+    #[test]
+    fn ever_new_places_stay_bounded() {
+        let mut t = Throttle::default();
+        let t0 = Instant::now();
+        let written = (0..100_000)
+            .filter(|i| t.allow("refused", &format!("127.0.0.1:{i}"), String::new, t0))
+            .count();
+        assert_eq!(
+            written,
+            MAX_KEYS - 1 + BURST as usize,
+            "the places beyond share one window"
+        );
+        assert!(t.windows.len() <= MAX_KEYS);
     }
 }
