@@ -96,6 +96,8 @@ fn udev_rule_keeps_modemmanager_away() {
         .lines()
         .map(str::trim)
         .filter(|l| !l.is_empty() && !l.starts_with('#'))
+        // The rules that name tty devices (the usb-serial one tunes the adapter).
+        .filter(|l| l.contains(r#"SUBSYSTEM=="tty""#))
         .collect();
     assert!(!rules.is_empty(), "no rules");
     for rule in rules {
@@ -103,6 +105,23 @@ fn udev_rule_keeps_modemmanager_away() {
             rule.contains(r#"ENV{ID_MM_DEVICE_IGNORE}="1""#),
             "rule without ID_MM_DEVICE_IGNORE: {rule}"
         );
+    }
+}
+
+#[test]
+fn udev_rule_sets_the_ftdi_latency_timer_to_one_millisecond() {
+    let rules = read("99-sagebrush-gimbal.rules");
+    let rule = rules
+        .lines()
+        .find(|l| !l.trim_start().starts_with('#') && l.contains("latency_timer"))
+        .expect("a rule setting the adapters' latency_timer");
+    for part in [
+        "ACTION==\"add\"",
+        "SUBSYSTEM==\"usb-serial\"",
+        "DRIVER==\"ftdi_sio\"",
+        "ATTR{latency_timer}=\"1\"",
+    ] {
+        assert!(rule.contains(part), "{rule:?} lacks {part}");
     }
 }
 

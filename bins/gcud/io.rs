@@ -16,7 +16,7 @@ use sagebrush_gcu::{LinkId, LinkKind};
 use sagebrush_host::capture::{CaptureSwitch, Role, Tap};
 
 use crate::lines::{Ended, LineStream};
-use sagebrush_host::transport::{SerialOrTcp, connect_tcp, open_serial};
+use sagebrush_host::transport::{LATENCY_TIMER_WARN_MS, SerialOrTcp, connect_tcp, latency_timer_ms, open_serial};
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{mpsc, oneshot};
@@ -136,7 +136,21 @@ impl LineStream for SerialOrTcp {}
 
 async fn open_port(port: &Port, baud: u32) -> io::Result<Box<dyn LineStream>> {
     Ok(match &port.transport {
-        PortTransport::Serial(path) => Box::new(open_serial(&path.to_string_lossy(), baud)?),
+        PortTransport::Serial(path) => {
+            let line = open_serial(&path.to_string_lossy(), baud)?;
+            if let Some(ms) = latency_timer_ms(path, std::path::Path::new("/sys")) {
+                if ms > LATENCY_TIMER_WARN_MS {
+                    warn!(
+                        port = port.id,
+                        path = %path.display(),
+                        latency_timer_ms = ms,
+                        "the USB adapter holds short replies up to {ms} ms: set its latency_timer to 1 \
+                         (config/99-sagebrush-gimbal.rules does for FTDI adapters)"
+                    );
+                }
+            }
+            Box::new(line)
+        }
         PortTransport::Tcp(addr) => Box::new(DeviceServer {
             stream: connect_tcp(addr).await?,
             baud,

@@ -40,6 +40,21 @@ pub fn open_serial(path: &str, baud: u32) -> io::Result<SerialStream> {
     Ok(port)
 }
 
+/// An adapter read latency above this (ms) is warned of: it holds short
+/// replies back, so a bus cannot reach its line rate (README "USB adapters").
+pub const LATENCY_TIMER_WARN_MS: u32 = 2;
+
+/// The read latency timer (ms) of the USB serial adapter behind `path`
+/// (FTDI's `latency_timer`, 16 by default), read from the sysfs mounted at
+/// `sys` (`/sys`), `path` resolved through its symbolic links (udev's
+/// `/dev/gimbal-bus-1`); None where there is none (another adapter, a pty).
+pub fn latency_timer_ms(path: &std::path::Path, sys: &std::path::Path) -> Option<u32> {
+    let device = std::fs::canonicalize(path).ok()?;
+    let name = device.file_name()?;
+    let file = sys.join("class/tty").join(name).join("device/latency_timer");
+    std::fs::read_to_string(file).ok()?.trim().parse().ok()
+}
+
 /// Changes a serial line's rate (after an acknowledged `C0..C7`, Table 4).
 pub fn set_baud(port: &mut SerialStream, baud: u32) -> io::Result<()> {
     port.set_baud_rate(baud)
@@ -145,5 +160,26 @@ mod tests {
         );
         assert_eq!(sock.tcp_keepalive_retries().expect("TCP_KEEPCNT"), KEEPALIVE_PROBES);
         assert!(stream.nodelay().expect("TCP_NODELAY"));
+    }
+}
+
+#[cfg(test)]
+mod latency_tests {
+    use super::*;
+
+    #[test]
+    fn the_latency_timer_is_read_through_the_devices_links() {
+        let root = tempfile::tempdir().unwrap();
+        let (dev, sys) = (root.path().join("dev"), root.path().join("sys"));
+        std::fs::create_dir_all(&dev).unwrap();
+        std::fs::write(dev.join("ttyUSB7"), "").unwrap();
+        std::os::unix::fs::symlink(dev.join("ttyUSB7"), dev.join("gimbal-bus-1")).unwrap();
+        let attr = sys.join("class/tty/ttyUSB7/device");
+        std::fs::create_dir_all(&attr).unwrap();
+        std::fs::write(attr.join("latency_timer"), "16\n").unwrap();
+        assert_eq!(latency_timer_ms(&dev.join("gimbal-bus-1"), &sys), Some(16));
+        std::fs::write(dev.join("pts9"), "").unwrap();
+        assert_eq!(latency_timer_ms(&dev.join("pts9"), &sys), None, "no adapter, no timer");
+        assert_eq!(latency_timer_ms(&dev.join("absent"), &sys), None);
     }
 }
