@@ -24,6 +24,7 @@ pub struct Address {
 }
 
 impl Address {
+    /// The address `group.port.device`.
     pub const fn new(group: u8, port: u8, device: u8) -> Self {
         Self { group, port, device }
     }
@@ -44,10 +45,18 @@ impl fmt::Display for Address {
 /// Why a `G.P.D` address text was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum AddressParseError {
+    /// The text does not have exactly three dot-separated parts.
     #[error("address must be three numbers GROUP.PORT.DEVICE, each 0..=255 (found {found} parts)")]
-    Parts { found: usize },
+    Parts {
+        /// How many parts the text has.
+        found: usize,
+    },
+    /// A part is not a decimal number 0..=255.
     #[error("address part {index} is not a number 0..=255")]
-    Number { index: usize },
+    Number {
+        /// Which part (0 = group, 1 = port, 2 = device).
+        index: usize,
+    },
 }
 
 impl FromStr for Address {

@@ -28,7 +28,9 @@ use crate::units::{
 pub struct AuxBytes<'a>(&'a [u8]);
 
 impl<'a> AuxBytes<'a> {
+    /// The most bytes one `*xpt` carries.
     pub const MAX: usize = 200;
+    /// The bytes to send, refused when empty or longer than [`Self::MAX`].
     pub fn new(bytes: &'a [u8]) -> Result<Self, RangeError> {
         if bytes.is_empty() || bytes.len() > Self::MAX {
             return Err(RangeError {
@@ -40,6 +42,7 @@ impl<'a> AuxBytes<'a> {
         }
         Ok(Self(bytes))
     }
+    /// The bytes, as given to [`Self::new`].
     pub const fn bytes(&self) -> &'a [u8] {
         self.0
     }
@@ -322,7 +325,7 @@ macro_rules! command_table {
         /// The rows of the command table, one per [`Command`] variant.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
         pub enum Row {
-            $( $Variant, )+
+            $( $(#[doc = $doc])* $Variant, )+
         }
 
         impl Row {
@@ -937,21 +940,37 @@ command_table! {
 /// Why a payload is not a well-formed command.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum CommandError {
+    /// The payload has no byte.
     #[error("empty payload")]
     Empty,
+    /// No row of the command table matches the first byte and the length.
     #[error("no command starts with byte 0x{first:02X} and has {len} bytes")]
-    Unknown { first: u8, len: usize },
+    Unknown {
+        /// The payload's first byte.
+        first: u8,
+        /// The payload's length.
+        len: usize,
+    },
+    /// A command was recognised but an argument byte is not of its form.
     #[error("{command}: at offset {offset} expected {expected}, found {}", found_text(*.found))]
     BadArgument {
+        /// The command's mnemonic form, e.g. `GRPnn/GRTnn`.
         command: &'static str,
+        /// Offset of the offending byte in the payload.
         offset: usize,
+        /// The byte found there, `None` at the end of the payload.
         found: Option<u8>,
+        /// What the command expects there.
         expected: &'static str,
     },
+    /// An argument is well formed but outside its range.
     #[error("{command}: argument at offset {offset}: {error}")]
     OutOfRange {
+        /// The command's mnemonic form.
         command: &'static str,
+        /// Offset of the argument in the payload.
         offset: usize,
+        /// The range it breaks.
         error: RangeError,
     },
 }

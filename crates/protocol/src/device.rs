@@ -75,7 +75,9 @@ impl EndpointConfig {
 /// whether the command is answered at all.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct ReplyTo {
+    /// The result's destination address.
     pub dest: Address,
+    /// The result's source group.
     pub source: u8,
     /// `false` when the endpoint executes the command without answering it
     /// (a broadcast on a shared bus, [`EndpointConfig::answers`]): no ACK,
@@ -141,9 +143,13 @@ pub trait DeviceHandler {
 /// Counters of an endpoint.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct EndpointStats {
+    /// Frames addressed to this device with a valid checksum, handled.
     pub frames_accepted: u64,
+    /// NAKs sent for frames whose checksum failed.
     pub naks_sent: u64,
+    /// NICs sent for commands the handler does not implement.
     pub nics_sent: u64,
+    /// Result frames sent (first transmissions).
     pub results_sent: u64,
     /// Results sent again because the master NAKed them.
     pub results_resent: u64,
@@ -178,6 +184,7 @@ struct State {
 }
 
 impl<const N: usize> DeviceEndpoint<N> {
+    /// An endpoint with an empty framer and zeroed counters.
     pub const fn new(config: EndpointConfig) -> Self {
         Self {
             framer: Framer::new(),
@@ -198,10 +205,12 @@ impl<const N: usize> DeviceEndpoint<N> {
         }
     }
 
+    /// The configuration it was made with (address, broadcast answering).
     pub fn config(&self) -> &EndpointConfig {
         &self.state.config
     }
 
+    /// The endpoint's counters.
     pub fn stats(&self) -> EndpointStats {
         self.state.stats
     }

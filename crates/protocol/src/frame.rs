@@ -178,14 +178,36 @@ pub struct Frame<'a> {
 /// Why bytes are not one valid frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum FrameError {
+    /// The payload length is not 1..=256.
     #[error("payload of {len} bytes: a frame carries 1..=256")]
-    PayloadLength { len: usize },
+    PayloadLength {
+        /// The payload length given or read.
+        len: usize,
+    },
+    /// The first byte is not [`START`].
     #[error("byte 0x{found:02X} at offset 0 is not the start character 0xF8")]
-    BadStart { found: u8 },
+    BadStart {
+        /// The first byte.
+        found: u8,
+    },
+    /// Fewer bytes than the length byte announces.
     #[error("frame incomplete: {needed} bytes needed, {available} available")]
-    Incomplete { needed: usize, available: usize },
+    Incomplete {
+        /// Bytes the whole frame needs.
+        needed: usize,
+        /// Bytes there are.
+        available: usize,
+    },
+    /// The checksum byte does not match the frame.
     #[error("checksum at offset {offset}: expected 0x{expected:02X}, found 0x{found:02X}")]
-    BadChecksum { offset: usize, expected: u8, found: u8 },
+    BadChecksum {
+        /// Offset of the checksum byte.
+        offset: usize,
+        /// The checksum the frame's bytes give.
+        expected: u8,
+        /// The checksum byte received.
+        found: u8,
+    },
 }
 
 impl<'a> Frame<'a> {

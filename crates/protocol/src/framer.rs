@@ -243,6 +243,7 @@ impl<const N: usize> Default for Framer<N> {
 }
 
 impl<const N: usize> Framer<N> {
+    /// An empty framer; `N` must be at least [`MAX_FRAME_LEN`] (checked at compile time).
     pub const fn new() -> Self {
         const { assert!(N >= MAX_FRAME_LEN, "a framer must hold one maximum frame (263 bytes)") };
         Self {

@@ -1,6 +1,7 @@
 #![doc = include_str!("../README.md")]
 #![no_std]
 #![forbid(unsafe_code)]
+#![deny(missing_docs)]
 
 mod code_table;
 #[doc(hidden)]
@@ -38,10 +39,21 @@ pub use units::{
 /// Why an encoder could not write.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum EncodeError {
+    /// The caller's buffer cannot hold the encoding.
     #[error("buffer of {capacity} bytes too small: {needed} needed")]
-    BufferTooSmall { needed: usize, capacity: usize },
+    BufferTooSmall {
+        /// Bytes the encoding needs.
+        needed: usize,
+        /// Bytes the buffer has.
+        capacity: usize,
+    },
+    /// The payload is empty or longer than [`MAX_PAYLOAD`].
     #[error("payload of {len} bytes: a frame carries 1..=256")]
-    PayloadLength { len: usize },
+    PayloadLength {
+        /// The payload's length.
+        len: usize,
+    },
+    /// A value does not fit its field on the wire.
     #[error("cannot encode: {0}")]
     OutOfRange(RangeError),
 }

@@ -63,6 +63,7 @@ pub struct Transmitter {
 }
 
 impl Transmitter {
+    /// An idle transmitter with this retry policy.
     pub const fn new(policy: RetryPolicy) -> Self {
         Self {
             policy,
@@ -143,6 +144,7 @@ impl Transmitter {
 /// Time-outs of a whole exchange, in ticks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TransactionPolicy {
+    /// ACK time-out and retransmissions of the command frame.
     pub retry: RetryPolicy,
     /// Wait for a result after the ACK (ordinary queries).
     pub result_timeout: u64,
