@@ -25,6 +25,7 @@ use crate::units::{
 
 /// Raw bytes for an auxiliary serial port, 1..=200 of them (Table 16 `*xpt`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct AuxBytes<'a>(&'a [u8]);
 
 impl<'a> AuxBytes<'a> {
@@ -67,6 +68,7 @@ macro_rules! extended_table {
         /// Rev 1.9 commands published by name only (1.2, protocol-notes E13): their
         /// argument and reply bytes are kept raw, no layout is guessed.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        #[cfg_attr(feature = "defmt", derive(defmt::Format))]
         pub enum Extended {
             $( $(#[doc = $doc])* $Variant, )+
         }
@@ -324,6 +326,7 @@ macro_rules! command_table {
 
         /// The rows of the command table, one per [`Command`] variant.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        #[cfg_attr(feature = "defmt", derive(defmt::Format))]
         pub enum Row {
             $( $(#[doc = $doc])* $Variant, )+
         }
@@ -476,6 +479,7 @@ command_table! {
     /// One command payload: every row of Tables 4, 11 and 16 and the rev 1.9
     /// list (1.2).
     #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    #[cfg_attr(feature = "defmt", derive(defmt::Format))]
     pub enum Command<'a> (payload = payload, writer = w) {
         // Rev 1.9 (1.2): first, because its names are prefixes that win over
         // the patterns below (`VP`/`VS` + six bytes is not `Vzzzfff`).
@@ -939,6 +943,7 @@ command_table! {
 
 /// Why a payload is not a well-formed command.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum CommandError {
     /// The payload has no byte.
     #[error("empty payload")]

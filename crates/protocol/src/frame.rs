@@ -81,6 +81,7 @@ pub fn checksum(header_and_payload_after_start: &[u8]) -> u8 {
 /// is always a valid length, so ranges built from it ([`layout`]) always
 /// fit a [`MAX_FRAME_LEN`] buffer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct PayloadLen(u16);
 
 impl PayloadLen {
@@ -126,6 +127,7 @@ pub const fn payload_len(length_byte: u8) -> usize {
 /// Table 1 bytes 1-6 as fields: the destination, the source group and the
 /// payload length (always valid: see [`PayloadLen`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Header {
     /// Destination, bytes 2-4.
     pub dest: Address,
@@ -167,6 +169,7 @@ impl Header {
 /// A zero-copy view of one valid frame (Table 1). Constructing one checks
 /// the payload length; the checksum is computed on encode.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Frame<'a> {
     /// Destination, header bytes 2-4.
     pub dest: Address,
@@ -177,6 +180,7 @@ pub struct Frame<'a> {
 
 /// Why bytes are not one valid frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum FrameError {
     /// The payload length is not 1..=256.
     #[error("payload of {len} bytes: a frame carries 1..=256")]
@@ -479,6 +483,14 @@ impl core::hash::Hash for FrameBuf {
 impl core::fmt::Debug for FrameBuf {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.debug_tuple("FrameBuf").field(&self.frame()).finish()
+    }
+}
+
+/// As its [`Frame`]: header fields and payload, not 263 raw bytes.
+#[cfg(feature = "defmt")]
+impl defmt::Format for FrameBuf {
+    fn format(&self, f: defmt::Formatter<'_>) {
+        defmt::write!(f, "FrameBuf({})", self.frame());
     }
 }
 

@@ -23,6 +23,7 @@ pub const DEFAULT_CAPACITY: usize = 2 * MAX_FRAME_LEN;
 
 /// A candidate frame whose checksum did not hold.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct BadChecksum {
     /// Destination bytes as received (they may be the damaged ones).
     pub dest: Address,
@@ -40,6 +41,7 @@ pub struct BadChecksum {
 
 /// What the framer recognised.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Event<'a> {
     /// A frame whose checksum holds.
     Frame(Frame<'a>),
@@ -65,6 +67,7 @@ pub enum Event<'a> {
     reason = "no alloc: the frame is held inline, as in FrameBuf"
 )]
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum OwnedEvent {
     /// A frame whose checksum holds.
     Frame(FrameBuf),
@@ -126,6 +129,7 @@ impl PartialEq<Event<'_>> for OwnedEvent {
 
 /// Counters of what the framer passed over.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FramerStats {
     /// Bytes that were part of no Frame/Ack/Nak/Nic event.
     pub skipped_bytes: u64,

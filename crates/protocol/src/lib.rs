@@ -16,6 +16,8 @@ pub mod dissector;
 pub mod frame;
 pub mod framer;
 mod hex;
+#[cfg(any(feature = "embedded-io", feature = "embedded-io-async"))]
+pub mod io;
 pub mod link;
 pub mod reply;
 pub mod report;
@@ -38,6 +40,7 @@ pub use units::{
 
 /// Why an encoder could not write.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum EncodeError {
     /// The caller's buffer cannot hold the encoding.
     #[error("buffer of {capacity} bytes too small: {needed} needed")]

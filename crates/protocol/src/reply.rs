@@ -19,6 +19,7 @@ use crate::units::{Acceleration, Angle, DataRate, LensPosition, Limits, Position
 /// initialised, bit 2 motors off, bit 3 error. Parsed from one hex digit or a
 /// raw byte 0x00..=0x0F (protocol-notes E10); emitted as one hex digit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct AwakeStatus(u8);
 
 impl AwakeStatus {
@@ -69,6 +70,7 @@ impl AwakeStatus {
 /// (20 characters each, space padded). Parsing trims the padding and accepts
 /// short blocks; encoding pads to the full 44 bytes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Identity<'a> {
     /// Device ID.
     pub id: u8,
@@ -117,6 +119,7 @@ impl<'a> Identity<'a> {
 /// Error code bits per axis, Table 6A: bit 0 centre reference, bit 4
 /// initialisation, bit 5 motor time-out, bit 6 temperature. 2 + 2 hex.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ErrorCodes {
     /// Pan axis error bits.
     pub pan: u8,
@@ -147,6 +150,7 @@ impl ErrorCodes {
 /// 6 - hard stop, 7 error present; high byte reserved. Parsed from 2 + 2 or
 /// 4 + 4 hex, emitted as 4 + 4.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct StatusBits {
     /// Pan axis status bits.
     pub pan: u16,
@@ -205,6 +209,7 @@ impl StatusBits {
 /// then 4 unused characters. Parsed with or without a `G?` echo and with or
 /// without the unused characters; emitted as `pptt0000`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RateGains {
     /// Pan rate gain.
     pub pan: RateGain,
@@ -216,6 +221,7 @@ pub struct RateGains {
 /// centre switch detected, bit 2 hard limit detected (bad), bit 3 limit
 /// switch hit. Parsed from 2 or 4 hex each, emitted as 4 each.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct InitResults {
     /// Pan, counter-clockwise direction.
     pub pan_ccw: u16,
@@ -258,6 +264,7 @@ impl InitResults {
 /// tilt: limit switch found, centre switch found, count correct. Parsed
 /// from hex digits or raw bytes 0..=15; emitted as hex digits.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct HomeStatus {
     /// Limit switch found: bit 0 pan, bit 1 tilt.
     pub limit_switches: u8,
@@ -269,6 +276,7 @@ pub struct HomeStatus {
 
 /// A typed result.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Reply<'a> {
     /// `AW`, Table 5.
     AwakeStatus(AwakeStatus),
@@ -323,6 +331,7 @@ pub enum Reply<'a> {
 
 /// Why a payload is not the result of a given command.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ReplyError {
     /// The command is answered by ACK (or NIC) only, never by a result.
     #[error("{command} has no result reply")]

@@ -3,6 +3,7 @@
 
 /// A value outside the range its field allows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[error("{what} {value} is out of range {min}..={max}")]
 pub struct RangeError {
     /// What the value is, e.g. `"relay"`.
@@ -25,6 +26,7 @@ fn check(what: &'static str, value: i64, min: i64, max: i64) -> Result<(), Range
 
 /// Pan (azimuth) or tilt (elevation): the `P`/`T` letter of Tables 7, 11, 12.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Axis {
     /// Pan (azimuth), letter `P`.
     Pan,
@@ -60,6 +62,7 @@ impl Axis {
 /// An angle in hundredths of a degree, signed 16-bit two's complement,
 /// positive = counter-clockwise (Table 15, protocol-notes E8, E12).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Angle(pub i16);
 
 impl Angle {
@@ -95,6 +98,7 @@ impl Angle {
 
 /// A pan/tilt position (Table 15).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Position {
     /// Pan (azimuth) angle.
     pub pan: Angle,
@@ -111,10 +115,12 @@ impl Position {
 
 /// A discrete rate in hundredths of a degree per second (Tables 12, 13).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Rate(pub u16);
 
 /// An acceleration in hundredths of a degree per second squared (Tables 12, 13).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Acceleration(pub u16);
 
 /// The Table 12 quantities in hundredths of their unit: one conversion each
@@ -161,6 +167,7 @@ macro_rules! bounded {
     (@one $(#[$doc:meta])* $name:ident, $repr:ty, $what:literal, $min:expr, $max:expr) => {
         $(#[$doc])*
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        #[cfg_attr(feature = "defmt", derive(defmt::Format))]
         pub struct $name($repr);
 
         impl $name {
@@ -211,6 +218,7 @@ bounded! {
 
 /// Communication data rate `C0..CF` (Table 4, protocol-notes E15).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DataRate {
     /// `C0`: 1200 bit/s.
     Bps1200,
@@ -320,6 +328,7 @@ impl core::str::FromStr for DataRate {
 
 /// A text that is not one of the protocol's rates; it says which they are.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct NotAProtocolRate;
 
 impl core::fmt::Display for NotAProtocolRate {
@@ -335,6 +344,7 @@ impl core::fmt::Display for NotAProtocolRate {
 
 /// Lens zoom and focus positions, 12 bits each (Table 17).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LensPosition {
     /// Zoom position.
     pub zoom: U12,
@@ -344,6 +354,7 @@ pub struct LensPosition {
 
 /// Software limits, raw 12-bit values (Table 10, protocol-notes E9).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Limits {
     /// Pan counter-clockwise (+) limit.
     pub pan_ccw: U12,
@@ -357,6 +368,7 @@ pub struct Limits {
 
 /// Parity of an auxiliary serial port (Table 18).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Parity {
     /// No parity bit.
     None,
@@ -368,6 +380,7 @@ pub enum Parity {
 
 /// Auxiliary serial port settings `*xpc,baud,dataBits,stopBits,parity` (Table 18).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct AuxConfig {
     baud: u32,
     data_bits: u8,
