@@ -14,6 +14,7 @@ pub const CONTROL_UNIT: u8 = 0;
 
 /// Destination of a frame: header bytes 2-4 of Table 1.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Address {
     /// GCU address: 0 = MCU, 1..=254 = GCU, 255 = every GCU.
     pub group: u8,
@@ -24,6 +25,7 @@ pub struct Address {
 }
 
 impl Address {
+    /// The address `group.port.device`.
     pub const fn new(group: u8, port: u8, device: u8) -> Self {
         Self { group, port, device }
     }
@@ -43,11 +45,20 @@ impl fmt::Display for Address {
 
 /// Why a `G.P.D` address text was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum AddressParseError {
+    /// The text does not have exactly three dot-separated parts.
     #[error("address must be three numbers GROUP.PORT.DEVICE, each 0..=255 (found {found} parts)")]
-    Parts { found: usize },
+    Parts {
+        /// How many parts the text has.
+        found: usize,
+    },
+    /// A part is not a decimal number 0..=255.
     #[error("address part {index} is not a number 0..=255")]
-    Number { index: usize },
+    Number {
+        /// Which part (0 = group, 1 = port, 2 = device).
+        index: usize,
+    },
 }
 
 impl FromStr for Address {

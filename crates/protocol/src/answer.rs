@@ -6,6 +6,7 @@
 
 /// How long a result may take, as a class; the durations are the user's.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ResultTimeout {
     /// Queries answered from memory.
     Normal,
@@ -15,6 +16,7 @@ pub enum ResultTimeout {
 
 /// What follows the ACK of a command (Tables 4, 11, 16 "RESPONSE").
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ResultKind {
     /// ACK only (a NIC may still follow).
     None,

@@ -25,10 +25,13 @@ use crate::units::{
 
 /// Raw bytes for an auxiliary serial port, 1..=200 of them (Table 16 `*xpt`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct AuxBytes<'a>(&'a [u8]);
 
 impl<'a> AuxBytes<'a> {
+    /// The most bytes one `*xpt` carries.
     pub const MAX: usize = 200;
+    /// The bytes to send, refused when empty or longer than [`Self::MAX`].
     pub fn new(bytes: &'a [u8]) -> Result<Self, RangeError> {
         if bytes.is_empty() || bytes.len() > Self::MAX {
             return Err(RangeError {
@@ -40,6 +43,7 @@ impl<'a> AuxBytes<'a> {
         }
         Ok(Self(bytes))
     }
+    /// The bytes, as given to [`Self::new`].
     pub const fn bytes(&self) -> &'a [u8] {
         self.0
     }
@@ -64,6 +68,7 @@ macro_rules! extended_table {
         /// Rev 1.9 commands published by name only (1.2, protocol-notes E13): their
         /// argument and reply bytes are kept raw, no layout is guessed.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        #[cfg_attr(feature = "defmt", derive(defmt::Format))]
         pub enum Extended {
             $( $(#[doc = $doc])* $Variant, )+
         }
@@ -321,8 +326,9 @@ macro_rules! command_table {
 
         /// The rows of the command table, one per [`Command`] variant.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        #[cfg_attr(feature = "defmt", derive(defmt::Format))]
         pub enum Row {
-            $( $Variant, )+
+            $( $(#[doc = $doc])* $Variant, )+
         }
 
         impl Row {
@@ -473,6 +479,7 @@ command_table! {
     /// One command payload: every row of Tables 4, 11 and 16 and the rev 1.9
     /// list (1.2).
     #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    #[cfg_attr(feature = "defmt", derive(defmt::Format))]
     pub enum Command<'a> (payload = payload, writer = w) {
         // Rev 1.9 (1.2): first, because its names are prefixes that win over
         // the patterns below (`VP`/`VS` + six bytes is not `Vzzzfff`).
@@ -936,22 +943,39 @@ command_table! {
 
 /// Why a payload is not a well-formed command.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum CommandError {
+    /// The payload has no byte.
     #[error("empty payload")]
     Empty,
+    /// No row of the command table matches the first byte and the length.
     #[error("no command starts with byte 0x{first:02X} and has {len} bytes")]
-    Unknown { first: u8, len: usize },
+    Unknown {
+        /// The payload's first byte.
+        first: u8,
+        /// The payload's length.
+        len: usize,
+    },
+    /// A command was recognised but an argument byte is not of its form.
     #[error("{command}: at offset {offset} expected {expected}, found {}", found_text(*.found))]
     BadArgument {
+        /// The command's mnemonic form, e.g. `GRPnn/GRTnn`.
         command: &'static str,
+        /// Offset of the offending byte in the payload.
         offset: usize,
+        /// The byte found there, `None` at the end of the payload.
         found: Option<u8>,
+        /// What the command expects there.
         expected: &'static str,
     },
+    /// An argument is well formed but outside its range.
     #[error("{command}: argument at offset {offset}: {error}")]
     OutOfRange {
+        /// The command's mnemonic form.
         command: &'static str,
+        /// Offset of the argument in the payload.
         offset: usize,
+        /// The range it breaks.
         error: RangeError,
     },
 }

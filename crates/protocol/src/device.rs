@@ -16,6 +16,7 @@ use crate::reply::Reply;
 
 /// Which frames an endpoint takes as its own, and how it answers broadcasts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct EndpointConfig {
     /// Own device address, 1..=254 (changed by `#NN`).
     pub device: u8,
@@ -74,8 +75,11 @@ impl EndpointConfig {
 /// that the answer says who answered; source = the command's group), and
 /// whether the command is answered at all.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ReplyTo {
+    /// The result's destination address.
     pub dest: Address,
+    /// The result's source group.
     pub source: u8,
     /// `false` when the endpoint executes the command without answering it
     /// (a broadcast on a shared bus, [`EndpointConfig::answers`]): no ACK,
@@ -107,6 +111,7 @@ impl ReplyTo {
 
 /// A handler's answer to one command.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Response<'r> {
     /// Executed; the command has no result.
     Done,
@@ -140,10 +145,15 @@ pub trait DeviceHandler {
 
 /// Counters of an endpoint.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct EndpointStats {
+    /// Frames addressed to this device with a valid checksum, handled.
     pub frames_accepted: u64,
+    /// NAKs sent for frames whose checksum failed.
     pub naks_sent: u64,
+    /// NICs sent for commands the handler does not implement.
     pub nics_sent: u64,
+    /// Result frames sent (first transmissions).
     pub results_sent: u64,
     /// Results sent again because the master NAKed them.
     pub results_resent: u64,
@@ -178,6 +188,7 @@ struct State {
 }
 
 impl<const N: usize> DeviceEndpoint<N> {
+    /// An endpoint with an empty framer and zeroed counters.
     pub const fn new(config: EndpointConfig) -> Self {
         Self {
             framer: Framer::new(),
@@ -198,10 +209,12 @@ impl<const N: usize> DeviceEndpoint<N> {
         }
     }
 
+    /// The configuration it was made with (address, broadcast answering).
     pub fn config(&self) -> &EndpointConfig {
         &self.state.config
     }
 
+    /// The endpoint's counters.
     pub fn stats(&self) -> EndpointStats {
         self.state.stats
     }
@@ -230,6 +243,38 @@ impl<const N: usize> DeviceEndpoint<N> {
         framer.commit(n);
         while let Some(event) = framer.next_event() {
             state.on_event(event, now, handler, out);
+        }
+    }
+
+    /// Marks `n` bytes written into the spare capacity as received, without
+    /// handling their events (the I/O adapters handle them one at a time).
+    #[cfg(any(feature = "embedded-io", feature = "embedded-io-async"))]
+    pub(crate) fn commit_only(&mut self, n: usize) {
+        self.framer.commit(n);
+    }
+
+    /// Marks the line idle, without handling the events that follow.
+    #[cfg(any(feature = "embedded-io", feature = "embedded-io-async"))]
+    pub(crate) fn line_idle_only(&mut self) {
+        self.framer.line_idle();
+    }
+
+    /// Handles the next buffered event; `false` when there is none. What one
+    /// event sends is at most an ACK and a result frame.
+    #[cfg(any(feature = "embedded-io", feature = "embedded-io-async"))]
+    pub(crate) fn handle_next(
+        &mut self,
+        now: u64,
+        handler: &mut impl DeviceHandler,
+        out: &mut impl FnMut(&[u8]),
+    ) -> bool {
+        let Self { framer, state } = self;
+        match framer.next_event() {
+            Some(event) => {
+                state.on_event(event, now, handler, out);
+                true
+            }
+            None => false,
         }
     }
 

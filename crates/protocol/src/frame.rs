@@ -81,6 +81,7 @@ pub fn checksum(header_and_payload_after_start: &[u8]) -> u8 {
 /// is always a valid length, so ranges built from it ([`layout`]) always
 /// fit a [`MAX_FRAME_LEN`] buffer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct PayloadLen(u16);
 
 impl PayloadLen {
@@ -126,6 +127,7 @@ pub const fn payload_len(length_byte: u8) -> usize {
 /// Table 1 bytes 1-6 as fields: the destination, the source group and the
 /// payload length (always valid: see [`PayloadLen`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Header {
     /// Destination, bytes 2-4.
     pub dest: Address,
@@ -167,6 +169,7 @@ impl Header {
 /// A zero-copy view of one valid frame (Table 1). Constructing one checks
 /// the payload length; the checksum is computed on encode.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Frame<'a> {
     /// Destination, header bytes 2-4.
     pub dest: Address,
@@ -177,15 +180,38 @@ pub struct Frame<'a> {
 
 /// Why bytes are not one valid frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum FrameError {
+    /// The payload length is not 1..=256.
     #[error("payload of {len} bytes: a frame carries 1..=256")]
-    PayloadLength { len: usize },
+    PayloadLength {
+        /// The payload length given or read.
+        len: usize,
+    },
+    /// The first byte is not [`START`].
     #[error("byte 0x{found:02X} at offset 0 is not the start character 0xF8")]
-    BadStart { found: u8 },
+    BadStart {
+        /// The first byte.
+        found: u8,
+    },
+    /// Fewer bytes than the length byte announces.
     #[error("frame incomplete: {needed} bytes needed, {available} available")]
-    Incomplete { needed: usize, available: usize },
+    Incomplete {
+        /// Bytes the whole frame needs.
+        needed: usize,
+        /// Bytes there are.
+        available: usize,
+    },
+    /// The checksum byte does not match the frame.
     #[error("checksum at offset {offset}: expected 0x{expected:02X}, found 0x{found:02X}")]
-    BadChecksum { offset: usize, expected: u8, found: u8 },
+    BadChecksum {
+        /// Offset of the checksum byte.
+        offset: usize,
+        /// The checksum the frame's bytes give.
+        expected: u8,
+        /// The checksum byte received.
+        found: u8,
+    },
 }
 
 impl<'a> Frame<'a> {
@@ -457,6 +483,14 @@ impl core::hash::Hash for FrameBuf {
 impl core::fmt::Debug for FrameBuf {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.debug_tuple("FrameBuf").field(&self.frame()).finish()
+    }
+}
+
+/// As its [`Frame`]: header fields and payload, not 263 raw bytes.
+#[cfg(feature = "defmt")]
+impl defmt::Format for FrameBuf {
+    fn format(&self, f: defmt::Formatter<'_>) {
+        defmt::write!(f, "FrameBuf({})", self.frame());
     }
 }
 

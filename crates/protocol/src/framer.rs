@@ -23,6 +23,7 @@ pub const DEFAULT_CAPACITY: usize = 2 * MAX_FRAME_LEN;
 
 /// A candidate frame whose checksum did not hold.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct BadChecksum {
     /// Destination bytes as received (they may be the damaged ones).
     pub dest: Address,
@@ -40,6 +41,7 @@ pub struct BadChecksum {
 
 /// What the framer recognised.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Event<'a> {
     /// A frame whose checksum holds.
     Frame(Frame<'a>),
@@ -65,6 +67,7 @@ pub enum Event<'a> {
     reason = "no alloc: the frame is held inline, as in FrameBuf"
 )]
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum OwnedEvent {
     /// A frame whose checksum holds.
     Frame(FrameBuf),
@@ -126,6 +129,7 @@ impl PartialEq<Event<'_>> for OwnedEvent {
 
 /// Counters of what the framer passed over.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FramerStats {
     /// Bytes that were part of no Frame/Ack/Nak/Nic event.
     pub skipped_bytes: u64,
@@ -243,6 +247,7 @@ impl<const N: usize> Default for Framer<N> {
 }
 
 impl<const N: usize> Framer<N> {
+    /// An empty framer; `N` must be at least [`MAX_FRAME_LEN`] (checked at compile time).
     pub const fn new() -> Self {
         const { assert!(N >= MAX_FRAME_LEN, "a framer must hold one maximum frame (263 bytes)") };
         Self {

@@ -1,6 +1,7 @@
 #![doc = include_str!("../README.md")]
 #![no_std]
 #![forbid(unsafe_code)]
+#![deny(missing_docs)]
 
 mod code_table;
 #[doc(hidden)]
@@ -15,6 +16,8 @@ pub mod dissector;
 pub mod frame;
 pub mod framer;
 mod hex;
+#[cfg(any(feature = "embedded-io", feature = "embedded-io-async"))]
+pub mod io;
 pub mod link;
 pub mod reply;
 pub mod report;
@@ -37,11 +40,23 @@ pub use units::{
 
 /// Why an encoder could not write.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum EncodeError {
+    /// The caller's buffer cannot hold the encoding.
     #[error("buffer of {capacity} bytes too small: {needed} needed")]
-    BufferTooSmall { needed: usize, capacity: usize },
+    BufferTooSmall {
+        /// Bytes the encoding needs.
+        needed: usize,
+        /// Bytes the buffer has.
+        capacity: usize,
+    },
+    /// The payload is empty or longer than [`MAX_PAYLOAD`].
     #[error("payload of {len} bytes: a frame carries 1..=256")]
-    PayloadLength { len: usize },
+    PayloadLength {
+        /// The payload's length.
+        len: usize,
+    },
+    /// A value does not fit its field on the wire.
     #[error("cannot encode: {0}")]
     OutOfRange(RangeError),
 }

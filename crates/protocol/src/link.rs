@@ -18,6 +18,7 @@ use crate::framer::Event;
 
 /// Retransmission policy (1.4.2: no ACK or NAK within a time-out -> retransmit).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RetryPolicy {
     /// Ticks to wait for ACK/NAK after a transmission.
     pub ack_timeout: u64,
@@ -27,6 +28,7 @@ pub struct RetryPolicy {
 
 /// What the caller of a [`Transmitter`] does next.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum TxStep {
     /// Write the frame (again).
     Send,
@@ -40,6 +42,7 @@ pub enum TxStep {
 
 /// Why a transmission failed; the reason of the last attempt.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum TxFailure {
     /// The last attempt was answered with NAK (bad checksum at the receiver).
     Nak,
@@ -63,6 +66,7 @@ pub struct Transmitter {
 }
 
 impl Transmitter {
+    /// An idle transmitter with this retry policy.
     pub const fn new(policy: RetryPolicy) -> Self {
         Self {
             policy,
@@ -142,7 +146,9 @@ impl Transmitter {
 
 /// Time-outs of a whole exchange, in ticks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TransactionPolicy {
+    /// ACK time-out and retransmissions of the command frame.
     pub retry: RetryPolicy,
     /// Wait for a result after the ACK (ordinary queries).
     pub result_timeout: u64,
@@ -207,6 +213,7 @@ impl TransactionPolicy {
 
 /// How an exchange ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Outcome {
     /// ACKed; no result was expected (or an optional one did not come).
     Acknowledged,
@@ -224,6 +231,7 @@ pub enum Outcome {
 
 /// What the caller of a [`Transaction`] does next.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum TransactionStep {
     /// Write the command frame (again).
     Send,

@@ -19,12 +19,17 @@ use crate::units::{Acceleration, Angle, DataRate, LensPosition, Limits, Position
 /// initialised, bit 2 motors off, bit 3 error. Parsed from one hex digit or a
 /// raw byte 0x00..=0x0F (protocol-notes E10); emitted as one hex digit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct AwakeStatus(u8);
 
 impl AwakeStatus {
+    /// Bit 0: pan (azimuth) not initialised.
     pub const PAN_NOT_INITIALIZED: u8 = 1 << 0;
+    /// Bit 1: tilt (elevation) not initialised.
     pub const TILT_NOT_INITIALIZED: u8 = 1 << 1;
+    /// Bit 2: motors off.
     pub const MOTORS_OFF: u8 = 1 << 2;
+    /// Bit 3: an error condition (read it with `E?`).
     pub const ERROR: u8 = 1 << 3;
     /// Table 5 by name: each bit's mask, snake_case name and meaning,
     /// lowest bit first.
@@ -42,6 +47,7 @@ impl AwakeStatus {
         (Self::MOTORS_OFF, "motors_off", "motors off"),
         (Self::ERROR, "error", "error condition"),
     ];
+    /// The status of these bits; refused above 0x0F (four bits on the wire).
     pub fn new(bits: u8) -> Result<Self, RangeError> {
         if bits > 0x0F {
             return Err(RangeError {
@@ -53,6 +59,7 @@ impl AwakeStatus {
         }
         Ok(Self(bits))
     }
+    /// The bits, masks in [`Self::BITS`].
     pub const fn bits(self) -> u8 {
         self.0
     }
@@ -63,14 +70,18 @@ impl AwakeStatus {
 /// (20 characters each, space padded). Parsing trims the padding and accepts
 /// short blocks; encoding pads to the full 44 bytes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Identity<'a> {
+    /// Device ID.
     pub id: u8,
+    /// Protocol revision, two characters as sent (e.g. `b" 9"`).
     pub revision: [u8; 2],
     name: &'a [u8],
     serial: &'a [u8],
 }
 
 impl<'a> Identity<'a> {
+    /// Width of the name and serial number fields on the wire.
     pub const FIELD_LEN: usize = 20;
     /// Name and serial: at most 20 printable ASCII characters each, without
     /// trailing spaces (they would be taken for padding).
@@ -95,9 +106,11 @@ impl<'a> Identity<'a> {
             serial,
         })
     }
+    /// The device name, padding trimmed.
     pub const fn name(&self) -> &'a [u8] {
         self.name
     }
+    /// The serial number, padding trimmed.
     pub const fn serial(&self) -> &'a [u8] {
         self.serial
     }
@@ -106,15 +119,22 @@ impl<'a> Identity<'a> {
 /// Error code bits per axis, Table 6A: bit 0 centre reference, bit 4
 /// initialisation, bit 5 motor time-out, bit 6 temperature. 2 + 2 hex.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ErrorCodes {
+    /// Pan axis error bits.
     pub pan: u8,
+    /// Tilt axis error bits.
     pub tilt: u8,
 }
 
 impl ErrorCodes {
+    /// Bit 0: centre reference error.
     pub const CENTER_REFERENCE: u8 = 1 << 0;
+    /// Bit 4: initialisation error.
     pub const INITIALIZATION: u8 = 1 << 4;
+    /// Bit 5: motor time-out.
     pub const MOTOR_TIMEOUT: u8 = 1 << 5;
+    /// Bit 6: temperature error.
     pub const TEMPERATURE: u8 = 1 << 6;
     /// Table 6A by name: each bit's mask, snake_case name and meaning.
     pub const BITS: [(u8, &'static str, &'static str); 4] = [
@@ -130,19 +150,30 @@ impl ErrorCodes {
 /// 6 - hard stop, 7 error present; high byte reserved. Parsed from 2 + 2 or
 /// 4 + 4 hex, emitted as 4 + 4.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct StatusBits {
+    /// Pan axis status bits.
     pub pan: u16,
+    /// Tilt axis status bits.
     pub tilt: u16,
 }
 
 impl StatusBits {
+    /// Bit 0: the axis is not initialised.
     pub const NOT_INITIALIZED: u16 = 1 << 0;
+    /// Bit 1: positive limit found.
     pub const POSITIVE_LIMIT_FOUND: u16 = 1 << 1;
+    /// Bit 2: negative limit found.
     pub const NEGATIVE_LIMIT_FOUND: u16 = 1 << 2;
+    /// Bit 3: positive centre found.
     pub const POSITIVE_CENTER_FOUND: u16 = 1 << 3;
+    /// Bit 4: negative centre found.
     pub const NEGATIVE_CENTER_FOUND: u16 = 1 << 4;
+    /// Bit 5: at the positive hard stop.
     pub const POSITIVE_HARD_STOP: u16 = 1 << 5;
+    /// Bit 6: at the negative hard stop.
     pub const NEGATIVE_HARD_STOP: u16 = 1 << 6;
+    /// Bit 7: an error is present.
     pub const ERROR_PRESENT: u16 = 1 << 7;
     /// Table 6B by name (low byte; the high byte is reserved): each bit's
     /// mask, snake_case name and meaning.
@@ -178,8 +209,11 @@ impl StatusBits {
 /// then 4 unused characters. Parsed with or without a `G?` echo and with or
 /// without the unused characters; emitted as `pptt0000`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RateGains {
+    /// Pan rate gain.
     pub pan: RateGain,
+    /// Tilt rate gain.
     pub tilt: RateGain,
 }
 
@@ -187,10 +221,15 @@ pub struct RateGains {
 /// centre switch detected, bit 2 hard limit detected (bad), bit 3 limit
 /// switch hit. Parsed from 2 or 4 hex each, emitted as 4 each.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct InitResults {
+    /// Pan, counter-clockwise direction.
     pub pan_ccw: u16,
+    /// Pan, clockwise direction.
     pub pan_cw: u16,
+    /// Tilt, counter-clockwise direction.
     pub tilt_ccw: u16,
+    /// Tilt, clockwise direction.
     pub tilt_cw: u16,
 }
 
@@ -225,14 +264,19 @@ impl InitResults {
 /// tilt: limit switch found, centre switch found, count correct. Parsed
 /// from hex digits or raw bytes 0..=15; emitted as hex digits.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct HomeStatus {
+    /// Limit switch found: bit 0 pan, bit 1 tilt.
     pub limit_switches: u8,
+    /// Centre switch found: bit 0 pan, bit 1 tilt.
     pub center_switches: u8,
+    /// Count correct: bit 0 pan, bit 1 tilt.
     pub count_correct: u8,
 }
 
 /// A typed result.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Reply<'a> {
     /// `AW`, Table 5.
     AwakeStatus(AwakeStatus),
@@ -254,11 +298,21 @@ pub enum Reply<'a> {
     /// digit accepted).
     Relays(u8),
     /// `A?`: pan then tilt, 4 hex each (Table 13, protocol-notes E7).
-    Accelerations { pan: Acceleration, tilt: Acceleration },
+    Accelerations {
+        /// Pan acceleration.
+        pan: Acceleration,
+        /// Tilt acceleration.
+        tilt: Acceleration,
+    },
     /// `AP?` / `AT?`: 4 hex.
     Acceleration(Acceleration),
     /// `R?`: pan then tilt, 4 hex each.
-    Rates { pan: Rate, tilt: Rate },
+    Rates {
+        /// Pan rate.
+        pan: Rate,
+        /// Tilt rate.
+        tilt: Rate,
+    },
     /// `RP?` / `RT?`: 4 hex.
     Rate(Rate),
     /// `HV`, Table 14.
@@ -277,20 +331,34 @@ pub enum Reply<'a> {
 
 /// Why a payload is not the result of a given command.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ReplyError {
+    /// The command is answered by ACK (or NIC) only, never by a result.
     #[error("{command} has no result reply")]
-    NoResult { command: &'static str },
+    NoResult {
+        /// The command's mnemonic.
+        command: &'static str,
+    },
+    /// A byte of the payload is not of the result's form.
     #[error("result of {command}: at offset {offset} expected {expected}, found {}", found_text(*.found))]
     Malformed {
+        /// The command's mnemonic.
         command: &'static str,
+        /// Offset of the offending byte in the payload.
         offset: usize,
+        /// The byte found there, `None` at the end of the payload.
         found: Option<u8>,
+        /// What the result has there.
         expected: &'static str,
     },
+    /// A value is well formed but outside its range.
     #[error("result of {command}: value at offset {offset}: {error}")]
     OutOfRange {
+        /// The command's mnemonic.
         command: &'static str,
+        /// Offset of the value in the payload.
         offset: usize,
+        /// The range it breaks.
         error: RangeError,
     },
 }

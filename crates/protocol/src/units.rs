@@ -3,11 +3,16 @@
 
 /// A value outside the range its field allows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[error("{what} {value} is out of range {min}..={max}")]
 pub struct RangeError {
+    /// What the value is, e.g. `"relay"`.
     pub what: &'static str,
+    /// The value refused.
     pub value: i64,
+    /// Smallest value allowed.
     pub min: i64,
+    /// Largest value allowed.
     pub max: i64,
 }
 
@@ -21,8 +26,11 @@ fn check(what: &'static str, value: i64, min: i64, max: i64) -> Result<(), Range
 
 /// Pan (azimuth) or tilt (elevation): the `P`/`T` letter of Tables 7, 11, 12.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Axis {
+    /// Pan (azimuth), letter `P`.
     Pan,
+    /// Tilt (elevation), letter `T`.
     Tilt,
 }
 
@@ -54,12 +62,15 @@ impl Axis {
 /// An angle in hundredths of a degree, signed 16-bit two's complement,
 /// positive = counter-clockwise (Table 15, protocol-notes E8, E12).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Angle(pub i16);
 
 impl Angle {
+    /// From hundredths of a degree, as on the wire.
     pub const fn from_centidegrees(centi: i16) -> Self {
         Angle(centi)
     }
+    /// In hundredths of a degree.
     pub const fn centidegrees(self) -> i16 {
         self.0
     }
@@ -79,6 +90,7 @@ impl Angle {
         let rounded = if centi >= 0.0 { centi + 0.5 } else { centi - 0.5 };
         Ok(Angle(rounded as i16))
     }
+    /// In degrees.
     pub fn degrees(self) -> f32 {
         f32::from(self.0) / 100.0
     }
@@ -86,12 +98,16 @@ impl Angle {
 
 /// A pan/tilt position (Table 15).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Position {
+    /// Pan (azimuth) angle.
     pub pan: Angle,
+    /// Tilt (elevation) angle.
     pub tilt: Angle,
 }
 
 impl Position {
+    /// The position `(pan, tilt)`.
     pub const fn new(pan: Angle, tilt: Angle) -> Self {
         Self { pan, tilt }
     }
@@ -99,10 +115,12 @@ impl Position {
 
 /// A discrete rate in hundredths of a degree per second (Tables 12, 13).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Rate(pub u16);
 
 /// An acceleration in hundredths of a degree per second squared (Tables 12, 13).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Acceleration(pub u16);
 
 /// The Table 12 quantities in hundredths of their unit: one conversion each
@@ -149,15 +167,19 @@ macro_rules! bounded {
     (@one $(#[$doc:meta])* $name:ident, $repr:ty, $what:literal, $min:expr, $max:expr) => {
         $(#[$doc])*
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        #[cfg_attr(feature = "defmt", derive(defmt::Format))]
         pub struct $name($repr);
 
         impl $name {
+            /// Smallest value the wire format allows.
             pub const MIN: $repr = $min;
+            /// Largest value the wire format allows.
             pub const MAX: $repr = $max;
             /// Refuses values outside the range the wire format allows.
             pub fn new(value: $repr) -> Result<Self, RangeError> {
                 check($what, value as i64, $min as i64, $max as i64).map(|()| Self(value))
             }
+            /// The value.
             pub const fn get(self) -> $repr {
                 self.0
             }
@@ -196,14 +218,23 @@ bounded! {
 
 /// Communication data rate `C0..CF` (Table 4, protocol-notes E15).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DataRate {
+    /// `C0`: 1200 bit/s.
     Bps1200,
+    /// `C1`: 2400 bit/s.
     Bps2400,
+    /// `C2`: 4800 bit/s.
     Bps4800,
+    /// `C3`: 9600 bit/s.
     Bps9600,
+    /// `C4`: 19200 bit/s.
     Bps19200,
+    /// `C5`: 38400 bit/s.
     Bps38400,
+    /// `C6`: 57600 bit/s.
     Bps57600,
+    /// `C7`: 115200 bit/s.
     Bps115200,
     /// `C8..CF`, reserved for future rates: never switched to.
     Reserved(u8),
@@ -297,6 +328,7 @@ impl core::str::FromStr for DataRate {
 
 /// A text that is not one of the protocol's rates; it says which they are.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct NotAProtocolRate;
 
 impl core::fmt::Display for NotAProtocolRate {
@@ -312,13 +344,17 @@ impl core::fmt::Display for NotAProtocolRate {
 
 /// Lens zoom and focus positions, 12 bits each (Table 17).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LensPosition {
+    /// Zoom position.
     pub zoom: U12,
+    /// Focus position.
     pub focus: U12,
 }
 
 /// Software limits, raw 12-bit values (Table 10, protocol-notes E9).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Limits {
     /// Pan counter-clockwise (+) limit.
     pub pan_ccw: U12,
@@ -332,14 +368,19 @@ pub struct Limits {
 
 /// Parity of an auxiliary serial port (Table 18).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Parity {
+    /// No parity bit.
     None,
+    /// Odd parity.
     Odd,
+    /// Even parity.
     Even,
 }
 
 /// Auxiliary serial port settings `*xpc,baud,dataBits,stopBits,parity` (Table 18).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct AuxConfig {
     baud: u32,
     data_bits: u8,
@@ -360,15 +401,19 @@ impl AuxConfig {
             parity,
         })
     }
+    /// Line rate in bit/s.
     pub const fn baud(&self) -> u32 {
         self.baud
     }
+    /// Data bits per character, 5..=8.
     pub const fn data_bits(&self) -> u8 {
         self.data_bits
     }
+    /// Stop bits, 1 or 2.
     pub const fn stop_bits(&self) -> u8 {
         self.stop_bits
     }
+    /// Parity.
     pub const fn parity(&self) -> Parity {
         self.parity
     }

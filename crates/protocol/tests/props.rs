@@ -363,7 +363,8 @@ proptest! {
         let stream = [&garbage[..], &wire[..]].concat();
         let run = run_feed(&stream, chunk);
         let (frame, _) = Frame::parse(&wire).unwrap();
-        prop_assert_eq!(run.events.last(), Some(&Owned::of(&Event::Frame(frame))));
+        let expected = Owned::of(&Event::Frame(frame));
+        prop_assert_eq!(run.events.last(), Some(&expected));
         let bare = garbage.iter().filter(|b| [ACK, NAK, NIC].contains(b)).count();
         prop_assert_eq!(run.events.len(), bare + 1);
         prop_assert_eq!(run.stats.skipped_bytes as usize, garbage.len() - bare);

@@ -1,6 +1,7 @@
 //! Framer throughput against a baseline that only sums the same bytes.
 //!
-//! `cargo bench -p sagebrush-protocol`. Streams are ~1 MiB of valid frames
+//! `cargo bench --bench framer` (in the root package: criterion needs a newer
+//! Rust than the protocol crate's MSRV). Streams are ~1 MiB of valid frames
 //! of mixed sizes (2..=256 payload bytes), and the same with 10% noise bytes
 //! (uniformly random, so 0xF8 false starts and bare ACK/NAK/NIC bytes too).
 //! Targets: framer >= 1/3 of the baseline on clean streams, >= 1/5 with noise.
