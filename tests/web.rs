@@ -284,6 +284,51 @@ fn hold_pan_right_then_release_stops_on_the_bus_and_the_position_text_follows() 
         stopped - released.as_f64().unwrap()
     );
     assert!(stack.gcud.settled_position(MAST).1 > 15.0, "tilt up");
+    figures(&stack, &mut b);
+}
+
+/// Figures for the closing note, printed (never asserted on): button press
+/// to the first motion frame on the bus (gcud's bus-side record), p50 and
+/// the largest of 20 presses; position updates the page got a second while
+/// moving.
+fn figures(stack: &Stack, b: &mut Browser) {
+    let mut latencies = Vec::new();
+    let mut updates = Vec::new();
+    for i in 0..20 {
+        let button = if i % 2 == 0 { "Pan right" } else { "Pan left" };
+        let pressed = stack.call(b, json!({ "op": "hold", "card": "mast-1", "button": button }));
+        let pressed = pressed.as_f64().expect("a time");
+        let n = stack.call(b, json!({ "op": "count_updates", "card": "mast-1", "seconds": 1 }));
+        updates.push(n.as_u64().expect("a count"));
+        stack.call(b, json!({ "op": "release" }));
+        let prefix = format!("rx frame dest={MAST} source={DOOR_GROUP} payload=");
+        let first = stack
+            .gcud
+            .log()
+            .lines()
+            .filter(|l| l.contains(&prefix))
+            .find(|l| {
+                let p = &l[l.find(&prefix).unwrap() + prefix.len()..];
+                ["SP", "PR", "PL"].iter().any(|m| p.starts_with(m)) && log_time(l) >= pressed
+            })
+            .map(log_time);
+        if let Some(t) = first {
+            latencies.push(t - pressed);
+        }
+        bus_stop_time(&stack.gcud, MAST, "PS");
+    }
+    latencies.sort_by(f64::total_cmp);
+    updates.sort_unstable();
+    eprintln!(
+        "FIGURES: press to first motion frame on the bus: p50 {:.1} ms, max {:.1} ms ({} presses); \
+         position updates on the page while moving: median {} /s (min {}, max {})",
+        latencies[latencies.len() / 2] * 1000.0,
+        latencies.last().copied().unwrap_or_default() * 1000.0,
+        latencies.len(),
+        updates[updates.len() / 2],
+        updates[0],
+        updates[updates.len() - 1]
+    );
 }
 
 #[test]

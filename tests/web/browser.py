@@ -97,6 +97,12 @@ def handle(req):
     global d
     op = req["op"]
     if op == "open":
+        # A spare tab first, so that closing the page's tab later keeps the
+        # browser (and the page's tab is the visible one while it lives).
+        page = d.current_window_handle
+        d.switch_to.new_window("tab")
+        spare.append(d.current_window_handle)
+        d.switch_to.window(page)
         d.get(req["url"])
         return True
     if op == "sign_in":
@@ -113,8 +119,10 @@ def handle(req):
         return [e.accessible_name for e in d.find_elements(By.CSS_SELECTOR, "[role=region]")]
     if op == "hold":
         b = button(region(d, req["card"]), req["button"])
-        ActionChains(d).move_to_element(b).click_and_hold().perform()
-        return time.time()
+        ActionChains(d).move_to_element(b).perform()
+        at = time.time()
+        ActionChains(d).click_and_hold().perform()
+        return at
     if op == "release":
         at = time.time()
         ActionChains(d).release().perform()
@@ -171,13 +179,9 @@ def handle(req):
             """, req["path"], req["body"], req["with_token"])
     if op == "close_page":
         # The tab is closed (no pointerup is ever sent); a blank one keeps the browser.
-        held = d.current_window_handle
-        d.switch_to.new_window("tab")
-        blank = d.current_window_handle
-        d.switch_to.window(held)
         at = time.time()
         d.close()
-        d.switch_to.window(blank)
+        d.switch_to.window(spare[0])
         return at
     if op == "kill_browser":
         # SIGKILL to the browser and every process of it: no page code runs.
@@ -192,6 +196,18 @@ def handle(req):
     if op == "screenshot":
         d.set_window_size(req.get("width", 1280), req.get("height", 900))
         return d.save_screenshot(req["path"])
+    if op == "count_updates":
+        # How often the position text changed over `seconds` (pushed updates).
+        return d.execute_async_script(
+            """
+            const [name, seconds, done] = arguments;
+            const card = [...document.querySelectorAll('[role=region]')].find(e => e.getAttribute('aria-label') === name);
+            const status = card.querySelector('[role=status]');
+            let n = 0;
+            const seen = new MutationObserver(() => { n += 1; });
+            seen.observe(status, {childList: true, characterData: true, subtree: true});
+            setTimeout(() => { seen.disconnect(); done(n); }, seconds * 1000);
+            """, req["card"], req["seconds"])
     if op == "page_weight":
         return d.execute_script(
             "return performance.getEntriesByType('resource').concat(performance.getEntriesByType('navigation'))"
@@ -200,6 +216,7 @@ def handle(req):
 
 
 d = start()
+spare = []
 print(json.dumps({"ok": "ready"}), flush=True)
 for line in sys.stdin:
     req = json.loads(line)
