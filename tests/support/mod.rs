@@ -27,7 +27,7 @@ pub mod gcud;
 /// `config/NAME.service` running `/usr/bin/NAME` on `/etc/NAME/NAME.toml`
 /// (`tests/packaging.rs` checks this list against Cargo.toml's
 /// systemd-units; `tests/deployment.rs` verifies each unit).
-pub const PACKAGED_UNITS: [&str; 3] = ["gcud", "gimbal-onvif", "gimbal-mavlink"];
+pub const PACKAGED_UNITS: [&str; 4] = ["gcud", "gimbal-onvif", "gimbal-mavlink", "gimbal-web"];
 
 /// Only to avoid hanging on a broken build: never an assertion on speed.
 pub const HANG_GUARD: Duration = Duration::from_secs(60);
