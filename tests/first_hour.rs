@@ -195,6 +195,11 @@ fn the_doors_check_exits_quietly_on_a_closed_stdout() {
             env!("CARGO_BIN_EXE_gimbal-mavlink"),
             concat!(env!("CARGO_MANIFEST_DIR"), "/config/gimbal-mavlink.toml"),
         ),
+        (
+            "gimbal-web",
+            env!("CARGO_BIN_EXE_gimbal-web"),
+            concat!(env!("CARGO_MANIFEST_DIR"), "/config/gimbal-web.toml"),
+        ),
     ] {
         let (status, stderr) = with_closed_stdout(bin, &["--check", "--config", config]);
         assert_quiet(&format!("{name} --check"), status, 0, &stderr);

@@ -168,13 +168,16 @@ fn the_package_holds_programs_unit_rule_and_configuration_files() {
         "/usr/bin/gimbalctl",
         "/usr/bin/gimbal-onvif",
         "/usr/bin/gimbal-mavlink",
+        "/usr/bin/gimbal-web",
         "/usr/bin/gimbalsim",
         "/usr/lib/systemd/system/gcud.service",
         "/usr/lib/systemd/system/gimbal-onvif.service",
         "/usr/lib/systemd/system/gimbal-mavlink.service",
+        "/usr/lib/systemd/system/gimbal-web.service",
         "/etc/gcud/gcud.toml",
         "/etc/gimbal-onvif/gimbal-onvif.toml",
         "/etc/gimbal-mavlink/gimbal-mavlink.toml",
+        "/etc/gimbal-web/gimbal-web.toml",
         "/etc/udev/rules.d/99-sagebrush-gimbal.rules",
     ] {
         assert!(files.contains(&want), "the package lacks {want}:\n{listing}");

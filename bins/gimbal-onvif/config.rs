@@ -9,6 +9,8 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use sagebrush_client::config_file::{ConfigError, Int, Millis, Source, listeners_clash};
+use sagebrush_client::door_config::UserSection;
+pub use sagebrush_client::door_config::{Role, User};
 use sagebrush_protocol::Address;
 use serde::Deserialize;
 use toml::Spanned;
@@ -79,15 +81,6 @@ struct AuthSection {
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct UserSection {
-    name: Spanned<String>,
-    password: Option<Spanned<String>>,
-    password_file: Option<Spanned<String>>,
-    role: Spanned<String>,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
 struct GimbalSection {
     name: Spanned<String>,
     address: Spanned<String>,
@@ -96,23 +89,6 @@ struct GimbalSection {
     pan_deg: Option<Spanned<Vec<f64>>>,
     tilt_deg: Option<Spanned<Vec<f64>>>,
     zoom: Option<Spanned<bool>>,
-}
-
-/// What a user may do (ONVIF Core "User level"): a `User` reads, an
-/// `Operator` also moves the gimbal and uses presets, an `Administrator`
-/// does everything.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
-pub enum Role {
-    User,
-    Operator,
-    Administrator,
-}
-
-#[derive(Clone, Debug, PartialEq)]
-pub struct User {
-    pub name: String,
-    pub password: String,
-    pub role: Role,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -224,66 +200,8 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         body_timeout: raw.http.body_timeout_ms.duration(),
         idle_timeout: raw.http.idle_timeout_ms.duration(),
     };
-    let state_file = state_file(&c, raw.state_file.as_ref())?;
-    let mut users = Vec::new();
-    for (i, u) in raw.users.iter().enumerate() {
-        let key = format!("user[{i}]");
-        let name = u.name.get_ref().clone();
-        if name.is_empty() || users.iter().any(|x: &User| x.name == name) {
-            return Err(c.at(
-                u.name.span(),
-                format!("{key}.name"),
-                "expected a name, not empty and not repeated",
-            ));
-        }
-        let password = match (&u.password, &u.password_file) {
-            (Some(p), None) => p.get_ref().clone(),
-            (None, Some(f)) => {
-                let text = std::fs::read_to_string(f.get_ref()).map_err(|e| {
-                    c.at(
-                        f.span(),
-                        format!("{key}.password_file"),
-                        format!("cannot read {}: {e}", f.get_ref()),
-                    )
-                })?;
-                text.trim_end_matches(['\n', '\r']).to_owned()
-            }
-            _ => {
-                return Err(c.at(
-                    u.name.span(),
-                    key,
-                    "expected exactly one of `password` or `password_file`",
-                ));
-            }
-        };
-        if password.is_empty() {
-            return Err(c.at(
-                u.name.span(),
-                format!("{key}.password"),
-                "expected a password, not empty",
-            ));
-        }
-        let role = match u.role.get_ref().as_str() {
-            "administrator" => Role::Administrator,
-            "operator" => Role::Operator,
-            "user" => Role::User,
-            other => {
-                return Err(c.at(
-                    u.role.span(),
-                    format!("{key}.role"),
-                    format!("expected administrator, operator or user, found {other:?}"),
-                ));
-            }
-        };
-        users.push(User { name, password, role });
-    }
-    if users.is_empty() {
-        return Err(c.at(
-            0..0,
-            "user",
-            "expected at least one [[user]]: every operation but GetSystemDateAndTime needs credentials",
-        ));
-    }
+    let state_file = c.state_file(raw.state_file.as_ref())?;
+    let users = c.users(&raw.users)?;
     let mut gimbals: Vec<Gimbal> = Vec::new();
     for (i, g) in raw.gimbals.iter().enumerate() {
         let key = format!("gimbal[{i}]");
@@ -340,58 +258,6 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         },
         gimbals,
     })
-}
-
-/// The preset state file: `state_file`, else `$STATE_DIRECTORY/presets.toml`
-/// when systemd gives the unit a state directory, else none. Its folder
-/// must exist and be writable by this process (the names are written there
-/// at every SetPreset; finding out then would lose one).
-fn state_file(c: &Source<'_>, key: Option<&Spanned<String>>) -> Result<Option<PathBuf>, ConfigError> {
-    let (path, span, key) = match key {
-        Some(s) => (PathBuf::from(s.get_ref()), s.span(), "state_file"),
-        None => match std::env::var_os("STATE_DIRECTORY") {
-            // systemd may list several, separated by ':'; the first is ours.
-            Some(dirs) => match dirs.to_string_lossy().split(':').next() {
-                Some(dir) if !dir.is_empty() => (
-                    Path::new(dir).join("presets.toml"),
-                    0..0,
-                    "state_file (default $STATE_DIRECTORY/presets.toml)",
-                ),
-                _ => return Ok(None),
-            },
-            None => return Ok(None),
-        },
-    };
-    let folder = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    if !folder.is_dir() {
-        return Err(c.at(
-            span,
-            key,
-            format!(
-                "{}: its folder {} does not exist (create it, or give a path in an existing folder)",
-                path.display(),
-                folder.display()
-            ),
-        ));
-    }
-    if let Err(e) = nix::unistd::access(&folder, nix::unistd::AccessFlags::W_OK) {
-        return Err(c.at(
-            span,
-            key,
-            format!(
-                "{}: its folder {} is not writable by this process: {e}",
-                path.display(),
-                folder.display()
-            ),
-        ));
-    }
-    if path.is_dir() {
-        return Err(c.at(span, key, format!("{}: is a folder, expected a file", path.display())));
-    }
-    Ok(Some(path))
 }
 
 fn socket(c: &Source<'_>, v: &Spanned<String>, key: &str) -> Result<SocketAddr, ConfigError> {

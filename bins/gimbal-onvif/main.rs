@@ -10,7 +10,6 @@ mod discovery;
 mod gimbal;
 mod http;
 mod onvif;
-mod presets;
 mod soap;
 
 use std::process::ExitCode;
@@ -28,7 +27,7 @@ fn main() -> ExitCode {
 }
 
 async fn run(config: config::Config) -> Result<(), String> {
-    let presets = Arc::new(presets::Presets::load(config.state_file.clone())?);
+    let presets = Arc::new(sagebrush_client::presets::Presets::load(config.state_file.clone())?);
     let auth = Arc::new(auth::Authenticator::new(config.users.clone()));
     let signals = sagebrush_client::door::Signals::install()?;
     let mut gimbals = Vec::new();

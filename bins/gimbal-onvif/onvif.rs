@@ -15,8 +15,8 @@ use time::format_description::well_known::Rfc3339;
 use crate::auth::{Authenticator, require};
 use crate::config::Role;
 use crate::gimbal::{Gimbal, ZOOM_MAX, to_degrees, to_generic};
-use crate::presets::{self, Presets};
 use crate::soap::{self, Element, Fault, NS_DEVICE, NS_MEDIA, NS_PTZ, esc};
+use sagebrush_client::presets::{self, Presets};
 
 pub const PROFILE: &str = "profile1";
 pub const NODE: &str = "ptznode1";

@@ -22,7 +22,9 @@ pub mod codec;
 pub mod config_file;
 pub mod connection;
 pub mod door;
+pub mod door_config;
 pub mod master;
+pub mod presets;
 pub mod session;
 
 pub use client::{Client, CommandError, GcudClient};

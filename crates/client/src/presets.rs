@@ -1,5 +1,5 @@
-//! The ONVIF names of the gimbals' own presets (`Snn`/`Pnn`, 0..=255, the
-//! positions are kept by the gimbal): a small TOML state file, rewritten
+//! The names of the gimbals' own presets (`Snn`/`Pnn`, 0..=255, the
+//! positions are kept by the gimbal), as gimbal-onvif and gimbal-web keep them: a small TOML state file, rewritten
 //! whole (to a temporary file, then renamed) at every change, so that names
 //! survive a restart and a crash never leaves half a file.
 
@@ -9,7 +9,7 @@ use std::sync::Mutex;
 
 use serde::{Deserialize, Serialize};
 
-/// Per gimbal name: preset number -> ONVIF name.
+/// Per gimbal name: preset number -> name.
 #[derive(Debug, Default, Clone, PartialEq, Serialize, Deserialize)]
 struct State {
     #[serde(default)]
@@ -22,7 +22,8 @@ pub struct Presets {
     state: Mutex<State>,
 }
 
-/// Names longer than this are refused (ONVIF's Name is a short string).
+/// Names longer than this are refused (ONVIF's Name is a short string;
+/// the web page's button names it).
 pub const MAX_NAME: usize = 64;
 
 impl Presets {

@@ -1,0 +1,230 @@
+//! `gimbal-web --config FILE`: the TOML configuration (every key is
+//! documented in `config/gimbal-web.toml`), parsed with serde and then
+//! validated; every error names the file, the line and column, the key and
+//! what was expected (`--check` prints it and exits 2), through
+//! [`sagebrush_client::config_file`] as the other doors'.
+
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use sagebrush_client::config_file::{ConfigError, Int, Millis, Source};
+use sagebrush_client::door_config::UserSection;
+pub use sagebrush_client::door_config::{Role, User};
+use sagebrush_protocol::Address;
+use serde::Deserialize;
+use toml::Spanned;
+
+/// The whole file, as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ConfigFile {
+    gcud: Spanned<String>,
+    listen: Spanned<String>,
+    #[serde(default)]
+    source_group: Int<u8, 0, 254>,
+    state_file: Option<Spanned<String>>,
+    #[serde(default)]
+    hold_lease_ms: Millis<100, 2000, 300>,
+    #[serde(default)]
+    poll_ms: Millis<20, 10_000, 100>,
+    #[serde(default)]
+    nic_window_ms: Millis<10, 1000, 100>,
+    #[serde(default)]
+    sign_in_hours: Int<u64, 1, 720, 12>,
+    #[serde(default)]
+    max_sign_ins: Int<usize, 1, 100_000, 256>,
+    #[serde(default)]
+    secure_cookie: bool,
+    #[serde(default)]
+    http: HttpSection,
+    #[serde(default, rename = "user")]
+    users: Vec<UserSection>,
+    #[serde(default, rename = "gimbal")]
+    gimbals: Vec<GimbalSection>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct HttpSection {
+    #[serde(default)]
+    max_connections: Int<usize, 1, 100_000, 256>,
+    #[serde(default)]
+    max_connections_per_peer: Int<usize, 1, 100_000, 32>,
+    #[serde(default)]
+    header_timeout_ms: Millis<100, 600_000, 5000>,
+    #[serde(default)]
+    body_timeout_ms: Millis<100, 600_000, 10_000>,
+    #[serde(default)]
+    idle_timeout_ms: Millis<1000, 3_600_000, 60_000>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GimbalSection {
+    name: Spanned<String>,
+    address: Spanned<String>,
+    pan_deg: Option<Spanned<Vec<f64>>>,
+    tilt_deg: Option<Spanned<Vec<f64>>>,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Gimbal {
+    pub name: String,
+    pub address: Address,
+    /// The travel the page's picture draws, degrees.
+    pub pan_deg: (f64, f64),
+    pub tilt_deg: (f64, f64),
+}
+
+/// `[http]`: the bounds of the page's listener.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HttpBounds {
+    pub max_connections: usize,
+    pub max_connections_per_peer: usize,
+    pub header_timeout: Duration,
+    pub body_timeout: Duration,
+    pub idle_timeout: Duration,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Config {
+    pub gcud: String,
+    pub listen: SocketAddr,
+    pub source_group: u8,
+    pub state_file: Option<PathBuf>,
+    /// How long a held move runs unless the page renews it: gimbal-web's
+    /// own lease on the motion.
+    pub hold_lease: Duration,
+    /// How often each gimbal's position is asked (`P?`), pushed to pages.
+    pub poll: Duration,
+    pub nic_window: Duration,
+    /// How long a sign-in lasts.
+    pub sign_in: Duration,
+    /// Sign-ins kept at once (the oldest goes first).
+    pub max_sign_ins: usize,
+    /// The session cookie carries `Secure` (gimbal-web behind HTTPS).
+    pub secure_cookie: bool,
+    pub http: HttpBounds,
+    pub users: Vec<User>,
+    pub gimbals: Vec<Gimbal>,
+}
+
+impl sagebrush_client::door::Checked for Config {
+    fn summary(&self) -> String {
+        format!(
+            "{} gimbal(s), {} user(s), page on {}",
+            self.gimbals.len(),
+            self.users.len(),
+            self.listen
+        )
+    }
+}
+
+/// Parses and validates configuration `text` read from `file`.
+pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
+    let c = Source::new(file, text);
+    let raw: ConfigFile = c.deserialize()?;
+    let gcud = c.gcud_address(&raw.gcud)?;
+    let listen = raw.listen.get_ref().parse().map_err(|_| {
+        c.at(
+            raw.listen.span(),
+            "listen",
+            format!("expected IP:PORT, found {:?}", raw.listen.get_ref()),
+        )
+    })?;
+    let users = c.users(&raw.users)?;
+    let state_file = c.state_file(raw.state_file.as_ref())?;
+    let mut gimbals: Vec<Gimbal> = Vec::new();
+    for (i, g) in raw.gimbals.iter().enumerate() {
+        let key = format!("gimbal[{i}]");
+        let name = c.gimbal_name(&g.name, &key, gimbals.iter().map(|x| x.name.as_str()))?;
+        let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
+        let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), &key)?;
+        gimbals.push(Gimbal {
+            name,
+            address,
+            pan_deg,
+            tilt_deg,
+        });
+    }
+    if gimbals.is_empty() {
+        return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
+    }
+    Ok(Config {
+        gcud,
+        listen,
+        source_group: raw.source_group.get(),
+        state_file,
+        hold_lease: raw.hold_lease_ms.duration(),
+        poll: raw.poll_ms.duration(),
+        nic_window: raw.nic_window_ms.duration(),
+        sign_in: Duration::from_secs(raw.sign_in_hours.get() * 3600),
+        max_sign_ins: raw.max_sign_ins.get(),
+        secure_cookie: raw.secure_cookie,
+        http: HttpBounds {
+            max_connections: raw.http.max_connections.get(),
+            max_connections_per_peer: raw.http.max_connections_per_peer.get(),
+            header_timeout: raw.http.header_timeout_ms.duration(),
+            body_timeout: raw.http.body_timeout_ms.duration(),
+            idle_timeout: raw.http.idle_timeout_ms.duration(),
+        },
+        users,
+        gimbals,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+gcud = "127.0.0.1:4001"
+listen = "0.0.0.0:8080"
+[[user]]
+name = "admin"
+password = "secret"
+role = "administrator"
+[[gimbal]]
+name = "mast-1"
+address = "5.1.1"
+pan_deg = [-170.0, 170.0]
+"#;
+
+    fn err(text: &str) -> String {
+        parse(Path::new("w.toml"), text).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn a_good_file_and_its_defaults() {
+        let c = parse(Path::new("w.toml"), GOOD).unwrap();
+        assert_eq!(c.gimbals[0].address, Address::new(5, 1, 1));
+        assert_eq!(c.gimbals[0].pan_deg, (-170.0, 170.0));
+        assert_eq!(c.gimbals[0].tilt_deg, (-90.0, 90.0));
+        assert_eq!(c.users[0].role, Role::Administrator);
+        assert_eq!(c.hold_lease, Duration::from_millis(300));
+        assert_eq!(c.poll, Duration::from_millis(100));
+        assert_eq!(c.listen, "0.0.0.0:8080".parse::<SocketAddr>().unwrap());
+    }
+
+    #[test]
+    fn errors_name_the_place_and_what_was_expected() {
+        assert_eq!(
+            err(&GOOD.replace("\"5.1.1\"", "\"5.1\"")),
+            "w.toml:10:11: gimbal[0].address: expected GROUP.PORT.DEVICE of one gimbal, e.g. \"5.1.1\""
+        );
+        assert_eq!(
+            err(&GOOD.replace("\"0.0.0.0:8080\"", "\"8080\"")),
+            "w.toml:3:10: listen: expected IP:PORT, found \"8080\""
+        );
+        assert!(err(&GOOD.replace("administrator", "root")).starts_with("w.toml:7:8: user[0].role: expected"));
+        assert!(err(&GOOD.replace("gcud =", "hold_lease_ms = 5000\ngcud =")).contains("hold_lease_ms"));
+        assert!(
+            err(&GOOD.replace(
+                "[[gimbal]]\nname = \"mast-1\"\naddress = \"5.1.1\"\npan_deg = [-170.0, 170.0]\n",
+                ""
+            ))
+            .contains("expected at least one [[gimbal]]")
+        );
+    }
+}

@@ -1,0 +1,68 @@
+//! `gimbal-web`: a web page for operators without a VMS or a ground
+//! station (issue 34): sign in, then a card per gimbal with its live
+//! position, hold-to-move, Stop, Home, presets and a pan/tilt picture to
+//! click. Every gimbal is driven through its gimbal session
+//! (`sagebrush_client::session`) over this program's own connection to
+//! gcud's client listener; the page is served through the bounded listener.
+
+mod auth;
+mod config;
+mod web;
+
+use std::process::ExitCode;
+use std::sync::Arc;
+
+use sagebrush_client::session::{GcudReachability, GimbalSession, SessionConfig};
+use tracing::info;
+
+fn main() -> ExitCode {
+    sagebrush_client::door::main(
+        "gimbal-web",
+        "A web page to drive the gimbals behind gcud: live position, hold-to-move, presets.",
+        config::parse,
+        run,
+    )
+}
+
+async fn run(config: config::Config) -> Result<(), String> {
+    let presets = Arc::new(sagebrush_client::presets::Presets::load(config.state_file.clone())?);
+    let signals = sagebrush_client::door::Signals::install()?;
+    let reach = Arc::new(GcudReachability::default());
+    let gimbals: Vec<web::Gimbal> = config
+        .gimbals
+        .iter()
+        .map(|g| {
+            let (session, _task) = GimbalSession::start(
+                SessionConfig {
+                    gcud: config.gcud.clone(),
+                    from: config.source_group,
+                    address: g.address,
+                    nic_window: config.nic_window,
+                    poll: config.poll,
+                    lens: false,
+                    // A held move runs while the page renews it, never longer.
+                    max_move: config.hold_lease,
+                    name: g.name.clone(),
+                },
+                Arc::clone(&reach),
+            );
+            web::Gimbal {
+                config: g.clone(),
+                session,
+            }
+        })
+        .collect();
+    let sessions: Vec<_> = gimbals.iter().map(|g| Arc::clone(&g.session)).collect();
+    let (addr, server) = web::bind(&config, gimbals, presets)
+        .await
+        .map_err(|e| format!("listen {}: cannot listen: {e}", config.listen))?;
+    let server = tokio::spawn(server);
+    info!(gimbals = sessions.len(), gcud = %config.gcud, %addr, "gimbal-web ready");
+    let signal = signals.ready_then_wait().await;
+    info!(signal, "stopping: the motions this service started are stopped");
+    server.abort();
+    for s in &sessions {
+        s.shutdown().await;
+    }
+    Ok(())
+}

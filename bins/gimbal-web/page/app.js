@@ -1,0 +1,276 @@
+// gimbal-web's page: sign-in, then one card per gimbal, its state pushed
+// by server-sent events (/api/events). Every text from the server goes
+// into the page as text (textContent, setAttribute), never as markup.
+// A held button or arrow key moves the gimbal for the door's lease
+// (lease_ms), renewed here every third of it while held: when the page
+// stops renewing (released, closed, killed, cut off), gimbal-web stops
+// the gimbal when the lease runs out.
+'use strict';
+
+const ARROWS = {
+  ArrowLeft: [-1, 0],
+  ArrowRight: [1, 0],
+  ArrowUp: [0, 1],
+  ArrowDown: [0, -1],
+};
+
+let me = null; // /api/session
+let cards = [];
+let held = null; // { g, pan, tilt, timer }
+let events = null;
+
+const byId = (id) => document.getElementById(id);
+
+async function api(path, body, keepalive) {
+  const response = await fetch(path, {
+    method: 'POST',
+    credentials: 'same-origin',
+    keepalive: Boolean(keepalive),
+    headers: { 'Content-Type': 'application/json', 'X-CSRF-Token': me ? me.csrf : '' },
+    body: JSON.stringify(body),
+  });
+  let answer = {};
+  try {
+    answer = await response.json();
+  } catch (e) {
+    answer = {};
+  }
+  if (!response.ok) {
+    throw new Error(answer.error || `${response.status} ${response.statusText}`);
+  }
+  return answer;
+}
+
+function showError(i, text) {
+  if (cards[i]) cards[i].error.textContent = text;
+}
+
+function clearError(i) {
+  if (cards[i]) cards[i].error.textContent = '';
+}
+
+function act(i, path, body) {
+  return api(path, Object.assign({ gimbal: i }, body || {}))
+    .then((answer) => {
+      clearError(i);
+      return answer;
+    })
+    .catch((e) => showError(i, e.message));
+}
+
+function hold(i, pan, tilt) {
+  if (held && held.g === i && held.pan === pan && held.tilt === tilt) return;
+  release();
+  const h = { g: i, pan, tilt, timer: null };
+  held = h;
+  const send = () => {
+    if (held !== h) return;
+    api('/api/move', { gimbal: i, pan, tilt, speed: Number(cards[i].speed.value) })
+      .then(() => {
+        if (held === h) clearError(i);
+      })
+      .catch((e) => {
+        showError(i, e.message);
+        if (held === h) release();
+      });
+  };
+  send();
+  h.timer = setInterval(send, Math.max(50, Math.floor(me.lease_ms / 3)));
+}
+
+function release() {
+  if (!held) return;
+  const h = held;
+  held = null;
+  clearInterval(h.timer);
+  api('/api/stop', { gimbal: h.g }, true).catch((e) => showError(h.g, e.message));
+}
+
+function svg(el, attrs) {
+  for (const [k, v] of Object.entries(attrs)) el.setAttribute(k, String(v));
+}
+
+function buildCard(g, i) {
+  const node = byId('card').content.firstElementChild.cloneNode(true);
+  node.setAttribute('aria-label', g.name);
+  const q = (s) => node.querySelector(s);
+  const card = {
+    node,
+    name: q('.name'),
+    state: q('.state'),
+    position: q('.position'),
+    error: q('.error'),
+    picture: q('.picture'),
+    dot: q('.dot'),
+    speed: q('.speed'),
+    presetName: q('.preset-name'),
+    presetList: q('.preset-list'),
+    presetsShown: '',
+    g,
+  };
+  card.name.textContent = `${g.name} (${g.address})`;
+  const [p0, p1] = g.pan_deg;
+  const [t0, t1] = g.tilt_deg;
+  svg(card.picture, { viewBox: `${p0} ${-t1} ${p1 - p0} ${t1 - t0}` });
+  svg(q('.travel'), { x: p0, y: -t1, width: p1 - p0, height: t1 - t0 });
+  svg(q('.pan-zero'), { x1: 0, x2: 0, y1: -t1, y2: -t0 });
+  svg(q('.tilt-zero'), { x1: p0, x2: p1, y1: 0, y2: 0 });
+  svg(card.dot, { r: (p1 - p0) / 60, cx: 0, cy: 0 });
+  card.dot.style.display = 'none';
+  const operator = me.role !== 'user';
+  for (const b of node.querySelectorAll('button, input.preset-name, input.speed')) b.disabled = !operator;
+  if (operator) {
+    for (const b of node.querySelectorAll('button.hold')) {
+      const pan = Number(b.dataset.pan);
+      const tilt = Number(b.dataset.tilt);
+      b.addEventListener('pointerdown', (e) => {
+        if (e.button === 0) hold(i, pan, tilt);
+      });
+      for (const end of ['pointerup', 'pointerleave', 'pointercancel']) b.addEventListener(end, () => release());
+      b.addEventListener('keydown', (e) => {
+        if ((e.key === ' ' || e.key === 'Enter') && !e.repeat) {
+          e.preventDefault();
+          hold(i, pan, tilt);
+        }
+      });
+      b.addEventListener('keyup', (e) => {
+        if (e.key === ' ' || e.key === 'Enter') release();
+      });
+    }
+    node.addEventListener('keydown', (e) => {
+      const dir = ARROWS[e.key];
+      if (!dir || e.target.tagName === 'INPUT') return;
+      e.preventDefault();
+      if (!e.repeat) hold(i, dir[0], dir[1]);
+    });
+    node.addEventListener('keyup', (e) => {
+      if (ARROWS[e.key]) release();
+    });
+    q('.stop').addEventListener('click', () => {
+      release();
+      act(i, '/api/stop');
+    });
+    q('.home').addEventListener('click', () => act(i, '/api/home'));
+    q('.save').addEventListener('click', () => {
+      const name = card.presetName.value.trim();
+      if (!name) {
+        showError(i, 'Type a preset name first');
+        return;
+      }
+      act(i, '/api/preset/save', { name }).then((saved) => {
+        if (saved) card.presetName.value = '';
+      });
+    });
+    card.picture.addEventListener('click', (e) => {
+      const r = card.picture.getBoundingClientRect();
+      const fx = (e.clientX - r.left) / r.width;
+      const fy = (e.clientY - r.top) / r.height;
+      const pan = Math.round((p0 + fx * (p1 - p0)) * 100) / 100;
+      const tilt = Math.round((t1 - fy * (t1 - t0)) * 100) / 100;
+      act(i, '/api/goto', { pan, tilt });
+    });
+  }
+  byId('gimbals').appendChild(node);
+  return card;
+}
+
+function render(state) {
+  state.gimbals.forEach((s, i) => {
+    const card = cards[i];
+    if (!card) return;
+    if (s.pan !== null && s.tilt !== null) {
+      card.position.textContent = `Pan ${s.pan.toFixed(2)}° Tilt ${s.tilt.toFixed(2)}°`;
+      svg(card.dot, { cx: s.pan, cy: -s.tilt });
+      card.dot.style.display = '';
+    }
+    if (s.online) {
+      card.state.textContent = `online · ${s.motion}`;
+      card.state.classList.remove('offline');
+    } else {
+      card.state.textContent = `offline: ${s.error || 'no answer yet'}`;
+      card.state.classList.add('offline');
+    }
+    const shown = JSON.stringify(s.presets);
+    if (shown !== card.presetsShown) {
+      card.presetsShown = shown;
+      card.presetList.replaceChildren();
+      for (const p of s.presets) {
+        const li = document.createElement('li');
+        const b = document.createElement('button');
+        b.type = 'button';
+        b.textContent = `Go to preset ${p.name}`;
+        b.disabled = me.role === 'user';
+        b.addEventListener('click', () => act(i, '/api/preset/go', { n: p.n }));
+        li.appendChild(b);
+        card.presetList.appendChild(li);
+      }
+    }
+  });
+}
+
+function listen() {
+  events = new EventSource('/api/events');
+  events.onopen = () => {
+    byId('link').hidden = true;
+  };
+  events.onmessage = (e) => render(JSON.parse(e.data));
+  events.onerror = () => {
+    // The connection dropped: nothing held may go on.
+    release();
+    const link = byId('link');
+    link.textContent = 'Connection to gimbal-web lost; reconnecting…';
+    link.hidden = false;
+  };
+}
+
+async function load() {
+  const response = await fetch('/api/session', { credentials: 'same-origin' });
+  if (response.status === 401) {
+    byId('sign-in').hidden = false;
+    byId('who').hidden = true;
+    byId('sign-out').hidden = true;
+    byId('gimbals').replaceChildren();
+    return;
+  }
+  me = await response.json();
+  byId('sign-in').hidden = true;
+  const who = byId('who');
+  who.textContent = `${me.user} (${me.role}${me.role === 'user' ? ': view only' : ''})`;
+  who.hidden = false;
+  byId('sign-out').hidden = false;
+  byId('gimbals').replaceChildren();
+  cards = me.gimbals.map(buildCard);
+  listen();
+}
+
+byId('sign-in').addEventListener('submit', async (e) => {
+  e.preventDefault();
+  const error = byId('sign-in-error');
+  error.textContent = '';
+  try {
+    await api('/api/sign-in', { user: byId('user').value, password: byId('password').value });
+    byId('password').value = '';
+    await load();
+  } catch (err) {
+    error.textContent = err.message;
+  }
+});
+
+byId('sign-out').addEventListener('click', async () => {
+  release();
+  if (events) events.close();
+  try {
+    await api('/api/sign-out', {});
+  } finally {
+    me = null;
+    await load();
+  }
+});
+
+window.addEventListener('blur', () => release());
+window.addEventListener('pagehide', () => release());
+document.addEventListener('visibilitychange', () => {
+  if (document.visibilityState === 'hidden') release();
+});
+
+load();

@@ -1,0 +1,511 @@
+//! The page and its API, served through the bounded listener (crate
+//! `sagebrush-listener`, `[http]`): one admission table (a total cap that
+//! evicts the longest-idle connection, a per-peer cap that holds for
+//! loopback peers too), header, body and idle time-outs, bounded buffers;
+//! bodies of at most [`MAX_BODY`].
+//!
+//! - `GET /`, `/app.js`, `/style.css`: the page, embedded in the binary.
+//! - `POST /api/sign-in` (JSON `{user, password}`): sets the session
+//!   cookie; `POST /api/sign-out`.
+//! - `GET /api/session`: who is signed in, the CSRF token, the lease and
+//!   the gimbals; `GET /api/events`: server-sent events, every gimbal's
+//!   state each [`PUSH`] while one moves or changed, else each [`QUIET`].
+//! - `POST /api/move`, `/api/stop`, `/api/home`, `/api/goto`,
+//!   `/api/preset/save`, `/api/preset/go`: with the `X-CSRF-Token` header,
+//!   by the roles of gimbal-onvif (a user views, an operator moves and
+//!   uses presets). A move lasts the hold lease unless renewed by the page
+//!   while the button or key is held.
+//!
+//! An answer that is not a success is JSON `{"error": REASON}`, REASON
+//! being gcud's or the gimbal's own words for a refused or undelivered
+//! command; the page shows it on the card (as text, never as markup).
+
+use std::convert::Infallible;
+use std::net::{IpAddr, SocketAddr};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use axum::Router;
+use axum::extract::{DefaultBodyLimit, Extension, State};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::response::sse::{Event, KeepAlive, Sse};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use sagebrush_client::CommandError;
+use sagebrush_client::connection::proportional_speed;
+use sagebrush_client::presets::{self, Presets};
+use sagebrush_client::session::{Axes, Drive, GimbalSession, Motion, Velocity};
+use sagebrush_listener::rate::{KeyedBuckets, LogGate};
+use sagebrush_listener::{BoundedListener, Connections, HttpLimits, Limits, Peer};
+use sagebrush_protocol::{Angle, Command, Position};
+use serde::Deserialize;
+use serde_json::{Value, json};
+use tokio::time::Instant;
+use tracing::{info, warn};
+
+use crate::auth::{Auth, CSRF_HEADER, Refused, SignedIn};
+use crate::config::{self, Role};
+
+/// The largest request body (the API's JSON is a few dozen bytes).
+pub const MAX_BODY: usize = 4096;
+/// While a gimbal moves (or its state changed), the pages get its state this often.
+pub const PUSH: Duration = Duration::from_millis(100);
+/// Otherwise at least this often (which also keeps the connection live).
+pub const QUIET: Duration = Duration::from_secs(1);
+/// Sign-in attempts a peer may make: this many a second, after a burst of [`SIGN_IN_BURST`].
+const SIGN_INS_PER_S: f64 = 0.5;
+const SIGN_IN_BURST: f64 = 10.0;
+/// Failed sign-ins from one peer are logged at most this often.
+const FAILED_LOG_EVERY: Duration = Duration::from_secs(10);
+/// Peers remembered for those.
+const PEERS: usize = 1024;
+
+const INDEX: &str = include_str!("page/index.html");
+const APP_JS: &str = include_str!("page/app.js");
+const STYLE: &str = include_str!("page/style.css");
+
+/// One gimbal of the page.
+#[derive(Debug)]
+pub struct Gimbal {
+    pub config: config::Gimbal,
+    pub session: Arc<GimbalSession>,
+}
+
+#[derive(Debug)]
+struct Web {
+    gimbals: Vec<Gimbal>,
+    auth: Auth,
+    presets: Arc<Presets>,
+    lease: Duration,
+    secure_cookie: bool,
+    sign_ins: Mutex<KeyedBuckets<IpAddr>>,
+    failed: Mutex<LogGate<IpAddr>>,
+}
+
+type Shared = State<Arc<Web>>;
+
+/// An answer that is not a success: a status and the reason, as JSON.
+#[derive(Debug)]
+struct Failure(StatusCode, String);
+
+impl IntoResponse for Failure {
+    fn into_response(self) -> Response {
+        (self.0, no_store(), axum::Json(json!({ "error": self.1 }))).into_response()
+    }
+}
+
+impl From<Refused> for Failure {
+    fn from(r: Refused) -> Self {
+        match r {
+            Refused::SignIn(why) => Failure(StatusCode::UNAUTHORIZED, why.to_owned()),
+            Refused::Forbidden(why) => Failure(StatusCode::FORBIDDEN, why),
+        }
+    }
+}
+
+/// A command gcud or the gimbal refused or did not deliver: its words.
+fn failed(e: CommandError) -> Failure {
+    let status = match e {
+        CommandError::Usage(_) => StatusCode::BAD_REQUEST,
+        _ => StatusCode::BAD_GATEWAY,
+    };
+    Failure(status, e.to_string())
+}
+
+fn no_store() -> [(header::HeaderName, &'static str); 1] {
+    [(header::CACHE_CONTROL, "no-store")]
+}
+
+fn bad(what: impl Into<String>) -> Failure {
+    Failure(StatusCode::BAD_REQUEST, what.into())
+}
+
+impl Web {
+    fn gimbal(&self, i: usize) -> Result<&Gimbal, Failure> {
+        self.gimbals
+            .get(i)
+            .ok_or_else(|| bad(format!("no gimbal {i}: there are {}", self.gimbals.len())))
+    }
+
+    fn allow(&self, headers: &HeaderMap, need: Role, what: &str) -> Result<SignedIn, Failure> {
+        let cookies = headers.get(header::COOKIE).and_then(|v| v.to_str().ok());
+        let csrf = headers.get(CSRF_HEADER).and_then(|v| v.to_str().ok());
+        Ok(self.auth.allow(cookies, csrf, need, what, Instant::now())?)
+    }
+
+    fn who(&self, headers: &HeaderMap) -> Result<SignedIn, Failure> {
+        let cookies = headers.get(header::COOKIE).and_then(|v| v.to_str().ok());
+        Ok(self.auth.who(cookies, Instant::now())?)
+    }
+
+    /// Every gimbal's state, as the page shows it.
+    fn state(&self) -> (Value, bool) {
+        let mut busy = false;
+        let gimbals: Vec<Value> = self
+            .gimbals
+            .iter()
+            .map(|g| {
+                let s = g.session.status();
+                let motion = match s.motion {
+                    Motion::Idle if s.changing => "moving",
+                    Motion::Idle => "idle",
+                    Motion::Moving => "moving",
+                    Motion::Unknown => "unknown",
+                };
+                busy |= motion != "idle";
+                let presets: Vec<Value> = self
+                    .presets
+                    .list(&g.config.name)
+                    .into_iter()
+                    .map(|(n, name)| json!({ "n": n, "name": name }))
+                    .collect();
+                json!({
+                    "online": s.error.is_none() && s.position.is_some(),
+                    "error": s.error,
+                    "pan": s.position.map(|p| p.pan.degrees()),
+                    "tilt": s.position.map(|p| p.tilt.degrees()),
+                    "motion": motion,
+                    "presets": presets,
+                })
+            })
+            .collect();
+        (json!({ "gimbals": gimbals }), busy)
+    }
+}
+
+async fn page(body: &'static str, kind: &'static str) -> Response {
+    (
+        [
+            (header::CONTENT_TYPE, kind),
+            (
+                header::CONTENT_SECURITY_POLICY,
+                "default-src 'none'; script-src 'self'; style-src 'self'; connect-src 'self'; img-src 'self'; form-action 'self'; frame-ancestors 'none'; base-uri 'none'",
+            ),
+            (header::X_CONTENT_TYPE_OPTIONS, "nosniff"),
+            (header::REFERRER_POLICY, "no-referrer"),
+            (header::CACHE_CONTROL, "no-cache"),
+        ],
+        body,
+    )
+        .into_response()
+}
+
+#[derive(Deserialize)]
+struct SignIn {
+    user: String,
+    password: String,
+}
+
+async fn sign_in(
+    State(w): Shared,
+    Extension(Peer(peer)): Extension<Peer>,
+    body: Result<axum::Json<SignIn>, axum::extract::rejection::JsonRejection>,
+) -> Result<Response, Failure> {
+    let axum::Json(body) = body.map_err(|e| bad(format!("expected JSON {{\"user\", \"password\"}}: {e}")))?;
+    let now = Instant::now();
+    if !w
+        .sign_ins
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .take(&peer.ip(), now)
+    {
+        return Err(Failure(
+            StatusCode::TOO_MANY_REQUESTS,
+            "too many sign-in attempts from this address: wait a few seconds".to_owned(),
+        ));
+    }
+    let (key, who) = match w.auth.sign_in(&body.user, &body.password, now) {
+        Ok(ok) => ok,
+        Err(why) => {
+            if let Some(held_back) = w
+                .failed
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .allow(&peer.ip(), now)
+            {
+                warn!(%peer, user = ?body.user, held_back, "failed sign-in (logged at most once in {} s per peer; held_back: failed sign-ins from it since the last line)", FAILED_LOG_EVERY.as_secs());
+            }
+            return Err(Failure(StatusCode::UNAUTHORIZED, why));
+        }
+    };
+    info!(%peer, user = %who.user, role = who.role.name(), "signed in");
+    let cookie = format!(
+        "{}={key}; Path=/; HttpOnly; SameSite=Strict{}",
+        crate::auth::COOKIE,
+        if w.secure_cookie { "; Secure" } else { "" }
+    );
+    let mut response = (
+        no_store(),
+        axum::Json(json!({ "user": who.user, "role": who.role.name() })),
+    )
+        .into_response();
+    let value =
+        HeaderValue::from_str(&cookie).map_err(|e| Failure(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?;
+    response.headers_mut().insert(header::SET_COOKIE, value);
+    Ok(response)
+}
+
+async fn sign_out(State(w): Shared, headers: HeaderMap) -> Result<Response, Failure> {
+    w.allow(&headers, Role::User, "sign out")?;
+    if let Some(key) = headers
+        .get(header::COOKIE)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|c| crate::auth::cookie(c, crate::auth::COOKIE))
+    {
+        w.auth.sign_out(key);
+    }
+    let gone = format!("{}=; Path=/; HttpOnly; SameSite=Strict; Max-Age=0", crate::auth::COOKIE);
+    let mut response = (no_store(), axum::Json(json!({}))).into_response();
+    if let Ok(v) = HeaderValue::from_str(&gone) {
+        response.headers_mut().insert(header::SET_COOKIE, v);
+    }
+    Ok(response)
+}
+
+async fn session(State(w): Shared, headers: HeaderMap) -> Result<Response, Failure> {
+    let who = w.who(&headers)?;
+    let gimbals: Vec<Value> = w
+        .gimbals
+        .iter()
+        .map(|g| {
+            json!({
+                "name": g.config.name,
+                "address": g.config.address.to_string(),
+                "pan_deg": [g.config.pan_deg.0, g.config.pan_deg.1],
+                "tilt_deg": [g.config.tilt_deg.0, g.config.tilt_deg.1],
+            })
+        })
+        .collect();
+    Ok((
+        no_store(),
+        axum::Json(json!({
+            "user": who.user,
+            "role": who.role.name(),
+            "csrf": who.csrf,
+            "lease_ms": w.lease.as_millis() as u64,
+            "gimbals": gimbals,
+        })),
+    )
+        .into_response())
+}
+
+async fn events(State(w): Shared, headers: HeaderMap) -> Result<Response, Failure> {
+    w.who(&headers)?;
+    let stream = futures_util::stream::unfold((w, None::<String>, None::<Instant>), |(w, last, sent)| async move {
+        loop {
+            let (state, busy) = w.state();
+            let text = state.to_string();
+            let now = Instant::now();
+            let due = match sent {
+                None => true,
+                Some(t) => busy || last.as_deref() != Some(text.as_str()) || now.duration_since(t) >= QUIET,
+            };
+            if due {
+                let event = Event::default().data(text.clone());
+                return Some((Ok::<_, Infallible>(event), (w, Some(text), Some(now))));
+            }
+            tokio::time::sleep(PUSH).await;
+        }
+    });
+    // Paced: after each event, the next is at least PUSH later.
+    let paced = futures_util::StreamExt::then(stream, |e| async move {
+        tokio::time::sleep(PUSH).await;
+        e
+    });
+    Ok((no_store(), Sse::new(paced).keep_alive(KeepAlive::default())).into_response())
+}
+
+/// The JSON body of a POST, with a clear error naming what was expected.
+fn body<T: serde::de::DeserializeOwned>(bytes: &[u8], expected: &str) -> Result<T, Failure> {
+    serde_json::from_slice(bytes).map_err(|e| bad(format!("expected JSON {expected}: {e}")))
+}
+
+#[derive(Deserialize)]
+struct MoveBody {
+    gimbal: usize,
+    pan: i8,
+    tilt: i8,
+    speed: f64,
+}
+
+fn drive(sign: i8, speed: f64) -> Option<Drive<sagebrush_protocol::Speed>> {
+    match sign {
+        0 => None,
+        s if s > 0 => Some(Drive::Forward(proportional_speed(speed))),
+        _ => Some(Drive::Back(proportional_speed(speed))),
+    }
+}
+
+async fn do_move(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
+    let who = w.allow(&headers, Role::Operator, "move")?;
+    let b: MoveBody = body(&bytes, "{gimbal, pan: -1|0|1, tilt: -1|0|1, speed: 0..1}")?;
+    if !(b.speed > 0.0 && b.speed <= 1.0) || b.pan.abs() > 1 || b.tilt.abs() > 1 {
+        return Err(bad(format!(
+            "expected pan and tilt in -1..=1 and speed in (0, 1], found pan {}, tilt {}, speed {}",
+            b.pan, b.tilt, b.speed
+        )));
+    }
+    let g = w.gimbal(b.gimbal)?;
+    if b.pan == 0 && b.tilt == 0 {
+        g.session.stop(Axes::PAN_TILT).await.map_err(failed)?;
+    } else {
+        let velocity = Velocity {
+            pan: drive(b.pan, b.speed),
+            tilt: drive(b.tilt, b.speed),
+            zoom: None,
+        };
+        g.session
+            .velocity(velocity, Some(w.lease), &format!("web {}", who.user))
+            .await
+            .map_err(failed)?;
+    }
+    Ok((no_store(), axum::Json(json!({}))).into_response())
+}
+
+#[derive(Deserialize)]
+struct GimbalBody {
+    gimbal: usize,
+}
+
+async fn stop(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
+    w.allow(&headers, Role::Operator, "stop")?;
+    let b: GimbalBody = body(&bytes, "{gimbal}")?;
+    w.gimbal(b.gimbal)?.session.stop(Axes::PAN_TILT).await.map_err(failed)?;
+    Ok((no_store(), axum::Json(json!({}))).into_response())
+}
+
+async fn home(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
+    w.allow(&headers, Role::Operator, "move")?;
+    let b: GimbalBody = body(&bytes, "{gimbal}")?;
+    w.gimbal(b.gimbal)?.session.home().await.map_err(failed)?;
+    Ok((no_store(), axum::Json(json!({}))).into_response())
+}
+
+#[derive(Deserialize)]
+struct GoToBody {
+    gimbal: usize,
+    pan: f64,
+    tilt: f64,
+}
+
+async fn go_to(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
+    w.allow(&headers, Role::Operator, "move")?;
+    let b: GoToBody = body(&bytes, "{gimbal, pan, tilt} in degrees")?;
+    let g = w.gimbal(b.gimbal)?;
+    let within = |v: f64, (low, high): (f64, f64)| v.is_finite() && v >= low && v <= high;
+    if !within(b.pan, g.config.pan_deg) || !within(b.tilt, g.config.tilt_deg) {
+        return Err(bad(format!(
+            "pan {} tilt {} is outside the travel of {}: pan {:?}, tilt {:?}",
+            b.pan, b.tilt, g.config.name, g.config.pan_deg, g.config.tilt_deg
+        )));
+    }
+    let angle = |d: f64| Angle::from_degrees(d as f32).map_err(|e| bad(e.to_string()));
+    g.session
+        .go_to(Position::new(angle(b.pan)?, angle(b.tilt)?))
+        .await
+        .map_err(failed)?;
+    Ok((no_store(), axum::Json(json!({}))).into_response())
+}
+
+#[derive(Deserialize)]
+struct SaveBody {
+    gimbal: usize,
+    name: String,
+}
+
+async fn preset_save(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
+    w.allow(&headers, Role::Operator, "save presets")?;
+    let b: SaveBody = body(&bytes, "{gimbal, name}")?;
+    let g = w.gimbal(b.gimbal)?;
+    let name = b.name.trim();
+    if name.is_empty() || name.chars().count() > presets::MAX_NAME || name.chars().any(char::is_control) {
+        return Err(bad(format!(
+            "expected a preset name of 1 to {} characters without control characters",
+            presets::MAX_NAME
+        )));
+    }
+    let list = w.presets.list(&g.config.name);
+    // Saving under a name in use moves that preset here.
+    let n = match list.iter().find(|(_, m)| m == name) {
+        Some((n, _)) => *n,
+        None => w
+            .presets
+            .free(&g.config.name)
+            .ok_or_else(|| bad(format!("{} has no free preset number (256 named)", g.config.name)))?,
+    };
+    g.session.send(Command::StorePreset(n)).await.map_err(failed)?;
+    w.presets
+        .set(&g.config.name, n, Some(name))
+        .map_err(|e| Failure(StatusCode::INTERNAL_SERVER_ERROR, e))?;
+    Ok((no_store(), axum::Json(json!({ "n": n }))).into_response())
+}
+
+#[derive(Deserialize)]
+struct PresetBody {
+    gimbal: usize,
+    n: u8,
+}
+
+async fn preset_go(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
+    w.allow(&headers, Role::Operator, "recall presets")?;
+    let b: PresetBody = body(&bytes, "{gimbal, n}")?;
+    let g = w.gimbal(b.gimbal)?;
+    g.session.go_to_preset(b.n).await.map_err(failed)?;
+    Ok((no_store(), axum::Json(json!({}))).into_response())
+}
+
+async fn not_found() -> Failure {
+    Failure(StatusCode::NOT_FOUND, "no such page".to_owned())
+}
+
+/// Binds `config.listen` (so that an address in use is an error at start)
+/// and returns the address and the server to run.
+pub async fn bind(
+    config: &config::Config,
+    gimbals: Vec<Gimbal>,
+    presets: Arc<Presets>,
+) -> std::io::Result<(SocketAddr, impl Future<Output = ()> + use<>)> {
+    let listener = tokio::net::TcpListener::bind(config.listen).await?;
+    let local = listener.local_addr()?;
+    let web = Arc::new(Web {
+        gimbals,
+        auth: Auth::new(config.users.clone(), config.sign_in, config.max_sign_ins),
+        presets,
+        lease: config.hold_lease,
+        secure_cookie: config.secure_cookie,
+        sign_ins: Mutex::new(KeyedBuckets::new(SIGN_INS_PER_S, SIGN_IN_BURST, PEERS)),
+        failed: Mutex::new(LogGate::new(FAILED_LOG_EVERY, PEERS)),
+    });
+    let app = Router::new()
+        .route("/", get(|| page(INDEX, "text/html; charset=utf-8")))
+        .route("/app.js", get(|| page(APP_JS, "text/javascript; charset=utf-8")))
+        .route("/style.css", get(|| page(STYLE, "text/css; charset=utf-8")))
+        .route("/api/sign-in", post(sign_in))
+        .route("/api/sign-out", post(sign_out))
+        .route("/api/session", get(session))
+        .route("/api/events", get(events))
+        .route("/api/move", post(do_move))
+        .route("/api/stop", post(stop))
+        .route("/api/home", post(home))
+        .route("/api/goto", post(go_to))
+        .route("/api/preset/save", post(preset_save))
+        .route("/api/preset/go", post(preset_go))
+        .fallback(not_found)
+        .layer(DefaultBodyLimit::max(MAX_BODY))
+        .with_state(web);
+    let table = Connections::new(Limits {
+        max_total: config.http.max_connections,
+        max_per_peer: config.http.max_connections_per_peer,
+        // The page faces the LAN: every address is its own peer, loopback too.
+        cap_loopback: true,
+        idle_timeout: config.http.idle_timeout,
+    });
+    let limits = HttpLimits {
+        header_timeout: config.http.header_timeout,
+        body_timeout: config.http.body_timeout,
+        ..HttpLimits::default()
+    };
+    let listener = BoundedListener::new(listener, table, "gimbal-web");
+    info!(addr = %local, "page listening");
+    Ok((local, sagebrush_listener::serve_http(listener, limits, app)))
+}

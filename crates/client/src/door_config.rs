@@ -1,0 +1,171 @@
+//! The configuration pieces every front door with users shares
+//! (gimbal-onvif, gimbal-web): the `[[user]]` tables with their roles and
+//! passwords (inline or in a file beside the configuration), and the state
+//! file the door keeps its preset names in, each validated at its place as
+//! [`crate::config_file`] does.
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+use toml::Spanned;
+
+use crate::config_file::{ConfigError, Source};
+
+/// One `[[user]]` table, as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct UserSection {
+    name: Spanned<String>,
+    password: Option<Spanned<String>>,
+    password_file: Option<Spanned<String>>,
+    role: Spanned<String>,
+}
+
+/// What a user may do (ONVIF Core "User level"): a `User` reads, an
+/// `Operator` also moves the gimbal and uses presets, an `Administrator`
+/// does everything.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Role {
+    User,
+    Operator,
+    Administrator,
+}
+
+impl Role {
+    /// The name the configuration uses.
+    pub fn name(self) -> &'static str {
+        match self {
+            Role::User => "user",
+            Role::Operator => "operator",
+            Role::Administrator => "administrator",
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct User {
+    pub name: String,
+    pub password: String,
+    pub role: Role,
+}
+
+impl Source<'_> {
+    /// The `[[user]]` tables: each name given once, exactly one of
+    /// `password` or `password_file` (its text without the final line
+    /// break), not empty, and a role; at least one user.
+    pub fn users(&self, raw: &[UserSection]) -> Result<Vec<User>, ConfigError> {
+        let mut users = Vec::new();
+        for (i, u) in raw.iter().enumerate() {
+            let key = format!("user[{i}]");
+            let name = u.name.get_ref().clone();
+            if name.is_empty() || users.iter().any(|x: &User| x.name == name) {
+                return Err(self.at(
+                    u.name.span(),
+                    format!("{key}.name"),
+                    "expected a name, not empty and not repeated",
+                ));
+            }
+            let password = match (&u.password, &u.password_file) {
+                (Some(p), None) => p.get_ref().clone(),
+                (None, Some(f)) => {
+                    let text = std::fs::read_to_string(f.get_ref()).map_err(|e| {
+                        self.at(
+                            f.span(),
+                            format!("{key}.password_file"),
+                            format!("cannot read {}: {e}", f.get_ref()),
+                        )
+                    })?;
+                    text.trim_end_matches(['\n', '\r']).to_owned()
+                }
+                _ => {
+                    return Err(self.at(
+                        u.name.span(),
+                        key,
+                        "expected exactly one of `password` or `password_file`",
+                    ));
+                }
+            };
+            if password.is_empty() {
+                return Err(self.at(
+                    u.name.span(),
+                    format!("{key}.password"),
+                    "expected a password, not empty",
+                ));
+            }
+            let role = match u.role.get_ref().as_str() {
+                "administrator" => Role::Administrator,
+                "operator" => Role::Operator,
+                "user" => Role::User,
+                other => {
+                    return Err(self.at(
+                        u.role.span(),
+                        format!("{key}.role"),
+                        format!("expected administrator, operator or user, found {other:?}"),
+                    ));
+                }
+            };
+            users.push(User { name, password, role });
+        }
+        if users.is_empty() {
+            return Err(self.at(
+                0..0,
+                "user",
+                "expected at least one [[user]]: the door serves its users only",
+            ));
+        }
+        Ok(users)
+    }
+
+    /// The preset state file: `state_file`, else
+    /// `$STATE_DIRECTORY/presets.toml` when systemd gives the unit a state
+    /// directory, else none. Its folder must exist and be writable by this
+    /// process (the names are written there at every change; finding out
+    /// then would lose one).
+    pub fn state_file(&self, key: Option<&Spanned<String>>) -> Result<Option<PathBuf>, ConfigError> {
+        let (path, span, key) = match key {
+            Some(s) => (PathBuf::from(s.get_ref()), s.span(), "state_file"),
+            None => match std::env::var_os("STATE_DIRECTORY") {
+                // systemd may list several, separated by ':'; the first is ours.
+                Some(dirs) => match dirs.to_string_lossy().split(':').next() {
+                    Some(dir) if !dir.is_empty() => (
+                        Path::new(dir).join("presets.toml"),
+                        0..0,
+                        "state_file (default $STATE_DIRECTORY/presets.toml)",
+                    ),
+                    _ => return Ok(None),
+                },
+                None => return Ok(None),
+            },
+        };
+        let folder = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        if !folder.is_dir() {
+            return Err(self.at(
+                span,
+                key,
+                format!(
+                    "{}: its folder {} does not exist (create it, or give a path in an existing folder)",
+                    path.display(),
+                    folder.display()
+                ),
+            ));
+        }
+        if let Err(e) = nix::unistd::access(&folder, nix::unistd::AccessFlags::W_OK) {
+            return Err(self.at(
+                span,
+                key,
+                format!(
+                    "{}: its folder {} is not writable by this process: {e}",
+                    path.display(),
+                    folder.display()
+                ),
+            ));
+        }
+        if path.is_dir() {
+            return Err(self.at(span, key, format!("{}: is a folder, expected a file", path.display())));
+        }
+        Ok(Some(path))
+    }
+}
