@@ -293,6 +293,10 @@ fn control_taken_by_one_component_denies_another_and_nothing_moves() {
     assert_eq!(r["result"], ACCEPTED, "{r}");
     let st = stack.gcs("manager_status", GCS, json!({ "primary_sysid": 255 }));
     assert_eq!(st["status"]["primary_control_compid"], 190, "{st}");
+    // Right after the holder was heard: each step is a process of its own,
+    // and an owner silent for 5 s loses control.
+    let r = stack.gcs("configure", OTHER, json!({ "params": [-2, -2, -1, -1] }));
+    assert_eq!(r["result"], DENIED, "-2 takes no control from its holder: {r}");
     let r = stack.gcs("pitchyaw", OTHER, json!({ "pitch": 30.0, "yaw": 40.0 }));
     assert_eq!(r["result"], DENIED, "{r}");
     stack.gcs(
@@ -300,8 +304,11 @@ fn control_taken_by_one_component_denies_another_and_nothing_moves() {
         OTHER,
         json!({ "yaw_rate": 60.0, "count": 3, "every_s": 0.1 }),
     );
-    let r = stack.gcs("configure", OTHER, json!({ "params": [-2, -2, -1, -1] }));
-    assert_eq!(r["result"], DENIED, "taking control from its holder: {r}");
+    let r = stack.gcs("configure", OTHER, json!({ "params": [-3, -3, -1, -1] }));
+    assert_eq!(
+        r["result"], ACCEPTED,
+        "-3 from a non-holder: nothing to release (PX4): {r}"
+    );
     assert_still(&stack, (0.0, 0.0), "commands from a component not in control");
     // The holder moves it; after it releases, the other may.
     let r = stack.gcs("pitchyaw", GCS, json!({ "pitch": 0.0, "yaw": 10.0 }));
@@ -312,6 +319,161 @@ fn control_taken_by_one_component_denies_another_and_nothing_moves() {
     assert_eq!(r["result"], ACCEPTED, "{r}");
     let (pan, _) = stack.gcud.settled_position(MAST);
     assert!((pan - 20.0).abs() <= 0.5, "{pan}");
+}
+
+/// QGroundControl's "take control" and PX4's navigator name their own ids
+/// in CONFIGURE and rely on that taking control from whoever holds it
+/// (PX4 `input_mavlink.cpp`: an explicit id is set unconditionally).
+#[test]
+fn an_explicit_id_takes_control_from_its_holder_as_qgroundcontrol_does() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let r = stack.gcs("configure", GCS, json!({ "params": [-2, -2, -1, -1] }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let r = stack.gcs("pitchyaw", OTHER, json!({ "pitch": 0.0, "yaw": 15.0 }));
+    assert_eq!(r["result"], DENIED, "{r}");
+    let r = stack.gcs("configure", OTHER, json!({ "params": [255, 191, -1, -1] }));
+    assert_eq!(r["result"], ACCEPTED, "take-over by explicit id: {r}");
+    let st = stack.gcs("manager_status", OTHER, json!({ "primary_sysid": 255 }));
+    assert_eq!(st["status"]["primary_control_compid"], 191, "{st}");
+    let r = stack.gcs("pitchyaw", OTHER, json!({ "pitch": 0.0, "yaw": 15.0 }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let (pan, _) = stack.gcud.settled_position(MAST);
+    assert!((pan - 15.0).abs() <= 0.5, "{pan}");
+    let r = stack.gcs("pitchyaw", GCS, json!({ "pitch": 0.0, "yaw": -15.0 }));
+    assert_eq!(r["result"], DENIED, "the former holder: {r}");
+}
+
+/// MAV_CMD values (common.xml).
+const DO_GIMBAL_MANAGER_PITCHYAW: i64 = 1000;
+const REQUEST_MESSAGE: i64 = 512;
+const DO_SET_SERVO: i64 = 183;
+
+/// MAVSDK sends DO_GIMBAL_MANAGER_PITCHYAW as COMMAND_INT, ArduPilot its
+/// ROI commands: every command is answered as it is for COMMAND_LONG.
+#[test]
+fn commands_as_command_int_are_answered_and_move_the_gimbal() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let n = Value::Null;
+    let r = stack.gcs(
+        "command_int",
+        GCS,
+        json!({ "id": DO_GIMBAL_MANAGER_PITCHYAW, "params": [-10.0, 30.0, n, n, 0, 0, 0] }),
+    );
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(
+        (pan - 30.0).abs() <= 0.5 && (tilt + 10.0).abs() <= 0.5,
+        "bus at {pan}, {tilt}"
+    );
+    let r = stack.gcs("command_int", GCS, json!({ "id": REQUEST_MESSAGE, "params": [280] }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let r = stack.gcs("command_int", GCS, json!({ "id": DO_SET_SERVO, "params": [1, 1500] }));
+    assert_eq!(r["result"], UNSUPPORTED, "{r}");
+    let r = stack.gcs("command_int", GCS, json!({ "id": 31999, "params": [] }));
+    assert_eq!(r["result"], UNSUPPORTED, "an id the dialect does not know: {r}");
+    let r = stack.gcs(
+        "command_int",
+        GCS,
+        json!({ "id": DO_GIMBAL_MANAGER_PITCHYAW, "params": [120.0, 0.0, n, n, 0, 0, 0] }),
+    );
+    assert_eq!(r["result"], DENIED, "out of travel: {r}");
+}
+
+/// MAVProxy sends to component 0 before it has seen the gimbal: each
+/// gimbal manager answers for itself (PX4: "for us or for anyone").
+#[test]
+fn a_command_to_component_0_is_answered_by_every_gimbal_manager() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let n = Value::Null;
+    for int in [false, true] {
+        let yaw = if int { -20.0 } else { 20.0 };
+        let r = stack.gcs(
+            "broadcast",
+            GCS,
+            json!({ "id": DO_GIMBAL_MANAGER_PITCHYAW, "params": [5.0, yaw, n, n, 0, 0, 0], "int": int }),
+        );
+        assert_eq!(r["results"]["154"], json!([ACCEPTED]), "COMMAND_INT {int}: {r}");
+        assert_eq!(r["results"]["171"], json!([FAILED]), "the absent gimbal: {r}");
+        let (pan, tilt) = stack.gcud.settled_position(MAST);
+        assert!(
+            (pan - yaw).abs() <= 0.5 && (tilt - 5.0).abs() <= 0.5,
+            "bus at {pan}, {tilt}"
+        );
+    }
+    // Device id 171 in param 7 picks that gimbal alone.
+    let r = stack.gcs(
+        "broadcast",
+        GCS,
+        json!({ "id": REQUEST_MESSAGE, "params": [280, 0, 0, 0, 0, 0, 171] }),
+    );
+    assert_eq!(r["results"], json!({ "171": [ACCEPTED] }), "{r}");
+    let r = stack.gcs("broadcast", GCS, json!({ "id": DO_SET_SERVO, "params": [1, 1500] }));
+    assert_eq!(
+        r["results"],
+        json!({ "154": [UNSUPPORTED], "171": [UNSUPPORTED] }),
+        "{r}"
+    );
+}
+
+/// GIMBAL_MANAGER_FLAGS (common.xml).
+const YAW_LOCK: u32 = 16;
+const YAW_IN_VEHICLE_FRAME: u32 = 32;
+const YAW_IN_EARTH_FRAME: u32 = 64;
+const ROLL_LOCK: u32 = 4;
+const PITCH_LOCK: u32 = 8;
+
+/// Yaw in the earth frame (QGroundControl's yaw lock, PX4 ROI, MAVSDK
+/// YawLock) needs the vehicle's heading, which the door does not have:
+/// DENIED and nothing moves, never carried out relative to the mount.
+#[test]
+fn yaw_in_the_earth_frame_is_denied_and_nothing_moves() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start();
+    for flags in [YAW_LOCK, YAW_IN_EARTH_FRAME, YAW_LOCK | YAW_IN_EARTH_FRAME] {
+        let r = stack.gcs("pitchyaw", GCS, json!({ "pitch": 0.0, "yaw": 30.0, "flags": flags }));
+        assert_eq!(r["result"], DENIED, "flags {flags}: {r}");
+        let r = stack.gcs("pitchyaw", GCS, json!({ "yaw_rate": 30.0, "flags": flags }));
+        assert_eq!(r["result"], DENIED, "a rate, flags {flags}: {r}");
+    }
+    stack.gcs(
+        "set_pitchyaw",
+        GCS,
+        json!({ "yaw": 40.0, "flags": YAW_IN_EARTH_FRAME, "count": 3, "every_s": 0.1 }),
+    );
+    assert_still(&stack, (0.0, 0.0), "yaw in the earth frame");
+    // QGroundControl's default flags (roll and pitch lock, no yaw lock),
+    // and YAW_LOCK overridden by YAW_IN_VEHICLE_FRAME: the vehicle frame.
+    let r = stack.gcs(
+        "pitchyaw",
+        GCS,
+        json!({ "pitch": -5.0, "yaw": 12.0, "flags": ROLL_LOCK | PITCH_LOCK }),
+    );
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let r = stack.gcs(
+        "pitchyaw",
+        GCS,
+        json!({ "pitch": -5.0, "yaw": 25.0, "flags": YAW_LOCK | YAW_IN_VEHICLE_FRAME }),
+    );
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    // Pitch alone does not use the yaw's frame.
+    let r = stack.gcs("pitchyaw", GCS, json!({ "pitch": 8.0, "flags": YAW_LOCK }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(
+        (pan - 25.0).abs() <= 0.5 && (tilt - 8.0).abs() <= 0.5,
+        "bus at {pan}, {tilt}"
+    );
 }
 
 #[test]
