@@ -123,6 +123,63 @@ def step_broadcast(m, a):
     return {"results": results}
 
 
+def step_device_set_attitude(m, a):
+    """GIMBAL_DEVICE_SET_ATTITUDE (as ArduPilot, the gimbal manager, drives
+    a gimbal device) of (pitch, yaw) degrees with `flags`, sent `count` times."""
+    q = [float(x) for x in QuaternionBase([0.0, math.radians(a["pitch"]), math.radians(a["yaw"])]).q]
+    for _ in range(a.get("count", 1)):
+        m.mav.gimbal_device_set_attitude_send(1, a.get("component", GIMBAL), a.get("flags", 0), q, nan_(), nan_(),
+                                              nan_())
+        time.sleep(0.05)
+    return {"q": q}
+
+
+def step_manual(m, a):
+    """GIMBAL_MANAGER_SET_MANUAL_CONTROL (unitless -1..1) sent `count` times every `every_s`."""
+    nan = float("nan")
+    for _ in range(a.get("count", 1)):
+        m.mav.gimbal_manager_set_manual_control_send(1, a.get("component", GIMBAL), a.get("flags", 0), 0,
+                                                     a.get("pitch", nan), a.get("yaw", nan),
+                                                     a.get("pitch_rate", nan), a.get("yaw_rate", nan))
+        time.sleep(a.get("every_s", 0.0))
+    return {"sent": a.get("count", 1)}
+
+
+def step_interval(m, a):
+    """MAV_CMD_SET_MESSAGE_INTERVAL of message `id` to `us`, its ACK; then
+    the mean interval (ms) between the next `count` messages of that id,
+    by the gimbal's own time_boot_ms (what the door meant to send, not
+    when this machine's scheduler let us read it), and how many came in
+    `listen_s` when the stream is off."""
+    name = {281: "GIMBAL_MANAGER_STATUS", 285: "GIMBAL_DEVICE_ATTITUDE_STATUS"}.get(a["id"])
+    result = command(m, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, [a["id"], a["us"]])
+    out = {"result": result}
+    if result != mavlink.MAV_RESULT_ACCEPTED or name is None:
+        return out
+    # Drop what was sent before the change took effect.
+    time.sleep(0.5)
+    while m.recv_match(type=name, blocking=False) is not None:
+        pass
+    if a["us"] == -1:
+        end, seen = time.monotonic() + a.get("listen_s", 2.0), 0
+        while time.monotonic() < end:
+            msg = m.recv_match(type=name, blocking=True, timeout=0.1)
+            if msg is not None and msg.get_srcComponent() == GIMBAL:
+                seen += 1
+        out["seen"] = seen
+        return out
+    stamps = []
+    end = time.monotonic() + WAIT_S
+    while len(stamps) < a.get("count", 20) and time.monotonic() < end:
+        msg = m.recv_match(type=name, blocking=True, timeout=0.2)
+        if msg is not None and msg.get_srcComponent() == GIMBAL:
+            stamps.append(msg.time_boot_ms)
+    if len(stamps) >= 2:
+        out["mean_ms"] = (stamps[-1] - stamps[0]) / (len(stamps) - 1)
+    out["count"] = len(stamps)
+    return out
+
+
 def step_heartbeat(m, a):
     hb = wait(m, "HEARTBEAT", component=a.get("component", GIMBAL))
     if hb is None:
