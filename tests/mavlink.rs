@@ -297,6 +297,10 @@ fn control_taken_by_one_component_denies_another_and_nothing_moves() {
     assert_eq!(r["result"], ACCEPTED, "{r}");
     let st = stack.gcs("manager_status", GCS, json!({ "primary_sysid": 255 }));
     assert_eq!(st["status"]["primary_control_compid"], 190, "{st}");
+    // Right after the holder was heard: each step is a process of its own,
+    // and an owner silent for 5 s loses control.
+    let r = stack.gcs("configure", OTHER, json!({ "params": [-2, -2, -1, -1] }));
+    assert_eq!(r["result"], DENIED, "-2 takes no control from its holder: {r}");
     let r = stack.gcs("pitchyaw", OTHER, json!({ "pitch": 30.0, "yaw": 40.0 }));
     assert_eq!(r["result"], DENIED, "{r}");
     stack.gcs(
@@ -304,8 +308,11 @@ fn control_taken_by_one_component_denies_another_and_nothing_moves() {
         OTHER,
         json!({ "yaw_rate": 60.0, "count": 3, "every_s": 0.1 }),
     );
-    let r = stack.gcs("configure", OTHER, json!({ "params": [-2, -2, -1, -1] }));
-    assert_eq!(r["result"], DENIED, "taking control from its holder: {r}");
+    let r = stack.gcs("configure", OTHER, json!({ "params": [-3, -3, -1, -1] }));
+    assert_eq!(
+        r["result"], ACCEPTED,
+        "-3 from a non-holder: nothing to release (PX4): {r}"
+    );
     assert_still(&stack, (0.0, 0.0), "commands from a component not in control");
     // The holder moves it; after it releases, the other may.
     let r = stack.gcs("pitchyaw", GCS, json!({ "pitch": 0.0, "yaw": 10.0 }));
@@ -316,6 +323,168 @@ fn control_taken_by_one_component_denies_another_and_nothing_moves() {
     assert_eq!(r["result"], ACCEPTED, "{r}");
     let (pan, _) = stack.gcud.settled_position(MAST);
     assert!((pan - 20.0).abs() <= 0.5, "{pan}");
+}
+
+/// QGroundControl's "take control" and PX4's navigator name their own ids
+/// in CONFIGURE and rely on that taking control from whoever holds it
+/// (PX4 `input_mavlink.cpp`: an explicit id is set unconditionally).
+#[test]
+fn an_explicit_id_takes_control_from_its_holder_as_qgroundcontrol_does() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let r = stack.gcs("configure", GCS, json!({ "params": [-2, -2, -1, -1] }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let r = stack.gcs("pitchyaw", OTHER, json!({ "pitch": 0.0, "yaw": 15.0 }));
+    assert_eq!(r["result"], DENIED, "{r}");
+    let r = stack.gcs("configure", OTHER, json!({ "params": [255, 191, -1, -1] }));
+    assert_eq!(r["result"], ACCEPTED, "take-over by explicit id: {r}");
+    let st = stack.gcs("manager_status", OTHER, json!({ "primary_sysid": 255 }));
+    assert_eq!(st["status"]["primary_control_compid"], 191, "{st}");
+    let r = stack.gcs("pitchyaw", OTHER, json!({ "pitch": 0.0, "yaw": 15.0 }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let (pan, _) = stack.gcud.settled_position(MAST);
+    assert!((pan - 15.0).abs() <= 0.5, "{pan}");
+    let r = stack.gcs("pitchyaw", GCS, json!({ "pitch": 0.0, "yaw": -15.0 }));
+    assert_eq!(r["result"], DENIED, "the former holder: {r}");
+}
+
+/// MAV_CMD values (common.xml).
+const DO_GIMBAL_MANAGER_PITCHYAW: i64 = 1000;
+const REQUEST_MESSAGE: i64 = 512;
+const DO_SET_SERVO: i64 = 183;
+
+/// MAVSDK sends DO_GIMBAL_MANAGER_PITCHYAW as COMMAND_INT, ArduPilot its
+/// ROI commands: every command is answered as it is for COMMAND_LONG.
+#[test]
+fn commands_as_command_int_are_answered_and_move_the_gimbal() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let n = Value::Null;
+    let r = stack.gcs(
+        "command_int",
+        GCS,
+        json!({ "id": DO_GIMBAL_MANAGER_PITCHYAW, "params": [-10.0, 30.0, n, n, 0, 0, 0] }),
+    );
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(
+        (pan - 30.0).abs() <= 0.5 && (tilt + 10.0).abs() <= 0.5,
+        "bus at {pan}, {tilt}"
+    );
+    let r = stack.gcs("command_int", GCS, json!({ "id": REQUEST_MESSAGE, "params": [280] }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let r = stack.gcs("command_int", GCS, json!({ "id": DO_SET_SERVO, "params": [1, 1500] }));
+    assert_eq!(r["result"], UNSUPPORTED, "{r}");
+    let r = stack.gcs("command_int", GCS, json!({ "id": 31999, "params": [] }));
+    assert_eq!(r["result"], UNSUPPORTED, "an id the dialect does not know: {r}");
+    let r = stack.gcs(
+        "command_int",
+        GCS,
+        json!({ "id": DO_GIMBAL_MANAGER_PITCHYAW, "params": [120.0, 0.0, n, n, 0, 0, 0] }),
+    );
+    assert_eq!(r["result"], DENIED, "out of travel: {r}");
+}
+
+/// MAVProxy sends to component 0 before it has seen the gimbal: each
+/// gimbal manager answers for itself (PX4: "for us or for anyone").
+#[test]
+fn a_command_to_component_0_is_answered_by_every_gimbal_manager() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let n = Value::Null;
+    for int in [false, true] {
+        let yaw = if int { -20.0 } else { 20.0 };
+        let r = stack.gcs(
+            "broadcast",
+            GCS,
+            json!({ "id": DO_GIMBAL_MANAGER_PITCHYAW, "params": [5.0, yaw, n, n, 0, 0, 0], "int": int }),
+        );
+        assert_eq!(r["results"]["154"], json!([ACCEPTED]), "COMMAND_INT {int}: {r}");
+        assert_eq!(r["results"]["171"], json!([FAILED]), "the absent gimbal: {r}");
+        let (pan, tilt) = stack.gcud.settled_position(MAST);
+        assert!(
+            (pan - yaw).abs() <= 0.5 && (tilt - 5.0).abs() <= 0.5,
+            "bus at {pan}, {tilt}"
+        );
+    }
+    // Device id 171 in param 7 picks that gimbal alone (the absent one).
+    let r = stack.gcs(
+        "broadcast",
+        GCS,
+        json!({ "id": DO_GIMBAL_MANAGER_PITCHYAW, "params": [0.0, 0.0, n, n, 0, 0, 171] }),
+    );
+    assert_eq!(r["results"], json!({ "171": [FAILED] }), "{r}");
+    // REQUEST_MESSAGE's param 7 is the response target, not a device id.
+    let r = stack.gcs(
+        "broadcast",
+        GCS,
+        json!({ "id": REQUEST_MESSAGE, "params": [280, 0, 0, 0, 0, 0, 1] }),
+    );
+    assert_eq!(r["results"], json!({ "154": [ACCEPTED], "171": [ACCEPTED] }), "{r}");
+    let r = stack.gcs("broadcast", GCS, json!({ "id": DO_SET_SERVO, "params": [1, 1500] }));
+    assert_eq!(
+        r["results"],
+        json!({ "154": [UNSUPPORTED], "171": [UNSUPPORTED] }),
+        "{r}"
+    );
+}
+
+/// GIMBAL_MANAGER_FLAGS (common.xml).
+const YAW_LOCK: u32 = 16;
+const YAW_IN_VEHICLE_FRAME: u32 = 32;
+const YAW_IN_EARTH_FRAME: u32 = 64;
+const ROLL_LOCK: u32 = 4;
+const PITCH_LOCK: u32 = 8;
+
+/// Yaw in the earth frame (QGroundControl's yaw lock, PX4 ROI, MAVSDK
+/// YawLock) needs the vehicle's heading, which the door does not have:
+/// DENIED and nothing moves, never carried out relative to the mount.
+#[test]
+fn yaw_in_the_earth_frame_is_denied_and_nothing_moves() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start();
+    for flags in [YAW_LOCK, YAW_IN_EARTH_FRAME, YAW_LOCK | YAW_IN_EARTH_FRAME] {
+        let r = stack.gcs("pitchyaw", GCS, json!({ "pitch": 0.0, "yaw": 30.0, "flags": flags }));
+        assert_eq!(r["result"], DENIED, "flags {flags}: {r}");
+        let r = stack.gcs("pitchyaw", GCS, json!({ "yaw_rate": 30.0, "flags": flags }));
+        assert_eq!(r["result"], DENIED, "a rate, flags {flags}: {r}");
+    }
+    stack.gcs(
+        "set_pitchyaw",
+        GCS,
+        json!({ "yaw": 40.0, "flags": YAW_IN_EARTH_FRAME, "count": 3, "every_s": 0.1 }),
+    );
+    assert_still(&stack, (0.0, 0.0), "yaw in the earth frame");
+    // QGroundControl's default flags (roll and pitch lock, no yaw lock),
+    // and YAW_LOCK overridden by YAW_IN_VEHICLE_FRAME: the vehicle frame.
+    let r = stack.gcs(
+        "pitchyaw",
+        GCS,
+        json!({ "pitch": -5.0, "yaw": 12.0, "flags": ROLL_LOCK | PITCH_LOCK }),
+    );
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let r = stack.gcs(
+        "pitchyaw",
+        GCS,
+        json!({ "pitch": -5.0, "yaw": 25.0, "flags": YAW_LOCK | YAW_IN_VEHICLE_FRAME }),
+    );
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    // Pitch alone does not use the yaw's frame.
+    let r = stack.gcs("pitchyaw", GCS, json!({ "pitch": 8.0, "flags": YAW_LOCK }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(
+        (pan - 25.0).abs() <= 0.5 && (tilt - 8.0).abs() <= 0.5,
+        "bus at {pan}, {tilt}"
+    );
 }
 
 #[test]
@@ -645,4 +814,142 @@ fn the_shipped_unit_is_hardened_and_checks_its_configuration_first() {
             "KillSignal=SIGTERM",
         ],
     );
+}
+
+/// MAV_CMD values of the legacy and ROI commands (common.xml).
+const DO_MOUNT_CONTROL: i64 = 205;
+const DO_MOUNT_CONFIGURE: i64 = 204;
+const DO_SET_ROI_LOCATION: i64 = 195;
+const DO_SET_ROI_NONE: i64 = 197;
+
+/// ArduPilot drives a gimbal device with GIMBAL_DEVICE_SET_ATTITUDE;
+/// MAVProxy's `gimbal` and many scripts use DO_MOUNT_CONTROL; what needs a
+/// vehicle position (ROI, GPS point) is refused, never half done.
+#[test]
+fn device_attitude_and_mount_control_point_the_gimbal_and_roi_is_refused() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start();
+    stack.gcs("device_set_attitude", GCS, json!({ "pitch": -20.0, "yaw": 35.0 }));
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(
+        (pan - 35.0).abs() <= 0.5 && (tilt + 20.0).abs() <= 0.5,
+        "GIMBAL_DEVICE_SET_ATTITUDE: bus at {pan}, {tilt}"
+    );
+    stack.gcs(
+        "device_set_attitude",
+        GCS,
+        json!({ "pitch": 0.0, "yaw": 70.0, "flags": YAW_LOCK, "count": 3 }),
+    );
+    assert_still(
+        &stack,
+        (35.0, -20.0),
+        "GIMBAL_DEVICE_SET_ATTITUDE with yaw in the earth frame",
+    );
+    // MAVLink targeting (mode 2): param1 pitch, param3 yaw; 330 is -30.
+    let r = stack.gcs(
+        "command_id",
+        GCS,
+        json!({ "id": DO_MOUNT_CONTROL, "params": [10.0, 0.0, 330.0, 0, 0, 0, 2] }),
+    );
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(
+        (pan + 30.0).abs() <= 0.5 && (tilt - 10.0).abs() <= 0.5,
+        "DO_MOUNT_CONTROL: bus at {pan}, {tilt}"
+    );
+    for (mode, why) in [(0, "retract"), (3, "RC"), (4, "GPS point"), (9, "no mode")] {
+        let r = stack.gcs(
+            "command_id",
+            GCS,
+            json!({ "id": DO_MOUNT_CONTROL, "params": [0.0, 0.0, 0.0, 0, 0, 0, mode] }),
+        );
+        assert_eq!(r["result"], DENIED, "{why}: {r}");
+    }
+    let r = stack.gcs(
+        "command_id",
+        GCS,
+        json!({ "id": DO_MOUNT_CONFIGURE, "params": [2, 0, 0, 0, 0, 0, 0] }),
+    );
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let r = stack.gcs(
+        "command_id",
+        GCS,
+        json!({ "id": DO_MOUNT_CONFIGURE, "params": [2, 0, 0, 0, 0, 0, 2] }),
+    );
+    assert_eq!(r["result"], DENIED, "yaw input in the absolute frame: {r}");
+    // ArduPilot sends its ROI commands as COMMAND_INT (lat, lon * 1e7).
+    let r = stack.gcs(
+        "command_int",
+        GCS,
+        json!({ "id": DO_SET_ROI_LOCATION, "params": [0, 0, 0, 0, 515_000_000, -1_000_000, 100.0] }),
+    );
+    assert_eq!(r["result"], DENIED, "no vehicle position: {r}");
+    let r = stack.gcs("command_int", GCS, json!({ "id": DO_SET_ROI_NONE, "params": [] }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    assert_still(&stack, (-30.0, 10.0), "refused mount modes and ROI");
+    // Neutral (mode 1): the mount's zero.
+    let r = stack.gcs(
+        "command_id",
+        GCS,
+        json!({ "id": DO_MOUNT_CONTROL, "params": [0.0, 0.0, 0.0, 0, 0, 0, 1] }),
+    );
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(pan.abs() <= 0.5 && tilt.abs() <= 0.5, "neutral: bus at {pan}, {tilt}");
+}
+
+/// GIMBAL_MANAGER_SET_MANUAL_CONTROL's unitless -1..1: an angle is that
+/// fraction of the travel (mast-1: pan ±180°, tilt ±90°), a rate that
+/// fraction of max_rate_dps; anything outside -1..1 moves nothing.
+#[test]
+fn manual_control_points_the_gimbal_by_fractions_of_its_travel() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start();
+    stack.gcs("manual", GCS, json!({ "pitch": 1.5, "yaw": 0.2 }));
+    assert_still(&stack, (0.0, 0.0), "manual control outside -1..1");
+    stack.gcs("manual", GCS, json!({ "pitch": 0.5, "yaw": -0.25 }));
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(
+        (pan + 45.0).abs() <= 0.5 && (tilt - 45.0).abs() <= 0.5,
+        "bus at {pan}, {tilt}"
+    );
+    stack.gcs(
+        "manual",
+        GCS,
+        json!({ "yaw_rate": 0.5, "pitch_rate": 0.0, "count": 5, "every_s": 0.1 }),
+    );
+    let (pan, _) = stack.gcud.settled_position(MAST);
+    assert!(pan > -44.0, "a rate to the right moved the pan from -45: {pan}");
+}
+
+/// MAV_CMD_SET_MESSAGE_INTERVAL for the two status streams: the mean
+/// interval, by the door's own time_boot_ms stamps, within 10 % of the
+/// one asked for; -1 stops the stream; what it cannot keep is DENIED.
+#[test]
+fn set_message_interval_is_honoured_within_ten_percent() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start();
+    for (id, us, count) in [(285, 100_000, 21), (285, 400_000, 8), (281, 50_000, 41)] {
+        let r = stack.gcs("interval", GCS, json!({ "id": id, "us": us, "count": count }));
+        assert_eq!(r["result"], ACCEPTED, "{r}");
+        let asked = us as f64 / 1000.0;
+        let mean = r["mean_ms"].as_f64().unwrap_or_else(|| panic!("{r}"));
+        assert!(
+            (mean - asked).abs() <= asked * 0.1,
+            "message {id} at {asked} ms: mean {mean} ms ({r})"
+        );
+    }
+    let r = stack.gcs("interval", GCS, json!({ "id": 285, "us": -1, "listen_s": 2.0 }));
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    assert_eq!(r["seen"], 0, "the stream is off: {r}");
+    for (id, us) in [(285, 5_000), (0, 100_000), (285, 60_000_000)] {
+        let r = stack.gcs("interval", GCS, json!({ "id": id, "us": us }));
+        assert_eq!(r["result"], DENIED, "message {id} at {us} us: {r}");
+    }
 }

@@ -70,6 +70,7 @@ address = "{MAST}"
 listen = "127.0.0.1:0"
 stream_uri = "rtsp://127.0.0.1:8554/mast-1"
 zoom = true
+fov_deg = [60.0, 40.0]
 [[gimbal]]
 name = "absent"
 address = "5.2.9"
@@ -612,7 +613,7 @@ fn check_names_the_file_line_column_and_key_and_exits_2() {
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(
         err.contains(&format!(
-            "{}:28:11: gimbal[1].address: expected GROUP.PORT.DEVICE",
+            "{}:29:11: gimbal[1].address: expected GROUP.PORT.DEVICE",
             path.display()
         )),
         "{err}"
@@ -684,4 +685,84 @@ fn the_shipped_unit_is_hardened_and_checks_its_configuration_first() {
             "KillSignal=SIGTERM",
         ],
     );
+}
+
+const FOV_SPACE: &str = "http://www.onvif.org/ver10/tptz/PanTiltSpaces/TranslationSpaceFov";
+const TRANSLATION_GENERIC: &str = "http://www.onvif.org/ver10/tptz/PanTiltSpaces/TranslationGenericSpace";
+
+/// Frigate's autotracker and Milestone's centre-click move in the FOV
+/// translation space (ONVIF PTZ, "Pan/tilt Translation Space in FOV"): the
+/// image centre is (0, 0) and its right edge x = 1, so with mast-1's
+/// configured field of view of 60° x 40°, (1, 0) turns the pan by 30°,
+/// (0.5, 0) by 15° and (0, -1) the tilt by -20° (linear in the angle: no
+/// lens projection is modelled). Positions are read on the bus side.
+#[test]
+fn relative_move_in_the_fov_space_turns_by_the_field_of_view() {
+    if !clients_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let spaces = stack.client("relative_spaces", stack.mast, ADMIN, json!({}));
+    for list in ["node", "options"] {
+        let fov = spaces[list]
+            .as_array()
+            .and_then(|l| l.iter().find(|s| s["uri"] == FOV_SPACE))
+            .unwrap_or_else(|| panic!("no FOV space in the {list}: {spaces}"));
+        assert_eq!(fov["x"], json!([-1.0, 1.0]), "{spaces}");
+        assert_eq!(fov["y"], json!([-1.0, 1.0]), "{spaces}");
+    }
+    assert_eq!(spaces["default"], FOV_SPACE, "the profile's default: {spaces}");
+    // The profile's default space (no space named), then named.
+    let r = stack.client("relative", stack.mast, ADMIN, json!({ "x": 1.0, "y": 0.0 }));
+    assert_eq!(r["ok"], true, "{r}");
+    assert_eq!(r["status"]["moving"], "IDLE", "MoveStatus at the end: {r}");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(
+        (pan - 30.0).abs() <= 0.5 && tilt.abs() <= 0.5,
+        "(1, 0): bus at {pan}, {tilt}"
+    );
+    let r = stack.client(
+        "relative",
+        stack.mast,
+        ADMIN,
+        json!({ "x": 0.5, "y": -1.0, "space": FOV_SPACE }),
+    );
+    assert_eq!(r["ok"], true, "{r}");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(
+        (pan - 45.0).abs() <= 0.5 && (tilt + 20.0).abs() <= 0.5,
+        "(0.5, -1): bus at {pan}, {tilt}"
+    );
+    // The generic space when named: x over the whole travel (360°), 0.25 = 45°.
+    let r = stack.client(
+        "relative",
+        stack.mast,
+        ADMIN,
+        json!({ "x": -0.25, "y": 0.0, "space": TRANSLATION_GENERIC }),
+    );
+    assert_eq!(r["ok"], true, "{r}");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(
+        pan.abs() <= 0.5 && (tilt + 20.0).abs() <= 0.5,
+        "generic (-0.25, 0): bus at {pan}, {tilt}"
+    );
+    // A space the node does not offer: a fault, never read as another.
+    let r = stack.client(
+        "relative",
+        stack.mast,
+        ADMIN,
+        json!({ "x": 0.5, "y": 0.0, "space": "http://www.onvif.org/ver10/tptz/PanTiltSpaces/TranslationSpaceDegrees" }),
+    );
+    assert_eq!(fault_subcodes(&r), ["InvalidArgVal", "SpaceNotSupported"], "{r}");
+    // The gimbal without a field of view offers no FOV space.
+    let r = stack.client(
+        "relative",
+        stack.absent,
+        ADMIN,
+        json!({ "x": 0.5, "y": 0.0, "space": FOV_SPACE }),
+    );
+    assert_eq!(fault_subcodes(&r), ["InvalidArgVal", "SpaceNotSupported"], "{r}");
+    let spaces = stack.client("relative_spaces", stack.absent, ADMIN, json!({}));
+    assert_eq!(spaces["default"], TRANSLATION_GENERIC, "{spaces}");
+    support::door::assert_still(&stack.gcud, MAST, (0.0, -20.0), "refused translations");
 }

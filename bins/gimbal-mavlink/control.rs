@@ -1,11 +1,31 @@
 //! Who may command a gimbal (Gimbal Protocol v2, "Gimbal Manager Control"):
 //! MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE sets the primary and secondary
-//! control owners (param1/2 and param3/4: a system and component id, -1
-//! leaves it, -2 sets the sender, -3 releases it if the sender holds it).
+//! control owners (param1/2 and param3/4: a system and component id).
 //! While nobody holds control any component may command; once a
-//! component holds it, commands from any other are denied, and taking
-//! control from another owner is denied until it releases (the primary
-//! owner may also clear the secondary).
+//! component holds it, commands from any other are denied.
+//!
+//! The values, as common.xml defines them and PX4 carries them out
+//! (`src/modules/gimbal/input_mavlink.cpp`,
+//! `InputMavlinkGimbalV2::_process_command`, the CONFIGURE branch):
+//! - an explicit id (1..=255 system) gives control to that component
+//!   whoever holds it: a take-over. PX4 sets it unconditionally, and
+//!   QGroundControl's "take control" and PX4's navigator
+//!   (`Navigator::acquire_gimbal_control`) send their own ids explicitly
+//!   and rely on it being accepted;
+//! - system 0 leaves nobody in control (PX4: "0: no one in control");
+//! - -1 leaves the slot unchanged;
+//! - -3 releases the slot if the sender holds it and otherwise leaves it,
+//!   accepted either way (PX4: "release control if in control"; its
+//!   navigator and follow-me send it on leaving);
+//! - -2 "set itself in control (for missions where the own sysid is still
+//!   unknown)": PX4, as the manager inside the autopilot, reads "itself"
+//!   as its own ids, which are the mission's sender's; an external manager
+//!   such as this one reads it as the sender. Unlike an explicit id it does
+//!   not take control from another holder (DENIED): a mission item must
+//!   not take the gimbal from an operator, a deliberate take-over names
+//!   its ids.
+//! - anything else (not whole, out of range): DENIED, nothing changed
+//!   (PX4 only warns and accepts; this door is honest about it).
 //!
 //! Two rules keep any one peer from locking every ground station out
 //! (issue 31): control is only given to a component that has been heard
@@ -38,27 +58,29 @@ pub enum Refused {
 /// One owner slot's request, from a pair of CONFIGURE parameters.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Slot {
+    /// -1: unchanged.
     Leave,
-    Take(Sender),
+    /// An explicit id: a take-over.
+    Give(Sender),
+    /// -2: the sender, unless another holds the slot.
+    Sender,
+    /// System 0: nobody.
+    Nobody,
+    /// -3: released if the sender holds it.
     Release,
 }
 
-fn slot(sysid: f32, compid: f32, sender: Sender) -> Result<Slot, Refused> {
+fn slot(sysid: f32, compid: f32) -> Result<Slot, Refused> {
     let whole = |v: f32| v.is_finite() && v.fract() == 0.0;
     if !whole(sysid) || !whole(compid) {
         return Err(Refused::BadParameter);
     }
-    Ok(match sysid as i64 {
-        -1 => Slot::Leave,
-        -2 => Slot::Take(sender),
-        -3 => Slot::Release,
-        s @ 0..=255 if (0.0..=255.0).contains(&compid) => {
-            if s == 0 {
-                Slot::Release
-            } else {
-                Slot::Take((s as u8, compid as u8))
-            }
-        }
+    Ok(match (sysid as i64, compid as i64) {
+        (-1, -1) => Slot::Leave,
+        (-2, -2) => Slot::Sender,
+        (-3, -3) => Slot::Release,
+        (0, 0..=255) => Slot::Nobody,
+        (s @ 1..=255, c @ 0..=255) => Slot::Give((s as u8, c as u8)),
         _ => return Err(Refused::BadParameter),
     })
 }
@@ -66,11 +88,11 @@ fn slot(sysid: f32, compid: f32, sender: Sender) -> Result<Slot, Refused> {
 /// The components a CONFIGURE from `sender` would give control to, other
 /// than `sender` itself (each must have been heard).
 pub fn named(sender: Sender, params: [f32; 4]) -> Result<Vec<Sender>, Refused> {
-    let slots = [slot(params[0], params[1], sender)?, slot(params[2], params[3], sender)?];
+    let slots = [slot(params[0], params[1])?, slot(params[2], params[3])?];
     Ok(slots
         .into_iter()
         .filter_map(|s| match s {
-            Slot::Take(who) if who != sender => Some(who),
+            Slot::Give(who) if who != sender => Some(who),
             _ => None,
         })
         .collect())
@@ -101,25 +123,28 @@ impl Control {
         }
     }
 
-    /// MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE from `sender`; all or nothing.
+    /// MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE from `sender`; all or nothing
+    /// (the rules: the module's documentation).
     pub fn configure(&mut self, sender: Sender, params: [f32; 4]) -> Result<(), Refused> {
-        let primary = slot(params[0], params[1], sender)?;
-        let secondary = slot(params[2], params[3], sender)?;
+        let primary = slot(params[0], params[1])?;
+        let secondary = slot(params[2], params[3])?;
         let mut next = *self;
         for (request, owner) in [(primary, &mut next.primary), (secondary, &mut next.secondary)] {
             match request {
                 Slot::Leave => {}
-                Slot::Take(who) => {
-                    if owner.is_some_and(|o| o != sender && o != who) {
+                Slot::Give(who) => *owner = Some(who),
+                Slot::Nobody => *owner = None,
+                Slot::Sender => {
+                    if owner.is_some_and(|o| o != sender) {
                         return Err(Refused::HeldByAnother);
                     }
-                    *owner = Some(who);
+                    *owner = Some(sender);
                 }
-                // The holder releases its slot; the primary owner may clear either.
-                Slot::Release => match owner {
-                    Some(o) if *o != sender && self.primary != Some(sender) => return Err(Refused::HeldByAnother),
-                    _ => *owner = None,
-                },
+                Slot::Release => {
+                    if *owner == Some(sender) {
+                        *owner = None;
+                    }
+                }
             }
         }
         *self = next;
@@ -240,16 +265,31 @@ mod tests {
         assert!(c.allows(GCS) && !c.allows(AUTOPILOT));
         assert_eq!(
             c.configure(AUTOPILOT, [-2.0, -2.0, -1.0, -1.0]),
-            Err(Refused::HeldByAnother)
+            Err(Refused::HeldByAnother),
+            "-2 takes no control from another holder"
         );
-        assert_eq!(
-            c.configure(AUTOPILOT, [-3.0, -3.0, -1.0, -1.0]),
-            Err(Refused::HeldByAnother)
-        );
+        // -3 from a component not in control: accepted, nothing changes (PX4).
+        c.configure(AUTOPILOT, [-3.0, -3.0, -1.0, -1.0]).unwrap();
+        assert_eq!(c.primary, Some(GCS));
         // The owner names a secondary.
         c.configure(GCS, [-1.0, -1.0, 1.0, 1.0]).unwrap();
         assert!(c.allows(AUTOPILOT));
         c.configure(GCS, [-3.0, -3.0, 0.0, 0.0]).unwrap();
+        assert_eq!(c, Control::default());
+    }
+
+    #[test]
+    fn an_explicit_id_takes_control_from_its_holder_as_px4_does() {
+        let mut c = Control::default();
+        c.configure(GCS, [-2.0, -2.0, -1.0, -1.0]).unwrap();
+        // QGroundControl's "take control", PX4's acquire_gimbal_control.
+        c.configure(AUTOPILOT, [1.0, 1.0, -1.0, -1.0]).unwrap();
+        assert_eq!(c.primary, Some(AUTOPILOT));
+        assert!(c.allows(AUTOPILOT) && !c.allows(GCS));
+        // And back; system 0 leaves nobody in control.
+        c.configure(GCS, [255.0, 190.0, -1.0, -1.0]).unwrap();
+        assert_eq!(c.primary, Some(GCS));
+        c.configure(AUTOPILOT, [0.0, 0.0, -1.0, -1.0]).unwrap();
         assert_eq!(c, Control::default());
     }
 
@@ -261,6 +301,7 @@ mod tests {
             [1.5, 1.0, -1.0, -1.0],
             [300.0, 1.0, -1.0, -1.0],
             [-7.0, 0.0, -1.0, -1.0],
+            [-2.0, -1.0, -1.0, -1.0],
             [1.0, 1.0, -1.0, f32::INFINITY],
         ] {
             assert_eq!(c.configure(GCS, bad), Err(Refused::BadParameter), "{bad:?}");

@@ -41,6 +41,8 @@ pub struct Shared {
     /// The last poll failed.
     pub unreachable: bool,
     pub control: Control,
+    /// The status streams' rates (MAV_CMD_SET_MESSAGE_INTERVAL).
+    pub rates: crate::status::Rates,
 }
 
 /// A request for one gimbal.
@@ -80,10 +82,31 @@ impl Handle {
     /// The control, with the position and reachability the session polled.
     pub fn shared(&self) -> Shared {
         let status = self.session.status();
+        let (control, rates) = {
+            let shared = self.shared.lock().unwrap_or_else(|p| p.into_inner());
+            (shared.control, shared.rates)
+        };
         Shared {
             position: status.position,
             unreachable: status.error.is_some(),
-            control: self.shared.lock().unwrap_or_else(|p| p.into_inner()).control,
+            control,
+            rates,
+        }
+    }
+
+    /// The status streams' rates.
+    pub fn rates(&self) -> crate::status::Rates {
+        self.shared.lock().unwrap_or_else(|p| p.into_inner()).rates
+    }
+
+    /// Sets the rate of status message `id` (GIMBAL_MANAGER_STATUS or
+    /// GIMBAL_DEVICE_ATTITUDE_STATUS).
+    pub fn set_rate(&self, id: u32, rate: crate::status::Rate) {
+        let rates = &mut self.shared.lock().unwrap_or_else(|p| p.into_inner()).rates;
+        if id == crate::status::MANAGER_STATUS_ID {
+            rates.manager = rate;
+        } else {
+            rates.attitude = rate;
         }
     }
 }

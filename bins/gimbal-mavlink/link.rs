@@ -63,6 +63,7 @@ const V2_MAGIC: u8 = 0xFD;
 pub const MAX_FRAME: usize = 12 + 255 + 13;
 /// The one incompatibility flag MAVLink 2 defines.
 const SIGNED: u8 = 0x01;
+const COMMAND_INT_ID: u32 = 75;
 const COMMAND_LONG_ID: u32 = 76;
 const COMMAND_ACK_ID: u32 = 77;
 
@@ -129,7 +130,7 @@ fn crc_holds(frame: &[u8]) -> bool {
 #[allow(clippy::large_enum_variant)]
 pub enum Decoded {
     Message(MavHeader, MavMessage),
-    /// A COMMAND_LONG whose command id the dialect does not know (the
+    /// A COMMAND_LONG or COMMAND_INT whose command id the dialect does not know (the
     /// `mavlink` crate refuses to read it: its command is an enum).
     UnknownCommand {
         header: MavHeader,
@@ -163,7 +164,9 @@ pub fn decode(frame: &[u8]) -> Decoded {
     let payload = &frame[header_len..header_len + len];
     match MavMessage::parse(version, id, payload) {
         Ok(message) => Decoded::Message(header, message),
-        Err(_) if id == COMMAND_LONG_ID => {
+        // COMMAND_INT has its z (param 7), command and targets where
+        // COMMAND_LONG has them.
+        Err(_) if id == COMMAND_LONG_ID || id == COMMAND_INT_ID => {
             // MAVLink 2 drops trailing zeros: read it back at full length.
             let mut p = [0u8; 33];
             let n = payload.len().min(p.len());
@@ -370,15 +373,17 @@ impl Net {
     /// For a MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE to one of our components
     /// that gives control to components never heard: that component and them.
     fn control_to_unheard(&self, sender: Sender, message: &MavMessage) -> Option<(u8, Vec<Sender>)> {
-        let MavMessage::COMMAND_LONG(c) = message else {
-            return None;
-        };
+        let c = crate::inbox::Command::of(message)?;
         if c.command != MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE {
             return None;
         }
-        let component = self.addressed(c.target_system, c.target_component, c.param7)?;
+        // To every component: the first gimbal answers the refusal.
+        let component = match (c.target_component, c.device_id()) {
+            (0, 0) if c.target_system == 0 || c.target_system == self.system_id => lock(&self.own).first().copied()?,
+            _ => self.addressed(c.target_system, c.target_component, c.param7)?,
+        };
         // Parameters that mean nothing are the gimbal's to refuse.
-        let named = control::named(sender, [c.param1, c.param2, c.param3, c.param4]).ok()?;
+        let named = control::named(sender, c.params).ok()?;
         let heard = lock(&self.heard);
         let unheard: Vec<Sender> = named.into_iter().filter(|w| !heard.knows(*w)).collect();
         (!unheard.is_empty()).then_some((component, unheard))

@@ -65,27 +65,28 @@ async fn run(config: config::Config) -> Result<(), String> {
     let handler: stream::Handler = {
         let (handles, stats, system_id) = (handles.clone(), Arc::clone(&stats), config.system_id);
         Arc::new(move |header, message| {
-            let route = inbox::route(&handles, system_id, header, &message);
-            inbox::count(&route, &stats);
-            match route {
-                inbox::Route::Gimbal(i, job) => {
-                    if handles[i].jobs.try_send(job).is_err() {
-                        let total = Stats::count(&stats.busy);
-                        if stats::may_warn("request queue full", &handles[i].config.name) {
-                            warn!(gimbal = %handles[i].config.name, total, "request queue full: request dropped");
+            for route in inbox::route(&handles, system_id, header, &message) {
+                inbox::count(&route, &stats);
+                match route {
+                    inbox::Route::Gimbal(i, job) => {
+                        if handles[i].jobs.try_send(job).is_err() {
+                            let total = Stats::count(&stats.busy);
+                            if stats::may_warn("request queue full", &handles[i].config.name) {
+                                warn!(gimbal = %handles[i].config.name, total, "request queue full: request dropped");
+                            }
                         }
                     }
-                }
-                inbox::Route::Answer(component, command, result) => {
-                    let ack = gimbal::ack(command, result, (header.system_id, header.component_id));
-                    let _ = answers.try_send((component, ack));
-                }
-                inbox::Route::Refused(i, why) => {
-                    if stats::may_warn("request refused", &handles[i].config.name) {
-                        warn!(gimbal = %handles[i].config.name, from = ?(header.system_id, header.component_id), why, "request refused");
+                    inbox::Route::Answer(component, command, result) => {
+                        let ack = gimbal::ack(command, result, (header.system_id, header.component_id));
+                        let _ = answers.try_send((component, ack));
                     }
+                    inbox::Route::Refused(i, why) => {
+                        if stats::may_warn("request refused", &handles[i].config.name) {
+                            warn!(gimbal = %handles[i].config.name, from = ?(header.system_id, header.component_id), why, "request refused");
+                        }
+                    }
+                    inbox::Route::Ignore => {}
                 }
-                inbox::Route::Ignore => {}
             }
         })
     };

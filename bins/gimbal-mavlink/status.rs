@@ -1,10 +1,13 @@
 //! What every gimbal component says on its own: HEARTBEAT (1 Hz, type
 //! gimbal), GIMBAL_MANAGER_STATUS (5 Hz, with the control owners) and
 //! GIMBAL_DEVICE_ATTITUDE_STATUS (at the configured rate, from the last
-//! `P?`, as a quaternion in MAVLink's frame: see `frames`). At each
-//! manager status it also ends the control of an owner silent for
-//! `control_lapse_ms` (so the status shows who holds control now) and writes
-//! the summaries of the throttled warnings.
+//! `P?`, as a quaternion in MAVLink's frame: see `frames`). The two status
+//! streams of each gimbal run at the interval MAV_CMD_SET_MESSAGE_INTERVAL
+//! set for it ([`Rate`]; for every asker, as the streams go to every
+//! peer), each on its own schedule so that the mean interval is the one
+//! asked for. Five times a second it also ends the control of an owner
+//! silent for `control_lapse_ms` (so the status shows who holds control
+//! now) and writes the summaries of the throttled warnings.
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -13,7 +16,7 @@ use mavlink::dialects::common::{
     GIMBAL_DEVICE_ATTITUDE_STATUS_DATA, GIMBAL_MANAGER_STATUS_DATA, GimbalDeviceErrorFlags, GimbalDeviceFlags,
     GimbalManagerFlags, HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState, MavType,
 };
-use tokio::time::MissedTickBehavior;
+use tokio::time::{Instant, MissedTickBehavior};
 use tracing::info;
 
 use crate::control::Sender;
@@ -24,6 +27,60 @@ use crate::stats;
 
 pub const HEARTBEAT: Duration = Duration::from_secs(1);
 pub const MANAGER_STATUS: Duration = Duration::from_millis(200);
+
+/// The message ids whose interval MAV_CMD_SET_MESSAGE_INTERVAL may set.
+pub const MANAGER_STATUS_ID: u32 = 281;
+pub const ATTITUDE_STATUS_ID: u32 = 285;
+/// The shortest and longest interval a stream may be set to: every status
+/// goes to every peer, so no asker makes this door send more than 50 a
+/// second per stream.
+pub const FASTEST: Duration = Duration::from_millis(20);
+pub const SLOWEST: Duration = Duration::from_secs(10);
+/// How late a new rate is noticed at most.
+const RECHECK: Duration = Duration::from_millis(50);
+
+/// A status stream's rate, as MAV_CMD_SET_MESSAGE_INTERVAL sets it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Rate {
+    /// Param 2 = 0: the configured default.
+    #[default]
+    Default,
+    /// Param 2 = -1: not sent.
+    Off,
+    /// An interval within [`FASTEST`]..=[`SLOWEST`].
+    Every(Duration),
+}
+
+impl Rate {
+    /// The rate of MAV_CMD_SET_MESSAGE_INTERVAL's param 2 (microseconds),
+    /// or None when it is none this door keeps.
+    pub fn from_interval_us(us: f32) -> Option<Self> {
+        if us == -1.0 {
+            Some(Self::Off)
+        } else if us == 0.0 {
+            Some(Self::Default)
+        } else if us.fract() == 0.0 && (FASTEST.as_micros() as f32..=SLOWEST.as_micros() as f32).contains(&us) {
+            Some(Self::Every(Duration::from_micros(us as u64)))
+        } else {
+            None
+        }
+    }
+
+    fn interval(self, default: Duration) -> Option<Duration> {
+        match self {
+            Self::Default => Some(default),
+            Self::Off => None,
+            Self::Every(d) => Some(d),
+        }
+    }
+}
+
+/// The rates of a gimbal's two status streams.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Rates {
+    pub manager: Rate,
+    pub attitude: Rate,
+}
 
 fn heartbeat() -> MavMessage {
     MavMessage::HEARTBEAT(HEARTBEAT_DATA {
@@ -99,6 +156,38 @@ fn lapse(h: &Handle, after: Duration, heard_within: impl Fn(Sender) -> bool) {
     }
 }
 
+/// When a stream of one gimbal is next due.
+#[derive(Clone, Copy, Debug)]
+struct Schedule {
+    /// The last send (its due time, so that the mean interval holds).
+    last: Instant,
+}
+
+impl Schedule {
+    /// Whether it is due at `now` for `interval` (None: off); if so, the
+    /// send is booked.
+    fn due(&mut self, interval: Option<Duration>, now: Instant) -> bool {
+        let Some(interval) = interval else {
+            self.last = now;
+            return false;
+        };
+        if now < self.last + interval {
+            return false;
+        }
+        // Behind by more than an interval (a stall): start again from now.
+        self.last = if now - (self.last + interval) > interval {
+            now
+        } else {
+            self.last + interval
+        };
+        true
+    }
+
+    fn next(&self, interval: Option<Duration>) -> Option<Instant> {
+        interval.map(|i| self.last + i)
+    }
+}
+
 /// Sends the three streams for ever.
 /// `lapse`: a control owner not heard for this long loses control.
 pub async fn run(outbox: Arc<Outbox>, handles: Vec<Handle>, attitude: Duration, lapse_after: Duration) {
@@ -108,24 +197,85 @@ pub async fn run(outbox: Arc<Outbox>, handles: Vec<Handle>, attitude: Duration, 
         i.set_missed_tick_behavior(MissedTickBehavior::Delay);
         i
     };
-    let (mut hb, mut ms, mut at) = (tick(HEARTBEAT), tick(MANAGER_STATUS), tick(attitude));
+    let (mut hb, mut housekeeping) = (tick(HEARTBEAT), tick(MANAGER_STATUS));
+    let start = Instant::now();
+    // Per gimbal: the manager status, then the attitude status.
+    let mut schedules = vec![[Schedule { last: start }, Schedule { last: start }]; handles.len()];
+    let intervals = |h: &Handle| {
+        let rates = h.rates();
+        [
+            rates.manager.interval(MANAGER_STATUS),
+            rates.attitude.interval(attitude),
+        ]
+    };
     loop {
+        let now = Instant::now();
+        let wake = handles
+            .iter()
+            .zip(&schedules)
+            .flat_map(|(h, s)| {
+                let [m, a] = intervals(h);
+                [s[0].next(m), s[1].next(a)]
+            })
+            .flatten()
+            .min()
+            .map_or(now + RECHECK, |w| w.min(now + RECHECK));
         tokio::select! {
             _ = hb.tick() => for h in &handles {
                 outbox.send(h.config.component_id, &heartbeat()).await;
             },
-            _ = ms.tick() => {
+            _ = housekeeping.tick() => {
                 stats::flush_warnings();
                 for h in &handles {
                     lapse(h, lapse_after, |who| outbox.net.heard_within(who, lapse_after));
-                    outbox.send(h.config.component_id, &manager_status(h, outbox.boot_ms())).await;
                 }
             },
-            _ = at.tick() => for h in &handles {
-                if let Some(m) = attitude_status(h, outbox.boot_ms()) {
-                    outbox.send(h.config.component_id, &m).await;
+            _ = tokio::time::sleep_until(wake) => {
+                let now = Instant::now();
+                for (h, s) in handles.iter().zip(schedules.iter_mut()) {
+                    let [m, a] = intervals(h);
+                    if s[0].due(m, now) {
+                        outbox.send(h.config.component_id, &manager_status(h, outbox.boot_ms())).await;
+                    }
+                    if s[1].due(a, now) {
+                        if let Some(msg) = attitude_status(h, outbox.boot_ms()) {
+                            outbox.send(h.config.component_id, &msg).await;
+                        }
+                    }
                 }
             },
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn message_intervals_are_read_as_common_xml_defines_them() {
+        assert_eq!(Rate::from_interval_us(-1.0), Some(Rate::Off));
+        assert_eq!(Rate::from_interval_us(0.0), Some(Rate::Default));
+        assert_eq!(
+            Rate::from_interval_us(100_000.0),
+            Some(Rate::Every(Duration::from_millis(100)))
+        );
+        for bad in [1.0, 19_999.0, 10_000_001.0, 1.5e4, f32::NAN, -2.0, 100_000.5] {
+            assert_eq!(Rate::from_interval_us(bad), None, "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_schedule_keeps_the_mean_interval_and_restarts_after_a_stall() {
+        let t0 = Instant::now();
+        let every = Some(Duration::from_millis(100));
+        let mut s = Schedule { last: t0 };
+        assert!(!s.due(every, t0 + Duration::from_millis(99)));
+        // Woken 7 ms late: the next is still due 100 ms after the first's due time.
+        assert!(s.due(every, t0 + Duration::from_millis(107)));
+        assert_eq!(s.next(every), Some(t0 + Duration::from_millis(200)));
+        assert!(s.due(every, t0 + Duration::from_millis(900)), "after a stall");
+        assert_eq!(s.next(every), Some(t0 + Duration::from_millis(1000)));
+        assert!(!s.due(None, t0 + Duration::from_secs(5)), "off");
     }
 }

@@ -89,6 +89,7 @@ struct GimbalSection {
     pan_deg: Option<Spanned<Vec<f64>>>,
     tilt_deg: Option<Spanned<Vec<f64>>>,
     zoom: Option<Spanned<bool>>,
+    fov_deg: Option<Spanned<Vec<f64>>>,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -104,6 +105,10 @@ pub struct Gimbal {
     pub tilt_deg: (f64, f64),
     /// The gimbal has a lens: zoom through `ZI`/`ZO`/`ZS`, `Zn`, `V`, `V?`.
     pub zoom: bool,
+    /// The camera's horizontal and vertical field of view, degrees: with
+    /// it, RelativeMove offers the FOV translation space (ONVIF PTZ,
+    /// "Pan/tilt Translation Space in FOV").
+    pub fov_deg: Option<(f64, f64)>,
 }
 
 /// `[http]`: the bounded listener of the gimbals' ONVIF devices. The
@@ -226,6 +231,21 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             s => s.as_ref().map(|s| s.get_ref().clone()),
         };
         let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), &key)?;
+        let fov_deg = match &g.fov_deg {
+            None => None,
+            Some(f) => match f.get_ref().as_slice() {
+                [h, v] if *h > 0.0 && *h <= 360.0 && *v > 0.0 && *v <= 180.0 => Some((*h, *v)),
+                other => {
+                    return Err(c.at(
+                        f.span(),
+                        format!("{key}.fov_deg"),
+                        format!(
+                            "expected [HORIZONTAL, VERTICAL] degrees, 0 < HORIZONTAL <= 360 and 0 < VERTICAL <= 180, found {other:?}"
+                        ),
+                    ));
+                }
+            },
+        };
         gimbals.push(Gimbal {
             name,
             address,
@@ -235,6 +255,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             tilt_deg,
             http,
             zoom: g.zoom.as_ref().is_some_and(|z| *z.get_ref()),
+            fov_deg,
         });
     }
     if gimbals.is_empty() {

@@ -25,6 +25,9 @@ const VIDEO_SOURCE: &str = "videosource1";
 
 const POSITION_SPACE: &str = "http://www.onvif.org/ver10/tptz/PanTiltSpaces/PositionGenericSpace";
 const TRANSLATION_SPACE: &str = "http://www.onvif.org/ver10/tptz/PanTiltSpaces/TranslationGenericSpace";
+/// ONVIF PTZ, "Pan/tilt Translation Space in FOV": the image centre is
+/// (0, 0), its right and top edges x = 1 and y = 1.
+const FOV_SPACE: &str = "http://www.onvif.org/ver10/tptz/PanTiltSpaces/TranslationSpaceFov";
 const VELOCITY_SPACE: &str = "http://www.onvif.org/ver10/tptz/PanTiltSpaces/VelocityGenericSpace";
 const SPEED_SPACE: &str = "http://www.onvif.org/ver10/tptz/PanTiltSpaces/GenericSpeedSpace";
 const ZOOM_POSITION_SPACE: &str = "http://www.onvif.org/ver10/tptz/ZoomSpaces/PositionGenericSpace";
@@ -58,8 +61,9 @@ pub struct Device {
 /// The PTZ spaces of a node and of its configuration options (ONVIF PTZ
 /// 5.7, generic spaces only, in the schema's order): pan/tilt position,
 /// translation and velocity over [-1, 1], speed over [0, 1]; with `zoom`,
-/// zoom position and speed over [0, 1] and velocity over [-1, 1].
-fn spaces(zoom: bool) -> String {
+/// zoom position and speed over [0, 1] and velocity over [-1, 1]; with
+/// `fov`, the FOV translation space over [-1, 1] beside the generic one.
+fn spaces(zoom: bool, fov: bool) -> String {
     let x = "<tt:XRange><tt:Min>-1</tt:Min><tt:Max>1</tt:Max></tt:XRange>";
     let unit = "<tt:XRange><tt:Min>0</tt:Min><tt:Max>1</tt:Max></tt:XRange>";
     let xy = format!("{x}<tt:YRange><tt:Min>-1</tt:Min><tt:Max>1</tt:Max></tt:YRange>");
@@ -72,10 +76,17 @@ fn spaces(zoom: bool) -> String {
     };
     format!(
         "<tt:AbsolutePanTiltPositionSpace><tt:URI>{POSITION_SPACE}</tt:URI>{xy}</tt:AbsolutePanTiltPositionSpace>{}\
-         <tt:RelativePanTiltTranslationSpace><tt:URI>{TRANSLATION_SPACE}</tt:URI>{xy}</tt:RelativePanTiltTranslationSpace>\
+         <tt:RelativePanTiltTranslationSpace><tt:URI>{TRANSLATION_SPACE}</tt:URI>{xy}</tt:RelativePanTiltTranslationSpace>{}\
          <tt:ContinuousPanTiltVelocitySpace><tt:URI>{VELOCITY_SPACE}</tt:URI>{xy}</tt:ContinuousPanTiltVelocitySpace>{}\
          <tt:PanTiltSpeedSpace><tt:URI>{SPEED_SPACE}</tt:URI>{unit}</tt:PanTiltSpeedSpace>{}",
         zoomed("AbsoluteZoomPositionSpace", ZOOM_POSITION_SPACE, unit),
+        if fov {
+            format!(
+                "<tt:RelativePanTiltTranslationSpace><tt:URI>{FOV_SPACE}</tt:URI>{xy}</tt:RelativePanTiltTranslationSpace>"
+            )
+        } else {
+            String::new()
+        },
         zoomed("ContinuousZoomVelocitySpace", ZOOM_VELOCITY_SPACE, x),
         zoomed("ZoomSpeedSpace", ZOOM_SPEED_SPACE, unit),
     )
@@ -324,12 +335,22 @@ impl Device {
         )
     }
 
+    /// The profile's default relative pan/tilt space: the FOV space when a
+    /// field of view is configured (Frigate's autotracker needs it so).
+    fn relative_space(&self) -> &'static str {
+        if self.gimbal.config.fov_deg.is_some() {
+            FOV_SPACE
+        } else {
+            TRANSLATION_SPACE
+        }
+    }
+
     fn ptz_configuration(&self, element: &str) -> String {
         format!(
             "<{element} token=\"{PTZ_CONFIG}\"><tt:Name>{}</tt:Name><tt:UseCount>1</tt:UseCount>\
              <tt:NodeToken>{NODE}</tt:NodeToken>\
              <tt:DefaultAbsolutePantTiltPositionSpace>{POSITION_SPACE}</tt:DefaultAbsolutePantTiltPositionSpace>{}\
-             <tt:DefaultRelativePanTiltTranslationSpace>{TRANSLATION_SPACE}</tt:DefaultRelativePanTiltTranslationSpace>\
+             <tt:DefaultRelativePanTiltTranslationSpace>{}</tt:DefaultRelativePanTiltTranslationSpace>\
              <tt:DefaultContinuousPanTiltVelocitySpace>{VELOCITY_SPACE}</tt:DefaultContinuousPanTiltVelocitySpace>{}\
              <tt:DefaultPTZSpeed><tt:PanTilt x=\"1\" y=\"1\" space=\"{SPEED_SPACE}\"/>{}</tt:DefaultPTZSpeed>\
              <tt:DefaultPTZTimeout>PT{}S</tt:DefaultPTZTimeout>\
@@ -340,6 +361,7 @@ impl Device {
             self.zoomed(&format!(
                 "<tt:DefaultAbsoluteZoomPositionSpace>{ZOOM_POSITION_SPACE}</tt:DefaultAbsoluteZoomPositionSpace>"
             )),
+            self.relative_space(),
             self.zoomed(&format!(
                 "<tt:DefaultContinuousZoomVelocitySpace>{ZOOM_VELOCITY_SPACE}</tt:DefaultContinuousZoomVelocitySpace>"
             )),
@@ -427,7 +449,7 @@ impl Device {
              <tt:SupportedPTZSpaces>{}</tt:SupportedPTZSpaces><tt:MaximumNumberOfPresets>256</tt:MaximumNumberOfPresets>\
              <tt:HomeSupported>true</tt:HomeSupported>",
             esc(&self.gimbal.config.name),
-            spaces(self.gimbal.config.zoom)
+            spaces(self.gimbal.config.zoom, self.gimbal.config.fov_deg.is_some())
         )
     }
 
@@ -479,7 +501,7 @@ impl Device {
                         "<tptz:GetConfigurationOptionsResponse><tptz:PTZConfigurationOptions><tt:Spaces>{}</tt:Spaces>\
                          <tt:PTZTimeout><tt:Min>PT0.1S</tt:Min><tt:Max>PT{}S</tt:Max></tt:PTZTimeout>\
                          </tptz:PTZConfigurationOptions></tptz:GetConfigurationOptionsResponse>",
-                        spaces(self.gimbal.config.zoom),
+                        spaces(self.gimbal.config.zoom, self.gimbal.config.fov_deg.is_some()),
                         g.max_move().as_secs_f64()
                     )
                 }
@@ -597,15 +619,40 @@ impl Device {
                     generic(t, "x", "Translation PanTilt")?.unwrap_or(0.0),
                     generic(t, "y", "Translation PanTilt")?.unwrap_or(0.0),
                 );
+                // The space named, else the profile's default; one the node
+                // does not offer is refused, never read as another.
+                let space = t.attr("space").map(str::trim).unwrap_or(self.relative_space());
+                let fov = match (space, g.config.fov_deg) {
+                    (TRANSLATION_SPACE, _) => None,
+                    (FOV_SPACE, Some(fov)) => Some(fov),
+                    (other, _) => {
+                        return Err(Fault::invalid_arg(
+                            "ter:SpaceNotSupported",
+                            format!(
+                                "Translation PanTilt space {other:?} is not offered by this node (GetNode lists its spaces)"
+                            ),
+                        ));
+                    }
+                };
                 let now_at = g.position().await.map_err(gimbal_fault)?;
-                let x = to_generic(f64::from(now_at.pan.degrees()), g.config.pan_deg) + dx;
-                let y = to_generic(f64::from(now_at.tilt.degrees()), g.config.tilt_deg) + dy;
-                g.go_to(
-                    to_degrees(x.clamp(-1.0, 1.0), g.config.pan_deg),
-                    to_degrees(y.clamp(-1.0, 1.0), g.config.tilt_deg),
-                )
-                .await
-                .map_err(gimbal_fault)?;
+                let (pan_now, tilt_now) = (f64::from(now_at.pan.degrees()), f64::from(now_at.tilt.degrees()));
+                let (pan, tilt) = match fov {
+                    // x = 1 is the image's right edge: half the field of view
+                    // from its centre (linear in the angle: no lens modelled).
+                    Some((h, v)) => (
+                        (pan_now + dx * h / 2.0).clamp(g.config.pan_deg.0, g.config.pan_deg.1),
+                        (tilt_now + dy * v / 2.0).clamp(g.config.tilt_deg.0, g.config.tilt_deg.1),
+                    ),
+                    None => {
+                        let x = to_generic(pan_now, g.config.pan_deg) + dx;
+                        let y = to_generic(tilt_now, g.config.tilt_deg) + dy;
+                        (
+                            to_degrees(x.clamp(-1.0, 1.0), g.config.pan_deg),
+                            to_degrees(y.clamp(-1.0, 1.0), g.config.tilt_deg),
+                        )
+                    }
+                };
+                g.go_to(pan, tilt).await.map_err(gimbal_fault)?;
                 "<tptz:RelativeMoveResponse/>".to_owned()
             }
             "Stop" => {

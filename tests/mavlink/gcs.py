@@ -86,6 +86,100 @@ def command(m, cmd, params, component=GIMBAL):
     return ack(m, cmd, component)
 
 
+def command_int(m, cmd, params, component=GIMBAL):
+    """`cmd` as COMMAND_INT (as MAVSDK and ArduPilot send it): params 1-4,
+    x and y (integers) for params 5 and 6, z for param 7; the ACK's result."""
+    p = list(params) + [0.0] * (7 - len(params))
+    m.mav.command_int_send(1, component, mavlink.MAV_FRAME_GLOBAL, cmd, 0, 0, p[0], p[1], p[2], p[3], int(p[4]),
+                           int(p[5]), p[6])
+    return ack(m, cmd, component)
+
+
+def step_command_int(m, a):
+    """One COMMAND_INT with `id` and `params` (7, param 5 and 6 integers), the ACK's result."""
+    nan = float("nan")
+    params = [nan if v is None else v for v in a.get("params", [])]
+    return {"result": command_int(m, a["id"], params, a.get("component", GIMBAL))}
+
+
+def step_broadcast(m, a):
+    """COMMAND_LONG `id` with `params` to component 0 (every component, as
+    MAVProxy sends before it has seen the gimbal): the result each
+    component answered with, by component id, within `listen_s`."""
+    nan = float("nan")
+    p = [nan if v is None else v for v in a.get("params", [])]
+    p = p + [0.0] * (7 - len(p))
+    if a.get("int"):
+        m.mav.command_int_send(1, 0, mavlink.MAV_FRAME_GLOBAL, a["id"], 0, 0, p[0], p[1], p[2], p[3], int(p[4]),
+                               int(p[5]), p[6])
+    else:
+        m.mav.command_long_send(1, 0, a["id"], 0, *p)
+    end = time.monotonic() + a.get("listen_s", 4.0)
+    results = {}
+    while time.monotonic() < end:
+        msg = m.recv_match(type="COMMAND_ACK", blocking=True, timeout=0.1)
+        if msg is not None and msg.command == a["id"]:
+            results.setdefault(str(msg.get_srcComponent()), []).append(msg.result)
+    return {"results": results}
+
+
+def step_device_set_attitude(m, a):
+    """GIMBAL_DEVICE_SET_ATTITUDE (as ArduPilot, the gimbal manager, drives
+    a gimbal device) of (pitch, yaw) degrees with `flags`, sent `count` times."""
+    q = [float(x) for x in QuaternionBase([0.0, math.radians(a["pitch"]), math.radians(a["yaw"])]).q]
+    for _ in range(a.get("count", 1)):
+        m.mav.gimbal_device_set_attitude_send(1, a.get("component", GIMBAL), a.get("flags", 0), q, nan_(), nan_(),
+                                              nan_())
+        time.sleep(0.05)
+    return {"q": q}
+
+
+def step_manual(m, a):
+    """GIMBAL_MANAGER_SET_MANUAL_CONTROL (unitless -1..1) sent `count` times every `every_s`."""
+    nan = float("nan")
+    for _ in range(a.get("count", 1)):
+        m.mav.gimbal_manager_set_manual_control_send(1, a.get("component", GIMBAL), a.get("flags", 0), 0,
+                                                     a.get("pitch", nan), a.get("yaw", nan),
+                                                     a.get("pitch_rate", nan), a.get("yaw_rate", nan))
+        time.sleep(a.get("every_s", 0.0))
+    return {"sent": a.get("count", 1)}
+
+
+def step_interval(m, a):
+    """MAV_CMD_SET_MESSAGE_INTERVAL of message `id` to `us`, its ACK; then
+    the mean interval (ms) between the next `count` messages of that id,
+    by the gimbal's own time_boot_ms (what the door meant to send, not
+    when this machine's scheduler let us read it), and how many came in
+    `listen_s` when the stream is off."""
+    name = {281: "GIMBAL_MANAGER_STATUS", 285: "GIMBAL_DEVICE_ATTITUDE_STATUS"}.get(a["id"])
+    result = command(m, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, [a["id"], a["us"]])
+    out = {"result": result}
+    if result != mavlink.MAV_RESULT_ACCEPTED or name is None:
+        return out
+    # Drop what was sent before the change took effect.
+    time.sleep(0.5)
+    while m.recv_match(type=name, blocking=False) is not None:
+        pass
+    if a["us"] == -1:
+        end, seen = time.monotonic() + a.get("listen_s", 2.0), 0
+        while time.monotonic() < end:
+            msg = m.recv_match(type=name, blocking=True, timeout=0.1)
+            if msg is not None and msg.get_srcComponent() == GIMBAL:
+                seen += 1
+        out["seen"] = seen
+        return out
+    stamps = []
+    end = time.monotonic() + WAIT_S
+    while len(stamps) < a.get("count", 20) and time.monotonic() < end:
+        msg = m.recv_match(type=name, blocking=True, timeout=0.2)
+        if msg is not None and msg.get_srcComponent() == GIMBAL:
+            stamps.append(msg.time_boot_ms)
+    if len(stamps) >= 2:
+        out["mean_ms"] = (stamps[-1] - stamps[0]) / (len(stamps) - 1)
+    out["count"] = len(stamps)
+    return out
+
+
 def step_heartbeat(m, a):
     hb = wait(m, "HEARTBEAT", component=a.get("component", GIMBAL))
     if hb is None:
@@ -110,17 +204,18 @@ def step_info(m, a):
 def step_pitchyaw(m, a):
     """MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW (degrees), the ACK's result."""
     nan = float("nan")
-    p = [a.get("pitch", nan), a.get("yaw", nan), a.get("pitch_rate", nan), a.get("yaw_rate", nan), 0, 0,
-         a.get("device", 0)]
+    p = [a.get("pitch", nan), a.get("yaw", nan), a.get("pitch_rate", nan), a.get("yaw_rate", nan),
+         a.get("flags", 0), 0, a.get("device", 0)]
     return {"result": command(m, mavlink.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, p, a.get("component", GIMBAL))}
 
 
 def step_set_pitchyaw(m, a):
-    """GIMBAL_MANAGER_SET_PITCHYAW (radians) sent `count` times every `every_s`."""
+    """GIMBAL_MANAGER_SET_PITCHYAW (radians) sent `count` times every `every_s`, with `flags`."""
     nan = float("nan")
     rad = lambda k: math.radians(a[k]) if k in a else nan
     for _ in range(a.get("count", 1)):
-        m.mav.gimbal_manager_set_pitchyaw_send(1, a.get("component", GIMBAL), 0, 0, rad("pitch"), rad("yaw"),
+        m.mav.gimbal_manager_set_pitchyaw_send(1, a.get("component", GIMBAL), a.get("flags", 0), 0, rad("pitch"),
+                                               rad("yaw"),
                                                rad("pitch_rate"), rad("yaw_rate"))
         time.sleep(a.get("every_s", 0.0))
     return {"sent": a.get("count", 1)}

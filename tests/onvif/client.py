@@ -141,6 +141,29 @@ async def step(name, host, port, user, password, args):
             }
         if name == "status":
             return status_of(await ptz.GetStatus({"ProfileToken": token}))
+        if name == "relative_spaces":
+            # What Frigate's autotracker checks before it can be switched on:
+            # the FOV space among the node's and the options' relative spaces,
+            # and the profile's default relative space.
+            nodes = await ptz.GetNodes()
+            options = await ptz.GetConfigurationOptions({"ConfigurationToken": profiles[0].PTZConfiguration.token})
+
+            def ranges(spaces):
+                return [{"uri": sp.URI, "x": [sp.XRange.Min, sp.XRange.Max], "y": [sp.YRange.Min, sp.YRange.Max]}
+                        for sp in spaces.RelativePanTiltTranslationSpace]
+            return {
+                "node": ranges(nodes[0].SupportedPTZSpaces),
+                "options": ranges(options.Spaces),
+                "default": profiles[0].PTZConfiguration.DefaultRelativePanTiltTranslationSpace,
+            }
+        if name == "relative":
+            translation = {"PanTilt": {"x": args["x"], "y": args["y"]}}
+            if args.get("space"):
+                translation["PanTilt"]["space"] = args["space"]
+            moved = await attempt(ptz.RelativeMove({"ProfileToken": token, "Translation": translation}))
+            if "ok" not in moved:
+                return moved
+            return {"ok": True, "status": await wait_idle(ptz, token)}
         if name == "continuous":
             req = {"ProfileToken": token, "Velocity": pan_tilt_of(args)}
             if args.get("zoom") is not None:
