@@ -133,7 +133,7 @@ pub fn spawn(
 ) -> (Handle, tokio::task::JoinHandle<()>) {
     let (tx, rx) = mpsc::channel(QUEUE);
     let shared = Arc::new(Mutex::new(Shared::default()));
-    let (session, _) = GimbalSession::start(
+    let session = GimbalSession::start(
         SessionConfig {
             gcud: config.gcud.clone(),
             from: config.source_group,
@@ -341,16 +341,7 @@ impl Task {
         let max_dps = self.config.max_rate_dps;
         let rates = match plan {
             Plan::Rates { pan, tilt } => {
-                let drive = |rate: f64| {
-                    let speed = motion::speed_for(rate, max_dps);
-                    if rate == 0.0 {
-                        Drive::Stop
-                    } else if rate > 0.0 {
-                        Drive::Forward(speed)
-                    } else {
-                        Drive::Back(speed)
-                    }
-                };
+                let drive = |rate: f64| Drive::signed(rate, |r| motion::speed_for(r, max_dps));
                 let velocity = Velocity {
                     pan: pan.map(drive),
                     tilt: tilt.map(drive),

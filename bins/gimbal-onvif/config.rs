@@ -9,7 +9,8 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use sagebrush_client::config_file::{ConfigError, Int, Millis, Source, listeners_clash};
-use sagebrush_client::door_config::UserSection;
+pub use sagebrush_client::door_config::HttpBounds;
+use sagebrush_client::door_config::{HttpSection, UserSection};
 pub use sagebrush_client::door_config::{Role, User};
 use sagebrush_protocol::Address;
 use serde::Deserialize;
@@ -55,21 +56,6 @@ struct DiscoverySection {
 
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct HttpSection {
-    #[serde(default)]
-    max_connections: Int<usize, 1, 100_000, 512>,
-    #[serde(default)]
-    max_connections_per_peer: Int<usize, 1, 100_000, 64>,
-    #[serde(default)]
-    header_timeout_ms: Millis<100, 600_000, 5000>,
-    #[serde(default)]
-    body_timeout_ms: Millis<100, 600_000, 10_000>,
-    #[serde(default)]
-    idle_timeout_ms: Millis<1000, 3_600_000, 60_000>,
-}
-
-#[derive(Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
 struct AuthSection {
     #[serde(default)]
     requests_per_s: Int<u32, 1, 1_000_000, 20>,
@@ -109,17 +95,6 @@ pub struct Gimbal {
     /// it, RelativeMove offers the FOV translation space (ONVIF PTZ,
     /// "Pan/tilt Translation Space in FOV").
     pub fov_deg: Option<(f64, f64)>,
-}
-
-/// `[http]`: the bounded listener of the gimbals' ONVIF devices. The
-/// connection caps hold for all the devices together (one table).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct HttpBounds {
-    pub max_connections: usize,
-    pub max_connections_per_peer: usize,
-    pub header_timeout: Duration,
-    pub body_timeout: Duration,
-    pub idle_timeout: Duration,
 }
 
 /// `[auth]`: what one user may make the door spend, and the replay memory.
@@ -198,13 +173,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             answers_per_source_per_s: raw.discovery.answers_per_source_per_s.get(),
         }),
     };
-    let http = HttpBounds {
-        max_connections: raw.http.max_connections.get(),
-        max_connections_per_peer: raw.http.max_connections_per_peer.get(),
-        header_timeout: raw.http.header_timeout_ms.duration(),
-        body_timeout: raw.http.body_timeout_ms.duration(),
-        idle_timeout: raw.http.idle_timeout_ms.duration(),
-    };
+    let http = raw.http.bounds();
     let state_file = c.state_file(raw.state_file.as_ref())?;
     let users = c.users(&raw.users)?;
     let mut gimbals: Vec<Gimbal> = Vec::new();

@@ -34,17 +34,6 @@ pub fn lens_speed_of(velocity: f64) -> LensSpeed {
     LensSpeed::new(n).unwrap_or(LensSpeed::new(9).expect("in range"))
 }
 
-/// A generic velocity as a drive: 0 stops, the sign is the direction.
-fn drive<S>(v: f64, speed: impl Fn(f64) -> S) -> Drive<S> {
-    if v == 0.0 {
-        Drive::Stop
-    } else if v > 0.0 {
-        Drive::Forward(speed(v))
-    } else {
-        Drive::Back(speed(v))
-    }
-}
-
 /// The lens's zoom range (Table 17, 12 bits) as ONVIF's generic 0..=1.
 pub const ZOOM_MAX: f64 = 4095.0;
 
@@ -61,7 +50,7 @@ impl Gimbal {
     /// The gimbal and its session (started here; `reach` is shared by
     /// every gimbal of this door).
     pub fn new(config: config::Gimbal, link: &config::Config, reach: Arc<GcudReachability>) -> Arc<Self> {
-        let (session, _task) = GimbalSession::start(
+        let session = GimbalSession::start(
             SessionConfig {
                 gcud: link.gcud.clone(),
                 from: link.source_group,
@@ -167,9 +156,9 @@ impl Gimbal {
         timeout: Option<Duration>,
     ) -> Result<(), CommandError> {
         let velocity = Velocity {
-            pan: pan.map(|v| drive(v, speed_of)),
-            tilt: tilt.map(|v| drive(v, speed_of)),
-            zoom: zoom.map(|v| drive(v, lens_speed_of)),
+            pan: pan.map(|v| Drive::signed(v, speed_of)),
+            tilt: tilt.map(|v| Drive::signed(v, speed_of)),
+            zoom: zoom.map(|v| Drive::signed(v, lens_speed_of)),
         };
         self.session.velocity(velocity, timeout, "ONVIF ContinuousMove").await
     }

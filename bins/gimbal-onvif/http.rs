@@ -20,11 +20,10 @@ use axum::http::{HeaderMap, StatusCode, Uri, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::post;
 use sagebrush_listener::rate::LogGate;
-use sagebrush_listener::{BoundedListener, Connections, HttpLimits, Limits, Local, Peer};
+use sagebrush_listener::{BoundedListener, Connections, Local, Peer};
 use tokio::sync::Semaphore;
 use tracing::{debug, info, warn};
 
-use crate::config::HttpBounds;
 use crate::onvif::{Device, Origin};
 use crate::soap::Fault;
 
@@ -39,18 +38,6 @@ pub const REQUEST_TIMEOUT: Duration = Duration::from_secs(30);
 pub const FAILED_LOGIN_LOG_EVERY: Duration = Duration::from_secs(10);
 /// Peers remembered for that at most.
 const LOGGED_PEERS: usize = 1024;
-
-/// The admission table every gimbal's device shares (the caps are for all
-/// of them together), from `[http]`.
-pub fn table(bounds: &HttpBounds) -> Arc<Connections> {
-    Connections::new(Limits {
-        max_total: bounds.max_connections,
-        max_per_peer: bounds.max_connections_per_peer,
-        // A door faces the LAN: every address is its own peer, loopback too.
-        cap_loopback: true,
-        idle_timeout: bounds.idle_timeout,
-    })
-}
 
 #[derive(Debug, Clone)]
 struct Served {
@@ -168,11 +155,7 @@ pub async fn bind(
         .route("/onvif/ptz_service", post(soap))
         .layer(DefaultBodyLimit::max(MAX_BODY))
         .with_state(served);
-    let limits = HttpLimits {
-        header_timeout: bounds.header_timeout,
-        body_timeout: bounds.body_timeout,
-        ..HttpLimits::default()
-    };
+    let limits = bounds.limits();
     let listener = BoundedListener::new(listener, table, format!("gimbal {device_name}"));
     info!(gimbal = %device_name, addr = %local, "ONVIF device listening");
     Ok((local, async move {

@@ -35,7 +35,7 @@ async fn run(config: config::Config) -> Result<(), String> {
     let mut tasks = tokio::task::JoinSet::new();
     let reach = Arc::new(sagebrush_client::session::GcudReachability::default());
     // One admission table for every gimbal's device: the caps are for all.
-    let table = config.gimbals.first().map(|g| http::table(&g.http));
+    let table = config.gimbals.first().map(|g| g.http.table());
     for g in &config.gimbals {
         let gimbal = gimbal::Gimbal::new(g.clone(), &config, Arc::clone(&reach));
         let device = onvif::Device {

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use sagebrush_client::config_file::{ConfigError, Int, Millis, Source};
-use sagebrush_client::door_config::UserSection;
+use sagebrush_client::door_config::{HttpBounds, HttpSection, UserSection};
 pub use sagebrush_client::door_config::{Role, User};
 use sagebrush_protocol::Address;
 use serde::Deserialize;
@@ -44,21 +44,6 @@ struct ConfigFile {
     gimbals: Vec<GimbalSection>,
 }
 
-#[derive(Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct HttpSection {
-    #[serde(default)]
-    max_connections: Int<usize, 1, 100_000, 256>,
-    #[serde(default)]
-    max_connections_per_peer: Int<usize, 1, 100_000, 32>,
-    #[serde(default)]
-    header_timeout_ms: Millis<100, 600_000, 5000>,
-    #[serde(default)]
-    body_timeout_ms: Millis<100, 600_000, 10_000>,
-    #[serde(default)]
-    idle_timeout_ms: Millis<1000, 3_600_000, 60_000>,
-}
-
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct GimbalSection {
@@ -75,16 +60,6 @@ pub struct Gimbal {
     /// The travel the page's picture draws, degrees.
     pub pan_deg: (f64, f64),
     pub tilt_deg: (f64, f64),
-}
-
-/// `[http]`: the bounds of the page's listener.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct HttpBounds {
-    pub max_connections: usize,
-    pub max_connections_per_peer: usize,
-    pub header_timeout: Duration,
-    pub body_timeout: Duration,
-    pub idle_timeout: Duration,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -162,13 +137,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         sign_in: Duration::from_secs(raw.sign_in_hours.get() * 3600),
         max_sign_ins: raw.max_sign_ins.get(),
         secure_cookie: raw.secure_cookie,
-        http: HttpBounds {
-            max_connections: raw.http.max_connections.get(),
-            max_connections_per_peer: raw.http.max_connections_per_peer.get(),
-            header_timeout: raw.http.header_timeout_ms.duration(),
-            body_timeout: raw.http.body_timeout_ms.duration(),
-            idle_timeout: raw.http.idle_timeout_ms.duration(),
-        },
+        http: raw.http.bounds(),
         users,
         gimbals,
     })

@@ -32,7 +32,7 @@ async fn run(config: config::Config) -> Result<(), String> {
         .gimbals
         .iter()
         .map(|g| {
-            let (session, _task) = GimbalSession::start(
+            let session = GimbalSession::start(
                 SessionConfig {
                     gcud: config.gcud.clone(),
                     from: config.source_group,

@@ -36,7 +36,7 @@ use sagebrush_client::connection::proportional_speed;
 use sagebrush_client::presets::{self, Presets};
 use sagebrush_client::session::{Axes, Drive, GimbalSession, Motion, Velocity};
 use sagebrush_listener::rate::{KeyedBuckets, LogGate};
-use sagebrush_listener::{BoundedListener, Connections, HttpLimits, Limits, Peer};
+use sagebrush_listener::{BoundedListener, Peer};
 use sagebrush_protocol::{Angle, Command, Position};
 use serde::Deserialize;
 use serde_json::{Value, json};
@@ -328,12 +328,9 @@ struct MoveBody {
     speed: f64,
 }
 
+/// A button's direction (-1, 0, 1) at `speed` (0..=1): 0 leaves the axis alone.
 fn drive(sign: i8, speed: f64) -> Option<Drive<sagebrush_protocol::Speed>> {
-    match sign {
-        0 => None,
-        s if s > 0 => Some(Drive::Forward(proportional_speed(speed))),
-        _ => Some(Drive::Back(proportional_speed(speed))),
-    }
+    (sign != 0).then(|| Drive::signed(f64::from(sign), |_| proportional_speed(speed)))
 }
 
 async fn do_move(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
@@ -493,19 +490,8 @@ pub async fn bind(
         .fallback(not_found)
         .layer(DefaultBodyLimit::max(MAX_BODY))
         .with_state(web);
-    let table = Connections::new(Limits {
-        max_total: config.http.max_connections,
-        max_per_peer: config.http.max_connections_per_peer,
-        // The page faces the LAN: every address is its own peer, loopback too.
-        cap_loopback: true,
-        idle_timeout: config.http.idle_timeout,
-    });
-    let limits = HttpLimits {
-        header_timeout: config.http.header_timeout,
-        body_timeout: config.http.body_timeout,
-        ..HttpLimits::default()
-    };
-    let listener = BoundedListener::new(listener, table, "gimbal-web");
+    let listener = BoundedListener::new(listener, config.http.table(), "gimbal-web");
+    let limits = config.http.limits();
     info!(addr = %local, "page listening");
     Ok((local, sagebrush_listener::serve_http(listener, limits, app)))
 }

@@ -1,15 +1,21 @@
 //! The configuration pieces every front door with users shares
 //! (gimbal-onvif, gimbal-web): the `[[user]]` tables with their roles and
-//! passwords (inline or in a file beside the configuration), and the state
+//! passwords (inline or in a file beside the configuration), the state
 //! file the door keeps its preset names in, each validated at its place as
-//! [`crate::config_file`] does.
+//! [`crate::config_file`] does, and `[http]`, the bounds of the door's
+//! listener on the LAN (`sagebrush_listener`).
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Duration;
+
+use sagebrush_listener::{Connections, HttpLimits, Limits};
 
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::config_file::{ConfigError, Source};
+use crate::config_file::Int;
+use crate::config_file::{ConfigError, Millis, Source};
 
 /// One `[[user]]` table, as written.
 #[derive(Debug, Deserialize)]
@@ -167,5 +173,66 @@ impl Source<'_> {
             return Err(self.at(span, key, format!("{}: is a folder, expected a file", path.display())));
         }
         Ok(Some(path))
+    }
+}
+
+/// `[http]`, as written: the bounds of a door's listener on the LAN.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HttpSection {
+    #[serde(default)]
+    max_connections: Int<usize, 1, 100_000, 512>,
+    #[serde(default)]
+    max_connections_per_peer: Int<usize, 1, 100_000, 64>,
+    #[serde(default)]
+    header_timeout_ms: Millis<100, 600_000, 5000>,
+    #[serde(default)]
+    body_timeout_ms: Millis<100, 600_000, 10_000>,
+    #[serde(default)]
+    idle_timeout_ms: Millis<1000, 3_600_000, 60_000>,
+}
+
+impl HttpSection {
+    /// The bounds it sets.
+    pub fn bounds(&self) -> HttpBounds {
+        HttpBounds {
+            max_connections: self.max_connections.get(),
+            max_connections_per_peer: self.max_connections_per_peer.get(),
+            header_timeout: self.header_timeout_ms.duration(),
+            body_timeout: self.body_timeout_ms.duration(),
+            idle_timeout: self.idle_timeout_ms.duration(),
+        }
+    }
+}
+
+/// `[http]`: the bounds of a door's listener on the LAN.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HttpBounds {
+    pub max_connections: usize,
+    pub max_connections_per_peer: usize,
+    pub header_timeout: Duration,
+    pub body_timeout: Duration,
+    pub idle_timeout: Duration,
+}
+
+impl HttpBounds {
+    /// The admission table of these bounds. A door faces the LAN: every
+    /// address is its own peer, loopback too.
+    pub fn table(&self) -> Arc<Connections> {
+        Connections::new(Limits {
+            max_total: self.max_connections,
+            max_per_peer: self.max_connections_per_peer,
+            cap_loopback: true,
+            idle_timeout: self.idle_timeout,
+        })
+    }
+
+    /// The HTTP time-outs of these bounds (buffers at the listener's defaults).
+    pub fn limits(&self) -> HttpLimits {
+        HttpLimits {
+            header_timeout: self.header_timeout,
+            body_timeout: self.body_timeout,
+            ..HttpLimits::default()
+        }
     }
 }

@@ -81,6 +81,18 @@ pub enum Drive<S> {
 }
 
 impl<S: Copy> Drive<S> {
+    /// The drive of a signed velocity or rate `v` (0 stops, positive is
+    /// forward), at `speed(v)` (the door's mapping of |v| to Table 11/16).
+    pub fn signed(v: f64, speed: impl FnOnce(f64) -> S) -> Self {
+        if v == 0.0 {
+            Drive::Stop
+        } else if v > 0.0 {
+            Drive::Forward(speed(v))
+        } else {
+            Drive::Back(speed(v))
+        }
+    }
+
     fn speed(self) -> Option<S> {
         match self {
             Drive::Stop => None,
@@ -444,7 +456,8 @@ impl std::fmt::Debug for GimbalSession {
 
 impl GimbalSession {
     /// Starts the session's task; `reach` is shared by the door's sessions.
-    pub fn start(config: SessionConfig, reach: Arc<GcudReachability>) -> (Arc<Self>, tokio::task::JoinHandle<()>) {
+    /// The task ends after [`GimbalSession::shutdown`].
+    pub fn start(config: SessionConfig, reach: Arc<GcudReachability>) -> Arc<Self> {
         let connection = GimbalConnection::new(&config.gcud, config.from, config.address, config.nic_window);
         let session = Arc::new(Self {
             config,
@@ -452,8 +465,8 @@ impl GimbalSession {
             wake: Notify::new(),
             reach,
         });
-        let task = tokio::spawn(Arc::clone(&session).run(connection));
-        (session, task)
+        tokio::spawn(Arc::clone(&session).run(connection));
+        session
     }
 
     fn state(&self) -> MutexGuard<'_, State> {
