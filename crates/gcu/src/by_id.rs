@@ -30,6 +30,11 @@ impl<V> ById<V> {
         Some(self.entries.remove(at).1)
     }
 
+    pub fn get(&self, id: &CommandId) -> Option<&V> {
+        let at = self.entries.binary_search_by_key(id, |(k, _)| *k).ok()?;
+        Some(&self.entries[at].1)
+    }
+
     pub fn get_mut(&mut self, id: &CommandId) -> Option<&mut V> {
         let at = self.entries.binary_search_by_key(id, |(k, _)| *k).ok()?;
         Some(&mut self.entries[at].1)

@@ -4,10 +4,12 @@
 //! (milliseconds in `gcud`).
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 use sagebrush_protocol::link::{TransactionPolicy, silence_ms, wire_ms};
 use sagebrush_protocol::{DataRate, Identity, MCU_GROUP, WILDCARD};
 
+use crate::govern::rules::Governance;
 use crate::types::LinkId;
 
 sagebrush_protocol::code_table! {
@@ -63,6 +65,13 @@ pub struct LinkConfig {
     /// upstream that names the listener reaches its newest live connection,
     /// so a GCU that dials in can be routed to.
     pub listener: Option<LinkId>,
+    /// The configured link's name: every connection accepted on one
+    /// listener is the same link to the governance (control is held by a
+    /// link, not a connection). `None`: this link alone.
+    pub name: Option<Arc<str>>,
+    /// 0..=100: a link of higher priority takes control of a gimbal from a
+    /// lower one (ARCHITECTURE "Governance").
+    pub priority: u8,
 }
 
 impl LinkConfig {
@@ -74,6 +83,8 @@ impl LinkConfig {
             lossless: false,
             motion_lease: None,
             listener: None,
+            name: None,
+            priority: crate::govern::rules::DEFAULT_PRIORITY,
         }
     }
 }
@@ -273,6 +284,8 @@ pub struct RouterConfig {
     /// Where frames for unknown groups go. When `None` or down: the up
     /// link of kind [`LinkKind::Upstream`] with the lowest id.
     pub default_upstream: Option<LinkId>,
+    /// Control, limits, zones, tours and park (ARCHITECTURE "Governance").
+    pub governance: Governance,
 }
 
 impl RouterConfig {
@@ -285,6 +298,7 @@ impl RouterConfig {
             links: LinkSettings::default(),
             static_routes: BTreeMap::new(),
             default_upstream: None,
+            governance: Governance::default(),
         }
     }
 
@@ -335,7 +349,7 @@ impl RouterConfig {
         if let Some(&group) = self.static_routes.keys().find(|&&g| g == self.group || g == WILDCARD) {
             return Err(ConfigError::StaticRoute(group));
         }
-        Ok(())
+        self.governance.validate(&self.ports)
     }
 }
 
@@ -362,6 +376,8 @@ pub enum ConfigError {
     StaticRoute(u8),
     /// A setting that a running router cannot change (see [`crate::Router::reconfigure`]).
     NotReloadable(&'static str),
+    /// A governance rule that cannot hold (ARCHITECTURE "Governance"), said in full.
+    Governance(String),
 }
 
 impl std::fmt::Display for ConfigError {
@@ -377,6 +393,7 @@ impl std::fmt::Display for ConfigError {
             ConfigError::Zero(what) => write!(f, "{what} must not be zero"),
             ConfigError::StaticRoute(g) => write!(f, "static route for group {g} (own group or wildcard)"),
             ConfigError::NotReloadable(what) => write!(f, "{what} cannot change while running: restart instead"),
+            ConfigError::Governance(what) => f.write_str(what),
         }
     }
 }

@@ -101,6 +101,12 @@ impl DeadMan {
         self.take(|dest, _| dest.port == port)
     }
 
+    /// Motions on `port`.`device` owned by links other than `except` (a
+    /// take-over): the stops to issue.
+    pub fn take_device(&mut self, port: u8, device: u8, except: LinkId) -> Vec<OwnedStop> {
+        self.take(|dest, owner| dest.port == port && dest.device == device && owner.link != except)
+    }
+
     /// Motions whose lease ran out by `now`: the stops to issue.
     pub fn expired(&mut self, now: u64) -> Vec<OwnedStop> {
         self.take(|_, owner| owner.expires().is_some_and(|t| now >= t))

@@ -133,6 +133,7 @@ mod by_id;
 mod command;
 mod config;
 mod deadman;
+mod govern;
 mod line;
 mod link;
 mod outbox;
@@ -145,6 +146,10 @@ mod stats;
 mod types;
 
 pub use boundary::{Action, Input};
+pub use govern::rules::{
+    DEFAULT_PRIORITY, GimbalRules, Governance, HOLD_MS, MAX_PRIORITY, Park, Span, TourConfig, TourStep, TourTarget, Zone,
+};
+pub use govern::{GimbalControl, GovernStats, Holder, TourState, TourStatus};
 pub use config::{ConfigError, LinkConfig, LinkKind, LinkSettings, PortConfig, RouterConfig, SourceFilter};
 pub use outbox::Outbox;
 pub use router::Router;

@@ -252,6 +252,8 @@ pub struct RouterStats {
     pub lease_stops: u64,
     /// Stops issued at shutdown for motions still running.
     pub shutdown_stops: u64,
+    /// Stops the governance issued: take-overs, slews near a limit or zone, tours stopped.
+    pub governance_stops: u64,
     /// Commands from links whose origin was told "delivered" (ACK or report 00).
     pub delivered: u64,
     /// Commands from links whose origin was told "not delivered", by why.

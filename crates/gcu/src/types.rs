@@ -167,6 +167,34 @@ pub enum RouterEvent {
         command: &'static str,
         failure: Undelivered,
     },
+    /// Control of a gimbal changed hands (`holder` `None`: it lapsed or was released).
+    Control {
+        port: u8,
+        device: u8,
+        holder: Option<crate::Holder>,
+        from: Option<crate::Holder>,
+    },
+    /// A slew was stopped short of a travel limit or keep-out zone.
+    BoundaryStop {
+        port: u8,
+        device: u8,
+        stop: &'static str,
+        boundary: DropReason,
+    },
+    /// A tour started, waits, runs or stopped (`refused`: a step it could not take).
+    Tour {
+        name: String,
+        state: sagebrush_protocol::TourState,
+        step: usize,
+        refused: Option<DropReason>,
+    },
+    /// Park recalled its preset (or could not: `refused`).
+    Park {
+        port: u8,
+        device: u8,
+        preset: u8,
+        refused: Option<DropReason>,
+    },
 }
 
 /// Why the GCU stops a motion it did not get a stop for.
@@ -178,6 +206,12 @@ pub enum StopCause {
     Shutdown,
     /// Its link's motion lease ran out.
     Lease,
+    /// A link of higher priority took control of the gimbal.
+    TakeOver,
+    /// A slew came as near a travel limit or keep-out zone as it may.
+    Boundary,
+    /// A tour was stopped.
+    Tour,
 }
 
 impl RouterEvent {
@@ -195,7 +229,7 @@ impl RouterEvent {
             // is the GCU's own trouble (full queues, links that fail,
             // stops it issued) stays a warning.
             RouterEvent::Finished { outcome, .. } => match outcome {
-                CommandOutcome::Dropped(reason) if !reason.is_the_senders() => Level::Warn,
+                CommandOutcome::Dropped(reason) if !reason.is_the_senders() && !reason.is_refusal() => Level::Warn,
                 _ => Level::Debug,
             },
             RouterEvent::Undelivered { failure, .. } => match failure {
@@ -205,9 +239,15 @@ impl RouterEvent {
                 | Undelivered::NoSuchPort
                 | Undelivered::PortClosed
                 | Undelivered::NoRoute => Level::Debug,
+                Undelivered::NotInControl
+                | Undelivered::TravelLimit
+                | Undelivered::KeepOut
+                | Undelivered::PositionUnknown => Level::Info,
                 _ => Level::Warn,
             },
-            RouterEvent::Dropped { reason, .. } if reason.is_the_senders() => Level::Debug,
+            RouterEvent::Dropped { reason, .. } if reason.is_the_senders() || reason.is_refusal() => Level::Debug,
+            RouterEvent::Control { .. } | RouterEvent::Tour { .. } | RouterEvent::Park { .. } => Level::Info,
+            RouterEvent::BoundaryStop { .. } => Level::Info,
             RouterEvent::DeviceState { online: false, .. } => Level::Warn,
             RouterEvent::DeviceState { first: false, .. } => Level::Info,
             RouterEvent::DeviceState { .. } => Level::Debug,
@@ -252,6 +292,9 @@ impl fmt::Display for RouterEvent {
                 StopCause::DeadMan => write!(f, "{link} down: dead-man {stop} to {dest}"),
                 StopCause::Lease => write!(f, "{link}: motion lease over, {stop} to {dest}"),
                 StopCause::Shutdown => write!(f, "shutting down: {stop} to {dest} (a motion of {link})"),
+                StopCause::TakeOver => write!(f, "control taken over: {stop} to {dest} (a motion of {link})"),
+                StopCause::Boundary => write!(f, "{stop} to {dest}: a limit or keep-out zone is near"),
+                StopCause::Tour => write!(f, "tour stopped: {stop} to {dest}"),
             },
             RouterEvent::LinkState { link, up, .. } => write!(f, "{link} {}", if *up { "up" } else { "down" }),
             RouterEvent::PortState { port, open } => write!(f, "port {port} {}", if *open { "opened" } else { "lost" }),
@@ -278,6 +321,44 @@ impl fmt::Display for RouterEvent {
                 id.0,
                 failure.describe()
             ),
+            RouterEvent::Control {
+                port,
+                device,
+                holder,
+                from,
+            } => match (holder, from) {
+                (Some(h), Some(old)) => write!(f, "gimbal {port}.{device}: {h} took control from {old}"),
+                (Some(h), None) => write!(f, "gimbal {port}.{device}: {h} has control"),
+                (None, Some(old)) => write!(f, "gimbal {port}.{device}: control of {old} ended"),
+                (None, None) => write!(f, "gimbal {port}.{device}: nobody has control"),
+            },
+            RouterEvent::BoundaryStop {
+                port,
+                device,
+                stop,
+                boundary,
+            } => write!(f, "gimbal {port}.{device}: {stop} sent, stopping short of a {}", match boundary {
+                DropReason::KeepOut => "keep-out zone",
+                _ => "travel limit",
+            }),
+            RouterEvent::Tour {
+                name,
+                state,
+                step,
+                refused,
+            } => match refused {
+                Some(reason) => write!(f, "tour {name} stopped: step {step} refused ({})", reason.undelivered().describe()),
+                None => write!(f, "tour {name}: {state:?} (step {step})"),
+            },
+            RouterEvent::Park {
+                port,
+                device,
+                preset,
+                refused,
+            } => match refused {
+                Some(reason) => write!(f, "gimbal {port}.{device}: park to preset {preset} refused ({})", reason.undelivered().describe()),
+                None => write!(f, "gimbal {port}.{device}: parking at preset {preset}"),
+            },
         }
     }
 }
@@ -341,6 +422,14 @@ sagebrush_protocol::code_table! {
         ShuttingDown,
         /// still queued when its client's delivery time-out passed: given up unsent
         Expired,
+        /// another link of equal or higher priority controls the gimbal
+        NotInControl,
+        /// its target lies outside the gimbal's travel limits
+        TravelLimit,
+        /// its path may enter a keep-out zone
+        KeepOut,
+        /// the gimbal's position, rate or acceleration is unknown and it has limits or zones
+        PositionUnknown,
     }
 }
 
@@ -349,6 +438,12 @@ impl DropReason {
     /// open), not for the GCU's own trouble: logged at DEBUG, counted.
     pub const fn is_the_senders(self) -> bool {
         matches!(self, Self::NoRoute | Self::UnknownPort | Self::PortClosed)
+    }
+
+    /// A refusal by the governance (control, limits, zones): the sender's
+    /// to report, not the GCU's trouble.
+    pub const fn is_refusal(self) -> bool {
+        matches!(self, Self::NotInControl | Self::TravelLimit | Self::KeepOut | Self::PositionUnknown)
     }
 
     /// Index into [`crate::DropCounts`].
@@ -371,6 +466,10 @@ impl DropReason {
             }
             DropReason::ShuttingDown => Undelivered::ShuttingDown,
             DropReason::Expired => Undelivered::Expired,
+            DropReason::NotInControl => Undelivered::NotInControl,
+            DropReason::TravelLimit => Undelivered::TravelLimit,
+            DropReason::KeepOut => Undelivered::KeepOut,
+            DropReason::PositionUnknown => Undelivered::PositionUnknown,
         }
     }
 }

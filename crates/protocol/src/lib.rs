@@ -15,6 +15,7 @@ pub mod device;
 pub mod dissector;
 pub mod frame;
 pub mod framer;
+pub mod gcu;
 mod hex;
 #[cfg(any(feature = "embedded-io", feature = "embedded-io-async"))]
 pub mod io;
@@ -32,6 +33,7 @@ pub use link::{Outcome, RetryPolicy, Transaction, TransactionPolicy, Transaction
 pub use reply::{
     AwakeStatus, ErrorCodes, ExpectedReply, HomeStatus, Identity, InitResults, RateGains, Reply, ReplyError, StatusBits,
 };
+pub use gcu::{ControllerReply, GcuCommand, TourState};
 pub use report::{DeliveryReport, NotAReport, REPORT_LEN, REPORT_MARK, Undelivered};
 pub use units::{
     Acceleration, Angle, AuxConfig, AuxPort, AuxReadLen, Axis, DataRate, DeviceId, DigitalZoom, LensPosition,

@@ -65,6 +65,14 @@ crate::code_table! {
         NotConfirmed,
         /// it waited in a queue too long and was given up unsent
         Expired,
+        /// another link of equal or higher priority controls the gimbal
+        NotInControl,
+        /// its target lies outside the gimbal's travel limits
+        TravelLimit,
+        /// its path may enter a keep-out zone
+        KeepOut,
+        /// the gimbal's position is unknown and it has limits or zones
+        PositionUnknown,
     }
 }
 

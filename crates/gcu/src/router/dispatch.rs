@@ -75,6 +75,15 @@ impl Router {
                 self.finish(id, CommandOutcome::Dropped(DropReason::ShuttingDown), out);
                 return self.resolve(now, id, Err(Undelivered::ShuttingDown), self.group, out);
             }
+            let local = dest.group == self.group || dest.group == WILDCARD;
+            if local && dest.port != sagebrush_protocol::LINK_PORT {
+                if let Err(reason) = self.govern_command(now, link, command, out) {
+                    self.drop_frame(reason, Place::Router, dest, source, out);
+                    self.finish(id, CommandOutcome::Dropped(reason), out);
+                    return self.resolve(now, id, Err(reason.undelivered()), self.group, out);
+                }
+                self.governor.accepted(id, dest, f.payload());
+            }
             let lease = self.links.get(&link).and_then(|l| l.config.motion_lease);
             self.deadman.on_command(now, link, lease, dest, &command.facts);
         }
@@ -96,6 +105,7 @@ impl Router {
     /// Command `id` ended (its one [`RouterEvent::Finished`]); its record
     /// stays while its origin still awaits the delivery outcome.
     pub(super) fn finish(&mut self, id: CommandId, outcome: CommandOutcome, out: &mut Outbox) {
+        self.govern_finished(id, outcome);
         if let Some(c) = self.in_flight.get_mut(&id) {
             c.finished = true;
             c.issued_stop = None;

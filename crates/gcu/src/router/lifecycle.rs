@@ -19,8 +19,9 @@ use super::in_flight::{IssuedStop, StopRound};
 use crate::types::StopCause;
 
 impl Router {
-    pub(super) fn port_state(&self, port: u8, open: bool, out: &mut Outbox) {
-        if self.ports.contains_key(&port) {
+    pub(super) fn port_state(&mut self, port: u8, open: bool, out: &mut Outbox) {
+        if let Some(p) = self.ports.get(&port) {
+            self.governor.port_state(port, open.then_some(p.stats.bps));
             out.push(Action::Event(RouterEvent::PortState { port, open }));
         }
     }
@@ -56,6 +57,7 @@ impl Router {
             return Err(ConfigError::NotReloadable("the link settings"));
         }
         self.in_force = self.settings.with_answer_time_for(&config.ports);
+        self.governor.reconfigure(now, config.governance.clone());
         self.routes
             .set_configured(config.static_routes, config.default_upstream);
         for (&id, port) in &mut self.ports {
@@ -194,7 +196,7 @@ impl Router {
     /// Stops motions the GCU takes back, for `cause`: the first round of
     /// each stop; an unacknowledged one is sent again (module `in_flight`:
     /// `DEAD_MAN_ROUNDS`).
-    fn stop_motions(&mut self, now: u64, stops: Vec<OwnedStop>, cause: StopCause, out: &mut Outbox) {
+    pub(super) fn stop_motions(&mut self, now: u64, stops: Vec<OwnedStop>, cause: StopCause, out: &mut Outbox) {
         for (link, dest, stop) in stops {
             let Ok(frame) = FrameBuf::build(dest, self.group, |buf| stop.encode(buf).map(<[u8]>::len)) else {
                 continue;
@@ -212,13 +214,14 @@ impl Router {
     /// A round of a stop the GCU issued itself: logged as its cause says
     /// (each round), counted by cause (once per motion, at its first round),
     /// and sent.
-    fn send_stop(&mut self, now: u64, stop: ReadCommand, issued: IssuedStop, out: &mut Outbox) {
+    pub(super) fn send_stop(&mut self, now: u64, stop: ReadCommand, issued: IssuedStop, out: &mut Outbox) {
         let IssuedStop { link, cause, round } = issued;
         let (dest, name) = (stop.frame.frame().dest, stop.facts.reply.mnemonic());
         let counter = match cause {
             StopCause::DeadMan => &mut self.stats.dead_man_stops,
             StopCause::Shutdown => &mut self.stats.shutdown_stops,
             StopCause::Lease => &mut self.stats.lease_stops,
+            StopCause::TakeOver | StopCause::Boundary | StopCause::Tour => &mut self.stats.governance_stops,
         };
         if round == 1 {
             *counter += 1;

@@ -30,6 +30,10 @@ impl Router {
         // One port, or every port (a broadcast to port 255): counted first,
         // then each found afresh, with no list of targets.
         let one = match dest.port {
+            LINK_PORT if sagebrush_protocol::GcuCommand::is_gcu(f.payload()) => {
+                let outcome = self.gcu_command(now, id, origin, &f, out);
+                return self.finish(id, outcome, out);
+            }
             LINK_PORT => {
                 self.resolve(now, id, Ok(()), self.group, out);
                 let outcome = match answer(self.group, &self.name, &self.serial, &f, facts.row) {

@@ -20,6 +20,7 @@
 mod delivery;
 mod dispatch;
 mod forwarding;
+mod govern;
 mod in_flight;
 mod lifecycle;
 mod local;
@@ -35,6 +36,7 @@ use crate::boundary::{Action, Input};
 use crate::by_id::ById;
 use crate::config::{ConfigError, LinkSettings, PortConfig, RouterConfig};
 use crate::deadman::DeadMan;
+use crate::govern::Governor;
 use crate::link::{Link, LinkOut, Outgoing, Received};
 use crate::outbox::Outbox;
 use crate::port::{Port, PortOut};
@@ -61,6 +63,8 @@ pub struct Router {
     routes: RoutingTable,
     reverse: ReversePath,
     deadman: DeadMan,
+    /// Control, limits, zones, tours and park (ARCHITECTURE "Governance").
+    governor: Governor,
     /// Commands in flight, by id.
     in_flight: ById<InFlight>,
     /// [`crate::Input::Shutdown`] came: new commands are refused.
@@ -95,6 +99,7 @@ impl Router {
                 (u64::from(config.links.retries) + 1) * config.links.ack_timeout,
             ),
             deadman: DeadMan::default(),
+            governor: Governor::new(config.governance.clone()),
             in_flight: ById::new(),
             stopping: false,
             replacements: BTreeMap::new(),
@@ -164,6 +169,7 @@ impl Router {
             .chain(links)
             .chain(self.reverse.next_deadline())
             .chain(self.deadman.next_deadline())
+            .chain(self.governor.next_deadline())
             .chain(self.in_flight.values().filter_map(|c| c.delivery?.deadline()))
             .min()
     }
@@ -271,6 +277,7 @@ impl Router {
             self.deliver_overdue(now, id, out);
         }
         self.stop_expired_leases(now, out);
+        self.govern_poll(now, out);
         let due = |d: Option<u64>| d.is_some_and(|t| t <= now);
         // The next due port or link after the last one polled: found afresh
         // each time (polling one may change the others), with no list.
@@ -310,9 +317,15 @@ impl Router {
         for o in outs.drain(..) {
             match o {
                 PortOut::Write(wire) => out.write(LineId::Port(port), &wire),
-                PortOut::SetRate(bps) => out.push(Action::SetPortRate { port, bps }),
+                PortOut::SetRate(bps) => {
+                    self.governor.port_rate(port, bps);
+                    out.push(Action::SetPortRate { port, bps });
+                }
                 PortOut::Event(e) => out.push(Action::Event(e)),
-                PortOut::Relay { id, origin, reply } => self.relay_result(now, port, id, origin, reply, out),
+                PortOut::Relay { id, origin, reply } => {
+                    self.govern_result(now, id, port, &reply);
+                    self.relay_result(now, port, id, origin, reply, out);
+                }
                 PortOut::Delivered { id } => self.resolve(now, id, Ok(()), self.group, out),
                 PortOut::Undelivered { id, failure } => {
                     if let Some(p) = self.jobs_of(id) {

@@ -1,0 +1,586 @@
+//! Governance (ARCHITECTURE "Governance"): gcud decides, per gimbal on its
+//! own ports, who controls it (module `control`), where it may go (module
+//! `travel`), and runs tours and park (module `tour`). The [`Governor`]
+//! keeps what it knows of each gimbal (last position read, rates,
+//! accelerations, presets) and the motions in progress; the router asks
+//! it about every command from a link and carries out the commands it
+//! issues itself ([`Order`]).
+//!
+//! What needs control: every command that moves or changes a gimbal
+//! (everything but queries and stops; a rev 1.9 set/read command may set,
+//! so it needs control too). Queries and stops are never refused.
+
+mod control;
+mod knowledge;
+pub mod rules;
+mod tour;
+mod travel;
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use sagebrush_protocol::{Address, Command, Position, ResultKind, WILDCARD};
+
+pub use control::Holder;
+pub use sagebrush_protocol::TourState;
+
+use crate::types::{CommandId, DropReason, StopCause};
+use control::{Held, Who};
+use knowledge::{AxisMotion, Gimbal, Learning};
+use rules::{GimbalRules, Governance, TourTarget};
+use tour::TourRun;
+use travel::{ARRIVED, axes, check_goto};
+
+/// A gimbal's control as gcud's `/status` shows it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct GimbalControl {
+    pub port: u8,
+    pub device: u8,
+    /// Who holds control, if anybody.
+    pub holder: Option<Holder>,
+    /// When a link's control lapses (tick), unless it commands again.
+    pub lapses_at: Option<u64>,
+    /// The last position read, and when.
+    pub position: Option<(u64, Position)>,
+    /// It has travel limits or keep-out zones.
+    pub bounded: bool,
+}
+
+/// A tour as gcud's `/status` shows it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TourStatus {
+    pub name: String,
+    pub port: u8,
+    pub device: u8,
+    pub state: TourState,
+    /// The step it is on (or resumes with), from 0.
+    pub step: usize,
+    /// Whom it waits for, when waiting.
+    pub waiting_for: Option<Holder>,
+}
+
+/// Who a link is to the governor: its configured name (every connection
+/// accepted on one listener is the same link) and priority.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) struct LinkIdentity {
+    pub key: Arc<str>,
+    pub priority: u8,
+}
+
+/// A command the governor issues itself, for the router to dispatch.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Order {
+    pub port: u8,
+    pub device: u8,
+    pub command: Command<'static>,
+    /// A stop, and why (logged and counted like the dead-man's).
+    pub stop: Option<StopCause>,
+    pub purpose: Purpose,
+}
+
+/// What a command the governor issued is for: what its answer teaches.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Purpose {
+    Position,
+    Rates,
+    Accelerations,
+    Preset(u8),
+    /// A stop or a goto: nothing to learn from its answer.
+    Motion,
+}
+
+/// The governor's verdict on a command from a link.
+#[derive(Debug, Default)]
+pub(crate) struct Verdict {
+    /// Gimbals taken over from another holder: their motions are stopped first.
+    pub taken_over: Vec<(u8, u8)>,
+}
+
+/// What a command does to a gimbal, as far as the governor cares.
+enum Effect {
+    Query,
+    Stop { pan: bool, tilt: bool },
+    Goto([i32; 2]),
+    GotoPreset(u8),
+    Slew { axis: usize, dir: i32 },
+    /// Moves where no one can bound (`IX` to its switches, `HP` to a position saved by `HA`).
+    Unbounded,
+    /// Changes a speed or acceleration: learnt again afterwards.
+    SpeedChange,
+    StorePreset(u8),
+    Other,
+}
+
+fn effect(command: &Command<'_>) -> Effect {
+    use Command as C;
+    match command {
+        C::PanStop => Effect::Stop { pan: true, tilt: false },
+        C::TiltStop => Effect::Stop { pan: false, tilt: true },
+        C::StopMotion | C::Halt | C::MotorsStop => Effect::Stop { pan: true, tilt: true },
+        _ if command.is_stop() => Effect::Query,
+        C::GoTo(p) => Effect::Goto(axes(*p)),
+        C::Home => Effect::Goto([0, 0]),
+        C::GoToPreset(n) => Effect::GotoPreset(*n),
+        C::PanLeft => Effect::Slew { axis: 0, dir: -1 },
+        C::PanRight => Effect::Slew { axis: 0, dir: 1 },
+        C::TiltDown => Effect::Slew { axis: 1, dir: -1 },
+        C::TiltUp => Effect::Slew { axis: 1, dir: 1 },
+        C::Initialize => Effect::Unbounded,
+        C::Extended(sagebrush_protocol::Extended::GoToHaltPosition, _) => Effect::Unbounded,
+        C::SetSpeed(..) | C::SetRate(..) | C::SetAcceleration(..) => Effect::SpeedChange,
+        C::StorePreset(n) => Effect::StorePreset(*n),
+        C::Extended(..) | C::Unknown(..) => Effect::Other,
+        _ => match command.result_kind() {
+            ResultKind::Required(_) if !matches!(command, C::Initialize) => Effect::Query,
+            _ => Effect::Other,
+        },
+    }
+}
+
+/// The governance of every gimbal on this GCU's ports.
+#[derive(Debug)]
+pub(crate) struct Governor {
+    config: Governance,
+    gimbals: BTreeMap<(u8, u8), Gimbal>,
+    tours: Vec<TourRun>,
+    /// The governor's own commands in flight, and what they are for.
+    own: BTreeMap<CommandId, ((u8, u8), Purpose)>,
+    /// Commands from links that change speeds or presets: learnt again when they end.
+    relearn: BTreeMap<CommandId, ((u8, u8), Learning)>,
+    /// Ports open, with their bit rate (the follower's latency).
+    ports: BTreeMap<u8, u32>,
+    orders: Vec<Order>,
+    /// Events for the router to log.
+    pub events: Vec<crate::types::RouterEvent>,
+    pub stats: GovernStats,
+}
+
+/// Counters of the governance.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GovernStats {
+    /// Control taken from a holder by a link of higher priority.
+    pub takeovers: u64,
+    /// Slews stopped before a limit or zone.
+    pub boundary_stops: u64,
+    /// Position polls of gimbals in motion (the bus time following costs).
+    pub follow_polls: u64,
+    /// Park recalls.
+    pub parks: u64,
+}
+
+impl Governor {
+    pub fn new(config: Governance) -> Self {
+        let mut g = Self {
+            config: Governance::default(),
+            gimbals: BTreeMap::new(),
+            tours: Vec::new(),
+            own: BTreeMap::new(),
+            relearn: BTreeMap::new(),
+            ports: BTreeMap::new(),
+            orders: Vec::new(),
+            events: Vec::new(),
+            stats: GovernStats::default(),
+        };
+        g.reconfigure(0, config);
+        g
+    }
+
+    /// A changed governance, applied as a difference: gimbals keep what was
+    /// learnt of them and their holder; a tour that changed or went away is
+    /// stopped, one that did not keeps running.
+    pub fn reconfigure(&mut self, now: u64, config: Governance) {
+        let runs = std::mem::take(&mut self.tours);
+        for run in &runs {
+            if !config.tours.iter().any(|t| *t == run.config) && run.state != TourState::Stopped {
+                self.release_tour(now, run);
+            }
+        }
+        self.tours = config
+            .tours
+            .iter()
+            .map(|t| match runs.iter().find(|r| r.config == *t) {
+                Some(r) => r.clone(),
+                None => TourRun::new(t.clone()),
+            })
+            .collect();
+        for gimbal in self.gimbals.values_mut() {
+            gimbal.rules = None;
+        }
+        for rules in &config.gimbals {
+            let g = self.gimbals.entry((rules.port, rules.device)).or_default();
+            g.rules = Some(rules.clone());
+        }
+        self.config = config;
+        let watched: Vec<(u8, u8)> = self.watched().collect();
+        for at in watched {
+            if self.ports.contains_key(&at.0) {
+                self.gimbals.entry(at).or_default().start_learning();
+            }
+        }
+    }
+
+    /// Gimbals whose state the governor follows: those with rules or tours.
+    fn watched(&self) -> impl Iterator<Item = (u8, u8)> + '_ {
+        let ruled = self.config.gimbals.iter().map(|r| (r.port, r.device));
+        ruled.chain(self.config.tours.iter().map(|t| (t.port, t.device)))
+    }
+
+    fn is_watched(&self, at: (u8, u8)) -> bool {
+        self.watched().any(|w| w == at)
+    }
+
+    /// A port was opened (at `bps`) or lost: what was known of its gimbals
+    /// is learnt again.
+    pub fn port_state(&mut self, port: u8, open: Option<u32>) {
+        match open {
+            Some(bps) => {
+                self.ports.insert(port, bps);
+            }
+            None => {
+                self.ports.remove(&port);
+            }
+        }
+        let watched: Vec<(u8, u8)> = self.watched().filter(|w| w.0 == port).collect();
+        for at in watched {
+            let g = self.gimbals.entry(at).or_default();
+            g.forget();
+            if open.is_some() {
+                g.start_learning();
+            }
+        }
+    }
+
+    /// The port's line rate changed.
+    pub fn port_rate(&mut self, port: u8, bps: u32) {
+        if let Some(b) = self.ports.get_mut(&port) {
+            *b = bps;
+        }
+    }
+
+    /// Control, limits and zones for a command from a link to a local
+    /// `dest` (port 1..=255): `Err` refuses it (nothing goes to the bus),
+    /// `Ok` lets it through, having taken control and noted the motion.
+    pub fn on_command(
+        &mut self,
+        now: u64,
+        who: &LinkIdentity,
+        dest: Address,
+        payload: &[u8],
+        known_devices: &[(u8, u8)],
+    ) -> Result<Verdict, DropReason> {
+        let command = Command::parse(payload);
+        let effect = effect(&command);
+        let targets = self.targets(dest, known_devices);
+        match effect {
+            Effect::Query => return Ok(Verdict::default()),
+            Effect::Stop { pan, tilt } => {
+                for at in &targets {
+                    if let Some(g) = self.gimbals.get_mut(at) {
+                        g.stopping(now, pan, tilt);
+                    }
+                }
+                return Ok(Verdict::default());
+            }
+            _ => {}
+        }
+        let me = Who::Link {
+            key: who.key.clone(),
+            priority: who.priority,
+        };
+        let mut verdict = Verdict::default();
+        for at in &targets {
+            let Some(g) = self.gimbals.get(at) else { continue };
+            match g.held(now, self.config.hold) {
+                None => {}
+                Some(h) if h.who.same(&me) => {}
+                Some(h) if me.outranks(&h.who) => verdict.taken_over.push(*at),
+                Some(_) => return Err(DropReason::NotInControl),
+            }
+        }
+        for at in &targets {
+            let Some(g) = self.gimbals.get(at) else { continue };
+            let Some(rules) = g.rules.as_ref().filter(|r| r.bounds_travel()) else {
+                continue;
+            };
+            let bps = self.ports.get(&at.0).copied().unwrap_or(9600);
+            match effect {
+                Effect::Goto(target) => check_goto(rules, g.region(now), target)?,
+                Effect::GotoPreset(n) => match g.presets.get(&n) {
+                    Some(p) => check_goto(rules, g.region(now), axes(*p))?,
+                    None => return Err(DropReason::PositionUnknown),
+                },
+                Effect::Slew { axis, dir } => g.check_slew(now, rules, axis, dir, bps)?,
+                Effect::Unbounded => return Err(DropReason::TravelLimit),
+                _ => {}
+            }
+        }
+        // Allowed: control is taken, the motion noted.
+        for at in targets {
+            let g = self.gimbals.entry(at).or_default();
+            let before = g.holder.take();
+            if let Some(old) = before.as_ref().filter(|h| !h.who.same(&me)) {
+                if verdict.taken_over.contains(&at) {
+                    self.stats.takeovers += 1;
+                }
+                self.events.push(crate::types::RouterEvent::Control {
+                    port: at.0,
+                    device: at.1,
+                    holder: Some(me.view()),
+                    from: Some(old.who.view()),
+                });
+            } else if before.is_none() {
+                self.events.push(crate::types::RouterEvent::Control {
+                    port: at.0,
+                    device: at.1,
+                    holder: Some(me.view()),
+                    from: None,
+                });
+            }
+            g.holder = Some(Held {
+                who: me.clone(),
+                last: now,
+            });
+            g.moved = true;
+            g.parked = false;
+            match effect {
+                Effect::Goto(target) => g.going(now, target),
+                Effect::GotoPreset(n) => match g.presets.get(&n).copied() {
+                    Some(p) => g.going(now, axes(p)),
+                    None => g.unknown_motion(now),
+                },
+                Effect::Slew { axis, dir } => g.slewing(now, axis, dir),
+                Effect::Unbounded => g.unknown_motion(now),
+                Effect::StorePreset(n) => g.stored(n),
+                _ => {}
+            }
+        }
+        Ok(verdict)
+    }
+
+    /// A command from a link was accepted as `id`: what it changes is learnt
+    /// again once it ends.
+    pub fn accepted(&mut self, id: CommandId, dest: Address, payload: &[u8]) {
+        if dest.port == WILDCARD || dest.device == WILDCARD {
+            return;
+        }
+        let at = (dest.port, dest.device);
+        if !self.is_watched(at) {
+            return;
+        }
+        let learning = match effect(&Command::parse(payload)) {
+            Effect::SpeedChange => Learning::Speeds,
+            Effect::StorePreset(n) => Learning::Preset(n),
+            _ => return,
+        };
+        if let Some(g) = self.gimbals.get_mut(&at) {
+            if learning == Learning::Speeds {
+                g.rates = None;
+                g.accels = None;
+            }
+        }
+        self.relearn.insert(id, (at, learning));
+    }
+
+    /// The gimbals a command to `dest` concerns: one, or the known devices
+    /// its wildcards match.
+    fn targets(&self, dest: Address, known: &[(u8, u8)]) -> Vec<(u8, u8)> {
+        if dest.port != WILDCARD && dest.device != WILDCARD {
+            return vec![(dest.port, dest.device)];
+        }
+        let matches = |&(p, d): &(u8, u8)| {
+            (dest.port == WILDCARD || dest.port == p) && (dest.device == WILDCARD || dest.device == d)
+        };
+        let mut all: Vec<(u8, u8)> = known.iter().copied().chain(self.gimbals.keys().copied()).collect();
+        all.retain(matches);
+        all.sort_unstable();
+        all.dedup();
+        all
+    }
+
+    /// The result of command `id` (a position, rates, a preset) from `at`.
+    pub fn on_result(&mut self, now: u64, id: CommandId, at: (u8, u8), reply: &sagebrush_protocol::Reply<'_>) {
+        let purpose = self.own.get(&id).map(|&(_, p)| p);
+        let bps = self.ports.get(&at.0).copied().unwrap_or(9600);
+        let Some(g) = self.gimbals.get_mut(&at) else { return };
+        use sagebrush_protocol::Reply as R;
+        match (purpose, reply) {
+            (Some(Purpose::Preset(n)), R::Position(p)) => {
+                g.presets.insert(n, *p);
+            }
+            (Some(Purpose::Position) | None, R::Position(p)) => g.read_position(now, *p, bps),
+            (_, R::Rates { pan, tilt }) => g.rates = Some([u32::from(pan.0), u32::from(tilt.0)]),
+            (_, R::Accelerations { pan, tilt }) => g.accels = Some([u32::from(pan.0), u32::from(tilt.0)]),
+            _ => {}
+        }
+    }
+
+    /// Command `id` ended: an own query that got no answer is tried again
+    /// later; a change from a link is learnt again.
+    pub fn on_finished(&mut self, now: u64, id: CommandId, answered: bool) {
+        if let Some((at, purpose)) = self.own.remove(&id) {
+            if let Some(g) = self.gimbals.get_mut(&at) {
+                g.query_ended(now, purpose, answered);
+            }
+        }
+        if let Some((at, learning)) = self.relearn.remove(&id) {
+            if let Some(g) = self.gimbals.get_mut(&at) {
+                g.learn(learning);
+            }
+        }
+    }
+
+    /// The router dispatched order `purpose` as command `id`.
+    pub fn sent(&mut self, id: CommandId, at: (u8, u8), purpose: Purpose) {
+        self.own.insert(id, (at, purpose));
+    }
+
+    /// Control lapses, follows motions, learns, runs tours and park: the
+    /// commands to issue now.
+    pub fn poll(&mut self, now: u64) -> Vec<Order> {
+        let hold = self.config.hold;
+        for (&(port, device), g) in self.gimbals.iter_mut() {
+            if let Some(h) = g.holder.as_ref().filter(|h| h.lapsed(now, hold)) {
+                self.events.push(crate::types::RouterEvent::Control {
+                    port,
+                    device,
+                    holder: None,
+                    from: Some(h.who.view()),
+                });
+                g.free_since = Some(h.last.saturating_add(hold));
+                g.holder = None;
+            }
+        }
+        self.run_tours(now);
+        self.run_parks(now);
+        let mut orders = std::mem::take(&mut self.orders);
+        for (&(port, device), g) in self.gimbals.iter_mut() {
+            let open = self.ports.get(&port).copied();
+            let Some(bps) = open else { continue };
+            g.follow(now, bps, port, device, &mut orders, &mut self.stats, &mut self.events);
+            g.next_query(now, port, device, &mut orders);
+        }
+        orders
+    }
+
+    /// When [`Governor::poll`] next has work.
+    pub fn next_deadline(&self) -> Option<u64> {
+        let hold = self.config.hold;
+        let gimbals = self.gimbals.iter().filter_map(|(&(port, _), g)| {
+            let lapse = g.holder.as_ref().map(|h| h.last.saturating_add(hold));
+            let motion = self.ports.contains_key(&port).then(|| g.next_deadline()).flatten();
+            lapse.into_iter().chain(motion).min()
+        });
+        let tours = self.tours.iter().filter_map(TourRun::next_deadline);
+        let parks = self.park_deadlines();
+        gimbals.chain(tours).chain(parks).min()
+    }
+
+    /// Control of every gimbal that has a holder, rules or a tour.
+    pub fn control(&self, now: u64) -> Vec<GimbalControl> {
+        let hold = self.config.hold;
+        self.gimbals
+            .iter()
+            .filter(|(_, g)| g.held(now, hold).is_some() || g.rules.is_some())
+            .map(|(&(port, device), g)| {
+                let held = g.held(now, hold);
+                GimbalControl {
+                    port,
+                    device,
+                    holder: held.map(|h| h.who.view()),
+                    lapses_at: held
+                        .filter(|h| matches!(h.who, Who::Link { .. }))
+                        .map(|h| h.last.saturating_add(hold)),
+                    position: g.position.map(|k| (k.at, k.position)),
+                    bounded: g.rules.as_ref().is_some_and(GimbalRules::bounds_travel),
+                }
+            })
+            .collect()
+    }
+
+    /// Who holds `at`, as the GCU command `~C` answers it.
+    pub fn holder(&self, now: u64, at: (u8, u8)) -> Option<Holder> {
+        let g = self.gimbals.get(&at)?;
+        g.held(now, self.config.hold).map(|h| h.who.view())
+    }
+
+    /// `who` releases `at` (`~R`): allowed from the holder's link or one of
+    /// higher or equal priority.
+    pub fn release(&mut self, now: u64, who: &LinkIdentity, at: (u8, u8)) -> Result<(), DropReason> {
+        let hold = self.config.hold;
+        let Some(g) = self.gimbals.get_mut(&at) else { return Ok(()) };
+        let Some(h) = g.held(now, hold) else { return Ok(()) };
+        let allowed = match &h.who {
+            Who::Link { key, priority } => *key == who.key || who.priority >= *priority,
+            Who::Tour(_) | Who::Park => true,
+        };
+        if !allowed {
+            return Err(DropReason::NotInControl);
+        }
+        let from = h.who.view();
+        g.holder = None;
+        g.free_since = Some(now);
+        self.events.push(crate::types::RouterEvent::Control {
+            port: at.0,
+            device: at.1,
+            holder: None,
+            from: Some(from),
+        });
+        Ok(())
+    }
+
+    pub fn tour_status(&self, now: u64) -> Vec<TourStatus> {
+        self.tours
+            .iter()
+            .map(|t| {
+                let at = (t.config.port, t.config.device);
+                let waiting_for = match t.state {
+                    TourState::Waiting => self.holder(now, at),
+                    _ => None,
+                };
+                TourStatus {
+                    name: t.config.name.clone(),
+                    port: at.0,
+                    device: at.1,
+                    state: t.state,
+                    step: t.step,
+                    waiting_for,
+                }
+            })
+            .collect()
+    }
+
+    /// The target of a tour step or park, if known.
+    fn target_of(g: &Gimbal, to: TourTarget) -> Option<[i32; 2]> {
+        match to {
+            TourTarget::Position(p) => Some(axes(p)),
+            TourTarget::Preset(n) => g.presets.get(&n).map(|p| axes(*p)),
+        }
+    }
+
+    /// Whether a gimbal at `target`'s goto arrived.
+    fn arrived(g: &Gimbal, target: Option<[i32; 2]>) -> bool {
+        let still = g.axes.iter().all(|a| *a == AxisMotion::Still);
+        match (target, g.position) {
+            (Some(t), Some(k)) => {
+                let p = axes(k.position);
+                still && (p[0] - t[0]).abs() <= ARRIVED && (p[1] - t[1]).abs() <= ARRIVED
+            }
+            _ => still && g.position.is_some(),
+        }
+    }
+
+    /// A reload changed configured link `name`'s priority: a holder of that name takes it.
+    pub fn set_priority(&mut self, name: &str, priority: u8) {
+        for g in self.gimbals.values_mut() {
+            if let Some(Held {
+                who: Who::Link { key, priority: p },
+                ..
+            }) = g.holder.as_mut()
+            {
+                if &**key == name {
+                    *p = priority;
+                }
+            }
+        }
+    }
+}

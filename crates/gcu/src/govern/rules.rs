@@ -1,0 +1,224 @@
+//! What gcud governs each gimbal by (ARCHITECTURE "Governance"): the hold
+//! time of control, link priorities (on [`crate::LinkConfig`]), travel
+//! limits, keep-out zones, park, and tours. Angles are in hundredths of a
+//! degree, as on the wire (Table 15); times in ticks.
+
+use sagebrush_protocol::Position;
+
+use super::travel::{axes, check_goto};
+use crate::config::{ConfigError, PortConfig};
+
+/// A link's priority when its configuration names none.
+pub const DEFAULT_PRIORITY: u8 = 50;
+/// The highest priority a link may have.
+pub const MAX_PRIORITY: u8 = 100;
+/// Default [`Governance::hold`]: 10 s.
+pub const HOLD_MS: u64 = 10_000;
+
+/// The rules of every gimbal and the tours.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Governance {
+    /// A link keeps control of a gimbal this long after its last command
+    /// that moves or changes it.
+    pub hold: u64,
+    /// Rules per gimbal (one entry per local port and device).
+    pub gimbals: Vec<GimbalRules>,
+    /// Tours gcud can run.
+    pub tours: Vec<TourConfig>,
+}
+
+impl Default for Governance {
+    fn default() -> Self {
+        Self {
+            hold: HOLD_MS,
+            gimbals: Vec::new(),
+            tours: Vec::new(),
+        }
+    }
+}
+
+/// An interval of one axis, in hundredths of a degree, `lo <= hi`, both ends included.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Span {
+    pub lo: i32,
+    pub hi: i32,
+}
+
+impl Span {
+    pub const fn new(lo: i32, hi: i32) -> Self {
+        Self { lo, hi }
+    }
+
+    /// Whether `v` lies within (ends included).
+    pub const fn contains(&self, v: i32) -> bool {
+        self.lo <= v && v <= self.hi
+    }
+
+    /// Whether the two spans share a point.
+    pub const fn meets(&self, other: &Span) -> bool {
+        self.lo <= other.hi && other.lo <= self.hi
+    }
+
+    /// The smallest span holding both.
+    pub fn join(&self, other: &Span) -> Span {
+        Span::new(self.lo.min(other.lo), self.hi.max(other.hi))
+    }
+
+    /// The span of one value.
+    pub const fn at(v: i32) -> Span {
+        Span::new(v, v)
+    }
+}
+
+/// A pan/tilt rectangle no motion may enter (its edges included).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Zone {
+    pub pan: Span,
+    pub tilt: Span,
+}
+
+/// Park: recall `preset` once, `after` ticks after control lapsed with
+/// nobody taking it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Park {
+    pub preset: u8,
+    pub after: u64,
+}
+
+/// The rules of one gimbal (a device on a local port).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct GimbalRules {
+    pub port: u8,
+    pub device: u8,
+    /// Pan travel no command may leave.
+    pub pan_limits: Option<Span>,
+    /// Tilt travel no command may leave.
+    pub tilt_limits: Option<Span>,
+    pub keep_out: Vec<Zone>,
+    pub park: Option<Park>,
+    /// The fastest the gimbal slews, per axis (pan, tilt), hundredths of a
+    /// degree per second: when set, slews are followed with it instead of
+    /// the rate the gimbal answers to `R?` (Table 13).
+    pub slew_rate: Option<[u32; 2]>,
+    /// Its acceleration per axis, hundredths of a degree per second
+    /// squared: when set, instead of what it answers to `A?`.
+    pub acceleration: Option<[u32; 2]>,
+}
+
+impl GimbalRules {
+    /// A gimbal with no rules yet.
+    pub fn new(port: u8, device: u8) -> Self {
+        Self {
+            port,
+            device,
+            pan_limits: None,
+            tilt_limits: None,
+            keep_out: Vec::new(),
+            park: None,
+            slew_rate: None,
+            acceleration: None,
+        }
+    }
+
+    /// Whether the gimbal has travel limits or keep-out zones (motions are then followed).
+    pub fn bounds_travel(&self) -> bool {
+        self.pan_limits.is_some() || self.tilt_limits.is_some() || !self.keep_out.is_empty()
+    }
+}
+
+/// Where a tour step goes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TourTarget {
+    /// A preset the gimbal stored (`Pnn`).
+    Preset(u8),
+    /// A position (`Paaaaeeee`).
+    Position(Position),
+}
+
+/// One step of a tour: go there, then stay `dwell` ticks once arrived.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TourStep {
+    pub to: TourTarget,
+    pub dwell: u64,
+}
+
+/// A tour: steps gcud runs in order, cycling until stopped.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TourConfig {
+    /// 1..=32 of `A-Z a-z 0-9 _ -` (it travels in GCU commands).
+    pub name: String,
+    pub port: u8,
+    pub device: u8,
+    pub steps: Vec<TourStep>,
+}
+
+impl Governance {
+    /// Checks what the governance relies on: gimbals on configured ports,
+    /// each once, spans the right way round, tours with unique names and
+    /// steps, and tour steps (positions) inside the limits, with no path
+    /// between two of them entering a zone.
+    pub fn validate(&self, ports: &[PortConfig]) -> Result<(), ConfigError> {
+        let bad = |what: String| Err(ConfigError::Governance(what));
+        for (i, g) in self.gimbals.iter().enumerate() {
+            let name = format!("gimbal {}.{}", g.port, g.device);
+            if !ports.iter().any(|p| p.id == g.port) || g.device == 0 || g.device == sagebrush_protocol::WILDCARD {
+                return bad(format!("{name}: no such port, or device not 1..=254"));
+            }
+            if self.gimbals[..i].iter().any(|o| (o.port, o.device) == (g.port, g.device)) {
+                return bad(format!("{name}: configured twice"));
+            }
+            let spans = g.pan_limits.iter().chain(&g.tilt_limits);
+            let zones = g.keep_out.iter().flat_map(|z| [&z.pan, &z.tilt]);
+            if spans.chain(zones).any(|s| s.lo > s.hi) {
+                return bad(format!("{name}: a span whose low end is above its high end"));
+            }
+            let rates = g.slew_rate.iter().chain(&g.acceleration).flatten();
+            if rates.into_iter().any(|&r| r == 0) {
+                return bad(format!("{name}: a slew rate or acceleration of 0"));
+            }
+        }
+        for (i, t) in self.tours.iter().enumerate() {
+            if !sagebrush_protocol::gcu::valid_name(t.name.as_bytes()) {
+                return bad(format!("tour {:?}: a name is 1..=32 of A-Z a-z 0-9 _ -", t.name));
+            }
+            if self.tours[..i].iter().any(|o| o.name == t.name) {
+                return bad(format!("tour {}: configured twice", t.name));
+            }
+            if t.steps.is_empty() {
+                return bad(format!("tour {}: no steps", t.name));
+            }
+            if !ports.iter().any(|p| p.id == t.port) {
+                return bad(format!("tour {}: no port {}", t.name, t.port));
+            }
+            let Some(rules) = self.gimbals.iter().find(|g| (g.port, g.device) == (t.port, t.device)) else {
+                continue;
+            };
+            let positions: Vec<(usize, [i32; 2])> = t
+                .steps
+                .iter()
+                .enumerate()
+                .filter_map(|(n, s)| match s.to {
+                    TourTarget::Position(p) => Some((n, axes(p))),
+                    TourTarget::Preset(_) => None,
+                })
+                .collect();
+            for (k, &(n, target)) in positions.iter().enumerate() {
+                // The path from the step before (when it is a position too).
+                let before = if n == 0 { t.steps.len() - 1 } else { n - 1 };
+                let from = positions
+                    .get(if k == 0 { positions.len() - 1 } else { k - 1 })
+                    .filter(|(m, _)| *m == before)
+                    .map(|&(_, p)| [Span::at(p[0]), Span::at(p[1])]);
+                let from = from.unwrap_or([Span::at(target[0]), Span::at(target[1])]);
+                if let Err(reason) = check_goto(rules, Some(from), target) {
+                    let why = match reason {
+                        crate::types::DropReason::KeepOut => "enters a keep-out zone",
+                        _ => "lies outside the travel limits",
+                    };
+                    return bad(format!("tour {}: step {} {why} of gimbal {}.{}", t.name, n + 1, t.port, t.device));
+                }
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,270 @@
+//! The router's side of the governance (module `govern`, ARCHITECTURE
+//! "Governance"): every command from a link to a local gimbal is put to
+//! the [`Governor`] before it is routed (a refusal is dropped and
+//! reported, nothing reaches the bus); a take-over stops the holder's
+//! motion first; the governor's own commands (polls, stops, tour and park
+//! gotos) are dispatched as the GCU's; answers and ends of commands are
+//! shown to it; and the GCU commands of port 0 (`~R`, `~C`, `~T`) are
+//! answered here.
+
+use std::sync::Arc;
+
+use sagebrush_protocol::gcu::{ControllerReply, encode_tour_list, encode_tour_reply};
+use sagebrush_protocol::{Address, Command, Frame, FrameBuf, GcuCommand, MAX_PAYLOAD, Reply, Row};
+
+use crate::boundary::Action;
+use crate::command::ReadCommand;
+use crate::govern::{Holder, LinkIdentity, Order};
+use crate::outbox::Outbox;
+use crate::types::{CommandId, CommandOutcome, DropReason, LinkId, Origin, Place, StopCause};
+
+use super::Router;
+use super::in_flight::IssuedStop;
+
+impl Router {
+    /// Who `link` is to the governor: its configured link, or itself.
+    fn identity(&self, link: LinkId) -> Option<LinkIdentity> {
+        let config = &self.links.get(&link)?.config;
+        Some(LinkIdentity {
+            key: config.name.clone().unwrap_or_else(|| Arc::from(link.to_string())),
+            priority: config.priority,
+        })
+    }
+
+    /// Puts a command from `link` for a local gimbal to the governor:
+    /// `Err` refuses it. A take-over stops the holder's motions first.
+    pub(super) fn govern_command(
+        &mut self,
+        now: u64,
+        link: LinkId,
+        command: &ReadCommand,
+        out: &mut Outbox,
+    ) -> Result<(), DropReason> {
+        let f = command.frame.frame();
+        let dest = f.dest;
+        let Some(who) = self.identity(link) else { return Ok(()) };
+        let known: Vec<(u8, u8)> = match dest.port == sagebrush_protocol::WILDCARD
+            || dest.device == sagebrush_protocol::WILDCARD
+        {
+            true => self
+                .ports
+                .iter()
+                .flat_map(|(&p, port)| port.device_stats.keys().map(move |&d| (p, d)))
+                .collect(),
+            false => Vec::new(),
+        };
+        let verdict = self.governor.on_command(now, &who, dest, f.payload(), &known)?;
+        for (port, device) in verdict.taken_over {
+            // The holder's motions stop before the new command is queued.
+            let stops = self.deadman.take_device(port, device, link);
+            self.stop_motions(now, stops, StopCause::TakeOver, out);
+            self.issue(
+                now,
+                Order {
+                    port,
+                    device,
+                    command: Command::StopMotion,
+                    stop: Some(StopCause::TakeOver),
+                    purpose: crate::govern::Purpose::Motion,
+                },
+                out,
+            );
+        }
+        Ok(())
+    }
+
+    /// The governor's own command, dispatched as the GCU's.
+    pub(super) fn issue(&mut self, now: u64, order: Order, out: &mut Outbox) {
+        let dest = Address::new(self.group, order.port, order.device);
+        let Ok(frame) = FrameBuf::build(dest, self.group, |buf| order.command.encode(buf).map(<[u8]>::len)) else {
+            return;
+        };
+        let command = ReadCommand::built(&order.command, frame);
+        // Known before dispatch: the command may end inside it.
+        let id = CommandId(self.next_id);
+        self.governor.sent(id, (order.port, order.device), order.purpose);
+        match order.stop {
+            Some(cause) => self.send_stop(
+                now,
+                command,
+                IssuedStop {
+                    link: LinkId(0),
+                    cause,
+                    round: 1,
+                },
+                out,
+            ),
+            None => {
+                self.dispatch(now, Origin::Internal, None, command, None, out);
+            }
+        }
+    }
+
+    /// Runs the governor: lapses, follows, tours, park; its commands dispatched, its events logged.
+    pub(super) fn govern_poll(&mut self, now: u64, out: &mut Outbox) {
+        // Orders may end at once and make more: a few rounds at most.
+        for _ in 0..4 {
+            let orders = self.governor.poll(now);
+            for e in self.governor.events.drain(..) {
+                out.push(Action::Event(e));
+            }
+            if orders.is_empty() {
+                break;
+            }
+            for order in orders {
+                self.issue(now, order, out);
+            }
+        }
+    }
+
+    /// A result of command `id` from `port`: what the governor learns from it.
+    pub(super) fn govern_result(&mut self, now: u64, id: CommandId, port: u8, reply: &FrameBuf) {
+        let Some(c) = self.in_flight.get(&id) else { return };
+        if !matches!(
+            c.command.facts.row,
+            Row::QueryPosition | Row::QueryRates | Row::QueryAccelerations | Row::QueryPreset
+        ) {
+            return;
+        }
+        let f = reply.frame();
+        if let Ok(r) = Reply::parse_expected(&c.command.facts.reply, f.payload()) {
+            self.governor.on_result(now, id, (port, f.dest.device), &r);
+        }
+    }
+
+    /// Command `id` ended with `outcome`.
+    pub(super) fn govern_finished(&mut self, id: CommandId, outcome: CommandOutcome) {
+        self.governor
+            .on_finished(self.last_now, id, outcome == CommandOutcome::Result);
+    }
+
+    /// A GCU command of port 0 (`~R`, `~C`, `~T`; protocol crate, module
+    /// `gcu`) from `origin`: its answer, or `None` for a NIC.
+    pub(super) fn gcu_command(
+        &mut self,
+        now: u64,
+        id: CommandId,
+        origin: Origin,
+        frame: &Frame<'_>,
+        out: &mut Outbox,
+    ) -> CommandOutcome {
+        let Origin::Link { link, .. } = origin else {
+            return CommandOutcome::Completed;
+        };
+        let Some(command) = GcuCommand::parse(frame.payload()) else {
+            return self.gcu_nic(now, id, origin, out);
+        };
+        let mut buf = [0u8; MAX_PAYLOAD];
+        let len = match command {
+            GcuCommand::Release(port, device) => {
+                let Some(who) = self.identity(link) else {
+                    return CommandOutcome::Dropped(DropReason::OriginGone);
+                };
+                return match self.governor.release(now, &who, (port, device)) {
+                    Ok(()) => {
+                        self.resolve(now, id, Ok(()), self.group, out);
+                        CommandOutcome::Completed
+                    }
+                    Err(reason) => {
+                        self.drop_frame(reason, Place::Router, frame.dest, frame.source, out);
+                        self.resolve(now, id, Err(reason.undelivered()), self.group, out);
+                        CommandOutcome::Dropped(reason)
+                    }
+                };
+            }
+            GcuCommand::Controller(port, device) => {
+                let holder = self.governor.holder(now, (port, device));
+                let (name, reply);
+                reply = match &holder {
+                    None => ControllerReply::Nobody,
+                    Some(Holder::Link { name: n, priority }) => {
+                        name = n.clone();
+                        ControllerReply::Link {
+                            priority: *priority,
+                            name: clip(name.as_bytes()),
+                        }
+                    }
+                    Some(Holder::Tour(n)) => ControllerReply::Tour(clip(n.as_bytes())),
+                    Some(Holder::Park) => ControllerReply::Park,
+                };
+                reply.encode(port, device, &mut buf)
+            }
+            GcuCommand::TourStart(name) | GcuCommand::TourStop(name) => {
+                let start = matches!(command, GcuCommand::TourStart(_));
+                let Some((state, waiting_for)) = self.governor.tour_command(now, name, start) else {
+                    return self.gcu_nic(now, id, origin, out);
+                };
+                let holder = match &waiting_for {
+                    Some(Holder::Link { name, .. }) | Some(Holder::Tour(name)) => name.clone(),
+                    Some(Holder::Park) => "park".into(),
+                    None => String::new(),
+                };
+                encode_tour_reply(state, clip(holder.as_bytes()), &mut buf)
+            }
+            GcuCommand::TourList => {
+                let tours = self.governor.tour_status(now);
+                Some(encode_tour_list(
+                    tours.iter().map(|t| (t.name.as_bytes(), t.state)),
+                    &mut buf,
+                ))
+            }
+        };
+        self.govern_poll(now, out);
+        self.resolve(now, id, Ok(()), self.group, out);
+        let Some(len) = len else {
+            return CommandOutcome::Completed;
+        };
+        // Table 3 header: back to the asker, port 0, the device as addressed.
+        let dest = Address::new(frame.source, frame.dest.port, frame.dest.device);
+        let Ok(reply) = FrameBuf::build(dest, self.group, |b| {
+            let n = len.min(b.len());
+            b[..n].copy_from_slice(&buf[..n]);
+            Ok::<usize, sagebrush_protocol::EncodeError>(n)
+        }) else {
+            return CommandOutcome::Completed;
+        };
+        match self.send_on_link(now, link, reply, out) {
+            Ok(()) => CommandOutcome::Result,
+            Err(reason) => CommandOutcome::Dropped(reason),
+        }
+    }
+
+    fn gcu_nic(&mut self, now: u64, id: CommandId, origin: Origin, out: &mut Outbox) -> CommandOutcome {
+        self.resolve(now, id, Ok(()), self.group, out);
+        match self.nic_to(now, origin, out) {
+            Ok(()) => CommandOutcome::Nic,
+            Err(reason) => CommandOutcome::Dropped(reason),
+        }
+    }
+
+    /// Control of every governed or held gimbal (gcud's `/status`).
+    pub fn control(&self) -> Vec<crate::GimbalControl> {
+        self.governor.control(self.last_now)
+    }
+
+    /// Every configured tour and its state.
+    pub fn tours(&self) -> Vec<crate::TourStatus> {
+        self.governor.tour_status(self.last_now)
+    }
+
+    /// Counters of the governance.
+    pub fn governance_stats(&self) -> crate::GovernStats {
+        self.governor.stats
+    }
+
+    /// A reload changed configured link `name`'s priority: its live
+    /// connections take it at once.
+    pub fn set_link_priority(&mut self, name: &str, priority: u8) {
+        for link in self.links.values_mut() {
+            if link.config.name.as_deref() == Some(name) {
+                link.config.priority = priority;
+            }
+        }
+        self.governor.set_priority(name, priority);
+    }
+}
+
+/// A name as a GCU command carries it (at most 32 bytes).
+fn clip(name: &[u8]) -> &[u8] {
+    &name[..name.len().min(sagebrush_protocol::gcu::NAME_MAX)]
+}
