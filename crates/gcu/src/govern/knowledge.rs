@@ -7,13 +7,13 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use sagebrush_protocol::link::wire_ms;
 use sagebrush_protocol::frame::HEADER_LEN;
+use sagebrush_protocol::link::wire_ms;
 use sagebrush_protocol::{Command, Position};
 
 use super::control::Held;
 use super::rules::{GimbalRules, Span};
-use super::travel::{Region, axes, braking, distance_in, room_ahead, stop_slack};
+use super::travel::{Kinematics, Region, axes, braking, distance_in, room_ahead};
 use super::{GovernStats, Order, Purpose};
 use crate::types::{DropReason, RouterEvent, StopCause};
 
@@ -33,8 +33,9 @@ const TURNAROUND: u64 = 5;
 pub(crate) enum AxisMotion {
     #[default]
     Still,
-    /// A continuous slew, +1 counter-clockwise.
-    Slew { dir: i32 },
+    /// A continuous slew, +1 counter-clockwise, begun at tick `since`
+    /// (until then the axis stood where it was last read).
+    Slew { dir: i32, since: u64 },
     /// Going to this target.
     Goto { target: i32 },
     /// Braking after a stop.
@@ -152,9 +153,9 @@ impl Gimbal {
             region[axis] = match self.axes[axis] {
                 AxisMotion::Still => Span::at(p[axis]),
                 AxisMotion::Goto { target } => Span::at(p[axis]).join(&Span::at(target)),
-                AxisMotion::Slew { dir } => {
+                AxisMotion::Slew { dir, since } => {
                     let (v, a) = (self.rate(axis)?, self.accel(axis)?);
-                    let run = distance_in(now.saturating_sub(reading.at), v) + braking(v, a);
+                    let run = distance_in(now.saturating_sub(reading.at.max(since)), v) + braking(v, a);
                     Span::at(p[axis]).join(&Span::at(p[axis] + dir * run))
                 }
                 AxisMotion::Settling => {
@@ -180,9 +181,18 @@ impl Gimbal {
         let Some((room, reason)) = room_ahead(rules, axis, dir, at, self.other_range(axis, region, now)) else {
             return Ok(());
         };
-        match stop_slack(room, v, a, latency(bps)) >= 0 {
-            true => Ok(()),
-            false => Err(reason),
+        // Its speed now: gained since a slew that way began (none from still).
+        let elapsed = match self.axes[axis] {
+            AxisMotion::Slew { dir: d, since } if d == dir => now.saturating_sub(since),
+            AxisMotion::Still => 0,
+            // Turning round or settling: as fast as it may be.
+            _ => u64::MAX / 4,
+        };
+        // The earliest a stop can reach it: after this command's exchange, the stop's frame.
+        let earliest = (exchange(bps) + latency(bps)) as f64;
+        match Kinematics::of(v, a, elapsed).latest_stop(room) {
+            Some(t) if t >= earliest => Ok(()),
+            _ => Err(reason),
         }
     }
 
@@ -190,24 +200,35 @@ impl Gimbal {
     fn other_range(&self, axis: usize, region: Region, now: u64) -> Span {
         let other = 1 - axis;
         match (self.axes[other], self.rate(other)) {
-            (AxisMotion::Slew { dir }, Some(v)) => {
+            (AxisMotion::Slew { dir, .. }, Some(v)) => {
                 let _ = now;
                 // Over the horizon of one slow poll: far enough ahead for the next plan.
                 let reach = distance_in(MAX_SLEW_POLL * 2, v);
-                region[other].join(&Span::at(if dir > 0 { region[other].hi + reach } else { region[other].lo - reach }))
+                region[other].join(&Span::at(if dir > 0 {
+                    region[other].hi + reach
+                } else {
+                    region[other].lo - reach
+                }))
             }
             _ => region[other],
         }
     }
 
     pub fn going(&mut self, now: u64, target: [i32; 2]) {
-        self.axes = [AxisMotion::Goto { target: target[0] }, AxisMotion::Goto { target: target[1] }];
+        self.axes = [
+            AxisMotion::Goto { target: target[0] },
+            AxisMotion::Goto { target: target[1] },
+        ];
         self.stop_at = [None; 2];
         self.poll_at = Some(now + MOTION_POLL);
     }
 
     pub fn slewing(&mut self, now: u64, axis: usize, dir: i32) {
-        self.axes[axis] = AxisMotion::Slew { dir };
+        let since = match self.axes[axis] {
+            AxisMotion::Slew { dir: d, since } if d == dir => since,
+            _ => now,
+        };
+        self.axes[axis] = AxisMotion::Slew { dir, since };
         self.replan = true;
         self.poll_at = Some(now);
     }
@@ -272,8 +293,8 @@ impl Gimbal {
         let Some(region) = self.region(reading.at) else { return };
         let p = axes(reading.position);
         let exchange = exchange(bps);
-        for axis in 0..2 {
-            let AxisMotion::Slew { dir } = self.axes[axis] else {
+        for (axis, &at) in p.iter().enumerate() {
+            let AxisMotion::Slew { dir, since } = self.axes[axis] else {
                 self.stop_at[axis] = None;
                 continue;
             };
@@ -282,16 +303,23 @@ impl Gimbal {
                 self.stop_at[axis] = Some((now, DropReason::PositionUnknown));
                 continue;
             };
-            let Some((room, reason)) = room_ahead(&rules, axis, dir, p[axis], self.other_range(axis, region, now))
+            let Some((room, reason)) = room_ahead(&rules, axis, dir, at, self.other_range(axis, region, now))
             else {
                 self.stop_at[axis] = None;
                 continue;
             };
-            let slack = stop_slack(room, v, a, latency(bps));
-            let stop = reading.at.saturating_add_signed(slack).max(now);
+            // The axis stood at the reading until the slew began; since
+            // then it gained at most `a` per ms (the slew began no earlier
+            // than the router accepted it).
+            let from = reading.at.max(since);
+            let kinematics = Kinematics::of(v, a, from - since);
+            let stop = match kinematics.latest_stop(room) {
+                Some(dt) => (from + dt as u64).saturating_sub(latency(bps)).max(now),
+                None => now,
+            };
             self.stop_at[axis] = Some((stop, reason));
             // Poll again while a fresher reading can still refine the stop.
-            let wait = (slack.max(0) as u64 / 2).clamp(exchange, MAX_SLEW_POLL);
+            let wait = ((stop - now) / 2).clamp(exchange, MAX_SLEW_POLL);
             if now + wait + exchange < stop {
                 self.poll_at = Some(self.poll_at.map_or(now + wait, |t| t.min(now + wait)));
             }

@@ -50,7 +50,11 @@ pub(crate) fn check_goto(rules: &GimbalRules, from: Option<Region>, target: [i32
         return Err(DropReason::PositionUnknown);
     };
     let path = [from[0].join(&Span::at(target[0])), from[1].join(&Span::at(target[1]))];
-    match rules.keep_out.iter().any(|z| z.pan.meets(&path[0]) && z.tilt.meets(&path[1])) {
+    match rules
+        .keep_out
+        .iter()
+        .any(|z| z.pan.meets(&path[0]) && z.tilt.meets(&path[1]))
+    {
         true => Err(DropReason::KeepOut),
         false => Ok(()),
     }
@@ -90,15 +94,10 @@ pub(crate) fn room_ahead(
     room
 }
 
-/// A slew's braking distance at `rate` (per second) and `accel` (per second squared).
+/// A slew's braking distance at top `rate` (per second) and `accel` (per second squared).
 pub(crate) fn braking(rate: u32, accel: u32) -> i32 {
     let (v, a) = (u64::from(rate), u64::from(accel.max(1)));
     ((v * v).div_ceil(2 * a)).min(i32::MAX as u64) as i32
-}
-
-/// Milliseconds a slew at `rate` takes to cover `distance`.
-pub(crate) fn time_for(distance: i32, rate: u32) -> i64 {
-    i64::from(distance) * 1000 / i64::from(rate.max(1))
 }
 
 /// How far a slew at `rate` runs in `ms`.
@@ -106,12 +105,64 @@ pub(crate) fn distance_in(ms: u64, rate: u32) -> i32 {
     (ms.saturating_mul(u64::from(rate)) / 1000).min(i32::MAX as u64) as i32
 }
 
-/// When (ms after the position `at` was read) the stop of a slew must be
-/// sent so that it reaches the gimbal `latency` later and the gimbal,
-/// braking, rests [`GUARD`] short of a boundary `room` away. Negative:
-/// already too late to stop short.
-pub(crate) fn stop_slack(room: i32, rate: u32, accel: u32, latency: u64) -> i64 {
-    time_for(room - braking(rate, accel) - GUARD, rate) - latency as i64
+/// A slew's motion, in hundredths of a degree and milliseconds: its
+/// speed `u` when read (per ms), its top speed `v` and acceleration `a`
+/// (per ms squared). The gimbal accelerates to `v` and brakes at `a`.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Kinematics {
+    pub u: f64,
+    pub v: f64,
+    pub a: f64,
+}
+
+impl Kinematics {
+    /// From a rate (per second) and acceleration (per second squared),
+    /// `elapsed` ms after the slew began from rest: its speed then is at
+    /// most `a * elapsed` (what it may have gained), capped at the rate.
+    pub fn of(rate: u32, accel: u32, elapsed: u64) -> Self {
+        let v = f64::from(rate.max(1)) / 1000.0;
+        let a = f64::from(accel.max(1)) / 1_000_000.0;
+        Self {
+            u: (a * elapsed as f64).min(v),
+            v,
+            a,
+        }
+    }
+
+    /// How far it comes to rest from the reading when the stop reaches it `dt` ms later.
+    pub fn rest(&self, dt: f64) -> f64 {
+        let Self { u, v, a } = *self;
+        let (run, w) = if u + a * dt <= v {
+            (u * dt + 0.5 * a * dt * dt, u + a * dt)
+        } else {
+            let t1 = (v - u) / a;
+            (u * t1 + 0.5 * a * t1 * t1 + v * (dt - t1), v)
+        };
+        run + w * w / (2.0 * a)
+    }
+
+    /// The latest time after the reading (ms) at which a stop may reach
+    /// the gimbal for it to rest [`GUARD`] short of a boundary `room`
+    /// away; `None` when even a stop at once would not.
+    pub fn latest_stop(&self, room: i32) -> Option<f64> {
+        let room = f64::from(room - GUARD);
+        if self.rest(0.0) > room {
+            return None;
+        }
+        // Monotone in dt: find a time too late by doubling, then bisect.
+        let (mut lo, mut hi) = (0.0, 1.0);
+        for _ in 0..64 {
+            if self.rest(hi) > room {
+                break;
+            }
+            (lo, hi) = (hi, hi * 2.0);
+        }
+        for _ in 0..48 {
+            let mid = 0.5 * (lo + hi);
+            if self.rest(mid) <= room { lo = mid } else { hi = mid }
+        }
+        Some(lo)
+    }
 }
 
 #[cfg(test)]
@@ -155,21 +206,46 @@ mod tests {
     fn the_room_ahead_is_the_nearest_limit_or_zone_edge() {
         let r = rules();
         assert_eq!(room_ahead(&r, 0, 1, 0, Span::at(0)), Some((4000, DropReason::KeepOut)));
-        assert_eq!(room_ahead(&r, 0, 1, 0, Span::at(2000)), Some((17000, DropReason::TravelLimit)));
-        assert_eq!(room_ahead(&r, 0, -1, 0, Span::at(0)), Some((17000, DropReason::TravelLimit)));
-        assert_eq!(room_ahead(&r, 1, -1, 5000, Span::at(5000)), Some((4000, DropReason::KeepOut)));
-        assert_eq!(room_ahead(&r, 1, -1, 5000, Span::at(0)), Some((8000, DropReason::TravelLimit)));
-        assert_eq!(room_ahead(&r, 1, -1, 2000, Span::at(5000)), Some((1000, DropReason::KeepOut)));
+        assert_eq!(
+            room_ahead(&r, 0, 1, 0, Span::at(2000)),
+            Some((17000, DropReason::TravelLimit))
+        );
+        assert_eq!(
+            room_ahead(&r, 0, -1, 0, Span::at(0)),
+            Some((17000, DropReason::TravelLimit))
+        );
+        assert_eq!(
+            room_ahead(&r, 1, -1, 5000, Span::at(5000)),
+            Some((4000, DropReason::KeepOut))
+        );
+        assert_eq!(
+            room_ahead(&r, 1, -1, 5000, Span::at(0)),
+            Some((8000, DropReason::TravelLimit))
+        );
+        assert_eq!(
+            room_ahead(&r, 1, -1, 2000, Span::at(5000)),
+            Some((1000, DropReason::KeepOut))
+        );
         assert_eq!(room_ahead(&GimbalRules::new(1, 1), 0, 1, 0, Span::at(0)), None);
     }
 
     #[test]
-    fn the_stop_is_planned_from_rate_acceleration_and_latency() {
-        // 60 deg/s, 120 deg/s^2: 15 degrees of braking.
+    fn the_stop_is_planned_from_speed_rate_and_acceleration() {
+        // 60 deg/s, 120 deg/s^2: 15 degrees of braking at top speed.
         assert_eq!(braking(6000, 12000), 1500);
-        // 20 degrees of room: 5 - 0.25 degrees of slack at 60 deg/s is 79 ms, less 30 ms latency.
-        assert_eq!(stop_slack(2000, 6000, 12000, 30), 79 - 30);
-        assert!(stop_slack(1500, 6000, 12000, 0) < 0);
         assert_eq!(distance_in(500, 6000), 3000);
+        let at_top = Kinematics::of(6000, 12000, 10_000);
+        assert!((at_top.rest(0.0) - 1500.0).abs() < 1e-6);
+        // 20 degrees of room: 5 - 0.25 degrees at 60 deg/s take 79 ms.
+        let t = at_top.latest_stop(2000).unwrap();
+        assert!((t - 79.17).abs() < 0.1, "{t}");
+        assert!((at_top.rest(t) - 1975.0).abs() < 0.01);
+        assert_eq!(at_top.latest_stop(1500), None, "cannot rest a quarter degree short");
+        // From rest, 90 degrees toward a limit at 120 deg/s: accelerate to
+        // the middle, then brake; not at top speed all the way.
+        let from_rest = Kinematics::of(12000, 12000, 0);
+        let t = from_rest.latest_stop(9000).unwrap();
+        assert!((from_rest.rest(t) - 8975.0).abs() < 0.01);
+        assert!((t - 864.8).abs() < 0.1, "{t}");
     }
 }

@@ -277,7 +277,6 @@ impl Router {
             self.deliver_overdue(now, id, out);
         }
         self.stop_expired_leases(now, out);
-        self.govern_poll(now, out);
         let due = |d: Option<u64>| d.is_some_and(|t| t <= now);
         // The next due port or link after the last one polled: found afresh
         // each time (polling one may change the others), with no list.
@@ -301,6 +300,8 @@ impl Router {
             after = Some(link);
             self.with_link_receiving(now, link, out, |l, lo, received| l.poll(now, lo, received));
         }
+        // Last: what the ports and links just ended is known to it.
+        self.govern_poll(now, out);
     }
 
     fn drop_frame(&mut self, reason: DropReason, at: Place, dest: Address, source: u8, out: &mut Outbox) {
