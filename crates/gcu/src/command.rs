@@ -48,9 +48,19 @@ pub(crate) struct CommandFacts {
     pub rate: Option<DataRate>,
     /// The device registry keeps its answer: `P?` (Table 15), `V?` (Table 17).
     pub registry: bool,
+    /// It moves the pan/tilt mount to a place (`Paaaaeeee`, `Pnn`, `HO`,
+    /// `HP`, Table 11): a queued one is given up when a stop of both axes
+    /// overtakes it.
+    pub goes_to: bool,
 }
 
 impl CommandFacts {
+    /// A slew or a goto of the mount (or a lens motion): what the
+    /// governance follows in order.
+    pub fn moves(&self) -> bool {
+        self.stopped_by.is_some() || self.goes_to
+    }
+
     /// Reads a command payload: the one place the router core parses a command.
     pub fn read(payload: &[u8]) -> Self {
         Self::of(&Command::parse(payload))
@@ -65,6 +75,13 @@ impl CommandFacts {
             reply: ExpectedReply::of(command),
             rate: command.data_rate_change(),
             registry: matches!(command, Command::QueryPosition | Command::QueryLens),
+            goes_to: matches!(
+                command,
+                Command::GoTo(_)
+                    | Command::GoToPreset(_)
+                    | Command::Home
+                    | Command::Extended(sagebrush_protocol::Extended::GoToHaltPosition, _)
+            ),
         }
     }
 }

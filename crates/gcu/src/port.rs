@@ -66,7 +66,7 @@ use sagebrush_protocol::link::TransactionPolicy;
 use sagebrush_protocol::{
     DataRate, Event, FrameBuf, OwnedEvent, Reply, RetryPolicy, Transaction, TransactionStep, TxFailure, WILDCARD,
 };
-use sagebrush_protocol::{Outcome, ResultKind, ResultTimeout, Undelivered};
+use sagebrush_protocol::{Outcome, ResultKind, ResultTimeout, Row, Undelivered};
 
 use crate::command::CommandFacts;
 use crate::config::PortConfig;
@@ -85,6 +85,8 @@ pub(crate) struct Job {
     pub facts: CommandFacts,
     /// Identical stops of other commands merged into this one: they share its outcome.
     pub merged: Vec<CommandId>,
+    /// A stop ahead of every other (a slew near a limit or zone).
+    pub urgent: bool,
 }
 
 impl Job {
@@ -95,6 +97,7 @@ impl Job {
             frame,
             facts,
             merged: Vec::new(),
+            urgent: false,
         }
     }
 
@@ -114,6 +117,9 @@ impl Queued for Job {
     fn same_frame(&self, other: &Self) -> bool {
         let (a, b) = (self.frame.frame(), other.frame.frame());
         a.dest == b.dest && a.payload() == b.payload()
+    }
+    fn urgent(&self) -> bool {
+        self.urgent
     }
 }
 
@@ -337,6 +343,7 @@ impl Port {
             job.frame.set_header(port_copy, job.frame.frame().source);
         }
         if job.facts.stop {
+            self.cancel_undone_by(&job, out);
             if let Some(queued) = self.queue.same_stop_mut(&job) {
                 self.stats.line.drops.add(DropReason::DuplicateStop);
                 queued.merged.push(job.id);
@@ -387,6 +394,46 @@ impl Port {
         }
         self.note_queue();
         true
+    }
+
+    /// A stop overtakes queued work (module documentation): a motion of the
+    /// same device still queued would run after it and undo it, so it is
+    /// given up ([`DropReason::Superseded`]): the stop of an axis ends the
+    /// slews of that axis, a stop of both axes (`PT`, `HS`, `HA`) every
+    /// slew and goto of the mount.
+    fn cancel_undone_by(&mut self, stop: &Job, out: &mut Vec<PortOut>) {
+        let device = stop.frame.frame().dest.device;
+        let both = matches!(stop.facts.row, Row::StopMotion | Row::MotorsStop | Row::Halt);
+        let axis_stop = stop.facts.row;
+        let undone = self.queue.remove_where(|j| {
+            let to = j.frame.frame().dest.device;
+            let same = device == WILDCARD || to == device;
+            let slew_of = j.facts.stopped_by.map(|s| s.row());
+            let mount_slew = matches!(slew_of, Some(Row::PanStop | Row::TiltStop));
+            same && !j.facts.stop && (slew_of == Some(axis_stop) || (both && (mount_slew || j.facts.goes_to)))
+        });
+        for job in undone {
+            self.drop_job(job, DropReason::Superseded, out);
+        }
+    }
+
+    /// Queued jobs for `device` that `pick` names are given up unsent
+    /// (`reason` tells their origins): a take-over, or a stop at a
+    /// boundary, must not be undone by a motion still waiting behind it.
+    pub fn cancel_for_device(
+        &mut self,
+        device: u8,
+        pick: impl Fn(&Job) -> bool,
+        reason: DropReason,
+        out: &mut Vec<PortOut>,
+    ) {
+        let cancel = self
+            .queue
+            .remove_where(|j| !j.facts.stop && j.frame.frame().dest.device == device && pick(j));
+        for job in cancel {
+            self.drop_job(job, reason, out);
+        }
+        self.note_queue();
     }
 
     /// The origin link went down: queued motions it started must not run
@@ -461,7 +508,22 @@ impl Port {
                 best = Some((served, i));
             }
         }
-        let job = self.queue.remove(best?.1)?;
+        // Motions of one device run in the order they were accepted, whoever
+        // sent them: the governance follows them in that order (a goto's
+        // path is checked from where the motions before it leave the gimbal).
+        let mut pick = best?.1;
+        let chosen = self.queue.iter().nth(pick)?;
+        if chosen.facts.moves() {
+            let device = chosen.frame.frame().dest.device;
+            if let Some(first) = self
+                .queue
+                .iter()
+                .position(|j| !j.facts.stop && j.facts.moves() && j.frame.frame().dest.device == device)
+            {
+                pick = pick.min(first);
+            }
+        }
+        let job = self.queue.remove(pick)?;
         self.turn += 1;
         self.served.insert(job.origin.link(), self.turn);
         if self.served.len() > 2 * self.queue.len() + 16 {

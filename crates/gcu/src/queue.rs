@@ -17,6 +17,11 @@ pub(crate) trait Queued {
     fn always_fits(&self) -> bool;
     /// Same destination and payload.
     fn same_frame(&self, other: &Self) -> bool;
+    /// A stop that cannot wait behind other stops (a slew about to reach a
+    /// limit or zone): ahead of every waiting item.
+    fn urgent(&self) -> bool {
+        false
+    }
 }
 
 #[derive(Debug)]
@@ -75,10 +80,15 @@ impl<T: Queued> StopFirstQueue<T> {
             .find(|queued| queued.is_stop() && queued.same_frame(item))
     }
 
-    /// Queues `item`: a stop behind the waiting stops and ahead of all
-    /// work, work at the end. The caller checked [`Self::has_room`].
+    /// Queues `item`: an urgent stop behind the waiting urgent ones and
+    /// ahead of everything else, a stop behind the waiting stops and ahead
+    /// of all work, work at the end. The caller checked [`Self::has_room`].
     pub fn push(&mut self, item: T) {
-        let at = if item.is_stop() {
+        let at = if item.is_stop() && item.urgent() {
+            (self.first_waiting()..self.items.len())
+                .find(|&i| !(self.items[i].is_stop() && self.items[i].urgent()))
+                .unwrap_or(self.items.len())
+        } else if item.is_stop() {
             (self.first_waiting()..self.items.len())
                 .find(|&i| !self.items[i].is_stop())
                 .unwrap_or(self.items.len())

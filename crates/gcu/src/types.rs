@@ -442,6 +442,8 @@ sagebrush_protocol::code_table! {
         KeepOut,
         /// the gimbal's position, rate or acceleration is unknown and it has limits or zones
         PositionUnknown,
+        /// a stop for the same gimbal overtook it in the queue: it would have undone the stop
+        Superseded,
     }
 }
 
@@ -485,6 +487,7 @@ impl DropReason {
             DropReason::TravelLimit => Undelivered::TravelLimit,
             DropReason::KeepOut => Undelivered::KeepOut,
             DropReason::PositionUnknown => Undelivered::PositionUnknown,
+            DropReason::Superseded => Undelivered::Superseded,
         }
     }
 }

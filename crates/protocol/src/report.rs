@@ -73,6 +73,8 @@ crate::code_table! {
         KeepOut,
         /// the gimbal's position is unknown and it has limits or zones
         PositionUnknown,
+        /// a stop for the same gimbal overtook it before it reached the bus
+        Superseded,
     }
 }
 

@@ -25,6 +25,10 @@ const MAX_SLEW_POLL: u64 = 1000;
 const RETRY: u64 = 2000;
 /// Readings this close (hundredths of a degree) mean the axis stands still.
 const SAME: i32 = 5;
+/// The shortest span between two readings that may show an axis standing still (ms).
+const SETTLE_SPAN: u64 = 100;
+/// Readings in a row without change that end a goto short of its target.
+const STILL_POLLS: u8 = 4;
 /// A device's turnaround before it answers, allowed for (ms).
 const TURNAROUND: u64 = 5;
 
@@ -36,8 +40,9 @@ pub(crate) enum AxisMotion {
     /// A continuous slew, +1 counter-clockwise, begun at tick `since`
     /// (until then the axis stood where it was last read).
     Slew { dir: i32, since: u64 },
-    /// Going to this target.
-    Goto { target: i32 },
+    /// Going to this target; `moving`: the axis was not still when it
+    /// began (it may first run on the other way, by its braking distance).
+    Goto { target: i32, moving: bool },
     /// Braking after a stop.
     Settling,
     /// Moving, no one knows where.
@@ -89,6 +94,14 @@ pub(crate) struct Gimbal {
     stop_at: [Option<(u64, DropReason)>; 2],
     /// A slew began: its stop is planned at the next poll.
     replan: bool,
+    /// The rate and acceleration of each axis when its slew began.
+    slew_began_with: [Option<(u32, u32)>; 2],
+    /// Readings in a row each axis did not change.
+    unchanged: [u8; 2],
+    /// The fastest each axis may have moved at the last reading, per
+    /// second, from the last two readings (a `HO` may run faster than the
+    /// rate `R?` answers).
+    seen_rate: [u32; 2],
 }
 
 impl Gimbal {
@@ -134,14 +147,26 @@ impl Gimbal {
         self.axes.iter().any(|a| *a != AxisMotion::Still)
     }
 
+    /// The axis' top rate; while it slews, no less than when the slew
+    /// began (a speed change may not apply to a slew under way).
     fn rate(&self, axis: usize) -> Option<u32> {
         let configured = self.rules.as_ref().and_then(|r| r.slew_rate);
-        configured.or(self.rates).map(|r| r[axis].max(1))
+        let now = configured.or(self.rates).map(|r| r[axis].max(1))?;
+        let rate = match (self.axes[axis], self.slew_began_with[axis]) {
+            (AxisMotion::Slew { .. }, Some((rate, _))) => now.max(rate),
+            _ => now,
+        };
+        Some(rate.max(self.seen_rate[axis]))
     }
 
+    /// The axis' acceleration; while it slews, no more than when the slew began.
     fn accel(&self, axis: usize) -> Option<u32> {
         let configured = self.rules.as_ref().and_then(|r| r.acceleration);
-        configured.or(self.accels).map(|a| a[axis].max(1))
+        let now = configured.or(self.accels).map(|a| a[axis].max(1))?;
+        Some(match (self.axes[axis], self.slew_began_with[axis]) {
+            (AxisMotion::Slew { .. }, Some((_, accel))) => now.min(accel),
+            _ => now,
+        })
     }
 
     /// Where it may be now, per axis; `None` when unknown.
@@ -152,11 +177,22 @@ impl Gimbal {
         for axis in 0..2 {
             region[axis] = match self.axes[axis] {
                 AxisMotion::Still => Span::at(p[axis]),
-                AxisMotion::Goto { target } => Span::at(p[axis]).join(&Span::at(target)),
+                AxisMotion::Goto { target, moving } => {
+                    let path = Span::at(p[axis]).join(&Span::at(target));
+                    match moving {
+                        false => path,
+                        true => {
+                            let reach = braking(self.rate(axis)?, self.accel(axis)?);
+                            Span::new(path.lo - reach, path.hi + reach)
+                        }
+                    }
+                }
                 AxisMotion::Slew { dir, since } => {
                     let (v, a) = (self.rate(axis)?, self.accel(axis)?);
                     let run = distance_in(now.saturating_sub(reading.at.max(since)), v) + braking(v, a);
-                    Span::at(p[axis]).join(&Span::at(p[axis] + dir * run))
+                    // Begun while moving (`since` 0), it may first run on the other way.
+                    let back = if since == 0 { braking(v, a) } else { 0 };
+                    Span::at(p[axis] - dir * back).join(&Span::at(p[axis] + dir * run))
                 }
                 AxisMotion::Settling => {
                     let reach = braking(self.rate(axis)?, self.accel(axis)?);
@@ -169,30 +205,69 @@ impl Gimbal {
     }
 
     /// A slew of `axis` in `dir`: refused when its position, rate or
-    /// acceleration is unknown, or when it could not be stopped short of
-    /// the first limit or zone ahead.
-    pub fn check_slew(&self, now: u64, rules: &GimbalRules, axis: usize, dir: i32, bps: u32) -> Result<(), DropReason> {
+    /// acceleration is unknown, or when the stop that keeps it short of the
+    /// first limit or zone ahead would be due before the slew is even on
+    /// the bus.
+    pub fn check_slew(
+        &self,
+        now: u64,
+        rules: &GimbalRules,
+        axis: usize,
+        dir: i32,
+        line: Line,
+    ) -> Result<(), DropReason> {
+        let since = self.slew_since(now, axis, dir);
+        match self.stop_due(now, rules, axis, dir, since, line)? {
+            None => Ok(()),
+            Some((Some(t), _)) if t >= now + line.exchange() => Ok(()),
+            Some((_, reason)) => Err(reason),
+        }
+    }
+
+    /// When a slew of `axis` in `dir` that began at `since` (0: the axis was
+    /// already moving, so as fast as it may be) must have its stop sent, from
+    /// the last reading: `None` when nothing bounds it; `Some((None, _))`
+    /// when even a stop sent now comes too late; and what it stops short of.
+    fn stop_due(
+        &self,
+        now: u64,
+        rules: &GimbalRules,
+        axis: usize,
+        dir: i32,
+        since: u64,
+        line: Line,
+    ) -> Result<Option<(Option<u64>, DropReason)>, DropReason> {
+        let reading = self.position.ok_or(DropReason::PositionUnknown)?;
         let region = self.region(now).ok_or(DropReason::PositionUnknown)?;
-        let (v, a) = match (self.rate(axis), self.accel(axis)) {
-            (Some(v), Some(a)) => (v, a),
-            _ => return Err(DropReason::PositionUnknown),
+        let (Some(v), Some(a)) = (self.rate(axis), self.accel(axis)) else {
+            return Err(DropReason::PositionUnknown);
         };
-        let at = if dir > 0 { region[axis].hi } else { region[axis].lo };
+        let at = axes(reading.position)[axis];
         let Some((room, reason)) = room_ahead(rules, axis, dir, at, self.other_range(axis, region, now)) else {
-            return Ok(());
+            return Ok(None);
         };
-        // Its speed now: gained since a slew that way began (none from still).
-        let elapsed = match self.axes[axis] {
-            AxisMotion::Slew { dir: d, since } if d == dir => now.saturating_sub(since),
-            AxisMotion::Still => 0,
-            // Turning round or settling: as fast as it may be.
-            _ => u64::MAX / 4,
-        };
-        // The earliest a stop can reach it: after this command's exchange, the stop's frame.
-        let earliest = (exchange(bps) + latency(bps)) as f64;
-        match Kinematics::of(v, a, elapsed).latest_stop(room) {
-            Some(t) if t >= earliest => Ok(()),
-            _ => Err(reason),
+        // The axis stood at the reading until the slew began; since then it
+        // gained at most `a` per ms (it began no earlier than accepted).
+        let from = reading.at.max(since);
+        let mut kinematics = Kinematics::of(v, a, from - since);
+        // Never slower than the readings showed it moving.
+        kinematics.u = kinematics
+            .u
+            .max(f64::from(self.seen_rate[axis]) / 1000.0)
+            .min(kinematics.v);
+        let due = kinematics
+            .latest_stop(room)
+            .map(|dt| (from + dt as u64).saturating_sub(line.latency()));
+        Ok(Some((due, reason)))
+    }
+
+    /// When a slew of `axis` in `dir` begun now counts as begun (see [`Gimbal::stop_due`]).
+    fn slew_since(&self, now: u64, axis: usize, dir: i32) -> u64 {
+        match self.axes[axis] {
+            AxisMotion::Slew { dir: d, since } if d == dir => since,
+            AxisMotion::Still => now,
+            // Already moving (a goto not yet confirmed, a stop, a turn): as fast as it may be.
+            _ => 0,
         }
     }
 
@@ -216,18 +291,23 @@ impl Gimbal {
 
     pub fn going(&mut self, now: u64, target: [i32; 2]) {
         self.axes = [
-            AxisMotion::Goto { target: target[0] },
-            AxisMotion::Goto { target: target[1] },
+            AxisMotion::Goto {
+                target: target[0],
+                moving: self.axes[0] != AxisMotion::Still,
+            },
+            AxisMotion::Goto {
+                target: target[1],
+                moving: self.axes[1] != AxisMotion::Still,
+            },
         ];
         self.stop_at = [None; 2];
         self.poll_at = Some(now + MOTION_POLL);
     }
 
     pub fn slewing(&mut self, now: u64, axis: usize, dir: i32) {
-        let since = match self.axes[axis] {
-            AxisMotion::Slew { dir: d, since } if d == dir => since,
-            _ => now,
-        };
+        let since = self.slew_since(now, axis, dir);
+        // Checked before: both are known (or it was refused).
+        self.slew_began_with[axis] = self.rate(axis).zip(self.accel(axis));
         self.axes[axis] = AxisMotion::Slew { dir, since };
         self.replan = true;
         self.poll_at = Some(now);
@@ -265,18 +345,46 @@ impl Gimbal {
 
     /// A position read (answered at `now`, at `bps`): motions confirmed,
     /// slews planned again.
-    pub fn read_position(&mut self, now: u64, position: Position, bps: u32) {
+    pub fn read_position(&mut self, now: u64, position: Position, line: Line) {
         // The gimbal read it before the result's bytes were on the wire.
-        let at = now.saturating_sub(wire_ms(HEADER_LEN + 10, bps));
-        let before = self.position.map(|r| axes(r.position));
+        let at = now.saturating_sub(wire_ms(HEADER_LEN + 10, line.bps));
+        let before = self.position.map(|r| (r.at, axes(r.position)));
         let p = axes(position);
+        for axis in 0..2 {
+            // The mean speed since the last reading, plus what the axis may
+            // have gained meanwhile, bounds its speed now.
+            self.seen_rate[axis] = match (before, self.accel(axis)) {
+                (Some((t, b)), Some(a)) if at > t => {
+                    let dt = (at - t) as f64;
+                    let mean = f64::from((p[axis] - b[axis]).abs()) * 1000.0 / dt;
+                    // Accelerating through a short span, it ends faster than its mean.
+                    (mean + f64::from(a) * dt.min(SETTLE_SPAN as f64) / 2000.0).min(f64::from(u32::MAX)) as u32
+                }
+                _ => 0,
+            };
+        }
+        // Two readings close in time tell nothing of standing still.
+        let before = before.filter(|&(t, _)| at >= t + SETTLE_SPAN).map(|(_, b)| b);
         self.position = Some(Reading { at, position });
         self.need_position = false;
         for axis in 0..2 {
             let unchanged = before.is_some_and(|b| (b[axis] - p[axis]).abs() <= SAME);
+            self.unchanged[axis] = if unchanged {
+                self.unchanged[axis].saturating_add(1)
+            } else {
+                0
+            };
+            // A goto may start slowly (an axis scaled down to arrive with
+            // the other): only arrival, or no change over several polls,
+            // ends it; a stop ends at the first reading that did not change.
             self.axes[axis] = match self.axes[axis] {
-                AxisMotion::Goto { target } if (p[axis] - target).abs() <= super::travel::ARRIVED => AxisMotion::Still,
-                AxisMotion::Goto { .. } | AxisMotion::Settling | AxisMotion::Unknown if unchanged => AxisMotion::Still,
+                AxisMotion::Goto { target, .. } if (p[axis] - target).abs() <= super::travel::ARRIVED => {
+                    AxisMotion::Still
+                }
+                AxisMotion::Goto { .. } | AxisMotion::Unknown if self.unchanged[axis] >= STILL_POLLS => {
+                    AxisMotion::Still
+                }
+                AxisMotion::Settling if unchanged => AxisMotion::Still,
                 other => other,
             };
         }
@@ -285,37 +393,23 @@ impl Gimbal {
     }
 
     /// Plans the stop of each slewing axis from the last reading.
-    fn plan(&mut self, now: u64, bps: u32) {
+    fn plan(&mut self, now: u64, line: Line) {
         self.replan = false;
-        let (Some(rules), Some(reading)) = (self.rules.clone(), self.position) else {
-            return;
-        };
-        let Some(region) = self.region(reading.at) else { return };
-        let p = axes(reading.position);
-        let exchange = exchange(bps);
-        for (axis, &at) in p.iter().enumerate() {
+        let Some(rules) = self.rules.clone() else { return };
+        let exchange = line.exchange();
+        for axis in 0..2 {
             let AxisMotion::Slew { dir, since } = self.axes[axis] else {
                 self.stop_at[axis] = None;
                 continue;
             };
-            let (Some(v), Some(a)) = (self.rate(axis), self.accel(axis)) else {
-                // Unknown speed: stop at once rather than guess.
-                self.stop_at[axis] = Some((now, DropReason::PositionUnknown));
-                continue;
-            };
-            let Some((room, reason)) = room_ahead(&rules, axis, dir, at, self.other_range(axis, region, now))
-            else {
-                self.stop_at[axis] = None;
-                continue;
-            };
-            // The axis stood at the reading until the slew began; since
-            // then it gained at most `a` per ms (the slew began no earlier
-            // than the router accepted it).
-            let from = reading.at.max(since);
-            let kinematics = Kinematics::of(v, a, from - since);
-            let stop = match kinematics.latest_stop(room) {
-                Some(dt) => (from + dt as u64).saturating_sub(latency(bps)).max(now),
-                None => now,
+            let (stop, reason) = match self.stop_due(now, &rules, axis, dir, since, line) {
+                Ok(None) => {
+                    self.stop_at[axis] = None;
+                    continue;
+                }
+                Ok(Some((due, reason))) => (due.unwrap_or(now).max(now), reason),
+                // Unknown speed or position: stop at once rather than guess.
+                Err(reason) => (now, reason),
             };
             self.stop_at[axis] = Some((stop, reason));
             // Poll again while a fresher reading can still refine the stop.
@@ -331,7 +425,7 @@ impl Gimbal {
     pub fn follow(
         &mut self,
         now: u64,
-        bps: u32,
+        line: Line,
         port: u8,
         device: u8,
         orders: &mut Vec<Order>,
@@ -342,7 +436,7 @@ impl Gimbal {
             return;
         }
         if self.replan && !self.asking {
-            self.plan(now, bps);
+            self.plan(now, line);
         }
         for axis in 0..2 {
             let Some((at, boundary)) = self.stop_at[axis].filter(|&(t, _)| t <= now) else {
@@ -364,6 +458,7 @@ impl Gimbal {
                 device,
                 command,
                 stop: Some(StopCause::Boundary),
+                cancel_slews: Some(boundary),
                 purpose: Purpose::Motion,
             });
             self.poll_at = Some(now + MOTION_POLL / 2);
@@ -404,6 +499,10 @@ impl Gimbal {
 
     /// An own query ended; `answered`: with a result.
     pub fn query_ended(&mut self, now: u64, purpose: Purpose, answered: bool) {
+        if purpose == Purpose::Motion {
+            // A stop or goto of its own: no query of it was outstanding.
+            return;
+        }
         self.asking = false;
         match purpose {
             Purpose::Rates if answered => self.need_rates = false,
@@ -444,17 +543,37 @@ fn query(port: u8, device: u8, command: Command<'static>, purpose: Purpose) -> O
         device,
         command,
         stop: None,
+        cancel_slews: None,
         purpose,
     }
 }
 
-/// One `P?` exchange at `bps`: the query, the ACK, the result and a device's turnaround.
-pub(crate) fn exchange(bps: u32) -> u64 {
-    wire_ms(HEADER_LEN + 3, bps) + wire_ms(1, bps) + wire_ms(HEADER_LEN + 10, bps) + TURNAROUND
+/// A port's line, as far as the follower's timing goes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Line {
+    pub bps: u32,
+    /// How long a command without result holds the bus after its ACK.
+    pub nic_window: u64,
 }
 
-/// From deciding a stop to the gimbal reading it: an exchange already on
-/// the bus, then the stop's own frame.
-pub(crate) fn latency(bps: u32) -> u64 {
-    exchange(bps) + wire_ms(HEADER_LEN + 3, bps)
+impl Line {
+    /// One `P?` exchange: the query, the ACK, the result and a device's turnaround.
+    pub fn exchange(&self) -> u64 {
+        let bps = self.bps;
+        wire_ms(HEADER_LEN + 3, bps) + wire_ms(1, bps) + wire_ms(HEADER_LEN + 10, bps) + TURNAROUND
+    }
+
+    /// The longest a short exchange holds the bus: a query, or a command
+    /// without result and its NIC window.
+    fn busy(&self) -> u64 {
+        let command = wire_ms(HEADER_LEN + 9, self.bps) + wire_ms(1, self.bps) + self.nic_window;
+        self.exchange().max(command)
+    }
+
+    /// From deciding a stop to the gimbal reading it: an exchange already
+    /// on the bus and another gimbal's stop queued first, then the stop's
+    /// own frame.
+    pub fn latency(&self) -> u64 {
+        2 * self.busy() + wire_ms(HEADER_LEN + 3, self.bps)
+    }
 }

@@ -26,7 +26,7 @@ pub use sagebrush_protocol::TourState;
 
 use crate::types::{CommandId, DropReason, StopCause};
 use control::{Held, Who};
-use knowledge::{AxisMotion, Gimbal, Learning};
+use knowledge::{AxisMotion, Gimbal, Learning, Line};
 use rules::{GimbalRules, Governance, TourTarget};
 use tour::TourRun;
 use travel::{ARRIVED, axes, check_goto};
@@ -75,6 +75,9 @@ pub(crate) struct Order {
     pub command: Command<'static>,
     /// A stop, and why (logged and counted like the dead-man's).
     pub stop: Option<StopCause>,
+    /// Before it, queued slews this stop ends are given up with this reason
+    /// (a boundary stop must not be undone by a slew still waiting).
+    pub cancel_slews: Option<DropReason>,
     pub purpose: Purpose,
 }
 
@@ -94,6 +97,21 @@ pub(crate) enum Purpose {
 pub(crate) struct Verdict {
     /// Gimbals taken over from another holder: their motions are stopped first.
     pub taken_over: Vec<(u8, u8)>,
+}
+
+/// The gimbals a command concerns.
+enum Targets {
+    One([(u8, u8); 1]),
+    Many(Vec<(u8, u8)>),
+}
+
+impl Targets {
+    fn as_slice(&self) -> &[(u8, u8)] {
+        match self {
+            Targets::One(one) => one,
+            Targets::Many(many) => many,
+        }
+    }
 }
 
 /// What a command does to a gimbal, as far as the governor cares.
@@ -153,8 +171,8 @@ pub(crate) struct Governor {
     own: BTreeMap<CommandId, ((u8, u8), Purpose)>,
     /// Commands from links that change speeds or presets: learnt again when they end.
     relearn: BTreeMap<CommandId, ((u8, u8), Learning)>,
-    /// Ports open, with their bit rate (the follower's latency).
-    ports: BTreeMap<u8, u32>,
+    /// Ports open, with their line's timing (the follower's latency).
+    ports: BTreeMap<u8, Line>,
     orders: Vec<Order>,
     /// Events for the router to log.
     pub events: Vec<crate::types::RouterEvent>,
@@ -225,6 +243,14 @@ impl Governor {
         }
     }
 
+    /// The timing of `port`'s line (9600 bit/s when it is not open).
+    fn line(&self, port: u8) -> Line {
+        self.ports.get(&port).copied().unwrap_or(Line {
+            bps: 9600,
+            nic_window: 35,
+        })
+    }
+
     /// Gimbals whose state the governor follows: those with rules or tours.
     fn watched(&self) -> impl Iterator<Item = (u8, u8)> + '_ {
         let ruled = self.config.gimbals.iter().map(|r| (r.port, r.device));
@@ -235,12 +261,12 @@ impl Governor {
         self.watched().any(|w| w == at)
     }
 
-    /// A port was opened (at `bps`) or lost: what was known of its gimbals
-    /// is learnt again.
-    pub fn port_state(&mut self, port: u8, open: Option<u32>) {
+    /// A port was opened (at `bps`, with its NIC window) or lost: what was
+    /// known of its gimbals is learnt again.
+    pub fn port_state(&mut self, port: u8, open: Option<(u32, u64)>) {
         match open {
-            Some(bps) => {
-                self.ports.insert(port, bps);
+            Some((bps, nic_window)) => {
+                self.ports.insert(port, Line { bps, nic_window });
             }
             None => {
                 self.ports.remove(&port);
@@ -258,8 +284,8 @@ impl Governor {
 
     /// The port's line rate changed.
     pub fn port_rate(&mut self, port: u8, bps: u32) {
-        if let Some(b) = self.ports.get_mut(&port) {
-            *b = bps;
+        if let Some(line) = self.ports.get_mut(&port) {
+            line.bps = bps;
         }
     }
 
@@ -277,10 +303,11 @@ impl Governor {
         let command = Command::parse(payload);
         let effect = effect(&command);
         let targets = self.targets(dest, known_devices);
+        let targets = targets.as_slice();
         match effect {
             Effect::Query => return Ok(Verdict::default()),
             Effect::Stop { pan, tilt } => {
-                for at in &targets {
+                for at in targets {
                     if let Some(g) = self.gimbals.get_mut(at) {
                         g.stopping(now, pan, tilt);
                     }
@@ -294,7 +321,7 @@ impl Governor {
             priority: who.priority,
         };
         let mut verdict = Verdict::default();
-        for at in &targets {
+        for at in targets {
             let Some(g) = self.gimbals.get(at) else { continue };
             match g.held(now, self.config.hold) {
                 None => {}
@@ -303,25 +330,25 @@ impl Governor {
                 Some(_) => return Err(DropReason::NotInControl),
             }
         }
-        for at in &targets {
+        for at in targets {
             let Some(g) = self.gimbals.get(at) else { continue };
             let Some(rules) = g.rules.as_ref().filter(|r| r.bounds_travel()) else {
                 continue;
             };
-            let bps = self.ports.get(&at.0).copied().unwrap_or(9600);
+            let line = self.line(at.0);
             match effect {
                 Effect::Goto(target) => check_goto(rules, g.region(now), target)?,
                 Effect::GotoPreset(n) => match g.presets.get(&n) {
                     Some(p) => check_goto(rules, g.region(now), axes(*p))?,
                     None => return Err(DropReason::PositionUnknown),
                 },
-                Effect::Slew { axis, dir } => g.check_slew(now, rules, axis, dir, bps)?,
+                Effect::Slew { axis, dir } => g.check_slew(now, rules, axis, dir, line)?,
                 Effect::Unbounded => return Err(DropReason::TravelLimit),
                 _ => {}
             }
         }
         // Allowed: control is taken, the motion noted.
-        for at in targets {
+        for &at in targets {
             let g = self.gimbals.entry(at).or_default();
             let before = g.holder.take();
             if let Some(old) = before.as_ref().filter(|h| !h.who.same(&me)) {
@@ -387,11 +414,11 @@ impl Governor {
         self.relearn.insert(id, (at, learning));
     }
 
-    /// The gimbals a command to `dest` concerns: one, or the known devices
-    /// its wildcards match.
-    fn targets(&self, dest: Address, known: &[(u8, u8)]) -> Vec<(u8, u8)> {
+    /// The gimbals a command to `dest` concerns: one (no allocation), or
+    /// the known devices its wildcards match.
+    fn targets(&self, dest: Address, known: &[(u8, u8)]) -> Targets {
         if dest.port != WILDCARD && dest.device != WILDCARD {
-            return vec![(dest.port, dest.device)];
+            return Targets::One([(dest.port, dest.device)]);
         }
         let matches = |&(p, d): &(u8, u8)| {
             (dest.port == WILDCARD || dest.port == p) && (dest.device == WILDCARD || dest.device == d)
@@ -400,20 +427,20 @@ impl Governor {
         all.retain(matches);
         all.sort_unstable();
         all.dedup();
-        all
+        Targets::Many(all)
     }
 
     /// The result of command `id` (a position, rates, a preset) from `at`.
     pub fn on_result(&mut self, now: u64, id: CommandId, at: (u8, u8), reply: &sagebrush_protocol::Reply<'_>) {
         let purpose = self.own.get(&id).map(|&(_, p)| p);
-        let bps = self.ports.get(&at.0).copied().unwrap_or(9600);
+        let line = self.line(at.0);
         let Some(g) = self.gimbals.get_mut(&at) else { return };
         use sagebrush_protocol::Reply as R;
         match (purpose, reply) {
             (Some(Purpose::Preset(n)), R::Position(p)) => {
                 g.presets.insert(n, *p);
             }
-            (Some(Purpose::Position) | None, R::Position(p)) => g.read_position(now, *p, bps),
+            (Some(Purpose::Position) | None, R::Position(p)) => g.read_position(now, *p, line),
             (_, R::Rates { pan, tilt }) => g.rates = Some([u32::from(pan.0), u32::from(tilt.0)]),
             (_, R::Accelerations { pan, tilt }) => g.accels = Some([u32::from(pan.0), u32::from(tilt.0)]),
             _ => {}
@@ -461,8 +488,8 @@ impl Governor {
         let mut orders = std::mem::take(&mut self.orders);
         for (&(port, device), g) in self.gimbals.iter_mut() {
             let open = self.ports.get(&port).copied();
-            let Some(bps) = open else { continue };
-            g.follow(now, bps, port, device, &mut orders, &mut self.stats, &mut self.events);
+            let Some(line) = open else { continue };
+            g.follow(now, line, port, device, &mut orders, &mut self.stats, &mut self.events);
             g.next_query(now, port, device, &mut orders);
         }
         orders

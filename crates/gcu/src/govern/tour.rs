@@ -120,6 +120,7 @@ impl Governor {
                     device: at.1,
                     command: Command::StopMotion,
                     stop: Some(StopCause::Tour),
+                    cancel_slews: None,
                     purpose: Purpose::Motion,
                 });
             }
@@ -208,6 +209,7 @@ impl Governor {
                     device: at.1,
                     command,
                     stop: None,
+                    cancel_slews: None,
                     purpose: Purpose::Motion,
                 });
                 self.tours[i].phase = Phase::Going { since: now };
@@ -310,6 +312,7 @@ impl Governor {
                 device: at.1,
                 command: Command::GoToPreset(park.preset),
                 stop: None,
+                cancel_slews: None,
                 purpose: Purpose::Motion,
             });
         }

@@ -26,7 +26,7 @@ impl Router {
     fn identity(&self, link: LinkId) -> Option<LinkIdentity> {
         let config = &self.links.get(&link)?.config;
         Some(LinkIdentity {
-            key: config.name.clone().unwrap_or_else(|| Arc::from(link.to_string())),
+            key: config.name.clone().unwrap_or_else(|| Arc::from("")),
             priority: config.priority,
         })
     }
@@ -54,8 +54,18 @@ impl Router {
             };
         let verdict = self.governor.on_command(now, &who, dest, f.payload(), &known)?;
         for (port, device) in verdict.taken_over {
-            // The holder's motions stop before the new command is queued.
-            let stops = self.deadman.take_device(port, device, link);
+            // The holder's motions stop before the new command is queued,
+            // and what it queued that moves (a tour's goto too) is given up.
+            self.with_port(now, port, out, |p, _, po| {
+                let moves = |j: &crate::port::Job| {
+                    j.origin.link() != Some(link)
+                        && !matches!(j.facts.reply.result_kind(), sagebrush_protocol::ResultKind::Required(_))
+                };
+                p.cancel_for_device(device, moves, DropReason::NotInControl, po)
+            });
+            // `PT` below ends pan and tilt; the lens motions get their own stops.
+            let mut stops = self.deadman.take_device(port, device, link);
+            stops.retain(|(_, _, stop)| !matches!(stop, Command::PanStop | Command::TiltStop));
             self.stop_motions(now, stops, StopCause::TakeOver, out);
             self.issue(
                 now,
@@ -64,6 +74,7 @@ impl Router {
                     device,
                     command: Command::StopMotion,
                     stop: Some(StopCause::TakeOver),
+                    cancel_slews: None,
                     purpose: crate::govern::Purpose::Motion,
                 },
                 out,
@@ -78,6 +89,12 @@ impl Router {
         let Ok(frame) = FrameBuf::build(dest, self.group, |buf| order.command.encode(buf).map(<[u8]>::len)) else {
             return;
         };
+        if let Some(reason) = order.cancel_slews {
+            let (device, stop) = (order.device, order.command);
+            self.with_port(now, order.port, out, |p, _, po| {
+                p.cancel_for_device(device, |j| j.facts.stopped_by == Some(stop), reason, po)
+            });
+        }
         let command = ReadCommand::built(&order.command, frame);
         // Known before dispatch: the command may end inside it.
         let id = CommandId(self.next_id);

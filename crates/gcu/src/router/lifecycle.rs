@@ -21,7 +21,8 @@ use crate::types::StopCause;
 impl Router {
     pub(super) fn port_state(&mut self, port: u8, open: bool, out: &mut Outbox) {
         if let Some(p) = self.ports.get(&port) {
-            self.governor.port_state(port, open.then_some(p.stats.bps));
+            self.governor
+                .port_state(port, open.then_some((p.stats.bps, p.config.nic_window)));
             out.push(Action::Event(RouterEvent::PortState { port, open }));
         }
     }
@@ -124,7 +125,11 @@ impl Router {
     }
 
     /// A link came up (an id that is up is first taken down).
-    pub(super) fn link_up(&mut self, now: u64, link: LinkId, config: LinkConfig, out: &mut Outbox) {
+    pub(super) fn link_up(&mut self, now: u64, link: LinkId, mut config: LinkConfig, out: &mut Outbox) {
+        // A link with no configured name is a controller of its own (ARCHITECTURE "Governance").
+        config
+            .name
+            .get_or_insert_with(|| std::sync::Arc::from(format!("link-{}", link.0)));
         if self.links.contains_key(&link) {
             self.link_down(now, link, out);
         }

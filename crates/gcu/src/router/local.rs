@@ -54,6 +54,12 @@ impl Router {
             WILDCARD => None,
             port => Some(port),
         };
+        // A stop the governance sends short of a boundary waits behind no other.
+        let urgent = self
+            .in_flight
+            .get(&id)
+            .and_then(|c| c.issued_stop)
+            .is_some_and(|s| s.cause == crate::types::StopCause::Boundary);
         let targets = match one {
             Some(port) => usize::from(self.ports.contains_key(&port)),
             None => self.ports.len(),
@@ -71,7 +77,8 @@ impl Router {
             Some(port) => (after.is_none()).then_some(port),
             None => self.ports.range(after_key(after)).next().map(|(&id, _)| id),
         } {
-            let job = Job::new(id, origin, frame.clone(), facts);
+            let mut job = Job::new(id, origin, frame.clone(), facts);
+            job.urgent = urgent;
             self.with_port(now, port, out, |p, now, po| p.enqueue(now, job, po));
             after = Some(port);
         }
