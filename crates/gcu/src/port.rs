@@ -219,6 +219,9 @@ pub(crate) struct Port {
     backlog: Backlog,
     /// Being closed (removed or reconfigured): only the GCU's own stops are taken.
     pub closing: bool,
+    /// A stop the governance will send at this tick, and how long a short
+    /// exchange holds the bus: work that would overlap it waits.
+    reserved: Option<(u64, u64)>,
     /// Round robin: when each origin (link) was last served, by `turn`.
     served: BTreeMap<Option<crate::LinkId>, u64>,
     turn: u64,
@@ -256,6 +259,7 @@ impl Port {
             settle_until: None,
             backlog: Backlog::Clear,
             closing: false,
+            reserved: None,
             served: BTreeMap::new(),
             turn: 0,
             stats: PortStats {
@@ -436,6 +440,15 @@ impl Port {
         self.note_queue();
     }
 
+    /// Keeps the bus free for a stop due at `at` (`None`: no longer); work
+    /// held back by a reservation starts when it is lifted.
+    pub fn reserve(&mut self, now: u64, reserved: Option<(u64, u64)>, out: &mut Vec<PortOut>) {
+        if self.reserved != reserved {
+            self.reserved = reserved;
+            self.start_next(now, out);
+        }
+    }
+
     /// The origin link went down: queued motions it started must not run
     /// after the dead-man stop.
     pub fn cancel_motions(&mut self, link: crate::LinkId, out: &mut Vec<PortOut>) {
@@ -463,6 +476,12 @@ impl Port {
             // While a long wait is set aside only stops use the bus: another
             // exchange could take its result (same Table 3 header) or give it theirs.
             if !self.detached.is_empty() && !self.queue.front().is_some_and(|j| j.facts.stop) {
+                break;
+            }
+            // The bus is kept free for a stop the governance will send at
+            // `reserved.0`: no work starts that would still hold it then.
+            let front_is_stop = self.queue.front().is_some_and(|j| j.facts.stop);
+            if self.reserved.is_some_and(|(at, busy)| now + busy > at) && !front_is_stop {
                 break;
             }
             let Some(job) = self.next_job() else { break };
@@ -961,6 +980,7 @@ impl Port {
             .settle_until
             .max(self.drained_at())
             .filter(|_| self.active.is_none() && !self.queue.is_empty());
+        // Held back by a reservation: the governance's stop lifts it.
         [active, detached, settle, self.line.idle_deadline()]
             .into_iter()
             .flatten()

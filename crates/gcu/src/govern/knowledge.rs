@@ -15,7 +15,7 @@ use super::control::Held;
 use super::rules::{GimbalRules, Span};
 use super::travel::{Kinematics, Region, axes, braking, distance_in, room_ahead};
 use super::{GovernStats, Order, Purpose};
-use crate::types::{DropReason, RouterEvent, StopCause};
+use crate::types::{CommandId, DropReason, RouterEvent, StopCause};
 
 /// Poll period of a goto or a stop in progress.
 const MOTION_POLL: u64 = 250;
@@ -98,10 +98,13 @@ pub(crate) struct Gimbal {
     slew_began_with: [Option<(u32, u32)>; 2],
     /// Readings in a row each axis did not change.
     unchanged: [u8; 2],
-    /// The fastest each axis may have moved at the last reading, per
-    /// second, from the last two readings (a `HO` may run faster than the
-    /// rate `R?` answers).
-    seen_rate: [u32; 2],
+    /// A goto that replaced a followed slew, not yet on the bus: its
+    /// command (once known) and target; the slew's stop stays planned.
+    guard: Option<(Option<CommandId>, [i32; 2])>,
+    /// How fast each axis moved between the last two readings, per second:
+    /// its mean (a `HO` may run faster than the rate `R?` answers), and the
+    /// most it may have reached at the last one.
+    seen_rate: [(u32, u32); 2],
 }
 
 impl Gimbal {
@@ -156,7 +159,7 @@ impl Gimbal {
             (AxisMotion::Slew { .. }, Some((rate, _))) => now.max(rate),
             _ => now,
         };
-        Some(rate.max(self.seen_rate[axis]))
+        Some(rate.max(self.seen_rate[axis].0))
     }
 
     /// The axis' acceleration; while it slews, no more than when the slew began.
@@ -253,7 +256,7 @@ impl Gimbal {
         // Never slower than the readings showed it moving.
         kinematics.u = kinematics
             .u
-            .max(f64::from(self.seen_rate[axis]) / 1000.0)
+            .max(f64::from(self.seen_rate[axis].1) / 1000.0)
             .min(kinematics.v);
         let due = kinematics
             .latest_stop(room)
@@ -300,8 +303,45 @@ impl Gimbal {
                 moving: self.axes[1] != AxisMotion::Still,
             },
         ];
-        self.stop_at = [None; 2];
+        // A slew this goto replaces keeps its planned stop until the goto is
+        // on the bus: queued behind other work, it must not leave the slew
+        // running past its boundary (the goto then runs from rest).
+        let slewing = self.stop_at.iter().any(Option::is_some);
+        self.guard = slewing.then_some((None, target));
+        if !slewing {
+            self.stop_at = [None; 2];
+        }
         self.poll_at = Some(now + MOTION_POLL);
+    }
+
+    /// The command that carries the goto just noted is `id`.
+    pub fn goto_is(&mut self, id: CommandId) {
+        if let Some((pending @ None, _)) = self.guard.as_mut() {
+            *pending = Some(id);
+        }
+    }
+
+    /// Command `id` ended: a goto that never began (given up) lifts its guard.
+    pub fn ended(&mut self, id: CommandId) {
+        if self.guard.is_some_and(|(g, _)| g == Some(id)) {
+            self.guard = None;
+        }
+    }
+
+    /// Command `id` began on the bus: a goto's guard is lifted.
+    pub fn started(&mut self, now: u64, id: CommandId) {
+        if let Some((Some(goto), target)) = self.guard {
+            if goto == id {
+                self.guard = None;
+                self.stop_at = [None; 2];
+                let moving = self.axes.map(|a| a != AxisMotion::Still);
+                self.axes = [0, 1].map(|axis| AxisMotion::Goto {
+                    target: target[axis],
+                    moving: moving[axis],
+                });
+                self.poll_at = Some(now + MOTION_POLL);
+            }
+        }
     }
 
     pub fn slewing(&mut self, now: u64, axis: usize, dir: i32) {
@@ -358,9 +398,13 @@ impl Gimbal {
                     let dt = (at - t) as f64;
                     let mean = f64::from((p[axis] - b[axis]).abs()) * 1000.0 / dt;
                     // Accelerating through a short span, it ends faster than its mean.
-                    (mean + f64::from(a) * dt.min(SETTLE_SPAN as f64) / 2000.0).min(f64::from(u32::MAX)) as u32
+                    let end = mean + f64::from(a) * dt.min(SETTLE_SPAN as f64) / 2000.0;
+                    (
+                        mean.min(f64::from(u32::MAX)) as u32,
+                        end.min(f64::from(u32::MAX)) as u32,
+                    )
                 }
-                _ => 0,
+                _ => (0, 0),
             };
         }
         // Two readings close in time tell nothing of standing still.
@@ -399,7 +443,9 @@ impl Gimbal {
         let exchange = line.exchange();
         for axis in 0..2 {
             let AxisMotion::Slew { dir, since } = self.axes[axis] else {
-                self.stop_at[axis] = None;
+                if self.guard.is_none() {
+                    self.stop_at[axis] = None;
+                }
                 continue;
             };
             let (stop, reason) = match self.stop_due(now, &rules, axis, dir, since, line) {
@@ -519,6 +565,11 @@ impl Gimbal {
         }
     }
 
+    /// The earliest stop planned for it.
+    pub fn stop_planned(&self) -> Option<u64> {
+        self.stop_at.iter().flatten().map(|&(t, _)| t).min()
+    }
+
     /// When [`Gimbal::follow`] or [`Gimbal::next_query`] next has work.
     pub fn next_deadline(&self) -> Option<u64> {
         if !self.watched {
@@ -565,15 +616,16 @@ impl Line {
 
     /// The longest a short exchange holds the bus: a query, or a command
     /// without result and its NIC window.
-    fn busy(&self) -> u64 {
+    pub fn busy(&self) -> u64 {
         let command = wire_ms(HEADER_LEN + 9, self.bps) + wire_ms(1, self.bps) + self.nic_window;
         self.exchange().max(command)
     }
 
-    /// From deciding a stop to the gimbal reading it: an exchange already
-    /// on the bus and another gimbal's stop queued first, then the stop's
-    /// own frame.
+    /// From deciding a stop to the gimbal reading it: the port keeps the
+    /// bus free for it (no work starts that would still hold the bus then,
+    /// `Port::reserve`), so at most another gimbal's stop goes first, then
+    /// the stop's own frame.
     pub fn latency(&self) -> u64 {
-        2 * self.busy() + wire_ms(HEADER_LEN + 3, self.bps)
+        self.busy() + wire_ms(HEADER_LEN + 3, self.bps)
     }
 }

@@ -403,6 +403,12 @@ impl Governor {
         let learning = match effect(&Command::parse(payload)) {
             Effect::SpeedChange => Learning::Speeds,
             Effect::StorePreset(n) => Learning::Preset(n),
+            Effect::Goto(_) | Effect::GotoPreset(_) => {
+                if let Some(g) = self.gimbals.get_mut(&at) {
+                    g.goto_is(id);
+                }
+                return;
+            }
             _ => return,
         };
         if let Some(g) = self.gimbals.get_mut(&at) {
@@ -450,6 +456,9 @@ impl Governor {
     /// Command `id` ended: an own query that got no answer is tried again
     /// later; a change from a link is learnt again.
     pub fn on_finished(&mut self, now: u64, id: CommandId, answered: bool) {
+        for g in self.gimbals.values_mut() {
+            g.ended(id);
+        }
         if let Some((at, purpose)) = self.own.remove(&id) {
             if let Some(g) = self.gimbals.get_mut(&at) {
                 g.query_ended(now, purpose, answered);
@@ -465,6 +474,18 @@ impl Governor {
     /// The router dispatched order `purpose` as command `id`.
     pub fn sent(&mut self, id: CommandId, at: (u8, u8), purpose: Purpose) {
         self.own.insert(id, (at, purpose));
+        if purpose == Purpose::Motion {
+            if let Some(g) = self.gimbals.get_mut(&at) {
+                g.goto_is(id);
+            }
+        }
+    }
+
+    /// Command `id` began on `port`'s bus.
+    pub fn started(&mut self, now: u64, port: u8, id: CommandId) {
+        for (_, g) in self.gimbals.range_mut((port, 0)..=(port, u8::MAX)) {
+            g.started(now, id);
+        }
     }
 
     /// Control lapses, follows motions, learns, runs tours and park: the
@@ -493,6 +514,18 @@ impl Governor {
             g.next_query(now, port, device, &mut orders);
         }
         orders
+    }
+
+    /// The earliest stop planned on `port` and how long a short exchange
+    /// holds its bus (the port keeps the bus free for it).
+    pub fn reservation(&self, port: u8) -> Option<(u64, u64)> {
+        let line = self.ports.get(&port)?;
+        let at = self
+            .gimbals
+            .range((port, 0)..=(port, u8::MAX))
+            .filter_map(|(_, g)| g.stop_planned())
+            .min()?;
+        Some((at, line.busy()))
     }
 
     /// When [`Governor::poll`] next has work.

@@ -131,6 +131,13 @@ impl Router {
                 self.issue(now, order, out);
             }
         }
+        // Each port found afresh after the last, with no list.
+        let mut after = None;
+        while let Some(port) = self.ports.range(super::after_key(after)).next().map(|(&id, _)| id) {
+            after = Some(port);
+            let reserved = self.governor.reservation(port);
+            self.with_port(now, port, out, |p, now, po| p.reserve(now, reserved, po));
+        }
     }
 
     /// A result of command `id` from `port`: what the governor learns from it.

@@ -322,7 +322,12 @@ impl Router {
                     self.governor.port_rate(port, bps);
                     out.push(Action::SetPortRate { port, bps });
                 }
-                PortOut::Event(e) => out.push(Action::Event(e)),
+                PortOut::Event(e) => {
+                    if let RouterEvent::Started { id, .. } = e {
+                        self.governor.started(now, port, id);
+                    }
+                    out.push(Action::Event(e));
+                }
                 PortOut::Relay { id, origin, reply } => {
                     self.govern_result(now, id, port, &reply);
                     self.relay_result(now, port, id, origin, reply, out);
