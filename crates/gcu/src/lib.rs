@@ -146,11 +146,12 @@ mod stats;
 mod types;
 
 pub use boundary::{Action, Input};
+pub use config::{ConfigError, LinkConfig, LinkKind, LinkSettings, PortConfig, RouterConfig, SourceFilter};
 pub use govern::rules::{
-    DEFAULT_PRIORITY, GimbalRules, Governance, HOLD_MS, MAX_PRIORITY, Park, Span, TourConfig, TourStep, TourTarget, Zone,
+    DEFAULT_PRIORITY, GimbalRules, Governance, HOLD_MS, MAX_PRIORITY, Park, Span, TourConfig, TourStep, TourTarget,
+    Zone,
 };
 pub use govern::{GimbalControl, GovernStats, Holder, TourState, TourStatus};
-pub use config::{ConfigError, LinkConfig, LinkKind, LinkSettings, PortConfig, RouterConfig, SourceFilter};
 pub use outbox::Outbox;
 pub use router::Router;
 pub use stats::{

@@ -337,17 +337,25 @@ impl fmt::Display for RouterEvent {
                 device,
                 stop,
                 boundary,
-            } => write!(f, "gimbal {port}.{device}: {stop} sent, stopping short of a {}", match boundary {
-                DropReason::KeepOut => "keep-out zone",
-                _ => "travel limit",
-            }),
+            } => write!(
+                f,
+                "gimbal {port}.{device}: {stop} sent, stopping short of a {}",
+                match boundary {
+                    DropReason::KeepOut => "keep-out zone",
+                    _ => "travel limit",
+                }
+            ),
             RouterEvent::Tour {
                 name,
                 state,
                 step,
                 refused,
             } => match refused {
-                Some(reason) => write!(f, "tour {name} stopped: step {step} refused ({})", reason.undelivered().describe()),
+                Some(reason) => write!(
+                    f,
+                    "tour {name} stopped: step {step} refused ({})",
+                    reason.undelivered().describe()
+                ),
                 None => write!(f, "tour {name}: {state:?} (step {step})"),
             },
             RouterEvent::Park {
@@ -356,7 +364,11 @@ impl fmt::Display for RouterEvent {
                 preset,
                 refused,
             } => match refused {
-                Some(reason) => write!(f, "gimbal {port}.{device}: park to preset {preset} refused ({})", reason.undelivered().describe()),
+                Some(reason) => write!(
+                    f,
+                    "gimbal {port}.{device}: park to preset {preset} refused ({})",
+                    reason.undelivered().describe()
+                ),
                 None => write!(f, "gimbal {port}.{device}: parking at preset {preset}"),
             },
         }
@@ -443,7 +455,10 @@ impl DropReason {
     /// A refusal by the governance (control, limits, zones): the sender's
     /// to report, not the GCU's trouble.
     pub const fn is_refusal(self) -> bool {
-        matches!(self, Self::NotInControl | Self::TravelLimit | Self::KeepOut | Self::PositionUnknown)
+        matches!(
+            self,
+            Self::NotInControl | Self::TravelLimit | Self::KeepOut | Self::PositionUnknown
+        )
     }
 
     /// Index into [`crate::DropCounts`].

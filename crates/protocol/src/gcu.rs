@@ -203,7 +203,9 @@ pub fn encode_tour_reply(state: TourState, holder: &[u8], buf: &mut [u8]) -> Opt
 
 /// Parses a `~T` result: the state and the holder it waits for (maybe empty).
 pub fn parse_tour_reply(payload: &[u8]) -> Option<(TourState, &[u8])> {
-    let [b'~', b'T', s, holder @ ..] = payload else { return None };
+    let [b'~', b'T', s, holder @ ..] = payload else {
+        return None;
+    };
     Some((TourState::from_letter(*s)?, holder))
 }
 
@@ -216,7 +218,10 @@ pub fn encode_tour_list<'n>(tours: impl IntoIterator<Item = (&'n [u8], TourState
     for (i, (name, state)) in tours.into_iter().enumerate() {
         let before = w.len;
         let sep: &[u8] = if i == 0 { b"" } else { b"," };
-        let fits = w.put(sep).and_then(|()| w.put(name)).and_then(|()| w.put(&[b'=', state.letter()]));
+        let fits = w
+            .put(sep)
+            .and_then(|()| w.put(name))
+            .and_then(|()| w.put(&[b'=', state.letter()]));
         if fits.is_none() {
             w.len = before;
             break;
@@ -228,10 +233,14 @@ pub fn encode_tour_list<'n>(tours: impl IntoIterator<Item = (&'n [u8], TourState
 /// The entries of a `~L` result, `None` for what is no `~L` result.
 pub fn parse_tour_list(payload: &[u8]) -> Option<impl Iterator<Item = Option<(&[u8], TourState)>>> {
     let [b'~', b'L', rest @ ..] = payload else { return None };
-    Some(rest.split(|b| *b == b',').filter(|e| !e.is_empty()).map(|entry| match entry {
-        [name @ .., b'=', s] if valid_name(name) => Some((name, TourState::from_letter(*s)?)),
-        _ => None,
-    }))
+    Some(
+        rest.split(|b| *b == b',')
+            .filter(|e| !e.is_empty())
+            .map(|entry| match entry {
+                [name @ .., b'=', s] if valid_name(name) => Some((name, TourState::from_letter(*s)?)),
+                _ => None,
+            }),
+    )
 }
 
 fn address(rest: &[u8]) -> Option<(u8, u8)> {
@@ -311,7 +320,10 @@ mod tests {
             assert_eq!(ControllerReply::parse(&buf[..n]), Some((1, 2, r)));
         }
         let n = encode_tour_reply(TourState::Waiting, b"operators", &mut buf).unwrap();
-        assert_eq!(parse_tour_reply(&buf[..n]), Some((TourState::Waiting, &b"operators"[..])));
+        assert_eq!(
+            parse_tour_reply(&buf[..n]),
+            Some((TourState::Waiting, &b"operators"[..]))
+        );
         let tours = [(&b"a"[..], TourState::Running), (&b"bb"[..], TourState::Stopped)];
         let n = encode_tour_list(tours, &mut buf);
         assert_eq!(&buf[..n], b"~La=R,bb=S");

@@ -30,7 +30,10 @@ impl std::fmt::Display for Holder {
 /// A holder, as the governor keeps it.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub(crate) enum Who {
-    Link { key: Arc<str>, priority: u8 },
+    Link {
+        key: Arc<str>,
+        priority: u8,
+    },
     /// The tour of this name.
     Tour(Arc<str>),
     Park,
@@ -93,7 +96,10 @@ mod tests {
     fn higher_links_outrank_lower_ones_and_every_link_outranks_gcud() {
         assert!(link("ops", 80).outranks(&link("vms", 50)));
         assert!(!link("vms", 50).outranks(&link("ops", 80)));
-        assert!(!link("a", 50).outranks(&link("b", 50)), "equal priority does not take over");
+        assert!(
+            !link("a", 50).outranks(&link("b", 50)),
+            "equal priority does not take over"
+        );
         assert!(link("a", 0).outranks(&Who::Tour(Arc::from("t"))));
         assert!(link("a", 0).outranks(&Who::Park));
         assert!(!Who::Park.outranks(&link("a", 0)));
@@ -101,7 +107,10 @@ mod tests {
 
     #[test]
     fn only_a_links_control_lapses() {
-        let held = Held { who: link("a", 50), last: 100 };
+        let held = Held {
+            who: link("a", 50),
+            last: 100,
+        };
         assert!(!held.lapsed(199, 100));
         assert!(held.lapsed(200, 100));
         let tour = Held {

@@ -7,8 +7,8 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use sagebrush_protocol::link::wire_ms;
 use sagebrush_protocol::frame::HEADER_LEN;
+use sagebrush_protocol::link::wire_ms;
 use sagebrush_protocol::{Command, Position};
 
 use super::control::Held;
@@ -194,14 +194,21 @@ impl Gimbal {
                 let _ = now;
                 // Over the horizon of one slow poll: far enough ahead for the next plan.
                 let reach = distance_in(MAX_SLEW_POLL * 2, v);
-                region[other].join(&Span::at(if dir > 0 { region[other].hi + reach } else { region[other].lo - reach }))
+                region[other].join(&Span::at(if dir > 0 {
+                    region[other].hi + reach
+                } else {
+                    region[other].lo - reach
+                }))
             }
             _ => region[other],
         }
     }
 
     pub fn going(&mut self, now: u64, target: [i32; 2]) {
-        self.axes = [AxisMotion::Goto { target: target[0] }, AxisMotion::Goto { target: target[1] }];
+        self.axes = [
+            AxisMotion::Goto { target: target[0] },
+            AxisMotion::Goto { target: target[1] },
+        ];
         self.stop_at = [None; 2];
         self.poll_at = Some(now + MOTION_POLL);
     }
@@ -272,7 +279,7 @@ impl Gimbal {
         let Some(region) = self.region(reading.at) else { return };
         let p = axes(reading.position);
         let exchange = exchange(bps);
-        for axis in 0..2 {
+        for (axis, &at) in p.iter().enumerate() {
             let AxisMotion::Slew { dir } = self.axes[axis] else {
                 self.stop_at[axis] = None;
                 continue;
@@ -282,8 +289,7 @@ impl Gimbal {
                 self.stop_at[axis] = Some((now, DropReason::PositionUnknown));
                 continue;
             };
-            let Some((room, reason)) = room_ahead(&rules, axis, dir, p[axis], self.other_range(axis, region, now))
-            else {
+            let Some((room, reason)) = room_ahead(&rules, axis, dir, at, self.other_range(axis, region, now)) else {
                 self.stop_at[axis] = None;
                 continue;
             };

@@ -99,10 +99,16 @@ pub(crate) struct Verdict {
 /// What a command does to a gimbal, as far as the governor cares.
 enum Effect {
     Query,
-    Stop { pan: bool, tilt: bool },
+    Stop {
+        pan: bool,
+        tilt: bool,
+    },
     Goto([i32; 2]),
     GotoPreset(u8),
-    Slew { axis: usize, dir: i32 },
+    Slew {
+        axis: usize,
+        dir: i32,
+    },
     /// Moves where no one can bound (`IX` to its switches, `HP` to a position saved by `HA`).
     Unbounded,
     /// Changes a speed or acceleration: learnt again afterwards.
@@ -191,7 +197,7 @@ impl Governor {
     pub fn reconfigure(&mut self, now: u64, config: Governance) {
         let runs = std::mem::take(&mut self.tours);
         for run in &runs {
-            if !config.tours.iter().any(|t| *t == run.config) && run.state != TourState::Stopped {
+            if !config.tours.contains(&run.config) && run.state != TourState::Stopped {
                 self.release_tour(now, run);
             }
         }
@@ -507,7 +513,9 @@ impl Governor {
     /// higher or equal priority.
     pub fn release(&mut self, now: u64, who: &LinkIdentity, at: (u8, u8)) -> Result<(), DropReason> {
         let hold = self.config.hold;
-        let Some(g) = self.gimbals.get_mut(&at) else { return Ok(()) };
+        let Some(g) = self.gimbals.get_mut(&at) else {
+            return Ok(());
+        };
         let Some(h) = g.held(now, hold) else { return Ok(()) };
         let allowed = match &h.who {
             Who::Link { key, priority } => *key == who.key || who.priority >= *priority,

@@ -164,7 +164,10 @@ impl Governance {
             if !ports.iter().any(|p| p.id == g.port) || g.device == 0 || g.device == sagebrush_protocol::WILDCARD {
                 return bad(format!("{name}: no such port, or device not 1..=254"));
             }
-            if self.gimbals[..i].iter().any(|o| (o.port, o.device) == (g.port, g.device)) {
+            if self.gimbals[..i]
+                .iter()
+                .any(|o| (o.port, o.device) == (g.port, g.device))
+            {
                 return bad(format!("{name}: configured twice"));
             }
             let spans = g.pan_limits.iter().chain(&g.tilt_limits);
@@ -215,7 +218,13 @@ impl Governance {
                         crate::types::DropReason::KeepOut => "enters a keep-out zone",
                         _ => "lies outside the travel limits",
                     };
-                    return bad(format!("tour {}: step {} {why} of gimbal {}.{}", t.name, n + 1, t.port, t.device));
+                    return bad(format!(
+                        "tour {}: step {} {why} of gimbal {}.{}",
+                        t.name,
+                        n + 1,
+                        t.port,
+                        t.device
+                    ));
                 }
             }
         }

@@ -159,7 +159,10 @@ impl Governor {
         }
         if g.holder.as_ref().is_none_or(|h| h.who != me) {
             let from = g.holder.take().map(|h| h.who.view());
-            g.holder = Some(Held { who: me.clone(), last: now });
+            g.holder = Some(Held {
+                who: me.clone(),
+                last: now,
+            });
             self.events.push(RouterEvent::Control {
                 port: at.0,
                 device: at.1,
@@ -247,7 +250,9 @@ impl Governor {
         for at in keys {
             let touring = self.tour_on(at);
             let Some(g) = self.gimbals.get_mut(&at) else { continue };
-            let Some(park) = g.rules.as_ref().and_then(|r| r.park) else { continue };
+            let Some(park) = g.rules.as_ref().and_then(|r| r.park) else {
+                continue;
+            };
             // Park holds control until it arrived.
             if g.holder.as_ref().is_some_and(|h| h.who == Who::Park) {
                 let target = g.presets.get(&park.preset).map(|p| super::travel::axes(*p));
@@ -289,7 +294,10 @@ impl Governor {
                 Some(t) => g.going(now, t),
                 None => g.unknown_motion(now),
             }
-            g.holder = Some(Held { who: Who::Park, last: now });
+            g.holder = Some(Held {
+                who: Who::Park,
+                last: now,
+            });
             self.stats.parks += 1;
             self.events.push(RouterEvent::Park {
                 port: at.0,

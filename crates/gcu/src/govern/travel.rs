@@ -50,7 +50,11 @@ pub(crate) fn check_goto(rules: &GimbalRules, from: Option<Region>, target: [i32
         return Err(DropReason::PositionUnknown);
     };
     let path = [from[0].join(&Span::at(target[0])), from[1].join(&Span::at(target[1]))];
-    match rules.keep_out.iter().any(|z| z.pan.meets(&path[0]) && z.tilt.meets(&path[1])) {
+    match rules
+        .keep_out
+        .iter()
+        .any(|z| z.pan.meets(&path[0]) && z.tilt.meets(&path[1]))
+    {
         true => Err(DropReason::KeepOut),
         false => Ok(()),
     }
@@ -155,11 +159,26 @@ mod tests {
     fn the_room_ahead_is_the_nearest_limit_or_zone_edge() {
         let r = rules();
         assert_eq!(room_ahead(&r, 0, 1, 0, Span::at(0)), Some((4000, DropReason::KeepOut)));
-        assert_eq!(room_ahead(&r, 0, 1, 0, Span::at(2000)), Some((17000, DropReason::TravelLimit)));
-        assert_eq!(room_ahead(&r, 0, -1, 0, Span::at(0)), Some((17000, DropReason::TravelLimit)));
-        assert_eq!(room_ahead(&r, 1, -1, 5000, Span::at(5000)), Some((4000, DropReason::KeepOut)));
-        assert_eq!(room_ahead(&r, 1, -1, 5000, Span::at(0)), Some((8000, DropReason::TravelLimit)));
-        assert_eq!(room_ahead(&r, 1, -1, 2000, Span::at(5000)), Some((1000, DropReason::KeepOut)));
+        assert_eq!(
+            room_ahead(&r, 0, 1, 0, Span::at(2000)),
+            Some((17000, DropReason::TravelLimit))
+        );
+        assert_eq!(
+            room_ahead(&r, 0, -1, 0, Span::at(0)),
+            Some((17000, DropReason::TravelLimit))
+        );
+        assert_eq!(
+            room_ahead(&r, 1, -1, 5000, Span::at(5000)),
+            Some((4000, DropReason::KeepOut))
+        );
+        assert_eq!(
+            room_ahead(&r, 1, -1, 5000, Span::at(0)),
+            Some((8000, DropReason::TravelLimit))
+        );
+        assert_eq!(
+            room_ahead(&r, 1, -1, 2000, Span::at(5000)),
+            Some((1000, DropReason::KeepOut))
+        );
         assert_eq!(room_ahead(&GimbalRules::new(1, 1), 0, 1, 0, Span::at(0)), None);
     }
 

@@ -43,16 +43,15 @@ impl Router {
         let f = command.frame.frame();
         let dest = f.dest;
         let Some(who) = self.identity(link) else { return Ok(()) };
-        let known: Vec<(u8, u8)> = match dest.port == sagebrush_protocol::WILDCARD
-            || dest.device == sagebrush_protocol::WILDCARD
-        {
-            true => self
-                .ports
-                .iter()
-                .flat_map(|(&p, port)| port.device_stats.keys().map(move |&d| (p, d)))
-                .collect(),
-            false => Vec::new(),
-        };
+        let known: Vec<(u8, u8)> =
+            match dest.port == sagebrush_protocol::WILDCARD || dest.device == sagebrush_protocol::WILDCARD {
+                true => self
+                    .ports
+                    .iter()
+                    .flat_map(|(&p, port)| port.device_stats.keys().map(move |&d| (p, d)))
+                    .collect(),
+                false => Vec::new(),
+            };
         let verdict = self.governor.on_command(now, &who, dest, f.payload(), &known)?;
         for (port, device) in verdict.taken_over {
             // The holder's motions stop before the new command is queued.
