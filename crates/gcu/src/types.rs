@@ -246,7 +246,17 @@ impl RouterEvent {
                 _ => Level::Warn,
             },
             RouterEvent::Dropped { reason, .. } if reason.is_the_senders() || reason.is_refusal() => Level::Debug,
-            RouterEvent::Control { .. } | RouterEvent::Tour { .. } | RouterEvent::Park { .. } => Level::Info,
+            // A link taking or leaving control is its client's business
+            // (as its commands are): INFO stays the daemon's life. A
+            // take-over (a holder's motion stopped) and gcud's own tours
+            // and park are told.
+            RouterEvent::Control {
+                holder: Some(_),
+                from: Some(_),
+                ..
+            } => Level::Info,
+            RouterEvent::Control { .. } => Level::Debug,
+            RouterEvent::Tour { .. } | RouterEvent::Park { .. } => Level::Info,
             RouterEvent::BoundaryStop { .. } => Level::Info,
             RouterEvent::DeviceState { online: false, .. } => Level::Warn,
             RouterEvent::DeviceState { first: false, .. } => Level::Info,
@@ -486,5 +496,29 @@ impl DropReason {
             DropReason::KeepOut => Undelivered::KeepOut,
             DropReason::PositionUnknown => Undelivered::PositionUnknown,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A link taking control, or its control lapsing, is no INFO line
+    /// (tests/first_hour.rs: gimbalctl calls add none); a take-over is.
+    #[test]
+    fn control_changes_are_info_only_for_a_take_over() {
+        let link = |name: &str| crate::Holder::Link {
+            name: name.to_owned(),
+            priority: 50,
+        };
+        let control = |holder: Option<crate::Holder>, from: Option<crate::Holder>| RouterEvent::Control {
+            port: 1,
+            device: 1,
+            holder,
+            from,
+        };
+        assert_eq!(control(Some(link("a")), None).level(), Level::Debug);
+        assert_eq!(control(None, Some(link("a"))).level(), Level::Debug);
+        assert_eq!(control(Some(link("b")), Some(link("a"))).level(), Level::Info);
     }
 }
