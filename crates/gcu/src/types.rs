@@ -238,11 +238,11 @@ impl RouterEvent {
                 | Undelivered::NotConfirmed
                 | Undelivered::NoSuchPort
                 | Undelivered::PortClosed
-                | Undelivered::NoRoute => Level::Debug,
-                Undelivered::NotInControl
+                | Undelivered::NoRoute
+                | Undelivered::NotInControl
                 | Undelivered::TravelLimit
                 | Undelivered::KeepOut
-                | Undelivered::PositionUnknown => Level::Info,
+                | Undelivered::PositionUnknown => Level::Debug,
                 _ => Level::Warn,
             },
             RouterEvent::Dropped { reason, .. } if reason.is_the_senders() || reason.is_refusal() => Level::Debug,
@@ -520,5 +520,26 @@ mod tests {
         assert_eq!(control(Some(link("a")), None).level(), Level::Debug);
         assert_eq!(control(None, Some(link("a"))).level(), Level::Debug);
         assert_eq!(control(Some(link("b")), Some(link("a"))).level(), Level::Info);
+    }
+
+    /// A command the governance refused is its sender's to report (the
+    /// delivery report) and the metrics' to count, as one to no such port.
+    #[test]
+    fn refusals_are_no_info_lines() {
+        for failure in [
+            Undelivered::NotInControl,
+            Undelivered::TravelLimit,
+            Undelivered::KeepOut,
+            Undelivered::PositionUnknown,
+        ] {
+            let event = RouterEvent::Undelivered {
+                id: CommandId(1),
+                origin: Origin::Internal,
+                dest: Address::new(5, 1, 1),
+                command: "PR",
+                failure,
+            };
+            assert_eq!(event.level(), Level::Debug, "{failure:?}");
+        }
     }
 }
