@@ -22,6 +22,8 @@ const GIMBAL: &str = "5.1.1";
 struct Stack {
     sim: Sim,
     gcud: Gcud,
+    /// The configuration gcud started with.
+    config: String,
     clients: String,
     operators: String,
 }
@@ -31,18 +33,20 @@ impl Stack {
     /// to the configuration (`[[gimbal]]`, `[[tour]]`).
     fn start(sim_args: &[&str], hold_ms: u64, extra: &str) -> Self {
         let sim = Sim::pty(sim_args);
-        let gcud = Gcud::start(&format!(
+        let config = format!(
             "[gcu]\ngroup = 5\n[control]\nhold_ms = {hold_ms}\n{METRICS}{}\
              [[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n\
              [[link]]\nname = \"operators\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\npriority = 80\n{extra}",
             port_entry(1, &sim)
-        ));
+        );
+        let gcud = Gcud::start(&config);
         gcud.wait_for_log("port open port=1");
         let clients = gcud.address("listening link=clients");
         let operators = gcud.address("listening link=operators");
         Self {
             sim,
             gcud,
+            config,
             clients,
             operators,
         }
@@ -540,6 +544,38 @@ fn park_recalls_its_preset_once_after_control_lapsed() {
     // Moved by a link: parked again once its control lapsed.
     s.ok(&s.clients, &["goto", "5", "5", "--wait"]);
     eventually("the second park", || parks(&s).len() == 2);
+}
+
+// ---- reload ---------------------------------------------------------------
+
+/// A reload (SIGHUP) applies a new link priority at once (the link's hold
+/// of a gimbal included) and a new tour, and leaves a running tour whose
+/// configuration did not change running.
+#[test]
+fn a_reload_applies_priorities_and_tours_as_a_difference() {
+    let s = Stack::start(&["--device", "1,2"], 60_000, TOUR);
+    let started = s.ctl(&s.clients, &["tour", "start", "round"]);
+    assert_eq!(started.code, 0, "{started:?}");
+    let other = ["--to", "5.1.2", "goto", "20", "0"];
+    assert_eq!(s.ctl(&s.operators, &["--to", "5.1.2", "goto", "10", "0"]).code, 0);
+    assert_eq!(s.ctl(&s.clients, &other).code, 23, "the operators (80) hold 5.1.2");
+
+    let lowered = s.config.replace("priority = 80", "priority = 40")
+        + "[[tour]]\nname = \"second\"\naddress = \"5.1.2\"\nsteps = [ { preset = 1, dwell_s = 1 } ]\n";
+    std::fs::write(s.gcud.dir.path().join("gcud.toml"), lowered).expect("write config");
+    let pid = nix::unistd::Pid::from_raw(s.gcud.child.id() as i32);
+    nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGHUP).expect("SIGHUP");
+    s.gcud.wait_for_log("reload: link \"operators\": priority 40");
+    // The clients (50) now outrank the operators (40), whose hold took the new priority.
+    let out = s.ctl(&s.clients, &other);
+    assert_eq!(out.code, 0, "{out:?}\n{}", s.logs());
+    let list = s.ctl(&s.clients, &["tour", "list"]);
+    assert_eq!(list.stdout.trim(), "round  running\nsecond  stopped", "{list:?}");
+    assert!(
+        !s.gcud.log().contains("changed (its connections close"),
+        "{}",
+        s.gcud.log()
+    );
 }
 
 // ---- gcud --check -------------------------------------------------------------
