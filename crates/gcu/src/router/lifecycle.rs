@@ -124,9 +124,14 @@ impl Router {
     }
 
     /// A link came up (an id that is up is first taken down).
-    pub(super) fn link_up(&mut self, now: u64, link: LinkId, config: LinkConfig, out: &mut Outbox) {
+    pub(super) fn link_up(&mut self, now: u64, link: LinkId, mut config: LinkConfig, out: &mut Outbox) {
         if self.links.contains_key(&link) {
             self.link_down(now, link, out);
+        }
+        // The governance knows a link by its configured name; one without
+        // is itself, named once here rather than for every command it sends.
+        if config.name.is_none() {
+            config.name = Some(std::sync::Arc::from(link.to_string()));
         }
         let stats = LinkStats::new(config.kind);
         let accepted = config.listener.is_some();
