@@ -430,6 +430,29 @@ mod tests {
     }
 
     #[test]
+    fn link_names_travel_in_gcu_commands_and_priorities_are_0_to_100() {
+        let link = |name: &str, extra: &str| {
+            format!(
+                "[gcu]\ngroup = 5\n[[link]]\nname = \"{name}\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n{extra}"
+            )
+        };
+        let e = parse(Path::new("t.toml"), &link("north mast", "")).expect_err("refused");
+        assert_eq!((e.key.as_str(), e.line), ("link[0].name", 4), "{e}");
+        assert!(e.message.contains("1..=32 of A-Z a-z 0-9 _ -"), "{e}");
+        let e = parse(Path::new("t.toml"), &link("ops", "priority = 101\n")).expect_err("refused");
+        assert_eq!(
+            e.to_string(),
+            "t.toml:7:12: link[0].priority: expected an integer 0..=100, found 101"
+        );
+        let c = parse(Path::new("t.toml"), &link("ops", "")).expect("valid");
+        assert_eq!(c.links[0].priority, 50);
+        let lc = c.links[0].router();
+        assert_eq!((lc.name.as_deref(), lc.priority), (Some("ops"), 50));
+        let c = parse(Path::new("t.toml"), &link("ops", "priority = 80\n")).expect("valid");
+        assert_eq!(c.links[0].router().priority, 80);
+    }
+
+    #[test]
     fn a_tour_step_into_a_zone_or_past_a_limit_is_refused_at_the_step() {
         let zone = "[[gimbal]]\naddress = \"5.1.1\"\npan_limits_deg = [-90, 90]\n\
                     [[gimbal.keep_out]]\npan_deg = [40, 60]\ntilt_deg = [-30, 10]\n";
