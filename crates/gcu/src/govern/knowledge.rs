@@ -84,6 +84,9 @@ pub(crate) struct Gimbal {
     asking: bool,
     retry_at: Option<u64>,
     poll_at: Option<u64>,
+    /// When the last goto (or motion to an unknown place) was sent: a
+    /// reading from before it cannot tell that it stopped.
+    moved_at: u64,
     /// When each slewing axis' stop must be sent, and what it stops short of.
     stop_at: [Option<(u64, DropReason)>; 2],
     /// A slew began: its stop is planned at the next poll.
@@ -211,6 +214,7 @@ impl Gimbal {
         ];
         self.stop_at = [None; 2];
         self.poll_at = Some(now + MOTION_POLL);
+        self.moved_at = now;
     }
 
     pub fn slewing(&mut self, now: u64, axis: usize, dir: i32) {
@@ -223,6 +227,7 @@ impl Gimbal {
         self.axes = [AxisMotion::Unknown; 2];
         self.stop_at = [None; 2];
         self.poll_at = Some(now + MOTION_POLL);
+        self.moved_at = now;
     }
 
     pub fn stopping(&mut self, now: u64, pan: bool, tilt: bool) {
@@ -254,7 +259,11 @@ impl Gimbal {
     pub fn read_position(&mut self, now: u64, position: Position, bps: u32) {
         // The gimbal read it before the result's bytes were on the wire.
         let at = now.saturating_sub(wire_ms(HEADER_LEN + 10, bps));
-        let before = self.position.map(|r| axes(r.position));
+        // Two readings that agree mean the axis stands still, unless the
+        // first was taken before the motion began (a goto queued behind
+        // other work is read again before the gimbal got going).
+        let since = self.moved_at;
+        let before = self.position.filter(|r| r.at >= since).map(|r| axes(r.position));
         let p = axes(position);
         self.position = Some(Reading { at, position });
         self.need_position = false;
@@ -435,4 +444,34 @@ pub(crate) fn exchange(bps: u32) -> u64 {
 /// the bus, then the stop's own frame.
 pub(crate) fn latency(bps: u32) -> u64 {
     exchange(bps) + wire_ms(HEADER_LEN + 3, bps)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sagebrush_protocol::Angle;
+
+    fn at(pan: i16, tilt: i16) -> Position {
+        Position::new(Angle(pan), Angle(tilt))
+    }
+
+    /// A tour waited 60 s (GOTO_PATIENCE) for a goto taken for stopped
+    /// short: its first reading, taken before the gimbal got going, agreed
+    /// with the reading before the goto.
+    #[test]
+    fn a_goto_is_not_taken_for_stopped_by_a_reading_from_before_it_began() {
+        let mut g = Gimbal::default();
+        g.read_position(1000, at(0, 0), 115_200);
+        g.going(2000, [3000, 0]);
+        g.read_position(2030, at(0, 0), 115_200);
+        assert_eq!(g.axes[0], AxisMotion::Goto { target: 3000 }, "still on its way");
+        assert!(g.may_be_moving() && g.poll_at.is_some(), "followed further");
+        // Two readings after it began that agree: it stopped short.
+        g.read_position(2300, at(0, 0), 115_200);
+        assert_eq!(g.axes[0], AxisMotion::Still);
+        // Arrived: still at once.
+        g.going(3000, [100, 0]);
+        g.read_position(3250, at(100, 0), 115_200);
+        assert_eq!(g.axes, [AxisMotion::Still; 2]);
+    }
 }
