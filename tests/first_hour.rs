@@ -446,6 +446,7 @@ fn gimbalctl_calls_add_no_info_lines_to_the_daemons_log() {
     let demo = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/demo.toml")).unwrap();
     let config = demo
         .replace("127.0.0.1:4001", "127.0.0.1:0")
+        .replace("127.0.0.1:4002", "127.0.0.1:0")
         .replace("127.0.0.1:9187", "127.0.0.1:0");
     let dir = tempfile::tempdir().unwrap();
     /// Stops gcud however the test ends.
@@ -467,6 +468,11 @@ fn gimbalctl_calls_add_no_info_lines_to_the_daemons_log() {
     for to in ["5.1.1", "5.2.1"] {
         support::eventually("the demo's gimbals to answer", || ctl(&["--to", to, "id"]).code == 0);
     }
+    // The roof gimbal has a keep-out zone: gcud refuses its gotos (exit 26)
+    // until it has read where the gimbal is and that it stands still.
+    support::eventually("gcud to know where the roof gimbal is", || {
+        ctl(&["--to", "5.2.1", "goto", "0", "0", "--wait"]).code == 0
+    });
     let info = |log: &str| -> Vec<String> {
         log.lines()
             .filter(|l| l.contains(" INFO "))
@@ -517,6 +523,7 @@ fn gimbalctl_calls_add_no_info_lines_to_the_daemons_log() {
     let life = [
         "descriptor limit",
         "listening link=clients",
+        "listening link=operators",
         "metrics at /metrics",
         "gcud ready",
         "port open port=",

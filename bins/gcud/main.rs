@@ -87,12 +87,14 @@ fn main() -> ExitCode {
     }
     if args.check {
         sagebrush_host::outln!(
-            "{}: valid: group {}, {} port(s), {} link(s), {} route(s)",
+            "{}: valid: group {}, {} port(s), {} link(s), {} route(s), {} governed gimbal(s), {} tour(s)",
             config.file.display(),
             config.gcu.group.get(),
             config.ports.len(),
             config.links.len(),
-            config.routes.table.len()
+            config.routes.table.len(),
+            config.governance.gimbals.len(),
+            config.governance.tours.len()
         );
         return ExitCode::SUCCESS;
     }

@@ -4,7 +4,7 @@
 //! `openmetrics` writes them out. The names are an interface: the tests
 //! under `tests/` and `config/grafana-dashboard.json` use them.
 
-use sagebrush_gcu::{DeviceStats, DropCounts, LineStats, PortStats};
+use sagebrush_gcu::{DeviceStats, DropCounts, GimbalControl, Holder, LineStats, PortStats, TourState, TourStatus};
 
 use crate::openmetrics::{Descriptor, Family, Labels, Unit, Value, encode};
 use crate::snapshot::{LinkTotals, Snapshot, VERSION, degrees};
@@ -158,6 +158,38 @@ const GCUD: &[Column<Snapshot>] = &[
     one(
         Descriptor::counter("shutdown_stops", "Stops issued at shutdown for motions still running."),
         |s, _| count(s.stats.router.shutdown_stops),
+    ),
+    one(
+        Descriptor::counter(
+            "governance_stops",
+            "Stops the governance issued: take-overs, slews near a travel limit or keep-out zone, tours stopped.",
+        ),
+        |s, _| count(s.stats.router.governance_stops),
+    ),
+    one(
+        Descriptor::counter(
+            "governance_takeovers",
+            "Control of a gimbal taken from its holder by a link of higher priority.",
+        ),
+        |s, _| count(s.governance.takeovers),
+    ),
+    one(
+        Descriptor::counter(
+            "governance_boundary_stops",
+            "Slews stopped short of a travel limit or keep-out zone.",
+        ),
+        |s, _| count(s.governance.boundary_stops),
+    ),
+    one(
+        Descriptor::counter(
+            "governance_follow_polls",
+            "Position polls of governed gimbals in motion (the bus time following them costs).",
+        ),
+        |s, _| count(s.governance.follow_polls),
+    ),
+    one(
+        Descriptor::counter("governance_parks", "Park recalls of a preset."),
+        |s, _| count(s.governance.parks),
     ),
     one(
         Descriptor::gauge("connections_open", "Accepted connections open now."),
@@ -367,6 +399,60 @@ const DEVICE: &[Column<DeviceStats>] = &[
     ),
 ];
 
+/// A governed or held gimbal; labelled `port` and `device`.
+const GIMBAL: &[Column<GimbalControl>] = &[
+    by(
+        Descriptor::gauge(
+            "gimbal_control",
+            "Who controls the gimbal, by kind: 1 for the holder's kind (none: nobody), 0 for the others.",
+        ),
+        "holder_kind",
+        |g, _| {
+            let kind = match &g.holder {
+                None => "none",
+                Some(Holder::Link { .. }) => "link",
+                Some(Holder::Tour(_)) => "tour",
+                Some(Holder::Park) => "park",
+            };
+            ["none", "link", "tour", "park"]
+                .map(|k| (k, Value::Count(u64::from(k == kind))))
+                .to_vec()
+        },
+    ),
+    one(
+        Descriptor::gauge("gimbal_bounded", "1 if the gimbal has travel limits or keep-out zones."),
+        |g, _| count(g.bounded),
+    ),
+];
+
+/// A held gimbal; labelled `port`, `device` and `holder` (a link's or a
+/// tour's name, or `park`).
+const HOLDER: &[Column<GimbalControl>] = &[one(
+    Descriptor::gauge(
+        "gimbal_holder",
+        "1 for each gimbal held now, labelled with who holds it (a configured link's name, a tour's, or park).",
+    ),
+    |_, _| count(1u64),
+)];
+
+/// A configured tour; labelled `tour`, `port` and `device`.
+const TOUR: &[Column<TourStatus>] = &[by(
+    Descriptor::gauge(
+        "tour_state",
+        "The tour's state: 1 for its state (running, waiting for control to lapse, stopped), 0 for the others.",
+    ),
+    "state",
+    |t, _| {
+        [
+            ("running", TourState::Running),
+            ("waiting", TourState::Waiting),
+            ("stopped", TourState::Stopped),
+        ]
+        .map(|(name, state)| (name, Value::Count(u64::from(t.state == state))))
+        .to_vec()
+    },
+)];
+
 /// The families of `columns` (under `scope`, if any), one sample or more
 /// per row.
 fn table<T>(
@@ -445,6 +531,37 @@ pub fn render(snapshot: &Snapshot) -> String {
         .map(|((port, device), d)| (vec![("port", port.to_string()), ("device", device.to_string())], d))
         .collect();
     table(None, DEVICE, &devices, snapshot, &mut out);
+
+    let at = |g: &GimbalControl| vec![("port", g.port.to_string()), ("device", g.device.to_string())];
+    let gimbals: Vec<_> = snapshot.control.iter().map(|g| (at(g), g)).collect();
+    table(None, GIMBAL, &gimbals, snapshot, &mut out);
+    let held: Vec<_> = snapshot
+        .control
+        .iter()
+        .filter_map(|g| {
+            let holder = match g.holder.as_ref()? {
+                Holder::Link { name, .. } | Holder::Tour(name) => name.clone(),
+                Holder::Park => "park".to_owned(),
+            };
+            let mut labels = at(g);
+            labels.push(("holder", holder));
+            Some((labels, g))
+        })
+        .collect();
+    table(None, HOLDER, &held, snapshot, &mut out);
+    let tours: Vec<_> = snapshot
+        .tours
+        .iter()
+        .map(|t| {
+            let labels = vec![
+                ("tour", t.name.clone()),
+                ("port", t.port.to_string()),
+                ("device", t.device.to_string()),
+            ];
+            (labels, t)
+        })
+        .collect();
+    table(None, TOUR, &tours, snapshot, &mut out);
 
     encode(PREFIX, out)
 }
@@ -549,6 +666,9 @@ mod tests {
             },
             capture: None,
             http: Default::default(),
+            control: Vec::new(),
+            tours: Vec::new(),
+            governance: Default::default(),
         };
         let text = render(&snapshot);
         assert!(text.contains("gcud_uptime_ms 42"), "{text}");

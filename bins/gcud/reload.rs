@@ -3,8 +3,12 @@
 //! port id and link name: an unchanged one is left alone (its in-flight
 //! transactions and queues go on), a removed or changed one is closed
 //! (ports after their motions were stopped, links through the dead-man),
-//! a new one is opened. Routes are replaced. Everything else needs a
-//! restart, and a file that changes it is refused as a whole.
+//! a new one is opened. A link whose priority alone changed keeps its
+//! connections and takes the new priority at once. Routes are replaced;
+//! `[control]`, `[[gimbal]]` and `[[tour]]` are applied as a difference by
+//! the router core (a tour whose configuration is unchanged keeps running,
+//! one removed or changed is stopped). Everything else needs a restart,
+//! and a file that changes it is refused as a whole.
 
 use std::fmt;
 use std::path::Path;
@@ -58,7 +62,11 @@ pub struct Diff {
     pub links_added: Vec<Link>,
     pub links_changed: Vec<Link>,
     pub links_removed: Vec<String>,
+    /// Links whose priority changed (name, new priority): applied at once.
+    pub priorities_changed: Vec<(String, u8)>,
     pub routes_changed: bool,
+    /// `[control]`, `[[gimbal]]` or `[[tour]]` changed.
+    pub governance_changed: bool,
     /// Keys whose change a reload cannot apply (`SECTION.KEY`, named by
     /// the sections' types).
     pub needs_restart: Vec<String>,
@@ -105,12 +113,20 @@ impl Diff {
             links,
             routes,
             capture: _,
+            governance,
             warnings: _,
             listen_places: _,
             serial_places: _,
         } = new;
         let (ports_added, ports_changed, ports_removed) = compare(&old.ports, ports, |p| p.id);
-        let (links_added, links_changed, links_removed) = compare(&old.links, links, |l| l.name.clone());
+        let (links_added, mut links_changed, links_removed) = compare(&old.links, links, |l| l.name.clone());
+        let priorities_changed = links_changed
+            .iter()
+            .filter(|l| old.links.iter().any(|o| o.name == l.name && o.priority != l.priority))
+            .map(|l| (l.name.clone(), l.priority))
+            .collect();
+        // A new priority alone does not close the link's connections.
+        links_changed.retain(|l| !old.links.iter().any(|o| o.name == l.name && o.same_but_priority(l)));
         let needs_restart = [
             changed_keys("gcu", &old.gcu, gcu),
             changed_keys("log", &old.log, log),
@@ -126,7 +142,9 @@ impl Diff {
             links_added,
             links_changed,
             links_removed,
+            priorities_changed,
             routes_changed: old.routes != *routes,
+            governance_changed: old.governance != *governance,
             needs_restart,
         }
     }
@@ -138,7 +156,9 @@ impl Diff {
             && self.links_added.is_empty()
             && self.links_changed.is_empty()
             && self.links_removed.is_empty()
+            && self.priorities_changed.is_empty()
             && !self.routes_changed
+            && !self.governance_changed
             && self.needs_restart.is_empty()
     }
 }
@@ -178,8 +198,18 @@ impl fmt::Display for Diff {
         for name in &self.links_removed {
             writeln!(f, "link {name:?}: removed (its connections close: dead-man stops)")?;
         }
+        for (name, priority) in &self.priorities_changed {
+            writeln!(f, "link {name:?}: priority {priority} (applied at once)")?;
+        }
         if self.routes_changed {
             writeln!(f, "routes: replaced")?;
+        }
+        if self.governance_changed {
+            writeln!(
+                f,
+                "governance ([control], [[gimbal]], [[tour]]): changed (applied as a difference; \
+                 a tour removed or changed is stopped)"
+            )?;
         }
         Ok(())
     }
@@ -219,5 +249,26 @@ mod tests {
         assert_eq!(d.ports_changed.iter().map(|p| p.id).collect::<Vec<_>>(), [1]);
         assert!(Diff::between(&old, &config("[limits]\nqueue_depth = 16\n")).is_empty());
         assert_eq!(Diff::between(&old, &config("[metrics]\n")).needs_restart, ["metrics"]);
+    }
+
+    #[test]
+    fn priorities_and_governance_are_applied_without_closing_anything() {
+        let old = config("");
+        let raised = crate::config::parse(
+            Path::new("t.toml"),
+            "[gcu]\ngroup = 5\n[[link]]\nname = \"up\"\nrole = \"upstream\"\nconnect = \"127.0.0.1:1\"\n\
+             priority = 80\n[[port]]\nid = 1\nsimulate = [1]\n[control]\nhold_ms = 2000\n\
+             [[gimbal]]\naddress = \"5.1.1\"\npan_limits_deg = [-90, 90]\n",
+        )
+        .expect("valid");
+        let d = Diff::between(&old, &raised);
+        assert!(d.links_changed.is_empty() && d.ports_changed.is_empty(), "{d}");
+        assert_eq!(d.priorities_changed, [("up".to_owned(), 80)]);
+        assert!(d.governance_changed && d.needs_restart.is_empty(), "{d}");
+        let text = d.to_string();
+        assert!(
+            text.contains("link \"up\": priority 80") && text.contains("governance"),
+            "{text}"
+        );
     }
 }

@@ -461,6 +461,9 @@ impl Reload<'_> {
         for line in diff.to_string().lines() {
             info!("reload: {line}");
         }
+        for (name, priority) in &diff.priorities_changed {
+            self.router.set_link_priority(name, *priority);
+        }
         let grace = Instant::now() + new.gcu.shutdown_grace_ms.duration();
         for port in diff
             .ports_changed

@@ -8,7 +8,7 @@
 
 use std::collections::BTreeMap;
 
-use sagebrush_gcu::{LinkId, LinkKind, LinkStats, Router, Stats};
+use sagebrush_gcu::{GimbalControl, GovernStats, LinkId, LinkKind, LinkStats, Router, Stats, TourStatus};
 use sagebrush_protocol::Angle;
 
 use crate::admission::AdmissionStats;
@@ -67,6 +67,11 @@ pub struct Snapshot {
     pub capture: Option<sagebrush_host::capture::CaptureStats>,
     /// The HTTP endpoint's connections (filled in by the endpoint itself).
     pub http: HttpStats,
+    /// Who controls each governed or held gimbal (ARCHITECTURE "Governance").
+    pub control: Vec<GimbalControl>,
+    /// Every configured tour.
+    pub tours: Vec<TourStatus>,
+    pub governance: GovernStats,
 }
 
 /// The process's heap, as the global allocator counts it.
@@ -148,6 +153,9 @@ impl Snapshot {
             heap: Heap::now(),
             capture: None,
             http: HttpStats::default(),
+            control: state.router.control(),
+            tours: state.router.tours(),
+            governance: state.router.governance_stats(),
         }
     }
 
@@ -183,8 +191,8 @@ pub mod fixture {
     /// (so that a value read from the wrong field shows).
     pub fn every_field_set() -> Snapshot {
         use sagebrush_gcu::{
-            DeviceError, DeviceStats, DropCounts, LineStats, LinkKind, LinkStats, PortStats, RouterStats, Stats,
-            UndeliveredCounts,
+            DeviceError, DeviceStats, DropCounts, Holder, LineStats, LinkKind, LinkStats, PortStats, RouterStats,
+            Stats, TourState, UndeliveredCounts,
         };
         use sagebrush_protocol::{Angle, LensPosition, Position, U12};
         let mut n = 0u64;
@@ -222,6 +230,7 @@ pub mod fixture {
             dead_man_stops: next(),
             lease_stops: next(),
             shutdown_stops: next(),
+            governance_stops: next(),
             delivered: next(),
             in_progress: next(),
             dropped: DropCounts::from_fn(|_| next()),
@@ -340,6 +349,68 @@ pub mod fixture {
                 open: next(),
                 refused_not_allowed: next(),
                 refused_cap: next(),
+            },
+            control: vec![
+                GimbalControl {
+                    port: 1,
+                    device: 3,
+                    holder: Some(Holder::Link {
+                        name: "operators".to_owned(),
+                        priority: 80,
+                    }),
+                    lapses_at: Some(125_000),
+                    position: Some((
+                        120_000,
+                        Position {
+                            pan: Angle(4550),
+                            tilt: Angle(-1000),
+                        },
+                    )),
+                    bounded: true,
+                },
+                GimbalControl {
+                    port: 1,
+                    device: 7,
+                    holder: Some(Holder::Tour("perimeter".to_owned())),
+                    lapses_at: None,
+                    position: None,
+                    bounded: false,
+                },
+                GimbalControl {
+                    port: 2,
+                    device: 1,
+                    holder: None,
+                    lapses_at: None,
+                    position: None,
+                    bounded: true,
+                },
+            ],
+            tours: vec![
+                TourStatus {
+                    name: "perimeter".to_owned(),
+                    port: 1,
+                    device: 7,
+                    state: TourState::Running,
+                    step: 1,
+                    waiting_for: None,
+                },
+                TourStatus {
+                    name: "gate".to_owned(),
+                    port: 1,
+                    device: 3,
+                    state: TourState::Waiting,
+                    step: 0,
+                    waiting_for: Some(Holder::Link {
+                        name: "operators".to_owned(),
+                        priority: 80,
+                    }),
+                },
+            ],
+            governance: GovernStats {
+                takeovers: next(),
+                boundary_stops: next(),
+                follow_polls: next(),
+                parks: next(),
             },
         }
     }

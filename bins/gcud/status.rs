@@ -2,9 +2,12 @@
 //! scripts (`gimbalctl gcud-status` prints it as a table): the daemon, each
 //! port with the devices seen on it (the router core's device registry:
 //! online, last position and lens position answered, last error), and each
-//! configured link. Times are seconds since the Unix epoch. Built from the
-//! same [`Snapshot`] as `/metrics`; the README documents the shape.
+//! configured link, who controls each governed or held gimbal and each
+//! tour (ARCHITECTURE "Governance"). Times are seconds since the Unix
+//! epoch. Built from the same [`Snapshot`] as `/metrics`; the README
+//! documents the shape.
 
+use sagebrush_gcu::{Holder, TourState};
 use serde::Serialize;
 
 use crate::snapshot::{Snapshot, VERSION, degrees};
@@ -14,6 +17,81 @@ pub struct Status {
     pub gcud: Daemon,
     pub ports: Vec<Port>,
     pub links: Vec<Link>,
+    /// Each gimbal with travel rules or a holder now.
+    pub control: Vec<Control>,
+    pub tours: Vec<Tour>,
+}
+
+/// Who controls a gimbal.
+#[derive(Debug, Serialize)]
+pub struct HolderSeen {
+    /// `link`, `tour` or `park`.
+    pub kind: &'static str,
+    /// The link's or tour's name; null for park.
+    pub name: Option<String>,
+    /// A link's priority; null for gcud's own tours and park (below every link).
+    pub priority: Option<u8>,
+}
+
+impl HolderSeen {
+    fn of(holder: &Holder) -> Self {
+        match holder {
+            Holder::Link { name, priority } => Self {
+                kind: "link",
+                name: Some(name.clone()),
+                priority: Some(*priority),
+            },
+            Holder::Tour(name) => Self {
+                kind: "tour",
+                name: Some(name.clone()),
+                priority: None,
+            },
+            Holder::Park => Self {
+                kind: "park",
+                name: None,
+                priority: None,
+            },
+        }
+    }
+}
+
+/// A gimbal's control (`[[gimbal]]` rules, or held by a link now).
+#[derive(Debug, Serialize)]
+pub struct Control {
+    /// `G.P.D`, as `gimbalctl --to` takes it.
+    pub address: String,
+    /// Null: nobody holds it.
+    pub holder: Option<HolderSeen>,
+    /// When a link holds it: how long until its control lapses, unless it
+    /// commands again (`[control] hold_ms` after its last command).
+    pub lapses_in_ms: Option<u64>,
+    /// It has travel limits or keep-out zones (its motions are followed).
+    pub bounded: bool,
+    /// The last position gcud read from it (its own polls included).
+    pub position: Option<PositionSeen>,
+}
+
+/// A `[[tour]]`.
+#[derive(Debug, Serialize)]
+pub struct Tour {
+    pub name: String,
+    /// The gimbal it drives, `G.P.D`.
+    pub address: String,
+    /// `running`, `waiting` (for control to lapse) or `stopped`.
+    pub state: &'static str,
+    /// The step it is on, or resumes with, from 1.
+    pub step: usize,
+    /// Whom it waits for, when waiting.
+    pub waiting_for: Option<HolderSeen>,
+}
+
+/// A tour's state as `/status` and the metrics name it.
+pub fn tour_state(state: TourState) -> &'static str {
+    match state {
+        TourState::Running => "running",
+        TourState::Waiting => "waiting",
+        TourState::Stopped => "stopped",
+    }
 }
 
 #[derive(Debug, Serialize)]
@@ -157,6 +235,32 @@ impl Status {
                 last_seen_unix: t.stats.line.last_seen.map(|tick| s.unix_seconds(tick)),
             })
             .collect();
+        let control = s
+            .control
+            .iter()
+            .map(|c| Control {
+                address: format!("{}.{}.{}", s.group, c.port, c.device),
+                holder: c.holder.as_ref().map(HolderSeen::of),
+                lapses_in_ms: c.lapses_at.map(|t| t.saturating_sub(s.uptime_ms)),
+                bounded: c.bounded,
+                position: c.position.map(|(t, p)| PositionSeen {
+                    pan_deg: degrees(p.pan),
+                    tilt_deg: degrees(p.tilt),
+                    unix: s.unix_seconds(t),
+                }),
+            })
+            .collect();
+        let tours = s
+            .tours
+            .iter()
+            .map(|t| Tour {
+                name: t.name.clone(),
+                address: format!("{}.{}.{}", s.group, t.port, t.device),
+                state: tour_state(t.state),
+                step: t.step + 1,
+                waiting_for: t.waiting_for.as_ref().map(HolderSeen::of),
+            })
+            .collect();
         Status {
             gcud: Daemon {
                 version: VERSION,
@@ -170,6 +274,8 @@ impl Status {
             },
             ports,
             links,
+            control,
+            tours,
         }
     }
 }

@@ -42,7 +42,7 @@ Exit codes:
    5  NIC: the device does not implement or cannot apply the command
    6  no result: acknowledged, but the result did not come in time
    7  malformed result: a result came that is not the command's
-   8..19  not delivered, as the GCU reported it (through gcud; 7 + report code):
+   8..19, 23..26  not delivered or refused, as the GCU reported it (through gcud):
        8 device silent (did not acknowledge)   9 device answered NAK to every try
       10 no such port on the GCU              11 port not open (port down)
       12 a queue on the way was full          13 no route to the group
@@ -50,6 +50,10 @@ Exit codes:
       16 source group not allowed (--from)    17 routing loop
       18 not confirmed in time (may still execute)
       19 waited in a queue too long, given up unsent
+      23 refused: another link of equal or higher priority controls the gimbal
+      24 refused: the target lies outside the gimbal's travel limits
+      25 refused: the path may enter a keep-out zone
+      26 refused: the gimbal's position is unknown and it has limits or zones
   20  --wait: the mount stopped short of its target (limits? travel?)
   21  --wait: still moving when --wait-timeout ran out
   22  --for/--hold: the stop was not acknowledged (the mount may still move)
@@ -418,6 +422,36 @@ Examples:
   gimbalctl --serial /dev/ttyUSB0 scan --devices 1-32 --timeout 100
   gimbalctl --json --tcp 127.0.0.1:4001 scan --devices 1-8")]
     Scan(ScanArgs),
+    /// Release control of a gimbal that gcud governs (~R, a GCU command on port 0; through gcud, --tcp).
+    #[command(after_help = "\
+gcud gives control of a gimbal to one configured link at a time (ARCHITECTURE \"Governance\"): a \
+command that moves or changes the gimbal takes control when nobody holds it, when its link holds \
+it, or when its link's priority is higher; control lapses [control] hold_ms after the holder's last \
+such command. `release` frees it at once: allowed from the holder's link or one of its priority or \
+higher. Refused, it exits 23 and names the holder. It goes through gcud's client listener (--tcp): \
+the GCU command ~R PPDD to port 0 of the gimbal's GCU. `gimbalctl gcud-status` shows who holds \
+each gimbal.
+
+Examples:
+  gimbalctl --tcp 127.0.0.1:4002 --to 5.2.1 release")]
+    Release,
+    /// Tours gcud runs itself: list, start NAME, stop NAME (~T, GCU commands on port 0; through gcud, --tcp).
+    #[command(
+        subcommand,
+        after_help = "\
+A [[tour]] of gcud's configuration drives one gimbal through its steps in order, each goto confirmed \
+before its dwell, and cycles until stopped. It runs at the lowest priority: started while a link \
+holds the gimbal it waits until that control lapses (and says for whom it waits); any link's \
+command pauses it, and it resumes with the step it was on once control lapses. These commands go \
+through gcud's client listener (--tcp) as GCU commands on port 0 (~T?, ~T+NAME, ~T-NAME); --to \
+picks the GCU by its group (G.0.0; by default the GCU --tcp reaches).
+
+Examples:
+  gimbalctl --tcp 127.0.0.1:4001 tour list
+  gimbalctl --tcp 127.0.0.1:4001 tour start roof-round
+  gimbalctl --tcp 127.0.0.1:4001 --to 5.0.0 tour stop roof-round"
+    )]
+    Tour(TourCmd),
     /// What a running gcud knows: ports, links, and the devices it has seen (online, last position, last error).
     #[command(after_help = "\
 Reads gcud's /status document, served beside /metrics on its [metrics] listen address (which only \
@@ -502,6 +536,32 @@ impl std::fmt::Display for IdList {
             }
         }
         Ok(())
+    }
+}
+
+#[derive(Debug, Subcommand)]
+pub enum TourCmd {
+    /// The configured tours and their state (~T?).
+    List,
+    /// Start tour NAME (~T+NAME): it runs, or waits for the link holding the gimbal.
+    Start {
+        /// A [[tour]] name of gcud's configuration.
+        #[arg(value_parser = parse_tour_name, value_name = "NAME")]
+        name: String,
+    },
+    /// Stop tour NAME (~T-NAME): its motion is stopped and control given back.
+    Stop {
+        /// A [[tour]] name of gcud's configuration.
+        #[arg(value_parser = parse_tour_name, value_name = "NAME")]
+        name: String,
+    },
+}
+
+/// A tour's name as GCU commands carry it.
+fn parse_tour_name(text: &str) -> Result<String, String> {
+    match sagebrush_protocol::gcu::valid_name(text.as_bytes()) {
+        true => Ok(text.to_owned()),
+        false => Err(format!("{text:?}: a tour name is 1..=32 of A-Z a-z 0-9 _ -")),
     }
 }
 
@@ -801,6 +861,10 @@ impl Cmd {
             Cmd::Watch { .. } => "watch",
             Cmd::Scan(_) => "scan",
             Cmd::GcudStatus { .. } => "gcud-status",
+            Cmd::Release => "release",
+            Cmd::Tour(TourCmd::List) => "tour list",
+            Cmd::Tour(TourCmd::Start { .. }) => "tour start",
+            Cmd::Tour(TourCmd::Stop { .. }) => "tour stop",
             Cmd::Encode { .. } => "encode",
             Cmd::Decode { .. } => "decode",
         }

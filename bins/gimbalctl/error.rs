@@ -10,9 +10,23 @@ use serde_json::Value;
 use crate::cli::{EXIT_STOP_UNCONFIRMED, EXIT_STOPPED_SHORT, EXIT_WAIT_TIMEOUT};
 
 /// Exit code of an undelivered command: 7 + the report's failure code
-/// (ARCHITECTURE "Delivery contract"), so 8..=19, one per reason.
+/// (ARCHITECTURE "Delivery contract"), so 8..=19, one per reason; the
+/// governance's refusals and later rows (codes 0x0D and up) 10 + the code, 23..=27, past
+/// the codes of `--wait` and `--for` (20..=22).
 pub const fn undelivered_exit_code(failure: Undelivered) -> u8 {
-    7 + failure.code()
+    match failure.code() {
+        code @ 0..=0x0C => 7 + code,
+        code => 10 + code,
+    }
+}
+
+/// Whether the GCU refused the command by its rules (control, limits,
+/// zones): nothing was sent to the gimbal.
+pub const fn is_refusal(failure: Undelivered) -> bool {
+    matches!(
+        failure,
+        Undelivered::NotInControl | Undelivered::TravelLimit | Undelivered::KeepOut | Undelivered::PositionUnknown
+    )
 }
 
 /// A failure, with a message naming what was wrong.
@@ -35,7 +49,8 @@ pub enum CtlError {
     NoResult(String),
     /// A result that is not the command's (exit 7).
     BadReply(String),
-    /// A GCU reported that it could not deliver the command (exit 8..=19).
+    /// A GCU reported that it could not deliver the command, or refused it
+    /// (exit 8..=19, 23..=27).
     Undelivered(Undelivered, String),
     /// `--wait`: the motion ended away from its target (exit 20); JSON fields.
     StoppedShort(String, Value),
@@ -142,7 +157,35 @@ impl From<CommandError> for CtlError {
             CommandError::Nic(m) => CtlError::Nic(m),
             CommandError::NoResult(m) => CtlError::NoResult(m),
             CommandError::BadReply(m) => CtlError::BadReply(m),
+            // A refusal is no failure to deliver: the GCU's rules kept it from the bus.
+            CommandError::Undelivered(failure, m) if is_refusal(failure) => CtlError::Undelivered(
+                failure,
+                m.replacen("not delivered: ", "refused, nothing sent to the gimbal: ", 1)
+                    .replacen("(reported by GCU", "(by the rules of GCU", 1),
+            ),
             CommandError::Undelivered(failure, m) => CtlError::Undelivered(failure, m),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_report_row_has_its_own_exit_code_apart_from_the_others() {
+        let codes: Vec<u8> = Undelivered::ALL.iter().map(|f| undelivered_exit_code(*f)).collect();
+        let mut unique = codes.clone();
+        unique.sort_unstable();
+        unique.dedup();
+        assert_eq!(unique.len(), codes.len(), "{codes:?}");
+        for code in codes {
+            assert!(
+                (8..=19).contains(&code) || (23..=27).contains(&code),
+                "{code} clashes with the exit codes of --wait and --for (20..=22)"
+            );
+        }
+        assert_eq!(undelivered_exit_code(Undelivered::NotInControl), 23);
+        assert_eq!(undelivered_exit_code(Undelivered::Expired), 19);
     }
 }

@@ -1,8 +1,9 @@
 //! `gimbalctl gcud-status --http HOST:PORT`: what a running gcud knows, from
 //! its `/status` document (served beside `/metrics`, `[metrics] listen`):
 //! the daemon, each port with the devices it has seen (online, last position
-//! and lens position answered, last error), each link. Text tables, or with
-//! `--json` the document itself under `status`.
+//! and lens position answered, last error), each link, who controls each
+//! governed or held gimbal and each tour (ARCHITECTURE "Governance"). Text
+//! tables, or with `--json` the document itself under `status`.
 
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
@@ -212,7 +213,79 @@ fn text(s: &Value, now: f64) -> String {
             &rows,
         ));
     }
+    let control = s["control"].as_array().unwrap_or(&empty);
+    if !control.is_empty() {
+        out.push('\n');
+        let rows: Vec<Vec<String>> = control
+            .iter()
+            .map(|c| {
+                let lapses = match c["lapses_in_ms"].as_f64() {
+                    Some(ms) => format!("in {:.1} s", ms / 1000.0),
+                    None => "-".to_owned(),
+                };
+                let position = match &c["position"] {
+                    Value::Null => "-".to_owned(),
+                    p => format!(
+                        "pan {:.2}° tilt {:.2}° ({})",
+                        p["pan_deg"].as_f64().unwrap_or(f64::NAN),
+                        p["tilt_deg"].as_f64().unwrap_or(f64::NAN),
+                        ago(&p["unix"], now)
+                    ),
+                };
+                vec![
+                    c["address"].as_str().unwrap_or("?").to_owned(),
+                    holder(&c["holder"]),
+                    lapses,
+                    yes(&c["bounded"]).to_owned(),
+                    position,
+                ]
+            })
+            .collect();
+        out.push_str(&table(
+            "",
+            &[
+                "GIMBAL",
+                "CONTROLLED BY",
+                "LAPSES",
+                "LIMITS/ZONES",
+                "LAST POSITION (GCUD)",
+            ],
+            &rows,
+        ));
+    }
+    let tours = s["tours"].as_array().unwrap_or(&empty);
+    if !tours.is_empty() {
+        out.push('\n');
+        let rows: Vec<Vec<String>> = tours
+            .iter()
+            .map(|t| {
+                let state = match (t["state"].as_str().unwrap_or("?"), &t["waiting_for"]) {
+                    ("waiting", Value::Null) => "waiting".to_owned(),
+                    ("waiting", who) => format!("waiting for {}", holder(who)),
+                    (state, _) => state.to_owned(),
+                };
+                vec![
+                    t["name"].as_str().unwrap_or("?").to_owned(),
+                    t["address"].as_str().unwrap_or("?").to_owned(),
+                    state,
+                    t["step"].to_string(),
+                ]
+            })
+            .collect();
+        out.push_str(&table("", &["TOUR", "GIMBAL", "STATE", "STEP"], &rows));
+    }
     out
+}
+
+/// Who controls a gimbal, from `/status`: `link operators (priority 80)`,
+/// `tour perimeter`, `park`, `nobody`.
+fn holder(h: &Value) -> String {
+    match (h["kind"].as_str(), h["name"].as_str()) {
+        (Some("link"), Some(name)) => format!("link {name} (priority {})", h["priority"]),
+        (Some("tour"), Some(name)) => format!("tour {name}"),
+        (Some(kind), _) => kind.to_owned(),
+        (None, _) => "nobody".to_owned(),
+    }
 }
 
 #[cfg(test)]
@@ -234,7 +307,14 @@ mod tests {
                           "position": null, "lens": null, "commands": 1, "unreachable": 1, "no_result": 0, "nics": 0,
                           "last_error": {"error": "device_silent", "message": "did not acknowledge", "unix": 1098.0}}]}],
             "links": [{"link": "clients", "role": "client", "up": true, "connections": 1,
-                       "frames_in": 3, "frames_out": 4, "last_seen_unix": 1099.0}]
+                       "frames_in": 3, "frames_out": 4, "last_seen_unix": 1099.0}],
+            "control": [
+                {"address": "5.1.1", "holder": {"kind": "link", "name": "operators", "priority": 80},
+                 "lapses_in_ms": 8500, "bounded": true,
+                 "position": {"pan_deg": 10.0, "tilt_deg": 2.5, "unix": 1099.0}},
+                {"address": "5.1.9", "holder": null, "lapses_in_ms": null, "bounded": true, "position": null}],
+            "tours": [{"name": "perimeter", "address": "5.1.1", "state": "waiting", "step": 2,
+                       "waiting_for": {"kind": "link", "name": "operators", "priority": 80}}]
         });
         let text = text(&status, 1100.0);
         assert!(text.starts_with("gcud 0.1.0 \"field\" (group 5), up 2.5 s"), "{text}");
@@ -252,5 +332,16 @@ mod tests {
             text.lines().any(|l| l.starts_with("clients") && l.contains("3/4")),
             "{text}"
         );
+        let held = text.lines().find(|l| l.starts_with("5.1.1")).expect("control of 5.1.1");
+        assert!(
+            held.contains("link operators (priority 80)") && held.contains("in 8.5 s"),
+            "{held}"
+        );
+        assert!(
+            text.lines().any(|l| l.starts_with("5.1.9") && l.contains("nobody")),
+            "{text}"
+        );
+        let tour = text.lines().find(|l| l.starts_with("perimeter")).expect("the tour");
+        assert!(tour.contains("waiting for link operators (priority 80)"), "{tour}");
     }
 }

@@ -7,6 +7,7 @@ mod cli;
 mod codec;
 mod error;
 mod gcud_status;
+mod govern;
 mod jog;
 mod motion;
 mod output;
@@ -146,10 +147,25 @@ async fn run_to_the_end_of_the_capture(cli: &Cli) -> Result<(), CtlError> {
     ))
 }
 
+/// [`run_command`]; a command refused because another link controls the
+/// gimbal names the holder (asked of gcud with `~C`).
 async fn run(cli: &Cli) -> Result<(), CtlError> {
+    match run_command(cli).await {
+        // `release` names the holder itself.
+        Err(e) if !matches!(cli.command, Cmd::Release) => {
+            Err(govern::name_the_holder(&cli.global, cli.global.to, e).await)
+        }
+        ok => ok,
+    }
+}
+
+async fn run_command(cli: &Cli) -> Result<(), CtlError> {
     let g = &cli.global;
-    if let Cmd::Scan(args) = &cli.command {
-        return scan::scan(g, args).await;
+    match &cli.command {
+        Cmd::Scan(args) => return scan::scan(g, args).await,
+        Cmd::Release => return govern::release(g, destination(cli)?).await,
+        Cmd::Tour(tour) => return govern::tour(g, tour).await,
+        _ => {}
     }
     let to = destination(cli)?;
     let data = request::data(&cli.command)?;

@@ -192,7 +192,13 @@ pub fn request<'a>(cmd: &Cmd, data: &'a [u8]) -> Result<Option<Request<'a>>, Ctl
                 payload: data.to_vec(),
             }));
         }
-        Cmd::Watch { .. } | Cmd::Scan(_) | Cmd::GcudStatus { .. } | Cmd::Encode { .. } | Cmd::Decode { .. } => {
+        Cmd::Watch { .. }
+        | Cmd::Scan(_)
+        | Cmd::GcudStatus { .. }
+        | Cmd::Encode { .. }
+        | Cmd::Decode { .. }
+        | Cmd::Release
+        | Cmd::Tour(_) => {
             return Ok(None);
         }
     };

@@ -159,6 +159,17 @@ local function parse_command(s)
         local r = T.commands[m] or T.commands["unknown"]
         return m, r.description .. (extra or ""), r.shape, r.answer == "optional", a
     end
+    -- GCU commands on port 0 (ARCHITECTURE "Governance", the protocol
+    -- crate's module gcu): ~R has no result, ~C and ~T one (shown raw).
+    if s:sub(1, 1) == "~" then
+        local gcu = {
+            R = "~R PPDD: release control of gimbal PP.DD (GCU command)",
+            C = "~C PPDD: who controls gimbal PP.DD (GCU command)",
+            T = "~T+name, ~T-name, ~T?: start, stop or list tours (GCU command)",
+        }
+        local k = s:sub(2, 2)
+        return "~" .. k, gcu[k] or "unknown GCU command", (k == "C" or k == "T") and "raw" or nil, false, a
+    end
     for _, ext in ipairs(T.extended) do
         if s:sub(1, #ext.name) == ext.name then
             return ext.name, ext.description .. " (raw arguments)", ext.shape, ext.answer == "optional", a

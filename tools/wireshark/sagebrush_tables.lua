@@ -129,6 +129,11 @@ T.report_codes = {
     [0x0A] = { name = "loop", meaning = "the only route leads back where the command came from" },
     [0x0B] = { name = "not_confirmed", meaning = "delivery was not confirmed in time (it may still execute)" },
     [0x0C] = { name = "expired", meaning = "it waited in a queue too long and was given up unsent" },
+    [0x0D] = { name = "not_in_control", meaning = "another link of equal or higher priority controls the gimbal" },
+    [0x0E] = { name = "travel_limit", meaning = "its target lies outside the gimbal's travel limits" },
+    [0x0F] = { name = "keep_out", meaning = "its path may enter a keep-out zone" },
+    [0x10] = { name = "position_unknown", meaning = "the gimbal's position is unknown and it has limits or zones" },
+    [0x11] = { name = "superseded", meaning = "a stop for the same gimbal overtook it before it reached the bus" },
 }
 
 -- Capture record kinds (header byte 1, docs/capture.md).

@@ -82,6 +82,10 @@ pub(super) struct LinkSection {
     /// Continuous motion started on this link and not refreshed within
     /// this time is stopped (default: no lease); 100 ms to 10 minutes.
     motion_lease_ms: Option<Millis<100, 600_000>>,
+    /// 0..=100: a link of higher priority takes control of a gimbal from
+    /// a lower one (ARCHITECTURE "Governance").
+    #[serde(default)]
+    priority: Int<u8, 0, { sagebrush_gcu::MAX_PRIORITY as i64 }, { sagebrush_gcu::DEFAULT_PRIORITY as i64 }>,
 }
 
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -101,6 +105,8 @@ pub struct Link {
     /// `None`: any source group.
     pub allow_source_groups: Option<Vec<u8>>,
     pub motion_lease_ms: Option<u64>,
+    /// 0..=100 (ARCHITECTURE "Governance").
+    pub priority: u8,
 }
 
 impl Link {
@@ -113,7 +119,21 @@ impl Link {
         let mut lc = LinkConfig::new(self.kind, sources);
         lc.lossless = !matches!(self.transport, LinkTransport::Serial { .. });
         lc.motion_lease = self.motion_lease_ms;
+        // Every connection of this link is one controller of the gimbals.
+        lc.name = Some(std::sync::Arc::from(self.name.as_str()));
+        lc.priority = self.priority;
         lc
+    }
+
+    /// Whether `other` is this link but for its priority (a reload applies
+    /// a new priority without closing the link's connections).
+    pub fn same_but_priority(&self, other: &Link) -> bool {
+        let priority = self.priority;
+        *self
+            == Link {
+                priority,
+                ..other.clone()
+            }
     }
 }
 
@@ -136,6 +156,16 @@ pub(super) fn validate(
                 l.name.span(),
                 format!("{key}.name"),
                 format!("link names must be unique and non-empty, found {name:?}"),
+            ));
+        }
+        if !sagebrush_protocol::gcu::valid_name(name.as_bytes()) {
+            return Err(c.at(
+                l.name.span(),
+                format!("{key}.name"),
+                format!(
+                    "expected 1..=32 of A-Z a-z 0-9 _ - (a link's name names who controls a gimbal in \
+                     /status and in GCU command answers), found {name:?}"
+                ),
             ));
         }
         let transport = match (&l.serial, &l.listen, &l.connect) {
@@ -211,6 +241,7 @@ pub(super) fn validate(
             allow_peers,
             allow_source_groups,
             motion_lease_ms: l.motion_lease_ms.as_ref().map(Millis::get),
+            priority: l.priority.get(),
         });
     }
     Ok(links)

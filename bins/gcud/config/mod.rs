@@ -15,6 +15,7 @@
 
 mod capture;
 mod gcu;
+mod govern;
 mod limits;
 mod link;
 mod log;
@@ -28,11 +29,12 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use sagebrush_client::config_file::{Source, listeners_clash};
-use sagebrush_gcu::{LinkId, RouterConfig};
+use sagebrush_gcu::{Governance, LinkId, RouterConfig};
 use serde::Deserialize;
 
 pub use capture::CaptureSettings;
 pub use gcu::GcuSection;
+pub use govern::ControlSection;
 pub use limits::LimitsSection;
 pub use link::{Link, LinkTimingSection, LinkTransport};
 pub use log::LogSection;
@@ -63,6 +65,12 @@ struct ConfigFile {
     #[serde(default, rename = "route")]
     routes: Vec<route::RouteSection>,
     capture: Option<capture::CaptureSection>,
+    #[serde(default)]
+    control: ControlSection,
+    #[serde(default, rename = "gimbal")]
+    gimbals: Vec<govern::GimbalSection>,
+    #[serde(default, rename = "tour")]
+    tours: Vec<govern::TourSection>,
 }
 
 /// The validated configuration, by section.
@@ -80,6 +88,8 @@ pub struct Config {
     pub routes: Routes,
     /// `[capture]`, if configured.
     pub capture: Option<CaptureSettings>,
+    /// `[control]`, `[[gimbal]]` and `[[tour]]` (ARCHITECTURE "Governance").
+    pub governance: Governance,
     /// What is valid but probably not meant (a listener reachable from the
     /// network, ...), each `FILE:LINE:COLUMN: KEY: message` like an error:
     /// `--check` prints them, start-up logs them once logging is set up.
@@ -108,6 +118,7 @@ impl Config {
             rc.static_routes.insert(*group, link_id(name));
         }
         rc.default_upstream = self.routes.default.as_deref().map(link_id);
+        rc.governance = self.governance.clone();
         rc
     }
 
@@ -246,6 +257,7 @@ fn validate(c: &Source<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
         &links,
     )?;
     let capture = raw.capture.as_ref().map(|cap| cap.validate(c)).transpose()?;
+    let governance = govern::validate(c, &raw.control, &raw.gimbals, &raw.tours, raw.gcu.group.get(), &ports)?;
 
     // A GCU that can route nothing is a mistake, not a configuration:
     // commands come in over links only (devices never send one). Links
@@ -274,6 +286,7 @@ fn validate(c: &Source<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
         links,
         routes,
         capture,
+        governance,
         warnings,
         listen_places: listeners.into_iter().map(|(addr, _, _, place)| (addr, place)).collect(),
         serial_places: serial_lines

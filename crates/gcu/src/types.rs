@@ -238,15 +238,25 @@ impl RouterEvent {
                 | Undelivered::NotConfirmed
                 | Undelivered::NoSuchPort
                 | Undelivered::PortClosed
-                | Undelivered::NoRoute => Level::Debug,
-                Undelivered::NotInControl
+                | Undelivered::NoRoute
+                | Undelivered::NotInControl
                 | Undelivered::TravelLimit
                 | Undelivered::KeepOut
-                | Undelivered::PositionUnknown => Level::Info,
+                | Undelivered::PositionUnknown => Level::Debug,
                 _ => Level::Warn,
             },
             RouterEvent::Dropped { reason, .. } if reason.is_the_senders() || reason.is_refusal() => Level::Debug,
-            RouterEvent::Control { .. } | RouterEvent::Tour { .. } | RouterEvent::Park { .. } => Level::Info,
+            // A link taking or leaving control is its client's business
+            // (as its commands are): INFO stays the daemon's life. A
+            // take-over (a holder's motion stopped) and gcud's own tours
+            // and park are told.
+            RouterEvent::Control {
+                holder: Some(_),
+                from: Some(_),
+                ..
+            } => Level::Info,
+            RouterEvent::Control { .. } => Level::Debug,
+            RouterEvent::Tour { .. } | RouterEvent::Park { .. } => Level::Info,
             RouterEvent::BoundaryStop { .. } => Level::Info,
             RouterEvent::DeviceState { online: false, .. } => Level::Warn,
             RouterEvent::DeviceState { first: false, .. } => Level::Info,
@@ -488,6 +498,51 @@ impl DropReason {
             DropReason::KeepOut => Undelivered::KeepOut,
             DropReason::PositionUnknown => Undelivered::PositionUnknown,
             DropReason::Superseded => Undelivered::Superseded,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A link taking control, or its control lapsing, is no INFO line
+    /// (tests/first_hour.rs: gimbalctl calls add none); a take-over is.
+    #[test]
+    fn control_changes_are_info_only_for_a_take_over() {
+        let link = |name: &str| crate::Holder::Link {
+            name: name.to_owned(),
+            priority: 50,
+        };
+        let control = |holder: Option<crate::Holder>, from: Option<crate::Holder>| RouterEvent::Control {
+            port: 1,
+            device: 1,
+            holder,
+            from,
+        };
+        assert_eq!(control(Some(link("a")), None).level(), Level::Debug);
+        assert_eq!(control(None, Some(link("a"))).level(), Level::Debug);
+        assert_eq!(control(Some(link("b")), Some(link("a"))).level(), Level::Info);
+    }
+
+    /// A command the governance refused is its sender's to report (the
+    /// delivery report) and the metrics' to count, as one to no such port.
+    #[test]
+    fn refusals_are_no_info_lines() {
+        for failure in [
+            Undelivered::NotInControl,
+            Undelivered::TravelLimit,
+            Undelivered::KeepOut,
+            Undelivered::PositionUnknown,
+        ] {
+            let event = RouterEvent::Undelivered {
+                id: CommandId(1),
+                origin: Origin::Internal,
+                dest: Address::new(5, 1, 1),
+                command: "PR",
+                failure,
+            };
+            assert_eq!(event.level(), Level::Debug, "{failure:?}");
         }
     }
 }

@@ -9,7 +9,7 @@ use std::sync::Arc;
 /// Who holds a gimbal, as `/status` and the GCU command `~C` show it.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Holder {
-    /// A configured link (its name, or `link#N` for a link with none).
+    /// A configured link (its name, or `link-N` for a link with none).
     Link { name: String, priority: u8 },
     /// gcud's tour of this name.
     Tour(String),

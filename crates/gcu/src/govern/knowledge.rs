@@ -90,6 +90,9 @@ pub(crate) struct Gimbal {
     asking: bool,
     retry_at: Option<u64>,
     poll_at: Option<u64>,
+    /// When the last goto (or motion to an unknown place) was sent: a
+    /// reading from before it cannot tell that it stopped.
+    moved_at: u64,
     /// When each slewing axis' stop must be sent, and what it stops short of.
     stop_at: [Option<(u64, DropReason)>; 2],
     /// A slew began: its stop is planned at the next poll.
@@ -312,6 +315,7 @@ impl Gimbal {
             self.stop_at = [None; 2];
         }
         self.poll_at = Some(now + MOTION_POLL);
+        self.moved_at = now;
     }
 
     /// The command that carries the goto just noted is `id`.
@@ -357,6 +361,7 @@ impl Gimbal {
         self.axes = [AxisMotion::Unknown; 2];
         self.stop_at = [None; 2];
         self.poll_at = Some(now + MOTION_POLL);
+        self.moved_at = now;
     }
 
     pub fn stopping(&mut self, now: u64, pan: bool, tilt: bool) {
@@ -407,8 +412,13 @@ impl Gimbal {
                 _ => (0, 0),
             };
         }
-        // Two readings close in time tell nothing of standing still.
-        let before = before.filter(|&(t, _)| at >= t + SETTLE_SPAN).map(|(_, b)| b);
+        // Two readings close in time tell nothing of standing still, nor
+        // one taken before the motion began (a goto queued behind other
+        // work is read again before the gimbal got going).
+        let since = self.moved_at;
+        let before = before
+            .filter(|&(t, _)| at >= t + SETTLE_SPAN && t >= since)
+            .map(|(_, b)| b);
         self.position = Some(Reading { at, position });
         self.need_position = false;
         for axis in 0..2 {
@@ -627,5 +637,52 @@ impl Line {
     /// the stop's own frame.
     pub fn latency(&self) -> u64 {
         self.busy() + wire_ms(HEADER_LEN + 3, self.bps)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sagebrush_protocol::Angle;
+
+    fn at(pan: i16, tilt: i16) -> Position {
+        Position::new(Angle(pan), Angle(tilt))
+    }
+
+    fn line() -> Line {
+        Line {
+            bps: 115_200,
+            nic_window: 31,
+        }
+    }
+
+    /// A tour waited 60 s (GOTO_PATIENCE) for a goto taken for stopped
+    /// short: its first reading, taken before the gimbal got going, agreed
+    /// with the reading before the goto.
+    #[test]
+    fn a_goto_is_not_taken_for_stopped_by_a_reading_from_before_it_began() {
+        let mut g = Gimbal::default();
+        g.read_position(1000, at(0, 0), line());
+        g.going(2000, [3000, 0]);
+        g.read_position(2030, at(0, 0), line());
+        assert_eq!(
+            g.axes[0],
+            AxisMotion::Goto {
+                target: 3000,
+                moving: false
+            },
+            "still on its way"
+        );
+        assert!(g.may_be_moving() && g.poll_at.is_some(), "followed further");
+        // Readings after it began that agree, several in a row: it stopped short.
+        for (n, t) in [2300, 2450, 2600, 2750].into_iter().enumerate() {
+            assert_ne!(g.axes[0], AxisMotion::Still, "not yet at reading {n}");
+            g.read_position(t, at(0, 0), line());
+        }
+        assert_eq!(g.axes[0], AxisMotion::Still);
+        // Arrived: still at once.
+        g.going(3000, [100, 0]);
+        g.read_position(3250, at(100, 0), line());
+        assert_eq!(g.axes, [AxisMotion::Still; 2]);
     }
 }

@@ -126,7 +126,9 @@ impl Router {
 
     /// A link came up (an id that is up is first taken down).
     pub(super) fn link_up(&mut self, now: u64, link: LinkId, mut config: LinkConfig, out: &mut Outbox) {
-        // A link with no configured name is a controller of its own (ARCHITECTURE "Governance").
+        // The governance knows a link by its configured name; one without
+        // is a controller of its own (ARCHITECTURE "Governance"), named once
+        // here rather than for every command it sends.
         config
             .name
             .get_or_insert_with(|| std::sync::Arc::from(format!("link-{}", link.0)));
