@@ -142,7 +142,10 @@ impl From<CommandError> for CtlError {
             CommandError::Nic(m) => CtlError::Nic(m),
             CommandError::NoResult(m) => CtlError::NoResult(m),
             CommandError::BadReply(m) => CtlError::BadReply(m),
-            CommandError::Undelivered(failure, m) => CtlError::Undelivered(failure, m),
+            // gcud's refusals keep their report's exit code and name.
+            CommandError::Undelivered(failure, m) | CommandError::Refused(failure, m) => {
+                CtlError::Undelivered(failure, m)
+            }
         }
     }
 }

@@ -17,6 +17,13 @@
 //!   one positioning move waits at most (newest wins), other commands wait
 //!   in a short queue; what cannot start within [`STALE`] is dropped with
 //!   an error, never sent late.
+//! - **gcud's decisions** (ARCHITECTURE "Governance"): a command gcud
+//!   refuses by its rules is [`CommandError::Refused`], naming the link
+//!   that holds the gimbal when that is the rule; a refused motion never
+//!   counts as one, and a refusal for control sends no stop (the motion on
+//!   the gimbal is the holder's, and gcud stopped this door's when the
+//!   holder took control). Who controls the gimbal (`~C`, answered by gcud
+//!   itself) is asked with a poll at most every [`CONTROL_POLL`].
 //! - **one poll for every reader**: `P?` (and `V?` for a lens) every poll
 //!   period, at least every [`REFRESH`] while something moves, so gcud's
 //!   motion lease on the door's connection (ARCHITECTURE "Safety") stays
@@ -28,13 +35,14 @@ use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::Duration;
 
-use sagebrush_protocol::{Address, Axis, Command, LensPosition, LensSpeed, Position, Speed};
+use sagebrush_protocol::{Address, Axis, Command, LensPosition, LensSpeed, Position, Speed, Undelivered};
 use tokio::sync::{Notify, oneshot};
 use tokio::time::Instant;
 use tracing::{info, warn};
 
 use crate::client::CommandError;
-use crate::connection::{GimbalConnection, Identity, UNREACHABLE_POLL};
+use crate::connection::{Control, GimbalConnection, Identity, UNREACHABLE_POLL};
+use crate::governance::{Controller, GcuAnswer, GcuRequest, Tour, TourOutcome};
 
 /// A request that could not start within this is dropped with an error
 /// (gcud unreachable, the bus busy): never sent after its caller gave up.
@@ -44,6 +52,9 @@ pub const STALE: Duration = Duration::from_secs(5);
 pub const REFRESH: Duration = Duration::from_millis(250);
 /// Commands other than motions and stops waiting at once; more are refused.
 pub const QUEUE: usize = 8;
+/// gcud is asked who controls the gimbal (`~C`, answered by gcud itself:
+/// no bus time) with a poll at most this often.
+pub const CONTROL_POLL: Duration = Duration::from_secs(1);
 /// An owed stop is sent again this often while gcud cannot be reached.
 const STOP_RETRY: Duration = Duration::from_millis(200);
 /// A caller of [`GimbalSession::stop`] is told the stop failed after this
@@ -204,6 +215,10 @@ pub struct Status {
     /// The position changed between the last two polls.
     pub changing: bool,
     pub motion: Motion,
+    /// Who controls the gimbal, as gcud last answered `~C` (with a poll,
+    /// or naming the holder of a refusal); `None` while unknown (a gcud
+    /// that governs nothing answers NIC).
+    pub control: Option<Control>,
 }
 
 /// Whether gcud can be reached, shared by a door's sessions so that the
@@ -231,6 +246,22 @@ impl GcudReachability {
 
 type Reply = oneshot::Sender<Result<(), CommandError>>;
 type Answer = oneshot::Sender<Result<Option<Vec<u8>>, CommandError>>;
+type GcuReply = oneshot::Sender<Result<GcuAnswer, CommandError>>;
+
+/// A request waiting in the queue: a command to the gimbal, or one to gcud.
+enum Queued {
+    Bus(Command<'static>, Answer),
+    Gcu(GcuRequest, GcuReply),
+}
+
+impl Queued {
+    fn fail(self, e: CommandError) {
+        match self {
+            Queued::Bus(_, reply) => drop(reply.send(Err(e))),
+            Queued::Gcu(_, reply) => drop(reply.send(Err(e))),
+        }
+    }
+}
 
 /// One side of the gimbal, as far as the session has told it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -291,11 +322,13 @@ struct State {
     stop_retry_at: Option<Instant>,
     wish: Option<Pending<Velocity>>,
     place: Option<Pending<Place>>,
-    queue: VecDeque<(Command<'static>, Instant, Answer)>,
+    queue: VecDeque<(Queued, Instant)>,
     status: Status,
     identity: Option<Identity>,
     /// The task ends once the owed stops are sent.
     closing: bool,
+    /// The rule gcud refused the last drive command by (logged once).
+    last_refusal: Option<Undelivered>,
 }
 
 impl State {
@@ -383,9 +416,9 @@ impl State {
         if self.place.as_ref().is_some_and(|p| stale(p.asked)) {
             answer(self.place.take().expect("checked").replies, Err(error()));
         }
-        while self.queue.front().is_some_and(|(_, asked, _)| stale(*asked)) {
-            let (_, _, reply) = self.queue.pop_front().expect("checked");
-            let _ = reply.send(Err(error()));
+        while self.queue.front().is_some_and(|(_, asked)| stale(*asked)) {
+            let (queued, _) = self.queue.pop_front().expect("checked");
+            queued.fail(error());
         }
     }
 }
@@ -407,7 +440,7 @@ enum Step {
     /// A drive command, and the axis once it is acknowledged.
     Drive(Command<'static>, Applied),
     Place(Place),
-    Query(Command<'static>, Answer),
+    Query(Queued),
     Poll,
     Wait(Option<Instant>),
     End,
@@ -613,20 +646,63 @@ impl GimbalSession {
     /// has one. At most [`QUEUE`] wait; more are refused.
     pub async fn send(&self, command: Command<'static>) -> Result<Option<Vec<u8>>, CommandError> {
         let (tx, rx) = oneshot::channel();
+        self.enqueue(Queued::Bus(command, tx), command.mnemonic())?;
+        rx.await.unwrap_or_else(|_| Err(closed()))
+    }
+
+    /// A GCU command to gcud (module `governance`), in the queue with the
+    /// other commands: answered by gcud itself, no bus time.
+    pub async fn gcu(&self, request: GcuRequest) -> Result<GcuAnswer, CommandError> {
+        let (tx, rx) = oneshot::channel();
+        let what = format!("{request:?}");
+        self.enqueue(Queued::Gcu(request, tx), &what)?;
+        rx.await.unwrap_or_else(|_| Err(closed()))
+    }
+
+    fn enqueue(&self, queued: Queued, what: &str) -> Result<(), CommandError> {
         {
             let mut s = self.state();
             if s.queue.len() >= QUEUE {
                 return Err(CommandError::Io(format!(
-                    "{} commands already wait for gimbal {}: {} refused",
-                    QUEUE,
-                    self.config.name,
-                    command.mnemonic()
+                    "{} commands already wait for gimbal {}: {what} refused",
+                    QUEUE, self.config.name,
                 )));
             }
-            s.queue.push_back((command, Instant::now(), tx));
+            s.queue.push_back((queued, Instant::now()));
         }
         self.wake.notify_one();
-        rx.await.unwrap_or_else(|_| Err(closed()))
+        Ok(())
+    }
+
+    /// `~C` now: who controls the gimbal (also kept in [`Status::control`]).
+    pub async fn controller(&self) -> Result<Controller, CommandError> {
+        let a = self.config.address;
+        match self.gcu(GcuRequest::Controller(a.port, a.device)).await? {
+            GcuAnswer::Controller(c) => Ok(c),
+            other => Err(CommandError::BadReply(format!("~C answered {other:?}"))),
+        }
+    }
+
+    /// `~T?`: gcud's tours (of every gimbal of this gimbal's GCU).
+    pub async fn tours(&self) -> Result<Vec<Tour>, CommandError> {
+        match self.gcu(GcuRequest::TourList).await? {
+            GcuAnswer::Tours(t) => Ok(t),
+            other => Err(CommandError::BadReply(format!("~T? answered {other:?}"))),
+        }
+    }
+
+    /// `~T+name` (`start`) or `~T-name`: what became of the tour. An
+    /// unknown tour is [`CommandError::Nic`].
+    pub async fn tour(&self, name: &str, start: bool) -> Result<TourOutcome, CommandError> {
+        let request = if start {
+            GcuRequest::TourStart(name.to_owned())
+        } else {
+            GcuRequest::TourStop(name.to_owned())
+        };
+        match self.gcu(request).await? {
+            GcuAnswer::Tour(t) => Ok(t),
+            other => Err(CommandError::BadReply(format!("~T answered {other:?}"))),
+        }
     }
 
     /// `D?`, asked once and kept.
@@ -700,10 +776,8 @@ impl GimbalSession {
         if let Some(p) = &s.place {
             return Step::Place(p.what);
         }
-        if let Some((command, _, _)) = s.queue.front() {
-            let command = *command;
-            let (_, _, reply) = s.queue.pop_front().expect("checked");
-            return Step::Query(command, reply);
+        if let Some((queued, _)) = s.queue.pop_front() {
+            return Step::Query(queued);
         }
         let due = if s.moving().any() {
             next_poll.min(now + REFRESH)
@@ -718,7 +792,10 @@ impl GimbalSession {
 
     async fn run(self: Arc<Self>, mut connection: GimbalConnection) {
         let mut next_poll = Instant::now();
+        let mut asked_control = None;
         loop {
+            // What the connection last learnt of gcud's control (a poll, a refusal).
+            self.state().status.control = connection.control();
             let now = Instant::now();
             match self.next(now, next_poll) {
                 Step::End => return,
@@ -802,11 +879,47 @@ impl GimbalSession {
                     self.reached(&sent);
                     let mut s = self.state();
                     match sent {
-                        Ok(_) => match applied {
-                            Applied::Pan(a) => s.pan = a,
-                            Applied::Tilt(a) => s.tilt = a,
-                            Applied::Zoom(a) => s.zoom = a,
-                        },
+                        Ok(_) => {
+                            s.last_refusal = None;
+                            match applied {
+                                Applied::Pan(a) => s.pan = a,
+                                Applied::Tilt(a) => s.tilt = a,
+                                Applied::Zoom(a) => s.zoom = a,
+                            }
+                        }
+                        Err(e) if e.refusal().is_some() => {
+                            // gcud refused it by its rules: nothing reached
+                            // the bus, the axis did not start.
+                            if let Some(w) = s.wish.take() {
+                                answer(w.replies, Err(e.clone()));
+                            }
+                            if e.refusal() == Some(Undelivered::NotInControl) {
+                                // Another link holds the gimbal: its motion is
+                                // not this door's to stop, and gcud stopped
+                                // ours when that link took control. What was
+                                // set here (speeds too) is set again next time.
+                                s.pan = InForce::default();
+                                s.tilt = InForce::default();
+                                s.zoom = InForce::default();
+                            } else {
+                                // Never leave an axis moving that the caller was told failed.
+                                let ours = Axes {
+                                    pan: s.pan.drive != Drive::Stop,
+                                    tilt: s.tilt.drive != Drive::Stop,
+                                    zoom: s.zoom.drive != Drive::Stop,
+                                };
+                                if ours.any() {
+                                    s.owe_stop(ours);
+                                }
+                            }
+                            if !s.moving().any() {
+                                s.deadline = None;
+                            }
+                            if s.last_refusal != e.refusal() {
+                                s.last_refusal = e.refusal();
+                                info!(gimbal = %self.config.name, error = %e, "{} refused by gcud (logged once until something is accepted or refused otherwise)", command.mnemonic());
+                            }
+                        }
                         Err(e) => {
                             // Never leave an axis moving that the caller was told failed.
                             let axes = s.moving();
@@ -834,10 +947,21 @@ impl GimbalSession {
                         answer(p.replies, sent.map(drop));
                     }
                 }
-                Step::Query(command, reply) => {
+                Step::Query(Queued::Bus(command, reply)) => {
                     let sent = connection.send(&command).await;
                     self.reached(&sent);
                     let _ = reply.send(sent);
+                }
+                Step::Query(Queued::Gcu(request, reply)) => {
+                    let a = self.config.address;
+                    let answer = if request == GcuRequest::Controller(a.port, a.device) {
+                        // This gimbal's: kept for the status too.
+                        connection.controller().await.map(GcuAnswer::Controller)
+                    } else {
+                        connection.gcu(&request).await
+                    };
+                    self.reached(&answer);
+                    let _ = reply.send(answer);
                 }
                 Step::Poll => {
                     let reading = poll(&mut connection, self.config.lens).await;
@@ -859,6 +983,11 @@ impl GimbalSession {
                                 st.error = Some(e.to_string());
                             }
                         }
+                    }
+                    if !failed && asked_control.is_none_or(|t: Instant| t.elapsed() >= CONTROL_POLL) {
+                        asked_control = Some(Instant::now());
+                        // Unknown while it fails (a gcud that governs nothing answers NIC).
+                        let _ = connection.controller().await;
                     }
                     let poll = self.config.poll;
                     next_poll = Instant::now() + if failed { UNREACHABLE_POLL.max(poll) } else { poll };
