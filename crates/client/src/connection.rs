@@ -165,15 +165,24 @@ impl GimbalConnection {
                     Some(h) => Some(h),
                     None => self.controller().await.ok(),
                 };
+                if holder
+                    .as_ref()
+                    .and_then(Controller::link)
+                    .is_some_and(|h| Some(h) == self.control.own.as_deref())
+                {
+                    // Not this link after all (learnt before a take-over).
+                    self.control.own = None;
+                }
                 let why = match holder {
-                    Some(holder @ Controller::Link { .. }) => {
-                        if holder.link().is_some() && holder.link() == self.control.own.as_deref() {
-                            // Not this link after all (learnt before a take-over).
-                            self.control.own = None;
+                    // Named: "refused by gcud: PR to 5.1.1: link operators (priority 80) controls the gimbal".
+                    Some(holder) if holder != Controller::Nobody => {
+                        let rule = Undelivered::NotInControl.describe();
+                        let named = format!("{holder} controls the gimbal");
+                        match why.strip_suffix(rule) {
+                            Some(head) => format!("{head}{named}"),
+                            None => format!("{why}: {named}"),
                         }
-                        format!("{why}: {holder} controls it")
                     }
-                    Some(holder @ (Controller::Tour(_) | Controller::Park)) => format!("{why}: {holder} controls it"),
                     _ => why,
                 };
                 Err(CommandError::Refused(Undelivered::NotInControl, why))

@@ -7,8 +7,10 @@
 //!   `max_move`). A newer velocity replaces it as one step, a goto, preset
 //!   or home supersedes its pan and tilt, a stop ends it; when its
 //!   deadline passes, the session owes the stops of whatever moves.
-//! - **stops first**: a stop (or a velocity of zero) is owed at once and
-//!   sent before any other command; the task checks for an owed stop
+//! - **stops first**: a stop (or a velocity of zero on every axis it
+//!   names) is owed at once and sent before any other command; a zero
+//!   beside a move is part of that move, owed once the move is in force
+//!   (so that a move gcud refuses stops nothing); the task checks for an owed stop
 //!   before every motion command, so no motion command goes out after the
 //!   stop that ended it. A stop is sent until the bus confirms it: while
 //!   gcud cannot be reached it stays owed and goes first when gcud is back,
@@ -329,6 +331,9 @@ struct State {
     closing: bool,
     /// The rule gcud refused the last drive command by (logged once).
     last_refusal: Option<Undelivered>,
+    /// Axes set to zero beside a pending move ([`GimbalSession::post_velocity`]):
+    /// owed once that move is in force.
+    wish_stops: Axes,
 }
 
 impl State {
@@ -358,6 +363,7 @@ impl State {
     /// dropped (they came before the stop).
     fn owe_stop(&mut self, axes: Axes) {
         self.stops_owed = self.stops_owed.or(axes);
+        self.wish_stops = self.wish_stops.without(axes);
         if let Some(w) = &mut self.wish {
             if axes.pan {
                 w.what.pan = None;
@@ -371,6 +377,8 @@ impl State {
             if w.what == Velocity::default() {
                 let w = self.wish.take().expect("checked");
                 answer(w.replies, Ok(()));
+                // The zeros beside the move it ended are owed with it.
+                self.stops_owed = self.stops_owed.or(std::mem::take(&mut self.wish_stops));
             }
         }
         if axes.pan || axes.tilt {
@@ -384,7 +392,7 @@ impl State {
     fn expire(&mut self, now: Instant, name: &str) {
         if self.deadline.is_some_and(|d| d <= now) {
             self.deadline = None;
-            let moving = self.moving();
+            let moving = self.moving().or(std::mem::take(&mut self.wish_stops));
             if let Some(w) = self.wish.take() {
                 // Its time ran out before it could be carried out (a stop owed first).
                 answer(
@@ -412,6 +420,10 @@ impl State {
         };
         if self.wish.as_ref().is_some_and(|w| stale(w.asked)) {
             answer(self.wish.take().expect("checked").replies, Err(error()));
+            let stops = std::mem::take(&mut self.wish_stops);
+            if stops.any() {
+                self.owe_stop(stops);
+            }
         }
         if self.place.as_ref().is_some_and(|p| stale(p.asked)) {
             answer(self.place.take().expect("checked").replies, Err(error()));
@@ -541,14 +553,39 @@ impl GimbalSession {
                 tilt: velocity.tilt == Some(Drive::Stop),
                 zoom: velocity.zoom == Some(Drive::Stop),
             };
-            if stops.any() {
-                s.owe_stop(stops);
-            }
             let moves = Velocity {
                 pan: velocity.pan.filter(|d| *d != Drive::Stop),
                 tilt: velocity.tilt.filter(|d| *d != Drive::Stop),
                 zoom: velocity.zoom.filter(|d| *d != Drive::Stop),
             };
+            let moved = Axes {
+                pan: moves.pan.is_some(),
+                tilt: moves.tilt.is_some(),
+                zoom: moves.zoom.is_some(),
+            };
+            if !moved.any() {
+                if stops.any() {
+                    s.owe_stop(stops);
+                }
+            } else if stops.any() {
+                // A zero beside a move is part of that move: that axis stops
+                // once the move is in force, and not at all when gcud refuses
+                // the move for control (a refused request changes nothing:
+                // the holder's motion is not this door's to stop).
+                if let Some(w) = &mut s.wish {
+                    w.what.pan = w.what.pan.filter(|_| !stops.pan);
+                    w.what.tilt = w.what.tilt.filter(|_| !stops.tilt);
+                    w.what.zoom = w.what.zoom.filter(|_| !stops.zoom);
+                }
+                s.wish_stops = s.wish_stops.or(stops);
+                if stops.pan || stops.tilt {
+                    if let Some(p) = s.place.take() {
+                        answer(p.replies, Ok(()));
+                    }
+                }
+            }
+            // Newest wins: an axis moved now is no longer to be stopped.
+            s.wish_stops = s.wish_stops.without(moved);
             if moves != Velocity::default() {
                 // Newest wins, per axis; the replaced callers learn the newest's outcome.
                 let mut replies = s.wish.take().map(|w| (w.what, w.replies)).unwrap_or_default();
@@ -617,6 +654,8 @@ impl GimbalSession {
                 w.what.pan = None;
                 w.what.tilt = None;
             }
+            s.wish_stops.pan = false;
+            s.wish_stops.tilt = false;
             s.place = Some(Pending {
                 what: place,
                 asked: Instant::now(),
@@ -732,6 +771,7 @@ impl GimbalSession {
                 zoom: m.zoom,
             }
             .or(s.stops_owed)
+            .or(s.wish_stops)
         };
         if axes.any() {
             if let Err(e) = self.stop(axes).await {
@@ -769,9 +809,15 @@ impl GimbalSession {
             {
                 return step;
             }
-            // Everything asked is in force.
+            // Everything asked is in force; then the zeros beside it.
             let w = s.wish.take().expect("checked");
             answer(w.replies, Ok(()));
+            let stops = std::mem::take(&mut s.wish_stops);
+            if stops.any() {
+                s.owe_stop(stops);
+                let (command, axes) = s.stops_owed.first().expect("owed");
+                return Step::Stop(command, axes);
+            }
         }
         if let Some(p) = &s.place {
             return Step::Place(p.what);
@@ -893,6 +939,7 @@ impl GimbalSession {
                             if let Some(w) = s.wish.take() {
                                 answer(w.replies, Err(e.clone()));
                             }
+                            let zeros = std::mem::take(&mut s.wish_stops);
                             if e.refusal() == Some(Undelivered::NotInControl) {
                                 // Another link holds the gimbal: its motion is
                                 // not this door's to stop, and gcud stopped
@@ -907,7 +954,8 @@ impl GimbalSession {
                                     pan: s.pan.drive != Drive::Stop,
                                     tilt: s.tilt.drive != Drive::Stop,
                                     zoom: s.zoom.drive != Drive::Stop,
-                                };
+                                }
+                                .or(zeros);
                                 if ours.any() {
                                     s.owe_stop(ours);
                                 }
@@ -922,7 +970,7 @@ impl GimbalSession {
                         }
                         Err(e) => {
                             // Never leave an axis moving that the caller was told failed.
-                            let axes = s.moving();
+                            let axes = s.moving().or(std::mem::take(&mut s.wish_stops));
                             if let Some(w) = s.wish.take() {
                                 answer(w.replies, Err(e.clone()));
                             }

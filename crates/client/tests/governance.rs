@@ -181,7 +181,10 @@ async fn a_refusal_for_control_is_typed_and_names_the_holder() {
     assert_eq!(e.refusal(), Some(Undelivered::NotInControl), "{e:?}");
     let text = e.to_string();
     assert!(text.starts_with("refused by gcud: PR to 5.1.1"), "{text}");
-    assert!(text.contains("link operators (priority 80) controls it"), "{text}");
+    assert_eq!(
+        text,
+        "refused by gcud: PR to 5.1.1: link operators (priority 80) controls the gimbal"
+    );
     let control = c.control().expect("the holder is kept");
     assert_eq!(
         control.holder,
@@ -245,7 +248,8 @@ async fn a_move_refused_for_control_sends_no_stop_and_is_not_reported_moving() {
         .unwrap_err();
     assert_eq!(e.refusal(), Some(Undelivered::NotInControl), "{e}");
     assert!(
-        e.to_string().contains("link operators (priority 80) controls it"),
+        e.to_string()
+            .contains("link operators (priority 80) controls the gimbal"),
         "{e}"
     );
     until("the status names the holder", || {
@@ -267,10 +271,51 @@ async fn a_move_refused_for_control_sends_no_stop_and_is_not_reported_moving() {
         "the holder's motion is not stopped by a refused door: {got:?}"
     );
     assert_eq!(s.status().motion, Motion::Idle);
-    // From the start, refused: the same.
+    // From the start, refused: the same; and a zero beside the refused
+    // move (ONVIF's ContinuousMove x=0.5 y=0) stops nothing either.
     let e = s.velocity(pan_right(), None, "test").await.unwrap_err();
     assert_eq!(e.refusal(), Some(Undelivered::NotInControl), "{e}");
-    assert!(!gcud.got().iter().any(|p| p == "PS" || p == "TS"));
+    let with_zero = Velocity {
+        tilt: Some(Drive::Stop),
+        ..pan_right()
+    };
+    let e = s.velocity(with_zero, None, "test").await.unwrap_err();
+    assert_eq!(e.refusal(), Some(Undelivered::NotInControl), "{e}");
+    let polls = gcud.got().iter().filter(|p| *p == "P?").count();
+    until("two more polls", || {
+        gcud.got().iter().filter(|p| *p == "P?").count() >= polls + 2
+    })
+    .await;
+    let got = gcud.got();
+    assert!(!got.iter().any(|p| p == "PS" || p == "TS"), "{got:?}");
+    s.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_zero_beside_an_accepted_move_stops_that_axis_after_the_move() {
+    let gcud = FakeGcud::start(|p| match p {
+        b"~C0101" => controller(ControllerReply::Nobody),
+        b"P?" => at_zero(),
+        _ => Answer::Ack,
+    })
+    .await;
+    let s = session(&gcud.addr);
+    let tilt_up = Velocity {
+        tilt: Some(Drive::Forward(Speed::new(7).unwrap())),
+        ..Velocity::default()
+    };
+    s.velocity(tilt_up, None, "test").await.unwrap();
+    let with_zero = Velocity {
+        tilt: Some(Drive::Stop),
+        ..pan_right()
+    };
+    s.velocity(with_zero, None, "test").await.unwrap();
+    until("the tilt stopped", || gcud.got().iter().any(|p| p == "TS")).await;
+    let got = gcud.got();
+    let pr = got.iter().position(|p| p == "PR").expect("PR sent");
+    let ts = got.iter().position(|p| p == "TS").unwrap();
+    assert!(pr < ts, "the zero after the move it came with: {got:?}");
+    s.stop(Axes::PAN_TILT).await.unwrap();
     s.shutdown().await;
 }
 
