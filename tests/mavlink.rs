@@ -335,7 +335,7 @@ fn control_taken_by_one_component_denies_another_and_nothing_moves() {
 }
 
 /// gcud decides who controls a gimbal (issue 32, ARCHITECTURE
-/// "Governance"): while the operators' link (priority 80, gimbalctl) holds
+/// "Front doors"): while the operators' link (priority 80, gimbalctl) holds
 /// the mast gimbal, a ground station's commands through gimbal-mavlink (the
 /// doors' link, priority 50) are answered MAV_RESULT_DENIED with a
 /// STATUSTEXT naming the holder, GIMBAL_MANAGER_STATUS names the manager

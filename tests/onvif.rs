@@ -707,7 +707,7 @@ const TRANSLATION_GENERIC: &str = "http://www.onvif.org/ver10/tptz/PanTiltSpaces
 /// (0.5, 0) by 15° and (0, -1) the tilt by -20° (linear in the angle: no
 /// lens projection is modelled). Positions are read on the bus side.
 /// gcud decides who controls a gimbal (issue 32, ARCHITECTURE
-/// "Governance"): while the operators' link (priority 80, gimbalctl) holds
+/// "Front doors"): while the operators' link (priority 80, gimbalctl) holds
 /// the mast gimbal, a VMS's moves through gimbal-onvif (the doors' link,
 /// priority 50) get a SOAP fault naming the holder, never a success;
 /// GetStatus does not report the refused move as a motion, and the door

@@ -350,7 +350,7 @@ impl Task {
                     match outcome.await {
                         Ok(()) => Ok(None),
                         Err(e) if e.refusal().is_some() => {
-                            // gcud's decision (ARCHITECTURE "Governance"): DENIED, and
+                            // gcud's decision (ARCHITECTURE "Front doors"): DENIED, and
                             // its words to the ground stations, at most every
                             // REFUSAL_TEXT_EVERY.
                             Stats::count(&stats.denied);

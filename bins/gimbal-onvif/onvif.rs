@@ -105,7 +105,7 @@ fn gimbal_fault(e: CommandError) -> Fault {
     Fault::receiver(&["ter:Action", sub], e.to_string())
 }
 
-/// A command gcud refused by its rules (ARCHITECTURE "Governance"), as
+/// A command gcud refused by its rules (ARCHITECTURE "Front doors"), as
 /// the fault a VMS expects, with gcud's reason (the holder named):
 /// - another link controls the gimbal: `env:Receiver ter:Action
 ///   ter:NotInControl` (ONVIF Core's generic "Action Failed"; the device

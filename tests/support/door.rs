@@ -197,7 +197,7 @@ pub const OPERATORS_PRIORITY: u8 = 80;
 pub const OPERATORS_HOLDER: &str = "link operators (priority 80)";
 
 /// [`start_gcud`]'s buses under gcud's governance (ARCHITECTURE
-/// "Governance"): a link keeps control of a gimbal for a minute after its
+/// "Front doors"): a link keeps control of a gimbal for a minute after its
 /// last command that moves it (`[control] hold_ms`), the doors' listener
 /// `clients` at priority 50 and a second client listener, `operators`, at
 /// [`OPERATORS_PRIORITY`], where gimbalctl plays the operators' console.

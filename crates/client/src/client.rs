@@ -43,7 +43,7 @@ pub enum CommandError {
     /// A GCU reported that it could not deliver the command.
     #[error("{1}")]
     Undelivered(Undelivered, String),
-    /// gcud refused the command by its rules (ARCHITECTURE "Governance"):
+    /// gcud refused the command by its rules (ARCHITECTURE "Front doors"):
     /// another link controls the gimbal, the target lies beyond a travel
     /// limit or in a keep-out zone, or where the gimbal is is not known.
     /// Nothing reached the bus; sending it again changes nothing until

@@ -92,7 +92,7 @@ pub struct GimbalConnection {
     control: ControlSeen,
 }
 
-/// Whether gcud takes control for `command` (ARCHITECTURE "Governance":
+/// Whether gcud takes control for `command` (sagebrush-gcu's `govern`:
 /// everything but queries and stops).
 fn takes_control(command: &Command<'_>) -> bool {
     !command.is_stop() && command.result_kind() == ResultKind::None

@@ -1,5 +1,6 @@
-//! What gcud decides about the gimbals on its ports (ARCHITECTURE
-//! "Governance"), as a door asks it: the GCU commands of port 0 (the
+//! What gcud decides about the gimbals on its ports (its rules: who
+//! controls a gimbal, limits, zones, tours; ARCHITECTURE "Front doors"), as
+//! a door asks it: the GCU commands of port 0 (the
 //! protocol crate's module `gcu`) to address `G.0.0`, answered by gcud
 //! itself, so asking costs no bus time:
 //!

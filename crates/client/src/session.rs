@@ -19,7 +19,7 @@
 //!   one positioning move waits at most (newest wins), other commands wait
 //!   in a short queue; what cannot start within [`STALE`] is dropped with
 //!   an error, never sent late.
-//! - **gcud's decisions** (ARCHITECTURE "Governance"): a command gcud
+//! - **gcud's decisions** (ARCHITECTURE "Front doors"): a command gcud
 //!   refuses by its rules is [`CommandError::Refused`], naming the link
 //!   that holds the gimbal when that is the rule; a refused motion never
 //!   counts as one, and a refusal for control sends no stop (the motion on

@@ -1,5 +1,5 @@
 //! The gimbal session and connection against gcud's decisions
-//! (ARCHITECTURE "Governance"): a refusal by gcud's rules is a typed
+//! (ARCHITECTURE "Front doors"): a refusal by gcud's rules is a typed
 //! [`CommandError::Refused`] naming the holder, never a stop of another
 //! link's motion, never a motion the status reports; `~C` is kept with the
 //! poll; the tours are asked of gcud. gcud here is a stand-in on loopback
