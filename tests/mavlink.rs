@@ -84,7 +84,16 @@ impl Stack {
 
     /// With one more `[[endpoint]]` (TOML text) after the UDP and TCP ones.
     fn start_with(lease_ms: u64, extra_endpoint: &str) -> Self {
-        let gcud = support::door::start_gcud();
+        Self::start_on(support::door::start_gcud(), lease_ms, extra_endpoint)
+    }
+
+    /// In front of the governed gcud (`support::door::start_governed_gcud`:
+    /// the doors' link at priority 50, the operators' at 80).
+    fn start_governed() -> Self {
+        Self::start_on(support::door::start_governed_gcud(), 1000, "")
+    }
+
+    fn start_on(gcud: Gcud, lease_ms: u64, extra_endpoint: &str) -> Self {
         let mut mavlink = Door::new("gimbal-mavlink", env!("CARGO_BIN_EXE_gimbal-mavlink"));
         let config = mavlink_config(&gcud.clients(), lease_ms, extra_endpoint);
         // Each client step is a process of its own, so a holder of control
@@ -323,6 +332,46 @@ fn control_taken_by_one_component_denies_another_and_nothing_moves() {
     assert_eq!(r["result"], ACCEPTED, "{r}");
     let (pan, _) = stack.gcud.settled_position(MAST);
     assert!((pan - 20.0).abs() <= 0.5, "{pan}");
+}
+
+/// gcud decides who controls a gimbal (issue 32, ARCHITECTURE
+/// "Front doors"): while the operators' link (priority 80, gimbalctl) holds
+/// the mast gimbal, a ground station's commands through gimbal-mavlink (the
+/// doors' link, priority 50) are answered MAV_RESULT_DENIED with a
+/// STATUSTEXT naming the holder, GIMBAL_MANAGER_STATUS names the manager
+/// itself as primary owner (no MAVLink component commands it), and the door
+/// sends no stop that would end the holder's slew.
+/// Needs gcud's `[control] hold_ms` and `[[link]] priority`.
+#[test]
+fn commands_while_a_higher_priority_link_holds_the_gimbal_are_denied_naming_it() {
+    if !client_available() {
+        return;
+    }
+    let stack = Stack::start_governed();
+    let from = stack.gcud.position(MAST);
+    let slew = support::door::OperatorsSlew::start(&stack.gcud, MAST);
+    stack.wait_moving(from);
+    let r = stack.gcs("pitchyaw_text", GCS, json!({ "pitch": 10.0, "yaw": -20.0 }));
+    assert_eq!(r["result"], DENIED, "{r}");
+    let text = r["text"].as_str().unwrap_or_else(|| panic!("no STATUSTEXT: {r}"));
+    assert!(text.contains(support::door::OPERATORS_HOLDER), "{r}");
+    let st = stack.gcs("manager_status", GCS, json!({ "primary_sysid": 1 }));
+    assert_eq!(st["status"]["primary_control_compid"], 154, "the manager itself: {st}");
+    // A stream of rates (no answer owed), a zero pitch rate beside the yaw
+    // rate: refused whole, and the holder's slew goes on.
+    stack.gcs(
+        "set_pitchyaw",
+        GCS,
+        json!({ "yaw_rate": -30.0, "pitch_rate": 0.0, "count": 5, "every_s": 0.1 }),
+    );
+    stack.wait_moving(stack.gcud.position(MAST));
+    drop(slew);
+    let at = stack.gcud.settled_position(MAST);
+    let r = stack.gcs("pitchyaw", GCS, json!({ "pitch": 0.0, "yaw": 15.0 }));
+    assert_eq!(r["result"], DENIED, "{r}");
+    assert_still(&stack, at, "denied commands");
+    support::door::assert_door_sent_only_queries(&stack.gcud, MAST);
+    eprintln!("STATUSTEXT: {text}");
 }
 
 /// QGroundControl's "take control" and PX4's navigator name their own ids

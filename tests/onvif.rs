@@ -82,9 +82,19 @@ listen = "127.0.0.1:0"
 
 impl Stack {
     fn start() -> Self {
+        Self::with(support::door::start_gcud())
+    }
+
+    /// In front of the governed gcud (`support::door::start_governed_gcud`:
+    /// the doors' link at priority 50, the operators' at 80).
+    fn start_governed() -> Self {
+        Self::with(support::door::start_governed_gcud())
+    }
+
+    fn with(gcud: Gcud) -> Self {
         let mut stack = Self {
             onvif: Door::new("gimbal-onvif", env!("CARGO_BIN_EXE_gimbal-onvif")),
-            gcud: support::door::start_gcud(),
+            gcud,
             mast: 0,
             absent: 0,
             discovery: 0,
@@ -696,6 +706,51 @@ const TRANSLATION_GENERIC: &str = "http://www.onvif.org/ver10/tptz/PanTiltSpaces
 /// configured field of view of 60° x 40°, (1, 0) turns the pan by 30°,
 /// (0.5, 0) by 15° and (0, -1) the tilt by -20° (linear in the angle: no
 /// lens projection is modelled). Positions are read on the bus side.
+/// gcud decides who controls a gimbal (issue 32, ARCHITECTURE
+/// "Front doors"): while the operators' link (priority 80, gimbalctl) holds
+/// the mast gimbal, a VMS's moves through gimbal-onvif (the doors' link,
+/// priority 50) get a SOAP fault naming the holder, never a success;
+/// GetStatus does not report the refused move as a motion, and the door
+/// sends no stop that would end the holder's slew.
+/// Needs gcud's `[control] hold_ms` and `[[link]] priority`.
+#[test]
+fn moves_while_a_higher_priority_link_holds_the_gimbal_get_a_fault_naming_it() {
+    if !clients_available() {
+        return;
+    }
+    let stack = Stack::start_governed();
+    let from = stack.bus_position();
+    let slew = support::door::OperatorsSlew::start(&stack.gcud, MAST);
+    stack.wait_moving(from);
+    let r = stack.client("continuous", stack.mast, OPERATOR, json!({ "x": -0.5, "y": 0.0 }));
+    assert_eq!(fault_subcodes(&r), ["Action", "NotInControl"], "{r}");
+    let reason = r["fault"]["message"].as_str().unwrap();
+    assert!(
+        reason.contains(support::door::OPERATORS_HOLDER),
+        "the reason names the holder: {r}"
+    );
+    // The holder's slew goes on: the refused door stopped nothing.
+    stack.wait_moving(stack.bus_position());
+    drop(slew);
+    let at = stack.gcud.settled_position(MAST);
+    // Refused while the gimbal is still: GetStatus says IDLE right after.
+    let r = stack.client(
+        "continuous",
+        stack.mast,
+        OPERATOR,
+        json!({ "x": 0.5, "y": 0.5, "status_after": true }),
+    );
+    assert_eq!(fault_subcodes(&r), ["Action", "NotInControl"], "{r}");
+    assert_eq!(r["status"]["moving"], "IDLE", "a refused move is no motion: {r}");
+    let r = stack.client("absolute", stack.mast, OPERATOR, json!({ "x": 0.5, "y": 0.5 }));
+    assert_eq!(fault_subcodes(&r), ["Action", "NotInControl"], "{r}");
+    let r = stack.client("set_preset", stack.mast, OPERATOR, json!({ "name": "gate" }));
+    assert_eq!(fault_subcodes(&r), ["Action", "NotInControl"], "{r}");
+    assert_still(&stack, at, "refused moves");
+    support::door::assert_door_sent_only_queries(&stack.gcud, MAST);
+    eprintln!("refused: {reason}");
+}
+
 #[test]
 fn relative_move_in_the_fov_space_turns_by_the_field_of_view() {
     if !clients_available() {

@@ -116,7 +116,12 @@ impl Stack {
     /// [`start_gcud`]'s buses: mast-1 (5.1.1), mast-2 (5.2.1) and the
     /// absent 5.2.9.
     fn start() -> Self {
-        let gcud = start_gcud();
+        Self::start_on(start_gcud())
+    }
+
+    /// [`Stack::start`] in front of `gcud` (the governed one of
+    /// `support::door::start_governed_gcud`, with the same buses).
+    fn start_on(gcud: Gcud) -> Self {
         let gimbals = "[[gimbal]]\nname = \"mast-1\"\naddress = \"5.1.1\"\n\
                        [[gimbal]]\nname = \"mast-2\"\naddress = \"5.2.1\"\n\
                        [[gimbal]]\nname = \"absent\"\naddress = \"5.2.9\"\n";
@@ -561,9 +566,171 @@ fn a_command_refused_by_gcud_shows_its_reason_on_the_card() {
     assert!(other.as_str().unwrap().contains("Pan 0.00°"), "{other}");
 }
 
+/// gcud decides who controls a gimbal (issue 34 with issue 32): while the
+/// operators' link (gimbalctl, priority 80) holds mast-1, its card names
+/// the holder; a held "Pan right" is refused with gcud's words on the card,
+/// and the page then sends no stop (it would end the holder's motion):
+/// the door puts nothing but queries on mast-1's bus. mast-2, which nobody
+/// holds, still moves from the page.
+/// Needs gcud's `[control] hold_ms` and `[[link]] priority`.
+#[test]
+fn the_card_names_the_holder_and_a_refused_move_shows_gcuds_reason() {
+    if !browser_available() {
+        return;
+    }
+    let stack = Stack::start_on(support::door::start_governed_gcud());
+    let mut b = stack.browser("op", "op-secret");
+    let out = support::door::operators_ctl(&stack.gcud, &["--to", MAST, "goto", "20", "10"]);
+    assert_eq!(out.code, 0, "{out:?}");
+    let at = stack.gcud.settled_position(MAST);
+    let note = stack.call(
+        &mut b,
+        json!({ "op": "wait_note", "card": "mast-1", "contains": support::door::OPERATORS_HOLDER }),
+    );
+    eprintln!("mast-1's note: {note}");
+    stack.call(&mut b, json!({ "op": "hold", "card": "mast-1", "button": "Pan right" }));
+    let reason = stack.call(&mut b, json!({ "op": "wait_alert", "card": "mast-1" }));
+    let reason = reason.as_str().unwrap().to_owned();
+    stack.call(&mut b, json!({ "op": "release" }));
+    assert!(
+        reason.contains("refused by gcud") && reason.contains(support::door::OPERATORS_HOLDER),
+        "gcud's words on the card: {reason}"
+    );
+    support::door::assert_still(&stack.gcud, MAST, at, "a refused hold");
+    support::door::assert_door_sent_only_queries(&stack.gcud, MAST);
+    // Nobody holds mast-2: the page moves it (and takes control of it).
+    let other = "5.2.1";
+    let from = stack.gcud.position(other);
+    stack.call(&mut b, json!({ "op": "hold", "card": "mast-2", "button": "Tilt up" }));
+    wait_moving(&stack.gcud, other, from);
+    stack.call(&mut b, json!({ "op": "release" }));
+    bus_stop_time(&stack.gcud, other, "TS");
+    eprintln!("refused: {reason}");
+}
+
+/// gcud's tours on the page (issue 34): listed with their state, started
+/// and stopped through gcud's `~T+` and `~T-` by an operator (with the
+/// page's CSRF token), never by a user. gcud here is a stand-in
+/// (`support::fake_gcud`) answering as gcud does, since tours cannot be
+/// configured in gcud.toml yet; it records what the page sent.
+#[test]
+fn tours_are_listed_and_an_operator_starts_and_stops_them_through_gcud() {
+    if !browser_available() {
+        return;
+    }
+    use sagebrush_protocol::TourState;
+    use sagebrush_protocol::gcu::{encode_tour_list, encode_tour_reply};
+    use support::fake_gcud::{Answer, FakeGcud, position};
+    let state = std::sync::Arc::new(std::sync::Mutex::new(TourState::Stopped));
+    let tours = std::sync::Arc::clone(&state);
+    let gcud = FakeGcud::start(move |p| {
+        let mut buf = [0u8; 64];
+        let mut now = tours.lock().unwrap();
+        match p {
+            b"P?" => position(0.0, 0.0),
+            b"~T?" => {
+                let n = encode_tour_list([(&b"perimeter"[..], *now)], &mut buf);
+                Answer::Result(buf[..n].to_vec())
+            }
+            b"~T+perimeter" | b"~T-perimeter" => {
+                *now = if p[2] == b'+' {
+                    TourState::Running
+                } else {
+                    TourState::Stopped
+                };
+                let n = encode_tour_reply(*now, b"", &mut buf).unwrap();
+                Answer::Result(buf[..n].to_vec())
+            }
+            b"~C0101" if *now == TourState::Running => {
+                let n = sagebrush_protocol::ControllerReply::Tour(b"perimeter")
+                    .encode(1, 1, &mut buf)
+                    .unwrap();
+                Answer::Result(buf[..n].to_vec())
+            }
+            b"~C0101" => {
+                let n = sagebrush_protocol::ControllerReply::Nobody
+                    .encode(1, 1, &mut buf)
+                    .unwrap();
+                Answer::Result(buf[..n].to_vec())
+            }
+            _ => Answer::Nic,
+        }
+    });
+    let mut web = Door::new("gimbal-web", env!("CARGO_BIN_EXE_gimbal-web"));
+    web.start(&format!(
+        "gcud = \"{}\"\nlisten = \"127.0.0.1:0\"\nsource_group = {DOOR_GROUP}\n{USERS}\
+         [[gimbal]]\nname = \"mast-1\"\naddress = \"5.1.1\"\n",
+        gcud.addr
+    ));
+    let url = format!("http://127.0.0.1:{}/", web.port("page listening"));
+    let log = || web.log();
+    // A user sees the tours and may not start one.
+    let mut viewer = Browser::start();
+    viewer.call(json!({ "op": "open", "url": url }), log);
+    viewer.call(
+        json!({ "op": "sign_in", "user": "viewer", "password": "viewer-secret" }),
+        log,
+    );
+    viewer.call(
+        json!({ "op": "wait_text", "card": "Tours", "contains": ["perimeter", "stopped"] }),
+        log,
+    );
+    let disabled = viewer.call(
+        json!({ "op": "disabled", "card": "Tours", "button": "Start tour perimeter" }),
+        log,
+    );
+    assert_eq!(disabled, json!(true));
+    let answer = viewer.call(
+        json!({ "op": "fetch", "path": "/api/tour", "with_token": true,
+                "body": { "name": "perimeter", "start": true } }),
+        log,
+    );
+    assert_eq!(answer["status"], 403, "{answer}");
+    drop(viewer);
+    // An operator starts it, sees it running and the card controlled by it, and stops it.
+    let mut b = Browser::start();
+    b.call(json!({ "op": "open", "url": url }), log);
+    b.call(json!({ "op": "sign_in", "user": "op", "password": "op-secret" }), log);
+    let answer = b.call(
+        json!({ "op": "fetch", "path": "/api/tour", "with_token": false,
+                "body": { "name": "perimeter", "start": true } }),
+        log,
+    );
+    assert_eq!(answer["status"], 403, "without the CSRF token: {answer}");
+    assert!(!gcud.got().contains(&"~T+perimeter".to_owned()), "nothing sent for it");
+    b.call(
+        json!({ "op": "click", "card": "Tours", "button": "Start tour perimeter" }),
+        log,
+    );
+    b.call(
+        json!({ "op": "wait_text", "card": "Tours", "contains": ["perimeter", "running"] }),
+        log,
+    );
+    let note = b.call(
+        json!({ "op": "wait_note", "card": "mast-1", "contains": "tour perimeter" }),
+        log,
+    );
+    eprintln!("mast-1's note: {note}");
+    b.call(
+        json!({ "op": "click", "card": "Tours", "button": "Stop tour perimeter" }),
+        log,
+    );
+    b.call(
+        json!({ "op": "wait_text", "card": "Tours", "contains": ["perimeter", "stopped"] }),
+        log,
+    );
+    let got = gcud.got();
+    let start = got.iter().position(|p| p == "~T+perimeter").expect("~T+ sent");
+    let stop = got.iter().position(|p| p == "~T-perimeter").expect("~T- sent");
+    assert!(start < stop, "{got:?}");
+    assert_eq!(got.iter().filter(|p| p.starts_with("~T+")).count(), 1, "{got:?}");
+}
+
 /// The page with the README demo's three gimbals (config/demo.toml's buses,
-/// the shipped config/gimbal-web.toml) as docs/gimbal-web.png, after a goto
-/// on one of them; and the page's weight.
+/// the shipped config/gimbal-web.toml) as a screenshot, after a goto on one
+/// of them; and the page's weight. With `SAGEBRUSH_WRITE_SCREENSHOT=1` the
+/// screenshot replaces docs/gimbal-web.png; otherwise it goes to a
+/// temporary directory.
 #[test]
 fn screenshot_of_the_demo_page() {
     if !browser_available() {
@@ -586,7 +753,11 @@ fn screenshot_of_the_demo_page() {
     });
     let mut b = stack.browser("admin", "change-me");
     let names = stack.call(&mut b, json!({ "op": "card_names" }));
-    assert_eq!(names, json!(["mast-1", "mast-2", "roof"]));
+    assert_eq!(
+        names,
+        json!(["mast-1", "mast-2", "roof", "Tours"]),
+        "a card per gimbal, then gcud's tours"
+    );
     assert_eq!(stack.gcud.ctl(&["--to", "5.1.2", "goto", "60", "20"]).code, 0);
     stack.call(
         &mut b,
@@ -604,7 +775,14 @@ fn screenshot_of_the_demo_page() {
         &mut b,
         json!({ "op": "wait_status", "card": "mast-2", "contains": ["Pan 60.00°", "Tilt 20.00°"] }),
     );
-    let png = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/gimbal-web.png");
+    // docs/gimbal-web.png is written only when asked (SAGEBRUSH_WRITE_SCREENSHOT=1):
+    // a test run leaves the working tree as it was.
+    let shots = tempfile::tempdir().expect("temp dir");
+    let png = if std::env::var("SAGEBRUSH_WRITE_SCREENSHOT").is_ok_and(|v| v == "1") {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/gimbal-web.png")
+    } else {
+        shots.path().join("gimbal-web.png")
+    };
     assert_eq!(
         stack.call(
             &mut b,

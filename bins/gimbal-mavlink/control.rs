@@ -27,6 +27,12 @@
 //! - anything else (not whole, out of range): DENIED, nothing changed
 //!   (PX4 only warns and accepts; this door is honest about it).
 //!
+//! Above these owners gcud decides (ARCHITECTURE "Front doors"): while
+//! another of its links (or a tour, or park) holds the gimbal, what the
+//! owner commands is refused by gcud and answered MAV_RESULT_DENIED;
+//! GIMBAL_MANAGER_STATUS then names the manager itself as primary owner,
+//! and a STATUSTEXT names the holder (module `status`).
+//!
 //! Two rules keep any one peer from locking every ground station out
 //! (issue 31): control is only given to a component that has been heard
 //! ([`Heard`]: any intact message from that system and component id, the

@@ -11,13 +11,16 @@ use std::time::Duration;
 
 use mavlink::dialects::common::{
     COMMAND_ACK_DATA, GIMBAL_DEVICE_INFORMATION_DATA, GIMBAL_MANAGER_INFORMATION_DATA, GimbalDeviceCapFlags,
-    GimbalDeviceCapFlagsU16, GimbalManagerCapFlags, MavCmd, MavMessage, MavResult,
+    GimbalDeviceCapFlagsU16, GimbalManagerCapFlags, MavCmd, MavMessage, MavResult, MavSeverity, STATUSTEXT_DATA,
 };
+use sagebrush_client::connection::Control as GcudControl;
+use sagebrush_client::governance::Controller;
 use sagebrush_client::session::{Drive, GcudReachability, GimbalSession, SessionConfig, Velocity};
 use sagebrush_client::{CommandError, Identity};
-use sagebrush_protocol::{Angle, Command, Position};
+use sagebrush_protocol::{Angle, Command, Position, Undelivered};
 use tokio::sync::mpsc;
 use tokio::task::JoinSet;
+use tokio::time::Instant;
 use tracing::{info, warn};
 
 use crate::config::{self, Config};
@@ -34,6 +37,9 @@ pub const QUEUE: usize = 64;
 /// answered MAV_RESULT_TEMPORARILY_REJECTED at once.
 pub const ANSWERING: usize = 16;
 
+/// A refusal by gcud is told in a STATUSTEXT at most this often per gimbal.
+pub const REFUSAL_TEXT_EVERY: Duration = Duration::from_secs(2);
+
 /// What the emitter reports.
 #[derive(Clone, Debug, Default)]
 pub struct Shared {
@@ -43,6 +49,54 @@ pub struct Shared {
     pub control: Control,
     /// The status streams' rates (MAV_CMD_SET_MESSAGE_INTERVAL).
     pub rates: crate::status::Rates,
+    /// Who gcud says controls the gimbal (`~C`), when it said.
+    pub gcud: Option<GcudControl>,
+}
+
+impl Shared {
+    /// The holder of the gimbal in gcud when it is not this door's own link
+    /// (another link, a tour, park): MAVLink's control owners then command
+    /// nothing, and GIMBAL_MANAGER_STATUS says so.
+    pub fn held_elsewhere(&self) -> Option<&Controller> {
+        self.gcud
+            .as_ref()
+            .filter(|c| !c.ours && c.holder != Controller::Nobody)
+            .map(|c| &c.holder)
+    }
+}
+
+/// STATUSTEXT's words for `holder` (at most 50 bytes, cut at a character).
+pub fn holder_text(holder: &Controller) -> String {
+    fit(format!("{holder} controls the gimbal"))
+}
+
+/// The words of a refusal by gcud (the holder, or the rule).
+fn refusal_text(rule: Undelivered, holder: Option<&Controller>) -> String {
+    match (rule, holder) {
+        (Undelivered::NotInControl, Some(h)) => holder_text(h),
+        (Undelivered::NotInControl, None) => "denied by gcud: another link controls the gimbal".to_owned(),
+        (Undelivered::TravelLimit, _) => "denied by gcud: beyond the travel limits".to_owned(),
+        (Undelivered::KeepOut, _) => "denied by gcud: path enters a keep-out zone".to_owned(),
+        _ => "denied by gcud: it does not know where it points".to_owned(),
+    }
+}
+
+/// `text` cut to STATUSTEXT's 50 bytes at a character boundary.
+fn fit(mut text: String) -> String {
+    while text.len() > 50 {
+        text.pop();
+    }
+    text
+}
+
+/// A STATUSTEXT of `severity`.
+pub fn statustext(severity: MavSeverity, text: &str) -> MavMessage {
+    MavMessage::STATUSTEXT(STATUSTEXT_DATA {
+        severity,
+        text: fit(text.to_owned()).as_str().into(),
+        id: 0,
+        chunk_seq: 0,
+    })
 }
 
 /// A request for one gimbal.
@@ -91,6 +145,7 @@ impl Handle {
             unreachable: status.error.is_some(),
             control,
             rates,
+            gcud: status.control,
         }
     }
 
@@ -120,6 +175,8 @@ struct Task {
     lease: Duration,
     /// Requests being carried out whose answer is owed.
     answering: JoinSet<()>,
+    /// When a refusal by gcud was last told in a STATUSTEXT.
+    refusal_told: Arc<Mutex<Option<Instant>>>,
 }
 
 /// Starts the task of gimbal `g` and its session; it ends at
@@ -155,6 +212,7 @@ pub fn spawn(
         stats,
         lease: config.lease,
         answering: JoinSet::new(),
+        refusal_told: Arc::default(),
     };
     let join = tokio::spawn(task.run(rx));
     (
@@ -286,9 +344,37 @@ impl Task {
                     return;
                 }
                 let (name, stats) = (self.config.name.clone(), Arc::clone(&self.stats));
+                let (session, told) = (Arc::clone(&self.session), Arc::clone(&self.refusal_told));
+                let (outbox, component) = (Arc::clone(&self.outbox), self.config.component_id);
                 let done = async move {
                     match outcome.await {
                         Ok(()) => Ok(None),
+                        Err(e) if e.refusal().is_some() => {
+                            // gcud's decision (ARCHITECTURE "Front doors"): DENIED, and
+                            // its words to the ground stations, at most every
+                            // REFUSAL_TEXT_EVERY.
+                            Stats::count(&stats.denied);
+                            if may_warn("refused by gcud: denied", &name) {
+                                warn!(gimbal = %name, error = %e, "refused by gcud: MAV_RESULT_DENIED");
+                            }
+                            let due = {
+                                let mut last = told.lock().unwrap_or_else(|p| p.into_inner());
+                                let due = last.is_none_or(|t| t.elapsed() >= REFUSAL_TEXT_EVERY);
+                                if due {
+                                    *last = Some(Instant::now());
+                                }
+                                due
+                            };
+                            if due {
+                                let holder = session.status().control.map(|c| c.holder);
+                                let rule = e.refusal().unwrap_or(Undelivered::NotInControl);
+                                let text = refusal_text(rule, holder.as_ref());
+                                outbox
+                                    .broadcast(component, &statustext(MavSeverity::MAV_SEVERITY_WARNING, &text))
+                                    .await;
+                            }
+                            Err(MavResult::MAV_RESULT_DENIED)
+                        }
                         Err(e) => {
                             Stats::count(&stats.failed);
                             if may_warn("command failed", &name) {
@@ -455,4 +541,44 @@ fn uid(serial: &str) -> u64 {
         h = (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3);
     }
     h.max(1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn seen(holder: Controller, ours: bool) -> Shared {
+        Shared {
+            gcud: Some(GcudControl { holder, ours }),
+            ..Shared::default()
+        }
+    }
+
+    #[test]
+    fn only_a_holder_other_than_this_doors_link_is_elsewhere() {
+        let ops = Controller::Link {
+            name: "operators".into(),
+            priority: 80,
+        };
+        assert_eq!(seen(ops.clone(), false).held_elsewhere(), Some(&ops));
+        assert_eq!(seen(ops.clone(), true).held_elsewhere(), None, "this door's own link");
+        assert_eq!(seen(Controller::Nobody, false).held_elsewhere(), None);
+        assert_eq!(
+            seen(Controller::Tour("north".into()), false).held_elsewhere(),
+            Some(&Controller::Tour("north".into()))
+        );
+        assert_eq!(Shared::default().held_elsewhere(), None, "gcud said nothing");
+        assert_eq!(holder_text(&ops), "link operators (priority 80) controls the gimbal");
+        let long = Controller::Link {
+            name: "é".repeat(32),
+            priority: 80,
+        };
+        let text = holder_text(&long);
+        assert!(text.len() <= 50 && text.starts_with("link éé"), "{text}");
+        assert_eq!(
+            refusal_text(Undelivered::KeepOut, Some(&ops)),
+            "denied by gcud: path enters a keep-out zone"
+        );
+        assert_eq!(refusal_text(Undelivered::NotInControl, Some(&ops)), holder_text(&ops));
+    }
 }

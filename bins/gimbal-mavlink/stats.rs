@@ -27,7 +27,8 @@ pub struct Stats {
     /// Requests refused for their content (out of travel, infinite, bad
     /// parameter, control given to a component never heard).
     pub refused: AtomicU64,
-    /// Requests from a component that does not hold control.
+    /// Requests from a component that does not hold control, or that gcud
+    /// refused by its rules (another link holds the gimbal, a limit, a zone).
     pub denied: AtomicU64,
     /// Requests gcud or the gimbal did not carry out.
     pub failed: AtomicU64,

@@ -1,5 +1,7 @@
 //! What every gimbal component says on its own: HEARTBEAT (1 Hz, type
-//! gimbal), GIMBAL_MANAGER_STATUS (5 Hz, with the control owners) and
+//! gimbal), GIMBAL_MANAGER_STATUS (5 Hz, with the control owners, or the
+//! manager itself while gcud says another link holds the gimbal, which a
+//! STATUSTEXT names once when it changes) and
 //! GIMBAL_DEVICE_ATTITUDE_STATUS (at the configured rate, from the last
 //! `P?`, as a quaternion in MAVLink's frame: see `frames`). The two status
 //! streams of each gimbal run at the interval MAV_CMD_SET_MESSAGE_INTERVAL
@@ -14,8 +16,9 @@ use std::time::Duration;
 
 use mavlink::dialects::common::{
     GIMBAL_DEVICE_ATTITUDE_STATUS_DATA, GIMBAL_MANAGER_STATUS_DATA, GimbalDeviceErrorFlags, GimbalDeviceFlags,
-    GimbalManagerFlags, HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState, MavType,
+    GimbalManagerFlags, HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavSeverity, MavState, MavType,
 };
+use sagebrush_client::governance::Controller;
 use tokio::time::{Instant, MissedTickBehavior};
 use tracing::info;
 
@@ -93,10 +96,18 @@ fn heartbeat() -> MavMessage {
     })
 }
 
-fn manager_status(h: &Handle, time_boot_ms: u32) -> MavMessage {
-    let control = h.shared().control;
-    let (ps, pc) = control.primary.unwrap_or((0, 0));
-    let (ss, sc) = control.secondary.unwrap_or((0, 0));
+/// The manager's status: MAVLink's control owners; while gcud says a
+/// link other than this door's own (or a tour, or park) holds the gimbal,
+/// the manager itself (this door's system id and the gimbal's component
+/// id) as primary and nobody as secondary: no MAVLink component commands
+/// it then, and a ground station shows "controlled by another".
+fn manager_status(h: &Handle, system_id: u8, time_boot_ms: u32) -> MavMessage {
+    let shared = h.shared();
+    let control = shared.control;
+    let ((ps, pc), (ss, sc)) = match shared.held_elsewhere() {
+        Some(_) => ((system_id, h.config.component_id), (0, 0)),
+        None => (control.primary.unwrap_or((0, 0)), control.secondary.unwrap_or((0, 0))),
+    };
     MavMessage::GIMBAL_MANAGER_STATUS(GIMBAL_MANAGER_STATUS_DATA {
         time_boot_ms,
         flags: GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_IN_VEHICLE_FRAME,
@@ -201,6 +212,8 @@ pub async fn run(outbox: Arc<Outbox>, handles: Vec<Handle>, attitude: Duration, 
     let start = Instant::now();
     // Per gimbal: the manager status, then the attitude status.
     let mut schedules = vec![[Schedule { last: start }, Schedule { last: start }]; handles.len()];
+    // Per gimbal: the holder elsewhere last told in a STATUSTEXT.
+    let mut holders: Vec<Option<Controller>> = vec![None; handles.len()];
     let intervals = |h: &Handle| {
         let rates = h.rates();
         [
@@ -226,8 +239,19 @@ pub async fn run(outbox: Arc<Outbox>, handles: Vec<Handle>, attitude: Duration, 
             },
             _ = housekeeping.tick() => {
                 stats::flush_warnings();
-                for h in &handles {
+                for (h, told) in handles.iter().zip(holders.iter_mut()) {
                     lapse(h, lapse_after, |who| outbox.net.heard_within(who, lapse_after));
+                    // A new holder elsewhere in gcud is told once, by name.
+                    let now_held = h.shared().held_elsewhere().cloned();
+                    if now_held != *told {
+                        if let Some(holder) = &now_held {
+                            info!(gimbal = %h.config.name, %holder, "gcud says another controls the gimbal");
+                            let text = crate::gimbal::holder_text(holder);
+                            let msg = crate::gimbal::statustext(MavSeverity::MAV_SEVERITY_NOTICE, &text);
+                            outbox.broadcast(h.config.component_id, &msg).await;
+                        }
+                        *told = now_held;
+                    }
                 }
             },
             _ = tokio::time::sleep_until(wake) => {
@@ -235,7 +259,8 @@ pub async fn run(outbox: Arc<Outbox>, handles: Vec<Handle>, attitude: Duration, 
                 for (h, s) in handles.iter().zip(schedules.iter_mut()) {
                     let [m, a] = intervals(h);
                     if s[0].due(m, now) {
-                        outbox.send(h.config.component_id, &manager_status(h, outbox.boot_ms())).await;
+                        let status = manager_status(h, outbox.net.system_id, outbox.boot_ms());
+                        outbox.send(h.config.component_id, &status).await;
                     }
                     if s[1].due(a, now) {
                         if let Some(msg) = attitude_status(h, outbox.boot_ms()) {

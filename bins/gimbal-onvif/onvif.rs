@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use sagebrush_client::CommandError;
-use sagebrush_protocol::Command;
+use sagebrush_protocol::{Command, Undelivered};
 use sha1::{Digest, Sha1};
 use time::OffsetDateTime;
 use time::format_description::well_known::Rfc3339;
@@ -95,6 +95,7 @@ fn spaces(zoom: bool, fov: bool) -> String {
 /// A failure of the gimbal as a fault naming the reason (never a success).
 fn gimbal_fault(e: CommandError) -> Fault {
     let sub = match e {
+        CommandError::Refused(rule, reason) => return refusal_fault(rule, reason),
         CommandError::Io(_) => "ter:GcudUnreachable",
         CommandError::Undelivered(..) => "ter:NotDelivered",
         CommandError::Nic(_) => "ter:NotSupportedByGimbal",
@@ -102,6 +103,27 @@ fn gimbal_fault(e: CommandError) -> Fault {
         _ => "ter:GimbalFailed",
     };
     Fault::receiver(&["ter:Action", sub], e.to_string())
+}
+
+/// A command gcud refused by its rules (ARCHITECTURE "Front doors"), as
+/// the fault a VMS expects, with gcud's reason (the holder named):
+/// - another link controls the gimbal: `env:Receiver ter:Action
+///   ter:NotInControl` (ONVIF Core's generic "Action Failed"; the device
+///   cannot act now, the request itself was sound);
+/// - beyond a travel limit: `env:Sender ter:InvalidArgVal
+///   ter:InvalidPosition` (PTZ: "the requested position is out of bounds");
+/// - into a keep-out zone: `env:Sender ter:InvalidArgVal
+///   ter:UnreachablePosition` (PTZ: "the requested position is not
+///   reachable");
+/// - the gimbal's position unknown to gcud while it has limits or zones:
+///   `env:Receiver ter:Action ter:PositionUnknown`.
+fn refusal_fault(rule: Undelivered, reason: String) -> Fault {
+    match rule {
+        Undelivered::TravelLimit => Fault::sender(&["ter:InvalidArgVal", "ter:InvalidPosition"], reason),
+        Undelivered::KeepOut => Fault::sender(&["ter:InvalidArgVal", "ter:UnreachablePosition"], reason),
+        Undelivered::PositionUnknown => Fault::receiver(&["ter:Action", "ter:PositionUnknown"], reason),
+        _ => Fault::receiver(&["ter:Action", "ter:NotInControl"], reason),
+    }
 }
 
 /// A generic-space coordinate: a number within -1..=1.
@@ -938,6 +960,37 @@ listen = "127.0.0.1:0"
         for bad in ["", "P", "PT", "1S", "PT1", "PT-1S", "P1Y", "PTxS", "PT1.2.3S"] {
             assert_eq!(duration(bad), None, "{bad}");
         }
+    }
+
+    #[test]
+    fn gcuds_refusals_are_faults_a_vms_expects_with_gcuds_words() {
+        let refused = |rule: Undelivered, why: &str| gimbal_fault(CommandError::Refused(rule, why.to_owned()));
+        let f = refused(
+            Undelivered::NotInControl,
+            "refused by gcud: PR to 5.1.1: link operators (priority 80) controls the gimbal",
+        );
+        assert_eq!(
+            (f.sender, f.subcodes.as_slice()),
+            (false, &["ter:Action", "ter:NotInControl"][..])
+        );
+        assert_eq!(f.status(), 500);
+        assert!(
+            f.envelope().contains("link operators (priority 80)"),
+            "{}",
+            f.envelope()
+        );
+        let f = refused(Undelivered::TravelLimit, "beyond");
+        assert_eq!(
+            (f.sender, f.subcodes.as_slice()),
+            (true, &["ter:InvalidArgVal", "ter:InvalidPosition"][..])
+        );
+        let f = refused(Undelivered::KeepOut, "zone");
+        assert_eq!(f.subcodes, ["ter:InvalidArgVal", "ter:UnreachablePosition"]);
+        let f = refused(Undelivered::PositionUnknown, "where?");
+        assert_eq!(f.subcodes, ["ter:Action", "ter:PositionUnknown"]);
+        // A failure to deliver stays one.
+        let f = gimbal_fault(CommandError::Undelivered(Undelivered::DeviceSilent, "silent".into()));
+        assert_eq!(f.subcodes, ["ter:Action", "ter:NotDelivered"]);
     }
 
     #[test]

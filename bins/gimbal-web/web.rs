@@ -11,14 +11,21 @@
 //!   the gimbals; `GET /api/events`: server-sent events, every gimbal's
 //!   state each [`PUSH`] while one moves or changed, else each [`QUIET`].
 //! - `POST /api/move`, `/api/stop`, `/api/home`, `/api/goto`,
-//!   `/api/preset/save`, `/api/preset/go`: with the `X-CSRF-Token` header,
-//!   by the roles of gimbal-onvif (a user views, an operator moves and
-//!   uses presets). A move lasts the hold lease unless renewed by the page
-//!   while the button or key is held.
+//!   `/api/preset/save`, `/api/preset/go`, `/api/tour`: with the
+//!   `X-CSRF-Token` header, by the roles of gimbal-onvif (a user views, an
+//!   operator moves, uses presets and starts and stops tours). A move lasts
+//!   the hold lease unless renewed by the page while the button or key is
+//!   held.
+//!
+//! What gcud decides (ARCHITECTURE "Front doors") is shown, never decided
+//! here: each gimbal's state carries who controls it (gcud's `~C`, kept by
+//! its session), the state carries gcud's tours (`~T?`, asked every
+//! [`QUIET`]), and `/api/tour` starts or stops one (`~T+`, `~T-`).
 //!
 //! An answer that is not a success is JSON `{"error": REASON}`, REASON
-//! being gcud's or the gimbal's own words for a refused or undelivered
-//! command; the page shows it on the card (as text, never as markup).
+//! being gcud's or the gimbal's own words for a refused (HTTP 409) or
+//! undelivered command; the page shows it on the card (as text, never as
+//! markup).
 
 use std::convert::Infallible;
 use std::net::{IpAddr, SocketAddr};
@@ -32,7 +39,8 @@ use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use sagebrush_client::CommandError;
-use sagebrush_client::connection::proportional_speed;
+use sagebrush_client::connection::{Control, proportional_speed};
+use sagebrush_client::governance::{Controller, Tour, tour_state_name};
 use sagebrush_client::presets::{self, Presets};
 use sagebrush_client::session::{Axes, Drive, GimbalSession, Motion, Velocity};
 use sagebrush_listener::rate::{KeyedBuckets, LogGate};
@@ -71,9 +79,18 @@ pub struct Gimbal {
     pub session: Arc<GimbalSession>,
 }
 
+/// gcud's tours as last asked (`~T?`), with the gimbal whose session
+/// asked (the gimbals of one gcud group share its tours).
+#[derive(Debug, Default)]
+struct Tours {
+    /// Per GCU group asked: its tours, or why they are unknown.
+    by_group: Vec<(u8, Result<Vec<Tour>, String>)>,
+}
+
 #[derive(Debug)]
 struct Web {
     gimbals: Vec<Gimbal>,
+    tours: Mutex<Tours>,
     auth: Auth,
     presets: Arc<Presets>,
     lease: Duration,
@@ -103,13 +120,34 @@ impl From<Refused> for Failure {
     }
 }
 
-/// A command gcud or the gimbal refused or did not deliver: its words.
+/// A command gcud or the gimbal refused or did not deliver: its words
+/// (a refusal by gcud's rules is a conflict with them: HTTP 409).
 fn failed(e: CommandError) -> Failure {
     let status = match e {
         CommandError::Usage(_) => StatusCode::BAD_REQUEST,
+        CommandError::Refused(..) => StatusCode::CONFLICT,
         _ => StatusCode::BAD_GATEWAY,
     };
     Failure(status, e.to_string())
+}
+
+/// Who controls a gimbal, as the page shows it: `null` while gcud has not
+/// said (a gcud that governs nothing).
+fn control_json(control: Option<&Control>) -> Value {
+    let Some(c) = control else { return Value::Null };
+    let (kind, name, priority) = match &c.holder {
+        Controller::Nobody => ("nobody", None, None),
+        Controller::Link { name, priority } => ("link", Some(name.as_str()), Some(*priority)),
+        Controller::Tour(name) => ("tour", Some(name.as_str()), None),
+        Controller::Park => ("park", None, None),
+    };
+    json!({
+        "kind": kind,
+        "name": name,
+        "priority": priority,
+        "text": c.holder.to_string(),
+        "ours": c.ours,
+    })
 }
 
 fn no_store() -> [(header::HeaderName, &'static str); 1] {
@@ -166,10 +204,74 @@ impl Web {
                     "tilt": s.position.map(|p| p.tilt.degrees()),
                     "motion": motion,
                     "presets": presets,
+                    "control": control_json(s.control.as_ref()),
                 })
             })
             .collect();
-        (json!({ "gimbals": gimbals }), busy)
+        (json!({ "gimbals": gimbals, "tours": self.tours_json() }), busy)
+    }
+
+    /// gcud's tours for the page: `{name, state}` each, and why some are
+    /// unknown (`tours_error`).
+    fn tours_json(&self) -> Value {
+        let tours = self.tours.lock().unwrap_or_else(|p| p.into_inner());
+        let mut list = Vec::new();
+        let mut errors = Vec::new();
+        for (_, known) in &tours.by_group {
+            match known {
+                Ok(ts) => list.extend(
+                    ts.iter()
+                        .map(|t| json!({ "name": t.name, "state": tour_state_name(t.state) })),
+                ),
+                Err(e) => errors.push(e.clone()),
+            }
+        }
+        json!({ "list": list, "error": (!errors.is_empty()).then(|| errors.join("; ")) })
+    }
+
+    /// One gimbal's session per gcud group: who asks that group's tours.
+    fn group_sessions(&self) -> Vec<(u8, Arc<GimbalSession>)> {
+        let mut groups: Vec<(u8, Arc<GimbalSession>)> = Vec::new();
+        for g in &self.gimbals {
+            let group = g.config.address.group;
+            if !groups.iter().any(|(k, _)| *k == group) {
+                groups.push((group, Arc::clone(&g.session)));
+            }
+        }
+        groups
+    }
+
+    /// Asks every group's tours now (`~T?`: answered by gcud, no bus time).
+    async fn refresh_tours(&self) {
+        let mut by_group = Vec::new();
+        for (group, session) in self.group_sessions() {
+            let known = match session.tours().await {
+                Ok(t) => Ok(t),
+                // A gcud that runs no tours (or predates them) answers NIC.
+                Err(CommandError::Nic(_)) => Ok(Vec::new()),
+                Err(e) => Err(e.to_string()),
+            };
+            by_group.push((group, known));
+        }
+        self.tours.lock().unwrap_or_else(|p| p.into_inner()).by_group = by_group;
+    }
+
+    /// The session of the group whose tours name `tour`.
+    fn tour_session(&self, tour: &str) -> Option<Arc<GimbalSession>> {
+        let group = {
+            let tours = self.tours.lock().unwrap_or_else(|p| p.into_inner());
+            tours.by_group.iter().find_map(|(g, known)| {
+                known
+                    .as_ref()
+                    .ok()
+                    .filter(|ts| ts.iter().any(|t| t.name == tour))
+                    .map(|_| *g)
+            })?
+        };
+        self.group_sessions()
+            .into_iter()
+            .find(|(g, _)| *g == group)
+            .map(|(_, s)| s)
     }
 }
 
@@ -438,6 +540,32 @@ async fn preset_save(State(w): Shared, headers: HeaderMap, bytes: axum::body::By
 }
 
 #[derive(Deserialize)]
+struct TourBody {
+    name: String,
+    start: bool,
+}
+
+/// Starts or stops one of gcud's tours (`~T+`, `~T-`): what became of it.
+async fn tour(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
+    let who = w.allow(&headers, Role::Operator, "start or stop tours")?;
+    let b: TourBody = body(&bytes, "{name, start: true|false}")?;
+    let session = w
+        .tour_session(&b.name)
+        .ok_or_else(|| bad(format!("gcud has no tour named {:?}", b.name)))?;
+    let outcome = session.tour(&b.name, b.start).await.map_err(failed)?;
+    info!(user = %who.user, tour = %b.name, start = b.start, state = tour_state_name(outcome.state), "tour");
+    w.refresh_tours().await;
+    Ok((
+        no_store(),
+        axum::Json(json!({
+            "state": tour_state_name(outcome.state),
+            "waiting_for": outcome.waiting_for,
+        })),
+    )
+        .into_response())
+}
+
+#[derive(Deserialize)]
 struct PresetBody {
     gimbal: usize,
     n: u8,
@@ -466,6 +594,7 @@ pub async fn bind(
     let local = listener.local_addr()?;
     let web = Arc::new(Web {
         gimbals,
+        tours: Mutex::default(),
         auth: Auth::new(config.users.clone(), config.sign_in, config.max_sign_ins),
         presets,
         lease: config.hold_lease,
@@ -487,11 +616,25 @@ pub async fn bind(
         .route("/api/goto", post(go_to))
         .route("/api/preset/save", post(preset_save))
         .route("/api/preset/go", post(preset_go))
+        .route("/api/tour", post(tour))
         .fallback(not_found)
         .layer(DefaultBodyLimit::max(MAX_BODY))
-        .with_state(web);
+        .with_state(Arc::clone(&web));
     let listener = BoundedListener::new(listener, config.http.table(), "gimbal-web");
     let limits = config.http.limits();
     info!(addr = %local, "page listening");
-    Ok((local, sagebrush_listener::serve_http(listener, limits, app)))
+    let serve = sagebrush_listener::serve_http(listener, limits, app);
+    Ok((local, async move {
+        // gcud's tours, asked every QUIET beside the page (no bus time).
+        let ask = async move {
+            loop {
+                web.refresh_tours().await;
+                tokio::time::sleep(QUIET).await;
+            }
+        };
+        tokio::select! {
+            () = serve => {}
+            () = ask => {}
+        }
+    }))
 }

@@ -158,6 +158,10 @@ impl From<CommandError> for CtlError {
             CommandError::NoResult(m) => CtlError::NoResult(m),
             CommandError::BadReply(m) => CtlError::BadReply(m),
             // A refusal is no failure to deliver: the GCU's rules kept it from the bus.
+            CommandError::Refused(failure, m) => CtlError::Undelivered(
+                failure,
+                m.replacen("refused by gcud: ", "refused, nothing sent to the gimbal: ", 1),
+            ),
             CommandError::Undelivered(failure, m) if is_refusal(failure) => CtlError::Undelivered(
                 failure,
                 m.replacen("not delivered: ", "refused, nothing sent to the gimbal: ", 1)

@@ -209,6 +209,26 @@ def step_pitchyaw(m, a):
     return {"result": command(m, mavlink.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, p, a.get("component", GIMBAL))}
 
 
+def step_pitchyaw_text(m, a):
+    """MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW (degrees): the ACK's result and
+    the text of the gimbal's first STATUSTEXT around it (within `text_s`),
+    in whichever order they come."""
+    nan = float("nan")
+    p = [a.get("pitch", nan), a.get("yaw", nan), nan, nan, 0, 0, 0]
+    m.mav.command_long_send(1, GIMBAL, mavlink.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, 0, *p)
+    out = {"result": None, "text": None}
+    end = time.monotonic() + a.get("text_s", 5.0)
+    while time.monotonic() < end and (out["result"] is None or out["text"] is None):
+        msg = m.recv_match(type=["COMMAND_ACK", "STATUSTEXT"], blocking=True, timeout=0.2)
+        if msg is None or msg.get_srcComponent() != GIMBAL:
+            continue
+        if msg.get_type() == "STATUSTEXT":
+            out["text"] = out["text"] or msg.text
+        elif msg.command == mavlink.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW:
+            out["result"] = msg.result
+    return out
+
+
 def step_set_pitchyaw(m, a):
     """GIMBAL_MANAGER_SET_PITCHYAW (radians) sent `count` times every `every_s`, with `flags`."""
     nan = float("nan")

@@ -173,6 +173,9 @@ async def step(name, host, port, user, password, args):
             result = await attempt(ptz.ContinuousMove(req))
             if "ok" in result:
                 result = {"ok": True, "status": status_of(await ptz.GetStatus({"ProfileToken": token}))}
+            elif args.get("status_after"):
+                # What GetStatus says right after a refused move.
+                result["status"] = status_of(await ptz.GetStatus({"ProfileToken": token}))
             return result
         if name == "stop":
             return await attempt(ptz.Stop({"ProfileToken": token,

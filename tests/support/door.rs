@@ -188,6 +188,118 @@ pub fn start_gcud() -> super::gcud::Gcud {
     ))
 }
 
+/// The priority of the governed gcud's `operators` listener, above the
+/// doors' `clients` (50, gcud's default).
+pub const OPERATORS_PRIORITY: u8 = 80;
+
+/// How gcud names the operators' link when it holds a gimbal, as a door
+/// repeats it (a fault's reason, a STATUSTEXT, the page).
+pub const OPERATORS_HOLDER: &str = "link operators (priority 80)";
+
+/// [`start_gcud`]'s buses under gcud's governance (ARCHITECTURE
+/// "Front doors"): a link keeps control of a gimbal for a minute after its
+/// last command that moves it (`[control] hold_ms`), the doors' listener
+/// `clients` at priority 50 and a second client listener, `operators`, at
+/// [`OPERATORS_PRIORITY`], where gimbalctl plays the operators' console.
+/// Needs gcud's parsing of `[control]` and `[[link]] priority` (issue 32).
+pub fn start_governed_gcud() -> super::gcud::Gcud {
+    let config = format!(
+        "[gcu]\ngroup = {GCUD_GROUP}\n[control]\nhold_ms = 60000\n\
+         [[port]]\nid = 1\nsimulate = [1]\n[[port]]\nid = 2\nsimulate = [1]\n\
+         {}allow_source_groups = [0, {DOOR_GROUP}]\npriority = 50\n\
+         [[link]]\nname = \"operators\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\npriority = {OPERATORS_PRIORITY}\n",
+        super::gcud::CLIENTS
+    );
+    // A gcud that cannot read it fails the test at once, saying why.
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("gcud.toml");
+    std::fs::write(&path, &config).expect("write config");
+    let checked = check(env!("CARGO_BIN_EXE_gcud"), &path);
+    assert!(
+        checked.status.success(),
+        "gcud refuses the governed configuration (needs [control] hold_ms and [[link]] priority): {}",
+        String::from_utf8_lossy(&checked.stderr)
+    );
+    super::gcud::Gcud::start(&config)
+}
+
+/// `gimbalctl --tcp OPERATORS ARGS`: the operators' console on the
+/// governed gcud's `operators` listener.
+pub fn operators_ctl(gcud: &super::gcud::Gcud, args: &[&str]) -> super::Output {
+    let addr = gcud.address("listening link=operators");
+    let mut full = vec!["--tcp", addr.as_str()];
+    full.extend_from_slice(args);
+    super::gimbalctl(&full)
+}
+
+/// A slow pan slew right (speed 2 of 15, about 6 °/s) by the operators'
+/// link, held by `gimbalctl slew --hold` until dropped: closing its stdin
+/// ends it with a confirmed stop.
+pub struct OperatorsSlew {
+    child: Option<Child>,
+}
+
+impl OperatorsSlew {
+    pub fn start(gcud: &super::gcud::Gcud, address: &str) -> Self {
+        let out = operators_ctl(gcud, &["--to", address, "speed", "pan", "2"]);
+        assert_eq!(
+            out.code,
+            0,
+            "the operators set the pan speed: {out:?}\ngcud log:\n{}",
+            gcud.log()
+        );
+        let child = Command::new(super::gimbalctl_bin())
+            .args([
+                "--tcp",
+                &gcud.address("listening link=operators"),
+                "--to",
+                address,
+                "slew",
+                "right",
+                "--hold",
+            ])
+            .env_remove("GIMBALCTL_SERIAL")
+            .env_remove("GIMBALCTL_TCP")
+            .stdin(Stdio::piped())
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("spawn gimbalctl slew --hold");
+        Self { child: Some(child) }
+    }
+}
+
+impl Drop for OperatorsSlew {
+    fn drop(&mut self) {
+        let Some(mut child) = self.child.take() else { return };
+        drop(child.stdin.take());
+        let started = Instant::now();
+        while started.elapsed() < HANG_GUARD {
+            if let Ok(Some(_)) = child.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        super::terminate(&mut child);
+    }
+}
+
+/// Every frame the door's source group got onto gimbal `address`'s bus is
+/// a query: gcud dropped its refused commands, and the door sent no stop
+/// (which would have ended another link's motion).
+pub fn assert_door_sent_only_queries(gcud: &super::gcud::Gcud, address: &str) {
+    let sent: Vec<String> = gcud
+        .received(address)
+        .into_iter()
+        .filter(|(source, _)| *source == DOOR_GROUP)
+        .map(|(_, p)| p)
+        .collect();
+    assert!(
+        sent.iter().all(|p| p.ends_with('?')),
+        "the door's frames on the bus: {sent:?}"
+    );
+}
+
 /// The motion commands the doors send (Table 11 and 16: pan, tilt, zoom).
 fn is_motion(payload: &str) -> bool {
     matches!(payload, "PR" | "PL" | "TU" | "TD" | "ZI" | "ZO")

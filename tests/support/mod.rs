@@ -21,6 +21,7 @@ use serde_json::Value;
 
 pub mod cli;
 pub mod door;
+pub mod fake_gcud;
 pub mod gcud;
 
 /// The programs the Debian package installs, each with its unit

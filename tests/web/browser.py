@@ -153,6 +153,19 @@ def handle(req):
         return status_text(card)
     if op == "status":
         return status_text(region(d, req["card"]))
+    if op == "wait_note":
+        # The card's note (who controls the gimbal, as gcud says).
+        card = region(d, req["card"])
+
+        def note(_):
+            e = next((e for e in card.find_elements(By.CSS_SELECTOR, "[role=note]") if e.is_displayed()), None)
+            return e.text if e is not None and req["contains"] in e.text else None
+        return WebDriverWait(d, WAIT_S).until(note)
+    if op == "wait_text":
+        # A region (a card, the Tours) once its visible text holds every one of `contains`.
+        r = region(d, req["card"])
+        WebDriverWait(d, WAIT_S).until(lambda _: all(w in r.text for w in req["contains"]))
+        return r.text
     if op == "wait_alert":
         card = region(d, req["card"])
         WebDriverWait(d, WAIT_S).until(lambda _: alert_text(card) != "")

@@ -71,19 +71,22 @@ function hold(i, pan, tilt) {
       })
       .catch((e) => {
         showError(i, e.message);
-        if (held === h) release();
+        // Refused (gcud: another link holds the gimbal, a limit) or not
+        // delivered: the hold ends here, without a stop: nothing of this
+        // page moves, and a stop would end the holder's motion.
+        if (held === h) release(false);
       });
   };
   send();
   h.timer = setInterval(send, Math.max(50, Math.floor(me.lease_ms / 3)));
 }
 
-function release() {
+function release(stop = true) {
   if (!held) return;
   const h = held;
   held = null;
   clearInterval(h.timer);
-  api('/api/stop', { gimbal: h.g }, true).catch((e) => showError(h.g, e.message));
+  if (stop) api('/api/stop', { gimbal: h.g }, true).catch((e) => showError(h.g, e.message));
 }
 
 function svg(el, attrs) {
@@ -98,6 +101,7 @@ function buildCard(g, i) {
     node,
     name: q('.name'),
     state: q('.state'),
+    control: q('.control'),
     position: q('.position'),
     error: q('.error'),
     picture: q('.picture'),
@@ -190,6 +194,7 @@ function render(state) {
       card.state.textContent = `offline: ${s.error || 'no answer yet'}`;
       card.state.classList.add('offline');
     }
+    showControl(card, s.control);
     const shown = JSON.stringify(s.presets);
     if (shown !== card.presetsShown) {
       card.presetsShown = shown;
@@ -208,12 +213,77 @@ function render(state) {
   });
 }
 
+// Who controls the gimbal, as gcud says (nothing while it has not said).
+function showControl(card, c) {
+  if (!c) {
+    card.control.hidden = true;
+    return;
+  }
+  let text;
+  if (c.kind === 'nobody') text = 'Nobody controls it: the next command takes control';
+  else if (c.ours) text = `Controlled through this page's gcud link: ${c.text}`;
+  else if (c.kind === 'tour') text = `On gcud's ${c.text}: any operator's command takes it over`;
+  else if (c.kind === 'park') text = 'Parked by gcud: any operator\'s command takes it over';
+  else text = `Controlled by ${c.text}: commands from here are refused until it lets go`;
+  card.control.textContent = text;
+  card.control.classList.toggle('elsewhere', c.kind === 'link' && !c.ours);
+  card.control.hidden = false;
+}
+
+let toursShown = '';
+
+// gcud's tours, each with its state and (for an operator) a start or stop button.
+function renderTours(tours) {
+  const section = byId('tours');
+  if (!tours) return;
+  section.hidden = false;
+  byId('tours-error').textContent = tours.error || '';
+  byId('tours-none').hidden = tours.list.length > 0 || Boolean(tours.error);
+  const shown = JSON.stringify(tours.list);
+  if (shown === toursShown) return;
+  toursShown = shown;
+  const list = byId('tour-list');
+  list.replaceChildren();
+  for (const t of tours.list) {
+    const li = document.createElement('li');
+    const name = document.createElement('span');
+    name.className = 'tour-name';
+    name.textContent = t.name;
+    const state = document.createElement('span');
+    state.className = 'tour-state';
+    state.textContent = t.state;
+    const running = t.state !== 'stopped';
+    const b = document.createElement('button');
+    b.type = 'button';
+    b.textContent = `${running ? 'Stop' : 'Start'} tour ${t.name}`;
+    b.disabled = me.role === 'user';
+    b.addEventListener('click', () => {
+      const outcome = byId('tour-outcome');
+      api('/api/tour', { name: t.name, start: !running })
+        .then((r) => {
+          outcome.textContent = r.waiting_for
+            ? `Tour ${t.name} waits for ${r.waiting_for} to let go of the gimbal`
+            : `Tour ${t.name}: ${r.state}`;
+        })
+        .catch((e) => {
+          outcome.textContent = e.message;
+        });
+    });
+    li.append(name, state, b);
+    list.appendChild(li);
+  }
+}
+
 function listen() {
   events = new EventSource('/api/events');
   events.onopen = () => {
     byId('link').hidden = true;
   };
-  events.onmessage = (e) => render(JSON.parse(e.data));
+  events.onmessage = (e) => {
+    const state = JSON.parse(e.data);
+    render(state);
+    renderTours(state.tours);
+  };
   events.onerror = () => {
     // The connection dropped: nothing held may go on.
     release();
@@ -230,6 +300,7 @@ async function load() {
     byId('who').hidden = true;
     byId('sign-out').hidden = true;
     byId('gimbals').replaceChildren();
+    byId('tours').hidden = true;
     return;
   }
   me = await response.json();
@@ -239,6 +310,7 @@ async function load() {
   who.hidden = false;
   byId('sign-out').hidden = false;
   byId('gimbals').replaceChildren();
+  toursShown = '';
   cards = me.gimbals.map(buildCard);
   listen();
 }

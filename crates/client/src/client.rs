@@ -43,6 +43,32 @@ pub enum CommandError {
     /// A GCU reported that it could not deliver the command.
     #[error("{1}")]
     Undelivered(Undelivered, String),
+    /// gcud refused the command by its rules (ARCHITECTURE "Front doors"):
+    /// another link controls the gimbal, the target lies beyond a travel
+    /// limit or in a keep-out zone, or where the gimbal is is not known.
+    /// Nothing reached the bus; sending it again changes nothing until
+    /// the rule's reason changes. One of [`REFUSALS`].
+    #[error("{1}")]
+    Refused(Undelivered, String),
+}
+
+/// The delivery-report rows that are gcud's decision, not a failure to
+/// deliver: [`CommandError::Refused`].
+pub const REFUSALS: [Undelivered; 4] = [
+    Undelivered::NotInControl,
+    Undelivered::TravelLimit,
+    Undelivered::KeepOut,
+    Undelivered::PositionUnknown,
+];
+
+impl CommandError {
+    /// The rule gcud refused the command by, if it did.
+    pub fn refusal(&self) -> Option<Undelivered> {
+        match self {
+            CommandError::Refused(rule, _) => Some(*rule),
+            _ => None,
+        }
+    }
 }
 
 impl From<std::io::Error> for CommandError {
@@ -108,12 +134,30 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Client<S> {
         command: &Command<'_>,
         payload: &[u8],
     ) -> Result<Exchange, CommandError> {
-        let frame = FrameBuf::new(to, self.from, payload).map_err(|e| CommandError::Usage(format!("payload: {e}")))?;
-        let ex = self.master.transact(&frame, command).await?;
         let what = command_named(payload, command);
+        self.exchange_expecting(to, payload, command.result_kind(), &what).await
+    }
+
+    /// One exchange of `payload` with `to`, whose answer is `expect`;
+    /// `what` names the command in errors.
+    pub async fn exchange_expecting(
+        &mut self,
+        to: Address,
+        payload: &[u8],
+        expect: ResultKind,
+        what: &str,
+    ) -> Result<Exchange, CommandError> {
+        let frame = FrameBuf::new(to, self.from, payload).map_err(|e| CommandError::Usage(format!("payload: {e}")))?;
+        let ex = self.master.transact_expecting(&frame, expect).await?;
         let policy = *self.master.policy();
         if let Some(report) = ex.undelivered {
             let failure = report.failure.unwrap_or(Undelivered::NotConfirmed);
+            if REFUSALS.contains(&failure) {
+                return Err(CommandError::Refused(
+                    failure,
+                    format!("refused by gcud: {what} to {to}: {}", failure.describe()),
+                ));
+            }
             return Err(CommandError::Undelivered(
                 failure,
                 format!(
@@ -130,7 +174,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Client<S> {
             ))),
             Outcome::NoResult => Err(CommandError::NoResult(format!(
                 "{to} acknowledged {what} but sent no result within {} ms",
-                if command.result_kind() == ResultKind::Required(ResultTimeout::Long) {
+                if expect == ResultKind::Required(ResultTimeout::Long) {
                     policy.long_result_timeout
                 } else {
                     policy.result_timeout

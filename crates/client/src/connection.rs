@@ -6,10 +6,12 @@
 
 use std::time::Duration;
 
-use sagebrush_protocol::{Address, Command, LensPosition, Position, Reply, Speed};
+use sagebrush_protocol::{Address, Command, LensPosition, Position, Reply, ResultKind, Speed, Undelivered};
+use tokio::time::Instant;
 use tracing::warn;
 
 use crate::client::{CommandError, GcudClient, expect_position};
+use crate::governance::{Controller, GcuAnswer, GcuRequest};
 
 /// The longest a connection to gcud may take to open.
 pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
@@ -51,6 +53,34 @@ impl Identity {
     }
 }
 
+/// A gcud that answers `~C` NIC (it governs nothing, or predates
+/// governance) is asked again after this.
+pub const CONTROLLER_UNKNOWN_RETRY: Duration = Duration::from_secs(30);
+/// After a refusal for control, the holder gcud named is taken as still
+/// holding for this long before it is asked again (a refused stream of
+/// rates asks once, not once per rate).
+const HOLDER_FRESH: Duration = Duration::from_millis(200);
+
+/// What this connection knows of gcud's control of its gimbal (`~C`).
+#[derive(Clone, Debug, Default)]
+struct ControlSeen {
+    /// The last answer, and when.
+    holder: Option<(Controller, Instant)>,
+    /// The name gcud gives this connection's link: the holder it named
+    /// right after a command of ours that takes control went through.
+    own: Option<String>,
+    /// gcud answered `~C` NIC: not asked again before this.
+    unsupported_until: Option<Instant>,
+}
+
+/// gcud's control of a connection's gimbal, as it last answered `~C`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Control {
+    pub holder: Controller,
+    /// The holder is this connection's own link.
+    pub ours: bool,
+}
+
 /// A gimbal at `address` behind gcud at `gcud` (`host:port`).
 #[derive(Debug)]
 pub struct GimbalConnection {
@@ -59,6 +89,13 @@ pub struct GimbalConnection {
     from: u8,
     nic_window_ms: u64,
     client: Option<GcudClient>,
+    control: ControlSeen,
+}
+
+/// Whether gcud takes control for `command` (sagebrush-gcu's `govern`:
+/// everything but queries and stops).
+fn takes_control(command: &Command<'_>) -> bool {
+    !command.is_stop() && command.result_kind() == ResultKind::None
 }
 
 impl GimbalConnection {
@@ -71,11 +108,12 @@ impl GimbalConnection {
             from,
             nic_window_ms: nic_window.as_millis() as u64,
             client: None,
+            control: ControlSeen::default(),
         }
     }
 
-    /// Sends `command`; its result payload, if it has one.
-    pub async fn send(&mut self, command: &Command<'_>) -> Result<Option<Vec<u8>>, CommandError> {
+    /// The connection to gcud, opened when needed.
+    async fn client(&mut self) -> Result<&mut GcudClient, CommandError> {
         if self.client.is_none() {
             let nic_window = self.nic_window_ms;
             let connect = GcudClient::connect(&self.gcud, self.from, |p| p.nic_window = nic_window);
@@ -86,17 +124,117 @@ impl GimbalConnection {
                     .map_err(|_| unreachable(format!("no connection within {} s", CONNECT_TIMEOUT.as_secs())))?
                     .map_err(|e| unreachable(e.to_string()))?,
             );
+            // A new connection may be another link to gcud.
+            self.control.own = None;
         }
-        let client = self.client.as_mut().expect("connected above");
-        match client.send(self.address, command).await {
-            Ok(ex) => Ok(ex.result.map(|f| f.frame().payload().to_vec())),
-            Err(e) => {
-                if matches!(e, CommandError::Io(_)) {
-                    self.client = None;
+        Ok(self.client.as_mut().expect("connected above"))
+    }
+
+    /// Drops the connection after an I/O failure (the next use opens one).
+    fn failed<T>(&mut self, result: Result<T, CommandError>) -> Result<T, CommandError> {
+        if matches!(result, Err(CommandError::Io(_))) {
+            self.client = None;
+        }
+        result
+    }
+
+    /// Sends `command`; its result payload, if it has one. A command gcud
+    /// refuses because another link controls the gimbal is refused naming
+    /// that link (`~C`).
+    pub async fn send(&mut self, command: &Command<'_>) -> Result<Option<Vec<u8>>, CommandError> {
+        let address = self.address;
+        let sent = self.client().await?.send(address, command).await;
+        match self.failed(sent) {
+            Ok(ex) => {
+                if takes_control(command) && self.control.own.is_none() {
+                    // Who gcud says holds the gimbal now is this link.
+                    if let Ok(Controller::Link { name, .. }) = self.controller().await {
+                        self.control.own = Some(name);
+                    }
                 }
+                Ok(ex.result.map(|f| f.frame().payload().to_vec()))
+            }
+            Err(CommandError::Refused(Undelivered::NotInControl, why)) => {
+                let fresh = self
+                    .control
+                    .holder
+                    .as_ref()
+                    .filter(|(_, at)| at.elapsed() < HOLDER_FRESH)
+                    .map(|(h, _)| h.clone());
+                let holder = match fresh {
+                    Some(h) => Some(h),
+                    None => self.controller().await.ok(),
+                };
+                if holder
+                    .as_ref()
+                    .and_then(Controller::link)
+                    .is_some_and(|h| Some(h) == self.control.own.as_deref())
+                {
+                    // Not this link after all (learnt before a take-over).
+                    self.control.own = None;
+                }
+                let why = match holder {
+                    // Named: "refused by gcud: PR to 5.1.1: link operators (priority 80) controls the gimbal".
+                    Some(holder) if holder != Controller::Nobody => {
+                        let rule = Undelivered::NotInControl.describe();
+                        let named = format!("{holder} controls the gimbal");
+                        match why.strip_suffix(rule) {
+                            Some(head) => format!("{head}{named}"),
+                            None => format!("{why}: {named}"),
+                        }
+                    }
+                    _ => why,
+                };
+                Err(CommandError::Refused(Undelivered::NotInControl, why))
+            }
+            Err(e) => Err(e),
+        }
+    }
+
+    /// A GCU command to gcud about its gimbals (module `governance`).
+    pub async fn gcu(&mut self, request: &GcuRequest) -> Result<GcuAnswer, CommandError> {
+        let group = self.address.group;
+        let answer = self.client().await?.gcu(group, request).await;
+        self.failed(answer)
+    }
+
+    /// `~C`: who controls this gimbal now (kept for [`GimbalConnection::control`]).
+    /// A gcud that answers NIC is not asked again for
+    /// [`CONTROLLER_UNKNOWN_RETRY`]: [`CommandError::Nic`] meanwhile.
+    pub async fn controller(&mut self) -> Result<Controller, CommandError> {
+        let now = Instant::now();
+        if self.control.unsupported_until.is_some_and(|t| t > now) {
+            return Err(CommandError::Nic(format!(
+                "gcud at {} does not answer ~C: nobody governs {}",
+                self.gcud, self.address
+            )));
+        }
+        let request = GcuRequest::Controller(self.address.port, self.address.device);
+        match self.gcu(&request).await {
+            Ok(GcuAnswer::Controller(holder)) => {
+                self.control.unsupported_until = None;
+                self.control.holder = Some((holder.clone(), Instant::now()));
+                Ok(holder)
+            }
+            Ok(other) => Err(CommandError::BadReply(format!("~C answered {other:?}"))),
+            Err(e) => {
+                if matches!(e, CommandError::Nic(_)) {
+                    self.control.unsupported_until = Some(now + CONTROLLER_UNKNOWN_RETRY);
+                }
+                self.control.holder = None;
                 Err(e)
             }
         }
+    }
+
+    /// gcud's control of this gimbal as it last answered `~C`, if it did.
+    pub fn control(&self) -> Option<Control> {
+        let (holder, _) = self.control.holder.as_ref()?;
+        let ours = holder.link().is_some() && holder.link() == self.control.own.as_deref();
+        Some(Control {
+            holder: holder.clone(),
+            ours,
+        })
     }
 
     /// A query's result payload.

@@ -13,6 +13,8 @@
 //! - [`session`]: one gimbal as every front door drives it: the motion
 //!   as one object with its deadline, stops first and owed until the bus
 //!   confirms them, velocities coalesced, one cached poll.
+//! - [`governance`]: what gcud decides about its gimbals, asked of it
+//!   (who controls a gimbal, release, tours): the GCU commands of port 0.
 //! - [`config_file`]: TOML configuration read with bounds, every error at
 //!   its file:line:column with its key and what was expected.
 //! - [`door`]: a front door's start-up (`--check`, exit codes, runtime).
@@ -23,6 +25,7 @@ pub mod config_file;
 pub mod connection;
 pub mod door;
 pub mod door_config;
+pub mod governance;
 pub mod master;
 pub mod presets;
 pub mod session;

@@ -13,7 +13,7 @@ use std::time::Duration;
 use futures_util::{FutureExt, SinkExt, StreamExt};
 use sagebrush_protocol::link::TransactionPolicy;
 use sagebrush_protocol::{
-    CONTROL_UNIT, Command, DeliveryReport, Event, FrameBuf, LINK_PORT, Outcome, OwnedEvent, Transaction,
+    CONTROL_UNIT, Command, DeliveryReport, Event, FrameBuf, LINK_PORT, Outcome, OwnedEvent, ResultKind, Transaction,
     TransactionStep, TxFailure,
 };
 use tokio::io::{AsyncRead, AsyncWrite};
@@ -125,6 +125,12 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
     /// the exchange. I/O errors (a closed link) are errors; every protocol
     /// outcome, failures included, is an [`Exchange`].
     pub async fn transact(&mut self, frame: &FrameBuf, command: &Command<'_>) -> io::Result<Exchange> {
+        self.transact_expecting(frame, command.result_kind()).await
+    }
+
+    /// [`Master::transact`] of a frame whose answer is `expect` (a GCU
+    /// command of port 0, which no row of the command tables describes).
+    pub async fn transact_expecting(&mut self, frame: &FrameBuf, expect: ResultKind) -> io::Result<Exchange> {
         let started = Instant::now();
         let mut stale = 0;
         while stale < STALE_EVENTS_CAP {
@@ -138,7 +144,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
             }
         }
         let noise_at_start = self.noise_bytes();
-        let mut tx = Transaction::new(frame.frame().dest, command, self.policy);
+        let mut tx = Transaction::expecting(frame.frame().dest, expect, self.policy);
         let mut result = None;
         let mut undelivered = None;
         let (mut naks_received, mut naks_sent, mut stray_frames) = (0u32, 0u32, 0u32);

@@ -7,8 +7,10 @@
 //!   `max_move`). A newer velocity replaces it as one step, a goto, preset
 //!   or home supersedes its pan and tilt, a stop ends it; when its
 //!   deadline passes, the session owes the stops of whatever moves.
-//! - **stops first**: a stop (or a velocity of zero) is owed at once and
-//!   sent before any other command; the task checks for an owed stop
+//! - **stops first**: a stop (or a velocity of zero on every axis it
+//!   names) is owed at once and sent before any other command; a zero
+//!   beside a move is part of that move, owed once the move is in force
+//!   (so that a move gcud refuses stops nothing); the task checks for an owed stop
 //!   before every motion command, so no motion command goes out after the
 //!   stop that ended it. A stop is sent until the bus confirms it: while
 //!   gcud cannot be reached it stays owed and goes first when gcud is back,
@@ -17,6 +19,13 @@
 //!   one positioning move waits at most (newest wins), other commands wait
 //!   in a short queue; what cannot start within [`STALE`] is dropped with
 //!   an error, never sent late.
+//! - **gcud's decisions** (ARCHITECTURE "Front doors"): a command gcud
+//!   refuses by its rules is [`CommandError::Refused`], naming the link
+//!   that holds the gimbal when that is the rule; a refused motion never
+//!   counts as one, and a refusal for control sends no stop (the motion on
+//!   the gimbal is the holder's, and gcud stopped this door's when the
+//!   holder took control). Who controls the gimbal (`~C`, answered by gcud
+//!   itself) is asked with a poll at most every [`CONTROL_POLL`].
 //! - **one poll for every reader**: `P?` (and `V?` for a lens) every poll
 //!   period, at least every [`REFRESH`] while something moves, so gcud's
 //!   motion lease on the door's connection (ARCHITECTURE "Safety") stays
@@ -28,13 +37,14 @@ use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::Duration;
 
-use sagebrush_protocol::{Address, Axis, Command, LensPosition, LensSpeed, Position, Speed};
+use sagebrush_protocol::{Address, Axis, Command, LensPosition, LensSpeed, Position, Speed, Undelivered};
 use tokio::sync::{Notify, oneshot};
 use tokio::time::Instant;
 use tracing::{info, warn};
 
 use crate::client::CommandError;
-use crate::connection::{GimbalConnection, Identity, UNREACHABLE_POLL};
+use crate::connection::{Control, GimbalConnection, Identity, UNREACHABLE_POLL};
+use crate::governance::{Controller, GcuAnswer, GcuRequest, Tour, TourOutcome};
 
 /// A request that could not start within this is dropped with an error
 /// (gcud unreachable, the bus busy): never sent after its caller gave up.
@@ -44,6 +54,9 @@ pub const STALE: Duration = Duration::from_secs(5);
 pub const REFRESH: Duration = Duration::from_millis(250);
 /// Commands other than motions and stops waiting at once; more are refused.
 pub const QUEUE: usize = 8;
+/// gcud is asked who controls the gimbal (`~C`, answered by gcud itself:
+/// no bus time) with a poll at most this often.
+pub const CONTROL_POLL: Duration = Duration::from_secs(1);
 /// An owed stop is sent again this often while gcud cannot be reached.
 const STOP_RETRY: Duration = Duration::from_millis(200);
 /// A caller of [`GimbalSession::stop`] is told the stop failed after this
@@ -204,6 +217,10 @@ pub struct Status {
     /// The position changed between the last two polls.
     pub changing: bool,
     pub motion: Motion,
+    /// Who controls the gimbal, as gcud last answered `~C` (with a poll,
+    /// or naming the holder of a refusal); `None` while unknown (a gcud
+    /// that governs nothing answers NIC).
+    pub control: Option<Control>,
 }
 
 /// Whether gcud can be reached, shared by a door's sessions so that the
@@ -231,6 +248,22 @@ impl GcudReachability {
 
 type Reply = oneshot::Sender<Result<(), CommandError>>;
 type Answer = oneshot::Sender<Result<Option<Vec<u8>>, CommandError>>;
+type GcuReply = oneshot::Sender<Result<GcuAnswer, CommandError>>;
+
+/// A request waiting in the queue: a command to the gimbal, or one to gcud.
+enum Queued {
+    Bus(Command<'static>, Answer),
+    Gcu(GcuRequest, GcuReply),
+}
+
+impl Queued {
+    fn fail(self, e: CommandError) {
+        match self {
+            Queued::Bus(_, reply) => drop(reply.send(Err(e))),
+            Queued::Gcu(_, reply) => drop(reply.send(Err(e))),
+        }
+    }
+}
 
 /// One side of the gimbal, as far as the session has told it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -291,11 +324,16 @@ struct State {
     stop_retry_at: Option<Instant>,
     wish: Option<Pending<Velocity>>,
     place: Option<Pending<Place>>,
-    queue: VecDeque<(Command<'static>, Instant, Answer)>,
+    queue: VecDeque<(Queued, Instant)>,
     status: Status,
     identity: Option<Identity>,
     /// The task ends once the owed stops are sent.
     closing: bool,
+    /// The rule gcud refused the last drive command by (logged once).
+    last_refusal: Option<Undelivered>,
+    /// Axes set to zero beside a pending move ([`GimbalSession::post_velocity`]):
+    /// owed once that move is in force.
+    wish_stops: Axes,
 }
 
 impl State {
@@ -325,6 +363,7 @@ impl State {
     /// dropped (they came before the stop).
     fn owe_stop(&mut self, axes: Axes) {
         self.stops_owed = self.stops_owed.or(axes);
+        self.wish_stops = self.wish_stops.without(axes);
         if let Some(w) = &mut self.wish {
             if axes.pan {
                 w.what.pan = None;
@@ -338,6 +377,8 @@ impl State {
             if w.what == Velocity::default() {
                 let w = self.wish.take().expect("checked");
                 answer(w.replies, Ok(()));
+                // The zeros beside the move it ended are owed with it.
+                self.stops_owed = self.stops_owed.or(std::mem::take(&mut self.wish_stops));
             }
         }
         if axes.pan || axes.tilt {
@@ -351,7 +392,7 @@ impl State {
     fn expire(&mut self, now: Instant, name: &str) {
         if self.deadline.is_some_and(|d| d <= now) {
             self.deadline = None;
-            let moving = self.moving();
+            let moving = self.moving().or(std::mem::take(&mut self.wish_stops));
             if let Some(w) = self.wish.take() {
                 // Its time ran out before it could be carried out (a stop owed first).
                 answer(
@@ -379,13 +420,17 @@ impl State {
         };
         if self.wish.as_ref().is_some_and(|w| stale(w.asked)) {
             answer(self.wish.take().expect("checked").replies, Err(error()));
+            let stops = std::mem::take(&mut self.wish_stops);
+            if stops.any() {
+                self.owe_stop(stops);
+            }
         }
         if self.place.as_ref().is_some_and(|p| stale(p.asked)) {
             answer(self.place.take().expect("checked").replies, Err(error()));
         }
-        while self.queue.front().is_some_and(|(_, asked, _)| stale(*asked)) {
-            let (_, _, reply) = self.queue.pop_front().expect("checked");
-            let _ = reply.send(Err(error()));
+        while self.queue.front().is_some_and(|(_, asked)| stale(*asked)) {
+            let (queued, _) = self.queue.pop_front().expect("checked");
+            queued.fail(error());
         }
     }
 }
@@ -407,7 +452,7 @@ enum Step {
     /// A drive command, and the axis once it is acknowledged.
     Drive(Command<'static>, Applied),
     Place(Place),
-    Query(Command<'static>, Answer),
+    Query(Queued),
     Poll,
     Wait(Option<Instant>),
     End,
@@ -508,14 +553,39 @@ impl GimbalSession {
                 tilt: velocity.tilt == Some(Drive::Stop),
                 zoom: velocity.zoom == Some(Drive::Stop),
             };
-            if stops.any() {
-                s.owe_stop(stops);
-            }
             let moves = Velocity {
                 pan: velocity.pan.filter(|d| *d != Drive::Stop),
                 tilt: velocity.tilt.filter(|d| *d != Drive::Stop),
                 zoom: velocity.zoom.filter(|d| *d != Drive::Stop),
             };
+            let moved = Axes {
+                pan: moves.pan.is_some(),
+                tilt: moves.tilt.is_some(),
+                zoom: moves.zoom.is_some(),
+            };
+            if !moved.any() {
+                if stops.any() {
+                    s.owe_stop(stops);
+                }
+            } else if stops.any() {
+                // A zero beside a move is part of that move: that axis stops
+                // once the move is in force, and not at all when gcud refuses
+                // the move for control (a refused request changes nothing:
+                // the holder's motion is not this door's to stop).
+                if let Some(w) = &mut s.wish {
+                    w.what.pan = w.what.pan.filter(|_| !stops.pan);
+                    w.what.tilt = w.what.tilt.filter(|_| !stops.tilt);
+                    w.what.zoom = w.what.zoom.filter(|_| !stops.zoom);
+                }
+                s.wish_stops = s.wish_stops.or(stops);
+                if stops.pan || stops.tilt {
+                    if let Some(p) = s.place.take() {
+                        answer(p.replies, Ok(()));
+                    }
+                }
+            }
+            // Newest wins: an axis moved now is no longer to be stopped.
+            s.wish_stops = s.wish_stops.without(moved);
             if moves != Velocity::default() {
                 // Newest wins, per axis; the replaced callers learn the newest's outcome.
                 let mut replies = s.wish.take().map(|w| (w.what, w.replies)).unwrap_or_default();
@@ -584,6 +654,8 @@ impl GimbalSession {
                 w.what.pan = None;
                 w.what.tilt = None;
             }
+            s.wish_stops.pan = false;
+            s.wish_stops.tilt = false;
             s.place = Some(Pending {
                 what: place,
                 asked: Instant::now(),
@@ -613,20 +685,63 @@ impl GimbalSession {
     /// has one. At most [`QUEUE`] wait; more are refused.
     pub async fn send(&self, command: Command<'static>) -> Result<Option<Vec<u8>>, CommandError> {
         let (tx, rx) = oneshot::channel();
+        self.enqueue(Queued::Bus(command, tx), command.mnemonic())?;
+        rx.await.unwrap_or_else(|_| Err(closed()))
+    }
+
+    /// A GCU command to gcud (module `governance`), in the queue with the
+    /// other commands: answered by gcud itself, no bus time.
+    pub async fn gcu(&self, request: GcuRequest) -> Result<GcuAnswer, CommandError> {
+        let (tx, rx) = oneshot::channel();
+        let what = format!("{request:?}");
+        self.enqueue(Queued::Gcu(request, tx), &what)?;
+        rx.await.unwrap_or_else(|_| Err(closed()))
+    }
+
+    fn enqueue(&self, queued: Queued, what: &str) -> Result<(), CommandError> {
         {
             let mut s = self.state();
             if s.queue.len() >= QUEUE {
                 return Err(CommandError::Io(format!(
-                    "{} commands already wait for gimbal {}: {} refused",
-                    QUEUE,
-                    self.config.name,
-                    command.mnemonic()
+                    "{} commands already wait for gimbal {}: {what} refused",
+                    QUEUE, self.config.name,
                 )));
             }
-            s.queue.push_back((command, Instant::now(), tx));
+            s.queue.push_back((queued, Instant::now()));
         }
         self.wake.notify_one();
-        rx.await.unwrap_or_else(|_| Err(closed()))
+        Ok(())
+    }
+
+    /// `~C` now: who controls the gimbal (also kept in [`Status::control`]).
+    pub async fn controller(&self) -> Result<Controller, CommandError> {
+        let a = self.config.address;
+        match self.gcu(GcuRequest::Controller(a.port, a.device)).await? {
+            GcuAnswer::Controller(c) => Ok(c),
+            other => Err(CommandError::BadReply(format!("~C answered {other:?}"))),
+        }
+    }
+
+    /// `~T?`: gcud's tours (of every gimbal of this gimbal's GCU).
+    pub async fn tours(&self) -> Result<Vec<Tour>, CommandError> {
+        match self.gcu(GcuRequest::TourList).await? {
+            GcuAnswer::Tours(t) => Ok(t),
+            other => Err(CommandError::BadReply(format!("~T? answered {other:?}"))),
+        }
+    }
+
+    /// `~T+name` (`start`) or `~T-name`: what became of the tour. An
+    /// unknown tour is [`CommandError::Nic`].
+    pub async fn tour(&self, name: &str, start: bool) -> Result<TourOutcome, CommandError> {
+        let request = if start {
+            GcuRequest::TourStart(name.to_owned())
+        } else {
+            GcuRequest::TourStop(name.to_owned())
+        };
+        match self.gcu(request).await? {
+            GcuAnswer::Tour(t) => Ok(t),
+            other => Err(CommandError::BadReply(format!("~T answered {other:?}"))),
+        }
     }
 
     /// `D?`, asked once and kept.
@@ -656,6 +771,7 @@ impl GimbalSession {
                 zoom: m.zoom,
             }
             .or(s.stops_owed)
+            .or(s.wish_stops)
         };
         if axes.any() {
             if let Err(e) = self.stop(axes).await {
@@ -693,17 +809,21 @@ impl GimbalSession {
             {
                 return step;
             }
-            // Everything asked is in force.
+            // Everything asked is in force; then the zeros beside it.
             let w = s.wish.take().expect("checked");
             answer(w.replies, Ok(()));
+            let stops = std::mem::take(&mut s.wish_stops);
+            if stops.any() {
+                s.owe_stop(stops);
+                let (command, axes) = s.stops_owed.first().expect("owed");
+                return Step::Stop(command, axes);
+            }
         }
         if let Some(p) = &s.place {
             return Step::Place(p.what);
         }
-        if let Some((command, _, _)) = s.queue.front() {
-            let command = *command;
-            let (_, _, reply) = s.queue.pop_front().expect("checked");
-            return Step::Query(command, reply);
+        if let Some((queued, _)) = s.queue.pop_front() {
+            return Step::Query(queued);
         }
         let due = if s.moving().any() {
             next_poll.min(now + REFRESH)
@@ -718,7 +838,10 @@ impl GimbalSession {
 
     async fn run(self: Arc<Self>, mut connection: GimbalConnection) {
         let mut next_poll = Instant::now();
+        let mut asked_control = None;
         loop {
+            // What the connection last learnt of gcud's control (a poll, a refusal).
+            self.state().status.control = connection.control();
             let now = Instant::now();
             match self.next(now, next_poll) {
                 Step::End => return,
@@ -802,14 +925,52 @@ impl GimbalSession {
                     self.reached(&sent);
                     let mut s = self.state();
                     match sent {
-                        Ok(_) => match applied {
-                            Applied::Pan(a) => s.pan = a,
-                            Applied::Tilt(a) => s.tilt = a,
-                            Applied::Zoom(a) => s.zoom = a,
-                        },
+                        Ok(_) => {
+                            s.last_refusal = None;
+                            match applied {
+                                Applied::Pan(a) => s.pan = a,
+                                Applied::Tilt(a) => s.tilt = a,
+                                Applied::Zoom(a) => s.zoom = a,
+                            }
+                        }
+                        Err(e) if e.refusal().is_some() => {
+                            // gcud refused it by its rules: nothing reached
+                            // the bus, the axis did not start.
+                            if let Some(w) = s.wish.take() {
+                                answer(w.replies, Err(e.clone()));
+                            }
+                            let zeros = std::mem::take(&mut s.wish_stops);
+                            if e.refusal() == Some(Undelivered::NotInControl) {
+                                // Another link holds the gimbal: its motion is
+                                // not this door's to stop, and gcud stopped
+                                // ours when that link took control. What was
+                                // set here (speeds too) is set again next time.
+                                s.pan = InForce::default();
+                                s.tilt = InForce::default();
+                                s.zoom = InForce::default();
+                            } else {
+                                // Never leave an axis moving that the caller was told failed.
+                                let ours = Axes {
+                                    pan: s.pan.drive != Drive::Stop,
+                                    tilt: s.tilt.drive != Drive::Stop,
+                                    zoom: s.zoom.drive != Drive::Stop,
+                                }
+                                .or(zeros);
+                                if ours.any() {
+                                    s.owe_stop(ours);
+                                }
+                            }
+                            if !s.moving().any() {
+                                s.deadline = None;
+                            }
+                            if s.last_refusal != e.refusal() {
+                                s.last_refusal = e.refusal();
+                                info!(gimbal = %self.config.name, error = %e, "{} refused by gcud (logged once until something is accepted or refused otherwise)", command.mnemonic());
+                            }
+                        }
                         Err(e) => {
                             // Never leave an axis moving that the caller was told failed.
-                            let axes = s.moving();
+                            let axes = s.moving().or(std::mem::take(&mut s.wish_stops));
                             if let Some(w) = s.wish.take() {
                                 answer(w.replies, Err(e.clone()));
                             }
@@ -834,10 +995,21 @@ impl GimbalSession {
                         answer(p.replies, sent.map(drop));
                     }
                 }
-                Step::Query(command, reply) => {
+                Step::Query(Queued::Bus(command, reply)) => {
                     let sent = connection.send(&command).await;
                     self.reached(&sent);
                     let _ = reply.send(sent);
+                }
+                Step::Query(Queued::Gcu(request, reply)) => {
+                    let a = self.config.address;
+                    let answer = if request == GcuRequest::Controller(a.port, a.device) {
+                        // This gimbal's: kept for the status too.
+                        connection.controller().await.map(GcuAnswer::Controller)
+                    } else {
+                        connection.gcu(&request).await
+                    };
+                    self.reached(&answer);
+                    let _ = reply.send(answer);
                 }
                 Step::Poll => {
                     let reading = poll(&mut connection, self.config.lens).await;
@@ -859,6 +1031,11 @@ impl GimbalSession {
                                 st.error = Some(e.to_string());
                             }
                         }
+                    }
+                    if !failed && asked_control.is_none_or(|t: Instant| t.elapsed() >= CONTROL_POLL) {
+                        asked_control = Some(Instant::now());
+                        // Unknown while it fails (a gcud that governs nothing answers NIC).
+                        let _ = connection.controller().await;
                     }
                     let poll = self.config.poll;
                     next_poll = Instant::now() + if failed { UNREACHABLE_POLL.max(poll) } else { poll };
