@@ -302,7 +302,7 @@ impl fmt::Display for RouterEvent {
                 StopCause::DeadMan => write!(f, "{link} down: dead-man {stop} to {dest}"),
                 StopCause::Lease => write!(f, "{link}: motion lease over, {stop} to {dest}"),
                 StopCause::Shutdown => write!(f, "shutting down: {stop} to {dest} (a motion of {link})"),
-                StopCause::TakeOver => write!(f, "control taken over: {stop} to {dest} (a motion of {link})"),
+                StopCause::TakeOver => write!(f, "control taken over: {stop} to {dest}"),
                 StopCause::Boundary => write!(f, "{stop} to {dest}: a limit or keep-out zone is near"),
                 StopCause::Tour => write!(f, "tour stopped: {stop} to {dest}"),
             },

@@ -14,7 +14,8 @@
 //! ~T?            list the tours                          result ~L name=S,name=S,...   (as many as fit)
 //! ```
 //! `PP`, `DD` and `PR` are two upper-case hex digits; names are 1..=32
-//! bytes of `A-Z a-z 0-9 _ -`. An unknown tour or gimbal is answered NIC.
+//! bytes of `A-Z a-z 0-9 _ -`. An unknown tour is answered NIC; `~C` of a
+//! gimbal nobody holds answers `-`, and `~R` of it is acknowledged.
 
 use crate::hex::{hex_digit, hex_value};
 
