@@ -110,6 +110,10 @@ role = "operator"
 name = "viewer"
 password = "viewer-secret"
 role = "user"
+[[user]]
+name = "admin"
+password = "admin-secret"
+role = "administrator"
 "#;
 
 impl Stack {
@@ -608,13 +612,163 @@ fn the_card_names_the_holder_and_a_refused_move_shows_gcuds_reason() {
     eprintln!("refused: {reason}");
 }
 
+/// gcud's rules of mast-1 in the governed gcud's configuration: limits
+/// and one keep-out zone.
+const RULES: &str = "[[gimbal]]\naddress = \"5.1.1\"\npan_limits_deg = [-90.0, 90.0]\ntilt_limits_deg = [-30.0, 60.0]\n\
+                     [[gimbal.keep_out]]\npan_deg = [-60.0, -30.0]\ntilt_deg = [-30.0, 10.0]\n";
+
+/// The number of gotos (`Paaaaeeee`, Table 11) the door sent `address`.
+fn door_gotos(gcud: &Gcud, address: &str) -> usize {
+    door_frames(gcud, address)
+        .iter()
+        .filter(|p| p.len() == 9 && p.starts_with('P'))
+        .count()
+}
+
+/// The pan/tilt map (issue 34): gcud's limits and keep-out zone of mast-1
+/// (asked with `~B`) are drawn on its card as gcud's configuration has
+/// them; a click on the map goes there (read on the bus); a click into the
+/// zone shows gcud's refusal on the card and nothing moves.
+#[test]
+fn the_map_draws_gcuds_rules_and_a_click_goes_there_or_shows_gcuds_refusal() {
+    if !browser_available() {
+        return;
+    }
+    let stack = Stack::start_on(support::door::start_governed_gcud_with(RULES));
+    let mut b = stack.browser("op", "op-secret");
+    let map = stack.call(&mut b, json!({ "op": "map", "card": "mast-1" }));
+    assert_eq!(
+        map["zones"],
+        json!([{ "pan-lo": -60.0, "pan-hi": -30.0, "tilt-lo": -30.0, "tilt-hi": 10.0 }]),
+        "{map}"
+    );
+    // x, y (minus the top tilt), width, height.
+    assert_eq!(map["limits"], json!([-90, -60, 180, 90]), "{map}");
+    // mast-2 has no rules: no zone, no limits.
+    let other = stack.call(&mut b, json!({ "op": "map", "card": "mast-2", "zones": 0 }));
+    assert_eq!(other, json!({ "zones": [], "limits": null }), "{other}");
+    // gcud refuses gotos of a bounded gimbal until it knows where it is.
+    eventually("gcud to know where mast-1 is", || {
+        stack.gcud.ctl(&["--to", MAST, "goto", "0", "0", "--wait"]).code == 0
+    });
+    // The card names the holder (gimbalctl's goto, through the doors'
+    // link) before the click: the map no longer moves on the page.
+    stack.call(
+        &mut b,
+        json!({ "op": "wait_note", "card": "mast-1", "contains": "link clients" }),
+    );
+    // An eighth of the map right of its centre and a sixth above: pan 45°,
+    // tilt 30° of the default travel (-180..180, -90..90).
+    stack.call(
+        &mut b,
+        json!({ "op": "click_picture", "card": "mast-1", "fx": 0.125, "fy": -1.0 / 6.0 }),
+    );
+    eventually("the click's goto to be reached on the bus", || {
+        let (pan, tilt) = stack.gcud.position(MAST);
+        (pan - 45.0).abs() < 2.0 && (tilt - 30.0).abs() < 2.0
+    });
+    assert_eq!(door_gotos(&stack.gcud, MAST), 1);
+    let at = stack.gcud.settled_position(MAST);
+    // Into the zone's middle (pan -45°, tilt -10°): gcud refuses, its words on the card.
+    stack.call(
+        &mut b,
+        json!({ "op": "click_picture", "card": "mast-1", "fx": -0.125, "fy": 10.0 / 180.0 }),
+    );
+    let reason = stack.call(&mut b, json!({ "op": "wait_alert", "card": "mast-1" }));
+    let reason = reason.as_str().unwrap().to_owned();
+    assert!(
+        reason.contains("refused by gcud") && reason.contains("keep-out"),
+        "gcud's words on the card: {reason}"
+    );
+    support::door::assert_still(&stack.gcud, MAST, at, "a goto into the zone");
+    assert_eq!(
+        door_gotos(&stack.gcud, MAST),
+        1,
+        "nothing of the refused goto on the bus"
+    );
+    eprintln!("refused: {reason}");
+}
+
+/// Release (issue 34): an administrator's "Release" sends gcud's `~R`;
+/// gcud refuses it while the operators' link (priority 80, above the
+/// doors') holds the gimbal, and the card shows its words; it releases what
+/// the page itself holds. An operator gets 403 and sends nothing.
+#[test]
+fn release_is_the_administrators_and_gcud_refuses_it_under_a_higher_link() {
+    if !browser_available() {
+        return;
+    }
+    let stack = Stack::start_on(support::door::start_governed_gcud());
+    // An operator: the button is disabled, the request refused.
+    let mut op = stack.browser("op", "op-secret");
+    assert_eq!(
+        stack.call(
+            &mut op,
+            json!({ "op": "disabled", "card": "mast-1", "button": "Release" })
+        ),
+        json!(true)
+    );
+    let answer = stack.call(
+        &mut op,
+        json!({ "op": "fetch", "path": "/api/release", "with_token": true, "body": { "gimbal": 1 } }),
+    );
+    assert_eq!(answer["status"], 403, "{answer}");
+    assert!(answer["body"].as_str().unwrap().contains("administrator"), "{answer}");
+    // The page moves mast-2: gimbal-web's link holds it.
+    let other = "5.2.1";
+    let from = stack.gcud.position(other);
+    stack.call(&mut op, json!({ "op": "hold", "card": "mast-2", "button": "Tilt up" }));
+    wait_moving(&stack.gcud, other, from);
+    stack.call(&mut op, json!({ "op": "release" }));
+    bus_stop_time(&stack.gcud, other, "TS");
+    stack.call(
+        &mut op,
+        json!({ "op": "wait_note", "card": "mast-2", "contains": "this page's gcud link" }),
+    );
+    drop(op);
+    // The operators' console holds mast-1.
+    let out = support::door::operators_ctl(&stack.gcud, &["--to", MAST, "goto", "20", "10"]);
+    assert_eq!(out.code, 0, "{out:?}");
+    let mut admin = stack.browser("admin", "admin-secret");
+    stack.call(
+        &mut admin,
+        json!({ "op": "wait_note", "card": "mast-1", "contains": support::door::OPERATORS_HOLDER }),
+    );
+    stack.call(
+        &mut admin,
+        json!({ "op": "click", "card": "mast-1", "button": "Release" }),
+    );
+    let reason = stack.call(&mut admin, json!({ "op": "wait_alert", "card": "mast-1" }));
+    let reason = reason.as_str().unwrap().to_owned();
+    assert!(reason.contains("refused by gcud"), "gcud's words on the card: {reason}");
+    // The operators still hold it.
+    stack.call(
+        &mut admin,
+        json!({ "op": "wait_note", "card": "mast-1", "contains": support::door::OPERATORS_HOLDER }),
+    );
+    // mast-2, held by the page's link: released.
+    stack.call(
+        &mut admin,
+        json!({ "op": "click", "card": "mast-2", "button": "Release" }),
+    );
+    stack.call(
+        &mut admin,
+        json!({ "op": "wait_text", "card": "mast-2", "contains": ["Released"] }),
+    );
+    stack.call(
+        &mut admin,
+        json!({ "op": "wait_note", "card": "mast-2", "contains": "Nobody controls it" }),
+    );
+    eprintln!("refused release: {reason}");
+}
+
 /// gcud's tours on the page (issue 34): listed with their state, started
-/// and stopped through gcud's `~T+` and `~T-` by an operator (with the
-/// page's CSRF token), never by a user. gcud here is a stand-in
+/// and stopped through gcud's `~T+` and `~T-` by an administrator (with
+/// the page's CSRF token), never by a user or an operator. gcud here is a stand-in
 /// (`support::fake_gcud`) answering as gcud does, since tours cannot be
 /// configured in gcud.toml yet; it records what the page sent.
 #[test]
-fn tours_are_listed_and_an_operator_starts_and_stops_them_through_gcud() {
+fn tours_are_listed_and_an_administrator_starts_and_stops_them_through_gcud() {
     if !browser_available() {
         return;
     }
@@ -687,10 +841,38 @@ fn tours_are_listed_and_an_operator_starts_and_stops_them_through_gcud() {
     );
     assert_eq!(answer["status"], 403, "{answer}");
     drop(viewer);
-    // An operator starts it, sees it running and the card controlled by it, and stops it.
+    // Neither may an operator (tours are the administrator's, issue 34).
+    let mut op = Browser::start();
+    op.call(json!({ "op": "open", "url": url }), log);
+    op.call(json!({ "op": "sign_in", "user": "op", "password": "op-secret" }), log);
+    op.call(
+        json!({ "op": "wait_text", "card": "Tours", "contains": ["perimeter", "stopped"] }),
+        log,
+    );
+    let disabled = op.call(
+        json!({ "op": "disabled", "card": "Tours", "button": "Start tour perimeter" }),
+        log,
+    );
+    assert_eq!(disabled, json!(true), "an operator's tour buttons are disabled");
+    let answer = op.call(
+        json!({ "op": "fetch", "path": "/api/tour", "with_token": true,
+                "body": { "name": "perimeter", "start": true } }),
+        log,
+    );
+    assert_eq!(answer["status"], 403, "{answer}");
+    assert!(answer["body"].as_str().unwrap().contains("administrator"), "{answer}");
+    drop(op);
+    assert!(
+        !gcud.got().contains(&"~T+perimeter".to_owned()),
+        "nothing sent for them"
+    );
+    // An administrator starts it, sees it running and the card controlled by it, and stops it.
     let mut b = Browser::start();
     b.call(json!({ "op": "open", "url": url }), log);
-    b.call(json!({ "op": "sign_in", "user": "op", "password": "op-secret" }), log);
+    b.call(
+        json!({ "op": "sign_in", "user": "admin", "password": "admin-secret" }),
+        log,
+    );
     let answer = b.call(
         json!({ "op": "fetch", "path": "/api/tour", "with_token": false,
                 "body": { "name": "perimeter", "start": true } }),

@@ -11,16 +11,20 @@
 //!   the gimbals; `GET /api/events`: server-sent events, every gimbal's
 //!   state each [`PUSH`] while one moves or changed, else each [`QUIET`].
 //! - `POST /api/move`, `/api/stop`, `/api/home`, `/api/goto`,
-//!   `/api/preset/save`, `/api/preset/go`, `/api/tour`: with the
-//!   `X-CSRF-Token` header, by the roles of gimbal-onvif (a user views, an
-//!   operator moves, uses presets and starts and stops tours). A move lasts
-//!   the hold lease unless renewed by the page while the button or key is
-//!   held.
+//!   `/api/preset/save`, `/api/preset/go`, `/api/tour`, `/api/release`:
+//!   with the `X-CSRF-Token` header, by role (issue 34): a user views, an
+//!   operator moves (the map's click is a `/api/goto`) and uses presets,
+//!   an administrator also starts and stops tours and releases a gimbal.
+//!   A move lasts the hold lease unless renewed by the page while the
+//!   button or key is held.
 //!
 //! What gcud decides (ARCHITECTURE "Front doors") is shown, never decided
 //! here: each gimbal's state carries who controls it (gcud's `~C`, kept by
-//! its session), the state carries gcud's tours (`~T?`, asked every
-//! [`QUIET`]), and `/api/tour` starts or stops one (`~T+`, `~T-`).
+//! its session) and gcud's limits and keep-out zones of it (`~B`, asked
+//! every [`sagebrush_client::session::RULES_REFRESH`]), drawn on its
+//! pan/tilt map; the state carries gcud's tours (`~T?`, asked every
+//! [`QUIET`]); `/api/tour` starts or stops one (`~T+`, `~T-`) and
+//! `/api/release` releases a gimbal (`~R`).
 //!
 //! An answer that is not a success is JSON `{"error": REASON}`, REASON
 //! being gcud's or the gimbal's own words for a refused (HTTP 409) or
@@ -40,7 +44,7 @@ use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use sagebrush_client::CommandError;
 use sagebrush_client::connection::{Control, proportional_speed};
-use sagebrush_client::governance::{Controller, Tour, tour_state_name};
+use sagebrush_client::governance::{Controller, Rules, Tour, degrees, tour_state_name};
 use sagebrush_client::presets::{self, Presets};
 use sagebrush_client::session::{Axes, Drive, GimbalSession, Motion, Velocity};
 use sagebrush_listener::rate::{KeyedBuckets, LogGate};
@@ -91,6 +95,8 @@ struct Tours {
 struct Web {
     gimbals: Vec<Gimbal>,
     tours: Mutex<Tours>,
+    /// gcud's rules of each gimbal (`~B`), as last asked; `None` while unknown.
+    rules: Mutex<Vec<Option<Rules>>>,
     auth: Auth,
     presets: Arc<Presets>,
     lease: Duration,
@@ -150,6 +156,23 @@ fn control_json(control: Option<&Control>) -> Value {
     })
 }
 
+/// gcud's limits and zones of a gimbal, in degrees, as the map draws
+/// them: `null` while unknown (gcud not asked yet, or one that does not
+/// answer `~B`).
+fn rules_json(rules: Option<&Rules>) -> Value {
+    let Some(r) = rules else { return Value::Null };
+    let zones: Vec<Value> = r
+        .keep_out
+        .iter()
+        .map(|(pan, tilt)| json!({ "pan": degrees(*pan), "tilt": degrees(*tilt) }))
+        .collect();
+    json!({
+        "pan_limits": r.pan_limits.map(degrees),
+        "tilt_limits": r.tilt_limits.map(degrees),
+        "keep_out": zones,
+    })
+}
+
 fn no_store() -> [(header::HeaderName, &'static str); 1] {
     [(header::CACHE_CONTROL, "no-store")]
 }
@@ -179,10 +202,12 @@ impl Web {
     /// Every gimbal's state, as the page shows it.
     fn state(&self) -> (Value, bool) {
         let mut busy = false;
+        let rules = self.rules.lock().unwrap_or_else(|p| p.into_inner()).clone();
         let gimbals: Vec<Value> = self
             .gimbals
             .iter()
-            .map(|g| {
+            .enumerate()
+            .map(|(i, g)| {
                 let s = g.session.status();
                 let motion = match s.motion {
                     Motion::Idle if s.changing => "moving",
@@ -205,6 +230,7 @@ impl Web {
                     "motion": motion,
                     "presets": presets,
                     "control": control_json(s.control.as_ref()),
+                    "rules": rules_json(rules.get(i).and_then(Option::as_ref)),
                 })
             })
             .collect();
@@ -254,6 +280,23 @@ impl Web {
             by_group.push((group, known));
         }
         self.tours.lock().unwrap_or_else(|p| p.into_inner()).by_group = by_group;
+    }
+
+    /// Asks every gimbal's rules (`~B`; the session asks gcud again only
+    /// after [`sagebrush_client::session::RULES_REFRESH`]). A gimbal whose
+    /// gcud cannot say keeps what was known.
+    async fn refresh_rules(&self) {
+        for (i, g) in self.gimbals.iter().enumerate() {
+            let known = match g.session.rules().await {
+                Ok(r) => Some(r),
+                // A gcud that predates `~B` draws no rules.
+                Err(CommandError::Nic(_)) => None,
+                Err(_) => continue,
+            };
+            if let Some(slot) = self.rules.lock().unwrap_or_else(|p| p.into_inner()).get_mut(i) {
+                *slot = known;
+            }
+        }
     }
 
     /// The session of the group whose tours name `tour`.
@@ -547,7 +590,7 @@ struct TourBody {
 
 /// Starts or stops one of gcud's tours (`~T+`, `~T-`): what became of it.
 async fn tour(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    let who = w.allow(&headers, Role::Operator, "start or stop tours")?;
+    let who = w.allow(&headers, Role::Administrator, "start or stop tours")?;
     let b: TourBody = body(&bytes, "{name, start: true|false}")?;
     let session = w
         .tour_session(&b.name)
@@ -563,6 +606,17 @@ async fn tour(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) ->
         })),
     )
         .into_response())
+}
+
+/// Releases control of a gimbal (`~R`): gcud refuses it while a link of
+/// higher priority than gimbal-web's holds it (its words, HTTP 409).
+async fn release(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
+    let who = w.allow(&headers, Role::Administrator, "release a gimbal")?;
+    let b: GimbalBody = body(&bytes, "{gimbal}")?;
+    let g = w.gimbal(b.gimbal)?;
+    g.session.release().await.map_err(failed)?;
+    info!(user = %who.user, gimbal = %g.config.name, "released");
+    Ok((no_store(), axum::Json(json!({ "released": true }))).into_response())
 }
 
 #[derive(Deserialize)]
@@ -593,6 +647,7 @@ pub async fn bind(
     let listener = tokio::net::TcpListener::bind(config.listen).await?;
     let local = listener.local_addr()?;
     let web = Arc::new(Web {
+        rules: Mutex::new(vec![None; gimbals.len()]),
         gimbals,
         tours: Mutex::default(),
         auth: Auth::new(config.users.clone(), config.sign_in, config.max_sign_ins),
@@ -617,6 +672,7 @@ pub async fn bind(
         .route("/api/preset/save", post(preset_save))
         .route("/api/preset/go", post(preset_go))
         .route("/api/tour", post(tour))
+        .route("/api/release", post(release))
         .fallback(not_found)
         .layer(DefaultBodyLimit::max(MAX_BODY))
         .with_state(Arc::clone(&web));
@@ -625,16 +681,26 @@ pub async fn bind(
     info!(addr = %local, "page listening");
     let serve = sagebrush_listener::serve_http(listener, limits, app);
     Ok((local, async move {
-        // gcud's tours, asked every QUIET beside the page (no bus time).
+        // gcud's tours, asked every QUIET beside the page (no bus time),
+        // and apart (an unreachable gcud delays neither) the gimbals'
+        // rules (asked of gcud every RULES_REFRESH).
+        let rules_web = Arc::clone(&web);
         let ask = async move {
             loop {
                 web.refresh_tours().await;
                 tokio::time::sleep(QUIET).await;
             }
         };
+        let rules = async move {
+            loop {
+                rules_web.refresh_rules().await;
+                tokio::time::sleep(QUIET).await;
+            }
+        };
         tokio::select! {
             () = serve => {}
             () = ask => {}
+            () = rules => {}
         }
     }))
 }

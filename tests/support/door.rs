@@ -203,11 +203,17 @@ pub const OPERATORS_HOLDER: &str = "link operators (priority 80)";
 /// [`OPERATORS_PRIORITY`], where gimbalctl plays the operators' console.
 /// Needs gcud's parsing of `[control]` and `[[link]] priority` (issue 32).
 pub fn start_governed_gcud() -> super::gcud::Gcud {
+    start_governed_gcud_with("")
+}
+
+/// [`start_governed_gcud`] with `extra` appended to its configuration
+/// (`[[gimbal]]` rules, `[[tour]]`s).
+pub fn start_governed_gcud_with(extra: &str) -> super::gcud::Gcud {
     let config = format!(
         "[gcu]\ngroup = {GCUD_GROUP}\n[control]\nhold_ms = 60000\n\
          [[port]]\nid = 1\nsimulate = [1]\n[[port]]\nid = 2\nsimulate = [1]\n\
          {}allow_source_groups = [0, {DOOR_GROUP}]\npriority = 50\n\
-         [[link]]\nname = \"operators\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\npriority = {OPERATORS_PRIORITY}\n",
+         [[link]]\nname = \"operators\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\npriority = {OPERATORS_PRIORITY}\n{extra}",
         super::gcud::CLIENTS
     );
     // A gcud that cannot read it fails the test at once, saying why.

@@ -178,6 +178,23 @@ def handle(req):
         ActionChains(d).move_to_element_with_offset(
             pic, int(req["fx"] * r["width"]), int(req["fy"] * r["height"])).click().perform()
         return True
+    if op == "map":
+        # The card's pan/tilt map (found by its name), once it draws at
+        # least `zones` keep-out zones: each zone's spans (its data
+        # attributes, degrees) and the limits box as drawn.
+        card = region(d, req["card"])
+        pic = WebDriverWait(d, WAIT_S).until(
+            lambda _: next((e for e in card.find_elements(By.CSS_SELECTOR, "[role=img]")
+                            if e.accessible_name == "Pan/tilt map"), None))
+        WebDriverWait(d, WAIT_S).until(
+            lambda _: len(pic.find_elements(By.CSS_SELECTOR, "rect[data-pan-lo]")) >= req.get("zones", 1))
+        zones = [{k: float(z.get_attribute("data-" + k)) for k in ("pan-lo", "pan-hi", "tilt-lo", "tilt-hi")}
+                 for z in pic.find_elements(By.CSS_SELECTOR, "rect[data-pan-lo]")]
+        limits = d.execute_script(
+            "const r = arguments[0].querySelector('rect.limits');"
+            "return r.getAttribute('display') === 'none' ? null :"
+            " ['x', 'y', 'width', 'height'].map(k => Number(r.getAttribute(k)));", pic)
+        return {"zones": zones, "limits": limits}
     if op == "fetch":
         # A request from the signed-in page itself (its cookie), with or
         # without the page's CSRF token.

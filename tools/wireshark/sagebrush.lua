@@ -160,15 +160,16 @@ local function parse_command(s)
         return m, r.description .. (extra or ""), r.shape, r.answer == "optional", a
     end
     -- GCU commands on port 0 (ARCHITECTURE "Governance", the protocol
-    -- crate's module gcu): ~R has no result, ~C and ~T one (shown raw).
+    -- crate's module gcu): ~R has no result, ~C, ~T and ~B one (shown raw).
     if s:sub(1, 1) == "~" then
         local gcu = {
             R = "~R PPDD: release control of gimbal PP.DD (GCU command)",
             C = "~C PPDD: who controls gimbal PP.DD (GCU command)",
             T = "~T+name, ~T-name, ~T?: start, stop or list tours (GCU command)",
+            B = "~B PPDD: travel limits and keep-out zones of gimbal PP.DD (GCU command)",
         }
         local k = s:sub(2, 2)
-        return "~" .. k, gcu[k] or "unknown GCU command", (k == "C" or k == "T") and "raw" or nil, false, a
+        return "~" .. k, gcu[k] or "unknown GCU command", (k == "C" or k == "T" or k == "B") and "raw" or nil, false, a
     end
     for _, ext in ipairs(T.extended) do
         if s:sub(1, #ext.name) == ext.name then

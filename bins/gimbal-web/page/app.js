@@ -106,6 +106,11 @@ function buildCard(g, i) {
     error: q('.error'),
     picture: q('.picture'),
     dot: q('.dot'),
+    limits: q('.limits'),
+    zones: q('.zones'),
+    rulesText: q('.rules-text'),
+    outcome: q('.outcome'),
+    rulesShown: '',
     speed: q('.speed'),
     presetName: q('.preset-name'),
     presetList: q('.preset-list'),
@@ -123,6 +128,17 @@ function buildCard(g, i) {
   card.dot.style.display = 'none';
   const operator = me.role !== 'user';
   for (const b of node.querySelectorAll('button, input.preset-name, input.speed')) b.disabled = !operator;
+  const admin = me.role === 'administrator';
+  q('.release').disabled = !admin;
+  if (admin) {
+    // ~R through gcud: refused (its words) while a higher link holds the gimbal.
+    q('.release').addEventListener('click', () => {
+      card.outcome.textContent = '';
+      act(i, '/api/release').then((r) => {
+        if (r) card.outcome.textContent = 'Released: gcud let go of this page\'s control';
+      });
+    });
+  }
   if (operator) {
     for (const b of node.querySelectorAll('button.hold')) {
       const pan = Number(b.dataset.pan);
@@ -195,6 +211,7 @@ function render(state) {
       card.state.classList.add('offline');
     }
     showControl(card, s.control);
+    showRules(card, s.rules);
     const shown = JSON.stringify(s.presets);
     if (shown !== card.presetsShown) {
       card.presetsShown = shown;
@@ -211,6 +228,47 @@ function render(state) {
       }
     }
   });
+}
+
+// gcud's limits (a dashed box) and keep-out zones (filled rectangles) on
+// the map, in degrees; each zone carries its spans as data attributes.
+function showRules(card, r) {
+  const shown = JSON.stringify(r);
+  if (shown === card.rulesShown) return;
+  card.rulesShown = shown;
+  card.zones.replaceChildren();
+  card.limits.setAttribute('display', 'none');
+  if (!r) {
+    card.rulesText.textContent = '';
+    return;
+  }
+  const [p0, p1] = card.g.pan_deg;
+  const [t0, t1] = card.g.tilt_deg;
+  const words = [];
+  if (r.pan_limits || r.tilt_limits) {
+    const [pl, ph] = r.pan_limits || [p0, p1];
+    const [tl, th] = r.tilt_limits || [t0, t1];
+    svg(card.limits, { x: pl, y: -th, width: ph - pl, height: th - tl, display: 'inline' });
+    if (r.pan_limits) words.push(`pan ${pl}° to ${ph}°`);
+    if (r.tilt_limits) words.push(`tilt ${tl}° to ${th}°`);
+  }
+  for (const z of r.keep_out) {
+    const rect = document.createElementNS('http://www.w3.org/2000/svg', 'rect');
+    svg(rect, {
+      class: 'zone',
+      x: z.pan[0],
+      y: -z.tilt[1],
+      width: z.pan[1] - z.pan[0],
+      height: z.tilt[1] - z.tilt[0],
+      'data-pan-lo': z.pan[0],
+      'data-pan-hi': z.pan[1],
+      'data-tilt-lo': z.tilt[0],
+      'data-tilt-hi': z.tilt[1],
+    });
+    card.zones.appendChild(rect);
+  }
+  if (r.keep_out.length) words.push(`${r.keep_out.length} keep-out zone${r.keep_out.length > 1 ? 's' : ''}`);
+  card.rulesText.textContent = words.length ? `gcud's rules: ${words.join(', ')}` : 'gcud sets no limits or zones';
 }
 
 // Who controls the gimbal, as gcud says (nothing while it has not said).
@@ -256,7 +314,7 @@ function renderTours(tours) {
     const b = document.createElement('button');
     b.type = 'button';
     b.textContent = `${running ? 'Stop' : 'Start'} tour ${t.name}`;
-    b.disabled = me.role === 'user';
+    b.disabled = me.role !== 'administrator';
     b.addEventListener('click', () => {
       const outcome = byId('tour-outcome');
       api('/api/tour', { name: t.name, start: !running })

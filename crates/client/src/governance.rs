@@ -6,16 +6,18 @@
 //!
 //! - `~C PPDD`: who controls gimbal `G.PP.DD` ([`Controller`]);
 //! - `~R PPDD`: release it;
-//! - `~T?`, `~T+name`, `~T-name`: the tours, start one, stop one.
+//! - `~T?`, `~T+name`, `~T-name`: the tours, start one, stop one;
+//! - `~B PPDD`: its travel limits and keep-out zones ([`Rules`]).
 //!
 //! A door shows these decisions (a refusal's holder, the controller on the
 //! page, the tours); it keeps no rule of its own.
 
 use std::fmt;
 
-use sagebrush_protocol::gcu::{parse_tour_list, parse_tour_reply, valid_name};
+use sagebrush_protocol::gcu::{parse_rules, parse_tour_list, parse_tour_reply, valid_name};
 use sagebrush_protocol::{
-    Address, CONTROL_UNIT, ControllerReply, GcuCommand, LINK_PORT, MAX_PAYLOAD, ResultKind, ResultTimeout, TourState,
+    Address, CONTROL_UNIT, ControllerReply, GcuCommand, LINK_PORT, MAX_PAYLOAD, ResultKind, ResultTimeout, RuleItem,
+    TourState,
 };
 use tokio::io::{AsyncRead, AsyncWrite};
 
@@ -75,6 +77,49 @@ impl Controller {
     }
 }
 
+/// A span of one axis in hundredths of a degree, `[lo, hi]`, both ends included.
+pub type Span = [i16; 2];
+
+/// A span in degrees.
+pub fn degrees(span: Span) -> [f64; 2] {
+    span.map(|v| f64::from(v) / 100.0)
+}
+
+/// A gimbal's rules as gcud answers `~B`: what a door draws (it decides
+/// nothing by them; gcud refuses what breaks them).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Rules {
+    /// Pan travel no command may leave.
+    pub pan_limits: Option<Span>,
+    /// Tilt travel no command may leave.
+    pub tilt_limits: Option<Span>,
+    /// Rectangles no motion may enter: (pan, tilt).
+    pub keep_out: Vec<(Span, Span)>,
+}
+
+impl Rules {
+    /// The rules in a `~B` result about gimbal `port`.`device`.
+    pub fn from_result(payload: &[u8], port: u8, device: u8) -> Result<Self, CommandError> {
+        match parse_rules(payload) {
+            Some((p, d, items)) if (p, d) == (port, device) => {
+                let mut rules = Rules::default();
+                for item in items {
+                    match item {
+                        RuleItem::PanLimits(s) => rules.pan_limits = Some(s),
+                        RuleItem::TiltLimits(s) => rules.tilt_limits = Some(s),
+                        RuleItem::KeepOut { pan, tilt } => rules.keep_out.push((pan, tilt)),
+                    }
+                }
+                Ok(rules)
+            }
+            _ => Err(CommandError::BadReply(format!(
+                "~B result {:?} is not about gimbal {port}.{device}",
+                String::from_utf8_lossy(payload)
+            ))),
+        }
+    }
+}
+
 /// A tour's state in words (JSON, pages): `running`, `waiting`, `stopped`.
 pub fn tour_state_name(state: TourState) -> &'static str {
     match state {
@@ -112,6 +157,8 @@ pub enum GcuRequest {
     TourStart(String),
     /// `~T-name`.
     TourStop(String),
+    /// `~B`: the rules of gimbal `port`.`device`.
+    Rules(u8, u8),
 }
 
 /// The answer to a [`GcuRequest`].
@@ -121,6 +168,7 @@ pub enum GcuAnswer {
     Released,
     Tours(Vec<Tour>),
     Tour(TourOutcome),
+    Rules(Rules),
 }
 
 impl GcuRequest {
@@ -138,6 +186,7 @@ impl GcuRequest {
             GcuRequest::Controller(p, d) => GcuCommand::Controller(*p, *d),
             GcuRequest::Release(p, d) => GcuCommand::Release(*p, *d),
             GcuRequest::TourList => GcuCommand::TourList,
+            GcuRequest::Rules(p, d) => GcuCommand::Rules(*p, *d),
             GcuRequest::TourStart(name) => {
                 named(name)?;
                 GcuCommand::TourStart(name.as_bytes())
@@ -178,6 +227,7 @@ impl GcuRequest {
         match self {
             GcuRequest::Controller(p, d) => Controller::from_result(payload, *p, *d).map(GcuAnswer::Controller),
             GcuRequest::Release(..) => Ok(GcuAnswer::Released),
+            GcuRequest::Rules(p, d) => Rules::from_result(payload, *p, *d).map(GcuAnswer::Rules),
             GcuRequest::TourList => {
                 let entries = parse_tour_list(payload).ok_or_else(|| bad("~T?", payload))?;
                 let mut tours = Vec::new();
@@ -206,6 +256,7 @@ impl GcuRequest {
             GcuRequest::Controller(p, d) => format!("~C{p:02X}{d:02X} (who controls {p}.{d})"),
             GcuRequest::Release(p, d) => format!("~R{p:02X}{d:02X} (release {p}.{d})"),
             GcuRequest::TourList => "~T? (the tours)".to_owned(),
+            GcuRequest::Rules(p, d) => format!("~B{p:02X}{d:02X} (the rules of {p}.{d})"),
             GcuRequest::TourStart(name) => format!("~T+{name} (start tour {name})"),
             GcuRequest::TourStop(name) => format!("~T-{name} (stop tour {name})"),
         }
@@ -292,6 +343,38 @@ mod tests {
             GcuRequest::TourList.answer(Some(b"~Lbad")),
             Err(CommandError::BadReply(_))
         ));
+    }
+
+    #[test]
+    fn rules_are_read_into_owned_values() {
+        let mut buf = [0u8; 64];
+        let n = sagebrush_protocol::gcu::encode_rules(
+            1,
+            2,
+            [
+                RuleItem::PanLimits([-9000, 9000]),
+                RuleItem::KeepOut {
+                    pan: [-5000, -3000],
+                    tilt: [-3000, 1000],
+                },
+            ],
+            &mut buf,
+        );
+        let rules = Rules {
+            pan_limits: Some([-9000, 9000]),
+            tilt_limits: None,
+            keep_out: vec![([-5000, -3000], [-3000, 1000])],
+        };
+        assert_eq!(
+            GcuRequest::Rules(1, 2).answer(Some(&buf[..n])),
+            Ok(GcuAnswer::Rules(rules))
+        );
+        assert!(matches!(
+            GcuRequest::Rules(1, 3).answer(Some(&buf[..n])),
+            Err(CommandError::BadReply(_))
+        ));
+        assert_eq!(degrees([-9000, 4550]), [-90.0, 45.5]);
+        assert_eq!(GcuRequest::Rules(1, 0x0A).encode().unwrap().0, b"~B010A");
     }
 
     #[test]

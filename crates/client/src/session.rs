@@ -44,7 +44,7 @@ use tracing::{info, warn};
 
 use crate::client::CommandError;
 use crate::connection::{Control, GimbalConnection, Identity, UNREACHABLE_POLL};
-use crate::governance::{Controller, GcuAnswer, GcuRequest, Tour, TourOutcome};
+use crate::governance::{Controller, GcuAnswer, GcuRequest, Rules, Tour, TourOutcome};
 
 /// A request that could not start within this is dropped with an error
 /// (gcud unreachable, the bus busy): never sent after its caller gave up.
@@ -57,6 +57,9 @@ pub const QUEUE: usize = 8;
 /// gcud is asked who controls the gimbal (`~C`, answered by gcud itself:
 /// no bus time) with a poll at most this often.
 pub const CONTROL_POLL: Duration = Duration::from_secs(1);
+/// gcud's rules of the gimbal (`~B`: limits and zones, changed only by a
+/// reload of gcud) are asked again after this.
+pub const RULES_REFRESH: Duration = Duration::from_secs(30);
 /// An owed stop is sent again this often while gcud cannot be reached.
 const STOP_RETRY: Duration = Duration::from_millis(200);
 /// A caller of [`GimbalSession::stop`] is told the stop failed after this
@@ -334,6 +337,8 @@ struct State {
     /// Axes set to zero beside a pending move ([`GimbalSession::post_velocity`]):
     /// owed once that move is in force.
     wish_stops: Axes,
+    /// gcud's rules of the gimbal, when last asked ([`GimbalSession::rules`]).
+    rules: Option<(Instant, Rules)>,
 }
 
 impl State {
@@ -742,6 +747,34 @@ impl GimbalSession {
             GcuAnswer::Tour(t) => Ok(t),
             other => Err(CommandError::BadReply(format!("~T answered {other:?}"))),
         }
+    }
+
+    /// `~R`: releases control of the gimbal; gcud refuses it
+    /// ([`CommandError::Refused`]) when a link of higher priority holds it.
+    pub async fn release(&self) -> Result<(), CommandError> {
+        let a = self.config.address;
+        match self.gcu(GcuRequest::Release(a.port, a.device)).await? {
+            GcuAnswer::Released => Ok(()),
+            other => Err(CommandError::BadReply(format!("~R answered {other:?}"))),
+        }
+    }
+
+    /// `~B`: gcud's limits and zones of the gimbal, asked at most every
+    /// [`RULES_REFRESH`] (they change only on a reload of gcud). A gcud
+    /// that does not know `~B` answers NIC ([`CommandError::Nic`]).
+    pub async fn rules(&self) -> Result<Rules, CommandError> {
+        if let Some((at, rules)) = self.state().rules.clone() {
+            if at.elapsed() < RULES_REFRESH {
+                return Ok(rules);
+            }
+        }
+        let a = self.config.address;
+        let rules = match self.gcu(GcuRequest::Rules(a.port, a.device)).await? {
+            GcuAnswer::Rules(r) => r,
+            other => return Err(CommandError::BadReply(format!("~B answered {other:?}"))),
+        };
+        self.state().rules = Some((Instant::now(), rules.clone()));
+        Ok(rules)
     }
 
     /// `D?`, asked once and kept.

@@ -10,8 +10,8 @@ use rig::{G, Got, ONE, PORT, Rig, THREE, TWO, gimbal, outcome, pos};
 use sagebrush_gcu::{
     GimbalRules, Governance, Holder, Park, RouterEvent, Span, TourConfig, TourState, TourStep, TourTarget, Zone,
 };
-use sagebrush_protocol::gcu::{ControllerReply, parse_tour_reply};
-use sagebrush_protocol::{Address, Command, GcuCommand, Undelivered};
+use sagebrush_protocol::gcu::{ControllerReply, parse_rules, parse_tour_reply};
+use sagebrush_protocol::{Address, Command, GcuCommand, RuleItem, Undelivered};
 
 const HOLD: u64 = 2000;
 
@@ -196,6 +196,46 @@ fn release_is_allowed_from_the_holders_priority_or_higher() {
     r.send(ONE, 1, &Command::Home);
     r.run(50);
     assert_eq!(outcome(&r.got(ONE)), Some(Ok(())));
+}
+
+/// `~B` of gimbal `device`: the parsed result frame, if any.
+fn rules_of(r: &mut Rig, device: u8) -> Option<(u8, u8, Vec<RuleItem>)> {
+    let mut buf = [0u8; 16];
+    let n = GcuCommand::Rules(PORT, device).encode(&mut buf).unwrap();
+    r.send_payload(ONE, Address::new(G, 0, 0), &buf[..n]);
+    r.run(20);
+    r.got(ONE).iter().find_map(|g| match g {
+        Got::Frame(p) => parse_rules(p).map(|(p, d, items)| (p, d, items.collect())),
+        _ => None,
+    })
+}
+
+#[test]
+fn rules_are_answered_from_the_governance_and_cost_no_bus_time() {
+    let mut r = rig(bounded);
+    let before = r.now;
+    assert_eq!(
+        rules_of(&mut r, 1),
+        Some((
+            PORT,
+            1,
+            vec![
+                RuleItem::PanLimits([-9000, 9000]),
+                RuleItem::TiltLimits([-3000, 6000]),
+                RuleItem::KeepOut {
+                    pan: [-6000, -4000],
+                    tilt: [-3000, 1000]
+                },
+            ]
+        ))
+    );
+    // A gimbal without rules: the header alone.
+    assert_eq!(rules_of(&mut r, 9), Some((PORT, 9, vec![])));
+    assert!(
+        r.bus_commands_since(before).is_empty(),
+        "answered by the GCU: {:?}",
+        r.bus_commands_since(before)
+    );
 }
 
 #[test]

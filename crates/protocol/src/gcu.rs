@@ -12,10 +12,22 @@
 //! ~T+name        start a tour                            result ~T S [holder]: S = 'R' running,
 //! ~T-name        stop a tour                                     'W' waiting for the holder named, 'S' stopped
 //! ~T?            list the tours                          result ~L name=S,name=S,...   (as many as fit)
+//! ~B PPDD        its rules (bounds): limits and zones    result ~B PPDD = then items, each
+//!                                                        'P' lo hi (pan limits), 'T' lo hi (tilt limits),
+//!                                                        'Z' panlo panhi tiltlo tilthi (a keep-out zone)
 //! ```
 //! `PP`, `DD` and `PR` are two upper-case hex digits; names are 1..=32
 //! bytes of `A-Z a-z 0-9 _ -`. An unknown tour is answered NIC; `~C` of a
 //! gimbal nobody holds answers `-`, and `~R` of it is acknowledged.
+//!
+//! In a `~B` result every angle is four upper-case hex digits, a signed
+//! 16-bit number of hundredths of a degree in two's complement (as the
+//! positions of Table 15): `~B0101=PDCD82328` is gimbal 1.1 with pan limits
+//! -90.00..=90.00 (`DCD8`, `2328`) and no other rule. Each span has its low
+//! end first (`lo <= hi`, both ends included). `P` and `T` come at most once
+//! each, zones after them, as many as fit the 256-byte payload (13 with
+//! both limits); a gimbal without rules answers `~B PPDD =` alone. The `=`
+//! tells a result from the command.
 
 use crate::hex::{hex_digit, hex_value};
 
@@ -46,6 +58,8 @@ pub enum GcuCommand<'a> {
     TourStop(&'a [u8]),
     /// `~T?`: list the tours.
     TourList,
+    /// `~B PPDD`: the gimbal's rules (travel limits and keep-out zones).
+    Rules(u8, u8),
 }
 
 impl<'a> GcuCommand<'a> {
@@ -62,6 +76,7 @@ impl<'a> GcuCommand<'a> {
             [GCU_MARK, b'T', b'+', name @ ..] if valid_name(name) => Some(GcuCommand::TourStart(name)),
             [GCU_MARK, b'T', b'-', name @ ..] if valid_name(name) => Some(GcuCommand::TourStop(name)),
             [GCU_MARK, b'T', b'?'] => Some(GcuCommand::TourList),
+            [GCU_MARK, b'B', rest @ ..] => address(rest).map(|(p, d)| GcuCommand::Rules(p, d)),
             _ => None,
         }
     }
@@ -90,6 +105,11 @@ impl<'a> GcuCommand<'a> {
                 w.put(name)?;
             }
             GcuCommand::TourList => w.put(b"T?")?,
+            GcuCommand::Rules(p, d) => {
+                w.put(b"B")?;
+                w.hex(p)?;
+                w.hex(d)?;
+            }
         }
         Some(w.len)
     }
@@ -244,6 +264,136 @@ pub fn parse_tour_list(payload: &[u8]) -> Option<impl Iterator<Item = Option<(&[
     )
 }
 
+/// One rule of a gimbal as `~B` answers it, angles in hundredths of a
+/// degree, each span `[lo, hi]` with `lo <= hi`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum RuleItem {
+    /// `P lo hi`: pan travel no command may leave.
+    PanLimits([i16; 2]),
+    /// `T lo hi`: tilt travel no command may leave.
+    TiltLimits([i16; 2]),
+    /// `Z panlo panhi tiltlo tilthi`: a rectangle no motion may enter.
+    KeepOut {
+        /// Its pan span.
+        pan: [i16; 2],
+        /// Its tilt span.
+        tilt: [i16; 2],
+    },
+}
+
+impl RuleItem {
+    /// Its letter and angles.
+    fn parts(&self) -> (u8, [i16; 4], usize) {
+        match *self {
+            RuleItem::PanLimits([lo, hi]) => (b'P', [lo, hi, 0, 0], 2),
+            RuleItem::TiltLimits([lo, hi]) => (b'T', [lo, hi, 0, 0], 2),
+            RuleItem::KeepOut { pan, tilt } => (b'Z', [pan[0], pan[1], tilt[0], tilt[1]], 4),
+        }
+    }
+}
+
+/// Writes the `~B` result about gimbal `port`.`device`: as many items as
+/// fit into `buf` (the first that does not fit ends it); 0 when not even
+/// the header fits.
+pub fn encode_rules(port: u8, device: u8, items: impl IntoIterator<Item = RuleItem>, buf: &mut [u8]) -> usize {
+    let mut w = Put { buf, len: 0 };
+    let header = w
+        .put(b"~B")
+        .and_then(|()| w.hex(port))
+        .and_then(|()| w.hex(device))
+        .and_then(|()| w.put(b"="));
+    if header.is_none() {
+        return 0;
+    }
+    for item in items {
+        let before = w.len;
+        let (letter, values, n) = item.parts();
+        let mut fits = w.put(&[letter]);
+        for v in &values[..n] {
+            let [h, l] = v.to_be_bytes();
+            fits = fits.and_then(|()| w.hex(h)).and_then(|()| w.hex(l));
+        }
+        if fits.is_none() {
+            w.len = before;
+            break;
+        }
+    }
+    w.len
+}
+
+/// The items of a `~B` result, every one checked when it was parsed.
+#[derive(Clone, Debug)]
+pub struct RuleItems<'a>(&'a [u8]);
+
+impl Iterator for RuleItems<'_> {
+    type Item = RuleItem;
+
+    fn next(&mut self) -> Option<RuleItem> {
+        let (item, rest) = rule_item(self.0)?;
+        self.0 = rest;
+        Some(item)
+    }
+}
+
+/// Parses a `~B` result: the gimbal's port and device and its rules;
+/// `None` for anything else, or a result with a malformed item, a span
+/// whose low end is above its high end, or limits given twice.
+pub fn parse_rules(payload: &[u8]) -> Option<(u8, u8, RuleItems<'_>)> {
+    let [b'~', b'B', rest @ ..] = payload else { return None };
+    let (p, d) = address(rest.get(..4)?)?;
+    let [b'=', items @ ..] = rest.get(4..)? else {
+        return None;
+    };
+    let (mut left, mut seen) = (items, [false; 2]);
+    // Each item takes at least 9 bytes: the loop ends.
+    while !left.is_empty() {
+        let (item, rest) = rule_item(left)?;
+        let once = match item {
+            RuleItem::PanLimits(_) => Some(0),
+            RuleItem::TiltLimits(_) => Some(1),
+            RuleItem::KeepOut { .. } => None,
+        };
+        if let Some(i) = once {
+            if seen[i] {
+                return None;
+            }
+            seen[i] = true;
+        }
+        left = rest;
+    }
+    Some((p, d, RuleItems(items)))
+}
+
+/// One item at the start of `bytes` and what follows it.
+fn rule_item(bytes: &[u8]) -> Option<(RuleItem, &[u8])> {
+    let (letter, rest) = bytes.split_first()?;
+    let n = match letter {
+        b'P' | b'T' => 2,
+        b'Z' => 4,
+        _ => return None,
+    };
+    let mut v = [0i16; 4];
+    for (i, slot) in v.iter_mut().take(n).enumerate() {
+        let digits = rest.get(i * 4..i * 4 + 4)?;
+        let mut word = 0u16;
+        for &b in digits {
+            word = (word << 4) | u16::from(hex_value(b)?);
+        }
+        *slot = i16::from_be_bytes(word.to_be_bytes());
+    }
+    let span = |lo: i16, hi: i16| (lo <= hi).then_some([lo, hi]);
+    let item = match letter {
+        b'P' => RuleItem::PanLimits(span(v[0], v[1])?),
+        b'T' => RuleItem::TiltLimits(span(v[0], v[1])?),
+        _ => RuleItem::KeepOut {
+            pan: span(v[0], v[1])?,
+            tilt: span(v[2], v[3])?,
+        },
+    };
+    Some((item, rest.get(n * 4..)?))
+}
+
 fn address(rest: &[u8]) -> Option<(u8, u8)> {
     let [p1, p2, d1, d2] = rest else { return None };
     let byte = |h: u8, l: u8| Some((hex_value(h)? << 4) | hex_value(l)?);
@@ -286,6 +436,7 @@ mod tests {
             GcuCommand::TourStart(b"perimeter"),
             GcuCommand::TourStop(b"north-2"),
             GcuCommand::TourList,
+            GcuCommand::Rules(2, 0xFE),
         ] {
             let (buf, n) = encoded(c);
             assert_eq!(GcuCommand::parse(&buf[..n]), Some(c));
@@ -295,7 +446,18 @@ mod tests {
 
     #[test]
     fn refuses_what_is_not_a_gcu_command() {
-        for bad in [&b"~R01"[..], b"~R01GG", b"~T+", b"~T+a b", b"~X", b"PL", b"~T?x"] {
+        for bad in [
+            &b"~R01"[..],
+            b"~R01GG",
+            b"~T+",
+            b"~T+a b",
+            b"~X",
+            b"PL",
+            b"~T?x",
+            b"~B01",
+            b"~B0101=",
+            b"~B0101P",
+        ] {
             assert_eq!(GcuCommand::parse(bad), None, "{bad:?}");
         }
         let long = [b'a'; NAME_MAX + 1];
@@ -336,5 +498,88 @@ mod tests {
         // What does not fit is left off whole.
         let n = encode_tour_list(tours, &mut buf[..8]);
         assert_eq!(&buf[..n], b"~La=R");
+    }
+
+    #[test]
+    fn rules_round_trip_and_what_does_not_fit_is_left_off_whole() {
+        let items = [
+            RuleItem::PanLimits([-9000, 9000]),
+            RuleItem::TiltLimits([-3000, 6000]),
+            RuleItem::KeepOut {
+                pan: [-5000, -3000],
+                tilt: [i16::MIN, i16::MAX],
+            },
+        ];
+        let mut buf = [0u8; crate::MAX_PAYLOAD];
+        let n = encode_rules(1, 2, items, &mut buf);
+        assert_eq!(&buf[..n], b"~B0102=PDCD82328TF4481770ZEC78F44880007FFF");
+        let (p, d, parsed) = parse_rules(&buf[..n]).unwrap();
+        assert_eq!((p, d), (1, 2));
+        assert!(parsed.eq(items));
+        // No rules: the header alone, which is not the command.
+        let n = encode_rules(1, 2, [], &mut buf);
+        assert_eq!(&buf[..n], b"~B0102=");
+        assert_eq!(parse_rules(&buf[..n]).unwrap().2.count(), 0);
+        assert_eq!(GcuCommand::parse(&buf[..n]), None);
+        assert!(parse_rules(b"~B0102").is_none(), "the command is no result");
+        // As many zones as fit the payload, each whole.
+        let zone = RuleItem::KeepOut {
+            pan: [0, 100],
+            tilt: [0, 100],
+        };
+        let many = items.into_iter().chain(core::iter::repeat_n(zone, 40));
+        let n = encode_rules(1, 2, many, &mut buf);
+        assert!(n <= crate::MAX_PAYLOAD);
+        let (_, _, parsed) = parse_rules(&buf[..n]).unwrap();
+        assert_eq!(parsed.count(), 2 + 13, "both limits and 13 zones");
+        assert_eq!(encode_rules(1, 2, items, &mut buf[..6]), 0);
+        assert_eq!(encode_rules(1, 2, items, &mut buf[..10]), 7);
+    }
+
+    #[test]
+    fn hostile_rules_are_refused_without_panic() {
+        for bad in [
+            &b"~B0102"[..],
+            b"~B01",
+            b"~BZZ02=",
+            b"~B0102=X",
+            b"~B0102=P",
+            b"~B0102=P0000",
+            b"~B0102=P00000001X",
+            b"~B0102=P0001000",
+            b"~B0102=P00010000",          // lo above hi
+            b"~B0102=P00000001P00000001", // pan limits twice
+            b"~B0102=Z0000000100010000",  // tilt lo above hi
+            b"~B0102=Z000000010000000",   // short
+            b"~B0102=P0000000G",
+            b"~B0102=P0000 0001",
+            b"~C0102=",
+        ] {
+            assert!(parse_rules(bad).is_none(), "{:?}", core::str::from_utf8(bad));
+        }
+        // Every prefix and every byte changed of a good result: no panic.
+        let mut buf = [0u8; 64];
+        let n = encode_rules(
+            1,
+            2,
+            [
+                RuleItem::PanLimits([-1, 1]),
+                RuleItem::KeepOut {
+                    pan: [0, 1],
+                    tilt: [2, 3],
+                },
+            ],
+            &mut buf,
+        );
+        for end in 0..=n {
+            let _ = parse_rules(&buf[..end]).map(|(_, _, i)| i.count());
+        }
+        for i in 0..n {
+            for b in [0u8, b'=', b'P', b'Z', b'F', 0xFF] {
+                let mut m = buf;
+                m[i] = b;
+                let _ = parse_rules(&m[..n]).map(|(_, _, i)| i.count());
+            }
+        }
     }
 }

@@ -243,6 +243,11 @@ impl Governor {
         }
     }
 
+    /// The rules of gimbal `at` (port, device), if it has any.
+    pub fn rules(&self, at: (u8, u8)) -> Option<&GimbalRules> {
+        self.config.gimbals.iter().find(|r| (r.port, r.device) == at)
+    }
+
     /// The timing of `port`'s line (9600 bit/s when it is not open).
     fn line(&self, port: u8) -> Line {
         self.ports.get(&port).copied().unwrap_or(Line {

@@ -5,11 +5,11 @@
 //! motion first; the governor's own commands (polls, stops, tour and park
 //! gotos) are dispatched as the GCU's; answers and ends of commands are
 //! shown to it; and the GCU commands of port 0 (`~R`, `~C`, `~T`) are
-//! answered here.
+//! answered here, and `~B` (the gimbal's limits and zones).
 
 use std::sync::Arc;
 
-use sagebrush_protocol::gcu::{ControllerReply, encode_tour_list, encode_tour_reply};
+use sagebrush_protocol::gcu::{ControllerReply, RuleItem, encode_rules, encode_tour_list, encode_tour_reply};
 use sagebrush_protocol::{Address, Command, Frame, FrameBuf, GcuCommand, MAX_PAYLOAD, Reply, Row};
 
 use crate::boundary::Action;
@@ -161,7 +161,7 @@ impl Router {
             .on_finished(self.last_now, id, outcome == CommandOutcome::Result);
     }
 
-    /// A GCU command of port 0 (`~R`, `~C`, `~T`; protocol crate, module
+    /// A GCU command of port 0 (`~R`, `~C`, `~T`, `~B`; protocol crate, module
     /// `gcu`) from `origin`: its answer, or `None` for a NIC.
     pub(super) fn gcu_command(
         &mut self,
@@ -223,6 +223,15 @@ impl Router {
                     None => String::new(),
                 };
                 encode_tour_reply(state, clip(holder.as_bytes()), &mut buf)
+            }
+            GcuCommand::Rules(port, device) => {
+                let rules = self.governor.rules((port, device));
+                Some(encode_rules(
+                    port,
+                    device,
+                    rules.into_iter().flat_map(rule_items),
+                    &mut buf,
+                ))
             }
             GcuCommand::TourList => {
                 let tours = self.governor.tour_status(now);
@@ -290,4 +299,23 @@ impl Router {
 /// A name as a GCU command carries it (at most 32 bytes).
 fn clip(name: &[u8]) -> &[u8] {
     &name[..name.len().min(sagebrush_protocol::gcu::NAME_MAX)]
+}
+
+/// A gimbal's limits and zones as `~B` answers them: limits first, then
+/// the zones (as many as the payload holds). Spans are within ±327.67°
+/// (the configuration's bounds); one beyond is clamped.
+fn rule_items(rules: &crate::GimbalRules) -> impl Iterator<Item = RuleItem> + '_ {
+    fn span(s: &crate::Span) -> [i16; 2] {
+        let clamp = |v: i32| v.clamp(i32::from(i16::MIN), i32::from(i16::MAX)) as i16;
+        [clamp(s.lo), clamp(s.hi)]
+    }
+    let limits = [
+        rules.pan_limits.as_ref().map(|s| RuleItem::PanLimits(span(s))),
+        rules.tilt_limits.as_ref().map(|s| RuleItem::TiltLimits(span(s))),
+    ];
+    let zones = rules.keep_out.iter().map(|z| RuleItem::KeepOut {
+        pan: span(&z.pan),
+        tilt: span(&z.tilt),
+    });
+    limits.into_iter().flatten().chain(zones)
 }
