@@ -326,6 +326,58 @@ fn figures(stack: &Stack, b: &mut Browser) {
         }
         bus_stop_time(&stack.gcud, MAST, "PS");
     }
+    // Push latency: from the gimbal answering a position (its `tx result`
+    // in the simulator's log) to the page showing it.
+    stack.call(b, json!({ "op": "hold", "card": "mast-1", "button": "Pan right" }));
+    let shown = stack.call(b, json!({ "op": "watch_positions", "card": "mast-1", "seconds": 2 }));
+    stack.call(b, json!({ "op": "release" }));
+    bus_stop_time(&stack.gcud, MAST, "PS");
+    let log = stack.gcud.log();
+    let (_, port_device) = MAST.split_once('.').expect("G.P.D");
+    let answered: Vec<(f64, i64)> = log
+        .lines()
+        .filter(|l| l.contains(" tx result ") && l.contains(&format!(".{port_device} ")))
+        .filter_map(|l| {
+            let payload = l.split("payload=").nth(1)?.split_whitespace().next()?;
+            let hex = payload.trim_start_matches('P');
+            let pan = i16::from_str_radix(hex.get(..4)?, 16).ok()?;
+            Some((log_time(l), i64::from(pan)))
+        })
+        .collect();
+    let mut push = Vec::new();
+    for entry in shown.as_array().into_iter().flatten() {
+        let (Some(t), Some(text)) = (entry[0].as_f64(), entry[1].as_str()) else {
+            continue;
+        };
+        let Some(pan) = text
+            .split("Pan ")
+            .nth(1)
+            .and_then(|s| s.split('°').next())
+            .and_then(|s| s.trim().parse::<f64>().ok())
+        else {
+            continue;
+        };
+        let centi = (pan * 100.0).round() as i64;
+        if let Some(at) = answered
+            .iter()
+            .rev()
+            .find(|(at, p)| *p == centi && *at <= t)
+            .map(|a| a.0)
+        {
+            push.push(t - at);
+        }
+    }
+    push.sort_by(f64::total_cmp);
+    assert!(
+        !push.is_empty(),
+        "no pushed position matched an answer of the gimbal: {shown}"
+    );
+    eprintln!(
+        "FIGURES: position push latency, gimbal's answer to the page: p50 {:.1} ms, max {:.1} ms ({} updates)",
+        push[push.len() / 2] * 1000.0,
+        push.last().copied().unwrap_or_default() * 1000.0,
+        push.len()
+    );
     latencies.sort_by(f64::total_cmp);
     updates.sort_unstable();
     eprintln!(

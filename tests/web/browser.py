@@ -238,6 +238,18 @@ def handle(req):
             seen.observe(status, {childList: true, characterData: true, subtree: true});
             setTimeout(() => { seen.disconnect(); done(n); }, seconds * 1000);
             """, req["card"], req["seconds"])
+    if op == "watch_positions":
+        # Each change of the position text over `seconds`: [wall time (s), text].
+        return d.execute_async_script(
+            """
+            const [name, seconds, done] = arguments;
+            const card = [...document.querySelectorAll('[role=region]')].find(e => e.getAttribute('aria-label') === name);
+            const status = card.querySelector('[role=status]');
+            const seen = [];
+            const watch = new MutationObserver(() => { seen.push([Date.now() / 1000, status.textContent]); });
+            watch.observe(status, {childList: true, characterData: true, subtree: true});
+            setTimeout(() => { watch.disconnect(); done(seen); }, seconds * 1000);
+            """, req["card"], req["seconds"])
     if op == "page_weight":
         return d.execute_script(
             "return performance.getEntriesByType('resource').concat(performance.getEntriesByType('navigation'))"
