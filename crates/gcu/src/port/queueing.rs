@@ -1,0 +1,218 @@
+//! Queueing on a port (ARCHITECTURE "Routing semantics", "Bounded and fair
+//! under load", "Safety"): which jobs wait, which are given up, which goes
+//! next.
+//!
+//! - Stop and halt commands overtake queued work (they queue behind earlier
+//!   stops only); a stop gives up the queued motions of its device that
+//!   would undo it.
+//! - Fair: the next job after the stops is the oldest of the origin (link,
+//!   i.e. client) served least recently, round robin; when the queue is
+//!   full, the origin holding the most jobs gives up its newest one for a
+//!   newcomer of another origin (so one client's flood never costs another
+//!   its command); the newcomer of the hog itself is refused.
+//! - The queue is bounded, stops and other work separately so that a burst
+//!   of work never costs a stop its place (and a burst of dead-man stops
+//!   never pushes work out): a job that does not fit is dropped and counted
+//!   ([`DropReason::QueueFull`]), except a dead-man stop, which always fits. A stop identical to one already queued
+//!   (same destination and payload) is merged into it
+//!   ([`DropReason::DuplicateStop`]): the queued one does the job.
+//! - Wildcards: a copy of a port-255 command is written with this port's
+//!   address in the header (so that every answer names its port).
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use sagebrush_protocol::{Row, WILDCARD};
+
+use crate::queue::Queued;
+use crate::types::{CommandId, DropReason, Origin, RouterEvent};
+
+use super::{Job, Port, PortOut};
+
+impl Queued for Job {
+    fn is_stop(&self) -> bool {
+        self.facts.stop
+    }
+    fn always_fits(&self) -> bool {
+        self.origin == Origin::Internal
+    }
+    fn same_frame(&self, other: &Self) -> bool {
+        let (a, b) = (self.frame.frame(), other.frame.frame());
+        a.dest == b.dest && a.payload() == b.payload()
+    }
+    fn urgent(&self) -> bool {
+        self.urgent
+    }
+}
+
+impl Port {
+    /// Queues a job: stops ahead of every non-stop job, the rest in order.
+    pub fn enqueue(&mut self, now: u64, mut job: Job, out: &mut Vec<PortOut>) {
+        if !self.open {
+            return self.drop_job(job, DropReason::PortClosed, out);
+        }
+        if self.closing && job.origin != Origin::Internal {
+            return self.drop_job(job, DropReason::ShuttingDown, out);
+        }
+        let dest = job.frame.frame().dest;
+        if dest.port == WILDCARD {
+            let mut port_copy = dest;
+            port_copy.port = self.id;
+            job.frame.set_header(port_copy, job.frame.frame().source);
+        }
+        if job.facts.stop {
+            self.cancel_undone_by(&job, out);
+            if let Some(queued) = self.queue.same_stop_mut(&job) {
+                self.stats.line.drops.add(DropReason::DuplicateStop);
+                queued.merged.push(job.id);
+                queued.merged.extend(job.merged);
+                return;
+            }
+            if !self.queue.has_room(&job) {
+                return self.drop_job(job, DropReason::QueueFull, out);
+            }
+        } else if !self.queue.has_room(&job) {
+            // Full: the origin holding the most work gives up its newest
+            // job, unless that is the newcomer's own origin (fair drop:
+            // one client's flood never costs another client its command).
+            let mut counts: BTreeMap<Option<crate::LinkId>, usize> = BTreeMap::new();
+            for j in self.queue.iter().filter(|j| !j.facts.stop) {
+                *counts.entry(j.origin.link()).or_default() += 1;
+            }
+            let mine = counts.get(&job.origin.link()).copied().unwrap_or(0);
+            let hog = counts.iter().max_by_key(|&(_, n)| *n).map(|(&o, &n)| (o, n));
+            match hog {
+                Some((hog, n)) if hog != job.origin.link() && n > mine + 1 => {
+                    let newest = self.queue.iter().rposition(|j| !j.facts.stop && j.origin.link() == hog);
+                    if let Some(victim) = newest.and_then(|at| self.queue.remove(at)) {
+                        self.drop_job(victim, DropReason::QueueFull, out);
+                    }
+                }
+                _ => return self.drop_job(job, DropReason::QueueFull, out),
+            }
+        }
+        out.push(PortOut::Event(RouterEvent::Queued {
+            id: job.id,
+            port: self.id,
+            stop: job.facts.stop,
+        }));
+        self.queue.push(job);
+        self.note_queue();
+        self.start_next(now, out);
+        self.maybe_detach(now, out);
+    }
+
+    /// Gives up command `id`'s job if it is still queued (not on the bus).
+    pub fn cancel_queued(&mut self, id: CommandId, reason: DropReason, out: &mut Vec<PortOut>) -> bool {
+        let Some(at) = self.queue.iter().position(|j| j.id == id) else {
+            return false;
+        };
+        if let Some(job) = self.queue.remove(at) {
+            self.drop_job(job, reason, out);
+        }
+        self.note_queue();
+        true
+    }
+
+    /// A stop overtakes queued work (module documentation): a motion of the
+    /// same device still queued would run after it and undo it, so it is
+    /// given up ([`DropReason::Superseded`]): the stop of an axis ends the
+    /// slews of that axis, a stop of both axes (`PT`, `HS`, `HA`) every
+    /// slew and goto of the mount.
+    fn cancel_undone_by(&mut self, stop: &Job, out: &mut Vec<PortOut>) {
+        let device = stop.frame.frame().dest.device;
+        let both = matches!(stop.facts.row, Row::StopMotion | Row::MotorsStop | Row::Halt);
+        let axis_stop = stop.facts.row;
+        let undone = self.queue.remove_where(|j| {
+            let to = j.frame.frame().dest.device;
+            let same = device == WILDCARD || to == device;
+            let slew_of = j.facts.stopped_by.map(|s| s.row());
+            let mount_slew = matches!(slew_of, Some(Row::PanStop | Row::TiltStop));
+            same && !j.facts.stop && (slew_of == Some(axis_stop) || (both && (mount_slew || j.facts.goes_to)))
+        });
+        for job in undone {
+            self.drop_job(job, DropReason::Superseded, out);
+        }
+    }
+
+    /// Queued jobs for `device` that `pick` names are given up unsent
+    /// (`reason` tells their origins): a take-over, or a stop at a
+    /// boundary, must not be undone by a motion still waiting behind it.
+    pub fn cancel_for_device(
+        &mut self,
+        device: u8,
+        pick: impl Fn(&Job) -> bool,
+        reason: DropReason,
+        out: &mut Vec<PortOut>,
+    ) {
+        let cancel = self
+            .queue
+            .remove_where(|j| !j.facts.stop && j.frame.frame().dest.device == device && pick(j));
+        for job in cancel {
+            self.drop_job(job, reason, out);
+        }
+        self.note_queue();
+    }
+
+    /// Keeps the bus free for a stop due at `at` (`None`: no longer); work
+    /// held back by a reservation starts when it is lifted.
+    pub fn reserve(&mut self, now: u64, reserved: Option<(u64, u64)>, out: &mut Vec<PortOut>) {
+        if self.reserved != reserved {
+            self.reserved = reserved;
+            self.start_next(now, out);
+        }
+    }
+
+    /// The origin link went down: queued motions it started must not run
+    /// after the dead-man stop.
+    pub fn cancel_motions(&mut self, link: crate::LinkId, out: &mut Vec<PortOut>) {
+        let cancel = self
+            .queue
+            .remove_where(|j| j.facts.stopped_by.is_some() && j.origin.link() == Some(link));
+        for job in cancel {
+            self.drop_job(job, DropReason::OriginGone, out);
+        }
+        self.note_queue();
+    }
+
+    /// The next job: a stop first; else round robin between origins (each
+    /// link is one client, ARCHITECTURE "Safety": none starves another), the
+    /// oldest job of the origin served least recently.
+    pub(super) fn next_job(&mut self) -> Option<Job> {
+        if self.queue.front()?.facts.stop {
+            return self.queue.pop_front();
+        }
+        // An origin's later jobs have the served turn of its first, so the
+        // strict `<` keeps each origin's oldest job.
+        let mut best: Option<(u64, usize)> = None;
+        for (i, j) in self.queue.iter().enumerate() {
+            let origin = j.origin.link();
+            let served = self.served.get(&origin).copied().unwrap_or(0);
+            if best.is_none_or(|(s, _)| served < s) {
+                best = Some((served, i));
+            }
+        }
+        // Motions of one device run in the order they were accepted, whoever
+        // sent them: the governance follows them in that order (a goto's
+        // path is checked from where the motions before it leave the gimbal).
+        let mut pick = best?.1;
+        let chosen = self.queue.iter().nth(pick)?;
+        if chosen.facts.moves() {
+            let device = chosen.frame.frame().dest.device;
+            if let Some(first) = self
+                .queue
+                .iter()
+                .position(|j| !j.facts.stop && j.facts.moves() && j.frame.frame().dest.device == device)
+            {
+                pick = pick.min(first);
+            }
+        }
+        let job = self.queue.remove(pick)?;
+        self.turn += 1;
+        self.served.insert(job.origin.link(), self.turn);
+        if self.served.len() > 2 * self.queue.len() + 16 {
+            let queued: BTreeSet<_> = self.queue.iter().map(|j| j.origin.link()).collect();
+            self.served.retain(|o, _| queued.contains(o));
+        }
+        Some(job)
+    }
+}
