@@ -431,8 +431,11 @@ fn park_recalls_its_preset_once_after_control_lapsed() {
     r.run(500 + 1000 + 3000);
     assert_eq!(r.position(1), [3000, 500], "parked at preset 2");
     assert_eq!(r.router.governance_stats().parks, 1);
+    let recalls = |r: &Rig| r.bus_commands_since(0).iter().filter(|c| c.as_str() == "P02").count();
+    assert_eq!(recalls(&r), 1, "the bus saw one recall of preset 2");
     r.run(10_000);
     assert_eq!(r.router.governance_stats().parks, 1, "once until moved again");
+    assert_eq!(recalls(&r), 1, "no second recall on the bus");
     assert!(r.events.iter().any(|(_, e)| matches!(
         e,
         RouterEvent::Park {

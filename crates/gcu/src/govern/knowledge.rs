@@ -76,8 +76,6 @@ pub(crate) struct Gimbal {
     pub free_since: Option<u64>,
     /// A link moved it since it last parked.
     pub moved: bool,
-    /// Park recalled its preset since it was last moved.
-    pub parked: bool,
     /// Followed (rules or a tour): polled while it moves, learnt.
     watched: bool,
     need_position: bool,

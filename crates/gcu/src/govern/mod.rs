@@ -141,7 +141,11 @@ fn effect(command: &Command<'_>) -> Effect {
         C::PanStop => Effect::Stop { pan: true, tilt: false },
         C::TiltStop => Effect::Stop { pan: false, tilt: true },
         C::StopMotion | C::Halt | C::MotorsStop => Effect::Stop { pan: true, tilt: true },
-        _ if command.is_stop() => Effect::Query,
+        // `FS`, `ZS`: stops of the lens, never refused; the mount is not concerned.
+        _ if command.is_stop() => Effect::Stop {
+            pan: false,
+            tilt: false,
+        },
         C::GoTo(p) => Effect::Goto(axes(*p)),
         C::Home => Effect::Goto([0, 0]),
         C::GoToPreset(n) => Effect::GotoPreset(*n),
@@ -384,7 +388,6 @@ impl Governor {
                 last: now,
             });
             g.moved = true;
-            g.parked = false;
             match effect {
                 Effect::Goto(target) => g.going(now, target),
                 Effect::GotoPreset(n) => match g.presets.get(&n).copied() {

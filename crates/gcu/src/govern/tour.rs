@@ -6,6 +6,7 @@
 //! `after` ticks after control lapsed with nobody taking it, and again
 //! only after a link moved the gimbal.
 
+use std::ops::Bound;
 use std::sync::Arc;
 
 use sagebrush_protocol::{Command, TourState};
@@ -203,7 +204,6 @@ impl Governor {
                     None => g.unknown_motion(now),
                 }
                 g.moved = true;
-                g.parked = false;
                 self.orders.push(Order {
                     port: at.0,
                     device: at.1,
@@ -248,8 +248,16 @@ impl Governor {
 
     pub(super) fn run_parks(&mut self, now: u64) {
         let hold = self.config.hold;
-        let keys: Vec<(u8, u8)> = self.gimbals.keys().copied().collect();
-        for at in keys {
+        // The next gimbal with a park after the last one seen: found afresh
+        // each time, with no list (this runs at every poll of the router).
+        let mut after = None;
+        while let Some(at) = self
+            .gimbals
+            .range((after.map_or(Bound::Unbounded, Bound::Excluded), Bound::Unbounded))
+            .find(|(_, g)| g.rules.as_ref().is_some_and(|r| r.park.is_some()))
+            .map(|(&at, _)| at)
+        {
+            after = Some(at);
             let touring = self.tour_on(at);
             let Some(g) = self.gimbals.get_mut(&at) else { continue };
             let Some(park) = g.rules.as_ref().and_then(|r| r.park) else {
@@ -271,11 +279,10 @@ impl Governor {
                 continue;
             }
             let due = g.free_since.is_some_and(|t| now >= t.saturating_add(park.after));
-            if touring || !g.moved || g.parked || g.held(now, hold).is_some() || !due {
+            if touring || !g.moved || g.held(now, hold).is_some() || !due {
                 continue;
             }
             g.moved = false;
-            g.parked = true;
             let target = g.presets.get(&park.preset).map(|p| super::travel::axes(*p));
             if let Some(rules) = g.rules.as_ref().filter(|r| r.bounds_travel()) {
                 let checked = match target {
@@ -322,7 +329,7 @@ impl Governor {
     pub(super) fn park_deadlines(&self) -> impl Iterator<Item = u64> + '_ {
         self.gimbals.iter().filter_map(|(&at, g)| {
             let park = g.rules.as_ref()?.park?;
-            if !g.moved || g.parked || g.holder.is_some() || self.tour_on(at) {
+            if !g.moved || g.holder.is_some() || self.tour_on(at) {
                 return None;
             }
             Some(g.free_since?.saturating_add(park.after))
