@@ -174,22 +174,12 @@ fn gcud_serves_and_shuts_down_cleanly_with_stdout_and_stderr_closed() {
 /// too: a closed stdout is no panic.
 #[test]
 fn the_doors_check_exits_quietly_on_a_closed_stdout() {
-    // The shipped gimbal-onvif file reads its password from /etc: point it
-    // at one here.
-    let dir = tempfile::tempdir().expect("temp dir");
-    let pass = dir.path().join("admin.pass");
-    std::fs::write(&pass, "s3cret\n").expect("password file");
-    let shipped = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/gimbal-onvif.toml"))
-        .expect("config/gimbal-onvif.toml");
-    let onvif = dir.path().join("gimbal-onvif.toml");
-    std::fs::write(
-        &onvif,
-        shipped.replace("/etc/gimbal-onvif/admin.pass", &pass.display().to_string()),
-    )
-    .expect("write");
-    let onvif = onvif.display().to_string();
     for (name, bin, config) in [
-        ("gimbal-onvif", env!("CARGO_BIN_EXE_gimbal-onvif"), onvif.as_str()),
+        (
+            "gimbal-onvif",
+            env!("CARGO_BIN_EXE_gimbal-onvif"),
+            concat!(env!("CARGO_MANIFEST_DIR"), "/config/gimbal-onvif.toml"),
+        ),
         (
             "gimbal-mavlink",
             env!("CARGO_BIN_EXE_gimbal-mavlink"),
@@ -202,6 +192,9 @@ fn the_doors_check_exits_quietly_on_a_closed_stdout() {
         ),
     ] {
         let (status, stderr) = with_closed_stdout(bin, &["--check", "--config", config]);
+        // The shipped gimbal-onvif serves the LAN with the demo passwords:
+        // --check warns of them (tests/packaging.rs), which is no complaint.
+        let stderr: String = stderr.lines().filter(|l| !l.contains("demo password")).collect();
         assert_quiet(&format!("{name} --check"), status, 0, &stderr);
     }
 }
@@ -580,4 +573,97 @@ fn a_scan_that_nothing_answers_exits_4() {
         text.stdout.contains("no GCU answered D? at any of 3 groups"),
         "{text:?}"
     );
+}
+
+/// A port where nothing listens: the refusal says that gcud may not be
+/// running, not only "connection refused".
+#[test]
+fn a_refused_connection_asks_whether_gcud_runs() {
+    let free = TcpListener::bind("127.0.0.1:0").expect("bind");
+    let addr = free.local_addr().expect("addr").to_string();
+    drop(free);
+    let out = support::gimbalctl(&["--tcp", &addr, "--to", "5.1.1", "position"]);
+    assert_ne!(out.code, 0, "{out:?}");
+    assert!(out.stderr.contains("Connection refused"), "{out:?}");
+    assert!(out.stderr.contains("Is gcud running"), "no hint: {out:?}");
+}
+
+/// gimbalctl pointed at an HTTP server (gcud's metrics listener, say) says
+/// that bytes came that were no frames, not only that the line closed.
+#[test]
+fn an_http_server_is_not_taken_for_a_closed_line() {
+    let http = TcpListener::bind("127.0.0.1:0").expect("bind");
+    let addr = http.local_addr().expect("addr").to_string();
+    let server = std::thread::spawn(move || {
+        use std::io::{Read, Write};
+        let (mut conn, _) = http.accept().expect("accept");
+        conn.set_read_timeout(Some(Duration::from_secs(5))).expect("timeout");
+        let mut request = [0u8; 64];
+        let _ = conn.read(&mut request);
+        let _ = conn.write_all(b"HTTP/1.1 400 Bad Request\r\ncontent-length: 0\r\nconnection: close\r\n\r\n");
+    });
+    let out = support::gimbalctl(&["--tcp", &addr, "--to", "5.1.1", "position"]);
+    server.join().expect("server");
+    assert_ne!(out.code, 0, "{out:?}");
+    assert!(out.stderr.contains("no Sagebrush frames"), "{out:?}");
+    assert!(out.stderr.contains("speaks HTTP"), "{out:?}");
+}
+
+/// `gcud-status` against a listener that never answers says so in words,
+/// not as ureq's "timeout: global".
+#[test]
+fn gcud_status_says_when_nothing_answers() {
+    let silent = TcpListener::bind("127.0.0.1:0").expect("bind");
+    let addr = silent.local_addr().expect("addr").to_string();
+    let out = support::gimbalctl(&["gcud-status", "--http", &addr]);
+    drop(silent);
+    assert_ne!(out.code, 0, "{out:?}");
+    assert!(out.stderr.contains("no answer within 5 s"), "{out:?}");
+    assert!(!out.stderr.contains("timeout: global"), "{out:?}");
+    assert!(out.stderr.contains("is gcud running"), "{out:?}");
+}
+
+/// `--check` warns while a shipped demo password guards a listener on the
+/// network, and only then (issue 37): gimbal-web's shipped page listens on
+/// loopback; moved to 0.0.0.0 with the same users, it warns naming each.
+#[test]
+fn check_warns_of_a_demo_password_on_the_network() {
+    let shipped = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/gimbal-web.toml"))
+        .expect("config/gimbal-web.toml");
+    let (code, _, stderr) = door_check(env!("CARGO_BIN_EXE_gimbal-web"), &shipped);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(!stderr.contains("demo password"), "loopback only: {stderr}");
+    let open = shipped.replace("listen = \"127.0.0.1:8080\"", "listen = \"0.0.0.0:8080\"");
+    assert_ne!(open, shipped, "config/gimbal-web.toml's listen line changed");
+    let (code, _, stderr) = door_check(env!("CARGO_BIN_EXE_gimbal-web"), &open);
+    assert_eq!(code, Some(0), "a warning, not an error: {stderr}");
+    for user in ["\"admin\"", "\"viewer\""] {
+        assert!(
+            stderr
+                .lines()
+                .any(|l| l.contains("warning") && l.contains(user) && l.contains("demo password")),
+            "no warning for {user}: {stderr}"
+        );
+    }
+    let changed = open.replace("change-me", "a-long-secret-of-our-own");
+    let (code, _, stderr) = door_check(env!("CARGO_BIN_EXE_gimbal-web"), &changed);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(!stderr.contains("demo password"), "passwords changed: {stderr}");
+}
+
+/// `bin --check` of configuration `text`: exit code, stdout, stderr.
+fn door_check(bin: &str, text: &str) -> (Option<i32>, String, String) {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("door.toml");
+    std::fs::write(&path, text).expect("write");
+    let out = Command::new(bin)
+        .args(["--check", "--config"])
+        .arg(&path)
+        .output()
+        .expect("door --check");
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
 }

@@ -21,7 +21,7 @@ mod status;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use clap::Parser;
+use clap::{CommandFactory, Parser};
 use sagebrush_client::door::{EXIT_CONFIG, EXIT_START};
 
 #[derive(Debug, Parser)]
@@ -51,6 +51,9 @@ struct Args {
 static HEAP: &stats_alloc::StatsAlloc<std::alloc::System> = &stats_alloc::INSTRUMENTED_SYSTEM;
 
 fn main() -> ExitCode {
+    if sagebrush_host::man::print_if_asked(Args::command) {
+        return ExitCode::SUCCESS;
+    }
     let args = Args::parse();
     let config = match config::load(&args.config) {
         Ok(config) => config,

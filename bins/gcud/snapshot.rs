@@ -270,6 +270,7 @@ pub mod fixture {
                     tilt: Angle(1000),
                 },
             )),
+            moved: Some(2000),
             lens: Some((
                 1750,
                 LensPosition {

@@ -143,6 +143,9 @@ pub struct PositionSeen {
     pub pan_deg: f64,
     pub tilt_deg: f64,
     pub unix: f64,
+    /// When a motion went to the gimbal after that answer (a broadcast
+    /// `HO` included): it is no longer there. Null: nothing moved it since.
+    pub moved_unix: Option<f64>,
 }
 
 /// The last answer to `V?` (Table 17), raw 12-bit positions.
@@ -203,6 +206,7 @@ impl Status {
                             pan_deg: degrees(p.pan),
                             tilt_deg: degrees(p.tilt),
                             unix: s.unix_seconds(t),
+                            moved_unix: d.moved.map(|m| s.unix_seconds(m)),
                         }),
                         lens: d.lens.map(|(t, l)| LensSeen {
                             zoom: l.zoom.get(),
@@ -243,10 +247,12 @@ impl Status {
                 holder: c.holder.as_ref().map(HolderSeen::of),
                 lapses_in_ms: c.lapses_at.map(|t| t.saturating_sub(s.uptime_ms)),
                 bounded: c.bounded,
+                // The governor's reading, which its own polls renew while a governed gimbal moves.
                 position: c.position.map(|(t, p)| PositionSeen {
                     pan_deg: degrees(p.pan),
                     tilt_deg: degrees(p.tilt),
                     unix: s.unix_seconds(t),
+                    moved_unix: None,
                 }),
             })
             .collect();

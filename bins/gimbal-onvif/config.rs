@@ -155,6 +155,11 @@ impl sagebrush_client::door::Checked for Config {
     fn summary(&self) -> String {
         format!("{} gimbal(s), {} user(s)", self.gimbals.len(), self.users.list.len())
     }
+
+    fn warnings(&self) -> Vec<String> {
+        let listeners: Vec<SocketAddr> = self.gimbals.iter().map(|g| g.listen).collect();
+        sagebrush_client::door_config::demo_password_warnings(&self.users.list, &listeners)
+    }
 }
 
 /// Parses and validates configuration `text` read from `file`.

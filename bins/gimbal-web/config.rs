@@ -94,6 +94,10 @@ impl sagebrush_client::door::Checked for Config {
             self.listen
         )
     }
+
+    fn warnings(&self) -> Vec<String> {
+        sagebrush_client::door_config::demo_password_warnings(&self.users, &[self.listen])
+    }
 }
 
 /// Parses and validates configuration `text` read from `file`.

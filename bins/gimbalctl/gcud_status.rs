@@ -25,7 +25,7 @@ fn fetch(http: &str) -> Result<Value, CtlError> {
     let mut response = agent
         .get(&url)
         .call()
-        .map_err(|e| CtlError::Io(format!("cannot read {url}: {e} (is gcud's [metrics] listen {http}?)")))?;
+        .map_err(|e| CtlError::Io(fetch_failed(&url, http, &e)))?;
     let status = response.status();
     let body = response
         .body_mut()
@@ -40,6 +40,16 @@ fn fetch(http: &str) -> Result<Value, CtlError> {
         return Err(CtlError::Io(format!("{url}: HTTP {status}: {}", body.trim())));
     }
     serde_json::from_str(&body).map_err(|e| CtlError::BadReply(format!("{url}: not a gcud status document: {e}")))
+}
+
+/// Why `url` could not be read, in words (ureq's own say "timeout: global").
+fn fetch_failed(url: &str, http: &str, e: &ureq::Error) -> String {
+    let why = match e {
+        ureq::Error::Timeout(_) => format!("no answer within {} s", TIMEOUT.as_secs()),
+        ureq::Error::Io(io) => io.to_string(),
+        other => other.to_string(),
+    };
+    format!("cannot read {url}: {why} (is gcud running, with [metrics] listen = \"{http}\"?)")
 }
 
 pub fn run(http: &str, as_json: bool) -> Result<(), CtlError> {
@@ -59,6 +69,24 @@ fn now_unix() -> f64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0.0, |d| d.as_secs_f64())
+}
+
+/// "pan 12.50° tilt -3.00° (3 s ago)", "-" when never read; "moved since"
+/// (and when) once a motion went to the gimbal after that reading.
+fn position_text(p: &Value, now: f64) -> String {
+    if p.is_null() {
+        return "-".to_owned();
+    }
+    let read = format!(
+        "pan {:.2}° tilt {:.2}° ({})",
+        p["pan_deg"].as_f64().unwrap_or(f64::NAN),
+        p["tilt_deg"].as_f64().unwrap_or(f64::NAN),
+        ago(&p["unix"], now)
+    );
+    match &p["moved_unix"] {
+        Value::Null => read,
+        moved => format!("{read}, moved since ({})", ago(moved, now)),
+    }
 }
 
 /// "3 s ago", "never".
@@ -149,15 +177,7 @@ fn text(s: &Value, now: f64) -> String {
         let rows: Vec<Vec<String>> = devices
             .iter()
             .map(|d| {
-                let position = match &d["position"] {
-                    Value::Null => "-".to_owned(),
-                    p => format!(
-                        "pan {:.2}° tilt {:.2}° ({})",
-                        p["pan_deg"].as_f64().unwrap_or(f64::NAN),
-                        p["tilt_deg"].as_f64().unwrap_or(f64::NAN),
-                        ago(&p["unix"], now)
-                    ),
-                };
+                let position = position_text(&d["position"], now);
                 let lens = match &d["lens"] {
                     Value::Null => "-".to_owned(),
                     l => format!("zoom {} focus {}", l["zoom"], l["focus"]),
@@ -223,15 +243,7 @@ fn text(s: &Value, now: f64) -> String {
                     Some(ms) => format!("in {:.1} s", ms / 1000.0),
                     None => "-".to_owned(),
                 };
-                let position = match &c["position"] {
-                    Value::Null => "-".to_owned(),
-                    p => format!(
-                        "pan {:.2}° tilt {:.2}° ({})",
-                        p["pan_deg"].as_f64().unwrap_or(f64::NAN),
-                        p["tilt_deg"].as_f64().unwrap_or(f64::NAN),
-                        ago(&p["unix"], now)
-                    ),
-                };
+                let position = position_text(&c["position"], now);
                 vec![
                     c["address"].as_str().unwrap_or("?").to_owned(),
                     holder(&c["holder"]),

@@ -20,7 +20,7 @@ mod watch;
 use std::process::ExitCode;
 use std::time::Duration;
 
-use clap::Parser;
+use clap::{CommandFactory, Parser};
 use sagebrush_client::master::Exchange;
 use sagebrush_host::hex::payload_text;
 use sagebrush_protocol::{Address, Outcome, Reply};
@@ -32,6 +32,9 @@ use crate::request::Request;
 use crate::session::Session;
 
 fn main() -> ExitCode {
+    if sagebrush_host::man::print_if_asked(Cli::command) {
+        return ExitCode::SUCCESS;
+    }
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {

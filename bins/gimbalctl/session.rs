@@ -64,7 +64,7 @@ impl Session {
                 timing::serial_policy(g.baud),
             ),
             (None, Some(addr)) => (
-                SerialOrTcp::Tcp(transport::connect_tcp(addr).await?),
+                SerialOrTcp::Tcp(transport::connect_tcp(addr).await.map_err(refused_hint)?),
                 timing::tcp_policy(),
             ),
             (None, None) => {
@@ -153,4 +153,19 @@ impl Drop for Session {
             tracing::debug!(?stats, "capture stopped");
         }
     }
+}
+
+/// A refused connection most often means that gcud is not running, or
+/// listens elsewhere: the error says so.
+fn refused_hint(e: std::io::Error) -> std::io::Error {
+    if e.kind() != std::io::ErrorKind::ConnectionRefused {
+        return e;
+    }
+    std::io::Error::new(
+        e.kind(),
+        format!(
+            "{e}: nothing listens there. Is gcud running (`systemctl status gcud`), with a client \
+             listener ([[link]] listen in its configuration) on that address?"
+        ),
+    )
 }

@@ -7,9 +7,12 @@ mod run;
 
 use std::process::ExitCode;
 
-use clap::Parser;
+use clap::{CommandFactory, Parser};
 
 fn main() -> ExitCode {
+    if sagebrush_host::man::print_if_asked(cli::Cli::command) {
+        return ExitCode::SUCCESS;
+    }
     let cli = cli::Cli::parse();
     if let Err(e) = sagebrush_host::logging::init(&cli.log, cli.log_json) {
         sagebrush_host::errln!("gimbalsim: {e}");

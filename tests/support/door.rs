@@ -16,11 +16,24 @@ use serde_json::Value;
 
 use super::HANG_GUARD;
 
-/// Whether `python3 -c "import ..."` works; when it does not, the test
-/// fails saying how to install `hint` ([`super::tool_missing`]), unless
-/// skipping is asked for.
+/// The Python that runs the doors' third-party clients: `$SAGEBRUSH_PYTHON`
+/// when set, else the checkout's virtual environment `.venv/bin/python3`
+/// (README.md's quick start and `.ci/run` install the clients there, which
+/// works on a Debian or Ubuntu whose own Python is externally managed), else
+/// `python3` on the PATH.
+pub fn python() -> PathBuf {
+    if let Some(p) = std::env::var_os("SAGEBRUSH_PYTHON") {
+        return PathBuf::from(p);
+    }
+    let venv = Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv/bin/python3");
+    if venv.exists() { venv } else { PathBuf::from("python3") }
+}
+
+/// Whether `python -c "import ..."` works ([`python`]); when it does not,
+/// the test fails saying how to install `hint` ([`super::tool_missing`]),
+/// unless skipping is asked for.
 pub fn python_client_available(imports: &str, hint: &str) -> bool {
-    let ok = Command::new("python3")
+    let ok = Command::new(python())
         .args(["-c", &format!("import {imports}")])
         .stdout(Stdio::null())
         .stderr(Stdio::null())
@@ -28,7 +41,8 @@ pub fn python_client_available(imports: &str, hint: &str) -> bool {
         .is_ok_and(|s| s.success());
     if !ok {
         super::tool_missing(&format!(
-            "python3 with {hint} is missing (install as README.md's quick start says; .ci/run does)"
+            "{} with {hint} is missing: `python3 -m venv .venv && .venv/bin/pip install -r tests/requirements.txt` (README.md's quick start; .ci/run does it)",
+            python().display()
         ));
     }
     ok
@@ -39,12 +53,12 @@ pub fn python_client_available(imports: &str, hint: &str) -> bool {
 /// with the door's `log`.
 pub fn python_step(script: &str, step: &str, args: &[&str], log: impl FnOnce() -> String) -> Value {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join(script);
-    let out = Command::new("python3")
+    let out = Command::new(python())
         .arg(&script)
         .arg(step)
         .args(args)
         .output()
-        .expect("run python3");
+        .expect("run the clients' Python");
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),

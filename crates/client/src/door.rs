@@ -44,6 +44,19 @@ pub trait Checked {
     }
 }
 
+/// The door `name`'s command line, as its `--help` and manual page show it.
+fn command(name: &'static str, about: &'static str) -> clap::Command {
+    Args::command()
+        .name(name)
+        .bin_name(name)
+        .about(about)
+        .mut_arg("config", |a| {
+            a.help(format!(
+                "The configuration file (config/{name}.toml in the source tree, /etc/{name}/{name}.toml as packaged, documents every key)"
+            ))
+        })
+}
+
 /// Runs the door `name` (described by `about` in its `--help`): reads its
 /// command line, then reads the configuration file, which `parse`
 /// validates (`--check` says what a valid one holds, and warns), and `run`
@@ -58,16 +71,10 @@ where
     C: Checked,
     Fut: Future<Output = Result<(), String>>,
 {
-    let matches = Args::command()
-        .name(name)
-        .bin_name(name)
-        .about(about)
-        .mut_arg("config", |a| {
-            a.help(format!(
-                "The configuration file (config/{name}.toml in the source tree, /etc/{name}/{name}.toml as packaged, documents every key)"
-            ))
-        })
-        .get_matches();
+    if sagebrush_host::man::print_if_asked(|| command(name, about)) {
+        return ExitCode::SUCCESS;
+    }
+    let matches = command(name, about).get_matches();
     let args = Args::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     let (file, check) = (args.config.as_path(), args.check);
     let config = match config_file::read(file).and_then(|text| parse(file, &text)) {

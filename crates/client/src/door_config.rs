@@ -55,6 +55,29 @@ pub struct User {
     pub role: Role,
 }
 
+/// The passwords of the shipped configurations and the README's demo
+/// (`config/gimbal-onvif.toml`, `config/gimbal-web.toml`): whoever read
+/// them knows them.
+pub const DEMO_PASSWORDS: [&str; 3] = ["change-me", "change-me-too", "change-me-admin"];
+
+/// `--check`'s warnings: each user whose password is a demo one while one
+/// of `listeners` is not on loopback, i.e. serves the LAN.
+pub fn demo_password_warnings(users: &[User], listeners: &[std::net::SocketAddr]) -> Vec<String> {
+    let Some(open) = listeners.iter().find(|l| !l.ip().is_loopback()) else {
+        return Vec::new();
+    };
+    users
+        .iter()
+        .filter(|u| DEMO_PASSWORDS.contains(&u.password.as_str()))
+        .map(|u| {
+            format!(
+                "user {:?} has the shipped demo password while {open} serves the network: change it",
+                u.name
+            )
+        })
+        .collect()
+}
+
 impl Source<'_> {
     /// The `[[user]]` tables: each name given once, exactly one of
     /// `password` or `password_file` (its text without the final line

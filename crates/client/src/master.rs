@@ -109,10 +109,20 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
         };
         match next {
             Some(event) => event.map(Some),
-            None => Err(io::Error::new(
-                io::ErrorKind::UnexpectedEof,
-                "the line closed during the exchange",
-            )),
+            None => Err(io::Error::new(io::ErrorKind::UnexpectedEof, self.closed_why())),
+        }
+    }
+
+    /// Why the exchange ended with the line: bytes that were no frames
+    /// before the close mean another kind of server listens there (gcud's
+    /// metrics listener answers HTTP, for one).
+    fn closed_why(&self) -> String {
+        match self.noise_bytes() {
+            0 => "the line closed during the exchange".to_owned(),
+            n => format!(
+                "the line closed during the exchange, after {n} bytes that were no Sagebrush frames: \
+                 not a gcud client listener or a gimbal bus (gcud's metrics listener, for one, speaks HTTP)"
+            ),
         }
     }
 

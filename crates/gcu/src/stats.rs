@@ -222,6 +222,9 @@ pub struct DeviceStats {
     pub online: bool,
     /// The last position it answered to `P?` (Table 15), with its tick.
     pub position: Option<(u64, Position)>,
+    /// The tick of the last motion sent to it (or broadcast to its port)
+    /// after that answer: `position` is where it was, not where it is.
+    pub moved: Option<u64>,
     /// The last lens position it answered to `V?` (Table 17), with its tick.
     pub lens: Option<(u64, LensPosition)>,
     /// The last exchange that did not end as asked, with its tick.

@@ -9,6 +9,7 @@
 //! - [`timing`]: time-outs derived from the line rate (1.4.2).
 //! - [`sim_line`]: a simulated bus served on a byte stream.
 //! - [`hex`]: hex text of wire bytes, as `gimbalctl encode/decode` use it.
+//! - [`man`]: manual pages from each program's clap definition.
 //! - [`stdio`]: stdout/stderr writes that end quietly on a closed pipe.
 //! - [`capture`]: pcapng capture of bus and link traffic for Wireshark
 //!   (`docs/capture.md`, `tools/wireshark/sagebrush.lua`).
@@ -16,6 +17,7 @@
 pub mod capture;
 pub mod hex;
 pub mod logging;
+pub mod man;
 pub mod pty;
 #[cfg(feature = "sim")]
 pub mod sim_line;

@@ -44,6 +44,7 @@ impl Port {
     /// whether it answers, its last error, and the position or lens
     /// position it answered to `P?` (Table 15) or `V?` (Table 17).
     pub(super) fn learn(&mut self, now: u64, device: u8, job: &Job, outcome: Outcome, result: Option<&FrameBuf>) {
+        self.learn_motion(now, device, job, outcome);
         let Some(d) = self.device(device) else { return };
         let error = match outcome {
             Outcome::Broadcast => return,
@@ -62,9 +63,31 @@ impl Port {
             return;
         };
         match Reply::parse_expected(&job.facts.reply, result.frame().payload()) {
-            Ok(Reply::Position(p)) => d.position = Some((now, p)),
+            Ok(Reply::Position(p)) => {
+                d.position = Some((now, p));
+                d.moved = None;
+            }
             Ok(Reply::Lens(l)) => d.lens = Some((now, l)),
             _ => {}
+        }
+    }
+
+    /// A motion that went out (acknowledged, or broadcast to device 255,
+    /// which moves every device of the port) leaves each position it
+    /// reaches stale until the next `P?` answer: the registry says since
+    /// when, so that a status never shows a place the gimbal has left as
+    /// where it is.
+    fn learn_motion(&mut self, now: u64, device: u8, job: &Job, outcome: Outcome) {
+        let went_out = matches!(outcome, Outcome::Broadcast | Outcome::Acknowledged | Outcome::Result);
+        if !(went_out && job.facts.moves()) {
+            return;
+        }
+        if device == WILDCARD {
+            for d in self.device_stats.values_mut() {
+                d.moved = Some(now);
+            }
+        } else if let Some(d) = self.device(device) {
+            d.moved = Some(now);
         }
     }
 
