@@ -119,129 +119,12 @@ impl GimbalSession {
                 Step::Stop(command, axes) => {
                     let sent = connection.send(&command).await;
                     self.reached(&sent);
-                    let mut s = self.state();
-                    match sent {
-                        Ok(_) => {
-                            s.stops_owed = s.stops_owed.without(axes);
-                            s.stop_retry_at = None;
-                            if axes.pan {
-                                s.pan.drive = Drive::Stop;
-                            }
-                            if axes.tilt {
-                                s.tilt.drive = Drive::Stop;
-                            }
-                            if axes.zoom {
-                                s.zoom.drive = Drive::Stop;
-                            }
-                            if !s.stops_owed.any() {
-                                s.stop_failures = 0;
-                                let replies = std::mem::take(&mut s.stop_replies);
-                                answer(replies, Ok(()));
-                            }
-                            if !s.moving().any() {
-                                s.deadline = None;
-                            }
-                        }
-                        Err(CommandError::Nic(e)) => {
-                            // The gimbal cannot apply it (a zoom stop without a lens): nothing to retry.
-                            warn!(gimbal = %self.config.name, error = %e, "{} refused by the gimbal", command.mnemonic());
-                            s.stops_owed = s.stops_owed.without(axes);
-                            if !s.stops_owed.any() {
-                                let replies = std::mem::take(&mut s.stop_replies);
-                                answer(replies, Err(CommandError::Nic(e)));
-                            }
-                        }
-                        Err(e)
-                            if !matches!(e, CommandError::Io(_)) && s.stop_failures + 1 >= STOP_ATTEMPTS_ANSWERED =>
-                        {
-                            // gcud answered, the gimbal did not confirm (absent,
-                            // noise): tried again once; owing it for ever would
-                            // hold every other command of this gimbal.
-                            warn!(gimbal = %self.config.name, error = %e, "{} not confirmed after {STOP_ATTEMPTS_ANSWERED} attempts: given up", command.mnemonic());
-                            s.stops_owed = s.stops_owed.without(axes);
-                            s.stop_failures = 0;
-                            s.stop_retry_at = None;
-                            if !s.stops_owed.any() {
-                                let replies = std::mem::take(&mut s.stop_replies);
-                                answer(replies, Err(e));
-                            }
-                        }
-                        Err(e) => {
-                            s.stop_failures += 1;
-                            let retry = if matches!(e, CommandError::Io(_)) {
-                                STOP_RETRY
-                            } else {
-                                (STOP_RETRY * s.stop_failures).min(UNREACHABLE_POLL)
-                            };
-                            s.stop_retry_at = Some(Instant::now() + retry);
-                            if s.stop_failures.is_power_of_two() {
-                                warn!(gimbal = %self.config.name, error = %e, attempt = s.stop_failures, "{} not confirmed: kept owed, sent again", command.mnemonic());
-                            }
-                            if s.stop_failures >= STOP_ATTEMPTS_ANSWERED {
-                                let replies = std::mem::take(&mut s.stop_replies);
-                                answer(replies, Err(e));
-                            }
-                        }
-                    }
+                    self.stop_sent(&command, axes, sent);
                 }
                 Step::Drive(command, applied) => {
                     let sent = connection.send(&command).await;
                     self.reached(&sent);
-                    let mut s = self.state();
-                    match sent {
-                        Ok(_) => {
-                            s.last_refusal = None;
-                            match applied {
-                                Applied::Pan(a) => s.pan = a,
-                                Applied::Tilt(a) => s.tilt = a,
-                                Applied::Zoom(a) => s.zoom = a,
-                            }
-                        }
-                        Err(e) if e.refusal().is_some() => {
-                            // gcud refused it by its rules: nothing reached
-                            // the bus, the axis did not start.
-                            if let Some(w) = s.wish.take() {
-                                answer(w.replies, Err(e.clone()));
-                            }
-                            let zeros = std::mem::take(&mut s.wish_stops);
-                            if e.refusal() == Some(Undelivered::NotInControl) {
-                                // Another link holds the gimbal: its motion is
-                                // not this door's to stop, and gcud stopped
-                                // ours when that link took control. What was
-                                // set here (speeds too) is set again next time.
-                                s.pan = InForce::default();
-                                s.tilt = InForce::default();
-                                s.zoom = InForce::default();
-                            } else {
-                                // Never leave an axis moving that the caller was told failed.
-                                let ours = Axes {
-                                    pan: s.pan.drive != Drive::Stop,
-                                    tilt: s.tilt.drive != Drive::Stop,
-                                    zoom: s.zoom.drive != Drive::Stop,
-                                }
-                                .or(zeros);
-                                if ours.any() {
-                                    s.owe_stop(ours);
-                                }
-                            }
-                            if !s.moving().any() {
-                                s.deadline = None;
-                            }
-                            if s.last_refusal != e.refusal() {
-                                s.last_refusal = e.refusal();
-                                info!(gimbal = %self.config.name, error = %e, "{} refused by gcud (logged once until something is accepted or refused otherwise)", command.mnemonic());
-                            }
-                        }
-                        Err(e) => {
-                            // Never leave an axis moving that the caller was told failed.
-                            let axes = s.moving().or(std::mem::take(&mut s.wish_stops));
-                            if let Some(w) = s.wish.take() {
-                                answer(w.replies, Err(e.clone()));
-                            }
-                            s.owe_stop(axes.or(applied.axes()));
-                            warn!(gimbal = %self.config.name, error = %e, "{} failed: stopping the motion", command.mnemonic());
-                        }
-                    }
+                    self.drive_sent(&command, applied, sent);
                 }
                 Step::Place(place) => {
                     let sent = connection.send(&place.command()).await;
@@ -279,23 +162,7 @@ impl GimbalSession {
                     let reading = poll(&mut connection, self.config.lens).await;
                     self.reached(&reading);
                     let failed = reading.is_err();
-                    {
-                        let mut s = self.state();
-                        let st = &mut s.status;
-                        match reading {
-                            Ok((p, lens)) => {
-                                st.changing =
-                                    st.position.is_some_and(|old| old != p) || (st.lens.is_some() && st.lens != lens);
-                                st.position = Some(p);
-                                st.lens = lens;
-                                st.error = None;
-                            }
-                            Err(e) => {
-                                st.changing = false;
-                                st.error = Some(e.to_string());
-                            }
-                        }
-                    }
+                    self.polled(reading);
                     if !failed && asked_control.is_none_or(|t: Instant| t.elapsed() >= CONTROL_POLL) {
                         asked_control = Some(Instant::now());
                         // Unknown while it fails (a gcud that governs nothing answers NIC).
@@ -304,6 +171,152 @@ impl GimbalSession {
                     let poll = self.config.poll;
                     next_poll = Instant::now() + if failed { UNREACHABLE_POLL.max(poll) } else { poll };
                 }
+            }
+        }
+    }
+
+    /// Records what became of an owed stop: confirmed, refused by the
+    /// gimbal, given up after [`STOP_ATTEMPTS_ANSWERED`] answered attempts,
+    /// or kept owed and sent again.
+    fn stop_sent(&self, command: &Command<'static>, axes: Axes, sent: Result<Option<Vec<u8>>, CommandError>) {
+        let mut s = self.state();
+        match sent {
+            Ok(_) => {
+                s.stops_owed = s.stops_owed.without(axes);
+                s.stop_retry_at = None;
+                if axes.pan {
+                    s.pan.drive = Drive::Stop;
+                }
+                if axes.tilt {
+                    s.tilt.drive = Drive::Stop;
+                }
+                if axes.zoom {
+                    s.zoom.drive = Drive::Stop;
+                }
+                if !s.stops_owed.any() {
+                    s.stop_failures = 0;
+                    let replies = std::mem::take(&mut s.stop_replies);
+                    answer(replies, Ok(()));
+                }
+                if !s.moving().any() {
+                    s.deadline = None;
+                }
+            }
+            Err(CommandError::Nic(e)) => {
+                // The gimbal cannot apply it (a zoom stop without a lens): nothing to retry.
+                warn!(gimbal = %self.config.name, error = %e, "{} refused by the gimbal", command.mnemonic());
+                s.stops_owed = s.stops_owed.without(axes);
+                if !s.stops_owed.any() {
+                    let replies = std::mem::take(&mut s.stop_replies);
+                    answer(replies, Err(CommandError::Nic(e)));
+                }
+            }
+            Err(e) if !matches!(e, CommandError::Io(_)) && s.stop_failures + 1 >= STOP_ATTEMPTS_ANSWERED => {
+                // gcud answered, the gimbal did not confirm (absent,
+                // noise): tried again once; owing it for ever would
+                // hold every other command of this gimbal.
+                warn!(gimbal = %self.config.name, error = %e, "{} not confirmed after {STOP_ATTEMPTS_ANSWERED} attempts: given up", command.mnemonic());
+                s.stops_owed = s.stops_owed.without(axes);
+                s.stop_failures = 0;
+                s.stop_retry_at = None;
+                if !s.stops_owed.any() {
+                    let replies = std::mem::take(&mut s.stop_replies);
+                    answer(replies, Err(e));
+                }
+            }
+            Err(e) => {
+                s.stop_failures += 1;
+                let retry = if matches!(e, CommandError::Io(_)) {
+                    STOP_RETRY
+                } else {
+                    (STOP_RETRY * s.stop_failures).min(UNREACHABLE_POLL)
+                };
+                s.stop_retry_at = Some(Instant::now() + retry);
+                if s.stop_failures.is_power_of_two() {
+                    warn!(gimbal = %self.config.name, error = %e, attempt = s.stop_failures, "{} not confirmed: kept owed, sent again", command.mnemonic());
+                }
+                if s.stop_failures >= STOP_ATTEMPTS_ANSWERED {
+                    let replies = std::mem::take(&mut s.stop_replies);
+                    answer(replies, Err(e));
+                }
+            }
+        }
+    }
+
+    /// Records what became of a drive command: the axis in force, a
+    /// refusal by gcud's rules, or a failure that owes the stops.
+    fn drive_sent(&self, command: &Command<'static>, applied: Applied, sent: Result<Option<Vec<u8>>, CommandError>) {
+        let mut s = self.state();
+        match sent {
+            Ok(_) => {
+                s.last_refusal = None;
+                match applied {
+                    Applied::Pan(a) => s.pan = a,
+                    Applied::Tilt(a) => s.tilt = a,
+                    Applied::Zoom(a) => s.zoom = a,
+                }
+            }
+            Err(e) if e.refusal().is_some() => {
+                // gcud refused it by its rules: nothing reached
+                // the bus, the axis did not start.
+                if let Some(w) = s.wish.take() {
+                    answer(w.replies, Err(e.clone()));
+                }
+                let zeros = std::mem::take(&mut s.wish_stops);
+                if e.refusal() == Some(Undelivered::NotInControl) {
+                    // Another link holds the gimbal: its motion is
+                    // not this door's to stop, and gcud stopped
+                    // ours when that link took control. What was
+                    // set here (speeds too) is set again next time.
+                    s.pan = InForce::default();
+                    s.tilt = InForce::default();
+                    s.zoom = InForce::default();
+                } else {
+                    // Never leave an axis moving that the caller was told failed.
+                    let ours = Axes {
+                        pan: s.pan.drive != Drive::Stop,
+                        tilt: s.tilt.drive != Drive::Stop,
+                        zoom: s.zoom.drive != Drive::Stop,
+                    }
+                    .or(zeros);
+                    if ours.any() {
+                        s.owe_stop(ours);
+                    }
+                }
+                if !s.moving().any() {
+                    s.deadline = None;
+                }
+                if s.last_refusal != e.refusal() {
+                    s.last_refusal = e.refusal();
+                    info!(gimbal = %self.config.name, error = %e, "{} refused by gcud (logged once until something is accepted or refused otherwise)", command.mnemonic());
+                }
+            }
+            Err(e) => {
+                // Never leave an axis moving that the caller was told failed.
+                let axes = s.moving().or(std::mem::take(&mut s.wish_stops));
+                if let Some(w) = s.wish.take() {
+                    answer(w.replies, Err(e.clone()));
+                }
+                s.owe_stop(axes.or(applied.axes()));
+                warn!(gimbal = %self.config.name, error = %e, "{} failed: stopping the motion", command.mnemonic());
+            }
+        }
+    }
+
+    /// Records a poll's reading, or its error, in the status.
+    fn polled(&self, reading: Result<(Position, Option<LensPosition>), CommandError>) {
+        let mut s = self.state();
+        let st = &mut s.status;
+        match reading {
+            Ok((p, lens)) => {
+                st.changing = st.position.is_some_and(|old| old != p) || (st.lens.is_some() && st.lens != lens);
+                st.position = Some(p);
+                st.lens = lens;
+                st.error = None;
+            }
+            Err(e) => {
+                st.changing = false;
+                st.error = Some(e.to_string());
             }
         }
     }
