@@ -1,5 +1,5 @@
 //! The front doors' motions never outlive their owner (issue 31; DESIGN
-//! "Front doors", the gimbal session in `crates/client/src/session.rs`):
+//! "Front doors", the gimbal session in `crates/client/src/session/`):
 //! requests racing a move, floods of moves then a stop, a stick released
 //! at 50 Hz, gcud killed and back during a move, a door frozen mid-move,
 //! and `max_move_ms`. Driven by the third-party clients the doors are

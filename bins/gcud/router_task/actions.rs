@@ -1,0 +1,121 @@
+//! Carrying out the router core's actions (`sagebrush-gcu` `Action`):
+//! writes queued on their lines, line rate switches, router events logged
+//! (throttled), a departed link's counters kept under its configured name.
+
+use std::collections::BTreeMap;
+
+use sagebrush_gcu::{Action, Level, LinkId, LinkStats, Outbox, Place, RouterEvent};
+use sagebrush_host::throttle::Throttle;
+use tokio::time::Instant;
+use tracing::{debug, error, info, warn};
+
+use super::LinkInfo;
+use crate::lines::{LineId, Lines, Refused};
+
+/// A write a line did not take: logged, throttled per port or configured
+/// link, when the line is behind (its peer is not reading).
+fn write_refused(line: LineId, refused: Refused, links: &BTreeMap<LinkId, LinkInfo>, throttle: &mut Throttle) {
+    let (place, text) = match line {
+        LineId::Port(port) => (format!("port {port}"), "the port is not taking bytes"),
+        LineId::Link(link) => (
+            links.get(&link).map_or_else(|| link.to_string(), |l| l.name.clone()),
+            "the peer is not reading",
+        ),
+    };
+    match refused {
+        Refused::Behind => {
+            let message = || match line {
+                LineId::Port(_) => format!("{place}: {text} (limit reached): bytes dropped"),
+                LineId::Link(link) => format!("{link} ({place}): {text} (limit reached): bytes dropped"),
+            };
+            if throttle.allow("writer behind", &place, message, Instant::now()) {
+                warn!(%line, "{text} (limit reached): bytes dropped");
+            }
+        }
+        Refused::Closed => debug!(%line, "write to a closed line dropped"),
+    }
+}
+
+/// Carries out the router's actions in order: writes are queued on their
+/// lines straight from the Outbox's buffer. A link gone leaves its counters
+/// with its configured link and nothing else behind.
+pub(super) fn execute(
+    actions: &mut Outbox,
+    lines: &mut Lines,
+    links: &mut BTreeMap<LinkId, LinkInfo>,
+    departed: &mut BTreeMap<String, LinkStats>,
+    throttle: &mut Throttle,
+) {
+    let mut gone = Vec::new();
+    for action in actions.actions() {
+        match action {
+            Action::Write { line, bytes } => {
+                if let Err(refused) = lines.write(*line, actions.bytes(bytes)) {
+                    write_refused(*line, refused, links, throttle);
+                }
+            }
+            Action::SetPortRate { port, bps } => match lines.set_baud(*port, *bps) {
+                Ok(()) => info!(port, baud = bps, "line rate switched"),
+                Err(reason) => error!(port, bps, %reason, "port lost: cannot switch its line rate; reopening"),
+            },
+            Action::Event(event) => log_event(event, links, throttle),
+            Action::LinkGone { link, stats } => {
+                if let Some(info) = links.get(link) {
+                    match departed.get_mut(&info.name) {
+                        Some(d) => d.absorb(stats),
+                        None => {
+                            departed.insert(info.name.clone(), **stats);
+                        }
+                    }
+                }
+                // Named in the logs of the actions after this one.
+                gone.push(*link);
+            }
+        }
+    }
+    actions.clear();
+    for link in gone {
+        links.remove(&link);
+    }
+}
+
+/// Logs a router event; repeated warnings of one kind from one place are
+/// throttled (module `throttle`).
+fn log_event(event: &RouterEvent, links: &BTreeMap<LinkId, LinkInfo>, throttle: &mut Throttle) {
+    let name = |link: &LinkId| links.get(link).map_or_else(|| link.to_string(), |l| l.name.clone());
+    // Events about a link name it as configured, with its peer.
+    let context = match event {
+        RouterEvent::LinkState { link, .. } | RouterEvent::IssuedStop { link, .. } => links
+            .get(link)
+            .map_or_else(String::new, |l| format!(" ({} {})", l.name, l.peer)),
+        _ => String::new(),
+    };
+    match event.level() {
+        Level::Debug => debug!("{event}{context}"),
+        Level::Info => info!("{event}{context}"),
+        Level::Warn => {
+            let (kind, place) = match event {
+                RouterEvent::Dropped { reason, at, .. } => (
+                    format!("dropped {}", reason.name()),
+                    match at {
+                        Place::Link(link) => name(link),
+                        other => other.to_string(),
+                    },
+                ),
+                RouterEvent::Undelivered { failure, origin, .. } => (
+                    format!("undelivered {}", failure.name()),
+                    origin.link().as_ref().map_or_else(String::new, name),
+                ),
+                RouterEvent::Finished { outcome, .. } => (format!("finished {outcome:?}"), String::new()),
+                RouterEvent::IssuedStop { link, .. } => ("stop".to_owned(), name(link)),
+                RouterEvent::DeviceState { port, device, .. } => {
+                    ("device silent".to_owned(), format!("{port}.{device}"))
+                }
+                other => (format!("{:?}", std::mem::discriminant(other)), String::new()),
+            };
+            if throttle.allow(&kind, &place, || format!("{event}{context}"), Instant::now()) {
+                warn!("{event}{context}");
+            }
+        }
+    }
+}

@@ -1,0 +1,428 @@
+//! One gimbal as every front door drives it (ARCHITECTURE "Front doors",
+//! the gimbal session): one task owns the gimbal's connection to gcud and is
+//! the only sender on it, and the doors post what they want:
+//!
+//! - **a motion is one object**: the velocity in force per axis, its owner
+//!   and its deadline (an ONVIF Timeout, a MAVLink lease, at most
+//!   `max_move`). A newer velocity replaces it as one step, a goto, preset
+//!   or home supersedes its pan and tilt, a stop ends it; when its
+//!   deadline passes, the session owes the stops of whatever moves.
+//! - **stops first**: a stop (or a velocity of zero on every axis it
+//!   names) is owed at once and sent before any other command; a zero
+//!   beside a move is part of that move, owed once the move is in force
+//!   (so that a move gcud refuses stops nothing); the task checks for an owed stop
+//!   before every motion command, so no motion command goes out after the
+//!   stop that ended it. A stop is sent until the bus confirms it: while
+//!   gcud cannot be reached it stays owed and goes first when gcud is back,
+//!   and the motion is reported [`Motion::Unknown`] meanwhile.
+//! - **bounded work**: velocity updates coalesce (newest wins, per axis),
+//!   one positioning move waits at most (newest wins), other commands wait
+//!   in a short queue; what cannot start within [`STALE`] is dropped with
+//!   an error, never sent late.
+//! - **gcud's decisions** (ARCHITECTURE "Front doors"): a command gcud
+//!   refuses by its rules is [`CommandError::Refused`], naming the link
+//!   that holds the gimbal when that is the rule; a refused motion never
+//!   counts as one, and a refusal for control sends no stop (the motion on
+//!   the gimbal is the holder's, and gcud stopped this door's when the
+//!   holder took control). Who controls the gimbal (`~C`, answered by gcud
+//!   itself) is asked with a poll at most every [`CONTROL_POLL`].
+//! - **one poll for every reader**: `P?` (and `V?` for a lens) every poll
+//!   period, at least every [`REFRESH`] while something moves, so gcud's
+//!   motion lease on the door's connection (ARCHITECTURE "Safety") stays
+//!   fed while the door lives and stops the gimbal if the door hangs. The
+//!   identity (`D?`) is asked once and kept.
+//!
+//! Split by concern: this module holds the settings and the session's
+//! surface, what a door posts; `types.rs` the public vocabulary (drives,
+//! velocities, axes, motion, status, gcud's reachability); `state.rs` what
+//! the session has been asked and what is in force, shared under one lock;
+//! `task.rs` the task that owns the connection and decides the next step.
+
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+use std::time::Duration;
+
+use sagebrush_protocol::{Address, Axis, Command, LensPosition, LensSpeed, Position, Speed, Undelivered};
+use tokio::sync::{Notify, oneshot};
+use tokio::time::Instant;
+use tracing::{info, warn};
+
+use crate::client::CommandError;
+use crate::connection::{Control, GimbalConnection, Identity, UNREACHABLE_POLL};
+use crate::governance::{Controller, GcuAnswer, GcuRequest, Rules, Tour, TourOutcome};
+
+mod state;
+mod task;
+mod types;
+
+use state::{Pending, Place, Queued, State, answer};
+use task::closed;
+pub use types::{Axes, Drive, GcudReachability, Motion, Status, Velocity};
+
+/// A request that could not start within this is dropped with an error
+/// (gcud unreachable, the bus busy): never sent after its caller gave up.
+pub const STALE: Duration = Duration::from_secs(5);
+/// While something moves, the gimbal is polled at least this often, which
+/// also renews gcud's motion lease on the session's connection.
+pub const REFRESH: Duration = Duration::from_millis(250);
+/// Commands other than motions and stops waiting at once; more are refused.
+pub const QUEUE: usize = 8;
+/// gcud is asked who controls the gimbal (`~C`, answered by gcud itself:
+/// no bus time) with a poll at most this often.
+pub const CONTROL_POLL: Duration = Duration::from_secs(1);
+/// gcud's rules of the gimbal (`~B`: limits and zones, changed only by a
+/// reload of gcud) are asked again after this.
+pub const RULES_REFRESH: Duration = Duration::from_secs(30);
+/// An owed stop is sent again this often while gcud cannot be reached.
+const STOP_RETRY: Duration = Duration::from_millis(200);
+/// A caller of [`GimbalSession::stop`] is told the stop failed after this
+/// many attempts. While gcud cannot be reached the stop stays owed and is
+/// sent on until confirmed; a stop gcud reports undelivered (the gimbal
+/// silent) is given up after this many.
+const STOP_ATTEMPTS_ANSWERED: u32 = 2;
+
+/// Where a session's gimbal is and how it is driven.
+#[derive(Clone, Debug)]
+pub struct SessionConfig {
+    /// gcud's client listener, `host:port`.
+    pub gcud: String,
+    /// The source group of the commands.
+    pub from: u8,
+    pub address: Address,
+    /// How long after gcud's ACK a NIC may come (1.4.2).
+    pub nic_window: Duration,
+    /// `P?` every this (and `V?` with `lens`).
+    pub poll: Duration,
+    pub lens: bool,
+    /// The longest any motion runs without being renewed.
+    pub max_move: Duration,
+    /// The gimbal's name in logs.
+    pub name: String,
+}
+
+/// One gimbal's session; see the module's documentation.
+pub struct GimbalSession {
+    pub config: SessionConfig,
+    state: Mutex<State>,
+    wake: Notify,
+    reach: Arc<GcudReachability>,
+}
+
+impl std::fmt::Debug for GimbalSession {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GimbalSession").field("config", &self.config).finish()
+    }
+}
+
+impl GimbalSession {
+    /// Starts the session's task; `reach` is shared by the door's sessions.
+    /// The task ends after [`GimbalSession::shutdown`].
+    pub fn start(config: SessionConfig, reach: Arc<GcudReachability>) -> Arc<Self> {
+        let connection = GimbalConnection::new(&config.gcud, config.from, config.address, config.nic_window);
+        let session = Arc::new(Self {
+            config,
+            state: Mutex::new(State::default()),
+            wake: Notify::new(),
+            reach,
+        });
+        tokio::spawn(Arc::clone(&session).run(connection));
+        session
+    }
+
+    fn state(&self) -> MutexGuard<'_, State> {
+        self.state.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// What the last polls saw, with the motion as the session knows it.
+    pub fn status(&self) -> Status {
+        let s = self.state();
+        Status {
+            motion: s.motion(),
+            ..s.status.clone()
+        }
+    }
+
+    /// Sets `velocity` for `run` (at most `max_move`; the motion's new
+    /// deadline, for every axis still moving), owned by `owner`. An axis at
+    /// [`Drive::Stop`] is a stop, owed at once. Returns once the velocity
+    /// is in force or superseded by a newer one or a stop.
+    pub async fn velocity(&self, velocity: Velocity, run: Option<Duration>, owner: &str) -> Result<(), CommandError> {
+        let rx = self.post_velocity(velocity, run, owner);
+        rx.await.unwrap_or_else(|_| Err(closed()))
+    }
+
+    /// [`GimbalSession::velocity`] without waiting: the receiver tells
+    /// the outcome.
+    pub fn post_velocity(
+        &self,
+        velocity: Velocity,
+        run: Option<Duration>,
+        owner: &str,
+    ) -> oneshot::Receiver<Result<(), CommandError>> {
+        let (tx, rx) = oneshot::channel();
+        let now = Instant::now();
+        {
+            let mut s = self.state();
+            let stops = Axes {
+                pan: velocity.pan == Some(Drive::Stop),
+                tilt: velocity.tilt == Some(Drive::Stop),
+                zoom: velocity.zoom == Some(Drive::Stop),
+            };
+            let moves = Velocity {
+                pan: velocity.pan.filter(|d| *d != Drive::Stop),
+                tilt: velocity.tilt.filter(|d| *d != Drive::Stop),
+                zoom: velocity.zoom.filter(|d| *d != Drive::Stop),
+            };
+            let moved = Axes {
+                pan: moves.pan.is_some(),
+                tilt: moves.tilt.is_some(),
+                zoom: moves.zoom.is_some(),
+            };
+            if !moved.any() {
+                if stops.any() {
+                    s.owe_stop(stops);
+                }
+            } else if stops.any() {
+                // A zero beside a move is part of that move: that axis stops
+                // once the move is in force, and not at all when gcud refuses
+                // the move for control (a refused request changes nothing:
+                // the holder's motion is not this door's to stop).
+                if let Some(w) = &mut s.wish {
+                    w.what.pan = w.what.pan.filter(|_| !stops.pan);
+                    w.what.tilt = w.what.tilt.filter(|_| !stops.tilt);
+                    w.what.zoom = w.what.zoom.filter(|_| !stops.zoom);
+                }
+                s.wish_stops = s.wish_stops.or(stops);
+                if stops.pan || stops.tilt {
+                    if let Some(p) = s.place.take() {
+                        answer(p.replies, Ok(()));
+                    }
+                }
+            }
+            // Newest wins: an axis moved now is no longer to be stopped.
+            s.wish_stops = s.wish_stops.without(moved);
+            if moves != Velocity::default() {
+                // Newest wins, per axis; the replaced callers learn the newest's outcome.
+                let mut replies = s.wish.take().map(|w| (w.what, w.replies)).unwrap_or_default();
+                let merged = Velocity {
+                    pan: moves.pan.or(replies.0.pan),
+                    tilt: moves.tilt.or(replies.0.tilt),
+                    zoom: moves.zoom.or(replies.0.zoom),
+                };
+                replies.1.push(tx);
+                s.wish = Some(Pending {
+                    what: merged,
+                    asked: now,
+                    replies: replies.1,
+                });
+                if moves.pan.is_some() || moves.tilt.is_some() {
+                    if let Some(p) = s.place.take() {
+                        answer(p.replies, Ok(()));
+                    }
+                }
+            } else {
+                s.stop_replies.push(tx);
+            }
+            if moves != Velocity::default() {
+                // The motion is renewed: its new deadline covers every axis still moving.
+                let run = run.unwrap_or(self.config.max_move).min(self.config.max_move);
+                s.deadline = Some(now + run);
+                s.owner = owner.to_owned();
+            } else if !s.moving().any() {
+                s.deadline = None;
+            }
+        }
+        self.wake.notify_one();
+        rx
+    }
+
+    /// Stops `axes`; done once the bus confirms each stop. After
+    /// [`STOP_ATTEMPTS_ANSWERED`] failed attempts the caller is told, and
+    /// the stop stays owed until confirmed.
+    pub async fn stop(&self, axes: Axes) -> Result<(), CommandError> {
+        if !axes.any() {
+            // Nothing to stop (a zoom stop for a gimbal without a lens).
+            return Ok(());
+        }
+        let (tx, rx) = oneshot::channel();
+        {
+            let mut s = self.state();
+            s.owe_stop(axes);
+            s.stop_replies.push(tx);
+            if !s.moving().any() {
+                s.deadline = None;
+            }
+        }
+        self.wake.notify_one();
+        rx.await.unwrap_or_else(|_| Err(closed()))
+    }
+
+    async fn place(&self, place: Place) -> Result<(), CommandError> {
+        let (tx, rx) = oneshot::channel();
+        {
+            let mut s = self.state();
+            if let Some(old) = s.place.take() {
+                answer(old.replies, Ok(()));
+            }
+            // A positioning move supersedes the pan/tilt slew on the gimbal.
+            if let Some(w) = &mut s.wish {
+                w.what.pan = None;
+                w.what.tilt = None;
+            }
+            s.wish_stops.pan = false;
+            s.wish_stops.tilt = false;
+            s.place = Some(Pending {
+                what: place,
+                asked: Instant::now(),
+                replies: vec![tx],
+            });
+        }
+        self.wake.notify_one();
+        rx.await.unwrap_or_else(|_| Err(closed()))
+    }
+
+    /// `GO` (Table 15).
+    pub async fn go_to(&self, target: Position) -> Result<(), CommandError> {
+        self.place(Place::GoTo(target)).await
+    }
+
+    /// `Pnn` (Table 11).
+    pub async fn go_to_preset(&self, n: u8) -> Result<(), CommandError> {
+        self.place(Place::Preset(n)).await
+    }
+
+    /// `HO`.
+    pub async fn home(&self) -> Result<(), CommandError> {
+        self.place(Place::Home).await
+    }
+
+    /// Any other command (a query, `SVnn`, `V`): its result payload, if it
+    /// has one. At most [`QUEUE`] wait; more are refused.
+    pub async fn send(&self, command: Command<'static>) -> Result<Option<Vec<u8>>, CommandError> {
+        let (tx, rx) = oneshot::channel();
+        self.enqueue(Queued::Bus(command, tx), command.mnemonic())?;
+        rx.await.unwrap_or_else(|_| Err(closed()))
+    }
+
+    /// A GCU command to gcud (module `governance`), in the queue with the
+    /// other commands: answered by gcud itself, no bus time.
+    pub async fn gcu(&self, request: GcuRequest) -> Result<GcuAnswer, CommandError> {
+        let (tx, rx) = oneshot::channel();
+        let what = format!("{request:?}");
+        self.enqueue(Queued::Gcu(request, tx), &what)?;
+        rx.await.unwrap_or_else(|_| Err(closed()))
+    }
+
+    fn enqueue(&self, queued: Queued, what: &str) -> Result<(), CommandError> {
+        {
+            let mut s = self.state();
+            if s.queue.len() >= QUEUE {
+                return Err(CommandError::Io(format!(
+                    "{} commands already wait for gimbal {}: {what} refused",
+                    QUEUE, self.config.name,
+                )));
+            }
+            s.queue.push_back((queued, Instant::now()));
+        }
+        self.wake.notify_one();
+        Ok(())
+    }
+
+    /// `~C` now: who controls the gimbal (also kept in [`Status::control`]).
+    pub async fn controller(&self) -> Result<Controller, CommandError> {
+        let a = self.config.address;
+        match self.gcu(GcuRequest::Controller(a.port, a.device)).await? {
+            GcuAnswer::Controller(c) => Ok(c),
+            other => Err(CommandError::BadReply(format!("~C answered {other:?}"))),
+        }
+    }
+
+    /// `~T?`: gcud's tours (of every gimbal of this gimbal's GCU).
+    pub async fn tours(&self) -> Result<Vec<Tour>, CommandError> {
+        match self.gcu(GcuRequest::TourList).await? {
+            GcuAnswer::Tours(t) => Ok(t),
+            other => Err(CommandError::BadReply(format!("~T? answered {other:?}"))),
+        }
+    }
+
+    /// `~T+name` (`start`) or `~T-name`: what became of the tour. An
+    /// unknown tour is [`CommandError::Nic`].
+    pub async fn tour(&self, name: &str, start: bool) -> Result<TourOutcome, CommandError> {
+        let request = if start {
+            GcuRequest::TourStart(name.to_owned())
+        } else {
+            GcuRequest::TourStop(name.to_owned())
+        };
+        match self.gcu(request).await? {
+            GcuAnswer::Tour(t) => Ok(t),
+            other => Err(CommandError::BadReply(format!("~T answered {other:?}"))),
+        }
+    }
+
+    /// `~R`: releases control of the gimbal; gcud refuses it
+    /// ([`CommandError::Refused`]) when a link of higher priority holds it.
+    pub async fn release(&self) -> Result<(), CommandError> {
+        let a = self.config.address;
+        match self.gcu(GcuRequest::Release(a.port, a.device)).await? {
+            GcuAnswer::Released => Ok(()),
+            other => Err(CommandError::BadReply(format!("~R answered {other:?}"))),
+        }
+    }
+
+    /// `~B`: gcud's limits and zones of the gimbal, asked at most every
+    /// [`RULES_REFRESH`] (they change only on a reload of gcud). A gcud
+    /// that does not know `~B` answers NIC ([`CommandError::Nic`]).
+    pub async fn rules(&self) -> Result<Rules, CommandError> {
+        if let Some((at, rules)) = self.state().rules.clone() {
+            if at.elapsed() < RULES_REFRESH {
+                return Ok(rules);
+            }
+        }
+        let a = self.config.address;
+        let rules = match self.gcu(GcuRequest::Rules(a.port, a.device)).await? {
+            GcuAnswer::Rules(r) => r,
+            other => return Err(CommandError::BadReply(format!("~B answered {other:?}"))),
+        };
+        self.state().rules = Some((Instant::now(), rules.clone()));
+        Ok(rules)
+    }
+
+    /// `D?`, asked once and kept.
+    pub async fn identity(&self) -> Result<Identity, CommandError> {
+        if let Some(id) = self.state().identity.clone() {
+            return Ok(id);
+        }
+        let payload = self
+            .send(Command::Identify)
+            .await?
+            .ok_or_else(|| CommandError::NoResult(format!("{} sent no result for D?", self.config.address)))?;
+        let id = Identity::from_result(&payload)?;
+        self.state().identity = Some(id.clone());
+        Ok(id)
+    }
+
+    /// Stops what moves (or may: a goto under way), waits for the bus to
+    /// confirm, and ends the task.
+    pub async fn shutdown(&self) {
+        let axes = {
+            let s = self.state();
+            let m = s.moving();
+            let changing = s.status.changing || s.place.is_some();
+            Axes {
+                pan: m.pan || changing,
+                tilt: m.tilt || changing,
+                zoom: m.zoom,
+            }
+            .or(s.stops_owed)
+            .or(s.wish_stops)
+        };
+        if axes.any() {
+            if let Err(e) = self.stop(axes).await {
+                warn!(gimbal = %self.config.name, error = %e, "stop at shutdown failed");
+            }
+        }
+        self.state().closing = true;
+        self.wake.notify_one();
+    }
+}

@@ -1,0 +1,429 @@
+//! The gimbal session's task, the only sender on the gimbal's connection:
+//! the next step decided under the lock (owed stops first, then the
+//! velocity, the positioning move, the queue, the poll), each step carried
+//! out and its outcome recorded (ARCHITECTURE "Front doors").
+
+use super::state::InForce;
+use super::*;
+
+/// What the task does next.
+pub(super) enum Step {
+    Stop(Command<'static>, Axes),
+    /// A drive command, and the axis once it is acknowledged.
+    Drive(Command<'static>, Applied),
+    Place(Place),
+    Query(Queued),
+    Poll,
+    Wait(Option<Instant>),
+    End,
+}
+
+/// One axis as it is once a drive command is acknowledged.
+#[derive(Clone, Copy, Debug)]
+pub(super) enum Applied {
+    Pan(InForce<Speed>),
+    Tilt(InForce<Speed>),
+    Zoom(InForce<LensSpeed>),
+}
+
+impl Applied {
+    pub(super) fn axes(self) -> Axes {
+        match self {
+            Applied::Pan(_) => Axes {
+                pan: true,
+                ..Axes::default()
+            },
+            Applied::Tilt(_) => Axes {
+                tilt: true,
+                ..Axes::default()
+            },
+            Applied::Zoom(_) => Axes {
+                zoom: true,
+                ..Axes::default()
+            },
+        }
+    }
+}
+
+impl GimbalSession {
+    /// The next step, decided under the lock.
+    pub(super) fn next(&self, now: Instant, next_poll: Instant) -> Step {
+        let mut s = self.state();
+        s.expire(now, &self.config.name);
+        s.drop_stale(now);
+        if s.closing && s.stop_failures >= STOP_ATTEMPTS_ANSWERED {
+            // Stopping the program: the stop was tried and reported.
+            return Step::End;
+        }
+        if s.stops_owed.any() {
+            if s.stop_retry_at.is_some_and(|t| t > now) {
+                return Step::Wait(s.stop_retry_at);
+            }
+            let (command, axes) = s.stops_owed.first().expect("owed");
+            return Step::Stop(command, axes);
+        }
+        if s.closing {
+            return Step::End;
+        }
+        if let Some(w) = &s.wish {
+            let v = w.what;
+            if let Some(step) = pan_tilt_step(Axis::Pan, v.pan, s.pan)
+                .or_else(|| pan_tilt_step(Axis::Tilt, v.tilt, s.tilt))
+                .or_else(|| zoom_step(v.zoom, s.zoom))
+            {
+                return step;
+            }
+            // Everything asked is in force; then the zeros beside it.
+            let w = s.wish.take().expect("checked");
+            answer(w.replies, Ok(()));
+            let stops = std::mem::take(&mut s.wish_stops);
+            if stops.any() {
+                s.owe_stop(stops);
+                let (command, axes) = s.stops_owed.first().expect("owed");
+                return Step::Stop(command, axes);
+            }
+        }
+        if let Some(p) = &s.place {
+            return Step::Place(p.what);
+        }
+        if let Some((queued, _)) = s.queue.pop_front() {
+            return Step::Query(queued);
+        }
+        let due = if s.moving().any() {
+            next_poll.min(now + REFRESH)
+        } else {
+            next_poll
+        };
+        if due <= now {
+            return Step::Poll;
+        }
+        Step::Wait(Some(s.deadline.map_or(due, |d| d.min(due))))
+    }
+
+    pub(super) async fn run(self: Arc<Self>, mut connection: GimbalConnection) {
+        let mut next_poll = Instant::now();
+        let mut asked_control = None;
+        loop {
+            // What the connection last learnt of gcud's control (a poll, a refusal).
+            self.state().status.control = connection.control();
+            let now = Instant::now();
+            match self.next(now, next_poll) {
+                Step::End => return,
+                Step::Wait(until) => {
+                    let sleep = tokio::time::sleep_until(until.unwrap_or(now + UNREACHABLE_POLL));
+                    tokio::select! {
+                        () = sleep => {}
+                        () = self.wake.notified() => {}
+                    }
+                }
+                Step::Stop(command, axes) => {
+                    let sent = connection.send(&command).await;
+                    self.reached(&sent);
+                    self.stop_sent(&command, axes, sent);
+                }
+                Step::Drive(command, applied) => {
+                    let sent = connection.send(&command).await;
+                    self.reached(&sent);
+                    self.drive_sent(&command, applied, sent);
+                }
+                Step::Place(place) => {
+                    let sent = connection.send(&place.command()).await;
+                    self.reached(&sent);
+                    let mut s = self.state();
+                    if let Some(p) = s.place.take() {
+                        if sent.is_ok() {
+                            // The gimbal goes there instead of slewing.
+                            s.pan.drive = Drive::Stop;
+                            s.tilt.drive = Drive::Stop;
+                            if !s.moving().any() {
+                                s.deadline = None;
+                            }
+                        }
+                        answer(p.replies, sent.map(drop));
+                    }
+                }
+                Step::Query(Queued::Bus(command, reply)) => {
+                    let sent = connection.send(&command).await;
+                    self.reached(&sent);
+                    let _ = reply.send(sent);
+                }
+                Step::Query(Queued::Gcu(request, reply)) => {
+                    let a = self.config.address;
+                    let answer = if request == GcuRequest::Controller(a.port, a.device) {
+                        // This gimbal's: kept for the status too.
+                        connection.controller().await.map(GcuAnswer::Controller)
+                    } else {
+                        connection.gcu(&request).await
+                    };
+                    self.reached(&answer);
+                    let _ = reply.send(answer);
+                }
+                Step::Poll => {
+                    let reading = poll(&mut connection, self.config.lens).await;
+                    self.reached(&reading);
+                    let failed = reading.is_err();
+                    self.polled(reading);
+                    if !failed && asked_control.is_none_or(|t: Instant| t.elapsed() >= CONTROL_POLL) {
+                        asked_control = Some(Instant::now());
+                        // Unknown while it fails (a gcud that governs nothing answers NIC).
+                        let _ = connection.controller().await;
+                    }
+                    let poll = self.config.poll;
+                    next_poll = Instant::now() + if failed { UNREACHABLE_POLL.max(poll) } else { poll };
+                }
+            }
+        }
+    }
+
+    /// Records what became of an owed stop: confirmed, refused by the
+    /// gimbal, given up after [`STOP_ATTEMPTS_ANSWERED`] answered attempts,
+    /// or kept owed and sent again.
+    fn stop_sent(&self, command: &Command<'static>, axes: Axes, sent: Result<Option<Vec<u8>>, CommandError>) {
+        let mut s = self.state();
+        match sent {
+            Ok(_) => {
+                s.stops_owed = s.stops_owed.without(axes);
+                s.stop_retry_at = None;
+                if axes.pan {
+                    s.pan.drive = Drive::Stop;
+                }
+                if axes.tilt {
+                    s.tilt.drive = Drive::Stop;
+                }
+                if axes.zoom {
+                    s.zoom.drive = Drive::Stop;
+                }
+                if !s.stops_owed.any() {
+                    s.stop_failures = 0;
+                    let replies = std::mem::take(&mut s.stop_replies);
+                    answer(replies, Ok(()));
+                }
+                if !s.moving().any() {
+                    s.deadline = None;
+                }
+            }
+            Err(CommandError::Nic(e)) => {
+                // The gimbal cannot apply it (a zoom stop without a lens): nothing to retry.
+                warn!(gimbal = %self.config.name, error = %e, "{} refused by the gimbal", command.mnemonic());
+                s.stops_owed = s.stops_owed.without(axes);
+                if !s.stops_owed.any() {
+                    let replies = std::mem::take(&mut s.stop_replies);
+                    answer(replies, Err(CommandError::Nic(e)));
+                }
+            }
+            Err(e) if !matches!(e, CommandError::Io(_)) && s.stop_failures + 1 >= STOP_ATTEMPTS_ANSWERED => {
+                // gcud answered, the gimbal did not confirm (absent,
+                // noise): tried again once; owing it for ever would
+                // hold every other command of this gimbal.
+                warn!(gimbal = %self.config.name, error = %e, "{} not confirmed after {STOP_ATTEMPTS_ANSWERED} attempts: given up", command.mnemonic());
+                s.stops_owed = s.stops_owed.without(axes);
+                s.stop_failures = 0;
+                s.stop_retry_at = None;
+                if !s.stops_owed.any() {
+                    let replies = std::mem::take(&mut s.stop_replies);
+                    answer(replies, Err(e));
+                }
+            }
+            Err(e) => {
+                s.stop_failures += 1;
+                let retry = if matches!(e, CommandError::Io(_)) {
+                    STOP_RETRY
+                } else {
+                    (STOP_RETRY * s.stop_failures).min(UNREACHABLE_POLL)
+                };
+                s.stop_retry_at = Some(Instant::now() + retry);
+                if s.stop_failures.is_power_of_two() {
+                    warn!(gimbal = %self.config.name, error = %e, attempt = s.stop_failures, "{} not confirmed: kept owed, sent again", command.mnemonic());
+                }
+                if s.stop_failures >= STOP_ATTEMPTS_ANSWERED {
+                    let replies = std::mem::take(&mut s.stop_replies);
+                    answer(replies, Err(e));
+                }
+            }
+        }
+    }
+
+    /// Records what became of a drive command: the axis in force, a
+    /// refusal by gcud's rules, or a failure that owes the stops.
+    fn drive_sent(&self, command: &Command<'static>, applied: Applied, sent: Result<Option<Vec<u8>>, CommandError>) {
+        let mut s = self.state();
+        match sent {
+            Ok(_) => {
+                s.last_refusal = None;
+                match applied {
+                    Applied::Pan(a) => s.pan = a,
+                    Applied::Tilt(a) => s.tilt = a,
+                    Applied::Zoom(a) => s.zoom = a,
+                }
+            }
+            Err(e) if e.refusal().is_some() => {
+                // gcud refused it by its rules: nothing reached
+                // the bus, the axis did not start.
+                if let Some(w) = s.wish.take() {
+                    answer(w.replies, Err(e.clone()));
+                }
+                let zeros = std::mem::take(&mut s.wish_stops);
+                if e.refusal() == Some(Undelivered::NotInControl) {
+                    // Another link holds the gimbal: its motion is
+                    // not this door's to stop, and gcud stopped
+                    // ours when that link took control. What was
+                    // set here (speeds too) is set again next time.
+                    s.pan = InForce::default();
+                    s.tilt = InForce::default();
+                    s.zoom = InForce::default();
+                } else {
+                    // Never leave an axis moving that the caller was told failed.
+                    let ours = Axes {
+                        pan: s.pan.drive != Drive::Stop,
+                        tilt: s.tilt.drive != Drive::Stop,
+                        zoom: s.zoom.drive != Drive::Stop,
+                    }
+                    .or(zeros);
+                    if ours.any() {
+                        s.owe_stop(ours);
+                    }
+                }
+                if !s.moving().any() {
+                    s.deadline = None;
+                }
+                if s.last_refusal != e.refusal() {
+                    s.last_refusal = e.refusal();
+                    info!(gimbal = %self.config.name, error = %e, "{} refused by gcud (logged once until something is accepted or refused otherwise)", command.mnemonic());
+                }
+            }
+            Err(e) => {
+                // Never leave an axis moving that the caller was told failed.
+                let axes = s.moving().or(std::mem::take(&mut s.wish_stops));
+                if let Some(w) = s.wish.take() {
+                    answer(w.replies, Err(e.clone()));
+                }
+                s.owe_stop(axes.or(applied.axes()));
+                warn!(gimbal = %self.config.name, error = %e, "{} failed: stopping the motion", command.mnemonic());
+            }
+        }
+    }
+
+    /// Records a poll's reading, or its error, in the status.
+    fn polled(&self, reading: Result<(Position, Option<LensPosition>), CommandError>) {
+        let mut s = self.state();
+        let st = &mut s.status;
+        match reading {
+            Ok((p, lens)) => {
+                st.changing = st.position.is_some_and(|old| old != p) || (st.lens.is_some() && st.lens != lens);
+                st.position = Some(p);
+                st.lens = lens;
+                st.error = None;
+            }
+            Err(e) => {
+                st.changing = false;
+                st.error = Some(e.to_string());
+            }
+        }
+    }
+
+    pub(super) fn reached<T>(&self, result: &Result<T, CommandError>) {
+        match result {
+            Err(e @ CommandError::Io(_)) => {
+                self.reach.down(&self.config.gcud, e);
+                // The connection is gone: gcud's dead-man stopped what it
+                // started, unless gcud itself is gone; either way owe the stops.
+                let mut s = self.state();
+                let moving = s.moving();
+                if moving.any() {
+                    s.stops_owed = s.stops_owed.or(moving);
+                }
+            }
+            _ => self.reach.up(&self.config.gcud),
+        }
+    }
+}
+
+pub(super) fn closed() -> CommandError {
+    CommandError::Io("the gimbal session has ended".to_owned())
+}
+
+/// The next command that moves one axis from `now` toward `want`, with
+/// the axis after it. A speed (`SPn`, `STn`, `Zn`) is taken by the next
+/// direction command, so each speed set is followed by its direction
+/// command before another speed: a stream of changing rates alternates the
+/// two and always progresses.
+pub(super) fn next_drive<S: Copy + PartialEq>(
+    want: Option<Drive<S>>,
+    now: InForce<S>,
+    speed_command: impl Fn(S) -> Command<'static>,
+    direction_command: impl Fn(Drive<S>) -> Command<'static>,
+) -> Option<(Command<'static>, InForce<S>)> {
+    let want = want?;
+    let speed = want.speed()?;
+    let same_direction = matches!(
+        (now.drive, want),
+        (Drive::Forward(_), Drive::Forward(_)) | (Drive::Back(_), Drive::Back(_))
+    );
+    let Some(set) = now.speed else {
+        let after = InForce {
+            speed: Some(speed),
+            drive: now.drive,
+        };
+        return Some((speed_command(speed), after));
+    };
+    let at_set = match want {
+        Drive::Forward(_) => Drive::Forward(set),
+        _ => Drive::Back(set),
+    };
+    if !same_direction || now.drive.speed() != Some(set) {
+        // Start, turn, or apply the speed set last.
+        let after = InForce {
+            speed: Some(set),
+            drive: at_set,
+        };
+        return Some((direction_command(at_set), after));
+    }
+    if set != speed {
+        let after = InForce {
+            speed: Some(speed),
+            drive: now.drive,
+        };
+        return Some((speed_command(speed), after));
+    }
+    None
+}
+
+/// [`next_drive`] for pan or tilt (Table 11: `SPn`/`STn`, `PR`/`PL`/`TU`/`TD`).
+pub(super) fn pan_tilt_step(axis: Axis, want: Option<Drive<Speed>>, now: InForce<Speed>) -> Option<Step> {
+    let (command, after) = next_drive(
+        want,
+        now,
+        |s| Command::SetSpeed(axis, s),
+        |d| match (axis, d) {
+            (Axis::Pan, Drive::Forward(_)) => Command::PanRight,
+            (Axis::Pan, _) => Command::PanLeft,
+            (Axis::Tilt, Drive::Forward(_)) => Command::TiltUp,
+            (Axis::Tilt, _) => Command::TiltDown,
+        },
+    )?;
+    Some(Step::Drive(
+        command,
+        match axis {
+            Axis::Pan => Applied::Pan(after),
+            Axis::Tilt => Applied::Tilt(after),
+        },
+    ))
+}
+
+/// [`next_drive`] for the zoom (Table 16: `Zn`, `ZI`/`ZO`).
+pub(super) fn zoom_step(want: Option<Drive<LensSpeed>>, now: InForce<LensSpeed>) -> Option<Step> {
+    let (command, after) = next_drive(want, now, Command::ZoomSpeed, |d| match d {
+        Drive::Forward(_) => Command::ZoomIn,
+        _ => Command::ZoomOut,
+    })?;
+    Some(Step::Drive(command, Applied::Zoom(after)))
+}
+
+pub(super) async fn poll(
+    connection: &mut GimbalConnection,
+    lens: bool,
+) -> Result<(Position, Option<LensPosition>), CommandError> {
+    let position = connection.position().await?;
+    let lens = if lens { Some(connection.lens().await?) } else { None };
+    Ok((position, lens))
+}
