@@ -307,3 +307,147 @@ fn the_crate_readme_tells_the_truth() {
 
     assert!(problems.is_empty(), "{}", problems.join("\n"));
 }
+
+/// The texts a user reads for which way a gimbal turns: the Markdown docs,
+/// the shipped configurations' comments and every program's help.
+fn direction_texts() -> Vec<(String, String)> {
+    let mut texts: Vec<(String, String)> = tracked()
+        .into_iter()
+        .filter(|(f, _)| {
+            (f.ends_with(".md") && !f.starts_with("crates/protocol/CHANGELOG"))
+                || (f.starts_with("config/") && f.ends_with(".toml"))
+        })
+        .map(|(f, t)| {
+            let prose = if f.ends_with(".md") {
+                prose(&t).into_iter().map(|(_, l)| l).collect::<Vec<_>>().join("\n")
+            } else {
+                t
+            };
+            (f, prose)
+        })
+        .collect();
+    for (bin, exe) in [
+        ("gcud", env!("CARGO_BIN_EXE_gcud")),
+        ("gimbalctl", env!("CARGO_BIN_EXE_gimbalctl")),
+        ("gimbal-onvif", env!("CARGO_BIN_EXE_gimbal-onvif")),
+        ("gimbal-mavlink", env!("CARGO_BIN_EXE_gimbal-mavlink")),
+        ("gimbal-web", env!("CARGO_BIN_EXE_gimbal-web")),
+        ("gimbalsim", env!("CARGO_BIN_EXE_gimbalsim")),
+    ] {
+        help_texts(bin, exe, &mut Vec::new(), &mut texts);
+    }
+    texts
+}
+
+/// `exe [path..] --help` and, recursively (two levels at most), every
+/// subcommand's help listed under its "Commands:".
+fn help_texts(bin: &str, exe: &str, path: &mut Vec<String>, texts: &mut Vec<(String, String)>) {
+    let out = Command::new(exe)
+        .args(path.iter())
+        .arg("--help")
+        .output()
+        .expect("run --help");
+    assert!(out.status.success(), "{bin} {} --help failed", path.join(" "));
+    let help = String::from_utf8_lossy(&out.stdout).into_owned();
+    let subcommands: Vec<String> = help
+        .split("Commands:")
+        .nth(1)
+        .map(|rest| {
+            rest.lines()
+                .skip(1)
+                .take_while(|l| l.starts_with("  "))
+                .filter_map(|l| l.split_whitespace().next().map(str::to_owned))
+                .filter(|c| c != "help")
+                .collect()
+        })
+        .unwrap_or_default();
+    texts.push((format!("`{bin} {} --help`", path.join(" ")), help));
+    if path.len() < 2 {
+        for c in subcommands {
+            path.push(c);
+            help_texts(bin, exe, path, texts);
+            path.pop();
+        }
+    }
+}
+
+/// The sentences of a text (table rows count as one each), whitespace
+/// folded, lower case.
+fn sentences(text: &str) -> Vec<String> {
+    let mut found = Vec::new();
+    for paragraph in text.split("\n\n") {
+        let mut current = String::new();
+        for line in paragraph.lines() {
+            if line.trim_start().starts_with('|') {
+                found.push(line.to_lowercase());
+                continue;
+            }
+            for word in line.split_whitespace() {
+                if !current.is_empty() {
+                    current.push(' ');
+                }
+                current.push_str(&word.to_lowercase());
+                if word.ends_with(['.', '!', '?', ';']) {
+                    found.push(std::mem::take(&mut current));
+                }
+            }
+        }
+        if !current.is_empty() {
+            found.push(current);
+        }
+    }
+    found
+}
+
+/// What a sentence says wrong about the turning sense, if anything
+/// (protocol-notes "Directions, in one place"): the spec calls positive pan
+/// counter-clockwise, which is clockwise seen from above, so a bare
+/// "clockwise" is ambiguous, and "counter-clockwise seen from above" for
+/// positive or right is the other direction.
+fn direction_problem(sentence: &str) -> Option<&'static str> {
+    let s = sentence.replace("counterclockwise", "counter-clockwise");
+    if !s.contains("clockwise") {
+        return None;
+    }
+    let from_above = s.contains("seen from above");
+    if !from_above && !s.contains("spec") {
+        return Some("a bare clockwise/counter-clockwise: say \"seen from above\" or that it is the spec's word");
+    }
+    let right_or_positive = ["right", "positive", "+"].iter().any(|w| s.contains(w));
+    let left_or_negative = ["left", "negative"].iter().any(|w| s.contains(w));
+    if s.contains("counter-clockwise seen from above") && right_or_positive && !left_or_negative {
+        return Some("positive/right pan is clockwise seen from above, not counter-clockwise");
+    }
+    let plain = s.replace("counter-clockwise", "");
+    if plain.contains("clockwise seen from above") && left_or_negative && !right_or_positive {
+        return Some("negative/left pan is counter-clockwise seen from above, not clockwise");
+    }
+    None
+}
+
+/// Every text gives the same pan direction (issue: gimbalctl's help said
+/// counter-clockwise where the README said clockwise seen from above).
+#[test]
+fn one_word_for_directions() {
+    for (bad, why) in [
+        ("positive pan is counter-clockwise (right).", "bare"),
+        ("pan right (positive, counter-clockwise seen from above).", "contrary"),
+        ("pan left (negative, clockwise seen from above).", "contrary"),
+    ] {
+        assert!(
+            direction_problem(bad).is_some(),
+            "the check misses a {why} direction: {bad}"
+        );
+    }
+    let good = "mavlink's yaw to the right (positive, clockwise seen from above) is the sagebrush pan right.";
+    assert_eq!(direction_problem(good), None);
+    let mut problems = Vec::new();
+    for (what, text) in direction_texts() {
+        for sentence in sentences(&text) {
+            if let Some(why) = direction_problem(&sentence) {
+                problems.push(format!("{what}: {why}: \"{sentence}\""));
+            }
+        }
+    }
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}

@@ -19,7 +19,7 @@ pub enum Cmd {
         after_help = concat!("Angles are hundredths of a degree on the wire (16-bit two's complement): -327.68..=327.67.\n\n", examples!("goto 45 -10 --wait", "goto -12.25 3.5"))
     )]
     Goto {
-        /// Pan (azimuth), degrees -327.68..=327.67 (+ = counter-clockwise, right).
+        /// Pan (azimuth), degrees -327.68..=327.67 (+ = right: clockwise seen from above).
         #[arg(value_parser = parse_pan)]
         pan: f64,
         /// Tilt (elevation), degrees -327.68..=327.67 (+ = up; the mount's travel and software limits apply).
@@ -40,7 +40,7 @@ pub enum Cmd {
         "\n\n", examples!("slew right --for 2s", "slew up --hold      # until Ctrl-C", gimbalctl "--serial /dev/ttyUSB0 --to 1.1.1 slew left          # until `stop pan`")
     ))]
     Slew {
-        /// left = pan clockwise (PL), right = pan counter-clockwise (PR), up = tilt up (TU), down = tilt down (TD).
+        /// left = pan left (PL, counter-clockwise seen from above), right = pan right (PR, clockwise seen from above), up = tilt up (TU), down = tilt down (TD).
         direction: Direction,
         #[command(flatten)]
         jog: JogArgs,

@@ -126,16 +126,16 @@ pub enum LimitsCmd {
     /// Set raw 12-bit limits, each 0..=4095 (Table 10; the unit is the device's).
     #[command(after_help = examples!("limits set 100 50 30 20"))]
     Set {
-        /// Pan counter-clockwise (+) limit, raw 0..=4095.
+        /// Pan right (+, the spec's counter-clockwise) limit, raw 0..=4095.
         #[arg(value_parser = clap::value_parser!(u16).range(0..=4095))]
         pan_ccw: u16,
-        /// Pan clockwise (-) limit, raw 0..=4095.
+        /// Pan left (-, the spec's clockwise) limit, raw 0..=4095.
         #[arg(value_parser = clap::value_parser!(u16).range(0..=4095))]
         pan_cw: u16,
-        /// Tilt counter-clockwise (up) limit, raw 0..=4095.
+        /// Tilt up (+, the spec's counter-clockwise) limit, raw 0..=4095.
         #[arg(value_parser = clap::value_parser!(u16).range(0..=4095))]
         tilt_ccw: u16,
-        /// Tilt clockwise (down) limit, raw 0..=4095.
+        /// Tilt down (-, the spec's clockwise) limit, raw 0..=4095.
         #[arg(value_parser = clap::value_parser!(u16).range(0..=4095))]
         tilt_cw: u16,
     },

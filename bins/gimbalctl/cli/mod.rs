@@ -78,8 +78,8 @@ Exit codes:
 /// Command Sagebrush pan-tilt gimbals (protocol rev 1.9) by hand.
 ///
 /// Talks to a bus directly (--serial, as bus master) or to a GCU daemon
-/// (--tcp, as a client like the MCU). Angles are degrees (positive =
-/// counter-clockwise: pan right, tilt up), rates degrees per second. Every
+/// (--tcp, as a client like the MCU). Angles are degrees (positive = pan
+/// right, clockwise seen from above, and tilt up), rates degrees per second. Every
 /// command to a device needs --to GROUP.PORT.DEVICE.
 #[derive(Debug, Parser)]
 #[command(
