@@ -825,6 +825,15 @@ fn relative_move_in_the_fov_space_turns_by_the_field_of_view() {
     assert_eq!(fault_subcodes(&r), ["InvalidArgVal", "SpaceNotSupported"], "{r}");
     let spaces = stack.client("relative_spaces", stack.absent, ADMIN, json!({}));
     assert_eq!(spaces["default"], TRANSLATION_GENERIC, "{spaces}");
+    // A zoom translation (no relative zoom space is offered): refused,
+    // and the pan and tilt beside it do not move either.
+    let r = stack.client(
+        "relative",
+        stack.mast,
+        ADMIN,
+        json!({ "x": 0.5, "y": 0.0, "zoom": 0.2 }),
+    );
+    assert_eq!(fault_subcodes(&r), ["InvalidArgVal", "SpaceNotSupported"], "{r}");
     support::door::assert_still(&stack.gcud, MAST, (0.0, -20.0), "refused translations");
     // Zoomed to the tele end (6° x 4°): the field of view the move is in
     // follows the lens.

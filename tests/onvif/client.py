@@ -171,6 +171,8 @@ async def step(name, host, port, user, password, args):
             translation = {"PanTilt": {"x": args["x"], "y": args["y"]}}
             if args.get("space"):
                 translation["PanTilt"]["space"] = args["space"]
+            if args.get("zoom") is not None:
+                translation["Zoom"] = {"x": args["zoom"]}
             moved = await attempt(ptz.RelativeMove({"ProfileToken": token, "Translation": translation}))
             if "ok" not in moved:
                 return moved

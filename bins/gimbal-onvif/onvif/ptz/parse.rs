@@ -59,6 +59,16 @@ pub fn request(op: &Element) -> Result<Request, Fault> {
         "ContinuousMove" => Request::ContinuousMove(continuous(op)?),
         "AbsoluteMove" => absolute(op)?,
         "RelativeMove" => {
+            // The node offers no relative zoom space: a zoom translation
+            // is refused, never dropped while the pan and tilt move.
+            if let Some(z) = op.path(&["Translation", "Zoom"]) {
+                if generic(z, "x", "Translation Zoom")?.is_some_and(|x| x != 0.0) {
+                    return Err(Fault::invalid_arg(
+                        "ter:SpaceNotSupported",
+                        "Translation Zoom: this node offers no relative zoom space (GetNode lists its spaces)",
+                    ));
+                }
+            }
             let t = op.path(&["Translation", "PanTilt"]).ok_or_else(|| {
                 Fault::invalid_arg("ter:InvalidTranslation", "RelativeMove without a Translation PanTilt")
             })?;
