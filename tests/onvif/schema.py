@@ -141,3 +141,14 @@ def install():
 
     post_xml.schema_checked = True
     transport.post_xml = post_xml
+
+
+if __name__ == "__main__":
+    # One raw response on stdin: exit 0 when valid, else 1 with the reason.
+    import sys
+
+    try:
+        check(sys.stdin.buffer.read())
+    except Invalid as err:
+        print(err, file=sys.stderr)
+        sys.exit(1)
