@@ -71,6 +71,7 @@ listen = "127.0.0.1:0"
 stream_uri = "rtsp://127.0.0.1:8554/mast-1"
 zoom = true
 fov_deg = [60.0, 40.0]
+fov_tele_deg = [6.0, 4.0]
 [[gimbal]]
 name = "absent"
 address = "5.2.9"
@@ -623,7 +624,7 @@ fn check_names_the_file_line_column_and_key_and_exits_2() {
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(
         err.contains(&format!(
-            "{}:29:11: gimbal[1].address: expected GROUP.PORT.DEVICE",
+            "{}:30:11: gimbal[1].address: expected GROUP.PORT.DEVICE",
             path.display()
         )),
         "{err}"
@@ -656,6 +657,8 @@ fn the_shipped_configuration_documents_every_key_and_passes_check() {
         "pan_deg",
         "tilt_deg",
         "zoom",
+        "fov_deg",
+        "fov_tele_deg",
     ] {
         assert!(
             text.lines()
@@ -700,12 +703,6 @@ fn the_shipped_unit_is_hardened_and_checks_its_configuration_first() {
 const FOV_SPACE: &str = "http://www.onvif.org/ver10/tptz/PanTiltSpaces/TranslationSpaceFov";
 const TRANSLATION_GENERIC: &str = "http://www.onvif.org/ver10/tptz/PanTiltSpaces/TranslationGenericSpace";
 
-/// Frigate's autotracker and Milestone's centre-click move in the FOV
-/// translation space (ONVIF PTZ, "Pan/tilt Translation Space in FOV"): the
-/// image centre is (0, 0) and its right edge x = 1, so with mast-1's
-/// configured field of view of 60° x 40°, (1, 0) turns the pan by 30°,
-/// (0.5, 0) by 15° and (0, -1) the tilt by -20° (linear in the angle: no
-/// lens projection is modelled). Positions are read on the bus side.
 /// gcud decides who controls a gimbal (issue 32, ARCHITECTURE
 /// "Front doors"): while the operators' link (priority 80, gimbalctl) holds
 /// the mast gimbal, a VMS's moves through gimbal-onvif (the doors' link,
@@ -751,6 +748,14 @@ fn moves_while_a_higher_priority_link_holds_the_gimbal_get_a_fault_naming_it() {
     eprintln!("refused: {reason}");
 }
 
+/// Frigate's autotracker and Milestone's centre-click move in the FOV
+/// translation space (ONVIF PTZ, "Pan/tilt Translation Space in FOV"): the
+/// image centre is (0, 0) and its right edge x = 1, so with mast-1's
+/// configured field of view of 60° x 40° at the wide end, (1, 0) turns the
+/// pan by 30°, (0.5, 0) by 15° and (0, -1) the tilt by -20° (linear in the
+/// angle: no lens projection is modelled); at the tele end (zoom 1, 6° x
+/// 4°), (1, 0) turns it by 3°. Positions are read on the bus side, and
+/// GetStatus agrees with them at the end of every move.
 #[test]
 fn relative_move_in_the_fov_space_turns_by_the_field_of_view() {
     if !clients_available() {
@@ -770,12 +775,12 @@ fn relative_move_in_the_fov_space_turns_by_the_field_of_view() {
     // The profile's default space (no space named), then named.
     let r = stack.client("relative", stack.mast, ADMIN, json!({ "x": 1.0, "y": 0.0 }));
     assert_eq!(r["ok"], true, "{r}");
-    assert_eq!(r["status"]["moving"], "IDLE", "MoveStatus at the end: {r}");
     let (pan, tilt) = stack.gcud.settled_position(MAST);
     assert!(
         (pan - 30.0).abs() <= 0.5 && tilt.abs() <= 0.5,
         "(1, 0): bus at {pan}, {tilt}"
     );
+    assert_status_at(&r, (pan, tilt));
     let r = stack.client(
         "relative",
         stack.mast,
@@ -788,6 +793,7 @@ fn relative_move_in_the_fov_space_turns_by_the_field_of_view() {
         (pan - 45.0).abs() <= 0.5 && (tilt + 20.0).abs() <= 0.5,
         "(0.5, -1): bus at {pan}, {tilt}"
     );
+    assert_status_at(&r, (pan, tilt));
     // The generic space when named: x over the whole travel (360°), 0.25 = 45°.
     let r = stack.client(
         "relative",
@@ -819,5 +825,152 @@ fn relative_move_in_the_fov_space_turns_by_the_field_of_view() {
     assert_eq!(fault_subcodes(&r), ["InvalidArgVal", "SpaceNotSupported"], "{r}");
     let spaces = stack.client("relative_spaces", stack.absent, ADMIN, json!({}));
     assert_eq!(spaces["default"], TRANSLATION_GENERIC, "{spaces}");
+    // A zoom translation (no relative zoom space is offered): refused,
+    // and the pan and tilt beside it do not move either.
+    let r = stack.client(
+        "relative",
+        stack.mast,
+        ADMIN,
+        json!({ "x": 0.5, "y": 0.0, "zoom": 0.2 }),
+    );
+    assert_eq!(fault_subcodes(&r), ["InvalidArgVal", "SpaceNotSupported"], "{r}");
     support::door::assert_still(&stack.gcud, MAST, (0.0, -20.0), "refused translations");
+    // Zoomed to the tele end (6° x 4°): the field of view the move is in
+    // follows the lens.
+    let r = stack.client("absolute", stack.mast, ADMIN, json!({ "zoom": 1.0 }));
+    assert_eq!(r["ok"], true, "{r}");
+    eventually("the lens at 4095", || {
+        std::thread::sleep(Duration::from_millis(100));
+        stack.bus_zoom() == 4095
+    });
+    let r = stack.client("relative", stack.mast, ADMIN, json!({ "x": 1.0, "y": 0.0 }));
+    assert_eq!(r["ok"], true, "{r}");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!(
+        (pan - 3.0).abs() <= 0.5 && (tilt + 20.0).abs() <= 0.5,
+        "(1, 0) at the tele end: bus at {pan}, {tilt}"
+    );
+    assert_status_at(&r, (pan, tilt));
+}
+
+/// A move's answer ends with GetStatus IDLE at the position on the bus
+/// (the generic position of pan [-180, 180] and tilt [-90, 90]).
+fn assert_status_at(r: &Value, (pan, tilt): (f64, f64)) {
+    let status = &r["status"];
+    assert_eq!(status["moving"], "IDLE", "MoveStatus at the end: {r}");
+    let x = status["x"].as_f64().expect("x");
+    let y = status["y"].as_f64().expect("y");
+    assert!(
+        (x * 180.0 - pan).abs() <= 0.05 && (y * 90.0 - tilt).abs() <= 0.05,
+        "GetStatus ({x}, {y}) at the end vs the bus ({pan}, {tilt}): {r}"
+    );
+}
+
+const GET_STATUS: &str =
+    "<GetStatus xmlns=\"http://www.onvif.org/ver20/ptz/wsdl\"><ProfileToken>profile1</ProfileToken></GetStatus>";
+
+/// Older clients and VMSs speak SOAP 1.1 (`text/xml`, a SOAPAction
+/// header) or send SOAP 1.2 with an `action` parameter or none: what is
+/// asked is the Body's element, never the action, and the answer is in the
+/// request's SOAP version with its content type (issue 33).
+#[test]
+fn soap_1_1_and_action_less_requests_are_answered_by_their_body() {
+    if !clients_available() {
+        return;
+    }
+    let stack = Stack::start();
+    let raw = |soap: &str, content_type: &str, action: Option<&str>, body: &str| {
+        stack.client(
+            "signed_raw",
+            stack.mast,
+            OPERATOR,
+            json!({ "soap": soap, "content_type": content_type, "soap_action": action, "body": body }),
+        )
+    };
+    // SOAP 1.1 with a SOAPAction naming another operation: GetStatus answers.
+    let nodes_action = "\"http://www.onvif.org/ver20/ptz/wsdl/GetNodes\"";
+    let r = raw("1.1", "text/xml; charset=utf-8", Some(nodes_action), GET_STATUS);
+    assert_eq!(r["status"], 200, "{r}");
+    assert_eq!(r["content_type"], "text/xml; charset=utf-8", "{r}");
+    let body = r["body"].as_str().unwrap();
+    assert!(
+        body.contains("xmlns:s=\"http://schemas.xmlsoap.org/soap/envelope/\"") && body.contains("GetStatusResponse"),
+        "{body}"
+    );
+    // A SOAP 1.1 fault: HTTP 500, faultcode and the ONVIF subcodes.
+    let r = raw("1.1", "text/xml", None, &GET_STATUS.replace("profile1", "nope"));
+    assert_eq!(r["status"], 500, "{r}");
+    let body = r["body"].as_str().unwrap();
+    assert!(
+        body.contains("<faultcode>s:Client</faultcode>") && body.contains("ter:NoProfile"),
+        "{body}"
+    );
+    // A move in SOAP 1.1 moves: AbsoluteMove to generic (0.25, 0), 45°.
+    let absolute = "<AbsoluteMove xmlns=\"http://www.onvif.org/ver20/ptz/wsdl\"><ProfileToken>profile1</ProfileToken><Position><PanTilt xmlns=\"http://www.onvif.org/ver10/schema\" x=\"0.25\" y=\"0\"/></Position></AbsoluteMove>";
+    let r = raw("1.1", "text/xml; charset=utf-8", Some("\"\""), absolute);
+    assert_eq!(r["status"], 200, "{r}");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    assert!((pan - 45.0).abs() <= 0.5 && tilt.abs() <= 0.5, "bus at {pan}, {tilt}");
+    // SOAP 1.2 with an action parameter naming another operation, and
+    // with none: the Body's element is answered, as application/soap+xml.
+    for content_type in [
+        "application/soap+xml; charset=utf-8; action=\"http://www.onvif.org/ver20/ptz/wsdl/GetNodes\"",
+        "application/soap+xml",
+    ] {
+        let r = raw("1.2", content_type, None, GET_STATUS);
+        assert_eq!(r["status"], 200, "{content_type}: {r}");
+        assert_eq!(r["content_type"], "application/soap+xml; charset=utf-8", "{r}");
+        let body = r["body"].as_str().unwrap();
+        assert!(
+            body.contains("xmlns:s=\"http://www.w3.org/2003/05/soap-envelope\"") && body.contains("GetStatusResponse"),
+            "{body}"
+        );
+    }
+}
+
+/// What npm `onvif` (Scrypted, Node-RED) and Synology check before they
+/// keep a camera: the first video source's token is the one the profile's
+/// video source configuration uses, GetCompatibleConfigurations lists the
+/// profile's own PTZ configuration, and CreateProfile answers the
+/// MaxNVTProfiles fault (ONVIF Media). SetConfiguration's
+/// DefaultPTZTimeout is read back and stops a ContinuousMove without a
+/// Timeout.
+#[test]
+fn tokens_agree_and_set_configuration_sets_the_default_timeout() {
+    if !clients_available() {
+        return;
+    }
+    let stack = Stack::start();
+    for port in [stack.mast, stack.absent] {
+        let t = stack.client("tokens", port, ADMIN, json!({}));
+        assert_eq!(t["video_source"], "videosource1", "{t}");
+        assert_eq!(t["profiles_using_it"], json!(["profile1"]), "{t}");
+        assert_eq!(t["compatible"], json!([t["ptz_configuration"].clone()]), "{t}");
+        assert_eq!(
+            fault_subcodes(&t["create_profile"]),
+            ["Action", "MaxNVTProfiles"],
+            "{t}"
+        );
+    }
+    let t = stack.client("tokens", stack.mast, ADMIN, json!({}));
+    assert_eq!(t["compatible_default_space"], json!([FOV_SPACE]), "{t}");
+    // An operator may not change the configuration; an administrator may.
+    let r = stack.client("set_timeout", stack.mast, OPERATOR, json!({ "timeout_s": 2.0 }));
+    assert_eq!(fault_subcodes(&r), ["NotAuthorized"], "{r}");
+    let r = stack.client("set_timeout", stack.mast, ADMIN, json!({ "timeout_s": 30.0 }));
+    assert_eq!(
+        fault_subcodes(&r),
+        ["InvalidArgVal", "ConfigModify"],
+        "beyond max_move_ms: {r}"
+    );
+    let r = stack.client("set_timeout", stack.mast, ADMIN, json!({ "timeout_s": 2.0 }));
+    assert_eq!(r["timeout_s"], 2.0, "{r}");
+    // 30 °/s without a Timeout: stopped after 2 s (about 60°), well short
+    // of the end of travel that max_move_ms (20 s) would allow.
+    let r = stack.client("continuous", stack.mast, OPERATOR, json!({ "x": 0.25, "y": 0.0 }));
+    assert_eq!(r["ok"], true, "{r}");
+    let (pan, _) = stack.gcud.settled_position(MAST);
+    assert!(pan > 20.0 && pan < 150.0, "stopped by the default timeout: {pan}");
+    support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "PS");
+    assert!(stack.log().contains("move time-out"), "{}", stack.log());
 }

@@ -76,6 +76,7 @@ struct GimbalSection {
     tilt_deg: Option<Spanned<Vec<f64>>>,
     zoom: Option<Spanned<bool>>,
     fov_deg: Option<Spanned<Vec<f64>>>,
+    fov_tele_deg: Option<Spanned<Vec<f64>>>,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -93,8 +94,11 @@ pub struct Gimbal {
     pub zoom: bool,
     /// The camera's horizontal and vertical field of view, degrees: with
     /// it, RelativeMove offers the FOV translation space (ONVIF PTZ,
-    /// "Pan/tilt Translation Space in FOV").
+    /// "Pan/tilt Translation Space in FOV"), at the lens's wide end.
     pub fov_deg: Option<(f64, f64)>,
+    /// With a lens (`zoom`), the field of view at its tele end (zoom
+    /// 4095): the FOV space then follows the zoom (`onvif::spaces::fov_at`).
+    pub fov_tele_deg: Option<(f64, f64)>,
 }
 
 /// `[auth]`: what one user may make the door spend, and the replay memory.
@@ -205,21 +209,19 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             s => s.as_ref().map(|s| s.get_ref().clone()),
         };
         let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), &key)?;
-        let fov_deg = match &g.fov_deg {
-            None => None,
-            Some(f) => match f.get_ref().as_slice() {
-                [h, v] if *h > 0.0 && *h <= 360.0 && *v > 0.0 && *v <= 180.0 => Some((*h, *v)),
-                other => {
-                    return Err(c.at(
-                        f.span(),
-                        format!("{key}.fov_deg"),
-                        format!(
-                            "expected [HORIZONTAL, VERTICAL] degrees, 0 < HORIZONTAL <= 360 and 0 < VERTICAL <= 180, found {other:?}"
-                        ),
-                    ));
-                }
-            },
-        };
+        let fov_deg = field_of_view(&c, g.fov_deg.as_ref(), &format!("{key}.fov_deg"))?;
+        let fov_tele_deg = field_of_view(&c, g.fov_tele_deg.as_ref(), &format!("{key}.fov_tele_deg"))?;
+        let zoom = g.zoom.as_ref().is_some_and(|z| *z.get_ref());
+        if let (Some(tele), Some(spanned)) = (fov_tele_deg, &g.fov_tele_deg) {
+            let wide_ok = fov_deg.is_some_and(|w| tele.0 <= w.0 && tele.1 <= w.1);
+            if !zoom || !wide_ok {
+                return Err(c.at(
+                    spanned.span(),
+                    format!("{key}.fov_tele_deg"),
+                    "expected with zoom = true and fov_deg, and no wider than fov_deg (the tele end of the same lens)",
+                ));
+            }
+        }
         gimbals.push(Gimbal {
             name,
             address,
@@ -228,8 +230,9 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             pan_deg,
             tilt_deg,
             http,
-            zoom: g.zoom.as_ref().is_some_and(|z| *z.get_ref()),
+            zoom,
             fov_deg,
+            fov_tele_deg,
         });
     }
     if gimbals.is_empty() {
@@ -253,6 +256,21 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         },
         gimbals,
     })
+}
+
+/// A field of view, `[HORIZONTAL, VERTICAL]` degrees.
+fn field_of_view(c: &Source<'_>, v: Option<&Spanned<Vec<f64>>>, key: &str) -> Result<Option<(f64, f64)>, ConfigError> {
+    let Some(f) = v else { return Ok(None) };
+    match f.get_ref().as_slice() {
+        [h, v] if *h > 0.0 && *h <= 360.0 && *v > 0.0 && *v <= 180.0 => Ok(Some((*h, *v))),
+        other => Err(c.at(
+            f.span(),
+            key,
+            format!(
+                "expected [HORIZONTAL, VERTICAL] degrees, 0 < HORIZONTAL <= 360 and 0 < VERTICAL <= 180, found {other:?}"
+            ),
+        )),
+    }
 }
 
 fn socket(c: &Source<'_>, v: &Spanned<String>, key: &str) -> Result<SocketAddr, ConfigError> {

@@ -1,6 +1,9 @@
 //! Each gimbal's ONVIF device on its own HTTP listener: POSTed SOAP to
 //! `/onvif/device_service`, `/onvif/media_service` or `/onvif/ptz_service`
-//! (the operation, not the path, says what is asked). The connections go
+//! (the Body's element, not the path, the Content-Type's `action`
+//! parameter or a SOAPAction header, says what is asked; any Content-Type,
+//! parameters included, is read as the envelope it carries, and the answer
+//! goes back as that envelope's SOAP version's type). The connections go
 //! through the bounded listener (crate `sagebrush-listener`, `[http]`): one
 //! admission table for every gimbal's device (a total cap that evicts the
 //! longest-idle connection for a newcomer, a per-peer cap that holds for
@@ -24,8 +27,7 @@ use sagebrush_listener::{BoundedListener, Connections, Local, Peer};
 use tokio::sync::Semaphore;
 use tracing::{debug, info, warn};
 
-use crate::onvif::{Device, Origin};
-use crate::soap::Fault;
+use crate::onvif::{Answer, Device, Origin};
 
 /// The largest request body (an ONVIF request is a few KiB).
 pub const MAX_BODY: usize = 64 * 1024;
@@ -45,8 +47,6 @@ struct Served {
     permits: Arc<Semaphore>,
     failed_logins: Arc<Mutex<LogGate<IpAddr>>>,
 }
-
-const SOAP: &str = "application/soap+xml; charset=utf-8";
 
 /// Whether `host` is a well-formed Host header value: an IPv4 address or
 /// a DNS name (letters, digits, hyphens in dot-separated labels), or an
@@ -98,15 +98,10 @@ async fn soap(
         uri: target,
         authorization: headers.get(header::AUTHORIZATION).and_then(|h| h.to_str().ok()),
     };
-    let answer = match tokio::time::timeout(REQUEST_TIMEOUT, s.device.handle(&body, &origin)).await {
-        Ok(answer) => answer,
-        Err(_) => Err(Fault::receiver(
-            &["ter:Action", "ter:Timeout"],
-            format!("no answer within {} s", REQUEST_TIMEOUT.as_secs()),
-        )),
-    };
-    match answer {
-        Ok(xml) => ([(header::CONTENT_TYPE, SOAP)], xml).into_response(),
+    let Answer { version, result } = s.device.handle(&body, &origin).await;
+    let content_type = version.content_type();
+    match result {
+        Ok(xml) => ([(header::CONTENT_TYPE, content_type)], xml).into_response(),
         Err(fault) => {
             debug!(gimbal = %s.device.gimbal.config.name, %peer, reason = %fault.reason, "fault");
             if let Some(user) = &fault.login_failed {
@@ -119,8 +114,9 @@ async fn soap(
                     warn!(gimbal = %s.device.gimbal.config.name, %peer, user = ?user, reason = %fault.reason, held_back, "failed login (logged at most once in {} s per peer; held_back: failed logins from it since the last line)", FAILED_LOGIN_LOG_EVERY.as_secs());
                 }
             }
-            let status = StatusCode::from_u16(fault.status()).unwrap_or(StatusCode::BAD_REQUEST);
-            let mut response = (status, [(header::CONTENT_TYPE, SOAP)], fault.envelope()).into_response();
+            let status = StatusCode::from_u16(fault.status(version)).unwrap_or(StatusCode::BAD_REQUEST);
+            let mut response =
+                (status, [(header::CONTENT_TYPE, content_type)], fault.envelope(version)).into_response();
             if fault.unauthenticated {
                 let challenge = s.device.auth.challenge(time::OffsetDateTime::now_utc());
                 if let Ok(value) = header::HeaderValue::from_str(&challenge) {

@@ -38,11 +38,7 @@ async fn run(config: config::Config) -> Result<(), String> {
     let table = config.gimbals.first().map(|g| g.http.table());
     for g in &config.gimbals {
         let gimbal = gimbal::Gimbal::new(g.clone(), &config, Arc::clone(&reach));
-        let device = onvif::Device {
-            gimbal: Arc::clone(&gimbal),
-            auth: Arc::clone(&auth),
-            presets: Arc::clone(&presets),
-        };
+        let device = onvif::Device::new(Arc::clone(&gimbal), Arc::clone(&auth), Arc::clone(&presets));
         let (bound, server) = http::bind(g.listen, device, Arc::clone(table.as_ref().expect("a gimbal")))
             .await
             .map_err(|e| {

@@ -1,6 +1,8 @@
-//! SOAP 1.2 envelopes (ONVIF Core 5.1): a request read with quick-xml into
-//! a small element tree (namespaces resolved, depth and size bounded), and
-//! responses and faults written with the ONVIF namespace prefixes.
+//! SOAP envelopes (ONVIF Core 5.1: SOAP 1.2, and SOAP 1.1 as older clients
+//! send it): a request read with quick-xml into a small element tree
+//! (namespaces resolved, depth and size bounded), and responses and faults
+//! written in the request's own SOAP version with the ONVIF namespace
+//! prefixes.
 
 use quick_xml::escape::escape;
 use quick_xml::events::{BytesStart, Event};
@@ -8,6 +10,8 @@ use quick_xml::name::ResolveResult;
 use quick_xml::reader::NsReader;
 
 pub const NS_SOAP: &str = "http://www.w3.org/2003/05/soap-envelope";
+/// SOAP 1.1's envelope namespace (W3C Note "SOAP 1.1", 4.1.2).
+pub const NS_SOAP11: &str = "http://schemas.xmlsoap.org/soap/envelope/";
 pub const NS_DEVICE: &str = "http://www.onvif.org/ver10/device/wsdl";
 pub const NS_MEDIA: &str = "http://www.onvif.org/ver10/media/wsdl";
 pub const NS_PTZ: &str = "http://www.onvif.org/ver20/ptz/wsdl";
@@ -147,9 +151,43 @@ fn close(stack: &mut [Element], root: &mut Option<Element>, element: Element) {
     }
 }
 
-/// A request's envelope: its header and its one operation.
+/// The SOAP version of a request, which its answer is written in.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Version {
+    /// SOAP 1.1: `text/xml`, faults as `faultcode` and `faultstring`, and
+    /// every fault with HTTP 500 (SOAP 1.1, 6.2).
+    Soap11,
+    /// SOAP 1.2 (ONVIF Core 5.1): `application/soap+xml`, faults with
+    /// Code, Subcode and Reason, HTTP 400 for the sender's (SOAP 1.2 part
+    /// 2, 7.5.1.2). An envelope that cannot be read is answered so.
+    #[default]
+    Soap12,
+}
+
+impl Version {
+    /// The envelope namespace.
+    pub fn ns(self) -> &'static str {
+        match self {
+            Self::Soap11 => NS_SOAP11,
+            Self::Soap12 => NS_SOAP,
+        }
+    }
+
+    /// The HTTP Content-Type of an answer.
+    pub fn content_type(self) -> &'static str {
+        match self {
+            Self::Soap11 => "text/xml; charset=utf-8",
+            Self::Soap12 => "application/soap+xml; charset=utf-8",
+        }
+    }
+}
+
+/// A request's envelope: its SOAP version, header and its one operation,
+/// the Body's first element (what is asked is that element's namespace
+/// and local name, never the HTTP SOAPAction or `action` parameter).
 #[derive(Debug)]
 pub struct Request {
+    pub version: Version,
     pub header: Option<Element>,
     pub operation: Element,
 }
@@ -157,16 +195,25 @@ pub struct Request {
 /// The envelope's parts, or a fault's reason.
 pub fn request(xml: &[u8]) -> Result<Request, String> {
     let root = parse(xml)?;
-    if root.name != "Envelope" || root.ns != NS_SOAP {
-        return Err(format!(
-            "expected a SOAP 1.2 Envelope ({NS_SOAP}), found {{{}}}{}",
-            root.ns, root.name
-        ));
-    }
-    let header = root.child("Header").cloned();
-    let body = root.child("Body").ok_or("the envelope has no Body")?;
+    let version = match (root.name.as_str(), root.ns.as_str()) {
+        ("Envelope", NS_SOAP) => Version::Soap12,
+        ("Envelope", NS_SOAP11) => Version::Soap11,
+        _ => {
+            return Err(format!(
+                "expected a SOAP 1.2 ({NS_SOAP}) or SOAP 1.1 ({NS_SOAP11}) Envelope, found {{{}}}{}",
+                root.ns, root.name
+            ));
+        }
+    };
+    let in_envelope = |name: &str| root.children.iter().find(|c| c.name == name && c.ns == root.ns);
+    let header = in_envelope("Header").cloned();
+    let body = in_envelope("Body").ok_or("the envelope has no Body")?;
     let operation = body.children.first().cloned().ok_or("the Body is empty")?;
-    Ok(Request { header, operation })
+    Ok(Request {
+        version,
+        header,
+        operation,
+    })
 }
 
 /// Text for XML content and attributes: every character XML 1.0 does not
@@ -191,7 +238,6 @@ pub fn xml_char(c: char) -> bool {
 }
 
 const PREFIXES: &str = concat!(
-    r#"xmlns:s="http://www.w3.org/2003/05/soap-envelope" "#,
     r#"xmlns:tds="http://www.onvif.org/ver10/device/wsdl" "#,
     r#"xmlns:trt="http://www.onvif.org/ver10/media/wsdl" "#,
     r#"xmlns:tptz="http://www.onvif.org/ver20/ptz/wsdl" "#,
@@ -199,9 +245,12 @@ const PREFIXES: &str = concat!(
     r#"xmlns:ter="http://www.onvif.org/ver10/error""#
 );
 
-/// A response envelope around `body`.
-pub fn envelope(body: &str) -> String {
-    format!(r#"<?xml version="1.0" encoding="UTF-8"?><s:Envelope {PREFIXES}><s:Body>{body}</s:Body></s:Envelope>"#)
+/// A response envelope of `version` around `body`.
+pub fn envelope(version: Version, body: &str) -> String {
+    format!(
+        r#"<?xml version="1.0" encoding="UTF-8"?><s:Envelope xmlns:s="{}" {PREFIXES}><s:Body>{body}</s:Body></s:Envelope>"#,
+        version.ns()
+    )
 }
 
 /// A SOAP fault (ONVIF Core 5.11.2): who is at fault, the ONVIF subcodes
@@ -246,18 +295,37 @@ impl Fault {
         Self::sender(&["ter:InvalidArgVal", detail], reason)
     }
 
-    /// The HTTP status: 401 without valid credentials, 400 for the
-    /// sender's other faults, 500 for the device's.
-    pub fn status(&self) -> u16 {
-        match (self.unauthenticated, self.sender) {
-            (true, _) => 401,
-            (false, true) => 400,
-            (false, false) => 500,
+    /// The HTTP status: 401 without valid credentials; in SOAP 1.2, 400
+    /// for the sender's other faults and 500 for the device's; in SOAP 1.1
+    /// 500 for every fault (SOAP 1.1, 6.2).
+    pub fn status(&self, version: Version) -> u16 {
+        match (self.unauthenticated, self.sender, version) {
+            (true, _, _) => 401,
+            (false, true, Version::Soap12) => 400,
+            _ => 500,
         }
     }
 
-    /// The fault envelope.
-    pub fn envelope(&self) -> String {
+    /// The fault envelope in `version`: SOAP 1.2's Code with the ONVIF
+    /// subcodes nested (ONVIF Core 5.11.2); SOAP 1.1's `faultcode`
+    /// (`s:Client` or `s:Server`, SOAP 1.1, 4.4.1) and `faultstring`, the
+    /// ONVIF subcodes in `detail`.
+    pub fn envelope(&self, version: Version) -> String {
+        if version == Version::Soap11 {
+            let detail: String = self
+                .subcodes
+                .iter()
+                .map(|sub| format!("<ter:Subcode>{sub}</ter:Subcode>"))
+                .collect();
+            return envelope(
+                version,
+                &format!(
+                    "<s:Fault><faultcode>s:{}</faultcode><faultstring>{}</faultstring><detail>{detail}</detail></s:Fault>",
+                    if self.sender { "Client" } else { "Server" },
+                    esc(&self.reason)
+                ),
+            );
+        }
         let mut code = format!(
             "<s:Value>s:{}</s:Value>",
             if self.sender { "Sender" } else { "Receiver" }
@@ -267,10 +335,13 @@ impl Fault {
             code.push_str(&format!("<s:Subcode><s:Value>{sub}</s:Value>"));
             close.push_str("</s:Subcode>");
         }
-        envelope(&format!(
-            r#"<s:Fault><s:Code>{code}{close}</s:Code><s:Reason><s:Text xml:lang="en">{}</s:Text></s:Reason></s:Fault>"#,
-            esc(&self.reason)
-        ))
+        envelope(
+            version,
+            &format!(
+                r#"<s:Fault><s:Code>{code}{close}</s:Code><s:Reason><s:Text xml:lang="en">{}</s:Text></s:Reason></s:Fault>"#,
+                esc(&self.reason)
+            ),
+        )
     }
 }
 

@@ -7,6 +7,9 @@ Each STEP talks to one gimbal's ONVIF device through onvif-zeep-async
 through WSDiscovery's message layer (the package Home Assistant uses for
 WS-Discovery) over a unicast UDP socket on loopback. It prints one JSON
 object on stdout: what the client saw, for the Rust test to assert on.
+Every SOAP response it receives, through zeep or posted raw, is first
+validated against the ONVIF XSDs (schema.py): an invalid one ends the step
+with the first invalid element and its path, and fails the test.
 Faults are results too: {"fault": {"subcodes": [...], "message": ...}}.
 Every wait is bounded.
 """
@@ -20,6 +23,10 @@ import time
 
 from onvif import ONVIFCamera
 from zeep.exceptions import Fault
+
+import schema
+
+schema.install()
 
 PROFILE = None
 
@@ -47,6 +54,8 @@ def describe(err):
 async def attempt(coro):
     try:
         return {"ok": await coro}
+    except schema.Invalid:
+        raise  # an invalid response is no result: the step fails
     except Exception as err:  # a fault is a result here
         return describe(err)
 
@@ -93,6 +102,8 @@ async def step(name, host, port, user, password, args):
         return await http_digest(host, port, user, password, args)
     if name == "login":
         return await attempt(login(host, port, user, password))
+    if name == "signed_raw":
+        return await signed_raw(host, port, user, password, args)
     cam = await camera(host, port, user, password)
     try:
         media = await cam.create_media_service()
@@ -160,6 +171,8 @@ async def step(name, host, port, user, password, args):
             translation = {"PanTilt": {"x": args["x"], "y": args["y"]}}
             if args.get("space"):
                 translation["PanTilt"]["space"] = args["space"]
+            if args.get("zoom") is not None:
+                translation["Zoom"] = {"x": args["zoom"]}
             moved = await attempt(ptz.RelativeMove({"ProfileToken": token, "Translation": translation}))
             if "ok" not in moved:
                 return moved
@@ -205,9 +218,60 @@ async def step(name, host, port, user, password, args):
                 "ProfileToken": token, "Position": {"PanTilt": {"x": 2.5, "y": 0.0}}}))
         if name == "wrong_profile":
             return await attempt(ptz.GetStatus({"ProfileToken": "nope"}))
+        if name == "tokens":
+            return await tokens(media, ptz, profiles)
+        if name == "set_timeout":
+            config = await ptz.GetConfiguration({"PTZConfigurationToken": profiles[0].PTZConfiguration.token})
+            config.DefaultPTZTimeout = dt.timedelta(seconds=args["timeout_s"])
+            r = await attempt(ptz.SetConfiguration({"PTZConfiguration": config, "ForcePersistence": True}))
+            if "ok" not in r:
+                return r
+            again = await ptz.GetConfiguration({"PTZConfigurationToken": config.token})
+            return {"ok": True, "timeout_s": again.DefaultPTZTimeout.total_seconds()}
         raise SystemExit(f"unknown step {name}")
     finally:
         await cam.close()
+
+
+async def tokens(media, ptz, profiles):
+    """What a client pairing tokens reads (npm onvif, Scrypted): the first
+    video source, the profile using it, the profile's PTZ configuration
+    and the compatible ones; and CreateProfile's answer (Synology)."""
+    sources = await media.GetVideoSources()
+    first = sources[0].token if sources else None
+    using = [p.token for p in profiles
+             if p.VideoSourceConfiguration is not None and p.VideoSourceConfiguration.SourceToken == first]
+    compatible = await ptz.GetCompatibleConfigurations({"ProfileToken": profiles[0].token})
+    created = await attempt(media.CreateProfile({"Name": "another"}))
+    return {
+        "video_source": first,
+        "profiles_using_it": using,
+        "ptz_configuration": profiles[0].PTZConfiguration.token,
+        "compatible": [c.token for c in compatible],
+        "compatible_default_space": [c.DefaultRelativePanTiltTranslationSpace for c in compatible],
+        "create_profile": created if "ok" not in created else {"ok": str(created["ok"])},
+    }
+
+
+async def signed_raw(host, port, user, password, args):
+    """`args["body"]` in a SOAP envelope of `args["soap"]` (1.1 or 1.2)
+    signed by zeep's UsernameToken (digest), posted with httpx with the
+    Content-Type and SOAPAction the step names."""
+    import httpx
+    from lxml import etree
+    from zeep.wsse.username import UsernameToken
+
+    ns = {"1.1": schema.SOAP11, "1.2": schema.SOAP12}[args["soap"]]
+    env = etree.fromstring(
+        f'<s:Envelope xmlns:s="{ns}"><s:Header/><s:Body>' + args["body"] + "</s:Body></s:Envelope>")
+    env, _ = UsernameToken(user, password, use_digest=True).apply(env, {})
+    headers = {"Content-Type": args["content_type"]}
+    if args.get("soap_action") is not None:
+        headers["SOAPAction"] = args["soap_action"]
+    async with httpx.AsyncClient(timeout=30) as http:
+        r = await http.post(f"http://{host}:{port}/onvif/{args.get('service', 'ptz_service')}",
+                            content=etree.tostring(env), headers=headers)
+    return answer_of(r)
 
 
 def pan_tilt_of(args):
@@ -229,7 +293,7 @@ async def malformed(host, port, args):
     async with httpx.AsyncClient(timeout=30) as http:
         r = await http.post(f"http://{host}:{port}/onvif/ptz_service", content=args["body"].encode(),
                             headers={"Content-Type": "application/soap+xml"})
-    return {"status": r.status_code, "body": r.text}
+    return answer_of(r)
 
 
 async def http_digest(host, port, user, password, args):
@@ -240,7 +304,15 @@ async def http_digest(host, port, user, password, args):
     async with httpx.AsyncClient(timeout=30, auth=httpx.DigestAuth(user, password)) as http:
         r = await http.post(f"http://{host}:{port}/onvif/ptz_service", content=body.encode(),
                             headers={"Content-Type": "application/soap+xml"})
-    return {"status": r.status_code, "body": r.text, "challenge": r.headers.get("www-authenticate")}
+    return {**answer_of(r), "challenge": r.headers.get("www-authenticate")}
+
+
+def answer_of(r):
+    """A raw httpx answer, its SOAP body validated against the ONVIF XSDs."""
+    content_type = r.headers.get("content-type", "")
+    if "soap+xml" in content_type or "text/xml" in content_type:
+        schema.check(r.content)
+    return {"status": r.status_code, "body": r.text, "content_type": content_type}
 
 
 def discover(host, port, args):

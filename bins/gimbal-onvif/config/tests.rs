@@ -99,3 +99,24 @@ fn a_state_file_in_a_missing_folder_is_refused_naming_it() {
     let fine = format!("state_file = \"{}\"\n{GOOD}", dir.path().join("presets.toml").display());
     assert!(parse(Path::new("o.toml"), &fine).is_ok());
 }
+
+#[test]
+fn the_field_of_view_at_the_tele_end_needs_a_lens_and_a_wider_wide_end() {
+    let lens = format!("{GOOD}zoom = true\nfov_deg = [60.0, 34.0]\n");
+    let c = parse(Path::new("o.toml"), &format!("{lens}fov_tele_deg = [6.0, 3.4]\n")).unwrap();
+    assert_eq!(c.gimbals[0].fov_deg, Some((60.0, 34.0)));
+    assert_eq!(c.gimbals[0].fov_tele_deg, Some((6.0, 3.4)));
+    for bad in [
+        format!("{lens}fov_tele_deg = [61.0, 3.4]\n"),
+        format!("{GOOD}fov_deg = [60.0, 34.0]\nfov_tele_deg = [6.0, 3.4]\n"),
+        format!("{GOOD}zoom = true\nfov_tele_deg = [6.0, 3.4]\n"),
+    ] {
+        assert!(
+            err(&bad).contains("gimbal[0].fov_tele_deg: expected with zoom = true"),
+            "{bad}"
+        );
+    }
+    assert!(
+        err(&format!("{lens}fov_tele_deg = [0.0, 3.4]\n")).contains("gimbal[0].fov_tele_deg: expected [HORIZONTAL")
+    );
+}
