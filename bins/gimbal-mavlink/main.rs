@@ -12,9 +12,11 @@ mod gimbal;
 mod inbox;
 mod link;
 mod motion;
+mod net;
 mod stats;
 mod status;
 mod stream;
+mod wire;
 
 use std::process::ExitCode;
 use std::sync::Arc;
