@@ -1,6 +1,6 @@
 //! `gimbal-mavlink` under attack (issue 31): the real gcud with simulated
 //! buses and the real gimbal-mavlink in front of it, the ground station
-//! made of pymavlink (`tests/mavlink/gcs.py`, as in `tests/mavlink.rs`),
+//! made of pymavlink (`tests/mavlink/gcs.py`, as in `tests/mavlink/`),
 //! the attacks made of raw sockets. Everything is on 127.0.0.1; every loop
 //! is bounded; figures (memory, bytes per second) are printed, not
 //! asserted, except the 16 MB bound the issue sets.

@@ -13,6 +13,8 @@ use sagebrush_protocol::Address;
 use serde::Deserialize;
 use toml::Spanned;
 
+use crate::earth::Place;
+
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ConfigFile {
@@ -28,6 +30,10 @@ struct ConfigFile {
     lease_ms: Millis<100, 60_000, 1000>,
     #[serde(default)]
     control_lapse_ms: Millis<1000, 600_000, 5000>,
+    /// Where the mount is, for a mast (MAV_CMD_DO_SET_ROI_LOCATION).
+    mount_latitude_deg: Option<Spanned<f64>>,
+    mount_longitude_deg: Option<Spanned<f64>>,
+    mount_altitude_m: Option<Spanned<f64>>,
     #[serde(default, rename = "endpoint")]
     endpoints: Vec<EndpointSection>,
     #[serde(default, rename = "gimbal")]
@@ -56,6 +62,7 @@ struct GimbalSection {
     pan_deg: Option<Spanned<Vec<f64>>>,
     tilt_deg: Option<Spanned<Vec<f64>>>,
     max_rate_dps: Option<Spanned<f64>>,
+    mount_heading_deg: Option<Spanned<f64>>,
 }
 
 /// Where MAVLink comes and goes.
@@ -85,6 +92,9 @@ pub struct Gimbal {
     pub tilt_deg: (f64, f64),
     /// Proportional speed F (Table 11) in degrees per second.
     pub max_rate_dps: f64,
+    /// A fixed heading of the pan's zero, degrees clockwise from true
+    /// north (a mast); None: the autopilot's ATTITUDE says it (`vehicle`).
+    pub mount_heading_deg: Option<f64>,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -99,11 +109,30 @@ pub struct Config {
     pub lease: Duration,
     /// A control owner not heard for this long loses control.
     pub control_lapse: Duration,
+    /// A fixed mount location (a mast); None: the autopilot's
+    /// GLOBAL_POSITION_INT says it (`vehicle`).
+    pub mount: Option<Place>,
     pub endpoints: Vec<Endpoint>,
     /// Each serial endpoint's device and place in the file (`--check`
     /// warns of one absent now).
     pub serial_places: Vec<(PathBuf, String)>,
     pub gimbals: Vec<Gimbal>,
+}
+
+impl Gimbal {
+    /// The mast gimbal 5.1.1, component 154, full travel, of the unit tests.
+    #[cfg(test)]
+    pub fn for_tests(mount_heading_deg: Option<f64>) -> Self {
+        Self {
+            name: "g".into(),
+            address: Address::new(5, 1, 1),
+            component_id: 154,
+            pan_deg: (-180.0, 180.0),
+            tilt_deg: (-90.0, 90.0),
+            max_rate_dps: 120.0,
+            mount_heading_deg,
+        }
+    }
 }
 
 impl sagebrush_client::door::Checked for Config {
@@ -132,9 +161,80 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         }
         None => Duration::from_millis(200),
     };
+    let (endpoints, serial_places) = endpoints(&c, &raw.endpoints)?;
+    let mut gimbals: Vec<Gimbal> = Vec::new();
+    for (i, g) in raw.gimbals.iter().enumerate() {
+        let key = format!("gimbal[{i}]");
+        let name = c.gimbal_name(&g.name, &key, gimbals.iter().map(|x| x.name.as_str()))?;
+        let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
+        let component_id = g.component_id.get();
+        if gimbals.iter().any(|x| x.component_id == component_id) {
+            return Err(c.at(
+                g.component_id.span(),
+                format!("{key}.component_id"),
+                "expected a component id of its own (MAV_COMP_ID_GIMBAL 154, GIMBAL2..6 171..175)",
+            ));
+        }
+        let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), &key)?;
+        let max_rate_dps = match &g.max_rate_dps {
+            Some(v) if *v.get_ref() > 0.0 && *v.get_ref() <= 655.35 => *v.get_ref(),
+            Some(v) => {
+                return Err(c.at(
+                    v.span(),
+                    format!("{key}.max_rate_dps"),
+                    "expected degrees per second, above 0 and at most 655.35 (Table 12)",
+                ));
+            }
+            None => 120.0,
+        };
+        let mount_heading_deg = match &g.mount_heading_deg {
+            Some(v) if v.get_ref().is_finite() && v.get_ref().abs() <= 360.0 => Some(*v.get_ref()),
+            Some(v) => {
+                return Err(c.at(
+                    v.span(),
+                    format!("{key}.mount_heading_deg"),
+                    "expected degrees clockwise from true north, -360..=360",
+                ));
+            }
+            None => None,
+        };
+        gimbals.push(Gimbal {
+            name,
+            address,
+            component_id,
+            pan_deg,
+            tilt_deg,
+            max_rate_dps,
+            mount_heading_deg,
+        });
+    }
+    if gimbals.is_empty() {
+        return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
+    }
+    let mount = mount_place(&c, &raw)?;
+    Ok(Config {
+        mount,
+        gcud,
+        system_id: raw.system_id.get(),
+        source_group: raw.source_group.get(),
+        nic_window: raw.nic_window_ms.duration(),
+        attitude_period,
+        lease: raw.lease_ms.duration(),
+        control_lapse: raw.control_lapse_ms.duration(),
+        endpoints,
+        serial_places,
+        gimbals,
+    })
+}
+
+/// Each serial endpoint's device and its place in the file.
+type SerialPlaces = Vec<(PathBuf, String)>;
+
+/// The `[[endpoint]]`s, and each serial one's device and place in the file.
+fn endpoints(c: &Source, sections: &[EndpointSection]) -> Result<(Vec<Endpoint>, SerialPlaces), ConfigError> {
     let mut endpoints = Vec::new();
     let mut serial_places = Vec::new();
-    for (i, e) in raw.endpoints.iter().enumerate() {
+    for (i, e) in sections.iter().enumerate() {
         let key = format!("endpoint[{i}]");
         let given = [
             e.udp_listen.as_ref().map(|v| ("udp_listen", v)),
@@ -190,55 +290,37 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     if endpoints.is_empty() {
         return Err(c.at(0..0, "endpoint", "expected at least one [[endpoint]]"));
     }
-    let mut gimbals: Vec<Gimbal> = Vec::new();
-    for (i, g) in raw.gimbals.iter().enumerate() {
-        let key = format!("gimbal[{i}]");
-        let name = c.gimbal_name(&g.name, &key, gimbals.iter().map(|x| x.name.as_str()))?;
-        let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
-        let component_id = g.component_id.get();
-        if gimbals.iter().any(|x| x.component_id == component_id) {
-            return Err(c.at(
-                g.component_id.span(),
-                format!("{key}.component_id"),
-                "expected a component id of its own (MAV_COMP_ID_GIMBAL 154, GIMBAL2..6 171..175)",
-            ));
-        }
-        let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), &key)?;
-        let max_rate_dps = match &g.max_rate_dps {
-            Some(v) if *v.get_ref() > 0.0 && *v.get_ref() <= 655.35 => *v.get_ref(),
-            Some(v) => {
+    Ok((endpoints, serial_places))
+}
+
+/// The configured mount location: all three keys or none.
+fn mount_place(c: &Source, raw: &ConfigFile) -> Result<Option<Place>, ConfigError> {
+    let keys = [
+        ("mount_latitude_deg", &raw.mount_latitude_deg, 90.0),
+        ("mount_longitude_deg", &raw.mount_longitude_deg, 180.0),
+        ("mount_altitude_m", &raw.mount_altitude_m, 20_000.0),
+    ];
+    let mut values = [0.0; 3];
+    for (i, (key, value, limit)) in keys.iter().enumerate() {
+        match value {
+            Some(v) if v.get_ref().is_finite() && v.get_ref().abs() <= *limit => values[i] = *v.get_ref(),
+            Some(v) => return Err(c.at(v.span(), *key, format!("expected a number within ±{limit}"))),
+            None if keys.iter().any(|k| k.1.is_some()) => {
                 return Err(c.at(
-                    v.span(),
-                    format!("{key}.max_rate_dps"),
-                    "expected degrees per second, above 0 and at most 655.35 (Table 12)",
+                    0..0,
+                    *key,
+                    "expected with the other mount_ keys: latitude, longitude and altitude together",
                 ));
             }
-            None => 120.0,
-        };
-        gimbals.push(Gimbal {
-            name,
-            address,
-            component_id,
-            pan_deg,
-            tilt_deg,
-            max_rate_dps,
-        });
+            None => return Ok(None),
+        }
     }
-    if gimbals.is_empty() {
-        return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
-    }
-    Ok(Config {
-        gcud,
-        system_id: raw.system_id.get(),
-        source_group: raw.source_group.get(),
-        nic_window: raw.nic_window_ms.duration(),
-        attitude_period,
-        lease: raw.lease_ms.duration(),
-        control_lapse: raw.control_lapse_ms.duration(),
-        endpoints,
-        serial_places,
-        gimbals,
-    })
+    let [lat_deg, lon_deg, alt_m] = values;
+    Ok(Some(Place {
+        lat_deg,
+        lon_deg,
+        alt_m,
+    }))
 }
 
 /// Whether `v` looks like `HOST:PORT`.

@@ -1,4 +1,5 @@
-//! Who may command a gimbal (Gimbal Protocol v2, "Gimbal Manager Control"):
+//! Who may command a gimbal (MAVLink Gimbal Protocol v2,
+//! mavlink.io/en/services/gimbal_v2.html, "Gimbal Manager Control"):
 //! MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE sets the primary and secondary
 //! control owners (param1/2 and param3/4: a system and component id).
 //! While nobody holds control any component may command; once a
@@ -9,14 +10,17 @@
 //! `InputMavlinkGimbalV2::_process_command`, the CONFIGURE branch):
 //! - an explicit id (1..=255 system) gives control to that component
 //!   whoever holds it: a take-over. PX4 sets it unconditionally, and
-//!   QGroundControl's "take control" and PX4's navigator
+//!   QGroundControl's "take control" (`src/Gimbal/GimbalController.cc`,
+//!   `GimbalController::acquireGimbalControl`: its own system and component
+//!   id as primary, -1 for the secondary) and PX4's navigator
 //!   (`Navigator::acquire_gimbal_control`) send their own ids explicitly
 //!   and rely on it being accepted;
 //! - system 0 leaves nobody in control (PX4: "0: no one in control");
 //! - -1 leaves the slot unchanged;
 //! - -3 releases the slot if the sender holds it and otherwise leaves it,
 //!   accepted either way (PX4: "release control if in control"; its
-//!   navigator and follow-me send it on leaving);
+//!   navigator and follow-me send it on leaving, QGroundControl's
+//!   `GimbalController::releaseGimbalControl` too);
 //! - -2 "set itself in control (for missions where the own sysid is still
 //!   unknown)": PX4, as the manager inside the autopilot, reads "itself"
 //!   as its own ids, which are the mission's sender's; an external manager

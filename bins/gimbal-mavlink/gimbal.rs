@@ -23,6 +23,7 @@ use tokio::task::JoinSet;
 use tokio::time::Instant;
 use tracing::{info, warn};
 
+use crate::aim::{Aim, Target};
 use crate::config::{self, Config};
 use crate::control::{Control, Refused, Sender};
 use crate::link::Outbox;
@@ -51,6 +52,8 @@ pub struct Shared {
     pub rates: crate::status::Rates,
     /// Who gcud says controls the gimbal (`~C`), when it said.
     pub gcud: Option<GcudControl>,
+    /// The pointing held in the earth frame (`aim`).
+    pub aim: Option<Target>,
 }
 
 impl Shared {
@@ -107,6 +110,8 @@ pub enum Work {
     Move {
         request: motion::Request,
         ack: Option<MavCmd>,
+        /// The earth-frame aim this motion holds (None: any held ends).
+        aim: Option<Aim>,
     },
     /// MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE params 1..4.
     Configure([f32; 4]),
@@ -136,9 +141,9 @@ impl Handle {
     /// The control, with the position and reachability the session polled.
     pub fn shared(&self) -> Shared {
         let status = self.session.status();
-        let (control, rates) = {
+        let (control, rates, aim) = {
             let shared = self.shared.lock().unwrap_or_else(|p| p.into_inner());
-            (shared.control, shared.rates)
+            (shared.control, shared.rates, shared.aim)
         };
         Shared {
             position: status.position,
@@ -146,6 +151,20 @@ impl Handle {
             control,
             rates,
             gcud: status.control,
+            aim,
+        }
+    }
+
+    /// The earth-frame aim in force.
+    pub fn aim(&self) -> Option<Target> {
+        self.shared.lock().unwrap_or_else(|p| p.into_inner()).aim
+    }
+
+    /// Ends `target` if it is still the aim in force.
+    pub fn clear_aim(&self, target: Target) {
+        let aim = &mut self.shared.lock().unwrap_or_else(|p| p.into_inner()).aim;
+        if *aim == Some(target) {
+            *aim = None;
         }
     }
 
@@ -330,13 +349,18 @@ impl Task {
                 })
                 .await;
             }
-            Work::Move { request, ack: command } => {
+            Work::Move {
+                request,
+                ack: command,
+                aim,
+            } => {
                 let Some(plan) = self.admit(from, &request) else {
                     if let Some(command) = command {
                         self.reply(ack(command, MavResult::MAV_RESULT_DENIED, from), from).await;
                     }
                     return;
                 };
+                self.shared.lock().unwrap_or_else(|p| p.into_inner()).aim = aim.map(|aim| Target { aim, from });
                 let rates = matches!(plan, Plan::Rates { .. });
                 let outcome = self.start(from, plan);
                 if command.is_none() && rates {

@@ -13,21 +13,26 @@
 //!
 //! Yaw in the earth frame (GIMBAL_MANAGER_FLAGS_YAW_IN_EARTH_FRAME, or
 //! YAW_LOCK without either frame flag, as common.xml defines them for
-//! backward compatibility) needs the vehicle's heading, which this door
-//! does not know: it is refused (DENIED, logged), never carried out as a
-//! yaw relative to the mount.
+//! backward compatibility) is turned into a yaw relative to the mount with
+//! the heading (`vehicle`: the configured `mount_heading_deg`, or the
+//! autopilot's ATTITUDE) and held as an `aim`; a yaw rate has the vehicle's
+//! yaw rate taken off. Where the heading is not known it is refused
+//! (DENIED, logged), never carried out as a yaw relative to the mount.
+//!
+//! The commands (COMMAND_LONG, COMMAND_INT) are `command`'s.
 
-use mavlink::dialects::common::{
-    COMMAND_INT_DATA, COMMAND_LONG_DATA, GimbalManagerFlags, MavCmd, MavMessage, MavResult,
-};
+use mavlink::dialects::common::{GimbalManagerFlags, MavCmd, MavFrame, MavMessage, MavResult};
 use mavlink::{MavHeader, Message};
-use tracing::{debug, warn};
+use tracing::debug;
 
+use crate::aim::{self, Aim};
+use crate::config::Gimbal;
+use crate::earth;
 use crate::frames;
 use crate::gimbal::{Handle, Job, Work};
 use crate::motion::Request;
-use crate::stats::{Stats, may_warn};
-use crate::status::{self, Rate};
+use crate::stats::Stats;
+use crate::vehicle::Vehicle;
 
 /// Where a message goes.
 #[derive(Debug)]
@@ -56,53 +61,49 @@ pub struct Command {
     pub x: f64,
     pub y: f64,
     pub param7: f32,
+    /// COMMAND_INT's coordinate frame (None: COMMAND_LONG, which has none).
+    pub frame: Option<MavFrame>,
+}
+
+/// A [`Command`] of COMMAND_LONG or COMMAND_INT data `$c`, whose fields
+/// `$x`, `$y`, `$z` hold params 5, 6 and 7 (common.xml: COMMAND_INT's x, y
+/// and z stand where COMMAND_LONG's param5, param6 and param7 do).
+macro_rules! command_of {
+    ($c:expr, $x:ident, $y:ident, $z:ident, $frame:expr) => {
+        Command {
+            command: $c.command,
+            target_system: $c.target_system,
+            target_component: $c.target_component,
+            params: [$c.param1, $c.param2, $c.param3, $c.param4],
+            x: f64::from($c.$x),
+            y: f64::from($c.$y),
+            param7: $c.$z,
+            frame: $frame,
+        }
+    };
 }
 
 impl Command {
     /// The command `message` carries, if it is COMMAND_LONG or COMMAND_INT.
     pub fn of(message: &MavMessage) -> Option<Self> {
         match message {
-            MavMessage::COMMAND_LONG(c) => Some(Self::long(c)),
-            MavMessage::COMMAND_INT(c) => Some(Self::int(c)),
+            MavMessage::COMMAND_LONG(c) => Some(command_of!(c, param5, param6, param7, None)),
+            MavMessage::COMMAND_INT(c) => Some(command_of!(c, x, y, z, Some(c.frame))),
             _ => None,
         }
     }
 
-    fn long(c: &COMMAND_LONG_DATA) -> Self {
-        Self {
-            command: c.command,
-            target_system: c.target_system,
-            target_component: c.target_component,
-            params: [c.param1, c.param2, c.param3, c.param4],
-            x: f64::from(c.param5),
-            y: f64::from(c.param6),
-            param7: c.param7,
-        }
-    }
-
-    fn int(c: &COMMAND_INT_DATA) -> Self {
-        Self {
-            command: c.command,
-            target_system: c.target_system,
-            target_component: c.target_component,
-            params: [c.param1, c.param2, c.param3, c.param4],
-            x: f64::from(c.x),
-            y: f64::from(c.y),
-            param7: c.z,
-        }
-    }
-
     /// The gimbal device id the command names (param 7 of the gimbal
-    /// manager commands); 0, every gimbal, for the others (param 7 means
-    /// something else there: DO_MOUNT_CONTROL's mode, REQUEST_MESSAGE's
-    /// response target).
+    /// manager commands, param 1 of the ROI commands: common.xml); 0, every
+    /// gimbal, for the others (param 7 means something else there:
+    /// DO_MOUNT_CONTROL's mode, REQUEST_MESSAGE's response target).
     pub fn device_id(&self) -> u8 {
-        match self.command {
-            MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW | MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE => {
-                whole(self.param7, 255.0).unwrap_or(0) as u8
-            }
-            _ => 0,
-        }
+        let id = match self.command {
+            MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW | MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE => self.param7,
+            MavCmd::MAV_CMD_DO_SET_ROI_LOCATION | MavCmd::MAV_CMD_DO_SET_ROI_NONE => self.params[0],
+            _ => 0.0,
+        };
+        whole(id, 255.0).unwrap_or(0) as u8
     }
 }
 
@@ -140,52 +141,70 @@ pub fn yaw_in_earth_frame(flags: u32) -> bool {
     }
 }
 
-/// Why a request with yaw in the earth frame is refused.
-pub const EARTH_FRAME: &str = "yaw in the earth frame: the vehicle's heading is not known here";
-
 /// Whether `request` uses its yaw (an angle or a rate).
 fn uses_yaw(request: &Request) -> bool {
     !request.pan_deg.is_nan() || !request.pan_dps.is_nan()
 }
 
+/// `request` (its yaw in the frame `flags` say) relative to the mount of
+/// `g`, and the aim it holds: an earth-frame yaw is the yaw minus the
+/// heading, wrapped into the travel (`earth::mount_yaw`), held as an aim;
+/// an earth-frame yaw rate has the vehicle's yaw rate taken off. Refused
+/// where the heading is not known.
+pub fn in_mount_frame(
+    request: Request,
+    flags: u32,
+    g: &Gimbal,
+    vehicle: &Vehicle,
+) -> Result<(Request, Option<Aim>), &'static str> {
+    if !yaw_in_earth_frame(flags) || !uses_yaw(&request) {
+        return Ok((request, None));
+    }
+    let heading = vehicle.heading(g).ok_or(aim::NO_HEADING)?;
+    if request.pan_deg.is_nan() {
+        let pan_dps = f64::from(request.pan_dps) - heading.rate_dps;
+        return Ok((
+            Request {
+                pan_dps: pan_dps as f32,
+                ..request
+            },
+            None,
+        ));
+    }
+    let held = Aim::Yaw {
+        earth_deg: f64::from(request.pan_deg),
+        tilt_deg: (!request.tilt_deg.is_nan()).then_some(request.tilt_deg),
+    };
+    let pan_deg = earth::mount_yaw(f64::from(request.pan_deg), heading.deg, g.pan_deg) as f32;
+    Ok((Request { pan_deg, ..request }, Some(held)))
+}
+
 /// The request of an attitude quaternion `q` (NaN: rates only) with
-/// angular velocities about y and z (rad/s), given in a frame `flags` say
-/// (GIMBAL_MANAGER_FLAGS and GIMBAL_DEVICE_FLAGS share their bits).
-fn attitude_request(q: [f32; 4], rate_y: f32, rate_z: f32, flags: u32) -> Result<Request, &'static str> {
-    let request = if q.iter().all(|v| v.is_nan()) {
-        Request {
+/// angular velocities about y and z (rad/s).
+fn attitude_request(q: [f32; 4], rate_y: f32, rate_z: f32) -> Result<Request, &'static str> {
+    if q.iter().all(|v| v.is_nan()) {
+        return Ok(Request {
             tilt_deg: f32::NAN,
             pan_deg: f32::NAN,
             tilt_dps: deg(rate_y),
             pan_dps: deg(rate_z),
-        }
-    } else {
-        let (pitch, yaw) = frames::pitch_yaw(q).ok_or("q is not a rotation quaternion")?;
-        let (pan, tilt) = frames::pan_tilt_deg(yaw, pitch);
-        Request {
-            tilt_deg: tilt as f32,
-            pan_deg: pan as f32,
-            tilt_dps: f32::NAN,
-            pan_dps: f32::NAN,
-        }
-    };
-    if yaw_in_earth_frame(flags) && uses_yaw(&request) {
-        return Err(EARTH_FRAME);
+        });
     }
-    Ok(request)
+    let (pitch, yaw) = frames::pitch_yaw(q).ok_or("q is not a rotation quaternion")?;
+    let (pan, tilt) = frames::pan_tilt_deg(yaw, pitch);
+    Ok(Request {
+        tilt_deg: tilt as f32,
+        pan_deg: pan as f32,
+        tilt_dps: f32::NAN,
+        pan_dps: f32::NAN,
+    })
 }
 
 /// GIMBAL_MANAGER_SET_MANUAL_CONTROL's unitless values (-1..=1, NaN
 /// unused) on `gimbal`: an angle is that fraction of the travel on its
 /// side of 0 (1 is the upper limit, -1 the lower), a rate that fraction
 /// of `max_rate_dps`.
-fn manual_request(
-    g: &crate::config::Gimbal,
-    pitch: f32,
-    yaw: f32,
-    pitch_rate: f32,
-    yaw_rate: f32,
-) -> Result<Request, &'static str> {
+fn manual_request(g: &Gimbal, [pitch, yaw, pitch_rate, yaw_rate]: [f32; 4]) -> Result<Request, &'static str> {
     if [pitch, yaw, pitch_rate, yaw_rate]
         .iter()
         .any(|v| !v.is_nan() && !(-1.0..=1.0).contains(v))
@@ -211,260 +230,102 @@ fn deg(rad: f32) -> f32 {
 }
 
 /// A whole number parameter (a message id, a device id), if it is one.
-fn whole(v: f32, max: f32) -> Option<u32> {
+pub fn whole(v: f32, max: f32) -> Option<u32> {
     (v.is_finite() && v.fract() == 0.0 && (0.0..=max).contains(&v)).then_some(v as u32)
 }
 
-/// The routes of `message`: one per gimbal it addresses (none when it is
-/// for none of ours).
-pub fn route(handles: &[Handle], system_id: u8, header: MavHeader, message: &MavMessage) -> Vec<Route> {
-    let from = (header.system_id, header.component_id);
-    let job = |work| Job { from, work };
-    let for_each = |targets: Vec<usize>, f: &dyn Fn(usize) -> Route| -> Vec<Route> {
-        if targets.is_empty() {
-            vec![Route::Ignore]
-        } else {
-            targets.into_iter().map(f).collect()
-        }
-    };
-    match message {
+/// What a pointing message asks of one gimbal.
+type Ask<'a> = Box<dyn Fn(&Gimbal) -> Result<Request, &'static str> + 'a>;
+
+/// A pointing message's target (system, component, gimbal device id), its
+/// request and its GIMBAL_MANAGER_FLAGS (GIMBAL_DEVICE_FLAGS share their
+/// bits); None for any other message.
+fn pointing(message: &MavMessage) -> Option<((u8, u8, u8), Ask<'_>, u32)> {
+    Some(match message {
         MavMessage::GIMBAL_MANAGER_SET_PITCHYAW(m) => {
-            let targets = addressed(
-                handles,
-                system_id,
-                m.target_system,
-                m.target_component,
-                m.gimbal_device_id,
-            );
             let request = Request {
                 tilt_deg: deg(m.pitch),
                 pan_deg: deg(m.yaw),
                 tilt_dps: deg(m.pitch_rate),
                 pan_dps: deg(m.yaw_rate),
             };
-            let earth = yaw_in_earth_frame(m.flags.bits()) && uses_yaw(&request);
-            for_each(targets, &|i| {
-                if earth {
-                    Route::Refused(i, EARTH_FRAME)
-                } else {
-                    Route::Gimbal(i, job(Work::Move { request, ack: None }))
-                }
-            })
+            let to = (m.target_system, m.target_component, m.gimbal_device_id);
+            (to, Box::new(move |_: &Gimbal| Ok(request)), m.flags.bits())
         }
         MavMessage::GIMBAL_MANAGER_SET_ATTITUDE(m) => {
-            let targets = addressed(
-                handles,
-                system_id,
-                m.target_system,
-                m.target_component,
-                m.gimbal_device_id,
-            );
-            let request = attitude_request(m.q, m.angular_velocity_y, m.angular_velocity_z, m.flags.bits());
-            for_each(targets, &|i| match request {
-                Ok(request) => Route::Gimbal(i, job(Work::Move { request, ack: None })),
-                Err(why) => Route::Refused(i, why),
-            })
+            let request = attitude_request(m.q, m.angular_velocity_y, m.angular_velocity_z);
+            let to = (m.target_system, m.target_component, m.gimbal_device_id);
+            (to, Box::new(move |_: &Gimbal| request), m.flags.bits())
         }
         // ArduPilot, as the gimbal manager, drives a gimbal device so.
         MavMessage::GIMBAL_DEVICE_SET_ATTITUDE(m) => {
-            let targets = addressed(handles, system_id, m.target_system, m.target_component, 0);
-            let request = attitude_request(
-                m.q,
-                m.angular_velocity_y,
-                m.angular_velocity_z,
-                u32::from(m.flags.bits()),
-            );
-            for_each(targets, &|i| match request {
-                Ok(request) => Route::Gimbal(i, job(Work::Move { request, ack: None })),
-                Err(why) => Route::Refused(i, why),
-            })
+            let request = attitude_request(m.q, m.angular_velocity_y, m.angular_velocity_z);
+            let to = (m.target_system, m.target_component, 0);
+            (to, Box::new(move |_: &Gimbal| request), u32::from(m.flags.bits()))
         }
         MavMessage::GIMBAL_MANAGER_SET_MANUAL_CONTROL(m) => {
-            let targets = addressed(
-                handles,
-                system_id,
-                m.target_system,
-                m.target_component,
-                m.gimbal_device_id,
-            );
-            for_each(targets, &|i| {
-                let request =
-                    manual_request(&handles[i].config, m.pitch, m.yaw, m.pitch_rate, m.yaw_rate).and_then(|r| {
-                        if yaw_in_earth_frame(m.flags.bits()) && uses_yaw(&r) {
-                            Err(EARTH_FRAME)
-                        } else {
-                            Ok(r)
-                        }
-                    });
-                match request {
-                    Ok(request) => Route::Gimbal(i, job(Work::Move { request, ack: None })),
-                    Err(why) => Route::Refused(i, why),
-                }
-            })
+            let values = [m.pitch, m.yaw, m.pitch_rate, m.yaw_rate];
+            let to = (m.target_system, m.target_component, m.gimbal_device_id);
+            (
+                to,
+                Box::new(move |g: &Gimbal| manual_request(g, values)),
+                m.flags.bits(),
+            )
         }
-        message => match Command::of(message) {
-            Some(c) => {
-                let targets = addressed(handles, system_id, c.target_system, c.target_component, c.device_id());
-                for_each(targets, &|i| command(handles, i, from, &c))
-            }
-            None => {
-                debug!(message = message.message_name(), ?from, "not handled: ignored");
-                vec![Route::Ignore]
-            }
-        },
+        _ => return None,
+    })
+}
+
+/// The gimbals a message for `target_system`/`target_component` with
+/// `device_id` goes to, each given its route by `f`; Ignore for none.
+fn for_each(handles: &[Handle], system_id: u8, (s, c, d): (u8, u8, u8), f: &dyn Fn(usize) -> Route) -> Vec<Route> {
+    let targets = addressed(handles, system_id, s, c, d);
+    if targets.is_empty() {
+        vec![Route::Ignore]
+    } else {
+        targets.into_iter().map(f).collect()
     }
 }
 
-/// Command `c` from `from` for gimbal `i`. The legacy commands (gimbal
-/// protocol v1, DO_SET_ROI), deprecated in common.xml, are still what
-/// MAVProxy and many scripts send.
-#[allow(deprecated)]
-fn command(handles: &[Handle], i: usize, from: (u8, u8), c: &Command) -> Route {
-    let job = |work| Job { from, work };
-    let component = handles[i].config.component_id;
-    let [p1, p2, p3, p4] = c.params;
-    match c.command {
-        MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW => {
-            let request = Request {
-                tilt_deg: p1,
-                pan_deg: p2,
-                tilt_dps: p3,
-                pan_dps: p4,
-            };
-            // Param 5: GIMBAL_MANAGER_FLAGS (COMMAND_INT's x).
-            let flags = if c.x.is_finite() && (0.0..=f64::from(u32::MAX)).contains(&c.x) {
-                c.x as u32
-            } else {
-                0
-            };
-            if yaw_in_earth_frame(flags) && uses_yaw(&request) {
-                if may_warn("yaw in the earth frame refused", &format_args!("{from:?}")) {
-                    warn!(?from, component, flags, "{EARTH_FRAME}: MAV_RESULT_DENIED");
-                }
-                return Route::Answer(component, c.command, MavResult::MAV_RESULT_DENIED);
-            }
-            Route::Gimbal(
-                i,
-                job(Work::Move {
-                    request,
-                    ack: Some(c.command),
-                }),
-            )
-        }
-        MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE => Route::Gimbal(i, job(Work::Configure(c.params))),
-        // Gimbal protocol v1, still sent by MAVProxy's `gimbal` module and
-        // many scripts: param1 pitch, param3 yaw (degrees, yaw relative to
-        // the vehicle as PX4 and ArduPilot take it; 180..360 is -180..0 as
-        // PX4 reads it), param7 the MAV_MOUNT_MODE.
-        MavCmd::MAV_CMD_DO_MOUNT_CONTROL => {
-            let refuse = |why: &str| {
-                if may_warn("DO_MOUNT_CONTROL refused", &format_args!("{from:?}")) {
-                    warn!(
-                        ?from,
-                        component,
-                        mode = c.param7,
-                        "DO_MOUNT_CONTROL: {why}: MAV_RESULT_DENIED"
-                    );
-                }
-                Route::Answer(component, c.command, MavResult::MAV_RESULT_DENIED)
-            };
-            match whole(c.param7, 255.0) {
-                // MAV_MOUNT_MODE_NEUTRAL: the mount's zero.
-                Some(1) => Route::Gimbal(
+/// The routes of `message`: one per gimbal it addresses (none when it is
+/// for none of ours).
+pub fn route(
+    handles: &[Handle],
+    system_id: u8,
+    vehicle: &Vehicle,
+    header: MavHeader,
+    message: &MavMessage,
+) -> Vec<Route> {
+    let from = (header.system_id, header.component_id);
+    if let Some((to, ask, flags)) = pointing(message) {
+        return for_each(handles, system_id, to, &|i| {
+            let g = &handles[i].config;
+            match ask(g).and_then(|r| in_mount_frame(r, flags, g, vehicle)) {
+                Ok((request, aim)) => Route::Gimbal(
                     i,
-                    job(Work::Move {
-                        request: Request {
-                            tilt_deg: 0.0,
-                            pan_deg: 0.0,
-                            tilt_dps: f32::NAN,
-                            pan_dps: f32::NAN,
+                    Job {
+                        from,
+                        work: Work::Move {
+                            request,
+                            ack: None,
+                            aim,
                         },
-                        ack: Some(c.command),
-                    }),
+                    },
                 ),
-                // MAV_MOUNT_MODE_MAVLINK_TARGETING: these angles.
-                Some(2) => {
-                    let yaw = if p3 > 180.0 { p3 - 360.0 } else { p3 };
-                    Route::Gimbal(
-                        i,
-                        job(Work::Move {
-                            request: Request {
-                                tilt_deg: p1,
-                                pan_deg: yaw,
-                                tilt_dps: f32::NAN,
-                                pan_dps: f32::NAN,
-                            },
-                            ack: Some(c.command),
-                        }),
-                    )
-                }
-                Some(0) => refuse("retract: the gimbal has no retracted position"),
-                Some(3) => refuse("RC targeting: no RC input here"),
-                Some(4..=6) => refuse("GPS point, system or home targeting: no vehicle position here"),
-                _ => refuse("not a MAV_MOUNT_MODE"),
+                Err(why) => Route::Refused(i, why),
             }
+        });
+    }
+    match Command::of(message) {
+        Some(c) => {
+            let to = (c.target_system, c.target_component, c.device_id());
+            for_each(handles, system_id, to, &|i| {
+                crate::command::route(&handles[i], i, vehicle, from, &c)
+            })
         }
-        // Legacy too: param1 the mode; params 5 to 7 the roll, pitch and yaw
-        // input (0 angle body frame, 1 rate, 2 angle absolute frame).
-        MavCmd::MAV_CMD_DO_MOUNT_CONFIGURE => {
-            let yaw_absolute = whole(c.param7, 2.0) == Some(2);
-            match whole(p1, 255.0) {
-                Some(1 | 2) if !yaw_absolute => Route::Answer(component, c.command, MavResult::MAV_RESULT_ACCEPTED),
-                _ => {
-                    if may_warn("DO_MOUNT_CONFIGURE refused", &format_args!("{from:?}")) {
-                        warn!(
-                            ?from,
-                            component,
-                            mode = p1,
-                            yaw_input = c.param7,
-                            "DO_MOUNT_CONFIGURE: only neutral and MAVLink targeting with yaw in the vehicle frame: MAV_RESULT_DENIED"
-                        );
-                    }
-                    Route::Answer(component, c.command, MavResult::MAV_RESULT_DENIED)
-                }
-            }
-        }
-        MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL => {
-            let result = match (whole(p1, f32::from(u16::MAX)), Rate::from_interval_us(p2)) {
-                (Some(id @ (status::MANAGER_STATUS_ID | status::ATTITUDE_STATUS_ID)), Some(rate)) => {
-                    handles[i].set_rate(id, rate);
-                    MavResult::MAV_RESULT_ACCEPTED
-                }
-                _ => {
-                    if may_warn("SET_MESSAGE_INTERVAL refused", &format_args!("{from:?}")) {
-                        warn!(
-                            ?from,
-                            component,
-                            message_id = p1,
-                            interval_us = p2,
-                            "SET_MESSAGE_INTERVAL: only GIMBAL_MANAGER_STATUS (281) and GIMBAL_DEVICE_ATTITUDE_STATUS (285), at -1 (off), 0 (default) or 20000..=10000000 us: MAV_RESULT_DENIED"
-                        );
-                    }
-                    MavResult::MAV_RESULT_DENIED
-                }
-            };
-            Route::Answer(component, c.command, result)
-        }
-        // No region of interest is ever in force (see ROI_LOCATION): none to clear.
-        MavCmd::MAV_CMD_DO_SET_ROI_NONE => Route::Answer(component, c.command, MavResult::MAV_RESULT_ACCEPTED),
-        MavCmd::MAV_CMD_DO_SET_ROI_LOCATION
-        | MavCmd::MAV_CMD_DO_SET_ROI
-        | MavCmd::MAV_CMD_DO_SET_ROI_SYSID
-        | MavCmd::MAV_CMD_DO_SET_ROI_WPNEXT_OFFSET => {
-            if may_warn("region of interest refused", &format_args!("{from:?}")) {
-                warn!(command = ?c.command, ?from, component, "region of interest: the mount's position and heading are not known here: MAV_RESULT_DENIED");
-            }
-            Route::Answer(component, c.command, MavResult::MAV_RESULT_DENIED)
-        }
-        MavCmd::MAV_CMD_REQUEST_MESSAGE => match whole(p1, f32::from(u16::MAX)) {
-            Some(id) => Route::Gimbal(i, job(Work::Information(id))),
-            None => Route::Answer(component, c.command, MavResult::MAV_RESULT_DENIED),
-        },
-        other => {
-            if may_warn("command not supported", &format_args!("{from:?}")) {
-                warn!(command = ?other, ?from, "command not supported");
-            }
-            Route::Answer(component, other, MavResult::MAV_RESULT_UNSUPPORTED)
+        None => {
+            debug!(message = message.message_name(), ?from, "not handled: ignored");
+            vec![Route::Ignore]
         }
     }
 }
@@ -486,5 +347,58 @@ pub fn count(route: &Route, stats: &Stats) {
             Stats::count(&stats.ignored);
         }
         Route::Gimbal(..) => {}
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn gimbal(mount_heading_deg: Option<f64>) -> Gimbal {
+        Gimbal::for_tests(mount_heading_deg)
+    }
+
+    fn yaw(pan_deg: f32, pan_dps: f32) -> Request {
+        Request {
+            tilt_deg: f32::NAN,
+            pan_deg,
+            tilt_dps: f32::NAN,
+            pan_dps,
+        }
+    }
+
+    const EARTH: u32 = GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_IN_EARTH_FRAME.bits();
+    const LOCK: u32 = GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_LOCK.bits();
+    const VEHICLE: u32 = GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_IN_VEHICLE_FRAME.bits();
+
+    #[test]
+    fn earth_frame_yaw_is_yaw_minus_heading_held_as_an_aim_or_refused() {
+        let v = Vehicle::new(1, None);
+        let mast = gimbal(Some(90.0));
+        for flags in [EARTH, LOCK, LOCK | EARTH] {
+            let (r, aim) = in_mount_frame(yaw(30.0, f32::NAN), flags, &mast, &v).unwrap();
+            assert!((r.pan_deg + 60.0).abs() < 1e-4, "flags {flags}: {r:?}");
+            let held = Aim::Yaw {
+                earth_deg: 30.0,
+                tilt_deg: None,
+            };
+            assert_eq!(aim, Some(held), "held, so that it is re-aimed as the vehicle turns");
+            assert_eq!(
+                in_mount_frame(yaw(30.0, f32::NAN), flags, &gimbal(None), &v),
+                Err(aim::NO_HEADING),
+                "no heading: refused, never mount-relative"
+            );
+        }
+        // The vehicle frame, or no yaw at all: as asked, no heading needed.
+        let (r, aim) = in_mount_frame(yaw(30.0, f32::NAN), LOCK | VEHICLE, &gimbal(None), &v).unwrap();
+        assert_eq!((r.pan_deg, aim), (30.0, None));
+        let pitch_only = Request {
+            tilt_deg: 10.0,
+            ..yaw(f32::NAN, f32::NAN)
+        };
+        assert!(in_mount_frame(pitch_only, LOCK, &gimbal(None), &v).is_ok());
+        // A rate: the mast does not turn, so the same rate, and no aim.
+        let (r, aim) = in_mount_frame(yaw(f32::NAN, 20.0), EARTH, &mast, &v).unwrap();
+        assert_eq!((r.pan_dps, aim), (20.0, None));
     }
 }

@@ -5,16 +5,22 @@
 //! only master of the buses and its dead-man stops what this program
 //! started if it dies.
 
+mod aim;
+mod command;
 mod config;
 mod control;
+mod earth;
 mod frames;
 mod gimbal;
 mod inbox;
 mod link;
 mod motion;
+mod net;
 mod stats;
 mod status;
 mod stream;
+mod vehicle;
+mod wire;
 
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -46,13 +52,16 @@ async fn run(config: config::Config) -> Result<(), String> {
         handles.push(handle);
         gimbal_tasks.push(join);
     }
+    let vehicle = Arc::new(vehicle::Vehicle::new(config.system_id, config.mount));
     let mut tasks = tokio::task::JoinSet::new();
     tasks.spawn(status::run(
         Arc::clone(&outbox),
         handles.clone(),
+        Arc::clone(&vehicle),
         config.attitude_period,
         config.control_lapse,
     ));
+    tasks.spawn(aim::run(handles.clone(), Arc::clone(&vehicle)));
     // Answers that need no gimbal task (an unsupported command) go out
     // through this queue, so that a receiver never waits on a send.
     let (answers, mut answer_rx) = tokio::sync::mpsc::channel::<(u8, MavMessage)>(64);
@@ -64,8 +73,10 @@ async fn run(config: config::Config) -> Result<(), String> {
     });
     let handler: stream::Handler = {
         let (handles, stats, system_id) = (handles.clone(), Arc::clone(&stats), config.system_id);
+        let vehicle = Arc::clone(&vehicle);
         Arc::new(move |header, message| {
-            for route in inbox::route(&handles, system_id, header, &message) {
+            vehicle.hear(header, &message);
+            for route in inbox::route(&handles, system_id, &vehicle, header, &message) {
                 inbox::count(&route, &stats);
                 match route {
                     inbox::Route::Gimbal(i, job) => {

@@ -92,16 +92,11 @@ pub fn speed_for(dps: f64, max_dps: f64) -> Speed {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use sagebrush_protocol::Address;
 
     fn gimbal() -> Gimbal {
         Gimbal {
-            name: "g".into(),
-            address: Address::new(5, 1, 1),
-            component_id: 154,
-            pan_deg: (-180.0, 180.0),
             tilt_deg: (-90.0, 45.0),
-            max_rate_dps: 120.0,
+            ..Gimbal::for_tests(None)
         }
     }
 

@@ -27,6 +27,7 @@ use crate::frames;
 use crate::gimbal::Handle;
 use crate::link::Outbox;
 use crate::stats;
+use crate::vehicle::{Heading, Vehicle};
 
 pub const HEARTBEAT: Duration = Duration::from_secs(1);
 pub const MANAGER_STATUS: Duration = Duration::from_millis(200);
@@ -101,6 +102,9 @@ fn heartbeat() -> MavMessage {
 /// the manager itself (this door's system id and the gimbal's component
 /// id) as primary and nobody as secondary: no MAVLink component commands
 /// it then, and a ground station shows "controlled by another".
+/// Its flags say the yaw's frame: the earth frame (YAW_LOCK and
+/// YAW_IN_EARTH_FRAME) while an earth-frame aim is in force (`aim`), else
+/// the vehicle frame.
 fn manager_status(h: &Handle, system_id: u8, time_boot_ms: u32) -> MavMessage {
     let shared = h.shared();
     let control = shared.control;
@@ -110,7 +114,13 @@ fn manager_status(h: &Handle, system_id: u8, time_boot_ms: u32) -> MavMessage {
     };
     MavMessage::GIMBAL_MANAGER_STATUS(GIMBAL_MANAGER_STATUS_DATA {
         time_boot_ms,
-        flags: GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_IN_VEHICLE_FRAME,
+        flags: match shared.aim {
+            Some(_) => {
+                GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_LOCK
+                    | GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_IN_EARTH_FRAME
+            }
+            None => GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_IN_VEHICLE_FRAME,
+        },
         gimbal_device_id: h.config.component_id,
         primary_control_sysid: ps,
         primary_control_compid: pc,
@@ -121,8 +131,11 @@ fn manager_status(h: &Handle, system_id: u8, time_boot_ms: u32) -> MavMessage {
 
 /// The attitude status of the last `P?`; for a gimbal that never answered
 /// one, an unknown attitude (a NaN quaternion) with COMMS_ERROR, once a
-/// poll found it silent; nothing before its first poll.
-pub fn attitude_status(h: &Handle, time_boot_ms: u32) -> Option<MavMessage> {
+/// poll found it silent; nothing before its first poll. The quaternion is
+/// always in the vehicle frame (what the gimbal measures); `delta_yaw` and
+/// `delta_yaw_velocity` (common.xml: "q_earth = q_delta_yaw * q_vehicle")
+/// carry the `heading` when it is known, NaN when not.
+pub fn attitude_status(h: &Handle, time_boot_ms: u32, heading: Option<Heading>) -> Option<MavMessage> {
     let shared = h.shared();
     let q = match shared.position {
         Some(p) => {
@@ -147,8 +160,8 @@ pub fn attitude_status(h: &Handle, time_boot_ms: u32) -> Option<MavMessage> {
             flags: GimbalDeviceFlags::GIMBAL_DEVICE_FLAGS_YAW_IN_VEHICLE_FRAME,
             target_system: 0,
             target_component: 0,
-            delta_yaw: f32::NAN,
-            delta_yaw_velocity: f32::NAN,
+            delta_yaw: heading.map_or(f32::NAN, |h| h.deg.to_radians() as f32),
+            delta_yaw_velocity: heading.map_or(f32::NAN, |h| h.rate_dps.to_radians() as f32),
             gimbal_device_id: 0,
         },
     ))
@@ -201,7 +214,13 @@ impl Schedule {
 
 /// Sends the three streams for ever.
 /// `lapse`: a control owner not heard for this long loses control.
-pub async fn run(outbox: Arc<Outbox>, handles: Vec<Handle>, attitude: Duration, lapse_after: Duration) {
+pub async fn run(
+    outbox: Arc<Outbox>,
+    handles: Vec<Handle>,
+    vehicle: Arc<Vehicle>,
+    attitude: Duration,
+    lapse_after: Duration,
+) {
     outbox.net.set_components(handles.iter().map(|h| h.config.component_id));
     let tick = |d| {
         let mut i = tokio::time::interval(d);
@@ -263,7 +282,7 @@ pub async fn run(outbox: Arc<Outbox>, handles: Vec<Handle>, attitude: Duration, 
                         outbox.send(h.config.component_id, &status).await;
                     }
                     if s[1].due(a, now) {
-                        if let Some(msg) = attitude_status(h, outbox.boot_ms()) {
+                        if let Some(msg) = attitude_status(h, outbox.boot_ms(), vehicle.heading(&h.config)) {
                             outbox.send(h.config.component_id, &msg).await;
                         }
                     }

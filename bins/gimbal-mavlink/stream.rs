@@ -2,7 +2,7 @@
 //! (`serial`).
 //!
 //! Each connection is read into one buffer of [`BUFFER`] bytes and its
-//! frames are read in place (`link::scan`) before more is read: when the
+//! frames are read in place (`wire::scan`) before more is read: when the
 //! router is slower than the peer, the socket is simply not read (TCP's
 //! own flow control holds the peer back), so a connection never holds
 //! more than that buffer and its write queue, and nothing is left when it
@@ -39,8 +39,9 @@ use tokio::time::Instant;
 use tokio_serial::SerialPortBuilderExt;
 use tracing::{debug, info, warn};
 
-use crate::link::{self, MAX_FRAME, Net, Peer, Scan, Screened};
+use crate::net::{Net, Peer, Screened};
 use crate::stats::{Stats, may_warn};
+use crate::wire::{self, MAX_FRAME, Scan};
 
 /// What is done with each intact message that comes in.
 pub type Handler = Arc<dyn Fn(MavHeader, MavMessage) + Send + Sync>;
@@ -190,14 +191,14 @@ async fn serve<S>(
         len += n;
         let mut at = 0;
         loop {
-            match link::scan(&buf[at..len]) {
+            match wire::scan(&buf[at..len]) {
                 Scan::Frame { skip, len: frame } => {
                     run += skip;
                     if run > 0 {
                         stats.damaged(&peer, run);
                         run = 0;
                     }
-                    let decoded = link::decode(&buf[at + skip..at + skip + frame]);
+                    let decoded = wire::decode(&buf[at + skip..at + skip + frame]);
                     match streams.net.screen(decoded, Peer::Stream(id), &peer, &stats) {
                         Screened::Handle(header, message) => handler(header, message),
                         Screened::Answer(bytes) => {
@@ -376,7 +377,7 @@ mod tests {
             Arc::clone(&stats),
             handler,
         ));
-        let beat = link::encode(
+        let beat = wire::encode(
             MavHeader {
                 system_id: 255,
                 component_id: 190,

@@ -1,9 +1,13 @@
 """A ground station made of pymavlink (the MAVLink library QGroundControl's
 and ArduPilot's tooling is built on), driving gimbal-mavlink for
-tests/mavlink.rs.
+tests/mavlink/main.rs and tests/mavlink_attack.rs.
 
 Usage: python3 gcs.py STEP PORT SYSID COMPID [ARGS_JSON]
 (PORT may also be a pymavlink connection string, tcp:127.0.0.1:PORT.)
+
+With "autopilot" in ARGS_JSON, a simulated autopilot of system 1
+(component 1) sends ATTITUDE and GLOBAL_POSITION_INT on a connection of
+its own around the step (class Autopilot).
 
 Each STEP opens a UDP socket to gimbal-mavlink's udp_listen endpoint on
 127.0.0.1:PORT as system SYSID, component COMPID, sends a HEARTBEAT (so
@@ -17,6 +21,7 @@ import json
 import math
 import os
 import sys
+import threading
 import time
 
 # MAVLink 2 and its message ids above 255 (the gimbal messages).
@@ -74,6 +79,7 @@ def attitude_of(msg):
     comms_error = bool(msg.failure_flags & mavlink.GIMBAL_DEVICE_ERROR_FLAGS_COMMS_ERROR)
     seen = {"flags": msg.flags, "failure_flags": msg.failure_flags, "comms_error": comms_error,
             "time_boot_ms": msg.time_boot_ms}
+    seen["delta_yaw"] = None if math.isnan(msg.delta_yaw) else math.degrees(msg.delta_yaw)
     if any(math.isnan(c) for c in msg.q):
         return {**seen, "roll": None, "pitch": None, "yaw": None}
     roll, pitch, yaw = QuaternionBase(list(msg.q)).euler
@@ -86,12 +92,13 @@ def command(m, cmd, params, component=GIMBAL):
     return ack(m, cmd, component)
 
 
-def command_int(m, cmd, params, component=GIMBAL):
-    """`cmd` as COMMAND_INT (as MAVSDK and ArduPilot send it): params 1-4,
-    x and y (integers) for params 5 and 6, z for param 7; the ACK's result."""
+def command_int(m, cmd, params, component=GIMBAL, frame=mavlink.MAV_FRAME_GLOBAL):
+    """`cmd` as COMMAND_INT (as MAVSDK and ArduPilot send it) in `frame`:
+    params 1-4, x and y (integers) for params 5 and 6, z for param 7; the
+    ACK's result."""
     p = list(params) + [0.0] * (7 - len(params))
-    m.mav.command_int_send(1, component, mavlink.MAV_FRAME_GLOBAL, cmd, 0, 0, p[0], p[1], p[2], p[3], int(p[4]),
-                           int(p[5]), p[6])
+    m.mav.command_int_send(1, component, frame, cmd, 0, 0, p[0], p[1], p[2], p[3], int(round(p[4])),
+                           int(round(p[5])), p[6])
     return ack(m, cmd, component)
 
 
@@ -99,7 +106,8 @@ def step_command_int(m, a):
     """One COMMAND_INT with `id` and `params` (7, param 5 and 6 integers), the ACK's result."""
     nan = float("nan")
     params = [nan if v is None else v for v in a.get("params", [])]
-    return {"result": command_int(m, a["id"], params, a.get("component", GIMBAL))}
+    return {"result": command_int(m, a["id"], params, a.get("component", GIMBAL),
+                                  a.get("frame", mavlink.MAV_FRAME_GLOBAL))}
 
 
 def step_broadcast(m, a):
@@ -206,7 +214,15 @@ def step_pitchyaw(m, a):
     nan = float("nan")
     p = [a.get("pitch", nan), a.get("yaw", nan), a.get("pitch_rate", nan), a.get("yaw_rate", nan),
          a.get("flags", 0), 0, a.get("device", 0)]
-    return {"result": command(m, mavlink.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, p, a.get("component", GIMBAL))}
+    out = {"result": command(m, mavlink.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW, p, a.get("component", GIMBAL))}
+    if a.get("report"):
+        # What the gimbal reports right after: the manager's flags, and
+        # the heading in the attitude status's delta_yaw.
+        st = wait(m, "GIMBAL_MANAGER_STATUS")
+        out["manager_flags"] = None if st is None else st.flags
+        at = wait(m, "GIMBAL_DEVICE_ATTITUDE_STATUS")
+        out["delta_yaw"] = None if at is None else attitude_of(at)["delta_yaw"]
+    return out
 
 
 def step_pitchyaw_text(m, a):
@@ -275,8 +291,9 @@ def step_configure(m, a):
 
 
 def step_manager_status(m, a):
-    st = wait(m, "GIMBAL_MANAGER_STATUS", lambda s: a.get("primary_sysid") is None
-              or s.primary_control_sysid == a["primary_sysid"])
+    st = wait(m, "GIMBAL_MANAGER_STATUS", lambda s: (a.get("primary_sysid") is None
+                                                     or s.primary_control_sysid == a["primary_sysid"])
+              and (a.get("flags") is None or s.flags == a["flags"]))
     return {"status": None if st is None else st.to_dict()}
 
 
@@ -354,14 +371,84 @@ def step_request_once(m, a):
     return {"acks": acks, "infos": infos, "result": result}
 
 
+class Autopilot:
+    """A simulated autopilot of system 1 (component 1, MAV_COMP_ID_AUTOPILOT1)
+    on a connection of its own: HEARTBEAT (a quadrotor, PX4) every second,
+    ATTITUDE with yaw `heading` (degrees) and, when `position` ([lat, lon,
+    alt_m] and optionally home's altitude) is given, GLOBAL_POSITION_INT,
+    both at `rate_hz`, from a thread until stop()."""
+
+    def __init__(self, port, cfg):
+        self.m = connect(port, cfg.get("system", 1), 1)
+        self.heading = cfg.get("heading", 0.0)
+        self.position = cfg.get("position")
+        self.rate_hz = cfg.get("rate_hz", 10.0)
+        self.running = True
+        self.thread = threading.Thread(target=self.run, daemon=True)
+        self.thread.start()
+
+    def run(self):
+        t0, beat = time.monotonic(), 0.0
+        while self.running:
+            now = time.monotonic()
+            boot_ms = int((now - t0) * 1000)
+            if now - beat >= 1.0:
+                self.m.mav.heartbeat_send(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4, 0, 0, 4)
+                beat = now
+            self.m.mav.attitude_send(boot_ms, 0.0, 0.0, math.radians(self.heading), 0.0, 0.0, 0.0)
+            if self.position is not None:
+                lat, lon, alt = self.position[:3]
+                home = self.position[3] if len(self.position) > 3 else alt
+                hdg = int((self.heading % 360.0) * 100)
+                self.m.mav.global_position_int_send(boot_ms, int(round(lat * 1e7)), int(round(lon * 1e7)),
+                                                    int(alt * 1000), int((alt - home) * 1000), 0, 0, 0, hdg)
+            time.sleep(1.0 / self.rate_hz)
+
+    def stop(self):
+        self.running = False
+        self.thread.join(timeout=5.0)
+
+
+def step_roi_turn(m, a):
+    """With the autopilot (`autopilot`, started by main) at its heading: a
+    MAV_CMD_DO_SET_ROI_LOCATION as COMMAND_INT at `roi` ([lat, lon, alt_m],
+    MAV_FRAME_GLOBAL); the attitude status until near (`pitch`, `yaw1`);
+    then the vehicle turns to heading `heading2`, and the attitude status
+    until near (`pitch`, `yaw2`). The ACK's result and whether each was
+    reached (from the gimbal's own reports, the bus's P? answers)."""
+    lat, lon, alt = a["roi"]
+    result = command_int(m, mavlink.MAV_CMD_DO_SET_ROI_LOCATION, [0, 0, 0, 0, lat * 1e7, lon * 1e7, alt])
+    out = {"result": result}
+    near = lambda yaw: lambda msg: abs(attitude_of(msg)["yaw"] - yaw) <= 0.5 \
+        and abs(attitude_of(msg)["pitch"] - a["pitch"]) <= 0.5
+    out["reached1"] = wait(m, "GIMBAL_DEVICE_ATTITUDE_STATUS", near(a["yaw1"])) is not None
+    AUTOPILOT.heading = a["heading2"]
+    out["reached2"] = wait(m, "GIMBAL_DEVICE_ATTITUDE_STATUS", near(a["yaw2"])) is not None
+    return out
+
+
+AUTOPILOT = None
+
 STEPS = {name[5:]: f for name, f in globals().items() if name.startswith("step_")}
 
 
 def main():
     step, port, sysid, compid = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
     args = json.loads(sys.argv[5]) if len(sys.argv) > 5 else {}
+    global AUTOPILOT
+    if "autopilot" in args:
+        # Heard a few times before the step; `for_s`: only that long, then
+        # silent for `delay_s` (a heading gone stale).
+        cfg = args["autopilot"]
+        AUTOPILOT = Autopilot(port, cfg)
+        time.sleep(cfg.get("for_s", 0.5))
+        if "for_s" in cfg:
+            AUTOPILOT.stop()
+        time.sleep(cfg.get("delay_s", 0.0))
     m = connect(port, sysid, compid)
     out = STEPS[step](m, args)
+    if AUTOPILOT is not None:
+        AUTOPILOT.stop()
     print(json.dumps(out, default=str))
 
 

@@ -80,3 +80,28 @@ fn errors_name_the_place_and_what_was_expected() {
         .contains("gimbal[1].component_id")
     );
 }
+
+#[test]
+fn the_mount_place_takes_all_three_keys_and_a_heading_is_per_gimbal() {
+    let c = parse(Path::new("m.toml"), GOOD).unwrap();
+    assert_eq!((c.mount, c.gimbals[0].mount_heading_deg), (None, None));
+    let mast = GOOD.replace(
+        "system_id = 1\n",
+        "system_id = 1\nmount_latitude_deg = 47.5\nmount_longitude_deg = -8.25\nmount_altitude_m = 480.0\n",
+    ) + "mount_heading_deg = 270.0\n";
+    let c = parse(Path::new("m.toml"), &mast).unwrap();
+    assert_eq!(
+        c.mount,
+        Some(Place {
+            lat_deg: 47.5,
+            lon_deg: -8.25,
+            alt_m: 480.0
+        })
+    );
+    assert_eq!(c.gimbals[0].mount_heading_deg, Some(270.0));
+    assert!(err(&mast.replace("mount_altitude_m = 480.0\n", "")).contains("mount_altitude_m: expected with the other"));
+    assert!(
+        err(&mast.replace("47.5", "95.0")).starts_with("m.toml:4:22: mount_latitude_deg: expected a number within ±90")
+    );
+    assert!(err(&mast.replace("270.0", "400.0")).contains("gimbal[0].mount_heading_deg: expected degrees"));
+}
