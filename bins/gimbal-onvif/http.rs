@@ -1,7 +1,7 @@
 //! Each gimbal's ONVIF device on its own HTTP listener: POSTed SOAP to
 //! `/onvif/device_service`, `/onvif/media_service` or `/onvif/ptz_service`
 //! (the operation, not the path, says what is asked). The connections go
-//! through the bounded listener (crate `sagebrush-listener`, `[http]`): one
+//! through the bounded listener (crate `sagebrush-service`, `[http]`): one
 //! admission table for every gimbal's device (a total cap that evicts the
 //! longest-idle connection for a newcomer, a per-peer cap that holds for
 //! loopback peers too), header, body and idle time-outs, bounded buffers;
@@ -19,8 +19,8 @@ use axum::extract::{DefaultBodyLimit, Extension, State};
 use axum::http::{HeaderMap, StatusCode, Uri, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::post;
-use sagebrush_listener::rate::LogGate;
-use sagebrush_listener::{BoundedListener, Connections, Local, Peer};
+use sagebrush_service::rate::LogGate;
+use sagebrush_service::{BoundedListener, Connections, Local, Peer};
 use tokio::sync::Semaphore;
 use tracing::{debug, info, warn};
 
@@ -159,7 +159,7 @@ pub async fn bind(
     let listener = BoundedListener::new(listener, table, format!("gimbal {device_name}"));
     info!(gimbal = %device_name, addr = %local, "ONVIF device listening");
     Ok((local, async move {
-        sagebrush_listener::serve_http(listener, limits, app).await;
+        sagebrush_service::serve_http(listener, limits, app).await;
         Ok(())
     }))
 }

@@ -2,16 +2,16 @@
 //! documented in `config/gimbal-web.toml`), parsed with serde and then
 //! validated; every error names the file, the line and column, the key and
 //! what was expected (`--check` prints it and exits 2), through
-//! [`sagebrush_client::config_file`] as the other doors'.
+//! [`sagebrush_service::config_file`] as the other doors'.
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use sagebrush_client::config_file::{ConfigError, Int, Millis, Source};
-use sagebrush_client::door_config::{HttpBounds, HttpSection, UserSection};
-pub use sagebrush_client::door_config::{Role, User};
 use sagebrush_protocol::Address;
+use sagebrush_service::config_file::{ConfigError, Int, Millis, Source};
+use sagebrush_service::door_config::{HttpBounds, HttpSection, UserSection};
+pub use sagebrush_service::door_config::{Role, User};
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -85,7 +85,7 @@ pub struct Config {
     pub gimbals: Vec<Gimbal>,
 }
 
-impl sagebrush_client::door::Checked for Config {
+impl sagebrush_service::door::Checked for Config {
     fn summary(&self) -> String {
         format!(
             "{} gimbal(s), {} user(s), page on {}",

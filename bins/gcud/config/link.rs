@@ -6,8 +6,8 @@ use std::collections::BTreeSet;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 
-use sagebrush_client::config_file::{Baud, Int, Millis, Source, checked};
 use sagebrush_gcu::{LinkConfig, LinkKind, LinkSettings, SourceFilter};
+use sagebrush_service::config_file::{Baud, Int, Millis, Source, checked};
 use serde::{Deserialize, Deserializer, Serialize};
 use toml::Spanned;
 

@@ -1,5 +1,5 @@
 //! `gcud --config FILE`: the TOML configuration, one module per section.
-//! A setting is typed where it is declared (`sagebrush_client::config_file`'s
+//! A setting is typed where it is declared (`sagebrush_service::config_file`'s
 //! `Int`, `Millis` and `Baud` carry its range and default and are checked
 //! as the file is parsed), so every error names the file, the line and
 //! column, the key and what was expected (`gcud --check` prints them and
@@ -28,8 +28,8 @@ use std::net::SocketAddr;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-use sagebrush_client::config_file::{Source, listeners_clash};
 use sagebrush_gcu::{Governance, LinkId, RouterConfig};
+use sagebrush_service::config_file::{Source, listeners_clash};
 use serde::Deserialize;
 
 pub use capture::CaptureSettings;
@@ -42,7 +42,7 @@ pub use metrics::Metrics;
 pub use net::PeerAllowList;
 pub use port::{Port, PortTransport};
 pub use route::Routes;
-pub use sagebrush_client::config_file::ConfigError;
+pub use sagebrush_service::config_file::ConfigError;
 
 /// The whole file, as written.
 #[derive(Debug, Deserialize)]
@@ -143,7 +143,7 @@ impl Config {
     /// `--check` only: a warning for each serial device that does not exist
     /// now (`config_file::absent_serial_devices`).
     pub fn probe_serial_paths(&self) -> Vec<String> {
-        sagebrush_client::config_file::absent_serial_devices(&self.serial_places, "gcud")
+        sagebrush_service::config_file::absent_serial_devices(&self.serial_places, "gcud")
     }
 }
 
@@ -220,9 +220,9 @@ impl Checks {
     }
 }
 
-/// Reads (bounded: `sagebrush_client::config_file::read`) and validates `file`.
+/// Reads (bounded: `sagebrush_service::config_file::read`) and validates `file`.
 pub fn load(file: &Path) -> Result<Config, ConfigError> {
-    let text = sagebrush_client::config_file::read(file)?;
+    let text = sagebrush_service::config_file::read(file)?;
     parse(file, &text)
 }
 
@@ -300,7 +300,7 @@ fn validate(c: &Source<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
 mod tests {
     use super::*;
     use net::loopback;
-    use sagebrush_client::config_file::listeners_clash as clash;
+    use sagebrush_service::config_file::listeners_clash as clash;
     use std::net::IpAddr;
 
     fn err(text: &str) -> ConfigError {

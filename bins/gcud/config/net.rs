@@ -6,7 +6,7 @@ use std::fmt;
 use std::net::{IpAddr, SocketAddr};
 
 use ipnet::IpNet;
-use sagebrush_client::config_file::Source;
+use sagebrush_service::config_file::Source;
 use serde::{Serialize, Serializer};
 use toml::Spanned;
 

@@ -3,8 +3,8 @@
 
 use std::path::PathBuf;
 
-use sagebrush_client::config_file::{Baud, Int, Millis, Source};
 use sagebrush_gcu::PortConfig;
+use sagebrush_service::config_file::{Baud, Int, Millis, Source};
 use serde::Deserialize;
 use toml::Spanned;
 
