@@ -9,10 +9,11 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use sagebrush_protocol::Address;
-use sagebrush_service::config_file::{ConfigError, Int, Millis, Source, listeners_clash};
+use sagebrush_service::config_file::{ConfigError, Int, Millis, Source};
 pub use sagebrush_service::door_config::HttpBounds;
 use sagebrush_service::door_config::{HttpSection, UserSection};
 pub use sagebrush_service::door_config::{Role, User};
+use sagebrush_service::endpoint::listeners_clash;
 use serde::Deserialize;
 use toml::Spanned;
 

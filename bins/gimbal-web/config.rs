@@ -101,13 +101,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let c = Source::new(file, text);
     let raw: ConfigFile = c.deserialize()?;
     let gcud = c.gcud_address(&raw.gcud)?;
-    let listen = raw.listen.get_ref().parse().map_err(|_| {
-        c.at(
-            raw.listen.span(),
-            "listen",
-            format!("expected IP:PORT, found {:?}", raw.listen.get_ref()),
-        )
-    })?;
+    let listen = c.listen_address(&raw.listen, "listen")?;
     let users = c.users(&raw.users)?;
     let state_file = c.state_file(raw.state_file.as_ref())?;
     let mut gimbals: Vec<Gimbal> = Vec::new();
@@ -184,7 +178,7 @@ pan_deg = [-170.0, 170.0]
         );
         assert_eq!(
             err(&GOOD.replace("\"0.0.0.0:8080\"", "\"8080\"")),
-            "w.toml:3:10: listen: expected IP:PORT, found \"8080\""
+            "w.toml:3:10: listen: expected IP:PORT: \"8080\" has no port"
         );
         assert!(err(&GOOD.replace("administrator", "root")).starts_with("w.toml:7:8: user[0].role: expected"));
         assert!(err(&GOOD.replace("gcud =", "hold_lease_ms = 5000\ngcud =")).contains("hold_lease_ms"));

@@ -29,7 +29,8 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use sagebrush_gcu::{Governance, LinkId, RouterConfig};
-use sagebrush_service::config_file::{Source, listeners_clash};
+use sagebrush_service::config_file::Source;
+use sagebrush_service::endpoint::listeners_clash;
 use serde::Deserialize;
 
 pub use capture::CaptureSettings;
@@ -300,7 +301,6 @@ fn validate(c: &Source<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
 mod tests {
     use super::*;
     use net::loopback;
-    use sagebrush_service::config_file::listeners_clash as clash;
     use std::net::IpAddr;
 
     fn err(text: &str) -> ConfigError {
@@ -491,16 +491,26 @@ mod tests {
     }
 
     #[test]
-    fn listeners_clash_on_one_port_of_one_or_every_address() {
-        let a = |s: &str| s.parse::<SocketAddr>().unwrap();
-        assert!(clash(&a("127.0.0.1:1"), &a("127.0.0.1:1")));
-        assert!(clash(&a("0.0.0.0:1"), &a("127.0.0.1:1")));
-        assert!(clash(&a("[::1]:1"), &a("[::]:1")));
-        assert!(clash(&a("127.0.0.1:1"), &a("[::]:1")));
-        assert!(!clash(&a("0.0.0.0:1"), &a("[::1]:1")));
-        assert!(!clash(&a("127.0.0.1:1"), &a("127.0.0.1:2")));
-        assert!(!clash(&a("127.0.0.1:1"), &a("127.0.0.2:1")));
-        assert!(!clash(&a("127.0.0.1:0"), &a("127.0.0.1:0")));
+    fn places_to_connect_to_are_host_port_errors_naming_the_text() {
+        let link = |to: &str| {
+            err(&format!(
+                "[gcu]\ngroup = 5\n[[link]]\nname = \"up\"\nrole = \"upstream\"\nconnect = {to:?}\n"
+            ))
+        };
+        assert_eq!(
+            link("gcu-1").to_string(),
+            "t.toml:6:11: link[0].connect: expected HOST:PORT to connect to: \"gcu-1\" has no port"
+        );
+        assert!(
+            link("::1:4001").message.contains("out of brackets"),
+            "an IPv6 host goes in brackets"
+        );
+        let port = |tcp: &str| err(&format!("[gcu]\ngroup = 5\n[[port]]\nid = 1\ntcp = {tcp:?}\n"));
+        assert_eq!(
+            port("moxa:0").to_string(),
+            "t.toml:5:7: port[0].tcp: expected HOST:PORT of a TCP device server: \"moxa:0\" has port \"0\", not 1..=65535"
+        );
+        assert!(port("mo xa:4001").message.contains("host \"mo xa\""));
     }
 
     #[test]

@@ -7,6 +7,8 @@
 //! - [`door_config`]: the pieces every door with users shares: `[[user]]`,
 //!   the preset state file, `[http]`.
 //! - [`door`]: a front door's start-up (`--check`, exit codes, runtime).
+//! - [`endpoint`]: the one parser of `HOST:PORT` and of `IP:PORT` to
+//!   listen on, for configuration files and command lines alike.
 //! - The bounded listener (ARCHITECTURE "Bounded and fair under load"):
 //!   every socket that faces the LAN has a cap on connections (in all and
 //!   per peer), header, body and idle time-outs, bounded buffers and
@@ -26,6 +28,7 @@ pub mod admission;
 pub mod config_file;
 pub mod door;
 pub mod door_config;
+pub mod endpoint;
 pub mod http;
 pub mod rate;
 
