@@ -308,7 +308,7 @@ pub async fn run_link(id: LinkId, link: Link, events: mpsc::Sender<IoEvent>, cap
 }
 
 /// Accepts connections: allow-listed peers only, admitted by the shared
-/// table (crate `sagebrush-listener`, re-exported as module `admission`). The connections end with this task (a link
+/// table (crate `sagebrush-service`, re-exported as module `admission`). The connections end with this task (a link
 /// removed on reload).
 pub async fn accept_loop(
     link: Link,

@@ -22,7 +22,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{CommandFactory, Parser};
-use sagebrush_client::door::{EXIT_CONFIG, EXIT_START};
+use sagebrush_service::door::{EXIT_CONFIG, EXIT_START};
 
 #[derive(Debug, Parser)]
 #[command(

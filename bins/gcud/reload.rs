@@ -13,7 +13,7 @@
 use std::fmt;
 use std::path::Path;
 
-use sagebrush_client::config_file::changed_keys;
+use sagebrush_service::config_file::changed_keys;
 use tracing::{error, warn};
 
 use crate::config::{Config, Link, Port};

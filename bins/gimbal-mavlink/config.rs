@@ -2,14 +2,14 @@
 //! documented in `config/gimbal-mavlink.toml`), parsed with serde and then
 //! validated; every error names the file, the line and column, the key and
 //! what was expected (`--check` prints it and exits 2), through
-//! [`sagebrush_client::config_file`] as gcud's and gimbal-onvif's.
+//! [`sagebrush_service::config_file`] as gcud's and gimbal-onvif's.
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use sagebrush_client::config_file::{self, ConfigError, Int, Millis, Source};
 use sagebrush_protocol::Address;
+use sagebrush_service::config_file::{self, ConfigError, Int, Millis, Source};
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -135,7 +135,7 @@ impl Gimbal {
     }
 }
 
-impl sagebrush_client::door::Checked for Config {
+impl sagebrush_service::door::Checked for Config {
     fn summary(&self) -> String {
         format!("{} gimbal(s), {} endpoint(s)", self.gimbals.len(), self.endpoints.len())
     }

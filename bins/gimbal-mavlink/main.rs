@@ -32,7 +32,7 @@ use crate::link::Outbox;
 use crate::stats::Stats;
 
 fn main() -> ExitCode {
-    sagebrush_client::door::main(
+    sagebrush_service::door::main(
         "gimbal-mavlink",
         "MAVLink Gimbal Protocol v2 (gimbal manager and device) for the gimbals behind gcud.",
         config::parse,
@@ -41,7 +41,7 @@ fn main() -> ExitCode {
 }
 
 async fn run(config: config::Config) -> Result<(), String> {
-    let signals = sagebrush_client::door::Signals::install()?;
+    let signals = sagebrush_service::door::Signals::install()?;
     let outbox = Outbox::bind(config.system_id, &config.endpoints).await?;
     let stats = Arc::new(Stats::default());
     let mut handles = Vec::new();

@@ -14,9 +14,9 @@
 //! never stalls the others; an answer goes to the asker's connection only.
 //!
 //! Accepted connections (`tcp_listen`) are admitted by the shared bounded
-//! listener's table (`sagebrush_listener::Connections`, gcud's and
+//! listener's table (`sagebrush_service::Connections`, gcud's and
 //! gimbal-onvif's too): at most [`MAX_CONNECTIONS`]; when they are all taken, the
-//! one idle the longest, if idle for at least `sagebrush_listener::admission::MIN_IDLE_TO_EVICT`, is
+//! one idle the longest, if idle for at least `sagebrush_service::admission::MIN_IDLE_TO_EVICT`, is
 //! closed for the newcomer (else the newcomer is refused); at most
 //! [`MAX_PER_PEER`] from one address off this machine; a connection that
 //! sends nothing for [`IDLE_TIMEOUT`] is closed. The configured `tcp` and
@@ -31,7 +31,7 @@ use std::time::Duration;
 
 use mavlink::MavHeader;
 use mavlink::dialects::common::MavMessage;
-use sagebrush_listener::{Admission, Connections, Limits};
+use sagebrush_service::{Admission, Connections, Limits};
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{Notify, mpsc};
@@ -240,7 +240,7 @@ async fn serve<S>(
         End::Evicted => {
             Stats::count(&stats.tcp_evicted);
             if may_warn("MAVLink connection closed for a newcomer", &peer) {
-                warn!(%peer, idle_s = sagebrush_listener::admission::MIN_IDLE_TO_EVICT.as_secs(), "MAVLink connection idle the longest closed for a newcomer");
+                warn!(%peer, idle_s = sagebrush_service::admission::MIN_IDLE_TO_EVICT.as_secs(), "MAVLink connection idle the longest closed for a newcomer");
             }
         }
         End::Idle => {

@@ -17,7 +17,7 @@ use std::collections::{HashMap, HashSet, VecDeque};
 use std::sync::Mutex;
 use std::time::Duration;
 
-use sagebrush_listener::rate::TokenBucket;
+use sagebrush_service::rate::TokenBucket;
 
 use base64::Engine;
 use base64::engine::general_purpose::STANDARD as B64;

@@ -2,17 +2,18 @@
 //! documented in `config/gimbal-onvif.toml`), parsed with serde and then
 //! validated; every error names the file, the line and column, the key and
 //! what was expected (`--check` prints it and exits 2), through
-//! [`sagebrush_client::config_file`] as gcud's.
+//! [`sagebrush_service::config_file`] as gcud's.
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use sagebrush_client::config_file::{ConfigError, Int, Millis, Source, listeners_clash};
-pub use sagebrush_client::door_config::HttpBounds;
-use sagebrush_client::door_config::{HttpSection, UserSection};
-pub use sagebrush_client::door_config::{Role, User};
 use sagebrush_protocol::Address;
+use sagebrush_service::config_file::{ConfigError, Int, Millis, Source};
+pub use sagebrush_service::door_config::HttpBounds;
+use sagebrush_service::door_config::{HttpSection, UserSection};
+pub use sagebrush_service::door_config::{Role, User};
+use sagebrush_service::endpoint::listeners_clash;
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -155,14 +156,14 @@ pub struct Config {
 /// The WS-Discovery port and multicast group (WS-Discovery 1.1, 3.1.1).
 pub const DISCOVERY_DEFAULT: &str = "0.0.0.0:3702";
 
-impl sagebrush_client::door::Checked for Config {
+impl sagebrush_service::door::Checked for Config {
     fn summary(&self) -> String {
         format!("{} gimbal(s), {} user(s)", self.gimbals.len(), self.users.list.len())
     }
 
     fn warnings(&self) -> Vec<String> {
         let listeners: Vec<SocketAddr> = self.gimbals.iter().map(|g| g.listen).collect();
-        sagebrush_client::door_config::demo_password_warnings(&self.users.list, &listeners)
+        sagebrush_service::door_config::demo_password_warnings(&self.users.list, &listeners)
     }
 }
 

@@ -19,7 +19,7 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
-use sagebrush_listener::rate::{KeyedBuckets, LogGate, TokenBucket};
+use sagebrush_service::rate::{KeyedBuckets, LogGate, TokenBucket};
 use sha1::{Digest, Sha1};
 use tokio::net::UdpSocket;
 use tracing::{debug, warn};

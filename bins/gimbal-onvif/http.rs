@@ -4,7 +4,7 @@
 //! parameter or a SOAPAction header, says what is asked; any Content-Type,
 //! parameters included, is read as the envelope it carries, and the answer
 //! goes back as that envelope's SOAP version's type). The connections go
-//! through the bounded listener (crate `sagebrush-listener`, `[http]`): one
+//! through the bounded listener (crate `sagebrush-service`, `[http]`): one
 //! admission table for every gimbal's device (a total cap that evicts the
 //! longest-idle connection for a newcomer, a per-peer cap that holds for
 //! loopback peers too), header, body and idle time-outs, bounded buffers;
@@ -22,8 +22,8 @@ use axum::extract::{DefaultBodyLimit, Extension, State};
 use axum::http::{HeaderMap, StatusCode, Uri, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::post;
-use sagebrush_listener::rate::LogGate;
-use sagebrush_listener::{BoundedListener, Connections, Local, Peer};
+use sagebrush_service::rate::LogGate;
+use sagebrush_service::{BoundedListener, Connections, Local, Peer};
 use tokio::sync::Semaphore;
 use tracing::{debug, info, warn};
 
@@ -155,7 +155,7 @@ pub async fn bind(
     let listener = BoundedListener::new(listener, table, format!("gimbal {device_name}"));
     info!(gimbal = %device_name, addr = %local, "ONVIF device listening");
     Ok((local, async move {
-        sagebrush_listener::serve_http(listener, limits, app).await;
+        sagebrush_service::serve_http(listener, limits, app).await;
         Ok(())
     }))
 }

@@ -18,7 +18,7 @@ use std::sync::Arc;
 use tracing::{error, info};
 
 fn main() -> ExitCode {
-    sagebrush_client::door::main(
+    sagebrush_service::door::main(
         "gimbal-onvif",
         "ONVIF PTZ (Device, Media, PTZ) and WS-Discovery for the gimbals behind gcud.",
         config::parse,
@@ -29,7 +29,7 @@ fn main() -> ExitCode {
 async fn run(config: config::Config) -> Result<(), String> {
     let presets = Arc::new(sagebrush_client::presets::Presets::load(config.state_file.clone())?);
     let auth = Arc::new(auth::Authenticator::new(config.users.clone()));
-    let signals = sagebrush_client::door::Signals::install()?;
+    let signals = sagebrush_service::door::Signals::install()?;
     let mut gimbals = Vec::new();
     let mut served = Vec::new();
     let mut tasks = tokio::task::JoinSet::new();

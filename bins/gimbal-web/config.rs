@@ -2,16 +2,16 @@
 //! documented in `config/gimbal-web.toml`), parsed with serde and then
 //! validated; every error names the file, the line and column, the key and
 //! what was expected (`--check` prints it and exits 2), through
-//! [`sagebrush_client::config_file`] as the other doors'.
+//! [`sagebrush_service::config_file`] as the other doors'.
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use sagebrush_client::config_file::{ConfigError, Int, Millis, Source};
-use sagebrush_client::door_config::{HttpBounds, HttpSection, UserSection};
-pub use sagebrush_client::door_config::{Role, User};
 use sagebrush_protocol::Address;
+use sagebrush_service::config_file::{ConfigError, Int, Millis, Source};
+use sagebrush_service::door_config::{HttpBounds, HttpSection, UserSection};
+pub use sagebrush_service::door_config::{Role, User};
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -85,7 +85,7 @@ pub struct Config {
     pub gimbals: Vec<Gimbal>,
 }
 
-impl sagebrush_client::door::Checked for Config {
+impl sagebrush_service::door::Checked for Config {
     fn summary(&self) -> String {
         format!(
             "{} gimbal(s), {} user(s), page on {}",
@@ -96,7 +96,7 @@ impl sagebrush_client::door::Checked for Config {
     }
 
     fn warnings(&self) -> Vec<String> {
-        sagebrush_client::door_config::demo_password_warnings(&self.users, &[self.listen])
+        sagebrush_service::door_config::demo_password_warnings(&self.users, &[self.listen])
     }
 }
 
@@ -105,13 +105,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let c = Source::new(file, text);
     let raw: ConfigFile = c.deserialize()?;
     let gcud = c.gcud_address(&raw.gcud)?;
-    let listen = raw.listen.get_ref().parse().map_err(|_| {
-        c.at(
-            raw.listen.span(),
-            "listen",
-            format!("expected IP:PORT, found {:?}", raw.listen.get_ref()),
-        )
-    })?;
+    let listen = c.listen_address(&raw.listen, "listen")?;
     let users = c.users(&raw.users)?;
     let state_file = c.state_file(raw.state_file.as_ref())?;
     let mut gimbals: Vec<Gimbal> = Vec::new();
@@ -188,7 +182,7 @@ pan_deg = [-170.0, 170.0]
         );
         assert_eq!(
             err(&GOOD.replace("\"0.0.0.0:8080\"", "\"8080\"")),
-            "w.toml:3:10: listen: expected IP:PORT, found \"8080\""
+            "w.toml:3:10: listen: expected IP:PORT: \"8080\" has no port"
         );
         assert!(err(&GOOD.replace("administrator", "root")).starts_with("w.toml:7:8: user[0].role: expected"));
         assert!(err(&GOOD.replace("gcud =", "hold_lease_ms = 5000\ngcud =")).contains("hold_lease_ms"));

@@ -16,7 +16,7 @@ use sagebrush_client::session::{GcudReachability, GimbalSession, SessionConfig};
 use tracing::info;
 
 fn main() -> ExitCode {
-    sagebrush_client::door::main(
+    sagebrush_service::door::main(
         "gimbal-web",
         "A web page to drive the gimbals behind gcud: live position, hold-to-move, presets.",
         config::parse,
@@ -26,7 +26,7 @@ fn main() -> ExitCode {
 
 async fn run(config: config::Config) -> Result<(), String> {
     let presets = Arc::new(sagebrush_client::presets::Presets::load(config.state_file.clone())?);
-    let signals = sagebrush_client::door::Signals::install()?;
+    let signals = sagebrush_service::door::Signals::install()?;
     let reach = Arc::new(GcudReachability::default());
     let gimbals: Vec<web::Gimbal> = config
         .gimbals

@@ -1,5 +1,5 @@
 //! The page and its API, served through the bounded listener (crate
-//! `sagebrush-listener`, `[http]`): one admission table (a total cap that
+//! `sagebrush-service`, `[http]`): one admission table (a total cap that
 //! evicts the longest-idle connection, a per-peer cap that holds for
 //! loopback peers too), header, body and idle time-outs, bounded buffers;
 //! bodies of at most [`MAX_BODY`].
@@ -47,9 +47,9 @@ use sagebrush_client::connection::{Control, proportional_speed};
 use sagebrush_client::governance::{Controller, Rules, Tour, degrees, tour_state_name};
 use sagebrush_client::presets::{self, Presets};
 use sagebrush_client::session::{Axes, Drive, GimbalSession, Motion, Velocity};
-use sagebrush_listener::rate::{KeyedBuckets, LogGate};
-use sagebrush_listener::{BoundedListener, Peer};
 use sagebrush_protocol::{Angle, Command, Position};
+use sagebrush_service::rate::{KeyedBuckets, LogGate};
+use sagebrush_service::{BoundedListener, Peer};
 use serde::Deserialize;
 use serde_json::{Value, json};
 use tokio::time::Instant;
@@ -679,7 +679,7 @@ pub async fn bind(
     let listener = BoundedListener::new(listener, config.http.table(), "gimbal-web");
     let limits = config.http.limits();
     info!(addr = %local, "page listening");
-    let serve = sagebrush_listener::serve_http(listener, limits, app);
+    let serve = sagebrush_service::serve_http(listener, limits, app);
     Ok((local, async move {
         // gcud's tours, asked every QUIET beside the page (no bus time),
         // and apart (an unreachable gcud delays neither) the gimbals'

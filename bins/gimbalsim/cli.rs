@@ -1,9 +1,12 @@
 //! Command line of `gimbalsim`: where the bus is attached, the gimbals on
 //! it, line pacing and fault injection.
 
+use std::net::SocketAddr;
+
 use clap::{ArgGroup, Parser};
 use sagebrush_host::transport::parse_baud;
 use sagebrush_protocol::DataRate;
+use sagebrush_service::endpoint::listen_arg;
 use sagebrush_sim::{BusConfig, FaultConfig, GimbalConfig};
 
 /// A bus of virtual Sagebrush pan-tilt gimbals speaking protocol rev 1.9.
@@ -23,8 +26,8 @@ pub struct Cli {
     #[arg(long, value_name = "PATH", conflicts_with_all = ["tcp", "serial"])]
     pub link: Option<std::path::PathBuf>,
     /// Listen on a TCP address instead (one client at a time), e.g. 127.0.0.1:0.
-    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:0")]
-    pub tcp: Option<String>,
+    #[arg(long, value_name = "IP:PORT", num_args = 0..=1, default_missing_value = "127.0.0.1:0", value_parser = listen_arg)]
+    pub tcp: Option<SocketAddr>,
     /// Attach to an existing serial device.
     #[arg(long, value_name = "PATH")]
     pub serial: Option<String>,

@@ -69,7 +69,7 @@ pub async fn run(cli: Cli, config: BusConfig) -> Result<(), String> {
     };
     let addresses: Vec<String> = bus.gimbals().map(|g| g.device().to_string()).collect();
     let result = if let Some(addr) = &cli.tcp {
-        let listener = TcpListener::bind(addr)
+        let listener = TcpListener::bind(*addr)
             .await
             .map_err(|e| format!("cannot listen on {addr}: {e}"))?;
         let local = listener.local_addr().map_err(|e| e.to_string())?;

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use sagebrush_client::config_file::{Int, Source};
+use sagebrush_service::config_file::{Int, Source};
 use serde::Deserialize;
 use toml::Spanned;
 

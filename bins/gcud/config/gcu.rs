@@ -1,6 +1,6 @@
 //! `[gcu]`: this GCU (Table 2 group, Table 6 identity, shutdown grace).
 
-use sagebrush_client::config_file::{Int, Millis, checked};
+use sagebrush_service::config_file::{Int, Millis, checked};
 use serde::{Deserialize, Deserializer, Serialize};
 use toml::Spanned;
 

@@ -8,9 +8,9 @@
 
 use std::ops::Range;
 
-use sagebrush_client::config_file::{Int, Millis, Source, checked};
 use sagebrush_gcu::{GimbalRules, Governance, Park, Span, TourConfig, TourStep, TourTarget, Zone};
 use sagebrush_protocol::{Address, Angle, Position};
+use sagebrush_service::config_file::{Int, Millis, Source, checked};
 use serde::{Deserialize, Deserializer, Serialize};
 use toml::Spanned;
 

@@ -1,6 +1,6 @@
 //! `[limits]`: queues and connections.
 
-use sagebrush_client::config_file::{Int, Millis, Source};
+use sagebrush_service::config_file::{Int, Millis, Source};
 use serde::{Deserialize, Serialize};
 
 use super::ConfigError;

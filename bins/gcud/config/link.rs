@@ -6,8 +6,8 @@ use std::collections::BTreeSet;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 
-use sagebrush_client::config_file::{Baud, Int, Millis, Source, checked};
 use sagebrush_gcu::{LinkConfig, LinkKind, LinkSettings, SourceFilter};
+use sagebrush_service::config_file::{Baud, Int, Millis, Source, checked};
 use serde::{Deserialize, Deserializer, Serialize};
 use toml::Spanned;
 
@@ -178,10 +178,7 @@ pub(super) fn validate(
             }
             (None, Some(addr), None) => LinkTransport::Listen(socket(c, addr, &format!("{key}.listen"))?),
             (None, None, Some(addr)) => {
-                if !addr.get_ref().contains(':') {
-                    return Err(c.at(addr.span(), format!("{key}.connect"), "expected host:port"));
-                }
-                LinkTransport::Connect(addr.get_ref().clone())
+                LinkTransport::Connect(c.host_port(addr, &format!("{key}.connect"), " to connect to")?)
             }
             _ => {
                 return Err(c.at(

@@ -1,6 +1,6 @@
 //! `[log]`: the tracing filter.
 
-use sagebrush_client::config_file::checked;
+use sagebrush_service::config_file::checked;
 use serde::{Deserialize, Deserializer, Serialize};
 
 /// `[log]`, as written and as validated.

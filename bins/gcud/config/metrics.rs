@@ -2,7 +2,7 @@
 
 use std::net::SocketAddr;
 
-use sagebrush_client::config_file::Source;
+use sagebrush_service::config_file::Source;
 use serde::{Deserialize, Serialize};
 use toml::Spanned;
 

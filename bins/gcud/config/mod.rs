@@ -1,5 +1,5 @@
 //! `gcud --config FILE`: the TOML configuration, one module per section.
-//! A setting is typed where it is declared (`sagebrush_client::config_file`'s
+//! A setting is typed where it is declared (`sagebrush_service::config_file`'s
 //! `Int`, `Millis` and `Baud` carry its range and default and are checked
 //! as the file is parsed), so every error names the file, the line and
 //! column, the key and what was expected (`gcud --check` prints them and
@@ -28,8 +28,9 @@ use std::net::SocketAddr;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-use sagebrush_client::config_file::{Source, listeners_clash};
 use sagebrush_gcu::{Governance, LinkId, RouterConfig};
+use sagebrush_service::config_file::Source;
+use sagebrush_service::endpoint::listeners_clash;
 use serde::Deserialize;
 
 pub use capture::CaptureSettings;
@@ -42,7 +43,7 @@ pub use metrics::Metrics;
 pub use net::PeerAllowList;
 pub use port::{Port, PortTransport};
 pub use route::Routes;
-pub use sagebrush_client::config_file::ConfigError;
+pub use sagebrush_service::config_file::ConfigError;
 
 /// The whole file, as written.
 #[derive(Debug, Deserialize)]
@@ -143,7 +144,7 @@ impl Config {
     /// `--check` only: a warning for each serial device that does not exist
     /// now (`config_file::absent_serial_devices`).
     pub fn probe_serial_paths(&self) -> Vec<String> {
-        sagebrush_client::config_file::absent_serial_devices(&self.serial_places, "gcud")
+        sagebrush_service::config_file::absent_serial_devices(&self.serial_places, "gcud")
     }
 }
 
@@ -220,9 +221,9 @@ impl Checks {
     }
 }
 
-/// Reads (bounded: `sagebrush_client::config_file::read`) and validates `file`.
+/// Reads (bounded: `sagebrush_service::config_file::read`) and validates `file`.
 pub fn load(file: &Path) -> Result<Config, ConfigError> {
-    let text = sagebrush_client::config_file::read(file)?;
+    let text = sagebrush_service::config_file::read(file)?;
     parse(file, &text)
 }
 
@@ -300,7 +301,6 @@ fn validate(c: &Source<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
 mod tests {
     use super::*;
     use net::loopback;
-    use sagebrush_client::config_file::listeners_clash as clash;
     use std::net::IpAddr;
 
     fn err(text: &str) -> ConfigError {
@@ -491,16 +491,26 @@ mod tests {
     }
 
     #[test]
-    fn listeners_clash_on_one_port_of_one_or_every_address() {
-        let a = |s: &str| s.parse::<SocketAddr>().unwrap();
-        assert!(clash(&a("127.0.0.1:1"), &a("127.0.0.1:1")));
-        assert!(clash(&a("0.0.0.0:1"), &a("127.0.0.1:1")));
-        assert!(clash(&a("[::1]:1"), &a("[::]:1")));
-        assert!(clash(&a("127.0.0.1:1"), &a("[::]:1")));
-        assert!(!clash(&a("0.0.0.0:1"), &a("[::1]:1")));
-        assert!(!clash(&a("127.0.0.1:1"), &a("127.0.0.1:2")));
-        assert!(!clash(&a("127.0.0.1:1"), &a("127.0.0.2:1")));
-        assert!(!clash(&a("127.0.0.1:0"), &a("127.0.0.1:0")));
+    fn places_to_connect_to_are_host_port_errors_naming_the_text() {
+        let link = |to: &str| {
+            err(&format!(
+                "[gcu]\ngroup = 5\n[[link]]\nname = \"up\"\nrole = \"upstream\"\nconnect = {to:?}\n"
+            ))
+        };
+        assert_eq!(
+            link("gcu-1").to_string(),
+            "t.toml:6:11: link[0].connect: expected HOST:PORT to connect to: \"gcu-1\" has no port"
+        );
+        assert!(
+            link("::1:4001").message.contains("out of brackets"),
+            "an IPv6 host goes in brackets"
+        );
+        let port = |tcp: &str| err(&format!("[gcu]\ngroup = 5\n[[port]]\nid = 1\ntcp = {tcp:?}\n"));
+        assert_eq!(
+            port("moxa:0").to_string(),
+            "t.toml:5:7: port[0].tcp: expected HOST:PORT of a TCP device server: \"moxa:0\" has port \"0\", not 1..=65535"
+        );
+        assert!(port("mo xa:4001").message.contains("host \"mo xa\""));
     }
 
     #[test]

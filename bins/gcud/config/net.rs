@@ -6,24 +6,26 @@ use std::fmt;
 use std::net::{IpAddr, SocketAddr};
 
 use ipnet::IpNet;
-use sagebrush_client::config_file::Source;
+use sagebrush_service::config_file::Source;
+use sagebrush_service::endpoint;
 use serde::{Serialize, Serializer};
 use toml::Spanned;
 
 use super::ConfigError;
 
-/// `IP:PORT`, or a bare `PORT` meaning 127.0.0.1 (listeners stay on
-/// loopback unless an address is given).
+/// `IP:PORT` (`sagebrush_service::endpoint::listen_address`), or a bare
+/// `PORT` meaning 127.0.0.1 (listeners stay on loopback unless an address
+/// is given).
 pub(super) fn socket(c: &Source<'_>, v: &Spanned<String>, key: &str) -> Result<SocketAddr, ConfigError> {
     let text = v.get_ref().trim();
     if let Ok(port) = text.parse::<u16>() {
         return Ok(SocketAddr::from(([127, 0, 0, 1], port)));
     }
-    text.parse().map_err(|_| {
+    endpoint::listen_address(text).map_err(|e| {
         c.at(
             v.span(),
             key,
-            format!("expected an IP address and port like 127.0.0.1:4001 (or a port alone), found {text:?}"),
+            format!("expected an IP address and port like 127.0.0.1:4001 (or a port alone): {e}"),
         )
     })
 }

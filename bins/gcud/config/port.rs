@@ -3,8 +3,8 @@
 
 use std::path::PathBuf;
 
-use sagebrush_client::config_file::{Baud, Int, Millis, Source};
 use sagebrush_gcu::PortConfig;
+use sagebrush_service::config_file::{Baud, Int, Millis, Source};
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -128,14 +128,7 @@ pub(super) fn validate(
                 PortTransport::Serial(PathBuf::from(path.get_ref()))
             }
             (None, Some(addr), None) => {
-                if !addr.get_ref().contains(':') {
-                    return Err(c.at(
-                        addr.span(),
-                        format!("{key}.tcp"),
-                        "expected host:port of a TCP device server",
-                    ));
-                }
-                PortTransport::Tcp(addr.get_ref().clone())
+                PortTransport::Tcp(c.host_port(addr, &format!("{key}.tcp"), " of a TCP device server")?)
             }
             (None, None, Some(devices)) => {
                 let mut ids: Vec<u8> = Vec::new();

@@ -2,8 +2,8 @@
 
 use std::collections::BTreeSet;
 
-use sagebrush_client::config_file::{Int, Source};
 use sagebrush_gcu::LinkKind;
+use sagebrush_service::config_file::{Int, Source};
 use serde::Deserialize;
 use toml::Spanned;
 

@@ -140,7 +140,7 @@ mod tests {
             address: "5.1.1".parse().unwrap(),
             listen: "127.0.0.1:0".parse().unwrap(),
             stream_uri: None,
-            http: sagebrush_client::door_config::HttpSection::default().bounds(),
+            http: sagebrush_service::door_config::HttpSection::default().bounds(),
             pan_deg: (-180.0, 180.0),
             tilt_deg: (-90.0, 90.0),
             zoom: tele.is_some(),

@@ -15,16 +15,13 @@
 //!   confirms them, velocities coalesced, one cached poll.
 //! - [`governance`]: what gcud decides about its gimbals, asked of it
 //!   (who controls a gimbal, release, tours): the GCU commands of port 0.
-//! - [`config_file`]: TOML configuration read with bounds, every error at
-//!   its file:line:column with its key and what was expected.
-//! - [`door`]: a front door's start-up (`--check`, exit codes, runtime).
+//!
+//! Configuration files, a door's start-up and the bounded listener are
+//! `sagebrush-service`'s, which gcud shares without this crate.
 
 pub mod client;
 pub mod codec;
-pub mod config_file;
 pub mod connection;
-pub mod door;
-pub mod door_config;
 pub mod governance;
 pub mod master;
 pub mod presets;

@@ -14,7 +14,7 @@
 
 use std::fmt;
 use std::marker::PhantomData;
-use std::net::{IpAddr, SocketAddr};
+use std::net::SocketAddr;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -23,6 +23,8 @@ use sagebrush_protocol::{Address, DataRate};
 use serde::de::{DeserializeOwned, Visitor};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use toml::Spanned;
+
+use crate::endpoint;
 
 /// A configuration error with its place in the file.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -82,14 +84,6 @@ pub struct Source<'a> {
     pub text: &'a str,
 }
 
-/// Whether listeners on `a` and `b` cannot both bind: the same port (not 0)
-/// on the same address, or one of them on the unspecified address that
-/// covers the other (`0.0.0.0` covers IPv4, `::` covers both on Linux).
-pub fn listeners_clash(a: &SocketAddr, b: &SocketAddr) -> bool {
-    let covers = |x: IpAddr, y: IpAddr| x.is_unspecified() && (x.is_ipv6() || y.is_ipv4());
-    a.port() == b.port() && a.port() != 0 && (a.ip() == b.ip() || covers(a.ip(), b.ip()) || covers(b.ip(), a.ip()))
-}
-
 /// A travel `[LOW, HIGH]`, degrees.
 pub type Travel = (f64, f64);
 
@@ -123,10 +117,21 @@ impl<'a> Source<'a> {
 
     /// gcud's client listener, `HOST:PORT` (`gcud`).
     pub fn gcud_address(&self, v: &Spanned<String>) -> Result<String, ConfigError> {
-        if !v.get_ref().contains(':') {
-            return Err(self.at(v.span(), "gcud", "expected HOST:PORT of gcud's client listener"));
+        self.host_port(v, "gcud", " of gcud's client listener")
+    }
+
+    /// A place to connect to, `HOST:PORT` ([`endpoint::HostPort`]), as
+    /// written; `what` ends the expectation (" of a TCP device server").
+    pub fn host_port(&self, v: &Spanned<String>, key: &str, what: &str) -> Result<String, ConfigError> {
+        match v.get_ref().parse::<endpoint::HostPort>() {
+            Ok(_) => Ok(v.get_ref().clone()),
+            Err(e) => Err(self.at(v.span(), key, format!("expected HOST:PORT{what}: {e}"))),
         }
-        Ok(v.get_ref().clone())
+    }
+
+    /// An address to listen on, `IP:PORT` ([`endpoint::listen_address`]).
+    pub fn listen_address(&self, v: &Spanned<String>, key: &str) -> Result<SocketAddr, ConfigError> {
+        endpoint::listen_address(v.get_ref()).map_err(|e| self.at(v.span(), key, format!("expected IP:PORT: {e}")))
     }
 
     /// The address of one gimbal (`GROUP.PORT.DEVICE`, 1.4.1): no

@@ -3,13 +3,13 @@
 //! passwords (inline or in a file beside the configuration), the state
 //! file the door keeps its preset names in, each validated at its place as
 //! [`crate::config_file`] does, and `[http]`, the bounds of the door's
-//! listener on the LAN (`sagebrush_listener`).
+//! listener on the LAN ([`crate::http`]).
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Duration;
 
-use sagebrush_listener::{Connections, HttpLimits, Limits};
+use crate::{Connections, HttpLimits, Limits};
 
 use serde::Deserialize;
 use toml::Spanned;

@@ -1,5 +1,5 @@
 //! What a front door's `main` does (ARCHITECTURE "Layers",
-//! `sagebrush-client`): read its command line (`--config FILE`, `--check`,
+//! `sagebrush-service`): read its command line (`--config FILE`, `--check`,
 //! the same for every door), load the configuration
 //! (exit 2 with file:line:column on an error, as gcud), answer `--check`,
 //! start logging and a two-thread runtime, and run the door (exit 1 when it
