@@ -284,7 +284,7 @@ impl Http {
 /// Whether `xml` is a well-formed XML document by a strict parser
 /// (Python's expat through xml.etree), and its error when not.
 fn well_formed(xml: &str) -> Result<(), String> {
-    let mut child = Command::new("python3")
+    let mut child = Command::new(support::door::python())
         .args([
             "-c",
             "import sys, xml.etree.ElementTree as E; E.fromstring(sys.stdin.buffer.read())",
@@ -319,7 +319,7 @@ fn assert_well_formed(what: &str, xml: &str) {
 fn assert_schema_valid(what: &str, xml: &str) {
     assert_well_formed(what, xml);
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/onvif/schema.py");
-    let mut child = Command::new("python3")
+    let mut child = Command::new(support::door::python())
         .arg(&script)
         .stdin(Stdio::piped())
         .stdout(Stdio::null())

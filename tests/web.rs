@@ -55,7 +55,7 @@ struct Browser {
 impl Browser {
     fn start() -> Self {
         let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/browser.py");
-        let mut child = Command::new("python3")
+        let mut child = Command::new(support::door::python())
             .arg(script)
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
