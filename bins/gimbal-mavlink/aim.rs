@@ -7,7 +7,8 @@
 //!
 //! The aim in force is the gimbal's (`gimbal::Shared::aim`): set by the
 //! request that asked for it once the gimbal took it, replaced by any other
-//! motion, cleared by MAV_CMD_DO_SET_ROI_NONE. [`run`] re-aims it as the
+//! motion, cleared by MAV_CMD_DO_SET_ROI_NONE and by a refused motion of
+//! its owner (control lost, the place out of travel). [`run`] re-aims it as the
 //! vehicle turns or moves: at most every [`REAIM_EVERY`] per gimbal, and only
 //! when the pan or tilt changed by [`REAIM_STEP`] or more; when the heading
 //! or place is no longer known (older than `vehicle::STALE`) the aim lapses

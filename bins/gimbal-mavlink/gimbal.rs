@@ -354,13 +354,14 @@ impl Task {
                 ack: command,
                 aim,
             } => {
-                let Some(plan) = self.admit(from, &request) else {
+                let plan = self.admit(from, &request);
+                self.hold(from, aim, plan.is_some());
+                let Some(plan) = plan else {
                     if let Some(command) = command {
                         self.reply(ack(command, MavResult::MAV_RESULT_DENIED, from), from).await;
                     }
                     return;
                 };
-                self.shared.lock().unwrap_or_else(|p| p.into_inner()).aim = aim.map(|aim| Target { aim, from });
                 let rates = matches!(plan, Plan::Rates { .. });
                 let outcome = self.start(from, plan);
                 if command.is_none() && rates {
@@ -419,6 +420,19 @@ impl Task {
                     }
                 }
             }
+        }
+    }
+
+    /// The earth-frame aim in force after a motion from `from` holding
+    /// `aim`: that one once the gimbal took it (`taken`) (None ends any aim);
+    /// when refused, `from`'s own aim ends (a re-aim of an owner that lost
+    /// control, or whose place left the travel, is not tried again).
+    fn hold(&self, from: Sender, aim: Option<Aim>, taken: bool) {
+        let held = &mut self.shared.lock().unwrap_or_else(|p| p.into_inner()).aim;
+        if taken {
+            *held = aim.map(|aim| Target { aim, from });
+        } else if held.is_some_and(|t| t.from == from) {
+            *held = None;
         }
     }
 

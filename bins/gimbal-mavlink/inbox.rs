@@ -401,4 +401,23 @@ mod tests {
         let (r, aim) = in_mount_frame(yaw(f32::NAN, 20.0), EARTH, &mast, &v).unwrap();
         assert_eq!((r.pan_dps, aim), (20.0, None));
     }
+
+    #[test]
+    fn an_earth_frame_rate_has_the_vehicles_yaw_rate_taken_off() {
+        let v = Vehicle::new(1, None);
+        let attitude = mavlink::dialects::common::ATTITUDE_DATA {
+            yaw: 1.0,
+            yawspeed: 5f32.to_radians(),
+            ..mavlink::dialects::common::ATTITUDE_DATA::DEFAULT
+        };
+        let autopilot = MavHeader {
+            system_id: 1,
+            component_id: 1,
+            sequence: 0,
+        };
+        v.hear(autopilot, &MavMessage::ATTITUDE(attitude));
+        // Turning right at 5 deg/s: 20 deg/s from north is 15 deg/s on the mount.
+        let (r, aim) = in_mount_frame(yaw(f32::NAN, 20.0), LOCK, &gimbal(None), &v).unwrap();
+        assert!((r.pan_dps - 15.0).abs() < 1e-3 && aim.is_none(), "{r:?}");
+    }
 }

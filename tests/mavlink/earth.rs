@@ -206,6 +206,20 @@ fn roi_location_points_the_gimbal_from_a_mast_and_roi_none_clears_it() {
     let st = stack.gcs("manager_status", GCS, json!({ "flags": YAW_IN_VEHICLE_FRAME }));
     assert!(st["status"].is_object(), "no aim after ROI_NONE: {st}");
     assert_still(&stack, (-45.0, 0.0), "after ROI_NONE");
+    // A refused motion of the aim's owner ends the aim too.
+    let r = stack.gcs(
+        "command_id",
+        GCS,
+        json!({ "id": DO_SET_ROI_LOCATION, "params": [0, 0, 0, 0, t_lat, t_lon, alt] }),
+    );
+    assert_eq!(r["result"], ACCEPTED, "{r}");
+    let r = stack.gcs("pitchyaw", GCS, json!({ "pitch": 120.0, "yaw": 0.0 }));
+    assert_eq!(r["result"], DENIED, "out of travel: {r}");
+    let st = stack.gcs("manager_status", GCS, json!({ "flags": YAW_IN_VEHICLE_FRAME }));
+    assert!(
+        st["status"].is_object(),
+        "no aim after its owner's refused motion: {st}"
+    );
 }
 
 /// MAV_CMD_DO_SET_ROI_LOCATION on a vehicle: the autopilot's
