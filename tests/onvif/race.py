@@ -26,11 +26,15 @@ import time
 
 from onvif import ONVIFCamera
 
+import schema
+
 
 async def outcome(coro):
     try:
         await coro
         return "ok"
+    except schema.Invalid:  # a response the ONVIF XSDs refuse fails the step
+        raise
     except Exception as err:  # a fault is an outcome here
         return f"{type(err).__name__}: {err}"
 
@@ -52,6 +56,8 @@ async def raw_post(endpoint, user, password, body):
     async with httpx.AsyncClient(timeout=30) as http:
         r = await http.post(endpoint, content=etree.tostring(env),
                             headers={"Content-Type": "application/soap+xml"})
+    if "xml" in r.headers.get("content-type", ""):  # a SOAP answer, not the listener's own refusal
+        schema.check(r.content)
     if r.status_code != 200:
         raise RuntimeError(f"HTTP {r.status_code}: {r.text[:300]}")
 
@@ -133,6 +139,7 @@ async def step(name, host, port, user, password, args):
 
 
 def main():
+    schema.install()  # every response zeep receives is checked against the ONVIF XSDs
     name, host, port, user, password = sys.argv[1:6]
     args = json.loads(sys.argv[6]) if len(sys.argv) > 6 else {}
     result = asyncio.run(asyncio.wait_for(step(name, host, int(port), user, password, args), 120))

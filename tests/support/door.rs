@@ -1,5 +1,5 @@
 //! What the front doors' end-to-end tests share (`tests/onvif.rs`,
-//! `tests/mavlink.rs`): the gcud with two simulated buses they stand in front
+//! `tests/mavlink/`): the gcud with two simulated buses they stand in front
 //! of ([`start_gcud`]), a door binary run on a configuration with its log and
 //! stopped by a signal ([`Door`]), whether the third-party Python client is
 //! installed (a test fails when it is not, unless skipping is asked for), one step of that client run as a
