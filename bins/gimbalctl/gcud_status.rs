@@ -125,8 +125,7 @@ fn text(s: &Value, now: f64) -> String {
             ""
         },
     );
-    let empty = Vec::new();
-    for port in s["ports"].as_array().unwrap_or(&empty) {
+    for port in s["ports"].as_array().map_or(&[][..], Vec::as_slice) {
         out.push('\n');
         out.push_str(&format!(
             "port {}: {}, {} bit/s, {} waiting, {} transactions, frames in/out {}/{}, {} time-outs, {} bad checksums, last byte {}\n",
@@ -141,140 +140,111 @@ fn text(s: &Value, now: f64) -> String {
             port["bad_checksums"],
             ago(&port["last_seen_unix"], now),
         ));
-        let devices = port["devices"].as_array().unwrap_or(&empty);
-        if devices.is_empty() {
+        if port["devices"].as_array().is_none_or(Vec::is_empty) {
             out.push_str("  no device addressed yet\n");
             continue;
         }
-        let rows: Vec<Vec<String>> = devices
-            .iter()
-            .map(|d| {
-                let position = match &d["position"] {
-                    Value::Null => "-".to_owned(),
-                    p => format!(
-                        "pan {:.2}° tilt {:.2}° ({})",
-                        p["pan_deg"].as_f64().unwrap_or(f64::NAN),
-                        p["tilt_deg"].as_f64().unwrap_or(f64::NAN),
-                        ago(&p["unix"], now)
-                    ),
-                };
-                let lens = match &d["lens"] {
-                    Value::Null => "-".to_owned(),
-                    l => format!("zoom {} focus {}", l["zoom"], l["focus"]),
-                };
-                let error = match &d["last_error"] {
-                    Value::Null => "-".to_owned(),
-                    e => format!("{} ({})", e["message"].as_str().unwrap_or("?"), ago(&e["unix"], now)),
-                };
-                vec![
-                    d["address"].as_str().unwrap_or("?").to_owned(),
-                    yes(&d["online"]).to_owned(),
-                    ago(&d["last_seen_unix"], now),
-                    position,
-                    lens,
-                    d["commands"].to_string(),
-                    error,
-                ]
-            })
-            .collect();
-        out.push_str(&table(
-            "  ",
-            &[
-                "DEVICE",
-                "ONLINE",
-                "LAST SEEN",
-                "LAST POSITION",
-                "LENS",
-                "COMMANDS",
-                "LAST ERROR",
-            ],
-            &rows,
-        ));
+        let header = [
+            "DEVICE",
+            "ONLINE",
+            "LAST SEEN",
+            "LAST POSITION",
+            "LENS",
+            "COMMANDS",
+            "LAST ERROR",
+        ];
+        section(&mut out, &port["devices"], "  ", &header, |d| {
+            let lens = match &d["lens"] {
+                Value::Null => "-".to_owned(),
+                l => format!("zoom {} focus {}", l["zoom"], l["focus"]),
+            };
+            let error = match &d["last_error"] {
+                Value::Null => "-".to_owned(),
+                e => format!("{} ({})", e["message"].as_str().unwrap_or("?"), ago(&e["unix"], now)),
+            };
+            vec![
+                d["address"].as_str().unwrap_or("?").to_owned(),
+                yes(&d["online"]).to_owned(),
+                ago(&d["last_seen_unix"], now),
+                position(&d["position"], now),
+                lens,
+                d["commands"].to_string(),
+                error,
+            ]
+        });
     }
-    let links = s["links"].as_array().unwrap_or(&empty);
-    if !links.is_empty() {
-        out.push('\n');
-        let rows: Vec<Vec<String>> = links
-            .iter()
-            .map(|l| {
-                vec![
-                    l["link"].as_str().unwrap_or("?").to_owned(),
-                    l["role"].as_str().unwrap_or("?").to_owned(),
-                    yes(&l["up"]).to_owned(),
-                    l["connections"].to_string(),
-                    format!("{}/{}", l["frames_in"], l["frames_out"]),
-                    ago(&l["last_seen_unix"], now),
-                ]
-            })
-            .collect();
-        out.push_str(&table(
-            "",
-            &["LINK", "ROLE", "UP", "CONNECTIONS", "FRAMES IN/OUT", "LAST SEEN"],
-            &rows,
-        ));
-    }
-    let control = s["control"].as_array().unwrap_or(&empty);
-    if !control.is_empty() {
-        out.push('\n');
-        let rows: Vec<Vec<String>> = control
-            .iter()
-            .map(|c| {
-                let lapses = match c["lapses_in_ms"].as_f64() {
-                    Some(ms) => format!("in {:.1} s", ms / 1000.0),
-                    None => "-".to_owned(),
-                };
-                let position = match &c["position"] {
-                    Value::Null => "-".to_owned(),
-                    p => format!(
-                        "pan {:.2}° tilt {:.2}° ({})",
-                        p["pan_deg"].as_f64().unwrap_or(f64::NAN),
-                        p["tilt_deg"].as_f64().unwrap_or(f64::NAN),
-                        ago(&p["unix"], now)
-                    ),
-                };
-                vec![
-                    c["address"].as_str().unwrap_or("?").to_owned(),
-                    holder(&c["holder"]),
-                    lapses,
-                    yes(&c["bounded"]).to_owned(),
-                    position,
-                ]
-            })
-            .collect();
-        out.push_str(&table(
-            "",
-            &[
-                "GIMBAL",
-                "CONTROLLED BY",
-                "LAPSES",
-                "LIMITS/ZONES",
-                "LAST POSITION (GCUD)",
-            ],
-            &rows,
-        ));
-    }
-    let tours = s["tours"].as_array().unwrap_or(&empty);
-    if !tours.is_empty() {
-        out.push('\n');
-        let rows: Vec<Vec<String>> = tours
-            .iter()
-            .map(|t| {
-                let state = match (t["state"].as_str().unwrap_or("?"), &t["waiting_for"]) {
-                    ("waiting", Value::Null) => "waiting".to_owned(),
-                    ("waiting", who) => format!("waiting for {}", holder(who)),
-                    (state, _) => state.to_owned(),
-                };
-                vec![
-                    t["name"].as_str().unwrap_or("?").to_owned(),
-                    t["address"].as_str().unwrap_or("?").to_owned(),
-                    state,
-                    t["step"].to_string(),
-                ]
-            })
-            .collect();
-        out.push_str(&table("", &["TOUR", "GIMBAL", "STATE", "STEP"], &rows));
-    }
+    let header = ["LINK", "ROLE", "UP", "CONNECTIONS", "FRAMES IN/OUT", "LAST SEEN"];
+    section(&mut out, &s["links"], "", &header, |l| {
+        vec![
+            l["link"].as_str().unwrap_or("?").to_owned(),
+            l["role"].as_str().unwrap_or("?").to_owned(),
+            yes(&l["up"]).to_owned(),
+            l["connections"].to_string(),
+            format!("{}/{}", l["frames_in"], l["frames_out"]),
+            ago(&l["last_seen_unix"], now),
+        ]
+    });
+    let header = [
+        "GIMBAL",
+        "CONTROLLED BY",
+        "LAPSES",
+        "LIMITS/ZONES",
+        "LAST POSITION (GCUD)",
+    ];
+    section(&mut out, &s["control"], "", &header, |c| {
+        let lapses = match c["lapses_in_ms"].as_f64() {
+            Some(ms) => format!("in {:.1} s", ms / 1000.0),
+            None => "-".to_owned(),
+        };
+        vec![
+            c["address"].as_str().unwrap_or("?").to_owned(),
+            holder(&c["holder"]),
+            lapses,
+            yes(&c["bounded"]).to_owned(),
+            position(&c["position"], now),
+        ]
+    });
+    section(&mut out, &s["tours"], "", &["TOUR", "GIMBAL", "STATE", "STEP"], |t| {
+        let state = match (t["state"].as_str().unwrap_or("?"), &t["waiting_for"]) {
+            ("waiting", Value::Null) => "waiting".to_owned(),
+            ("waiting", who) => format!("waiting for {}", holder(who)),
+            (state, _) => state.to_owned(),
+        };
+        vec![
+            t["name"].as_str().unwrap_or("?").to_owned(),
+            t["address"].as_str().unwrap_or("?").to_owned(),
+            state,
+            t["step"].to_string(),
+        ]
+    });
     out
+}
+
+/// A table of `list`'s entries, one `row` each; nothing when the list is
+/// empty or absent. A table of the document's own (no `indent`) follows a
+/// blank line, one nested under a port's line follows that line.
+fn section(out: &mut String, list: &Value, indent: &str, header: &[&str], row: impl Fn(&Value) -> Vec<String>) {
+    let Some(entries) = list.as_array().filter(|l| !l.is_empty()) else {
+        return;
+    };
+    if indent.is_empty() {
+        out.push('\n');
+    }
+    let rows: Vec<Vec<String>> = entries.iter().map(row).collect();
+    out.push_str(&table(indent, header, &rows));
+}
+
+/// A position from `/status`: `pan 12.50° tilt -3.00° (5 s ago)`, or `-`.
+fn position(p: &Value, now: f64) -> String {
+    match p {
+        Value::Null => "-".to_owned(),
+        p => format!(
+            "pan {:.2}° tilt {:.2}° ({})",
+            p["pan_deg"].as_f64().unwrap_or(f64::NAN),
+            p["tilt_deg"].as_f64().unwrap_or(f64::NAN),
+            ago(&p["unix"], now)
+        ),
+    }
 }
 
 /// Who controls a gimbal, from `/status`: `link operators (priority 80)`,
