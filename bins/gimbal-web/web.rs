@@ -177,6 +177,11 @@ fn no_store() -> [(header::HeaderName, &'static str); 1] {
     [(header::CACHE_CONTROL, "no-store")]
 }
 
+/// A success's JSON answer, never stored by a cache.
+fn answer(v: Value) -> Response {
+    (no_store(), axum::Json(v)).into_response()
+}
+
 fn bad(what: impl Into<String>) -> Failure {
     Failure(StatusCode::BAD_REQUEST, what.into())
 }
@@ -192,6 +197,19 @@ impl Web {
         let cookies = headers.get(header::COOKIE).and_then(|v| v.to_str().ok());
         let csrf = headers.get(CSRF_HEADER).and_then(|v| v.to_str().ok());
         Ok(self.auth.allow(cookies, csrf, need, what, Instant::now())?)
+    }
+
+    /// A POST's user, allowed `need` to do `what`, and its JSON body
+    /// (`expected` names its shape in the error).
+    fn post<T: serde::de::DeserializeOwned>(
+        &self,
+        headers: &HeaderMap,
+        bytes: &[u8],
+        (need, what): (Role, &str),
+        expected: &str,
+    ) -> Result<(SignedIn, T), Failure> {
+        let who = self.allow(headers, need, what)?;
+        Ok((who, body(bytes, expected)?))
     }
 
     fn who(&self, headers: &HeaderMap) -> Result<SignedIn, Failure> {
@@ -400,7 +418,7 @@ async fn sign_out(State(w): Shared, headers: HeaderMap) -> Result<Response, Fail
         w.auth.sign_out(key);
     }
     let gone = format!("{}=; Path=/; HttpOnly; SameSite=Strict; Max-Age=0", crate::auth::COOKIE);
-    let mut response = (no_store(), axum::Json(json!({}))).into_response();
+    let mut response = answer(json!({}));
     if let Ok(v) = HeaderValue::from_str(&gone) {
         response.headers_mut().insert(header::SET_COOKIE, v);
     }
@@ -421,17 +439,13 @@ async fn session(State(w): Shared, headers: HeaderMap) -> Result<Response, Failu
             })
         })
         .collect();
-    Ok((
-        no_store(),
-        axum::Json(json!({
-            "user": who.user,
-            "role": who.role.name(),
-            "csrf": who.csrf,
-            "lease_ms": w.lease.as_millis() as u64,
-            "gimbals": gimbals,
-        })),
-    )
-        .into_response())
+    Ok(answer(json!({
+        "user": who.user,
+        "role": who.role.name(),
+        "csrf": who.csrf,
+        "lease_ms": w.lease.as_millis() as u64,
+        "gimbals": gimbals,
+    })))
 }
 
 async fn events(State(w): Shared, headers: HeaderMap) -> Result<Response, Failure> {
@@ -479,8 +493,12 @@ fn drive(sign: i8, speed: f64) -> Option<Drive<sagebrush_protocol::Speed>> {
 }
 
 async fn do_move(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    let who = w.allow(&headers, Role::Operator, "move")?;
-    let b: MoveBody = body(&bytes, "{gimbal, pan: -1|0|1, tilt: -1|0|1, speed: 0..1}")?;
+    let (who, b): (_, MoveBody) = w.post(
+        &headers,
+        &bytes,
+        (Role::Operator, "move"),
+        "{gimbal, pan: -1|0|1, tilt: -1|0|1, speed: 0..1}",
+    )?;
     if !(b.speed > 0.0 && b.speed <= 1.0) || b.pan.abs() > 1 || b.tilt.abs() > 1 {
         return Err(bad(format!(
             "expected pan and tilt in -1..=1 and speed in (0, 1], found pan {}, tilt {}, speed {}",
@@ -501,7 +519,7 @@ async fn do_move(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes)
             .await
             .map_err(failed)?;
     }
-    Ok((no_store(), axum::Json(json!({}))).into_response())
+    Ok(answer(json!({})))
 }
 
 #[derive(Deserialize)]
@@ -510,17 +528,15 @@ struct GimbalBody {
 }
 
 async fn stop(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    w.allow(&headers, Role::Operator, "stop")?;
-    let b: GimbalBody = body(&bytes, "{gimbal}")?;
+    let (_, b): (_, GimbalBody) = w.post(&headers, &bytes, (Role::Operator, "stop"), "{gimbal}")?;
     w.gimbal(b.gimbal)?.session.stop(Axes::PAN_TILT).await.map_err(failed)?;
-    Ok((no_store(), axum::Json(json!({}))).into_response())
+    Ok(answer(json!({})))
 }
 
 async fn home(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    w.allow(&headers, Role::Operator, "move")?;
-    let b: GimbalBody = body(&bytes, "{gimbal}")?;
+    let (_, b): (_, GimbalBody) = w.post(&headers, &bytes, (Role::Operator, "move"), "{gimbal}")?;
     w.gimbal(b.gimbal)?.session.home().await.map_err(failed)?;
-    Ok((no_store(), axum::Json(json!({}))).into_response())
+    Ok(answer(json!({})))
 }
 
 #[derive(Deserialize)]
@@ -531,8 +547,12 @@ struct GoToBody {
 }
 
 async fn go_to(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    w.allow(&headers, Role::Operator, "move")?;
-    let b: GoToBody = body(&bytes, "{gimbal, pan, tilt} in degrees")?;
+    let (_, b): (_, GoToBody) = w.post(
+        &headers,
+        &bytes,
+        (Role::Operator, "move"),
+        "{gimbal, pan, tilt} in degrees",
+    )?;
     let g = w.gimbal(b.gimbal)?;
     let within = |v: f64, (low, high): (f64, f64)| v.is_finite() && v >= low && v <= high;
     if !within(b.pan, g.config.pan_deg) || !within(b.tilt, g.config.tilt_deg) {
@@ -546,7 +566,7 @@ async fn go_to(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -
         .go_to(Position::new(angle(b.pan)?, angle(b.tilt)?))
         .await
         .map_err(failed)?;
-    Ok((no_store(), axum::Json(json!({}))).into_response())
+    Ok(answer(json!({})))
 }
 
 #[derive(Deserialize)]
@@ -556,8 +576,7 @@ struct SaveBody {
 }
 
 async fn preset_save(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    w.allow(&headers, Role::Operator, "save presets")?;
-    let b: SaveBody = body(&bytes, "{gimbal, name}")?;
+    let (_, b): (_, SaveBody) = w.post(&headers, &bytes, (Role::Operator, "save presets"), "{gimbal, name}")?;
     let g = w.gimbal(b.gimbal)?;
     let name = b.name.trim();
     if name.is_empty() || name.chars().count() > presets::MAX_NAME || name.chars().any(char::is_control) {
@@ -579,7 +598,7 @@ async fn preset_save(State(w): Shared, headers: HeaderMap, bytes: axum::body::By
     w.presets
         .set(&g.config.name, n, Some(name))
         .map_err(|e| Failure(StatusCode::INTERNAL_SERVER_ERROR, e))?;
-    Ok((no_store(), axum::Json(json!({ "n": n }))).into_response())
+    Ok(answer(json!({ "n": n })))
 }
 
 #[derive(Deserialize)]
@@ -590,33 +609,32 @@ struct TourBody {
 
 /// Starts or stops one of gcud's tours (`~T+`, `~T-`): what became of it.
 async fn tour(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    let who = w.allow(&headers, Role::Administrator, "start or stop tours")?;
-    let b: TourBody = body(&bytes, "{name, start: true|false}")?;
+    let (who, b): (_, TourBody) = w.post(
+        &headers,
+        &bytes,
+        (Role::Administrator, "start or stop tours"),
+        "{name, start: true|false}",
+    )?;
     let session = w
         .tour_session(&b.name)
         .ok_or_else(|| bad(format!("gcud has no tour named {:?}", b.name)))?;
     let outcome = session.tour(&b.name, b.start).await.map_err(failed)?;
     info!(user = %who.user, tour = %b.name, start = b.start, state = tour_state_name(outcome.state), "tour");
     w.refresh_tours().await;
-    Ok((
-        no_store(),
-        axum::Json(json!({
-            "state": tour_state_name(outcome.state),
-            "waiting_for": outcome.waiting_for,
-        })),
-    )
-        .into_response())
+    Ok(answer(json!({
+        "state": tour_state_name(outcome.state),
+        "waiting_for": outcome.waiting_for,
+    })))
 }
 
 /// Releases control of a gimbal (`~R`): gcud refuses it while a link of
 /// higher priority than gimbal-web's holds it (its words, HTTP 409).
 async fn release(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    let who = w.allow(&headers, Role::Administrator, "release a gimbal")?;
-    let b: GimbalBody = body(&bytes, "{gimbal}")?;
+    let (who, b): (_, GimbalBody) = w.post(&headers, &bytes, (Role::Administrator, "release a gimbal"), "{gimbal}")?;
     let g = w.gimbal(b.gimbal)?;
     g.session.release().await.map_err(failed)?;
     info!(user = %who.user, gimbal = %g.config.name, "released");
-    Ok((no_store(), axum::Json(json!({ "released": true }))).into_response())
+    Ok(answer(json!({ "released": true })))
 }
 
 #[derive(Deserialize)]
@@ -626,11 +644,10 @@ struct PresetBody {
 }
 
 async fn preset_go(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    w.allow(&headers, Role::Operator, "recall presets")?;
-    let b: PresetBody = body(&bytes, "{gimbal, n}")?;
+    let (_, b): (_, PresetBody) = w.post(&headers, &bytes, (Role::Operator, "recall presets"), "{gimbal, n}")?;
     let g = w.gimbal(b.gimbal)?;
     g.session.go_to_preset(b.n).await.map_err(failed)?;
-    Ok((no_store(), axum::Json(json!({}))).into_response())
+    Ok(answer(json!({})))
 }
 
 async fn not_found() -> Failure {
