@@ -16,7 +16,7 @@
 //!   operator moves (the map's click is a `/api/goto`) and uses presets,
 //!   an administrator also starts and stops tours and releases a gimbal.
 //!   A move lasts the hold lease unless renewed by the page while the
-//!   button or key is held.
+//!   button or key is held. Those handlers are in [`actions`].
 //!
 //! What gcud decides (ARCHITECTURE "Front doors") is shown, never decided
 //! here: each gimbal's state carries who controls it (gcud's `~C`, kept by
@@ -43,11 +43,10 @@ use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use sagebrush_client::CommandError;
-use sagebrush_client::connection::{Control, proportional_speed};
+use sagebrush_client::connection::Control;
 use sagebrush_client::governance::{Controller, Rules, Tour, degrees, tour_state_name};
-use sagebrush_client::presets::{self, Presets};
-use sagebrush_client::session::{Axes, Drive, GimbalSession, Motion, Velocity};
-use sagebrush_protocol::{Angle, Command, Position};
+use sagebrush_client::presets::Presets;
+use sagebrush_client::session::{GimbalSession, Motion};
 use sagebrush_service::rate::{KeyedBuckets, LogGate};
 use sagebrush_service::{BoundedListener, Peer};
 use serde::Deserialize;
@@ -57,6 +56,9 @@ use tracing::{info, warn};
 
 use crate::auth::{Auth, CSRF_HEADER, Refused, SignedIn};
 use crate::config::{self, Role};
+
+mod actions;
+use actions::{do_move, go_to, home, preset_go, preset_save, release, stop, tour};
 
 /// The largest request body (the API's JSON is a few dozen bytes).
 pub const MAX_BODY: usize = 4096;
@@ -177,6 +179,11 @@ fn no_store() -> [(header::HeaderName, &'static str); 1] {
     [(header::CACHE_CONTROL, "no-store")]
 }
 
+/// A success's JSON answer, never stored by a cache.
+fn answer(v: Value) -> Response {
+    (no_store(), axum::Json(v)).into_response()
+}
+
 fn bad(what: impl Into<String>) -> Failure {
     Failure(StatusCode::BAD_REQUEST, what.into())
 }
@@ -192,6 +199,19 @@ impl Web {
         let cookies = headers.get(header::COOKIE).and_then(|v| v.to_str().ok());
         let csrf = headers.get(CSRF_HEADER).and_then(|v| v.to_str().ok());
         Ok(self.auth.allow(cookies, csrf, need, what, Instant::now())?)
+    }
+
+    /// A POST's user, allowed `need` to do `what`, and its JSON body
+    /// (`expected` names its shape in the error).
+    fn post<T: serde::de::DeserializeOwned>(
+        &self,
+        headers: &HeaderMap,
+        bytes: &[u8],
+        (need, what): (Role, &str),
+        expected: &str,
+    ) -> Result<(SignedIn, T), Failure> {
+        let who = self.allow(headers, need, what)?;
+        Ok((who, body(bytes, expected)?))
     }
 
     fn who(&self, headers: &HeaderMap) -> Result<SignedIn, Failure> {
@@ -400,7 +420,7 @@ async fn sign_out(State(w): Shared, headers: HeaderMap) -> Result<Response, Fail
         w.auth.sign_out(key);
     }
     let gone = format!("{}=; Path=/; HttpOnly; SameSite=Strict; Max-Age=0", crate::auth::COOKIE);
-    let mut response = (no_store(), axum::Json(json!({}))).into_response();
+    let mut response = answer(json!({}));
     if let Ok(v) = HeaderValue::from_str(&gone) {
         response.headers_mut().insert(header::SET_COOKIE, v);
     }
@@ -421,17 +441,13 @@ async fn session(State(w): Shared, headers: HeaderMap) -> Result<Response, Failu
             })
         })
         .collect();
-    Ok((
-        no_store(),
-        axum::Json(json!({
-            "user": who.user,
-            "role": who.role.name(),
-            "csrf": who.csrf,
-            "lease_ms": w.lease.as_millis() as u64,
-            "gimbals": gimbals,
-        })),
-    )
-        .into_response())
+    Ok(answer(json!({
+        "user": who.user,
+        "role": who.role.name(),
+        "csrf": who.csrf,
+        "lease_ms": w.lease.as_millis() as u64,
+        "gimbals": gimbals,
+    })))
 }
 
 async fn events(State(w): Shared, headers: HeaderMap) -> Result<Response, Failure> {
@@ -463,174 +479,6 @@ async fn events(State(w): Shared, headers: HeaderMap) -> Result<Response, Failur
 /// The JSON body of a POST, with a clear error naming what was expected.
 fn body<T: serde::de::DeserializeOwned>(bytes: &[u8], expected: &str) -> Result<T, Failure> {
     serde_json::from_slice(bytes).map_err(|e| bad(format!("expected JSON {expected}: {e}")))
-}
-
-#[derive(Deserialize)]
-struct MoveBody {
-    gimbal: usize,
-    pan: i8,
-    tilt: i8,
-    speed: f64,
-}
-
-/// A button's direction (-1, 0, 1) at `speed` (0..=1): 0 leaves the axis alone.
-fn drive(sign: i8, speed: f64) -> Option<Drive<sagebrush_protocol::Speed>> {
-    (sign != 0).then(|| Drive::signed(f64::from(sign), |_| proportional_speed(speed)))
-}
-
-async fn do_move(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    let who = w.allow(&headers, Role::Operator, "move")?;
-    let b: MoveBody = body(&bytes, "{gimbal, pan: -1|0|1, tilt: -1|0|1, speed: 0..1}")?;
-    if !(b.speed > 0.0 && b.speed <= 1.0) || b.pan.abs() > 1 || b.tilt.abs() > 1 {
-        return Err(bad(format!(
-            "expected pan and tilt in -1..=1 and speed in (0, 1], found pan {}, tilt {}, speed {}",
-            b.pan, b.tilt, b.speed
-        )));
-    }
-    let g = w.gimbal(b.gimbal)?;
-    if b.pan == 0 && b.tilt == 0 {
-        g.session.stop(Axes::PAN_TILT).await.map_err(failed)?;
-    } else {
-        let velocity = Velocity {
-            pan: drive(b.pan, b.speed),
-            tilt: drive(b.tilt, b.speed),
-            zoom: None,
-        };
-        g.session
-            .velocity(velocity, Some(w.lease), &format!("web {}", who.user))
-            .await
-            .map_err(failed)?;
-    }
-    Ok((no_store(), axum::Json(json!({}))).into_response())
-}
-
-#[derive(Deserialize)]
-struct GimbalBody {
-    gimbal: usize,
-}
-
-async fn stop(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    w.allow(&headers, Role::Operator, "stop")?;
-    let b: GimbalBody = body(&bytes, "{gimbal}")?;
-    w.gimbal(b.gimbal)?.session.stop(Axes::PAN_TILT).await.map_err(failed)?;
-    Ok((no_store(), axum::Json(json!({}))).into_response())
-}
-
-async fn home(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    w.allow(&headers, Role::Operator, "move")?;
-    let b: GimbalBody = body(&bytes, "{gimbal}")?;
-    w.gimbal(b.gimbal)?.session.home().await.map_err(failed)?;
-    Ok((no_store(), axum::Json(json!({}))).into_response())
-}
-
-#[derive(Deserialize)]
-struct GoToBody {
-    gimbal: usize,
-    pan: f64,
-    tilt: f64,
-}
-
-async fn go_to(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    w.allow(&headers, Role::Operator, "move")?;
-    let b: GoToBody = body(&bytes, "{gimbal, pan, tilt} in degrees")?;
-    let g = w.gimbal(b.gimbal)?;
-    let within = |v: f64, (low, high): (f64, f64)| v.is_finite() && v >= low && v <= high;
-    if !within(b.pan, g.config.pan_deg) || !within(b.tilt, g.config.tilt_deg) {
-        return Err(bad(format!(
-            "pan {} tilt {} is outside the travel of {}: pan {:?}, tilt {:?}",
-            b.pan, b.tilt, g.config.name, g.config.pan_deg, g.config.tilt_deg
-        )));
-    }
-    let angle = |d: f64| Angle::from_degrees(d as f32).map_err(|e| bad(e.to_string()));
-    g.session
-        .go_to(Position::new(angle(b.pan)?, angle(b.tilt)?))
-        .await
-        .map_err(failed)?;
-    Ok((no_store(), axum::Json(json!({}))).into_response())
-}
-
-#[derive(Deserialize)]
-struct SaveBody {
-    gimbal: usize,
-    name: String,
-}
-
-async fn preset_save(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    w.allow(&headers, Role::Operator, "save presets")?;
-    let b: SaveBody = body(&bytes, "{gimbal, name}")?;
-    let g = w.gimbal(b.gimbal)?;
-    let name = b.name.trim();
-    if name.is_empty() || name.chars().count() > presets::MAX_NAME || name.chars().any(char::is_control) {
-        return Err(bad(format!(
-            "expected a preset name of 1 to {} characters without control characters",
-            presets::MAX_NAME
-        )));
-    }
-    let list = w.presets.list(&g.config.name);
-    // Saving under a name in use moves that preset here.
-    let n = match list.iter().find(|(_, m)| m == name) {
-        Some((n, _)) => *n,
-        None => w
-            .presets
-            .free(&g.config.name)
-            .ok_or_else(|| bad(format!("{} has no free preset number (256 named)", g.config.name)))?,
-    };
-    g.session.send(Command::StorePreset(n)).await.map_err(failed)?;
-    w.presets
-        .set(&g.config.name, n, Some(name))
-        .map_err(|e| Failure(StatusCode::INTERNAL_SERVER_ERROR, e))?;
-    Ok((no_store(), axum::Json(json!({ "n": n }))).into_response())
-}
-
-#[derive(Deserialize)]
-struct TourBody {
-    name: String,
-    start: bool,
-}
-
-/// Starts or stops one of gcud's tours (`~T+`, `~T-`): what became of it.
-async fn tour(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    let who = w.allow(&headers, Role::Administrator, "start or stop tours")?;
-    let b: TourBody = body(&bytes, "{name, start: true|false}")?;
-    let session = w
-        .tour_session(&b.name)
-        .ok_or_else(|| bad(format!("gcud has no tour named {:?}", b.name)))?;
-    let outcome = session.tour(&b.name, b.start).await.map_err(failed)?;
-    info!(user = %who.user, tour = %b.name, start = b.start, state = tour_state_name(outcome.state), "tour");
-    w.refresh_tours().await;
-    Ok((
-        no_store(),
-        axum::Json(json!({
-            "state": tour_state_name(outcome.state),
-            "waiting_for": outcome.waiting_for,
-        })),
-    )
-        .into_response())
-}
-
-/// Releases control of a gimbal (`~R`): gcud refuses it while a link of
-/// higher priority than gimbal-web's holds it (its words, HTTP 409).
-async fn release(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    let who = w.allow(&headers, Role::Administrator, "release a gimbal")?;
-    let b: GimbalBody = body(&bytes, "{gimbal}")?;
-    let g = w.gimbal(b.gimbal)?;
-    g.session.release().await.map_err(failed)?;
-    info!(user = %who.user, gimbal = %g.config.name, "released");
-    Ok((no_store(), axum::Json(json!({ "released": true }))).into_response())
-}
-
-#[derive(Deserialize)]
-struct PresetBody {
-    gimbal: usize,
-    n: u8,
-}
-
-async fn preset_go(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    w.allow(&headers, Role::Operator, "recall presets")?;
-    let b: PresetBody = body(&bytes, "{gimbal, n}")?;
-    let g = w.gimbal(b.gimbal)?;
-    g.session.go_to_preset(b.n).await.map_err(failed)?;
-    Ok((no_store(), axum::Json(json!({}))).into_response())
 }
 
 async fn not_found() -> Failure {

@@ -25,6 +25,79 @@
 //! [`DeviceEndpoint`]: crate::DeviceEndpoint
 //! [`Transaction`]: crate::Transaction
 
+/// What [`blocking`] and [`asynch`] share of their `Device` and `Master`:
+/// the structs (documented by each module), construction and the parts,
+/// which do not depend on how I/O waits (each module adds its own `poll`
+/// and `transact`).
+#[cfg(any(feature = "embedded-io", feature = "embedded-io-async"))]
+macro_rules! adapter_parts {
+    ($(#[$device:meta])* Device; $(#[$master:meta])* Master;) => {
+        $(#[$device])*
+        #[derive(Debug)]
+        pub struct Device<T, const N: usize = DEFAULT_CAPACITY> {
+            io: T,
+            endpoint: DeviceEndpoint<N>,
+        }
+
+        $(#[$master])*
+        #[derive(Debug)]
+        pub struct Master<T, const N: usize = DEFAULT_CAPACITY> {
+            io: T,
+            framer: Framer<N>,
+        }
+
+        impl<T, const N: usize> Device<T, N> {
+            /// An endpoint with `config` on `io`.
+            pub const fn new(io: T, config: EndpointConfig) -> Self {
+                Self {
+                    io,
+                    endpoint: DeviceEndpoint::new(config),
+                }
+            }
+
+            /// The endpoint (configuration, counters).
+            pub fn endpoint(&self) -> &DeviceEndpoint<N> {
+                &self.endpoint
+            }
+
+            /// The reader/writer.
+            pub fn io(&mut self) -> &mut T {
+                &mut self.io
+            }
+
+            /// Gives the reader/writer back.
+            pub fn into_inner(self) -> T {
+                self.io
+            }
+        }
+
+        impl<T, const N: usize> Master<T, N> {
+            /// A master on `io`.
+            pub const fn new(io: T) -> Self {
+                Self {
+                    io,
+                    framer: Framer::new(),
+                }
+            }
+
+            /// The framer (counters).
+            pub fn framer(&self) -> &Framer<N> {
+                &self.framer
+            }
+
+            /// The reader/writer.
+            pub fn io(&mut self) -> &mut T {
+                &mut self.io
+            }
+
+            /// Gives the reader/writer back.
+            pub fn into_inner(self) -> T {
+                self.io
+            }
+        }
+    };
+}
+
 #[cfg(feature = "embedded-io-async")]
 pub mod asynch;
 #[cfg(feature = "embedded-io")]
@@ -94,6 +167,25 @@ pub struct Exchange {
     pub result: Option<FrameBuf>,
     /// Transmissions of the command frame (1 without retransmission).
     pub transmissions: u8,
+}
+
+impl Exchange {
+    /// The exchange's end when `step` is it (`Done`), with `result`, the
+    /// result frame kept meanwhile; `None` while it goes on.
+    pub(crate) fn ended(
+        step: TransactionStep,
+        transaction: &Transaction,
+        result: &mut Option<FrameBuf>,
+    ) -> Option<Self> {
+        match step {
+            TransactionStep::Done(outcome) => Some(Exchange {
+                outcome,
+                result: result.take(),
+                transmissions: transaction.transmissions(),
+            }),
+            TransactionStep::Send | TransactionStep::Wait => None,
+        }
+    }
 }
 
 /// One framer event of a master exchange: what the exchange does next, the

@@ -57,32 +57,24 @@ async fn write_answer<W: Write>(io: &mut W, answer: &mut Answer) -> Result<(), E
     io.flush().await.map_err(Error::Io)
 }
 
-/// A [`DeviceEndpoint`] answering on `T`: reads go into the endpoint's
-/// framer, answers are written to `T` event by event.
-///
-/// ```ignore
-/// // embassy, a BufferedUart at 9600 bit/s: 5 ms is a few character times.
-/// let mut device: Device<_> = Device::new(uart, EndpointConfig::single(1));
-/// let mut clock = || embassy_time::Instant::now().as_millis();
-/// loop {
-///     device.poll(&mut gimbal, &mut clock, embassy_time::Timer::after_millis(5)).await?;
-/// }
-/// ```
-#[derive(Debug)]
-pub struct Device<T, const N: usize = DEFAULT_CAPACITY> {
-    io: T,
-    endpoint: DeviceEndpoint<N>,
+adapter_parts! {
+    /// A [`DeviceEndpoint`] answering on `T`: reads go into the endpoint's
+    /// framer, answers are written to `T` event by event.
+    ///
+    /// ```ignore
+    /// // embassy, a BufferedUart at 9600 bit/s: 5 ms is a few character times.
+    /// let mut device: Device<_> = Device::new(uart, EndpointConfig::single(1));
+    /// let mut clock = || embassy_time::Instant::now().as_millis();
+    /// loop {
+    ///     device.poll(&mut gimbal, &mut clock, embassy_time::Timer::after_millis(5)).await?;
+    /// }
+    /// ```
+    Device;
+    /// A master on `T`: runs [`Transaction`]s, its framer kept across them.
+    Master;
 }
 
 impl<T: Read + Write, const N: usize> Device<T, N> {
-    /// An endpoint with `config` on `io`.
-    pub const fn new(io: T, config: EndpointConfig) -> Self {
-        Self {
-            io,
-            endpoint: DeviceEndpoint::new(config),
-        }
-    }
-
     /// Waits for bytes or for `silence`, whichever comes first. Bytes: every
     /// event they complete is handled, each one's answer written before the
     /// next. Silence (the line quiet for an inter-byte time-out): a partial
@@ -123,39 +115,9 @@ impl<T: Read + Write, const N: usize> Device<T, N> {
             .map_err(Error::Encode)?;
         write_answer(&mut self.io, &mut answer).await
     }
-
-    /// The endpoint (configuration, counters).
-    pub fn endpoint(&self) -> &DeviceEndpoint<N> {
-        &self.endpoint
-    }
-
-    /// The reader/writer.
-    pub fn io(&mut self) -> &mut T {
-        &mut self.io
-    }
-
-    /// Gives the reader/writer back.
-    pub fn into_inner(self) -> T {
-        self.io
-    }
-}
-
-/// A master on `T`: runs [`Transaction`]s, its framer kept across them.
-#[derive(Debug)]
-pub struct Master<T, const N: usize = DEFAULT_CAPACITY> {
-    io: T,
-    framer: Framer<N>,
 }
 
 impl<T: Read + Write, const N: usize> Master<T, N> {
-    /// A master on `io`.
-    pub const fn new(io: T) -> Self {
-        Self {
-            io,
-            framer: Framer::new(),
-        }
-    }
-
     /// Runs `transaction` to its end: writes `frame` (its command frame)
     /// when the exchange says so, feeds what the line returns into the
     /// framer, ACKs the result frame and NAKs a damaged one after the
@@ -173,19 +135,12 @@ impl<T: Read + Write, const N: usize> Master<T, N> {
         let mut result = None;
         let mut step = transaction.start(clock());
         loop {
-            match step {
-                TransactionStep::Send => {
-                    io.write_all(frame.as_bytes()).await.map_err(Error::Io)?;
-                    io.flush().await.map_err(Error::Io)?;
-                }
-                TransactionStep::Done(outcome) => {
-                    return Ok(Exchange {
-                        outcome,
-                        result,
-                        transmissions: transaction.transmissions(),
-                    });
-                }
-                TransactionStep::Wait => {}
+            if let Some(exchange) = Exchange::ended(step, transaction, &mut result) {
+                return Ok(exchange);
+            }
+            if let TransactionStep::Send = step {
+                io.write_all(frame.as_bytes()).await.map_err(Error::Io)?;
+                io.flush().await.map_err(Error::Io)?;
             }
             step = TransactionStep::Wait;
             // Bytes already buffered first, one event at a time.
@@ -211,20 +166,5 @@ impl<T: Read + Write, const N: usize> Master<T, N> {
                 }
             }
         }
-    }
-
-    /// The framer (counters).
-    pub fn framer(&self) -> &Framer<N> {
-        &self.framer
-    }
-
-    /// The reader/writer.
-    pub fn io(&mut self) -> &mut T {
-        &mut self.io
-    }
-
-    /// Gives the reader/writer back.
-    pub fn into_inner(self) -> T {
-        self.io
     }
 }

@@ -57,23 +57,20 @@ use crate::framer::{DEFAULT_CAPACITY, Framer};
 use crate::link::{Transaction, TransactionStep};
 use crate::reply::Reply;
 
-/// A [`DeviceEndpoint`] answering on `T`: reads go into the endpoint's
-/// framer, answers are written to `T` event by event.
-#[derive(Debug)]
-pub struct Device<T, const N: usize = DEFAULT_CAPACITY> {
-    io: T,
-    endpoint: DeviceEndpoint<N>,
+adapter_parts! {
+    /// A [`DeviceEndpoint`] answering on `T`: reads go into the endpoint's
+    /// framer, answers are written to `T` event by event. [`Device::io`]
+    /// reaches `T`, e.g. to ask `read_ready` before [`Device::poll`].
+    Device;
+    /// A master on `T`: runs [`Transaction`]s, its framer kept across them.
+    ///
+    /// Time-outs need a reader that can say whether a byte is waiting
+    /// (`ReadReady`): [`Master::transact`] polls it and the clock, and reads
+    /// only when a byte is there, so it never blocks past a deadline.
+    Master;
 }
 
 impl<T: Read + Write, const N: usize> Device<T, N> {
-    /// An endpoint with `config` on `io`.
-    pub const fn new(io: T, config: EndpointConfig) -> Self {
-        Self {
-            io,
-            endpoint: DeviceEndpoint::new(config),
-        }
-    }
-
     /// Blocks in one `read` (at least one byte), then handles every event
     /// the bytes complete, writing each one's answer before the next.
     /// `clock` gives the tick handed to the handler.
@@ -125,43 +122,9 @@ impl<T: Read + Write, const N: usize> Device<T, N> {
         }
         Ok(())
     }
-
-    /// The endpoint (configuration, counters).
-    pub fn endpoint(&self) -> &DeviceEndpoint<N> {
-        &self.endpoint
-    }
-
-    /// The reader/writer, e.g. to ask `read_ready` before [`Device::poll`].
-    pub fn io(&mut self) -> &mut T {
-        &mut self.io
-    }
-
-    /// Gives the reader/writer back.
-    pub fn into_inner(self) -> T {
-        self.io
-    }
-}
-
-/// A master on `T`: runs [`Transaction`]s, its framer kept across them.
-///
-/// Time-outs need a reader that can say whether a byte is waiting
-/// (`ReadReady`): [`Master::transact`] polls it and the clock, and reads
-/// only when a byte is there, so it never blocks past a deadline.
-#[derive(Debug)]
-pub struct Master<T, const N: usize = DEFAULT_CAPACITY> {
-    io: T,
-    framer: Framer<N>,
 }
 
 impl<T: Read + Write + ReadReady, const N: usize> Master<T, N> {
-    /// A master on `io`.
-    pub const fn new(io: T) -> Self {
-        Self {
-            io,
-            framer: Framer::new(),
-        }
-    }
-
     /// Runs `transaction` to its end: writes `frame` (its command frame)
     /// when the exchange says so, feeds what the line returns into the
     /// framer, ACKs the result frame and NAKs a damaged one after the
@@ -177,19 +140,12 @@ impl<T: Read + Write + ReadReady, const N: usize> Master<T, N> {
         let mut result = None;
         let mut step = transaction.start(clock());
         loop {
-            match step {
-                TransactionStep::Send => {
-                    io.write_all(frame.as_bytes()).map_err(Error::Io)?;
-                    io.flush().map_err(Error::Io)?;
-                }
-                TransactionStep::Done(outcome) => {
-                    return Ok(Exchange {
-                        outcome,
-                        result,
-                        transmissions: transaction.transmissions(),
-                    });
-                }
-                TransactionStep::Wait => {}
+            if let Some(exchange) = Exchange::ended(step, transaction, &mut result) {
+                return Ok(exchange);
+            }
+            if let TransactionStep::Send = step {
+                io.write_all(frame.as_bytes()).map_err(Error::Io)?;
+                io.flush().map_err(Error::Io)?;
             }
             step = TransactionStep::Wait;
             // Bytes already buffered first, one event at a time.
@@ -209,21 +165,6 @@ impl<T: Read + Write + ReadReady, const N: usize> Master<T, N> {
                 framer.commit(n);
             }
         }
-    }
-
-    /// The framer (counters).
-    pub fn framer(&self) -> &Framer<N> {
-        &self.framer
-    }
-
-    /// The reader/writer.
-    pub fn io(&mut self) -> &mut T {
-        &mut self.io
-    }
-
-    /// Gives the reader/writer back.
-    pub fn into_inner(self) -> T {
-        self.io
     }
 }
 
