@@ -251,7 +251,6 @@ fn endpoints(c: &Source, sections: &[EndpointSection]) -> Result<(Vec<Endpoint>,
                 "expected exactly one of udp_listen, udp, tcp_listen, tcp or serial",
             ));
         };
-        let at = |m: &str| c.at(value.span(), format!("{key}.{kind}"), m.to_owned());
         if let (Some(b), false) = (&e.baud, kind == "serial") {
             return Err(c.at(
                 b.span(),
@@ -260,23 +259,16 @@ fn endpoints(c: &Source, sections: &[EndpointSection]) -> Result<(Vec<Endpoint>,
             ));
         }
         endpoints.push(match kind {
-            "udp_listen" => Endpoint::UdpListen(
-                value
-                    .get_ref()
-                    .parse()
-                    .map_err(|_| at(&format!("expected IP:PORT, found {:?}", value.get_ref())))?,
-            ),
-            "tcp_listen" => Endpoint::TcpListen(
-                value
-                    .get_ref()
-                    .parse()
-                    .map_err(|_| at(&format!("expected IP:PORT, found {:?}", value.get_ref())))?,
-            ),
-            "udp" | "tcp" if !host_port(value.get_ref()) => {
-                return Err(at(&format!("expected HOST:PORT, found {:?}", value.get_ref())));
+            "udp_listen" => Endpoint::UdpListen(c.listen_address(value, &format!("{key}.{kind}"))?),
+            "tcp_listen" => Endpoint::TcpListen(c.listen_address(value, &format!("{key}.{kind}"))?),
+            "udp" | "tcp" => {
+                c.host_port(value, &format!("{key}.{kind}"), "")?;
+                if kind == "udp" {
+                    Endpoint::Udp(value.get_ref().clone())
+                } else {
+                    Endpoint::Tcp(value.get_ref().clone())
+                }
             }
-            "udp" => Endpoint::Udp(value.get_ref().clone()),
-            "tcp" => Endpoint::Tcp(value.get_ref().clone()),
             _ => Endpoint::Serial {
                 path: {
                     let path = PathBuf::from(value.get_ref());
@@ -321,12 +313,6 @@ fn mount_place(c: &Source, raw: &ConfigFile) -> Result<Option<Place>, ConfigErro
         lon_deg,
         alt_m,
     }))
-}
-
-/// Whether `v` looks like `HOST:PORT`.
-fn host_port(v: &str) -> bool {
-    v.rsplit_once(':')
-        .is_some_and(|(h, p)| !h.is_empty() && p.parse::<u16>().is_ok())
 }
 
 #[cfg(test)]

@@ -176,7 +176,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         Some(false) => None,
         _ => Some(DiscoveryConfig {
             listen: match &raw.discovery.listen {
-                Some(l) => socket(&c, l, "discovery.listen")?,
+                Some(l) => c.listen_address(l, "discovery.listen")?,
                 None => DISCOVERY_DEFAULT.parse().expect("a socket address"),
             },
             answers_per_s: raw.discovery.answers_per_s.get(),
@@ -191,7 +191,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         let key = format!("gimbal[{i}]");
         let name = c.gimbal_name(&g.name, &key, gimbals.iter().map(|x| x.name.as_str()))?;
         let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
-        let listen = socket(&c, &g.listen, &format!("{key}.listen"))?;
+        let listen = c.listen_address(&g.listen, &format!("{key}.listen"))?;
         if gimbals.iter().any(|x| listeners_clash(&x.listen, &listen)) {
             return Err(c.at(
                 g.listen.span(),
@@ -272,12 +272,6 @@ fn field_of_view(c: &Source<'_>, v: Option<&Spanned<Vec<f64>>>, key: &str) -> Re
             ),
         )),
     }
-}
-
-fn socket(c: &Source<'_>, v: &Spanned<String>, key: &str) -> Result<SocketAddr, ConfigError> {
-    v.get_ref()
-        .parse()
-        .map_err(|_| c.at(v.span(), key, format!("expected IP:PORT, found {:?}", v.get_ref())))
 }
 
 #[cfg(test)]

@@ -30,22 +30,7 @@ pub const GCUD_HTTP: &str = "127.0.0.1:9187";
 
 /// `HOST:PORT` with a port 1..=65535.
 pub fn parse_host_port(text: &str) -> Result<String, String> {
-    const HINT: &str = "expected HOST:PORT, e.g. 127.0.0.1:4001";
-    let Some((host, port)) = text.rsplit_once(':') else {
-        return Err(format!("{text:?} has no port: {HINT}"));
-    };
-    if host.is_empty() || host == "[" {
-        return Err(format!("{text:?} has no host: {HINT}"));
-    }
-    if host.contains(':') && !(host.starts_with('[') && host.ends_with(']')) {
-        return Err(format!(
-            "{text:?}: an IPv6 host goes in brackets, e.g. [::1]:4001; {HINT}"
-        ));
-    }
-    match port.parse::<u16>() {
-        Ok(p) if p > 0 => Ok(text.to_string()),
-        _ => Err(format!("{text:?}: port {port:?} is not 1..=65535; {HINT}")),
-    }
+    sagebrush_service::endpoint::host_port_arg(text)
 }
 
 pub(super) fn parse_angle(what: &str, text: &str) -> Result<f64, String> {
