@@ -97,7 +97,7 @@ fn status_metrics_and_health_show_the_devices_gcud_has_seen() {
     );
     // Issue 24: an address that never answered (nobody at 5.1.9) leaves
     // nothing behind; a device that answered once and then went silent
-    // stays, offline (crates/gcu/tests/rules.rs, the device registry).
+    // stays, offline (crates/gcu/tests/rules/, the device registry).
     assert!(
         devices.iter().all(|d| d["device"] != 9 && d["device"] != 2),
         "only devices that answered: {port}"
