@@ -5,7 +5,8 @@
 
 use sagebrush_host::hex::payload_text;
 use sagebrush_protocol::{
-    Angle, AwakeStatus, Axis, Command, DataRate, ErrorCodes, Extended, InitResults, Parity, Position, Reply, StatusBits,
+    Angle, AwakeStatus, Axis, Command, DataRate, ErrorCodes, Extended, HomeStatus, Identity, InitResults, Limits,
+    Parity, Position, Reply, StatusBits,
 };
 use serde_json::{Map, Value, json};
 
@@ -138,29 +139,8 @@ pub fn describe(command: &Command<'_>, reply: &Reply<'_>) -> (String, Value) {
             format!("maximum data rate {}", rate_text(r)),
             json!({ "code": r.code(), "bps": r.bits_per_second() }),
         ),
-        Reply::Identity(id) => {
-            let name = String::from_utf8_lossy(id.name()).into_owned();
-            let serial = String::from_utf8_lossy(id.serial()).into_owned();
-            let revision = String::from_utf8_lossy(&id.revision).trim().to_string();
-            (
-                format!(
-                    "device {:02}  protocol revision {revision}  name {name:?}  serial {serial:?}",
-                    id.id
-                ),
-                json!({ "id": id.id, "revision": revision, "name": name, "serial": serial }),
-            )
-        }
-        Reply::Errors(e) => {
-            let (pan, tilt) = (u16::from(e.pan), u16::from(e.tilt));
-            (
-                format!(
-                    "errors: pan {} ; tilt {}",
-                    list(&set_names(pan, &ErrorCodes::BITS)),
-                    list(&set_names(tilt, &ErrorCodes::BITS))
-                ),
-                json!({ "azimuth": named_bits(pan, &ErrorCodes::BITS), "elevation": named_bits(tilt, &ErrorCodes::BITS) }),
-            )
-        }
+        Reply::Identity(id) => identity(id),
+        Reply::Errors(e) => errors(e),
         Reply::StatusBits(s) => (
             format!(
                 "status: pan {} ; tilt {}",
@@ -176,49 +156,9 @@ pub fn describe(command: &Command<'_>, reply: &Reply<'_>) -> (String, Value) {
                 json!({ "pan_gain": p, "tilt_gain": t }),
             )
         }
-        Reply::Initialization(r) => {
-            let ok = r.succeeded();
-            (
-                format!(
-                    "initialisation {}: pan ccw {:04X} cw {:04X}  tilt ccw {:04X} cw {:04X}",
-                    if ok { "succeeded" } else { "FAILED (motors off)" },
-                    r.pan_ccw,
-                    r.pan_cw,
-                    r.tilt_ccw,
-                    r.tilt_cw
-                ),
-                json!({
-                    "success": ok,
-                    "pan_ccw": init_json(r.pan_ccw), "pan_cw": init_json(r.pan_cw),
-                    "tilt_ccw": init_json(r.tilt_ccw), "tilt_cw": init_json(r.tilt_cw),
-                }),
-            )
-        }
-        Reply::Limits(l) => (
-            format!(
-                "software limits (raw 12-bit, the device's unit): pan ccw {} cw {}  tilt ccw {} cw {}",
-                l.pan_ccw.get(),
-                l.pan_cw.get(),
-                l.tilt_ccw.get(),
-                l.tilt_cw.get()
-            ),
-            json!({
-                "pan_ccw_raw": l.pan_ccw.get(), "pan_cw_raw": l.pan_cw.get(),
-                "tilt_ccw_raw": l.tilt_ccw.get(), "tilt_cw_raw": l.tilt_cw.get(),
-            }),
-        ),
-        Reply::Relays(bits) => {
-            let on: Vec<u8> = (0..4).filter(|i| bits & (1 << i) != 0).collect();
-            let text = if on.is_empty() {
-                "relays: all off".to_string()
-            } else {
-                format!(
-                    "relays on: {}",
-                    on.iter().map(u8::to_string).collect::<Vec<_>>().join(", ")
-                )
-            };
-            (text, json!({ "raw": bits, "on": on }))
-        }
+        Reply::Initialization(r) => initialization(r),
+        Reply::Limits(l) => limits(l),
+        Reply::Relays(bits) => relays(bits),
         Reply::Accelerations { pan, tilt } => (
             format!(
                 "acceleration: pan {:.2} deg/s²  tilt {:.2} deg/s²",
@@ -243,23 +183,7 @@ pub fn describe(command: &Command<'_>, reply: &Reply<'_>) -> (String, Value) {
             format!("rate {:.2} deg/s", r.degrees_per_second()),
             json!({ "deg_s": r.degrees_per_second() }),
         ),
-        Reply::VerifyHome(h) => {
-            let axes = |b: u8| json!({ "pan": b & 1 != 0, "tilt": b & 2 != 0 });
-            let yes = |b: u8| format!("pan {} tilt {}", b & 1 != 0, b & 2 != 0);
-            (
-                format!(
-                    "home: limit switches found ({}), centre switches found ({}), count correct on centre ({})",
-                    yes(h.limit_switches),
-                    yes(h.center_switches),
-                    yes(h.count_correct)
-                ),
-                json!({
-                    "limit_switches": axes(h.limit_switches),
-                    "center_switches": axes(h.center_switches),
-                    "count_correct": axes(h.count_correct),
-                }),
-            )
-        }
+        Reply::VerifyHome(h) => verify_home(h),
         Reply::Position(p) => (position_text(&p), position_json(&p)),
         Reply::Lens(l) => (
             format!("zoom {}  focus {} (of 0..4095)", l.zoom.get(), l.focus.get()),
@@ -270,19 +194,121 @@ pub fn describe(command: &Command<'_>, reply: &Reply<'_>) -> (String, Value) {
             payload_text(bytes),
             json!({ "data": payload_text(bytes), "len": bytes.len() }),
         ),
-        Reply::Raw(bytes) => match command {
-            Command::Extended(Extended::CameraRelayStatus, _) => camera_status(bytes),
-            Command::Extended(Extended::FocusSpeedQuery, _) => lens_speed("focus", bytes),
-            Command::Extended(Extended::ZoomSpeedQuery, _) => lens_speed("zoom", bytes),
-            Command::Extended(Extended::LensLimitsQuery, _) => (
-                format!(
-                    "lens limits/preset values (C?, no published layout): {}",
-                    payload_text(bytes)
-                ),
-                json!({ "raw": payload_text(bytes) }),
+        Reply::Raw(bytes) => raw(command, bytes),
+    }
+}
+
+/// `D?` (Table 6).
+fn identity(id: Identity<'_>) -> (String, Value) {
+    let name = String::from_utf8_lossy(id.name()).into_owned();
+    let serial = String::from_utf8_lossy(id.serial()).into_owned();
+    let revision = String::from_utf8_lossy(&id.revision).trim().to_string();
+    (
+        format!(
+            "device {:02}  protocol revision {revision}  name {name:?}  serial {serial:?}",
+            id.id
+        ),
+        json!({ "id": id.id, "revision": revision, "name": name, "serial": serial }),
+    )
+}
+
+/// `E?` (Table 6A), per axis.
+fn errors(e: ErrorCodes) -> (String, Value) {
+    let (pan, tilt) = (u16::from(e.pan), u16::from(e.tilt));
+    (
+        format!(
+            "errors: pan {} ; tilt {}",
+            list(&set_names(pan, &ErrorCodes::BITS)),
+            list(&set_names(tilt, &ErrorCodes::BITS))
+        ),
+        json!({ "azimuth": named_bits(pan, &ErrorCodes::BITS), "elevation": named_bits(tilt, &ErrorCodes::BITS) }),
+    )
+}
+
+/// `IX` (Table 9).
+fn initialization(r: InitResults) -> (String, Value) {
+    let ok = r.succeeded();
+    (
+        format!(
+            "initialisation {}: pan ccw {:04X} cw {:04X}  tilt ccw {:04X} cw {:04X}",
+            if ok { "succeeded" } else { "FAILED (motors off)" },
+            r.pan_ccw,
+            r.pan_cw,
+            r.tilt_ccw,
+            r.tilt_cw
+        ),
+        json!({
+            "success": ok,
+            "pan_ccw": init_json(r.pan_ccw), "pan_cw": init_json(r.pan_cw),
+            "tilt_ccw": init_json(r.tilt_ccw), "tilt_cw": init_json(r.tilt_cw),
+        }),
+    )
+}
+
+/// `L?` (Table 10), raw as the device counts.
+fn limits(l: Limits) -> (String, Value) {
+    (
+        format!(
+            "software limits (raw 12-bit, the device's unit): pan ccw {} cw {}  tilt ccw {} cw {}",
+            l.pan_ccw.get(),
+            l.pan_cw.get(),
+            l.tilt_ccw.get(),
+            l.tilt_cw.get()
+        ),
+        json!({
+            "pan_ccw_raw": l.pan_ccw.get(), "pan_cw_raw": l.pan_cw.get(),
+            "tilt_ccw_raw": l.tilt_ccw.get(), "tilt_cw_raw": l.tilt_cw.get(),
+        }),
+    )
+}
+
+/// `R?` (Table 4A): the relays closed.
+fn relays(bits: u8) -> (String, Value) {
+    let on: Vec<u8> = (0..4).filter(|i| bits & (1 << i) != 0).collect();
+    let text = if on.is_empty() {
+        "relays: all off".to_string()
+    } else {
+        format!(
+            "relays on: {}",
+            on.iter().map(u8::to_string).collect::<Vec<_>>().join(", ")
+        )
+    };
+    (text, json!({ "raw": bits, "on": on }))
+}
+
+/// `HV` (Table 14).
+fn verify_home(h: HomeStatus) -> (String, Value) {
+    let axes = |b: u8| json!({ "pan": b & 1 != 0, "tilt": b & 2 != 0 });
+    let yes = |b: u8| format!("pan {} tilt {}", b & 1 != 0, b & 2 != 0);
+    (
+        format!(
+            "home: limit switches found ({}), centre switches found ({}), count correct on centre ({})",
+            yes(h.limit_switches),
+            yes(h.center_switches),
+            yes(h.count_correct)
+        ),
+        json!({
+            "limit_switches": axes(h.limit_switches),
+            "center_switches": axes(h.center_switches),
+            "count_correct": axes(h.count_correct),
+        }),
+    )
+}
+
+/// A result the protocol crate leaves raw: named by the command that asked.
+fn raw(command: &Command<'_>, bytes: &[u8]) -> (String, Value) {
+    match command {
+        Command::Extended(Extended::CameraRelayStatus, _) => camera_status(bytes),
+        Command::Extended(Extended::FocusSpeedQuery, _) => lens_speed("focus", bytes),
+        Command::Extended(Extended::ZoomSpeedQuery, _) => lens_speed("zoom", bytes),
+        Command::Extended(Extended::LensLimitsQuery, _) => (
+            format!(
+                "lens limits/preset values (C?, no published layout): {}",
+                payload_text(bytes)
             ),
-            _ => (payload_text(bytes), json!({ "raw": payload_text(bytes) })),
-        },
+            json!({ "raw": payload_text(bytes) }),
+        ),
+        _ => (payload_text(bytes), json!({ "raw": payload_text(bytes) })),
     }
 }
 

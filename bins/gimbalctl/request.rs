@@ -92,60 +92,15 @@ pub fn request<'a>(cmd: &Cmd, data: &'a [u8]) -> Result<Option<Request<'a>>, Ctl
         Cmd::RecallHalt { lens: false } => C::Extended(Extended::GoToHaltPosition, b""),
         Cmd::RecallHalt { lens: true } => C::Extended(Extended::LensGoToHaltPosition, b""),
         Cmd::Speed { axis: a, speed } => C::SetSpeed(axis(*a), range("speed", Speed::new(*speed))?),
-        Cmd::Rate { axis: None, .. } => C::QueryRates,
-        Cmd::Rate {
-            axis: Some(a),
-            value: None,
-        } => C::QueryRate(axis(*a)),
-        Cmd::Rate {
-            axis: Some(a),
-            value: Some(v),
-        } => C::SetRate(axis(*a), range("rate", Rate::from_degrees_per_second(*v))?),
-        Cmd::Accel { axis: None, .. } => C::QueryAccelerations,
-        Cmd::Accel {
-            axis: Some(a),
-            value: None,
-        } => C::QueryAcceleration(axis(*a)),
-        Cmd::Accel {
-            axis: Some(a),
-            value: Some(v),
-        } => C::SetAcceleration(
-            axis(*a),
-            range("acceleration", Acceleration::from_degrees_per_second_squared(*v))?,
-        ),
+        Cmd::Rate { axis: a, value } => rate(*a, *value)?,
+        Cmd::Accel { axis: a, value } => accel(*a, *value)?,
         Cmd::Vector { state } => C::SetVectorMode(matches!(state, OnOff::On)),
         Cmd::Home { .. } => C::Home,
         Cmd::VerifyHome => C::VerifyHome,
         Cmd::Init => C::Initialize,
-        Cmd::Limits { action: None } => C::QueryLimits,
-        Cmd::Limits {
-            action: Some(LimitsCmd::Clear),
-        } => C::ClearLimits,
-        Cmd::Limits {
-            action:
-                Some(LimitsCmd::Set {
-                    pan_ccw,
-                    pan_cw,
-                    tilt_ccw,
-                    tilt_cw,
-                }),
-        } => C::SetLimits(Limits {
-            pan_ccw: range("pan ccw limit", U12::new(*pan_ccw))?,
-            pan_cw: range("pan cw limit", U12::new(*pan_cw))?,
-            tilt_ccw: range("tilt ccw limit", U12::new(*tilt_ccw))?,
-            tilt_cw: range("tilt cw limit", U12::new(*tilt_cw))?,
-        }),
-        Cmd::Gains { action: None } => C::QueryRateGains,
-        Cmd::Gains {
-            action: Some(GainsCmd::Set { axis: a, gain }),
-        } => C::SetRateGain(axis(*a), range("gain", RateGain::new((gain * 10.0).round() as u8))?),
-        Cmd::Relay { action: None } => C::QueryRelays,
-        Cmd::Relay {
-            action: Some(RelayCmd::Open { n }),
-        } => C::OpenRelay(range("relay", Relay::new(*n))?),
-        Cmd::Relay {
-            action: Some(RelayCmd::Close { n }),
-        } => C::CloseRelay(range("relay", Relay::new(*n))?),
+        Cmd::Limits { action } => limits(action.as_ref())?,
+        Cmd::Gains { action } => gains(action.as_ref())?,
+        Cmd::Relay { action } => relay(action.as_ref())?,
         Cmd::Lens { action: None } => C::QueryLens,
         Cmd::Lens {
             action: Some(LensCmd::Goto { zoom, focus, .. }),
@@ -158,23 +113,8 @@ pub fn request<'a>(cmd: &Cmd, data: &'a [u8]) -> Result<Option<Request<'a>>, Ctl
             CameraState::Off => C::CameraOff,
             CameraState::Status => C::Extended(Extended::CameraRelayStatus, b""),
         },
-        Cmd::Focus { action } => match action {
-            FocusCmd::Far { .. } => C::FocusFar,
-            FocusCmd::Near { .. } => C::FocusNear,
-            FocusCmd::Stop => C::FocusStop,
-            FocusCmd::Speed { n: Some(n) } => C::FocusSpeed(range("focus speed", LensSpeed::new(*n))?),
-            FocusCmd::Speed { n: None } => C::Extended(Extended::FocusSpeedQuery, b""),
-            FocusCmd::AutoOn => C::AutoFocusOn,
-            FocusCmd::AutoOff => C::AutoFocusOff,
-        },
-        Cmd::Zoom { action } => match action {
-            ZoomCmd::In { .. } => C::ZoomIn,
-            ZoomCmd::Out { .. } => C::ZoomOut,
-            ZoomCmd::Stop => C::ZoomStop,
-            ZoomCmd::Speed { n: Some(n) } => C::ZoomSpeed(range("zoom speed", LensSpeed::new(*n))?),
-            ZoomCmd::Speed { n: None } => C::Extended(Extended::ZoomSpeedQuery, b""),
-            ZoomCmd::Digital { step } => C::DigitalZoom(range("digital zoom", DigitalZoom::new(*step))?),
-        },
+        Cmd::Focus { action } => focus(action)?,
+        Cmd::Zoom { action } => zoom(action)?,
         Cmd::Id => C::Identify,
         Cmd::Status => C::AwakeStatus,
         Cmd::Errors => C::QueryErrors,
@@ -204,6 +144,97 @@ pub fn request<'a>(cmd: &Cmd, data: &'a [u8]) -> Result<Option<Request<'a>>, Ctl
     };
     let payload = encode(&command)?;
     Ok(Some(Request { command, payload }))
+}
+
+/// `rate` (Tables 11 and 12): both axes' rates, one axis's, or set one.
+fn rate(a: Option<AxisArg>, value: Option<f64>) -> Result<Command<'static>, CtlError> {
+    use Command as C;
+    Ok(match (a, value) {
+        (None, _) => C::QueryRates,
+        (Some(a), None) => C::QueryRate(axis(a)),
+        (Some(a), Some(v)) => C::SetRate(axis(a), range("rate", Rate::from_degrees_per_second(v))?),
+    })
+}
+
+/// `accel` (Tables 11 and 12): both axes' accelerations, one axis's, or set one.
+fn accel(a: Option<AxisArg>, value: Option<f64>) -> Result<Command<'static>, CtlError> {
+    use Command as C;
+    Ok(match (a, value) {
+        (None, _) => C::QueryAccelerations,
+        (Some(a), None) => C::QueryAcceleration(axis(a)),
+        (Some(a), Some(v)) => C::SetAcceleration(
+            axis(a),
+            range("acceleration", Acceleration::from_degrees_per_second_squared(v))?,
+        ),
+    })
+}
+
+/// `limits` (Table 10): query, clear or set the software limits.
+fn limits(action: Option<&LimitsCmd>) -> Result<Command<'static>, CtlError> {
+    use Command as C;
+    Ok(match action {
+        None => C::QueryLimits,
+        Some(LimitsCmd::Clear) => C::ClearLimits,
+        Some(LimitsCmd::Set {
+            pan_ccw,
+            pan_cw,
+            tilt_ccw,
+            tilt_cw,
+        }) => C::SetLimits(Limits {
+            pan_ccw: range("pan ccw limit", U12::new(*pan_ccw))?,
+            pan_cw: range("pan cw limit", U12::new(*pan_cw))?,
+            tilt_ccw: range("tilt ccw limit", U12::new(*tilt_ccw))?,
+            tilt_cw: range("tilt cw limit", U12::new(*tilt_cw))?,
+        }),
+    })
+}
+
+/// `gains` (Tables 7 and 8): query the rate gains or set one.
+fn gains(action: Option<&GainsCmd>) -> Result<Command<'static>, CtlError> {
+    use Command as C;
+    Ok(match action {
+        None => C::QueryRateGains,
+        Some(GainsCmd::Set { axis: a, gain }) => {
+            C::SetRateGain(axis(*a), range("gain", RateGain::new((gain * 10.0).round() as u8))?)
+        }
+    })
+}
+
+/// `relay` (Table 4): query the relays, open or close one.
+fn relay(action: Option<&RelayCmd>) -> Result<Command<'static>, CtlError> {
+    use Command as C;
+    Ok(match action {
+        None => C::QueryRelays,
+        Some(RelayCmd::Open { n }) => C::OpenRelay(range("relay", Relay::new(*n))?),
+        Some(RelayCmd::Close { n }) => C::CloseRelay(range("relay", Relay::new(*n))?),
+    })
+}
+
+/// `focus` (Table 16 and the rev 1.9 list).
+fn focus(action: &FocusCmd) -> Result<Command<'static>, CtlError> {
+    use Command as C;
+    Ok(match action {
+        FocusCmd::Far { .. } => C::FocusFar,
+        FocusCmd::Near { .. } => C::FocusNear,
+        FocusCmd::Stop => C::FocusStop,
+        FocusCmd::Speed { n: Some(n) } => C::FocusSpeed(range("focus speed", LensSpeed::new(*n))?),
+        FocusCmd::Speed { n: None } => C::Extended(Extended::FocusSpeedQuery, b""),
+        FocusCmd::AutoOn => C::AutoFocusOn,
+        FocusCmd::AutoOff => C::AutoFocusOff,
+    })
+}
+
+/// `zoom` (Table 16 and the rev 1.9 list).
+fn zoom(action: &ZoomCmd) -> Result<Command<'static>, CtlError> {
+    use Command as C;
+    Ok(match action {
+        ZoomCmd::In { .. } => C::ZoomIn,
+        ZoomCmd::Out { .. } => C::ZoomOut,
+        ZoomCmd::Stop => C::ZoomStop,
+        ZoomCmd::Speed { n: Some(n) } => C::ZoomSpeed(range("zoom speed", LensSpeed::new(*n))?),
+        ZoomCmd::Speed { n: None } => C::Extended(Extended::ZoomSpeedQuery, b""),
+        ZoomCmd::Digital { step } => C::DigitalZoom(range("digital zoom", DigitalZoom::new(*step))?),
+    })
 }
 
 fn aux<'a>(port: AuxPort, action: &AuxCmd, data: &'a [u8]) -> Result<Command<'a>, CtlError> {

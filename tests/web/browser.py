@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""A real browser for tests/web.rs: Debian's chromium, headless, driven by
+"""A real browser for tests/web/: Debian's chromium, headless, driven by
 Selenium through chromedriver. Reads one JSON request a line on stdin,
 answers one JSON line on stdout ({"ok": ...} or {"error": ...}), so that
 the Rust test holds a button, reads the bus, then releases.

@@ -120,7 +120,7 @@
 //!
 //! # Testing
 //!
-//! `tests/rules.rs` has one test per rule; `tests/simulation.rs` runs a
+//! `tests/rules/` has one test per rule; `tests/simulation.rs` runs a
 //! deterministic network simulation (seeded networks of 1 to 3 GCUs, ports
 //! of `DeviceEndpoint` gimbals, clients, faulty wires). It runs 10,000
 //! seeds by default; `GCU_SIM_SEEDS=1000000 GCU_SIM_START=0 cargo test -p

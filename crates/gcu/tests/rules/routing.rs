@@ -1,0 +1,228 @@
+//! Between GCUs (ARCHITECTURE "Routing semantics"): group 255 floods
+//! downstream, static, learned and default routes, never back to the link
+//! it came from, source filters, link retransmission, the reverse path,
+//! statistics.
+
+use super::*;
+
+#[test]
+fn group_255_from_upstream_floods_downstream_never_back() {
+    let mut h = H::new(&[1]);
+    h.up(UP, LinkKind::Upstream);
+    h.up(DOWN, LinkKind::Downstream);
+    h.up(DOWN2, LinkKind::Downstream);
+    let cmd = frame((255, 1, 3), 0, b"HO");
+    let a = h.link(UP, &cmd);
+    assert_eq!(link_writes(&a, UP), vec![vec![ACK]], "never back where it came from");
+    assert_eq!(link_writes(&a, DOWN), vec![cmd.clone()]);
+    assert_eq!(link_writes(&a, DOWN2), vec![cmd.clone()]);
+    assert!(link_writes(&a, CLIENT).is_empty());
+    assert_eq!(port_writes(&a, 1), vec![cmd.clone()]);
+    // From a downstream GCU: executed here, not flooded.
+    let from_down = frame((255, 1, 3), 7, b"HO");
+    let a = h.link(DOWN, &from_down);
+    assert_eq!(link_writes(&a, DOWN2), Vec::<Vec<u8>>::new());
+    assert_eq!(link_writes(&a, UP), Vec::<Vec<u8>>::new());
+    assert_eq!(h.r.stats().router.flooded, 2);
+}
+
+#[test]
+fn other_groups_follow_static_then_learned_then_default_routes() {
+    let mut h = H::with(&[1], |c| {
+        c.static_routes.insert(7, DOWN2);
+        c.default_upstream = Some(UP);
+    });
+    h.up(UP, LinkKind::Upstream);
+    h.up(DOWN, LinkKind::Downstream);
+    h.up(DOWN2, LinkKind::Downstream);
+    // Learned: group 8 seen on DOWN (a report and the answer go back).
+    h.link(DOWN, &frame((G, 0, 0), 8, b"AW"));
+    h.link(DOWN, &[ACK]);
+    h.link(DOWN, &[ACK]);
+    let to7 = frame((7, 1, 1), 2, b"HO");
+    let a = h.link(CLIENT, &to7);
+    assert_eq!(link_writes(&a, DOWN2), vec![to7]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Forwarded(DOWN2)]);
+    let to8 = frame((8, 1, 1), 2, b"HO");
+    let a = h.link(CLIENT, &to8);
+    assert_eq!(link_writes(&a, DOWN), vec![to8]);
+    let to9 = frame((9, 1, 1), 2, b"HO");
+    let a = h.link(CLIENT, &to9);
+    assert_eq!(link_writes(&a, UP), vec![to9.clone()]);
+    // Static route down: learned would be used; default down too: the
+    // client hears that the route's link is down (07), not "no route" (06).
+    let a = h.go(Input::LinkDown { link: UP });
+    // The first to9 was written to UP and not yet ACKed there: it may have
+    // got through, so the client hears "not confirmed" (0B), not 07.
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        vec![report(&to9, Some(Undelivered::NotConfirmed))]
+    );
+    // The client takes the report of the first to9 (its link went down):
+    // the same frame after it is a new command.
+    h.link(CLIENT, &[ACK]);
+    let a = h.link(CLIENT, &to9);
+    assert_eq!(link_writes(&a, CLIENT), vec![report(&to9, Some(Undelivered::LinkDown))]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::LinkDown)]);
+    assert_eq!(dropped(&a), vec![DropReason::LinkDown]);
+    assert_eq!(h.r.stats().router.frame_drops.get(DropReason::LinkDown), 1);
+    assert_eq!(h.r.stats().router.frame_drops.get(DropReason::NoRoute), 0);
+}
+
+#[test]
+fn a_frame_is_never_routed_back_to_its_link() {
+    let mut h = H::new(&[1]);
+    h.up(UP, LinkKind::Upstream);
+    let cmd = frame((9, 1, 1), 0, b"HO");
+    let a = h.link(UP, &cmd);
+    assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::Loop)]);
+    assert_eq!(
+        link_writes(&a, UP),
+        vec![vec![ACK], report(&cmd, Some(Undelivered::Loop))],
+        "hop by hop on a GCU link, then the report"
+    );
+}
+
+#[test]
+fn disallowed_source_group_is_dropped_and_counted() {
+    let mut h = H::new(&[1]);
+    h.go(Input::LinkUp {
+        link: LinkId(9),
+        config: LinkConfig::new(LinkKind::Client, SourceFilter::Only(vec![20])),
+    });
+    let spoof = frame((G, 1, 3), 21, b"PL");
+    let a = h.link(LinkId(9), &spoof);
+    assert_eq!(
+        link_writes(&a, LinkId(9)),
+        vec![report(&spoof, Some(Undelivered::SourceNotAllowed))]
+    );
+    assert!(accepted(&a).is_empty());
+    assert_eq!(dropped(&a), vec![DropReason::SourceNotAllowed]);
+    // The wildcard is refused on any link, our own group on links to other
+    // GCUs (a loop or a spoof). A client acts for this GCU (Figure 7: "a
+    // command issued from GCU-2") and may speak as its group.
+    let a = h.link(CLIENT, &frame((G, 1, 3), 255, b"PL"));
+    assert!(accepted(&a).is_empty());
+    h.up(UP, LinkKind::Upstream);
+    let a = h.link(UP, &frame((G, 1, 3), G, b"PL"));
+    assert!(accepted(&a).is_empty());
+    assert_eq!(dropped(&a), vec![DropReason::SourceNotAllowed]);
+    let a = h.link(CLIENT, &frame((G, 1, 3), G, b"PL"));
+    assert_eq!(accepted(&a).len(), 1, "a client may speak as our own group");
+    let a = h.link(LinkId(9), &frame((G, 1, 3), 20, b"PL"));
+    assert_eq!(accepted(&a).len(), 1);
+    assert_eq!(
+        h.r.stats().links[&LinkId(9)]
+            .line
+            .drops
+            .get(DropReason::SourceNotAllowed),
+        1
+    );
+}
+
+#[test]
+fn frames_sent_on_links_are_retransmitted_on_nak_and_time_out_up_to_the_count() {
+    let mut h = H::new(&[1]);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"AW"));
+    h.port(1, &[ACK]);
+    let result = frame((2, 1, 3), G, b"0");
+    let a = h.port(1, &result);
+    assert_eq!(link_writes(&a, CLIENT), vec![result.clone()]);
+    let a = h.link(CLIENT, &[NAK]);
+    assert_eq!(link_writes(&a, CLIENT), vec![result.clone()]);
+    let a = h.wait(10);
+    assert_eq!(link_writes(&a, CLIENT), vec![result.clone()]);
+    let a = h.wait(10);
+    assert!(link_writes(&a, CLIENT).is_empty(), "retries = 2: given up");
+    assert_eq!(dropped(&a), vec![DropReason::LinkNoAck]);
+    let s = h.r.stats().links[&CLIENT];
+    assert_eq!((s.line.retransmits, s.failed, s.delivered, s.queued), (2, 1, 0, 1));
+}
+
+#[test]
+fn answers_of_forwarded_commands_go_back_along_the_reverse_path_never_to_a_wrong_client() {
+    let mut h = H::new(&[1]);
+    let other = LinkId(6);
+    h.up(other, LinkKind::Client);
+    h.up(DOWN, LinkKind::Downstream);
+    h.link(DOWN, &frame((G, 0, 0), 7, b"AW"));
+    h.link(DOWN, &[ACK]);
+    // Two clients (groups 0 and 1) ask GCU 7 the same question.
+    h.link(CLIENT, &frame((7, 1, 3), 0, b"*mu1"));
+    h.link(other, &frame((7, 1, 3), 1, b"*mu2"));
+    h.link(DOWN, &[ACK]);
+    h.link(DOWN, &[ACK]);
+    let a = h.link(DOWN, &frame((1, 1, 3), 7, b"2"));
+    assert_eq!(link_writes(&a, other), vec![frame((1, 1, 3), 7, b"2")]);
+    assert!(link_writes(&a, CLIENT).is_empty());
+    let a = h.link(DOWN, &frame((0, 1, 3), 7, b"1"));
+    assert_eq!(link_writes(&a, CLIENT), vec![frame((0, 1, 3), 7, b"1")]);
+    h.link(CLIENT, &[ACK]);
+    h.link(other, &[ACK]);
+    // Sharing one source group, their answers cannot be told apart (the
+    // first command may never get its result): dropped, not guessed.
+    h.link(CLIENT, &frame((7, 1, 3), 0, b"*mu3"));
+    h.link(other, &frame((7, 1, 3), 0, b"*mu4"));
+    h.link(DOWN, &[ACK]);
+    h.link(DOWN, &[ACK]);
+    let a = h.link(DOWN, &frame((0, 1, 3), 7, b"4"));
+    assert_eq!(dropped(&a), vec![DropReason::AmbiguousAnswer]);
+    assert!(link_writes(&a, CLIENT).is_empty() && link_writes(&a, other).is_empty());
+    // The same for a `?`.
+    let a = h.link(DOWN, &[NIC]);
+    assert_eq!(dropped(&a), vec![DropReason::AmbiguousAnswer]);
+    assert!(link_writes(&a, CLIENT).is_empty() && link_writes(&a, other).is_empty());
+}
+
+/// The reverse path waits for a whole port transaction at the next GCU
+/// (assumed configured like the slowest port here, every retry included),
+/// not only the configured answer time-out: an answer from behind a slow
+/// bus still reaches its origin.
+#[test]
+fn a_forwarded_command_waits_for_a_whole_slow_port_exchange_at_the_next_gcu() {
+    let mut h = H::with(&[1], |c| c.ports[0] = PortConfig::at_rate(1, 1200));
+    assert!(h.r.stats().ports[&1].bps == 1200);
+    h.up(DOWN, LinkKind::Downstream);
+    h.link(DOWN, &frame((G, 0, 0), 7, b"AW"));
+    h.link(DOWN, &[ACK]);
+    // From a client: its group is never routed, only the reverse path
+    // carries the answer back.
+    h.link(CLIENT, &frame((7, 1, 3), 2, b"P?"));
+    h.link(DOWN, &[ACK]);
+    // 1200 bit/s, 4 tries of a longest frame and its ACK wait, then the
+    // result wait: about 12 s, well past the configured 3 s.
+    h.wait(11_000);
+    let a = h.link(DOWN, &frame((2, 1, 3), 7, b"00000000"));
+    assert_eq!(link_writes(&a, CLIENT), vec![frame((2, 1, 3), 7, b"00000000")], "{a:?}");
+}
+
+#[test]
+fn nic_from_another_gcu_is_relayed_to_the_origin() {
+    let mut h = H::new(&[1]);
+    h.up(DOWN, LinkKind::Downstream);
+    h.link(DOWN, &frame((G, 0, 0), 7, b"AW"));
+    h.link(DOWN, &[ACK]);
+    h.link(CLIENT, &frame((7, 1, 3), 2, b"XX"));
+    h.link(DOWN, &[ACK]);
+    let a = h.link(DOWN, &[NIC]);
+    assert_eq!(link_writes(&a, CLIENT), vec![vec![NIC]]);
+}
+
+#[test]
+fn statistics_count_lines_devices_and_last_seen() {
+    let mut h = H::new(&[1]);
+    h.now = 42;
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"AW"));
+    h.port(1, &[ACK]);
+    h.port(1, &frame((2, 1, 3), G, b"0"));
+    let s = h.r.stats();
+    assert_eq!(s.ports[&1].line.frames_out, 1);
+    assert_eq!(s.ports[&1].line.last_seen, Some(42));
+    assert_eq!(s.links[&CLIENT].line.last_seen, Some(42));
+    assert_eq!(s.devices[&(1, 3)].commands, 1);
+    assert_eq!(s.devices[&(1, 3)].last_seen, Some(42));
+    assert_eq!(s.router.accepted, 1);
+    assert_eq!(s.router.results, 1);
+    assert_eq!(s.router.finished(), 1);
+    assert_eq!(s.ports[&1].transactions, 1);
+}

@@ -1,0 +1,218 @@
+//! gimbal-web end to end (issue 34) in a real browser: Debian's chromium,
+//! headless, driven by Selenium (`tests/web/browser.py`, installed by
+//! `.ci/run`; under `CI=true` a missing browser fails), through real gcud
+//! and its simulated buses. What a gimbal did is read on the bus side (the
+//! simulated gimbals' own `rx frame` record in gcud's log, with its
+//! timestamps, and `gimbalctl position`), never in gimbal-web's account.
+//! gcud's motion lease is off here (`start_gcud` sets none), so every stop
+//! after a release, a closed page or a killed browser is gimbal-web's own.
+
+#[path = "../support/mod.rs"]
+mod support;
+
+mod access;
+mod governance;
+mod motion;
+mod tours;
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::path::Path;
+use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+use std::time::Duration;
+
+use serde_json::{Value, json};
+
+use support::door::{DOOR_GROUP, Door, python_client_available, start_gcud, wait_moving};
+use support::gcud::Gcud;
+use support::{HANG_GUARD, eventually};
+
+const MAST: &str = "5.1.1";
+
+/// The longest from a release (or a closed page, a killed browser) to the
+/// stop on the bus: the issue's bound.
+const STOP_WITHIN_S: f64 = 0.5;
+
+/// Whether Selenium, chromium and chromedriver are installed; when not, the
+/// test is skipped, and under `CI=true` it fails.
+fn browser_available() -> bool {
+    if !python_client_available("selenium", "selenium (pip install selenium)") {
+        return false;
+    }
+    let missing: Vec<&str> = ["/usr/bin/chromium", "/usr/bin/chromedriver"]
+        .into_iter()
+        .filter(|p| !Path::new(p).exists())
+        .collect();
+    if missing.is_empty() {
+        return true;
+    }
+    let msg = format!("{missing:?} missing (apt-get install chromium chromium-driver; .ci/run installs them)");
+    if std::env::var("CI").is_ok_and(|v| v == "true") {
+        panic!("{msg}");
+    }
+    eprintln!("SKIPPED: {msg}");
+    false
+}
+
+/// The browser: `tests/web/browser.py`, one JSON request a line.
+struct Browser {
+    child: Child,
+    stdin: ChildStdin,
+    stdout: BufReader<ChildStdout>,
+}
+
+impl Browser {
+    fn start() -> Self {
+        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/browser.py");
+        let mut child = Command::new(support::door::python())
+            .arg(script)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("run tests/web/browser.py");
+        let stdin = child.stdin.take().expect("stdin");
+        let stdout = BufReader::new(child.stdout.take().expect("stdout"));
+        let mut b = Self { child, stdin, stdout };
+        assert_eq!(b.read(), json!({ "ok": "ready" }));
+        b
+    }
+
+    fn read(&mut self) -> Value {
+        let mut line = String::new();
+        self.stdout.read_line(&mut line).expect("read the browser's answer");
+        serde_json::from_str(&line).unwrap_or_else(|e| panic!("the browser's answer is not JSON ({e}): {line:?}"))
+    }
+
+    /// Runs `request`; its `ok` value (a failure fails the test with `log`).
+    fn call(&mut self, request: Value, log: impl FnOnce() -> String) -> Value {
+        writeln!(self.stdin, "{request}").expect("write to the browser");
+        let answer = self.read();
+        match answer.get("ok") {
+            Some(ok) => ok.clone(),
+            None => panic!("{request}: {answer}\ngimbal-web log:\n{}", log()),
+        }
+    }
+}
+
+impl Drop for Browser {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// gcud with its simulated buses and gimbal-web in front of it.
+struct Stack {
+    /// Declared first: dropped (stopped) before gcud.
+    web: Door,
+    gcud: Gcud,
+    url: String,
+}
+
+const USERS: &str = r#"
+[[user]]
+name = "op"
+password = "op-secret"
+role = "operator"
+[[user]]
+name = "viewer"
+password = "viewer-secret"
+role = "user"
+[[user]]
+name = "admin"
+password = "admin-secret"
+role = "administrator"
+"#;
+
+impl Stack {
+    /// [`start_gcud`]'s buses: mast-1 (5.1.1), mast-2 (5.2.1) and the
+    /// absent 5.2.9.
+    fn start() -> Self {
+        Self::start_on(start_gcud())
+    }
+
+    /// [`Stack::start`] in front of `gcud` (the governed one of
+    /// `support::door::start_governed_gcud`, with the same buses).
+    fn start_on(gcud: Gcud) -> Self {
+        let gimbals = "[[gimbal]]\nname = \"mast-1\"\naddress = \"5.1.1\"\n\
+                       [[gimbal]]\nname = \"mast-2\"\naddress = \"5.2.1\"\n\
+                       [[gimbal]]\nname = \"absent\"\naddress = \"5.2.9\"\n";
+        Self::with(gcud, |clients, state| {
+            format!(
+                "gcud = \"{clients}\"\nlisten = \"127.0.0.1:0\"\nsource_group = {DOOR_GROUP}\nstate_file = \"{}\"\n{USERS}{gimbals}",
+                state.display()
+            )
+        })
+    }
+
+    fn with(gcud: Gcud, config: impl FnOnce(&str, &Path) -> String) -> Self {
+        let mut web = Door::new("gimbal-web", env!("CARGO_BIN_EXE_gimbal-web"));
+        let state = web.dir.path().join("presets.toml");
+        web.start(&config(&gcud.clients(), &state));
+        let url = format!("http://127.0.0.1:{}/", web.port("page listening"));
+        Self { web, gcud, url }
+    }
+
+    fn log(&self) -> String {
+        self.web.log()
+    }
+
+    /// A browser on the page, signed in as `user`.
+    fn browser(&self, user: &str, password: &str) -> Browser {
+        let mut b = Browser::start();
+        let log = || self.log();
+        b.call(json!({ "op": "open", "url": self.url }), log);
+        b.call(json!({ "op": "sign_in", "user": user, "password": password }), log);
+        b.call(json!({ "op": "card_names" }), log);
+        b
+    }
+
+    fn call(&self, b: &mut Browser, request: Value) -> Value {
+        b.call(request, || self.log())
+    }
+}
+
+/// A gcud log line's timestamp (RFC 3339, UTC), seconds since the epoch.
+fn log_time(line: &str) -> f64 {
+    let stamp = line.split_whitespace().next().unwrap_or_default();
+    let t = time::OffsetDateTime::parse(stamp, &time::format_description::well_known::Rfc3339)
+        .unwrap_or_else(|e| panic!("no timestamp ({e}) in {line:?}"));
+    t.unix_timestamp_nanos() as f64 / 1e9
+}
+
+/// The bus-side time at which gimbal `address` received `stop` from the
+/// door after the last motion command it received (waits for it).
+fn bus_stop_time(gcud: &Gcud, address: &str, stop: &str) -> f64 {
+    let prefix = format!("rx frame dest={address} source={DOOR_GROUP} payload=");
+    let motion = |p: &str| ["PR", "PL", "TU", "TD"].iter().any(|m| p.starts_with(m));
+    let started = std::time::Instant::now();
+    loop {
+        let log = gcud.log();
+        let frames: Vec<(&str, &str)> = log
+            .lines()
+            .filter_map(|l| {
+                let rest = &l[l.find(&prefix)? + prefix.len()..];
+                Some((l, rest.split_whitespace().next().unwrap_or_default()))
+            })
+            .collect();
+        if let Some(last) = frames.iter().rposition(|(_, p)| motion(p)) {
+            if let Some((line, _)) = frames[last + 1..].iter().find(|(_, p)| *p == stop) {
+                return log_time(line);
+            }
+        }
+        assert!(
+            started.elapsed() < HANG_GUARD,
+            "no {stop} from the door reached {address} after its last motion\ngcud log:\n{log}"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// The payloads the door (its source group) sent gimbal `address`.
+fn door_frames(gcud: &Gcud, address: &str) -> Vec<String> {
+    gcud.received(address)
+        .into_iter()
+        .filter(|(source, _)| *source == DOOR_GROUP)
+        .map(|(_, p)| p)
+        .collect()
+}
