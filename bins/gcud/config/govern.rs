@@ -263,29 +263,7 @@ pub(super) fn validate(
         if t.steps.get_ref().is_empty() {
             return Err(c.at(t.steps.span(), format!("{key}.steps"), "expected at least one step"));
         }
-        let mut steps = Vec::with_capacity(t.steps.get_ref().len());
-        for (n, s) in t.steps.get_ref().iter().enumerate() {
-            let skey = format!("{key}.steps[{n}]");
-            let step = s.get_ref();
-            let to = match (&step.preset, &step.pan_deg, &step.tilt_deg) {
-                (Some(p), None, None) => TourTarget::Preset(p.get()),
-                (None, Some(pan), Some(tilt)) => TourTarget::Position(Position::new(
-                    angle(c, pan, &format!("{skey}.pan_deg"))?,
-                    angle(c, tilt, &format!("{skey}.tilt_deg"))?,
-                )),
-                _ => {
-                    return Err(c.at(
-                        s.span(),
-                        skey,
-                        "expected { preset = N, dwell_s = S } or { pan_deg = P, tilt_deg = T, dwell_s = S }",
-                    ));
-                }
-            };
-            steps.push(TourStep {
-                to,
-                dwell: step.dwell_s.ms,
-            });
-        }
+        let steps = tour_steps(c, t, &key)?;
         places.tours.push((
             name.clone(),
             t.name.span(),
@@ -308,6 +286,34 @@ pub(super) fn validate(
         Ok(()) => Ok(governance),
         Err(e) => Err(placed(c, &places, e.to_string())),
     }
+}
+
+/// A tour's steps, each a preset or a position with its dwell.
+fn tour_steps(c: &Source<'_>, t: &TourSection, key: &str) -> Result<Vec<TourStep>, ConfigError> {
+    let mut steps = Vec::with_capacity(t.steps.get_ref().len());
+    for (n, s) in t.steps.get_ref().iter().enumerate() {
+        let skey = format!("{key}.steps[{n}]");
+        let step = s.get_ref();
+        let to = match (&step.preset, &step.pan_deg, &step.tilt_deg) {
+            (Some(p), None, None) => TourTarget::Preset(p.get()),
+            (None, Some(pan), Some(tilt)) => TourTarget::Position(Position::new(
+                angle(c, pan, &format!("{skey}.pan_deg"))?,
+                angle(c, tilt, &format!("{skey}.tilt_deg"))?,
+            )),
+            _ => {
+                return Err(c.at(
+                    s.span(),
+                    skey,
+                    "expected { preset = N, dwell_s = S } or { pan_deg = P, tilt_deg = T, dwell_s = S }",
+                ));
+            }
+        };
+        steps.push(TourStep {
+            to,
+            dwell: step.dwell_s.ms,
+        });
+    }
+    Ok(steps)
 }
 
 /// The core's refusal at the place it names: `tour NAME: step N ...` at
