@@ -42,6 +42,11 @@ fn yaw_in_the_earth_frame_without_a_heading_is_denied_and_nothing_moves() {
         json!({ "pitch": -5.0, "yaw": 25.0, "flags": YAW_LOCK | YAW_IN_VEHICLE_FRAME }),
     );
     assert_eq!(r["result"], ACCEPTED, "{r}");
+    // The yaw of 25 arrives first: a pitch alone keeps the pan where it is
+    // when it comes (the door's goto of one axis; a loaded machine may
+    // deliver it mid-slew).
+    let (pan, _) = stack.gcud.settled_position(MAST);
+    assert!((pan - 25.0).abs() <= 0.5, "bus at pan {pan}");
     // Pitch alone does not use the yaw's frame.
     let r = stack.gcs("pitchyaw", GCS, json!({ "pitch": 8.0, "flags": YAW_LOCK }));
     assert_eq!(r["result"], ACCEPTED, "{r}");
