@@ -12,18 +12,18 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use serde_json::{Value, json};
-use support::door::{DOOR_GROUP, Door, python_client_available};
+use support::door::{DOOR_GROUP, Door};
 use support::gcud::Gcud;
 
 const MAST: &str = "5.1.1";
 const OPERATOR: (&str, &str) = ("op", "op-secret");
 
 fn onvif_available() -> bool {
-    python_client_available("onvif, wsdiscovery", "onvif-zeep-async and WSDiscovery")
+    support::door::onvif_client_available()
 }
 
 fn pymavlink_available() -> bool {
-    python_client_available("pymavlink, numpy", "pymavlink and numpy")
+    support::door::mavlink_client_available()
 }
 
 /// gimbal-onvif for the mast gimbal (no lens) in front of `gcud`.

@@ -35,10 +35,7 @@ const LAPSE: Duration = Duration::from_secs(5);
 const MB: u64 = 1 << 20;
 
 fn client_available() -> bool {
-    support::door::python_client_available(
-        "pymavlink.mavutil, pymavlink.quaternion, serial",
-        "pymavlink, numpy and pyserial (pip install pymavlink==2.4.50 numpy==2.4.6 pyserial==3.5)",
-    )
+    support::door::mavlink_client_available()
 }
 
 /// gcud with its simulated buses, gimbal-mavlink in front of it with a UDP

@@ -25,10 +25,7 @@ const MAST: &str = "5.1.1";
 
 /// Whether the third-party clients can run here; under CI they must.
 fn clients_available() -> bool {
-    support::door::python_client_available(
-        "onvif, wsdiscovery, httpx",
-        "onvif-zeep-async and WSDiscovery (pip install onvif-zeep-async==4.3.0 WSDiscovery==2.1.2)",
-    )
+    support::door::onvif_client_available()
 }
 
 /// gcud with two simulated buses (the mast gimbal on bus 1; bus 2 has no

@@ -41,10 +41,7 @@ const GCS: (u8, u8) = (255, 190);
 const OTHER: (u8, u8) = (255, 191);
 
 fn client_available() -> bool {
-    support::door::python_client_available(
-        "pymavlink.mavutil, pymavlink.quaternion, serial",
-        "pymavlink, numpy and pyserial (pip install pymavlink==2.4.50 numpy==2.4.6 pyserial==3.5)",
-    )
+    support::door::mavlink_client_available()
 }
 
 /// gcud with two simulated buses (the mast gimbal on bus 1; bus 2 has no

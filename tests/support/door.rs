@@ -48,6 +48,21 @@ pub fn python_client_available(imports: &str, hint: &str) -> bool {
     ok
 }
 
+/// The ONVIF clients (onvif-zeep-async, its XSDs and lxml, WS-Discovery,
+/// httpx) installed, or the test fails ([`python_client_available`]).
+pub fn onvif_client_available() -> bool {
+    python_client_available("onvif, wsdiscovery, httpx, lxml", "onvif-zeep-async and WSDiscovery")
+}
+
+/// The MAVLink ground station's library (pymavlink with numpy for its
+/// quaternions, pyserial for serial links) installed, or the test fails.
+pub fn mavlink_client_available() -> bool {
+    python_client_available(
+        "pymavlink.mavutil, pymavlink.quaternion, serial",
+        "pymavlink, numpy and pyserial",
+    )
+}
+
 /// Runs `script step args...` (a `tests/<door>/*.py` client step) and
 /// returns the JSON of its last stdout line; a failed step fails the test
 /// with the door's `log`.

@@ -35,7 +35,7 @@ const STOP_WITHIN_S: f64 = 0.5;
 /// Whether Selenium, chromium and chromedriver are installed; when not, the
 /// test is skipped, and under `CI=true` it fails.
 fn browser_available() -> bool {
-    if !python_client_available("selenium", "selenium (pip install selenium)") {
+    if !python_client_available("selenium", "selenium") {
         return false;
     }
     let missing: Vec<&str> = ["/usr/bin/chromium", "/usr/bin/chromedriver"]
