@@ -105,7 +105,7 @@ pub mod blocking;
 
 use crate::EncodeError;
 use crate::frame::{ACK, FrameBuf, MAX_FRAME_LEN, NAK};
-use crate::framer::Event;
+use crate::framer::{Event, Framer};
 use crate::link::{Outcome, Transaction, TransactionStep};
 
 /// Most bytes one event makes an adapter send: an ACK and a result frame.
@@ -149,6 +149,10 @@ impl Answer {
         self.len += n;
     }
 
+    fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
     /// The bytes collected since the last [`Answer::take`], and empties it.
     pub(crate) fn take(&mut self) -> &[u8] {
         let len = core::mem::replace(&mut self.len, 0);
@@ -169,21 +173,75 @@ pub struct Exchange {
     pub transmissions: u8,
 }
 
-impl Exchange {
-    /// The exchange's end when `step` is it (`Done`), with `result`, the
-    /// result frame kept meanwhile; `None` while it goes on.
-    pub(crate) fn ended(
-        step: TransactionStep,
-        transaction: &Transaction,
-        result: &mut Option<FrameBuf>,
-    ) -> Option<Self> {
-        match step {
-            TransactionStep::Done(outcome) => Some(Exchange {
-                outcome,
-                result: result.take(),
-                transmissions: transaction.transmissions(),
-            }),
-            TransactionStep::Send | TransactionStep::Wait => None,
+/// What a master adapter does next in an exchange: the one loop the
+/// blocking and the async `Master` run, I/O left to them.
+pub(crate) enum MasterIo<'a> {
+    /// Write these bytes (the command frame, or a hop-by-hop ACK or NAK)
+    /// and flush them.
+    Write(&'a [u8]),
+    /// Read into the framer, until this tick of the clock when there is one.
+    Read(Option<u64>),
+    /// The exchange is over: [`MasterRun::exchange`] tells how.
+    Done(Outcome),
+}
+
+/// One master exchange between the framer and the line (Figure 6): the
+/// frame when the exchange says so, each framer event handled and its
+/// answer owed, the exchange's deadline kept.
+pub(crate) struct MasterRun {
+    step: TransactionStep,
+    answer: Answer,
+    result: Option<FrameBuf>,
+}
+
+impl MasterRun {
+    /// Starts `transaction` at `now`.
+    pub(crate) fn start(transaction: &mut Transaction, now: u64) -> Self {
+        Self {
+            step: transaction.start(now),
+            answer: Answer::new(),
+            result: None,
+        }
+    }
+
+    /// How the exchange ended with `outcome`, with its result frame.
+    pub(crate) fn exchange(&mut self, outcome: Outcome, transaction: &Transaction) -> Exchange {
+        Exchange {
+            outcome,
+            result: self.result.take(),
+            transmissions: transaction.transmissions(),
+        }
+    }
+
+    /// The next thing to do: an answer owed first, then the exchange's end,
+    /// the frame, the events already buffered (one at a time), the deadline.
+    pub(crate) fn next<'a, const N: usize>(
+        &'a mut self,
+        frame: &'a FrameBuf,
+        transaction: &mut Transaction,
+        framer: &mut Framer<N>,
+        clock: &mut impl FnMut() -> u64,
+    ) -> MasterIo<'a> {
+        loop {
+            if !self.answer.is_empty() {
+                return MasterIo::Write(self.answer.take());
+            }
+            if let TransactionStep::Done(outcome) = self.step {
+                return MasterIo::Done(outcome);
+            }
+            if self.step == TransactionStep::Send {
+                self.step = TransactionStep::Wait;
+                return MasterIo::Write(frame.as_bytes());
+            }
+            if let Some(event) = framer.next_event() {
+                self.step = master_event(transaction, &event, clock(), &mut self.answer, &mut self.result);
+                continue;
+            }
+            let now = clock();
+            match transaction.deadline() {
+                Some(deadline) if now >= deadline => self.step = transaction.poll(now),
+                deadline => return MasterIo::Read(deadline),
+            }
         }
     }
 }
@@ -192,7 +250,7 @@ impl Exchange {
 /// hop-by-hop answer to write (ACK for the result frame, NAK for a damaged
 /// frame once the command is acknowledged, so that the device sends its
 /// result again) and the result frame, kept.
-pub(crate) fn master_event(
+fn master_event(
     transaction: &mut Transaction,
     event: &Event<'_>,
     now: u64,

@@ -13,11 +13,11 @@ use core::task::Poll;
 
 use embedded_io_async::{Read, Write};
 
-use super::{Answer, Error, Exchange, master_event};
+use super::{Answer, Error, Exchange, MasterIo, MasterRun};
 use crate::device::{DeviceEndpoint, DeviceHandler, EndpointConfig, ReplyTo};
 use crate::frame::FrameBuf;
 use crate::framer::{DEFAULT_CAPACITY, Framer};
-use crate::link::{Transaction, TransactionStep};
+use crate::link::Transaction;
 use crate::reply::Reply;
 
 /// Which of a read and a timer finished first.
@@ -131,39 +131,26 @@ impl<T: Read + Write, const N: usize> Master<T, N> {
         mut sleep_until: impl FnMut(u64) -> S,
     ) -> Result<Exchange, Error<T::Error>> {
         let Self { io, framer } = self;
-        let mut answer = Answer::new();
-        let mut result = None;
-        let mut step = transaction.start(clock());
+        let mut run = MasterRun::start(transaction, clock());
         loop {
-            if let Some(exchange) = Exchange::ended(step, transaction, &mut result) {
-                return Ok(exchange);
-            }
-            if let TransactionStep::Send = step {
-                io.write_all(frame.as_bytes()).await.map_err(Error::Io)?;
-                io.flush().await.map_err(Error::Io)?;
-            }
-            step = TransactionStep::Wait;
-            // Bytes already buffered first, one event at a time.
-            if let Some(event) = framer.next_event() {
-                step = master_event(transaction, &event, clock(), &mut answer, &mut result);
-                write_answer(io, &mut answer).await?;
-                continue;
-            }
-            let now = clock();
-            match transaction.deadline() {
-                Some(deadline) if now >= deadline => step = transaction.poll(now),
-                Some(deadline) => {
+            match run.next(frame, transaction, framer, clock) {
+                MasterIo::Write(bytes) => {
+                    io.write_all(bytes).await.map_err(Error::Io)?;
+                    io.flush().await.map_err(Error::Io)?;
+                }
+                MasterIo::Read(Some(deadline)) => {
                     if let Race::Read(n) = read_or(io, framer.spare_capacity_mut(), sleep_until(deadline)).await? {
                         framer.commit(n);
                     }
                 }
-                None => {
+                MasterIo::Read(None) => {
                     let n = io.read(framer.spare_capacity_mut()).await.map_err(Error::Io)?;
                     if n == 0 {
                         return Err(Error::EndOfStream);
                     }
                     framer.commit(n);
                 }
+                MasterIo::Done(outcome) => return Ok(run.exchange(outcome, transaction)),
             }
         }
     }

@@ -50,11 +50,11 @@
 
 use embedded_io::{Read, ReadReady, Write};
 
-use super::{Answer, Error, Exchange, master_event};
+use super::{Answer, Error, Exchange, MasterIo, MasterRun};
 use crate::device::{DeviceEndpoint, DeviceHandler, EndpointConfig, ReplyTo};
 use crate::frame::FrameBuf;
 use crate::framer::{DEFAULT_CAPACITY, Framer};
-use crate::link::{Transaction, TransactionStep};
+use crate::link::Transaction;
 use crate::reply::Reply;
 
 adapter_parts! {
@@ -136,33 +136,23 @@ impl<T: Read + Write + ReadReady, const N: usize> Master<T, N> {
         clock: &mut impl FnMut() -> u64,
     ) -> Result<Exchange, Error<T::Error>> {
         let Self { io, framer } = self;
-        let mut answer = Answer::new();
-        let mut result = None;
-        let mut step = transaction.start(clock());
+        let mut run = MasterRun::start(transaction, clock());
         loop {
-            if let Some(exchange) = Exchange::ended(step, transaction, &mut result) {
-                return Ok(exchange);
-            }
-            if let TransactionStep::Send = step {
-                io.write_all(frame.as_bytes()).map_err(Error::Io)?;
-                io.flush().map_err(Error::Io)?;
-            }
-            step = TransactionStep::Wait;
-            // Bytes already buffered first, one event at a time.
-            if let Some(event) = framer.next_event() {
-                step = master_event(transaction, &event, clock(), &mut answer, &mut result);
-                write_answer(io, &mut answer)?;
-                continue;
-            }
-            let now = clock();
-            if transaction.deadline().is_some_and(|deadline| now >= deadline) {
-                step = transaction.poll(now);
-            } else if io.read_ready().map_err(Error::Io)? {
-                let n = io.read(framer.spare_capacity_mut()).map_err(Error::Io)?;
-                if n == 0 {
-                    return Err(Error::EndOfStream);
+            match run.next(frame, transaction, framer, clock) {
+                MasterIo::Write(bytes) => {
+                    io.write_all(bytes).map_err(Error::Io)?;
+                    io.flush().map_err(Error::Io)?;
                 }
-                framer.commit(n);
+                MasterIo::Read(_) => {
+                    if io.read_ready().map_err(Error::Io)? {
+                        let n = io.read(framer.spare_capacity_mut()).map_err(Error::Io)?;
+                        if n == 0 {
+                            return Err(Error::EndOfStream);
+                        }
+                        framer.commit(n);
+                    }
+                }
+                MasterIo::Done(outcome) => return Ok(run.exchange(outcome, transaction)),
             }
         }
     }
