@@ -58,7 +58,6 @@ use crate::auth::{Auth, CSRF_HEADER, Refused, SignedIn};
 use crate::config::{self, Role};
 
 mod actions;
-use actions::{do_move, go_to, home, preset_go, preset_save, release, stop, tour};
 
 /// The largest request body (the API's JSON is a few dozen bytes).
 pub const MAX_BODY: usize = 4096;
@@ -513,14 +512,7 @@ pub async fn bind(
         .route("/api/sign-out", post(sign_out))
         .route("/api/session", get(session))
         .route("/api/events", get(events))
-        .route("/api/move", post(do_move))
-        .route("/api/stop", post(stop))
-        .route("/api/home", post(home))
-        .route("/api/goto", post(go_to))
-        .route("/api/preset/save", post(preset_save))
-        .route("/api/preset/go", post(preset_go))
-        .route("/api/tour", post(tour))
-        .route("/api/release", post(release))
+        .merge(actions::routes())
         .fallback(not_found)
         .layer(DefaultBodyLimit::max(MAX_BODY))
         .with_state(Arc::clone(&web));

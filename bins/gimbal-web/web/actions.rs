@@ -5,9 +5,13 @@
 //! reads its JSON body through `Web::post`, drives the gimbal's session,
 //! and answers with [`super::answer`] or a [`Failure`].
 
+use std::sync::Arc;
+
+use axum::Router;
 use axum::extract::State;
 use axum::http::{HeaderMap, StatusCode};
 use axum::response::Response;
+use axum::routing::post;
 use sagebrush_client::connection::proportional_speed;
 use sagebrush_client::governance::tour_state_name;
 use sagebrush_client::presets;
@@ -17,8 +21,21 @@ use serde::Deserialize;
 use serde_json::json;
 use tracing::info;
 
-use super::{Failure, Shared, answer, bad, failed};
+use super::{Failure, Shared, Web, answer, bad, failed};
 use crate::config::Role;
+
+/// The actions' routes, each a `POST` with a JSON body.
+pub(super) fn routes() -> Router<Arc<Web>> {
+    Router::new()
+        .route("/api/move", post(do_move))
+        .route("/api/stop", post(stop))
+        .route("/api/home", post(home))
+        .route("/api/goto", post(go_to))
+        .route("/api/preset/save", post(preset_save))
+        .route("/api/preset/go", post(preset_go))
+        .route("/api/tour", post(tour))
+        .route("/api/release", post(release))
+}
 
 #[derive(Deserialize)]
 struct MoveBody {
@@ -33,11 +50,7 @@ fn drive(sign: i8, speed: f64) -> Option<Drive<sagebrush_protocol::Speed>> {
     (sign != 0).then(|| Drive::signed(f64::from(sign), |_| proportional_speed(speed)))
 }
 
-pub(super) async fn do_move(
-    State(w): Shared,
-    headers: HeaderMap,
-    bytes: axum::body::Bytes,
-) -> Result<Response, Failure> {
+async fn do_move(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
     let (who, b): (_, MoveBody) = w.post(
         &headers,
         &bytes,
@@ -72,13 +85,13 @@ struct GimbalBody {
     gimbal: usize,
 }
 
-pub(super) async fn stop(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
+async fn stop(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
     let (_, b): (_, GimbalBody) = w.post(&headers, &bytes, (Role::Operator, "stop"), "{gimbal}")?;
     w.gimbal(b.gimbal)?.session.stop(Axes::PAN_TILT).await.map_err(failed)?;
     Ok(answer(json!({})))
 }
 
-pub(super) async fn home(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
+async fn home(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
     let (_, b): (_, GimbalBody) = w.post(&headers, &bytes, (Role::Operator, "move"), "{gimbal}")?;
     w.gimbal(b.gimbal)?.session.home().await.map_err(failed)?;
     Ok(answer(json!({})))
@@ -91,7 +104,7 @@ struct GoToBody {
     tilt: f64,
 }
 
-pub(super) async fn go_to(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
+async fn go_to(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
     let (_, b): (_, GoToBody) = w.post(
         &headers,
         &bytes,
@@ -120,11 +133,7 @@ struct SaveBody {
     name: String,
 }
 
-pub(super) async fn preset_save(
-    State(w): Shared,
-    headers: HeaderMap,
-    bytes: axum::body::Bytes,
-) -> Result<Response, Failure> {
+async fn preset_save(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
     let (_, b): (_, SaveBody) = w.post(&headers, &bytes, (Role::Operator, "save presets"), "{gimbal, name}")?;
     let g = w.gimbal(b.gimbal)?;
     let name = b.name.trim();
@@ -157,7 +166,7 @@ struct TourBody {
 }
 
 /// Starts or stops one of gcud's tours (`~T+`, `~T-`): what became of it.
-pub(super) async fn tour(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
+async fn tour(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
     let (who, b): (_, TourBody) = w.post(
         &headers,
         &bytes,
@@ -178,11 +187,7 @@ pub(super) async fn tour(State(w): Shared, headers: HeaderMap, bytes: axum::body
 
 /// Releases control of a gimbal (`~R`): gcud refuses it while a link of
 /// higher priority than gimbal-web's holds it (its words, HTTP 409).
-pub(super) async fn release(
-    State(w): Shared,
-    headers: HeaderMap,
-    bytes: axum::body::Bytes,
-) -> Result<Response, Failure> {
+async fn release(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
     let (who, b): (_, GimbalBody) = w.post(&headers, &bytes, (Role::Administrator, "release a gimbal"), "{gimbal}")?;
     let g = w.gimbal(b.gimbal)?;
     g.session.release().await.map_err(failed)?;
@@ -196,11 +201,7 @@ struct PresetBody {
     n: u8,
 }
 
-pub(super) async fn preset_go(
-    State(w): Shared,
-    headers: HeaderMap,
-    bytes: axum::body::Bytes,
-) -> Result<Response, Failure> {
+async fn preset_go(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
     let (_, b): (_, PresetBody) = w.post(&headers, &bytes, (Role::Operator, "recall presets"), "{gimbal, n}")?;
     let g = w.gimbal(b.gimbal)?;
     g.session.go_to_preset(b.n).await.map_err(failed)?;

@@ -130,25 +130,30 @@ impl<T: Read + Write, const N: usize> Master<T, N> {
         clock: &mut impl FnMut() -> u64,
         mut sleep_until: impl FnMut(u64) -> S,
     ) -> Result<Exchange, Error<T::Error>> {
-        let Self { io, framer } = self;
         let mut run = MasterRun::start(transaction, clock());
         loop {
-            match run.next(frame, transaction, framer, clock) {
+            match run.next(frame, transaction, &mut self.framer, clock) {
                 MasterIo::Write(bytes) => {
-                    io.write_all(bytes).await.map_err(Error::Io)?;
-                    io.flush().await.map_err(Error::Io)?;
+                    self.io.write_all(bytes).await.map_err(Error::Io)?;
+                    self.io.flush().await.map_err(Error::Io)?;
                 }
                 MasterIo::Read(Some(deadline)) => {
-                    if let Race::Read(n) = read_or(io, framer.spare_capacity_mut(), sleep_until(deadline)).await? {
-                        framer.commit(n);
+                    if let Race::Read(n) =
+                        read_or(&mut self.io, self.framer.spare_capacity_mut(), sleep_until(deadline)).await?
+                    {
+                        self.framer.commit(n);
                     }
                 }
                 MasterIo::Read(None) => {
-                    let n = io.read(framer.spare_capacity_mut()).await.map_err(Error::Io)?;
+                    let n = self
+                        .io
+                        .read(self.framer.spare_capacity_mut())
+                        .await
+                        .map_err(Error::Io)?;
                     if n == 0 {
                         return Err(Error::EndOfStream);
                     }
-                    framer.commit(n);
+                    self.framer.commit(n);
                 }
                 MasterIo::Done(outcome) => return Ok(run.exchange(outcome, transaction)),
             }

@@ -135,21 +135,20 @@ impl<T: Read + Write + ReadReady, const N: usize> Master<T, N> {
         transaction: &mut Transaction,
         clock: &mut impl FnMut() -> u64,
     ) -> Result<Exchange, Error<T::Error>> {
-        let Self { io, framer } = self;
         let mut run = MasterRun::start(transaction, clock());
         loop {
-            match run.next(frame, transaction, framer, clock) {
+            match run.next(frame, transaction, &mut self.framer, clock) {
                 MasterIo::Write(bytes) => {
-                    io.write_all(bytes).map_err(Error::Io)?;
-                    io.flush().map_err(Error::Io)?;
+                    self.io.write_all(bytes).map_err(Error::Io)?;
+                    self.io.flush().map_err(Error::Io)?;
                 }
                 MasterIo::Read(_) => {
-                    if io.read_ready().map_err(Error::Io)? {
-                        let n = io.read(framer.spare_capacity_mut()).map_err(Error::Io)?;
+                    if self.io.read_ready().map_err(Error::Io)? {
+                        let n = self.io.read(self.framer.spare_capacity_mut()).map_err(Error::Io)?;
                         if n == 0 {
                             return Err(Error::EndOfStream);
                         }
-                        framer.commit(n);
+                        self.framer.commit(n);
                     }
                 }
                 MasterIo::Done(outcome) => return Ok(run.exchange(outcome, transaction)),
