@@ -6,20 +6,14 @@
 
 use sagebrush_protocol::*;
 
-/// The gimbal's command handler.
-struct Gimbal {
-    position: Position,
-}
+/// The gimbal's command handler: it answers where it points (`P?`) and
+/// NICs the rest (the firmware in `firmware/` implements every row).
+struct Gimbal(Position);
 
 impl DeviceHandler for Gimbal {
     fn handle(&mut self, command: Command<'_>, _reply_to: ReplyTo, _now: u64) -> Response<'_> {
         match command {
-            Command::QueryPosition => Response::Reply(Reply::Position(self.position)),
-            Command::GoTo(p) => {
-                self.position = p;
-                Response::Done
-            }
-            Command::PanLeft | Command::PanStop => Response::Done,
+            Command::QueryPosition => Response::Reply(Reply::Position(self.0)),
             _ => Response::Nic,
         }
     }
@@ -51,9 +45,7 @@ fn main() {
 
     // ---- device side: the firmware loop.
     let mut endpoint: DeviceEndpoint = DeviceEndpoint::new(EndpointConfig::single(12));
-    let mut gimbal = Gimbal {
-        position: Position::new(Angle(100), Angle(-100)),
-    };
+    let mut gimbal = Gimbal(Position::new(Angle(100), Angle(-100)));
 
     let outcome = loop {
         now += 1;
