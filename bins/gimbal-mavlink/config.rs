@@ -4,6 +4,7 @@
 //! what was expected (`--check` prints it and exits 2), through
 //! [`sagebrush_service::config_file`] as gcud's and gimbal-onvif's.
 
+use sagebrush_client::session::GcudLink;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -99,10 +100,9 @@ pub struct Gimbal {
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Config {
-    pub gcud: String,
+    /// gcud, this door's source group and NIC window.
+    pub link: GcudLink,
     pub system_id: u8,
-    pub source_group: u8,
-    pub nic_window: Duration,
     /// GIMBAL_DEVICE_ATTITUDE_STATUS (and `P?` poll) period.
     pub attitude_period: Duration,
     /// A rate not refreshed within this is stopped.
@@ -213,11 +213,9 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     }
     let mount = mount_place(&c, &raw)?;
     Ok(Config {
+        link: GcudLink::new(gcud, raw.source_group.get(), raw.nic_window_ms.duration()),
         mount,
-        gcud,
         system_id: raw.system_id.get(),
-        source_group: raw.source_group.get(),
-        nic_window: raw.nic_window_ms.duration(),
         attitude_period,
         lease: raw.lease_ms.duration(),
         control_lapse: raw.control_lapse_ms.duration(),

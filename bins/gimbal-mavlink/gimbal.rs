@@ -211,10 +211,8 @@ pub fn spawn(
     let shared = Arc::new(Mutex::new(Shared::default()));
     let session = GimbalSession::start(
         SessionConfig {
-            gcud: config.gcud.clone(),
-            from: config.source_group,
+            link: config.link.clone(),
             address: g.address,
-            nic_window: config.nic_window,
             poll: config.attitude_period,
             lens: false,
             // A rate runs no longer than its lease unless renewed.

@@ -125,7 +125,7 @@ async fn run(config: config::Config) -> Result<(), String> {
             config::Endpoint::UdpListen(_) | config::Endpoint::Udp(_) => {}
         }
     }
-    info!(gimbals = handles.len(), gcud = %config.gcud, system_id = config.system_id, "gimbal-mavlink ready");
+    info!(gimbals = handles.len(), gcud = %config.link.gcud, system_id = config.system_id, "gimbal-mavlink ready");
     let signal = signals.ready_then_wait().await;
     info!(signal, "stopping: the slews this service started are stopped");
     // Receive no more; each gimbal task stops the slews it started.

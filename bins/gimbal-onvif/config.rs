@@ -4,6 +4,7 @@
 //! what was expected (`--check` prints it and exits 2), through
 //! [`sagebrush_service::config_file`] as gcud's.
 
+use sagebrush_client::session::GcudLink;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -139,15 +140,13 @@ impl std::fmt::Display for DiscoveryConfig {
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Config {
-    pub gcud: String,
-    pub source_group: u8,
+    /// gcud, this door's source group and NIC window.
+    pub link: GcudLink,
     pub state_file: Option<PathBuf>,
     /// The longest a ContinuousMove without a Timeout runs.
     pub max_move: Duration,
     /// How often each gimbal's position is asked (`P?`) for GetStatus.
     pub poll: Duration,
-    /// How long after gcud's ACK a NIC may still come (1.4.2).
-    pub nic_window: Duration,
     pub discovery: Option<DiscoveryConfig>,
     pub users: Users,
     pub gimbals: Vec<Gimbal>,
@@ -240,12 +239,10 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
     }
     Ok(Config {
-        gcud,
-        source_group: raw.source_group.get(),
+        link: GcudLink::new(gcud, raw.source_group.get(), raw.nic_window_ms.duration()),
         state_file,
         max_move: raw.max_move_ms.duration(),
         poll: raw.poll_ms.duration(),
-        nic_window: raw.nic_window_ms.duration(),
         discovery,
         users: Users {
             list: users,

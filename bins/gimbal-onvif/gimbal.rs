@@ -52,10 +52,8 @@ impl Gimbal {
     pub fn new(config: config::Gimbal, link: &config::Config, reach: Arc<GcudReachability>) -> Arc<Self> {
         let session = GimbalSession::start(
             SessionConfig {
-                gcud: link.gcud.clone(),
-                from: link.source_group,
+                link: link.link.clone(),
                 address: config.address,
-                nic_window: link.nic_window,
                 poll: link.poll,
                 lens: config.zoom,
                 max_move: link.max_move,

@@ -77,7 +77,7 @@ async fn run(config: config::Config) -> Result<(), String> {
         let d = Arc::clone(d);
         tasks.spawn(async move { d.run().await });
     }
-    info!(gimbals = gimbals.len(), gcud = %config.gcud, "gimbal-onvif ready");
+    info!(gimbals = gimbals.len(), gcud = %config.link.gcud, "gimbal-onvif ready");
     let signal = signals.ready_then_wait().await;
     info!(
         signal,

@@ -4,6 +4,7 @@
 //! what was expected (`--check` prints it and exits 2), through
 //! [`sagebrush_service::config_file`] as the other doors'.
 
+use sagebrush_client::session::GcudLink;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -64,16 +65,15 @@ pub struct Gimbal {
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Config {
-    pub gcud: String,
+    /// gcud, this door's source group and NIC window.
+    pub link: GcudLink,
     pub listen: SocketAddr,
-    pub source_group: u8,
     pub state_file: Option<PathBuf>,
     /// How long a held move runs unless the page renews it: gimbal-web's
     /// own lease on the motion.
     pub hold_lease: Duration,
     /// How often each gimbal's position is asked (`P?`), pushed to pages.
     pub poll: Duration,
-    pub nic_window: Duration,
     /// How long a sign-in lasts.
     pub sign_in: Duration,
     /// Sign-ins kept at once (the oldest goes first).
@@ -125,13 +125,11 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
     }
     Ok(Config {
-        gcud,
+        link: GcudLink::new(gcud, raw.source_group.get(), raw.nic_window_ms.duration()),
         listen,
-        source_group: raw.source_group.get(),
         state_file,
         hold_lease: raw.hold_lease_ms.duration(),
         poll: raw.poll_ms.duration(),
-        nic_window: raw.nic_window_ms.duration(),
         sign_in: Duration::from_secs(raw.sign_in_hours.get() * 3600),
         max_sign_ins: raw.max_sign_ins.get(),
         secure_cookie: raw.secure_cookie,

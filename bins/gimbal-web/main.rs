@@ -34,10 +34,8 @@ async fn run(config: config::Config) -> Result<(), String> {
         .map(|g| {
             let session = GimbalSession::start(
                 SessionConfig {
-                    gcud: config.gcud.clone(),
-                    from: config.source_group,
+                    link: config.link.clone(),
                     address: g.address,
-                    nic_window: config.nic_window,
                     poll: config.poll,
                     lens: false,
                     // A held move runs while the page renews it, never longer.
@@ -57,7 +55,7 @@ async fn run(config: config::Config) -> Result<(), String> {
         .await
         .map_err(|e| format!("listen {}: cannot listen: {e}", config.listen))?;
     let server = tokio::spawn(server);
-    info!(gimbals = sessions.len(), gcud = %config.gcud, %addr, "gimbal-web ready");
+    info!(gimbals = sessions.len(), gcud = %config.link.gcud, %addr, "gimbal-web ready");
     let signal = signals.ready_then_wait().await;
     info!(signal, "stopping: the motions this service started are stopped");
     server.abort();

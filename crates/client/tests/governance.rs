@@ -12,7 +12,9 @@ use std::time::Duration;
 use sagebrush_client::CommandError;
 use sagebrush_client::connection::GimbalConnection;
 use sagebrush_client::governance::{Controller, TourOutcome};
-use sagebrush_client::session::{Axes, Drive, GcudReachability, GimbalSession, Motion, SessionConfig, Velocity};
+use sagebrush_client::session::{
+    Axes, Drive, GcudLink, GcudReachability, GimbalSession, Motion, SessionConfig, Velocity,
+};
 use sagebrush_protocol::gcu::{encode_tour_list, encode_tour_reply};
 use sagebrush_protocol::{
     ACK, Address, ControllerReply, DeliveryReport, Event, FrameBuf, Framer, NIC, Position, Speed, TourState,
@@ -138,10 +140,12 @@ const OPERATORS: ControllerReply<'static> = ControllerReply::Link {
 fn session(gcud: &str) -> Arc<GimbalSession> {
     GimbalSession::start(
         SessionConfig {
-            gcud: gcud.to_owned(),
-            from: 7,
+            link: GcudLink {
+                gcud: gcud.to_owned(),
+                from: 7,
+                nic_window: Duration::from_millis(20),
+            },
             address: GIMBAL,
-            nic_window: Duration::from_millis(20),
             poll: Duration::from_millis(50),
             lens: false,
             max_move: Duration::from_secs(10),

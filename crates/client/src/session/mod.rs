@@ -82,16 +82,28 @@ const STOP_RETRY: Duration = Duration::from_millis(200);
 /// silent) is given up after this many.
 const STOP_ATTEMPTS_ANSWERED: u32 = 2;
 
-/// Where a session's gimbal is and how it is driven.
-#[derive(Clone, Debug)]
-pub struct SessionConfig {
+/// A door's way to gcud, shared by the sessions of all its gimbals.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GcudLink {
     /// gcud's client listener, `host:port`.
     pub gcud: String,
     /// The source group of the commands.
     pub from: u8,
-    pub address: Address,
     /// How long after gcud's ACK a NIC may come (1.4.2).
     pub nic_window: Duration,
+}
+
+impl GcudLink {
+    pub fn new(gcud: String, from: u8, nic_window: Duration) -> Self {
+        Self { gcud, from, nic_window }
+    }
+}
+
+/// Where a session's gimbal is and how it is driven.
+#[derive(Clone, Debug)]
+pub struct SessionConfig {
+    pub link: GcudLink,
+    pub address: Address,
     /// `P?` every this (and `V?` with `lens`).
     pub poll: Duration,
     pub lens: bool,
@@ -119,7 +131,8 @@ impl GimbalSession {
     /// Starts the session's task; `reach` is shared by the door's sessions.
     /// The task ends after [`GimbalSession::shutdown`].
     pub fn start(config: SessionConfig, reach: Arc<GcudReachability>) -> Arc<Self> {
-        let connection = GimbalConnection::new(&config.gcud, config.from, config.address, config.nic_window);
+        let link = &config.link;
+        let connection = GimbalConnection::new(&link.gcud, link.from, config.address, link.nic_window);
         let session = Arc::new(Self {
             config,
             state: Mutex::new(State::default()),

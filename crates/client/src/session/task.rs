@@ -324,7 +324,7 @@ impl GimbalSession {
     pub(super) fn reached<T>(&self, result: &Result<T, CommandError>) {
         match result {
             Err(e @ CommandError::Io(_)) => {
-                self.reach.down(&self.config.gcud, e);
+                self.reach.down(&self.config.link.gcud, e);
                 // The connection is gone: gcud's dead-man stopped what it
                 // started, unless gcud itself is gone; either way owe the stops.
                 let mut s = self.state();
@@ -333,7 +333,7 @@ impl GimbalSession {
                     s.stops_owed = s.stops_owed.or(moving);
                 }
             }
-            _ => self.reach.up(&self.config.gcud),
+            _ => self.reach.up(&self.config.link.gcud),
         }
     }
 }
