@@ -2,25 +2,20 @@
 //! writes queued on their lines, line rate switches, router events logged
 //! (throttled), a departed link's counters kept under its configured name.
 
-use std::collections::BTreeMap;
-
-use sagebrush_gcu::{Action, Level, LinkId, LinkStats, Outbox, Place, RouterEvent};
+use sagebrush_gcu::{Action, Level, LinkId, Outbox, Place, RouterEvent};
 use sagebrush_host::throttle::Throttle;
 use tokio::time::Instant;
 use tracing::{debug, error, info, warn};
 
-use super::LinkInfo;
+use super::links::LinkBook;
 use crate::lines::{LineId, Lines, Refused};
 
 /// A write a line did not take: logged, throttled per port or configured
 /// link, when the line is behind (its peer is not reading).
-fn write_refused(line: LineId, refused: Refused, links: &BTreeMap<LinkId, LinkInfo>, throttle: &mut Throttle) {
+fn write_refused(line: LineId, refused: Refused, links: &LinkBook, throttle: &mut Throttle) {
     let (place, text) = match line {
         LineId::Port(port) => (format!("port {port}"), "the port is not taking bytes"),
-        LineId::Link(link) => (
-            links.get(&link).map_or_else(|| link.to_string(), |l| l.name.clone()),
-            "the peer is not reading",
-        ),
+        LineId::Link(link) => (links.name(link), "the peer is not reading"),
     };
     match refused {
         Refused::Behind => {
@@ -39,13 +34,7 @@ fn write_refused(line: LineId, refused: Refused, links: &BTreeMap<LinkId, LinkIn
 /// Carries out the router's actions in order: writes are queued on their
 /// lines straight from the Outbox's buffer. A link gone leaves its counters
 /// with its configured link and nothing else behind.
-pub(super) fn execute(
-    actions: &mut Outbox,
-    lines: &mut Lines,
-    links: &mut BTreeMap<LinkId, LinkInfo>,
-    departed: &mut BTreeMap<String, LinkStats>,
-    throttle: &mut Throttle,
-) {
+pub(super) fn execute(actions: &mut Outbox, lines: &mut Lines, links: &mut LinkBook, throttle: &mut Throttle) {
     let mut gone = Vec::new();
     for action in actions.actions() {
         match action {
@@ -60,14 +49,7 @@ pub(super) fn execute(
             },
             Action::Event(event) => log_event(event, links, throttle),
             Action::LinkGone { link, stats } => {
-                if let Some(info) = links.get(link) {
-                    match departed.get_mut(&info.name) {
-                        Some(d) => d.absorb(stats),
-                        None => {
-                            departed.insert(info.name.clone(), **stats);
-                        }
-                    }
-                }
+                links.depart(*link, stats);
                 // Named in the logs of the actions after this one.
                 gone.push(*link);
             }
@@ -75,17 +57,18 @@ pub(super) fn execute(
     }
     actions.clear();
     for link in gone {
-        links.remove(&link);
+        links.live.remove(&link);
     }
 }
 
 /// Logs a router event; repeated warnings of one kind from one place are
 /// throttled (module `throttle`).
-fn log_event(event: &RouterEvent, links: &BTreeMap<LinkId, LinkInfo>, throttle: &mut Throttle) {
-    let name = |link: &LinkId| links.get(link).map_or_else(|| link.to_string(), |l| l.name.clone());
+fn log_event(event: &RouterEvent, links: &LinkBook, throttle: &mut Throttle) {
+    let name = |link: &LinkId| links.name(*link);
     // Events about a link name it as configured, with its peer.
     let context = match event {
         RouterEvent::LinkState { link, .. } | RouterEvent::IssuedStop { link, .. } => links
+            .live
             .get(link)
             .map_or_else(String::new, |l| format!(" ({} {})", l.name, l.peer)),
         _ => String::new(),

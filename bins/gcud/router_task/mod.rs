@@ -9,7 +9,7 @@ use std::collections::{BTreeMap, HashMap};
 use std::sync::Arc;
 use std::time::Duration;
 
-use sagebrush_gcu::{Input, LinkId, LinkStats, Outbox, Router};
+use sagebrush_gcu::{Input, LinkId, Outbox, Router};
 use sagebrush_host::capture::CaptureSwitch;
 use tokio::net::TcpListener;
 use tokio::signal::unix::{SignalKind, signal};
@@ -27,18 +27,13 @@ use crate::reload::{Diff, Reread};
 use crate::snapshot::{RouterState, Snapshot};
 
 mod actions;
+mod links;
 mod tasks;
 
 use actions::execute;
+use links::{LinkBook, LinkInfo};
 use sagebrush_host::throttle::Throttle;
-use tasks::{LinkIds, Tasks};
-
-/// What the daemon knows of a live link, for logs and metrics.
-#[derive(Debug, Clone)]
-pub struct LinkInfo {
-    pub name: String,
-    pub peer: String,
-}
+use tasks::Tasks;
 
 /// Start-up failures that end the daemon (exit 1).
 #[derive(Debug, thiserror::Error)]
@@ -115,17 +110,17 @@ pub async fn run(config: Config, http_limits: crate::http::Limits) -> Result<(),
 /// configuration in force, the I/O tasks and their lines, and what the
 /// daemon knows of live and departed links.
 struct Daemon {
+    /// The configuration in force, the router core configured by it, and
+    /// the one buffer every call's writes land in.
     config: Config,
-    ids: LinkIds,
     router: Router,
+    actions: Outbox,
+    /// The ports' and links' I/O tasks, and the lines they serve.
     tasks: Tasks,
     lines: Lines,
-    links: BTreeMap<LinkId, LinkInfo>,
-    /// Final counters of connections gone, per configured link name.
-    departed: BTreeMap<String, LinkStats>,
+    links: LinkBook,
+    /// Rate limits of repeated warnings.
     throttle: Throttle,
-    /// Reused for every call: the router's writes land in its one buffer.
-    actions: Outbox,
     stopping: Option<Instant>,
     /// Ports closing after a reload, with the time their grace runs out.
     closing: HashMap<u8, Instant>,
@@ -142,9 +137,9 @@ impl Daemon {
         config: Config,
         http_limits: crate::http::Limits,
     ) -> Result<(Self, mpsc::Receiver<IoEvent>, CaptureControl), StartError> {
-        let mut ids = LinkIds::default();
-        let router =
-            Router::new(config.router_config(|name| ids.of(name))).map_err(|e| StartError::Router(e.to_string()))?;
+        let mut links = LinkBook::default();
+        let router = Router::new(config.router_config(|name| links.ids.of(name)))
+            .map_err(|e| StartError::Router(e.to_string()))?;
         let start = Instant::now();
         let started_unix_ms = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
@@ -172,7 +167,7 @@ impl Daemon {
         // Listeners and the metrics endpoint bind now: a bad address is a start failure.
         for link in &config.links {
             let listener = tasks.bind(link, &[]).await?;
-            tasks.start_link(link, ids.of(&link.name), listener);
+            tasks.start_link(link, links.ids.of(&link.name), listener);
         }
         if let Some(metrics) = &config.metrics {
             serve_metrics(metrics, http_limits, events_tx.clone()).await?;
@@ -183,12 +178,10 @@ impl Daemon {
         drop(events_tx);
         let daemon = Self {
             config,
-            ids,
             router,
             tasks,
             lines: Lines::new(),
-            links: BTreeMap::new(),
-            departed: BTreeMap::new(),
+            links,
             throttle: Throttle::default(),
             actions: Outbox::new(),
             stopping: None,
@@ -260,10 +253,10 @@ impl Daemon {
                 let mut lc = configured.router();
                 if matches!(configured.transport, LinkTransport::Listen(_)) {
                     // Routes naming the listener reach this connection.
-                    lc.listener = Some(self.ids.of(&configured.name));
+                    lc.listener = Some(self.links.ids.of(&configured.name));
                 }
                 self.lines.add(LineId::Link(id), stream, tap, 0, admission, ended);
-                self.links.insert(id, LinkInfo { name: link, peer });
+                self.links.live.insert(id, LinkInfo { name: link, peer });
                 self.handle(t, Input::LinkUp { link: id, config: lc });
             }
             IoEvent::CloseLink { id, reason } => {
@@ -287,8 +280,8 @@ impl Daemon {
                 .links
                 .iter()
                 .map(|l| (l.name.as_str(), l.kind, self.tasks.listeners.contains_key(&l.name))),
-            name_of: |id| self.links.get(&id).map(|l| l.name.as_str()),
-            departed: &self.departed,
+            name_of: |id| self.links.live.get(&id).map(|l| l.name.as_str()),
+            departed: &self.links.departed,
             uptime_ms: self.now(Instant::now()),
         };
         let mut s = Snapshot::take(state, config.gcu.group.get(), config.gcu.name.get());
@@ -323,7 +316,6 @@ impl Daemon {
         let t = self.now(Instant::now());
         let reloaded = Reload {
             config: &mut self.config,
-            ids: &mut self.ids,
             router: &mut self.router,
             tasks: &mut self.tasks,
             lines: &mut self.lines,
@@ -379,13 +371,7 @@ impl Daemon {
     /// from this task, and what a line cannot take yet is written when it
     /// can (`Lines::poll_next`).
     async fn carry_out(&mut self) {
-        execute(
-            &mut self.actions,
-            &mut self.lines,
-            &mut self.links,
-            &mut self.departed,
-            &mut self.throttle,
-        );
+        execute(&mut self.actions, &mut self.lines, &mut self.links, &mut self.throttle);
         std::future::poll_fn(|cx| {
             self.lines.flush(cx);
             std::task::Poll::Ready(())
@@ -455,11 +441,10 @@ async fn serve_metrics(
 /// the difference is applied.
 struct Reload<'a> {
     config: &'a mut Config,
-    ids: &'a mut LinkIds,
     router: &'a mut Router,
     tasks: &'a mut Tasks,
     lines: &'a mut Lines,
-    links: &'a mut BTreeMap<LinkId, LinkInfo>,
+    links: &'a mut LinkBook,
     closing: &'a mut HashMap<u8, Instant>,
 }
 
@@ -507,9 +492,9 @@ impl Reload<'_> {
             }
         }
         let reopen: Vec<u8> = diff.ports_changed.iter().map(|p| p.id).collect();
-        if let Err(e) = self
-            .router
-            .reconfigure(now, new.router_config(|name| self.ids.of(name)), &reopen, actions)
+        if let Err(e) =
+            self.router
+                .reconfigure(now, new.router_config(|name| self.links.ids.of(name)), &reopen, actions)
         {
             return error!("reload refused, running configuration kept: {e}");
         }
@@ -541,6 +526,7 @@ impl Reload<'_> {
             // Its connections are gone: the router takes them down (dead-man).
             let named: Vec<LinkId> = self
                 .links
+                .live
                 .iter()
                 .filter(|(_, l)| l.name == name)
                 .map(|(&id, _)| id)
@@ -557,7 +543,7 @@ impl Reload<'_> {
         *self.config = new;
         for link in diff.links_changed.iter().chain(&diff.links_added) {
             let listener = bound.remove(&link.name).flatten();
-            self.tasks.start_link(link, self.ids.of(&link.name), listener);
+            self.tasks.start_link(link, self.links.ids.of(&link.name), listener);
         }
     }
 }

@@ -1,6 +1,5 @@
 //! The I/O tasks of the configured ports and links (module `io`), started
-//! and stopped one by one so that a reload can change them, and the stable
-//! ids of configured links.
+//! and stopped one by one so that a reload can change them.
 
 use std::collections::{BTreeMap, HashMap};
 use std::sync::Arc;
@@ -16,18 +15,6 @@ use super::StartError;
 use crate::admission::Connections;
 use crate::config::{Link, LinkTransport, Port};
 use crate::io::{self, IoEvent};
-
-/// Stable ids of configured links, by name: kept across reconnects and
-/// reloads, so that routes keep pointing at the right link.
-#[derive(Debug, Default)]
-pub(super) struct LinkIds(BTreeMap<String, LinkId>);
-
-impl LinkIds {
-    pub(super) fn of(&mut self, name: &str) -> LinkId {
-        let next = LinkId(self.0.values().map(|l| l.0).max().unwrap_or(0) + 1);
-        *self.0.entry(name.to_owned()).or_insert(next)
-    }
-}
 
 /// The I/O tasks of the configured ports and links, so that a reload can
 /// close and open them one by one.

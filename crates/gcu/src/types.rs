@@ -426,8 +426,18 @@ sagebrush_protocol::code_table! {
         QueueFull,
         /// a stop identical to one already queued on the port: merged into it
         DuplicateStop,
+        /// a stop for the same gimbal overtook it in the queue: it would have undone the stop
+        Superseded,
         /// the link may not speak for this source group (or it is 255 or our own group)
         SourceNotAllowed,
+        /// another link of equal or higher priority controls the gimbal
+        NotInControl,
+        /// its target lies outside the gimbal's travel limits
+        TravelLimit,
+        /// its path may enter a keep-out zone
+        KeepOut,
+        /// the gimbal's position, rate or acceleration is unknown and it has limits or zones
+        PositionUnknown,
         /// the link went down with the frame queued or in flight
         LinkDown,
         /// the link peer never acknowledged the frame (retries exhausted)
@@ -444,16 +454,6 @@ sagebrush_protocol::code_table! {
         ShuttingDown,
         /// still queued when its client's delivery time-out passed: given up unsent
         Expired,
-        /// another link of equal or higher priority controls the gimbal
-        NotInControl,
-        /// its target lies outside the gimbal's travel limits
-        TravelLimit,
-        /// its path may enter a keep-out zone
-        KeepOut,
-        /// the gimbal's position, rate or acceleration is unknown and it has limits or zones
-        PositionUnknown,
-        /// a stop for the same gimbal overtook it in the queue: it would have undone the stop
-        Superseded,
     }
 }
 
