@@ -9,7 +9,7 @@
 //! longest-idle connection for a newcomer, a per-peer cap that holds for
 //! loopback peers too), header, body and idle time-outs, bounded buffers;
 //! the body is at most [`MAX_BODY`] and each request's work at most
-//! [`REQUEST_TIMEOUT`]. Failed logins are logged with the peer's address,
+//! [`REQUEST_TIMEOUT`](crate::onvif::REQUEST_TIMEOUT). Failed logins are logged with the peer's address,
 //! at most once per [`FAILED_LOGIN_LOG_EVERY`] per peer.
 
 use std::net::{IpAddr, Ipv6Addr, SocketAddr};
@@ -33,8 +33,6 @@ use crate::onvif::{Answer, Device, Origin};
 pub const MAX_BODY: usize = 64 * 1024;
 /// Requests served at once per device; more wait for a free one.
 pub const MAX_CONCURRENT: usize = 16;
-/// The longest one request may take, gimbal exchanges included.
-pub const REQUEST_TIMEOUT: Duration = Duration::from_secs(30);
 /// Failed logins from one peer are logged at most this often (the line
 /// says how many were held back since the last one).
 pub const FAILED_LOGIN_LOG_EVERY: Duration = Duration::from_secs(10);

@@ -21,6 +21,7 @@ mod ptz;
 pub mod spaces;
 
 use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 use time::OffsetDateTime;
 
@@ -29,6 +30,9 @@ use crate::config::Role;
 use crate::gimbal::Gimbal;
 use crate::soap::{self, Fault, NS_DEVICE, NS_MEDIA, NS_PTZ, Version};
 use sagebrush_client::presets::Presets;
+
+/// The longest one request may take, gimbal exchanges included.
+pub const REQUEST_TIMEOUT: Duration = Duration::from_secs(30);
 
 /// Where a request came in: what the answer may say about it.
 #[derive(Debug, Clone, Copy)]
@@ -101,11 +105,11 @@ impl Device {
             }
         };
         let version = request.version;
-        let result = match tokio::time::timeout(crate::http::REQUEST_TIMEOUT, self.answer(&request, origin)).await {
+        let result = match tokio::time::timeout(REQUEST_TIMEOUT, self.answer(&request, origin)).await {
             Ok(result) => result,
             Err(_) => Err(Fault::receiver(
                 &["ter:Action", "ter:Timeout"],
-                format!("no answer within {} s", crate::http::REQUEST_TIMEOUT.as_secs()),
+                format!("no answer within {} s", REQUEST_TIMEOUT.as_secs()),
             )),
         };
         Answer {

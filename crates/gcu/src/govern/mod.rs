@@ -15,6 +15,7 @@ mod knowledge;
 pub mod rules;
 mod tour;
 mod travel;
+mod validate;
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
