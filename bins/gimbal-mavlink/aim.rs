@@ -5,24 +5,22 @@
 //! a mount-relative pan and tilt from the vehicle's heading and place
 //! (`vehicle`, `earth`); [`Aim::request`] refuses where either is unknown.
 //!
-//! The aim in force is the gimbal's (`gimbal::Shared::aim`): set by the
+//! The aim in force is the gimbal's (`handle::Shared::aim`): set by the
 //! request that asked for it once the gimbal took it, replaced by any other
 //! motion, cleared by MAV_CMD_DO_SET_ROI_NONE and by a refused motion of
-//! its owner (control lost, the place out of travel). [`run`] re-aims it as the
+//! its owner (control lost, the place out of travel). `reaim::run` re-aims it as the
 //! vehicle turns or moves: at most every [`REAIM_EVERY`] per gimbal, and only
 //! when the pan or tilt changed by [`REAIM_STEP`] or more; when the heading
 //! or place is no longer known (older than `vehicle::STALE`) the aim lapses
 //! (logged), and the gimbal stays where it points.
 
-use std::sync::Arc;
 use std::time::Duration;
 
-use tracing::{info, warn};
+use mavlink::dialects::common::GimbalManagerFlags;
 
 use crate::config::Gimbal;
 use crate::control::Sender;
 use crate::earth::{self, Place};
-use crate::gimbal::{Handle, Job, Work};
 use crate::motion::Request;
 use crate::vehicle::Vehicle;
 
@@ -75,7 +73,7 @@ impl Aim {
 }
 
 /// Whether `a` and `b` differ by [`REAIM_STEP`] or more on an axis.
-fn moved(a: &Request, b: &Request) -> bool {
+pub fn moved(a: &Request, b: &Request) -> bool {
     let differs = |x: f32, y: f32| match (x.is_nan(), y.is_nan()) {
         (true, true) => false,
         (false, false) => f64::from((x - y).abs()) >= REAIM_STEP,
@@ -84,50 +82,55 @@ fn moved(a: &Request, b: &Request) -> bool {
     differs(a.pan_deg, b.pan_deg) || differs(a.tilt_deg, b.tilt_deg)
 }
 
-/// Re-aims the aims in force for ever (the module's rules).
-pub async fn run(handles: Vec<Handle>, vehicle: Arc<Vehicle>) {
-    let mut tick = tokio::time::interval(REAIM_EVERY);
-    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-    // Per gimbal: the target last seen and the request last aimed for it.
-    let mut last: Vec<Option<(Target, Request)>> = vec![None; handles.len()];
-    loop {
-        tick.tick().await;
-        for (h, last) in handles.iter().zip(last.iter_mut()) {
-            let Some(target) = h.aim() else {
-                *last = None;
-                continue;
-            };
-            let request = match target.aim.request(&h.config, &vehicle) {
-                Ok(r) => r,
-                Err(why) => {
-                    warn!(gimbal = %h.config.name, aim = ?target.aim, why, "earth-frame aim lapsed: the gimbal stays where it points");
-                    h.clear_aim(target);
-                    *last = None;
-                    continue;
-                }
-            };
-            match last {
-                // The request that set it aimed there already.
-                None => *last = Some((target, request)),
-                Some((seen, _)) if *seen != target => *last = Some((target, request)),
-                Some((_, aimed)) if !moved(aimed, &request) => {}
-                Some(_) => {
-                    info!(gimbal = %h.config.name, pan = request.pan_deg, tilt = request.tilt_deg, "re-aimed: the vehicle turned or moved");
-                    let job = Job {
-                        from: target.from,
-                        work: Work::Move {
-                            request,
-                            ack: None,
-                            aim: Some(target.aim),
-                        },
-                    };
-                    if h.jobs.try_send(job).is_ok() {
-                        *last = Some((target, request));
-                    }
-                }
-            }
-        }
+/// Whether `flags` put yaw in the earth frame (common.xml,
+/// GIMBAL_MANAGER_FLAGS: YAW_IN_VEHICLE_FRAME or YAW_IN_EARTH_FRAME say
+/// it; with neither, YAW_LOCK means the earth frame).
+pub fn yaw_in_earth_frame(flags: u32) -> bool {
+    let has = |f: GimbalManagerFlags| flags & f.bits() != 0;
+    if has(GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_IN_VEHICLE_FRAME) {
+        false
+    } else {
+        has(GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_IN_EARTH_FRAME)
+            || has(GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_LOCK)
     }
+}
+
+/// Whether `request` uses its yaw (an angle or a rate).
+fn uses_yaw(request: &Request) -> bool {
+    !request.pan_deg.is_nan() || !request.pan_dps.is_nan()
+}
+
+/// `request` (its yaw in the frame `flags` say) relative to the mount of
+/// `g`, and the aim it holds: an earth-frame yaw is the yaw minus the
+/// heading, wrapped into the travel (`earth::mount_yaw`), held as an aim;
+/// an earth-frame yaw rate has the vehicle's yaw rate taken off. Refused
+/// where the heading is not known.
+pub fn in_mount_frame(
+    request: Request,
+    flags: u32,
+    g: &Gimbal,
+    vehicle: &Vehicle,
+) -> Result<(Request, Option<Aim>), &'static str> {
+    if !yaw_in_earth_frame(flags) || !uses_yaw(&request) {
+        return Ok((request, None));
+    }
+    let heading = vehicle.heading(g).ok_or(NO_HEADING)?;
+    if request.pan_deg.is_nan() {
+        let pan_dps = f64::from(request.pan_dps) - heading.rate_dps;
+        return Ok((
+            Request {
+                pan_dps: pan_dps as f32,
+                ..request
+            },
+            None,
+        ));
+    }
+    let held = Aim::Yaw {
+        earth_deg: f64::from(request.pan_deg),
+        tilt_deg: (!request.tilt_deg.is_nan()).then_some(request.tilt_deg),
+    };
+    let pan_deg = earth::mount_yaw(f64::from(request.pan_deg), heading.deg, g.pan_deg) as f32;
+    Ok((Request { pan_deg, ..request }, Some(held)))
 }
 
 #[cfg(test)]

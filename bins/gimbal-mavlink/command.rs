@@ -3,20 +3,83 @@
 //! The legacy commands (gimbal protocol v1, DO_SET_ROI), deprecated in
 //! common.xml, are still what MAVProxy and many scripts send.
 
-use mavlink::dialects::common::{MavCmd, MavFrame, MavResult};
+use mavlink::dialects::common::{MavCmd, MavFrame, MavMessage, MavResult};
 use tracing::warn;
 
 use crate::aim::Aim;
+use crate::aim::in_mount_frame;
 use crate::control::Sender;
 use crate::earth::Place;
-use crate::gimbal::{Handle, Job, Work};
-use crate::inbox::{Command, Route, in_mount_frame, whole};
+use crate::handle::{Handle, Job, Route, Work};
 use crate::motion::Request;
+use crate::rates::{self, Rate};
 use crate::stats::may_warn;
-use crate::status::{self, Rate};
 use crate::vehicle::Vehicle;
 
 /// A request that moves nothing (NaN: not used).
+/// A command as COMMAND_LONG or COMMAND_INT carries it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Command {
+    pub command: MavCmd,
+    pub target_system: u8,
+    pub target_component: u8,
+    /// Params 1 to 4, and param 7 (COMMAND_INT's z).
+    pub params: [f32; 4],
+    /// Params 5 and 6 (COMMAND_INT's x and y, integers there).
+    pub x: f64,
+    pub y: f64,
+    pub param7: f32,
+    /// COMMAND_INT's coordinate frame (None: COMMAND_LONG, which has none).
+    pub frame: Option<MavFrame>,
+}
+
+/// A [`Command`] of COMMAND_LONG or COMMAND_INT data `$c`, whose fields
+/// `$x`, `$y`, `$z` hold params 5, 6 and 7 (common.xml: COMMAND_INT's x, y
+/// and z stand where COMMAND_LONG's param5, param6 and param7 do).
+macro_rules! command_of {
+    ($c:expr, $x:ident, $y:ident, $z:ident, $frame:expr) => {
+        Command {
+            command: $c.command,
+            target_system: $c.target_system,
+            target_component: $c.target_component,
+            params: [$c.param1, $c.param2, $c.param3, $c.param4],
+            x: f64::from($c.$x),
+            y: f64::from($c.$y),
+            param7: $c.$z,
+            frame: $frame,
+        }
+    };
+}
+
+impl Command {
+    /// The command `message` carries, if it is COMMAND_LONG or COMMAND_INT.
+    pub fn of(message: &MavMessage) -> Option<Self> {
+        match message {
+            MavMessage::COMMAND_LONG(c) => Some(command_of!(c, param5, param6, param7, None)),
+            MavMessage::COMMAND_INT(c) => Some(command_of!(c, x, y, z, Some(c.frame))),
+            _ => None,
+        }
+    }
+
+    /// The gimbal device id the command names (param 7 of the gimbal
+    /// manager commands, param 1 of the ROI commands: common.xml); 0, every
+    /// gimbal, for the others (param 7 means something else there:
+    /// DO_MOUNT_CONTROL's mode, REQUEST_MESSAGE's response target).
+    pub fn device_id(&self) -> u8 {
+        let id = match self.command {
+            MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW | MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE => self.param7,
+            MavCmd::MAV_CMD_DO_SET_ROI_LOCATION | MavCmd::MAV_CMD_DO_SET_ROI_NONE => self.params[0],
+            _ => 0.0,
+        };
+        whole(id, 255.0).unwrap_or(0) as u8
+    }
+}
+
+/// A whole number parameter (a message id, a device id), if it is one.
+pub fn whole(v: f32, max: f32) -> Option<u32> {
+    (v.is_finite() && v.fract() == 0.0 && (0.0..=max).contains(&v)).then_some(v as u32)
+}
+
 const NOTHING: Request = Request {
     tilt_deg: f32::NAN,
     pan_deg: f32::NAN,
@@ -86,7 +149,7 @@ pub fn route(h: &Handle, i: usize, vehicle: &Vehicle, from: Sender, c: &Command)
             ),
         },
         MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL => match (whole(p1, f32::from(u16::MAX)), Rate::from_interval_us(p2)) {
-            (Some(id @ (status::MANAGER_STATUS_ID | status::ATTITUDE_STATUS_ID)), Some(rate)) => {
+            (Some(id @ (rates::MANAGER_STATUS_ID | rates::ATTITUDE_STATUS_ID)), Some(rate)) => {
                 h.set_rate(id, rate);
                 Route::Answer(component, c.command, MavResult::MAV_RESULT_ACCEPTED)
             }

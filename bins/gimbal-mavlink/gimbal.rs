@@ -10,11 +10,9 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use mavlink::dialects::common::{
-    COMMAND_ACK_DATA, GIMBAL_DEVICE_INFORMATION_DATA, GIMBAL_MANAGER_INFORMATION_DATA, GimbalDeviceCapFlags,
-    GimbalDeviceCapFlagsU16, GimbalManagerCapFlags, MavCmd, MavMessage, MavResult, MavSeverity, STATUSTEXT_DATA,
+    GIMBAL_DEVICE_INFORMATION_DATA, GIMBAL_MANAGER_INFORMATION_DATA, GimbalDeviceCapFlags, GimbalDeviceCapFlagsU16,
+    GimbalManagerCapFlags, MavCmd, MavMessage, MavResult, MavSeverity,
 };
-use sagebrush_client::connection::Control as GcudControl;
-use sagebrush_client::governance::Controller;
 use sagebrush_client::session::{Drive, GcudReachability, GimbalSession, SessionConfig, Velocity};
 use sagebrush_client::{CommandError, Identity};
 use sagebrush_protocol::{Angle, Command, Position, Undelivered};
@@ -24,8 +22,10 @@ use tokio::time::Instant;
 use tracing::{info, warn};
 
 use crate::aim::{Aim, Target};
+use crate::answers::{ack, refusal_text, statustext};
 use crate::config::{self, Config};
 use crate::control::{Control, Refused, Sender};
+use crate::handle::{Handle, Job, Shared, Work};
 use crate::link::Outbox;
 use crate::motion::{self, Plan};
 use crate::stats::{Stats, may_warn};
@@ -40,150 +40,6 @@ pub const ANSWERING: usize = 16;
 
 /// A refusal by gcud is told in a STATUSTEXT at most this often per gimbal.
 pub const REFUSAL_TEXT_EVERY: Duration = Duration::from_secs(2);
-
-/// What the emitter reports.
-#[derive(Clone, Debug, Default)]
-pub struct Shared {
-    pub position: Option<Position>,
-    /// The last poll failed.
-    pub unreachable: bool,
-    pub control: Control,
-    /// The status streams' rates (MAV_CMD_SET_MESSAGE_INTERVAL).
-    pub rates: crate::status::Rates,
-    /// Who gcud says controls the gimbal (`~C`), when it said.
-    pub gcud: Option<GcudControl>,
-    /// The pointing held in the earth frame (`aim`).
-    pub aim: Option<Target>,
-}
-
-impl Shared {
-    /// The holder of the gimbal in gcud when it is not this door's own link
-    /// (another link, a tour, park): MAVLink's control owners then command
-    /// nothing, and GIMBAL_MANAGER_STATUS says so.
-    pub fn held_elsewhere(&self) -> Option<&Controller> {
-        self.gcud
-            .as_ref()
-            .filter(|c| !c.ours && c.holder != Controller::Nobody)
-            .map(|c| &c.holder)
-    }
-}
-
-/// STATUSTEXT's words for `holder` (at most 50 bytes, cut at a character).
-pub fn holder_text(holder: &Controller) -> String {
-    fit(format!("{holder} controls the gimbal"))
-}
-
-/// The words of a refusal by gcud (the holder, or the rule).
-fn refusal_text(rule: Undelivered, holder: Option<&Controller>) -> String {
-    match (rule, holder) {
-        (Undelivered::NotInControl, Some(h)) => holder_text(h),
-        (Undelivered::NotInControl, None) => "denied by gcud: another link controls the gimbal".to_owned(),
-        (Undelivered::TravelLimit, _) => "denied by gcud: beyond the travel limits".to_owned(),
-        (Undelivered::KeepOut, _) => "denied by gcud: path enters a keep-out zone".to_owned(),
-        _ => "denied by gcud: it does not know where it points".to_owned(),
-    }
-}
-
-/// `text` cut to STATUSTEXT's 50 bytes at a character boundary.
-fn fit(mut text: String) -> String {
-    while text.len() > 50 {
-        text.pop();
-    }
-    text
-}
-
-/// A STATUSTEXT of `severity`.
-pub fn statustext(severity: MavSeverity, text: &str) -> MavMessage {
-    MavMessage::STATUSTEXT(STATUSTEXT_DATA {
-        severity,
-        text: fit(text.to_owned()).as_str().into(),
-        id: 0,
-        chunk_seq: 0,
-    })
-}
-
-/// A request for one gimbal.
-#[derive(Clone, Debug)]
-pub enum Work {
-    /// Pitch/yaw (GIMBAL_MANAGER_SET_PITCHYAW, _SET_ATTITUDE, or the
-    /// command, which `ack` names).
-    Move {
-        request: motion::Request,
-        ack: Option<MavCmd>,
-        /// The earth-frame aim this motion holds (None: any held ends).
-        aim: Option<Aim>,
-    },
-    /// MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE params 1..4.
-    Configure([f32; 4]),
-    /// MAV_CMD_REQUEST_MESSAGE for a message id.
-    Information(u32),
-    /// The program stops: stop the slew in force, then end the task.
-    Shutdown,
-}
-
-#[derive(Clone, Debug)]
-pub struct Job {
-    pub from: Sender,
-    pub work: Work,
-}
-
-/// The handle the receivers use.
-#[derive(Debug, Clone)]
-pub struct Handle {
-    pub config: config::Gimbal,
-    /// Who controls the gimbal.
-    pub shared: Arc<Mutex<Shared>>,
-    pub session: Arc<GimbalSession>,
-    pub jobs: mpsc::Sender<Job>,
-}
-
-impl Handle {
-    /// The control, with the position and reachability the session polled.
-    pub fn shared(&self) -> Shared {
-        let status = self.session.status();
-        let (control, rates, aim) = {
-            let shared = self.shared.lock().unwrap_or_else(|p| p.into_inner());
-            (shared.control, shared.rates, shared.aim)
-        };
-        Shared {
-            position: status.position,
-            unreachable: status.error.is_some(),
-            control,
-            rates,
-            gcud: status.control,
-            aim,
-        }
-    }
-
-    /// The earth-frame aim in force.
-    pub fn aim(&self) -> Option<Target> {
-        self.shared.lock().unwrap_or_else(|p| p.into_inner()).aim
-    }
-
-    /// Ends `target` if it is still the aim in force.
-    pub fn clear_aim(&self, target: Target) {
-        let aim = &mut self.shared.lock().unwrap_or_else(|p| p.into_inner()).aim;
-        if *aim == Some(target) {
-            *aim = None;
-        }
-    }
-
-    /// The status streams' rates.
-    pub fn rates(&self) -> crate::status::Rates {
-        self.shared.lock().unwrap_or_else(|p| p.into_inner()).rates
-    }
-
-    /// Sets the rate of status message `id` (GIMBAL_MANAGER_STATUS or
-    /// GIMBAL_DEVICE_ATTITUDE_STATUS).
-    pub fn set_rate(&self, id: u32, rate: crate::status::Rate) {
-        let rates = &mut self.shared.lock().unwrap_or_else(|p| p.into_inner()).rates;
-        if id == crate::status::MANAGER_STATUS_ID {
-            rates.manager = rate;
-        } else {
-            rates.attitude = rate;
-        }
-    }
-}
 
 struct Task {
     config: config::Gimbal,
@@ -241,17 +97,6 @@ pub fn spawn(
         },
         join,
     )
-}
-
-/// COMMAND_ACK of `command` to `to`: the one answer builder for every refusal and result.
-pub fn ack(command: MavCmd, result: MavResult, to: Sender) -> MavMessage {
-    MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
-        command,
-        result,
-        target_system: to.0,
-        target_component: to.1,
-        ..COMMAND_ACK_DATA::DEFAULT
-    })
 }
 
 impl Task {
@@ -577,44 +422,4 @@ fn uid(serial: &str) -> u64 {
         h = (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3);
     }
     h.max(1)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn seen(holder: Controller, ours: bool) -> Shared {
-        Shared {
-            gcud: Some(GcudControl { holder, ours }),
-            ..Shared::default()
-        }
-    }
-
-    #[test]
-    fn only_a_holder_other_than_this_doors_link_is_elsewhere() {
-        let ops = Controller::Link {
-            name: "operators".into(),
-            priority: 80,
-        };
-        assert_eq!(seen(ops.clone(), false).held_elsewhere(), Some(&ops));
-        assert_eq!(seen(ops.clone(), true).held_elsewhere(), None, "this door's own link");
-        assert_eq!(seen(Controller::Nobody, false).held_elsewhere(), None);
-        assert_eq!(
-            seen(Controller::Tour("north".into()), false).held_elsewhere(),
-            Some(&Controller::Tour("north".into()))
-        );
-        assert_eq!(Shared::default().held_elsewhere(), None, "gcud said nothing");
-        assert_eq!(holder_text(&ops), "link operators (priority 80) controls the gimbal");
-        let long = Controller::Link {
-            name: "é".repeat(32),
-            priority: 80,
-        };
-        let text = holder_text(&long);
-        assert!(text.len() <= 50 && text.starts_with("link éé"), "{text}");
-        assert_eq!(
-            refusal_text(Undelivered::KeepOut, Some(&ops)),
-            "denied by gcud: path enters a keep-out zone"
-        );
-        assert_eq!(refusal_text(Undelivered::NotInControl, Some(&ops)), holder_text(&ops));
-    }
 }

@@ -21,91 +21,18 @@
 //!
 //! The commands (COMMAND_LONG, COMMAND_INT) are `command`'s.
 
-use mavlink::dialects::common::{GimbalManagerFlags, MavCmd, MavFrame, MavMessage, MavResult};
+use mavlink::dialects::common::{MavMessage, MavResult};
 use mavlink::{MavHeader, Message};
 use tracing::debug;
 
-use crate::aim::{self, Aim};
+use crate::aim::in_mount_frame;
+use crate::command::Command;
 use crate::config::Gimbal;
-use crate::earth;
 use crate::frames;
-use crate::gimbal::{Handle, Job, Work};
+use crate::handle::{Handle, Job, Route, Work};
 use crate::motion::Request;
 use crate::stats::Stats;
 use crate::vehicle::Vehicle;
-
-/// Where a message goes.
-#[derive(Debug)]
-pub enum Route {
-    /// To gimbal number `usize` (index into the handles).
-    Gimbal(usize, Job),
-    /// A command for one of our components that no gimbal takes: answer
-    /// it with this result.
-    Answer(u8, MavCmd, MavResult),
-    /// For gimbal number `usize`, but refused for its content (no answer
-    /// message exists for it): why.
-    Refused(usize, &'static str),
-    /// Not for us, or nothing to do.
-    Ignore,
-}
-
-/// A command as COMMAND_LONG or COMMAND_INT carries it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Command {
-    pub command: MavCmd,
-    pub target_system: u8,
-    pub target_component: u8,
-    /// Params 1 to 4, and param 7 (COMMAND_INT's z).
-    pub params: [f32; 4],
-    /// Params 5 and 6 (COMMAND_INT's x and y, integers there).
-    pub x: f64,
-    pub y: f64,
-    pub param7: f32,
-    /// COMMAND_INT's coordinate frame (None: COMMAND_LONG, which has none).
-    pub frame: Option<MavFrame>,
-}
-
-/// A [`Command`] of COMMAND_LONG or COMMAND_INT data `$c`, whose fields
-/// `$x`, `$y`, `$z` hold params 5, 6 and 7 (common.xml: COMMAND_INT's x, y
-/// and z stand where COMMAND_LONG's param5, param6 and param7 do).
-macro_rules! command_of {
-    ($c:expr, $x:ident, $y:ident, $z:ident, $frame:expr) => {
-        Command {
-            command: $c.command,
-            target_system: $c.target_system,
-            target_component: $c.target_component,
-            params: [$c.param1, $c.param2, $c.param3, $c.param4],
-            x: f64::from($c.$x),
-            y: f64::from($c.$y),
-            param7: $c.$z,
-            frame: $frame,
-        }
-    };
-}
-
-impl Command {
-    /// The command `message` carries, if it is COMMAND_LONG or COMMAND_INT.
-    pub fn of(message: &MavMessage) -> Option<Self> {
-        match message {
-            MavMessage::COMMAND_LONG(c) => Some(command_of!(c, param5, param6, param7, None)),
-            MavMessage::COMMAND_INT(c) => Some(command_of!(c, x, y, z, Some(c.frame))),
-            _ => None,
-        }
-    }
-
-    /// The gimbal device id the command names (param 7 of the gimbal
-    /// manager commands, param 1 of the ROI commands: common.xml); 0, every
-    /// gimbal, for the others (param 7 means something else there:
-    /// DO_MOUNT_CONTROL's mode, REQUEST_MESSAGE's response target).
-    pub fn device_id(&self) -> u8 {
-        let id = match self.command {
-            MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW | MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE => self.param7,
-            MavCmd::MAV_CMD_DO_SET_ROI_LOCATION | MavCmd::MAV_CMD_DO_SET_ROI_NONE => self.params[0],
-            _ => 0.0,
-        };
-        whole(id, 255.0).unwrap_or(0) as u8
-    }
-}
 
 /// The gimbals addressed by `target_system`/`target_component`: the one
 /// with that component id; for component 0, the one `device_id` names,
@@ -126,57 +53,6 @@ pub fn addressed(
         (0, d) => by(d).into_iter().collect(),
         (c, _) => by(c).into_iter().collect(),
     }
-}
-
-/// Whether `flags` put yaw in the earth frame (common.xml,
-/// GIMBAL_MANAGER_FLAGS: YAW_IN_VEHICLE_FRAME or YAW_IN_EARTH_FRAME say
-/// it; with neither, YAW_LOCK means the earth frame).
-pub fn yaw_in_earth_frame(flags: u32) -> bool {
-    let has = |f: GimbalManagerFlags| flags & f.bits() != 0;
-    if has(GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_IN_VEHICLE_FRAME) {
-        false
-    } else {
-        has(GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_IN_EARTH_FRAME)
-            || has(GimbalManagerFlags::GIMBAL_MANAGER_FLAGS_YAW_LOCK)
-    }
-}
-
-/// Whether `request` uses its yaw (an angle or a rate).
-fn uses_yaw(request: &Request) -> bool {
-    !request.pan_deg.is_nan() || !request.pan_dps.is_nan()
-}
-
-/// `request` (its yaw in the frame `flags` say) relative to the mount of
-/// `g`, and the aim it holds: an earth-frame yaw is the yaw minus the
-/// heading, wrapped into the travel (`earth::mount_yaw`), held as an aim;
-/// an earth-frame yaw rate has the vehicle's yaw rate taken off. Refused
-/// where the heading is not known.
-pub fn in_mount_frame(
-    request: Request,
-    flags: u32,
-    g: &Gimbal,
-    vehicle: &Vehicle,
-) -> Result<(Request, Option<Aim>), &'static str> {
-    if !yaw_in_earth_frame(flags) || !uses_yaw(&request) {
-        return Ok((request, None));
-    }
-    let heading = vehicle.heading(g).ok_or(aim::NO_HEADING)?;
-    if request.pan_deg.is_nan() {
-        let pan_dps = f64::from(request.pan_dps) - heading.rate_dps;
-        return Ok((
-            Request {
-                pan_dps: pan_dps as f32,
-                ..request
-            },
-            None,
-        ));
-    }
-    let held = Aim::Yaw {
-        earth_deg: f64::from(request.pan_deg),
-        tilt_deg: (!request.tilt_deg.is_nan()).then_some(request.tilt_deg),
-    };
-    let pan_deg = earth::mount_yaw(f64::from(request.pan_deg), heading.deg, g.pan_deg) as f32;
-    Ok((Request { pan_deg, ..request }, Some(held)))
 }
 
 /// The request of an attitude quaternion `q` (NaN: rates only) with
@@ -227,11 +103,6 @@ fn manual_request(g: &Gimbal, [pitch, yaw, pitch_rate, yaw_rate]: [f32; 4]) -> R
 /// Degrees from radians, keeping NaN ("not used").
 fn deg(rad: f32) -> f32 {
     if rad.is_nan() { f32::NAN } else { rad.to_degrees() }
-}
-
-/// A whole number parameter (a message id, a device id), if it is one.
-pub fn whole(v: f32, max: f32) -> Option<u32> {
-    (v.is_finite() && v.fract() == 0.0 && (0.0..=max).contains(&v)).then_some(v as u32)
 }
 
 /// What a pointing message asks of one gimbal.
@@ -353,6 +224,8 @@ pub fn count(route: &Route, stats: &Stats) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::aim::{self, Aim};
+    use mavlink::dialects::common::GimbalManagerFlags;
 
     fn gimbal(mount_heading_deg: Option<f64>) -> Gimbal {
         Gimbal::for_tests(mount_heading_deg)

@@ -6,16 +6,20 @@
 //! started if it dies.
 
 mod aim;
+mod answers;
 mod command;
 mod config;
 mod control;
 mod earth;
 mod frames;
 mod gimbal;
+mod handle;
 mod inbox;
 mod link;
 mod motion;
 mod net;
+mod rates;
+mod reaim;
 mod stats;
 mod status;
 mod stream;
@@ -61,7 +65,7 @@ async fn run(config: config::Config) -> Result<(), String> {
         config.attitude_period,
         config.control_lapse,
     ));
-    tasks.spawn(aim::run(handles.clone(), Arc::clone(&vehicle)));
+    tasks.spawn(reaim::run(handles.clone(), Arc::clone(&vehicle)));
     // Answers that need no gimbal task (an unsupported command) go out
     // through this queue, so that a receiver never waits on a send.
     let (answers, mut answer_rx) = tokio::sync::mpsc::channel::<(u8, MavMessage)>(64);
@@ -79,7 +83,7 @@ async fn run(config: config::Config) -> Result<(), String> {
             for route in inbox::route(&handles, system_id, &vehicle, header, &message) {
                 inbox::count(&route, &stats);
                 match route {
-                    inbox::Route::Gimbal(i, job) => {
+                    handle::Route::Gimbal(i, job) => {
                         if handles[i].jobs.try_send(job).is_err() {
                             let total = Stats::count(&stats.busy);
                             if stats::may_warn("request queue full", &handles[i].config.name) {
@@ -87,16 +91,16 @@ async fn run(config: config::Config) -> Result<(), String> {
                             }
                         }
                     }
-                    inbox::Route::Answer(component, command, result) => {
-                        let ack = gimbal::ack(command, result, (header.system_id, header.component_id));
+                    handle::Route::Answer(component, command, result) => {
+                        let ack = answers::ack(command, result, (header.system_id, header.component_id));
                         let _ = answers.try_send((component, ack));
                     }
-                    inbox::Route::Refused(i, why) => {
+                    handle::Route::Refused(i, why) => {
                         if stats::may_warn("request refused", &handles[i].config.name) {
                             warn!(gimbal = %handles[i].config.name, from = ?(header.system_id, header.component_id), why, "request refused");
                         }
                     }
-                    inbox::Route::Ignore => {}
+                    handle::Route::Ignore => {}
                 }
             }
         })
@@ -134,9 +138,9 @@ async fn run(config: config::Config) -> Result<(), String> {
     for h in &handles {
         let _ = h
             .jobs
-            .send(gimbal::Job {
+            .send(handle::Job {
                 from: (0, 0),
-                work: gimbal::Work::Shutdown,
+                work: handle::Work::Shutdown,
             })
             .await;
     }

@@ -194,7 +194,7 @@ impl Net {
                         if may_warn("control given to a component never heard", from) {
                             warn!(%from, ?sender, ?unheard, component, "control given to a component never heard: MAV_RESULT_DENIED");
                         }
-                        let ack = crate::gimbal::ack(
+                        let ack = crate::answers::ack(
                             MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE,
                             MavResult::MAV_RESULT_DENIED,
                             sender,
@@ -213,7 +213,7 @@ impl Net {
     /// For a MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE to one of our components
     /// that gives control to components never heard: that component and them.
     fn control_to_unheard(&self, sender: Sender, message: &MavMessage) -> Option<(u8, Vec<Sender>)> {
-        let c = crate::inbox::Command::of(message)?;
+        let c = crate::command::Command::of(message)?;
         if c.command != MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE {
             return None;
         }
@@ -372,7 +372,7 @@ mod tests {
     #[test]
     fn answers_go_to_the_asker_status_to_everyone() {
         let net = net();
-        let ack = |command, result| crate::gimbal::ack(command, result, GCS);
+        let ack = |command, result| crate::answers::ack(command, result, GCS);
         assert_eq!(
             net.addressee(
                 154,
@@ -406,7 +406,7 @@ mod tests {
             net.addressee(154, &MavMessage::HEARTBEAT(HEARTBEAT_DATA::default())),
             None
         );
-        let to_zero = crate::gimbal::ack(MavCmd::MAV_CMD_DO_SET_SERVO, MavResult::MAV_RESULT_UNSUPPORTED, (0, 0));
+        let to_zero = crate::answers::ack(MavCmd::MAV_CMD_DO_SET_SERVO, MavResult::MAV_RESULT_UNSUPPORTED, (0, 0));
         assert_eq!(
             net.addressee(154, &to_zero),
             Some((0, 0)),

@@ -22,69 +22,18 @@ use sagebrush_client::governance::Controller;
 use tokio::time::{Instant, MissedTickBehavior};
 use tracing::info;
 
+use crate::answers::{holder_text, statustext};
 use crate::control::Sender;
 use crate::frames;
-use crate::gimbal::Handle;
+use crate::handle::Handle;
 use crate::link::Outbox;
 use crate::stats;
 use crate::vehicle::{Heading, Vehicle};
 
 pub const HEARTBEAT: Duration = Duration::from_secs(1);
 pub const MANAGER_STATUS: Duration = Duration::from_millis(200);
-
-/// The message ids whose interval MAV_CMD_SET_MESSAGE_INTERVAL may set.
-pub const MANAGER_STATUS_ID: u32 = 281;
-pub const ATTITUDE_STATUS_ID: u32 = 285;
-/// The shortest and longest interval a stream may be set to: every status
-/// goes to every peer, so no asker makes this door send more than 50 a
-/// second per stream.
-pub const FASTEST: Duration = Duration::from_millis(20);
-pub const SLOWEST: Duration = Duration::from_secs(10);
 /// How late a new rate is noticed at most.
 const RECHECK: Duration = Duration::from_millis(50);
-
-/// A status stream's rate, as MAV_CMD_SET_MESSAGE_INTERVAL sets it.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Rate {
-    /// Param 2 = 0: the configured default.
-    #[default]
-    Default,
-    /// Param 2 = -1: not sent.
-    Off,
-    /// An interval within [`FASTEST`]..=[`SLOWEST`].
-    Every(Duration),
-}
-
-impl Rate {
-    /// The rate of MAV_CMD_SET_MESSAGE_INTERVAL's param 2 (microseconds),
-    /// or None when it is none this door keeps.
-    pub fn from_interval_us(us: f32) -> Option<Self> {
-        if us == -1.0 {
-            Some(Self::Off)
-        } else if us == 0.0 {
-            Some(Self::Default)
-        } else if us.fract() == 0.0 && (FASTEST.as_micros() as f32..=SLOWEST.as_micros() as f32).contains(&us) {
-            Some(Self::Every(Duration::from_micros(us as u64)))
-        } else {
-            None
-        }
-    }
-
-    fn interval(self, default: Duration) -> Option<Duration> {
-        match self {
-            Self::Default => Some(default),
-            Self::Off => None,
-            Self::Every(d) => Some(d),
-        }
-    }
-}
-
-/// The rates of a gimbal's two status streams.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Rates {
-    pub manager: Rate,
-    pub attitude: Rate,
-}
 
 fn heartbeat() -> MavMessage {
     MavMessage::HEARTBEAT(HEARTBEAT_DATA {
@@ -265,8 +214,8 @@ pub async fn run(
                     if now_held != *told {
                         if let Some(holder) = &now_held {
                             info!(gimbal = %h.config.name, %holder, "gcud says another controls the gimbal");
-                            let text = crate::gimbal::holder_text(holder);
-                            let msg = crate::gimbal::statustext(MavSeverity::MAV_SEVERITY_NOTICE, &text);
+                            let text = holder_text(holder);
+                            let msg = statustext(MavSeverity::MAV_SEVERITY_NOTICE, &text);
                             outbox.broadcast(h.config.component_id, &msg).await;
                         }
                         *told = now_held;
@@ -295,19 +244,6 @@ pub async fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn message_intervals_are_read_as_common_xml_defines_them() {
-        assert_eq!(Rate::from_interval_us(-1.0), Some(Rate::Off));
-        assert_eq!(Rate::from_interval_us(0.0), Some(Rate::Default));
-        assert_eq!(
-            Rate::from_interval_us(100_000.0),
-            Some(Rate::Every(Duration::from_millis(100)))
-        );
-        for bad in [1.0, 19_999.0, 10_000_001.0, 1.5e4, f32::NAN, -2.0, 100_000.5] {
-            assert_eq!(Rate::from_interval_us(bad), None, "{bad}");
-        }
-    }
 
     #[test]
     fn a_schedule_keeps_the_mean_interval_and_restarts_after_a_stall() {

@@ -150,7 +150,7 @@ fn set_configuration_changes_what_it_may_and_refuses_the_rest() {
         )
         .is_ok()
     );
-    assert_eq!(d.settings().timeout, std::time::Duration::from_secs(5));
+    assert_eq!(d.settings().timeout, Duration::from_secs(5));
     for (inner, nonce) in [
         ("<DefaultPTZTimeout>PT11S</DefaultPTZTimeout>", 2),
         ("<NodeToken>other</NodeToken>", 3),
@@ -177,7 +177,7 @@ fn set_configuration_changes_what_it_may_and_refuses_the_rest() {
     }
     assert_eq!(
         d.settings().timeout,
-        std::time::Duration::from_secs(5),
+        Duration::from_secs(5),
         "a refused change changes nothing"
     );
     assert_eq!(d.settings().relative, spaces::Translation::Generic);
