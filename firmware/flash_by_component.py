@@ -23,7 +23,7 @@ COMPONENTS = [
     ("gimbal handler (firmware gimbal.rs)", r"firmware/src/gimbal\.rs"),
     ("device endpoint (device.rs)", r"protocol/src/device\.rs"),
     ("framer (framer.rs)", r"protocol/src/framer\.rs"),
-    ("reply encoding (reply.rs)", r"protocol/src/reply\.rs"),
+    ("reply encoding (reply.rs, reply/shapes.rs)", r"protocol/src/reply(\.rs|/shapes\.rs)"),
     ("frame and hex (frame.rs, hex.rs, units.rs)", r"protocol/src/(frame|hex|units|address)\.rs"),
     ("memcpy/memset (compiler_builtins)", r"compiler[-_]builtins"),
     ("main loop and board (main.rs, board.rs, cortex-m, PAC)", r"firmware/src/(main|board)\.rs|cortex-m|lm3s6965"),

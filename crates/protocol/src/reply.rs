@@ -6,14 +6,14 @@
 //! form. Each type says both. Generally accepted everywhere except raw
 //! replies: an echo of the command in front of the result (protocol-notes E6).
 
-use nom::Parser;
-use nom::bytes::complete::take;
+mod shapes;
 
 use crate::EncodeError;
 use crate::answer::{Answer, ResultKind, Shape};
-use crate::command::{Command, CommandError, found_text, whole};
-use crate::hex::{Writer, decimal, hex_n, hex_u8, hex_u16, hex_value, hex12};
-use crate::units::{Acceleration, Angle, DataRate, LensPosition, Limits, Position, RangeError, Rate, RateGain};
+use crate::command::{Command, CommandError, found_text};
+use crate::hex::hex_value;
+use crate::units::{Acceleration, DataRate, LensPosition, Limits, Position, RangeError, Rate, RateGain};
+use shapes::*;
 
 /// Awake status, Table 5: bit 0 pan not initialised, bit 1 tilt not
 /// initialised, bit 2 motors off, bit 3 error. Parsed from one hex digit or a
@@ -460,190 +460,33 @@ impl<'a> Reply<'a> {
             true => echo.len(),
             false => 0,
         };
-        let body = &payload[skip..];
-        let with_letter = |letter: u8, bare_len: usize| {
-            if body.len() == bare_len + 1 && body.first() == Some(&letter) {
-                skip + 1
-            } else {
-                skip
-            }
+        let r = Reading {
+            name,
+            payload,
+            skip,
+            body: &payload[skip..],
         };
-        Ok(match shape {
-            Shape::AwakeStatus => match body {
-                [b] => match digit_or_raw(*b) {
-                    Some(bits) => Reply::AwakeStatus(AwakeStatus(bits)),
-                    None => return Err(malformed(name, skip, Some(*b), "one hex digit")),
-                },
-                [] => return Err(malformed(name, skip, None, "one hex digit")),
-                [_, extra, ..] => return Err(malformed(name, skip + 1, Some(*extra), "end of result")),
-            },
-            Shape::MaxDataRate => {
-                let at = with_letter(b'C', 1);
-                let code = whole(name, payload, at, "C and one hex digit", hex_n(1))?;
-                Reply::MaxDataRate(DataRate::from_code(code as u8).unwrap_or(DataRate::Reserved(15)))
-            }
-            Shape::Identity => {
-                if body.len() < 4 || body.len() > 44 {
-                    let (offset, expected) = if body.len() < 4 {
-                        (payload.len(), "ID and revision (4 characters)")
-                    } else {
-                        (skip + 44, "end of the 44-byte identification block")
-                    };
-                    return Err(malformed(name, offset, payload.get(offset).copied(), expected));
-                }
-                let id = whole(name, &payload[..skip + 2], skip, "two hex digits (device ID)", hex_u8)?;
-                let field = |from: usize| {
-                    let raw = body
-                        .get(from..body.len().min(from + Identity::FIELD_LEN))
-                        .unwrap_or(&[]);
-                    let end = raw.iter().rposition(|&b| b != b' ' && b != 0).map_or(0, |i| i + 1);
-                    &raw[..end]
-                };
-                Reply::Identity(Identity {
-                    id,
-                    revision: [body[2], body[3]],
-                    name: field(4),
-                    serial: field(24),
-                })
-            }
-            Shape::Errors => {
-                let (pan, tilt) = whole(name, payload, skip, "four hex digits", |i| (hex_u8, hex_u8).parse(i))?;
-                Reply::Errors(ErrorCodes { pan, tilt })
-            }
-            Shape::StatusBits => {
-                let (pan, tilt) = if body.len() == 4 {
-                    let (p, t) = whole(name, payload, skip, "four or eight hex digits", |i| {
-                        (hex_u8, hex_u8).parse(i)
-                    })?;
-                    (u16::from(p), u16::from(t))
-                } else {
-                    whole(name, payload, skip, "four or eight hex digits", |i| {
-                        (hex_u16, hex_u16).parse(i)
-                    })?
-                };
-                Reply::StatusBits(StatusBits { pan, tilt })
-            }
-            Shape::RateGains => {
-                let (pan, tilt) = if body.len() == 8 {
-                    let (p, t, _) = whole(name, payload, skip, "gains then 4 unused characters", |i| {
-                        (hex_u8, hex_u8, take(4usize)).parse(i)
-                    })?;
-                    (p, t)
-                } else {
-                    whole(name, payload, skip, "two gains of two hex digits", |i| {
-                        (hex_u8, hex_u8).parse(i)
-                    })?
-                };
-                let pan = RateGain::new(pan).map_err(|error| ReplyError::OutOfRange {
-                    command: name,
-                    offset: skip,
-                    error,
-                })?;
-                let tilt = RateGain::new(tilt).map_err(|error| ReplyError::OutOfRange {
-                    command: name,
-                    offset: skip + 2,
-                    error,
-                })?;
-                Reply::RateGains(RateGains { pan, tilt })
-            }
-            Shape::Initialization => {
-                let [a, b, c, d] = if body.len() == 8 {
-                    let (a, b, c, d) = whole(name, payload, skip, "8 or 16 hex digits", |i| {
-                        (hex_u8, hex_u8, hex_u8, hex_u8).parse(i)
-                    })?;
-                    [a, b, c, d].map(u16::from)
-                } else {
-                    let (a, b, c, d) = whole(name, payload, skip, "8 or 16 hex digits", |i| {
-                        (hex_u16, hex_u16, hex_u16, hex_u16).parse(i)
-                    })?;
-                    [a, b, c, d]
-                };
-                Reply::Initialization(InitResults {
-                    pan_ccw: a,
-                    pan_cw: b,
-                    tilt_ccw: c,
-                    tilt_cw: d,
-                })
-            }
-            Shape::Limits => {
-                let (pan_ccw, pan_cw, tilt_ccw, tilt_cw) = whole(name, payload, skip, "twelve hex digits", |i| {
-                    (hex12, hex12, hex12, hex12).parse(i)
-                })?;
-                Reply::Limits(Limits {
-                    pan_ccw,
-                    pan_cw,
-                    tilt_ccw,
-                    tilt_cw,
-                })
-            }
-            Shape::Relays => {
-                let at = with_letter(b'L', 1);
-                Reply::Relays(whole(name, payload, at, "L and one hex digit", hex_n(1))? as u8)
-            }
-            Shape::Accelerations => {
-                let (pan, tilt) = whole(name, payload, skip, "eight hex digits", |i| (hex_u16, hex_u16).parse(i))?;
-                Reply::Accelerations {
-                    pan: Acceleration(pan),
-                    tilt: Acceleration(tilt),
-                }
-            }
-            Shape::Acceleration => {
-                Reply::Acceleration(Acceleration(whole(name, payload, skip, "four hex digits", hex_u16)?))
-            }
-            Shape::Rates => {
-                let (pan, tilt) = whole(name, payload, skip, "eight hex digits", |i| (hex_u16, hex_u16).parse(i))?;
-                Reply::Rates {
-                    pan: Rate(pan),
-                    tilt: Rate(tilt),
-                }
-            }
-            Shape::Rate => Reply::Rate(Rate(whole(name, payload, skip, "four hex digits", hex_u16)?)),
-            Shape::VerifyHome => match body {
-                [a, b, c] => match (digit_or_raw(*a), digit_or_raw(*b), digit_or_raw(*c)) {
-                    (Some(limit_switches), Some(center_switches), Some(count_correct)) => {
-                        Reply::VerifyHome(HomeStatus {
-                            limit_switches,
-                            center_switches,
-                            count_correct,
-                        })
-                    }
-                    _ => {
-                        let i = [a, b, c].iter().position(|x| digit_or_raw(**x).is_none()).unwrap_or(0);
-                        return Err(malformed(name, skip + i, Some(body[i]), "a hex digit"));
-                    }
-                },
-                [_, _, _, extra, ..] => return Err(malformed(name, skip + 3, Some(*extra), "end of result")),
-                _ => return Err(malformed(name, payload.len(), None, "three digits")),
-            },
-            Shape::Position => {
-                let at = with_letter(b'P', 8);
-                let (pan, tilt) = whole(name, payload, at, "eight hex digits", |i| (hex_u16, hex_u16).parse(i))?;
-                Reply::Position(Position::new(Angle(pan as i16), Angle(tilt as i16)))
-            }
-            Shape::Lens => {
-                let at = with_letter(b'V', 6);
-                let (zoom, focus) = whole(name, payload, at, "six hex digits", |i| (hex12, hex12).parse(i))?;
-                Reply::Lens(LensPosition { zoom, focus })
-            }
-            Shape::AuxCount => {
-                let n = whole(name, payload, skip, "a decimal count 0..=65535", |i| {
-                    decimal(5).parse(i)
-                })?;
-                let n = u16::try_from(n).map_err(|_| ReplyError::OutOfRange {
-                    command: name,
-                    offset: skip,
-                    error: RangeError {
-                        what: "character count",
-                        value: n.into(),
-                        min: 0,
-                        max: 65535,
-                    },
-                })?;
-                Reply::AuxCount(n)
-            }
-            Shape::AuxData => Reply::AuxData(payload),
-            Shape::Raw => Reply::Raw(payload),
-        })
+        match shape {
+            Shape::AwakeStatus => parse_awake_status(&r),
+            Shape::MaxDataRate => parse_max_data_rate(&r),
+            Shape::Identity => parse_identity(&r),
+            Shape::Errors => parse_errors(&r),
+            Shape::StatusBits => parse_status_bits(&r),
+            Shape::RateGains => parse_rate_gains(&r),
+            Shape::Initialization => parse_initialization(&r),
+            Shape::Limits => parse_limits(&r),
+            Shape::Relays => parse_relays(&r),
+            Shape::Accelerations => parse_accelerations(&r),
+            Shape::Acceleration => parse_acceleration(&r),
+            Shape::Rates => parse_rates(&r),
+            Shape::Rate => parse_rate(&r),
+            Shape::VerifyHome => parse_verify_home(&r),
+            Shape::Position => parse_position(&r),
+            Shape::Lens => parse_lens(&r),
+            Shape::AuxCount => parse_aux_count(&r),
+            Shape::AuxData => Ok(Reply::AuxData(payload)),
+            Shape::Raw => Ok(Reply::Raw(payload)),
+        }
     }
 
     /// Whether this is the kind of result `command` expects.
@@ -670,89 +513,6 @@ impl<'a> Reply<'a> {
             Reply::Raw(_) => Shape::Raw,
         };
         command.answer().shape() == Some(own)
-    }
-
-    /// Writes the canonical payload into `buf`; returns the written prefix.
-    pub fn encode<'b>(&self, buf: &'b mut [u8]) -> Result<&'b [u8], EncodeError> {
-        let mut w = Writer::new(buf);
-        match *self {
-            Reply::AwakeStatus(s) => w.hex(s.0.into(), 1)?,
-            Reply::MaxDataRate(rate) => {
-                let code = rate.encodable_code().map_err(EncodeError::OutOfRange)?;
-                w.byte(b'C')?;
-                w.hex(code.into(), 1)?;
-            }
-            Reply::Identity(id) => {
-                w.hex(id.id.into(), 2)?;
-                w.put(&id.revision)?;
-                for field in [id.name, id.serial] {
-                    w.put(field)?;
-                    for _ in field.len()..Identity::FIELD_LEN {
-                        w.byte(b' ')?;
-                    }
-                }
-            }
-            Reply::Errors(e) => {
-                w.hex(e.pan.into(), 2)?;
-                w.hex(e.tilt.into(), 2)?;
-            }
-            Reply::StatusBits(s) => {
-                w.hex(s.pan.into(), 4)?;
-                w.hex(s.tilt.into(), 4)?;
-            }
-            Reply::RateGains(g) => {
-                w.hex(g.pan.get().into(), 2)?;
-                w.hex(g.tilt.get().into(), 2)?;
-                w.put(b"0000")?;
-            }
-            Reply::Initialization(r) => {
-                for v in [r.pan_ccw, r.pan_cw, r.tilt_ccw, r.tilt_cw] {
-                    w.hex(v.into(), 4)?;
-                }
-            }
-            Reply::Limits(l) => {
-                for v in [l.pan_ccw, l.pan_cw, l.tilt_ccw, l.tilt_cw] {
-                    w.hex(v.get().into(), 3)?;
-                }
-            }
-            Reply::Relays(bits) => {
-                nibble("relay bits", bits)?;
-                w.byte(b'L')?;
-                w.hex(bits.into(), 1)?;
-            }
-            Reply::Accelerations { pan, tilt } => {
-                w.hex(pan.0.into(), 4)?;
-                w.hex(tilt.0.into(), 4)?;
-            }
-            Reply::Acceleration(a) => w.hex(a.0.into(), 4)?,
-            Reply::Rates { pan, tilt } => {
-                w.hex(pan.0.into(), 4)?;
-                w.hex(tilt.0.into(), 4)?;
-            }
-            Reply::Rate(r) => w.hex(r.0.into(), 4)?,
-            Reply::VerifyHome(h) => {
-                nibble("limit switch bits", h.limit_switches)?;
-                nibble("centre switch bits", h.center_switches)?;
-                nibble("count-correct bits", h.count_correct)?;
-                w.hex(h.limit_switches.into(), 1)?;
-                w.hex(h.center_switches.into(), 1)?;
-                w.hex(h.count_correct.into(), 1)?;
-            }
-            Reply::Position(p) => {
-                w.hex(u32::from(p.pan.0 as u16), 4)?;
-                w.hex(u32::from(p.tilt.0 as u16), 4)?;
-            }
-            Reply::Lens(l) => {
-                w.hex(l.zoom.get().into(), 3)?;
-                w.hex(l.focus.get().into(), 3)?;
-            }
-            Reply::AuxCount(n) => w.decimal(n.into(), 1)?,
-            Reply::AuxData(bytes) | Reply::Raw(bytes) => w.put(bytes)?,
-        }
-        if w.len() == 0 {
-            return Err(EncodeError::PayloadLength { len: 0 });
-        }
-        Ok(w.finish())
     }
 }
 
