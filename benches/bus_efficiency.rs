@@ -26,6 +26,7 @@ use std::time::{Duration, Instant};
 use sagebrush_protocol::{ACK, Address, Event, FrameBuf, Framer};
 use support::{Proc, TRANSACTION_BYTES, percentile};
 
+#[allow(dead_code)] // the paced device is for the gcud and door benchmarks
 mod support;
 
 fn spawn_sim(baud: u32, extra: &[String]) -> (Proc, String) {

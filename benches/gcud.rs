@@ -463,71 +463,6 @@ fn throughput(per_client: usize, socat: bool) {
     );
 }
 
-/// The instant reference device: the protocol crate's `DeviceEndpoint`
-/// answering every `P?` at once. Its line is timed at `baud` both ways, as
-/// on a half-duplex bus: a read's bytes are through one byte-time each
-/// after the line was free, and an answer is written when its last byte
-/// would be through. Returns gcud's turnarounds (from an answer's last
-/// byte to the next bytes heard, in byte-times) when the line closes.
-fn instant_device(mut pty: std::fs::File, baud: u32, stop: &AtomicBool) -> Vec<f64> {
-    use sagebrush_protocol::device::{DeviceEndpoint, DeviceHandler, EndpointConfig, ReplyTo, Response};
-    use sagebrush_protocol::{Angle, Position, Reply};
-    struct Instant0;
-    impl DeviceHandler for Instant0 {
-        fn handle(&mut self, _: Cmd<'_>, _: ReplyTo, _: u64) -> Response<'_> {
-            Response::Reply(Reply::Position(Position {
-                pan: Angle(100),
-                tilt: Angle(-20),
-            }))
-        }
-    }
-    let byte = Duration::from_secs_f64(10.0 / f64::from(baud));
-    let epoch = Instant::now();
-    let mut endpoint: DeviceEndpoint = DeviceEndpoint::new(EndpointConfig::single(1));
-    let mut handler = Instant0;
-    let (mut line_free, mut answered_at) = (epoch, None::<Instant>);
-    let mut turnarounds = Vec::new();
-    let mut buf = [0u8; 512];
-    let mut answer = Vec::with_capacity(64);
-    loop {
-        let n = match pty.read(&mut buf) {
-            Ok(n) if n > 0 => n,
-            // No slave open (before gcud opens it, after it exits).
-            _ if stop.load(Ordering::Relaxed) => return turnarounds,
-            _ => {
-                std::thread::sleep(Duration::from_millis(1));
-                continue;
-            }
-        };
-        let heard = Instant::now();
-        line_free = line_free.max(heard) + byte * n as u32;
-        let now = line_free.duration_since(epoch).as_millis() as u64;
-        answer.clear();
-        endpoint.receive(&buf[..n], now, &mut handler, &mut |b| answer.extend_from_slice(b));
-        if answer.is_empty() {
-            continue;
-        }
-        // From the last answer's last byte to the read that completed this command.
-        if let Some(at) = answered_at.take() {
-            turnarounds.push(heard.saturating_duration_since(at).as_secs_f64() / byte.as_secs_f64());
-        }
-        line_free += byte * answer.len() as u32;
-        // Sleep most of the wait, spin the last stretch: a thread sleep
-        // overshoots by tens of microseconds, most of a byte at 115200.
-        while let Some(left) = line_free.checked_duration_since(Instant::now()) {
-            if left > Duration::from_micros(300) {
-                std::thread::sleep(left - Duration::from_micros(200));
-            } else {
-                std::hint::spin_loop();
-            }
-        }
-        if pty.write_all(&answer).is_err() {
-            return turnarounds;
-        }
-        answered_at = Some(Instant::now());
-    }
-}
-
 /// The device's side of a bus case: its turnaround figures, once `stop` is set and the line closed.
 type DeviceEnd = Box<dyn FnOnce(&AtomicBool) -> Vec<f64> + Send>;
 
@@ -539,13 +474,9 @@ fn bus_case(baud: u32, seconds: f64, device: &str) {
     let _sim;
     match device {
         "instant" => {
-            let master =
-                nix::pty::posix_openpt(nix::fcntl::OFlag::O_RDWR | nix::fcntl::OFlag::O_NOCTTY).expect("openpt");
-            nix::pty::grantpt(&master).expect("grantpt");
-            nix::pty::unlockpt(&master).expect("unlockpt");
-            pty_path = nix::pty::ptsname_r(&master).expect("ptsname");
-            let file = std::fs::File::from(std::os::fd::OwnedFd::from(master));
-            device_end = Box::new(move |stop| instant_device(file, baud, stop));
+            let (file, path) = support::pty();
+            pty_path = path;
+            device_end = Box::new(move |stop| support::paced_device(file, baud, stop, |_, _| {}));
             _sim = None;
         }
         _ => {

@@ -3,10 +3,14 @@
 //! relay that watches the bus bytes <- gcud (the relay is its `tcp` port)
 //! <- gimbal-mavlink <- MAVLink 2 over UDP (written with the `mavlink`
 //! crate):
-//! 1. MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW with a yaw rate: from the
-//!    datagram's send to the first byte of its motion command (`PR`/`PL`)
-//!    reaching the bus, p50/p99 of `MAVLINK_BENCH_MOVES` moves (default
-//!    100), each followed by a zero rate (a stop) and its ACK;
+//! 1. MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW with a yaw rate (its size
+//!    changing every move): from the datagram's send to the first byte of
+//!    the direction command that runs the pan at that rate
+//!    (`door::pan_at_speed`), p50/p99 of `MAVLINK_BENCH_MOVES` moves
+//!    (default 100), each followed by a zero rate (a stop), timed to its
+//!    pan stop's first byte; then the same on a bus paced at 9600 and at
+//!    115200 bit/s (`MAVLINK_BENCH_PACED_MOVES`, default 50), beside the
+//!    line-time limit of the bytes needed (issue 35);
 //! 2. GIMBAL_DEVICE_ATTITUDE_STATUS: the rate and the jitter (gaps between
 //!    arrivals, p50/p99/max against the configured 200 ms) over
 //!    `MAVLINK_BENCH_SECONDS` (default 10).
@@ -22,7 +26,7 @@ use std::net::UdpSocket;
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-use door::{addr_in, env_count, log_line};
+use door::{MOTION_BYTES, STOP_BYTES, addr_in, env_count, log_line, report};
 use mavlink::dialects::common::{COMMAND_LONG_DATA, HEARTBEAT_DATA, MavCmd, MavMessage, MavResult};
 use mavlink::{MavHeader, MavlinkVersion};
 use support::percentile;
@@ -78,8 +82,9 @@ fn receive(socket: UdpSocket, out: mpsc::Sender<(Instant, MavMessage)>) {
     }
 }
 
-fn main() {
-    let mut stack = door::Stack::start(env!("CARGO_BIN_EXE_gimbalsim"), env!("CARGO_BIN_EXE_gcud"));
+/// gimbal-mavlink in front of `stack`'s gcud, a ground station talking to
+/// it and what it receives, once the first attitude status came.
+fn door(stack: &mut door::Stack) -> (Gcs, mpsc::Receiver<(Instant, MavMessage)>) {
     let clients = stack.clients.clone();
     let log = stack.door(
         env!("CARGO_BIN_EXE_gimbal-mavlink"),
@@ -107,38 +112,80 @@ fn main() {
             break;
         }
     }
-    let ack = |incoming: &mpsc::Receiver<(Instant, MavMessage)>| loop {
+    (gcs, incoming)
+}
+
+/// Waits for the ACCEPTED COMMAND_ACK.
+fn ack(incoming: &mpsc::Receiver<(Instant, MavMessage)>) {
+    loop {
         let (_, m) = incoming.recv_timeout(Duration::from_secs(30)).expect("COMMAND_ACK");
         if let MavMessage::COMMAND_ACK(a) = m {
             assert_eq!(a.result, MavResult::MAV_RESULT_ACCEPTED, "{a:?}");
             return;
         }
-    };
+    }
+}
 
-    let moves = env_count("MAVLINK_BENCH_MOVES", 100);
-    let mut latencies = Vec::with_capacity(moves);
+/// `moves` yaw rates, each followed by a zero rate: from the rate's
+/// datagram to the direction at that rate on the bus, and from the zero
+/// rate's to the pan stop.
+fn moves(
+    stack: &door::Stack,
+    gcs: &mut Gcs,
+    incoming: &mpsc::Receiver<(Instant, MavMessage)>,
+    moves: usize,
+) -> (Vec<Duration>, Vec<Duration>) {
+    let (mut to_motion, mut to_stop) = (Vec::with_capacity(moves), Vec::with_capacity(moves));
+    let quiet = Duration::from_millis(300);
     for i in 0..moves {
-        while stack.motions.try_recv().is_ok() {}
+        stack.drain();
         while incoming.try_recv().is_ok() {}
         let sent = Instant::now();
-        gcs.yaw_rate(if i % 2 == 0 { 30.0 } else { -30.0 });
-        let on_bus = stack
-            .motions
-            .recv_timeout(Duration::from_secs(30))
-            .expect("the motion on the bus");
-        latencies.push(on_bus.saturating_duration_since(sent));
-        ack(&incoming);
+        gcs.yaw_rate(if i % 2 == 0 { 30.0 } else { -50.0 });
+        let heard = stack.heard(quiet);
+        let at = door::pan_at_speed(&heard).unwrap_or_else(|| panic!("no pan motion on the bus: {heard:?}"));
+        to_motion.push(at.saturating_duration_since(sent));
+        ack(incoming);
+        let sent = Instant::now();
         gcs.yaw_rate(0.0);
-        ack(&incoming);
+        let heard = stack.heard(quiet);
+        let at = door::pan_stop(&heard).unwrap_or_else(|| panic!("no pan stop on the bus: {heard:?}"));
+        to_stop.push(at.saturating_duration_since(sent));
+        ack(incoming);
     }
-    latencies.sort();
-    println!(
-        "MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW (yaw rate) -> first motion byte on the bus ({moves} moves): p50 {:.2} ms, p99 {:.2} ms",
-        percentile(&latencies, 0.5).as_secs_f64() * 1e3,
-        percentile(&latencies, 0.99).as_secs_f64() * 1e3
+    (to_motion, to_stop)
+}
+
+fn main() {
+    let mut stack = door::Stack::start(env!("CARGO_BIN_EXE_gimbalsim"), env!("CARGO_BIN_EXE_gcud"));
+    let (mut gcs, incoming) = door(&mut stack);
+    println!("1. to the first byte on the bus, gcud's port a TCP device server (gimbalsim):");
+    let (to_motion, to_stop) = moves(&stack, &mut gcs, &incoming, env_count("MAVLINK_BENCH_MOVES", 100));
+    report(
+        "PITCHYAW yaw rate -> first byte at speed",
+        None,
+        MOTION_BYTES,
+        to_motion,
     );
+    report("zero rate -> first pan stop byte", None, STOP_BYTES, to_stop);
+    for baud in [9600, 115_200] {
+        let mut paced = door::Stack::paced(env!("CARGO_BIN_EXE_gcud"), baud);
+        let (mut paced_gcs, paced_incoming) = door(&mut paced);
+        println!("   on a bus paced at {baud} bit/s:");
+        let n = env_count("MAVLINK_BENCH_PACED_MOVES", 50);
+        let (to_motion, to_stop) = moves(&paced, &mut paced_gcs, &paced_incoming, n);
+        report(
+            "PITCHYAW yaw rate -> first byte at speed",
+            Some(baud),
+            MOTION_BYTES,
+            to_motion,
+        );
+        report("zero rate -> first pan stop byte", Some(baud), STOP_BYTES, to_stop);
+    }
 
     let window = Duration::from_secs(env_count("MAVLINK_BENCH_SECONDS", 10) as u64);
+    // What arrived while the paced runs went is not this window's.
+    while incoming.try_recv().is_ok() {}
     let started = Instant::now();
     let mut arrivals = Vec::new();
     while started.elapsed() < window {

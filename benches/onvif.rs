@@ -5,7 +5,12 @@
 //! over one keep-alive HTTP connection each (ureq):
 //! 1. ContinuousMove: from the request's first byte to the first byte of
 //!    its motion command (`PR`/`PL`) reaching the bus, p50/p99 of
-//!    `ONVIF_BENCH_MOVES` moves (default 200), each followed by a Stop;
+//!    `ONVIF_BENCH_MOVES` moves (default 200), each followed by a Stop,
+//!    timed likewise to its stop command's first byte; then the same on a
+//!    bus paced at 9600 and at 115200 bit/s (gcud's port a pty, the instant
+//!    device of `support::paced_device` on its other side;
+//!    `ONVIF_BENCH_PACED_MOVES` moves, default 50), beside the line-time
+//!    limit of the bytes the motion or stop needs (issue 35);
 //! 2. GetStatus: latency p50/p99 of `ONVIF_BENCH_STATUS` sequential
 //!    requests (default 2,000), then requests per second with 4 clients for
 //!    3 s.
@@ -22,7 +27,7 @@ use std::time::{Duration, Instant};
 
 use base64::Engine;
 use base64::engine::general_purpose::STANDARD as B64;
-use door::{addr_in, env_count, log_line};
+use door::{MOTION_BYTES, STOP_BYTES, addr_in, env_count, log_line, report};
 use sha1::{Digest, Sha1};
 use support::percentile;
 
@@ -51,6 +56,7 @@ fn envelope(body: &str) -> String {
 struct Client {
     agent: ureq::Agent,
     url: String,
+    port: u16,
 }
 
 impl Client {
@@ -61,6 +67,7 @@ impl Client {
                 .build()
                 .into(),
             url: format!("http://127.0.0.1:{port}/onvif/ptz_service"),
+            port,
         }
     }
 
@@ -78,8 +85,8 @@ impl Client {
 const STATUS: &str = "<tptz:GetStatus><tptz:ProfileToken>profile1</tptz:ProfileToken></tptz:GetStatus>";
 const STOP: &str = "<tptz:Stop><tptz:ProfileToken>profile1</tptz:ProfileToken></tptz:Stop>";
 
-fn main() {
-    let mut stack = door::Stack::start(env!("CARGO_BIN_EXE_gimbalsim"), env!("CARGO_BIN_EXE_gcud"));
+/// gimbal-onvif in front of `stack`'s gcud; its client, warmed up.
+fn door(stack: &mut door::Stack) -> Client {
     let clients = stack.clients.clone();
     let onvif_log = stack.door(
         env!("CARGO_BIN_EXE_gimbal-onvif"),
@@ -101,31 +108,58 @@ fn main() {
     for _ in 0..20 {
         client.call(STATUS);
     }
+    client
+}
 
-    let moves = env_count("ONVIF_BENCH_MOVES", 200);
-    let mut latencies = Vec::with_capacity(moves);
+/// `moves` ContinuousMoves, each followed by a Stop, the pan speed
+/// changing every move: from the request to the first byte of the
+/// direction command that runs the pan at the speed asked for
+/// ([`door::pan_at_speed`]), and from the Stop to its pan stop's.
+fn moves(stack: &door::Stack, client: &Client, moves: usize) -> (Vec<Duration>, Vec<Duration>) {
+    let (mut to_motion, mut to_stop) = (Vec::with_capacity(moves), Vec::with_capacity(moves));
+    let quiet = Duration::from_millis(300);
     for i in 0..moves {
-        while stack.motions.try_recv().is_ok() {}
-        let x = if i % 2 == 0 { "0.5" } else { "-0.5" };
+        stack.drain();
+        let x = if i % 2 == 0 { "0.5" } else { "-0.8" };
         let body = format!(
             "<tptz:ContinuousMove><tptz:ProfileToken>profile1</tptz:ProfileToken><tptz:Velocity>\
              <tt:PanTilt x=\"{x}\" y=\"0\"/></tptz:Velocity><tptz:Timeout>PT5S</tptz:Timeout></tptz:ContinuousMove>"
         );
         let sent = Instant::now();
         client.call(&body);
-        let on_bus = stack
-            .motions
-            .recv_timeout(Duration::from_secs(30))
-            .expect("the motion on the bus");
-        latencies.push(on_bus.saturating_duration_since(sent));
+        let heard = stack.heard(quiet);
+        let at = door::pan_at_speed(&heard).unwrap_or_else(|| panic!("no pan motion on the bus: {heard:?}"));
+        to_motion.push(at.saturating_duration_since(sent));
+        let sent = Instant::now();
         client.call(STOP);
+        let heard = stack.heard(quiet);
+        let at = door::pan_stop(&heard).unwrap_or_else(|| panic!("no pan stop on the bus: {heard:?}"));
+        to_stop.push(at.saturating_duration_since(sent));
     }
-    latencies.sort();
-    println!(
-        "ContinuousMove request -> first motion byte on the bus ({moves} moves): p50 {:.2} ms, p99 {:.2} ms",
-        percentile(&latencies, 0.5).as_secs_f64() * 1e3,
-        percentile(&latencies, 0.99).as_secs_f64() * 1e3
-    );
+    (to_motion, to_stop)
+}
+
+fn main() {
+    let mut stack = door::Stack::start(env!("CARGO_BIN_EXE_gimbalsim"), env!("CARGO_BIN_EXE_gcud"));
+    let client = door(&mut stack);
+    let n = env_count("ONVIF_BENCH_MOVES", 200);
+    println!("1. to the first byte on the bus, gcud's port a TCP device server (gimbalsim):");
+    let (to_motion, to_stop) = moves(&stack, &client, n);
+    report("ContinuousMove -> first byte at speed", None, MOTION_BYTES, to_motion);
+    report("Stop -> first stop byte", None, STOP_BYTES, to_stop);
+    for baud in [9600, 115_200] {
+        let mut paced = door::Stack::paced(env!("CARGO_BIN_EXE_gcud"), baud);
+        let paced_client = door(&mut paced);
+        println!("   on a bus paced at {baud} bit/s:");
+        let (to_motion, to_stop) = moves(&paced, &paced_client, env_count("ONVIF_BENCH_PACED_MOVES", 50));
+        report(
+            "ContinuousMove -> first byte at speed",
+            Some(baud),
+            MOTION_BYTES,
+            to_motion,
+        );
+        report("Stop -> first stop byte", Some(baud), STOP_BYTES, to_stop);
+    }
 
     let n = env_count("ONVIF_BENCH_STATUS", 2000);
     let mut latencies = Vec::with_capacity(n);
@@ -148,7 +182,7 @@ fn main() {
         let workers: Vec<_> = (0..4)
             .map(|_| {
                 s.spawn(|| {
-                    let c = Client::new(port);
+                    let c = Client::new(client.port);
                     let mut done = 0;
                     while started.elapsed() < window {
                         c.call(STATUS);

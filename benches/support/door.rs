@@ -1,11 +1,14 @@
 //! What the front-door benchmarks share (`benches/onvif.rs`,
 //! `benches/mavlink.rs`): gcud and the door started with their logs in
-//! files, the addresses they log, and a relay between gcud's TCP port and
-//! gimbalsim that tells when a motion command reaches the bus side.
+//! files, the addresses they log, and the bus: a relay between gcud's TCP
+//! port and gimbalsim, or an instant device on a pty timed at a bit rate,
+//! either telling when a motion or a stop command reaches the bus.
 
 use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::process::{Command, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
@@ -19,36 +22,110 @@ pub struct Stack {
     pub dir: tempfile::TempDir,
     /// gcud's client listener, for the door's `gcud` key.
     pub clients: String,
-    /// The instant each motion command reaches the bus side.
-    pub motions: mpsc::Receiver<Instant>,
+    /// Each command reaching the bus side: its mnemonic and the instant
+    /// its first byte did.
+    pub bus: mpsc::Receiver<(&'static str, Instant)>,
     procs: Vec<Proc>,
+    /// Set when the stack goes: the paced device's thread ends.
+    done: Arc<AtomicBool>,
+}
+
+/// Pan directions and the pan speed, as the benches' moves (pan only) use them.
+const PAN: [&str; 2] = ["PR", "PL"];
+const PAN_SPEED: &str = "SPn";
+const PAN_STOP: &str = "PS";
+
+impl Stack {
+    /// The commands a request put on the bus: those heard until none
+    /// comes for `quiet` (longer than a NIC window), at most 5 s.
+    pub fn heard(&self, quiet: Duration) -> Vec<(&'static str, Instant)> {
+        let mut heard = Vec::new();
+        let started = Instant::now();
+        while let Ok(event) = self.bus.recv_timeout(quiet) {
+            heard.push(event);
+            if started.elapsed() > Duration::from_secs(5) {
+                break;
+            }
+        }
+        heard
+    }
+
+    /// Forgets what the bus heard so far.
+    pub fn drain(&self) {
+        while self.bus.try_recv().is_ok() {}
+    }
+}
+
+/// When a pan move began at the speed asked for: the first direction
+/// command after the move's last speed command (a direction sent before it
+/// runs at the speed set before), or the first direction when the speed
+/// was already set.
+pub fn pan_at_speed(heard: &[(&str, Instant)]) -> Option<Instant> {
+    let from = heard.iter().rposition(|(m, _)| *m == PAN_SPEED).unwrap_or(0);
+    heard[from..].iter().find(|(m, _)| PAN.contains(m)).map(|&(_, at)| at)
+}
+
+/// When the pan stop reached the bus.
+pub fn pan_stop(heard: &[(&str, Instant)]) -> Option<Instant> {
+    heard.iter().find(|(m, _)| *m == PAN_STOP).map(|&(_, at)| at)
+}
+
+impl Drop for Stack {
+    fn drop(&mut self) {
+        self.done.store(true, Ordering::Relaxed);
+    }
+}
+
+/// gcud's configuration with port 1 as `port` (a TOML key and value).
+fn gcud_config(port: &str) -> String {
+    format!(
+        "[gcu]\ngroup = 5\n[[port]]\nid = 1\n{port}\n[[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n"
+    )
 }
 
 impl Stack {
     /// gimbalsim, the relay and gcud, running.
     pub fn start(gimbalsim: &str, gcud: &str) -> Self {
-        let dir = tempfile::tempdir().expect("temp dir");
         let (sim, sim_addr) = crate::support::gimbalsim(gimbalsim, &["--tcp", "127.0.0.1:0"]);
         let port_listener = TcpListener::bind("127.0.0.1:0").expect("bind");
         let port_addr = port_listener.local_addr().expect("addr").to_string();
-        let (motions_tx, motions) = mpsc::channel();
-        std::thread::spawn(move || relay(port_listener, sim_addr, motions_tx));
+        let (bus_tx, bus) = mpsc::channel();
+        std::thread::spawn(move || relay(port_listener, sim_addr, bus_tx));
+        let mut stack = Self::gcud(gcud, &format!("tcp = \"{port_addr}\""), bus);
+        stack.procs.push(sim);
+        stack
+    }
+
+    /// gcud with port 1 on a pty at `baud`, its other side the instant
+    /// device of `support::paced_device`, the line timed at that rate.
+    pub fn paced(gcud: &str, baud: u32) -> Self {
+        let (pty, path) = crate::support::pty();
+        let (bus_tx, bus) = mpsc::channel();
+        let done = Arc::new(AtomicBool::new(false));
+        let device_done = Arc::clone(&done);
+        std::thread::spawn(move || {
+            crate::support::paced_device(pty, baud, &device_done, |mnemonic, at| {
+                let _ = bus_tx.send((mnemonic, at));
+            })
+        });
+        let mut stack = Self::gcud(gcud, &format!("path = \"{path}\"\nbaud = {baud}"), bus);
+        stack.done = done;
+        stack
+    }
+
+    fn gcud(gcud: &str, port: &str, bus: mpsc::Receiver<(&'static str, Instant)>) -> Self {
+        let dir = tempfile::tempdir().expect("temp dir");
         let config = dir.path().join("gcud.toml");
-        std::fs::write(
-            &config,
-            format!(
-                "[gcu]\ngroup = 5\n[[port]]\nid = 1\ntcp = \"{port_addr}\"\n[[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n"
-            ),
-        )
-        .expect("config");
+        std::fs::write(&config, gcud_config(port)).expect("config");
         let log = dir.path().join("gcud.log");
         let gcud = spawn(gcud, &["--config", config.to_str().expect("path")], &log);
         let clients = addr_in(&log_line(&log, "listening link=clients"));
         Self {
             dir,
             clients,
-            motions,
-            procs: vec![sim, gcud],
+            bus,
+            procs: vec![gcud],
+            done: Arc::default(),
         }
     }
 
@@ -63,6 +140,38 @@ impl Stack {
         log
     }
 }
+
+/// Prints p50 and p99 of `latencies` for `what`; on a paced bus at `baud`,
+/// beside the line-time limit of the `bytes` the operation needs on the
+/// line and issue 35's goal for p50 (twice the limit plus 2 ms; 5 ms at
+/// 115200 bit/s and above). Figures, never asserted.
+pub fn report(what: &str, baud: Option<u32>, bytes: u32, mut latencies: Vec<Duration>) {
+    latencies.sort();
+    let ms = |d: Duration| d.as_secs_f64() * 1e3;
+    let (p50, p99) = (
+        ms(crate::support::percentile(&latencies, 0.5)),
+        ms(crate::support::percentile(&latencies, 0.99)),
+    );
+    let Some(baud) = baud else {
+        return println!(
+            "  {what} ({} samples): p50 {p50:.2} ms, p99 {p99:.2} ms",
+            latencies.len()
+        );
+    };
+    let limit = f64::from(bytes) * 10.0 / f64::from(baud) * 1e3;
+    let goal = if baud >= 115_200 { 5.0 } else { 2.0 * limit + 2.0 };
+    println!(
+        "  {what} ({} samples): p50 {p50:.2} ms, p99 {p99:.2} ms; line-time limit ({bytes} bytes at {baud} bit/s) {limit:.2} ms, goal p50 <= {goal:.2} ms: {}",
+        latencies.len(),
+        if p50 <= goal { "met" } else { "not met" }
+    );
+}
+
+/// The bytes a motion needs on the line before it starts: the speed frame
+/// (10 bytes), its ACK and the first byte of the direction frame.
+pub const MOTION_BYTES: u32 = 12;
+/// The bytes a stop needs: the first byte of the stop frame.
+pub const STOP_BYTES: u32 = 1;
 
 pub fn env_count(name: &str, default: usize) -> usize {
     std::env::var(name).ok().and_then(|v| v.parse().ok()).unwrap_or(default)
@@ -105,9 +214,9 @@ pub fn spawn(bin: &str, args: &[&str], log: &std::path::Path) -> Proc {
     )
 }
 
-/// Relays gcud's port connection to the simulator, sending the instant each
-/// motion command (`PR`, `PL`) reaches the bus side.
-pub fn relay(listener: TcpListener, sim: String, motions: mpsc::Sender<Instant>) {
+/// Relays gcud's port connection to the simulator, sending each command's
+/// mnemonic and the instant it reaches the bus side.
+pub fn relay(listener: TcpListener, sim: String, bus: mpsc::Sender<(&'static str, Instant)>) {
     let (from_gcud, _) = listener.accept().expect("gcud connects to its port");
     from_gcud.set_nodelay(true).expect("nodelay");
     let to_sim = TcpStream::connect(&sim).expect("connect to gimbalsim");
@@ -135,9 +244,7 @@ pub fn relay(listener: TcpListener, sim: String, motions: mpsc::Sender<Instant>)
             rest = &rest[taken..];
             while let Some(event) = framer.next_event() {
                 if let Event::Frame(f) = event {
-                    if matches!(f.payload(), b"PR" | b"PL") {
-                        let _ = motions.send(at);
-                    }
+                    let _ = bus.send((sagebrush_protocol::Command::parse(f.payload()).mnemonic(), at));
                 }
             }
             if taken == 0 {
