@@ -15,9 +15,14 @@
 # either image (the protocol path is panic-free; this keeps it so), or the
 # bench image misbehaves.
 #
-# The measured figures in README.md (between the `measured by build.sh`
-# markers) must be what this run measured: a stale figure fails the build;
-# `./build.sh --update-readme` rewrites them.
+# Then builds the feature images (src/feature_images/: the gimbal with the
+# protocol crate's `defmt`, `embedded-io`, `embedded-io-async` in use) for
+# the flash cost per feature (issue 36).
+#
+# The measured figures in README.md and in ../crates/protocol/README.md
+# (between the `measured by build.sh` markers) must be what this run
+# measured: a stale figure fails the build; `./build.sh --update-readme`
+# rewrites them.
 set -euo pipefail
 cd "$(dirname "$0")"
 update_readme=false
@@ -106,6 +111,21 @@ if [ -z "$stack" ] || [ -z "$per_byte" ]; then
 fi
 
 echo
+echo "== feature images: the gimbal with a protocol crate feature in use (opt-level z) =="
+FEATURES=(defmt embedded-io embedded-io-async)
+declare -A FEATURE_FLASH FEATURE_RAM FEATURE_SITES
+for feature in "${FEATURES[@]}"; do
+    $CARGO build --quiet --profile release --features "$feature" --bin "gimbal-$feature"
+    elf="target/$TARGET/release/gimbal-$feature"
+    read -r flash ram < <(section_sizes "$elf")
+    sites=$(python3 panic_sites.py "$elf" arm-none-eabi-objdump arm-none-eabi-addr2line | sed -n 's/^panic call sites: //p')
+    FEATURE_FLASH[$feature]=$flash
+    FEATURE_RAM[$feature]=$ram
+    FEATURE_SITES[$feature]=$sites
+    echo "gimbal-$feature: flash $flash B ($(printf '%+d' $((flash - FLASH[z]))) B), static RAM $ram B ($(printf '%+d' $((ram - RAM[z]))) B), panic call sites $sites"
+done
+
+echo
 echo "== summary =="
 for level in z s; do
     echo "opt-level $level: flash ${FLASH[$level]} B ($(awk "BEGIN { printf \"%.2f\", ${FLASH[$level]} / 1024 }") KiB), static RAM ${RAM[$level]} B, panic call sites ${SITES[$level]}"
@@ -135,25 +155,45 @@ $components
 \`\`\`
 MEASURED
 )
+# The protocol crate's README: flash cost per feature.
+feature_rows=""
+for feature in "${FEATURES[@]}"; do
+    feature_rows+="| \`$feature\` | \`gimbal-$feature\` | ${FEATURE_FLASH[$feature]} B | $(printf '%+d' $((FEATURE_FLASH[$feature] - FLASH[z]))) B | $(printf '%+d' $((FEATURE_RAM[$feature] - RAM[z]))) B | ${FEATURE_SITES[$feature]} |"$'\n'
+done
+measured_features=$(cat <<MEASURED
+| feature | \`firmware/\` image | flash | flash cost | static RAM cost | panic call sites |
+|---|---|---|---|---|---|
+| none | \`gimbal\` | ${FLASH[z]} B | | | ${SITES[z]} |
+${feature_rows%$'\n'}
+MEASURED
+)
+
+# check_measured FILE TEXT: the block between FILE's markers is TEXT, or
+# with --update-readme becomes it.
 begin='<!-- measured by build.sh: do not edit; ./build.sh --update-readme rewrites it -->'
 end='<!-- end of measured -->'
-if $update_readme; then
-    python3 - "$begin" "$end" "$measured" <<'PY'
+check_measured() {
+    if $update_readme; then
+        python3 - "$1" "$begin" "$end" "$2" <<'PY'
 import sys
-begin, end, measured = sys.argv[1:4]
-text = open("README.md").read()
+path, begin, end, measured = sys.argv[1:5]
+text = open(path).read()
 head, rest = text.split(begin, 1)
 _, tail = rest.split(end, 1)
-open("README.md", "w").write(head + begin + "\n" + measured + "\n" + end + tail)
+open(path, "w").write(head + begin + "\n" + measured + "\n" + end + tail)
 PY
-    echo "README.md: measured figures rewritten"
-fi
-in_readme=$(awk -v b="$begin" -v e="$end" '$0 == e { inside = 0 } inside { print } $0 == b { inside = 1 }' README.md)
-if [ "$in_readme" != "$measured" ]; then
-    echo "build.sh: FAIL: README.md's measured figures are stale (run ./build.sh --update-readme):" >&2
-    diff <(echo "$in_readme") <(echo "$measured") >&2 || true
-    status=1
-fi
+        echo "$1: measured figures rewritten"
+    fi
+    local in_readme
+    in_readme=$(awk -v b="$begin" -v e="$end" '$0 == e { inside = 0 } inside { print } $0 == b { inside = 1 }' "$1")
+    if [ "$in_readme" != "$2" ]; then
+        echo "build.sh: FAIL: $1's measured figures are stale (run firmware/build.sh --update-readme):" >&2
+        diff <(echo "$in_readme") <(echo "$2") >&2 || true
+        status=1
+    fi
+}
+check_measured README.md "$measured"
+check_measured ../crates/protocol/README.md "$measured_features"
 
 echo "targets: flash z <= 8192 B: $([ "${FLASH[z]}" -le 8192 ] && echo met || echo NOT met); RAM <= 2048 B: $([ $((RAM[z] + stack)) -le 2048 ] && echo met || echo NOT met); panic sites 0: $([ "${SITES[z]}" = 0 ] && [ "${SITES[s]}" = 0 ] && echo met || echo NOT met)"
 if [ "${FLASH[z]}" -gt 8192 ]; then

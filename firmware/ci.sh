@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # CI entry for the firmware: installs the Debian packages it needs when they
 # are missing (CI runs as root), builds gcud and gimbalctl (release, the
-# root workspace), then runs build.sh (sizes, panic sites, bench) and
-# e2e.sh (QEMU + gcud + gimbalctl). Non-zero exit on any failure.
-# Takes about 1.5 minutes on 2 cores from a warm cargo cache and freshly
+# root workspace), then runs build.sh (sizes, panic sites, bench, flash
+# cost per protocol crate feature) and e2e.sh (QEMU + gcud + gimbalctl).
+# Non-zero exit on any failure.
+# Takes about 2 minutes on 2 cores from a warm cargo cache and freshly
 # installed packages (firmware build from scratch included).
 set -euo pipefail
 cd "$(dirname "$0")"

@@ -11,8 +11,10 @@
 #     include list's "ignoring test/example" ones;
 #   - examples/embassy-rp2040 (a gimbal on an RP2040 UART with embassy):
 #     release build, not run;
-#   - build and tests at the MSRV (root Cargo.toml's rust-version).
-# Installs the targets and the MSRV toolchain with rustup when missing.
+#   - build and tests at the MSRV (root Cargo.toml's rust-version);
+#   - cargo semver-checks, all features, against SEMVER_BASELINE below.
+# Installs the targets and the MSRV toolchain with rustup, and
+# cargo-semver-checks with cargo install, when missing.
 # Prints each step's seconds and the total.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -25,8 +27,18 @@ PKG=sagebrush-protocol
 TARGETS=(thumbv6m-none-eabi thumbv7em-none-eabihf)
 DOC_TARGET=thumbv7m-none-eabi
 FEATURES=(defmt embedded-io embedded-io-async)
+# The API that semver-checks compares with until the first release (issue
+# 36): main at bba7388. An incompatible change fails until the version says
+# so; after the first release, use --baseline-version instead.
+SEMVER_BASELINE=bba738870ff085319f293b543795d23757c10280
+SEMVER_CHECKS_VERSION=0.51.0
 MSRV=$(sed -n 's/^rust-version = "\(.*\)"$/\1/p' Cargo.toml | head -n 1)
 [ -n "$MSRV" ] || { echo "protocol/ci.sh: no rust-version in Cargo.toml" >&2; exit 1; }
+# Checked first, so that a shallow clone fails before the builds.
+if ! git cat-file -e "$SEMVER_BASELINE^{commit}" 2>/dev/null; then
+    echo "protocol/ci.sh: semver-checks baseline $SEMVER_BASELINE is not in this clone (shallow? git fetch --unshallow)" >&2
+    exit 1
+fi
 
 installed=$(rustup target list --installed)
 for target in "${TARGETS[@]}" "$DOC_TARGET"; do
@@ -78,5 +90,17 @@ cargo "+$MSRV" build --quiet -p "$PKG" --all-features --target "${TARGETS[0]}"
 cargo "+$MSRV" test --quiet -p "$PKG" --all-features
 done_step "Rust $MSRV: build (${TARGETS[0]}) and tests, all features"
 echo "protocol/ci.sh: MSRV $MSRV build and tests took $((SECONDS - msrv_start)) s"
+
+# Installed as a debug build with unoptimised dependencies: about 5 min on
+# 2 busy cores, where its own debug profile (dependencies at opt-level 3)
+# took 22 min and its release one adds LTO; the check takes as long either
+# way (building rustdoc JSON dominates).
+if ! cargo semver-checks --version >/dev/null 2>&1; then
+    cargo install --quiet --locked --debug cargo-semver-checks --version "$SEMVER_CHECKS_VERSION" \
+        --config 'profile.dev.debug=0' --config 'profile.dev.package."*".opt-level=0'
+fi
+done_step "cargo-semver-checks $(cargo semver-checks --version | cut -d' ' -f2) installed"
+cargo semver-checks --color never -p "$PKG" --all-features --baseline-rev "$SEMVER_BASELINE"
+done_step "cargo semver-checks, all features, baseline ${SEMVER_BASELINE:0:7}"
 
 echo "protocol/ci.sh: done in $((SECONDS - start)) s"
