@@ -31,7 +31,6 @@ FEATURES=(defmt embedded-io embedded-io-async)
 # 36): main at bba7388. An incompatible change fails until the version says
 # so; after the first release, use --baseline-version instead.
 SEMVER_BASELINE=bba738870ff085319f293b543795d23757c10280
-SEMVER_CHECKS_VERSION=0.51.0
 MSRV=$(sed -n 's/^rust-version = "\(.*\)"$/\1/p' Cargo.toml | head -n 1)
 [ -n "$MSRV" ] || { echo "protocol/ci.sh: no rust-version in Cargo.toml" >&2; exit 1; }
 # Checked first, so that a shallow clone fails before the builds.
@@ -91,14 +90,7 @@ cargo "+$MSRV" test --quiet -p "$PKG" --all-features
 done_step "Rust $MSRV: build (${TARGETS[0]}) and tests, all features"
 echo "protocol/ci.sh: MSRV $MSRV build and tests took $((SECONDS - msrv_start)) s"
 
-# Installed as a debug build with unoptimised dependencies: about 5 min on
-# 2 busy cores, where its own debug profile (dependencies at opt-level 3)
-# took 22 min and its release one adds LTO; the check takes as long either
-# way (building rustdoc JSON dominates).
-if ! cargo semver-checks --version >/dev/null 2>&1; then
-    cargo install --quiet --locked --debug cargo-semver-checks --version "$SEMVER_CHECKS_VERSION" \
-        --config 'profile.dev.debug=0' --config 'profile.dev.package."*".opt-level=0'
-fi
+cargo semver-checks --version >/dev/null 2>&1 || bash crates/protocol/install-semver-checks.sh
 done_step "cargo-semver-checks $(cargo semver-checks --version | cut -d' ' -f2) installed"
 cargo semver-checks --color never -p "$PKG" --all-features --baseline-rev "$SEMVER_BASELINE"
 done_step "cargo semver-checks, all features, baseline ${SEMVER_BASELINE:0:7}"
