@@ -70,6 +70,7 @@ impl FakeGcud {
 async fn serve(mut stream: tokio::net::TcpStream, script: Script, got: Arc<Mutex<Vec<String>>>) {
     let mut framer: Framer = Framer::new();
     let mut buf = [0u8; 512];
+    let mut window_reports = false;
     loop {
         let n = match stream.read(&mut buf).await {
             Ok(0) | Err(_) => return,
@@ -83,27 +84,35 @@ async fn serve(mut stream: tokio::net::TcpStream, script: Script, got: Arc<Mutex
         });
         for command in frames {
             let f = command.frame();
+            if f.payload() == b"~W" {
+                // As gcud's TCP client listener: end-of-window reports agreed,
+                // and sent after every ACK that nothing follows (not recorded).
+                window_reports = true;
+                let mut out = vec![ACK];
+                let dest = Address::new(f.source, f.dest.port, f.dest.device);
+                out.extend_from_slice(FrameBuf::new(dest, GROUP, b"~W=").unwrap().as_bytes());
+                if stream.write_all(&out).await.is_err() {
+                    return;
+                }
+                continue;
+            }
             got.lock()
                 .unwrap()
                 .push(String::from_utf8_lossy(f.payload()).into_owned());
             let mut out = Vec::new();
             match script(f.payload()) {
-                Answer::Ack => out.push(ACK),
+                Answer::Ack => {
+                    out.push(ACK);
+                    if window_reports {
+                        out.extend_from_slice(&report(&f, None));
+                    }
+                }
                 Answer::Result(payload) => {
                     out.push(ACK);
                     let dest = Address::new(f.source, f.dest.port, f.dest.device);
                     out.extend_from_slice(FrameBuf::new(dest, GROUP, &payload).unwrap().as_bytes());
                 }
-                Answer::Report(failure) => {
-                    let report = DeliveryReport {
-                        failure: Some(failure),
-                        dest: f.dest,
-                        command_checksum: f.checksum(),
-                        at_group: GROUP,
-                    };
-                    let dest = Address::new(f.source, 0, 0);
-                    out.extend_from_slice(FrameBuf::new(dest, GROUP, &report.encode()).unwrap().as_bytes());
-                }
+                Answer::Report(failure) => out.extend_from_slice(&report(&f, Some(failure))),
                 Answer::Nic => out.extend_from_slice(&[ACK, NIC]),
             }
             if stream.write_all(&out).await.is_err() {
@@ -111,6 +120,21 @@ async fn serve(mut stream: tokio::net::TcpStream, script: Script, got: Arc<Mutex
             }
         }
     }
+}
+
+/// The delivery report gcud sends about `command` (ARCHITECTURE "Delivery contract").
+fn report(command: &sagebrush_protocol::Frame<'_>, failure: Option<Undelivered>) -> Vec<u8> {
+    let report = DeliveryReport {
+        failure,
+        dest: command.dest,
+        command_checksum: command.checksum(),
+        at_group: GROUP,
+    };
+    let dest = Address::new(command.source, 0, 0);
+    FrameBuf::new(dest, GROUP, &report.encode())
+        .unwrap()
+        .as_bytes()
+        .to_vec()
 }
 
 /// `~C` answered: `holder` controls gimbal 1.1.
