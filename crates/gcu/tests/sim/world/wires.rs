@@ -79,12 +79,25 @@ impl World {
         if let Node::Client { c } = to {
             // A damaged frame can leave a bare 0x06 behind (a phantom ACK)
             // or form another valid frame: the client's wire remembers which.
-            self.clients[c].wire.scheduled(damaged);
+            let relayed = self.input_from_gcu && bytes.contains(&NIC);
+            let bus_tainted = match from {
+                Node::Link { g, .. } => self
+                    .port_damage
+                    .get(&g)
+                    .is_some_and(|&t| t <= self.now && self.now - t <= 2 * SILENCE),
+                _ => false,
+            };
+            self.clients[c]
+                .wire
+                .scheduled(damaged, relayed, bus_tainted && bytes.contains(&NIC));
         }
         let delay = 1 + self.rng.below(self.jitter);
         let last = self.fifo.entry((from, to)).or_insert(0);
         let at = (*last).max(self.now + delay);
         *last = at;
+        if let (Node::Port { g, .. }, true) = (to, damaged) {
+            self.port_damage.insert(g, at);
+        }
         Some((at, bytes))
     }
 
@@ -131,6 +144,7 @@ impl World {
                 }
                 let mut out = Vec::new();
                 dev.last_rx = now;
+                dev.heard(&bytes);
                 dev.ep
                     .receive(&bytes, now, &mut dev.gimbal, &mut |b: &[u8]| out.extend_from_slice(b));
                 let sent_at = dev.bps;
@@ -191,9 +205,9 @@ impl World {
                 }
             }
             Node::Client { c } => {
-                let damaged = self.clients[c].wire.arrived();
+                let (damaged, relayed) = self.clients[c].wire.arrived();
                 if self.clients[c].epoch == epoch && self.clients[c].connected {
-                    self.client_receive(c, &bytes, damaged);
+                    self.client_receive(c, &bytes, damaged, relayed);
                 }
             }
         }
