@@ -11,8 +11,9 @@
 //! transaction at a time per port), and a client cannot take it for a
 //! later, byte-identical command's. A stock MCU on a serial client line
 //! never asks and pays no extra frame. Only a command to one device of
-//! one port is reported: the jobs of a port-255 fan-out end on several
-//! ports at different times, so a later command could be ACKed first.
+//! one port of one GCU is reported: the jobs of a port-255 fan-out end on
+//! several ports at different times, so a later command could be ACKed
+//! first, and every GCU a group-255 command reaches answers it.
 
 use sagebrush_protocol::gcu::WINDOW_REPORTS_ON;
 use sagebrush_protocol::{LINK_PORT, WILDCARD};
@@ -49,7 +50,10 @@ impl Router {
         let Origin::Link { link, .. } = c.origin else { return };
         let frame = c.command.frame.clone();
         let f = frame.frame();
-        let one_device = f.dest.port != WILDCARD && f.dest.port != LINK_PORT && f.dest.device != WILDCARD;
+        let one_device = f.dest.group != WILDCARD
+            && f.dest.port != WILDCARD
+            && f.dest.port != LINK_PORT
+            && f.dest.device != WILDCARD;
         // Told delivered already: the ACK went first.
         let acked = c.delivery.is_none();
         if one_device && acked && self.links.get(&link).is_some_and(|l| l.window_reports) {

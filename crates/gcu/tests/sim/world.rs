@@ -101,6 +101,8 @@ summary! {
     /// `?` a GCU relayed from another GCU's link, for a command that GCU
     /// took twice over a lossy link (its first answer or report was lost).
     relayed_nics,
+    /// Reports `00` that ended a TCP client's NIC wait (`~W`).
+    window_reports,
 }
 
 // ---------------------------------------------------------------- GCUs, clients
@@ -211,6 +213,10 @@ struct World {
     nicd: BTreeSet<Heard>,
     /// When each command's NICs reached gcud's port.
     nics_at_port: BTreeMap<CommandKey, Vec<u64>>,
+    /// When the ACK of each command a device answered NIC last reached the
+    /// port, and when gcud last wrote a report `00` about it.
+    acks_at_port: BTreeMap<CommandKey, u64>,
+    window_reports_at: BTreeMap<CommandKey, u64>,
     /// The router's actions being applied answer bytes from another GCU.
     input_from_gcu: bool,
     /// When a port of each GCU last heard damaged bytes.
@@ -445,9 +451,7 @@ impl World {
                 epoch,
                 bps,
             } => {
-                if bytes.contains(&NIC) {
-                    self.nics_at_port.entry(key).or_default().push(self.now);
-                }
+                self.nic_reaches_port(key, &bytes);
                 self.deliver(Node::Port { g, p }, bytes, epoch, bps);
             }
             Ev::Deferred { g, p, d, to } => {

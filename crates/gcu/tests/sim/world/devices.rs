@@ -268,7 +268,17 @@ impl World {
         self.summary.late_nics += 1;
         self.summary.nics_after_window += u64::from(late > NIC_WINDOW);
         let ack_at = self.wire(from, to, vec![ACK]).map(|(at, bytes)| {
-            self.schedule(at, Ev::Bytes { to, bytes, epoch, bps });
+            self.schedule(
+                at,
+                Ev::Nic {
+                    g,
+                    p,
+                    key,
+                    bytes,
+                    epoch,
+                    bps,
+                },
+            );
             at
         });
         if let Some((at, bytes)) = self.wire(from, to, vec![NIC]) {

@@ -154,7 +154,13 @@ impl World {
             } else {
                 SourceFilter::Only(vec![group])
             };
+            // Over TCP (lossless, no faults on its wire), asking for
+            // end-of-window reports (`~W`) on every connection.
+            let tcp = rng.chance(500);
             clients.push(Client {
+                tcp,
+                windowed: false,
+                ask_window: false,
                 gcu,
                 link: LinkId(100 + c as u32),
                 group,
@@ -207,6 +213,8 @@ impl World {
             nicd: BTreeSet::new(),
             nics_at_port: BTreeMap::new(),
             input_from_gcu: false,
+            acks_at_port: BTreeMap::new(),
+            window_reports_at: BTreeMap::new(),
             port_damage: BTreeMap::new(),
         };
         w.log(format_args!(
