@@ -96,4 +96,10 @@ fn results_failures_and_fan_outs_get_no_end_of_window_report() {
     h.port(2, &[ACK]);
     let a = h.wait(100);
     assert!(!link_writes(&a, TCP).contains(&report(&all, None)));
+    // Nor a group-255 command: every GCU it reaches answers it.
+    let every = frame((255, 1, 3), 0, b"PL");
+    h.link(TCP, &every);
+    h.port(1, &[ACK]);
+    let a = h.wait(100);
+    assert!(!link_writes(&a, TCP).contains(&report(&every, None)));
 }
