@@ -259,3 +259,38 @@ fn a_silent_connection_is_closed_and_its_slew_stopped() {
     assert_eq!(gcud.metric("gcud_dead_man_stops_total"), 1);
     assert!(gcud.log().contains("idle (limits.idle_timeout_ms)"), "{}", gcud.log());
 }
+
+/// End of the NIC window (ARCHITECTURE "Delivery contract"): the doors'
+/// connection asks gcud for end-of-window reports, and a command without a
+/// result then ends when gcud's port window passed (35 ms by default), not
+/// after the connection's own (here 1 s), a NIC still ending as NIC.
+#[test]
+fn a_door_waits_gcuds_nic_window_not_its_own_too() {
+    use sagebrush_client::{CommandError, GimbalConnection};
+    use sagebrush_protocol::{Axis, Speed};
+    let sim = Sim::pty(&["--device", "1"]);
+    let gcud = Gcud::start(&format!("[gcu]\ngroup = 5\n{CLIENTS}{}", port_entry(1, &sim)));
+    gcud.wait_for_log("port open port=1");
+    let own_window = Duration::from_secs(1);
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .expect("runtime");
+    runtime.block_on(async {
+        let mut c = GimbalConnection::new(&gcud.clients(), 0, Address::new(5, 1, 1), own_window);
+        // The connection opens (and asks `~W`) with its first command.
+        c.position().await.expect("P?");
+        for _ in 0..3 {
+            let began = Instant::now();
+            c.send(&Cmd::SetSpeed(Axis::Pan, Speed::new(7).unwrap()))
+                .await
+                .expect("SP7");
+            let took = began.elapsed();
+            assert!(took < own_window / 4, "gcud's window, not its own as well: {took:?}");
+        }
+        // A command the gimbal does not apply: still a NIC (gimbalsim answers
+        // `FA`, auto focus, NIC without a lens).
+        let nic = c.send(&Cmd::AutoFocusOn).await;
+        assert!(matches!(nic, Err(CommandError::Nic(_))), "{nic:?}");
+    });
+}

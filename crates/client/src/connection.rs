@@ -126,8 +126,23 @@ impl GimbalConnection {
             );
             // A new connection may be another link to gcud.
             self.control.own = None;
+            // gcud's port waits the NIC window after each ACK: it tells this
+            // connection when it passed, so the master does not wait it again
+            // (an older gcud answers NIC; then its own window bounds the wait).
+            let group = self.address.group;
+            let asked = self
+                .client
+                .as_mut()
+                .expect("connected above")
+                .ask_window_reports(group)
+                .await;
+            if let Err(e) = self.failed(asked) {
+                warn!(gcud = %self.gcud, error = %e, "end-of-window reports not agreed: waiting the NIC window here too");
+            }
         }
-        Ok(self.client.as_mut().expect("connected above"))
+        self.client
+            .as_mut()
+            .ok_or_else(|| CommandError::Io(format!("the connection to gcud at {} failed", self.gcud)))
     }
 
     /// Drops the connection after an I/O failure (the next use opens one).

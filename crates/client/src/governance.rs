@@ -7,14 +7,16 @@
 //! - `~C PPDD`: who controls gimbal `G.PP.DD` ([`Controller`]);
 //! - `~R PPDD`: release it;
 //! - `~T?`, `~T+name`, `~T-name`: the tours, start one, stop one;
-//! - `~B PPDD`: its travel limits and keep-out zones ([`Rules`]).
+//! - `~B PPDD`: its travel limits and keep-out zones ([`Rules`]);
+//! - `~W`: end-of-window reports on this connection
+//!   ([`Client::ask_window_reports`], module `master`).
 //!
 //! A door shows these decisions (a refusal's holder, the controller on the
 //! page, the tours); it keeps no rule of its own.
 
 use std::fmt;
 
-use sagebrush_protocol::gcu::{parse_rules, parse_tour_list, parse_tour_reply, valid_name};
+use sagebrush_protocol::gcu::{WINDOW_REPORTS_ON, parse_rules, parse_tour_list, parse_tour_reply, valid_name};
 use sagebrush_protocol::{
     Address, CONTROL_UNIT, ControllerReply, GcuCommand, LINK_PORT, MAX_PAYLOAD, ResultKind, ResultTimeout, RuleItem,
     TourState,
@@ -159,6 +161,8 @@ pub enum GcuRequest {
     TourStop(String),
     /// `~B`: the rules of gimbal `port`.`device`.
     Rules(u8, u8),
+    /// `~W`: end-of-window reports on this connection.
+    WindowReports,
 }
 
 /// The answer to a [`GcuRequest`].
@@ -169,6 +173,8 @@ pub enum GcuAnswer {
     Tours(Vec<Tour>),
     Tour(TourOutcome),
     Rules(Rules),
+    /// gcud will report the end of each NIC window on this connection.
+    WindowReports,
 }
 
 impl GcuRequest {
@@ -187,6 +193,7 @@ impl GcuRequest {
             GcuRequest::Release(p, d) => GcuCommand::Release(*p, *d),
             GcuRequest::TourList => GcuCommand::TourList,
             GcuRequest::Rules(p, d) => GcuCommand::Rules(*p, *d),
+            GcuRequest::WindowReports => GcuCommand::WindowReports,
             GcuRequest::TourStart(name) => {
                 named(name)?;
                 GcuCommand::TourStart(name.as_bytes())
@@ -228,6 +235,8 @@ impl GcuRequest {
             GcuRequest::Controller(p, d) => Controller::from_result(payload, *p, *d).map(GcuAnswer::Controller),
             GcuRequest::Release(..) => Ok(GcuAnswer::Released),
             GcuRequest::Rules(p, d) => Rules::from_result(payload, *p, *d).map(GcuAnswer::Rules),
+            GcuRequest::WindowReports if payload == WINDOW_REPORTS_ON => Ok(GcuAnswer::WindowReports),
+            GcuRequest::WindowReports => Err(bad("~W", payload)),
             GcuRequest::TourList => {
                 let entries = parse_tour_list(payload).ok_or_else(|| bad("~T?", payload))?;
                 let mut tours = Vec::new();
@@ -257,6 +266,7 @@ impl GcuRequest {
             GcuRequest::Release(p, d) => format!("~R{p:02X}{d:02X} (release {p}.{d})"),
             GcuRequest::TourList => "~T? (the tours)".to_owned(),
             GcuRequest::Rules(p, d) => format!("~B{p:02X}{d:02X} (the rules of {p}.{d})"),
+            GcuRequest::WindowReports => "~W (end-of-window reports)".to_owned(),
             GcuRequest::TourStart(name) => format!("~T+{name} (start tour {name})"),
             GcuRequest::TourStop(name) => format!("~T-{name} (stop tour {name})"),
         }
@@ -273,6 +283,21 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Client<S> {
         let ex = self.exchange_expecting(to, &payload, expect, &request.named()).await?;
         let result = ex.result.as_ref().map(|f| f.frame().payload());
         request.answer(result)
+    }
+
+    /// Asks the GCU of `group` for end-of-window reports on this connection
+    /// (`~W`); whether it agreed. A GCU that answers NIC (a serial line, an
+    /// older gcud) does not send them: the master then waits its own NIC
+    /// window after each ACK, as before. Other errors are errors.
+    pub async fn ask_window_reports(&mut self, group: u8) -> Result<bool, CommandError> {
+        match self.gcu(group, &GcuRequest::WindowReports).await {
+            Ok(_) => {
+                self.master_mut().set_window_reports(true);
+                Ok(true)
+            }
+            Err(CommandError::Nic(_)) => Ok(false),
+            Err(e) => Err(e),
+        }
     }
 }
 

@@ -5,7 +5,10 @@
 //! hop), so that a device can resend. Through a GCU, the ACK means the
 //! device acknowledged the command, and a delivery report comes instead
 //! when it was not delivered (ARCHITECTURE "Delivery contract"): the
-//! exchange ends with that report at once.
+//! exchange ends with that report at once. On a connection that asked gcud
+//! for end-of-window reports (`~W`, [`Master::set_window_reports`]), the
+//! report `00` after the ACK ends the wait for a NIC (1.4.2) that gcud's
+//! port already waited; its own window still bounds the wait otherwise.
 
 use std::io;
 use std::time::Duration;
@@ -60,6 +63,8 @@ pub struct Master<S> {
     framed: Framed<S, FrameCodec>,
     epoch: Instant,
     policy: TransactionPolicy,
+    /// gcud agreed to report the end of each NIC window on this stream.
+    window_reports: bool,
 }
 
 /// Events already waiting when an exchange starts are discarded (they
@@ -72,7 +77,19 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
             framed: Framed::new(stream, FrameCodec::new()),
             epoch: Instant::now(),
             policy,
+            window_reports: false,
         }
+    }
+
+    /// gcud answered `~W`: a report `00` about a command after its ACK
+    /// says gcud's port waited the NIC window and no NIC came.
+    pub fn set_window_reports(&mut self, on: bool) {
+        self.window_reports = on;
+    }
+
+    /// Whether gcud reports the end of each NIC window on this stream.
+    pub fn window_reports(&self) -> bool {
+        self.window_reports
     }
 
     pub fn policy(&self) -> &TransactionPolicy {
@@ -131,6 +148,17 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
         self.framed.codec().framer().skipped_bytes()
     }
 
+    /// Whether a report `00` about the exchange `tx` ends it: gcud agreed
+    /// to send it at the end of its port's NIC window, the ACK came, and
+    /// no result is required (1.4.2; an optional one did not come).
+    fn window_ended(&self, tx: &Transaction, expect: ResultKind) -> bool {
+        self.window_reports
+            && tx.acknowledged()
+            && tx.outcome().is_none()
+            && !tx.is_broadcast()
+            && !matches!(expect, ResultKind::Required(_))
+    }
+
     /// Sends `frame` (whose payload is `command`) and waits for the end of
     /// the exchange. I/O errors (a closed link) are errors; every protocol
     /// outcome, failures included, is an [`Exchange`].
@@ -182,13 +210,19 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
                 OwnedEvent::Frame(f) => {
                     // Every intact frame is acknowledged, hop by hop.
                     self.write(Write::Ack).await?;
-                    if let Some(report) = report_about(frame, &f).filter(|r| r.failure.is_some()) {
-                        if !tx.acknowledged() {
+                    match report_about(frame, &f) {
+                        Some(report) if report.failure.is_some() && !tx.acknowledged() => {
                             warn!(dest = %frame.frame().dest, ?report, "not delivered");
                             undelivered = Some(report);
                             step = TransactionStep::Done(Outcome::Failed(TxFailure::NoAck));
                             continue;
                         }
+                        Some(report) if report.failure.is_none() && self.window_ended(&tx, expect) => {
+                            debug!(dest = %frame.frame().dest, "gcud's NIC window passed");
+                            step = TransactionStep::Done(Outcome::Acknowledged);
+                            continue;
+                        }
+                        _ => {}
                     }
                     let s = tx.on_event(&Event::Frame(f.frame()), now);
                     if s == TransactionStep::Done(Outcome::Result) {

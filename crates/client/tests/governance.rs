@@ -6,172 +6,24 @@
 //! that answers as gcud's client listener does (ACK, result frames,
 //! delivery reports), scripted per test, and records every payload it got.
 
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 use std::time::Duration;
 
 use sagebrush_client::CommandError;
 use sagebrush_client::connection::GimbalConnection;
 use sagebrush_client::governance::{Controller, TourOutcome};
-use sagebrush_client::session::{
-    Axes, Drive, GcudLink, GcudReachability, GimbalSession, Motion, SessionConfig, Velocity,
-};
+use sagebrush_client::session::{Axes, Drive, Motion, Velocity};
 use sagebrush_protocol::gcu::{encode_tour_list, encode_tour_reply};
-use sagebrush_protocol::{
-    ACK, Address, ControllerReply, DeliveryReport, Event, FrameBuf, Framer, NIC, Position, Speed, TourState,
-    Undelivered,
-};
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
-use tokio::net::TcpListener;
+use sagebrush_protocol::{ControllerReply, Speed, TourState, Undelivered};
 
-const GROUP: u8 = 5;
-const GIMBAL: Address = Address {
-    group: GROUP,
-    port: 1,
-    device: 1,
-};
-/// Only so that a broken session cannot hang the test run.
-const GUARD: Duration = Duration::from_secs(20);
+mod fake_gcud;
 
-/// What the stand-in answers to a command.
-#[derive(Clone, Debug)]
-enum Answer {
-    Ack,
-    Result(Vec<u8>),
-    Report(Undelivered),
-    Nic,
-}
-
-type Script = Arc<dyn Fn(&[u8]) -> Answer + Send + Sync>;
-
-/// gcud's client listener, as far as these tests need it.
-struct FakeGcud {
-    addr: String,
-    got: Arc<Mutex<Vec<String>>>,
-}
-
-impl FakeGcud {
-    async fn start(script: impl Fn(&[u8]) -> Answer + Send + Sync + 'static) -> Self {
-        let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
-        let addr = listener.local_addr().unwrap().to_string();
-        let got = Arc::new(Mutex::new(Vec::new()));
-        let script: Script = Arc::new(script);
-        let record = Arc::clone(&got);
-        tokio::spawn(async move {
-            while let Ok((stream, _)) = listener.accept().await {
-                tokio::spawn(serve(stream, Arc::clone(&script), Arc::clone(&record)));
-            }
-        });
-        Self { addr, got }
-    }
-
-    fn got(&self) -> Vec<String> {
-        self.got.lock().unwrap().clone()
-    }
-}
-
-async fn serve(mut stream: tokio::net::TcpStream, script: Script, got: Arc<Mutex<Vec<String>>>) {
-    let mut framer: Framer = Framer::new();
-    let mut buf = [0u8; 512];
-    loop {
-        let n = match stream.read(&mut buf).await {
-            Ok(0) | Err(_) => return,
-            Ok(n) => n,
-        };
-        let mut frames = Vec::new();
-        framer.feed(&buf[..n], |e| {
-            if let Event::Frame(f) = e {
-                frames.push(FrameBuf::new(f.dest, f.source, f.payload()).unwrap());
-            }
-        });
-        for command in frames {
-            let f = command.frame();
-            got.lock()
-                .unwrap()
-                .push(String::from_utf8_lossy(f.payload()).into_owned());
-            let mut out = Vec::new();
-            match script(f.payload()) {
-                Answer::Ack => out.push(ACK),
-                Answer::Result(payload) => {
-                    out.push(ACK);
-                    let dest = Address::new(f.source, f.dest.port, f.dest.device);
-                    out.extend_from_slice(FrameBuf::new(dest, GROUP, &payload).unwrap().as_bytes());
-                }
-                Answer::Report(failure) => {
-                    let report = DeliveryReport {
-                        failure: Some(failure),
-                        dest: f.dest,
-                        command_checksum: f.checksum(),
-                        at_group: GROUP,
-                    };
-                    let dest = Address::new(f.source, 0, 0);
-                    out.extend_from_slice(FrameBuf::new(dest, GROUP, &report.encode()).unwrap().as_bytes());
-                }
-                Answer::Nic => out.extend_from_slice(&[ACK, NIC]),
-            }
-            if stream.write_all(&out).await.is_err() {
-                return;
-            }
-        }
-    }
-}
-
-/// `~C` answered: `holder` controls gimbal 1.1.
-fn controller(holder: ControllerReply<'_>) -> Answer {
-    let mut buf = [0u8; 64];
-    let n = holder.encode(1, 1, &mut buf).unwrap();
-    Answer::Result(buf[..n].to_vec())
-}
-
-/// `P?` answered: at 0, 0.
-fn at_zero() -> Answer {
-    let mut buf = [0u8; 32];
-    let n = sagebrush_protocol::Reply::Position(Position::default())
-        .encode(&mut buf)
-        .unwrap()
-        .len();
-    Answer::Result(buf[..n].to_vec())
-}
+use fake_gcud::*;
 
 const OPERATORS: ControllerReply<'static> = ControllerReply::Link {
     priority: 80,
     name: b"operators",
 };
-
-fn session(gcud: &str) -> Arc<GimbalSession> {
-    GimbalSession::start(
-        SessionConfig {
-            link: GcudLink {
-                gcud: gcud.to_owned(),
-                from: 7,
-                nic_window: Duration::from_millis(20),
-            },
-            address: GIMBAL,
-            poll: Duration::from_millis(50),
-            lens: false,
-            max_move: Duration::from_secs(10),
-            name: "mast-1".to_owned(),
-        },
-        Arc::new(GcudReachability::default()),
-    )
-}
-
-fn pan_right() -> Velocity {
-    Velocity {
-        pan: Some(Drive::Forward(Speed::new(7).unwrap())),
-        ..Velocity::default()
-    }
-}
-
-/// Polls `cond` every 20 ms until it holds, at most [`GUARD`].
-async fn until(what: &str, mut cond: impl FnMut() -> bool) {
-    tokio::time::timeout(GUARD, async {
-        while !cond() {
-            tokio::time::sleep(Duration::from_millis(20)).await;
-        }
-    })
-    .await
-    .unwrap_or_else(|_| panic!("never: {what}"));
-}
 
 #[tokio::test]
 async fn a_refusal_for_control_is_typed_and_names_the_holder() {

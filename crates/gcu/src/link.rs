@@ -81,6 +81,9 @@ pub(crate) struct Link {
     queue: StopFirstQueue<Outgoing>,
     tx: Transmitter,
     pub stats: LinkStats,
+    /// This connection asked for end-of-window reports (`~W`; router
+    /// module `window`): it lives and dies with the connection.
+    pub window_reports: bool,
 }
 
 impl Link {
@@ -95,6 +98,7 @@ impl Link {
             queue: StopFirstQueue::new(settings.queue_bound, settings.stop_queue_bound),
             tx: Transmitter::new(policy),
             stats,
+            window_reports: false,
         }
     }
 

@@ -15,6 +15,8 @@
 //! ~B PPDD        its rules (bounds): limits and zones    result ~B PPDD = then items, each
 //!                                                        'P' lo hi (pan limits), 'T' lo hi (tilt limits),
 //!                                                        'Z' panlo panhi tiltlo tilthi (a keep-out zone)
+//! ~W             end-of-window reports on this link      result ~W= ([`WINDOW_REPORTS_ON`]); NIC where
+//!                                                        the GCU does not send them (1.4.2's NIC window)
 //! ```
 //! `PP`, `DD` and `PR` are two upper-case hex digits; names are 1..=32
 //! bytes of `A-Z a-z 0-9 _ -`. An unknown tour is answered NIC; `~C` of a
@@ -33,6 +35,8 @@ use crate::hex::{hex_digit, hex_value};
 
 /// First payload byte of a GCU command and of its result.
 pub const GCU_MARK: u8 = b'~';
+/// The result of `~W`: the GCU will report the end of each NIC window.
+pub const WINDOW_REPORTS_ON: &[u8] = b"~W=";
 /// Longest tour or link name a GCU command carries.
 pub const NAME_MAX: usize = 32;
 
@@ -60,6 +64,10 @@ pub enum GcuCommand<'a> {
     TourList,
     /// `~B PPDD`: the gimbal's rules (travel limits and keep-out zones).
     Rules(u8, u8),
+    /// `~W`: after the ACK of each of this link's commands that ends with
+    /// no answer (1.4.2: no NIC within the window, no result), send the
+    /// delivery report `00` once the GCU's own window passed.
+    WindowReports,
 }
 
 impl<'a> GcuCommand<'a> {
@@ -77,6 +85,7 @@ impl<'a> GcuCommand<'a> {
             [GCU_MARK, b'T', b'-', name @ ..] if valid_name(name) => Some(GcuCommand::TourStop(name)),
             [GCU_MARK, b'T', b'?'] => Some(GcuCommand::TourList),
             [GCU_MARK, b'B', rest @ ..] => address(rest).map(|(p, d)| GcuCommand::Rules(p, d)),
+            [GCU_MARK, b'W'] => Some(GcuCommand::WindowReports),
             _ => None,
         }
     }
@@ -105,6 +114,7 @@ impl<'a> GcuCommand<'a> {
                 w.put(name)?;
             }
             GcuCommand::TourList => w.put(b"T?")?,
+            GcuCommand::WindowReports => w.put(b"W")?,
             GcuCommand::Rules(p, d) => {
                 w.put(b"B")?;
                 w.hex(p)?;
@@ -437,6 +447,7 @@ mod tests {
             GcuCommand::TourStop(b"north-2"),
             GcuCommand::TourList,
             GcuCommand::Rules(2, 0xFE),
+            GcuCommand::WindowReports,
         ] {
             let (buf, n) = encoded(c);
             assert_eq!(GcuCommand::parse(&buf[..n]), Some(c));

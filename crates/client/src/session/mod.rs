@@ -74,6 +74,18 @@ pub const CONTROL_POLL: Duration = Duration::from_secs(1);
 /// gcud's rules of the gimbal (`~B`: limits and zones, changed only by a
 /// reload of gcud) are asked again after this.
 pub const RULES_REFRESH: Duration = Duration::from_secs(30);
+/// A speed the gimbal acknowledged is believed for this long at most
+/// (then set again before the next slew at it): what the session cannot
+/// observe, a gimbal that restarted between two polls or a speed set by a
+/// master that bypasses gcud, is corrected within it. Everything it can
+/// observe forgets the speeds at once (`State::forget_speeds`): a new
+/// connection, any error or refusal, any command but the session's own
+/// slews, speeds, stops and queries, a poll the gimbal did not answer, and
+/// gcud naming another holder of the gimbal in `~C` (a holder that came
+/// and went between two `~C`, every [`CONTROL_POLL`], is left to this
+/// bound). A slew at the wrong speed is worse than the ~10 ms a speed
+/// command costs.
+pub const SPEED_KEPT: Duration = Duration::from_secs(5);
 /// An owed stop is sent again this often while gcud cannot be reached.
 const STOP_RETRY: Duration = Duration::from_millis(200);
 /// A caller of [`GimbalSession::stop`] is told the stop failed after this

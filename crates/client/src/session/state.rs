@@ -27,8 +27,12 @@ impl Queued {
 /// One side of the gimbal, as far as the session has told it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) struct InForce<S> {
-    /// The speed last set (`SPn`, `STn`, `Zn`).
+    /// The speed last set (`SPn`, `STn`, `Zn`), while the session may
+    /// believe the gimbal still has it ([`State::forget_speeds`]): a
+    /// direction command at that speed is then sent without it.
     pub(super) speed: Option<S>,
+    /// When the gimbal acknowledged that speed ([`SPEED_KEPT`]).
+    pub(super) speed_at: Option<Instant>,
     /// The slew started last and not stopped since.
     pub(super) drive: Drive<S>,
 }
@@ -37,7 +41,32 @@ impl<S> Default for InForce<S> {
     fn default() -> Self {
         Self {
             speed: None,
+            speed_at: None,
             drive: Drive::Stop,
+        }
+    }
+}
+
+impl<S> InForce<S> {
+    /// The speed is no longer believed (the slew in force stays as it is).
+    fn forget_speed(&mut self) {
+        self.speed = None;
+        self.speed_at = None;
+    }
+
+    /// This, after its drive command was acknowledged at `now`: a speed
+    /// command (`set`) starts the time its speed is believed.
+    pub(super) fn speed_set(mut self, set: bool, now: Instant) -> Self {
+        if set {
+            self.speed_at = Some(now);
+        }
+        self
+    }
+
+    /// Forgets the speed once it was set [`SPEED_KEPT`] ago or longer.
+    fn age_speed(&mut self, now: Instant) {
+        if self.speed_at.is_none_or(|at| now.duration_since(at) >= SPEED_KEPT) {
+            self.forget_speed();
         }
     }
 }
@@ -147,6 +176,22 @@ impl State {
                 answer(p.replies, Ok(()));
             }
         }
+    }
+
+    /// What the session believes of the speeds set on the gimbal is
+    /// forgotten: the next slew of each axis sets its speed again
+    /// ([`SPEED_KEPT`] says when).
+    pub(super) fn forget_speeds(&mut self) {
+        self.pan.forget_speed();
+        self.tilt.forget_speed();
+        self.zoom.forget_speed();
+    }
+
+    /// Forgets the speeds set [`SPEED_KEPT`] ago or longer.
+    pub(super) fn age_speeds(&mut self, now: Instant) {
+        self.pan.age_speed(now);
+        self.tilt.age_speed(now);
+        self.zoom.age_speed(now);
     }
 
     /// The deadline has passed: the stops of whatever moves are owed.

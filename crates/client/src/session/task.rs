@@ -5,6 +5,7 @@
 
 use super::state::InForce;
 use super::*;
+use sagebrush_protocol::ResultKind;
 
 /// What the task does next.
 pub(super) enum Step {
@@ -51,6 +52,7 @@ impl GimbalSession {
         let mut s = self.state();
         s.expire(now, &self.config.name);
         s.drop_stale(now);
+        s.age_speeds(now);
         if s.closing && s.stop_failures >= STOP_ATTEMPTS_ANSWERED {
             // Stopping the program: the stop was tried and reported.
             return Step::End;
@@ -105,7 +107,7 @@ impl GimbalSession {
         let mut asked_control = None;
         loop {
             // What the connection last learnt of gcud's control (a poll, a refusal).
-            self.state().status.control = connection.control();
+            self.control_seen(connection.control());
             let now = Instant::now();
             match self.next(now, next_poll) {
                 Step::End => return,
@@ -130,6 +132,8 @@ impl GimbalSession {
                     let sent = connection.send(&place.command()).await;
                     self.reached(&sent);
                     let mut s = self.state();
+                    // The gimbal's own motion: what it does to the speeds is its own.
+                    s.forget_speeds();
                     if let Some(p) = s.place.take() {
                         if sent.is_ok() {
                             // The gimbal goes there instead of slewing.
@@ -145,6 +149,10 @@ impl GimbalSession {
                 Step::Query(Queued::Bus(command, reply)) => {
                     let sent = connection.send(&command).await;
                     self.reached(&sent);
+                    if command.result_kind() == ResultKind::None || sent.is_err() {
+                        // Not a query (it may set what a speed does), or it failed.
+                        self.state().forget_speeds();
+                    }
                     let _ = reply.send(sent);
                 }
                 Step::Query(Queued::Gcu(request, reply)) => {
@@ -175,11 +183,30 @@ impl GimbalSession {
         }
     }
 
+    /// Records gcud's control of the gimbal as the connection last learnt
+    /// it: a new answer naming another holder (a link, a tour, park) means
+    /// it may have set other speeds. Once per answer, so that a holder
+    /// named before this link took control back cannot make every speed
+    /// be set again; nobody holding it is left to [`SPEED_KEPT`].
+    fn control_seen(&self, control: Option<Control>) {
+        let mut s = self.state();
+        let another = control
+            .as_ref()
+            .is_some_and(|c| !c.ours && c.holder != Controller::Nobody);
+        if another && control != s.status.control {
+            s.forget_speeds();
+        }
+        s.status.control = control;
+    }
+
     /// Records what became of an owed stop: confirmed, refused by the
     /// gimbal, given up after [`STOP_ATTEMPTS_ANSWERED`] answered attempts,
     /// or kept owed and sent again.
     fn stop_sent(&self, command: &Command<'static>, axes: Axes, sent: Result<Option<Vec<u8>>, CommandError>) {
         let mut s = self.state();
+        if sent.is_err() {
+            s.forget_speeds();
+        }
         match sent {
             Ok(_) => {
                 s.stops_owed = s.stops_owed.without(axes);
@@ -247,13 +274,20 @@ impl GimbalSession {
     /// refusal by gcud's rules, or a failure that owes the stops.
     fn drive_sent(&self, command: &Command<'static>, applied: Applied, sent: Result<Option<Vec<u8>>, CommandError>) {
         let mut s = self.state();
+        if sent.is_err() {
+            // Any error or refusal: the speed set may not be what the gimbal has.
+            s.forget_speeds();
+        }
         match sent {
             Ok(_) => {
                 s.last_refusal = None;
+                // A speed command's ACK starts the time its speed is believed.
+                let set_now = matches!(command, Command::SetSpeed(..) | Command::ZoomSpeed(_));
+                let now = Instant::now();
                 match applied {
-                    Applied::Pan(a) => s.pan = a,
-                    Applied::Tilt(a) => s.tilt = a,
-                    Applied::Zoom(a) => s.zoom = a,
+                    Applied::Pan(a) => s.pan = a.speed_set(set_now, now),
+                    Applied::Tilt(a) => s.tilt = a.speed_set(set_now, now),
+                    Applied::Zoom(a) => s.zoom = a.speed_set(set_now, now),
                 }
             }
             Err(e) if e.refusal().is_some() => {
@@ -317,6 +351,8 @@ impl GimbalSession {
             Err(e) => {
                 st.changing = false;
                 st.error = Some(e.to_string());
+                // The gimbal did not answer: it may have restarted since.
+                s.forget_speeds();
             }
         }
     }
@@ -332,6 +368,8 @@ impl GimbalSession {
                 if moving.any() {
                     s.stops_owed = s.stops_owed.or(moving);
                 }
+                // The next connection may find gcud or the gimbal restarted.
+                s.forget_speeds();
             }
             _ => self.reach.up(&self.config.link.gcud),
         }
@@ -363,6 +401,7 @@ pub(super) fn next_drive<S: Copy + PartialEq>(
         let after = InForce {
             speed: Some(speed),
             drive: now.drive,
+            ..now
         };
         return Some((speed_command(speed), after));
     };
@@ -375,6 +414,7 @@ pub(super) fn next_drive<S: Copy + PartialEq>(
         let after = InForce {
             speed: Some(set),
             drive: at_set,
+            ..now
         };
         return Some((direction_command(at_set), after));
     }
@@ -382,6 +422,7 @@ pub(super) fn next_drive<S: Copy + PartialEq>(
         let after = InForce {
             speed: Some(speed),
             drive: now.drive,
+            ..now
         };
         return Some((speed_command(speed), after));
     }

@@ -32,6 +32,13 @@
 //!   give-up (an address that never answered, or a device already offline,
 //!   gets no guard: a scan of empty addresses stays fast and a dead device
 //!   does not hold up its bus).
+//! - A `?` before the ACK of the exchange on the bus ends nothing (1.4.2:
+//!   the NIC follows the ACK): a device answers in order, so it is an
+//!   earlier command's NIC that came after that command's window (from
+//!   this device or another on the bus), or this command's after its ACK
+//!   was lost, and then the ACK wait runs out and the frame goes again (its
+//!   answer comes again). Taken for this exchange's, a stop would end
+//!   "delivered" on another device's word (the simulation's late NICs).
 //! - Behind a device server (`PortConfig::buffered`) nothing is
 //!   retransmitted and a missing ACK is `0B not confirmed`: the bytes may
 //!   wait in the server while it stalls and run when it resumes. Their
@@ -357,6 +364,12 @@ impl Port {
             OwnedEvent::Nic => {
                 self.stats.line.nics_in += 1;
                 if let Some(r) = self.active.as_mut().filter(|r| !r.txn.is_broadcast()) {
+                    if !r.txn.acknowledged() {
+                        // A NIC follows its command's ACK (1.4.2): one before
+                        // this exchange's ACK ends nothing (module doc).
+                        self.stats.line.stray_bytes += 1;
+                        return;
+                    }
                     let step = r.txn.on_event(&Event::Nic, now);
                     if step != TransactionStep::Wait {
                         return self.active_step(now, step, None, out);

@@ -233,6 +233,13 @@ impl Router {
                     &mut buf,
                 ))
             }
+            GcuCommand::WindowReports => match self.window_reports_on(link) {
+                Some(on) => {
+                    buf[..on.len()].copy_from_slice(on);
+                    Some(on.len())
+                }
+                None => return self.gcu_nic(now, id, origin, out),
+            },
             GcuCommand::TourList => {
                 let tours = self.governor.tour_status(now);
                 Some(encode_tour_list(

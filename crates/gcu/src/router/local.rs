@@ -149,6 +149,7 @@ impl Router {
         let origin = c.origin;
         let mut outcome = p.outcome();
         self.resolve(now, id, p.delivery(outcome), self.group, out);
+        self.window_passed(now, id, outcome, out);
         if outcome == CommandOutcome::Nic {
             if let Err(reason) = self.nic_to(now, origin, out) {
                 outcome = CommandOutcome::Dropped(reason);

@@ -26,6 +26,7 @@ mod lifecycle;
 mod local;
 mod receive;
 mod self_answer;
+mod window;
 
 use std::collections::BTreeMap;
 use std::ops::Bound;

@@ -374,3 +374,41 @@ fn accepted_connections_come_and_go_at_debug_configured_links_at_info() {
     let gone = h.go(Input::LinkDown { link: LinkId(8) });
     assert_eq!(levels(&gone), vec![(false, Level::Info)]);
 }
+
+/// A NIC follows its command's ACK (1.4.2): a `?` before the ACK of the
+/// exchange on the bus is an earlier command's, late (a device answers in
+/// order), or this one's after a lost ACK; it ends nothing. Taken for this
+/// exchange's, a stop would end "delivered" on another device's word.
+#[test]
+fn a_nic_before_the_ack_ends_nothing() {
+    let mut h = H::new(&[1]);
+    let ps = frame((G, 1, 3), 2, b"PS");
+    h.link(CLIENT, &ps);
+    // Another device's NIC, after its command's window: not this stop's.
+    let a = h.port(1, &[NIC]);
+    assert!(
+        link_writes(&a, CLIENT).is_empty(),
+        "no outcome from a `?` before the ACK"
+    );
+    assert!(finished(a.actions()).is_empty());
+    let a = h.port(1, &[ACK]);
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        vec![vec![ACK]],
+        "the stop's own ACK delivers it"
+    );
+    let a = h.wait(5);
+    assert_eq!(finished(a.actions()), vec![CommandOutcome::Completed]);
+    // The ACK lost, the `?` alone: the frame goes again, and its answer decides.
+    let fa = frame((G, 1, 3), 2, b"FA");
+    let a = h.link(CLIENT, &fa);
+    assert_eq!(port_writes(&a, 1), vec![fa.clone()]);
+    let a = h.port(1, &[NIC]);
+    assert!(link_writes(&a, CLIENT).is_empty() && finished(a.actions()).is_empty());
+    let ack_wait = 10 + wire_ms(fa.len(), 9600);
+    let a = h.wait(ack_wait);
+    assert_eq!(port_writes(&a, 1), vec![fa.clone()], "sent again after the ACK wait");
+    let a = h.port(1, &[ACK, NIC]);
+    assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK], vec![NIC]]);
+    assert_eq!(finished(a.actions()), vec![CommandOutcome::Nic]);
+}

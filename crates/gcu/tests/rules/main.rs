@@ -6,6 +6,7 @@ mod late;
 mod queues;
 mod routing;
 mod safety;
+mod window;
 
 use sagebrush_gcu::{
     Action, CommandId, CommandOutcome, DropReason, Input, LineId, LinkConfig, LinkId, LinkKind, Outbox, PortConfig,

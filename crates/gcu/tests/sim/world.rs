@@ -11,7 +11,7 @@ use sagebrush_gcu::{
 };
 use sagebrush_protocol::{
     ACK, Address, AwakeStatus, Command, DeliveryReport, DeviceEndpoint, DeviceHandler, EndpointConfig, Extended,
-    FrameBuf, Framer, Identity, InitResults, NAK, OwnedEvent, Position, Reply, ReplyTo, Response, ResultKind,
+    FrameBuf, Framer, Identity, InitResults, NAK, NIC, OwnedEvent, Position, Reply, ReplyTo, Response, ResultKind,
     RetryPolicy, Transmitter, TxStep, Undelivered, WILDCARD,
 };
 
@@ -24,7 +24,7 @@ mod phases;
 mod wires;
 
 use clients::{Client, ClientState, ClientWire};
-use devices::{Device, Gimbal, SimPort, motion_axis};
+use devices::{CommandKey, Device, Gimbal, Heard, NIC_WINDOW, SimPort, motion_axis};
 
 /// What a run did, summed over seeds (and compared for determinism):
 /// `Summary` has a `u64` per counter below, which `add` adds, and the
@@ -84,6 +84,25 @@ summary! {
     repeated_reports,
     /// Fault: device answers that left after the GCU gave up on them.
     late_answers,
+    /// Fault: NICs that left after their ACK, just inside gcud's window or
+    /// (the next counter) just after it.
+    late_nics,
+    nics_after_window,
+    /// NICs clients took, each checked against the devices' NICs.
+    nics_checked,
+    /// `?` bytes a client took while its framer held damaged bytes.
+    phantom_nics,
+    /// `?` a client took that a command it was told not confirmed (or gave
+    /// up on) may have earned: it still executed, and a `?` names no command.
+    stale_nics,
+    /// `?` a client took that an earlier fan-out (group or port 255) may
+    /// have earned (each GCU's, or the last job's, however late).
+    fan_out_nics,
+    /// `?` a GCU relayed from another GCU's link, for a command that GCU
+    /// took twice over a lossy link (its first answer or report was lost).
+    relayed_nics,
+    /// Reports `00` that ended a TCP client's NIC wait (`~W`).
+    window_reports,
 }
 
 // ---------------------------------------------------------------- GCUs, clients
@@ -138,6 +157,16 @@ enum Ev {
         d: usize,
         to: ReplyTo,
     },
+    /// A device's ACK and NIC, or its NIC alone, reach the port: `key` is
+    /// the command they answer.
+    Nic {
+        g: usize,
+        p: usize,
+        key: CommandKey,
+        bytes: Vec<u8>,
+        epoch: u64,
+        bps: u32,
+    },
     /// The device's silence timer: no byte since `since`.
     DeviceIdle {
         g: usize,
@@ -180,6 +209,18 @@ struct World {
     trace: bool,
     violation: Option<String>,
     summary: Summary,
+    /// Every command frame some device answered NIC.
+    nicd: BTreeSet<Heard>,
+    /// When each command's NICs reached gcud's port.
+    nics_at_port: BTreeMap<CommandKey, Vec<u64>>,
+    /// When the ACK of each command a device answered NIC last reached the
+    /// port, and when gcud last wrote a report `00` about it.
+    acks_at_port: BTreeMap<CommandKey, u64>,
+    window_reports_at: BTreeMap<CommandKey, u64>,
+    /// The router's actions being applied answer bytes from another GCU.
+    input_from_gcu: bool,
+    /// When a port of each GCU last heard damaged bytes.
+    port_damage: BTreeMap<usize, u64>,
 }
 
 /// Runs one seed; `Err` names the first invariant broken.
@@ -244,8 +285,20 @@ impl World {
 
     fn input(&mut self, g: usize, input: Input<'_>) {
         let now = self.now;
+        let from_gcu = match &input {
+            Input::Bytes {
+                line: LineId::Link(link),
+                ..
+            } => self
+                .pairs
+                .iter()
+                .any(|p| p.parent == (g, *link) || p.child == (g, *link)),
+            _ => false,
+        };
         let out = self.gcus[g].router.handle_once(now, input);
+        self.input_from_gcu = from_gcu;
         self.apply(g, out);
+        self.input_from_gcu = false;
     }
 
     fn violation(&mut self, message: String) {
@@ -390,6 +443,17 @@ impl World {
     fn process(&mut self, ev: Ev) {
         match ev {
             Ev::Bytes { to, bytes, epoch, bps } => self.deliver(to, bytes, epoch, bps),
+            Ev::Nic {
+                g,
+                p,
+                key,
+                bytes,
+                epoch,
+                bps,
+            } => {
+                self.nic_reaches_port(key, &bytes);
+                self.deliver(Node::Port { g, p }, bytes, epoch, bps);
+            }
             Ev::Deferred { g, p, d, to } => {
                 let sp = &mut self.gcus[g].ports[p];
                 let (epoch, dev) = (sp.epoch, &mut sp.devices[d]);
@@ -413,6 +477,7 @@ impl World {
                 if dev.last_rx != since {
                     return;
                 }
+                dev.idle();
                 let mut out = Vec::new();
                 dev.ep
                     .line_idle(now, &mut dev.gimbal, &mut |b: &[u8]| out.extend_from_slice(b));

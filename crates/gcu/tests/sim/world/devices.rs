@@ -20,6 +20,44 @@ const LATE_MS: (u64, u64) = (90, 150);
 /// answers, so an answer this much later than the guard is still inside it.
 const GIVE_UP_AFTER_ANSWER: u64 = 20 + 9 - 5;
 
+/// Every port's NIC window (`PortConfig::nic_window`), as `generate` sets it.
+pub(super) const NIC_WINDOW: u64 = 10;
+/// Per mille of a device's NICs that leave after its ACK (fault: late
+/// NIC), split between just inside gcud's window (its last tick) and just
+/// after it (the tick after the window's end: the next exchange on the bus
+/// may have started, and its ACK cannot have come yet). The rest come with
+/// the ACK (early), and a wire fault may drop the ACK alone (a `?` with no
+/// ACK before it).
+const LATE_NIC_PM: u64 = 400;
+
+/// A command frame as the device received it: destination, source group,
+/// checksum (those of the frame gcud accepted from its client, for a
+/// command to one device of one port).
+pub(super) type CommandKey = (Address, u8, u8);
+
+/// A command frame a device answered NIC: its key and payload (a fan-out
+/// reaches the device with its own port in the header).
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub(super) struct Heard {
+    pub(super) key: CommandKey,
+    pub(super) payload: Vec<u8>,
+}
+
+impl Heard {
+    /// Whether this is the frame a client sent as `key` with `payload`:
+    /// the same source group and payload, to the same address, a wildcard
+    /// of the client's standing for any.
+    pub(super) fn answers(&self, key: CommandKey, payload: &[u8]) -> bool {
+        let level = |want: u8, got: u8| want == WILDCARD || want == got;
+        let (want, got) = (key.0, self.key.0);
+        self.key.1 == key.1
+            && self.payload == payload
+            && level(want.group, got.group)
+            && level(want.port, got.port)
+            && level(want.device, got.device)
+    }
+}
+
 /// Motion axes of a gimbal: pan, tilt, focus, zoom.
 pub(super) const AXES: usize = 4;
 
@@ -97,6 +135,31 @@ pub(super) struct Device {
     pub(super) bps: u32,
     /// Last byte heard: a device abandons a partial frame after silence.
     pub(super) last_rx: u64,
+    /// The bytes the device heard, framed as its endpoint frames them: which
+    /// command a NIC answers ([`World::device_writes`]).
+    pub(super) shadow: Framer,
+    pub(super) last_command: Option<Heard>,
+}
+
+impl Device {
+    /// Bytes the device heard, before its endpoint takes them.
+    pub(super) fn heard(&mut self, bytes: &[u8]) {
+        let last = &mut self.last_command;
+        self.shadow.feed(bytes, |e| {
+            if let sagebrush_protocol::Event::Frame(f) = e {
+                *last = Some(Heard {
+                    key: (f.dest, f.source, f.checksum()),
+                    payload: f.payload().to_vec(),
+                });
+            }
+        });
+    }
+
+    /// The line was idle: a partial frame is abandoned, as the endpoint does.
+    pub(super) fn idle(&mut self) {
+        self.shadow.line_idle();
+        while self.shadow.next_event().is_some() {}
+    }
 }
 
 #[derive(Debug)]
@@ -173,9 +236,79 @@ impl World {
         answered_last && late <= sp.late_answer_guard + GIVE_UP_AFTER_ANSWER
     }
 
+    /// The device answered `key` ACK and NIC (1.4.2): early (with the ACK),
+    /// or late (fault), just inside or just after gcud's NIC window, counted
+    /// from when the ACK reaches the port. Every NIC is recorded with its
+    /// command (the truth the clients check their NICs against) and when it
+    /// reached the port (the truth a report `00` is checked against).
+    fn device_nics(&mut self, g: usize, p: usize, d: usize, heard: Heard, epoch: u64, bps: u32) {
+        let key = heard.key;
+        self.nicd.insert(heard);
+        let late = (!self.quiet && self.rng.chance(LATE_NIC_PM)).then(|| match self.rng.chance(500) {
+            true => NIC_WINDOW - 1,
+            false => NIC_WINDOW + 1,
+        });
+        let (from, to) = (Node::Device { g, p, d }, Node::Port { g, p });
+        let Some(late) = late else {
+            if let Some((at, bytes)) = self.wire(from, to, vec![ACK, NIC]) {
+                self.schedule(
+                    at,
+                    Ev::Nic {
+                        g,
+                        p,
+                        key,
+                        bytes,
+                        epoch,
+                        bps,
+                    },
+                );
+            }
+            return;
+        };
+        self.summary.late_nics += 1;
+        self.summary.nics_after_window += u64::from(late > NIC_WINDOW);
+        let ack_at = self.wire(from, to, vec![ACK]).map(|(at, bytes)| {
+            self.schedule(
+                at,
+                Ev::Nic {
+                    g,
+                    p,
+                    key,
+                    bytes,
+                    epoch,
+                    bps,
+                },
+            );
+            at
+        });
+        if let Some((at, bytes)) = self.wire(from, to, vec![NIC]) {
+            // Counted from the ACK's arrival (when gcud's window starts), or
+            // from when it would have come when a fault dropped it.
+            let at = ack_at.map_or(at, |ack| ack + late).max(at);
+            let fifo = self.fifo.entry((from, to)).or_insert(0);
+            *fifo = (*fifo).max(at);
+            self.schedule(
+                at,
+                Ev::Nic {
+                    g,
+                    p,
+                    key,
+                    bytes,
+                    epoch,
+                    bps,
+                },
+            );
+        }
+    }
+
     pub(super) fn device_writes(&mut self, g: usize, p: usize, d: usize, out: Vec<u8>, epoch: u64, bps: u32) {
         if out.is_empty() {
             return;
+        }
+        if out == [ACK, NIC] {
+            if let Some(heard) = self.gcus[g].ports[p].devices[d].last_command.clone() {
+                return self.device_nics(g, p, d, heard, epoch, bps);
+            }
         }
         if let Some((at, bytes)) = self.wire(Node::Device { g, p, d }, Node::Port { g, p }, out) {
             // Fault: the answer leaves late, after the GCU gave up on it

@@ -94,7 +94,7 @@ impl World {
                     ack_timeout: 20,
                     result_timeout: 150,
                     long_result_timeout: 2_500,
-                    nic_window: 10,
+                    nic_window: NIC_WINDOW,
                     broadcast_guard: 30,
                     queue_bound: bound,
                     stop_queue_bound: stop_bound,
@@ -119,6 +119,8 @@ impl World {
                         },
                         bps: 9600,
                         last_rx: 0,
+                        shadow: Framer::new(),
+                        last_command: None,
                     })
                     .collect();
                 ports.push(SimPort {
@@ -152,7 +154,13 @@ impl World {
             } else {
                 SourceFilter::Only(vec![group])
             };
+            // Over TCP (lossless, no faults on its wire), asking for
+            // end-of-window reports (`~W`) on every connection.
+            let tcp = rng.chance(500);
             clients.push(Client {
+                tcp,
+                windowed: false,
+                ask_window: false,
                 gcu,
                 link: LinkId(100 + c as u32),
                 group,
@@ -175,6 +183,7 @@ impl World {
                 tainted_acked: BTreeMap::new(),
                 wire: ClientWire::default(),
                 last_report: None,
+                answering: None,
             });
         }
         let level = rng.below(4);
@@ -201,6 +210,12 @@ impl World {
             trace,
             violation: None,
             summary: Summary::default(),
+            nicd: BTreeSet::new(),
+            nics_at_port: BTreeMap::new(),
+            input_from_gcu: false,
+            acks_at_port: BTreeMap::new(),
+            window_reports_at: BTreeMap::new(),
+            port_damage: BTreeMap::new(),
         };
         w.log(format_args!(
             "seed {seed}: {n_gcu} gcus {groups:?}, parents {parents:?}, {n_clients} clients, drop {drop_pm}‰ corrupt {corrupt_pm}‰"

@@ -50,11 +50,18 @@ impl World {
             // Frame by frame: one write may carry an ACK and several frames.
             let mut framer: Framer = Framer::new();
             let written = &mut self.clients[c].written;
+            let mut reports = Vec::new();
             framer.feed(&bytes, |e| {
                 if let sagebrush_protocol::Event::Frame(f) = e {
                     written.insert(FrameBuf::from_frame(&f).as_bytes().to_vec());
+                    if let Ok(r) = DeliveryReport::parse(f.payload()) {
+                        reports.push((f.dest.group, r));
+                    }
                 }
             });
+            for (group, report) in reports.into_iter().filter(|(_, r)| r.failure.is_none()) {
+                self.window_report_written(c, group, &report);
+            }
             let to = Node::Client { c };
             self.send_on_wire(Node::Link { g, link }, to, bytes, epoch);
             return;
@@ -62,11 +69,56 @@ impl World {
         self.violation(format!("gcu {g} wrote to unknown {link}"));
     }
 
+    /// gcud wrote the report `00` to client `c` (`~W`: its port's NIC
+    /// window passed with no NIC): no NIC of that command may have reached
+    /// the port within the window just passed (1.4.2); one that did was
+    /// this command's, and the report then attributes the window to the
+    /// wrong outcome.
+    fn window_report_written(&mut self, c: usize, group: u8, report: &DeliveryReport) {
+        let key = (report.dest, group, report.command_checksum);
+        let now = self.now;
+        self.window_reports_at.insert(key, now);
+        let inside = self
+            .nics_at_port
+            .get(&key)
+            .is_some_and(|at| at.iter().any(|&t| t + NIC_WINDOW >= now && t <= now));
+        if inside {
+            self.violation(format!(
+                "gcu wrote client {c} the end of the NIC window of {} although its NIC came within it",
+                report.dest
+            ));
+        }
+    }
+
+    /// A device's ACK or NIC of command `key` reaches gcud's port: a NIC
+    /// within the window after the ACK (1.4.2) must not follow a report
+    /// `00` written since that ACK (the report came before the window
+    /// passed).
+    pub(super) fn nic_reaches_port(&mut self, key: CommandKey, bytes: &[u8]) {
+        let now = self.now;
+        if bytes.first() == Some(&ACK) {
+            self.acks_at_port.insert(key, now);
+        }
+        if !bytes.contains(&NIC) {
+            return;
+        }
+        self.nics_at_port.entry(key).or_default().push(now);
+        let ack = self.acks_at_port.get(&key).copied();
+        let early_report = ack
+            .is_some_and(|ack| now < ack + NIC_WINDOW && self.window_reports_at.get(&key).is_some_and(|&r| r >= ack));
+        if early_report {
+            self.violation(format!(
+                "gcu reported the end of the NIC window of {} before a NIC that came within it",
+                key.0
+            ));
+        }
+    }
+
     /// Faults of one write: dropped, or delivered at a time (FIFO per wire),
     /// perhaps with one byte corrupted.
     pub(super) fn wire(&mut self, from: Node, to: Node, mut bytes: Vec<u8>) -> Option<(u64, Vec<u8>)> {
         let mut damaged = false;
-        if !self.quiet {
+        if !self.quiet && !self.over_tcp(from) && !self.over_tcp(to) {
             if self.rng.chance(self.drop_pm) {
                 return None;
             }
@@ -79,13 +131,36 @@ impl World {
         if let Node::Client { c } = to {
             // A damaged frame can leave a bare 0x06 behind (a phantom ACK)
             // or form another valid frame: the client's wire remembers which.
-            self.clients[c].wire.scheduled(damaged);
+            let relayed = self.input_from_gcu && bytes.contains(&NIC);
+            let bus_tainted = match from {
+                Node::Link { g, .. } => self
+                    .port_damage
+                    .get(&g)
+                    .is_some_and(|&t| t <= self.now && self.now - t <= 2 * SILENCE),
+                _ => false,
+            };
+            self.clients[c]
+                .wire
+                .scheduled(damaged, relayed, bus_tainted && bytes.contains(&NIC));
         }
         let delay = 1 + self.rng.below(self.jitter);
         let last = self.fifo.entry((from, to)).or_insert(0);
         let at = (*last).max(self.now + delay);
         *last = at;
+        if let (Node::Port { g, .. }, true) = (to, damaged) {
+            self.port_damage.insert(g, at);
+        }
         Some((at, bytes))
+    }
+
+    /// Whether `node` is a TCP client or its link: its wire loses and
+    /// damages nothing.
+    fn over_tcp(&self, node: Node) -> bool {
+        match node {
+            Node::Client { c } => self.clients[c].tcp,
+            Node::Link { g, link } => self.clients.iter().any(|cl| cl.tcp && cl.gcu == g && cl.link == link),
+            _ => false,
+        }
     }
 
     pub(super) fn pair_up(&mut self, i: usize) {
@@ -131,6 +206,7 @@ impl World {
                 }
                 let mut out = Vec::new();
                 dev.last_rx = now;
+                dev.heard(&bytes);
                 dev.ep
                     .receive(&bytes, now, &mut dev.gimbal, &mut |b: &[u8]| out.extend_from_slice(b));
                 let sent_at = dev.bps;
@@ -191,9 +267,9 @@ impl World {
                 }
             }
             Node::Client { c } => {
-                let damaged = self.clients[c].wire.arrived();
+                let (damaged, relayed) = self.clients[c].wire.arrived();
                 if self.clients[c].epoch == epoch && self.clients[c].connected {
-                    self.client_receive(c, &bytes, damaged);
+                    self.client_receive(c, &bytes, damaged, relayed);
                 }
             }
         }
