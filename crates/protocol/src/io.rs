@@ -156,7 +156,7 @@ impl Answer {
     /// The bytes collected since the last [`Answer::take`], and empties it.
     pub(crate) fn take(&mut self) -> &[u8] {
         let len = core::mem::replace(&mut self.len, 0);
-        &self.bytes[..len]
+        self.bytes.get(..len).unwrap_or_default()
     }
 }
 
@@ -179,8 +179,9 @@ pub(crate) enum MasterIo<'a> {
     /// Write these bytes (the command frame, or a hop-by-hop ACK or NAK)
     /// and flush them.
     Write(&'a [u8]),
-    /// Read into the framer, until this tick of the clock when there is one.
-    Read(Option<u64>),
+    /// Read into the framer, until this tick of the clock when there is one
+    /// (the async adapter sleeps until it; the blocking one polls instead).
+    Read(#[cfg_attr(not(feature = "embedded-io-async"), allow(dead_code))] Option<u64>),
     /// The exchange is over: [`MasterRun::exchange`] tells how.
     Done(Outcome),
 }
