@@ -36,15 +36,19 @@ const PAN_SPEED: &str = "SPn";
 const PAN_STOP: &str = "PS";
 
 impl Stack {
-    /// The commands a request put on the bus: those heard until none
-    /// comes for `quiet` (longer than a NIC window), at most 5 s.
+    /// The commands a request put on the bus: those heard until no
+    /// command but the session's position polls (`P?`) comes for `quiet`
+    /// (longer than a NIC window), at most 5 s.
     pub fn heard(&self, quiet: Duration) -> Vec<(&'static str, Instant)> {
         let mut heard = Vec::new();
         let started = Instant::now();
-        while let Ok(event) = self.bus.recv_timeout(quiet) {
-            heard.push(event);
-            if started.elapsed() > Duration::from_secs(5) {
-                break;
+        let mut last = started;
+        while last.elapsed() < quiet && started.elapsed() < Duration::from_secs(5) {
+            if let Ok(event) = self.bus.recv_timeout(quiet.saturating_sub(last.elapsed())) {
+                if event.0 != "P?" {
+                    last = Instant::now();
+                }
+                heard.push(event);
             }
         }
         heard
