@@ -8,6 +8,7 @@
 
 #[path = "../board.rs"]
 mod board;
+#[path = "../common.rs"]
 mod common;
 #[path = "../gimbal.rs"]
 mod gimbal;

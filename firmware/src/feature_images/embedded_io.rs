@@ -7,6 +7,7 @@
 
 #[path = "../board.rs"]
 mod board;
+#[path = "../common.rs"]
 mod common;
 #[path = "../gimbal.rs"]
 mod gimbal;
