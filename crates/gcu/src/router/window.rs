@@ -48,6 +48,10 @@ impl Router {
         }
         let Some(c) = self.in_flight.get(&id) else { return };
         let Origin::Link { link, .. } = c.origin else { return };
+        if !self.links.get(&link).is_some_and(|l| l.window_reports) {
+            return;
+        }
+        // Copied only for a link that asked (the report borrows the router).
         let frame = c.command.frame.clone();
         let f = frame.frame();
         let one_device = f.dest.group != WILDCARD
@@ -56,7 +60,7 @@ impl Router {
             && f.dest.device != WILDCARD;
         // Told delivered already: the ACK went first.
         let acked = c.delivery.is_none();
-        if one_device && acked && self.links.get(&link).is_some_and(|l| l.window_reports) {
+        if one_device && acked {
             self.report(now, link, &f, None, self.group, out);
         }
     }
