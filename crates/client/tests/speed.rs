@@ -118,3 +118,43 @@ async fn a_speed_is_believed_for_a_bounded_time() {
     assert_eq!(speeds(&gcud), 2, "{:?}", gcud.got());
     s.shutdown().await;
 }
+
+/// A pan to the right at `speed`.
+fn pan_right_at(speed: u8) -> sagebrush_client::session::Velocity {
+    sagebrush_client::session::Velocity {
+        pan: Some(sagebrush_client::session::Drive::Forward(
+            sagebrush_protocol::Speed::new(speed).unwrap(),
+        )),
+        ..Default::default()
+    }
+}
+
+#[tokio::test]
+async fn a_new_speed_is_set_before_the_direction_that_runs_at_it() {
+    let gcud = FakeGcud::start(|p| match p {
+        b"~C0101" => controller(DOORS),
+        b"P?" => at_zero(),
+        _ => Answer::Ack,
+    })
+    .await;
+    let s = session(&gcud.addr);
+    for speed in [3, 9] {
+        s.velocity(pan_right_at(speed), None, "test").await.unwrap();
+        s.stop(Axes::PAN_TILT).await.unwrap();
+    }
+    // Faster while moving: the speed, then the direction that takes it.
+    s.velocity(pan_right_at(3), None, "test").await.unwrap();
+    s.velocity(pan_right_at(12), None, "test").await.unwrap();
+    s.stop(Axes::PAN_TILT).await.unwrap();
+    let motion: Vec<String> = gcud
+        .got()
+        .into_iter()
+        .filter(|p| p.starts_with("SP") || p == "PR" || p == "PS")
+        .collect();
+    assert_eq!(
+        motion,
+        ["SP3", "PR", "PS", "SP9", "PR", "PS", "SP3", "PR", "SPC", "PR", "PS"],
+        "never a direction at a speed not asked for"
+    );
+    s.shutdown().await;
+}

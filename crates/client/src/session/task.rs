@@ -212,13 +212,13 @@ impl GimbalSession {
                 s.stops_owed = s.stops_owed.without(axes);
                 s.stop_retry_at = None;
                 if axes.pan {
-                    s.pan.drive = Drive::Stop;
+                    s.pan.stopped();
                 }
                 if axes.tilt {
-                    s.tilt.drive = Drive::Stop;
+                    s.tilt.stopped();
                 }
                 if axes.zoom {
-                    s.zoom.drive = Drive::Stop;
+                    s.zoom.stopped();
                 }
                 if !s.stops_owed.any() {
                     s.stop_failures = 0;
@@ -382,9 +382,11 @@ pub(super) fn closed() -> CommandError {
 
 /// The next command that moves one axis from `now` toward `want`, with
 /// the axis after it. A speed (`SPn`, `STn`, `Zn`) is taken by the next
-/// direction command, so each speed set is followed by its direction
-/// command before another speed: a stream of changing rates alternates the
-/// two and always progresses.
+/// direction command (Table 11: "At constant speed"), so a speed that
+/// differs from the one asked is set first and the direction follows: the
+/// gimbal never starts at a speed nobody asked for. The direction owed to
+/// a speed just set goes next whatever is asked meanwhile, so a stream of
+/// changing rates alternates the two and always progresses.
 pub(super) fn next_drive<S: Copy + PartialEq>(
     want: Option<Drive<S>>,
     now: InForce<S>,
@@ -393,40 +395,35 @@ pub(super) fn next_drive<S: Copy + PartialEq>(
 ) -> Option<(Command<'static>, InForce<S>)> {
     let want = want?;
     let speed = want.speed()?;
-    let same_direction = matches!(
-        (now.drive, want),
-        (Drive::Forward(_), Drive::Forward(_)) | (Drive::Back(_), Drive::Back(_))
-    );
-    let Some(set) = now.speed else {
+    let set_speed = || {
         let after = InForce {
             speed: Some(speed),
-            drive: now.drive,
+            speed_owed: true,
             ..now
         };
-        return Some((speed_command(speed), after));
+        Some((speed_command(speed), after))
+    };
+    let Some(set) = now.speed else {
+        return set_speed();
     };
     let at_set = match want {
         Drive::Forward(_) => Drive::Forward(set),
         _ => Drive::Back(set),
     };
-    if !same_direction || now.drive.speed() != Some(set) {
-        // Start, turn, or apply the speed set last.
-        let after = InForce {
-            speed: Some(set),
-            drive: at_set,
-            ..now
-        };
-        return Some((direction_command(at_set), after));
+    let owed = now.speed_owed && now.drive != at_set;
+    if set != speed && !owed {
+        return set_speed();
     }
-    if set != speed {
-        let after = InForce {
-            speed: Some(speed),
-            drive: now.drive,
-            ..now
-        };
-        return Some((speed_command(speed), after));
+    if now.drive == at_set {
+        return None;
     }
-    None
+    // Start, turn, or apply the speed set last.
+    let after = InForce {
+        speed_owed: false,
+        drive: at_set,
+        ..now
+    };
+    Some((direction_command(at_set), after))
 }
 
 /// [`next_drive`] for pan or tilt (Table 11: `SPn`/`STn`, `PR`/`PL`/`TU`/`TD`).
@@ -467,4 +464,36 @@ pub(super) async fn poll(
     let position = connection.position().await?;
     let lens = if lens { Some(connection.lens().await?) } else { None };
     Ok((position, lens))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn speed(n: u8) -> Speed {
+        Speed::new(n).unwrap()
+    }
+
+    /// Applies `step` to `now` as the session does once it is acknowledged.
+    fn applied(step: Step) -> (String, InForce<Speed>) {
+        match step {
+            Step::Drive(command, Applied::Pan(after)) => (command.mnemonic().to_owned(), after),
+            _ => unreachable!("only pan is asked"),
+        }
+    }
+
+    #[test]
+    fn a_rate_changing_at_every_step_still_moves_the_gimbal() {
+        let mut now = InForce::default();
+        let mut sent = Vec::new();
+        for n in 0..12u8 {
+            let want = Some(Drive::Forward(speed(1 + n % 15)));
+            let (mnemonic, after) = applied(pan_tilt_step(Axis::Pan, want, now).unwrap());
+            sent.push(mnemonic);
+            now = after;
+        }
+        let directions = sent.iter().filter(|m| m.as_str() == "PR").count();
+        assert_eq!(directions, 6, "speed and direction alternate: {sent:?}");
+        assert_eq!(sent[0], "SPn", "the first speed is set before the first direction");
+    }
 }
