@@ -301,6 +301,10 @@ const PORT: &[Column<PortStats>] = &[
         |p, _| count(p.queue_len as u64),
     ),
     field!(counter "port_" transactions, "Transactions started."),
+    field!(
+        counter "port_" pipelined,
+        "Transactions started in the NIC window of the one before, to the same device (duplex = full)."
+    ),
     field!(counter "port_" rate_switches, "Line rate switches."),
 ];
 

@@ -249,6 +249,7 @@ pub mod fixture {
                 queue_len: next() as usize,
                 queue_high_water: next() as usize,
                 transactions: next(),
+                pipelined: next(),
                 rate_switches: next(),
             };
             stats.ports.insert(id, port);

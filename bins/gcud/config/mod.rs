@@ -383,6 +383,23 @@ mod tests {
     }
 
     #[test]
+    fn a_ports_duplex_is_half_unless_it_says_full() {
+        let text = |duplex: &str| {
+            format!(
+                "{MINIMAL}[port_defaults]\n{duplex}\n[[port]]\nid = 1\npath = \"/dev/a\"\n[[port]]\nid = 2\npath = \"/dev/b\"\nduplex = \"half\"\n"
+            )
+        };
+        let c = parse(Path::new("t.toml"), &text("")).unwrap();
+        assert!(c.ports.iter().all(|p| !p.router.full_duplex));
+        let c = parse(Path::new("t.toml"), &text("duplex = \"full\"")).unwrap();
+        let full: Vec<bool> = c.ports.iter().map(|p| p.router.full_duplex).collect();
+        assert_eq!(full, [true, false], "a port's own setting wins");
+        let e = err(&text("duplex = \"simplex\""));
+        assert_eq!((e.key.as_str(), e.line), ("port_defaults.duplex", 8), "{e}");
+        assert_eq!(e.message, "unknown variant `simplex`, expected `half` or `full`");
+    }
+
+    #[test]
     fn a_link_role_is_one_of_the_router_cores_kinds() {
         let e = err("[gcu]\ngroup = 5\n[[link]]\nname = \"c\"\nrole = \"sideways\"\nlisten = \"127.0.0.1:0\"\n");
         assert_eq!((e.key.as_str(), e.line), ("link[0].role", 5), "{e}");

@@ -72,6 +72,27 @@ port_settings! {
     nic_window_ms: Millis<1, 10_000> => nic_window,
     /// Quiet time after a write to device 255: 1 ms to 10 s.
     broadcast_guard_ms: Millis<1, 10_000> => broadcast_guard,
+    /// `full`: gcud may write while a device answers, so the next command
+    /// to a device goes in the NIC window of the one before (RS-232 point
+    /// to point, RS-422, four-wire RS-485); `half` (default): a two-wire
+    /// RS-485 bus, where it would collide with a `?`.
+    duplex: Duplex => full_duplex,
+}
+
+/// `duplex`: whether gcud may write while a device answers.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub(super) enum Duplex {
+    #[default]
+    Half,
+    Full,
+}
+
+impl Duplex {
+    /// [`PortConfig::full_duplex`].
+    fn get(&self) -> bool {
+        *self == Duplex::Full
+    }
 }
 
 /// Where a port's bytes come from.

@@ -125,6 +125,12 @@ pub struct PortConfig {
     /// resumes) and a command whose ACK never came is reported `0B not
     /// confirmed`, never undelivered (ARCHITECTURE "Delivery contract").
     pub buffered: bool,
+    /// The GCU may write while a device answers (RS-232 point to point,
+    /// RS-422 or four-wire RS-485, a device server on one of those; not a
+    /// two-wire RS-485 bus): the next command to a device goes during the
+    /// NIC window of the one before (`port::pipeline`, ARCHITECTURE "The
+    /// next command in the window").
+    pub full_duplex: bool,
     /// Quiet ticks after a device that answered before went silent to
     /// every try: its answer may still come, late, and a bare ACK names no
     /// command, so nothing is written meanwhile that could take it for its
@@ -165,6 +171,7 @@ impl PortConfig {
             idle_timeout: silence_ms(bps),
             devices: None,
             buffered: false,
+            full_duplex: false,
             late_answer_guard: LATE_ANSWER_GUARD_MS,
         }
     }

@@ -105,6 +105,9 @@ pub struct PortStats {
     pub queue_high_water: usize,
     /// Transactions started.
     pub transactions: u64,
+    /// Transactions started in the NIC window of the one before, to the
+    /// same device (full-duplex lines, `port::pipeline`).
+    pub pipelined: u64,
     pub rate_switches: u64,
 }
 

@@ -107,7 +107,15 @@ impl Port {
             }
             self.backlog = Backlog::Clear;
         }
+        self.pipeline(now);
         while self.active.is_none() && self.open {
+            // Beside an exchange in its window only the next command to
+            // its device goes (module `pipeline`).
+            if let Some(w) = &self.windowing {
+                if !self.next_is_for(w.running.device()) {
+                    break;
+                }
+            }
             // While a long wait is set aside only stops use the bus: another
             // exchange could take its result (same Table 3 header) or give it theirs.
             if !self.detached.is_empty() && !self.queue.front().is_some_and(|j| j.facts.stop) {
@@ -185,6 +193,9 @@ impl Port {
             }
             TransactionStep::Wait => {}
             TransactionStep::Done(outcome) => {
+                // The device answered this exchange (or never did): the one
+                // in its window before it ends first (module `pipeline`).
+                self.close_window(now, outcome != Outcome::Failed(TxFailure::NoAck), out);
                 if let Some(r) = self.active.take() {
                     self.finish(now, r, outcome, frame, out);
                 }
@@ -193,7 +204,14 @@ impl Port {
         }
     }
 
-    fn finish(&mut self, now: u64, r: Running, outcome: Outcome, frame: Option<FrameBuf>, out: &mut Vec<PortOut>) {
+    pub(super) fn finish(
+        &mut self,
+        now: u64,
+        r: Running,
+        outcome: Outcome,
+        frame: Option<FrameBuf>,
+        out: &mut Vec<PortOut>,
+    ) {
         let device = r.device();
         let was_online = self.device_stats.get(&device).is_some_and(|d| d.online);
         let quiet = if r.ack_timed_out && was_online {
@@ -342,6 +360,12 @@ impl Port {
                 if nak {
                     self.stats.line.naks_received += 1;
                 }
+                let awaiting = |r: &Running| !r.txn.is_broadcast() && !r.txn.acknowledged();
+                if self.active.as_ref().is_some_and(awaiting) {
+                    // The device answered the exchange on the bus: nothing
+                    // more can come about the one in its window.
+                    self.close_window(now, true, out);
+                }
                 match self
                     .active
                     .as_mut()
@@ -357,6 +381,9 @@ impl Port {
                             d.last_seen = Some(now);
                         }
                         self.active_step(now, step, None, out);
+                        // In its NIC window now: the next command to its
+                        // device may go (module `pipeline`).
+                        self.start_next(now, out);
                     }
                     None => self.stats.line.stray_bytes += 1,
                 }
@@ -366,8 +393,11 @@ impl Port {
                 if let Some(r) = self.active.as_mut().filter(|r| !r.txn.is_broadcast()) {
                     if !r.txn.acknowledged() {
                         // A NIC follows its command's ACK (1.4.2): one before
-                        // this exchange's ACK ends nothing (module doc).
-                        self.stats.line.stray_bytes += 1;
+                        // this exchange's ACK ends nothing (module doc), but
+                        // may be the NIC of the exchange in its window.
+                        if !self.hold_nic() {
+                            self.stats.line.stray_bytes += 1;
+                        }
                         return;
                     }
                     let step = r.txn.on_event(&Event::Nic, now);
@@ -446,6 +476,7 @@ impl Port {
     /// is not confirmed either, and the bus drains before the next one.
     fn heard_with_backlog(&mut self, now: u64, out: &mut Vec<PortOut>) {
         self.backlog = Backlog::Draining { last_heard: now };
+        self.close_window(now, false, out);
         let Some(r) = self.active.take_if(|r| !r.txn.is_broadcast()) else {
             return;
         };
@@ -464,6 +495,16 @@ impl Port {
         self.line.poll(now);
         while let Some(event) = self.line.next_event(now, &mut &[][..], &mut self.stats.line) {
             self.on_event(now, event, out);
+        }
+        self.poll_window(now, out);
+        if self
+            .active
+            .as_ref()
+            .is_some_and(|r| !r.txn.acknowledged() && r.txn.deadline().is_some_and(|t| now >= t))
+        {
+            // The exchange on the bus went unanswered: whose a `?` held
+            // was cannot be known (module `pipeline`).
+            self.close_window(now, false, out);
         }
         if let Some(r) = self
             .active

@@ -4,8 +4,9 @@
 //! - One [`Transaction`](sagebrush_protocol::Transaction) of the protocol crate at a time on each bus: write,
 //!   await ACK (NAK/time-out -> retransmit), then the result or NIC when the
 //!   command has one (normal or long class, `IX` is long), else a short NIC
-//!   window. Device address 255 is written once, no ACK awaited, then a
-//!   quiet guard time.
+//!   window (on a full-duplex line the next command to the same device
+//!   goes in it, `pipeline`). Device address 255 is written once, no ACK
+//!   awaited, then a quiet guard time.
 //! - Hop by hop on the bus: every good frame a device sends is ACKed, a bad
 //!   checksum is NAKed so that the device retransmits.
 //! - Stop and halt commands overtake queued work (they queue behind earlier
@@ -71,10 +72,13 @@
 //!   (`Port::receive`: ACK, NAK, NIC, frames, and whose they are) and by
 //!   time (`Port::poll`), and finished; a long result wait set aside for a
 //!   stop, the quiet after a give-up and the device server's backlog;
+//! - `pipeline`: on a full-duplex line, the next command to a device
+//!   started in the NIC window of the one before, and whose a `?` is;
 //! - `registry`: what an exchange teaches about its device (the device
 //!   registry) and the rate changes it makes.
 
 mod exchange;
+mod pipeline;
 mod queueing;
 mod registry;
 
@@ -92,6 +96,7 @@ use crate::stats::{DeviceStats, PortStats};
 use crate::types::{CommandId, CommandOutcome, DropReason, Origin, RouterEvent};
 
 use exchange::{Backlog, Running};
+use pipeline::Windowing;
 
 /// One command exchange waiting for or holding a bus.
 #[derive(Clone, Debug)]
@@ -172,6 +177,9 @@ pub(crate) struct Port {
     active: Option<Running>,
     /// Long result waits set aside for a stop, oldest first.
     detached: Vec<Running>,
+    /// An exchange in its NIC window while the next command to its device
+    /// is on the bus (full-duplex lines, module `pipeline`).
+    windowing: Option<Windowing>,
     /// Devices that answered since the port was opened.
     seen: BTreeSet<u8>,
     /// Rate changes acknowledged per device, not yet applied to the port.
@@ -218,6 +226,7 @@ impl Port {
             queue: StopFirstQueue::new(config.queue_bound, config.stop_queue_bound),
             active: None,
             detached: Vec::new(),
+            windowing: None,
             seen: BTreeSet::new(),
             acked_rates: BTreeMap::new(),
             settle_until: None,
@@ -278,6 +287,7 @@ impl Port {
             .active
             .take()
             .into_iter()
+            .chain(self.windowing.take().map(|w| w.running))
             .chain(self.detached.drain(..))
             .collect::<Vec<_>>();
         for r in running {
@@ -291,7 +301,7 @@ impl Port {
 
     /// Nothing on the bus, set aside or queued.
     pub fn is_idle(&self) -> bool {
-        self.active.is_none() && self.detached.is_empty() && self.queue.is_empty()
+        self.active.is_none() && self.windowing.is_none() && self.detached.is_empty() && self.queue.is_empty()
     }
 
     pub fn next_deadline(&self) -> Option<u64> {
@@ -302,9 +312,15 @@ impl Port {
             .max(self.drained_at())
             .filter(|_| self.active.is_none() && !self.queue.is_empty());
         // Held back by a reservation: the governance's stop lifts it.
-        [active, detached, settle, self.line.idle_deadline()]
-            .into_iter()
-            .flatten()
-            .min()
+        [
+            active,
+            self.window_deadline(),
+            detached,
+            settle,
+            self.line.idle_deadline(),
+        ]
+        .into_iter()
+        .flatten()
+        .min()
     }
 }

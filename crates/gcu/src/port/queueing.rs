@@ -174,12 +174,13 @@ impl Port {
         self.note_queue();
     }
 
-    /// The next job: a stop first; else round robin between origins (each
-    /// link is one client, ARCHITECTURE "Safety": none starves another), the
-    /// oldest job of the origin served least recently.
-    pub(super) fn next_job(&mut self) -> Option<Job> {
+    /// Where the next job waits in the queue: a stop first; else round
+    /// robin between origins (each link is one client, ARCHITECTURE
+    /// "Safety": none starves another), the oldest job of the origin served
+    /// least recently.
+    pub(super) fn next_pick(&self) -> Option<usize> {
         if self.queue.front()?.facts.stop {
-            return self.queue.pop_front();
+            return Some(0);
         }
         // An origin's later jobs have the served turn of its first, so the
         // strict `<` keeps each origin's oldest job.
@@ -205,6 +206,15 @@ impl Port {
             {
                 pick = pick.min(first);
             }
+        }
+        Some(pick)
+    }
+
+    /// The next job ([`Port::next_pick`]), taken from the queue.
+    pub(super) fn next_job(&mut self) -> Option<Job> {
+        let pick = self.next_pick()?;
+        if self.queue.front()?.facts.stop {
+            return self.queue.pop_front();
         }
         let job = self.queue.remove(pick)?;
         self.turn += 1;

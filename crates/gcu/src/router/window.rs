@@ -7,9 +7,10 @@
 //!
 //! Only a client link over a lossless medium (TCP) may ask: there every
 //! frame goes out at once and in order, so the report about a command is
-//! written before the ACK of any later command to the same device (one
-//! transaction at a time per port), and a client cannot take it for a
-//! later, byte-identical command's. A stock MCU on a serial client line
+//! written before the ACK of any later command to the same device (a port
+//! closes a command's window before it takes the next command's ACK, in
+//! the window or after it: `port::pipeline`), and a client cannot take it
+//! for a later, byte-identical command's. A stock MCU on a serial client line
 //! never asks and pays no extra frame. Only a command to one device of
 //! one port of one GCU is reported: the jobs of a port-255 fan-out end on
 //! several ports at different times, so a later command could be ACKed

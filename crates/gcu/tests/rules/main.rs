@@ -3,6 +3,7 @@
 
 mod exchange;
 mod late;
+mod pipeline;
 mod queues;
 mod routing;
 mod safety;

@@ -58,6 +58,8 @@ summary! {
     dropped,
     dead_man_stops,
     rate_switches,
+    /// Transactions started in the NIC window of the one before (full-duplex ports).
+    pipelined,
     retransmits,
     client_results,
     nonce_results,

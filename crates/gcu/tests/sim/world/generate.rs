@@ -88,6 +88,9 @@ impl World {
                 // Behind a device server that may stall (fault: stalled line).
                 let buffered = rng.chance(250);
                 let late_answer_guard = rng.range(0, 200);
+                // A line the GCU may write on while a device answers: the
+                // next command to a device goes in the window before it.
+                let full_duplex = rng.chance(500);
                 config.ports.push(PortConfig {
                     bps: 9600,
                     retries: 2,
@@ -102,6 +105,7 @@ impl World {
                     devices: devices_configured.then(|| ids.clone()),
                     late_answer_guard,
                     buffered,
+                    full_duplex,
                     ..PortConfig::new(pid)
                 });
                 let single = n_dev == 1 && rng.chance(500);

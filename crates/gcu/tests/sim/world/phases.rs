@@ -212,6 +212,7 @@ impl World {
             s.dead_man_stops += r.dead_man_stops;
             s.client_repeats += st.links.values().map(|l| l.repeats).sum::<u64>();
             s.rate_switches += st.ports.values().map(|p| p.rate_switches).sum::<u64>();
+            s.pipelined += st.ports.values().map(|p| p.pipelined).sum::<u64>();
             s.retransmits += st.ports.values().map(|p| p.line.retransmits).sum::<u64>()
                 + st.links.values().map(|l| l.line.retransmits).sum::<u64>();
         }
