@@ -95,7 +95,8 @@ impl Stack {
         let port_addr = port_listener.local_addr().expect("addr").to_string();
         let (bus_tx, bus) = mpsc::channel();
         std::thread::spawn(move || relay(port_listener, sim_addr, bus_tx));
-        let mut stack = Self::gcud(gcud, &format!("tcp = \"{port_addr}\""), bus);
+        // One gimbal behind the device server, point to point: full duplex.
+        let mut stack = Self::gcud(gcud, &format!("tcp = \"{port_addr}\"\nduplex = \"full\""), bus);
         stack.procs.push(sim);
         stack
     }
@@ -112,7 +113,12 @@ impl Stack {
                 let _ = bus_tx.send((mnemonic, at));
             })
         });
-        let mut stack = Self::gcud(gcud, &format!("path = \"{path}\"\nbaud = {baud}"), bus);
+        // RS-232 point to point: full duplex.
+        let mut stack = Self::gcud(
+            gcud,
+            &format!("path = \"{path}\"\nbaud = {baud}\nduplex = \"full\""),
+            bus,
+        );
         stack.done = done;
         stack
     }

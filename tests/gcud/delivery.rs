@@ -294,3 +294,47 @@ fn a_door_waits_gcuds_nic_window_not_its_own_too() {
         assert!(matches!(nic, Err(CommandError::Nic(_))), "{nic:?}");
     });
 }
+
+/// The next command in the window (ARCHITECTURE "Routing semantics"): on a
+/// `duplex = "full"` port the doors' connection sends a speed's direction at
+/// the speed's ACK and gcud writes it to the device at once, in the speed's
+/// NIC window (counted by `gcud_port_pipelined_total`); each outcome stays
+/// its own command's, a NIC included. On a half-duplex port (the default)
+/// nothing goes in a window.
+#[test]
+fn a_speed_and_its_direction_go_with_no_window_between_on_a_full_duplex_port() {
+    use sagebrush_client::{CommandError, GimbalConnection};
+    use sagebrush_protocol::{Axis, Speed};
+    for duplex in ["full", "half"] {
+        let sim = Sim::pty(&["--device", "1"]);
+        let gcud = Gcud::start(&format!(
+            "[gcu]\ngroup = 5\n{CLIENTS}{METRICS}{}duplex = \"{duplex}\"\n",
+            port_entry(1, &sim)
+        ));
+        gcud.wait_for_log("port open port=1");
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("runtime");
+        runtime.block_on(async {
+            let mut c = GimbalConnection::new(&gcud.clients(), 0, Address::new(5, 1, 1), Duration::from_secs(1));
+            c.position().await.expect("P?");
+            for speed in [3, 9, 5] {
+                let sp = Cmd::SetSpeed(Axis::Pan, Speed::new(speed).unwrap());
+                let (a, b) = c.send_chained(&sp, &Cmd::PanRight).await;
+                assert!(a.is_ok() && matches!(b, Some(Ok(_))), "{duplex}: {a:?} {b:?}");
+                c.send(&Cmd::PanStop).await.expect("PS");
+            }
+            // A NIC is still its own command's: `FA` (no lens) then a pan.
+            let (a, b) = c.send_chained(&Cmd::AutoFocusOn, &Cmd::PanLeft).await;
+            assert!(matches!(a, Err(CommandError::Nic(_))), "{duplex}: {a:?}");
+            assert!(matches!(b, None | Some(Ok(_))), "{duplex}: {b:?}");
+            c.send(&Cmd::PanStop).await.expect("PS");
+        });
+        let pipelined = gcud.metric("gcud_port_pipelined_total{port=\"1\"}");
+        match duplex {
+            "full" => assert!(pipelined >= 3, "each direction went in its speed's window: {pipelined}"),
+            _ => assert_eq!(pipelined, 0, "never in a window on a half-duplex bus"),
+        }
+    }
+}

@@ -149,45 +149,37 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Client<S> {
     ) -> Result<Exchange, CommandError> {
         let frame = FrameBuf::new(to, self.from, payload).map_err(|e| CommandError::Usage(format!("payload: {e}")))?;
         let ex = self.master.transact_expecting(&frame, expect).await?;
-        let policy = *self.master.policy();
-        if let Some(report) = ex.undelivered {
-            let failure = report.failure.unwrap_or(Undelivered::NotConfirmed);
-            if REFUSALS.contains(&failure) {
-                return Err(CommandError::Refused(
-                    failure,
-                    format!("refused by gcud: {what} to {to}: {}", failure.describe()),
-                ));
+        judge(ex, to, expect, what, self.master.policy())
+    }
+
+    /// `first` then `second` to `to`, the second at the first's ACK where
+    /// gcud allows ([`Master::transact_chained`]): each one's outcome, as
+    /// [`Client::send`] gives it; the second's is `None` when it was not
+    /// sent (the first failed).
+    pub async fn send_chained(
+        &mut self,
+        to: Address,
+        first: &Command<'_>,
+        second: &Command<'_>,
+    ) -> (Result<Exchange, CommandError>, Option<Result<Exchange, CommandError>>) {
+        let framed = |c: &Command<'_>| -> Result<(FrameBuf, String), CommandError> {
+            let payload = encode(c)?;
+            let frame =
+                FrameBuf::new(to, self.from, &payload).map_err(|e| CommandError::Usage(format!("payload: {e}")))?;
+            Ok((frame, command_named(&payload, c)))
+        };
+        let ((a, a_what), (b, b_what)) = match (framed(first), framed(second)) {
+            (Ok(a), Ok(b)) => (a, b),
+            (Err(e), _) | (_, Err(e)) => return (Err(e), None),
+        };
+        let (a_expect, b_expect) = (first.result_kind(), second.result_kind());
+        match self.master.transact_chained((&a, a_expect), (&b, b_expect)).await {
+            Ok((x, y)) => {
+                let policy = *self.master.policy();
+                let y = y.map(|y| judge(y, to, b_expect, &b_what, &policy));
+                (judge(x, to, a_expect, &a_what, &policy), y)
             }
-            return Err(CommandError::Undelivered(
-                failure,
-                format!(
-                    "not delivered: {what} to {to}: {} (reported by GCU {})",
-                    failure.describe(),
-                    report.at_group
-                ),
-            ));
-        }
-        match ex.outcome {
-            Outcome::Acknowledged | Outcome::Broadcast | Outcome::Result => Ok(ex),
-            Outcome::Nic => Err(CommandError::Nic(format!(
-                "NIC: {to} does not implement or cannot apply {what}"
-            ))),
-            Outcome::NoResult => Err(CommandError::NoResult(format!(
-                "{to} acknowledged {what} but sent no result within {} ms",
-                if expect == ResultKind::Required(ResultTimeout::Long) {
-                    policy.long_result_timeout
-                } else {
-                    policy.result_timeout
-                }
-            ))),
-            Outcome::Failed(TxFailure::Nak) => Err(CommandError::Nak(format!(
-                "{to} answered NAK to {what} on all {} transmissions: the frame keeps arriving damaged (line noise? wrong --baud?)",
-                ex.transmissions
-            ))),
-            Outcome::Failed(TxFailure::NoAck) => Err(CommandError::NoAck(format!(
-                "no ACK from {to} for {what} after {} transmissions ({} ms each): check the address, the cabling and --baud",
-                ex.transmissions, policy.retry.ack_timeout
-            ))),
+            Err(e) => (Err(e.into()), None),
         }
     }
 
@@ -218,6 +210,60 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Client<S> {
     /// Where the gimbal at `to` points now (`P?`).
     pub async fn position(&mut self, to: Address) -> Result<Position, CommandError> {
         self.query_position(to, &Command::QueryPosition).await
+    }
+}
+
+/// What an exchange of `what` (expecting `expect`) with `to` means to its
+/// sender: every outcome but an ACK, a result or a broadcast is an error
+/// naming the device, the command and what happened.
+fn judge(
+    ex: Exchange,
+    to: Address,
+    expect: ResultKind,
+    what: &str,
+    policy: &TransactionPolicy,
+) -> Result<Exchange, CommandError> {
+    if let Some(report) = ex.undelivered {
+        let failure = report.failure.unwrap_or(Undelivered::NotConfirmed);
+        if REFUSALS.contains(&failure) {
+            return Err(CommandError::Refused(
+                failure,
+                format!("refused by gcud: {what} to {to}: {}", failure.describe()),
+            ));
+        }
+        return Err(CommandError::Undelivered(
+            failure,
+            format!(
+                "not delivered: {what} to {to}: {} (reported by GCU {})",
+                failure.describe(),
+                report.at_group
+            ),
+        ));
+    }
+    match ex.outcome {
+        Outcome::Acknowledged | Outcome::Broadcast | Outcome::Result => Ok(ex),
+        Outcome::Nic => Err(CommandError::Nic(format!(
+            "NIC: {to} does not implement or cannot apply {what}"
+        ))),
+        Outcome::NoResult if expect == ResultKind::None => Err(CommandError::NoResult(format!(
+            "{to} acknowledged {what}, but whether a NIC followed was not confirmed (a `?` on the bus gcud could not attribute)"
+        ))),
+        Outcome::NoResult => Err(CommandError::NoResult(format!(
+            "{to} acknowledged {what} but sent no result within {} ms",
+            if expect == ResultKind::Required(ResultTimeout::Long) {
+                policy.long_result_timeout
+            } else {
+                policy.result_timeout
+            }
+        ))),
+        Outcome::Failed(TxFailure::Nak) => Err(CommandError::Nak(format!(
+            "{to} answered NAK to {what} on all {} transmissions: the frame keeps arriving damaged (line noise? wrong --baud?)",
+            ex.transmissions
+        ))),
+        Outcome::Failed(TxFailure::NoAck) => Err(CommandError::NoAck(format!(
+            "no ACK from {to} for {what} after {} transmissions ({} ms each): check the address, the cabling and --baud",
+            ex.transmissions, policy.retry.ack_timeout
+        ))),
     }
 }
 

@@ -159,6 +159,45 @@ impl GimbalConnection {
     pub async fn send(&mut self, command: &Command<'_>) -> Result<Option<Vec<u8>>, CommandError> {
         let address = self.address;
         let sent = self.client().await?.send(address, command).await;
+        self.settled(command, sent).await
+    }
+
+    /// `first`, then `second` at its ACK where gcud allows
+    /// ([`sagebrush_client::Master::transact_chained`]: a speed and the
+    /// direction that takes it, with no NIC window between): each one's
+    /// outcome as [`GimbalConnection::send`] gives it; the second's is
+    /// `None` when it was not sent (the first failed).
+    #[allow(clippy::type_complexity)]
+    pub async fn send_chained(
+        &mut self,
+        first: &Command<'_>,
+        second: &Command<'_>,
+    ) -> (
+        Result<Option<Vec<u8>>, CommandError>,
+        Option<Result<Option<Vec<u8>>, CommandError>>,
+    ) {
+        let address = self.address;
+        let client = match self.client().await {
+            Ok(c) => c,
+            Err(e) => return (Err(e), None),
+        };
+        let (a, b) = client.send_chained(address, first, second).await;
+        let a = self.settled(first, a).await;
+        let b = match b {
+            Some(b) => Some(self.settled(second, b).await),
+            None => None,
+        };
+        (a, b)
+    }
+
+    /// What [`GimbalConnection::send`] makes of an exchange of `command`:
+    /// its result payload; the connection dropped after an I/O failure; a
+    /// refusal for another link's control naming that link.
+    async fn settled(
+        &mut self,
+        command: &Command<'_>,
+        sent: Result<crate::master::Exchange, CommandError>,
+    ) -> Result<Option<Vec<u8>>, CommandError> {
         match self.failed(sent) {
             Ok(ex) => {
                 if takes_control(command) && self.control.own.is_none() {

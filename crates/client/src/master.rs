@@ -17,7 +17,7 @@ use futures_util::{FutureExt, SinkExt, StreamExt};
 use sagebrush_protocol::link::TransactionPolicy;
 use sagebrush_protocol::{
     CONTROL_UNIT, Command, DeliveryReport, Event, FrameBuf, LINK_PORT, Outcome, OwnedEvent, ResultKind, Transaction,
-    TransactionStep, TxFailure,
+    TransactionStep, TxFailure, WILDCARD,
 };
 use tokio::io::{AsyncRead, AsyncWrite};
 use tokio_util::codec::Framed;
@@ -148,17 +148,6 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
         self.framed.codec().framer().skipped_bytes()
     }
 
-    /// Whether a report `00` about the exchange `tx` ends it: gcud agreed
-    /// to send it at the end of its port's NIC window, the ACK came, and
-    /// no result is required (1.4.2; an optional one did not come).
-    fn window_ended(&self, tx: &Transaction, expect: ResultKind) -> bool {
-        self.window_reports
-            && tx.acknowledged()
-            && tx.outcome().is_none()
-            && !tx.is_broadcast()
-            && !matches!(expect, ResultKind::Required(_))
-    }
-
     /// Sends `frame` (whose payload is `command`) and waits for the end of
     /// the exchange. I/O errors (a closed link) are errors; every protocol
     /// outcome, failures included, is an [`Exchange`].
@@ -169,7 +158,102 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
     /// [`Master::transact`] of a frame whose answer is `expect` (a GCU
     /// command of port 0, which no row of the command tables describes).
     pub async fn transact_expecting(&mut self, frame: &FrameBuf, expect: ResultKind) -> io::Result<Exchange> {
-        let started = Instant::now();
+        let mut open = self.begin(frame, expect).await?;
+        self.drive(&mut open, false).await?;
+        Ok(self.ended(open))
+    }
+
+    /// Whether `second` may follow `first` (a command with no result) at
+    /// its ACK, before its NIC window ends: gcud reports the end of that
+    /// window on this stream, and both go to the same one device. gcud
+    /// then relays the first command's `?` or writes its report `00` before
+    /// the second command's ACK (ARCHITECTURE "End of the NIC window"), so
+    /// nothing said about one can be taken for the other.
+    pub fn may_chain(&self, first: &FrameBuf, first_expect: ResultKind, second: &FrameBuf) -> bool {
+        let (a, b) = (first.frame(), second.frame());
+        self.window_reports
+            && first_expect == ResultKind::None
+            && a.dest == b.dest
+            && ![a.dest.group, a.dest.port, a.dest.device].contains(&WILDCARD)
+            && a.dest.port != LINK_PORT
+            && first.as_bytes() != second.as_bytes()
+    }
+
+    /// `first`, then `second` at `first`'s ACK, not after its NIC window
+    /// (when [`Master::may_chain`]; one after the other otherwise), each
+    /// with the answer it expects: what came of each. `second` is not sent
+    /// when `first` did not end well before it (refused, not delivered, a
+    /// NIC): `None`.
+    pub async fn transact_chained(
+        &mut self,
+        (first, first_expect): (&FrameBuf, ResultKind),
+        (second, second_expect): (&FrameBuf, ResultKind),
+    ) -> io::Result<(Exchange, Option<Exchange>)> {
+        let chained = self.may_chain(first, first_expect, second);
+        let mut a = self.begin(first, first_expect).await?;
+        self.drive(&mut a, chained).await?;
+        if !matches!(a.step, TransactionStep::Wait) {
+            let done = matches!(
+                a.step,
+                TransactionStep::Done(Outcome::Acknowledged | Outcome::Result | Outcome::Broadcast)
+            );
+            let a = self.ended(a);
+            if !done {
+                return Ok((a, None));
+            }
+            let b = self.transact_expecting(second, second_expect).await?;
+            return Ok((a, Some(b)));
+        }
+        // In its window: the second goes now, and each event is the
+        // first's or the second's by the order gcud keeps.
+        let mut b = self.send_first(second, second_expect).await?;
+        while !matches!(b.step, TransactionStep::Done(_)) {
+            let deadline = [a.deadline(), b.deadline()].into_iter().flatten().min();
+            let event = self.next_event(deadline.map(|d| self.instant(d))).await?;
+            let now = self.now();
+            let Some(event) = event else {
+                if a.is_open() {
+                    a.step = a.tx.poll(now);
+                }
+                b.step = b.tx.poll(now);
+                self.resend(&mut b).await?;
+                continue;
+            };
+            if !a.is_open() {
+                self.on_event(&mut b, event).await?;
+                continue;
+            }
+            match event {
+                OwnedEvent::Frame(f) if report_about(first, &f).is_some_and(|r| r.failure.is_none()) => {
+                    self.write(Write::Ack).await?;
+                    debug!(dest = %first.frame().dest, "gcud's NIC window passed");
+                    a.step = TransactionStep::Done(Outcome::Acknowledged);
+                }
+                // Before the second's ACK, a `?` is the first's (1.4.2: the
+                // NIC follows its ACK; gcud relays in order).
+                OwnedEvent::Nic if !b.tx.acknowledged() => a.step = a.tx.on_event(&Event::Nic, now),
+                event => {
+                    self.on_event(&mut b, event).await?;
+                    if b.tx.acknowledged() || matches!(b.step, TransactionStep::Done(_)) {
+                        // gcud said nothing more of the first before the
+                        // second's answer: its port could not tell whose a
+                        // `?` was (`port::pipeline`). Not confirmed.
+                        a.step = TransactionStep::Done(Outcome::NoResult);
+                    }
+                }
+            }
+        }
+        if a.is_open() {
+            a.step = TransactionStep::Done(Outcome::NoResult);
+        }
+        let (a, b) = (self.ended(a), self.ended(b));
+        Ok((a, Some(b)))
+    }
+
+    /// Starts the exchange of `frame`: events already waiting are
+    /// discarded (they came before the command, so they answer none of it)
+    /// and the frame is written.
+    async fn begin<'f>(&mut self, frame: &'f FrameBuf, expect: ResultKind) -> io::Result<Open<'f>> {
         let mut stale = 0;
         while stale < STALE_EVENTS_CAP {
             match self.framed.next().now_or_never() {
@@ -181,89 +265,169 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
                 Some(None) | None => break,
             }
         }
-        let noise_at_start = self.noise_bytes();
+        self.send_first(frame, expect).await
+    }
+
+    /// Writes `frame` for the first time.
+    async fn send_first<'f>(&mut self, frame: &'f FrameBuf, expect: ResultKind) -> io::Result<Open<'f>> {
         let mut tx = Transaction::expecting(frame.frame().dest, expect, self.policy);
-        let mut result = None;
-        let mut undelivered = None;
-        let (mut naks_received, mut naks_sent, mut stray_frames) = (0u32, 0u32, 0u32);
-        let mut step = tx.start(self.now());
-        let outcome = loop {
-            match step {
-                TransactionStep::Done(outcome) => break outcome,
-                TransactionStep::Send => {
-                    if tx.transmissions() > 1 {
-                        info!(transmission = tx.transmissions(), dest = %frame.frame().dest, "retransmitting");
-                    }
-                    self.write(Write::Frame(frame)).await?;
-                    step = tx.poll(self.now());
-                    continue;
-                }
-                TransactionStep::Wait => {}
-            }
-            let deadline = tx.deadline().map(|d| self.instant(d));
-            let Some(event) = self.next_event(deadline).await? else {
-                step = tx.poll(self.now());
-                continue;
-            };
-            let now = self.now();
-            step = match event {
-                OwnedEvent::Frame(f) => {
-                    // Every intact frame is acknowledged, hop by hop.
-                    self.write(Write::Ack).await?;
-                    match report_about(frame, &f) {
-                        Some(report) if report.failure.is_some() && !tx.acknowledged() => {
-                            warn!(dest = %frame.frame().dest, ?report, "not delivered");
-                            undelivered = Some(report);
-                            step = TransactionStep::Done(Outcome::Failed(TxFailure::NoAck));
-                            continue;
-                        }
-                        Some(report) if report.failure.is_none() && self.window_ended(&tx, expect) => {
-                            debug!(dest = %frame.frame().dest, "gcud's NIC window passed");
-                            step = TransactionStep::Done(Outcome::Acknowledged);
-                            continue;
-                        }
-                        _ => {}
-                    }
-                    let s = tx.on_event(&Event::Frame(f.frame()), now);
-                    if s == TransactionStep::Done(Outcome::Result) {
-                        result = Some(f);
-                    } else {
-                        stray_frames += 1;
-                        debug!(dest = %f.frame().dest, "frame that is not our result ignored");
-                    }
-                    s
-                }
-                OwnedEvent::BadChecksum(bad) => {
-                    if tx.is_result_header(&bad.dest) {
-                        warn!(dest = %bad.dest, "damaged result: NAK");
-                        naks_sent += 1;
-                        self.write(Write::Nak).await?;
-                    }
-                    TransactionStep::Wait
-                }
-                OwnedEvent::Ack => tx.on_event(&Event::Ack, now),
-                OwnedEvent::Nak => {
-                    naks_received += 1;
-                    tx.on_event(&Event::Nak, now)
-                }
-                OwnedEvent::Nic => tx.on_event(&Event::Nic, now),
-            };
-            if step == TransactionStep::Send {
-                info!(transmission = tx.transmissions(), "NAK received: retransmitting");
-                self.write(Write::Frame(frame)).await?;
-                step = tx.poll(self.now());
-            }
+        let step = tx.start(self.now());
+        let mut open = Open {
+            frame,
+            expect,
+            tx,
+            step,
+            result: None,
+            undelivered: None,
+            naks_received: 0,
+            naks_sent: 0,
+            stray_frames: 0,
+            noise_at_start: self.noise_bytes(),
+            started: Instant::now(),
         };
-        Ok(Exchange {
+        self.resend(&mut open).await?;
+        Ok(open)
+    }
+
+    /// Writes the frame when the exchange says so.
+    async fn resend(&mut self, open: &mut Open<'_>) -> io::Result<()> {
+        if open.step == TransactionStep::Send {
+            if open.tx.transmissions() > 1 {
+                info!(transmission = open.tx.transmissions(), dest = %open.frame.frame().dest, "retransmitting");
+            }
+            self.write(Write::Frame(open.frame)).await?;
+            open.step = open.tx.poll(self.now());
+        }
+        Ok(())
+    }
+
+    /// Runs `open` until it is done or, with `until_window`, in the NIC
+    /// window after its ACK (its step then [`TransactionStep::Wait`]).
+    async fn drive(&mut self, open: &mut Open<'_>, until_window: bool) -> io::Result<()> {
+        loop {
+            if matches!(open.step, TransactionStep::Done(_)) {
+                return Ok(());
+            }
+            if until_window && open.in_window() {
+                return Ok(());
+            }
+            let deadline = open.deadline().map(|d| self.instant(d));
+            match self.next_event(deadline).await? {
+                Some(event) => self.on_event(open, event).await?,
+                None => {
+                    open.step = open.tx.poll(self.now());
+                    self.resend(open).await?;
+                }
+            }
+        }
+    }
+
+    /// One event for `open`: every intact frame acknowledged hop by hop, a
+    /// damaged result NAKed, a delivery report taken (not delivered: done;
+    /// `00` after the ACK: the window passed).
+    async fn on_event(&mut self, open: &mut Open<'_>, event: OwnedEvent) -> io::Result<()> {
+        let now = self.now();
+        open.step = match event {
+            OwnedEvent::Frame(f) => {
+                self.write(Write::Ack).await?;
+                match report_about(open.frame, &f) {
+                    Some(report) if report.failure.is_some() && !open.tx.acknowledged() => {
+                        warn!(dest = %open.frame.frame().dest, ?report, "not delivered");
+                        open.undelivered = Some(report);
+                        open.step = TransactionStep::Done(Outcome::Failed(TxFailure::NoAck));
+                        return Ok(());
+                    }
+                    Some(report) if report.failure.is_none() && self.window_reports && open.in_window() => {
+                        debug!(dest = %open.frame.frame().dest, "gcud's NIC window passed");
+                        open.step = TransactionStep::Done(Outcome::Acknowledged);
+                        return Ok(());
+                    }
+                    _ => {}
+                }
+                let s = open.tx.on_event(&Event::Frame(f.frame()), now);
+                if s == TransactionStep::Done(Outcome::Result) {
+                    open.result = Some(f);
+                } else {
+                    open.stray_frames += 1;
+                    debug!(dest = %f.frame().dest, "frame that is not our result ignored");
+                }
+                s
+            }
+            OwnedEvent::BadChecksum(bad) => {
+                if open.tx.is_result_header(&bad.dest) {
+                    warn!(dest = %bad.dest, "damaged result: NAK");
+                    open.naks_sent += 1;
+                    self.write(Write::Nak).await?;
+                }
+                TransactionStep::Wait
+            }
+            OwnedEvent::Ack => open.tx.on_event(&Event::Ack, now),
+            OwnedEvent::Nak => {
+                open.naks_received += 1;
+                let s = open.tx.on_event(&Event::Nak, now);
+                if s == TransactionStep::Send {
+                    info!(
+                        transmission = open.tx.transmissions() + 1,
+                        "NAK received: retransmitting"
+                    );
+                }
+                s
+            }
+            OwnedEvent::Nic => open.tx.on_event(&Event::Nic, now),
+        };
+        self.resend(open).await
+    }
+
+    /// What came of `open`, which is done.
+    fn ended(&self, open: Open<'_>) -> Exchange {
+        let outcome = match open.step {
+            TransactionStep::Done(outcome) => outcome,
+            _ => Outcome::NoResult,
+        };
+        Exchange {
             outcome,
-            result,
-            transmissions: tx.transmissions(),
-            naks_received,
-            naks_sent,
-            noise_bytes: self.noise_bytes() - noise_at_start,
-            stray_frames,
-            undelivered,
-            elapsed: started.elapsed(),
-        })
+            result: open.result,
+            transmissions: open.tx.transmissions(),
+            naks_received: open.naks_received,
+            naks_sent: open.naks_sent,
+            noise_bytes: self.noise_bytes() - open.noise_at_start,
+            stray_frames: open.stray_frames,
+            undelivered: open.undelivered,
+            elapsed: open.started.elapsed(),
+        }
+    }
+}
+
+/// An exchange under way on a [`Master`].
+struct Open<'f> {
+    frame: &'f FrameBuf,
+    expect: ResultKind,
+    tx: Transaction,
+    step: TransactionStep,
+    result: Option<FrameBuf>,
+    undelivered: Option<DeliveryReport>,
+    naks_received: u32,
+    naks_sent: u32,
+    stray_frames: u32,
+    noise_at_start: u64,
+    started: Instant,
+}
+
+impl Open<'_> {
+    /// Acknowledged, no result required (1.4.2; an optional one has not
+    /// come): waiting only for a NIC, or for gcud's report `00`.
+    fn in_window(&self) -> bool {
+        self.tx.acknowledged()
+            && self.tx.outcome().is_none()
+            && !self.tx.is_broadcast()
+            && !matches!(self.expect, ResultKind::Required(_))
+    }
+
+    fn is_open(&self) -> bool {
+        !matches!(self.step, TransactionStep::Done(_))
+    }
+
+    fn deadline(&self) -> Option<u64> {
+        self.tx.deadline().filter(|_| self.is_open())
     }
 }

@@ -51,7 +51,7 @@ impl<S> Default for InForce<S> {
     }
 }
 
-impl<S> InForce<S> {
+impl<S: PartialEq> InForce<S> {
     /// The speed is no longer believed (the slew in force stays as it is).
     fn forget_speed(&mut self) {
         self.speed = None;
@@ -66,11 +66,15 @@ impl<S> InForce<S> {
         self.speed_owed = false;
     }
 
-    /// This, after its drive command was acknowledged at `now`: a speed
-    /// command (`set`) starts the time its speed is believed.
-    pub(super) fn speed_set(mut self, set: bool, now: Instant) -> Self {
+    /// This, after its drive command was acknowledged at `now`, in place
+    /// of `before`: a speed command (`set`) starts the time its speed is
+    /// believed; a direction keeps the time of the speed it runs at (set
+    /// by the command chained before it, whose ack this one did not see).
+    pub(super) fn speed_set(mut self, set: bool, now: Instant, before: &Self) -> Self {
         if set {
             self.speed_at = Some(now);
+        } else if self.speed == before.speed {
+            self.speed_at = before.speed_at;
         }
         self
     }

@@ -10,8 +10,10 @@ use sagebrush_protocol::ResultKind;
 /// What the task does next.
 pub(super) enum Step {
     Stop(Command<'static>, Axes),
-    /// A drive command, and the axis once it is acknowledged.
-    Drive(Command<'static>, Applied),
+    /// A drive command, and the axis once it is acknowledged; after a
+    /// speed, the direction command that takes it, chained to it
+    /// ([`GimbalConnection::send_chained`]).
+    Drive(Command<'static>, Applied, Option<(Command<'static>, Applied)>),
     Place(Place),
     Query(Queued),
     Poll,
@@ -123,10 +125,19 @@ impl GimbalSession {
                     self.reached(&sent);
                     self.stop_sent(&command, axes, sent);
                 }
-                Step::Drive(command, applied) => {
+                Step::Drive(command, applied, None) => {
                     let sent = connection.send(&command).await;
                     self.reached(&sent);
                     self.drive_sent(&command, applied, sent);
+                }
+                Step::Drive(speed, applied, Some((direction, then))) => {
+                    let (sent, then_sent) = connection.send_chained(&speed, &direction).await;
+                    self.reached(&sent);
+                    self.drive_sent(&speed, applied, sent);
+                    if let Some(then_sent) = then_sent {
+                        self.reached(&then_sent);
+                        self.drive_sent(&direction, then, then_sent);
+                    }
                 }
                 Step::Place(place) => {
                     let sent = connection.send(&place.command()).await;
@@ -285,9 +296,9 @@ impl GimbalSession {
                 let set_now = matches!(command, Command::SetSpeed(..) | Command::ZoomSpeed(_));
                 let now = Instant::now();
                 match applied {
-                    Applied::Pan(a) => s.pan = a.speed_set(set_now, now),
-                    Applied::Tilt(a) => s.tilt = a.speed_set(set_now, now),
-                    Applied::Zoom(a) => s.zoom = a.speed_set(set_now, now),
+                    Applied::Pan(a) => s.pan = a.speed_set(set_now, now, &s.pan),
+                    Applied::Tilt(a) => s.tilt = a.speed_set(set_now, now, &s.tilt),
+                    Applied::Zoom(a) => s.zoom = a.speed_set(set_now, now, &s.zoom),
                 }
             }
             Err(e) if e.refusal().is_some() => {
@@ -426,9 +437,28 @@ pub(super) fn next_drive<S: Copy + PartialEq>(
     Some((direction_command(at_set), after))
 }
 
+/// The step [`next_drive`] gives, `applied` saying which axis: a speed
+/// with the direction command that takes it chained (the speed is owed
+/// that direction whatever is asked meanwhile).
+fn drive_step<S: Copy + PartialEq>(
+    want: Option<Drive<S>>,
+    now: InForce<S>,
+    speed_command: impl Fn(S) -> Command<'static>,
+    direction_command: impl Fn(Drive<S>) -> Command<'static>,
+    applied: impl Fn(InForce<S>) -> Applied,
+) -> Option<Step> {
+    let (command, after) = next_drive(want, now, &speed_command, &direction_command)?;
+    let then = after
+        .speed_owed
+        .then(|| next_drive(want, after, &speed_command, &direction_command))
+        .flatten()
+        .map(|(direction, then)| (direction, applied(then)));
+    Some(Step::Drive(command, applied(after), then))
+}
+
 /// [`next_drive`] for pan or tilt (Table 11: `SPn`/`STn`, `PR`/`PL`/`TU`/`TD`).
 pub(super) fn pan_tilt_step(axis: Axis, want: Option<Drive<Speed>>, now: InForce<Speed>) -> Option<Step> {
-    let (command, after) = next_drive(
+    drive_step(
         want,
         now,
         |s| Command::SetSpeed(axis, s),
@@ -438,23 +468,25 @@ pub(super) fn pan_tilt_step(axis: Axis, want: Option<Drive<Speed>>, now: InForce
             (Axis::Tilt, Drive::Forward(_)) => Command::TiltUp,
             (Axis::Tilt, _) => Command::TiltDown,
         },
-    )?;
-    Some(Step::Drive(
-        command,
-        match axis {
+        |after| match axis {
             Axis::Pan => Applied::Pan(after),
             Axis::Tilt => Applied::Tilt(after),
         },
-    ))
+    )
 }
 
 /// [`next_drive`] for the zoom (Table 16: `Zn`, `ZI`/`ZO`).
 pub(super) fn zoom_step(want: Option<Drive<LensSpeed>>, now: InForce<LensSpeed>) -> Option<Step> {
-    let (command, after) = next_drive(want, now, Command::ZoomSpeed, |d| match d {
-        Drive::Forward(_) => Command::ZoomIn,
-        _ => Command::ZoomOut,
-    })?;
-    Some(Step::Drive(command, Applied::Zoom(after)))
+    drive_step(
+        want,
+        now,
+        Command::ZoomSpeed,
+        |d| match d {
+            Drive::Forward(_) => Command::ZoomIn,
+            _ => Command::ZoomOut,
+        },
+        Applied::Zoom,
+    )
 }
 
 pub(super) async fn poll(
@@ -477,7 +509,7 @@ mod tests {
     /// Applies `step` to `now` as the session does once it is acknowledged.
     fn applied(step: Step) -> (String, InForce<Speed>) {
         match step {
-            Step::Drive(command, Applied::Pan(after)) => (command.mnemonic().to_owned(), after),
+            Step::Drive(command, Applied::Pan(after), _) => (command.mnemonic().to_owned(), after),
             _ => unreachable!("only pan is asked"),
         }
     }
