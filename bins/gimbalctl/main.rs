@@ -197,7 +197,7 @@ async fn run_command(cli: &Cli) -> Result<(), CtlError> {
     let ex = session.exchange(&request.command, &request.payload).await?;
     let raw = matches!(cli.command, Cmd::Raw { .. });
     let (text, mut value) = report(&session, &cli.command, &request, &ex, raw)?;
-    if cli.command.jog().is_some() && session.over_tcp && ex.outcome != Outcome::Broadcast {
+    if cli.command.jog().is_some() && session.gcud && ex.outcome != Outcome::Broadcast {
         sagebrush_host::errln!(
             "gimbalctl: note: through gcud this motion stops as soon as gimbalctl exits (gcud's dead-man); \
              use --for DURATION or --hold to keep it going"

@@ -544,7 +544,7 @@ pub async fn scan(g: &Global, args: &ScanArgs) -> Result<(), CtlError> {
     // Through a GCU the ACK waits for the device (and a report says why
     // not) within gcud's delivery time-out, shorter than the TCP default
     // ACK time-out: that one stays, or a late report would meet the next probe.
-    let to_gcu = g.tcp.is_some() && !args.direct;
+    let to_gcu = g.tcp.is_some() && !g.direct;
     // From here on SIGINT and SIGTERM end the scan: with what it found printed,
     // and a --capture file completed (the session is dropped first).
     let mut int = signal(SignalKind::interrupt())?;
@@ -562,7 +562,7 @@ pub async fn scan(g: &Global, args: &ScanArgs) -> Result<(), CtlError> {
         _ = int.recv() => return Err(interrupted_before_a_probe("SIGINT", 130)),
         _ = term.recv() => return Err(interrupted_before_a_probe("SIGTERM", 143)),
     };
-    let through_gcu = session.over_tcp && !args.direct;
+    let through_gcu = session.gcud;
     let line = session.line.clone();
     // The identity probes planned so far: more as GCUs answer.
     let planned = match through_gcu {

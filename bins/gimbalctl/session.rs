@@ -2,16 +2,16 @@
 //! and the exchanges `gimbalctl` makes over it ([`sagebrush_client::Client`]),
 //! with protocol failures turned into [`CtlError`]s that say what happened.
 
-use sagebrush_client::Client;
 use sagebrush_client::codec::Write;
 use sagebrush_client::master::Exchange;
+use sagebrush_client::{Client, CommandError};
 use sagebrush_host::capture::{Capture, CaptureSwitch, Role, Tapped, capture_to};
 use sagebrush_host::timing;
 use sagebrush_host::transport::{self, SerialOrTcp};
 use std::time::Duration;
 
 use sagebrush_protocol::link::TransactionPolicy;
-use sagebrush_protocol::{Address, Command, FrameBuf, OwnedEvent};
+use sagebrush_protocol::{Address, Command, FrameBuf, LINK_PORT, OwnedEvent, ResultKind};
 
 use crate::cli::Global;
 use crate::error::CtlError;
@@ -25,7 +25,10 @@ pub struct Session {
     pub to: Address,
     /// What the line is (`tcp 127.0.0.1:4001`, `serial /dev/pts/3`).
     pub line: String,
-    pub over_tcp: bool,
+    /// `--tcp` without `--direct`: gcud's client listener, not a bus.
+    pub gcud: bool,
+    /// `~W` was asked on this connection (once, whatever the answer).
+    window_asked: bool,
 }
 
 /// What came in after an exchange ended (`Session::linger`).
@@ -101,7 +104,8 @@ impl Session {
             capture: capture.map(|(_, capture)| capture),
             to,
             line: described,
-            over_tcp,
+            gcud: over_tcp && !g.direct,
+            window_asked: false,
         })
     }
 
@@ -109,7 +113,45 @@ impl Session {
     /// not read again); failures become errors naming the device, the
     /// command and what happened ([`CommandError`]).
     pub async fn exchange(&mut self, command: &Command<'_>, payload: &[u8]) -> Result<Exchange, CtlError> {
+        self.ask_window_reports(command).await?;
         Ok(self.client.exchange(self.to, command, payload).await?)
+    }
+
+    /// Before the first command that may wait a NIC window after its ACK
+    /// (no required result, one device): through gcud, asks it to report the end of
+    /// its port's window (`~W`, ARCHITECTURE "End of the NIC window"), so
+    /// that the exchange does not wait `--nic-window` on top of it. Never on
+    /// a bus (`--serial`, `--tcp --direct`): no device is `G.0.0`, and the
+    /// question would only cost an ACK time-out. gcud asked once, without
+    /// retransmission (TCP loses nothing); a NIC (an older gcud) or no answer
+    /// leaves the window here, as before.
+    async fn ask_window_reports(&mut self, command: &Command<'_>) -> Result<(), CtlError> {
+        let to = self.to;
+        if !self.gcud
+            || self.window_asked
+            || matches!(command.result_kind(), ResultKind::Required(_))
+            || to.has_wildcard()
+            || to.port == LINK_PORT
+        {
+            return Ok(());
+        }
+        self.window_asked = true;
+        let policy = *self.client.master_mut().policy();
+        self.client.master_mut().policy_mut().retry.retries = 0;
+        let asked = self.client.ask_window_reports(to.group).await;
+        *self.client.master_mut().policy_mut() = policy;
+        match asked {
+            Ok(agreed) => tracing::debug!(agreed, group = to.group, "end-of-window reports (~W) asked"),
+            Err(e @ CommandError::Io(_)) => return Err(e.into()),
+            Err(CommandError::NoAck(_)) => sagebrush_host::errln!(
+                "gimbalctl: note: {}.0.0 did not answer ~W (end-of-window reports) within {} ms: \
+                 waiting --nic-window after each ACK here; if --tcp leads to a device server, not gcud, give --direct",
+                to.group,
+                policy.retry.ack_timeout
+            ),
+            Err(e) => tracing::debug!(error = %e, "end-of-window reports (~W) not agreed"),
+        }
+        Ok(())
     }
 
     /// The source group the commands carry (`--from`).

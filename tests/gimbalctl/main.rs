@@ -11,6 +11,7 @@ mod delivery;
 mod jog;
 mod output;
 mod scan;
+mod window;
 
 use std::time::Duration;
 

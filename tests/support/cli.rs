@@ -206,7 +206,7 @@ pub fn wait_output(mut child: Child) -> Output {
     }
 }
 
-/// A scripted bus on 127.0.0.1 (a device server, as `gimbalctl --tcp`
+/// A scripted bus on 127.0.0.1 (a device server, as `gimbalctl --tcp --direct`
 /// sees it): device 1 answers properly, device 2 answers `D?` with
 /// garbage, device 3 exists twice (two ACKs, two identity results with
 /// different serial numbers), device 4 ACKs and never answers, device 6

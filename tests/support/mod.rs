@@ -306,10 +306,13 @@ impl Sim {
         frames_received(&self.log(), dest)
     }
 
-    /// The `gimbalctl` transport flags for this simulator.
+    /// The `gimbalctl` transport flags for this simulator (over TCP it is
+    /// a device server: `--direct`, gimbalctl its bus master).
     pub fn transport(&self) -> Vec<String> {
-        let flag = if self.tcp { "--tcp" } else { "--serial" };
-        vec![flag.to_string(), self.endpoint.clone()]
+        match self.tcp {
+            true => vec!["--tcp".into(), self.endpoint.clone(), "--direct".into()],
+            false => vec!["--serial".into(), self.endpoint.clone()],
+        }
     }
 
     /// `gimbalctl` against this simulator.

@@ -19,9 +19,6 @@ pub struct ScanArgs {
     /// the first 8; 1-254 asks every ID.
     #[arg(long, default_value = "1-8", value_parser = parse_id_list, value_name = "LIST")]
     pub devices: IdList,
-    /// --tcp leads to a bus, not a GCU (gimbalsim --tcp, a ser2net device server): sweep --bus directly.
-    #[arg(long)]
-    pub direct: bool,
     /// On a bus (--serial, or --tcp with --direct): the GROUP.PORT the devices are addressed at, each 1..=255.
     #[arg(long, default_value = "255.255", value_parser = parse_bus, value_name = "G.P")]
     pub bus: (u8, u8),

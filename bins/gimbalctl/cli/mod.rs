@@ -77,10 +77,11 @@ Exit codes:
 
 /// Command Sagebrush pan-tilt gimbals (protocol rev 1.9) by hand.
 ///
-/// Talks to a bus directly (--serial, as bus master) or to a GCU daemon
-/// (--tcp, as a client like the MCU). Angles are degrees (positive = pan
-/// right, clockwise seen from above, and tilt up), rates degrees per second. Every
-/// command to a device needs --to GROUP.PORT.DEVICE.
+/// Talks to a bus directly (--serial, or --tcp --direct to a device server,
+/// as bus master) or to a GCU daemon (--tcp, as a client like the MCU).
+/// Angles are degrees (positive = pan right, clockwise seen from above, and
+/// tilt up), rates degrees per second. Every command to a device needs --to
+/// GROUP.PORT.DEVICE.
 #[derive(Debug, Parser)]
 #[command(
     name = "gimbalctl",
@@ -110,9 +111,12 @@ pub struct Global {
     /// Line rate of --serial in bit/s: 1200, 2400, 4800, 9600, 19200, 38400, 57600 or 115200.
     #[arg(long, global = true, default_value_t = 9600, value_parser = parse_baud, help_heading = "Connection (global)")]
     pub baud: u32,
-    /// A GCU daemon's client address HOST:PORT, e.g. 127.0.0.1:4001 (this program is a client like the MCU).
+    /// A GCU daemon's client address HOST:PORT, e.g. 127.0.0.1:4001 (this program is a client like the MCU); with --direct a device server's.
     #[arg(long, global = true, env = "GIMBALCTL_TCP", value_name = "HOST:PORT", value_parser = parse_host_port, help_heading = "Connection (global)")]
     pub tcp: Option<String>,
+    /// --tcp leads to a bus, not gcud (a device server such as ser2net, gimbalsim --tcp): this program is its master, asks gcud nothing (no ~W) and `scan` sweeps --bus.
+    #[arg(long, global = true, help_heading = "Connection (global)")]
+    pub direct: bool,
     /// Destination GROUP.PORT.DEVICE, each 0..255 (255 = wildcard at that level). Required by every command to a device.
     #[arg(long, global = true, value_parser = parse_address, value_name = "G.P.D", help_heading = "Addressing (global)")]
     pub to: Option<Address>,

@@ -96,6 +96,11 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
         &self.policy
     }
 
+    /// The time-outs and retries of the exchanges from now on.
+    pub fn policy_mut(&mut self) -> &mut TransactionPolicy {
+        &mut self.policy
+    }
+
     /// The stream itself (bytes already read into events are not in it).
     pub fn stream_mut(&mut self) -> &mut S {
         self.framed.get_mut()

@@ -1,0 +1,107 @@
+//! End of the NIC window (ARCHITECTURE "End of the NIC window (`~W`)"):
+//! through gcud (`--tcp`) gimbalctl asks for end-of-window reports before
+//! its first command without a result, so a slew waits gcud's port window
+//! (35 ms), not its own `--nic-window` on top of it; a gcud that answers
+//! NIC (an older one) still gets the command, and the window is waited
+//! here. A bus master (`--serial`, `--tcp --direct` to a device server)
+//! asks nothing: no device is `G.0.0`.
+
+use super::*;
+use support::fake_gcud::{Answer, FakeGcud};
+
+/// gimbalctl's debug line after it asked `~W`.
+const ASKED: &str = "end-of-window reports (~W) asked";
+/// `--log` that shows it.
+const DEBUG: &str = "warn,gimbalctl=debug";
+
+#[test]
+fn a_slew_through_gcud_waits_gcuds_window_not_its_own_too() {
+    let gcud = DemoGcud::start();
+    // A window of gimbalctl's own of 3 s: waited on top of gcud's 35 ms,
+    // each of these would take more than 3 s.
+    let own: &[&str] = &["--log", DEBUG, "--to", "5.1.1", "--nic-window", "3000"];
+    for command in [&["speed", "pan", "3"][..], &["slew", "right"], &["stop", "pan"]] {
+        let out = gcud.ctl(&[&["--json"], own, command].concat());
+        assert_eq!(out.code, 0, "{command:?}: {out:?}\n{}", gcud.log());
+        assert!(
+            out.stderr.contains(ASKED) && out.stderr.contains("agreed=true"),
+            "gcud agreed to ~W: {out:?}"
+        );
+        let took = out.json()["elapsed_ms"].as_u64().expect("elapsed_ms");
+        assert!(
+            took < 1500,
+            "{command:?}: gcud's window, not --nic-window 3000 as well: {took} ms"
+        );
+    }
+    // A query waits for its result, never a window: nothing asked.
+    let out = gcud.ctl(&[own, &["position"]].concat());
+    assert_eq!(out.code, 0, "{out:?}");
+    assert!(!out.stderr.contains("~W"), "{out:?}");
+}
+
+#[test]
+fn gcud_is_asked_once_first_and_a_nic_leaves_the_window_here() {
+    for (answer, agreed) in [(Answer::Result(b"~W=".to_vec()), true), (Answer::Nic, false)] {
+        let fake = FakeGcud::start(move |p| match p {
+            b"~W" => answer.clone(),
+            _ => Answer::Ack,
+        });
+        let out = gimbalctl(&[
+            "--json",
+            "--log",
+            DEBUG,
+            "--tcp",
+            &fake.addr,
+            "--to",
+            "5.1.1",
+            "--nic-window",
+            "50",
+            "slew",
+            "right",
+            "--for",
+            "100ms",
+        ]);
+        assert_eq!(out.code, 0, "{out:?}");
+        assert!(out.stderr.contains(&format!("agreed={agreed}")), "{out:?}");
+        let got: Vec<String> = fake.got().into_iter().filter(|p| p != "P?").collect();
+        assert_eq!(got, ["~W", "PR", "PS"], "~W once, before the slew");
+    }
+}
+
+#[test]
+fn a_bus_master_asks_no_gcu() {
+    // A serial line (pty) and a device server (gimbalsim --tcp, --direct):
+    // nothing reaches the bus but the commands, no frame for 1.0.0.
+    for sim in [Sim::pty(&[]), Sim::tcp(&[])] {
+        sim.json1(&["--log", DEBUG, "speed", "pan", "0"]);
+        let out = sim.ctl1(&["--log", DEBUG, "slew", "right"]);
+        assert_eq!(out.code, 0, "{out:?}");
+        assert!(!out.stderr.contains("~W"), "{out:?}");
+        sim.json1(&["stop", "pan"]);
+        let stats = sim.stop();
+        assert_eq!(stats["frames_ignored"], 0, "a frame no device takes: {stats}");
+    }
+    // A device server named as such gets only the commands ...
+    let bus = FakeBus::start();
+    let out = gimbalctl(&["--tcp", &bus.addr, "--direct", "--to", "1.1.4", "slew", "left"]);
+    assert_eq!(out.code, 0, "{out:?}");
+    assert_eq!(bus.received(), ["PL"]);
+    // ... and one taken for gcud costs one unanswered ~W, which says so.
+    let bus = FakeBus::start();
+    let out = gimbalctl(&[
+        "--tcp",
+        &bus.addr,
+        "--ack-timeout",
+        "200",
+        "--to",
+        "1.1.4",
+        "slew",
+        "left",
+    ]);
+    assert_eq!(out.code, 0, "{out:?}");
+    assert!(
+        out.stderr.contains("did not answer ~W") && out.stderr.contains("--direct"),
+        "{out:?}"
+    );
+    assert_eq!(bus.received(), ["~W", "PL"], "asked once, not retransmitted");
+}
