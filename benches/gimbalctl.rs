@@ -5,15 +5,16 @@
 //! port on a bus paced at 9600 and at 115200 bit/s (`door::Stack::paced`).
 //! Per move, `GIMBALCTL_BENCH_MOVES` of them (default 50; on the paced
 //! buses `GIMBALCTL_BENCH_PACED_MOVES`, default 30):
-//! 1. `gimbalctl speed pan N` (N changing every move; `slew` has no speed
-//!    of its own), then `gimbalctl slew right --hold`: from the first
-//!    process's spawn to the first byte of the direction command at that
+//! 1. `gimbalctl slew right --speed N --hold` (N changing every move; the
+//!    speed and the direction chained, gcud's port `duplex = "full"`):
+//!    from its spawn to the first byte of the direction command at that
 //!    speed (`door::pan_at_speed`), beside the line-time limit of the
 //!    bytes needed; the same with `--direct` (no `~W` asked: gimbalctl
-//!    waits its own NIC window after gcud's, as before);
-//! 2. the `slew right --hold` alone: its spawn to the direction's first byte;
-//! 3. `gimbalctl stop pan` while it holds (at a phase spread over the
-//!    hold's `P?` refresh): its spawn to the pan stop's first byte.
+//!    waits its own NIC window after gcud's, as before this issue);
+//! 2. `gimbalctl stop pan` while it holds (at a phase spread over the
+//!    hold's `P?` refresh): its spawn to the pan stop's first byte;
+//! 3. then `slew right --hold` alone (the speed set): its spawn to the
+//!    direction's first byte.
 //!
 //! And the process start alone: `gimbalctl --version`, spawn to exit.
 //! Figures are printed, never asserted: the machines are shared and noisy.
@@ -34,7 +35,7 @@ const GIMBALCTL: &str = env!("CARGO_BIN_EXE_gimbalctl");
 /// The bytes a direction needs when its speed is set: its first byte.
 const DIRECTION_BYTES: u32 = 1;
 /// Longer than gcud's NIC window and gimbalctl's own: a request's commands are all heard.
-const QUIET: Duration = Duration::from_millis(300);
+const QUIET: Duration = Duration::from_millis(450);
 
 /// `gimbalctl --tcp CLIENTS --to 5.1.1 ARGS`, started.
 fn spawn(stack: &door::Stack, args: &[&str]) -> Child {
@@ -74,27 +75,36 @@ fn moves(stack: &door::Stack, moves: usize, extra: &[&str]) -> Moves {
         stack.drain();
         let speed = if i % 2 == 0 { "4" } else { "9" };
         let began = Instant::now();
-        succeeds(spawn(stack, &[extra, &["speed", "pan", speed]].concat()), "speed");
-        let slew_began = Instant::now();
-        let mut hold = spawn(stack, &[extra, &["slew", "right", "--hold"]].concat());
+        let hold = spawn(stack, &[extra, &["slew", "right", "--speed", speed, "--hold"]].concat());
         let heard = stack.heard(QUIET);
         let at = door::pan_at_speed(&heard).unwrap_or_else(|| panic!("no pan motion on the bus: {heard:?}"));
         m.speed_and_slew.push(at.saturating_duration_since(began));
-        m.slew.push(at.saturating_duration_since(slew_began));
         // The hold polls `P?` every 250 ms (`session::REFRESH`; 27 ms of
         // line at 9600 bit/s): the stop comes at a phase spread over that
         // period, as an operator's does, not always just as a poll begins.
         std::thread::sleep(Duration::from_millis(i as u64 * 37 % 250));
-        let stop_began = Instant::now();
-        succeeds(spawn(stack, &[extra, &["stop", "pan"]].concat()), "stop");
+        m.stop.push(stop(stack, extra, hold));
+        // The speed is set now: the slew alone.
+        let began = Instant::now();
+        let hold = spawn(stack, &[extra, &["slew", "right", "--hold"]].concat());
         let heard = stack.heard(QUIET);
-        let at = door::pan_stop(&heard).unwrap_or_else(|| panic!("no pan stop on the bus: {heard:?}"));
-        m.stop.push(at.saturating_duration_since(stop_began));
-        // End of stdin: the hold sends its own stop and exits.
-        drop(hold.stdin.take());
-        succeeds(hold, "slew --hold");
+        let at = door::pan_at_speed(&heard).unwrap_or_else(|| panic!("no pan motion on the bus: {heard:?}"));
+        m.slew.push(at.saturating_duration_since(began));
+        stop(stack, extra, hold);
     }
     m
+}
+
+/// `gimbalctl stop pan` while `hold` holds: its spawn to the pan stop's
+/// first byte; then `hold` ends (end of stdin: it sends its own stop).
+fn stop(stack: &door::Stack, extra: &[&str], mut hold: Child) -> Duration {
+    let began = Instant::now();
+    succeeds(spawn(stack, &[extra, &["stop", "pan"]].concat()), "stop");
+    let heard = stack.heard(QUIET);
+    let at = door::pan_stop(&heard).unwrap_or_else(|| panic!("no pan stop on the bus: {heard:?}"));
+    drop(hold.stdin.take());
+    succeeds(hold, "slew --hold");
+    at.saturating_duration_since(began)
 }
 
 /// Waits until gcud answers a query about the gimbal (its port is open).
@@ -110,7 +120,7 @@ fn run(stack: &door::Stack, baud: Option<u32>, n: usize) {
     ready(stack);
     let m = moves(stack, n, &[]);
     report(
-        "speed pan N; slew right -> first byte at speed",
+        "slew right --speed N -> first byte at speed",
         baud,
         MOTION_BYTES,
         m.speed_and_slew,

@@ -44,7 +44,7 @@ pub async fn run(
     // Listening before the start: a SIGTERM at any time after it stops the motion.
     let mut term = signal(SignalKind::terminate())?;
     let mut int = signal(SignalKind::interrupt())?;
-    let ex = match session.exchange(command, payload).await {
+    let ex = match session.start(request).await {
         Ok(ex) => ex,
         Err(e) => {
             // Not confirmed may still execute: stop it anyway, then say why the start failed.

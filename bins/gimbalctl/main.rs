@@ -194,7 +194,7 @@ async fn run_command(cli: &Cli) -> Result<(), CtlError> {
         Some(_) => Some(motion::target(&mut session, &request.command).await?),
         None => None,
     };
-    let ex = session.exchange(&request.command, &request.payload).await?;
+    let ex = session.start(&request).await?;
     let raw = matches!(cli.command, Cmd::Raw { .. });
     let (text, mut value) = report(&session, &cli.command, &request, &ex, raw)?;
     if cli.command.jog().is_some() && session.gcud && ex.outcome != Outcome::Broadcast {

@@ -35,6 +35,9 @@ pub fn encode(command: &Command<'_>) -> Result<Vec<u8>, CtlError> {
 pub struct Request<'a> {
     pub command: Command<'a>,
     pub payload: Vec<u8>,
+    /// A command chained before it (`slew --speed`: the speed its direction
+    /// takes, `Session::start`).
+    pub first: Option<Command<'static>>,
 }
 
 /// The bytes a subcommand gives as text with `\xNN` escapes (`aux N send`'s
@@ -130,6 +133,7 @@ pub fn request<'a>(cmd: &Cmd, data: &'a [u8]) -> Result<Option<Request<'a>>, Ctl
             return Ok(Some(Request {
                 command: C::parse(data),
                 payload: data.to_vec(),
+                first: None,
             }));
         }
         Cmd::Watch { .. }
@@ -143,7 +147,25 @@ pub fn request<'a>(cmd: &Cmd, data: &'a [u8]) -> Result<Option<Request<'a>>, Ctl
         }
     };
     let payload = encode(&command)?;
-    Ok(Some(Request { command, payload }))
+    let first = match cmd {
+        Cmd::Slew {
+            direction,
+            speed: Some(speed),
+            ..
+        } => {
+            let axis = match direction {
+                Direction::Left | Direction::Right => Axis::Pan,
+                Direction::Up | Direction::Down => Axis::Tilt,
+            };
+            Some(C::SetSpeed(axis, range("speed", Speed::new(*speed))?))
+        }
+        _ => None,
+    };
+    Ok(Some(Request {
+        command,
+        payload,
+        first,
+    }))
 }
 
 /// `rate` (Tables 11 and 12): both axes' rates, one axis's, or set one.

@@ -15,6 +15,7 @@ use sagebrush_protocol::{Address, Command, FrameBuf, LINK_PORT, OwnedEvent, Resu
 
 use crate::cli::Global;
 use crate::error::CtlError;
+use crate::request::Request;
 
 /// A connection and the addressing of its commands.
 #[derive(Debug)]
@@ -115,6 +116,26 @@ impl Session {
     pub async fn exchange(&mut self, command: &Command<'_>, payload: &[u8]) -> Result<Exchange, CtlError> {
         self.ask_window_reports(command).await?;
         Ok(self.client.exchange(self.to, command, payload).await?)
+    }
+
+    /// A subcommand's exchange, with the command chained before it if it
+    /// has one (`slew --speed`): through gcud that agreed to `~W` the
+    /// second goes at the first's ACK ([`Client::send_chained`]), and each
+    /// outcome stays its own; the request's, or the first's failure.
+    pub async fn start(&mut self, request: &Request<'_>) -> Result<Exchange, CtlError> {
+        let Some(first) = &request.first else {
+            return self.exchange(&request.command, &request.payload).await;
+        };
+        self.ask_window_reports(first).await?;
+        match self.client.send_chained(self.to, first, &request.command).await {
+            (Err(e), _) => Err(e.into()),
+            (Ok(_), Some(sent)) => Ok(sent?),
+            (Ok(_), None) => Err(CtlError::Usage(format!(
+                "{} was not sent after {}",
+                request.command.mnemonic(),
+                first.mnemonic()
+            ))),
+        }
     }
 
     /// Before the first command that may wait a NIC window after its ACK

@@ -105,3 +105,30 @@ fn a_bus_master_asks_no_gcu() {
     );
     assert_eq!(bus.received(), ["~W", "PL"], "asked once, not retransmitted");
 }
+
+/// `slew --speed`: the speed, then the direction at its ACK (ARCHITECTURE
+/// "The next command in the window"). On a `duplex = "full"` port gcud
+/// writes the direction in the speed's NIC window, which it counts
+/// (`gcud_port_pipelined_total`); the bus hears the speed, then the direction.
+#[test]
+fn slew_with_a_speed_chains_the_speed_and_its_direction() {
+    use support::gcud::{CLIENTS, Gcud, METRICS, port_entry};
+    let sim = Sim::pty(&["--device", "1"]);
+    let gcud = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n{CLIENTS}{METRICS}{}duplex = \"full\"\n",
+        port_entry(1, &sim)
+    ));
+    gcud.wait_for_log("port open port=1");
+    for (n, speed) in ["9", "4"].into_iter().enumerate() {
+        let out = gcud.ctl(&["--to", "5.1.1", "slew", "right", "--speed", speed, "--for", "100ms"]);
+        assert_eq!(out.code, 0, "{out:?}\n{}", gcud.log());
+        assert_eq!(
+            gcud.metric("gcud_port_pipelined_total{port=\"1\"}"),
+            n as u64 + 1,
+            "PR went in SP{speed}'s window"
+        );
+    }
+    // A speed out of 0..=15 is refused before anything is sent.
+    let out = gcud.ctl(&["--to", "5.1.1", "slew", "right", "--speed", "16"]);
+    assert_eq!(out.code, 2, "a usage error: {out:?}");
+}

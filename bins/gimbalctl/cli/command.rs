@@ -37,11 +37,14 @@ pub enum Cmd {
     /// Slew continuously (PL, PR, TU, TD); see --for/--hold and the dead-man below.
     #[command(after_help = concat!(
         "Continuous motion and gcud's dead-man: through gcud (--tcp) a motion is stopped as soon as the connection that started it closes, i.e. when gimbalctl exits. Without --for or --hold the motion therefore lasts only an instant through gcud; on a bus (--serial) it goes on until its stop command (PS or TS, `gimbalctl stop`).",
-        "\n\n", examples!("slew right --for 2s", "slew up --hold      # until Ctrl-C", gimbalctl "--serial /dev/ttyUSB0 --to 1.1.1 slew left          # until `stop pan`")
+        "\n\n", examples!("slew right --for 2s", "slew right --speed 9 --hold   # SP9 then PR", "slew up --hold      # until Ctrl-C", gimbalctl "--serial /dev/ttyUSB0 --to 1.1.1 slew left          # until `stop pan`")
     ))]
     Slew {
         /// left = pan left (PL, counter-clockwise seen from above), right = pan right (PR, clockwise seen from above), up = tilt up (TU), down = tilt down (TD).
         direction: Direction,
+        /// Proportional speed 0..=15 (SPn for pan, STn for tilt) set first; through gcud the direction follows at its ACK, not after its NIC window.
+        #[arg(long, value_parser = parse_speed, value_name = "SPEED")]
+        speed: Option<u8>,
         #[command(flatten)]
         jog: JogArgs,
     },
