@@ -32,6 +32,11 @@ pub struct Session {
     window_asked: bool,
 }
 
+/// How long gimbalctl waits for gcud's ACK of `~W`: gcud answers a
+/// command to itself at once, and a device server (`--tcp` without
+/// `--direct`) never does, which should not cost a whole ACK time-out.
+const WINDOW_ASK_MS: u64 = 250;
+
 /// What came in after an exchange ended (`Session::linger`).
 #[derive(Debug, Default)]
 pub struct Lingered {
@@ -158,7 +163,9 @@ impl Session {
         }
         self.window_asked = true;
         let policy = *self.client.master_mut().policy();
-        self.client.master_mut().policy_mut().retry.retries = 0;
+        let asking = self.client.master_mut().policy_mut();
+        asking.retry.retries = 0;
+        asking.retry.ack_timeout = asking.retry.ack_timeout.min(WINDOW_ASK_MS);
         let asked = self.client.ask_window_reports(to.group).await;
         *self.client.master_mut().policy_mut() = policy;
         match asked {
@@ -168,7 +175,7 @@ impl Session {
                 "gimbalctl: note: {}.0.0 did not answer ~W (end-of-window reports) within {} ms: \
                  waiting --nic-window after each ACK here; if --tcp leads to a device server, not gcud, give --direct",
                 to.group,
-                policy.retry.ack_timeout
+                policy.retry.ack_timeout.min(WINDOW_ASK_MS)
             ),
             Err(e) => tracing::debug!(error = %e, "end-of-window reports (~W) not agreed"),
         }

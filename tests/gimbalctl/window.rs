@@ -107,7 +107,7 @@ fn a_bus_master_asks_no_gcu() {
 }
 
 /// `slew --speed`: the speed, then the direction at its ACK (ARCHITECTURE
-/// "The next command in the window"). On a `duplex = "full"` port gcud
+/// "Routing semantics", the next command in the window). On a `duplex = "full"` port gcud
 /// writes the direction in the speed's NIC window, which it counts
 /// (`gcud_port_pipelined_total`); the bus hears the speed, then the direction.
 #[test]

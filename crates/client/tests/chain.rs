@@ -1,5 +1,5 @@
 //! A speed and the direction that takes it, chained (ARCHITECTURE "End of
-//! the NIC window", "The next command in the window"): on a connection
+//! the NIC window", "Routing semantics"): on a connection
 //! where gcud agreed to `~W`, the master sends the second command at the
 //! first's ACK, not after the first's NIC window; what gcud says of the
 //! first before the second's ACK is the first's (its report `00`, or a

@@ -128,8 +128,8 @@ pub struct PortConfig {
     /// The GCU may write while a device answers (RS-232 point to point,
     /// RS-422 or four-wire RS-485, a device server on one of those; not a
     /// two-wire RS-485 bus): the next command to a device goes during the
-    /// NIC window of the one before (`port::pipeline`, ARCHITECTURE "The
-    /// next command in the window").
+    /// NIC window of the one before (`port::pipeline`, ARCHITECTURE
+    /// "Routing semantics").
     pub full_duplex: bool,
     /// Quiet ticks after a device that answered before went silent to
     /// every try: its answer may still come, late, and a bare ACK names no

@@ -1,6 +1,6 @@
 //! No NIC window before the next command to the same device, on a line
 //! that is full duplex (`PortConfig::full_duplex`; ARCHITECTURE "Routing
-//! semantics", "The next command in the window").
+//! semantics": the next command in the window).
 //!
 //! After the ACK of a command with no result a NIC may still come (1.4.2),
 //! so the port waits a window before the next exchange. A device answers
