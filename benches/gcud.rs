@@ -26,6 +26,9 @@
 //!    size before and after, each client's share (Jain's fairness index)
 //!    and every command's outcome, as the clients saw it and as gcud counted.
 //!
+//! `GCUD_BENCH_GCUD=PATH` runs another gcud build in gcud's place (a
+//! change measured against the build before it).
+//!
 //! Figures are printed, never asserted: the machines are shared and noisy.
 
 use std::io::{Read, Write};
@@ -51,7 +54,7 @@ fn spawn_gcud(config: &str, dir: &tempfile::TempDir) -> (Proc, String) {
     std::fs::write(&path, config).expect("config");
     let log_path = dir.path().join("gcud.log");
     let child = Proc(
-        Command::new(env!("CARGO_BIN_EXE_gcud"))
+        Command::new(std::env::var("GCUD_BENCH_GCUD").unwrap_or_else(|_| env!("CARGO_BIN_EXE_gcud").to_owned()))
             .arg("--config")
             .arg(&path)
             .env("RUST_LOG", "info,sagebrush_sim=warn")
