@@ -56,6 +56,16 @@ fn report_about(frame: &FrameBuf, candidate: &FrameBuf) -> Option<DeliveryReport
     (report.dest == command.dest && report.command_checksum == command.checksum()).then_some(report)
 }
 
+/// Whether `candidate`'s groups are those of `command`'s result (Table 3:
+/// destination group = the command's source group, source group = the
+/// group it went to; any for group 255). The [`Transaction`] checks port
+/// and device only, as a bus master may; through a GCU, another group's
+/// result for the same port and device (a late or repeated one) is not ours.
+fn from_addressee(command: &FrameBuf, candidate: &FrameBuf) -> bool {
+    let (command, got) = (command.frame(), candidate.frame());
+    got.dest.group == command.source && (command.dest.group == WILDCARD || got.source == command.dest.group)
+}
+
 /// A master on one stream, read as framer events ([`FrameCodec`]): none is
 /// lost between reads or exchanges.
 #[derive(Debug)]
@@ -349,7 +359,10 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
                     }
                     _ => {}
                 }
-                let s = open.tx.on_event(&Event::Frame(f.frame()), now);
+                let s = match from_addressee(open.frame, &f) {
+                    true => open.tx.on_event(&Event::Frame(f.frame()), now),
+                    false => TransactionStep::Wait,
+                };
                 if s == TransactionStep::Done(Outcome::Result) {
                     open.result = Some(f);
                 } else {

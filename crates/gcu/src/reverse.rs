@@ -24,8 +24,11 @@
 //! sequence numbers and an answer may come twice:
 //! - our ACK of the answer was lost on a lossy link and the next GCU sends
 //!   the same frame again: a byte-identical frame within that GCU's retry budget (assumed
-//!   to be ours: retries + 1 ACK time-outs) goes back to the origin the
-//!   first went to;
+//!   to be ours: retries + 1 ACK time-outs) is that repeat
+//!   ([`AnswerMatch::Repeat`]): ACKed, and not relayed again (ARCHITECTURE
+//!   "Links between GCUs": ACK/NAK are hop by hop, so the origin's link
+//!   already carries the first copy, with its own retransmission; a second
+//!   copy there would be taken for the origin's next command's answer);
 //! - our ACK time-out made us retransmit the command and the next GCU ran
 //!   it twice: the second answer may differ, so such an entry makes a
 //!   waiting entry of another origin ambiguous until it expires.
@@ -149,6 +152,9 @@ pub(crate) enum AnswerMatch {
     None,
     One(Origin),
     Ambiguous,
+    /// The next GCU sent an answer again (our ACK of it was lost): it went
+    /// back already, and goes nowhere now.
+    Repeat,
 }
 
 #[derive(Debug)]
@@ -297,17 +303,10 @@ impl ReversePath {
                     .is_some_and(|(at, last)| *last == answer && now <= at.saturating_add(window))
         };
         let matches = |e: &Pending| e.out_link == link && e.expires.is_some() && e.answered_by(frame);
-        let mut repeats = self
-            .entries
-            .iter()
-            .filter(|e| matches(e) && repeated(e))
-            .map(|e| e.origin);
-        if let Some(origin) = repeats.next() {
-            return if repeats.all(|o| o == origin) {
-                AnswerMatch::One(origin)
-            } else {
-                AnswerMatch::Ambiguous
-            };
+        // A repeat of an answer that went back already: the hop-by-hop
+        // repeat of one frame, not a new answer of any entry.
+        if self.entries.iter().any(|e| matches(e) && repeated(e)) {
+            return AnswerMatch::Repeat;
         }
         // The transaction running at the next GCU: the oldest entry it
         // reported delivered and has not answered. Only a fan-out of another

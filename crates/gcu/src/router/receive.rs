@@ -61,6 +61,8 @@ impl Router {
                     0,
                     out,
                 ),
+                // A bare `?` gets no ACK, so it is never sent again.
+                AnswerMatch::Repeat => {}
             },
         }
     }
@@ -118,6 +120,11 @@ impl Router {
                 self.ack(now, link, out);
                 return self.drop_frame(DropReason::AmbiguousAnswer, Place::Link(link), dest, source, out);
             }
+            // The next GCU sent an answer again because our ACK was lost
+            // (ARCHITECTURE "Links between GCUs": a repeat is recognised and
+            // not relayed): ACKed again, and that is all; the first copy
+            // went back already, hop by hop.
+            AnswerMatch::Repeat => return self.ack(now, link, out),
             AnswerMatch::None => {}
         }
         if client {

@@ -174,6 +174,43 @@ fn answers_of_forwarded_commands_go_back_along_the_reverse_path_never_to_a_wrong
     assert!(link_writes(&a, CLIENT).is_empty() && link_writes(&a, other).is_empty());
 }
 
+/// ARCHITECTURE "Links between GCUs": ACK/NAK stay hop by hop, so an
+/// answer the next GCU sends again on a lossy link (our ACK of it was lost)
+/// is a repeat: ACKed again, not relayed again. Relayed, a client took the
+/// copy for its next command's result (simulation seeds 17885, 23159).
+#[test]
+fn an_answer_repeated_on_a_lossy_link_is_acked_and_not_relayed_again() {
+    let mut h = H::new(&[1]);
+    h.up(DOWN, LinkKind::Downstream);
+    h.link(DOWN, &frame((G, 0, 0), 7, b"AW"));
+    h.link(DOWN, &[ACK]);
+    let cmd = frame((7, 1, 3), 2, b"AW");
+    h.link(CLIENT, &cmd);
+    h.link(DOWN, &[ACK]);
+    // GCU 7 reports it delivered, then sends its result.
+    let (f, _) = Frame::parse(&cmd).unwrap();
+    let delivered = DeliveryReport {
+        failure: None,
+        dest: f.dest,
+        command_checksum: f.checksum(),
+        at_group: 7,
+    }
+    .encode();
+    let a = h.link(DOWN, &frame((2, 0, 0), 7, &delivered));
+    assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK]]);
+    let result = frame((2, 1, 3), 7, b"0");
+    let a = h.link(DOWN, &result);
+    assert_eq!(link_writes(&a, DOWN), vec![vec![ACK]]);
+    assert_eq!(link_writes(&a, CLIENT), vec![result.clone()]);
+    h.link(CLIENT, &[ACK]);
+    // Our ACK was lost: one ACK time-out later, the same frame again.
+    h.wait(10);
+    let a = h.link(DOWN, &result);
+    assert_eq!(link_writes(&a, DOWN), vec![vec![ACK]], "ACKed again, hop by hop");
+    assert!(link_writes(&a, CLIENT).is_empty(), "relayed again: {a:?}");
+    assert!(dropped(&a).is_empty(), "a repeat is no drop: {a:?}");
+}
+
 /// The reverse path waits for a whole port transaction at the next GCU
 /// (assumed configured like the slowest port here, every retry included),
 /// not only the configured answer time-out: an answer from behind a slow

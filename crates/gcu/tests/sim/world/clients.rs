@@ -379,18 +379,19 @@ impl World {
     }
 
     /// Whether frame `f` may be the result the client awaits. A TCP client
-    /// reads the header as the bus master does (Table 3: port and device
-    /// as addressed, a wildcard standing for any), so that another
-    /// command's late result (a GCU link repeats one) does not end the
+    /// reads the header as gimbalctl's master does (Table 3: port and
+    /// device as addressed, from the group addressed, a wildcard standing
+    /// for any), so that another command's late result (another group's
+    /// for the same port and device, seeds 17885, 23159) does not end the
     /// wait before its report `00` comes; the others take any frame.
     fn may_answer(&self, c: usize, f: &FrameBuf) -> bool {
         let cl = &self.clients[c];
         let Some(((dest, ..), _)) = &cl.answering else {
             return true;
         };
-        let got = f.frame().dest;
+        let (got, from) = (f.frame().dest, f.frame().source);
         let level = |want: u8, got: u8| want == WILDCARD || want == got;
-        !cl.tcp || (level(dest.port, got.port) && level(dest.device, got.device))
+        !cl.tcp || (level(dest.group, from) && level(dest.port, got.port) && level(dest.device, got.device))
     }
 
     /// An ACK (`tainted`: perhaps a byte of a damaged frame).
