@@ -58,12 +58,18 @@ fn delivered(command: &FrameBuf) -> FrameBuf {
 struct Transaction {
     name: &'static str,
     steps: Vec<(LineId, Vec<u8>)>,
+    /// Commands one run of it routes.
+    commands: u64,
 }
 
 impl Transaction {
     fn new(name: &'static str, steps: Vec<(LineId, &[u8])>) -> Self {
         let steps = steps.into_iter().map(|(line, bytes)| (line, bytes.to_vec())).collect();
-        Self { name, steps }
+        Self {
+            name,
+            steps,
+            commands: 1,
+        }
     }
 
     /// Runs it once at `*now`, then lets every time-out pass.
@@ -78,14 +84,27 @@ impl Transaction {
     }
 }
 
+/// Clients at once, each on its own port (gcud's throughput benchmark).
+const CONCURRENT: u8 = 8;
+
+/// The client link of port `p` in the concurrent case.
+fn client_of(p: u8) -> LinkId {
+    LinkId(10 + u32::from(p))
+}
+
 fn router() -> Router {
     let mut config = RouterConfig::new(G);
-    config.ports.push(PortConfig::new(1));
+    for p in 1..=CONCURRENT {
+        config.ports.push(PortConfig::new(p));
+    }
     config.static_routes.insert(NEXT, DOWN);
     let mut router = Router::new(config).expect("valid config");
     let mut out = Outbox::new();
-    router.handle(0, Input::PortOpened { port: 1 }, &mut out);
-    for (link, kind) in [(CLIENT, LinkKind::Client), (DOWN, LinkKind::Downstream)] {
+    for port in 1..=CONCURRENT {
+        router.handle(0, Input::PortOpened { port }, &mut out);
+    }
+    let clients = (1..=CONCURRENT).map(|p| (client_of(p), LinkKind::Client));
+    for (link, kind) in [(CLIENT, LinkKind::Client), (DOWN, LinkKind::Downstream)].into_iter().chain(clients) {
         let config = LinkConfig::new(kind, SourceFilter::Any);
         router.handle(0, Input::LinkUp { link, config }, &mut out);
     }
@@ -137,7 +156,34 @@ fn transactions() -> Vec<Transaction> {
             "AW to port 0 (answered by the GCU itself)",
             vec![(client, to_self.as_bytes()), (client, &[ACK])],
         ),
+        concurrent(),
     ]
+}
+
+/// 8 clients' `P?` at once, each to its own port, every step of one
+/// interleaved with the same step of the others (counted as 8 transactions).
+fn concurrent() -> Transaction {
+    let ports = 1..=CONCURRENT;
+    let commands: Vec<FrameBuf> = ports.clone().map(|p| frame((G, p, 3), 0, b"P?")).collect();
+    let results: Vec<FrameBuf> = ports.clone().map(|p| frame((0, p, 3), G, b"00640000")).collect();
+    let mut steps: Vec<(LineId, Vec<u8>)> = Vec::new();
+    for (i, p) in ports.enumerate() {
+        steps.push((LineId::Link(client_of(p)), commands[i].as_bytes().to_vec()));
+    }
+    for p in 1..=CONCURRENT {
+        steps.push((LineId::Port(p), vec![ACK]));
+    }
+    for (i, p) in (1..=CONCURRENT).enumerate() {
+        steps.push((LineId::Port(p), results[i].as_bytes().to_vec()));
+    }
+    for p in 1..=CONCURRENT {
+        steps.push((LineId::Link(client_of(p)), vec![ACK]));
+    }
+    Transaction {
+        name: "8 clients' P? at once, each to its own port",
+        steps,
+        commands: u64::from(CONCURRENT),
+    }
 }
 
 fn main() {
@@ -179,22 +225,23 @@ fn main() {
         let (b, a) = (before.router, after.router);
         assert_eq!(
             a.finished() - b.finished(),
-            N,
+            N * t.commands,
             "{}: every command finished: {a:?}",
             t.name
         );
         assert_eq!(a.frame_drops, b.frame_drops, "{}: nothing dropped: {a:?}", t.name);
         assert_eq!(a.dropped, b.dropped, "{}: nothing dropped: {a:?}", t.name);
         assert!(
-            a.results + a.results_relayed >= b.results + b.results_relayed + N,
+            a.results + a.results_relayed >= b.results + b.results_relayed + N * t.commands,
             "{}: every command answered: {a:?}",
             t.name
         );
         println!(
-            "router core, {}: {:.2} allocations, {:.0} bytes allocated per transaction ({N} transactions)",
+            "router core, {}: {:.2} allocations, {:.0} bytes allocated per transaction ({} transactions)",
             t.name,
-            stats.allocations as f64 / N as f64,
-            stats.bytes_allocated as f64 / N as f64,
+            N * t.commands,
+            stats.allocations as f64 / (N * t.commands) as f64,
+            stats.bytes_allocated as f64 / (N * t.commands) as f64,
         );
         assert_eq!(
             stats.allocations + stats.reallocations,
