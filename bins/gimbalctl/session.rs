@@ -132,7 +132,11 @@ impl Session {
             return self.exchange(&request.command, &request.payload).await;
         };
         self.ask_window_reports(first).await?;
-        match self.client.send_chained(self.to, first, &request.command).await {
+        match self
+            .client
+            .send_chained(self.to, first, &request.command, &|| true)
+            .await
+        {
             (Err(e), _) => Err(e.into()),
             (Ok(_), Some(sent)) => Ok(sent?),
             (Ok(_), None) => Err(CtlError::Usage(format!(

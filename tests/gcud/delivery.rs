@@ -326,12 +326,12 @@ fn a_speed_and_its_direction_go_with_no_window_between_on_a_full_duplex_port() {
             c.position().await.expect("P?");
             for speed in [3, 9, 5] {
                 let sp = Cmd::SetSpeed(Axis::Pan, Speed::new(speed).unwrap());
-                let (a, b) = c.send_chained(&sp, &Cmd::PanRight).await;
+                let (a, b) = c.send_chained(&sp, &Cmd::PanRight, &|| true).await;
                 assert!(a.is_ok() && matches!(b, Some(Ok(_))), "{duplex}: {a:?} {b:?}");
                 c.send(&Cmd::PanStop).await.expect("PS");
             }
             // A NIC is still its own command's: `FA` (no lens) then a pan.
-            let (a, b) = c.send_chained(&Cmd::AutoFocusOn, &Cmd::PanLeft).await;
+            let (a, b) = c.send_chained(&Cmd::AutoFocusOn, &Cmd::PanLeft, &|| true).await;
             assert!(matches!(a, Err(CommandError::Nic(_))), "{duplex}: {a:?}");
             assert!(matches!(b, None | Some(Ok(_))), "{duplex}: {b:?}");
             c.send(&Cmd::PanStop).await.expect("PS");

@@ -155,12 +155,13 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Client<S> {
     /// `first` then `second` to `to`, the second at the first's ACK where
     /// gcud allows ([`Master::transact_chained`]): each one's outcome, as
     /// [`Client::send`] gives it; the second's is `None` when it was not
-    /// sent (the first failed).
+    /// sent (the first failed, or `go_on` said no at its ACK).
     pub async fn send_chained(
         &mut self,
         to: Address,
         first: &Command<'_>,
         second: &Command<'_>,
+        go_on: &(dyn Fn() -> bool + Sync),
     ) -> (Result<Exchange, CommandError>, Option<Result<Exchange, CommandError>>) {
         let framed = |c: &Command<'_>| -> Result<(FrameBuf, String), CommandError> {
             let payload = encode(c)?;
@@ -173,7 +174,11 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Client<S> {
             (Err(e), _) | (_, Err(e)) => return (Err(e), None),
         };
         let (a_expect, b_expect) = (first.result_kind(), second.result_kind());
-        match self.master.transact_chained((&a, a_expect), (&b, b_expect)).await {
+        match self
+            .master
+            .transact_chained((&a, a_expect), (&b, b_expect), go_on)
+            .await
+        {
             Ok((x, y)) => {
                 let policy = *self.master.policy();
                 let y = y.map(|y| judge(y, to, b_expect, &b_what, &policy));

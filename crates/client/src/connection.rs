@@ -166,12 +166,14 @@ impl GimbalConnection {
     /// ([`sagebrush_client::Master::transact_chained`]: a speed and the
     /// direction that takes it, with no NIC window between): each one's
     /// outcome as [`GimbalConnection::send`] gives it; the second's is
-    /// `None` when it was not sent (the first failed).
+    /// `None` when it was not sent (the first failed, or `go_on` said no at
+    /// its ACK: a stop goes first).
     #[allow(clippy::type_complexity)]
     pub async fn send_chained(
         &mut self,
         first: &Command<'_>,
         second: &Command<'_>,
+        go_on: &(dyn Fn() -> bool + Sync),
     ) -> (
         Result<Option<Vec<u8>>, CommandError>,
         Option<Result<Option<Vec<u8>>, CommandError>>,
@@ -181,7 +183,7 @@ impl GimbalConnection {
             Ok(c) => c,
             Err(e) => return (Err(e), None),
         };
-        let (a, b) = client.send_chained(address, first, second).await;
+        let (a, b) = client.send_chained(address, first, second, go_on).await;
         let a = self.settled(first, a).await;
         let b = match b {
             Some(b) => Some(self.settled(second, b).await),

@@ -198,22 +198,27 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
     /// (when [`Master::may_chain`]; one after the other otherwise), each
     /// with the answer it expects: what came of each. `second` is not sent
     /// when `first` did not end well before it (refused, not delivered, a
-    /// NIC): `None`.
+    /// NIC), or when `go_on` says no at `first`'s ACK (a stop came meanwhile
+    /// and goes first): `None`.
     pub async fn transact_chained(
         &mut self,
         (first, first_expect): (&FrameBuf, ResultKind),
         (second, second_expect): (&FrameBuf, ResultKind),
+        go_on: &(dyn Fn() -> bool + Sync),
     ) -> io::Result<(Exchange, Option<Exchange>)> {
         let chained = self.may_chain(first, first_expect, second);
         let mut a = self.begin(first, first_expect).await?;
         self.drive(&mut a, chained).await?;
+        if a.step == TransactionStep::Wait && !go_on() {
+            self.drive(&mut a, false).await?;
+        }
         if !matches!(a.step, TransactionStep::Wait) {
             let done = matches!(
                 a.step,
                 TransactionStep::Done(Outcome::Acknowledged | Outcome::Result | Outcome::Broadcast)
             );
             let a = self.ended(a);
-            if !done {
+            if !done || !go_on() {
                 return Ok((a, None));
             }
             let b = self.transact_expecting(second, second_expect).await?;

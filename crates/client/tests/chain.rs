@@ -97,9 +97,11 @@ async fn gcud(mut stream: DuplexStream, agree: bool, then: Then) -> bool {
     }
     let direction = match early {
         Some(d) => d,
-        None => next_frame(&mut stream, &mut framer, Duration::from_secs(5))
-            .await
-            .expect("direction"),
+        // None at all when the master was told not to go on.
+        None => match next_frame(&mut stream, &mut framer, Duration::from_secs(1)).await {
+            Some(d) => d,
+            None => return false,
+        },
     };
     assert_eq!(direction.frame().payload(), b"PR");
     stream.write_all(&[ACK]).await.unwrap();
@@ -113,6 +115,15 @@ async fn gcud(mut stream: DuplexStream, agree: bool, then: Then) -> bool {
 /// `then` of the speed: each command's outcome, and whether the direction
 /// reached gcud before the speed's window ended.
 async fn chain(agree: bool, then: Then) -> (Result<(), CommandError>, Option<Result<(), CommandError>>, bool) {
+    chain_unless(agree, then, false).await
+}
+
+/// [`chain`], told not to go on at the speed's ACK when `stop_owed`.
+async fn chain_unless(
+    agree: bool,
+    then: Then,
+    stop_owed: bool,
+) -> (Result<(), CommandError>, Option<Result<(), CommandError>>, bool) {
     let (ours, theirs) = tokio::io::duplex(4096);
     let gcud = tokio::spawn(gcud(theirs, agree, then));
     let mut policy = timing::tcp_policy();
@@ -120,7 +131,7 @@ async fn chain(agree: bool, then: Then) -> (Result<(), CommandError>, Option<Res
     let mut c = Client::new(ours, policy, 0);
     assert_eq!(c.ask_window_reports(GROUP).await, Ok(agree));
     let speed = Command::SetSpeed(Axis::Pan, Speed::new(7).unwrap());
-    let (a, b) = c.send_chained(GIMBAL, &speed, &Command::PanRight).await;
+    let (a, b) = c.send_chained(GIMBAL, &speed, &Command::PanRight, &|| !stop_owed).await;
     drop(c);
     let early = gcud.await.expect("gcud's side");
     (a.map(|_| ()), b.map(|b| b.map(|_| ())), early)
@@ -156,4 +167,12 @@ async fn without_gcuds_reports_the_direction_waits_the_speeds_window() {
     let (speed, direction, early) = chain(false, Then::Nothing).await;
     assert!(!early, "sent inside a window nobody reports the end of");
     assert_eq!((speed, direction), (Ok(()), Some(Ok(()))));
+}
+
+#[tokio::test]
+async fn a_stop_owed_at_the_speeds_ack_keeps_the_direction() {
+    let (speed, direction, early) = chain_unless(true, Then::WindowPassed, true).await;
+    assert_eq!(speed, Ok(()), "the speed's own outcome, its window waited");
+    assert_eq!(direction, None, "not sent: the stop goes first");
+    assert!(!early);
 }

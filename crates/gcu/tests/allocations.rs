@@ -104,7 +104,10 @@ fn router() -> Router {
         router.handle(0, Input::PortOpened { port }, &mut out);
     }
     let clients = (1..=CONCURRENT).map(|p| (client_of(p), LinkKind::Client));
-    for (link, kind) in [(CLIENT, LinkKind::Client), (DOWN, LinkKind::Downstream)].into_iter().chain(clients) {
+    for (link, kind) in [(CLIENT, LinkKind::Client), (DOWN, LinkKind::Downstream)]
+        .into_iter()
+        .chain(clients)
+    {
         let config = LinkConfig::new(kind, SourceFilter::Any);
         router.handle(0, Input::LinkUp { link, config }, &mut out);
     }

@@ -131,7 +131,9 @@ impl GimbalSession {
                     self.drive_sent(&command, applied, sent);
                 }
                 Step::Drive(speed, applied, Some((direction, then))) => {
-                    let (sent, then_sent) = connection.send_chained(&speed, &direction).await;
+                    // A stop owed by now goes before the direction.
+                    let go_on = || !self.state().stops_owed.any();
+                    let (sent, then_sent) = connection.send_chained(&speed, &direction, &go_on).await;
                     self.reached(&sent);
                     self.drive_sent(&speed, applied, sent);
                     if let Some(then_sent) = then_sent {
