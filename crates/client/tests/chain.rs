@@ -11,8 +11,12 @@ use std::time::Duration;
 
 use sagebrush_client::{Client, CommandError};
 use sagebrush_host::timing;
-use sagebrush_protocol::{ACK, Address, Axis, Command, DeliveryReport, Event, Frame, FrameBuf, Framer, NIC, Speed};
+use sagebrush_protocol::{ACK, Address, Axis, Command, Event, FrameBuf, Framer, NIC, Speed};
 use tokio::io::{AsyncReadExt, AsyncWriteExt, DuplexStream};
+
+mod fake_gcud;
+
+use fake_gcud::report;
 
 const GROUP: u8 = 5;
 const GIMBAL: Address = Address {
@@ -30,20 +34,6 @@ enum Then {
     WindowPassed,
     Nic,
     Nothing,
-}
-
-fn report_00(command: &Frame<'_>) -> Vec<u8> {
-    let payload = DeliveryReport {
-        failure: None,
-        dest: command.dest,
-        command_checksum: command.checksum(),
-        at_group: GROUP,
-    }
-    .encode();
-    FrameBuf::new(Address::new(command.source, 0, 0), GROUP, &payload)
-        .unwrap()
-        .as_bytes()
-        .to_vec()
 }
 
 /// Reads the next command frame (ACKs of our frames skipped), within `wait`.
@@ -91,7 +81,7 @@ async fn gcud(mut stream: DuplexStream, agree: bool, then: Then) -> bool {
     let early = next_frame(&mut stream, &mut framer, GCUD_WINDOW).await;
     let came_early = early.is_some();
     match then {
-        Then::WindowPassed => stream.write_all(&report_00(&speed.frame())).await.unwrap(),
+        Then::WindowPassed => stream.write_all(&report(&speed.frame(), None)).await.unwrap(),
         Then::Nic => stream.write_all(&[NIC]).await.unwrap(),
         Then::Nothing => {}
     }
@@ -105,7 +95,7 @@ async fn gcud(mut stream: DuplexStream, agree: bool, then: Then) -> bool {
     };
     assert_eq!(direction.frame().payload(), b"PR");
     stream.write_all(&[ACK]).await.unwrap();
-    stream.write_all(&report_00(&direction.frame())).await.unwrap();
+    stream.write_all(&report(&direction.frame(), None)).await.unwrap();
     // Until the master closes its end.
     let _ = next_frame(&mut stream, &mut framer, Duration::from_secs(5)).await;
     came_early

@@ -25,6 +25,17 @@ const OPERATORS: ControllerReply<'static> = ControllerReply::Link {
     name: b"operators",
 };
 
+/// gcud naming the doors' link as the holder, the gimbal at zero, every
+/// other command ACKed.
+async fn doors_gcud() -> FakeGcud {
+    FakeGcud::start(|p| match p {
+        b"~C0101" => controller(DOORS),
+        b"P?" => at_zero(),
+        _ => Answer::Ack,
+    })
+    .await
+}
+
 /// How many pan speed commands (`SPn`) gcud got.
 fn speeds(gcud: &FakeGcud) -> usize {
     gcud.got().iter().filter(|p| p.starts_with("SP")).count()
@@ -45,12 +56,7 @@ async fn more(gcud: &FakeGcud, payload: &str, n: usize) {
 
 #[tokio::test]
 async fn the_same_speed_again_is_not_sent_again() {
-    let gcud = FakeGcud::start(|p| match p {
-        b"~C0101" => controller(DOORS),
-        b"P?" => at_zero(),
-        _ => Answer::Ack,
-    })
-    .await;
+    let gcud = doors_gcud().await;
     let s = session(&gcud.addr);
     pan_and_stop(&s).await;
     pan_and_stop(&s).await;
@@ -105,12 +111,7 @@ async fn another_holder_named_by_gcud_forgets_the_speed() {
 
 #[tokio::test]
 async fn a_speed_is_believed_for_a_bounded_time() {
-    let gcud = FakeGcud::start(|p| match p {
-        b"~C0101" => controller(DOORS),
-        b"P?" => at_zero(),
-        _ => Answer::Ack,
-    })
-    .await;
+    let gcud = doors_gcud().await;
     let s = session(&gcud.addr);
     pan_and_stop(&s).await;
     tokio::time::sleep(SPEED_KEPT + Duration::from_millis(100)).await;
@@ -131,12 +132,7 @@ fn pan_right_at(speed: u8) -> sagebrush_client::session::Velocity {
 
 #[tokio::test]
 async fn a_new_speed_is_set_before_the_direction_that_runs_at_it() {
-    let gcud = FakeGcud::start(|p| match p {
-        b"~C0101" => controller(DOORS),
-        b"P?" => at_zero(),
-        _ => Answer::Ack,
-    })
-    .await;
+    let gcud = doors_gcud().await;
     let s = session(&gcud.addr);
     for speed in [3, 9] {
         s.velocity(pan_right_at(speed), None, "test").await.unwrap();
