@@ -204,16 +204,9 @@ impl Port {
         }
     }
 
-    pub(super) fn finish(
-        &mut self,
-        now: u64,
-        r: Running,
-        outcome: Outcome,
-        frame: Option<FrameBuf>,
-        out: &mut Vec<PortOut>,
-    ) {
-        let device = r.device();
-        let was_online = self.device_stats.get(&device).is_some_and(|d| d.online);
+    /// The quiet the bus keeps after `r` ended with `outcome`, before the
+    /// next exchange starts (module doc: late answers, give-ups).
+    fn settle_after(&mut self, now: u64, r: &Running, outcome: Outcome, was_online: bool) {
         let quiet = if r.ack_timed_out && was_online {
             // A device that answered its last exchange let an ACK wait run
             // out (given up, or answered a later try): its answer to that
@@ -236,6 +229,19 @@ impl Port {
             let settle = now.saturating_add(quiet);
             self.settle_until = Some(self.settle_until.map_or(settle, |t| t.max(settle)));
         }
+    }
+
+    pub(super) fn finish(
+        &mut self,
+        now: u64,
+        r: Running,
+        outcome: Outcome,
+        frame: Option<FrameBuf>,
+        out: &mut Vec<PortOut>,
+    ) {
+        let device = r.device();
+        let was_online = self.device_stats.get(&device).is_some_and(|d| d.online);
+        self.settle_after(now, &r, outcome, was_online);
         let surely_absent = self.devices.as_ref().is_some_and(|list| !list.contains(&device));
         if self.config.buffered
             && matches!(outcome, Outcome::Failed(TxFailure::NoAck))
