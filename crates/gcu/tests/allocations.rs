@@ -242,9 +242,9 @@ fn main() {
         println!(
             "router core, {}: {:.2} allocations, {:.0} bytes allocated per transaction ({} transactions)",
             t.name,
-            N * t.commands,
             stats.allocations as f64 / (N * t.commands) as f64,
             stats.bytes_allocated as f64 / (N * t.commands) as f64,
+            N * t.commands,
         );
         assert_eq!(
             stats.allocations + stats.reallocations,
