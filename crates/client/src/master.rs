@@ -227,7 +227,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
         // In its window: the second goes now, and each event is the
         // first's or the second's by the order gcud keeps.
         let mut b = self.send_first(second, second_expect).await?;
-        while !matches!(b.step, TransactionStep::Done(_)) {
+        while a.is_open() || b.is_open() {
             let deadline = [a.deadline(), b.deadline()].into_iter().flatten().min();
             let event = self.next_event(deadline.map(|d| self.instant(d))).await?;
             let now = self.now();
@@ -235,8 +235,10 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
                 if a.is_open() {
                     a.step = a.tx.poll(now);
                 }
-                b.step = b.tx.poll(now);
-                self.resend(&mut b).await?;
+                if b.is_open() {
+                    b.step = b.tx.poll(now);
+                    self.resend(&mut b).await?;
+                }
                 continue;
             };
             if !a.is_open() {
@@ -252,19 +254,19 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Master<S> {
                 // Before the second's ACK, a `?` is the first's (1.4.2: the
                 // NIC follows its ACK; gcud relays in order).
                 OwnedEvent::Nic if !b.tx.acknowledged() => a.step = a.tx.on_event(&Event::Nic, now),
+                // The second ended without reaching the device (refused,
+                // not delivered): the first's window runs on.
+                event if !b.is_open() => self.on_event(&mut a, event).await?,
                 event => {
                     self.on_event(&mut b, event).await?;
-                    if b.tx.acknowledged() || matches!(b.step, TransactionStep::Done(_)) {
+                    if b.tx.acknowledged() {
                         // gcud said nothing more of the first before the
-                        // second's answer: its port could not tell whose a
-                        // `?` was (`port::pipeline`). Not confirmed.
+                        // device answered the second: its port could not
+                        // tell whose a `?` was (`port::pipeline`). Not confirmed.
                         a.step = TransactionStep::Done(Outcome::NoResult);
                     }
                 }
             }
-        }
-        if a.is_open() {
-            a.step = TransactionStep::Done(Outcome::NoResult);
         }
         let (a, b) = (self.ended(a), self.ended(b));
         Ok((a, Some(b)))

@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use sagebrush_client::{Client, CommandError};
 use sagebrush_host::timing;
-use sagebrush_protocol::{ACK, Address, Axis, Command, Event, FrameBuf, Framer, NIC, Speed};
+use sagebrush_protocol::{ACK, Address, Axis, Command, Event, FrameBuf, Framer, NIC, Speed, Undelivered};
 use tokio::io::{AsyncReadExt, AsyncWriteExt, DuplexStream};
 
 mod fake_gcud;
@@ -34,6 +34,9 @@ enum Then {
     WindowPassed,
     Nic,
     Nothing,
+    /// gcud refuses the direction at once (another link controls the
+    /// gimbal), then the speed's window passes.
+    DirectionRefusedFirst,
 }
 
 /// Reads the next command frame (ACKs of our frames skipped), within `wait`.
@@ -80,10 +83,17 @@ async fn gcud(mut stream: DuplexStream, agree: bool, then: Then) -> bool {
     stream.write_all(&[ACK]).await.unwrap();
     let early = next_frame(&mut stream, &mut framer, GCUD_WINDOW).await;
     let came_early = early.is_some();
+    if let (Then::DirectionRefusedFirst, Some(direction)) = (then, &early) {
+        let refused = report(&direction.frame(), Some(Undelivered::NotInControl));
+        stream.write_all(&refused).await.unwrap();
+        stream.write_all(&report(&speed.frame(), None)).await.unwrap();
+        let _ = next_frame(&mut stream, &mut framer, Duration::from_secs(5)).await;
+        return came_early;
+    }
     match then {
         Then::WindowPassed => stream.write_all(&report(&speed.frame(), None)).await.unwrap(),
         Then::Nic => stream.write_all(&[NIC]).await.unwrap(),
-        Then::Nothing => {}
+        Then::Nothing | Then::DirectionRefusedFirst => {}
     }
     let direction = match early {
         Some(d) => d,
@@ -165,4 +175,18 @@ async fn a_stop_owed_at_the_speeds_ack_keeps_the_direction() {
     assert_eq!(speed, Ok(()), "the speed's own outcome, its window waited");
     assert_eq!(direction, None, "not sent: the stop goes first");
     assert!(!early);
+}
+
+#[tokio::test]
+async fn a_direction_refused_before_the_speeds_window_passed_leaves_the_speed_its_own() {
+    let (speed, direction, early) = chain(true, Then::DirectionRefusedFirst).await;
+    assert!(early);
+    assert_eq!(speed, Ok(()), "the speed's window passed after the refusal");
+    assert!(
+        matches!(
+            direction,
+            Some(Err(CommandError::Refused(Undelivered::NotInControl, _)))
+        ),
+        "{direction:?}"
+    );
 }
