@@ -145,20 +145,29 @@ impl Device {
     /// Bytes the device heard, before its endpoint takes them.
     pub(super) fn heard(&mut self, bytes: &[u8]) {
         let last = &mut self.last_command;
-        self.shadow.feed(bytes, |e| {
-            if let sagebrush_protocol::Event::Frame(f) = e {
-                *last = Some(Heard {
-                    key: (f.dest, f.source, f.checksum()),
-                    payload: f.payload().to_vec(),
-                });
-            }
-        });
+        self.shadow.feed(bytes, |e| Self::shadow_event(last, e));
     }
 
-    /// The line was idle: a partial frame is abandoned, as the endpoint does.
+    /// The line was idle: a partial frame is abandoned, as the endpoint does,
+    /// and the rescan's frames are recorded like any other, for the endpoint
+    /// executes them (`DeviceEndpoint::line_idle`). Seed 118005: a damaged
+    /// copy's last byte, its checksum `F8`, started a candidate that claimed
+    /// 107 bytes over the good resend behind it; only the silence released
+    /// the resend, which the device answered ACK NIC, while the shadow,
+    /// dropping the rescan's events, still held the device's previous
+    /// command (`P?`) as the one NIC'd.
     pub(super) fn idle(&mut self) {
-        self.shadow.line_idle();
-        while self.shadow.next_event().is_some() {}
+        let last = &mut self.last_command;
+        self.shadow.flush_idle(|e| Self::shadow_event(last, e));
+    }
+
+    fn shadow_event(last: &mut Option<Heard>, e: sagebrush_protocol::Event<'_>) {
+        if let sagebrush_protocol::Event::Frame(f) = e {
+            *last = Some(Heard {
+                key: (f.dest, f.source, f.checksum()),
+                payload: f.payload().to_vec(),
+            });
+        }
     }
 }
 
