@@ -399,6 +399,11 @@ impl World {
                 None
             }
             RouterEvent::Finished { id, outcome } => {
+                // A stop that ends without starting (given up unsent, merged,
+                // its port lost) no longer waits (seed 156674: an expired `PS`).
+                for waiting in ledger.pending_stops.values_mut() {
+                    waiting.remove(&id);
+                }
                 if !ledger.accepted.contains(&id) {
                     Some(format!("gcu {g}: {id:?} finished without being accepted"))
                 } else if !ledger.finished.insert(id) {
