@@ -33,9 +33,6 @@ pub(super) struct InForce<S> {
     pub(super) speed: Option<S>,
     /// When the gimbal acknowledged that speed ([`SPEED_KEPT`]).
     pub(super) speed_at: Option<Instant>,
-    /// The speed was set for a direction command not sent yet: that
-    /// direction goes next, whatever speed is asked meanwhile.
-    pub(super) speed_owed: bool,
     /// The slew started last and not stopped since.
     pub(super) drive: Drive<S>,
 }
@@ -45,7 +42,6 @@ impl<S> Default for InForce<S> {
         Self {
             speed: None,
             speed_at: None,
-            speed_owed: false,
             drive: Drive::Stop,
         }
     }
@@ -56,14 +52,6 @@ impl<S: PartialEq> InForce<S> {
     fn forget_speed(&mut self) {
         self.speed = None;
         self.speed_at = None;
-        self.speed_owed = false;
-    }
-
-    /// The axis stopped: a speed set since its last direction command
-    /// is no longer owed one (the next start sets the speed it asks).
-    pub(super) fn stopped(&mut self) {
-        self.drive = Drive::Stop;
-        self.speed_owed = false;
     }
 
     /// This, after its drive command was acknowledged at `now`, in place

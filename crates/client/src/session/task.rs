@@ -225,13 +225,13 @@ impl GimbalSession {
                 s.stops_owed = s.stops_owed.without(axes);
                 s.stop_retry_at = None;
                 if axes.pan {
-                    s.pan.stopped();
+                    s.pan.drive = Drive::Stop;
                 }
                 if axes.tilt {
-                    s.tilt.stopped();
+                    s.tilt.drive = Drive::Stop;
                 }
                 if axes.zoom {
-                    s.zoom.stopped();
+                    s.zoom.drive = Drive::Stop;
                 }
                 if !s.stops_owed.any() {
                     s.stop_failures = 0;
@@ -397,9 +397,8 @@ pub(super) fn closed() -> CommandError {
 /// the axis after it. A speed (`SPn`, `STn`, `Zn`) is taken by the next
 /// direction command (Table 11: "At constant speed"), so a speed that
 /// differs from the one asked is set first and the direction follows: the
-/// gimbal never starts at a speed nobody asked for. The direction owed to
-/// a speed just set goes next whatever is asked meanwhile, so a stream of
-/// changing rates alternates the two and always progresses.
+/// gimbal never starts at a speed nobody asked for ([`drive_step`] chains
+/// the two, so a stream of changing rates always progresses).
 pub(super) fn next_drive<S: Copy + PartialEq>(
     want: Option<Drive<S>>,
     now: InForce<S>,
@@ -408,40 +407,27 @@ pub(super) fn next_drive<S: Copy + PartialEq>(
 ) -> Option<(Command<'static>, InForce<S>)> {
     let want = want?;
     let speed = want.speed()?;
-    let set_speed = || {
+    if now.speed != Some(speed) {
         let after = InForce {
             speed: Some(speed),
-            speed_owed: true,
             ..now
         };
-        Some((speed_command(speed), after))
-    };
-    let Some(set) = now.speed else {
-        return set_speed();
-    };
-    let at_set = match want {
-        Drive::Forward(_) => Drive::Forward(set),
-        _ => Drive::Back(set),
-    };
-    let owed = now.speed_owed && now.drive != at_set;
-    if set != speed && !owed {
-        return set_speed();
+        return Some((speed_command(speed), after));
     }
-    if now.drive == at_set {
-        return None;
-    }
-    // Start, turn, or apply the speed set last.
-    let after = InForce {
-        speed_owed: false,
-        drive: at_set,
-        ..now
+    let at_speed = match want {
+        Drive::Forward(_) => Drive::Forward(speed),
+        _ => Drive::Back(speed),
     };
-    Some((direction_command(at_set), after))
+    // Start, turn, or apply the speed just set.
+    (now.drive != at_speed).then(|| {
+        let after = InForce { drive: at_speed, ..now };
+        (direction_command(at_speed), after)
+    })
 }
 
 /// The step [`next_drive`] gives, `applied` saying which axis: a speed
-/// with the direction command that takes it chained (the speed is owed
-/// that direction whatever is asked meanwhile).
+/// with the direction command that takes it chained, in one step, so that
+/// no newer rate asked in between can set another speed before it.
 fn drive_step<S: Copy + PartialEq>(
     want: Option<Drive<S>>,
     now: InForce<S>,
@@ -450,8 +436,7 @@ fn drive_step<S: Copy + PartialEq>(
     applied: impl Fn(InForce<S>) -> Applied,
 ) -> Option<Step> {
     let (command, after) = next_drive(want, now, &speed_command, &direction_command)?;
-    let then = after
-        .speed_owed
+    let then = (after.speed != now.speed)
         .then(|| next_drive(want, after, &speed_command, &direction_command))
         .flatten()
         .map(|(direction, then)| (direction, applied(then)));
@@ -508,10 +493,15 @@ mod tests {
         Speed::new(n).unwrap()
     }
 
-    /// Applies `step` to `now` as the session does once it is acknowledged.
-    fn applied(step: Step) -> (String, InForce<Speed>) {
+    /// What `step` sends, in order, and the axis once all of it is
+    /// acknowledged, as the session applies it.
+    fn applied(step: Step) -> (Vec<String>, InForce<Speed>) {
         match step {
-            Step::Drive(command, Applied::Pan(after), _) => (command.mnemonic().to_owned(), after),
+            Step::Drive(command, Applied::Pan(after), None) => (vec![command.mnemonic().to_owned()], after),
+            Step::Drive(speed, Applied::Pan(_), Some((direction, Applied::Pan(after)))) => (
+                vec![speed.mnemonic().to_owned(), direction.mnemonic().to_owned()],
+                after,
+            ),
             _ => unreachable!("only pan is asked"),
         }
     }
@@ -522,12 +512,13 @@ mod tests {
         let mut sent = Vec::new();
         for n in 0..12u8 {
             let want = Some(Drive::Forward(speed(1 + n % 15)));
-            let (mnemonic, after) = applied(pan_tilt_step(Axis::Pan, want, now).unwrap());
-            sent.push(mnemonic);
+            let (mnemonics, after) = applied(pan_tilt_step(Axis::Pan, want, now).unwrap());
+            sent.extend(mnemonics);
             now = after;
         }
         let directions = sent.iter().filter(|m| m.as_str() == "PR").count();
-        assert_eq!(directions, 6, "speed and direction alternate: {sent:?}");
+        assert_eq!(directions, 12, "speed and direction alternate, chained: {sent:?}");
+        assert!(sent.chunks(2).all(|pair| pair == ["SPn", "PR"]), "{sent:?}");
         assert_eq!(sent[0], "SPn", "the first speed is set before the first direction");
     }
 }
