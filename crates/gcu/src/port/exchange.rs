@@ -121,10 +121,7 @@ impl Port {
             if !self.detached.is_empty() && !self.queue.front().is_some_and(|j| j.facts.stop) {
                 break;
             }
-            // The bus is kept free for a stop the governance will send at
-            // `reserved.0`: no work starts that would still hold it then.
-            let front_is_stop = self.queue.front().is_some_and(|j| j.facts.stop);
-            if self.reserved.is_some_and(|(at, busy)| now + busy > at) && !front_is_stop {
+            if self.held_for_reserved_stop(now) {
                 break;
             }
             let Some(job) = self.next_job() else { break };

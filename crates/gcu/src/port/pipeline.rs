@@ -58,11 +58,7 @@ impl Port {
             && !r.ack_timed_out
             && r.job.facts.rate.is_none()
             && r.device() != WILDCARD;
-        if !in_window || !self.next_is_for(r.device()) {
-            return;
-        }
-        let next_is_stop = self.queue.front().is_some_and(|j| j.facts.stop);
-        if self.reserved.is_some_and(|(at, busy)| now + busy > at) && !next_is_stop {
+        if !in_window || !self.next_is_for(r.device()) || self.held_for_reserved_stop(now) {
             return;
         }
         self.windowing = self.active.take().map(|running| Windowing {

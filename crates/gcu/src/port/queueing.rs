@@ -162,6 +162,14 @@ impl Port {
         }
     }
 
+    /// Whether the job that goes next must wait for the reservation: the
+    /// bus is kept free for a stop the governance will send at `reserved.0`,
+    /// so no work starts that would still hold it then (a stop may).
+    pub(super) fn held_for_reserved_stop(&self, now: u64) -> bool {
+        let front_is_stop = self.queue.front().is_some_and(|j| j.facts.stop);
+        self.reserved.is_some_and(|(at, busy)| now + busy > at) && !front_is_stop
+    }
+
     /// The origin link went down: queued motions it started must not run
     /// after the dead-man stop.
     pub fn cancel_motions(&mut self, link: crate::LinkId, out: &mut Vec<PortOut>) {
