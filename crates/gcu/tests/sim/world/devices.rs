@@ -258,36 +258,25 @@ impl World {
             false => NIC_WINDOW + 1,
         });
         let (from, to) = (Node::Device { g, p, d }, Node::Port { g, p });
+        // The answer's bytes, as the port gets them.
+        let nic = |bytes: Vec<u8>| Ev::Nic {
+            g,
+            p,
+            key,
+            bytes,
+            epoch,
+            bps,
+        };
         let Some(late) = late else {
             if let Some((at, bytes)) = self.wire(from, to, vec![ACK, NIC]) {
-                self.schedule(
-                    at,
-                    Ev::Nic {
-                        g,
-                        p,
-                        key,
-                        bytes,
-                        epoch,
-                        bps,
-                    },
-                );
+                self.schedule(at, nic(bytes));
             }
             return;
         };
         self.summary.late_nics += 1;
         self.summary.nics_after_window += u64::from(late > NIC_WINDOW);
         let ack_at = self.wire(from, to, vec![ACK]).map(|(at, bytes)| {
-            self.schedule(
-                at,
-                Ev::Nic {
-                    g,
-                    p,
-                    key,
-                    bytes,
-                    epoch,
-                    bps,
-                },
-            );
+            self.schedule(at, nic(bytes));
             at
         });
         if let Some((at, bytes)) = self.wire(from, to, vec![NIC]) {
@@ -296,17 +285,7 @@ impl World {
             let at = ack_at.map_or(at, |ack| ack + late).max(at);
             let fifo = self.fifo.entry((from, to)).or_insert(0);
             *fifo = (*fifo).max(at);
-            self.schedule(
-                at,
-                Ev::Nic {
-                    g,
-                    p,
-                    key,
-                    bytes,
-                    epoch,
-                    bps,
-                },
-            );
+            self.schedule(at, nic(bytes));
         }
     }
 
