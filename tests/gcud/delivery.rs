@@ -305,7 +305,9 @@ fn a_door_waits_gcuds_nic_window_not_its_own_too() {
 /// the speed's ACK and gcud writes it to the device at once, in the speed's
 /// NIC window (counted by `gcud_port_pipelined_total`); each outcome stays
 /// its own command's, a NIC included. On a half-duplex port (the default)
-/// nothing goes in a window.
+/// nothing goes in a window. Read on the gimbal's side of the wire too:
+/// with a window of 500 ms, the direction reaches it within a fraction of
+/// that after the speed, or a whole window later.
 #[test]
 fn a_speed_and_its_direction_go_with_no_window_between_on_a_full_duplex_port() {
     use sagebrush_client::{CommandError, GimbalConnection};
@@ -313,7 +315,7 @@ fn a_speed_and_its_direction_go_with_no_window_between_on_a_full_duplex_port() {
     for duplex in ["full", "half"] {
         let sim = Sim::pty(&["--device", "1"]);
         let gcud = Gcud::start(&format!(
-            "[gcu]\ngroup = 5\n{CLIENTS}{METRICS}{}duplex = \"{duplex}\"\n",
+            "[gcu]\ngroup = 5\n{CLIENTS}{METRICS}{}duplex = \"{duplex}\"\nnic_window_ms = 500\n",
             port_entry(1, &sim)
         ));
         gcud.wait_for_log("port open port=1");
@@ -322,7 +324,7 @@ fn a_speed_and_its_direction_go_with_no_window_between_on_a_full_duplex_port() {
             .build()
             .expect("runtime");
         runtime.block_on(async {
-            let mut c = GimbalConnection::new(&gcud.clients(), 0, Address::new(5, 1, 1), Duration::from_secs(1));
+            let mut c = GimbalConnection::new(&gcud.clients(), 0, Address::new(5, 1, 1), Duration::from_secs(3));
             c.position().await.expect("P?");
             for speed in [3, 9, 5] {
                 let sp = Cmd::SetSpeed(Axis::Pan, Speed::new(speed).unwrap());
@@ -340,6 +342,21 @@ fn a_speed_and_its_direction_go_with_no_window_between_on_a_full_duplex_port() {
         match duplex {
             "full" => assert!(pipelined >= 3, "each direction went in its speed's window: {pipelined}"),
             _ => assert_eq!(pipelined, 0, "never in a window on a half-duplex bus"),
+        }
+        // The gimbal's own record: how long after each speed its direction came.
+        let heard = support::frames_received_at(&sim.log(), "5.1.1");
+        let gaps: Vec<f64> = heard
+            .windows(2)
+            .filter(|w| w[0].1.starts_with("SP") && w[1].1 == "PR")
+            .map(|w| w[1].0 - w[0].0)
+            .collect();
+        assert_eq!(gaps.len(), 3, "{duplex}: {heard:?}");
+        match duplex {
+            "full" => assert!(gaps.iter().all(|&g| g < 0.25), "{duplex}: not in the window: {gaps:?}"),
+            _ => assert!(
+                gaps.iter().all(|&g| g >= 0.45),
+                "{duplex}: a whole window first: {gaps:?}"
+            ),
         }
     }
 }

@@ -124,6 +124,23 @@ pub fn frames_received(log: &str, dest: &str) -> Vec<(u8, String)> {
         .collect()
 }
 
+/// [`frames_received`] with when the gimbal received each: seconds of the
+/// day of its log line's timestamp (`2026-11-27T02:20:01.123456Z ...`).
+pub fn frames_received_at(log: &str, dest: &str) -> Vec<(f64, String)> {
+    let prefix = format!("rx frame dest={dest} source=");
+    log.lines()
+        .filter(|line| line.contains(&prefix))
+        .filter_map(|line| {
+            let (_, clock) = line.split_once('T')?;
+            let clock = clock.get(..clock.find('Z')?)?;
+            let mut hms = clock.split(':').map(|f| f.parse::<f64>().ok());
+            let at = hms.next()?? * 3600.0 + hms.next()?? * 60.0 + hms.next()??;
+            let (_, payload) = frames_received(line, dest).pop()?;
+            Some((at, payload))
+        })
+        .collect()
+}
+
 /// Waits (at most [`HANG_GUARD`]) until a line of the log file `log`
 /// contains `text`; returns that line.
 pub fn wait_for_log_line(log: &Path, text: &str) -> String {
