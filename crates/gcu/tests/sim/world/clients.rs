@@ -378,17 +378,24 @@ impl World {
         }
     }
 
-    /// Whether frame `f` may be the result the client awaits. A TCP client
-    /// reads the header as gimbalctl's master does (Table 3: port and
-    /// device as addressed, from the group addressed, a wildcard standing
-    /// for any), so that another command's late result (another group's
-    /// for the same port and device, seeds 17885, 23159) does not end the
-    /// wait before its report `00` comes; the others take any frame.
+    /// Whether frame `f` may be the result the client awaits. A command
+    /// acknowledged with no result has none: only a NIC may follow its ACK
+    /// (1.4.2), and a master takes no frame for it (the protocol crate's
+    /// `Transaction`); an earlier command's late result (an `IX` of this
+    /// group's after an `HS`'s ACK, seed 187256) does not end its window.
+    /// A TCP client reads the header as gimbalctl's master does (Table 3:
+    /// port and device as addressed, from the group addressed, a wildcard
+    /// standing for any), so that another command's late result (another
+    /// group's for the same port and device, seeds 17885, 23159) does not
+    /// end the wait before its report `00` comes; the others take any frame.
     fn may_answer(&self, c: usize, f: &FrameBuf) -> bool {
         let cl = &self.clients[c];
-        let Some(((dest, ..), _)) = &cl.answering else {
+        let Some(((dest, ..), payload)) = &cl.answering else {
             return true;
         };
+        if Command::parse(payload).result_kind() == ResultKind::None {
+            return false;
+        }
         let (got, from) = (f.frame().dest, f.frame().source);
         let level = |want: u8, got: u8| want == WILDCARD || want == got;
         !cl.tcp || (level(dest.group, from) && level(dest.port, got.port) && level(dest.device, got.device))
