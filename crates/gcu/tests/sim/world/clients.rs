@@ -503,7 +503,12 @@ impl World {
         let Some((key, payload)) = self.clients[c].answering.clone() else {
             return;
         };
-        if key.0.port == 0 || self.nicd.iter().any(|h| h.answers(key, &payload)) {
+        // Only a NIC that reached gcud's port can be the `?` gcud relays: a
+        // device's NIC that leaves late, after gcud's window (its report
+        // `00` may then come), is not the `?` that came before it (seed
+        // 165293: a fan-out's, taken for a `CD` its device NICs later).
+        let reached = |h: &Heard| self.nics_at_port.contains_key(&h.key);
+        if key.0.port == 0 || self.nicd.iter().any(|h| h.answers(key, &payload) && reached(h)) {
             self.summary.nics_checked += 1;
             return;
         }
@@ -519,10 +524,11 @@ impl World {
         // which names no command, is still relayed: counted, not excused
         // silently (issue 35 leaves it open).
         let cl = &self.clients[c];
-        let stale = cl
-            .abandoned
-            .iter()
-            .any(|&(dest, checksum)| self.nicd.iter().any(|h| h.key == (dest, cl.group, checksum)));
+        let stale = cl.abandoned.iter().any(|&(dest, checksum)| {
+            self.nicd
+                .iter()
+                .any(|h| h.key == (dest, cl.group, checksum) && reached(h))
+        });
         // So is the `?` of a fan-out: every GCU a group-255 command reached
         // answers it when its own answer comes, and a port-255 command's
         // `?` comes when its last job ended, after the ACK of its first,
