@@ -171,6 +171,21 @@ fn simulated_networks_keep_every_invariant() {
     }
 }
 
+/// Seeds that once failed on a checker or client model error, not on the
+/// router; each replays its exact scenario whatever `GCU_SIM_SEEDS` says.
+/// 187256: a late `IX` result after an `HS`'s ACK, taken as the end of the
+/// `HS` (1.4.2: an ACK-only command's answer is a NIC, never a result).
+/// 165293: a fan-out's `?` after the ACK of a `CD` its device answered
+/// NIC later, past gcud's window, taken for that NIC.
+#[test]
+fn seeds_that_found_model_errors_pass() {
+    for seed in [165_293, 187_256] {
+        if let Err(e) = run_seed(seed, false) {
+            panic!("seed {seed} failed: {e}\nreplay: {}", replay_line(seed));
+        }
+    }
+}
+
 #[test]
 fn the_same_seed_gives_the_same_run() {
     for seed in [1, 77, 4242] {
