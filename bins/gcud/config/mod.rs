@@ -244,6 +244,7 @@ fn validate(c: &Source<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
         c,
         &raw.port_defaults,
         &raw.ports,
+        &raw.link_timing,
         raw.limits.port_queue_bound(),
         &mut checks,
     )?;
@@ -397,6 +398,42 @@ mod tests {
         let e = err(&text("duplex = \"simplex\""));
         assert_eq!((e.key.as_str(), e.line), ("port_defaults.duplex", 8), "{e}");
         assert_eq!(e.message, "unknown variant `simplex`, expected `half` or `full`");
+    }
+
+    #[test]
+    fn a_nic_window_that_outlasts_the_delivery_time_out_is_refused_where_it_is_set() {
+        let text = |defaults: &str, own: &str, timing: &str| {
+            format!(
+                "{MINIMAL}[port_defaults]\nack_timeout_ms = 100\n{defaults}\n[[port]]\nid = 3\npath = \"/dev/a\"\n{own}\n[link_timing]\n{timing}\n"
+            )
+        };
+        let warnings = |text: &str| parse(Path::new("t.toml"), text).unwrap().warnings;
+        // 699 + 100 is below the default 800 ms.
+        assert_eq!(warnings(&text("nic_window_ms = 699", "", "")), Vec::<String>::new());
+        // 700 + 100 reaches it: an ACK that takes its whole time-out comes too late.
+        let w = warnings(&text("nic_window_ms = 700", "", ""));
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(w[0].starts_with("t.toml:9:"), "{w:?}");
+        assert!(
+            w[0].contains("port_defaults.nic_window_ms: port 3: its NIC window (700 ms) leaves less"),
+            "{w:?}"
+        );
+        // The window alone reaches it: refused.
+        let e = err(&text("nic_window_ms = 800", "", ""));
+        assert_eq!((e.key.as_str(), e.line), ("port_defaults.nic_window_ms", 9), "{e}");
+        assert!(e.message.starts_with("port 3: its NIC window (800 ms) reaches"), "{e}");
+        assert!(e.message.contains("delivery_timeout_ms (800 ms)"), "{e}");
+        let e = err(&text("nic_window_ms = 10", "nic_window_ms = 1000", ""));
+        assert_eq!((e.key.as_str(), e.line), ("port[0].nic_window_ms", 13), "{e}");
+        assert!(warnings(&text("", "nic_window_ms = 1000", "delivery_timeout_ms = 1101")).is_empty());
+        // The window set nowhere (35 ms at 9600 bit/s): the time-out is what the file says.
+        let w = warnings(&text("", "", "delivery_timeout_ms = 120"));
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(w[0].starts_with("t.toml:15:"), "{w:?}");
+        assert!(
+            w[0].contains("link_timing.delivery_timeout_ms: port 3: its NIC window (35 ms)"),
+            "{w:?}"
+        );
     }
 
     #[test]

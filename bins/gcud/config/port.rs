@@ -8,7 +8,7 @@ use sagebrush_service::config_file::{Baud, Int, Millis, Source};
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::{Checks, ConfigError};
+use super::{Checks, ConfigError, LinkTimingSection};
 
 /// Declares the per-port settings, each once: its key, its type (the range
 /// in the type; where no file gives it, the router core's default for the
@@ -126,6 +126,7 @@ pub(super) fn validate(
     c: &Source<'_>,
     defaults: &PortSettings,
     raw: &[PortSection],
+    link_timing: &LinkTimingSection,
     queue_bound: usize,
     checks: &mut Checks,
 ) -> Result<Vec<Port>, ConfigError> {
@@ -192,6 +193,7 @@ pub(super) fn validate(
             defaults.apply(&mut router);
         }
         own.apply(&mut router);
+        window_within_delivery(c, &key, (&own, defaults), &router, link_timing, checks)?;
         router.queue_bound = queue_bound;
         if let PortTransport::Simulated(devices) = &transport {
             router.devices = Some(devices.clone());
@@ -200,4 +202,61 @@ pub(super) fn validate(
         ports.push(Port { id, transport, router });
     }
     Ok(ports)
+}
+
+/// A command queued behind another to the same port waits out that one's
+/// NIC window, then its own ACK, all within `delivery_timeout_ms` (the
+/// direction a door chains after its speed, ARCHITECTURE "Delivery
+/// contract"). A window that reaches the time-out by itself would have
+/// every such command expire unsent (`0C`): refused, naming the window
+/// where the file sets it. One that leaves less than the port's ACK
+/// time-out: a warning.
+fn window_within_delivery(
+    c: &Source<'_>,
+    key: &str,
+    (own, defaults): (&PortSettings, &PortSettings),
+    port: &PortConfig,
+    link_timing: &LinkTimingSection,
+    checks: &mut Checks,
+) -> Result<(), ConfigError> {
+    let delivery = &link_timing.delivery_timeout_ms;
+    if port.nic_window + port.ack_timeout < delivery.get() {
+        return Ok(());
+    }
+    let (span, at) = match (&own.nic_window_ms, &defaults.nic_window_ms) {
+        (Some(w), _) => (w.span(), format!("{key}.nic_window_ms")),
+        (None, Some(w)) => (w.span(), "port_defaults.nic_window_ms".to_owned()),
+        (None, None) => (delivery.span(), "link_timing.delivery_timeout_ms".to_owned()),
+    };
+    let consequence = "a command waiting behind another to this port (a direction chained after its speed)";
+    let fix = "shorten nic_window_ms or lengthen delivery_timeout_ms";
+    if port.nic_window >= delivery.get() {
+        return Err(c.at(
+            span,
+            at,
+            format!(
+                "port {}: its NIC window ({} ms) reaches [link_timing] delivery_timeout_ms ({} ms): \
+                 {consequence} would always expire before it is written (0C); {fix}",
+                port.id,
+                port.nic_window,
+                delivery.get()
+            ),
+        ));
+    }
+    // An ACK time-out that reaches the delivery time-out by itself is no
+    // matter of the window.
+    if port.ack_timeout >= delivery.get() {
+        return Ok(());
+    }
+    checks.warnings.push(format!(
+        "{}: port {}: its NIC window ({} ms) leaves less than its ACK time-out ({} ms) before \
+         [link_timing] delivery_timeout_ms ({} ms): {consequence} may expire before it is \
+         acknowledged (0C); {fix}",
+        c.place(span, &at),
+        port.id,
+        port.nic_window,
+        port.ack_timeout,
+        delivery.get()
+    ));
+    Ok(())
 }
