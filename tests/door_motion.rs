@@ -97,6 +97,18 @@ fn race(kind: &str) {
         assert_eq!(t["move"], "ok", "every ContinuousMove is answered: {r}\n{}", door.log());
         assert_eq!(t["second"], "ok", "every {kind} is answered: {r}\n{}", door.log());
     }
+    // The pan rate changes at every trial: each pan move sets its speed,
+    // then its direction at the speed's ACK (chained), and `kind` races the
+    // chain too. Moves `kind` overtook before the speed went set none.
+    let speeds = gcud
+        .received(MAST)
+        .iter()
+        .filter(|(from, payload)| *from == DOOR_GROUP && payload.starts_with("SP"))
+        .count();
+    assert!(
+        kind == "zero_x" || speeds >= 5,
+        "only {speeds} of 20 moves set a pan speed: the race missed the chain"
+    );
     let (pan, tilt) = assert_still_after(
         &gcud,
         Duration::from_secs(3),

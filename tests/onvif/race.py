@@ -8,7 +8,7 @@ does. Prints one JSON object on stdout. Every wait is bounded.
 
 Steps:
 - race {"kind": K, "trials": N, "seed": S}: N times, a ContinuousMove
-  (pan right at 30 deg/s, Timeout 2 s) and, 0 to 100 ms after it was
+  (pan at 24 to 48 deg/s, a new rate and direction each time, Timeout 2 s) and, 0 to 100 ms after it was
   posted, the request K: "stop", "absolute", "home", "zoom_stop" (Stop with
   PanTilt=false) or "zero_x" (a ContinuousMove whose only velocity is x=0,
   after a tilt move instead of a pan move). Reports each request's outcome.
@@ -68,13 +68,18 @@ async def race(ptz, token, args):
     results = []
     for trial in range(args["trials"]):
         delay = rng.uniform(0.0, 0.1)
-        # Slow enough that an escaped move is still moving 3 s later: 30 deg/s
-        # pan (6 s to the end of travel), 15 deg/s tilt (6 s to its end).
-        # The direction alternates, so that moves that legitimately run
-        # their Timeout do not add up to the end of travel.
+        # Slow enough that an escaped move is still moving 3 s later: 24 to
+        # 48 deg/s pan (at least 3.75 s to the end of travel), 15 deg/s tilt
+        # (6 s to its end). The direction alternates and the pan rates of
+        # four trials add up to nothing, so that moves that legitimately run
+        # their Timeout do not add up to the end of travel; the pan rate
+        # changes at every trial, so that every move sets a speed before its
+        # direction (chained, ARCHITECTURE "Delivery contract") and the
+        # request K races that chain too.
         sign = 1.0 if trial % 2 == 0 else -1.0
+        pan = (0.2, 0.3, 0.4, 0.3)[trial % 4]
         velocity = ({"PanTilt": {"x": 0.0, "y": 0.1 * sign}} if kind == "zero_x"
-                    else {"PanTilt": {"x": 0.25 * sign, "y": 0.0}})
+                    else {"PanTilt": {"x": pan * sign, "y": 0.0}})
         move = asyncio.ensure_future(outcome(ptz.ContinuousMove(
             {"ProfileToken": token, "Velocity": velocity, "Timeout": dt.timedelta(seconds=2)})))
         await asyncio.sleep(delay)
