@@ -93,7 +93,9 @@
 //!   one job per port and one accepted command. Every result frame is relayed as it comes (so the
 //!   origin may receive several, each naming its port and device). `?` is
 //!   relayed once, when the jobs ended without result or completion and at
-//!   least one NIC. A device-255 command gets no ACK and usually no answer;
+//!   least one NIC. The origin's ACK waits until every job was acknowledged
+//!   or ended (a result goes at once, its ACK first), so that `?` follows
+//!   it within a port's window, never after a later command's ACK. A device-255 command gets no ACK and usually no answer;
 //!   result frames with its header during its guard time (a lone device
 //!   answering a broadcast) are relayed too. A group-255 command also yields whatever
 //!   the downstream GCUs send back.

@@ -152,7 +152,7 @@ fn simulated_networks_keep_every_invariant() {
     // Late NICs, just inside and just after gcud's window, and early ones
     // (with the ACK, or with the ACK lost): every `?` a client took was
     // checked against the NICs the devices sent. The excuses (a damaged
-    // byte; the `?` of a command told not confirmed, of a fan-out, or
+    // byte; the `?` of a command told not confirmed, of a group-255 command, or
     // relayed from another GCU for a command it took twice, which this
     // issue leaves as they were) stay rare beside the checked ones.
     assert!(

@@ -25,10 +25,15 @@ pub(super) struct Progress {
     pub(super) dropped: Option<DropReason>,
     /// Why a job's device did not acknowledge it.
     pub(super) failure: Option<Undelivered>,
+    /// Ports whose job was neither acknowledged nor ended yet: the origin
+    /// is told delivered once none is left and a device acknowledged.
+    pub(super) undecided: PortSet,
+    /// A device acknowledged one of the jobs.
+    pub(super) acknowledged: bool,
 }
 
 impl Progress {
-    pub(super) fn new(jobs: usize) -> Self {
+    pub(super) fn new(jobs: usize, ports: PortSet) -> Self {
         Self {
             remaining: jobs,
             results: 0,
@@ -38,7 +43,20 @@ impl Progress {
             unreachable: 0,
             dropped: None,
             failure: None,
+            undecided: ports,
+            acknowledged: false,
         }
+    }
+
+    /// The job on `port` was acknowledged (`acked`) or ended without that:
+    /// whether this decided the last undecided job and one was acknowledged
+    /// (the command is delivered: ARCHITECTURE "Delivery contract").
+    pub(super) fn decide(&mut self, port: u8, acked: bool) -> bool {
+        if !self.undecided.remove(port) {
+            return false;
+        }
+        self.acknowledged |= acked;
+        self.undecided.is_empty() && self.acknowledged
     }
 
     /// The one outcome of all jobs: any result relayed wins; then a NIC when
@@ -71,6 +89,28 @@ impl Progress {
             CommandOutcome::Unreachable => Err(self.failure.unwrap_or(Undelivered::DeviceSilent)),
             CommandOutcome::Dropped(reason) => Err(reason.undelivered()),
         }
+    }
+}
+
+/// A set of port numbers, without an allocation.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct PortSet([u64; 4]);
+
+impl PortSet {
+    pub(super) fn insert(&mut self, port: u8) {
+        self.0[usize::from(port / 64)] |= 1 << (port % 64);
+    }
+
+    /// Removes `port`: whether it was in the set.
+    fn remove(&mut self, port: u8) -> bool {
+        let (word, bit) = (usize::from(port / 64), 1u64 << (port % 64));
+        let was = self.0[word] & bit != 0;
+        self.0[word] &= !bit;
+        was
+    }
+
+    fn is_empty(&self) -> bool {
+        self.0 == [0; 4]
     }
 }
 

@@ -13,7 +13,7 @@ use crate::types::{CommandId, CommandOutcome, DropReason, Origin, Place};
 use super::Router;
 use super::after_key;
 use super::dispatch::Accepted;
-use super::in_flight::Progress;
+use super::in_flight::{PortSet, Progress};
 use super::self_answer::answer;
 
 impl Router {
@@ -69,8 +69,15 @@ impl Router {
             self.resolve(now, id, Err(Undelivered::NoSuchPort), self.group, out);
             return self.finish(id, CommandOutcome::Dropped(DropReason::UnknownPort), out);
         }
+        // Every target is undecided before the first is queued: a job may
+        // be delivered (device 255: written) as it is queued.
+        let mut ports = PortSet::default();
+        match one {
+            Some(port) => ports.insert(port),
+            None => self.ports.keys().for_each(|&port| ports.insert(port)),
+        }
         if let Some(c) = self.in_flight.get_mut(&id) {
-            c.jobs = Some(Progress::new(targets));
+            c.jobs = Some(Progress::new(targets, ports));
         }
         let mut after = None;
         while let Some(port) = match one {
@@ -130,7 +137,37 @@ impl Router {
         }
     }
 
-    pub(super) fn job_finished(&mut self, now: u64, id: CommandId, outcome: CommandOutcome, out: &mut Outbox) {
+    /// The device on `port` acknowledged job `id` (or a device-255 command
+    /// was written there). The origin is told delivered once every job of
+    /// the command was acknowledged or ended (ARCHITECTURE "Delivery
+    /// contract"): a port-255 fan-out's one `?`, relayed when its last job
+    /// ended, then follows its ACK within the port's window (1.4.2), never
+    /// after a later command's ACK.
+    pub(super) fn job_delivered(&mut self, now: u64, port: u8, id: CommandId, out: &mut Outbox) {
+        let delivered = match self.jobs_of(id) {
+            Some(p) => p.decide(port, true),
+            None => true,
+        };
+        if delivered {
+            self.resolve(now, id, Ok(()), self.group, out);
+        }
+    }
+
+    /// Job `id` on `port` ended with `outcome`; the command's one outcome
+    /// once its last job ended.
+    pub(super) fn job_finished(
+        &mut self,
+        now: u64,
+        port: u8,
+        id: CommandId,
+        outcome: CommandOutcome,
+        out: &mut Outbox,
+    ) {
+        let Some(p) = self.jobs_of(id) else { return };
+        // Ended unacknowledged, or acknowledged already (then a no-op).
+        if p.decide(port, false) {
+            self.resolve(now, id, Ok(()), self.group, out);
+        }
         let Some(p) = self.jobs_of(id) else { return };
         match outcome {
             CommandOutcome::Result | CommandOutcome::Forwarded(_) => {}

@@ -333,13 +333,13 @@ impl Router {
                     self.govern_result(now, id, port, &reply);
                     self.relay_result(now, port, id, origin, reply, out);
                 }
-                PortOut::Delivered { id } => self.resolve(now, id, Ok(()), self.group, out),
+                PortOut::Delivered { id } => self.job_delivered(now, port, id, out),
                 PortOut::Undelivered { id, failure } => {
                     if let Some(p) = self.jobs_of(id) {
                         p.failure = Some(failure);
                     }
                 }
-                PortOut::Finished { id, outcome, .. } => self.job_finished(now, id, outcome, out),
+                PortOut::Finished { id, outcome, .. } => self.job_finished(now, port, id, outcome, out),
             }
         }
         if self.port_scratch.len() < SCRATCH_KEPT {

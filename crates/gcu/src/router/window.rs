@@ -12,9 +12,9 @@
 //! the window or after it: `port::pipeline`), and a client cannot take it
 //! for a later, byte-identical command's. A stock MCU on a serial client line
 //! never asks and pays no extra frame. Only a command to one device of
-//! one port of one GCU is reported: the jobs of a port-255 fan-out end on
-//! several ports at different times, so a later command could be ACKed
-//! first, and every GCU a group-255 command reaches answers it.
+//! one port of one GCU is reported: the windows of a port-255 fan-out's
+//! jobs end on several ports at different times, so a later command could
+//! be ACKed first, and every GCU a group-255 command reaches answers it.
 
 use sagebrush_protocol::gcu::WINDOW_REPORTS_ON;
 use sagebrush_protocol::{LINK_PORT, WILDCARD};

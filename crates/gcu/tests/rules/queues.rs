@@ -4,6 +4,7 @@
 //! relayed as they are.
 
 use super::*;
+use sagebrush_gcu::LinkSettings;
 
 #[test]
 fn stop_overtakes_queued_work() {
@@ -152,9 +153,11 @@ fn port_255_goes_to_every_port_and_each_result_names_its_port() {
     assert_eq!(accepted(&a).len(), 1);
     assert_eq!(port_writes(&a, 1), vec![frame((G, 1, 3), 2, b"AW")]);
     assert_eq!(port_writes(&a, 2), vec![frame((G, 2, 3), 2, b"AW")]);
-    h.port(1, &[ACK]);
+    let a = h.port(1, &[ACK]);
+    assert!(link_writes(&a, CLIENT).is_empty(), "port 2 has not answered yet");
+    // A result goes at once, its ACK first (1.4.3); no `?` can follow it.
     let a = h.port(1, &frame((2, 1, 3), G, b"0"));
-    assert_eq!(link_writes(&a, CLIENT), vec![frame((2, 1, 3), G, b"0")]);
+    assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK], frame((2, 1, 3), G, b"0")]);
     assert!(finished(&a).is_empty(), "one outcome once every port is done");
     h.port(2, &[ACK]);
     let a = h.port(2, &frame((2, 2, 3), G, b"4"));
@@ -169,14 +172,69 @@ fn fan_out_relays_one_nic_only_when_no_port_did_better() {
     let mut h = H::new(&[1, 2]);
     h.link(CLIENT, &frame((G, 255, 3), 2, b"XX"));
     let a = h.port(1, &[ACK, NIC]);
-    assert_eq!(
-        link_writes(&a, CLIENT),
-        vec![vec![ACK]],
-        "delivered once a device has it"
-    );
+    assert!(link_writes(&a, CLIENT).is_empty(), "port 2 has not answered yet");
     let a = h.port(2, &[ACK, NIC]);
-    assert_eq!(link_writes(&a, CLIENT), vec![vec![NIC]]);
+    assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK], vec![NIC]]);
     assert_eq!(finished(&a), vec![CommandOutcome::Nic]);
+}
+
+/// Seed 165293: the client was ACKed at the first device's ACK and the
+/// fan-out's `?` came when a silent port gave up, after the client's window
+/// and its next command's ACK, taken for that command's. The ACK waits for
+/// every job to be acknowledged or to end; the `?` follows it.
+#[test]
+fn fan_out_is_acked_once_every_job_was_acknowledged_or_gave_up_then_its_nic() {
+    let mut h = H::new(&[1, 2]);
+    let a = h.link(CLIENT, &frame((G, 255, 1), 2, b"C8"));
+    assert_eq!(port_writes(&a, 2).len(), 1);
+    let a = h.port(1, &[ACK, NIC]);
+    assert!(link_writes(&a, CLIENT).is_empty(), "port 2's job has not ended: {a:?}");
+    // Port 2's device never answers: the port retries, then gives up.
+    let (mut tries, mut told) = (1, Vec::new());
+    for _ in 0..100 {
+        let a = h.wait(1);
+        tries += port_writes(&a, 2).len();
+        told = link_writes(&a, CLIENT);
+        if !told.is_empty() {
+            assert_eq!(finished(&a), vec![CommandOutcome::Nic]);
+            break;
+        }
+    }
+    assert_eq!(
+        tries, 3,
+        "the first try and 2 retries, all unanswered, before the client hears"
+    );
+    assert_eq!(
+        told,
+        vec![vec![ACK], vec![NIC]],
+        "delivered (port 1's device had it), then its `?`"
+    );
+}
+
+/// The ACK still comes within the delivery time-out: a job still queued
+/// then expires, and a device that had the command makes it delivered.
+#[test]
+fn fan_out_behind_a_long_wait_is_acked_at_the_delivery_time_out() {
+    let mut h = H::new(&[1, 2]);
+    h.link(CLIENT, &frame((G, 2, 4), 2, b"IX"));
+    h.port(2, &[ACK]);
+    h.link(CLIENT, &frame((G, 255, 3), 2, b"XX"));
+    let a = h.port(1, &[ACK, NIC]);
+    assert!(
+        link_writes(&a, CLIENT).is_empty(),
+        "port 2's job is queued behind the IX"
+    );
+    let start = h.now;
+    let mut told = Vec::new();
+    while told.is_empty() && h.now < start + 2_000 {
+        told = link_writes(&h.wait(1), CLIENT);
+    }
+    assert_eq!(h.now - start, LinkSettings::DELIVERY_TIMEOUT_MS);
+    assert_eq!(
+        told,
+        vec![vec![ACK], vec![NIC]],
+        "port 1's device had it and answered NIC"
+    );
 }
 
 #[test]

@@ -97,8 +97,8 @@ summary! {
     /// `?` a client took that a command it was told not confirmed (or gave
     /// up on) may have earned: it still executed, and a `?` names no command.
     stale_nics,
-    /// `?` a client took that an earlier fan-out (group or port 255) may
-    /// have earned (each GCU's, or the last job's, however late).
+    /// `?` a client took that an earlier group-255 command may have earned
+    /// (each GCU it reached answers it, however late).
     fan_out_nics,
     /// `?` a GCU relayed from another GCU's link, for a command that GCU
     /// took twice over a lossy link (its first answer or report was lost).

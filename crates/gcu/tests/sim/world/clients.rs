@@ -529,11 +529,12 @@ impl World {
                 .iter()
                 .any(|h| h.key == (dest, cl.group, checksum) && reached(h))
         });
-        // So is the `?` of a fan-out: every GCU a group-255 command reached
-        // answers it when its own answer comes, and a port-255 command's
-        // `?` comes when its last job ended, after the ACK of its first,
-        // however long after (a result names its device, a `?` nothing).
-        let fan_out = cl.issued.iter().any(|d| d.group == WILDCARD || d.port == WILDCARD);
+        // So is the `?` of a group-255 command: every GCU it reached answers
+        // it when its own answer comes, however long after the ACK (a
+        // result names its group, a `?` nothing). Not a port-255 command's:
+        // its ACK waits for every job, and its `?` follows within gcud's
+        // window (ARCHITECTURE "Delivery contract"; seed 165293).
+        let fan_out = cl.issued.iter().any(|d| d.group == WILDCARD);
         if stale || fan_out {
             self.summary.stale_nics += u64::from(stale);
             self.summary.fan_out_nics += u64::from(!stale);
