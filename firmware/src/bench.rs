@@ -22,7 +22,9 @@ use cortex_m::peripheral::SYST;
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
-use sagebrush_protocol::{ACK, Address, DeviceEndpoint, EndpointConfig, Event, FrameBuf, Framer, MAX_FRAME_LEN, NAK, NIC};
+use sagebrush_protocol::{
+    ACK, Address, DeviceEndpoint, EndpointConfig, Event, FrameBuf, Framer, MAX_FRAME_LEN, NAK, NIC,
+};
 
 use gimbal::Gimbal;
 
@@ -248,7 +250,10 @@ fn main() -> ! {
         sink.bytes,
         events
     );
-    hprintln!("bench: receive path stack high-water {} bytes (below the caller's frame)", stack);
+    hprintln!(
+        "bench: receive path stack high-water {} bytes (below the caller's frame)",
+        stack
+    );
     // Per pass: 13 commands for this gimbal (ACK each), 7 of them with a
     // result, one unknown (NIC), one damaged (NAK); the plain framer sees
     // 14 good frames (one for the neighbour) and the damaged one is no frame.

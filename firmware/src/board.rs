@@ -66,11 +66,14 @@ impl Uart {
         // Divisor = SYSCLK / (16 * BAUD) as 16.6 fixed point, rounded.
         let divisor_x64 = (SYSCLK_HZ * 8 / BAUD).div_ceil(2);
         // SAFETY: IBRD holds a 16-bit divisor; 12 MHz / (16 * 9600) = 78.
-        regs.ibrd.write(|w| unsafe { w.uart_ibrd_divint().bits((divisor_x64 / 64) as u16) });
+        regs.ibrd
+            .write(|w| unsafe { w.uart_ibrd_divint().bits((divisor_x64 / 64) as u16) });
         // SAFETY: FBRD holds a 6-bit fraction; the value is masked to it.
-        regs.fbrd.write(|w| unsafe { w.uart_fbrd_divfrac().bits((divisor_x64 % 64) as u8) });
+        regs.fbrd
+            .write(|w| unsafe { w.uart_fbrd_divfrac().bits((divisor_x64 % 64) as u8) });
         // 8 data bits (WLEN = 3), FIFOs on, one stop bit, no parity.
-        regs.lcrh.write(|w| w.uart_lcrh_wlen().bits(3).uart_lcrh_fen().set_bit());
+        regs.lcrh
+            .write(|w| w.uart_lcrh_wlen().bits(3).uart_lcrh_fen().set_bit());
         regs.im.write(|w| w.uart_im_rxim().set_bit().uart_im_rtim().set_bit());
         regs.ctl.write(|w| {
             w.uart_ctl_uarten()
@@ -102,9 +105,7 @@ impl Uart {
         }
         // The receive interrupt clears as the FIFO empties; the receive
         // time-out one is cleared here.
-        self.regs
-            .icr
-            .write(|w| w.uart_icr_rtic().set_bit());
+        self.regs.icr.write(|w| w.uart_icr_rtic().set_bit());
         n
     }
 
