@@ -107,6 +107,9 @@ struct Pending {
     /// The next GCU reported a later command on the same port: this
     /// entry's transaction ended there and no answer of it can come.
     closed: bool,
+    /// Its origin was told it was not delivered (our own delivery time-out:
+    /// `0B not confirmed`), or left: its `?` goes nowhere.
+    disowned: bool,
 }
 
 impl Pending {
@@ -155,6 +158,10 @@ pub(crate) enum AnswerMatch {
     /// The next GCU sent an answer again (our ACK of it was lost): it went
     /// back already, and goes nowhere now.
     Repeat,
+    /// A `?` of a command whose origin was told it was not delivered, or
+    /// left ([`ReversePath::disown`]): it names no command, and the origin
+    /// would take it for the one it awaits now. It goes nowhere (counted).
+    Disowned,
 }
 
 #[derive(Debug)]
@@ -220,6 +227,7 @@ impl ReversePath {
             command,
             reported: None,
             closed: false,
+            disowned: false,
         });
         (key, evicted)
     }
@@ -260,6 +268,23 @@ impl ReversePath {
             }
         }
         Some(command)
+    }
+
+    /// The origin of `command` was told it was not delivered: a `?` of its
+    /// entry is matched still (it is that command's, not a later one's)
+    /// but goes nowhere ([`AnswerMatch::Disowned`]).
+    pub fn disown(&mut self, command: CommandId) {
+        for e in self.entries.iter_mut().filter(|e| e.command == Some(command)) {
+            e.disowned = true;
+        }
+    }
+
+    /// The origin link `link` went down: the same for all its entries (a
+    /// configured link comes back under the same id).
+    pub fn disown_origin(&mut self, link: LinkId) {
+        for e in self.entries.iter_mut().filter(|e| e.origin.link() == Some(link)) {
+            e.disowned = true;
+        }
     }
 
     /// The frame of `key` was transmitted for the first time at `now`.
@@ -333,7 +358,10 @@ impl ReversePath {
         self.take(matches, Some((now, answer)))
     }
 
-    /// Where a `?` arriving on `link` goes back to.
+    /// Where a `?` arriving on `link` goes back to. The NIC follows its
+    /// command's ACK (1.4.2), and the next GCU reports a command delivered
+    /// at that ACK: so it is first the oldest waiting entry reported
+    /// delivered (as a result, above), else the oldest waiting one.
     pub fn match_nic(&mut self, link: LinkId) -> AnswerMatch {
         self.take(|e| e.out_link == link && e.expires.is_some(), None)
     }
@@ -343,8 +371,11 @@ impl ReversePath {
     /// fan-out keeps waiting), else answered ones (a duplicate answer goes
     /// back where the first went). An answered entry whose frame was sent
     /// more than once may yet be answered again, so it makes a waiting
-    /// entry of another origin ambiguous.
+    /// entry of another origin ambiguous. `answer`: the result frame, `None`
+    /// for a bare `?`, which the oldest entry reported delivered takes
+    /// first, and which goes nowhere when its entry is disowned.
     fn take(&mut self, matches: impl Fn(&Pending) -> bool, answer: Option<(u64, FrameBuf)>) -> AnswerMatch {
+        let bare = answer.is_none();
         let mut waiting = self
             .entries
             .iter()
@@ -358,15 +389,23 @@ impl ReversePath {
             if waiting.any(|o| o != origin) || duplicate_of_other {
                 return AnswerMatch::Ambiguous;
             }
-            if let Some(first) = self.entries.iter_mut().find(|e| e.waiting() && matches(e)) {
+            let delivered = |e: &Pending| bare && e.reported == Some(true);
+            let at = (self.entries.iter())
+                .position(|e| e.waiting() && matches(e) && delivered(e))
+                .or_else(|| self.entries.iter().position(|e| e.waiting() && matches(e)));
+            if let Some(first) = at.map(|at| &mut self.entries[at]) {
                 first.answered = true;
                 first.last_answer = answer;
+                if bare && first.disowned {
+                    return AnswerMatch::Disowned;
+                }
             }
             return AnswerMatch::One(origin);
         }
         let mut answered = self.entries.iter().filter(|e| matches(e)).map(|e| e.origin);
         match answered.next() {
             None => AnswerMatch::None,
+            Some(_) if bare && self.entries.iter().filter(|e| matches(e)).all(|e| e.disowned) => AnswerMatch::Disowned,
             Some(origin) if answered.all(|o| o == origin) => AnswerMatch::One(origin),
             Some(_) => AnswerMatch::Ambiguous,
         }

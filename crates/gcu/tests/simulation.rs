@@ -152,9 +152,11 @@ fn simulated_networks_keep_every_invariant() {
     // Late NICs, just inside and just after gcud's window, and early ones
     // (with the ACK, or with the ACK lost): every `?` a client took was
     // checked against the NICs the devices sent. The excuses (a damaged
-    // byte; the `?` of a command told not confirmed, of a group-255 command, or
-    // relayed from another GCU for a command it took twice, which this
-    // issue leaves as they were) stay rare beside the checked ones.
+    // byte; the `?` of a command the client gave up on by itself, of a
+    // group-255 command, or relayed from another GCU for a command it took
+    // twice) stay rare beside the checked ones. A command gcud told not
+    // delivered (`0B not confirmed` and the rest) earns none: its `?` is
+    // never relayed.
     assert!(
         totals.late_nics > 0 && totals.nics_after_window > 0 && totals.nics_checked > 0,
         "{totals:?}"

@@ -352,3 +352,40 @@ fn identical_answers_in_one_tick_on_a_lossless_link_are_two_answers() {
     assert_eq!(rp.match_report(L, 2, &delivered), Some(Some(CommandId(2))));
     assert_eq!(rp.match_result(500, L, &answer, false), AnswerMatch::One(origin(11)));
 }
+
+/// ARCHITECTURE "Delivery contract": a `?` of a command whose origin was
+/// told it was not delivered goes nowhere; the NIC follows the ACK
+/// (1.4.2), so it is the `?` of the oldest entry the next GCU reported
+/// delivered, and another command of that origin still gets its own.
+#[test]
+fn a_nic_of_a_disowned_command_goes_nowhere_and_the_next_ones_goes_back() {
+    let settings = LinkSettings::default();
+    let mut rp = ReversePath::new(8, 200);
+    let none = |f: &Frame<'_>| fwd(f, ResultKind::None);
+    let first = Frame::new(Address::new(5, 1, 12), 2, b"SP5").unwrap();
+    let second = Frame::new(Address::new(5, 2, 12), 2, b"SP6").unwrap();
+    let (a, _) = rp.insert(L, origin(10), &first, none(&first), Some(CommandId(1)));
+    rp.sent(a, 0, &settings);
+    let (b, _) = rp.insert(L, origin(10), &second, none(&second), Some(CommandId(2)));
+    rp.sent(b, 0, &settings);
+    // Our delivery time-out told the origin `0B`: the first is disowned.
+    rp.disown(CommandId(1));
+    // The next GCU reports the second delivered (the first's report never
+    // came): a `?` now is the second's, and goes back.
+    assert_eq!(
+        rp.match_report(L, 2, &report(second.dest, &second, None)),
+        Some(Some(CommandId(2)))
+    );
+    assert_eq!(rp.match_nic(L), AnswerMatch::One(origin(10)));
+    // A third command of that origin waits when the first one's report
+    // comes after all: the `?` after it is the first one's, and goes nowhere.
+    let (c, _) = rp.insert(L, origin(10), &first, none(&first), Some(CommandId(3)));
+    rp.sent(c, 0, &settings);
+    assert_eq!(
+        rp.match_report(L, 2, &report(first.dest, &first, None)),
+        Some(Some(CommandId(1)))
+    );
+    assert_eq!(rp.match_nic(L), AnswerMatch::Disowned);
+    // A third command of that origin still gets its own.
+    assert_eq!(rp.match_nic(L), AnswerMatch::One(origin(10)));
+}

@@ -32,6 +32,12 @@ impl Router {
             return;
         };
         let (frame, command) = (c.command.frame.clone(), c.command.facts.reply.mnemonic());
+        if delivery.is_err() {
+            // Told its outcome: a `?` that comes now is nobody's (module
+            // `in_flight`: `disowned`), here or from the next GCU.
+            c.disowned = true;
+            self.reverse.disown(id);
+        }
         if c.done() {
             self.in_flight.remove(&id);
         }

@@ -49,6 +49,7 @@ impl Router {
                     _ => Delivery::Gcu,
                 }),
                 jobs: None,
+                disowned: false,
                 issued_stop,
                 finished: false,
             },

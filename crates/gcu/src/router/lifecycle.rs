@@ -163,13 +163,17 @@ impl Router {
             stats: Box::new(l.stats),
         });
         self.routes.forget(link);
-        // Nobody is left to tell whether these were delivered.
+        // Nobody is left to tell whether these were delivered, nor to
+        // take their `?`: a configured link comes back under the same id,
+        // and its next connection would take it for its own command's.
         self.in_flight.retain(|_, c| {
             if c.origin.link() == Some(link) {
                 c.delivery = None;
+                c.disowned = true;
             }
             !c.done()
         });
+        self.reverse.disown_origin(link);
         out.push(Action::Event(RouterEvent::LinkState {
             link,
             up: false,

@@ -183,11 +183,16 @@ impl Router {
         }
         let Some(c) = self.in_flight.get_mut(&id) else { return };
         let Some(p) = c.jobs.take() else { return };
-        let origin = c.origin;
+        let (origin, disowned) = (c.origin, c.disowned);
+        let (dest, source) = (c.command.frame.frame().dest, c.command.frame.frame().source);
         let mut outcome = p.outcome();
         self.resolve(now, id, p.delivery(outcome), self.group, out);
         self.window_passed(now, id, outcome, out);
-        if outcome == CommandOutcome::Nic {
+        if outcome == CommandOutcome::Nic && disowned {
+            // Its origin was told it was not delivered (module `in_flight`):
+            // the `?` names no command, and would be taken for the next.
+            self.drop_frame(DropReason::Unsolicited, Place::Port(port), dest, source, out);
+        } else if outcome == CommandOutcome::Nic {
             if let Err(reason) = self.nic_to(now, origin, out) {
                 outcome = CommandOutcome::Dropped(reason);
             }

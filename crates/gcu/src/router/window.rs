@@ -59,8 +59,9 @@ impl Router {
             && f.dest.port != WILDCARD
             && f.dest.port != LINK_PORT
             && f.dest.device != WILDCARD;
-        // Told delivered already: the ACK went first.
-        let acked = c.delivery.is_none();
+        // Told delivered already: the ACK went first (not a report that it
+        // was not: then this would be its second outcome).
+        let acked = c.delivery.is_none() && !c.disowned;
         if one_device && acked {
             self.report(now, link, &f, None, self.group, out);
         }

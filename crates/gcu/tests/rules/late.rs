@@ -412,3 +412,44 @@ fn a_nic_before_the_ack_ends_nothing() {
     assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK], vec![NIC]]);
     assert_eq!(finished(a.actions()), vec![CommandOutcome::Nic]);
 }
+
+/// ARCHITECTURE "Delivery contract": a command still on the bus when its
+/// client's delivery time-out passes is reported `0B not confirmed`, and
+/// that is its outcome. Its device may ACK it after that and answer NIC
+/// (1.4.2), but a bare `?` names no command: the client, gone on to its
+/// next command, would take it for that one's. So it is not relayed
+/// (counted as unsolicited), and the next command's exchange is untouched.
+#[test]
+fn a_nic_after_the_client_was_told_not_confirmed_is_not_relayed() {
+    // Two ACK waits: the second try is on the bus when it passes, and the
+    // next command still fits in after the late-answer quiet.
+    let mut h = H::with(&[1], |c| c.links.delivery_timeout = 40);
+    let first = frame((G, 1, 3), 2, b"SP5");
+    let a = h.link(CLIENT, &first);
+    assert_eq!(port_writes(&a, 1), vec![first.clone()]);
+    // No ACK within the client's delivery time-out: not confirmed.
+    let a = h.wait(40);
+    assert_eq!(port_writes(&a, 1), vec![first.clone()], "tried again");
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        vec![report(&first, Some(Undelivered::NotConfirmed))]
+    );
+    h.link(CLIENT, &[ACK]);
+    let second = frame((G, 1, 3), 2, b"SP6");
+    h.link(CLIENT, &second);
+    // The device ACKs the first command late, and answers it NIC.
+    let a = h.port(1, &[ACK, NIC]);
+    assert!(
+        link_writes(&a, CLIENT).is_empty(),
+        "the first one's `?` went to the client: {a:?}"
+    );
+    assert_eq!(finished(a.actions()), vec![CommandOutcome::Nic]);
+    assert_eq!(dropped(a.actions()), vec![DropReason::Unsolicited]);
+    // The second command goes after the late-answer quiet; its own ACK and
+    // `?` reach the client.
+    let a = h.wait(port_config(1).late_answer_guard + 1);
+    assert_eq!(port_writes(&a, 1), vec![second.clone()]);
+    let a = h.port(1, &[ACK, NIC]);
+    assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK], vec![NIC]]);
+    assert_eq!(finished(a.actions()), vec![CommandOutcome::Nic]);
+}

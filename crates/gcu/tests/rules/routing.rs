@@ -245,6 +245,64 @@ fn nic_from_another_gcu_is_relayed_to_the_origin() {
     assert_eq!(link_writes(&a, CLIENT), vec![vec![NIC]]);
 }
 
+/// ARCHITECTURE "Delivery contract": a client told `0B not confirmed` has
+/// its command's outcome and moves on. The next GCU may still execute it
+/// and its device answer NIC (1.4.2), but a bare `?` names no command: the
+/// client would take it for the command it awaits now. So that late `?`
+/// is not relayed (counted as unsolicited), and the next command's `?`
+/// still is (simulation seeds 13312, 29386, 36507).
+#[test]
+fn a_nic_of_a_command_told_not_confirmed_is_not_relayed() {
+    let mut h = H::new(&[1]);
+    h.up(DOWN, LinkKind::Downstream);
+    h.link(DOWN, &frame((G, 0, 0), 7, b"AW"));
+    h.link(DOWN, &[ACK]);
+    let first = frame((7, 1, 3), 2, b"SP5");
+    h.link(CLIENT, &first);
+    h.link(DOWN, &[ACK]);
+    // GCU 7 says nothing within the delivery time-out (its port busy).
+    let not_confirmed = report(&first, Some(Undelivered::NotConfirmed));
+    let mut told = Vec::new();
+    for _ in 0..sagebrush_gcu::LinkSettings::DELIVERY_TIMEOUT_MS {
+        told = link_writes(&h.wait(1), CLIENT);
+        if !told.is_empty() {
+            break;
+        }
+    }
+    assert_eq!(told, vec![not_confirmed]);
+    h.link(CLIENT, &[ACK]);
+    // The client's next command, to the same device.
+    let second = frame((7, 1, 3), 2, b"SP6");
+    h.link(CLIENT, &second);
+    h.link(DOWN, &[ACK]);
+    // Now GCU 7 runs the first one: its device ACKs it and answers NIC.
+    let reported = |command: &[u8]| {
+        let (f, _) = Frame::parse(command).unwrap();
+        let payload = DeliveryReport {
+            failure: None,
+            dest: f.dest,
+            command_checksum: f.checksum(),
+            at_group: 7,
+        }
+        .encode();
+        frame((2, 0, 0), 7, &payload)
+    };
+    let a = h.link(DOWN, &reported(&first));
+    assert!(link_writes(&a, CLIENT).is_empty(), "one outcome only: {a:?}");
+    let a = h.link(DOWN, &[NIC]);
+    assert!(
+        link_writes(&a, CLIENT).is_empty(),
+        "the first one's `?` went to the client"
+    );
+    assert_eq!(dropped(&a), vec![DropReason::Unsolicited]);
+    // The second command's exchange is unaffected: its ACK, then its `?`.
+    let a = h.link(DOWN, &reported(&second));
+    assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK]]);
+    let a = h.link(DOWN, &[NIC]);
+    assert_eq!(link_writes(&a, CLIENT), vec![vec![NIC]]);
+    assert!(dropped(&a).is_empty());
+}
+
 #[test]
 fn statistics_count_lines_devices_and_last_seen() {
     let mut h = H::new(&[1]);

@@ -94,8 +94,9 @@ summary! {
     nics_checked,
     /// `?` bytes a client took while its framer held damaged bytes.
     phantom_nics,
-    /// `?` a client took that a command it was told not confirmed (or gave
-    /// up on) may have earned: it still executed, and a `?` names no command.
+    /// `?` a client took that a command it gave up on by itself (no outcome
+    /// from gcud yet) may have earned: it still executed, and a `?` names
+    /// no command. (One it was told not delivered never earns one.)
     stale_nics,
     /// `?` a client took that an earlier group-255 command may have earned
     /// (each GCU it reached answers it, however late).

@@ -184,6 +184,7 @@ impl World {
                 written: BTreeSet::new(),
                 current: None,
                 abandoned: BTreeSet::new(),
+                gave_up: BTreeSet::new(),
                 tainted_acked: BTreeMap::new(),
                 wire: ClientWire::default(),
                 last_report: None,
