@@ -158,9 +158,10 @@ pub(crate) enum AnswerMatch {
     /// The next GCU sent an answer again (our ACK of it was lost): it went
     /// back already, and goes nowhere now.
     Repeat,
-    /// A `?` of a command whose origin was told it was not delivered, or
-    /// left ([`ReversePath::disown`]): it names no command, and the origin
-    /// would take it for the one it awaits now. It goes nowhere (counted).
+    /// A `?` or result of a command whose origin was told it was not
+    /// delivered, or left ([`ReversePath::disown`]): a `?` names no command
+    /// and a result only its Table 3 header (1.4.3), so the origin would
+    /// take it for the one it awaits now. It goes nowhere (counted).
     Disowned,
 }
 
@@ -353,6 +354,9 @@ impl ReversePath {
             let entry = &mut self.entries[at];
             entry.answered = true;
             entry.last_answer = Some((now, answer));
+            if entry.disowned {
+                return AnswerMatch::Disowned;
+            }
             return AnswerMatch::One(origin);
         }
         self.take(matches, Some((now, answer)))
@@ -373,7 +377,7 @@ impl ReversePath {
     /// more than once may yet be answered again, so it makes a waiting
     /// entry of another origin ambiguous. `answer`: the result frame, `None`
     /// for a bare `?`, which the oldest entry reported delivered takes
-    /// first, and which goes nowhere when its entry is disowned.
+    /// first. Either goes nowhere when its entry is disowned.
     fn take(&mut self, matches: impl Fn(&Pending) -> bool, answer: Option<(u64, FrameBuf)>) -> AnswerMatch {
         let bare = answer.is_none();
         let mut waiting = self
@@ -396,7 +400,7 @@ impl ReversePath {
             if let Some(first) = at.map(|at| &mut self.entries[at]) {
                 first.answered = true;
                 first.last_answer = answer;
-                if bare && first.disowned {
+                if first.disowned {
                     return AnswerMatch::Disowned;
                 }
             }
@@ -405,7 +409,7 @@ impl ReversePath {
         let mut answered = self.entries.iter().filter(|e| matches(e)).map(|e| e.origin);
         match answered.next() {
             None => AnswerMatch::None,
-            Some(_) if bare && self.entries.iter().filter(|e| matches(e)).all(|e| e.disowned) => AnswerMatch::Disowned,
+            Some(_) if self.entries.iter().filter(|e| matches(e)).all(|e| e.disowned) => AnswerMatch::Disowned,
             Some(origin) if answered.all(|o| o == origin) => AnswerMatch::One(origin),
             Some(_) => AnswerMatch::Ambiguous,
         }

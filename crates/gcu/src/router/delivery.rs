@@ -33,7 +33,7 @@ impl Router {
         };
         let (frame, command) = (c.command.frame.clone(), c.command.facts.reply.mnemonic());
         if delivery.is_err() {
-            // Told its outcome: a `?` that comes now is nobody's (module
+            // Told its outcome: an answer that comes now is nobody's (module
             // `in_flight`: `disowned`), here or from the next GCU.
             c.disowned = true;
             self.reverse.disown(id);

@@ -134,9 +134,10 @@ pub(super) struct InFlight {
     pub(super) finished: bool,
     /// Its origin was told it was not delivered (a delivery report, e.g.
     /// `0B not confirmed`), or its link went down: no answer of it is owed
-    /// any more. Its device may still answer NIC, but a bare `?` names no
-    /// command (1.4.2), and the origin would take it for the command it
-    /// awaits now: it is not relayed (ARCHITECTURE "Delivery contract").
+    /// any more. Its device may still answer, but a bare `?` names no
+    /// command (1.4.2) and a result only its Table 3 header (1.4.3), and
+    /// the origin would take either for the command it awaits now: neither
+    /// is relayed (ARCHITECTURE "Delivery contract").
     pub(super) disowned: bool,
 }
 

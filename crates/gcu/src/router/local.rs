@@ -116,9 +116,15 @@ impl Router {
         let answered_port = if answered.port == WILDCARD { port } else { answered.port };
         reply.set_header(Address::new(source, answered_port, answered.device), self.group);
         let dest = reply.frame().dest;
+        // Its origin was told it was not delivered, or its link went down
+        // (module `in_flight`: `disowned`): the result names no command but
+        // by its header (1.4.3), which the origin's next command to the
+        // device shares, and would be taken for that one's.
+        let disowned = self.in_flight.get(&id).is_some_and(|c| c.disowned);
         let sent = match self.links.contains_key(&link) {
-            true => self.send_on_link(now, link, reply, out),
             false => Err(DropReason::OriginGone),
+            true if disowned => Err(DropReason::Unsolicited),
+            true => self.send_on_link(now, link, reply, out),
         };
         let progress = self.in_flight.get_mut(&id).and_then(|c| c.jobs.as_mut());
         match sent {

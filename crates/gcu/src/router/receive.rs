@@ -134,8 +134,8 @@ impl Router {
             // not relayed): ACKed again, and that is all; the first copy
             // went back already, hop by hop.
             AnswerMatch::Repeat => return self.ack(now, link, out),
-            // Only a `?` is disowned (a result names its command); were a
-            // result ever, nobody would await it.
+            // Of a command its origin was told was not delivered (or that
+            // left): nobody awaits it (ARCHITECTURE "Delivery contract").
             AnswerMatch::Disowned => {
                 self.ack(now, link, out);
                 return self.drop_frame(DropReason::Unsolicited, Place::Link(link), dest, source, out);

@@ -453,3 +453,71 @@ fn a_nic_after_the_client_was_told_not_confirmed_is_not_relayed() {
     assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK], vec![NIC]]);
     assert_eq!(finished(a.actions()), vec![CommandOutcome::Nic]);
 }
+
+/// The same for a result: a query reported `0B not confirmed`, then
+/// answered late. The result carries only the Table 3 header (1.4.3), the
+/// same as that of the client's next query to the device, which would take
+/// it for its own (an old position for a new one). Not relayed (counted as
+/// unsolicited); the next query gets its own result.
+#[test]
+fn a_result_after_the_client_was_told_not_confirmed_is_not_relayed() {
+    let mut h = H::with(&[1], |c| c.links.delivery_timeout = 40);
+    let query = frame((G, 1, 3), 2, b"P?");
+    h.link(CLIENT, &query);
+    let a = h.wait(40);
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        vec![report(&query, Some(Undelivered::NotConfirmed))]
+    );
+    h.link(CLIENT, &[ACK]);
+    h.link(CLIENT, &query);
+    // The device ACKs the first query late, and answers it.
+    let a = h.port(1, &[ACK]);
+    assert!(link_writes(&a, CLIENT).is_empty(), "{a:?}");
+    let old = frame((2, 1, 3), G, b"00640000");
+    let a = h.port(1, &old);
+    assert_eq!(
+        port_writes(&a, 1),
+        vec![vec![ACK]],
+        "acknowledged on the bus, hop by hop"
+    );
+    assert!(
+        link_writes(&a, CLIENT).is_empty(),
+        "the first query's result went to the client: {a:?}"
+    );
+    assert_eq!(dropped(a.actions()), vec![DropReason::Unsolicited]);
+    // The second query goes after the late-answer quiet and gets its own.
+    let a = h.wait(port_config(1).late_answer_guard + 1);
+    assert_eq!(port_writes(&a, 1), vec![query.clone()]);
+    assert_eq!(link_writes(&h.port(1, &[ACK]), CLIENT), vec![vec![ACK]]);
+    let new = frame((2, 1, 3), G, b"00C80000");
+    assert_eq!(link_writes(&h.port(1, &new), CLIENT), vec![new]);
+}
+
+/// A configured link comes back under the same id (a serial client line):
+/// the result of a query its first connection asked is that connection's,
+/// gone, and never reaches the next one, whose own query to the device has
+/// the same Table 3 header.
+#[test]
+fn a_result_for_a_link_that_went_down_never_reaches_its_next_connection() {
+    let mut h = H::new(&[1]);
+    let query = frame((G, 1, 3), 2, b"P?");
+    h.link(CLIENT, &query);
+    h.port(1, &[ACK]);
+    h.go(Input::LinkDown { link: CLIENT });
+    h.up(CLIENT, LinkKind::Client);
+    let a = h.link(CLIENT, &query);
+    assert!(port_writes(&a, 1).is_empty(), "the bus awaits the first one's result");
+    let a = h.port(1, &frame((2, 1, 3), G, b"00640000"));
+    assert!(
+        link_writes(&a, CLIENT).is_empty(),
+        "the first connection's result went to the next one: {a:?}"
+    );
+    assert_eq!(dropped(a.actions()), vec![DropReason::Unsolicited]);
+    let mut wire = port_writes(&a, 1);
+    wire.extend(port_writes(&h.wait(10), 1));
+    assert_eq!(wire, vec![vec![ACK], query], "then the next connection's query");
+    assert_eq!(link_writes(&h.port(1, &[ACK]), CLIENT), vec![vec![ACK]]);
+    let own = frame((2, 1, 3), G, b"00C80000");
+    assert_eq!(link_writes(&h.port(1, &own), CLIENT), vec![own]);
+}

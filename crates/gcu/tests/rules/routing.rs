@@ -214,10 +214,14 @@ fn an_answer_repeated_on_a_lossy_link_is_acked_and_not_relayed_again() {
 /// The reverse path waits for a whole port transaction at the next GCU
 /// (assumed configured like the slowest port here, every retry included),
 /// not only the configured answer time-out: an answer from behind a slow
-/// bus still reaches its origin.
+/// bus still reaches its origin, whose delivery time-out allows for it
+/// (a result after the client was told `0B` is nobody's: below).
 #[test]
 fn a_forwarded_command_waits_for_a_whole_slow_port_exchange_at_the_next_gcu() {
-    let mut h = H::with(&[1], |c| c.ports[0] = PortConfig::at_rate(1, 1200));
+    let mut h = H::with(&[1], |c| {
+        c.ports[0] = PortConfig::at_rate(1, 1200);
+        c.links.delivery_timeout = 20_000;
+    });
     assert!(h.r.stats().ports[&1].bps == 1200);
     h.up(DOWN, LinkKind::Downstream);
     h.link(DOWN, &frame((G, 0, 0), 7, b"AW"));
@@ -225,10 +229,15 @@ fn a_forwarded_command_waits_for_a_whole_slow_port_exchange_at_the_next_gcu() {
     // From a client: its group is never routed, only the reverse path
     // carries the answer back.
     h.link(CLIENT, &frame((7, 1, 3), 2, b"P?"));
+    // The ACK of AW's answer lets the command go; then its own ACK.
+    assert_eq!(
+        link_writes(&h.link(DOWN, &[ACK]), DOWN),
+        vec![frame((7, 1, 3), 2, b"P?")]
+    );
     h.link(DOWN, &[ACK]);
     // 1200 bit/s, 4 tries of a longest frame and its ACK wait, then the
     // result wait: about 12 s, well past the configured 3 s.
-    h.wait(11_000);
+    assert!(link_writes(&h.wait(11_000), CLIENT).is_empty(), "nothing said yet");
     let a = h.link(DOWN, &frame((2, 1, 3), 7, b"00000000"));
     assert_eq!(link_writes(&a, CLIENT), vec![frame((2, 1, 3), 7, b"00000000")], "{a:?}");
 }
@@ -320,4 +329,57 @@ fn statistics_count_lines_devices_and_last_seen() {
     assert_eq!(s.router.results, 1);
     assert_eq!(s.router.finished(), 1);
     assert_eq!(s.ports[&1].transactions, 1);
+}
+
+/// The same for a result of a forwarded query: it carries only the Table 3
+/// header (1.4.3), the same as the client's next query to that device
+/// has, and would be taken for that one's answer. Not relayed (ACKed hop
+/// by hop, counted as unsolicited); the next query's result still is.
+#[test]
+fn a_result_of_a_command_told_not_confirmed_is_not_relayed() {
+    let mut h = H::new(&[1]);
+    h.up(DOWN, LinkKind::Downstream);
+    h.link(DOWN, &frame((G, 0, 0), 7, b"AW"));
+    h.link(DOWN, &[ACK]);
+    let query = frame((7, 1, 3), 2, b"P?");
+    h.link(CLIENT, &query);
+    h.link(DOWN, &[ACK]);
+    let mut told = Vec::new();
+    for _ in 0..sagebrush_gcu::LinkSettings::DELIVERY_TIMEOUT_MS {
+        told = link_writes(&h.wait(1), CLIENT);
+        if !told.is_empty() {
+            break;
+        }
+    }
+    assert_eq!(told, vec![report(&query, Some(Undelivered::NotConfirmed))]);
+    h.link(CLIENT, &[ACK]);
+    h.link(CLIENT, &query);
+    h.link(DOWN, &[ACK]);
+    let delivered = {
+        let (f, _) = Frame::parse(&query).unwrap();
+        let payload = DeliveryReport {
+            failure: None,
+            dest: f.dest,
+            command_checksum: f.checksum(),
+            at_group: 7,
+        }
+        .encode();
+        frame((2, 0, 0), 7, &payload)
+    };
+    // GCU 7 runs the first query now: delivered, then its result.
+    assert!(
+        link_writes(&h.link(DOWN, &delivered), CLIENT).is_empty(),
+        "one outcome only"
+    );
+    let a = h.link(DOWN, &frame((2, 1, 3), 7, b"00640000"));
+    assert_eq!(link_writes(&a, DOWN), vec![vec![ACK]], "acknowledged hop by hop");
+    assert!(
+        link_writes(&a, CLIENT).is_empty(),
+        "the first query's result went to the client: {a:?}"
+    );
+    assert_eq!(dropped(&a), vec![DropReason::Unsolicited]);
+    // The second query: delivered, and its own result.
+    assert_eq!(link_writes(&h.link(DOWN, &delivered), CLIENT), vec![vec![ACK]]);
+    let own = frame((2, 1, 3), 7, b"00C80000");
+    assert_eq!(link_writes(&h.link(DOWN, &own), CLIENT), vec![own]);
 }
