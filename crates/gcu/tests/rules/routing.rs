@@ -188,15 +188,7 @@ fn an_answer_repeated_on_a_lossy_link_is_acked_and_not_relayed_again() {
     h.link(CLIENT, &cmd);
     h.link(DOWN, &[ACK]);
     // GCU 7 reports it delivered, then sends its result.
-    let (f, _) = Frame::parse(&cmd).unwrap();
-    let delivered = DeliveryReport {
-        failure: None,
-        dest: f.dest,
-        command_checksum: f.checksum(),
-        at_group: 7,
-    }
-    .encode();
-    let a = h.link(DOWN, &frame((2, 0, 0), 7, &delivered));
+    let a = h.link(DOWN, &delivered_at_7(&cmd));
     assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK]]);
     let result = frame((2, 1, 3), 7, b"0");
     let a = h.link(DOWN, &result);
@@ -270,33 +262,17 @@ fn a_nic_of_a_command_told_not_confirmed_is_not_relayed() {
     h.link(CLIENT, &first);
     h.link(DOWN, &[ACK]);
     // GCU 7 says nothing within the delivery time-out (its port busy).
-    let not_confirmed = report(&first, Some(Undelivered::NotConfirmed));
-    let mut told = Vec::new();
-    for _ in 0..sagebrush_gcu::LinkSettings::DELIVERY_TIMEOUT_MS {
-        told = link_writes(&h.wait(1), CLIENT);
-        if !told.is_empty() {
-            break;
-        }
-    }
-    assert_eq!(told, vec![not_confirmed]);
+    assert_eq!(
+        told_in_time(&mut h),
+        vec![report(&first, Some(Undelivered::NotConfirmed))]
+    );
     h.link(CLIENT, &[ACK]);
     // The client's next command, to the same device.
     let second = frame((7, 1, 3), 2, b"SP6");
     h.link(CLIENT, &second);
     h.link(DOWN, &[ACK]);
     // Now GCU 7 runs the first one: its device ACKs it and answers NIC.
-    let reported = |command: &[u8]| {
-        let (f, _) = Frame::parse(command).unwrap();
-        let payload = DeliveryReport {
-            failure: None,
-            dest: f.dest,
-            command_checksum: f.checksum(),
-            at_group: 7,
-        }
-        .encode();
-        frame((2, 0, 0), 7, &payload)
-    };
-    let a = h.link(DOWN, &reported(&first));
+    let a = h.link(DOWN, &delivered_at_7(&first));
     assert!(link_writes(&a, CLIENT).is_empty(), "one outcome only: {a:?}");
     let a = h.link(DOWN, &[NIC]);
     assert!(
@@ -305,7 +281,7 @@ fn a_nic_of_a_command_told_not_confirmed_is_not_relayed() {
     );
     assert_eq!(dropped(&a), vec![DropReason::Unsolicited]);
     // The second command's exchange is unaffected: its ACK, then its `?`.
-    let a = h.link(DOWN, &reported(&second));
+    let a = h.link(DOWN, &delivered_at_7(&second));
     assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK]]);
     let a = h.link(DOWN, &[NIC]);
     assert_eq!(link_writes(&a, CLIENT), vec![vec![NIC]]);
@@ -344,28 +320,14 @@ fn a_result_of_a_command_told_not_confirmed_is_not_relayed() {
     let query = frame((7, 1, 3), 2, b"P?");
     h.link(CLIENT, &query);
     h.link(DOWN, &[ACK]);
-    let mut told = Vec::new();
-    for _ in 0..sagebrush_gcu::LinkSettings::DELIVERY_TIMEOUT_MS {
-        told = link_writes(&h.wait(1), CLIENT);
-        if !told.is_empty() {
-            break;
-        }
-    }
-    assert_eq!(told, vec![report(&query, Some(Undelivered::NotConfirmed))]);
+    assert_eq!(
+        told_in_time(&mut h),
+        vec![report(&query, Some(Undelivered::NotConfirmed))]
+    );
     h.link(CLIENT, &[ACK]);
     h.link(CLIENT, &query);
     h.link(DOWN, &[ACK]);
-    let delivered = {
-        let (f, _) = Frame::parse(&query).unwrap();
-        let payload = DeliveryReport {
-            failure: None,
-            dest: f.dest,
-            command_checksum: f.checksum(),
-            at_group: 7,
-        }
-        .encode();
-        frame((2, 0, 0), 7, &payload)
-    };
+    let delivered = delivered_at_7(&query);
     // GCU 7 runs the first query now: delivered, then its result.
     assert!(
         link_writes(&h.link(DOWN, &delivered), CLIENT).is_empty(),
@@ -382,4 +344,28 @@ fn a_result_of_a_command_told_not_confirmed_is_not_relayed() {
     assert_eq!(link_writes(&h.link(DOWN, &delivered), CLIENT), vec![vec![ACK]]);
     let own = frame((2, 1, 3), 7, b"00C80000");
     assert_eq!(link_writes(&h.link(DOWN, &own), CLIENT), vec![own]);
+}
+
+/// GCU 7's report that `command` (from group 2) was delivered there.
+fn delivered_at_7(command: &[u8]) -> Vec<u8> {
+    let (f, _) = Frame::parse(command).unwrap();
+    let payload = DeliveryReport {
+        failure: None,
+        dest: f.dest,
+        command_checksum: f.checksum(),
+        at_group: 7,
+    }
+    .encode();
+    frame((2, 0, 0), 7, &payload)
+}
+
+/// What the client is told by the end of the default delivery time-out.
+fn told_in_time(h: &mut H) -> Vec<Vec<u8>> {
+    for _ in 0..sagebrush_gcu::LinkSettings::DELIVERY_TIMEOUT_MS {
+        let told = link_writes(&h.wait(1), CLIENT);
+        if !told.is_empty() {
+            return told;
+        }
+    }
+    Vec::new()
 }
