@@ -31,7 +31,9 @@
 //!   copy there would be taken for the origin's next command's answer);
 //! - our ACK time-out made us retransmit the command and the next GCU ran
 //!   it twice: the second answer may differ, so such an entry makes a
-//!   waiting entry of another origin ambiguous until it expires.
+//!   waiting entry of another origin ambiguous until it expires; a second
+//!   `?` (a command has one NIC, 1.4.2) that only answered entries match is
+//!   that second run's ([`AnswerMatch::Repeat`]), and goes nowhere.
 //!
 //! Otherwise entries still waiting for their answer are matched first, so
 //! that an answered one does not block the next command of another client
@@ -155,8 +157,9 @@ pub(crate) enum AnswerMatch {
     None,
     One(Origin),
     Ambiguous,
-    /// The next GCU sent an answer again (our ACK of it was lost): it went
-    /// back already, and goes nowhere now.
+    /// The next GCU sent an answer again (our ACK of it was lost), or a
+    /// second `?` of a command it ran twice: it went back already, and
+    /// goes nowhere now.
     Repeat,
     /// A `?` or result of a command whose origin was told it was not
     /// delivered, or left ([`ReversePath::disown`]): a `?` names no command
@@ -246,14 +249,30 @@ impl ReversePath {
     /// `Some(command)`: it settles that entry (`Some(None)`: an entry with
     /// no command to settle, e.g. a flood copy); `None`: nothing fits.
     pub fn match_report(&mut self, link: LinkId, to: u8, report: &DeliveryReport) -> Option<Option<CommandId>> {
-        let at = self.entries.iter().position(|e| {
+        let fits = |e: &Pending| {
             e.out_link == link
                 && e.expires.is_some()
-                && e.reported.is_none()
                 && e.source == to
                 && e.dest == report.dest
                 && e.checksum == report.command_checksum
-        })?;
+        };
+        let Some(at) = self.entries.iter().position(|e| fits(e) && e.reported.is_none()) else {
+            // A second report of a command we sent twice: the next GCU took
+            // our retransmission (its ACK lost) for a new command and ran it
+            // again, after the first run. The first run's window is over,
+            // and a `?` from now on is the second run's, which nobody awaits
+            // (`take`: a `?` only waiting entries take).
+            if report.failure.is_none() {
+                for e in self
+                    .entries
+                    .iter_mut()
+                    .filter(|e| fits(e) && e.resent && e.reported == Some(true))
+                {
+                    e.answered = true;
+                }
+            }
+            return None;
+        };
         let delivered = report.failure.is_none();
         let entry = &mut self.entries[at];
         entry.reported = Some(delivered);
@@ -377,7 +396,8 @@ impl ReversePath {
     /// more than once may yet be answered again, so it makes a waiting
     /// entry of another origin ambiguous. `answer`: the result frame, `None`
     /// for a bare `?`, which the oldest entry reported delivered takes
-    /// first. Either goes nowhere when its entry is disowned.
+    /// first, and which only waiting entries take. Either goes nowhere when
+    /// its entry is disowned.
     fn take(&mut self, matches: impl Fn(&Pending) -> bool, answer: Option<(u64, FrameBuf)>) -> AnswerMatch {
         let bare = answer.is_none();
         let mut waiting = self
@@ -410,6 +430,11 @@ impl ReversePath {
         match answered.next() {
             None => AnswerMatch::None,
             Some(_) if self.entries.iter().filter(|e| matches(e)).all(|e| e.disowned) => AnswerMatch::Disowned,
+            // Every command it could answer was answered: a command has one
+            // NIC (1.4.2), so this is a second one, from the next GCU
+            // running a retransmission as a new command (our ACK of the
+            // first copy was lost on a lossy link). Its origin has its `?`.
+            Some(_) if bare => AnswerMatch::Repeat,
             Some(origin) if answered.all(|o| o == origin) => AnswerMatch::One(origin),
             Some(_) => AnswerMatch::Ambiguous,
         }

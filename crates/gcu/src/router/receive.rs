@@ -61,8 +61,18 @@ impl Router {
                     0,
                     out,
                 ),
-                // A bare `?` gets no ACK, so it is never sent again.
-                AnswerMatch::Repeat => {}
+                // A bare `?` gets no ACK, so it is never sent again: a
+                // second `?` of an answered command is the next GCU's second
+                // run of it (a retransmission it took for a new command).
+                // Its origin has its `?`; a second one would be taken for
+                // its next command's (ARCHITECTURE "Links between GCUs").
+                AnswerMatch::Repeat => self.drop_frame(
+                    DropReason::Unsolicited,
+                    Place::Link(link),
+                    Address::new(0, 0, 0),
+                    0,
+                    out,
+                ),
                 // Of a command its origin was told was not delivered (or
                 // that left): nobody awaits it (ARCHITECTURE "Delivery contract").
                 AnswerMatch::Disowned => self.drop_frame(

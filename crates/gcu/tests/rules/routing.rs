@@ -369,3 +369,68 @@ fn told_in_time(h: &mut H) -> Vec<Vec<u8>> {
     }
     Vec::new()
 }
+
+/// GCU 7 up, and `cmd` from the client forwarded to it and ACKed there.
+fn forwarded_to_7(h: &mut H, cmd: &[u8]) {
+    h.up(DOWN, LinkKind::Downstream);
+    h.link(DOWN, &frame((G, 0, 0), 7, b"AW"));
+    h.link(DOWN, &[ACK]);
+    h.link(CLIENT, cmd);
+    // The ACK of AW's answer lets the command go; then its own ACK.
+    assert_eq!(link_writes(&h.link(DOWN, &[ACK]), DOWN), vec![cmd.to_vec()]);
+}
+
+/// A command has one NIC (1.4.2): a second `?` that only answered commands
+/// could match is the next GCU's second run of one (it took a copy sent
+/// again for a new command); its origin has its `?` and would take another
+/// for its next command's. Not relayed (simulation seed 8519).
+#[test]
+fn a_second_nic_of_an_answered_command_is_not_relayed() {
+    let mut h = H::new(&[1]);
+    let cmd = frame((7, 1, 3), 2, b"SP5");
+    forwarded_to_7(&mut h, &cmd);
+    h.link(DOWN, &[ACK]);
+    assert_eq!(
+        link_writes(&h.link(DOWN, &delivered_at_7(&cmd)), CLIENT),
+        vec![vec![ACK]]
+    );
+    assert_eq!(link_writes(&h.link(DOWN, &[NIC]), CLIENT), vec![vec![NIC]]);
+    let a = h.link(DOWN, &[NIC]);
+    assert!(
+        link_writes(&a, CLIENT).is_empty(),
+        "a second `?` went to the client: {a:?}"
+    );
+    assert_eq!(dropped(&a), vec![DropReason::Unsolicited]);
+}
+
+/// Our ACK of a forwarded command lost, we sent it again, and GCU 7 ran
+/// both copies: its second report `00` says so. The first run's window is
+/// over by then, and the `?` that follows is the second run's: not relayed.
+#[test]
+fn a_nic_after_a_second_report_of_a_command_sent_twice_is_not_relayed() {
+    let mut h = H::new(&[1]);
+    let cmd = frame((7, 1, 3), 2, b"SP5");
+    forwarded_to_7(&mut h, &cmd);
+    // Its ACK lost: the same frame again, one link ACK time-out later.
+    let mut again = Vec::new();
+    for _ in 0..2 * sagebrush_gcu::LinkSettings::ACK_TIMEOUT_MS {
+        again = link_writes(&h.wait(1), DOWN);
+        if !again.is_empty() {
+            break;
+        }
+    }
+    assert_eq!(again, vec![cmd.clone()]);
+    h.link(DOWN, &[ACK]);
+    assert_eq!(
+        link_writes(&h.link(DOWN, &delivered_at_7(&cmd)), CLIENT),
+        vec![vec![ACK]]
+    );
+    let a = h.link(DOWN, &delivered_at_7(&cmd));
+    assert!(link_writes(&a, CLIENT).is_empty(), "one outcome only: {a:?}");
+    let a = h.link(DOWN, &[NIC]);
+    assert!(
+        link_writes(&a, CLIENT).is_empty(),
+        "the second run's `?` went to the client: {a:?}"
+    );
+    assert_eq!(dropped(&a), vec![DropReason::Unsolicited]);
+}

@@ -536,10 +536,13 @@ impl World {
             return;
         }
         // A `?` another GCU sent over a lossy link between GCUs, for a
-        // command it took twice (its first answer or report was lost): the
-        // first GCU relays it to whichever command its client awaits
-        // (issue 35 leaves the reverse path of bare NICs open; counted;
-        // seed 8519).
+        // command it took twice (our copy sent again, its ACK lost). A
+        // second `?` of an answered command, or one after the second
+        // report `00`, is dropped (seed 8519; `reverse`); left: the second
+        // run's `?` when its report was lost on the way and it came first,
+        // while the first run's entry still waits (seed 8263: the first
+        // GCU also sent the copy again after the first report had come).
+        // Counted.
         if relayed {
             self.summary.relayed_nics += 1;
             return;
