@@ -245,6 +245,21 @@ impl Link {
         }
     }
 
+    /// The next GCU reported the frame of reverse-path entry `key`: it has
+    /// it. When that frame is still in flight here, its ACK was lost (on a
+    /// line that keeps order the ACK comes before the report): taken as
+    /// that ACK, so that the frame is not sent again, which the next GCU
+    /// would run a second time (ARCHITECTURE "Links between GCUs").
+    pub fn reported(&mut self, now: u64, key: u64, out: &mut Vec<LinkOut>) {
+        let in_flight = self.queue.head_pinned() && self.queue.front().is_some_and(|h| h.pending == Some(key));
+        if !in_flight {
+            return;
+        }
+        let step = self.tx.on_ack();
+        self.step(step, out);
+        self.transmit_next(now, out);
+    }
+
     /// Time passed: retransmit or give up the head, abandon a stale partial frame.
     pub fn poll(&mut self, now: u64, out: &mut Vec<LinkOut>, received: &mut Vec<Received>) {
         if self.queue.head_pinned() && self.tx.deadline().is_some_and(|t| now >= t) {

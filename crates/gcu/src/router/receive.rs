@@ -122,7 +122,11 @@ impl Router {
             .flatten();
         if let Some(report) = report {
             self.ack(now, link, out);
-            match self.reverse.match_report(link, dest.group, &report) {
+            let settled = self.reverse.match_report_keyed(link, dest.group, &report);
+            if let Some((key, _)) = settled {
+                self.with_link(now, link, out, |l, lo| l.reported(now, key, lo));
+            }
+            match settled.map(|(_, command)| command) {
                 Some(Some(id)) => self.resolve(now, id, report.failure.map_or(Ok(()), Err), report.at_group, out),
                 Some(None) => {}
                 None => self.drop_frame(DropReason::Unsolicited, Place::Link(link), dest, source, out),

@@ -434,3 +434,23 @@ fn a_nic_after_a_second_report_of_a_command_sent_twice_is_not_relayed() {
     );
     assert_eq!(dropped(&a), vec![DropReason::Unsolicited]);
 }
+
+/// Our copy of a forwarded command reached GCU 7 but its ACK was lost:
+/// GCU 7's report says it has it, so it is not sent again, which GCU 7
+/// would take for a new command and run a second time (simulation seed
+/// 8263: a motion run twice).
+#[test]
+fn a_forwarded_command_reported_before_its_lost_ack_is_not_sent_again() {
+    let mut h = H::new(&[1]);
+    let cmd = frame((7, 1, 3), 2, b"SP5");
+    forwarded_to_7(&mut h, &cmd);
+    assert_eq!(
+        link_writes(&h.link(DOWN, &delivered_at_7(&cmd)), CLIENT),
+        vec![vec![ACK]]
+    );
+    let a = h.wait(2 * sagebrush_gcu::LinkSettings::ACK_TIMEOUT_MS);
+    assert!(!link_writes(&a, DOWN).contains(&cmd), "sent again: {a:?}");
+    // What comes next goes at once.
+    let next = frame((7, 1, 3), 2, b"SP6");
+    assert_eq!(link_writes(&h.link(CLIENT, &next), DOWN), vec![next]);
+}

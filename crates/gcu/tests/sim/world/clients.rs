@@ -538,11 +538,10 @@ impl World {
         // A `?` another GCU sent over a lossy link between GCUs, for a
         // command it took twice (our copy sent again, its ACK lost). A
         // second `?` of an answered command, or one after the second
-        // report `00`, is dropped (seed 8519; `reverse`); left: the second
-        // run's `?` when its report was lost on the way and it came first,
-        // while the first run's entry still waits (seed 8263: the first
-        // GCU also sent the copy again after the first report had come).
-        // Counted.
+        // report `00`, is dropped (seed 8519; `reverse`), and a copy is no
+        // longer sent again once its report came (seed 8263); left: the
+        // second run's `?` when its report was lost on the way and it came
+        // first, while the first run's entry still waits. Counted.
         if relayed {
             self.summary.relayed_nics += 1;
             return;
