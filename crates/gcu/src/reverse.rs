@@ -245,22 +245,11 @@ impl ReversePath {
             .and_then(|e| e.command.map(|c| (c, e.expires.is_some())))
     }
 
-    /// A delivery report arrived on `link` in a frame for group `to`.
-    /// `Some(command)`: it settles that entry (`Some(None)`: an entry with
-    /// no command to settle, e.g. a flood copy); `None`: nothing fits.
-    #[cfg(test)]
-    pub fn match_report(&mut self, link: LinkId, to: u8, report: &DeliveryReport) -> Option<Option<CommandId>> {
-        self.match_report_keyed(link, to, report).map(|(_, command)| command)
-    }
-
-    /// [`ReversePath::match_report`], with the key of the entry it settled
-    /// (the next GCU has that frame: `Link::reported`).
-    pub fn match_report_keyed(
-        &mut self,
-        link: LinkId,
-        to: u8,
-        report: &DeliveryReport,
-    ) -> Option<(u64, Option<CommandId>)> {
+    /// A delivery report arrived on `link` in a frame for group `to`: the
+    /// key of the entry it settles (the next GCU has that frame:
+    /// `Link::reported`) and its command (`None`: an entry with no command
+    /// to settle, e.g. a flood copy); `None` when nothing fits.
+    pub fn match_report(&mut self, link: LinkId, to: u8, report: &DeliveryReport) -> Option<(u64, Option<CommandId>)> {
         let fits = |e: &Pending| {
             e.out_link == link
                 && e.expires.is_some()

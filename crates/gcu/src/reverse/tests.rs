@@ -301,7 +301,7 @@ fn answers_follow_the_next_gcus_reports_not_a_waiting_origin() {
     // The first preset query ran: reported, then answered.
     let first = presets[0].frame();
     assert_eq!(
-        rp.match_report(L, 2, &report(at, &first, None)),
+        settles(&mut rp, &report(at, &first, None)),
         Some(Some(CommandId(k_of(&presets[0]))))
     );
     assert_eq!(
@@ -313,15 +313,9 @@ fn answers_follow_the_next_gcus_reports_not_a_waiting_origin() {
     // query closes the second, and the answer is the next client's.
     let second = presets[1].frame();
     let third = presets[2].frame();
-    assert!(rp.match_report(L, 2, &report(at, &second, None)).is_some());
-    assert!(
-        rp.match_report(L, 2, &report(at, &third, Some(Undelivered::QueueFull)))
-            .is_some()
-    );
-    assert_eq!(
-        rp.match_report(L, 2, &report(at, &query, None)),
-        Some(Some(CommandId(99)))
-    );
+    assert!(settles(&mut rp, &report(at, &second, None)).is_some());
+    assert!(settles(&mut rp, &report(at, &third, Some(Undelivered::QueueFull))).is_some());
+    assert_eq!(settles(&mut rp, &report(at, &query, None)), Some(Some(CommandId(99))));
     assert_eq!(
         rp.match_result(later(), L, &answer, false),
         AnswerMatch::One(origin(11))
@@ -347,9 +341,9 @@ fn identical_answers_in_one_tick_on_a_lossless_link_are_two_answers() {
     rp.sent(b, 0, &settings);
     let answer = Frame::new(Address::new(2, 1, 12), 5, b"00000000").unwrap();
     let delivered = report(cmd.dest, &cmd, None);
-    assert_eq!(rp.match_report(L, 2, &delivered), Some(Some(CommandId(1))));
+    assert_eq!(settles(&mut rp, &delivered), Some(Some(CommandId(1))));
     assert_eq!(rp.match_result(500, L, &answer, false), AnswerMatch::One(origin(10)));
-    assert_eq!(rp.match_report(L, 2, &delivered), Some(Some(CommandId(2))));
+    assert_eq!(settles(&mut rp, &delivered), Some(Some(CommandId(2))));
     assert_eq!(rp.match_result(500, L, &answer, false), AnswerMatch::One(origin(11)));
 }
 
@@ -373,7 +367,7 @@ fn a_nic_of_a_disowned_command_goes_nowhere_and_the_next_ones_goes_back() {
     // The next GCU reports the second delivered (the first's report never
     // came): a `?` now is the second's, and goes back.
     assert_eq!(
-        rp.match_report(L, 2, &report(second.dest, &second, None)),
+        settles(&mut rp, &report(second.dest, &second, None)),
         Some(Some(CommandId(2)))
     );
     assert_eq!(rp.match_nic(L), AnswerMatch::One(origin(10)));
@@ -382,10 +376,15 @@ fn a_nic_of_a_disowned_command_goes_nowhere_and_the_next_ones_goes_back() {
     let (c, _) = rp.insert(L, origin(10), &first, none(&first), Some(CommandId(3)));
     rp.sent(c, 0, &settings);
     assert_eq!(
-        rp.match_report(L, 2, &report(first.dest, &first, None)),
+        settles(&mut rp, &report(first.dest, &first, None)),
         Some(Some(CommandId(1)))
     );
     assert_eq!(rp.match_nic(L), AnswerMatch::Disowned);
     // A third command of that origin still gets its own.
     assert_eq!(rp.match_nic(L), AnswerMatch::One(origin(10)));
+}
+
+/// The command a report from group 2's side on `L` settles (`match_report`).
+fn settles(rp: &mut ReversePath, report: &DeliveryReport) -> Option<Option<CommandId>> {
+    rp.match_report(L, 2, report).map(|(_, command)| command)
 }

@@ -41,48 +41,22 @@ impl Router {
                     l.stats.line.stray_bytes += 1;
                 }
             }
-            Received::Nic => match self.reverse.match_nic(link) {
-                AnswerMatch::One(origin) => {
-                    if self.nic_to(now, origin, out).is_err() {
-                        self.drop_frame(DropReason::OriginGone, Place::Link(link), Address::new(0, 0, 0), 0, out);
-                    }
+            Received::Nic => {
+                let dropped = match self.reverse.match_nic(link) {
+                    AnswerMatch::One(origin) => self.nic_to(now, origin, out).err(),
+                    AnswerMatch::Ambiguous => Some(DropReason::AmbiguousAnswer),
+                    // Nothing awaits it: no entry; a second `?` of an
+                    // answered command (`Repeat`: a bare `?` gets no ACK, so
+                    // it is the next GCU's second run of a command it took
+                    // twice, ARCHITECTURE "Links between GCUs"); or one of a
+                    // command its origin was told was not delivered, or
+                    // that left (`Disowned`, "Delivery contract").
+                    AnswerMatch::None | AnswerMatch::Repeat | AnswerMatch::Disowned => Some(DropReason::Unsolicited),
+                };
+                if let Some(reason) = dropped {
+                    self.drop_frame(reason, Place::Link(link), Address::new(0, 0, 0), 0, out);
                 }
-                AnswerMatch::None => self.drop_frame(
-                    DropReason::Unsolicited,
-                    Place::Link(link),
-                    Address::new(0, 0, 0),
-                    0,
-                    out,
-                ),
-                AnswerMatch::Ambiguous => self.drop_frame(
-                    DropReason::AmbiguousAnswer,
-                    Place::Link(link),
-                    Address::new(0, 0, 0),
-                    0,
-                    out,
-                ),
-                // A bare `?` gets no ACK, so it is never sent again: a
-                // second `?` of an answered command is the next GCU's second
-                // run of it (a retransmission it took for a new command).
-                // Its origin has its `?`; a second one would be taken for
-                // its next command's (ARCHITECTURE "Links between GCUs").
-                AnswerMatch::Repeat => self.drop_frame(
-                    DropReason::Unsolicited,
-                    Place::Link(link),
-                    Address::new(0, 0, 0),
-                    0,
-                    out,
-                ),
-                // Of a command its origin was told was not delivered (or
-                // that left): nobody awaits it (ARCHITECTURE "Delivery contract").
-                AnswerMatch::Disowned => self.drop_frame(
-                    DropReason::Unsolicited,
-                    Place::Link(link),
-                    Address::new(0, 0, 0),
-                    0,
-                    out,
-                ),
-            },
+            }
         }
     }
 
@@ -122,7 +96,7 @@ impl Router {
             .flatten();
         if let Some(report) = report {
             self.ack(now, link, out);
-            let settled = self.reverse.match_report_keyed(link, dest.group, &report);
+            let settled = self.reverse.match_report(link, dest.group, &report);
             if let Some((key, _)) = settled {
                 self.with_link(now, link, out, |l, lo| l.reported(now, key, lo));
             }
