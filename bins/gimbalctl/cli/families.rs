@@ -57,6 +57,7 @@ impl std::fmt::Display for IdList {
 }
 
 #[derive(Debug, Subcommand)]
+#[command(defer = true)]
 pub enum TourCmd {
     /// The configured tours and their state (~T?).
     List,
@@ -83,6 +84,7 @@ fn parse_tour_name(text: &str) -> Result<String, String> {
 }
 
 #[derive(Debug, Subcommand)]
+#[command(defer = true)]
 pub enum PresetCmd {
     /// Store the current position as preset N (Snn).
     #[command(
@@ -119,6 +121,7 @@ pub enum PresetCmd {
 }
 
 #[derive(Debug, Subcommand)]
+#[command(defer = true)]
 pub enum LimitsCmd {
     /// Set raw 12-bit limits, each 0..=4095 (Table 10; the unit is the device's).
     #[command(after_help = examples!("limits set 100 50 30 20"))]
@@ -142,6 +145,7 @@ pub enum LimitsCmd {
 }
 
 #[derive(Debug, Subcommand)]
+#[command(defer = true)]
 pub enum GainsCmd {
     /// Set a rate gain (Table 7).
     #[command(after_help = examples!("gains set pan 1.5   # GRP0F"))]
@@ -155,6 +159,7 @@ pub enum GainsCmd {
 }
 
 #[derive(Debug, Subcommand)]
+#[command(defer = true)]
 pub enum RelayCmd {
     /// Open (switch off) relay N (L0..L3).
     #[command(after_help = examples!("relay open 2   # L2"))]
@@ -173,6 +178,7 @@ pub enum RelayCmd {
 }
 
 #[derive(Debug, Subcommand)]
+#[command(defer = true)]
 pub enum LensCmd {
     /// Go to zoom and focus positions (Table 17).
     #[command(after_help = examples!("lens goto 2048 100 --wait"))]
@@ -189,6 +195,7 @@ pub enum LensCmd {
 }
 
 #[derive(Debug, Subcommand)]
+#[command(defer = true)]
 pub enum FocusCmd {
     /// Focus far, continuously (FF) until `focus stop`; see --for/--hold.
     #[command(after_help = examples!("focus far --for 500ms"))]
@@ -223,6 +230,7 @@ pub enum FocusCmd {
 }
 
 #[derive(Debug, Subcommand)]
+#[command(defer = true)]
 pub enum ZoomCmd {
     /// Zoom in, continuously (ZI) until `zoom stop`; see --for/--hold.
     #[command(after_help = examples!("zoom in --for 1s"))]
@@ -258,6 +266,7 @@ pub enum ZoomCmd {
 }
 
 #[derive(Debug, Subcommand)]
+#[command(defer = true)]
 pub enum AuxCmd {
     /// Line settings (Table 18).
     #[command(after_help = examples!("aux 1 configure 19200 8 1 even"))]

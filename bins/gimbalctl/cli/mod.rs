@@ -182,3 +182,37 @@ pub struct JogArgs {
     #[arg(long)]
     pub hold: bool,
 }
+
+#[cfg(test)]
+mod tests {
+    use clap::{Command, CommandFactory};
+
+    use super::Cli;
+
+    /// Every subcommand (`preset store`, `zoom in`, ...), `help` aside.
+    fn subcommands(cmd: &Command) -> Vec<&Command> {
+        let mut all = Vec::new();
+        for sub in cmd.get_subcommands().filter(|s| s.get_name() != "help") {
+            all.push(sub);
+            all.extend(subcommands(sub));
+        }
+        all
+    }
+
+    /// The subcommands' arguments are built only for the one parsed
+    /// (`defer`); built, every subcommand at every depth takes the global
+    /// arguments (`gimbalctl preset store 3 --to 5.1.1`).
+    #[test]
+    fn every_subcommand_built_takes_the_global_arguments() {
+        let mut cli = Cli::command();
+        cli.build();
+        let all = subcommands(&cli);
+        assert!(all.len() > 40, "{} subcommands", all.len());
+        for sub in all {
+            let ids: Vec<_> = sub.get_arguments().map(|a| a.get_id().as_str()).collect();
+            for global in ["to", "tcp", "serial", "json", "from"] {
+                assert!(ids.contains(&global), "`{}` lacks --{global}: {ids:?}", sub.get_name());
+            }
+        }
+    }
+}
