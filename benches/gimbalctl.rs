@@ -17,6 +17,13 @@
 //!    direction's first byte.
 //!
 //! And the process start alone: `gimbalctl --version`, spawn to exit.
+//!
+//! `GIMBALCTL_BENCH_GIMBALCTL=PATH` runs another gimbalctl build. `cargo
+//! bench` builds the programs with its dev-dependencies' features too
+//! (regex's Unicode tables among them: twice the relocated pages at start
+//! as the release build), so to measure gimbalctl as shipped:
+//! `cargo build --release --bin gimbalctl --target-dir target/shipped`,
+//! then `GIMBALCTL_BENCH_GIMBALCTL=target/shipped/release/gimbalctl`.
 //! Figures are printed, never asserted: the machines are shared and noisy.
 //! Run without `--bench` (`cargo test --benches`) it does nothing.
 
@@ -31,7 +38,10 @@ use std::time::{Duration, Instant};
 
 use door::{MOTION_BYTES, STOP_BYTES, env_count, report};
 
-const GIMBALCTL: &str = env!("CARGO_BIN_EXE_gimbalctl");
+/// The gimbalctl measured: `GIMBALCTL_BENCH_GIMBALCTL`, else cargo's.
+fn gimbalctl() -> String {
+    std::env::var("GIMBALCTL_BENCH_GIMBALCTL").unwrap_or_else(|_| env!("CARGO_BIN_EXE_gimbalctl").to_owned())
+}
 /// The bytes a direction needs when its speed is set: its first byte.
 const DIRECTION_BYTES: u32 = 1;
 /// Longer than gcud's NIC window and gimbalctl's own: a request's commands are all heard.
@@ -39,7 +49,7 @@ const QUIET: Duration = Duration::from_millis(450);
 
 /// `gimbalctl --tcp CLIENTS --to 5.1.1 ARGS`, started.
 fn spawn(stack: &door::Stack, args: &[&str]) -> Child {
-    Command::new(GIMBALCTL)
+    Command::new(gimbalctl())
         .args(["--tcp", &stack.clients, "--to", "5.1.1"])
         .args(args)
         .env_remove("GIMBALCTL_SERIAL")
@@ -145,7 +155,7 @@ fn main() {
     let starts: Vec<Duration> = (0..env_count("GIMBALCTL_BENCH_MOVES", 50))
         .map(|_| {
             let began = Instant::now();
-            let out = Command::new(GIMBALCTL)
+            let out = Command::new(gimbalctl())
                 .arg("--version")
                 .output()
                 .expect("gimbalctl --version");
