@@ -121,6 +121,13 @@ fn wildcards_reach_every_gimbal_and_both_gcus() {
         assert_eq!(gcu5.settled_position(to), (-20.0, -4.0), "{to}\n{}", gcu5.log());
     }
     assert_eq!(gcu5.settled_position("5.2.1"), (30.0, 5.0), "port 2 was not addressed");
+    // Group 255 to port 2, which only GCU 5 has: delivered there, so
+    // delivered, and ACKed (GCU 2 used to report `03 no such port` for
+    // it, while GCU 5 ran it).
+    let mut client = WireClient::connect(&gcu2.clients());
+    client.send(Address::new(255, 2, 1), 0, &Cmd::MotorsStop);
+    // GCU 2 has no port 2: only GCU 5's report `00` gives this ACK.
+    assert_eq!(client.next(), OwnedEvent::Ack, "{}", gcu2.log());
 }
 
 /// Damaged answers and commands on a port: retransmission recovers every

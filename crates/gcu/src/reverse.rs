@@ -72,9 +72,7 @@
 
 use std::collections::VecDeque;
 
-use sagebrush_protocol::{
-    Address, DeliveryReport, Frame, FrameBuf, Reply, ResultKind, ResultTimeout, Undelivered, WILDCARD,
-};
+use sagebrush_protocol::{Address, DeliveryReport, Frame, FrameBuf, Reply, ResultKind, ResultTimeout, WILDCARD};
 
 use crate::command::CommandFacts;
 use crate::config::LinkSettings;
@@ -441,18 +439,17 @@ impl ReversePath {
         }
     }
 
-    /// Forgets what expired by `now`; returns the commands whose delivery
-    /// no report settled.
-    pub fn expire(&mut self, now: u64) -> Vec<(CommandId, Undelivered)> {
-        let mut unconfirmed = Vec::new();
+    /// Forgets what expired by `now`; adds to `unconfirmed` the commands
+    /// whose delivery no report settled (the caller's vector, reused: no
+    /// allocation in steady state).
+    pub fn expire(&mut self, now: u64, unconfirmed: &mut Vec<CommandId>) {
         self.entries.retain(|e| {
             let keep = e.expires.is_none_or(|t| t > now);
             if !keep && e.reported.is_none() {
-                unconfirmed.extend(e.command.map(|c| (c, Undelivered::NotConfirmed)));
+                unconfirmed.extend(e.command);
             }
             keep
         });
-        unconfirmed
     }
 
     pub fn next_deadline(&self) -> Option<u64> {

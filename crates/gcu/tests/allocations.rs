@@ -7,7 +7,8 @@
 //! - to another group over a downstream link: the `P?` forwarded, the link's
 //!   ACK, the next GCU's delivery report and result relayed back;
 //! - to group 255: the GCU answers `AW` itself and floods it downstream,
-//!   where the next GCU answers too;
+//!   where the next GCU reports it delivered and answers too (or its
+//!   report is lost, and the copy's record expires unreported);
 //! - to port 0: the GCU answers `AW` itself.
 //!
 //! Each is repeated after a warm-up so that every buffer (the caller's
@@ -147,6 +148,17 @@ fn transactions() -> Vec<Transaction> {
         ),
         Transaction::new(
             "group-255 AW (answered here, flooded downstream, answered there)",
+            vec![
+                (client, flood.as_bytes()),
+                (down, &[ACK]),
+                (client, &[ACK]),
+                (down, delivered(&flood).as_bytes()),
+                (down, next_awake.as_bytes()),
+                (client, &[ACK]),
+            ],
+        ),
+        Transaction::new(
+            "group-255 AW, the next GCU's report lost (its copy expires unreported)",
             vec![
                 (client, flood.as_bytes()),
                 (down, &[ACK]),

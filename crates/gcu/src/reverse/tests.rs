@@ -1,5 +1,5 @@
 use super::*;
-use sagebrush_protocol::Command;
+use sagebrush_protocol::{Command, Undelivered};
 
 const L: LinkId = LinkId(1);
 thread_local!(static CLOCK: std::cell::Cell<u64> = const { std::cell::Cell::new(10_000) });
@@ -66,9 +66,9 @@ fn result_goes_back_to_the_origin_of_the_forwarded_command() {
     assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::One(origin(11)));
     // Both answered now: a further copy could be either one's duplicate.
     assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::Ambiguous);
-    rp.expire(settings.answer_timeout);
+    rp.expire(settings.answer_timeout, &mut Vec::new());
     assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::One(origin(11)));
-    rp.expire(settings.answer_timeout + 1);
+    rp.expire(settings.answer_timeout + 1, &mut Vec::new());
     assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::None);
 }
 
@@ -221,7 +221,7 @@ fn nic_of_two_origins_is_ambiguous_and_entries_expire() {
     );
     let (d, _) = rp.insert(L, origin(12), &cmd, fwd(&cmd, ResultKind::None), None);
     rp.cancel(d);
-    rp.expire(settings.nic_answer_timeout);
+    rp.expire(settings.nic_answer_timeout, &mut Vec::new());
     assert_eq!(rp.len(), 0, "b expired, d was never transmitted");
     let (a, _) = rp.insert(L, origin(10), &cmd, fwd(&cmd, ResultKind::None), None);
     rp.sent(a, 0, &settings);
@@ -229,9 +229,9 @@ fn nic_of_two_origins_is_ambiguous_and_entries_expire() {
     let (c, _) = rp.insert(L, origin(10), &cmd, fwd(&cmd, ResultKind::None), None);
     rp.sent(c, 5, &settings);
     assert_eq!(rp.next_deadline(), Some(settings.nic_answer_timeout));
-    rp.expire(settings.nic_answer_timeout);
+    rp.expire(settings.nic_answer_timeout, &mut Vec::new());
     assert_eq!(rp.len(), 1);
-    rp.expire(settings.nic_answer_timeout + 5);
+    rp.expire(settings.nic_answer_timeout + 5, &mut Vec::new());
     assert_eq!(rp.len(), 0);
     assert_eq!(rp.match_nic(L), AnswerMatch::None);
 }

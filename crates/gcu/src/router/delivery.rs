@@ -27,6 +27,14 @@ impl Router {
         out: &mut Outbox,
     ) {
         let Some(c) = self.in_flight.get_mut(&id) else { return };
+        // A group-255 command fails only where no part may still deliver it.
+        let (delivery, at_group) = match (delivery, c.spread.as_mut()) {
+            (Err(failure), Some(spread)) => match spread.failed(failure, at_group) {
+                Some((failure, group)) => (Err(failure), group),
+                None => return,
+            },
+            (delivery, _) => (delivery, at_group),
+        };
         // Only a link's command awaits its delivery outcome.
         let (Some(awaited), Origin::Link { link, .. }) = (c.delivery.take(), c.origin) else {
             return;
@@ -83,6 +91,10 @@ impl Router {
             true => Undelivered::NotConfirmed,
             false => Undelivered::Expired,
         };
+        // The time-out is the client's: whatever part is still unsettled.
+        if let Some(c) = self.in_flight.get_mut(&id) {
+            c.spread = None;
+        }
         self.resolve(now, id, Err(failure), self.group, out);
     }
 

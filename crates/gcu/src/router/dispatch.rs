@@ -11,7 +11,7 @@ use crate::outbox::Outbox;
 use crate::types::{CommandId, CommandOutcome, DropReason, Origin, Place, RouterEvent};
 
 use super::Router;
-use super::in_flight::{Delivery, InFlight, IssuedStop, Progress};
+use super::in_flight::{Delivery, InFlight, IssuedStop, Progress, Spread};
 
 /// A command the router accepted: its id, where it came from and what it
 /// says, as it goes to the GCU's ports or to another GCU.
@@ -50,6 +50,7 @@ impl Router {
                 }),
                 jobs: None,
                 disowned: false,
+                spread: None,
                 issued_stop,
                 finished: false,
             },
@@ -90,7 +91,18 @@ impl Router {
         }
         if dest.group == self.group || dest.group == WILDCARD {
             if dest.group == WILDCARD && kind != Some(LinkKind::Downstream) {
-                self.flood(now, origin, command, out);
+                let copies = self.flood(now, (origin, id), command, out);
+                if let Some(c) = self
+                    .in_flight
+                    .get_mut(&id)
+                    .filter(|_| copies > 0 && origin.link().is_some())
+                {
+                    // Its execution here, and each copy.
+                    c.spread = Some(Spread {
+                        unsettled: copies.saturating_add(1),
+                        failure: None,
+                    });
+                }
             }
             return self.execute_local(now, accepted, out);
         }

@@ -89,10 +89,19 @@ impl Router {
     /// Group 255 from upstream (or a client, or the router itself) is
     /// copied to every downstream link, never back where it came from.
     /// Each found afresh after the last (forwarding may change the links),
-    /// with no list of targets.
-    pub(super) fn flood(&mut self, now: u64, origin: Origin, command: &ReadCommand, out: &mut Outbox) {
+    /// with no list of targets. A link's command `id` is settled by each
+    /// copy's report too (module `in_flight`: `Spread`): the copies sent.
+    pub(super) fn flood(
+        &mut self,
+        now: u64,
+        (origin, id): (Origin, CommandId),
+        command: &ReadCommand,
+        out: &mut Outbox,
+    ) -> u16 {
         let f = command.frame.frame();
+        let settles = origin.link().map(|_| id);
         let mut after = None;
+        let mut copies = 0u16;
         while let Some(link) = self
             .links
             .range(after_key(after))
@@ -100,11 +109,15 @@ impl Router {
             .map(|(&id, _)| id)
         {
             after = Some(link);
-            match self.forward(now, link, command, (origin, None), out) {
-                Ok(()) => self.stats.flooded += 1,
+            match self.forward(now, link, command, (origin, settles), out) {
+                Ok(()) => {
+                    self.stats.flooded += 1;
+                    copies = copies.saturating_add(1);
+                }
                 Err(reason) => self.drop_frame(reason, Place::Link(link), f.dest, f.source, out),
             }
         }
+        copies
     }
 
     /// A frame `link` dropped (it went down, or gave up on the frame): a

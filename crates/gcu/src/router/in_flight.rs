@@ -139,6 +139,9 @@ pub(super) struct InFlight {
     /// the origin would take either for the command it awaits now: neither
     /// is relayed (ARCHITECTURE "Delivery contract").
     pub(super) disowned: bool,
+    /// A group-255 command also flooded to other GCUs: delivered when
+    /// delivered anywhere.
+    pub(super) spread: Option<Spread>,
 }
 
 impl InFlight {
@@ -159,6 +162,35 @@ impl InFlight {
                 ..issued
             },
         })
+    }
+}
+
+/// A group-255 command this GCU executed and also flooded to other GCUs
+/// (ARCHITECTURE "Routing semantics": every GCU's, delivered when delivered
+/// anywhere): a part's failure is told only once no part is left that may
+/// still deliver it.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Spread {
+    /// Parts not settled yet: its execution here and each copy flooded.
+    pub(super) unsettled: u16,
+    /// What to tell if no part delivers it, and the group where it failed.
+    pub(super) failure: Option<(Undelivered, u8)>,
+}
+
+impl Spread {
+    /// A part failed with `failure` at `group`: the failure to tell, once
+    /// this was the last part. A port one GCU lacks says less than a
+    /// failure where the port is, and gives way to it.
+    pub(super) fn failed(&mut self, failure: Undelivered, group: u8) -> Option<(Undelivered, u8)> {
+        let keep = match self.failure {
+            None => true,
+            Some((kept, _)) => kept == Undelivered::NoSuchPort && failure != Undelivered::NoSuchPort,
+        };
+        if keep {
+            self.failure = Some((failure, group));
+        }
+        self.unsettled = self.unsettled.saturating_sub(1);
+        self.failure.filter(|_| self.unsettled == 0)
     }
 }
 

@@ -31,7 +31,7 @@ mod window;
 use std::collections::BTreeMap;
 use std::ops::Bound;
 
-use sagebrush_protocol::{Address, FrameBuf};
+use sagebrush_protocol::{Address, FrameBuf, Undelivered};
 
 use crate::boundary::{Action, Input};
 use crate::by_id::ById;
@@ -78,6 +78,8 @@ pub struct Router {
     port_scratch: Vec<Vec<PortOut>>,
     link_scratch: Vec<Vec<LinkOut>>,
     received_scratch: Vec<Vec<Received>>,
+    /// Commands whose forward expired unreported, reused likewise.
+    expired_scratch: Vec<CommandId>,
     last_now: u64,
     stats: RouterStats,
     unknown_inputs: u64,
@@ -108,6 +110,7 @@ impl Router {
             port_scratch: Vec::new(),
             link_scratch: Vec::new(),
             received_scratch: Vec::new(),
+            expired_scratch: Vec::new(),
             last_now: 0,
             stats: RouterStats::default(),
             unknown_inputs: 0,
@@ -265,9 +268,12 @@ impl Router {
     }
 
     fn poll(&mut self, now: u64, out: &mut Outbox) {
-        for (id, failure) in self.reverse.expire(now) {
-            self.resolve(now, id, Err(failure), self.group, out);
+        let mut expired = std::mem::take(&mut self.expired_scratch);
+        self.reverse.expire(now, &mut expired);
+        for id in expired.drain(..) {
+            self.resolve(now, id, Err(Undelivered::NotConfirmed), self.group, out);
         }
+        self.expired_scratch = expired;
         let overdue: Vec<CommandId> = self
             .in_flight
             .iter()

@@ -1,6 +1,7 @@
 //! One test per rule of ARCHITECTURE "Routing semantics" and "Safety", driving
 //! the public `Router` API with hand-written bytes.
 
+mod broadcast;
 mod exchange;
 mod late;
 mod pipeline;
@@ -40,6 +41,30 @@ fn report(command: &[u8], failure: Option<Undelivered>) -> Vec<u8> {
     }
     .encode();
     frame((f.source, 0, 0), G, &payload)
+}
+
+/// GCU 7's report about `command` (from group 2): delivered there, or why not.
+fn reported_at_7(failure: Option<Undelivered>, command: &[u8]) -> Vec<u8> {
+    let (f, _) = Frame::parse(command).unwrap();
+    let payload = DeliveryReport {
+        failure,
+        dest: f.dest,
+        command_checksum: f.checksum(),
+        at_group: 7,
+    }
+    .encode();
+    frame((2, 0, 0), 7, &payload)
+}
+
+/// What the client is told by the end of the default delivery time-out.
+fn told_in_time(h: &mut H) -> Vec<Vec<u8>> {
+    for _ in 0..sagebrush_gcu::LinkSettings::DELIVERY_TIMEOUT_MS {
+        let told = link_writes(&h.wait(1), CLIENT);
+        if !told.is_empty() {
+            return told;
+        }
+    }
+    Vec::new()
 }
 
 fn port_config(id: u8) -> PortConfig {

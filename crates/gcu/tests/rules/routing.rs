@@ -1,30 +1,8 @@
-//! Between GCUs (ARCHITECTURE "Routing semantics"): group 255 floods
-//! downstream, static, learned and default routes, never back to the link
+//! Between GCUs (ARCHITECTURE "Routing semantics"): static, learned and default routes, never back to the link
 //! it came from, source filters, link retransmission, the reverse path,
 //! statistics.
 
 use super::*;
-
-#[test]
-fn group_255_from_upstream_floods_downstream_never_back() {
-    let mut h = H::new(&[1]);
-    h.up(UP, LinkKind::Upstream);
-    h.up(DOWN, LinkKind::Downstream);
-    h.up(DOWN2, LinkKind::Downstream);
-    let cmd = frame((255, 1, 3), 0, b"HO");
-    let a = h.link(UP, &cmd);
-    assert_eq!(link_writes(&a, UP), vec![vec![ACK]], "never back where it came from");
-    assert_eq!(link_writes(&a, DOWN), vec![cmd.clone()]);
-    assert_eq!(link_writes(&a, DOWN2), vec![cmd.clone()]);
-    assert!(link_writes(&a, CLIENT).is_empty());
-    assert_eq!(port_writes(&a, 1), vec![cmd.clone()]);
-    // From a downstream GCU: executed here, not flooded.
-    let from_down = frame((255, 1, 3), 7, b"HO");
-    let a = h.link(DOWN, &from_down);
-    assert_eq!(link_writes(&a, DOWN2), Vec::<Vec<u8>>::new());
-    assert_eq!(link_writes(&a, UP), Vec::<Vec<u8>>::new());
-    assert_eq!(h.r.stats().router.flooded, 2);
-}
 
 #[test]
 fn other_groups_follow_static_then_learned_then_default_routes() {
@@ -188,7 +166,7 @@ fn an_answer_repeated_on_a_lossy_link_is_acked_and_not_relayed_again() {
     h.link(CLIENT, &cmd);
     h.link(DOWN, &[ACK]);
     // GCU 7 reports it delivered, then sends its result.
-    let a = h.link(DOWN, &delivered_at_7(&cmd));
+    let a = h.link(DOWN, &reported_at_7(None, &cmd));
     assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK]]);
     let result = frame((2, 1, 3), 7, b"0");
     let a = h.link(DOWN, &result);
@@ -272,7 +250,7 @@ fn a_nic_of_a_command_told_not_confirmed_is_not_relayed() {
     h.link(CLIENT, &second);
     h.link(DOWN, &[ACK]);
     // Now GCU 7 runs the first one: its device ACKs it and answers NIC.
-    let a = h.link(DOWN, &delivered_at_7(&first));
+    let a = h.link(DOWN, &reported_at_7(None, &first));
     assert!(link_writes(&a, CLIENT).is_empty(), "one outcome only: {a:?}");
     let a = h.link(DOWN, &[NIC]);
     assert!(
@@ -281,7 +259,7 @@ fn a_nic_of_a_command_told_not_confirmed_is_not_relayed() {
     );
     assert_eq!(dropped(&a), vec![DropReason::Unsolicited]);
     // The second command's exchange is unaffected: its ACK, then its `?`.
-    let a = h.link(DOWN, &delivered_at_7(&second));
+    let a = h.link(DOWN, &reported_at_7(None, &second));
     assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK]]);
     let a = h.link(DOWN, &[NIC]);
     assert_eq!(link_writes(&a, CLIENT), vec![vec![NIC]]);
@@ -327,7 +305,7 @@ fn a_result_of_a_command_told_not_confirmed_is_not_relayed() {
     h.link(CLIENT, &[ACK]);
     h.link(CLIENT, &query);
     h.link(DOWN, &[ACK]);
-    let delivered = delivered_at_7(&query);
+    let delivered = reported_at_7(None, &query);
     // GCU 7 runs the first query now: delivered, then its result.
     assert!(
         link_writes(&h.link(DOWN, &delivered), CLIENT).is_empty(),
@@ -344,30 +322,6 @@ fn a_result_of_a_command_told_not_confirmed_is_not_relayed() {
     assert_eq!(link_writes(&h.link(DOWN, &delivered), CLIENT), vec![vec![ACK]]);
     let own = frame((2, 1, 3), 7, b"00C80000");
     assert_eq!(link_writes(&h.link(DOWN, &own), CLIENT), vec![own]);
-}
-
-/// GCU 7's report that `command` (from group 2) was delivered there.
-fn delivered_at_7(command: &[u8]) -> Vec<u8> {
-    let (f, _) = Frame::parse(command).unwrap();
-    let payload = DeliveryReport {
-        failure: None,
-        dest: f.dest,
-        command_checksum: f.checksum(),
-        at_group: 7,
-    }
-    .encode();
-    frame((2, 0, 0), 7, &payload)
-}
-
-/// What the client is told by the end of the default delivery time-out.
-fn told_in_time(h: &mut H) -> Vec<Vec<u8>> {
-    for _ in 0..sagebrush_gcu::LinkSettings::DELIVERY_TIMEOUT_MS {
-        let told = link_writes(&h.wait(1), CLIENT);
-        if !told.is_empty() {
-            return told;
-        }
-    }
-    Vec::new()
 }
 
 /// GCU 7 up, and `cmd` from the client forwarded to it and ACKed there.
@@ -391,7 +345,7 @@ fn a_second_nic_of_an_answered_command_is_not_relayed() {
     forwarded_to_7(&mut h, &cmd);
     h.link(DOWN, &[ACK]);
     assert_eq!(
-        link_writes(&h.link(DOWN, &delivered_at_7(&cmd)), CLIENT),
+        link_writes(&h.link(DOWN, &reported_at_7(None, &cmd)), CLIENT),
         vec![vec![ACK]]
     );
     assert_eq!(link_writes(&h.link(DOWN, &[NIC]), CLIENT), vec![vec![NIC]]);
@@ -422,10 +376,10 @@ fn a_nic_after_a_second_report_of_a_command_sent_twice_is_not_relayed() {
     assert_eq!(again, vec![cmd.clone()]);
     h.link(DOWN, &[ACK]);
     assert_eq!(
-        link_writes(&h.link(DOWN, &delivered_at_7(&cmd)), CLIENT),
+        link_writes(&h.link(DOWN, &reported_at_7(None, &cmd)), CLIENT),
         vec![vec![ACK]]
     );
-    let a = h.link(DOWN, &delivered_at_7(&cmd));
+    let a = h.link(DOWN, &reported_at_7(None, &cmd));
     assert!(link_writes(&a, CLIENT).is_empty(), "one outcome only: {a:?}");
     let a = h.link(DOWN, &[NIC]);
     assert!(
@@ -445,7 +399,7 @@ fn a_forwarded_command_reported_before_its_lost_ack_is_not_sent_again() {
     let cmd = frame((7, 1, 3), 2, b"SP5");
     forwarded_to_7(&mut h, &cmd);
     assert_eq!(
-        link_writes(&h.link(DOWN, &delivered_at_7(&cmd)), CLIENT),
+        link_writes(&h.link(DOWN, &reported_at_7(None, &cmd)), CLIENT),
         vec![vec![ACK]]
     );
     let a = h.wait(2 * sagebrush_gcu::LinkSettings::ACK_TIMEOUT_MS);

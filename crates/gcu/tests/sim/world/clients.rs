@@ -525,8 +525,9 @@ impl World {
         }
         // The `?` of a group-255 command: every GCU it reached answers it
         // when its own answer comes, however long after the ACK (a result
-        // names its group, a `?` nothing), even after the first GCU
-        // reported it (a port missing there: `03`, seed 1781). Not a
+        // names its group, a `?` nothing). (No longer after a report `03`
+        // from the first GCU, which lacked the port while the next had it,
+        // seed 1781: delivered anywhere is delivered, `in_flight::Spread`.) Not a
         // port-255 command's: its ACK waits for every job, and its `?`
         // follows within gcud's window (ARCHITECTURE "Delivery contract";
         // seed 165293).
