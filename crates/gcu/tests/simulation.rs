@@ -161,8 +161,9 @@ fn simulated_networks_keep_every_invariant() {
         totals.late_nics > 0 && totals.nics_after_window > 0 && totals.nics_checked > 0,
         "{totals:?}"
     );
-    // TCP clients asked for end-of-window reports and got them.
-    assert!(totals.window_reports > 0, "{totals:?}");
+    // TCP clients asked for end-of-window reports and got them, and took
+    // their own commands' results (checked by nonce).
+    assert!(totals.window_reports > 0 && totals.answers_checked > 0, "{totals:?}");
     let excused = totals.phantom_nics + totals.stale_nics + totals.fan_out_nics + totals.relayed_nics;
     assert!(excused <= totals.nics_checked / 50 + PHANTOM_SLACK, "{totals:?}");
     // A client's retransmission the GCU recognises needs its ACK lost on a

@@ -106,6 +106,9 @@ summary! {
     relayed_nics,
     /// Reports `00` that ended a TCP client's NIC wait (`~W`).
     window_reports,
+    /// Nonce echoes TCP clients took as their answer, each checked to be
+    /// the echo of the command awaited.
+    answers_checked,
 }
 
 // ---------------------------------------------------------------- GCUs, clients

@@ -374,6 +374,7 @@ impl World {
                     }
                     self.check_reply(c, &f, tainted);
                     if matches!(self.clients[c].state, ClientState::AwaitAnswer { .. }) && self.may_answer(c, &f) {
+                        self.check_answer(c, &f, tainted);
                         self.client_idle(c);
                     }
                 }
@@ -567,6 +568,34 @@ impl World {
         self.violation(format!(
             "client {c} took a NIC for {}, which no device answered NIC: another command's NIC",
             key.0
+        ));
+    }
+
+    /// A nonce echo a TCP client takes as its answer is the echo of the
+    /// command it awaits (a result names its command only by its Table 3
+    /// header, 1.4.3: another command's result to the same device would be
+    /// taken for this one's). A serial client takes any frame, and gcud
+    /// sends a result again when the client's ACK of it was lost, as a
+    /// device does on a bus (1.4.2): taken for the next command's, that
+    /// copy is the line's ambiguity, not the router's (seed 427).
+    fn check_answer(&mut self, c: usize, f: &FrameBuf, tainted: bool) {
+        let payload = f.frame().payload();
+        if payload.len() != 7 || payload[0] != b'N' || tainted || !self.clients[c].tcp {
+            return;
+        }
+        let awaited = self.clients[c]
+            .answering
+            .as_ref()
+            .map(|(_, p)| p.clone())
+            .unwrap_or_default();
+        if awaited.len() == 10 && awaited.starts_with(b"*muN") && awaited[4..] == payload[1..] {
+            self.summary.answers_checked += 1;
+            return;
+        }
+        self.violation(format!(
+            "client {c} took the result {:?} for its command {:?}",
+            String::from_utf8_lossy(payload),
+            String::from_utf8_lossy(&awaited)
         ));
     }
 
