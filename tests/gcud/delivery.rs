@@ -6,6 +6,35 @@
 use super::*;
 
 /// Dead-man: a client that started a slew disconnects; gcud stops the gimbal.
+/// A port-255 command is ACKed once every port's device acknowledged it
+/// or its job ended, and one did (ARCHITECTURE "Delivery contract"): with
+/// port 2's bus silent, the ACK waits for port 2 to give up, not just for
+/// port 1's device. An ACK at the first device's ACK let the fan-out's `?`
+/// come after the client's next command's ACK (simulation seed 165293).
+#[test]
+fn a_port_255_command_is_acked_once_every_port_decided() {
+    let live = Sim::pty(&["--device", "1"]);
+    let silent = Sim::pty(&["--device", "1", "--silent", "1"]);
+    let gcud = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n{CLIENTS}{}{}ack_timeout_ms = 150\nretries = 1\n",
+        port_entry(1, &live),
+        port_entry(2, &silent)
+    ));
+    gcud.wait_for_log("port open port=1");
+    gcud.wait_for_log("port open port=2");
+    let mut client = WireClient::connect(&gcud.clients());
+    let sent = Instant::now();
+    client.send(Address::new(5, 255, 1), 0, &Cmd::MotorsStop);
+    assert_eq!(client.next(), OwnedEvent::Ack, "delivered on port 1\n{}", gcud.log());
+    // Port 2's job: two writes, each given 150 ms for its ACK. A lower
+    // bound: a slow machine only makes it later.
+    let waited = sent.elapsed();
+    assert!(
+        waited >= Duration::from_millis(300),
+        "ACKed after {waited:?}, before port 2 gave up"
+    );
+}
+
 #[test]
 fn slew_of_a_disconnected_client_is_stopped() {
     let sim = Sim::pty(&["--rate", "10"]);
