@@ -32,8 +32,9 @@
 //! - our ACK time-out made us retransmit the command and the next GCU ran
 //!   it twice: the second answer may differ, so such an entry makes a
 //!   waiting entry of another origin ambiguous until it expires; a second
-//!   `?` (a command has one NIC, 1.4.2) that only answered entries match is
-//!   that second run's ([`AnswerMatch::Repeat`]), and goes nowhere.
+//!   `?` or result (a command has one NIC, 1.4.2, and one result, 1.4.3)
+//!   that only answered entries match, none of them a fan-out, is that
+//!   second run's ([`AnswerMatch::Spent`]), and goes nowhere.
 //!
 //! Otherwise entries still waiting for their answer are matched first, so
 //! that an answered one does not block the next command of another client
@@ -155,10 +156,15 @@ pub(crate) enum AnswerMatch {
     None,
     One(Origin),
     Ambiguous,
-    /// The next GCU sent an answer again (our ACK of it was lost), or a
-    /// second `?` of a command it ran twice: it went back already, and
-    /// goes nowhere now.
+    /// The next GCU sent an answer again (our ACK of it was lost): it
+    /// went back already, and goes nowhere now.
     Repeat,
+    /// A second answer of a command answered already: a command has one
+    /// NIC (1.4.2) and one result (1.4.3), so it is the next GCU's second
+    /// run of a command it took twice (our copy sent again, the ACK of the
+    /// first lost). Its origin has its answer and would take this one for
+    /// its next command to the device: it goes nowhere (counted).
+    Spent,
     /// A `?` or result of a command whose origin was told it was not
     /// delivered, or left ([`ReversePath::disown`]): a `?` names no command
     /// and a result only its Table 3 header (1.4.3), so the origin would
@@ -429,11 +435,11 @@ impl ReversePath {
         match answered.next() {
             None => AnswerMatch::None,
             Some(_) if self.entries.iter().filter(|e| matches(e)).all(|e| e.disowned) => AnswerMatch::Disowned,
-            // Every command it could answer was answered: a command has one
-            // NIC (1.4.2), so this is a second one, from the next GCU
-            // running a retransmission as a new command (our ACK of the
-            // first copy was lost on a lossy link). Its origin has its `?`.
-            Some(_) if bare => AnswerMatch::Repeat,
+            // Every command it could answer was answered, and none is a
+            // fan-out (whose answers are many): a second answer, from the
+            // next GCU running a retransmission as a new command (our ACK
+            // of the first copy was lost on a lossy link).
+            Some(_) if bare || !self.entries.iter().any(|e| matches(e) && e.dest.has_wildcard()) => AnswerMatch::Spent,
             Some(origin) if answered.all(|o| o == origin) => AnswerMatch::One(origin),
             Some(_) => AnswerMatch::Ambiguous,
         }

@@ -58,16 +58,17 @@ fn result_goes_back_to_the_origin_of_the_forwarded_command() {
         "wrong link"
     );
     assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::One(origin(10)));
-    // A duplicate of that answer is still recognised as origin 10's.
-    assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::One(origin(10)));
+    // A second answer past the repeat window: a command has one result
+    // (1.4.3), so it is the next GCU's second run of it, nobody's.
+    assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::Spent);
     rp.sent(b, 1, &settings);
     // Origin 11 is still waiting: the next answer is its answer (a new
     // client run must not be blocked by an answered entry).
     assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::One(origin(11)));
-    // Both answered now: a further copy could be either one's duplicate.
-    assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::Ambiguous);
+    // Both answered now: a further one is a second run's, whoever's.
+    assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::Spent);
     rp.expire(settings.answer_timeout, &mut Vec::new());
-    assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::One(origin(11)));
+    assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::Spent);
     rp.expire(settings.answer_timeout + 1, &mut Vec::new());
     assert_eq!(rp.match_result(later(), L, &result, true), AnswerMatch::None);
 }
@@ -135,8 +136,9 @@ fn a_repeated_answer_is_recognised_and_goes_nowhere() {
         AnswerMatch::One(origin(11)),
         "a new answer"
     );
-    // Past the window, the same bytes are a new answer, and nobody waits.
-    assert_eq!(rp.match_result(1401, L, &answer, true), AnswerMatch::Ambiguous);
+    // Past the window, the same bytes are a new answer, and nobody waits:
+    // both commands were answered, so it is a second run's.
+    assert_eq!(rp.match_result(1401, L, &answer, true), AnswerMatch::Spent);
     // On a lossless link nothing is repeated: identical bytes are a new answer.
     let (c, _) = rp.insert(
         L,

@@ -46,12 +46,14 @@ impl Router {
                     AnswerMatch::One(origin) => self.nic_to(now, origin, out).err(),
                     AnswerMatch::Ambiguous => Some(DropReason::AmbiguousAnswer),
                     // Nothing awaits it: no entry; a second `?` of an
-                    // answered command (`Repeat`: a bare `?` gets no ACK, so
+                    // answered command (`Spent`: a bare `?` gets no ACK, so
                     // it is the next GCU's second run of a command it took
                     // twice, ARCHITECTURE "Links between GCUs"); or one of a
                     // command its origin was told was not delivered, or
                     // that left (`Disowned`, "Delivery contract").
-                    AnswerMatch::None | AnswerMatch::Repeat | AnswerMatch::Disowned => Some(DropReason::Unsolicited),
+                    AnswerMatch::None | AnswerMatch::Repeat | AnswerMatch::Spent | AnswerMatch::Disowned => {
+                        Some(DropReason::Unsolicited)
+                    }
                 };
                 if let Some(reason) = dropped {
                     self.drop_frame(reason, Place::Link(link), Address::new(0, 0, 0), 0, out);
@@ -123,8 +125,9 @@ impl Router {
             // went back already, hop by hop.
             AnswerMatch::Repeat => return self.ack(now, link, out),
             // Of a command its origin was told was not delivered (or that
-            // left): nobody awaits it (ARCHITECTURE "Delivery contract").
-            AnswerMatch::Disowned => {
+            // left), or a second result of one the next GCU ran twice
+            // (`Spent`): nobody awaits it (ARCHITECTURE "Delivery contract").
+            AnswerMatch::Disowned | AnswerMatch::Spent => {
                 self.ack(now, link, out);
                 return self.drop_frame(DropReason::Unsolicited, Place::Link(link), dest, source, out);
             }

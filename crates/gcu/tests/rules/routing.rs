@@ -357,6 +357,34 @@ fn a_second_nic_of_an_answered_command_is_not_relayed() {
     assert_eq!(dropped(&a), vec![DropReason::Unsolicited]);
 }
 
+/// A command has one result too (1.4.3): a second one, different from the
+/// first (so no repeat of it), that only an answered command could take
+/// is GCU 7's second run of a command it took twice. It went back where
+/// the first went, and the client, gone on to its next query to the
+/// device, would take it for that one's. ACKed hop by hop, not relayed.
+#[test]
+fn a_second_result_of_an_answered_command_is_not_relayed() {
+    let mut h = H::new(&[1]);
+    let cmd = frame((7, 1, 3), 2, b"P?");
+    forwarded_to_7(&mut h, &cmd);
+    h.link(DOWN, &[ACK]);
+    assert_eq!(
+        link_writes(&h.link(DOWN, &reported_at_7(None, &cmd)), CLIENT),
+        vec![vec![ACK]]
+    );
+    let first = frame((2, 1, 3), 7, b"00640000");
+    assert_eq!(link_writes(&h.link(DOWN, &first), CLIENT), vec![first.clone()]);
+    h.link(CLIENT, &[ACK]);
+    let second = frame((2, 1, 3), 7, b"00C80000");
+    let a = h.link(DOWN, &second);
+    assert_eq!(link_writes(&a, DOWN), vec![vec![ACK]], "ACKed hop by hop");
+    assert!(
+        link_writes(&a, CLIENT).is_empty(),
+        "a second result went to the client: {a:?}"
+    );
+    assert_eq!(dropped(&a), vec![DropReason::Unsolicited]);
+}
+
 /// Our ACK of a forwarded command lost, we sent it again, and GCU 7 ran
 /// both copies: its second report `00` says so. The first run's window is
 /// over by then, and the `?` that follows is the second run's: not relayed.
