@@ -401,7 +401,8 @@ pub enum CommandOutcome {
     NoResult,
     /// The device never acknowledged (retries exhausted): device unreachable.
     Unreachable,
-    /// Handed to the next-hop link toward another group.
+    /// Handed to the next-hop link toward another group (a group-255
+    /// command with no such port here: flooded, the first copy's link).
     Forwarded(LinkId),
     /// Not executed.
     Dropped(DropReason),

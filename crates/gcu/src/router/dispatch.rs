@@ -91,15 +91,13 @@ impl Router {
         }
         if dest.group == self.group || dest.group == WILDCARD {
             if dest.group == WILDCARD && kind != Some(LinkKind::Downstream) {
-                let copies = self.flood(now, (origin, id), command, out);
-                if let Some(c) = self
-                    .in_flight
-                    .get_mut(&id)
-                    .filter(|_| copies > 0 && origin.link().is_some())
-                {
+                let (copies, first) = self.flood(now, (origin, id), command, out);
+                let via = first.filter(|_| origin.link().is_some());
+                if let (Some(c), Some(via)) = (self.in_flight.get_mut(&id), via) {
                     // Its execution here, and each copy.
                     c.spread = Some(Spread {
                         unsettled: copies.saturating_add(1),
+                        via,
                         failure: None,
                     });
                 }

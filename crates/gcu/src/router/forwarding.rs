@@ -90,18 +90,19 @@ impl Router {
     /// copied to every downstream link, never back where it came from.
     /// Each found afresh after the last (forwarding may change the links),
     /// with no list of targets. A link's command `id` is settled by each
-    /// copy's report too (module `in_flight`: `Spread`): the copies sent.
+    /// copy's report too (module `in_flight`: `Spread`): how many copies
+    /// went, and the first one's link.
     pub(super) fn flood(
         &mut self,
         now: u64,
         (origin, id): (Origin, CommandId),
         command: &ReadCommand,
         out: &mut Outbox,
-    ) -> u16 {
+    ) -> (u16, Option<LinkId>) {
         let f = command.frame.frame();
         let settles = origin.link().map(|_| id);
         let mut after = None;
-        let mut copies = 0u16;
+        let (mut copies, mut first) = (0u16, None);
         while let Some(link) = self
             .links
             .range(after_key(after))
@@ -113,11 +114,12 @@ impl Router {
                 Ok(()) => {
                     self.stats.flooded += 1;
                     copies = copies.saturating_add(1);
+                    first = first.or(Some(link));
                 }
                 Err(reason) => self.drop_frame(reason, Place::Link(link), f.dest, f.source, out),
             }
         }
-        copies
+        (copies, first)
     }
 
     /// A frame `link` dropped (it went down, or gave up on the frame): a

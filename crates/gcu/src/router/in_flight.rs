@@ -173,6 +173,8 @@ impl InFlight {
 pub(super) struct Spread {
     /// Parts not settled yet: its execution here and each copy flooded.
     pub(super) unsettled: u16,
+    /// The link of its first copy.
+    pub(super) via: LinkId,
     /// What to tell if no part delivers it, and the group where it failed.
     pub(super) failure: Option<(Undelivered, u8)>,
 }

@@ -64,6 +64,18 @@ impl Router {
             Some(port) => usize::from(self.ports.contains_key(&port)),
             None => self.ports.len(),
         };
+        // Group 255 with no such port here, flooded: the port is another
+        // GCU's, not missing (its copies may deliver it).
+        if let Some(via) = self
+            .in_flight
+            .get(&id)
+            .and_then(|c| c.spread)
+            .map(|s| s.via)
+            .filter(|_| targets == 0)
+        {
+            self.resolve(now, id, Err(Undelivered::NoSuchPort), self.group, out);
+            return self.finish(id, CommandOutcome::Forwarded(via), out);
+        }
         if targets == 0 {
             self.drop_frame(DropReason::UnknownPort, Place::Router, dest, f.source, out);
             self.resolve(now, id, Err(Undelivered::NoSuchPort), self.group, out);

@@ -45,10 +45,29 @@ fn a_broadcast_to_a_port_only_another_gcu_has_is_delivered_there() {
     let cmd = frame((255, 4, 3), 2, b"HO");
     let a = flooded_to_7(&mut h, &cmd);
     assert!(link_writes(&a, CLIENT).is_empty(), "told before GCU 7 reported: {a:?}");
-    assert_eq!(dropped(&a), vec![DropReason::UnknownPort], "port 4 is not here");
+    // Port 4 is GCU 7's, not missing: the command went there, not dropped.
+    assert!(dropped(&a).is_empty(), "{a:?}");
+    assert_eq!(finished(&a), vec![CommandOutcome::Forwarded(DOWN)]);
     let a = h.link(DOWN, &reported_at_7(None, &cmd));
     assert_eq!(link_writes(&a, CLIENT), vec![vec![ACK]]);
-    assert_eq!(h.r.stats().router.undelivered.get(Undelivered::NoSuchPort), 0);
+    let stats = h.r.stats().router;
+    assert_eq!(stats.undelivered.get(Undelivered::NoSuchPort), 0);
+    assert_eq!(stats.frame_drops.get(DropReason::UnknownPort), 0);
+}
+
+/// With no GCU to flood it to, a port missing here is missing: dropped,
+/// counted, and reported `03` at once.
+#[test]
+fn a_broadcast_to_a_port_no_gcu_has_is_reported_no_such_port() {
+    let mut h = H::new(&[1]);
+    let cmd = frame((255, 4, 3), 2, b"HO");
+    let a = h.link(CLIENT, &cmd);
+    assert_eq!(
+        link_writes(&a, CLIENT),
+        vec![report(&cmd, Some(Undelivered::NoSuchPort))]
+    );
+    assert_eq!(dropped(&a), vec![DropReason::UnknownPort]);
+    assert_eq!(finished(&a), vec![CommandOutcome::Dropped(DropReason::UnknownPort)]);
 }
 
 /// Delivered nowhere, it is reported once, when no part is left that may
