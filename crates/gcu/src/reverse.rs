@@ -396,8 +396,9 @@ impl ReversePath {
 
     /// The origin of the matching entries, when they all share one: those
     /// still waiting for an answer first (the oldest is marked answered; a
-    /// fan-out keeps waiting), else answered ones (a duplicate answer goes
-    /// back where the first went). An answered entry whose frame was sent
+    /// fan-out keeps waiting), else answered ones: a fan-out's further
+    /// answer goes back where the first went, any other is a second run's
+    /// ([`AnswerMatch::Spent`]). An answered entry whose frame was sent
     /// more than once may yet be answered again, so it makes a waiting
     /// entry of another origin ambiguous. `answer`: the result frame, `None`
     /// for a bare `?`, which the oldest entry reported delivered takes

@@ -28,8 +28,9 @@ impl Router {
     ) {
         let Some(c) = self.in_flight.get_mut(&id) else { return };
         // A group-255 command fails only where no part may still deliver it.
+        let untold = c.delivery.is_some();
         let (delivery, at_group) = match (delivery, c.spread.as_mut()) {
-            (Err(failure), Some(spread)) => match spread.failed(failure, at_group) {
+            (Err(failure), Some(spread)) if untold => match spread.failed(failure, at_group) {
                 Some((failure, group)) => (Err(failure), group),
                 None => return,
             },

@@ -64,22 +64,19 @@ impl Router {
             Some(port) => usize::from(self.ports.contains_key(&port)),
             None => self.ports.len(),
         };
-        // Group 255 with no such port here, flooded: the port is another
-        // GCU's, not missing (its copies may deliver it).
-        if let Some(via) = self
-            .in_flight
-            .get(&id)
-            .and_then(|c| c.spread)
-            .map(|s| s.via)
-            .filter(|_| targets == 0)
-        {
-            self.resolve(now, id, Err(Undelivered::NoSuchPort), self.group, out);
-            return self.finish(id, CommandOutcome::Forwarded(via), out);
-        }
         if targets == 0 {
-            self.drop_frame(DropReason::UnknownPort, Place::Router, dest, f.source, out);
+            // Group 255 flooded to other GCUs: the port is another GCU's,
+            // not missing (its copies may deliver it); else dropped.
+            let flooded_via = self.in_flight.get(&id).and_then(|c| c.spread).map(|s| s.via);
+            if flooded_via.is_none() {
+                self.drop_frame(DropReason::UnknownPort, Place::Router, dest, f.source, out);
+            }
             self.resolve(now, id, Err(Undelivered::NoSuchPort), self.group, out);
-            return self.finish(id, CommandOutcome::Dropped(DropReason::UnknownPort), out);
+            let outcome = flooded_via.map_or(
+                CommandOutcome::Dropped(DropReason::UnknownPort),
+                CommandOutcome::Forwarded,
+            );
+            return self.finish(id, outcome, out);
         }
         // Every target is undecided before the first is queued: a job may
         // be delivered (device 255: written) as it is queued.

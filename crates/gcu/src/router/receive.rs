@@ -50,7 +50,8 @@ impl Router {
                     // it is the next GCU's second run of a command it took
                     // twice, ARCHITECTURE "Links between GCUs"); or one of a
                     // command its origin was told was not delivered, or
-                    // that left (`Disowned`, "Delivery contract").
+                    // that left (`Disowned`, "Delivery contract"). (`Repeat`
+                    // is a result's only: a `?` is never sent again.)
                     AnswerMatch::None | AnswerMatch::Repeat | AnswerMatch::Spent | AnswerMatch::Disowned => {
                         Some(DropReason::Unsolicited)
                     }

@@ -324,6 +324,14 @@ fn a_result_of_a_command_told_not_confirmed_is_not_relayed() {
     assert_eq!(link_writes(&h.link(DOWN, &own), CLIENT), vec![own]);
 }
 
+/// GCU 7 reports `cmd` delivered: the client gets its ACK then.
+fn acked_at_the_report(h: &mut H, cmd: &[u8]) {
+    assert_eq!(
+        link_writes(&h.link(DOWN, &reported_at_7(None, cmd)), CLIENT),
+        vec![vec![ACK]]
+    );
+}
+
 /// GCU 7 up, and `cmd` from the client forwarded to it and ACKed there.
 fn forwarded_to_7(h: &mut H, cmd: &[u8]) {
     h.up(DOWN, LinkKind::Downstream);
@@ -344,10 +352,7 @@ fn a_second_nic_of_an_answered_command_is_not_relayed() {
     let cmd = frame((7, 1, 3), 2, b"SP5");
     forwarded_to_7(&mut h, &cmd);
     h.link(DOWN, &[ACK]);
-    assert_eq!(
-        link_writes(&h.link(DOWN, &reported_at_7(None, &cmd)), CLIENT),
-        vec![vec![ACK]]
-    );
+    acked_at_the_report(&mut h, &cmd);
     assert_eq!(link_writes(&h.link(DOWN, &[NIC]), CLIENT), vec![vec![NIC]]);
     let a = h.link(DOWN, &[NIC]);
     assert!(
@@ -368,10 +373,7 @@ fn a_second_result_of_an_answered_command_is_not_relayed() {
     let cmd = frame((7, 1, 3), 2, b"P?");
     forwarded_to_7(&mut h, &cmd);
     h.link(DOWN, &[ACK]);
-    assert_eq!(
-        link_writes(&h.link(DOWN, &reported_at_7(None, &cmd)), CLIENT),
-        vec![vec![ACK]]
-    );
+    acked_at_the_report(&mut h, &cmd);
     let first = frame((2, 1, 3), 7, b"00640000");
     assert_eq!(link_writes(&h.link(DOWN, &first), CLIENT), vec![first.clone()]);
     h.link(CLIENT, &[ACK]);
@@ -403,10 +405,7 @@ fn a_nic_after_a_second_report_of_a_command_sent_twice_is_not_relayed() {
     }
     assert_eq!(again, vec![cmd.clone()]);
     h.link(DOWN, &[ACK]);
-    assert_eq!(
-        link_writes(&h.link(DOWN, &reported_at_7(None, &cmd)), CLIENT),
-        vec![vec![ACK]]
-    );
+    acked_at_the_report(&mut h, &cmd);
     let a = h.link(DOWN, &reported_at_7(None, &cmd));
     assert!(link_writes(&a, CLIENT).is_empty(), "one outcome only: {a:?}");
     let a = h.link(DOWN, &[NIC]);
@@ -426,10 +425,7 @@ fn a_forwarded_command_reported_before_its_lost_ack_is_not_sent_again() {
     let mut h = H::new(&[1]);
     let cmd = frame((7, 1, 3), 2, b"SP5");
     forwarded_to_7(&mut h, &cmd);
-    assert_eq!(
-        link_writes(&h.link(DOWN, &reported_at_7(None, &cmd)), CLIENT),
-        vec![vec![ACK]]
-    );
+    acked_at_the_report(&mut h, &cmd);
     let a = h.wait(2 * sagebrush_gcu::LinkSettings::ACK_TIMEOUT_MS);
     assert!(!link_writes(&a, DOWN).contains(&cmd), "sent again: {a:?}");
     // What comes next goes at once.
