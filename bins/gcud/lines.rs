@@ -131,6 +131,11 @@ pub struct Lines {
     buf: Box<[u8; 4096]>,
     /// Where the next read poll starts, so that every line gets its turn.
     next: Option<LineId>,
+    /// The lines with bytes pending, in the order they were queued: the
+    /// writes of one turn leave in the order the router core asked for
+    /// them (a device's result goes to its client before the device's ACK
+    /// of it), and a flush looks at these lines only, not at every port.
+    queued: Vec<LineId>,
     /// Lines closed for a failed write or rate switch, not yet reported.
     failed: Vec<LineId>,
 }
@@ -141,6 +146,7 @@ impl Lines {
             open: BTreeMap::new(),
             buf: Box::new([0; 4096]),
             next: None,
+            queued: Vec::new(),
             failed: Vec::new(),
         }
     }
@@ -183,6 +189,9 @@ impl Lines {
         if line.pending.len() + bytes.len() > MAX_PENDING {
             return Err(Refused::Behind);
         }
+        if line.pending.is_empty() {
+            self.queued.push(id);
+        }
         line.pending.extend_from_slice(bytes);
         Ok(())
     }
@@ -205,24 +214,29 @@ impl Lines {
         Ok(())
     }
 
-    /// Writes every line's pending bytes as far as they go now; a line
-    /// whose write fails is closed (reported by [`Lines::poll_next`]).
-    /// Whether nothing is left pending.
+    /// Writes every line's pending bytes as far as they go now, line after
+    /// line in the order they were queued; a line whose write fails is
+    /// closed (reported by [`Lines::poll_next`]). Whether nothing is left
+    /// pending.
     pub fn flush(&mut self, cx: &mut Context<'_>) -> bool {
-        let mut drained = true;
-        let failed = &mut self.failed;
-        self.open.retain(|&id, line| match line.flush(cx) {
-            Ok(()) => {
-                drained &= line.pending.is_empty();
-                true
-            }
-            Err(reason) => {
-                line.tell_owner(reason);
-                failed.push(id);
-                false
+        let Self {
+            open, queued, failed, ..
+        } = self;
+        queued.retain(|id| {
+            let Some(line) = open.get_mut(id) else {
+                return false; // closed since
+            };
+            match line.flush(cx) {
+                Ok(()) => !line.pending.is_empty(),
+                Err(reason) => {
+                    line.tell_owner(reason);
+                    open.remove(id);
+                    failed.push(*id);
+                    false
+                }
             }
         });
-        drained
+        queued.is_empty()
     }
 
     /// Writes what is pending, then the next read or closed line, each line
@@ -274,5 +288,75 @@ impl Lines {
     /// let go.
     pub fn release(&mut self) {
         self.open.clear();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Mutex;
+
+    use sagebrush_gcu::LinkId;
+    use sagebrush_host::capture::{CaptureSwitch, Role};
+
+    use super::*;
+
+    /// A line that takes every write at once and logs which line wrote.
+    #[derive(Debug)]
+    struct Recorder {
+        id: LineId,
+        log: Arc<Mutex<Vec<LineId>>>,
+    }
+
+    impl AsyncRead for Recorder {
+        fn poll_read(self: Pin<&mut Self>, _: &mut Context<'_>, _: &mut ReadBuf<'_>) -> Poll<io::Result<()>> {
+            Poll::Pending
+        }
+    }
+
+    impl AsyncWrite for Recorder {
+        fn poll_write(self: Pin<&mut Self>, _: &mut Context<'_>, buf: &[u8]) -> Poll<io::Result<usize>> {
+            self.log.lock().unwrap().push(self.id);
+            Poll::Ready(Ok(buf.len()))
+        }
+        fn poll_flush(self: Pin<&mut Self>, _: &mut Context<'_>) -> Poll<io::Result<()>> {
+            Poll::Ready(Ok(()))
+        }
+        fn poll_shutdown(self: Pin<&mut Self>, _: &mut Context<'_>) -> Poll<io::Result<()>> {
+            Poll::Ready(Ok(()))
+        }
+    }
+
+    impl LineStream for Recorder {}
+
+    #[test]
+    fn a_turns_writes_leave_in_the_order_they_were_queued_whatever_the_lines() {
+        let log = Arc::new(Mutex::new(Vec::new()));
+        let switch = CaptureSwitch::new();
+        let mut lines = Lines::new();
+        let (client, port) = (LineId::Link(LinkId(7)), LineId::Port(1));
+        for id in [port, client] {
+            let stream = Box::new(Recorder { id, log: log.clone() });
+            lines.add(
+                id,
+                stream,
+                switch.tap(id.to_string(), Role::Master),
+                9600,
+                None,
+                oneshot::channel().0,
+            );
+        }
+        // A device's result relayed to its client, then the device's ACK of it.
+        lines.write(client, b"result").unwrap();
+        lines.write(port, &[sagebrush_protocol::ACK]).unwrap();
+        lines.write(client, b" more").unwrap();
+        let mut cx = Context::from_waker(std::task::Waker::noop());
+        assert!(lines.flush(&mut cx), "everything written");
+        assert_eq!(
+            *log.lock().unwrap(),
+            [client, port],
+            "the client's line first, each line once"
+        );
+        assert!(lines.flush(&mut cx));
+        assert_eq!(log.lock().unwrap().len(), 2, "nothing left to write");
     }
 }

@@ -1,6 +1,6 @@
 //! The router task: owns the `sagebrush-gcu` router core and the GCU's open
 //! ports and links (module `lines`), feeds it what they read, executes its
-//! actions, arms its one timer,
+//! actions, arms its one timer (module `timer`),
 //! answers metrics scrapes, pings the systemd watchdog, reloads the
 //! configuration on SIGHUP (module `reload`), and shuts down gracefully on
 //! SIGTERM/SIGINT, stopping what it started.
@@ -29,11 +29,13 @@ use crate::snapshot::{RouterState, Snapshot};
 mod actions;
 mod links;
 mod tasks;
+mod timer;
 
 use actions::execute;
 use links::{LinkBook, LinkInfo};
 use sagebrush_host::throttle::Throttle;
 use tasks::Tasks;
+use timer::RouterTimer;
 
 /// Start-up failures that end the daemon (exit 1).
 #[derive(Debug, thiserror::Error)]
@@ -72,9 +74,10 @@ pub async fn run(config: Config, http_limits: crate::http::Limits) -> Result<(),
         "gcud ready"
     );
     let mut turn = Turn::default();
+    let mut timer = RouterTimer::new();
 
     loop {
-        let deadline = d.router.next_deadline().map(|t| d.start + Duration::from_millis(t));
+        timer.arm(d.router.next_deadline().map(|t| d.start + Duration::from_millis(t)));
         if d.stopping.is_some_and(|until| d.stopped(until)) {
             break;
         }
@@ -91,7 +94,7 @@ pub async fn run(config: Config, http_limits: crate::http::Limits) -> Result<(),
                 turn.read(&event).await;
                 d.line_event(t, event);
             }
-            () = sleep_until(deadline) => d.handle(d.now(Instant::now()), Input::Tick),
+            () = std::future::poll_fn(|cx| timer.poll_fired(cx)) => d.handle(d.now(Instant::now()), Input::Tick),
             _ = watchdog_tick.tick(), if watchdog.is_some() => notify(&[sd_notify::NotifyState::Watchdog]),
             _ = sigterm.recv(), if d.stopping.is_none() => d.shut_down("SIGTERM"),
             _ = sigint.recv(), if d.stopping.is_none() => d.shut_down("SIGINT"),
