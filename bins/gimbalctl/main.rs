@@ -20,7 +20,7 @@ mod watch;
 use std::process::ExitCode;
 use std::time::Duration;
 
-use clap::{CommandFactory, Parser};
+use clap::CommandFactory;
 use sagebrush_client::master::Exchange;
 use sagebrush_host::hex::payload_text;
 use sagebrush_protocol::{Address, Outcome, Reply};
@@ -35,7 +35,7 @@ fn main() -> ExitCode {
     if sagebrush_host::man::print_if_asked(Cli::command) {
         return ExitCode::SUCCESS;
     }
-    let cli = match Cli::try_parse() {
+    let cli = match cli::parse(std::env::args_os().collect()) {
         Ok(cli) => cli,
         Err(e) => {
             use clap::error::ErrorKind;

@@ -33,10 +33,12 @@ macro_rules! examples {
 
 mod command;
 mod families;
+mod parse;
 mod values;
 
 pub use command::Cmd;
 pub use families::*;
+pub use parse::parse;
 pub use values::*;
 
 /// Exit code: `--wait` saw the mount stop away from its target.
