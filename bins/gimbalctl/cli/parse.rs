@@ -37,11 +37,12 @@ fn named_subcommand(cmd: &Command, args: &[OsString]) -> Option<String> {
     while let Some(arg) = rest.next() {
         let arg = arg.to_str()?;
         if let Some(long) = arg.strip_prefix("--") {
-            if long.contains('=') {
-                continue;
-            }
-            let option = cmd.get_arguments().find(|a| a.get_long() == Some(long))?;
-            if option.get_action().takes_values() {
+            let (name, inline_value) = match long.split_once('=') {
+                Some((name, _)) => (name, true),
+                None => (long, false),
+            };
+            let option = cmd.get_arguments().find(|a| a.get_long() == Some(name))?;
+            if !inline_value && option.get_action().takes_values() {
                 rest.next()?;
             }
         } else if arg.starts_with('-') {
@@ -199,6 +200,8 @@ mod tests {
             &["--to", "5.1.1"],
             &["--to=5.1.1", "--json", "position"],
             &["--bogus", "position"],
+            &["--bogus=1", "position"],
+            &["--json=1", "position"],
             &["-x", "position"],
             &["--", "position"],
             &["--log", "debug", "stop", "pan", "--json"],
