@@ -250,6 +250,10 @@ def handle(req):
             watch.observe(status, {childList: true, characterData: true, subtree: true});
             setTimeout(() => { watch.disconnect(); done(seen); }, seconds * 1000);
             """, req["card"], req["seconds"])
+    if op == "process_ids":
+        # chromedriver and every process below it (the browser's).
+        driver = d.service.process.pid
+        return [driver] + descendants(driver)
     if op == "page_weight":
         return d.execute_script(
             "return performance.getEntriesByType('resource').concat(performance.getEntriesByType('navigation'))"

@@ -18,7 +18,7 @@ mod tours;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::Path;
 use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use serde_json::{Value, json};
 
@@ -56,11 +56,15 @@ fn browser_available() -> bool {
 /// The browser: `tests/web/browser.py`, one JSON request a line.
 struct Browser {
     child: Child,
-    stdin: ChildStdin,
+    /// Closed on drop: the script then quits the browser and exits.
+    stdin: Option<ChildStdin>,
     stdout: BufReader<ChildStdout>,
 }
 
 impl Browser {
+    /// The longest the script may take to quit the browser when dropped.
+    const QUIT: Duration = Duration::from_secs(15);
+
     fn start() -> Self {
         let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/browser.py");
         let mut child = Command::new(support::door::python())
@@ -70,7 +74,7 @@ impl Browser {
             .stderr(Stdio::inherit())
             .spawn()
             .expect("run tests/web/browser.py");
-        let stdin = child.stdin.take().expect("stdin");
+        let stdin = child.stdin.take();
         let stdout = BufReader::new(child.stdout.take().expect("stdout"));
         let mut b = Self { child, stdin, stdout };
         assert_eq!(b.read(), json!({ "ok": "ready" }));
@@ -85,7 +89,8 @@ impl Browser {
 
     /// Runs `request`; its `ok` value (a failure fails the test with `log`).
     fn call(&mut self, request: Value, log: impl FnOnce() -> String) -> Value {
-        writeln!(self.stdin, "{request}").expect("write to the browser");
+        let stdin = self.stdin.as_mut().expect("the browser's stdin is open until drop");
+        writeln!(stdin, "{request}").expect("write to the browser");
         let answer = self.read();
         match answer.get("ok") {
             Some(ok) => ok.clone(),
@@ -95,7 +100,19 @@ impl Browser {
 }
 
 impl Drop for Browser {
+    /// Closes the script's stdin, so that it quits the browser (chromedriver
+    /// and every chromium process with it) and exits; kills it only when it
+    /// has not within [`Browser::QUIT`]. Killed at once, the script left
+    /// chromedriver and its browser running after the test, for good.
     fn drop(&mut self) {
+        drop(self.stdin.take());
+        let until = Instant::now() + Self::QUIT;
+        while Instant::now() < until {
+            match self.child.try_wait() {
+                Ok(None) => std::thread::sleep(Duration::from_millis(50)),
+                Ok(Some(_)) | Err(_) => return,
+            }
+        }
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
@@ -185,7 +202,7 @@ fn log_time(line: &str) -> f64 {
 fn bus_stop_time(gcud: &Gcud, address: &str, stop: &str) -> f64 {
     let prefix = format!("rx frame dest={address} source={DOOR_GROUP} payload=");
     let motion = |p: &str| ["PR", "PL", "TU", "TD"].iter().any(|m| p.starts_with(m));
-    let started = std::time::Instant::now();
+    let started = Instant::now();
     loop {
         let log = gcud.log();
         let frames: Vec<(&str, &str)> = log
@@ -215,4 +232,35 @@ fn door_frames(gcud: &Gcud, address: &str) -> Vec<String> {
         .filter(|(source, _)| *source == DOOR_GROUP)
         .map(|(_, p)| p)
         .collect()
+}
+
+/// Whether process `pid` is gone (or a zombie waiting to be reaped).
+fn gone(pid: u64) -> bool {
+    match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
+        Ok(stat) => stat.rsplit(") ").next().is_some_and(|rest| rest.starts_with('Z')),
+        Err(_) => true,
+    }
+}
+
+/// A browser the test is done with leaves nothing behind: chromedriver and
+/// every chromium process of it end with it (killed at once, the script
+/// left them all running: 14 chromedrivers and 181 chromium processes
+/// after one run of these tests, loading the machine for good).
+#[test]
+fn a_dropped_browser_leaves_no_process_behind() {
+    if !browser_available() {
+        return;
+    }
+    let mut b = Browser::start();
+    b.call(json!({ "op": "open", "url": "about:blank" }), String::new);
+    let pids: Vec<u64> =
+        serde_json::from_value(b.call(json!({ "op": "process_ids" }), String::new)).expect("process ids");
+    assert!(pids.len() > 1, "chromedriver and its browser: {pids:?}");
+    drop(b);
+    let until = Instant::now() + Duration::from_secs(10);
+    while !pids.iter().all(|&p| gone(p)) && Instant::now() < until {
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let left: Vec<u64> = pids.into_iter().filter(|&p| !gone(p)).collect();
+    assert!(left.is_empty(), "still running after the browser was dropped: {left:?}");
 }
