@@ -196,8 +196,9 @@ impl Lines {
         Ok(())
     }
 
-    /// Switches a port's line rate (after an acknowledged `C0..C7`, Table 4);
-    /// what is pending is written at the old rate first. A line that cannot
+    /// Switches a port's line rate at once (after an acknowledged `C0..C7`,
+    /// Table 4: the device switched after its ACK), so what is still queued
+    /// for the port goes out at the new rate. A line that cannot
     /// switch is lost, as a failed write is: closed (reported by
     /// [`Lines::poll_next`]) and reopened by its task at the rate it had.
     pub fn set_baud(&mut self, port: u8, baud: u32) -> Result<(), String> {
