@@ -135,6 +135,9 @@ pub struct Lines {
     /// writes of one turn leave in the order the router core asked for
     /// them (a device's result goes to its client before the device's ACK
     /// of it), and a flush looks at these lines only, not at every port.
+    /// An entry of a line closed or replaced since is dropped by the next
+    /// flush (a replacement's own write may queue its id twice: the second
+    /// finds nothing left to write).
     queued: Vec<LineId>,
     /// Lines closed for a failed write or rate switch, not yet reported.
     failed: Vec<LineId>,

@@ -5,7 +5,6 @@
 
 use super::*;
 
-/// Dead-man: a client that started a slew disconnects; gcud stops the gimbal.
 /// A port-255 command is ACKed once every port's device acknowledged it
 /// or its job ended, and one did (ARCHITECTURE "Delivery contract"): with
 /// port 2's bus silent, the ACK waits for port 2 to give up, not just for
@@ -35,6 +34,7 @@ fn a_port_255_command_is_acked_once_every_port_decided() {
     );
 }
 
+/// Dead-man: a client that started a slew disconnects; gcud stops the gimbal.
 #[test]
 fn slew_of_a_disconnected_client_is_stopped() {
     let sim = Sim::pty(&["--rate", "10"]);

@@ -33,26 +33,33 @@ pub fn parse(args: Vec<OsString>) -> Result<Cli, clap::Error> {
 /// when every argument before it is a known global option; `help` and
 /// anything unclear name none.
 fn named_subcommand(cmd: &Command, args: &[OsString]) -> Option<String> {
-    let mut rest = args.iter().skip(1);
-    while let Some(arg) = rest.next() {
-        let arg = arg.to_str()?;
-        if let Some(long) = arg.strip_prefix("--") {
-            let (name, inline_value) = match long.split_once('=') {
-                Some((name, _)) => (name, true),
-                None => (long, false),
-            };
-            let option = cmd.get_arguments().find(|a| a.get_long() == Some(name))?;
-            if !inline_value && option.get_action().takes_values() {
-                rest.next()?;
-            }
-        } else if arg.starts_with('-') {
-            return None;
+    let mut i = 1;
+    loop {
+        let arg = args.get(i)?.to_str()?;
+        if arg.starts_with('-') {
+            i += option_words(cmd, arg)?;
         } else {
             let sub = cmd.find_subcommand(arg)?;
             return (sub.get_name() != "help").then(|| sub.get_name().to_owned());
         }
     }
-    None
+}
+
+/// The words `arg` takes when it is one of `cmd`'s long options: 2 when
+/// its value is the next word, else 1 (`--json`, `--to=5.1.1`); `None`
+/// for anything else (a short option, `--`, an unknown one).
+fn option_words(cmd: &Command, arg: &str) -> Option<usize> {
+    let long = arg.strip_prefix("--")?;
+    let (name, inline_value) = match long.split_once('=') {
+        Some((name, _)) => (name, true),
+        None => (long, false),
+    };
+    let option = cmd.get_arguments().find(|a| a.get_long() == Some(name))?;
+    Some(if !inline_value && option.get_action().takes_values() {
+        2
+    } else {
+        1
+    })
 }
 
 /// `cmd` with its global arguments given to subcommand `name` only.
@@ -123,12 +130,8 @@ mod tests {
     /// The example with the global options before its subcommand moved to its end.
     fn globals_last(cmd: &Command, args: &[String]) -> Vec<String> {
         let mut i = 0;
-        while let Some(long) = args.get(i).and_then(|a| a.strip_prefix("--")) {
-            let takes_value = cmd
-                .get_arguments()
-                .find(|a| a.get_long() == Some(long))
-                .is_some_and(|a| a.get_action().takes_values());
-            i += if takes_value { 2 } else { 1 };
+        while let Some(words) = args.get(i).and_then(|a| option_words(cmd, a)) {
+            i += words;
         }
         let i = i.min(args.len());
         args[i..].iter().chain(&args[..i]).cloned().collect()

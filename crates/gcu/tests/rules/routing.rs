@@ -332,6 +332,14 @@ fn acked_at_the_report(h: &mut H, cmd: &[u8]) {
     );
 }
 
+/// `cmd` forwarded to GCU 7, its copy ACKed there and reported delivered:
+/// the client has its ACK.
+fn delivered_at_7(h: &mut H, cmd: &[u8]) {
+    forwarded_to_7(h, cmd);
+    h.link(DOWN, &[ACK]);
+    acked_at_the_report(h, cmd);
+}
+
 /// GCU 7 up, and `cmd` from the client forwarded to it and ACKed there.
 fn forwarded_to_7(h: &mut H, cmd: &[u8]) {
     h.up(DOWN, LinkKind::Downstream);
@@ -350,9 +358,7 @@ fn forwarded_to_7(h: &mut H, cmd: &[u8]) {
 fn a_second_nic_of_an_answered_command_is_not_relayed() {
     let mut h = H::new(&[1]);
     let cmd = frame((7, 1, 3), 2, b"SP5");
-    forwarded_to_7(&mut h, &cmd);
-    h.link(DOWN, &[ACK]);
-    acked_at_the_report(&mut h, &cmd);
+    delivered_at_7(&mut h, &cmd);
     assert_eq!(link_writes(&h.link(DOWN, &[NIC]), CLIENT), vec![vec![NIC]]);
     let a = h.link(DOWN, &[NIC]);
     assert!(
@@ -371,9 +377,7 @@ fn a_second_nic_of_an_answered_command_is_not_relayed() {
 fn a_second_result_of_an_answered_command_is_not_relayed() {
     let mut h = H::new(&[1]);
     let cmd = frame((7, 1, 3), 2, b"P?");
-    forwarded_to_7(&mut h, &cmd);
-    h.link(DOWN, &[ACK]);
-    acked_at_the_report(&mut h, &cmd);
+    delivered_at_7(&mut h, &cmd);
     let first = frame((2, 1, 3), 7, b"00640000");
     assert_eq!(link_writes(&h.link(DOWN, &first), CLIENT), vec![first.clone()]);
     h.link(CLIENT, &[ACK]);
