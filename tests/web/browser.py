@@ -16,7 +16,7 @@ import sys
 import time
 
 from selenium import webdriver
-from selenium.common.exceptions import WebDriverException
+from selenium.common.exceptions import TimeoutException, WebDriverException
 from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.by import By
@@ -115,8 +115,22 @@ def handle(req):
         WebDriverWait(d, WAIT_S).until(lambda _: alert.text != "")
         return alert.text
     if op == "card_names":
-        WebDriverWait(d, WAIT_S).until(lambda d: d.find_elements(By.CSS_SELECTOR, "[role=region]"))
-        return [e.accessible_name for e in d.find_elements(By.CSS_SELECTOR, "[role=region]")]
+        # The regions shown, once there is one; with `expect`, once they are
+        # those (gimbal-web learns gcud's tours after the cards): the last
+        # seen when they never become those.
+        def shown(d):
+            return [e.accessible_name for e in d.find_elements(By.CSS_SELECTOR, "[role=region]")
+                    if e.is_displayed()]
+        expect = req.get("expect")
+        try:
+            WebDriverWait(d, WAIT_S).until(lambda d: shown(d) == expect if expect else shown(d))
+        except TimeoutException:
+            pass
+        return shown(d)
+    if op == "place":
+        # Where a card's button is on the page (CSS pixels).
+        r = button(region(d, req["card"]), req["button"]).rect
+        return [r["x"], r["y"]]
     if op == "hold":
         b = button(region(d, req["card"]), req["button"])
         ActionChains(d).move_to_element(b).perform()

@@ -4,6 +4,8 @@
 
 use super::*;
 
+/// A command gcud refuses shows gcud's reason on its card, below the
+/// pad, which does not move.
 #[test]
 fn a_command_refused_by_gcud_shows_its_reason_on_the_card() {
     if !browser_available() {
@@ -11,10 +13,15 @@ fn a_command_refused_by_gcud_shows_its_reason_on_the_card() {
     }
     let stack = Stack::start();
     let mut b = stack.browser("op", "op-secret");
+    let pad = json!({ "op": "place", "card": "absent", "button": "Pan left" });
+    let before = stack.call(&mut b, pad.clone());
     stack.call(&mut b, json!({ "op": "click", "card": "absent", "button": "Home" }));
     let reason = stack.call(&mut b, json!({ "op": "wait_alert", "card": "absent" }));
     let reason = reason.as_str().unwrap();
     assert!(reason.contains("5.2.9"), "the reason names the gimbal: {reason}");
+    // The reason fills in below the pad: a button held there stays under
+    // the pointer (one that moved away would end its hold, or take none).
+    assert_eq!(stack.call(&mut b, pad), before, "the pad moved when the reason showed");
     // The same words gimbal-web answered with (the page adds none of its own).
     let log = stack.log();
     eprintln!("absent gimbal: {reason}\n{log}");

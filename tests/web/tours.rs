@@ -175,12 +175,9 @@ fn screenshot_of_the_demo_page() {
             )
     });
     let mut b = stack.browser("admin", "change-me");
-    let names = stack.call(&mut b, json!({ "op": "card_names" }));
-    assert_eq!(
-        names,
-        json!(["mast-1", "mast-2", "roof", "Tours"]),
-        "a card per gimbal, then gcud's tours"
-    );
+    let expect = json!(["mast-1", "mast-2", "roof", "Tours"]);
+    let names = stack.call(&mut b, json!({ "op": "card_names", "expect": expect }));
+    assert_eq!(names, expect, "a card per gimbal, then gcud's tours");
     assert_eq!(stack.gcud.ctl(&["--to", "5.1.2", "goto", "60", "20"]).code, 0);
     stack.call(
         &mut b,
