@@ -375,6 +375,40 @@ fn a_device_server_port_opens_without_a_rate_warning() {
     assert!(!log.contains("not applied locally"), "{log}");
 }
 
+/// Issue 35: on a TCP device server gcud's ACK of a result waits up to
+/// `lines::ACK_HOLD` for the port's next write (one segment, not two);
+/// with no next write it still goes, alone: every result the device sent
+/// is acknowledged, by the device's own count, queries spaced apart (each
+/// a gimbalctl run) and back to back (one client's `P?` after `P?`).
+#[test]
+fn every_result_from_a_device_server_is_acknowledged_whether_or_not_a_command_follows() {
+    let sim = Sim::tcp(&["--device", "1"]);
+    let gcud = start(
+        &format!(
+            "[gcu]\ngroup = 5\n[metrics]\nlisten = \"127.0.0.1:0\"\n[[port]]\nid = 1\ntcp = \"{}\"\n{CLIENTS}",
+            sim.endpoint
+        ),
+        1024,
+    );
+    gcud.wait_for_log("port open port=1");
+    for _ in 0..3 {
+        assert_eq!(gcud.position("5.1.1"), (0.0, 0.0));
+    }
+    let mut client = WireClient::connect(&gcud.clients());
+    query_latencies(&mut client, 20);
+    let results = gcud.metric("gcud_port_frames_in_total{port=\"1\"}");
+    assert!(results >= 23, "the device answered every query: {results}");
+    // Idle now: the last ACK has no command to ride with.
+    std::thread::sleep(Duration::from_millis(300));
+    let stats = sim.stop();
+    assert_eq!(
+        stats["acks_in"].as_u64(),
+        Some(results),
+        "one ACK per result the device sent: {stats}\n{}",
+        gcud.log()
+    );
+}
+
 /// Point 9: `gcud --check` refuses two ports on one serial device, and a
 /// port and a link on one, through a symbolic link too, naming both keys.
 #[test]

@@ -105,6 +105,10 @@ impl LineStream for DeviceServer {
         }
         Ok(())
     }
+
+    fn holds_lone_ack(&self) -> bool {
+        true
+    }
 }
 
 impl AsyncRead for DeviceServer {

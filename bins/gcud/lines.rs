@@ -11,13 +11,16 @@ use std::ops::Bound;
 use std::pin::Pin;
 use std::sync::Arc;
 use std::task::{Context, Poll};
+use std::time::Duration;
 
 pub use sagebrush_gcu::LineId;
 use sagebrush_host::capture::Tap;
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio::sync::oneshot;
+use tokio::time::Instant;
 
 use crate::admission::Connections;
+use sagebrush_protocol::ACK;
 
 /// A line's byte stream, whichever its medium, with a line-rate switch
 /// where the medium has one.
@@ -25,7 +28,23 @@ pub trait LineStream: AsyncRead + AsyncWrite + Unpin + Send + std::fmt::Debug {
     fn set_baud(&mut self, _baud: u32) -> io::Result<()> {
         Ok(())
     }
+
+    /// Whether a lone ACK written to the line waits up to [`ACK_HOLD`] for
+    /// the line's next write to ride with it: on a TCP device server, where
+    /// every write is a segment the server wakes for.
+    fn holds_lone_ack(&self) -> bool {
+        false
+    }
 }
+
+/// How long gcud's ACK of a device's result may wait for the port's next
+/// write (1.4.2 gives the receiver's ACK no time; gcud grants a device at
+/// least 10 ms for its own, `ports.ack_timeout_ms`, and the protocol
+/// crate's device endpoint sends a result again only on a NAK). On a TCP
+/// device server the ACK then rides in the next command's segment, as a
+/// relay passes a client's ACK with its next command: one segment and one
+/// wake of the server per transaction, not two (ARCHITECTURE "Data path").
+pub const ACK_HOLD: Duration = Duration::from_millis(1);
 
 /// How a line ended, told to the task that opened it.
 #[derive(Debug)]
@@ -92,7 +111,7 @@ impl Line {
                 let n = read.filled().len();
                 self.tap.inbound(&buf[..n]);
                 if let Some((table, key)) = &self.admission {
-                    table.touch(*key, tokio::time::Instant::now());
+                    table.touch(*key, Instant::now());
                 }
                 Some(Ok(n))
             }
@@ -141,6 +160,10 @@ pub struct Lines {
     queued: Vec<LineId>,
     /// Lines closed for a failed write or rate switch, not yet reported.
     failed: Vec<LineId>,
+    /// Lines holding a lone ACK ([`LineStream::holds_lone_ack`]), with the
+    /// time it must go by: it goes first with the line's next write, or
+    /// alone at that time.
+    held_acks: Vec<(LineId, Instant)>,
 }
 
 impl Lines {
@@ -151,6 +174,7 @@ impl Lines {
             next: None,
             queued: Vec::new(),
             failed: Vec::new(),
+            held_acks: Vec::new(),
         }
     }
 
@@ -176,27 +200,67 @@ impl Lines {
         if let Some(mut old) = self.open.insert(id, line) {
             old.tell_owner("replaced by a new connection".to_owned());
         }
+        self.held_acks.retain(|(held, _)| *held != id);
     }
 
     /// Closes a line, telling its owner `reason`; whether it was open.
     pub fn close(&mut self, id: LineId, reason: &str) -> bool {
+        self.held_acks.retain(|(held, _)| *held != id);
         self.open
             .remove(&id)
             .map(|mut line| line.tell_owner(reason.to_owned()))
             .is_some()
     }
 
-    /// Queues `bytes` for the line; [`Lines::flush`] writes them.
+    /// Queues `bytes` for the line; [`Lines::flush`] writes them. A lone
+    /// ACK to a line that holds one waits for the line's next write, which
+    /// it goes in front of, for [`ACK_HOLD`] at most.
     pub fn write(&mut self, id: LineId, bytes: &[u8]) -> Result<(), Refused> {
         let line = self.open.get_mut(&id).ok_or(Refused::Closed)?;
         if line.pending.len() + bytes.len() > MAX_PENDING {
             return Err(Refused::Behind);
         }
+        let held = self.held_acks.iter().position(|(held, _)| *held == id);
+        if bytes == [ACK] && held.is_none() && line.pending.is_empty() && line.stream.holds_lone_ack() {
+            self.held_acks.push((id, Instant::now() + ACK_HOLD));
+            return Ok(());
+        }
         if line.pending.is_empty() {
             self.queued.push(id);
         }
+        if let Some(at) = held {
+            self.held_acks.swap_remove(at);
+            line.pending.push(ACK);
+        }
         line.pending.extend_from_slice(bytes);
         Ok(())
+    }
+
+    /// When the first held ACK must go, for the router task's timer.
+    pub fn next_held_ack(&self) -> Option<Instant> {
+        self.held_acks.iter().map(|&(_, by)| by).min()
+    }
+
+    /// Queues the held ACKs due by `now` (every one with `None`).
+    fn release_held_acks(&mut self, now: Option<Instant>) {
+        let Self {
+            open,
+            queued,
+            held_acks,
+            ..
+        } = self;
+        held_acks.retain(|&(id, by)| {
+            if now.is_some_and(|now| by > now) {
+                return true;
+            }
+            if let Some(line) = open.get_mut(&id) {
+                if line.pending.is_empty() {
+                    queued.push(id);
+                }
+                line.pending.push(ACK);
+            }
+            false
+        });
     }
 
     /// Switches a port's line rate at once (after an acknowledged `C0..C7`,
@@ -218,11 +282,15 @@ impl Lines {
         Ok(())
     }
 
-    /// Writes every line's pending bytes as far as they go now, line after
-    /// line in the order they were queued; a line whose write fails is
+    /// Writes every line's pending bytes as far as they go now (and the
+    /// held ACKs now due), line after line in the order they were queued;
+    /// a line whose write fails is
     /// closed (reported by [`Lines::poll_next`]). Whether nothing is left
     /// pending.
     pub fn flush(&mut self, cx: &mut Context<'_>) -> bool {
+        if !self.held_acks.is_empty() {
+            self.release_held_acks(Some(Instant::now()));
+        }
         let Self {
             open, queued, failed, ..
         } = self;
@@ -280,8 +348,10 @@ impl Lines {
         &self.buf[..n]
     }
 
-    /// Resolves once every line has written what is pending (shutdown).
+    /// Resolves once every line has written what is pending, held ACKs
+    /// too (shutdown).
     pub fn poll_drained(&mut self, cx: &mut Context<'_>) -> Poll<()> {
+        self.release_held_acks(None);
         match self.flush(cx) {
             true => Poll::Ready(()),
             false => Poll::Pending,
@@ -304,11 +374,16 @@ mod tests {
 
     use super::*;
 
-    /// A line that takes every write at once and logs which line wrote.
+    /// Each write a line took: which line, and its bytes.
+    type Log = Arc<Mutex<Vec<(LineId, Vec<u8>)>>>;
+
+    /// A line that takes every write at once and logs it; a device
+    /// server's (`holds`) holds a lone ACK.
     #[derive(Debug)]
     struct Recorder {
         id: LineId,
-        log: Arc<Mutex<Vec<LineId>>>,
+        log: Log,
+        holds: bool,
     }
 
     impl AsyncRead for Recorder {
@@ -319,7 +394,7 @@ mod tests {
 
     impl AsyncWrite for Recorder {
         fn poll_write(self: Pin<&mut Self>, _: &mut Context<'_>, buf: &[u8]) -> Poll<io::Result<usize>> {
-            self.log.lock().unwrap().push(self.id);
+            self.log.lock().unwrap().push((self.id, buf.to_vec()));
             Poll::Ready(Ok(buf.len()))
         }
         fn poll_flush(self: Pin<&mut Self>, _: &mut Context<'_>) -> Poll<io::Result<()>> {
@@ -330,16 +405,23 @@ mod tests {
         }
     }
 
-    impl LineStream for Recorder {}
+    impl LineStream for Recorder {
+        fn holds_lone_ack(&self) -> bool {
+            self.holds
+        }
+    }
 
-    #[test]
-    fn a_turns_writes_leave_in_the_order_they_were_queued_whatever_the_lines() {
-        let log = Arc::new(Mutex::new(Vec::new()));
+    /// Lines with a client link 7 and port 1 (a device server when `holds`).
+    fn client_and_port(holds: bool) -> (Lines, Log) {
+        let log = Log::default();
         let switch = CaptureSwitch::new();
         let mut lines = Lines::new();
-        let (client, port) = (LineId::Link(LinkId(7)), LineId::Port(1));
-        for id in [port, client] {
-            let stream = Box::new(Recorder { id, log: log.clone() });
+        for id in [LineId::Port(1), LineId::Link(LinkId(7))] {
+            let stream = Box::new(Recorder {
+                id,
+                log: log.clone(),
+                holds: holds && id == LineId::Port(1),
+            });
             lines.add(
                 id,
                 stream,
@@ -349,18 +431,81 @@ mod tests {
                 oneshot::channel().0,
             );
         }
+        (lines, log)
+    }
+
+    const CLIENT: LineId = LineId::Link(LinkId(7));
+    const PORT: LineId = LineId::Port(1);
+
+    fn flush(lines: &mut Lines) -> bool {
+        lines.flush(&mut Context::from_waker(std::task::Waker::noop()))
+    }
+
+    #[test]
+    fn a_turns_writes_leave_in_the_order_they_were_queued_whatever_the_lines() {
+        let (mut lines, log) = client_and_port(false);
         // A device's result relayed to its client, then the device's ACK of it.
-        lines.write(client, b"result").unwrap();
-        lines.write(port, &[sagebrush_protocol::ACK]).unwrap();
-        lines.write(client, b" more").unwrap();
-        let mut cx = Context::from_waker(std::task::Waker::noop());
-        assert!(lines.flush(&mut cx), "everything written");
+        lines.write(CLIENT, b"result").unwrap();
+        lines.write(PORT, &[ACK]).unwrap();
+        lines.write(CLIENT, b" more").unwrap();
+        assert!(flush(&mut lines), "everything written");
         assert_eq!(
             *log.lock().unwrap(),
-            [client, port],
+            [(CLIENT, b"result more".to_vec()), (PORT, vec![ACK])],
             "the client's line first, each line once"
         );
-        assert!(lines.flush(&mut cx));
+        assert!(flush(&mut lines));
         assert_eq!(log.lock().unwrap().len(), 2, "nothing left to write");
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_device_servers_lone_ack_rides_with_its_next_write() {
+        let (mut lines, log) = client_and_port(true);
+        lines.write(CLIENT, b"result").unwrap();
+        lines.write(PORT, &[ACK]).unwrap();
+        assert!(flush(&mut lines));
+        assert_eq!(*log.lock().unwrap(), [(CLIENT, b"result".to_vec())], "the ACK is held");
+        let due = lines.next_held_ack().expect("a held ACK");
+        assert_eq!(due, Instant::now() + ACK_HOLD);
+        tokio::time::advance(ACK_HOLD / 2).await;
+        assert!(flush(&mut lines));
+        assert_eq!(log.lock().unwrap().len(), 1, "still held within ACK_HOLD");
+        // The port's next command: the ACK goes first, in the same write.
+        lines.write(PORT, b"P?").unwrap();
+        assert!(flush(&mut lines));
+        assert_eq!(log.lock().unwrap()[1], (PORT, [&[ACK][..], b"P?"].concat()));
+        assert_eq!(lines.next_held_ack(), None);
+        // A NAK (or anything but a lone ACK) is never held.
+        lines.write(PORT, &[sagebrush_protocol::NAK]).unwrap();
+        assert!(flush(&mut lines));
+        assert_eq!(log.lock().unwrap()[2], (PORT, vec![sagebrush_protocol::NAK]));
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_held_ack_goes_alone_once_its_hold_ran_out_or_the_lines_drain() {
+        let (mut lines, log) = client_and_port(true);
+        lines.write(PORT, &[ACK]).unwrap();
+        tokio::time::advance(ACK_HOLD).await;
+        assert!(flush(&mut lines));
+        assert_eq!(*log.lock().unwrap(), [(PORT, vec![ACK])], "sent at ACK_HOLD");
+        assert_eq!(lines.next_held_ack(), None);
+        // At shutdown a held ACK goes at once.
+        lines.write(PORT, &[ACK]).unwrap();
+        let mut cx = Context::from_waker(std::task::Waker::noop());
+        assert!(lines.poll_drained(&mut cx).is_ready());
+        assert_eq!(log.lock().unwrap()[1], (PORT, vec![ACK]));
+        // A line closed with its ACK held leaves nothing held.
+        lines.write(PORT, &[ACK]).unwrap();
+        lines.close(PORT, "test");
+        assert_eq!(lines.next_held_ack(), None);
+    }
+
+    #[test]
+    fn a_line_that_does_not_hold_writes_its_lone_ack_at_once() {
+        let (mut lines, log) = client_and_port(false);
+        lines.write(PORT, &[ACK]).unwrap();
+        assert!(flush(&mut lines));
+        assert_eq!(*log.lock().unwrap(), [(PORT, vec![ACK])]);
+        assert_eq!(lines.next_held_ack(), None);
     }
 }

@@ -77,7 +77,8 @@ pub async fn run(config: Config, http_limits: crate::http::Limits) -> Result<(),
     let mut timer = RouterTimer::new();
 
     loop {
-        timer.arm(d.router.next_deadline().map(|t| d.start + Duration::from_millis(t)));
+        let core = d.router.next_deadline().map(|t| d.start + Duration::from_millis(t));
+        timer.arm(core.into_iter().chain(d.lines.next_held_ack()).min());
         if d.stopping.is_some_and(|until| d.stopped(until)) {
             break;
         }

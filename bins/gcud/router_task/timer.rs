@@ -1,5 +1,7 @@
-//! The router core's one timer (`Router::next_deadline`), kept armed across
-//! the run loop's turns instead of made anew on each.
+//! The run loop's one timer: the router core's next deadline
+//! (`Router::next_deadline`) or a held ACK's (`Lines::next_held_ack`),
+//! whichever comes first, kept armed across the loop's turns instead of
+//! made anew on each.
 //!
 //! Arming a tokio timer earlier than the runtime last planned to wake costs
 //! a wake-up of its own (an eventfd write and one more turn of the loop).
