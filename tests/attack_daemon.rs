@@ -356,19 +356,26 @@ fn a_reload_whose_listener_cannot_bind_is_refused_whole() {
     assert!(TcpStream::connect(addr).is_ok(), "gcu2 listens on its address");
 }
 
-/// Point 9: a port on a TCP device server is not reported as ignoring a
-/// line rate change each time it opens.
-#[test]
-fn a_device_server_port_opens_without_a_rate_warning() {
+/// gcud (group 5, `extra` in its configuration) with port 1 open on a TCP
+/// device server: gimbalsim serving device 1.
+fn behind_a_device_server(extra: &str) -> (Sim, Gcud) {
     let sim = Sim::tcp(&["--device", "1"]);
     let gcud = start(
         &format!(
-            "[gcu]\ngroup = 5\n[[port]]\nid = 1\ntcp = \"{}\"\n{CLIENTS}",
+            "[gcu]\ngroup = 5\n{extra}[[port]]\nid = 1\ntcp = \"{}\"\n{CLIENTS}",
             sim.endpoint
         ),
         1024,
     );
     gcud.wait_for_log("port open port=1");
+    (sim, gcud)
+}
+
+/// Point 9: a port on a TCP device server is not reported as ignoring a
+/// line rate change each time it opens.
+#[test]
+fn a_device_server_port_opens_without_a_rate_warning() {
+    let (_sim, gcud) = behind_a_device_server("");
     let mut client = WireClient::connect(&gcud.clients());
     query_latencies(&mut client, 3);
     let log = gcud.log();
@@ -382,15 +389,7 @@ fn a_device_server_port_opens_without_a_rate_warning() {
 /// a gimbalctl run) and back to back (one client's `P?` after `P?`).
 #[test]
 fn every_result_from_a_device_server_is_acknowledged_whether_or_not_a_command_follows() {
-    let sim = Sim::tcp(&["--device", "1"]);
-    let gcud = start(
-        &format!(
-            "[gcu]\ngroup = 5\n[metrics]\nlisten = \"127.0.0.1:0\"\n[[port]]\nid = 1\ntcp = \"{}\"\n{CLIENTS}",
-            sim.endpoint
-        ),
-        1024,
-    );
-    gcud.wait_for_log("port open port=1");
+    let (sim, gcud) = behind_a_device_server("[metrics]\nlisten = \"127.0.0.1:0\"\n");
     for _ in 0..3 {
         assert_eq!(gcud.position("5.1.1"), (0.0, 0.0));
     }
