@@ -406,6 +406,9 @@ fn every_result_from_a_device_server_is_acknowledged_whether_or_not_a_command_fo
         "one ACK per result the device sent: {stats}\n{}",
         gcud.log()
     );
+    // On the device's side alone: every frame it took was a `P?`, answered
+    // with a result, and each result came back ACKed.
+    assert_eq!(stats["acks_in"], stats["frames_in"], "the device's own count: {stats}");
 }
 
 /// Point 9: `gcud --check` refuses two ports on one serial device, and a
