@@ -162,7 +162,7 @@ const GCUD: &[Column<Snapshot>] = &[
     one(
         Descriptor::counter(
             "governance_stops",
-            "Stops the governance issued: take-overs, slews near a travel limit or keep-out zone, tours stopped.",
+            "Stops the governance issued: take-overs, slews near a travel limit or keep-out zone, tours stopped, gimbals found moving.",
         ),
         |s, _| count(s.stats.router.governance_stops),
     ),
@@ -190,6 +190,13 @@ const GCUD: &[Column<Snapshot>] = &[
     one(
         Descriptor::counter("governance_parks", "Park recalls of a preset."),
         |s, _| count(s.governance.parks),
+    ),
+    one(
+        Descriptor::counter(
+            "governance_found_moving",
+            "Governed gimbals found moving after a start or a port's reopening, and stopped.",
+        ),
+        |s, _| count(s.governance.found_moving),
     ),
     one(
         Descriptor::gauge("connections_open", "Accepted connections open now."),

@@ -413,6 +413,7 @@ pub mod fixture {
                 boundary_stops: next(),
                 follow_polls: next(),
                 parks: next(),
+                found_moving: next(),
             },
         }
     }

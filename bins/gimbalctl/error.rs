@@ -20,15 +20,6 @@ pub const fn undelivered_exit_code(failure: Undelivered) -> u8 {
     }
 }
 
-/// Whether the GCU refused the command by its rules (control, limits,
-/// zones): nothing was sent to the gimbal.
-pub const fn is_refusal(failure: Undelivered) -> bool {
-    matches!(
-        failure,
-        Undelivered::NotInControl | Undelivered::TravelLimit | Undelivered::KeepOut | Undelivered::PositionUnknown
-    )
-}
-
 /// A failure, with a message naming what was wrong.
 #[derive(Debug)]
 pub enum CtlError {
@@ -162,7 +153,7 @@ impl From<CommandError> for CtlError {
                 failure,
                 m.replacen("refused by gcud: ", "refused, nothing sent to the gimbal: ", 1),
             ),
-            CommandError::Undelivered(failure, m) if is_refusal(failure) => CtlError::Undelivered(
+            CommandError::Undelivered(failure, m) if failure.is_refusal() => CtlError::Undelivered(
                 failure,
                 m.replacen("not delivered: ", "refused, nothing sent to the gimbal: ", 1)
                     .replacen("(reported by GCU", "(by the rules of GCU", 1),

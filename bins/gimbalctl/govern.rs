@@ -70,7 +70,7 @@ async fn exchange(g: &Global, group: u8, command: GcuCommand<'_>) -> Result<Opti
                 "GCU {group} does not know {sent}: no such tour or gimbal, or a gcud without governance \
                  (`gimbalctl tour list` lists the tours)"
             )),
-            CtlError::Undelivered(failure, _) if !crate::error::is_refusal(failure) => CtlError::Undelivered(
+            CtlError::Undelivered(failure, _) if !failure.is_refusal() => CtlError::Undelivered(
                 failure,
                 format!("not delivered: {sent} to GCU {group}: {}", failure.describe()),
             ),

@@ -24,10 +24,52 @@ pub struct ControlSection {
     /// that moved or changed it: 100 ms to 1 hour.
     #[serde(default)]
     pub hold_ms: Millis<100, 3_600_000, { sagebrush_gcu::HOLD_MS as i64 }>,
+    /// The lowest link priority that may start or stop gcud's tours
+    /// (`~T`); default: the highest priority of any `[[link]]`.
+    pub tours_min_priority: Option<Int<u8, 0, { sagebrush_gcu::MAX_PRIORITY as i64 }>>,
 }
 
 /// The longest park delay or dwell, seconds (a day).
 const MAX_SECONDS: f64 = 86_400.0;
+
+/// One name of `allow = [...]`: a command the governance refuses on a
+/// governed gimbal (its row's mount effect is unbounded, identity or
+/// dynamics), by its rev 1.9 name (`*mp`), its wire bytes (`IX`, `LC`,
+/// `HP`) or its row's script name (`set_device_id`, `set_limits`,
+/// `unknown`).
+fn allowed(c: &Source<'_>, name: &Spanned<String>, key: &str) -> Result<String, ConfigError> {
+    use sagebrush_protocol::{Command, Extended, Row};
+    let text = name.get_ref().as_str();
+    let named = Extended::ALL
+        .iter()
+        .find(|e| e.name() == text)
+        .map(|e| Some(e.mount()))
+        .or_else(|| {
+            Command::FIXED
+                .iter()
+                .find(|(wire, _)| *wire == text.as_bytes())
+                .map(|(_, command)| Some(command.mount()))
+        })
+        .or_else(|| Row::ALL.iter().any(|r| r.script_name() == text).then_some(None));
+    match named {
+        Some(Some(mount)) if !mount.is_ungoverned() => Err(c.at(
+            name.span(),
+            key,
+            format!(
+                "{text} is never refused for what it does (only control decides it): allow has nothing to let through"
+            ),
+        )),
+        Some(_) => Ok(text.to_owned()),
+        None => Err(c.at(
+            name.span(),
+            key,
+            format!(
+                "expected a command's rev 1.9 name (*mp), wire bytes (IX, LC, HP) or script name \
+                 (set_device_id, set_limits, unknown), found {text:?}"
+            ),
+        )),
+    }
+}
 
 /// A time in seconds, `0..=86400`, fractions allowed, in milliseconds;
 /// 0 where the key is absent.
@@ -77,6 +119,7 @@ pub(super) struct GimbalSection {
     park: Option<ParkSection>,
     slew_rate_dps: Option<Spanned<Vec<f64>>>,
     acceleration_dps2: Option<Spanned<Vec<f64>>>,
+    allow: Option<Spanned<Vec<Spanned<String>>>>,
 }
 
 /// One of `steps = [ ... ]`: a preset or a position, and the dwell.
@@ -236,6 +279,9 @@ pub(super) fn validate(
             .as_ref()
             .map(|v| per_axis(c, v, &format!("{key}.acceleration_dps2"), "degrees per second squared"))
             .transpose()?;
+        for (j, name) in g.allow.iter().flat_map(|l| l.get_ref().iter()).enumerate() {
+            rules.allow.push(allowed(c, name, &format!("{key}.allow[{j}]"))?);
+        }
         gimbals.push(rules);
     }
     let mut tours = Vec::with_capacity(raw_tours.len());
@@ -280,6 +326,7 @@ pub(super) fn validate(
         hold: control.hold_ms.get(),
         gimbals,
         tours,
+        tours_min_priority: control.tours_min_priority.as_ref().map(Int::get),
     };
     let port_configs: Vec<_> = ports.iter().map(|p| p.router.clone()).collect();
     match governance.validate(&port_configs) {
@@ -394,8 +441,40 @@ mod tests {
         assert_eq!(tour.steps[0].dwell, 10_000);
         assert_eq!(tour.steps[1].dwell, 500);
         let defaults = parse(Path::new("t.toml"), BASE).expect("valid");
-        assert_eq!(defaults.governance, sagebrush_gcu::Governance::default());
+        assert_eq!(
+            defaults.governance,
+            sagebrush_gcu::Governance {
+                // Tours from the highest link's priority up (the one link's default 50).
+                tours_min_priority: Some(50),
+                ..sagebrush_gcu::Governance::default()
+            }
+        );
         assert_eq!(defaults.governance.hold, 10_000);
+    }
+
+    /// `allow`, `tours_min_priority` and `may_read_rules` (ARCHITECTURE "Governance").
+    #[test]
+    fn allow_names_commands_the_governance_refuses_and_nothing_else() {
+        let text = format!(
+            "{BASE}[control]\ntours_min_priority = 70\n\
+             [[gimbal]]\naddress = \"5.1.1\"\npan_limits_deg = [-90, 90]\nallow = [\"*mp\", \"IX\", \"set_device_id\", \"unknown\"]\n"
+        );
+        let c = parse(Path::new("t.toml"), &text).expect("valid");
+        assert_eq!(c.governance.tours_min_priority, Some(70));
+        assert_eq!(c.governance.gimbals[0].allow, ["*mp", "IX", "set_device_id", "unknown"]);
+        let e = err("[[gimbal]]\naddress = \"5.1.1\"\nallow = [\"PR\"]\n");
+        assert_eq!(e.key, "gimbal[0].allow[0]", "{e}");
+        assert!(e.to_string().contains("never refused"), "{e}");
+        let e = err("[[gimbal]]\naddress = \"5.1.1\"\nallow = [\"*zz\"]\n");
+        assert!(e.to_string().contains("found \"*zz\""), "{e}");
+        // Rules are read on loopback by default, elsewhere only when said.
+        let c = parse(Path::new("t.toml"), BASE).expect("valid");
+        assert!(c.links[0].may_read_rules);
+        let remote = BASE.replace("127.0.0.1:0", "0.0.0.0:0");
+        let c = parse(Path::new("t.toml"), &remote).expect("valid");
+        assert!(!c.links[0].may_read_rules);
+        let c = parse(Path::new("t.toml"), &format!("{remote}may_read_rules = true\n")).expect("valid");
+        assert!(c.links[0].may_read_rules);
     }
 
     #[test]

@@ -86,6 +86,10 @@ pub(super) struct LinkSection {
     /// a lower one (ARCHITECTURE "Governance").
     #[serde(default)]
     priority: Int<u8, 0, { sagebrush_gcu::MAX_PRIORITY as i64 }, { sagebrush_gcu::DEFAULT_PRIORITY as i64 }>,
+    /// Whether clients on this link may ask a gimbal's rules and who
+    /// controls it (`~B`, `~C`); default: on a loopback listener only
+    /// (keep-out zones may mark privacy areas).
+    may_read_rules: Option<bool>,
 }
 
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -107,6 +111,8 @@ pub struct Link {
     pub motion_lease_ms: Option<u64>,
     /// 0..=100 (ARCHITECTURE "Governance").
     pub priority: u8,
+    /// May ask `~B` and `~C` (ARCHITECTURE "GCU commands on port 0").
+    pub may_read_rules: bool,
 }
 
 impl Link {
@@ -122,6 +128,7 @@ impl Link {
         // Every connection of this link is one controller of the gimbals.
         lc.name = Some(std::sync::Arc::from(self.name.as_str()));
         lc.priority = self.priority;
+        lc.may_read_rules = self.may_read_rules;
         lc
     }
 
@@ -231,6 +238,8 @@ pub(super) fn validate(
                 ));
             }
         }
+        let on_loopback = matches!(transport, LinkTransport::Listen(addr) if addr.ip().is_loopback());
+        let may_read_rules = l.may_read_rules.unwrap_or(on_loopback);
         links.push(Link {
             name,
             kind,
@@ -239,6 +248,7 @@ pub(super) fn validate(
             allow_source_groups,
             motion_lease_ms: l.motion_lease_ms.as_ref().map(Millis::get),
             priority: l.priority.get(),
+            may_read_rules,
         });
     }
     Ok(links)

@@ -259,7 +259,11 @@ fn validate(c: &Source<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
         &links,
     )?;
     let capture = raw.capture.as_ref().map(|cap| cap.validate(c)).transpose()?;
-    let governance = govern::validate(c, &raw.control, &raw.gimbals, &raw.tours, raw.gcu.group.get(), &ports)?;
+    let mut governance = govern::validate(c, &raw.control, &raw.gimbals, &raw.tours, raw.gcu.group.get(), &ports)?;
+    // Tours are started and stopped by the highest links unless `[control]` says otherwise.
+    governance.tours_min_priority = governance
+        .tours_min_priority
+        .or_else(|| links.iter().map(|l| l.priority).max());
 
     // A GCU that can route nothing is a mistake, not a configuration:
     // commands come in over links only (devices never send one). Links

@@ -47,19 +47,10 @@ pub enum CommandError {
     /// another link controls the gimbal, the target lies beyond a travel
     /// limit or in a keep-out zone, or where the gimbal is is not known.
     /// Nothing reached the bus; sending it again changes nothing until
-    /// the rule's reason changes. One of [`REFUSALS`].
+    /// the rule's reason changes. A row whose [`Undelivered::is_refusal`] holds.
     #[error("{1}")]
     Refused(Undelivered, String),
 }
-
-/// The delivery-report rows that are gcud's decision, not a failure to
-/// deliver: [`CommandError::Refused`].
-pub const REFUSALS: [Undelivered; 4] = [
-    Undelivered::NotInControl,
-    Undelivered::TravelLimit,
-    Undelivered::KeepOut,
-    Undelivered::PositionUnknown,
-];
 
 impl CommandError {
     /// The rule gcud refused the command by, if it did.
@@ -230,7 +221,7 @@ fn judge(
 ) -> Result<Exchange, CommandError> {
     if let Some(report) = ex.undelivered {
         let failure = report.failure.unwrap_or(Undelivered::NotConfirmed);
-        if REFUSALS.contains(&failure) {
+        if failure.is_refusal() {
             return Err(CommandError::Refused(
                 failure,
                 format!("refused by gcud: {what} to {to}: {}", failure.describe()),

@@ -5,7 +5,7 @@
 //! transactions, the GCU's own answers and the reverse path. Nothing after
 //! acceptance parses the command again.
 
-use sagebrush_protocol::{Command, DataRate, ExpectedReply, FrameBuf, Row};
+use sagebrush_protocol::{Command, DataRate, ExpectedReply, FrameBuf, MountEffect, Row};
 
 /// A command frame and what was read from it when the router accepted it.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -48,17 +48,26 @@ pub(crate) struct CommandFacts {
     pub rate: Option<DataRate>,
     /// The device registry keeps its answer: `P?` (Table 15), `V?` (Table 17).
     pub registry: bool,
-    /// It moves the pan/tilt mount to a place (`Paaaaeeee`, `Pnn`, `HO`,
-    /// `HP`, Table 11): a queued one is given up when a stop of both axes
-    /// overtakes it.
-    pub goes_to: bool,
+    /// How it acts on the pan/tilt mount (its row's governance fact, the
+    /// protocol crate's module `mount`): what the governance decides by.
+    pub mount: MountEffect,
 }
 
 impl CommandFacts {
+    /// It moves the pan/tilt mount to a place (`Paaaaeeee`, `Pnn`, `HO`),
+    /// or where nobody can bound (`IX`, `HP`, `*mp`, an unknown command): a
+    /// queued one is given up when a stop of both axes overtakes it.
+    pub fn goes_to(&self) -> bool {
+        matches!(
+            self.mount,
+            MountEffect::GoTo(_) | MountEffect::RecallPreset(_) | MountEffect::Unbounded
+        )
+    }
+
     /// A slew or a goto of the mount (or a lens motion): what the
     /// governance follows in order.
     pub fn moves(&self) -> bool {
-        self.stopped_by.is_some() || self.goes_to
+        self.stopped_by.is_some() || self.goes_to()
     }
 
     /// Reads a command payload: the one place the router core parses a command.
@@ -75,13 +84,7 @@ impl CommandFacts {
             reply: ExpectedReply::of(command),
             rate: command.data_rate_change(),
             registry: matches!(command, Command::QueryPosition | Command::QueryLens),
-            goes_to: matches!(
-                command,
-                Command::GoTo(_)
-                    | Command::GoToPreset(_)
-                    | Command::Home
-                    | Command::Extended(sagebrush_protocol::Extended::GoToHaltPosition, _)
-            ),
+            mount: command.mount(),
         }
     }
 }

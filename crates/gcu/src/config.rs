@@ -72,6 +72,9 @@ pub struct LinkConfig {
     /// 0..=100: a link of higher priority takes control of a gimbal from a
     /// lower one (ARCHITECTURE "Governance").
     pub priority: u8,
+    /// It may ask a gimbal's rules and who controls it (`~B`, `~C`):
+    /// keep-out zones may mark privacy areas.
+    pub may_read_rules: bool,
 }
 
 impl LinkConfig {
@@ -85,6 +88,7 @@ impl LinkConfig {
             listener: None,
             name: None,
             priority: crate::govern::rules::DEFAULT_PRIORITY,
+            may_read_rules: true,
         }
     }
 }

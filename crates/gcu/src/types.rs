@@ -212,6 +212,9 @@ pub enum StopCause {
     Boundary,
     /// A tour was stopped.
     Tour,
+    /// gcud found the gimbal moving after it started or reopened the port,
+    /// with nobody to stop it (ARCHITECTURE "Governance").
+    FoundMoving,
 }
 
 impl RouterEvent {
@@ -238,11 +241,8 @@ impl RouterEvent {
                 | Undelivered::NotConfirmed
                 | Undelivered::NoSuchPort
                 | Undelivered::PortClosed
-                | Undelivered::NoRoute
-                | Undelivered::NotInControl
-                | Undelivered::TravelLimit
-                | Undelivered::KeepOut
-                | Undelivered::PositionUnknown => Level::Debug,
+                | Undelivered::NoRoute => Level::Debug,
+                refusal if refusal.is_refusal() => Level::Debug,
                 _ => Level::Warn,
             },
             RouterEvent::Dropped { reason, .. } if reason.is_the_senders() || reason.is_refusal() => Level::Debug,
@@ -305,6 +305,7 @@ impl fmt::Display for RouterEvent {
                 StopCause::TakeOver => write!(f, "control taken over: {stop} to {dest}"),
                 StopCause::Boundary => write!(f, "{stop} to {dest}: a limit or keep-out zone is near"),
                 StopCause::Tour => write!(f, "tour stopped: {stop} to {dest}"),
+                StopCause::FoundMoving => write!(f, "{stop} to {dest}: found moving with nobody to stop it"),
             },
             RouterEvent::LinkState { link, up, .. } => write!(f, "{link} {}", if *up { "up" } else { "down" }),
             RouterEvent::PortState { port, open } => write!(f, "port {port} {}", if *open { "opened" } else { "lost" }),
@@ -455,6 +456,16 @@ sagebrush_protocol::code_table! {
         ShuttingDown,
         /// still queued when its client's delivery time-out passed: given up unsent
         Expired,
+        /// the gimbal is governed and the command moves or changes it where gcud cannot bound it
+        Ungoverned,
+        /// a stop from a link below the gimbal's holder, sooner than one second after its last
+        StopsLimited,
+        /// a speed change whose rate is unknown while the gimbal slews toward a limit or zone
+        RateUnknown,
+        /// the gimbal did not say where the preset lies, and it has limits or zones
+        PresetUnknown,
+        /// the link's priority does not permit it
+        NotPermitted,
     }
 }
 
@@ -468,10 +479,7 @@ impl DropReason {
     /// A refusal by the governance (control, limits, zones): the sender's
     /// to report, not the GCU's trouble.
     pub const fn is_refusal(self) -> bool {
-        matches!(
-            self,
-            Self::NotInControl | Self::TravelLimit | Self::KeepOut | Self::PositionUnknown
-        )
+        self.undelivered().is_refusal()
     }
 
     /// Index into [`crate::DropCounts`].
@@ -499,6 +507,11 @@ impl DropReason {
             DropReason::KeepOut => Undelivered::KeepOut,
             DropReason::PositionUnknown => Undelivered::PositionUnknown,
             DropReason::Superseded => Undelivered::Superseded,
+            DropReason::Ungoverned => Undelivered::Ungoverned,
+            DropReason::StopsLimited => Undelivered::StopsLimited,
+            DropReason::RateUnknown => Undelivered::RateUnknown,
+            DropReason::PresetUnknown => Undelivered::PresetUnknown,
+            DropReason::NotPermitted => Undelivered::NotPermitted,
         }
     }
 }

@@ -11,7 +11,7 @@ use sagebrush_gcu::{
     GimbalRules, Governance, Holder, Park, RouterEvent, Span, TourConfig, TourState, TourStep, TourTarget, Zone,
 };
 use sagebrush_protocol::gcu::{ControllerReply, parse_rules, parse_tour_reply};
-use sagebrush_protocol::{Address, Command, GcuCommand, RuleItem, Undelivered};
+use sagebrush_protocol::{Address, Command, FrameBuf, GcuCommand, RuleItem, Undelivered};
 
 const HOLD: u64 = 2000;
 
@@ -316,14 +316,8 @@ fn a_slew_toward_a_zone_is_stopped_short_of_it() {
 }
 
 #[test]
-fn a_slew_that_cannot_be_stopped_in_time_or_of_an_unknown_gimbal_is_refused() {
-    // Right after start nothing is known yet.
-    let mut r = Rig::new(115_200, vec![gimbal(1)], |c| bounded(&mut c.governance));
-    r.client(ONE, "vms", 50);
-    r.send(ONE, 1, &Command::PanRight);
-    r.run(20);
-    assert_eq!(outcome(&r.got(ONE)), Some(Err(Some(Undelivered::PositionUnknown))));
-    r.run(3000);
+fn a_slew_that_cannot_be_stopped_in_time_is_refused() {
+    let mut r = rig(bounded);
     // A hundredth of a degree short of the limit: no room to stop short of it.
     r.send(ONE, 1, &Command::GoTo(pos(89.9, 0.0)));
     r.run(5000);
@@ -473,4 +467,473 @@ fn reload_applies_changed_rules_as_a_difference() {
         Some(Err(Some(Undelivered::TravelLimit))),
         "the new limits hold"
     );
+}
+
+/// One payload of every row of the command table (Tables 4, 11, 16 and
+/// the rev 1.9 list, 1.2), and commands no row takes: what a client can send.
+fn every_row() -> Vec<Vec<u8>> {
+    use sagebrush_protocol::dissector::ARGUMENT_SAMPLES;
+    use sagebrush_protocol::{Extended, Row};
+    let mut all: Vec<Vec<u8>> = Command::FIXED.iter().map(|(wire, _)| wire.to_vec()).collect();
+    all.extend(Extended::ALL.iter().map(|e| e.name().as_bytes().to_vec()));
+    all.extend(Extended::ALL.iter().map(|e| format!("{}1,2", e.name()).into_bytes()));
+    all.extend(ARGUMENT_SAMPLES.iter().map(|p| p.to_vec()));
+    // And what no row takes: a device answers it NIC, gcud cannot bound it.
+    for p in ["#07", "C3", "QQ", "P?0", "~Z", "*x9n"] {
+        all.push(p.as_bytes().to_vec());
+    }
+    for row in Row::ALL {
+        assert!(
+            all.iter().any(|p| Command::parse(p).row() == row),
+            "{row:?} has no sample: every row is tried"
+        );
+    }
+    all
+}
+
+/// Fail closed (ARCHITECTURE "Governance"): every command whose row marks
+/// it unbounded, identity or dynamics, and every command no row takes, is
+/// refused on a governed gimbal before the bus (`12`), whoever holds it and
+/// however it is addressed; every other row is never refused for that.
+#[test]
+fn every_row_the_table_marks_ungoverned_is_refused_on_a_governed_gimbal_and_nothing_reaches_the_bus() {
+    let mut r = rig(bounded);
+    let mut refused = 0;
+    for payload in every_row() {
+        let command = Command::parse(&payload);
+        let before = r.now;
+        r.send_payload(TWO, Address::new(G, PORT, 1), &payload);
+        r.run(200);
+        let got = outcome(&r.got(TWO));
+        let text = String::from_utf8_lossy(&payload).into_owned();
+        if command.mount().is_ungoverned() {
+            refused += 1;
+            assert_eq!(got, Some(Err(Some(Undelivered::Ungoverned))), "{text}");
+            assert!(
+                !r.bus_commands_since(before).contains(&text),
+                "{text} reached the bus: {:?}",
+                r.bus_commands_since(before)
+            );
+            // Through the wildcards too: decided for the governed gimbal as a direct command.
+            for dest in [
+                Address::new(G, PORT, 255),
+                Address::new(G, 255, 1),
+                Address::new(G, 255, 255),
+            ] {
+                r.send_payload(TWO, dest, &payload);
+                r.run(200);
+                assert_eq!(
+                    outcome(&r.got(TWO)),
+                    Some(Err(Some(Undelivered::Ungoverned))),
+                    "{text} to {dest}"
+                );
+                assert!(
+                    !r.bus_commands_since(before).contains(&text),
+                    "{text} to {dest} reached the bus"
+                );
+            }
+        } else {
+            assert_ne!(got, Some(Err(Some(Undelivered::Ungoverned))), "{text}");
+        }
+        // Whatever it started ends before the next.
+        r.send(TWO, 1, &Command::StopMotion);
+        r.run(3000);
+    }
+    assert!(refused >= 20, "{refused} ungoverned rows and unknown commands tried");
+}
+
+/// `allow = ["*mp", "unknown"]` lets those through to the operator's own bounds.
+#[test]
+fn a_gimbal_entry_may_allow_an_ungoverned_command_by_name() {
+    let mut r = rig(|g| {
+        bounded(g);
+        g.gimbals[0].allow = vec!["*mp".into(), "unknown".into()];
+    });
+    for (payload, allowed) in [("*mp1.0,2.0", true), ("QQ", true), ("*me", false), ("IX", false)] {
+        let before = r.now;
+        r.send_payload(TWO, Address::new(G, PORT, 1), payload.as_bytes());
+        r.run(300);
+        let got = outcome(&r.got(TWO));
+        assert_eq!(
+            got == Some(Err(Some(Undelivered::Ungoverned))),
+            !allowed,
+            "{payload}: {got:?}"
+        );
+        assert_eq!(
+            r.bus_commands_since(before).contains(&payload.to_string()),
+            allowed,
+            "{payload}"
+        );
+        r.run(3000);
+    }
+}
+
+/// A preset query is not where the gimbal is: gcud's position comes only
+/// from answers to a position query. Poisoned by `P?05`, gcud approved a
+/// goto whose real path crossed the zone.
+#[test]
+fn a_preset_query_never_becomes_the_gimbals_position() {
+    let mut r = rig(bounded);
+    // Preset 5 beside the zone, clear of it: (-80, 20); then back to (0, 0).
+    r.send(TWO, 1, &Command::GoTo(pos(0.0, 20.0)));
+    r.run(1500);
+    r.send(TWO, 1, &Command::GoTo(pos(-80.0, 20.0)));
+    r.run(3000);
+    r.send(TWO, 1, &Command::StorePreset(5));
+    r.run(100);
+    r.send(TWO, 1, &Command::GoTo(pos(-80.0, 20.0)));
+    r.run(100);
+    r.send(TWO, 1, &Command::GoTo(pos(0.0, 20.0)));
+    r.run(3000);
+    r.send(TWO, 1, &Command::GoTo(pos(0.0, 0.0)));
+    r.run(1500);
+    assert_eq!(r.position(1), [0, 0]);
+    r.got(TWO);
+    r.send(ONE, 1, &Command::QueryPreset(5));
+    r.run(100);
+    assert!(r.got(ONE).iter().any(|g| matches!(g, Got::Frame(_))), "answered");
+    // From (0, 0) to (-80, -20) the rectangle crosses the zone; from preset 5's place it would not.
+    r.send(TWO, 1, &Command::GoTo(pos(-80.0, -20.0)));
+    r.run(100);
+    assert_eq!(outcome(&r.got(TWO)), Some(Err(Some(Undelivered::KeepOut))));
+}
+
+/// The everyday jog: a speed, then a slew, at once (gimbalctl `slew
+/// --speed`, every door's session). The slew waits while gcud learns the
+/// new rate, is carried out, and stops short of the limit.
+#[test]
+fn a_speed_then_a_slew_at_once_is_carried_out_and_stopped_short() {
+    for bps in [9600, 115_200] {
+        for speed in [3, 15] {
+            let mut r = Rig::new(bps, vec![gimbal(1)], |c| {
+                c.governance.hold = HOLD;
+                bounded(&mut c.governance);
+            });
+            r.client(ONE, "vms", 50);
+            r.run(3000);
+            r.send(
+                ONE,
+                1,
+                &Command::SetSpeed(
+                    sagebrush_protocol::Axis::Pan,
+                    sagebrush_protocol::Speed::new(speed).unwrap(),
+                ),
+            );
+            r.send(ONE, 1, &Command::PanRight);
+            let mut farthest = i32::MIN;
+            r.run_with(12_000, 2, |r| farthest = farthest.max(r.position(1)[0]));
+            let got = r.got(ONE);
+            let acks = got.iter().filter(|g| **g == Got::Ack).count();
+            assert_eq!(acks, 2, "{bps} bit/s, speed {speed}: both carried out: {got:?}");
+            assert!(
+                r.bus_commands_since(0).contains(&"PR".to_string()),
+                "the slew reached the bus"
+            );
+            assert!(farthest > 4000, "{bps} bit/s, speed {speed}: it moved ({farthest})");
+            assert!(
+                farthest <= 9000 + 50,
+                "{bps} bit/s, speed {speed}: {farthest} past the limit"
+            );
+            assert!(!r.moving(1));
+        }
+    }
+}
+
+/// Right after start nothing is known: a goto and a slew wait while gcud
+/// asks, then are decided (a goto the moment gcud is ready is carried out).
+#[test]
+fn a_goto_and_a_slew_right_after_start_wait_for_what_gcud_asks_then_run() {
+    let mut r = Rig::new(115_200, vec![gimbal(1)], |c| bounded(&mut c.governance));
+    r.client(ONE, "vms", 50);
+    r.send(ONE, 1, &Command::GoTo(pos(20.0, 0.0)));
+    r.run(3000);
+    assert_eq!(outcome(&r.got(ONE)), Some(Ok(())));
+    assert_eq!(r.position(1), [2000, 0]);
+    let mut r = Rig::new(115_200, vec![gimbal(1)], |c| bounded(&mut c.governance));
+    r.client(ONE, "vms", 50);
+    r.send(ONE, 1, &Command::PanRight);
+    let mut farthest = i32::MIN;
+    r.run_with(8000, 2, |r| farthest = farthest.max(r.position(1)[0]));
+    assert_eq!(outcome(&r.got(ONE)), Some(Ok(())));
+    assert!(farthest > 5000 && farthest <= 9050, "{farthest}");
+}
+
+/// An acceleration change mid-slew would make the gimbal brake too slowly
+/// to stop short: refused (`0E`), and the slew still stops short. Sent as
+/// a wildcard, it is decided for the gimbal as a direct command.
+#[test]
+fn a_slower_acceleration_mid_slew_is_refused_when_the_stop_would_come_too_late() {
+    for dest in [
+        Address::new(G, PORT, 1),
+        Address::new(G, PORT, 255),
+        Address::new(G, 255, 255),
+    ] {
+        let mut r = rig(bounded);
+        r.send(ONE, 1, &Command::PanRight);
+        r.run(500);
+        let accel = Command::SetAcceleration(sagebrush_protocol::Axis::Pan, sagebrush_protocol::Acceleration(1));
+        let mut buf = [0u8; 16];
+        let payload = accel.encode(&mut buf).unwrap().to_vec();
+        r.send_payload(ONE, dest, &payload);
+        let mut farthest = i32::MIN;
+        r.run_with(10_000, 2, |r| farthest = farthest.max(r.position(1)[0]));
+        assert_eq!(
+            outcome(&r.got(ONE)),
+            Some(Err(Some(Undelivered::TravelLimit))),
+            "to {dest}"
+        );
+        assert!(!r.bus_commands_since(0).contains(&"AP0001".to_string()));
+        assert!(farthest <= 9050, "to {dest}: {farthest}");
+    }
+    // A faster one is let through: the stop is planned with the slower.
+    let mut r = rig(bounded);
+    r.send(ONE, 1, &Command::PanRight);
+    r.run(500);
+    r.send(
+        ONE,
+        1,
+        &Command::SetAcceleration(sagebrush_protocol::Axis::Pan, sagebrush_protocol::Acceleration(30000)),
+    );
+    let mut farthest = i32::MIN;
+    r.run_with(10_000, 2, |r| farthest = farthest.max(r.position(1)[0]));
+    assert_eq!(outcome(&r.got(ONE)), Some(Ok(())));
+    assert!(farthest <= 9050, "{farthest}");
+}
+
+/// A speed change before a slew, sent as a wildcard, is learnt before the
+/// slew is decided: the stop is planned with the new rate.
+#[test]
+fn a_wildcard_speed_change_is_learnt_before_the_next_slew() {
+    let mut r = rig(bounded);
+    r.send(
+        ONE,
+        1,
+        &Command::SetSpeed(
+            sagebrush_protocol::Axis::Pan,
+            sagebrush_protocol::Speed::new(2).unwrap(),
+        ),
+    );
+    r.run(1000);
+    let mut buf = [0u8; 8];
+    let spf = Command::SetSpeed(
+        sagebrush_protocol::Axis::Pan,
+        sagebrush_protocol::Speed::new(15).unwrap(),
+    );
+    let n = spf.encode(&mut buf).unwrap().len();
+    r.send_payload(ONE, Address::new(G, 255, 255), &buf[..n]);
+    r.send(ONE, 1, &Command::PanLeft);
+    let mut farthest = i32::MAX;
+    r.run_with(10_000, 2, |r| farthest = farthest.min(r.position(1)[0]));
+    assert!(farthest >= -4000 - 50, "{farthest}: into the zone");
+    assert!(farthest < -2000, "{farthest}: it moved");
+}
+
+/// Lost stop frames (a relay that loses them): the boundary stop is
+/// planned with margin for one, sent again after the ACK time-out; the
+/// gimbal rests within the documented margin with one lost. Two lost are
+/// beyond the margin (how far is printed for the closing note); the stop
+/// still gets through.
+#[test]
+fn a_lost_boundary_stop_is_sent_again_within_the_margin() {
+    for lost in [1, 2] {
+        let mut r = rig(bounded);
+        r.send(
+            ONE,
+            1,
+            &Command::SetSpeed(
+                sagebrush_protocol::Axis::Pan,
+                sagebrush_protocol::Speed::new(15).unwrap(),
+            ),
+        );
+        r.run(500);
+        r.lose = vec![b"PS".to_vec(); lost];
+        r.send(ONE, 1, &Command::PanRight);
+        let mut farthest = i32::MIN;
+        r.run_with(10_000, 2, |r| farthest = farthest.max(r.position(1)[0]));
+        assert_eq!(r.lost.len(), lost, "the bus lost {lost} stop frames");
+        assert!(!r.moving(1));
+        let past = farthest - 9000;
+        eprintln!("{lost} lost: {past} hundredths past the limit");
+        if lost == 1 {
+            assert!(past <= 50, "one lost stop: {past} past the limit");
+        }
+    }
+}
+
+/// A held slew keeps control while its holder renews it (its queries, as
+/// they renew the motion lease): a lower link is refused long after
+/// `hold` and no tour takes the gimbal.
+#[test]
+fn control_lasts_while_the_holder_renews_its_held_slew() {
+    let mut r = rig(|_| {});
+    r.send(TWO, 1, &Command::TiltUp);
+    for _ in 0..(3 * HOLD / 500) {
+        r.run(500);
+        r.send(TWO, 1, &Command::QueryPosition);
+    }
+    r.run(100);
+    r.send(ONE, 1, &Command::GoTo(pos(-10.0, 0.0)));
+    r.run(100);
+    assert_eq!(outcome(&r.got(ONE)), Some(Err(Some(Undelivered::NotInControl))));
+    // Stopped, its queries renew nothing: control lapses `hold` later.
+    r.send(TWO, 1, &Command::TiltStop);
+    for _ in 0..(HOLD / 500 + 2) {
+        r.run(500);
+        r.send(TWO, 1, &Command::QueryPosition);
+    }
+    assert_eq!(holder(&r), None);
+}
+
+/// Stops from a link below the holder pass, one per second per gimbal:
+/// a stream of them cannot hold the holder's slew to a crawl.
+#[test]
+fn stops_from_a_link_below_the_holder_are_limited_to_one_a_second() {
+    let mut r = rig(|_| {});
+    r.send(TWO, 1, &Command::PanRight);
+    r.run(50);
+    r.got(ONE);
+    let mut passed = 0;
+    let mut limited = 0;
+    for i in 0..30 {
+        if i % 5 == 0 {
+            // The operator holds its slew: the direction again.
+            r.send(TWO, 1, &Command::PanRight);
+            r.run(10);
+        }
+        r.send(ONE, 1, &Command::StopMotion);
+        r.run(100);
+        match outcome(&r.got(ONE)) {
+            Some(Ok(())) => passed += 1,
+            Some(Err(Some(Undelivered::StopsLimited))) => limited += 1,
+            other => panic!("{other:?}"),
+        }
+    }
+    assert!((3..=4).contains(&passed), "{passed} of 30 in 3 s passed");
+    assert_eq!(passed + limited, 30);
+    let stops = r.bus_commands_since(0).iter().filter(|c| c.as_str() == "PT").count();
+    assert!(stops <= 4, "{stops} PT on the bus");
+    // The holder's own stops are never limited.
+    for _ in 0..5 {
+        r.send(TWO, 1, &Command::StopMotion);
+        r.run(50);
+        assert_eq!(outcome(&r.got(TWO)), Some(Ok(())));
+    }
+}
+
+/// `HA` and `HS` turn the motors off (and `HA` overwrites the saved halt
+/// position): changes that need control, not stops anyone may send.
+#[test]
+fn halt_and_motors_off_need_control() {
+    let mut r = rig(|_| {});
+    r.send(TWO, 1, &Command::Home);
+    r.run(50);
+    for command in [Command::Halt, Command::MotorsStop] {
+        r.send(ONE, 1, &command);
+        r.run(50);
+        assert_eq!(
+            outcome(&r.got(ONE)),
+            Some(Err(Some(Undelivered::NotInControl))),
+            "{command:?}"
+        );
+    }
+    r.send(TWO, 1, &Command::Halt);
+    r.run(50);
+    assert_eq!(outcome(&r.got(TWO)), Some(Ok(())));
+}
+
+/// `~R` only from the holder's link or a higher one: an equal one could
+/// free a holder it cannot take over from.
+#[test]
+fn release_from_an_equal_priority_link_is_refused() {
+    let mut r = rig(|_| {});
+    r.client(THREE, "other-ops", 80);
+    r.send(TWO, 1, &Command::Home);
+    r.run(50);
+    let mut buf = [0u8; 16];
+    let n = GcuCommand::Release(PORT, 1).encode(&mut buf).unwrap();
+    r.send_payload(THREE, Address::new(G, 0, 0), &buf[..n]);
+    r.run(20);
+    assert_eq!(outcome(&r.got(THREE)), Some(Err(Some(Undelivered::NotInControl))));
+    assert!(holder(&r).is_some());
+}
+
+/// Tours start and stop only from `tours_min_priority` up; rules and the
+/// controller are told only to links that may read them.
+#[test]
+fn tours_and_rules_answer_by_priority_and_permission() {
+    let mut r = rig(|g| {
+        tour(g);
+        g.tours_min_priority = Some(80);
+    });
+    let before = r.now;
+    let mut buf = [0u8; 40];
+    let n = GcuCommand::TourStart(b"perimeter").encode(&mut buf).unwrap();
+    r.send_payload(ONE, Address::new(G, 0, 0), &buf[..n]);
+    r.run(2000);
+    assert_eq!(outcome(&r.got(ONE)), Some(Err(Some(Undelivered::NotPermitted))));
+    assert_eq!(r.router.tours()[0].state, TourState::Stopped);
+    assert!(
+        r.bus_commands_since(before).iter().all(|c| c.len() != 9),
+        "no tour goto"
+    );
+    assert!(tour_command(&mut r, TWO, GcuCommand::TourStart(b"perimeter")).is_some());
+    assert_eq!(r.router.tours()[0].state, TourState::Running);
+    let n = GcuCommand::TourStop(b"perimeter").encode(&mut buf).unwrap();
+    r.send_payload(ONE, Address::new(G, 0, 0), &buf[..n]);
+    r.run(50);
+    assert_eq!(outcome(&r.got(ONE)), Some(Err(Some(Undelivered::NotPermitted))));
+    assert_eq!(r.router.tours()[0].state, TourState::Running);
+    // A link that may not read rules is refused `~B` and `~C`.
+    let mut config = sagebrush_gcu::LinkConfig::new(sagebrush_gcu::LinkKind::Client, sagebrush_gcu::SourceFilter::Any);
+    config.name = Some(std::sync::Arc::from("remote"));
+    config.may_read_rules = false;
+    r.input(sagebrush_gcu::Input::LinkUp { link: THREE, config });
+    for command in [GcuCommand::Rules(PORT, 1), GcuCommand::Controller(PORT, 1)] {
+        let n = command.encode(&mut buf).unwrap();
+        r.send_payload(THREE, Address::new(G, 0, 0), &buf[..n]);
+        r.run(20);
+        assert_eq!(
+            outcome(&r.got(THREE)),
+            Some(Err(Some(Undelivered::NotPermitted))),
+            "{command:?}"
+        );
+    }
+}
+
+/// Re-addressing is an identity change: refused on a governed gimbal, so
+/// it cannot escape its rules under another address.
+#[test]
+fn a_governed_gimbal_cannot_be_readdressed_out_of_its_rules() {
+    let mut r = rig(bounded);
+    r.send_payload(TWO, Address::new(G, PORT, 1), b"#07");
+    r.run(100);
+    assert_eq!(outcome(&r.got(TWO)), Some(Err(Some(Undelivered::Ungoverned))));
+    r.send_payload(TWO, Address::new(G, PORT, 7), &{
+        let mut buf = [0u8; 16];
+        Command::GoTo(pos(50.0, 0.0)).encode(&mut buf).unwrap().to_vec()
+    });
+    r.run(3000);
+    assert_eq!(r.position(1), [0, 0], "gimbal 1 never answered to 7");
+}
+
+/// gcud back after a crash (here: its port reopened) finds the gimbal
+/// slewing with nobody to stop it: it stops it.
+#[test]
+fn a_gimbal_found_moving_after_a_restart_is_stopped() {
+    let mut r = rig(bounded);
+    r.input(sagebrush_gcu::Input::PortLost { port: PORT });
+    // A slew that outlived the GCU that started it.
+    let frame = FrameBuf::build(Address::new(G, PORT, 1), G, |b| {
+        Command::PanRight.encode(b).map(<[u8]>::len)
+    })
+    .unwrap();
+    r.bus.receive(frame.as_bytes(), r.now);
+    r.run(200);
+    assert!(r.moving(1));
+    r.input(sagebrush_gcu::Input::PortOpened { port: PORT });
+    let mut farthest = i32::MIN;
+    r.run_with(6000, 2, |r| farthest = farthest.max(r.position(1)[0]));
+    assert!(!r.moving(1), "stopped");
+    assert!(farthest < 9000, "{farthest}: stopped well before the limit");
+    assert_eq!(r.router.governance_stats().found_moving, 1);
 }

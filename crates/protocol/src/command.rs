@@ -18,6 +18,7 @@ use crate::EncodeError;
 use crate::answer::{Answer, Shape};
 pub use crate::answer::{ResultKind, ResultTimeout};
 use crate::hex::{Writer, decimal, hex_n, hex_u8, hex_u16, hex_value, hex12, is_hex, offset_in};
+use crate::mount::{Describes, MountEffect, NewSpeed};
 use crate::units::{
     Acceleration, Angle, AuxConfig, AuxPort, AuxReadLen, Axis, DataRate, DeviceId, DigitalZoom, LensPosition,
     LensSpeed, Limits, Parity, Position, RangeError, Rate, RateGain, Relay, Speed,
@@ -62,9 +63,9 @@ enum Motion {
 
 /// The rev 1.9 table: one row per command published by name only (1.2,
 /// protocol-notes E13); the argument and reply bytes stay raw, no layout is guessed.
-/// A row is `Variant = "name", answer;`.
+/// A row is `Variant = "name", answer, mount;`.
 macro_rules! extended_table {
-    ($( $(#[doc = $doc:literal])* $Variant:ident = $name:literal, $answer:expr; )+) => {
+    ($( $(#[doc = $doc:literal])* $Variant:ident = $name:literal, $answer:expr, $mount:expr; )+) => {
         /// Rev 1.9 commands published by name only (1.2, protocol-notes E13): their
         /// argument and reply bytes are kept raw, no layout is guessed.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -93,6 +94,14 @@ macro_rules! extended_table {
                 }
             }
 
+            /// How the command acts on the pan/tilt mount: its row's
+            /// governance fact ([`MountEffect`]).
+            pub const fn mount(self) -> MountEffect {
+                match self {
+                    $( Extended::$Variant => $mount, )+
+                }
+            }
+
             /// What the command does: its row's documentation (1.2).
             pub fn description(self) -> &'static str {
                 let text: &'static str = match self {
@@ -106,43 +115,43 @@ macro_rules! extended_table {
 
 extended_table! {
     /// `HP`: go to the gimbal position saved by `HA`.
-    GoToHaltPosition = "HP", Answer::Ack;
+    GoToHaltPosition = "HP", Answer::Ack, MountEffect::Unbounded;
     /// `VP`: go to the lens position saved by `HA`.
-    LensGoToHaltPosition = "VP", Answer::Ack;
+    LensGoToHaltPosition = "VP", Answer::Ack, MountEffect::Setting;
     /// `VS`: camera and relay status.
-    CameraRelayStatus = "VS", Answer::normal(Shape::Raw);
+    CameraRelayStatus = "VS", Answer::normal(Shape::Raw), MountEffect::READS;
     /// `F?`: current focus speed number.
-    FocusSpeedQuery = "F?", Answer::normal(Shape::Raw);
+    FocusSpeedQuery = "F?", Answer::normal(Shape::Raw), MountEffect::READS;
     /// `Z?`: current zoom speed number.
-    ZoomSpeedQuery = "Z?", Answer::normal(Shape::Raw);
+    ZoomSpeedQuery = "Z?", Answer::normal(Shape::Raw), MountEffect::READS;
     /// `C?`: lens software limits or preset position values.
-    LensLimitsQuery = "C?", Answer::normal(Shape::Raw);
+    LensLimitsQuery = "C?", Answer::normal(Shape::Raw), MountEffect::READS;
     /// `*dA`: analog channel values.
-    AnalogInputs = "*dA", Answer::normal(Shape::Raw);
+    AnalogInputs = "*dA", Answer::normal(Shape::Raw), MountEffect::READS;
     /// `*di`: digital input values.
-    DigitalInputs = "*di", Answer::normal(Shape::Raw);
+    DigitalInputs = "*di", Answer::normal(Shape::Raw), MountEffect::READS;
     /// `*do`: digital output values.
-    DigitalOutputs = "*do", Answer::normal(Shape::Raw);
+    DigitalOutputs = "*do", Answer::normal(Shape::Raw), MountEffect::READS;
     /// `*dl`: status messages.
-    StatusMessages = "*dl", Answer::normal(Shape::Raw);
+    StatusMessages = "*dl", Answer::normal(Shape::Raw), MountEffect::READS;
     /// `*dm`: set loop mode.
-    LoopMode = "*dm", Answer::Ack;
+    LoopMode = "*dm", Answer::Ack, MountEffect::Dynamics;
     /// `*mr`: rate commands.
-    RateCommand = "*mr", Answer::Ack;
+    RateCommand = "*mr", Answer::Ack, MountEffect::Unbounded;
     /// `*me`: send/read position in encoder counts.
-    EncoderPosition = "*me", Answer::Optional(Shape::Raw);
+    EncoderPosition = "*me", Answer::Optional(Shape::Raw), MountEffect::Unbounded;
     /// `*mp`: send/read position in floating point.
-    FloatPosition = "*mp", Answer::Optional(Shape::Raw);
+    FloatPosition = "*mp", Answer::Optional(Shape::Raw), MountEffect::Unbounded;
     /// `*mu`: set/read user parameters.
-    UserParameters = "*mu", Answer::Optional(Shape::Raw);
+    UserParameters = "*mu", Answer::Optional(Shape::Raw), MountEffect::Dynamics;
     /// `*sa`: set/read inertial gain.
-    InertialGain = "*sa", Answer::Optional(Shape::Raw);
+    InertialGain = "*sa", Answer::Optional(Shape::Raw), MountEffect::Dynamics;
     /// `*sgr`: set/read rate gain in floating point.
-    RateGainFloat = "*sgr", Answer::Optional(Shape::Raw);
+    RateGainFloat = "*sgr", Answer::Optional(Shape::Raw), MountEffect::Dynamics;
     /// `*sgp`: set/read position gain in floating point.
-    PositionGainFloat = "*sgp", Answer::Optional(Shape::Raw);
+    PositionGainFloat = "*sgp", Answer::Optional(Shape::Raw), MountEffect::Dynamics;
     /// `*sl`: set/read rate/acceleration limits.
-    RateLimits = "*sl", Answer::Optional(Shape::Raw);
+    RateLimits = "*sl", Answer::Optional(Shape::Raw), MountEffect::Dynamics;
 }
 
 impl Extended {
@@ -205,7 +214,7 @@ macro_rules! command_table {
     // fails to compile.
     (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] [$($done:tt)*]
         $(#[doc = $doc:literal])* $Variant:ident => {
-            wire: $wire:tt, answer: $answer:expr, motion: $motion:expr $(,)?
+            wire: $wire:tt, answer: $answer:expr, motion: $motion:expr, mount: $mount:expr $(,)?
         }
         $($rest:tt)*
     ) => {
@@ -215,6 +224,7 @@ macro_rules! command_table {
                 mnemonic: const { wire_name($wire) },
                 answer: $answer,
                 motion: $motion,
+                mount: $mount,
                 arms: { $wire => Self::$Variant },
                 encode: { $w.put($wire)?; },
             }]
@@ -222,7 +232,7 @@ macro_rules! command_table {
     };
     (@row $head:tt [$($done:tt)*]
         $(#[doc = $doc:literal])* $Variant:ident $( ( $($field:ident : $fty:ty),+ $(,)? ) )? => {
-            mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
+            mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr, mount: $mount:expr,
             parse: { $($arms:tt)* }, encode: { $($encode:tt)* } $(,)?
         }
         $($rest:tt)*
@@ -233,6 +243,7 @@ macro_rules! command_table {
                 mnemonic: $mnemonic,
                 answer: $answer,
                 motion: $motion,
+                mount: $mount,
                 arms: { $($arms)* },
                 encode: { $($encode)* },
             }]
@@ -240,7 +251,7 @@ macro_rules! command_table {
     };
     (@row $head:tt [$($done:tt)*]
         $(#[doc = $doc:literal])* $Variant:ident $( ( $($field:ident : $fty:ty),+ $(,)? ) )? => {
-            mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr,
+            mnemonic: $mnemonic:expr, answer: $answer:expr, motion: $motion:expr, mount: $mount:expr,
             parse: ( $parse:expr ), encode: { $($encode:tt)* } $(,)?
         }
         $($rest:tt)*
@@ -251,6 +262,7 @@ macro_rules! command_table {
                 mnemonic: $mnemonic,
                 answer: $answer,
                 motion: $motion,
+                mount: $mount,
                 arms: {},
                 first: ($parse),
                 encode: { $($encode)* },
@@ -262,32 +274,32 @@ macro_rules! command_table {
     // the form above: the letter, the axis letter, then `?` (a query) or
     // four hex digits (a setting, value Table 12).
     (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] $done:tt
-        $(#[doc = $doc:literal])* $Variant:ident(axis: Axis) => {
+        $(#[doc = $doc:literal])* $Variant:ident($ax:ident: Axis) => {
             axis_query: ($letter:literal, $pan:literal, $tilt:literal),
-            answer: $answer:expr, motion: $motion:expr $(,)?
+            answer: $answer:expr, motion: $motion:expr, mount: $mount:expr $(,)?
         }
         $($rest:tt)*
     ) => {
         command_table!(@row [$(#[$meta])* $Command $lt $payload $w] $done
-            $(#[doc = $doc])* $Variant(axis: Axis) => {
-                mnemonic: axis.pick($pan, $tilt), answer: $answer, motion: $motion,
+            $(#[doc = $doc])* $Variant($ax: Axis) => {
+                mnemonic: $ax.pick($pan, $tilt), answer: $answer, motion: $motion, mount: $mount,
                 parse: {
                     [$letter, a, b'?'] if axis(*a).is_some() => Self::$Variant(axis(*a).unwrap_or(Axis::Pan)),
                 },
-                encode: { $w.put(&[$letter, axis.letter(), b'?'])?; },
+                encode: { $w.put(&[$letter, $ax.letter(), b'?'])?; },
             }
             $($rest)*);
     };
     (@row [$(#[$meta:meta])* $Command:ident $lt:lifetime $payload:ident $w:ident] $done:tt
-        $(#[doc = $doc:literal])* $Variant:ident(axis: Axis, $value:ident: $Value:ident) => {
+        $(#[doc = $doc:literal])* $Variant:ident($ax:ident: Axis, $value:ident: $Value:ident) => {
             axis_value: ($letter:literal, $pan:literal, $tilt:literal),
-            answer: $answer:expr, motion: $motion:expr $(,)?
+            answer: $answer:expr, motion: $motion:expr, mount: $mount:expr $(,)?
         }
         $($rest:tt)*
     ) => {
         command_table!(@row [$(#[$meta])* $Command $lt $payload $w] $done
-            $(#[doc = $doc])* $Variant(axis: Axis, $value: $Value) => {
-                mnemonic: axis.pick($pan, $tilt), answer: $answer, motion: $motion,
+            $(#[doc = $doc])* $Variant($ax: Axis, $value: $Value) => {
+                mnemonic: $ax.pick($pan, $tilt), answer: $answer, motion: $motion, mount: $mount,
                 parse: {
                     [$letter, a, ..] if axis(*a).is_some() => {
                         let v = arg(concat!($pan, "/", $tilt), $payload, 2, "four hex digits", hex_u16)?;
@@ -295,7 +307,7 @@ macro_rules! command_table {
                     },
                 },
                 encode: {
-                    $w.put(&[$letter, axis.letter()])?;
+                    $w.put(&[$letter, $ax.letter()])?;
                     $w.hex($value.0.into(), 4)?;
                 },
             }
@@ -309,6 +321,7 @@ macro_rules! command_table {
             mnemonic: $mnemonic:expr,
             answer: $answer:expr,
             motion: $motion:expr,
+            mount: $mount:expr,
             arms: { $( $pat:pat $(if $guard:expr)? => $command:expr ),* $(,)? },
             $( first: ($first:expr), )?
             encode: { $($encode:tt)* },
@@ -420,6 +433,17 @@ macro_rules! command_table {
                 }
             }
 
+            /// How the command acts on the pan/tilt mount: its row's
+            /// governance fact ([`MountEffect`]).
+            pub const fn mount(&self) -> MountEffect {
+                match *self {
+                    $(
+                        #[allow(unused_variables)]
+                        Self::$Variant $( ( $($field),+ ) )? => $mount,
+                    )+
+                }
+            }
+
             /// The row's motion fact.
             fn motion(&self) -> Motion {
                 match *self {
@@ -488,6 +512,7 @@ command_table! {
             mnemonic: ext.name(),
             answer: ext.answer(),
             motion: Motion::Other,
+            mount: ext.mount(),
             parse: (Extended::split(payload).map(|(ext, args)| Self::Extended(ext, args))),
             encode: {
                 w.put(ext.name().as_bytes())?;
@@ -501,6 +526,7 @@ command_table! {
             mnemonic: "#NN",
             answer: Answer::Ack,
             motion: Motion::Other,
+            mount: MountEffect::Identity,
             parse: {
                 [b'#', ..] => {
                     let id = arg("#NN", payload, 1, "two hex digits 01..FE", hex_u8)?;
@@ -513,14 +539,15 @@ command_table! {
             },
         }
         /// `AW`: awake status (Table 4; result Table 5).
-        AwakeStatus => { wire: b"AW", answer: Answer::normal(Shape::AwakeStatus), motion: Motion::Other }
+        AwakeStatus => { wire: b"AW", answer: Answer::normal(Shape::AwakeStatus), motion: Motion::Other, mount: MountEffect::READS }
         /// `B?`: maximum data rate, `C0..CF` (Table 4).
-        QueryMaxDataRate => { wire: b"B?", answer: Answer::normal(Shape::MaxDataRate), motion: Motion::Other }
+        QueryMaxDataRate => { wire: b"B?", answer: Answer::normal(Shape::MaxDataRate), motion: Motion::Other, mount: MountEffect::READS }
         /// `C0..CF`: set communication data rate (Table 4; `C8..CF` reserved, protocol-notes E15).
         SetDataRate(rate: DataRate) => {
             mnemonic: "Cn",
             answer: Answer::Ack,
             motion: Motion::Other,
+            mount: MountEffect::Identity,
             parse: {
                 [b'C', d] if is_hex(*d) => match DataRate::from_code(hex_value(*d).unwrap_or(0)) {
                     Some(rate) => Self::SetDataRate(rate),
@@ -534,16 +561,17 @@ command_table! {
             },
         }
         /// `D?`: identification (Table 4; result Table 6).
-        Identify => { wire: b"D?", answer: Answer::normal(Shape::Identity), motion: Motion::Other }
+        Identify => { wire: b"D?", answer: Answer::normal(Shape::Identity), motion: Motion::Other, mount: MountEffect::READS }
         /// `E?`: error codes (Table 4; result Table 6A).
-        QueryErrors => { wire: b"E?", answer: Answer::normal(Shape::Errors), motion: Motion::Other }
+        QueryErrors => { wire: b"E?", answer: Answer::normal(Shape::Errors), motion: Motion::Other, mount: MountEffect::READS }
         /// `I?`: status bits (Table 4; result Table 6B).
-        QueryStatusBits => { wire: b"I?", answer: Answer::normal(Shape::StatusBits), motion: Motion::Other }
+        QueryStatusBits => { wire: b"I?", answer: Answer::normal(Shape::StatusBits), motion: Motion::Other, mount: MountEffect::READS }
         /// `GRPnn` / `GRTnn`: set a rate gain (Table 4; value Table 7).
         SetRateGain(axis: Axis, gain: RateGain) => {
             mnemonic: axis.pick("GRPnn", "GRTnn"),
             answer: Answer::Ack,
             motion: Motion::Other,
+            mount: MountEffect::Dynamics,
             parse: {
                 [b'G', b'R', a, ..] if axis(*a).is_some() => {
                     let v = arg("GRPnn/GRTnn", payload, 3, "two hex digits", hex_u8)?;
@@ -556,18 +584,20 @@ command_table! {
             },
         }
         /// `G?`: rate gains (Table 4; result Table 8).
-        QueryRateGains => { wire: b"G?", answer: Answer::normal(Shape::RateGains), motion: Motion::Other }
+        QueryRateGains => { wire: b"G?", answer: Answer::normal(Shape::RateGains), motion: Motion::Other, mount: MountEffect::READS }
         /// `IX`: initialisation (Table 4; result Table 9, which takes long).
         Initialize => {
             wire: b"IX",
             answer: Answer::Result(ResultTimeout::Long, Shape::Initialization),
             motion: Motion::Other,
+            mount: MountEffect::Unbounded,
         }
         /// `L0..L3`: open relay (Table 4).
         OpenRelay(relay: Relay) => {
             mnemonic: "L0..L3",
             answer: Answer::Ack,
             motion: Motion::Other,
+            mount: MountEffect::Setting,
             parse: {
                 [b'L', d @ b'0'..=b'3'] => Self::OpenRelay(ranged("L0..L3", 1, Relay::new(d - b'0'))?),
             },
@@ -580,6 +610,7 @@ command_table! {
             mnemonic: "L8..LB",
             answer: Answer::Ack,
             motion: Motion::Other,
+            mount: MountEffect::Setting,
             parse: {
                 [b'L', d @ (b'8' | b'9' | b'A' | b'B' | b'a' | b'b')] => {
                     let bit = hex_value(*d).unwrap_or(8) - 8;
@@ -592,14 +623,15 @@ command_table! {
             },
         }
         /// `LR`: relay status (Table 4; result Table 4A).
-        QueryRelays => { wire: b"LR", answer: Answer::normal(Shape::Relays), motion: Motion::Other }
+        QueryRelays => { wire: b"LR", answer: Answer::normal(Shape::Relays), motion: Motion::Other, mount: MountEffect::READS }
         /// `LC`: clear software limits (Table 4).
-        ClearLimits => { wire: b"LC", answer: Answer::Ack, motion: Motion::Other }
+        ClearLimits => { wire: b"LC", answer: Answer::Ack, motion: Motion::Other, mount: MountEffect::Dynamics }
         /// `LS` + 12 hex: set software limits (Table 4; values Table 10).
         SetLimits(limits: Limits) => {
             mnemonic: "LS",
             answer: Answer::Ack,
             motion: Motion::Other,
+            mount: MountEffect::Dynamics,
             parse: {
                 [b'L', b'S', ..] => {
                     let (pan_ccw, pan_cw, tilt_ccw, tilt_cw) = arg("LS", payload, 2, "twelve hex digits", |i| {
@@ -621,30 +653,31 @@ command_table! {
             },
         }
         /// `L?`: software limits (Table 4; result Table 10).
-        QueryLimits => { wire: b"L?", answer: Answer::normal(Shape::Limits), motion: Motion::Other }
+        QueryLimits => { wire: b"L?", answer: Answer::normal(Shape::Limits), motion: Motion::Other, mount: MountEffect::READS }
 
         // Table 11: pan/tilt mount.
         /// `A?`: both accelerations (Table 11; result Table 13, protocol-notes E7).
-        QueryAccelerations => { wire: b"A?", answer: Answer::normal(Shape::Accelerations), motion: Motion::Other }
+        QueryAccelerations => { wire: b"A?", answer: Answer::normal(Shape::Accelerations), motion: Motion::Other, mount: MountEffect::Reads(Describes::Accelerations(None)) }
         /// `AP?` / `AT?`: one axis (Table 11, protocol-notes E7). Before `APnnnn`.
-        QueryAcceleration(axis: Axis) => { axis_query: (b'A', "AP?", "AT?"), answer: Answer::normal(Shape::Acceleration), motion: Motion::Other }
+        QueryAcceleration(axis: Axis) => { axis_query: (b'A', "AP?", "AT?"), answer: Answer::normal(Shape::Acceleration), motion: Motion::Other, mount: MountEffect::Reads(Describes::Accelerations(Some(axis))) }
         /// `APnnnn` / `ATnnnn` (Table 11; value Table 12).
-        SetAcceleration(axis: Axis, acceleration: Acceleration) => { axis_value: (b'A', "APnnnn", "ATnnnn"), answer: Answer::Ack, motion: Motion::Other }
+        SetAcceleration(axis: Axis, acceleration: Acceleration) => { axis_value: (b'A', "APnnnn", "ATnnnn"), answer: Answer::Ack, motion: Motion::Other, mount: MountEffect::Acceleration { axis, acceleration } }
         /// `HA`: halt, stores the position, motors off (Table 11).
-        Halt => { wire: b"HA", answer: Answer::Ack, motion: Motion::Stop }
+        Halt => { wire: b"HA", answer: Answer::Ack, motion: Motion::Stop, mount: MountEffect::Halt }
         /// `HV`: verify home (Table 11; result Table 14).
-        VerifyHome => { wire: b"HV", answer: Answer::normal(Shape::VerifyHome), motion: Motion::Other }
+        VerifyHome => { wire: b"HV", answer: Answer::normal(Shape::VerifyHome), motion: Motion::Other, mount: MountEffect::READS }
         /// `HO`: go home (0, 0) (Table 11).
-        Home => { wire: b"HO", answer: Answer::Ack, motion: Motion::Other }
+        Home => { wire: b"HO", answer: Answer::Ack, motion: Motion::Other, mount: MountEffect::GoTo(Position::ZERO) }
         /// `HS`: stop, motors off (Table 11).
-        MotorsStop => { wire: b"HS", answer: Answer::Ack, motion: Motion::Stop }
+        MotorsStop => { wire: b"HS", answer: Answer::Ack, motion: Motion::Stop, mount: MountEffect::Halt }
         /// `P?`: current position (Table 11; result Table 15).
-        QueryPosition => { wire: b"P?", answer: Answer::normal(Shape::Position), motion: Motion::Other }
+        QueryPosition => { wire: b"P?", answer: Answer::normal(Shape::Position), motion: Motion::Other, mount: MountEffect::Reads(Describes::Position) }
         /// `Paaaaeeee`: go to position (Table 11; values Table 15).
         GoTo(position: Position) => {
             mnemonic: "Paaaaeeee",
             answer: Answer::Ack,
             motion: Motion::Other,
+            mount: MountEffect::GoTo(position),
             parse: {
                 [b'P', _, _, _, _, _, _, _, _] => {
                     let (pan, tilt) = arg("Paaaaeeee", payload, 1, "eight hex digits", |i| {
@@ -660,18 +693,19 @@ command_table! {
             },
         }
         /// `PL`: pan left (CW) until `PS` (Table 11).
-        PanLeft => { wire: b"PL", answer: Answer::Ack, motion: Motion::Until(Command::PanStop) }
+        PanLeft => { wire: b"PL", answer: Answer::Ack, motion: Motion::Until(Command::PanStop), mount: MountEffect::slew(Axis::Pan, false) }
         /// `PR`: pan right (CCW) until `PS` (Table 11).
-        PanRight => { wire: b"PR", answer: Answer::Ack, motion: Motion::Until(Command::PanStop) }
+        PanRight => { wire: b"PR", answer: Answer::Ack, motion: Motion::Until(Command::PanStop), mount: MountEffect::slew(Axis::Pan, true) }
         /// `PS`: pan stop (Table 11).
-        PanStop => { wire: b"PS", answer: Answer::Ack, motion: Motion::Stop }
+        PanStop => { wire: b"PS", answer: Answer::Ack, motion: Motion::Stop, mount: MountEffect::Stop { pan: true, tilt: false } }
         /// `PT`: stop motion (Table 11).
-        StopMotion => { wire: b"PT", answer: Answer::Ack, motion: Motion::Stop }
+        StopMotion => { wire: b"PT", answer: Answer::Ack, motion: Motion::Stop, mount: MountEffect::STOP_BOTH }
         /// `Pnn`: go to preset (Table 11).
         GoToPreset(preset: u8) => {
             mnemonic: "Pnn",
             answer: Answer::Ack,
             motion: Motion::Other,
+            mount: MountEffect::RecallPreset(preset),
             parse: {
                 [b'P', a, b] if is_hex(*a) && is_hex(*b) => {
                     Self::GoToPreset(arg("Pnn", payload, 1, "two hex digits", hex_u8)?)
@@ -687,6 +721,7 @@ command_table! {
             mnemonic: "P?nn",
             answer: Answer::normal(Shape::Position),
             motion: Motion::Other,
+            mount: MountEffect::Reads(Describes::Preset(preset)),
             parse: {
                 [b'P', b'?', _, _] => Self::QueryPreset(arg("P?nn", payload, 2, "two hex digits", hex_u8)?),
             },
@@ -696,16 +731,17 @@ command_table! {
             },
         }
         /// `R?`: both rates (Table 11; result Table 13, protocol-notes E7).
-        QueryRates => { wire: b"R?", answer: Answer::normal(Shape::Rates), motion: Motion::Other }
+        QueryRates => { wire: b"R?", answer: Answer::normal(Shape::Rates), motion: Motion::Other, mount: MountEffect::Reads(Describes::Rates(None)) }
         /// `RP?` / `RT?`: one axis (Table 11, protocol-notes E7). Before `RPnnnn`.
-        QueryRate(axis: Axis) => { axis_query: (b'R', "RP?", "RT?"), answer: Answer::normal(Shape::Rate), motion: Motion::Other }
+        QueryRate(axis: Axis) => { axis_query: (b'R', "RP?", "RT?"), answer: Answer::normal(Shape::Rate), motion: Motion::Other, mount: MountEffect::Reads(Describes::Rates(Some(axis))) }
         /// `RPnnnn` / `RTnnnn` (Table 11; value Table 12).
-        SetRate(axis: Axis, rate: Rate) => { axis_value: (b'R', "RPnnnn", "RTnnnn"), answer: Answer::Ack, motion: Motion::Other }
+        SetRate(axis: Axis, rate: Rate) => { axis_value: (b'R', "RPnnnn", "RTnnnn"), answer: Answer::Ack, motion: Motion::Other, mount: MountEffect::Speed { axis, to: NewSpeed::Rate(rate) } }
         /// `SP0..SPF` / `ST0..STF`: proportional speed (Table 11). Before `Snn`.
         SetSpeed(axis: Axis, speed: Speed) => {
             mnemonic: axis.pick("SPn", "STn"),
             answer: Answer::Ack,
             motion: Motion::Other,
+            mount: MountEffect::Speed { axis, to: NewSpeed::Step(speed) },
             parse: {
                 [b'S', a, _] if axis(*a).is_some() => {
                     let v = arg("SPn/STn", payload, 2, "one hex digit", hex_n(1))?;
@@ -722,6 +758,7 @@ command_table! {
             mnemonic: "Snn",
             answer: Answer::Ack,
             motion: Motion::Other,
+            mount: MountEffect::StorePreset(preset),
             parse: {
                 [b'S', _, _] => Self::StorePreset(arg("Snn", payload, 1, "two hex digits", hex_u8)?),
             },
@@ -735,6 +772,7 @@ command_table! {
             mnemonic: "S?nn",
             answer: Answer::normal(Shape::Position),
             motion: Motion::Other,
+            mount: MountEffect::Reads(Describes::Preset(preset)),
             parse: {
                 [b'S', b'?', _, _] => Self::QueryStoredPreset(arg("S?nn", payload, 2, "two hex digits", hex_u8)?),
             },
@@ -744,16 +782,17 @@ command_table! {
             },
         }
         /// `TD`: tilt down (CW) until `TS` (Table 11).
-        TiltDown => { wire: b"TD", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop) }
+        TiltDown => { wire: b"TD", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop), mount: MountEffect::slew(Axis::Tilt, false) }
         /// `TS`: tilt stop (Table 11).
-        TiltStop => { wire: b"TS", answer: Answer::Ack, motion: Motion::Stop }
+        TiltStop => { wire: b"TS", answer: Answer::Ack, motion: Motion::Stop, mount: MountEffect::Stop { pan: false, tilt: true } }
         /// `TU`: tilt up (CCW) until `TS` (Table 11).
-        TiltUp => { wire: b"TU", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop) }
+        TiltUp => { wire: b"TU", answer: Answer::Ack, motion: Motion::Until(Command::TiltStop), mount: MountEffect::slew(Axis::Tilt, true) }
         /// `VMn`: vector motion on/off (Table 11).
         SetVectorMode(on: bool) => {
             mnemonic: "VMn",
             answer: Answer::Ack,
             motion: Motion::Other,
+            mount: MountEffect::Setting,
             parse: {
                 [b'V', b'M', d] => match d {
                     b'0' => Self::SetVectorMode(false),
@@ -770,14 +809,15 @@ command_table! {
 
         // Table 16: camera.
         /// `CN`: camera and lens power on (Table 16).
-        CameraOn => { wire: b"CN", answer: Answer::Ack, motion: Motion::Other }
+        CameraOn => { wire: b"CN", answer: Answer::Ack, motion: Motion::Other, mount: MountEffect::Setting }
         /// `CX`: camera and lens power off (Table 16).
-        CameraOff => { wire: b"CX", answer: Answer::Ack, motion: Motion::Other }
+        CameraOff => { wire: b"CX", answer: Answer::Ack, motion: Motion::Other, mount: MountEffect::Setting }
         /// `F0..F9`: focus speed (Table 16).
         FocusSpeed(speed: LensSpeed) => {
             mnemonic: "Fn",
             answer: Answer::Ack,
             motion: Motion::Other,
+            mount: MountEffect::Setting,
             parse: {
                 [b'F', d] if d.is_ascii_digit() => Self::FocusSpeed(ranged("F0..F9", 1, LensSpeed::new(d - b'0'))?),
             },
@@ -786,20 +826,21 @@ command_table! {
             },
         }
         /// `FA`: auto-focus on (Table 16; not implemented by the gimbal).
-        AutoFocusOn => { wire: b"FA", answer: Answer::Ack, motion: Motion::Other }
+        AutoFocusOn => { wire: b"FA", answer: Answer::Ack, motion: Motion::Other, mount: MountEffect::Setting }
         /// `FF`: focus far until `FS` (Table 16).
-        FocusFar => { wire: b"FF", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop) }
+        FocusFar => { wire: b"FF", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop), mount: MountEffect::Setting }
         /// `FN`: focus near until `FS` (Table 16).
-        FocusNear => { wire: b"FN", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop) }
+        FocusNear => { wire: b"FN", answer: Answer::Ack, motion: Motion::Until(Command::FocusStop), mount: MountEffect::Setting }
         /// `FS`: focus stop (Table 16).
-        FocusStop => { wire: b"FS", answer: Answer::Ack, motion: Motion::Stop }
+        FocusStop => { wire: b"FS", answer: Answer::Ack, motion: Motion::Stop, mount: MountEffect::Stop { pan: false, tilt: false } }
         /// `FX`: auto-focus off (Table 16; not implemented by the gimbal).
-        AutoFocusOff => { wire: b"FX", answer: Answer::Ack, motion: Motion::Other }
+        AutoFocusOff => { wire: b"FX", answer: Answer::Ack, motion: Motion::Other, mount: MountEffect::Setting }
         /// `Vzzzfff`: lens go-to (Table 16; values Table 17).
         LensGoTo(lens: LensPosition) => {
             mnemonic: "Vzzzfff",
             answer: Answer::Ack,
             motion: Motion::Other,
+            mount: MountEffect::Setting,
             parse: {
                 [b'V', _, _, _, _, _, _] => {
                     let (zoom, focus) = arg("Vzzzfff", payload, 1, "six hex digits", |i| (hex12, hex12).parse(i))?;
@@ -813,12 +854,13 @@ command_table! {
             },
         }
         /// `V?`: lens position (Table 16; result Table 17).
-        QueryLens => { wire: b"V?", answer: Answer::normal(Shape::Lens), motion: Motion::Other }
+        QueryLens => { wire: b"V?", answer: Answer::normal(Shape::Lens), motion: Motion::Other, mount: MountEffect::READS }
         /// `Z0..Z9`: zoom speed (Table 16).
         ZoomSpeed(speed: LensSpeed) => {
             mnemonic: "Zn",
             answer: Answer::Ack,
             motion: Motion::Other,
+            mount: MountEffect::Setting,
             parse: {
                 [b'Z', d] if d.is_ascii_digit() => Self::ZoomSpeed(ranged("Z0..Z9", 1, LensSpeed::new(d - b'0'))?),
             },
@@ -831,6 +873,7 @@ command_table! {
             mnemonic: "ZA..ZF",
             answer: Answer::Ack,
             motion: Motion::Other,
+            mount: MountEffect::Setting,
             parse: {
                 [b'Z', d @ (b'A'..=b'F' | b'a'..=b'f')] => {
                     Self::DigitalZoom(ranged("ZA..ZF", 1, DigitalZoom::new(hex_value(*d).unwrap_or(10)))?)
@@ -842,16 +885,17 @@ command_table! {
             },
         }
         /// `ZI`: zoom in until `ZS` (Table 16).
-        ZoomIn => { wire: b"ZI", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop) }
+        ZoomIn => { wire: b"ZI", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop), mount: MountEffect::Setting }
         /// `ZO`: zoom out until `ZS` (Table 16).
-        ZoomOut => { wire: b"ZO", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop) }
+        ZoomOut => { wire: b"ZO", answer: Answer::Ack, motion: Motion::Until(Command::ZoomStop), mount: MountEffect::Setting }
         /// `ZS`: zoom stop (Table 16).
-        ZoomStop => { wire: b"ZS", answer: Answer::Ack, motion: Motion::Stop }
+        ZoomStop => { wire: b"ZS", answer: Answer::Ack, motion: Motion::Stop, mount: MountEffect::Stop { pan: false, tilt: false } }
         /// `*xpc,baud,data,stop,parity` (Table 16; fields Table 18).
         AuxConfigure(port: AuxPort, config: AuxConfig) => {
             mnemonic: "*xpc",
             answer: Answer::Ack,
             motion: Motion::Other,
+            mount: MountEffect::Setting,
             parse: {
                 [b'*', b'x', p, b'c', ..] => {
                     let port = aux_port(*p)?;
@@ -874,6 +918,7 @@ command_table! {
             mnemonic: "*xpt",
             answer: Answer::Ack,
             motion: Motion::Other,
+            mount: MountEffect::Setting,
             parse: {
                 [b'*', b'x', p, b't', data @ ..] => {
                     let port = aux_port(*p)?;
@@ -890,6 +935,7 @@ command_table! {
             mnemonic: "*xprnnn",
             answer: Answer::normal(Shape::AuxData),
             motion: Motion::Other,
+            mount: MountEffect::READS,
             parse: {
                 [b'*', b'x', p, b'r', ..] => {
                     let port = aux_port(*p)?;
@@ -907,6 +953,7 @@ command_table! {
             mnemonic: "*xpn",
             answer: Answer::normal(Shape::AuxCount),
             motion: Motion::Other,
+            mount: MountEffect::READS,
             parse: {
                 [b'*', b'x', p, b'n'] => Self::AuxCount(aux_port(*p)?),
             },
@@ -919,6 +966,7 @@ command_table! {
             mnemonic: "*xpf",
             answer: Answer::Ack,
             motion: Motion::Other,
+            mount: MountEffect::Setting,
             parse: {
                 [b'*', b'x', p, b'f'] => Self::AuxFlush(aux_port(*p)?),
             },
@@ -933,6 +981,7 @@ command_table! {
             mnemonic: "unknown",
             answer: Answer::Ack,
             motion: Motion::Other,
+            mount: MountEffect::Unbounded,
             parse: (None::<Self>),
             encode: {
                 w.put(bytes)?;
@@ -1284,6 +1333,122 @@ mod tests {
         assert_eq!(motions, 8);
         assert_eq!(Extended::ALL.len(), 19);
         assert_eq!(Command::Unknown(b"QQ").answer(), Answer::Ack);
+    }
+
+    /// The governance column (module `mount`) agrees with the table's other
+    /// facts on every row, and fails closed where the document is silent.
+    #[test]
+    fn every_row_states_how_it_acts_on_the_mount() {
+        for &payload in SAMPLES {
+            let command = Command::parse_strict(payload).unwrap();
+            let mount = command.mount();
+            match command.stopped_by() {
+                Some(Command::PanStop) => assert!(matches!(mount, MountEffect::Slew { axis: Axis::Pan, .. })),
+                Some(Command::TiltStop) => assert!(matches!(mount, MountEffect::Slew { axis: Axis::Tilt, .. })),
+                Some(_) => assert_eq!(mount, MountEffect::Setting, "{command:?}: a lens motion"),
+                None => assert!(!matches!(mount, MountEffect::Slew { .. }), "{command:?}"),
+            }
+            assert_eq!(
+                command.is_stop(),
+                matches!(mount, MountEffect::Stop { .. } | MountEffect::Halt),
+                "{command:?}"
+            );
+            // A query answers; a command that may set (a rev 1.9 set/read) is no query.
+            if let MountEffect::Reads(_) = mount {
+                assert!(matches!(command.result_kind(), ResultKind::Required(_)), "{command:?}");
+            }
+            assert_eq!(
+                mount.changes(),
+                !matches!(mount, MountEffect::Reads(_) | MountEffect::Stop { .. })
+            );
+        }
+        for ext in Extended::ALL {
+            assert_eq!(
+                matches!(ext.mount(), MountEffect::Reads(_)),
+                matches!(ext.result_kind(), ResultKind::Required(_)),
+                "{ext:?}: only a pure query of the rev 1.9 list reads"
+            );
+        }
+        let effect = |payload: &[u8]| Command::parse(payload).mount();
+        for unbounded in [
+            &b"*mp"[..],
+            b"*mp1.5,2.0",
+            b"*me",
+            b"*mr10",
+            b"IX",
+            b"HP",
+            b"QQ",
+            b"~X",
+            b"P?0",
+        ] {
+            assert_eq!(
+                effect(unbounded),
+                MountEffect::Unbounded,
+                "{:?}",
+                core::str::from_utf8(unbounded)
+            );
+            assert!(effect(unbounded).is_ungoverned());
+        }
+        for identity in [&b"#07"[..], b"C3", b"CF"] {
+            assert_eq!(effect(identity), MountEffect::Identity);
+        }
+        for dynamics in [
+            &b"LS000FFF000FFF"[..],
+            b"LC",
+            b"GRP0F",
+            b"*sl",
+            b"*sa1",
+            b"*dm1",
+            b"*sgr2",
+            b"*mu",
+        ] {
+            assert_eq!(
+                effect(dynamics),
+                MountEffect::Dynamics,
+                "{:?}",
+                core::str::from_utf8(dynamics)
+            );
+        }
+        assert_eq!(effect(b"P?"), MountEffect::Reads(Describes::Position));
+        assert_eq!(effect(b"P?05"), MountEffect::Reads(Describes::Preset(5)));
+        assert_eq!(effect(b"S?05"), MountEffect::Reads(Describes::Preset(5)));
+        assert_eq!(effect(b"RT?"), MountEffect::Reads(Describes::Rates(Some(Axis::Tilt))));
+        assert_eq!(effect(b"A?"), MountEffect::Reads(Describes::Accelerations(None)));
+        assert_eq!(effect(b"PR"), MountEffect::slew(Axis::Pan, true));
+        assert_eq!(effect(b"TD"), MountEffect::slew(Axis::Tilt, false));
+        assert_eq!(effect(b"HO"), MountEffect::GoTo(Position::ZERO));
+        assert_eq!(effect(b"P05"), MountEffect::RecallPreset(5));
+        assert_eq!(effect(b"S05"), MountEffect::StorePreset(5));
+        assert_eq!(
+            effect(b"SPF"),
+            MountEffect::Speed {
+                axis: Axis::Pan,
+                to: NewSpeed::Step(Speed::new(15).unwrap())
+            }
+        );
+        assert_eq!(
+            effect(b"RP0400"),
+            MountEffect::Speed {
+                axis: Axis::Pan,
+                to: NewSpeed::Rate(Rate(0x400))
+            }
+        );
+        assert_eq!(
+            effect(b"AP0001"),
+            MountEffect::Acceleration {
+                axis: Axis::Pan,
+                acceleration: Acceleration(1)
+            }
+        );
+        assert_eq!(effect(b"HA"), MountEffect::Halt);
+        assert_eq!(effect(b"HS"), MountEffect::Halt);
+        assert_eq!(
+            effect(b"FS"),
+            MountEffect::Stop {
+                pan: false,
+                tilt: false
+            }
+        );
     }
 
     #[test]

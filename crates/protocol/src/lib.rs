@@ -20,6 +20,7 @@ mod hex;
 #[cfg(any(feature = "embedded-io", feature = "embedded-io-async"))]
 pub mod io;
 pub mod link;
+pub mod mount;
 pub mod reply;
 pub mod report;
 pub mod units;
@@ -31,6 +32,7 @@ pub use frame::{ACK, Frame, FrameBuf, FrameError, MAX_FRAME_LEN, MAX_PAYLOAD, NA
 pub use framer::{BadChecksum, Event, Framer, FramerStats, OwnedEvent};
 pub use gcu::{ControllerReply, GcuCommand, RuleItem, TourState};
 pub use link::{Outcome, RetryPolicy, Transaction, TransactionPolicy, TransactionStep, Transmitter, TxFailure, TxStep};
+pub use mount::{Describes, MountEffect, NewSpeed};
 pub use reply::{
     AwakeStatus, ErrorCodes, ExpectedReply, HomeStatus, Identity, InitResults, RateGains, Reply, ReplyError, StatusBits,
 };

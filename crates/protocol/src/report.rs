@@ -75,6 +75,36 @@ crate::code_table! {
         PositionUnknown,
         /// a stop for the same gimbal overtook it before it reached the bus
         Superseded,
+        /// the gimbal has limits, zones, park or a tour, and the command moves or changes it where gcud cannot bound it (its [[gimbal]] entry may allow it by name)
+        Ungoverned,
+        /// a stop from a link below the gimbal's holder, sooner than one second after its last
+        StopsLimited,
+        /// a speed change whose rate gcud does not know, while the gimbal slews toward a limit or zone
+        RateUnknown,
+        /// the gimbal did not say where the preset lies, and it has limits or zones
+        PresetUnknown,
+        /// the link's priority does not permit it (tours, reading a gimbal's rules)
+        NotPermitted,
+    }
+}
+
+impl Undelivered {
+    /// A refusal by gcud's governance (ARCHITECTURE "Governance"): nothing
+    /// reached the bus because of a rule, not a fault; a door shows it as
+    /// gcud's decision and keeps no list of its own.
+    pub const fn is_refusal(self) -> bool {
+        matches!(
+            self,
+            Undelivered::NotInControl
+                | Undelivered::TravelLimit
+                | Undelivered::KeepOut
+                | Undelivered::PositionUnknown
+                | Undelivered::Ungoverned
+                | Undelivered::StopsLimited
+                | Undelivered::RateUnknown
+                | Undelivered::PresetUnknown
+                | Undelivered::NotPermitted
+        )
     }
 }
 

@@ -107,6 +107,9 @@ pub struct Position {
 }
 
 impl Position {
+    /// Home: azimuth and elevation 0 (Table 11, `HO`).
+    pub const ZERO: Position = Position::new(Angle(0), Angle(0));
+
     /// The position `(pan, tilt)`.
     pub const fn new(pan: Angle, tilt: Angle) -> Self {
         Self { pan, tilt }

@@ -11,11 +11,23 @@ use sagebrush_protocol::frame::HEADER_LEN;
 use sagebrush_protocol::link::wire_ms;
 use sagebrush_protocol::{Command, Position};
 
-use super::control::Held;
+use std::sync::Arc;
+
+use sagebrush_protocol::{Axis, Describes, MountEffect, NewSpeed, Reply};
+
+use super::control::{Held, Who};
 use super::rules::{GimbalRules, Span};
-use super::travel::{Kinematics, Region, axes, braking, distance_in, room_ahead};
-use super::{GovernStats, Order, Purpose};
+use super::travel::{Kinematics, Region, axes, braking, check_goto, distance_in, room_ahead};
+use super::{Decision, GovernStats, Order, Purpose};
 use crate::types::{CommandId, DropReason, RouterEvent, StopCause};
+
+/// Pan 0, tilt 1, as the follower indexes its axes.
+fn axis_index(axis: Axis) -> usize {
+    match axis {
+        Axis::Pan => 0,
+        Axis::Tilt => 1,
+    }
+}
 
 /// Poll period of a goto or a stop in progress.
 const MOTION_POLL: u64 = 250;
@@ -106,6 +118,24 @@ pub(crate) struct Gimbal {
     /// its mean (a `HO` may run faster than the rate `R?` answers), and the
     /// most it may have reached at the last one.
     seen_rate: [(u32, u32); 2],
+    /// Changes of speed, acceleration or dynamics from links not yet ended:
+    /// what `R?` and `A?` answer meanwhile may be from before them, and a
+    /// slew waits for them (ARCHITECTURE "Governance", learn before deciding).
+    changes_in_flight: u8,
+    /// The proportional step (`SPn`, `STn`) each axis was last set to.
+    step: [Option<u8>; 2],
+    /// The rate each axis answered at a proportional step (`R?` after `SPn`):
+    /// bounds a step change during a slew.
+    step_rates: BTreeMap<(usize, u8), u32>,
+    /// Presets the gimbal did not say (NIC to `P?nn`).
+    unsaid: BTreeSet<u8>,
+    /// Stops from links below the holder, and when (module `mod`, [`super::STOP_SPACING`]).
+    stops_below: Vec<(Arc<str>, u64)>,
+    /// Found after a start or a port's reopening, its motion unknown:
+    /// read twice, and stopped if it moves ([`StopCause::FoundMoving`]).
+    found: bool,
+    /// A stop is owed for a gimbal found moving.
+    stop_found: bool,
 }
 
 impl Gimbal {
@@ -114,35 +144,323 @@ impl Gimbal {
         self.holder.as_ref().filter(|h| !h.lapsed(now, hold))
     }
 
-    /// Forget what was learnt (its port closed or was lost).
+    /// Forget what was learnt (its port closed or was lost, or it was
+    /// given another address): found again as if gcud had just started.
     pub fn forget(&mut self) {
         self.position = None;
         self.axes = [AxisMotion::Unknown; 2];
         self.rates = None;
         self.accels = None;
         self.presets.clear();
+        self.unsaid.clear();
         self.asking = false;
         self.stop_at = [None; 2];
         self.poll_at = None;
+        self.changes_in_flight = 0;
+        self.step = [None; 2];
+        self.step_rates.clear();
+        self.found = true;
     }
 
-    /// Follow it and learn its position, speeds and presets.
-    pub fn start_learning(&mut self) {
+    /// Follow it and learn its position, speeds and presets (`named`:
+    /// those park and tours recall, asked whatever the scan finds).
+    pub fn start_learning(&mut self, named: impl IntoIterator<Item = u8>) {
         self.watched = true;
         self.need_position = true;
         self.need_rates = true;
         self.need_accels = true;
         self.scan = Some(0);
+        self.ask_presets.extend(named);
+        self.retry_at = None;
     }
 
     pub fn learn(&mut self, learning: Learning) {
         match learning {
             Learning::Speeds => {
+                self.changes_in_flight = self.changes_in_flight.saturating_sub(1);
                 self.need_rates = true;
                 self.need_accels = true;
+                self.retry_at = None;
             }
             Learning::Preset(n) => {
                 self.ask_presets.insert(n);
+                self.retry_at = None;
+            }
+        }
+    }
+
+    /// The holder's query renews its control while its slew runs, as a
+    /// query renews the motion lease (ARCHITECTURE "Safety"): a held slew
+    /// keeps control as long as its holder holds it.
+    pub fn renewed(&mut self, now: u64, hold: u64, key: &Arc<str>) {
+        if !self.axes.iter().any(|a| matches!(a, AxisMotion::Slew { .. })) {
+            return;
+        }
+        if let Some(h) = self.holder.as_mut().filter(|h| !h.lapsed(now, hold)) {
+            if matches!(&h.who, Who::Link { key: k, .. } if k == key) {
+                h.last = now;
+            }
+        }
+    }
+
+    /// Whether a stop from `me`, a link below the holder, comes sooner than
+    /// [`super::STOP_SPACING`] after its last one.
+    pub fn stops_limited(&self, now: u64, me: &Who) -> bool {
+        let Who::Link { key, .. } = me else { return false };
+        self.stops_below
+            .iter()
+            .any(|(k, t)| k == key && now < t.saturating_add(super::STOP_SPACING))
+    }
+
+    /// A stop from `me`, a link below the holder, let through.
+    pub fn stop_from_below(&mut self, now: u64, me: &Who) {
+        let Who::Link { key, .. } = me else { return };
+        self.stops_below
+            .retain(|(_, t)| now < t.saturating_add(super::STOP_SPACING));
+        self.stops_below.push((key.clone(), now));
+    }
+
+    /// Whether a command of mount effect `effect` may go to this gimbal
+    /// now as far as its limits and zones go: `Err` refuses it, or holds it
+    /// until gcud learnt what it needs (asked here).
+    pub fn check(&mut self, now: u64, effect: MountEffect, line: Line) -> Result<(), Decision> {
+        let judged = match self.rules.as_ref().filter(|r| r.bounds_travel()) {
+            None => return Ok(()),
+            Some(rules) => self.judge(now, rules, effect, line),
+        };
+        if let Err(Decision::Learn(why)) = judged {
+            self.ask(why, effect);
+        }
+        judged
+    }
+
+    fn judge(&self, now: u64, rules: &GimbalRules, effect: MountEffect, line: Line) -> Result<(), Decision> {
+        let goto = |target: [i32; 2]| match check_goto(rules, self.region(now), target) {
+            Ok(()) => Ok(()),
+            Err(DropReason::PositionUnknown) => Err(Decision::Learn(DropReason::PositionUnknown)),
+            Err(reason) => Err(Decision::Refuse(reason)),
+        };
+        match effect {
+            MountEffect::GoTo(p) => goto(axes(p)),
+            MountEffect::RecallPreset(n) => match self.presets.get(&n) {
+                Some(p) => goto(axes(*p)),
+                None if self.unsaid.contains(&n) => Err(Decision::Refuse(DropReason::PresetUnknown)),
+                None => Err(Decision::Learn(DropReason::PresetUnknown)),
+            },
+            MountEffect::Slew { axis, positive } => {
+                if self.changes_in_flight > 0 {
+                    // A speed change before it has not ended: its rate is not known yet.
+                    return Err(Decision::Learn(DropReason::RateUnknown));
+                }
+                match self.check_slew(now, rules, axis_index(axis), if positive { 1 } else { -1 }, line) {
+                    Ok(()) => Ok(()),
+                    Err(reason @ (DropReason::PositionUnknown | DropReason::RateUnknown)) => {
+                        Err(Decision::Learn(reason))
+                    }
+                    Err(reason) => Err(Decision::Refuse(reason)),
+                }
+            }
+            MountEffect::Speed { axis, to } => {
+                let rate = match to {
+                    NewSpeed::Rate(r) => Some(u32::from(r.0)),
+                    NewSpeed::Step(step) => self.step_bound(axis_index(axis), step.get()),
+                };
+                self.check_change(now, rules, axis_index(axis), rate, None, line)
+            }
+            MountEffect::Acceleration { axis, acceleration } => self.check_change(
+                now,
+                rules,
+                axis_index(axis),
+                None,
+                Some(u32::from(acceleration.0)),
+                line,
+            ),
+            _ => Ok(()),
+        }
+    }
+
+    /// The most an axis may run at proportional step `step`: the rate it
+    /// answered at that step, or at step 15 (its maximum, Table 11), or the
+    /// configured top rate.
+    fn step_bound(&self, axis: usize, step: u8) -> Option<u32> {
+        let configured = self.rules.as_ref().and_then(|r| r.slew_rate).map(|r| r[axis]);
+        configured
+            .or_else(|| self.step_rates.get(&(axis, step)).copied())
+            .or_else(|| self.step_rates.get(&(axis, 15)).copied())
+    }
+
+    /// A change of `axis`' rate or acceleration while it slews: the stop
+    /// is planned again with the worst of old and new (the faster rate, the
+    /// lower acceleration); refused when that stop would come too late, or
+    /// when the new rate is not known.
+    fn check_change(
+        &self,
+        now: u64,
+        rules: &GimbalRules,
+        axis: usize,
+        rate: Option<u32>,
+        accel: Option<u32>,
+        line: Line,
+    ) -> Result<(), Decision> {
+        let AxisMotion::Slew { dir, since } = self.axes[axis] else {
+            return Ok(());
+        };
+        if rate.is_none() && accel.is_none() {
+            return Err(Decision::Refuse(DropReason::RateUnknown));
+        }
+        let mut trial = self.clone();
+        trial.changed(axis, rate, accel);
+        match trial.stop_due(now, rules, axis, dir, since, line) {
+            Ok(None) => Ok(()),
+            Ok(Some((Some(t), _))) if t >= now => Ok(()),
+            Ok(Some((_, reason))) => Err(Decision::Refuse(reason)),
+            Err(reason) => Err(Decision::Refuse(reason)),
+        }
+    }
+
+    /// `axis` now runs at `rate` and accelerates at `accel` (those given):
+    /// while it slews, [`Gimbal::rate`] and [`Gimbal::accel`] keep the worst
+    /// of these and the slew's own.
+    fn changed(&mut self, axis: usize, rate: Option<u32>, accel: Option<u32>) {
+        if let Some(v) = rate {
+            match self.rates.as_mut() {
+                Some(r) => r[axis] = v,
+                None if matches!(self.axes[axis], AxisMotion::Slew { .. }) => {
+                    self.rates = Some([v, v]);
+                }
+                None => {}
+            }
+        }
+        if let Some(a) = accel {
+            match self.accels.as_mut() {
+                Some(r) => r[axis] = a,
+                None if matches!(self.axes[axis], AxisMotion::Slew { .. }) => {
+                    self.accels = Some([a, a]);
+                }
+                None => {}
+            }
+        }
+        self.replan = true;
+    }
+
+    /// What a held command needs is asked of the gimbal.
+    fn ask(&mut self, why: DropReason, effect: MountEffect) {
+        match (why, effect) {
+            (DropReason::PresetUnknown, MountEffect::RecallPreset(n)) => {
+                self.ask_presets.insert(n);
+            }
+            (DropReason::RateUnknown, _) if self.changes_in_flight > 0 => return,
+            (DropReason::RateUnknown, _) => {
+                self.need_rates |= self.rates.is_none();
+                self.need_accels |= self.accels.is_none();
+            }
+            _ => self.need_position |= self.position.is_none(),
+        }
+        self.retry_at = None;
+    }
+
+    /// A command of mount effect `effect` was let through as `id`: its
+    /// motion noted, and what it changes, to be learnt again when it ends.
+    pub fn accepted(&mut self, now: u64, id: CommandId, effect: MountEffect) -> Option<Learning> {
+        match effect {
+            MountEffect::GoTo(p) => {
+                self.going(now, axes(p));
+                self.goto_is(id);
+            }
+            MountEffect::RecallPreset(n) => match self.presets.get(&n).copied() {
+                Some(p) => {
+                    self.going(now, axes(p));
+                    self.goto_is(id);
+                }
+                None => self.unknown_motion(now),
+            },
+            MountEffect::Slew { axis, positive } => self.slewing(now, axis_index(axis), if positive { 1 } else { -1 }),
+            MountEffect::Halt => self.stopping(now, true, true),
+            MountEffect::Unbounded => self.unknown_motion(now),
+            MountEffect::StorePreset(n) => {
+                self.stored(n);
+                return Some(Learning::Preset(n));
+            }
+            MountEffect::Identity => {
+                // Another address or line: the gimbal here is found anew.
+                self.forget();
+                return self.watched.then_some(Learning::Speeds);
+            }
+            MountEffect::Speed { axis, to } => {
+                let axis = axis_index(axis);
+                let rate = match to {
+                    NewSpeed::Rate(r) => {
+                        self.step[axis] = None;
+                        Some(u32::from(r.0))
+                    }
+                    NewSpeed::Step(step) => {
+                        self.step[axis] = Some(step.get());
+                        self.step_bound(axis, step.get())
+                    }
+                };
+                match rate {
+                    Some(v) => self.changed(axis, Some(v), None),
+                    None => self.rates = None,
+                }
+                return self.change_in_flight();
+            }
+            MountEffect::Acceleration { axis, acceleration } => {
+                self.changed(axis_index(axis), None, Some(u32::from(acceleration.0)));
+                return self.change_in_flight();
+            }
+            MountEffect::Dynamics => {
+                self.rates = None;
+                self.accels = None;
+                return self.change_in_flight();
+            }
+            MountEffect::Setting | MountEffect::Reads(_) | MountEffect::Stop { .. } => {}
+        }
+        None
+    }
+
+    fn change_in_flight(&mut self) -> Option<Learning> {
+        if !self.watched {
+            return None;
+        }
+        self.changes_in_flight = self.changes_in_flight.saturating_add(1);
+        Some(Learning::Speeds)
+    }
+
+    /// A result to a query that describes `describes` (the router's
+    /// in-flight record), answered at `now`.
+    pub fn answered(&mut self, now: u64, describes: Describes, reply: &Reply<'_>, line: Line) {
+        // What `R?` and `A?` say while a change is on its way may be from before it.
+        let settled = self.changes_in_flight == 0;
+        match (describes, reply) {
+            (Describes::Position, Reply::Position(p)) => self.read_position(now, *p, line),
+            (Describes::Preset(n), Reply::Position(p)) => {
+                self.presets.insert(n, *p);
+                self.unsaid.remove(&n);
+            }
+            (Describes::Rates(None), Reply::Rates { pan, tilt }) if settled => {
+                self.rates = Some([u32::from(pan.0), u32::from(tilt.0)]);
+            }
+            (Describes::Rates(Some(axis)), Reply::Rate(r)) if settled => {
+                if let Some(rates) = self.rates.as_mut() {
+                    rates[axis_index(axis)] = u32::from(r.0);
+                }
+            }
+            (Describes::Accelerations(None), Reply::Accelerations { pan, tilt }) if settled => {
+                self.accels = Some([u32::from(pan.0), u32::from(tilt.0)]);
+            }
+            (Describes::Accelerations(Some(axis)), Reply::Acceleration(a)) if settled => {
+                if let Some(accels) = self.accels.as_mut() {
+                    accels[axis_index(axis)] = u32::from(a.0);
+                }
+            }
+            _ => return,
+        }
+        // A rate learnt at a proportional step bounds that step from now on.
+        if let (Some(rates), Describes::Rates(_)) = (self.rates, describes) {
+            for (axis, (step, rate)) in self.step.iter().zip(rates).enumerate() {
+                if let Some(step) = *step {
+                    self.step_rates.insert((axis, step), rate);
+                }
             }
         }
     }
@@ -242,10 +560,10 @@ impl Gimbal {
         line: Line,
     ) -> Result<Option<(Option<u64>, DropReason)>, DropReason> {
         let reading = self.position.ok_or(DropReason::PositionUnknown)?;
-        let region = self.region(now).ok_or(DropReason::PositionUnknown)?;
         let (Some(v), Some(a)) = (self.rate(axis), self.accel(axis)) else {
-            return Err(DropReason::PositionUnknown);
+            return Err(DropReason::RateUnknown);
         };
+        let region = self.region(now).ok_or(DropReason::PositionUnknown)?;
         let at = axes(reading.position)[axis];
         let Some((room, reason)) = room_ahead(rules, axis, dir, at, self.other_range(axis, region, now)) else {
             return Ok(None);
@@ -419,6 +737,24 @@ impl Gimbal {
             .map(|(_, b)| b);
         self.position = Some(Reading { at, position });
         self.need_position = false;
+        if self.found && self.axes.contains(&AxisMotion::Unknown) {
+            // Found after a start or a reopening: a second reading tells
+            // whether it moves; one that does is stopped (it may be a slew
+            // begun before gcud was, with nobody left to stop it).
+            if let Some(b) = before {
+                self.found = false;
+                if (0..2).any(|axis| (b[axis] - p[axis]).abs() > SAME) {
+                    self.stop_found = true;
+                    self.axes = [AxisMotion::Settling; 2];
+                } else {
+                    self.axes = [AxisMotion::Still; 2];
+                }
+            }
+            self.replan = false;
+            self.poll_at = Some(now + SETTLE_SPAN);
+            return;
+        }
+        self.found = false;
         for axis in 0..2 {
             let unchanged = before.is_some_and(|b| (b[axis] - p[axis]).abs() <= SAME);
             self.unchanged[axis] = if unchanged {
@@ -492,6 +828,18 @@ impl Gimbal {
         if self.replan && !self.asking {
             self.plan(now, line);
         }
+        if std::mem::take(&mut self.stop_found) {
+            stats.found_moving += 1;
+            orders.push(Order {
+                port,
+                device,
+                command: Command::StopMotion,
+                stop: Some(StopCause::FoundMoving),
+                cancel_slews: None,
+                purpose: Purpose::Motion,
+            });
+            self.poll_at = Some(now + MOTION_POLL / 2);
+        }
         for axis in 0..2 {
             let Some((at, boundary)) = self.stop_at[axis].filter(|&(t, _)| t <= now) else {
                 continue;
@@ -564,6 +912,12 @@ impl Gimbal {
             Purpose::Preset(n) if self.scan == Some(n) => {
                 // Scanned until the first preset not implemented (a NIC, 1.6.1).
                 self.scan = if answered { n.checked_add(1) } else { None };
+                if !answered {
+                    self.unsaid.insert(n);
+                }
+            }
+            Purpose::Preset(n) if !answered => {
+                self.unsaid.insert(n);
             }
             Purpose::Preset(_) | Purpose::Motion => {}
             Purpose::Position | Purpose::Rates | Purpose::Accelerations => {}
@@ -613,6 +967,8 @@ pub(crate) struct Line {
     pub bps: u32,
     /// How long a command without result holds the bus after its ACK.
     pub nic_window: u64,
+    /// How long the port waits for an ACK before it sends a frame again (1.4.2).
+    pub ack_timeout: u64,
 }
 
 impl Line {
@@ -632,9 +988,12 @@ impl Line {
     /// From deciding a stop to the gimbal reading it: the port keeps the
     /// bus free for it (no work starts that would still hold the bus then,
     /// `Port::reserve`), so at most another gimbal's stop goes first, then
-    /// the stop's own frame.
+    /// the stop's own frame; and the bus may lose that frame once: its
+    /// ACK time-out and the frame again (ARCHITECTURE "Governance", the
+    /// documented margin holds with one lost stop).
     pub fn latency(&self) -> u64 {
-        self.busy() + wire_ms(HEADER_LEN + 3, self.bps)
+        let stop = wire_ms(HEADER_LEN + 3, self.bps);
+        self.busy() + stop + self.ack_timeout + stop
     }
 }
 
@@ -651,6 +1010,7 @@ mod tests {
         Line {
             bps: 115_200,
             nic_window: 31,
+            ack_timeout: 12,
         }
     }
 

@@ -20,17 +20,19 @@ mod validate;
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use sagebrush_protocol::{Address, Command, Position, ResultKind, WILDCARD};
+use sagebrush_protocol::{Address, Describes, MountEffect, Position, WILDCARD};
 
 pub use control::Holder;
 pub use sagebrush_protocol::TourState;
 
+use crate::command::CommandFacts;
 use crate::types::{CommandId, DropReason, StopCause};
 use control::{Held, Who};
-use knowledge::{AxisMotion, Gimbal, Learning, Line};
+pub(crate) use knowledge::Line;
+use knowledge::{AxisMotion, Gimbal, Learning};
 use rules::{GimbalRules, Governance, TourTarget};
 use tour::TourRun;
-use travel::{ARRIVED, axes, check_goto};
+use travel::{ARRIVED, axes};
 
 /// A gimbal's control as gcud's `/status` shows it.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -73,7 +75,7 @@ pub(crate) struct LinkIdentity {
 pub(crate) struct Order {
     pub port: u8,
     pub device: u8,
-    pub command: Command<'static>,
+    pub command: sagebrush_protocol::Command<'static>,
     /// A stop, and why (logged and counted like the dead-man's).
     pub stop: Option<StopCause>,
     /// Before it, queued slews this stop ends are given up with this reason
@@ -100,6 +102,20 @@ pub(crate) struct Verdict {
     pub taken_over: Vec<(u8, u8)>,
 }
 
+/// What the governor decides of a command from a link.
+#[derive(Debug)]
+pub(crate) enum Decision {
+    /// Let through: control taken, the motion noted.
+    Pass(Verdict),
+    /// Refused before the bus, for this reason.
+    Refuse(DropReason),
+    /// It needs what gcud is asking the gimbal for (its position, rates,
+    /// a preset): it waits at the head of its gimbal's line and is decided
+    /// again once gcud knows; refused with this reason when the gimbal
+    /// does not say in time.
+    Learn(DropReason),
+}
+
 /// The gimbals a command concerns.
 enum Targets {
     One([(u8, u8); 1]),
@@ -115,56 +131,10 @@ impl Targets {
     }
 }
 
-/// What a command does to a gimbal, as far as the governor cares.
-enum Effect {
-    Query,
-    Stop {
-        pan: bool,
-        tilt: bool,
-    },
-    Goto([i32; 2]),
-    GotoPreset(u8),
-    Slew {
-        axis: usize,
-        dir: i32,
-    },
-    /// Moves where no one can bound (`IX` to its switches, `HP` to a position saved by `HA`).
-    Unbounded,
-    /// Changes a speed or acceleration: learnt again afterwards.
-    SpeedChange,
-    StorePreset(u8),
-    Other,
-}
-
-fn effect(command: &Command<'_>) -> Effect {
-    use Command as C;
-    match command {
-        C::PanStop => Effect::Stop { pan: true, tilt: false },
-        C::TiltStop => Effect::Stop { pan: false, tilt: true },
-        C::StopMotion | C::Halt | C::MotorsStop => Effect::Stop { pan: true, tilt: true },
-        // `FS`, `ZS`: stops of the lens, never refused; the mount is not concerned.
-        _ if command.is_stop() => Effect::Stop {
-            pan: false,
-            tilt: false,
-        },
-        C::GoTo(p) => Effect::Goto(axes(*p)),
-        C::Home => Effect::Goto([0, 0]),
-        C::GoToPreset(n) => Effect::GotoPreset(*n),
-        C::PanLeft => Effect::Slew { axis: 0, dir: -1 },
-        C::PanRight => Effect::Slew { axis: 0, dir: 1 },
-        C::TiltDown => Effect::Slew { axis: 1, dir: -1 },
-        C::TiltUp => Effect::Slew { axis: 1, dir: 1 },
-        C::Initialize => Effect::Unbounded,
-        C::Extended(sagebrush_protocol::Extended::GoToHaltPosition, _) => Effect::Unbounded,
-        C::SetSpeed(..) | C::SetRate(..) | C::SetAcceleration(..) => Effect::SpeedChange,
-        C::StorePreset(n) => Effect::StorePreset(*n),
-        C::Extended(..) | C::Unknown(..) => Effect::Other,
-        _ => match command.result_kind() {
-            ResultKind::Required(_) if !matches!(command, C::Initialize) => Effect::Query,
-            _ => Effect::Other,
-        },
-    }
-}
+/// The least time between two stops from one link below a gimbal's holder
+/// (ARCHITECTURE "Governance"): more are refused, so a low link cannot
+/// hold an operator's slew to a crawl with stops.
+pub(crate) const STOP_SPACING: u64 = 1000;
 
 /// The governance of every gimbal on this GCU's ports.
 #[derive(Debug)]
@@ -174,8 +144,9 @@ pub(crate) struct Governor {
     tours: Vec<TourRun>,
     /// The governor's own commands in flight, and what they are for.
     own: BTreeMap<CommandId, ((u8, u8), Purpose)>,
-    /// Commands from links that change speeds or presets: learnt again when they end.
-    relearn: BTreeMap<CommandId, ((u8, u8), Learning)>,
+    /// Commands from links that change speeds or presets, per gimbal they
+    /// reach: learnt again when they end.
+    relearn: BTreeMap<(CommandId, (u8, u8)), Learning>,
     /// Ports open, with their line's timing (the follower's latency).
     ports: BTreeMap<u8, Line>,
     orders: Vec<Order>,
@@ -195,6 +166,8 @@ pub struct GovernStats {
     pub follow_polls: u64,
     /// Park recalls.
     pub parks: u64,
+    /// Gimbals found moving after a start or a port's reopening, and stopped.
+    pub found_moving: u64,
 }
 
 impl Governor {
@@ -243,9 +216,15 @@ impl Governor {
         let watched: Vec<(u8, u8)> = self.watched().collect();
         for at in watched {
             if self.ports.contains_key(&at.0) {
-                self.gimbals.entry(at).or_default().start_learning();
+                let named = self.named_presets(at);
+                self.gimbals.entry(at).or_default().start_learning(named);
             }
         }
+    }
+
+    /// The lowest link priority that may start or stop a tour.
+    pub fn tours_min_priority(&self) -> Option<u8> {
+        self.config.tours_min_priority
     }
 
     /// The rules of gimbal `at` (port, device), if it has any.
@@ -258,6 +237,7 @@ impl Governor {
         self.ports.get(&port).copied().unwrap_or(Line {
             bps: 9600,
             nic_window: 35,
+            ack_timeout: 78,
         })
     }
 
@@ -271,12 +251,12 @@ impl Governor {
         self.watched().any(|w| w == at)
     }
 
-    /// A port was opened (at `bps`, with its NIC window) or lost: what was
-    /// known of its gimbals is learnt again.
-    pub fn port_state(&mut self, port: u8, open: Option<(u32, u64)>) {
+    /// A port was opened (its line's timing) or lost: what was known of
+    /// its gimbals is learnt again, and a gimbal found moving is stopped.
+    pub fn port_state(&mut self, port: u8, open: Option<Line>) {
         match open {
-            Some((bps, nic_window)) => {
-                self.ports.insert(port, Line { bps, nic_window });
+            Some(line) => {
+                self.ports.insert(port, line);
             }
             None => {
                 self.ports.remove(&port);
@@ -284,12 +264,30 @@ impl Governor {
         }
         let watched: Vec<(u8, u8)> = self.watched().filter(|w| w.0 == port).collect();
         for at in watched {
+            let named = self.named_presets(at);
             let g = self.gimbals.entry(at).or_default();
             g.forget();
             if open.is_some() {
-                g.start_learning();
+                g.start_learning(named);
             }
         }
+    }
+
+    /// The presets park and the tours of gimbal `at` recall: asked for at
+    /// start whatever the scan from 00 finds.
+    fn named_presets(&self, at: (u8, u8)) -> Vec<u8> {
+        let park = self.rules(at).and_then(|r| r.park).map(|p| p.preset);
+        let tours = self
+            .config
+            .tours
+            .iter()
+            .filter(|t| (t.port, t.device) == at)
+            .flat_map(|t| t.steps.iter())
+            .filter_map(|s| match s.to {
+                TourTarget::Preset(n) => Some(n),
+                TourTarget::Position(_) => None,
+            });
+        park.into_iter().chain(tours).collect()
     }
 
     /// The port's line rate changed.
@@ -299,71 +297,78 @@ impl Governor {
         }
     }
 
-    /// Control, limits and zones for a command from a link to a local
-    /// `dest` (port 1..=255): `Err` refuses it (nothing goes to the bus),
-    /// `Ok` lets it through, having taken control and noted the motion.
+    /// Whether gimbal `at` is governed (ARCHITECTURE "Governance"): it has
+    /// limits, zones or park, or a tour drives it. What the table marks
+    /// unbounded, identity or dynamics is refused there unless allowed.
+    fn governs(&self, at: (u8, u8)) -> bool {
+        self.rules(at).is_some_and(GimbalRules::governs) || self.config.tours.iter().any(|t| (t.port, t.device) == at)
+    }
+
+    /// Control, limits and zones for command `id` from a link to a local
+    /// `dest` (port 1..=255), decided on its row's mount effect (read once,
+    /// module `command`): refused (nothing goes to the bus), let through
+    /// (control taken, the motion noted), or held until gcud knows enough.
     pub fn on_command(
         &mut self,
         now: u64,
+        id: CommandId,
         who: &LinkIdentity,
         dest: Address,
-        payload: &[u8],
+        facts: &CommandFacts,
         known_devices: &[(u8, u8)],
-    ) -> Result<Verdict, DropReason> {
-        let command = Command::parse(payload);
-        let effect = effect(&command);
-        // A query concerns nobody: routed without a list of targets (no
-        // allocation per routed query, tests/allocations.rs).
-        if matches!(effect, Effect::Query) {
-            return Ok(Verdict::default());
+    ) -> Decision {
+        let effect = facts.mount;
+        let hold = self.config.hold;
+        // A query changes nothing: routed without a list of targets (no
+        // allocation per routed query, tests/allocations.rs). The holder's
+        // query while its slew runs renews its control, as it renews the
+        // motion lease (ARCHITECTURE "Safety").
+        if let MountEffect::Reads(_) = effect {
+            if dest.port != WILDCARD && dest.device != WILDCARD {
+                if let Some(g) = self.gimbals.get_mut(&(dest.port, dest.device)) {
+                    g.renewed(now, hold, &who.key);
+                }
+            }
+            return Decision::Pass(Verdict::default());
         }
         let targets = self.targets(dest, known_devices);
         let targets = targets.as_slice();
-        match effect {
-            Effect::Query => return Ok(Verdict::default()),
-            Effect::Stop { pan, tilt } => {
-                for at in targets {
-                    if let Some(g) = self.gimbals.get_mut(at) {
-                        g.stopping(now, pan, tilt);
-                    }
-                }
-                return Ok(Verdict::default());
-            }
-            _ => {}
-        }
         let me = Who::Link {
             key: who.key.clone(),
             priority: who.priority,
         };
+        if let MountEffect::Stop { pan, tilt } = effect {
+            return self.on_stop(now, &me, targets, pan, tilt);
+        }
         let mut verdict = Verdict::default();
         for at in targets {
             let Some(g) = self.gimbals.get(at) else { continue };
-            match g.held(now, self.config.hold) {
+            match g.held(now, hold) {
                 None => {}
                 Some(h) if h.who.same(&me) => {}
                 Some(h) if me.outranks(&h.who) => verdict.taken_over.push(*at),
-                Some(_) => return Err(DropReason::NotInControl),
+                Some(_) => return Decision::Refuse(DropReason::NotInControl),
             }
         }
-        for at in targets {
-            let Some(g) = self.gimbals.get(at) else { continue };
-            let Some(rules) = g.rules.as_ref().filter(|r| r.bounds_travel()) else {
-                continue;
-            };
-            let line = self.line(at.0);
-            match effect {
-                Effect::Goto(target) => check_goto(rules, g.region(now), target)?,
-                Effect::GotoPreset(n) => match g.presets.get(&n) {
-                    Some(p) => check_goto(rules, g.region(now), axes(*p))?,
-                    None => return Err(DropReason::PositionUnknown),
-                },
-                Effect::Slew { axis, dir } => g.check_slew(now, rules, axis, dir, line)?,
-                Effect::Unbounded => return Err(DropReason::TravelLimit),
-                _ => {}
-            }
-        }
-        // Allowed: control is taken, the motion noted.
         for &at in targets {
+            if !self.governs(at) {
+                continue;
+            }
+            if effect.is_ungoverned() && !self.rules(at).is_some_and(|r| r.allows(facts)) {
+                return Decision::Refuse(DropReason::Ungoverned);
+            }
+            let line = self.line(at.0);
+            let Some(g) = self.gimbals.get_mut(&at) else {
+                // Governed, its port not open yet: nothing is known of it.
+                return Decision::Refuse(DropReason::PositionUnknown);
+            };
+            if let Err(decision) = g.check(now, effect, line) {
+                return decision;
+            }
+        }
+        // Allowed: control is taken, the motion noted, what it changes learnt again.
+        for &at in targets {
+            let watched = self.is_watched(at);
             let g = self.gimbals.entry(at).or_default();
             let before = g.holder.take();
             if let Some(old) = before.as_ref().filter(|h| !h.who.same(&me)) {
@@ -389,49 +394,40 @@ impl Governor {
                 last: now,
             });
             g.moved = true;
-            match effect {
-                Effect::Goto(target) => g.going(now, target),
-                Effect::GotoPreset(n) => match g.presets.get(&n).copied() {
-                    Some(p) => g.going(now, axes(p)),
-                    None => g.unknown_motion(now),
-                },
-                Effect::Slew { axis, dir } => g.slewing(now, axis, dir),
-                Effect::Unbounded => g.unknown_motion(now),
-                Effect::StorePreset(n) => g.stored(n),
-                _ => {}
+            if let Some(learning) = g.accepted(now, id, effect) {
+                if watched {
+                    self.relearn.insert((id, at), learning);
+                }
             }
         }
-        Ok(verdict)
+        Decision::Pass(verdict)
     }
 
-    /// A command from a link was accepted as `id`: what it changes is learnt
-    /// again once it ends.
-    pub fn accepted(&mut self, id: CommandId, dest: Address, payload: &[u8]) {
-        if dest.port == WILDCARD || dest.device == WILDCARD {
-            return;
-        }
-        let at = (dest.port, dest.device);
-        if !self.is_watched(at) {
-            return;
-        }
-        let learning = match effect(&Command::parse(payload)) {
-            Effect::SpeedChange => Learning::Speeds,
-            Effect::StorePreset(n) => Learning::Preset(n),
-            Effect::Goto(_) | Effect::GotoPreset(_) => {
-                if let Some(g) = self.gimbals.get_mut(&at) {
-                    g.goto_is(id);
-                }
-                return;
-            }
-            _ => return,
+    /// A stop (`PS`, `TS`, `PT`, a lens stop) from a link: never refused,
+    /// but from a link below the holder at most one per [`STOP_SPACING`]
+    /// per gimbal (ARCHITECTURE "Governance").
+    fn on_stop(&mut self, now: u64, me: &Who, targets: &[(u8, u8)], pan: bool, tilt: bool) -> Decision {
+        let hold = self.config.hold;
+        let below = |g: &Gimbal| {
+            g.held(now, hold)
+                .is_some_and(|h| matches!(h.who, Who::Link { .. }) && h.who.outranks(me))
         };
-        if let Some(g) = self.gimbals.get_mut(&at) {
-            if learning == Learning::Speeds {
-                g.rates = None;
-                g.accels = None;
+        for at in targets {
+            if let Some(g) = self.gimbals.get(at) {
+                if below(g) && g.stops_limited(now, me) {
+                    return Decision::Refuse(DropReason::StopsLimited);
+                }
             }
         }
-        self.relearn.insert(id, (at, learning));
+        for at in targets {
+            if let Some(g) = self.gimbals.get_mut(at) {
+                if below(g) {
+                    g.stop_from_below(now, me);
+                }
+                g.stopping(now, pan, tilt);
+            }
+        }
+        Decision::Pass(Verdict::default())
     }
 
     /// The gimbals a command to `dest` concerns: one (no allocation), or
@@ -450,39 +446,37 @@ impl Governor {
         Targets::Many(all)
     }
 
-    /// The result of command `id` (a position, rates, a preset) from `at`.
-    pub fn on_result(&mut self, now: u64, id: CommandId, at: (u8, u8), reply: &sagebrush_protocol::Reply<'_>) {
-        let purpose = self.own.get(&id).map(|&(_, p)| p);
+    /// A result from gimbal `at` to a query whose row says what it
+    /// describes (the router's in-flight record of the command it
+    /// answers): a position only from a position query, a preset's only
+    /// from a preset query (protocol crate, module `mount`).
+    pub fn on_result(&mut self, now: u64, at: (u8, u8), describes: Describes, reply: &sagebrush_protocol::Reply<'_>) {
         let line = self.line(at.0);
         let Some(g) = self.gimbals.get_mut(&at) else { return };
-        use sagebrush_protocol::Reply as R;
-        match (purpose, reply) {
-            (Some(Purpose::Preset(n)), R::Position(p)) => {
-                g.presets.insert(n, *p);
-            }
-            (Some(Purpose::Position) | None, R::Position(p)) => g.read_position(now, *p, line),
-            (_, R::Rates { pan, tilt }) => g.rates = Some([u32::from(pan.0), u32::from(tilt.0)]),
-            (_, R::Accelerations { pan, tilt }) => g.accels = Some([u32::from(pan.0), u32::from(tilt.0)]),
-            _ => {}
-        }
+        g.answered(now, describes, reply, line);
     }
 
     /// Command `id` ended: an own query that got no answer is tried again
-    /// later; a change from a link is learnt again.
-    pub fn on_finished(&mut self, now: u64, id: CommandId, answered: bool) {
+    /// later; a change from a link is learnt again. Whether it was an own
+    /// query (what waits for knowledge may be decided again).
+    pub fn on_finished(&mut self, now: u64, id: CommandId, answered: bool) -> bool {
         for g in self.gimbals.values_mut() {
             g.ended(id);
         }
+        let mut own_query = false;
         if let Some((at, purpose)) = self.own.remove(&id) {
+            own_query = purpose != Purpose::Motion;
             if let Some(g) = self.gimbals.get_mut(&at) {
                 g.query_ended(now, purpose, answered);
             }
         }
-        if let Some((at, learning)) = self.relearn.remove(&id) {
+        while let Some((&(_, at), &learning)) = self.relearn.range((id, (0, 0))..=(id, (u8::MAX, u8::MAX))).next() {
+            self.relearn.remove(&(id, at));
             if let Some(g) = self.gimbals.get_mut(&at) {
                 g.learn(learning);
             }
         }
+        own_query
     }
 
     /// The router dispatched order `purpose` as command `id`.
@@ -584,7 +578,8 @@ impl Governor {
     }
 
     /// `who` releases `at` (`~R`): allowed from the holder's link or one of
-    /// higher or equal priority.
+    /// higher priority (an equal one could free a holder it cannot take
+    /// over from, and take control with its next command).
     pub fn release(&mut self, now: u64, who: &LinkIdentity, at: (u8, u8)) -> Result<(), DropReason> {
         let hold = self.config.hold;
         let Some(g) = self.gimbals.get_mut(&at) else {
@@ -592,7 +587,7 @@ impl Governor {
         };
         let Some(h) = g.held(now, hold) else { return Ok(()) };
         let allowed = match &h.who {
-            Who::Link { key, priority } => *key == who.key || who.priority >= *priority,
+            Who::Link { key, priority } => *key == who.key || who.priority > *priority,
             Who::Tour(_) | Who::Park => true,
         };
         if !allowed {

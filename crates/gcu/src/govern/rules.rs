@@ -22,6 +22,9 @@ pub struct Governance {
     pub gimbals: Vec<GimbalRules>,
     /// Tours gcud can run.
     pub tours: Vec<TourConfig>,
+    /// The lowest link priority that may start or stop a tour (`~T`);
+    /// `None`: any link (gcud sets the highest of its links' priorities).
+    pub tours_min_priority: Option<u8>,
 }
 
 impl Default for Governance {
@@ -30,6 +33,7 @@ impl Default for Governance {
             hold: HOLD_MS,
             gimbals: Vec::new(),
             tours: Vec::new(),
+            tours_min_priority: None,
         }
     }
 }
@@ -100,6 +104,11 @@ pub struct GimbalRules {
     /// Its acceleration per axis, hundredths of a degree per second
     /// squared: when set, instead of what it answers to `A?`.
     pub acceleration: Option<[u32; 2]>,
+    /// Commands the governance would refuse here (their row's mount effect
+    /// is unbounded, identity or dynamics) that its operator lets through
+    /// by name: a row's mnemonic (`*mp`, `IX`, `LS`, `#NN`) or script name
+    /// (`set_device_id`, `unknown`). What they do is the operator's to bound.
+    pub allow: Vec<String>,
 }
 
 impl GimbalRules {
@@ -114,7 +123,21 @@ impl GimbalRules {
             park: None,
             slew_rate: None,
             acceleration: None,
+            allow: Vec::new(),
         }
+    }
+
+    /// Whether the gimbal is governed by these rules (limits, zones or
+    /// park): what its row marks unbounded, identity or dynamics is
+    /// refused unless [`GimbalRules::allow`] names it.
+    pub fn governs(&self) -> bool {
+        self.bounds_travel() || self.park.is_some()
+    }
+
+    /// Whether [`GimbalRules::allow`] names the command.
+    pub(crate) fn allows(&self, facts: &crate::command::CommandFacts) -> bool {
+        let names = [facts.reply.mnemonic(), facts.row.script_name()];
+        self.allow.iter().any(|a| names.contains(&a.as_str()))
     }
 
     /// Whether the gimbal has travel limits or keep-out zones (motions are then followed).

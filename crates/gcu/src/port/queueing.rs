@@ -127,7 +127,7 @@ impl Port {
             let same = device == WILDCARD || to == device;
             let slew_of = j.facts.stopped_by.map(|s| s.row());
             let mount_slew = matches!(slew_of, Some(Row::PanStop | Row::TiltStop));
-            same && !j.facts.stop && (slew_of == Some(axis_stop) || (both && (mount_slew || j.facts.goes_to)))
+            same && !j.facts.stop && (slew_of == Some(axis_stop) || (both && (mount_slew || j.facts.goes_to())))
         });
         for job in undone {
             self.drop_job(job, DropReason::Superseded, out);

@@ -11,6 +11,7 @@ use crate::outbox::Outbox;
 use crate::types::{CommandId, CommandOutcome, DropReason, Origin, Place, RouterEvent};
 
 use super::Router;
+use super::govern::Governed;
 use super::in_flight::{Delivery, InFlight, IssuedStop, Progress, Spread};
 
 /// A command the router accepted: its id, where it came from and what it
@@ -59,7 +60,8 @@ impl Router {
         id
     }
 
-    /// Routes command `id`: locally, to a link, or dropped and reported.
+    /// Routes command `id`: locally, to a link, or dropped and reported;
+    /// a command the governance cannot decide yet waits (module `waiting`).
     fn route_command(&mut self, now: u64, accepted: Accepted, kind: Option<LinkKind>, out: &mut Outbox) {
         let (id, origin, command) = (accepted.id, accepted.origin, &accepted.command);
         let f = command.frame.frame();
@@ -79,13 +81,33 @@ impl Router {
             }
             let local = dest.group == self.group || dest.group == WILDCARD;
             if local && dest.port != sagebrush_protocol::LINK_PORT {
-                if let Err(reason) = self.govern_command(now, link, command, out) {
-                    self.drop_frame(reason, Place::Router, dest, source, out);
-                    self.finish(id, CommandOutcome::Dropped(reason), out);
-                    return self.resolve(now, id, Err(reason.undelivered()), self.group, out);
+                match self.govern_command(now, id, link, command, out) {
+                    Governed::Pass => {}
+                    Governed::Refused(reason) => return self.refuse(now, id, reason, out),
+                    Governed::Waits(why) => return self.wait_for_knowledge(now, id, kind, why),
                 }
-                self.governor.accepted(id, dest, f.payload());
             }
+        }
+        self.route_decided(now, accepted, kind, out);
+    }
+
+    /// Command `id` refused by the governance: dropped and reported, nothing sent.
+    pub(super) fn refuse(&mut self, now: u64, id: CommandId, reason: DropReason, out: &mut Outbox) {
+        let Some(c) = self.in_flight.get(&id) else { return };
+        let f = c.command.frame.frame();
+        let (dest, source) = (f.dest, f.source);
+        self.drop_frame(reason, Place::Router, dest, source, out);
+        self.finish(id, CommandOutcome::Dropped(reason), out);
+        self.resolve(now, id, Err(reason.undelivered()), self.group, out);
+    }
+
+    /// Routes command `id` that the governance let through (or that it
+    /// does not concern): its motions owned by the dead-man, then executed
+    /// here, flooded or forwarded.
+    pub(super) fn route_decided(&mut self, now: u64, accepted: Accepted, kind: Option<LinkKind>, out: &mut Outbox) {
+        let (id, origin, command) = (accepted.id, accepted.origin, &accepted.command);
+        let dest = command.frame.frame().dest;
+        if let Origin::Link { link, .. } = origin {
             let lease = self.links.get(&link).and_then(|l| l.config.motion_lease);
             self.deadman.on_command(now, link, lease, dest, &command.facts);
         }
@@ -116,7 +138,7 @@ impl Router {
     /// Command `id` ended (its one [`RouterEvent::Finished`]); its record
     /// stays while its origin still awaits the delivery outcome.
     pub(super) fn finish(&mut self, id: CommandId, outcome: CommandOutcome, out: &mut Outbox) {
-        self.govern_finished(id, outcome);
+        self.govern_finished(id, outcome, out);
         if let Some(c) = self.in_flight.get_mut(&id) {
             c.finished = true;
             c.issued_stop = None;

@@ -10,16 +10,27 @@
 use std::sync::Arc;
 
 use sagebrush_protocol::gcu::{ControllerReply, RuleItem, encode_rules, encode_tour_list, encode_tour_reply};
-use sagebrush_protocol::{Address, Command, Frame, FrameBuf, GcuCommand, MAX_PAYLOAD, Reply, Row};
+use sagebrush_protocol::{Address, Command, Describes, Frame, FrameBuf, GcuCommand, MAX_PAYLOAD, MountEffect, Reply};
 
 use crate::boundary::Action;
 use crate::command::ReadCommand;
-use crate::govern::{Holder, LinkIdentity, Order};
+use crate::govern::{Decision, Holder, LinkIdentity, Order};
 use crate::outbox::Outbox;
 use crate::types::{CommandId, CommandOutcome, DropReason, LinkId, Origin, Place, StopCause};
 
 use super::Router;
 use super::in_flight::IssuedStop;
+
+/// What the governance made of a command from a link.
+pub(super) enum Governed {
+    /// Let through (or not its business).
+    Pass,
+    /// Refused before the bus.
+    Refused(DropReason),
+    /// Held until gcud knows enough (module `waiting`); refused with this
+    /// reason if the gimbal does not say in time.
+    Waits(DropReason),
+}
 
 impl Router {
     /// Who `link` is to the governor: its configured link, or itself.
@@ -31,18 +42,30 @@ impl Router {
         })
     }
 
-    /// Puts a command from `link` for a local gimbal to the governor:
-    /// `Err` refuses it. A take-over stops the holder's motions first.
+    /// Puts command `id` from `link` for a local gimbal to the governor. A
+    /// take-over stops the holder's motions first. A stop gives up the
+    /// motions still waiting for knowledge that it would undo; a change
+    /// waits behind those of its gimbal (module `waiting`).
     pub(super) fn govern_command(
         &mut self,
         now: u64,
+        id: CommandId,
         link: LinkId,
         command: &ReadCommand,
         out: &mut Outbox,
-    ) -> Result<(), DropReason> {
-        let f = command.frame.frame();
-        let dest = f.dest;
-        let Some(who) = self.identity(link) else { return Ok(()) };
+    ) -> Governed {
+        let facts = &command.facts;
+        let dest = command.frame.frame().dest;
+        let Some(who) = self.identity(link) else {
+            return Governed::Pass;
+        };
+        if facts.stop {
+            self.supersede_waiting(now, dest, facts, out);
+        } else if facts.mount.changes() {
+            if let Some(why) = self.waiting_for(dest) {
+                return Governed::Waits(why);
+            }
+        }
         let known: Vec<(u8, u8)> =
             match dest.port == sagebrush_protocol::WILDCARD || dest.device == sagebrush_protocol::WILDCARD {
                 true => self
@@ -52,7 +75,11 @@ impl Router {
                     .collect(),
                 false => Vec::new(),
             };
-        let verdict = self.governor.on_command(now, &who, dest, f.payload(), &known)?;
+        let verdict = match self.governor.on_command(now, id, &who, dest, facts, &known) {
+            Decision::Pass(verdict) => verdict,
+            Decision::Refuse(reason) => return Governed::Refused(reason),
+            Decision::Learn(why) => return Governed::Waits(why),
+        };
         for (port, device) in verdict.taken_over {
             // The holder's motions stop before the new command is queued,
             // and what it queued that moves (a tour's goto too) is given up.
@@ -80,7 +107,7 @@ impl Router {
                 out,
             );
         }
-        Ok(())
+        Governed::Pass
     }
 
     /// The governor's own command, dispatched as the GCU's.
@@ -140,25 +167,29 @@ impl Router {
         }
     }
 
-    /// A result of command `id` from `port`: what the governor learns from it.
+    /// A result of command `id` from `port`: what the governor learns from
+    /// it, by what the command's row says its answer describes.
     pub(super) fn govern_result(&mut self, now: u64, id: CommandId, port: u8, reply: &FrameBuf) {
         let Some(c) = self.in_flight.get(&id) else { return };
-        if !matches!(
-            c.command.facts.row,
-            Row::QueryPosition | Row::QueryRates | Row::QueryAccelerations | Row::QueryPreset
-        ) {
+        let MountEffect::Reads(describes) = c.command.facts.mount else {
+            return;
+        };
+        if describes == Describes::Other {
             return;
         }
         let f = reply.frame();
         if let Ok(r) = Reply::parse_expected(&c.command.facts.reply, f.payload()) {
-            self.governor.on_result(now, id, (port, f.dest.device), &r);
+            self.governor.on_result(now, (port, f.dest.device), describes, &r);
         }
     }
 
-    /// Command `id` ended with `outcome`.
-    pub(super) fn govern_finished(&mut self, id: CommandId, outcome: CommandOutcome) {
-        self.governor
-            .on_finished(self.last_now, id, outcome == CommandOutcome::Result);
+    /// Command `id` ended with `outcome`: an own query's end may decide
+    /// what waits for knowledge.
+    pub(super) fn govern_finished(&mut self, id: CommandId, outcome: CommandOutcome, out: &mut Outbox) {
+        let now = self.last_now;
+        if self.governor.on_finished(now, id, outcome == CommandOutcome::Result) {
+            self.decide_waiting(now, out);
+        }
     }
 
     /// A GCU command of port 0 (`~R`, `~C`, `~T`, `~B`; protocol crate, module
@@ -177,6 +208,12 @@ impl Router {
         let Some(command) = GcuCommand::parse(frame.payload()) else {
             return self.gcu_nic(now, id, origin, out);
         };
+        if !self.permits(link, &command) {
+            let reason = DropReason::NotPermitted;
+            self.drop_frame(reason, Place::Router, frame.dest, frame.source, out);
+            self.resolve(now, id, Err(reason.undelivered()), self.group, out);
+            return CommandOutcome::Dropped(reason);
+        }
         let mut buf = [0u8; MAX_PAYLOAD];
         let len = match command {
             GcuCommand::Release(port, device) => {
@@ -265,6 +302,24 @@ impl Router {
         match self.send_on_link(now, link, reply, out) {
             Ok(()) => CommandOutcome::Result,
             Err(reason) => CommandOutcome::Dropped(reason),
+        }
+    }
+
+    /// Whether `link` may send GCU command `command` (ARCHITECTURE "GCU
+    /// commands on port 0"): a tour is started or stopped only from the
+    /// configured priority up; a gimbal's rules and its controller are
+    /// told only to links that may read them.
+    fn permits(&self, link: LinkId, command: &GcuCommand<'_>) -> bool {
+        let Some(config) = self.links.get(&link).map(|l| &l.config) else {
+            return false;
+        };
+        match command {
+            GcuCommand::TourStart(_) | GcuCommand::TourStop(_) => self
+                .governor
+                .tours_min_priority()
+                .is_none_or(|least| config.priority >= least),
+            GcuCommand::Rules(..) | GcuCommand::Controller(..) => config.may_read_rules,
+            GcuCommand::Release(..) | GcuCommand::WindowReports | GcuCommand::TourList => true,
         }
     }
 

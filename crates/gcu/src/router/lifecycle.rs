@@ -21,8 +21,12 @@ use crate::types::StopCause;
 impl Router {
     pub(super) fn port_state(&mut self, port: u8, open: bool, out: &mut Outbox) {
         if let Some(p) = self.ports.get(&port) {
-            self.governor
-                .port_state(port, open.then_some((p.stats.bps, p.config.nic_window)));
+            let line = crate::govern::Line {
+                bps: p.stats.bps,
+                nic_window: p.config.nic_window,
+                ack_timeout: p.config.ack_timeout,
+            };
+            self.governor.port_state(port, open.then_some(line));
             out.push(Action::Event(RouterEvent::PortState { port, open }));
         }
     }
@@ -232,7 +236,9 @@ impl Router {
             StopCause::DeadMan => &mut self.stats.dead_man_stops,
             StopCause::Shutdown => &mut self.stats.shutdown_stops,
             StopCause::Lease => &mut self.stats.lease_stops,
-            StopCause::TakeOver | StopCause::Boundary | StopCause::Tour => &mut self.stats.governance_stops,
+            StopCause::TakeOver | StopCause::Boundary | StopCause::Tour | StopCause::FoundMoving => {
+                &mut self.stats.governance_stops
+            }
         };
         if round == 1 {
             *counter += 1;

@@ -14,6 +14,8 @@
 //! - `forwarding`: routed or flooded to other GCUs, their answers back;
 //! - `receive`: what links receive (answers, reports, commands);
 //! - `delivery`: the delivery contract (ACK or report, time-out);
+//! - `govern`, `waiting`: the governance's decisions, and the commands
+//!   that wait for what it must learn first;
 //! - `lifecycle`: links and ports coming and going, reload, shutdown, the
 //!   stops the GCU issues itself.
 
@@ -26,6 +28,7 @@ mod lifecycle;
 mod local;
 mod receive;
 mod self_answer;
+mod waiting;
 mod window;
 
 use std::collections::BTreeMap;
@@ -68,6 +71,10 @@ pub struct Router {
     governor: Governor,
     /// Commands in flight, by id.
     in_flight: ById<InFlight>,
+    /// Commands from links waiting for the governance to know enough (module `waiting`).
+    waiting: std::collections::VecDeque<waiting::Waiting>,
+    /// The waiting commands are being decided (no second pass inside it).
+    deciding: bool,
     /// [`crate::Input::Shutdown`] came: new commands are refused.
     stopping: bool,
     /// New configurations of ports that are closing (reconfigured).
@@ -104,6 +111,8 @@ impl Router {
             deadman: DeadMan::default(),
             governor: Governor::new(config.governance.clone()),
             in_flight: ById::new(),
+            waiting: std::collections::VecDeque::new(),
+            deciding: false,
             stopping: false,
             replacements: BTreeMap::new(),
             next_id: 0,
@@ -174,6 +183,7 @@ impl Router {
             .chain(self.reverse.next_deadline())
             .chain(self.deadman.next_deadline())
             .chain(self.governor.next_deadline())
+            .chain(self.waiting_deadline())
             .chain(self.in_flight.values().filter_map(|c| c.delivery?.deadline()))
             .min()
     }
@@ -309,6 +319,9 @@ impl Router {
         }
         // Last: what the ports and links just ended is known to it.
         self.govern_poll(now, out);
+        if self.waiting_deadline().is_some_and(|t| t <= now) {
+            self.decide_waiting(now, out);
+        }
     }
 
     fn drop_frame(&mut self, reason: DropReason, at: Place, dest: Address, source: u8, out: &mut Outbox) {

@@ -44,6 +44,11 @@ pub struct Rig {
     /// Every command payload the bus received from the router, with its tick.
     pub bus_log: Vec<(u64, Address, Vec<u8>)>,
     bus_framer: Framer,
+    /// Command payloads the bus loses, the next write carrying each (in
+    /// order): a lost stop frame, say.
+    pub lose: Vec<Vec<u8>>,
+    /// The writes the bus lost, with their tick.
+    pub lost: Vec<(u64, Vec<u8>)>,
 }
 
 /// A port at `bps` with time-outs for it.
@@ -76,6 +81,8 @@ impl Rig {
             events: Vec::new(),
             bus_log: Vec::new(),
             bus_framer: Framer::new(),
+            lose: Vec::new(),
+            lost: Vec::new(),
         };
         rig.input(Input::PortOpened { port: PORT });
         rig
@@ -228,6 +235,20 @@ impl Rig {
                     bytes: &bytes,
                 }),
                 None => {
+                    if let Some(next) = self.lose.first() {
+                        let mut framer: Framer = Framer::new();
+                        let mut carries = false;
+                        framer.feed(&bytes, |e| {
+                            if let Event::Frame(f) = e {
+                                carries |= f.payload() == next.as_slice();
+                            }
+                        });
+                        if carries {
+                            self.lose.remove(0);
+                            self.lost.push((self.now, bytes));
+                            continue;
+                        }
+                    }
                     let now = self.now;
                     let log = &mut self.bus_log;
                     self.bus_framer.feed(&bytes, |e| {
