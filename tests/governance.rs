@@ -338,45 +338,24 @@ fn a_take_over_stops_the_holders_motion_before_the_new_one() {
 const BOUNDED: &str = "[[gimbal]]\naddress = \"5.1.1\"\npan_limits_deg = [-90.0, 40.0]\ntilt_limits_deg = [-30.0, 60.0]\n\
                        [[gimbal.keep_out]]\npan_deg = [-50.0, -30.0]\ntilt_deg = [-30.0, 10.0]\n";
 
-/// Starts a slew, trying again while gcud still learns the gimbal's
-/// position, rate and acceleration (refused meanwhile: exit 26); returns
-/// once the gimbal received it.
-fn slew(s: &Stack, direction: &str) -> (std::process::Child, ChildStdin) {
+/// Starts a held slew (`gimbalctl slew DIRECTION [ARGS] --hold` through the
+/// clients' listener) and returns once the gimbal received it: gcud learns
+/// what it needs first (its position, its rate after a speed change), so
+/// the slew is never refused for not knowing.
+fn slew(s: &Stack, direction: &str, args: &[&str]) -> (std::process::Child, ChildStdin) {
     let command = if direction == "right" { "PR" } else { "PL" };
     let sent = |s: &Stack| s.bus().iter().filter(|f| **f == (0, command.to_owned())).count();
-    let started = std::time::Instant::now();
-    loop {
-        let before = sent(s);
-        let (mut child, stdin) = s.hold(&s.clients, &["slew", direction]);
-        loop {
-            if sent(s) > before {
-                return (child, stdin);
-            }
-            if child.try_wait().expect("try_wait").is_some() {
-                break;
-            }
-            assert!(
-                started.elapsed() < HANG_GUARD,
-                "the slew never reached the gimbal\n{}",
-                s.logs()
-            );
-            std::thread::sleep(Duration::from_millis(20));
+    let before = sent(s);
+    let mut full = vec!["slew", direction];
+    full.extend_from_slice(args);
+    let (mut child, stdin) = s.hold(&s.clients, &full);
+    s.eventually("the slew on the bus", || {
+        if let Some(status) = child.try_wait().expect("try_wait") {
+            panic!("the slew ended before the gimbal received it: {status}\n{}", s.logs());
         }
-        drop(stdin);
-        let out = support::cli::wait_output(child);
-        assert_eq!(
-            out.code,
-            26,
-            "only an unknown position may refuse the slew: {out:?}\n{}",
-            s.logs()
-        );
-        assert!(
-            started.elapsed() < HANG_GUARD,
-            "the slew was never accepted\n{}",
-            s.logs()
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    }
+        sent(s) > before
+    });
+    (child, stdin)
 }
 
 /// A pan limit at 10° and a zone from -20° to -10° pan (tilt -30..10),
@@ -393,9 +372,8 @@ fn slews_stop_short_of_limits_and_zones_and_gotos_into_them_are_refused() {
     // 5 °/s is the gimbal's top speed (slow: a late timer on a loaded
     // machine costs little); 20 °/s² brakes it in 0.625°.
     let s = Stack::start(&["--max-rate", "5", "--rate", "5", "--accel", "20"], 10_000, NEAR);
-    s.eventually("gcud to know where the gimbal is", || {
-        s.ctl(&s.clients, &["--to", GIMBAL, "goto", "0", "0", "--wait"]).code == 0
-    });
+    // The moment gcud is ready: it learns where the gimbal is, then decides.
+    s.ok(&s.clients, &["goto", "0", "0", "--wait"]);
     for (pan, tilt, code, reason) in [
         (-15.0, 0.0, 25, "keep-out zone"),
         (-25.0, 0.0, 25, "keep-out zone"),
@@ -411,7 +389,7 @@ fn slews_stop_short_of_limits_and_zones_and_gotos_into_them_are_refused() {
         );
     }
 
-    let (child, stdin) = slew(&s, "right");
+    let (child, stdin) = slew(&s, "right", &[]);
     let (pan, _) = s.bus_position();
     drop(stdin);
     assert_eq!(support::cli::wait_output(child).code, 0);
@@ -429,7 +407,7 @@ fn slews_stop_short_of_limits_and_zones_and_gotos_into_them_are_refused() {
     );
 
     s.ok(&s.clients, &["goto", "0", "0", "--wait"]);
-    let (child, stdin) = slew(&s, "left");
+    let (child, stdin) = slew(&s, "left", &[]);
     let (pan, tilt) = s.bus_position();
     drop(stdin);
     assert_eq!(support::cli::wait_output(child).code, 0);
@@ -468,7 +446,8 @@ fn a_tour_runs_its_steps_pauses_for_an_operator_and_resumes_after_the_hold() {
     let s = Stack::start(&["--rate", "60", "--accel", "240"], 5000, TOUR);
     let list = s.ctl(&s.clients, &["tour", "list"]);
     assert_eq!((list.code, list.stdout.trim()), (0, "round  stopped"), "{list:?}");
-    let started = s.ctl(&s.clients, &["tour", "start", "round"]);
+    // Tours start and stop from the highest link's priority (`tours_min_priority`).
+    let started = s.ctl(&s.operators, &["tour", "start", "round"]);
     assert_eq!(
         (started.code, started.stdout.trim()),
         (0, "tour round: running"),
@@ -525,15 +504,15 @@ fn a_tour_runs_its_steps_pauses_for_an_operator_and_resumes_after_the_hold() {
     assert_eq!(resumed, expected, "it resumes with step {step}");
     assert_eq!(s.tour("round")["state"], "running");
 
-    let stopped = s.ctl(&s.clients, &["tour", "stop", "round"]);
+    let stopped = s.ctl(&s.operators, &["tour", "stop", "round"]);
     assert_eq!(stopped.stdout.trim(), "tour round: stopped", "{stopped:?}");
     // Started while a link holds the gimbal: it waits, and says for whom.
     s.ok(&s.operators, &["goto", "0", "0"]);
-    let waiting = s.ctl(&s.clients, &["tour", "start", "round"]);
+    let waiting = s.ctl(&s.operators, &["tour", "start", "round"]);
     assert_eq!(waiting.code, 0, "{waiting:?}");
     assert!(waiting.stdout.contains("waiting for operators"), "{waiting:?}");
     s.eventually("the waiting tour to run", || s.tour("round")["state"] == "running");
-    let unknown = s.ctl(&s.clients, &["tour", "start", "nowhere"]);
+    let unknown = s.ctl(&s.operators, &["tour", "start", "nowhere"]);
     assert_eq!(unknown.code, 5, "{unknown:?}");
 }
 
@@ -588,7 +567,7 @@ fn park_recalls_its_preset_once_after_control_lapsed() {
 #[test]
 fn a_reload_applies_priorities_and_tours_as_a_difference() {
     let s = Stack::start(&["--device", "1,2"], 60_000, TOUR);
-    let started = s.ctl(&s.clients, &["tour", "start", "round"]);
+    let started = s.ctl(&s.operators, &["tour", "start", "round"]);
     assert_eq!(started.code, 0, "{started:?}");
     let other = ["--to", "5.1.2", "goto", "20", "0"];
     assert_eq!(s.ctl(&s.operators, &["--to", "5.1.2", "goto", "10", "0"]).code, 0);
@@ -640,4 +619,144 @@ fn check_refuses_a_tour_step_into_a_zone_naming_its_place() {
         "{stderr}"
     );
     assert!(stderr.contains("enters a keep-out zone"), "{stderr}");
+}
+
+// ---- what operators, tools and attackers send (issue 48) ----------------------
+
+/// The everyday jog right after gcud starts: a speed, then a slew
+/// (`gimbalctl slew left --speed 15`: `SPF` then `PL`), on a governed
+/// gimbal whose rate `SPF` raises from 2 to 5 °/s. The slew waits while
+/// gcud learns the new rate, is carried out, and rests short of the zone
+/// (planned with the old rate it would run into it).
+#[test]
+fn the_everyday_jog_slews_a_governed_gimbal_and_stops_short_of_its_zone() {
+    let s = Stack::start(&["--max-rate", "5", "--rate", "2", "--accel", "20"], 10_000, NEAR);
+    let (child, stdin) = slew(&s, "left", &["--speed", "15"]);
+    let (pan, _) = s.bus_position();
+    drop(stdin);
+    assert_eq!(support::cli::wait_output(child).code, 0);
+    assert!(
+        s.bus().iter().any(|(source, p)| *source == 0 && p == "SPF"),
+        "{:?}",
+        s.bus()
+    );
+    eprintln!("jog left at speed 15: rests at pan {pan} (zone from -10)");
+    assert!(pan >= -10.5, "into the zone: {pan}\n{}", s.logs());
+    assert!(pan < -5.0, "it slewed: {pan}");
+}
+
+/// What gcud cannot bound on a governed gimbal, or what would change its
+/// address, line, limits or dynamics, is refused before the bus (exit 28),
+/// sent to the gimbal or through a wildcard, by any link.
+#[test]
+fn commands_gcud_cannot_bound_are_refused_on_a_governed_gimbal_and_never_reach_it() {
+    let s = Stack::start(&[], 10_000, NEAR);
+    let refused = || s.gcud.metric("gcud_commands_delivery_total{delivery=\"ungoverned\"}");
+    for payload in ["*mp10.0,0.0", "*me", "*mr1", "*sl", "LC", "QQ", "#07", "IX", "HP"] {
+        let out = s.ctl(&s.operators, &["--to", GIMBAL, "raw", payload]);
+        assert_eq!(out.code, 28, "{payload}: {out:?}\n{}", s.logs());
+        assert!(out.stderr.contains("cannot bound"), "{out:?}");
+        // To every device of the port (gimbalctl awaits no answer of a broadcast): refused for 5.1.1.
+        let before = refused();
+        s.ctl(&s.operators, &["--to", "5.1.255", "raw", payload]);
+        s.eventually("gcud's refusal of the broadcast", || refused() > before);
+        assert!(
+            !s.bus().iter().any(|(_, p)| p == payload),
+            "{payload} reached the gimbal: {:?}",
+            s.bus()
+        );
+    }
+    // 5.1.1 still answers as 5.1.1.
+    s.ok(&s.operators, &["goto", "1", "0", "--wait"]);
+}
+
+/// A preset query's answer is where the preset lies, not where the gimbal
+/// is: after `P?05` (and `preset recall 5 --wait`, which asks it first)
+/// gcud still checks a goto's path from the gimbal's real place.
+#[test]
+fn a_preset_query_never_becomes_where_gcud_believes_the_gimbal_is() {
+    let s = Stack::start(&["--max-rate", "30", "--rate", "30", "--accel", "120"], 10_000, NEAR);
+    // Preset 5 above the zone (-30, 20), reached around it.
+    s.ok(&s.clients, &["goto", "0", "20", "--wait"]);
+    s.ok(&s.clients, &["goto", "-30", "20", "--wait"]);
+    s.ok(&s.clients, &["preset", "store", "5"]);
+    s.ok(&s.clients, &["goto", "0", "20", "--wait"]);
+    s.ok(&s.clients, &["goto", "0", "0", "--wait"]);
+    // From (0, 0) the recall's path crosses the zone (pan -20..-10, tilt up to 10).
+    let out = s.ctl(&s.clients, &["--to", GIMBAL, "preset", "recall", "5", "--wait"]);
+    assert_eq!(out.code, 25, "{out:?}\n{}", s.logs());
+    assert!(
+        !s.bus().iter().any(|(_, p)| p == "P05"),
+        "the recall reached the gimbal"
+    );
+    s.ok(&s.clients, &["raw", "P?05"]);
+    let out = s.ctl(&s.clients, &["--to", GIMBAL, "goto", "-30", "-5"]);
+    assert_eq!(out.code, 25, "{out:?}\n{}", s.logs());
+    assert!(!s.bus().iter().any(|(_, p)| *p == goto_payload(-30.0, -5.0)));
+    let (pan, tilt) = s.bus_position();
+    assert!(pan.abs() < 0.05 && tilt.abs() < 0.05, "({pan}, {tilt})");
+}
+
+/// gcud killed (SIGKILL) while a governed gimbal slews toward its zone,
+/// and started again: it finds the gimbal moving with nobody to stop it,
+/// and stops it (the gimbal's own answers, on the bus side).
+#[test]
+fn gcud_killed_mid_slew_and_started_again_stops_the_gimbal_it_finds_moving() {
+    const FAR: &str = "[[gimbal]]\naddress = \"5.1.1\"\npan_limits_deg = [-170.0, 170.0]\n\
+                       [[gimbal.keep_out]]\npan_deg = [20.0, 40.0]\ntilt_deg = [-30.0, 10.0]\n";
+    let mut s = Stack::start(&["--max-rate", "4", "--rate", "4", "--accel", "20"], 10_000, FAR);
+    let (child, stdin) = slew(&s, "right", &[]);
+    std::thread::sleep(Duration::from_millis(500));
+    s.gcud.child.kill().expect("SIGKILL");
+    s.gcud.child.wait().expect("reaped");
+    drop(stdin);
+    let _ = support::cli::wait_output(child);
+    let killed_at = answered_positions(&s.sim.log()).len();
+    std::thread::sleep(Duration::from_millis(1000));
+    let again = Gcud::start(&s.config);
+    again.wait_for_log("port open port=1");
+    s.eventually("gcud's stop after its start", || {
+        bus_events(&s.sim.log())
+            .iter()
+            .skip_while(|e| e.payload != "PR")
+            .any(|e| e.kind == Kind::Received && e.source == 5 && e.payload == "PT")
+    });
+    let _ = killed_at;
+    // Still from then on, well short of the zone.
+    let mut last = None;
+    s.eventually("the gimbal to stand still", || {
+        std::thread::sleep(Duration::from_millis(200));
+        let _ = again.position(GIMBAL);
+        let now = answered_positions(&s.sim.log()).last().copied();
+        let still = now.is_some() && now == last;
+        last = now;
+        still
+    });
+    let (pan, _) = last.expect("a position");
+    eprintln!("killed mid-slew: stopped at pan {pan} (zone from 20)");
+    assert!(pan > 1.0 && pan < 19.5, "{pan}\n{}", again.log());
+    assert_eq!(again.metric("gcud_governance_found_moving_total"), 1);
+}
+
+/// GCU commands by priority: a tour is started or stopped only from the
+/// highest link's priority (default `tours_min_priority`), `~R` only from
+/// the holder's link or a higher one, not an equal one.
+#[test]
+fn tours_and_release_answer_by_priority() {
+    let extra =
+        format!("{TOUR}[[link]]\nname = \"console\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\npriority = 80\n");
+    let s = Stack::start(&[], 10_000, &extra);
+    let console = s.gcud.address("listening link=console");
+    let out = s.ctl(&s.clients, &["tour", "start", "round"]);
+    assert_eq!(out.code, 32, "{out:?}");
+    assert_eq!(s.tour("round")["state"], "stopped", "{}", s.gcud.status());
+    let out = s.ctl(&s.operators, &["tour", "start", "round"]);
+    assert_eq!(out.code, 0, "{out:?}");
+    let out = s.ctl(&s.clients, &["tour", "stop", "round"]);
+    assert_eq!(out.code, 32, "{out:?}");
+    assert_eq!(s.ctl(&s.operators, &["tour", "stop", "round"]).code, 0);
+    s.ok(&s.operators, &["goto", "5", "0"]);
+    let out = s.ctl(&console, &["--to", GIMBAL, "release"]);
+    assert_eq!(out.code, 23, "an equal priority cannot free the holder: {out:?}");
+    assert_eq!(s.control()["holder"]["name"], "operators", "{}", s.gcud.status());
 }

@@ -65,15 +65,15 @@ fn undelivered_commands_exit_non_zero_naming_the_address() {
         (&gcu2, "2", "7.1.1", 17, "leads back"),
     ];
     for (gcud, from, to, code, message) in cases {
-        for command in ["stop", "halt"] {
-            let out = gcud.ctl(&["--from", from, "--to", to, command]);
-            assert_eq!(out.code, *code, "{command} to {to} from {from}: {out:?}");
-            assert!(
-                out.stderr.contains(to) && out.stderr.contains(message),
-                "the message names {to} and says {message:?}: {}",
-                out.stderr
-            );
-        }
+        // A stop needs no control; a halt (HA: motors off, the halt position
+        // overwritten) does, and the two GCUs' links would contend for it.
+        let out = gcud.ctl(&["--from", from, "--to", to, "stop"]);
+        assert_eq!(out.code, *code, "stop to {to} from {from}: {out:?}");
+        assert!(
+            out.stderr.contains(to) && out.stderr.contains(message),
+            "the message names {to} and says {message:?}: {}",
+            out.stderr
+        );
     }
     let out = gcu2.ctl(&["--json", "--from", "2", "--to", "5.1.2", "stop"]);
     assert_eq!(out.json()["outcome"], "device_silent", "{out:?}");
@@ -85,8 +85,8 @@ fn undelivered_commands_exit_non_zero_naming_the_address() {
         assert_eq!(gcud.ctl(&["--from", from, "--to", "5.1.1", "position"]).code, 0);
     }
     assert!(gcu5.log().contains("not delivered"), "{}", gcu5.log());
-    assert!(gcu5.metric("gcud_commands_delivery_total{delivery=\"device_silent\"}") >= 4);
-    assert!(gcu5.metric("gcud_commands_delivery_total{delivery=\"no_such_port\"}") >= 4);
+    assert!(gcu5.metric("gcud_commands_delivery_total{delivery=\"device_silent\"}") >= 2);
+    assert!(gcu5.metric("gcud_commands_delivery_total{delivery=\"no_such_port\"}") >= 2);
     // The stop, the position, and the `~W` gimbalctl asks of GCU 5 before
     // the stop (answered NIC there: a link between GCUs gets no
     // end-of-window reports, ARCHITECTURE "End of the NIC window").

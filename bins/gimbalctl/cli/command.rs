@@ -297,8 +297,8 @@ picks the GCU by its group (G.0.0; by default the GCU --tcp reaches).
 
 Examples:
   gimbalctl --tcp 127.0.0.1:4001 tour list
-  gimbalctl --tcp 127.0.0.1:4001 tour start roof-round
-  gimbalctl --tcp 127.0.0.1:4001 --to 5.0.0 tour stop roof-round"
+  gimbalctl --tcp 127.0.0.1:4002 tour start roof-round
+  gimbalctl --tcp 127.0.0.1:4002 --to 5.0.0 tour stop roof-round"
     )]
     Tour(TourCmd),
     /// What a running gcud knows: ports, links, and the devices it has seen (online, last position, last error).

@@ -58,7 +58,7 @@ Exit codes:
    5  NIC: the device does not implement or cannot apply the command
    6  no result: acknowledged, but the result did not come in time
    7  malformed result: a result came that is not the command's
-   8..19, 23..26  not delivered or refused, as the GCU reported it (through gcud):
+   8..19, 23..32  not delivered or refused, as the GCU reported it (through gcud):
        8 device silent (did not acknowledge)   9 device answered NAK to every try
       10 no such port on the GCU              11 port not open (port down)
       12 a queue on the way was full          13 no route to the group
@@ -70,6 +70,12 @@ Exit codes:
       24 refused: the target lies outside the gimbal's travel limits
       25 refused: the path may enter a keep-out zone
       26 refused: the gimbal's position is unknown and it has limits or zones
+      27 given up: a stop for the same gimbal overtook it in gcud's queue
+      28 refused: gcud cannot bound it on a governed gimbal (allow it by name)
+      29 refused: a stop from a link below the holder within a second of its last
+      30 refused: a speed change whose rate is unknown while the gimbal slews
+      31 refused: the gimbal did not say where the preset lies
+      32 refused: the link's priority does not permit it (tours, rules)
   20  --wait: the mount stopped short of its target (limits? travel?)
   21  --wait: still moving when --wait-timeout ran out
   22  --for/--hold: the stop was not acknowledged (the mount may still move)

@@ -1,28 +1,25 @@
 //! What the governor knows of one gimbal and the motions it follows: the
 //! last position read (Table 15), rates and accelerations (Table 13), the
 //! presets, and per axis whether it is still, slewing, going somewhere or
-//! stopping. A gimbal with limits or zones, or one a tour drives, is
-//! followed: its position is polled while it moves, at a rate derived
-//! from its speed and the room left, and a slew gets its stop in time.
+//! stopping; what it learns from the gimbal's answers, and what it asks
+//! next. What a command may do is judged in module `judge`; how a slew is
+//! followed and stopped in time, in module `follow`.
 
 use std::collections::{BTreeMap, BTreeSet};
+use std::sync::Arc;
 
 use sagebrush_protocol::frame::HEADER_LEN;
 use sagebrush_protocol::link::wire_ms;
-use sagebrush_protocol::{Command, Position};
+use sagebrush_protocol::{Axis, Command, Describes, Position, Reply};
 
-use std::sync::Arc;
-
-use sagebrush_protocol::{Axis, Describes, MountEffect, NewSpeed, Reply};
-
-use super::control::{Held, Who};
+use super::control::Held;
 use super::rules::{GimbalRules, Span};
-use super::travel::{Kinematics, Region, axes, braking, check_goto, distance_in, room_ahead};
-use super::{Decision, GovernStats, Order, Purpose};
-use crate::types::{CommandId, DropReason, RouterEvent, StopCause};
+use super::travel::{Region, axes, braking, distance_in};
+use super::{Order, Purpose};
+use crate::types::{CommandId, DropReason};
 
 /// Pan 0, tilt 1, as the follower indexes its axes.
-fn axis_index(axis: Axis) -> usize {
+pub(super) fn axis_index(axis: Axis) -> usize {
     match axis {
         Axis::Pan => 0,
         Axis::Tilt => 1,
@@ -30,19 +27,19 @@ fn axis_index(axis: Axis) -> usize {
 }
 
 /// Poll period of a goto or a stop in progress.
-const MOTION_POLL: u64 = 250;
+pub(super) const MOTION_POLL: u64 = 250;
 /// Shortest and longest wait between position polls of a followed slew.
-const MAX_SLEW_POLL: u64 = 1000;
+pub(super) const MAX_SLEW_POLL: u64 = 1000;
 /// Wait before asking again what a gimbal did not answer.
-const RETRY: u64 = 2000;
+pub(super) const RETRY: u64 = 2000;
 /// Readings this close (hundredths of a degree) mean the axis stands still.
-const SAME: i32 = 5;
+pub(super) const SAME: i32 = 5;
 /// The shortest span between two readings that may show an axis standing still (ms).
-const SETTLE_SPAN: u64 = 100;
+pub(super) const SETTLE_SPAN: u64 = 100;
 /// Readings in a row without change that end a goto short of its target.
-const STILL_POLLS: u8 = 4;
+pub(super) const STILL_POLLS: u8 = 4;
 /// A device's turnaround before it answers, allowed for (ms).
-const TURNAROUND: u64 = 5;
+pub(super) const TURNAROUND: u64 = 5;
 
 /// One axis, as far as the governor knows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -89,53 +86,53 @@ pub(crate) struct Gimbal {
     /// A link moved it since it last parked.
     pub moved: bool,
     /// Followed (rules or a tour): polled while it moves, learnt.
-    watched: bool,
-    need_position: bool,
-    need_rates: bool,
-    need_accels: bool,
-    ask_presets: BTreeSet<u8>,
+    pub(super) watched: bool,
+    pub(super) need_position: bool,
+    pub(super) need_rates: bool,
+    pub(super) need_accels: bool,
+    pub(super) ask_presets: BTreeSet<u8>,
     /// The next preset to learn, scanning from 00 until the first NIC.
-    scan: Option<u8>,
+    pub(super) scan: Option<u8>,
     /// One own query at a time.
-    asking: bool,
-    retry_at: Option<u64>,
-    poll_at: Option<u64>,
+    pub(super) asking: bool,
+    pub(super) retry_at: Option<u64>,
+    pub(super) poll_at: Option<u64>,
     /// When the last goto (or motion to an unknown place) was sent: a
     /// reading from before it cannot tell that it stopped.
-    moved_at: u64,
+    pub(super) moved_at: u64,
     /// When each slewing axis' stop must be sent, and what it stops short of.
-    stop_at: [Option<(u64, DropReason)>; 2],
+    pub(super) stop_at: [Option<(u64, DropReason)>; 2],
     /// A slew began: its stop is planned at the next poll.
-    replan: bool,
+    pub(super) replan: bool,
     /// The rate and acceleration of each axis when its slew began.
-    slew_began_with: [Option<(u32, u32)>; 2],
+    pub(super) slew_began_with: [Option<(u32, u32)>; 2],
     /// Readings in a row each axis did not change.
-    unchanged: [u8; 2],
+    pub(super) unchanged: [u8; 2],
     /// A goto that replaced a followed slew, not yet on the bus: its
     /// command (once known) and target; the slew's stop stays planned.
-    guard: Option<(Option<CommandId>, [i32; 2])>,
+    pub(super) guard: Option<(Option<CommandId>, [i32; 2])>,
     /// How fast each axis moved between the last two readings, per second:
     /// its mean (a `HO` may run faster than the rate `R?` answers), and the
     /// most it may have reached at the last one.
-    seen_rate: [(u32, u32); 2],
+    pub(super) seen_rate: [(u32, u32); 2],
     /// Changes of speed, acceleration or dynamics from links not yet ended:
     /// what `R?` and `A?` answer meanwhile may be from before them, and a
     /// slew waits for them (ARCHITECTURE "Governance", learn before deciding).
-    changes_in_flight: u8,
+    pub(super) changes_in_flight: u8,
     /// The proportional step (`SPn`, `STn`) each axis was last set to.
-    step: [Option<u8>; 2],
+    pub(super) step: [Option<u8>; 2],
     /// The rate each axis answered at a proportional step (`R?` after `SPn`):
     /// bounds a step change during a slew.
-    step_rates: BTreeMap<(usize, u8), u32>,
+    pub(super) step_rates: BTreeMap<(usize, u8), u32>,
     /// Presets the gimbal did not say (NIC to `P?nn`).
-    unsaid: BTreeSet<u8>,
+    pub(super) unsaid: BTreeSet<u8>,
     /// Stops from links below the holder, and when (module `mod`, [`super::STOP_SPACING`]).
-    stops_below: Vec<(Arc<str>, u64)>,
+    pub(super) stops_below: Vec<(Arc<str>, u64)>,
     /// Found after a start or a port's reopening, its motion unknown:
     /// read twice, and stopped if it moves ([`StopCause::FoundMoving`]).
-    found: bool,
+    pub(super) found: bool,
     /// A stop is owed for a gimbal found moving.
-    stop_found: bool,
+    pub(super) stop_found: bool,
 }
 
 impl Gimbal {
@@ -189,243 +186,6 @@ impl Gimbal {
         }
     }
 
-    /// The holder's query renews its control while its slew runs, as a
-    /// query renews the motion lease (ARCHITECTURE "Safety"): a held slew
-    /// keeps control as long as its holder holds it.
-    pub fn renewed(&mut self, now: u64, hold: u64, key: &Arc<str>) {
-        if !self.axes.iter().any(|a| matches!(a, AxisMotion::Slew { .. })) {
-            return;
-        }
-        if let Some(h) = self.holder.as_mut().filter(|h| !h.lapsed(now, hold)) {
-            if matches!(&h.who, Who::Link { key: k, .. } if k == key) {
-                h.last = now;
-            }
-        }
-    }
-
-    /// Whether a stop from `me`, a link below the holder, comes sooner than
-    /// [`super::STOP_SPACING`] after its last one.
-    pub fn stops_limited(&self, now: u64, me: &Who) -> bool {
-        let Who::Link { key, .. } = me else { return false };
-        self.stops_below
-            .iter()
-            .any(|(k, t)| k == key && now < t.saturating_add(super::STOP_SPACING))
-    }
-
-    /// A stop from `me`, a link below the holder, let through.
-    pub fn stop_from_below(&mut self, now: u64, me: &Who) {
-        let Who::Link { key, .. } = me else { return };
-        self.stops_below
-            .retain(|(_, t)| now < t.saturating_add(super::STOP_SPACING));
-        self.stops_below.push((key.clone(), now));
-    }
-
-    /// Whether a command of mount effect `effect` may go to this gimbal
-    /// now as far as its limits and zones go: `Err` refuses it, or holds it
-    /// until gcud learnt what it needs (asked here).
-    pub fn check(&mut self, now: u64, effect: MountEffect, line: Line) -> Result<(), Decision> {
-        let judged = match self.rules.as_ref().filter(|r| r.bounds_travel()) {
-            None => return Ok(()),
-            Some(rules) => self.judge(now, rules, effect, line),
-        };
-        if let Err(Decision::Learn(why)) = judged {
-            self.ask(why, effect);
-        }
-        judged
-    }
-
-    fn judge(&self, now: u64, rules: &GimbalRules, effect: MountEffect, line: Line) -> Result<(), Decision> {
-        let goto = |target: [i32; 2]| match check_goto(rules, self.region(now), target) {
-            Ok(()) => Ok(()),
-            Err(DropReason::PositionUnknown) => Err(Decision::Learn(DropReason::PositionUnknown)),
-            Err(reason) => Err(Decision::Refuse(reason)),
-        };
-        match effect {
-            MountEffect::GoTo(p) => goto(axes(p)),
-            MountEffect::RecallPreset(n) => match self.presets.get(&n) {
-                Some(p) => goto(axes(*p)),
-                None if self.unsaid.contains(&n) => Err(Decision::Refuse(DropReason::PresetUnknown)),
-                None => Err(Decision::Learn(DropReason::PresetUnknown)),
-            },
-            MountEffect::Slew { axis, positive } => {
-                if self.changes_in_flight > 0 {
-                    // A speed change before it has not ended: its rate is not known yet.
-                    return Err(Decision::Learn(DropReason::RateUnknown));
-                }
-                match self.check_slew(now, rules, axis_index(axis), if positive { 1 } else { -1 }, line) {
-                    Ok(()) => Ok(()),
-                    Err(reason @ (DropReason::PositionUnknown | DropReason::RateUnknown)) => {
-                        Err(Decision::Learn(reason))
-                    }
-                    Err(reason) => Err(Decision::Refuse(reason)),
-                }
-            }
-            MountEffect::Speed { axis, to } => {
-                let rate = match to {
-                    NewSpeed::Rate(r) => Some(u32::from(r.0)),
-                    NewSpeed::Step(step) => self.step_bound(axis_index(axis), step.get()),
-                };
-                self.check_change(now, rules, axis_index(axis), rate, None, line)
-            }
-            MountEffect::Acceleration { axis, acceleration } => self.check_change(
-                now,
-                rules,
-                axis_index(axis),
-                None,
-                Some(u32::from(acceleration.0)),
-                line,
-            ),
-            _ => Ok(()),
-        }
-    }
-
-    /// The most an axis may run at proportional step `step`: the rate it
-    /// answered at that step, or at step 15 (its maximum, Table 11), or the
-    /// configured top rate.
-    fn step_bound(&self, axis: usize, step: u8) -> Option<u32> {
-        let configured = self.rules.as_ref().and_then(|r| r.slew_rate).map(|r| r[axis]);
-        configured
-            .or_else(|| self.step_rates.get(&(axis, step)).copied())
-            .or_else(|| self.step_rates.get(&(axis, 15)).copied())
-    }
-
-    /// A change of `axis`' rate or acceleration while it slews: the stop
-    /// is planned again with the worst of old and new (the faster rate, the
-    /// lower acceleration); refused when that stop would come too late, or
-    /// when the new rate is not known.
-    fn check_change(
-        &self,
-        now: u64,
-        rules: &GimbalRules,
-        axis: usize,
-        rate: Option<u32>,
-        accel: Option<u32>,
-        line: Line,
-    ) -> Result<(), Decision> {
-        let AxisMotion::Slew { dir, since } = self.axes[axis] else {
-            return Ok(());
-        };
-        if rate.is_none() && accel.is_none() {
-            return Err(Decision::Refuse(DropReason::RateUnknown));
-        }
-        let mut trial = self.clone();
-        trial.changed(axis, rate, accel);
-        match trial.stop_due(now, rules, axis, dir, since, line) {
-            Ok(None) => Ok(()),
-            Ok(Some((Some(t), _))) if t >= now => Ok(()),
-            Ok(Some((_, reason))) => Err(Decision::Refuse(reason)),
-            Err(reason) => Err(Decision::Refuse(reason)),
-        }
-    }
-
-    /// `axis` now runs at `rate` and accelerates at `accel` (those given):
-    /// while it slews, [`Gimbal::rate`] and [`Gimbal::accel`] keep the worst
-    /// of these and the slew's own.
-    fn changed(&mut self, axis: usize, rate: Option<u32>, accel: Option<u32>) {
-        if let Some(v) = rate {
-            match self.rates.as_mut() {
-                Some(r) => r[axis] = v,
-                None if matches!(self.axes[axis], AxisMotion::Slew { .. }) => {
-                    self.rates = Some([v, v]);
-                }
-                None => {}
-            }
-        }
-        if let Some(a) = accel {
-            match self.accels.as_mut() {
-                Some(r) => r[axis] = a,
-                None if matches!(self.axes[axis], AxisMotion::Slew { .. }) => {
-                    self.accels = Some([a, a]);
-                }
-                None => {}
-            }
-        }
-        self.replan = true;
-    }
-
-    /// What a held command needs is asked of the gimbal.
-    fn ask(&mut self, why: DropReason, effect: MountEffect) {
-        match (why, effect) {
-            (DropReason::PresetUnknown, MountEffect::RecallPreset(n)) => {
-                self.ask_presets.insert(n);
-            }
-            (DropReason::RateUnknown, _) if self.changes_in_flight > 0 => return,
-            (DropReason::RateUnknown, _) => {
-                self.need_rates |= self.rates.is_none();
-                self.need_accels |= self.accels.is_none();
-            }
-            _ => self.need_position |= self.position.is_none(),
-        }
-        self.retry_at = None;
-    }
-
-    /// A command of mount effect `effect` was let through as `id`: its
-    /// motion noted, and what it changes, to be learnt again when it ends.
-    pub fn accepted(&mut self, now: u64, id: CommandId, effect: MountEffect) -> Option<Learning> {
-        match effect {
-            MountEffect::GoTo(p) => {
-                self.going(now, axes(p));
-                self.goto_is(id);
-            }
-            MountEffect::RecallPreset(n) => match self.presets.get(&n).copied() {
-                Some(p) => {
-                    self.going(now, axes(p));
-                    self.goto_is(id);
-                }
-                None => self.unknown_motion(now),
-            },
-            MountEffect::Slew { axis, positive } => self.slewing(now, axis_index(axis), if positive { 1 } else { -1 }),
-            MountEffect::Halt => self.stopping(now, true, true),
-            MountEffect::Unbounded => self.unknown_motion(now),
-            MountEffect::StorePreset(n) => {
-                self.stored(n);
-                return Some(Learning::Preset(n));
-            }
-            MountEffect::Identity => {
-                // Another address or line: the gimbal here is found anew.
-                self.forget();
-                return self.watched.then_some(Learning::Speeds);
-            }
-            MountEffect::Speed { axis, to } => {
-                let axis = axis_index(axis);
-                let rate = match to {
-                    NewSpeed::Rate(r) => {
-                        self.step[axis] = None;
-                        Some(u32::from(r.0))
-                    }
-                    NewSpeed::Step(step) => {
-                        self.step[axis] = Some(step.get());
-                        self.step_bound(axis, step.get())
-                    }
-                };
-                match rate {
-                    Some(v) => self.changed(axis, Some(v), None),
-                    None => self.rates = None,
-                }
-                return self.change_in_flight();
-            }
-            MountEffect::Acceleration { axis, acceleration } => {
-                self.changed(axis_index(axis), None, Some(u32::from(acceleration.0)));
-                return self.change_in_flight();
-            }
-            MountEffect::Dynamics => {
-                self.rates = None;
-                self.accels = None;
-                return self.change_in_flight();
-            }
-            MountEffect::Setting | MountEffect::Reads(_) | MountEffect::Stop { .. } => {}
-        }
-        None
-    }
-
-    fn change_in_flight(&mut self) -> Option<Learning> {
-        if !self.watched {
-            return None;
-        }
-        self.changes_in_flight = self.changes_in_flight.saturating_add(1);
-        Some(Learning::Speeds)
-    }
-
     /// A result to a query that describes `describes` (the router's
     /// in-flight record), answered at `now`.
     pub fn answered(&mut self, now: u64, describes: Describes, reply: &Reply<'_>, line: Line) {
@@ -471,7 +231,7 @@ impl Gimbal {
 
     /// The axis' top rate; while it slews, no less than when the slew
     /// began (a speed change may not apply to a slew under way).
-    fn rate(&self, axis: usize) -> Option<u32> {
+    pub(super) fn rate(&self, axis: usize) -> Option<u32> {
         let configured = self.rules.as_ref().and_then(|r| r.slew_rate);
         let now = configured.or(self.rates).map(|r| r[axis].max(1))?;
         let rate = match (self.axes[axis], self.slew_began_with[axis]) {
@@ -482,7 +242,7 @@ impl Gimbal {
     }
 
     /// The axis' acceleration; while it slews, no more than when the slew began.
-    fn accel(&self, axis: usize) -> Option<u32> {
+    pub(super) fn accel(&self, axis: usize) -> Option<u32> {
         let configured = self.rules.as_ref().and_then(|r| r.acceleration);
         let now = configured.or(self.accels).map(|a| a[axis].max(1))?;
         Some(match (self.axes[axis], self.slew_began_with[axis]) {
@@ -524,91 +284,6 @@ impl Gimbal {
             };
         }
         Some(region)
-    }
-
-    /// A slew of `axis` in `dir`: refused when its position, rate or
-    /// acceleration is unknown, or when the stop that keeps it short of the
-    /// first limit or zone ahead would be due before the slew is even on
-    /// the bus.
-    pub fn check_slew(
-        &self,
-        now: u64,
-        rules: &GimbalRules,
-        axis: usize,
-        dir: i32,
-        line: Line,
-    ) -> Result<(), DropReason> {
-        let since = self.slew_since(now, axis, dir);
-        match self.stop_due(now, rules, axis, dir, since, line)? {
-            None => Ok(()),
-            Some((Some(t), _)) if t >= now + line.exchange() => Ok(()),
-            Some((_, reason)) => Err(reason),
-        }
-    }
-
-    /// When a slew of `axis` in `dir` that began at `since` (0: the axis was
-    /// already moving, so as fast as it may be) must have its stop sent, from
-    /// the last reading: `None` when nothing bounds it; `Some((None, _))`
-    /// when even a stop sent now comes too late; and what it stops short of.
-    fn stop_due(
-        &self,
-        now: u64,
-        rules: &GimbalRules,
-        axis: usize,
-        dir: i32,
-        since: u64,
-        line: Line,
-    ) -> Result<Option<(Option<u64>, DropReason)>, DropReason> {
-        let reading = self.position.ok_or(DropReason::PositionUnknown)?;
-        let (Some(v), Some(a)) = (self.rate(axis), self.accel(axis)) else {
-            return Err(DropReason::RateUnknown);
-        };
-        let region = self.region(now).ok_or(DropReason::PositionUnknown)?;
-        let at = axes(reading.position)[axis];
-        let Some((room, reason)) = room_ahead(rules, axis, dir, at, self.other_range(axis, region, now)) else {
-            return Ok(None);
-        };
-        // The axis stood at the reading until the slew began; since then it
-        // gained at most `a` per ms (it began no earlier than accepted).
-        let from = reading.at.max(since);
-        let mut kinematics = Kinematics::of(v, a, from - since);
-        // Never slower than the readings showed it moving.
-        kinematics.u = kinematics
-            .u
-            .max(f64::from(self.seen_rate[axis].1) / 1000.0)
-            .min(kinematics.v);
-        let due = kinematics
-            .latest_stop(room)
-            .map(|dt| (from + dt as u64).saturating_sub(line.latency()));
-        Ok(Some((due, reason)))
-    }
-
-    /// When a slew of `axis` in `dir` begun now counts as begun (see [`Gimbal::stop_due`]).
-    fn slew_since(&self, now: u64, axis: usize, dir: i32) -> u64 {
-        match self.axes[axis] {
-            AxisMotion::Slew { dir: d, since } if d == dir => since,
-            AxisMotion::Still => now,
-            // Already moving (a goto not yet confirmed, a stop, a turn): as fast as it may be.
-            _ => 0,
-        }
-    }
-
-    /// The range the other axis covers while `axis` slews toward a boundary.
-    fn other_range(&self, axis: usize, region: Region, now: u64) -> Span {
-        let other = 1 - axis;
-        match (self.axes[other], self.rate(other)) {
-            (AxisMotion::Slew { dir, .. }, Some(v)) => {
-                let _ = now;
-                // Over the horizon of one slow poll: far enough ahead for the next plan.
-                let reach = distance_in(MAX_SLEW_POLL * 2, v);
-                region[other].join(&Span::at(if dir > 0 {
-                    region[other].hi + reach
-                } else {
-                    region[other].lo - reach
-                }))
-            }
-            _ => region[other],
-        }
     }
 
     pub fn going(&mut self, now: u64, target: [i32; 2]) {
@@ -780,102 +455,6 @@ impl Gimbal {
         self.poll_at = self.may_be_moving().then_some(now + MOTION_POLL);
     }
 
-    /// Plans the stop of each slewing axis from the last reading.
-    fn plan(&mut self, now: u64, line: Line) {
-        self.replan = false;
-        let Some(rules) = self.rules.clone() else { return };
-        let exchange = line.exchange();
-        for axis in 0..2 {
-            let AxisMotion::Slew { dir, since } = self.axes[axis] else {
-                if self.guard.is_none() {
-                    self.stop_at[axis] = None;
-                }
-                continue;
-            };
-            let (stop, reason) = match self.stop_due(now, &rules, axis, dir, since, line) {
-                Ok(None) => {
-                    self.stop_at[axis] = None;
-                    continue;
-                }
-                Ok(Some((due, reason))) => (due.unwrap_or(now).max(now), reason),
-                // Unknown speed or position: stop at once rather than guess.
-                Err(reason) => (now, reason),
-            };
-            self.stop_at[axis] = Some((stop, reason));
-            // Poll again while a fresher reading can still refine the stop.
-            let wait = ((stop - now) / 2).clamp(exchange, MAX_SLEW_POLL);
-            if now + wait + exchange < stop {
-                self.poll_at = Some(self.poll_at.map_or(now + wait, |t| t.min(now + wait)));
-            }
-        }
-    }
-
-    /// Stops due, and the next position poll of a gimbal in motion.
-    #[allow(clippy::too_many_arguments)]
-    pub fn follow(
-        &mut self,
-        now: u64,
-        line: Line,
-        port: u8,
-        device: u8,
-        orders: &mut Vec<Order>,
-        stats: &mut GovernStats,
-        events: &mut Vec<RouterEvent>,
-    ) {
-        if !self.watched {
-            return;
-        }
-        if self.replan && !self.asking {
-            self.plan(now, line);
-        }
-        if std::mem::take(&mut self.stop_found) {
-            stats.found_moving += 1;
-            orders.push(Order {
-                port,
-                device,
-                command: Command::StopMotion,
-                stop: Some(StopCause::FoundMoving),
-                cancel_slews: None,
-                purpose: Purpose::Motion,
-            });
-            self.poll_at = Some(now + MOTION_POLL / 2);
-        }
-        for axis in 0..2 {
-            let Some((at, boundary)) = self.stop_at[axis].filter(|&(t, _)| t <= now) else {
-                continue;
-            };
-            self.stop_at[axis] = None;
-            self.axes[axis] = AxisMotion::Settling;
-            stats.boundary_stops += 1;
-            let _ = at;
-            let command = if axis == 0 { Command::PanStop } else { Command::TiltStop };
-            events.push(RouterEvent::BoundaryStop {
-                port,
-                device,
-                stop: command.mnemonic(),
-                boundary,
-            });
-            orders.push(Order {
-                port,
-                device,
-                command,
-                stop: Some(StopCause::Boundary),
-                cancel_slews: Some(boundary),
-                purpose: Purpose::Motion,
-            });
-            self.poll_at = Some(now + MOTION_POLL / 2);
-        }
-        if self.asking || !self.may_be_moving() {
-            return;
-        }
-        if self.poll_at.is_none_or(|t| t <= now) {
-            self.asking = true;
-            self.poll_at = None;
-            stats.follow_polls += 1;
-            orders.push(query(port, device, Command::QueryPosition, Purpose::Position));
-        }
-    }
-
     /// The next thing to learn, one query at a time.
     pub fn next_query(&mut self, now: u64, port: u8, device: u8, orders: &mut Vec<Order>) {
         if !self.watched || self.asking || self.retry_at.is_some_and(|t| now < t) {
@@ -950,7 +529,7 @@ impl Gimbal {
     }
 }
 
-fn query(port: u8, device: u8, command: Command<'static>, purpose: Purpose) -> Order {
+pub(super) fn query(port: u8, device: u8, command: Command<'static>, purpose: Purpose) -> Order {
     Order {
         port,
         device,

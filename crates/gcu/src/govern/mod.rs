@@ -11,6 +11,8 @@
 //! so it needs control too). Queries and stops are never refused.
 
 mod control;
+mod follow;
+mod judge;
 mod knowledge;
 pub mod rules;
 mod tour;

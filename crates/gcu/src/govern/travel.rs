@@ -36,7 +36,9 @@ fn zone_span(zone: &Zone, axis: AxisIndex) -> Span {
 
 /// A goto from anywhere in `from` (unknown: `None`) to `target`: refused
 /// when the target leaves the limits, or when the rectangle spanned by
-/// start and target (each axis moves at its own speed) meets a zone.
+/// start and target (each axis moves at its own speed) meets a zone,
+/// unless the gimbal is inside that zone and the goto only leaves it
+/// ([`leaves`]).
 pub(crate) fn check_goto(rules: &GimbalRules, from: Option<Region>, target: [i32; 2]) -> Result<(), DropReason> {
     for (axis, &t) in target.iter().enumerate() {
         if limits(rules, axis).is_some_and(|l| !l.contains(t)) {
@@ -53,11 +55,47 @@ pub(crate) fn check_goto(rules: &GimbalRules, from: Option<Region>, target: [i32
     match rules
         .keep_out
         .iter()
-        .any(|z| z.pan.meets(&path[0]) && z.tilt.meets(&path[1]))
+        .any(|z| z.pan.meets(&path[0]) && z.tilt.meets(&path[1]) && !leaves(z, from, target))
     {
         true => Err(DropReason::KeepOut),
         false => Ok(()),
     }
+}
+
+/// How deep into `zone` (its distance to the nearest edge) the deepest
+/// point of `span` within it lies; negative when they do not meet.
+fn deepest(span: Span, zone: Span) -> i32 {
+    let (lo, hi) = (span.lo.max(zone.lo), span.hi.min(zone.hi));
+    if lo > hi {
+        return -1;
+    }
+    let x = ((zone.lo + zone.hi) / 2).clamp(lo, hi);
+    (x - zone.lo).min(zone.hi - x)
+}
+
+/// How deep into `zone` the shallowest point of `span` within it lies.
+fn shallowest(span: Span, zone: Span) -> i32 {
+    let (lo, hi) = (span.lo.max(zone.lo), span.hi.min(zone.hi));
+    let depth = |x: i32| (x - zone.lo).min(zone.hi - x);
+    depth(lo).min(depth(hi))
+}
+
+/// A gimbal left inside `zone` (a reload drew it around it, or it was
+/// moved there before gcud knew) may be driven out: a goto from `from`,
+/// which meets the zone, to `target` outside it whose path goes nowhere
+/// deeper into the zone than the start already is (the depth of a point of
+/// a rectangle is the lesser of its axes', so the deepest point of the
+/// path is found axis by axis).
+fn leaves(zone: &Zone, from: Region, target: [i32; 2]) -> bool {
+    let inside = zone.pan.contains(target[0]) && zone.tilt.contains(target[1]);
+    let started_in = zone.pan.meets(&from[0]) && zone.tilt.meets(&from[1]);
+    if inside || !started_in {
+        return false;
+    }
+    let path = [from[0].join(&Span::at(target[0])), from[1].join(&Span::at(target[1]))];
+    let deepest_on_path = deepest(path[0], zone.pan).min(deepest(path[1], zone.tilt));
+    let start = shallowest(from[0], zone.pan).min(shallowest(from[1], zone.tilt));
+    deepest_on_path <= start
 }
 
 /// The first boundary ahead of a slew of `axis` in direction `dir` (+1 or
@@ -200,6 +238,34 @@ mod tests {
         free.keep_out.clear();
         assert_eq!(check_goto(&free, None, [9000, 2000]), Ok(()), "limits need no start");
         let _ = Position::new(Angle(0), Angle(0));
+    }
+
+    /// A gimbal inside a zone may leave it by a goto that goes no deeper;
+    /// one that crosses more of it, or ends inside, is refused.
+    #[test]
+    fn a_goto_may_drive_a_gimbal_out_of_a_zone_without_crossing_more_of_it() {
+        let r = rules(); // zone pan 40..60, tilt -30..10
+        // At (58, 0): two degrees from its pan edge.
+        let at = point(5800, 0);
+        assert_eq!(check_goto(&r, at, [7000, 0]), Ok(()), "out by the near edge");
+        assert_eq!(check_goto(&r, at, [5800, 2000]), Ok(()), "up and out");
+        assert_eq!(
+            check_goto(&r, at, [3000, 0]),
+            Err(DropReason::KeepOut),
+            "across the zone"
+        );
+        assert_eq!(
+            check_goto(&r, at, [5000, 0]),
+            Err(DropReason::KeepOut),
+            "deeper, and inside"
+        );
+        assert_eq!(
+            check_goto(&r, at, [6500, -2900]),
+            Ok(()),
+            "down the edge and out: no deeper"
+        );
+        // From outside, any path that meets the zone is refused as before.
+        assert_eq!(check_goto(&r, point(7000, 0), [5900, 2000]), Err(DropReason::KeepOut));
     }
 
     #[test]

@@ -1,0 +1,256 @@
+//! What a command from a link may do to a governed gimbal, from what the
+//! governor knows of it (ARCHITECTURE "Governance"): its row's mount
+//! effect judged against the limits and zones (refused, let through, or
+//! held while gcud learns what it needs), the motion it starts noted, and
+//! what it changes learnt again afterwards. Control by priority, and the
+//! stops from links below the holder, are judged here too.
+
+use std::sync::Arc;
+
+use sagebrush_protocol::{MountEffect, NewSpeed};
+
+use super::Decision;
+use super::control::Who;
+use super::knowledge::{AxisMotion, Gimbal, Learning, Line, axis_index};
+use super::rules::GimbalRules;
+use super::travel::{axes, check_goto};
+use crate::types::{CommandId, DropReason};
+
+impl Gimbal {
+    /// The holder's query renews its control while its slew runs, as a
+    /// query renews the motion lease (ARCHITECTURE "Safety"): a held slew
+    /// keeps control as long as its holder holds it.
+    pub fn renewed(&mut self, now: u64, hold: u64, key: &Arc<str>) {
+        if !self.axes.iter().any(|a| matches!(a, AxisMotion::Slew { .. })) {
+            return;
+        }
+        if let Some(h) = self.holder.as_mut().filter(|h| !h.lapsed(now, hold)) {
+            if matches!(&h.who, Who::Link { key: k, .. } if k == key) {
+                h.last = now;
+            }
+        }
+    }
+
+    /// Whether a stop from `me`, a link below the holder, comes sooner than
+    /// [`super::STOP_SPACING`] after its last one.
+    pub fn stops_limited(&self, now: u64, me: &Who) -> bool {
+        let Who::Link { key, .. } = me else { return false };
+        self.stops_below
+            .iter()
+            .any(|(k, t)| k == key && now < t.saturating_add(super::STOP_SPACING))
+    }
+
+    /// A stop from `me`, a link below the holder, let through.
+    pub fn stop_from_below(&mut self, now: u64, me: &Who) {
+        let Who::Link { key, .. } = me else { return };
+        self.stops_below
+            .retain(|(_, t)| now < t.saturating_add(super::STOP_SPACING));
+        self.stops_below.push((key.clone(), now));
+    }
+
+    /// Whether a command of mount effect `effect` may go to this gimbal
+    /// now as far as its limits and zones go: `Err` refuses it, or holds it
+    /// until gcud learnt what it needs (asked here).
+    pub fn check(&mut self, now: u64, effect: MountEffect, line: Line) -> Result<(), Decision> {
+        let judged = match self.rules.as_ref().filter(|r| r.bounds_travel()) {
+            None => return Ok(()),
+            Some(rules) => self.judge(now, rules, effect, line),
+        };
+        if let Err(Decision::Learn(why)) = judged {
+            self.ask(why, effect);
+        }
+        judged
+    }
+
+    fn judge(&self, now: u64, rules: &GimbalRules, effect: MountEffect, line: Line) -> Result<(), Decision> {
+        let goto = |target: [i32; 2]| match check_goto(rules, self.region(now), target) {
+            Ok(()) => Ok(()),
+            Err(DropReason::PositionUnknown) => Err(Decision::Learn(DropReason::PositionUnknown)),
+            Err(reason) => Err(Decision::Refuse(reason)),
+        };
+        match effect {
+            MountEffect::GoTo(p) => goto(axes(p)),
+            MountEffect::RecallPreset(n) => match self.presets.get(&n) {
+                Some(p) => goto(axes(*p)),
+                None if self.unsaid.contains(&n) => Err(Decision::Refuse(DropReason::PresetUnknown)),
+                None => Err(Decision::Learn(DropReason::PresetUnknown)),
+            },
+            MountEffect::Slew { axis, positive } => {
+                if self.changes_in_flight > 0 {
+                    // A speed change before it has not ended: its rate is not known yet.
+                    return Err(Decision::Learn(DropReason::RateUnknown));
+                }
+                match self.check_slew(now, rules, axis_index(axis), if positive { 1 } else { -1 }, line) {
+                    Ok(()) => Ok(()),
+                    Err(reason @ (DropReason::PositionUnknown | DropReason::RateUnknown)) => {
+                        Err(Decision::Learn(reason))
+                    }
+                    Err(reason) => Err(Decision::Refuse(reason)),
+                }
+            }
+            MountEffect::Speed { axis, to } => {
+                let rate = match to {
+                    NewSpeed::Rate(r) => Some(u32::from(r.0)),
+                    NewSpeed::Step(step) => self.step_bound(axis_index(axis), step.get()),
+                };
+                self.check_change(now, rules, axis_index(axis), rate, None, line)
+            }
+            MountEffect::Acceleration { axis, acceleration } => self.check_change(
+                now,
+                rules,
+                axis_index(axis),
+                None,
+                Some(u32::from(acceleration.0)),
+                line,
+            ),
+            _ => Ok(()),
+        }
+    }
+
+    /// The most an axis may run at proportional step `step`: the rate it
+    /// answered at that step, or at step 15 (its maximum, Table 11), or the
+    /// configured top rate.
+    fn step_bound(&self, axis: usize, step: u8) -> Option<u32> {
+        let configured = self.rules.as_ref().and_then(|r| r.slew_rate).map(|r| r[axis]);
+        configured
+            .or_else(|| self.step_rates.get(&(axis, step)).copied())
+            .or_else(|| self.step_rates.get(&(axis, 15)).copied())
+    }
+
+    /// A change of `axis`' rate or acceleration while it slews: the stop
+    /// is planned again with the worst of old and new (the faster rate, the
+    /// lower acceleration); refused when that stop would come too late, or
+    /// when the new rate is not known.
+    fn check_change(
+        &self,
+        now: u64,
+        rules: &GimbalRules,
+        axis: usize,
+        rate: Option<u32>,
+        accel: Option<u32>,
+        line: Line,
+    ) -> Result<(), Decision> {
+        let AxisMotion::Slew { dir, since } = self.axes[axis] else {
+            return Ok(());
+        };
+        if rate.is_none() && accel.is_none() {
+            return Err(Decision::Refuse(DropReason::RateUnknown));
+        }
+        let mut trial = self.clone();
+        trial.changed(axis, rate, accel);
+        match trial.stop_due(now, rules, axis, dir, since, line) {
+            Ok(None) => Ok(()),
+            Ok(Some((Some(t), _))) if t >= now => Ok(()),
+            Ok(Some((_, reason))) => Err(Decision::Refuse(reason)),
+            Err(reason) => Err(Decision::Refuse(reason)),
+        }
+    }
+
+    /// `axis` now runs at `rate` and accelerates at `accel` (those given):
+    /// while it slews, [`Gimbal::rate`] and [`Gimbal::accel`] keep the worst
+    /// of these and the slew's own.
+    fn changed(&mut self, axis: usize, rate: Option<u32>, accel: Option<u32>) {
+        if let Some(v) = rate {
+            match self.rates.as_mut() {
+                Some(r) => r[axis] = v,
+                None if matches!(self.axes[axis], AxisMotion::Slew { .. }) => {
+                    self.rates = Some([v, v]);
+                }
+                None => {}
+            }
+        }
+        if let Some(a) = accel {
+            match self.accels.as_mut() {
+                Some(r) => r[axis] = a,
+                None if matches!(self.axes[axis], AxisMotion::Slew { .. }) => {
+                    self.accels = Some([a, a]);
+                }
+                None => {}
+            }
+        }
+        self.replan = true;
+    }
+
+    /// What a held command needs is asked of the gimbal.
+    fn ask(&mut self, why: DropReason, effect: MountEffect) {
+        match (why, effect) {
+            (DropReason::PresetUnknown, MountEffect::RecallPreset(n)) => {
+                self.ask_presets.insert(n);
+            }
+            (DropReason::RateUnknown, _) if self.changes_in_flight > 0 => return,
+            (DropReason::RateUnknown, _) => {
+                self.need_rates |= self.rates.is_none();
+                self.need_accels |= self.accels.is_none();
+            }
+            _ => self.need_position |= self.position.is_none(),
+        }
+        self.retry_at = None;
+    }
+
+    /// A command of mount effect `effect` was let through as `id`: its
+    /// motion noted, and what it changes, to be learnt again when it ends.
+    pub fn accepted(&mut self, now: u64, id: CommandId, effect: MountEffect) -> Option<Learning> {
+        match effect {
+            MountEffect::GoTo(p) => {
+                self.going(now, axes(p));
+                self.goto_is(id);
+            }
+            MountEffect::RecallPreset(n) => match self.presets.get(&n).copied() {
+                Some(p) => {
+                    self.going(now, axes(p));
+                    self.goto_is(id);
+                }
+                None => self.unknown_motion(now),
+            },
+            MountEffect::Slew { axis, positive } => self.slewing(now, axis_index(axis), if positive { 1 } else { -1 }),
+            MountEffect::Halt => self.stopping(now, true, true),
+            MountEffect::Unbounded => self.unknown_motion(now),
+            MountEffect::StorePreset(n) => {
+                self.stored(n);
+                return Some(Learning::Preset(n));
+            }
+            MountEffect::Identity => {
+                // Another address or line: the gimbal here is found anew.
+                self.forget();
+                return self.watched.then_some(Learning::Speeds);
+            }
+            MountEffect::Speed { axis, to } => {
+                let axis = axis_index(axis);
+                let rate = match to {
+                    NewSpeed::Rate(r) => {
+                        self.step[axis] = None;
+                        Some(u32::from(r.0))
+                    }
+                    NewSpeed::Step(step) => {
+                        self.step[axis] = Some(step.get());
+                        self.step_bound(axis, step.get())
+                    }
+                };
+                match rate {
+                    Some(v) => self.changed(axis, Some(v), None),
+                    None => self.rates = None,
+                }
+                return self.change_in_flight();
+            }
+            MountEffect::Acceleration { axis, acceleration } => {
+                self.changed(axis_index(axis), None, Some(u32::from(acceleration.0)));
+                return self.change_in_flight();
+            }
+            MountEffect::Dynamics => {
+                self.rates = None;
+                self.accels = None;
+                return self.change_in_flight();
+            }
+            MountEffect::Setting | MountEffect::Reads(_) | MountEffect::Stop { .. } => {}
+        }
+        None
+    }
+
+    fn change_in_flight(&mut self) -> Option<Learning> {
+        if !self.watched {
+            return None;
+        }
+        self.changes_in_flight = self.changes_in_flight.saturating_add(1);
+        Some(Learning::Speeds)
+    }
+}
