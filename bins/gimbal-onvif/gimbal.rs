@@ -101,6 +101,12 @@ impl Gimbal {
             .map(drop)
     }
 
+    /// gcud's rules of the gimbal (`~B`): its limits, zones and the presets
+    /// gcud reserves.
+    pub async fn rules(&self) -> Result<sagebrush_client::governance::Rules, CommandError> {
+        self.session.rules().await
+    }
+
     /// `D?`, asked once.
     pub async fn identity(&self) -> Result<Identity, CommandError> {
         self.session.identity().await

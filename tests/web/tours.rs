@@ -220,3 +220,44 @@ fn screenshot_of_the_demo_page() {
     eprintln!("page weight: {bytes} bytes ({weight})");
     assert!(bytes > 0, "{weight}");
 }
+
+/// Presets saved from the page never take a number gcud reserves (issue
+/// 48: the second saved preset overwrote preset 1, the demo's park preset):
+/// gcud's `~B` names the presets its park and tours recall (`R01`, `R00`),
+/// and the page stores at the lowest number free of both.
+#[test]
+fn presets_saved_from_the_page_skip_the_presets_gcud_reserves() {
+    if !browser_available() {
+        return;
+    }
+    use support::fake_gcud::{Answer, FakeGcud, position};
+    let gcud = FakeGcud::start(move |p| match p {
+        b"P?" => position(0.0, 0.0),
+        b"~B0101" => Answer::Result(b"~B0101=PDCD82328R00R01".to_vec()),
+        [b'S', _, _] => Answer::Ack,
+        _ => Answer::Nic,
+    });
+    let mut web = Door::new("gimbal-web", env!("CARGO_BIN_EXE_gimbal-web"));
+    web.start(&format!(
+        "gcud = \"{}\"\nlisten = \"127.0.0.1:0\"\nsource_group = {DOOR_GROUP}\n{USERS}\
+         [[gimbal]]\nname = \"mast-1\"\naddress = \"5.1.1\"\n",
+        gcud.addr
+    ));
+    let url = format!("http://127.0.0.1:{}/", web.port("page listening"));
+    let log = || web.log();
+    let mut b = Browser::start();
+    b.call(json!({ "op": "open", "url": url }), log);
+    b.call(json!({ "op": "sign_in", "user": "op", "password": "op-secret" }), log);
+    let mut stored = Vec::new();
+    for name in ["gate", "yard"] {
+        let answer = b.call(
+            json!({ "op": "fetch", "path": "/api/preset/save", "with_token": true,
+                    "body": { "gimbal": 0, "name": name } }),
+            log,
+        );
+        assert_eq!(answer["status"], 200, "{answer}");
+        stored.push(answer["body"].as_str().unwrap_or_default().to_owned());
+    }
+    let sent: Vec<String> = gcud.got().into_iter().filter(|p| p.starts_with('S')).collect();
+    assert_eq!(sent, ["S02", "S03"], "{stored:?}\n{}", web.log());
+}

@@ -145,12 +145,16 @@ async fn preset_save(State(w): Shared, headers: HeaderMap, bytes: axum::body::By
     }
     let list = w.presets.list(&g.config.name);
     // Saving under a name in use moves that preset here.
-    let n = match list.iter().find(|(_, m)| m == name) {
+    // Never a preset gcud's park or tours recall (`~B` says which).
+    let reserved = g.session.rules().await.map(|r| r.reserved).unwrap_or_default();
+    let n = match list.iter().find(|(n, m)| m == name && !reserved.contains(n)) {
         Some((n, _)) => *n,
-        None => w
-            .presets
-            .free(&g.config.name)
-            .ok_or_else(|| bad(format!("{} has no free preset number (256 named)", g.config.name)))?,
+        None => w.presets.free(&g.config.name, &reserved).ok_or_else(|| {
+            bad(format!(
+                "{} has no free preset number (256 named or gcud's)",
+                g.config.name
+            ))
+        })?,
     };
     g.session.send(Command::StorePreset(n)).await.map_err(failed)?;
     w.presets

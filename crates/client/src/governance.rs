@@ -97,6 +97,8 @@ pub struct Rules {
     pub tilt_limits: Option<Span>,
     /// Rectangles no motion may enter: (pan, tilt).
     pub keep_out: Vec<(Span, Span)>,
+    /// Presets gcud's park and tours recall: a door stores none of its own there.
+    pub reserved: Vec<u8>,
 }
 
 impl Rules {
@@ -110,6 +112,7 @@ impl Rules {
                         RuleItem::PanLimits(s) => rules.pan_limits = Some(s),
                         RuleItem::TiltLimits(s) => rules.tilt_limits = Some(s),
                         RuleItem::KeepOut { pan, tilt } => rules.keep_out.push((pan, tilt)),
+                        RuleItem::Reserved(n) => rules.reserved.push(n),
                     }
                 }
                 Ok(rules)
@@ -378,6 +381,7 @@ mod tests {
             2,
             [
                 RuleItem::PanLimits([-9000, 9000]),
+                RuleItem::Reserved(1),
                 RuleItem::KeepOut {
                     pan: [-5000, -3000],
                     tilt: [-3000, 1000],
@@ -389,6 +393,7 @@ mod tests {
             pan_limits: Some([-9000, 9000]),
             tilt_limits: None,
             keep_out: vec![([-5000, -3000], [-3000, 1000])],
+            reserved: vec![1],
         };
         assert_eq!(
             GcuRequest::Rules(1, 2).answer(Some(&buf[..n])),

@@ -57,10 +57,11 @@ impl Presets {
         list
     }
 
-    /// The lowest number without a name.
-    pub fn free(&self, gimbal: &str) -> Option<u8> {
+    /// The lowest number without a name that gcud does not reserve
+    /// (`reserved`: the presets its park and tours recall, from `~B`).
+    pub fn free(&self, gimbal: &str, reserved: &[u8]) -> Option<u8> {
         let used: Vec<u8> = self.list(gimbal).into_iter().map(|(n, _)| n).collect();
-        (0..=255u8).find(|n| !used.contains(n))
+        (0..=255u8).find(|n| !used.contains(n) && !reserved.contains(n))
     }
 
     /// Names preset `n` (or removes its name) and writes the file.
@@ -93,14 +94,15 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let file = dir.path().join("presets.toml");
         let p = Presets::load(Some(file.clone())).unwrap();
-        assert_eq!(p.free("a"), Some(0));
+        assert_eq!(p.free("a", &[]), Some(0));
+        assert_eq!(p.free("a", &[0, 1]), Some(2), "park and tour presets are gcud's");
         p.set("a", 0, Some("door")).unwrap();
         p.set("a", 1, Some("gate \"2\"")).unwrap();
         p.set("b", 0, Some("other")).unwrap();
         p.set("a", 0, None).unwrap();
         let again = Presets::load(Some(file)).unwrap();
         assert_eq!(again.list("a"), vec![(1, "gate \"2\"".to_owned())]);
-        assert_eq!(again.free("a"), Some(0));
+        assert_eq!(again.free("a", &[]), Some(0));
         assert_eq!(again.list("b").len(), 1);
     }
 }

@@ -937,3 +937,38 @@ fn a_gimbal_found_moving_after_a_restart_is_stopped() {
     assert!(farthest < 9000, "{farthest}: stopped well before the limit");
     assert_eq!(r.router.governance_stats().found_moving, 1);
 }
+
+/// `~B` names the presets gcud's park and tours recall, so that a door
+/// stores none of its own there; a gimbal with a tour and no other rule
+/// answers them too.
+#[test]
+fn rules_name_the_presets_park_and_tours_reserve() {
+    let mut r = rig(|g| {
+        let mut rules = GimbalRules::new(PORT, 1);
+        rules.park = Some(Park { preset: 2, after: 1000 });
+        g.gimbals.push(rules);
+        g.tours.push(TourConfig {
+            name: "t".into(),
+            port: PORT,
+            device: 1,
+            steps: vec![TourStep {
+                to: TourTarget::Preset(3),
+                dwell: 100,
+            }],
+        });
+        g.tours.push(TourConfig {
+            name: "u".into(),
+            port: PORT,
+            device: 9,
+            steps: vec![TourStep {
+                to: TourTarget::Preset(7),
+                dwell: 100,
+            }],
+        });
+    });
+    assert_eq!(
+        rules_of(&mut r, 1),
+        Some((PORT, 1, vec![RuleItem::Reserved(2), RuleItem::Reserved(3)]))
+    );
+    assert_eq!(rules_of(&mut r, 9), Some((PORT, 9, vec![RuleItem::Reserved(7)])));
+}

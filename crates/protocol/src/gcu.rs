@@ -290,6 +290,9 @@ pub enum RuleItem {
         /// Its tilt span.
         tilt: [i16; 2],
     },
+    /// `R nn`: a preset gcud's park or a tour recalls (two hex digits): a
+    /// door stores no preset of its own there.
+    Reserved(u8),
 }
 
 impl RuleItem {
@@ -299,6 +302,7 @@ impl RuleItem {
             RuleItem::PanLimits([lo, hi]) => (b'P', [lo, hi, 0, 0], 2),
             RuleItem::TiltLimits([lo, hi]) => (b'T', [lo, hi, 0, 0], 2),
             RuleItem::KeepOut { pan, tilt } => (b'Z', [pan[0], pan[1], tilt[0], tilt[1]], 4),
+            RuleItem::Reserved(n) => (b'R', [i16::from(n), 0, 0, 0], 0),
         }
     }
 }
@@ -320,6 +324,9 @@ pub fn encode_rules(port: u8, device: u8, items: impl IntoIterator<Item = RuleIt
         let before = w.len;
         let (letter, values, n) = item.parts();
         let mut fits = w.put(&[letter]);
+        if let RuleItem::Reserved(preset) = item {
+            fits = fits.and_then(|()| w.hex(preset));
+        }
         for v in &values[..n] {
             let [h, l] = v.to_be_bytes();
             fits = fits.and_then(|()| w.hex(h)).and_then(|()| w.hex(l));
@@ -346,7 +353,8 @@ impl Iterator for RuleItems<'_> {
     }
 }
 
-/// Parses a `~B` result: the gimbal's port and device and its rules;
+/// Parses a `~B` result: the gimbal's port and device and its rules
+/// (limits, zones, and the presets gcud reserves);
 /// `None` for anything else, or a result with a malformed item, a span
 /// whose low end is above its high end, or limits given twice.
 pub fn parse_rules(payload: &[u8]) -> Option<(u8, u8, RuleItems<'_>)> {
@@ -356,13 +364,13 @@ pub fn parse_rules(payload: &[u8]) -> Option<(u8, u8, RuleItems<'_>)> {
         return None;
     };
     let (mut left, mut seen) = (items, [false; 2]);
-    // Each item takes at least 9 bytes: the loop ends.
+    // Each item takes at least 3 bytes: the loop ends.
     while !left.is_empty() {
         let (item, rest) = rule_item(left)?;
         let once = match item {
             RuleItem::PanLimits(_) => Some(0),
             RuleItem::TiltLimits(_) => Some(1),
-            RuleItem::KeepOut { .. } => None,
+            RuleItem::KeepOut { .. } | RuleItem::Reserved(_) => None,
         };
         if let Some(i) = once {
             if seen[i] {
@@ -378,6 +386,11 @@ pub fn parse_rules(payload: &[u8]) -> Option<(u8, u8, RuleItems<'_>)> {
 /// One item at the start of `bytes` and what follows it.
 fn rule_item(bytes: &[u8]) -> Option<(RuleItem, &[u8])> {
     let (letter, rest) = bytes.split_first()?;
+    if *letter == b'R' {
+        let [h, l, rest @ ..] = rest else { return None };
+        let preset = (hex_value(*h)? << 4) | hex_value(*l)?;
+        return Some((RuleItem::Reserved(preset), rest));
+    }
     let n = match letter {
         b'P' | b'T' => 2,
         b'Z' => 4,
@@ -543,6 +556,19 @@ mod tests {
         assert!(n <= crate::MAX_PAYLOAD);
         let (_, _, parsed) = parse_rules(&buf[..n]).unwrap();
         assert_eq!(parsed.count(), 2 + 13, "both limits and 13 zones");
+        // The presets gcud reserves (park, tours): `R nn`.
+        let reserved = [
+            RuleItem::PanLimits([-9000, 9000]),
+            RuleItem::Reserved(1),
+            RuleItem::Reserved(0xFE),
+        ];
+        let n = encode_rules(1, 2, reserved, &mut buf);
+        assert_eq!(&buf[..n], b"~B0102=PDCD82328R01RFE");
+        assert!(parse_rules(&buf[..n]).unwrap().2.eq(reserved));
+        assert!(
+            parse_rules(b"~B0102=R0").is_none(),
+            "a reserved preset is two hex digits"
+        );
         assert_eq!(encode_rules(1, 2, items, &mut buf[..6]), 0);
         assert_eq!(encode_rules(1, 2, items, &mut buf[..10]), 7);
     }

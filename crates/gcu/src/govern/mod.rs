@@ -276,8 +276,9 @@ impl Governor {
     }
 
     /// The presets park and the tours of gimbal `at` recall: asked for at
-    /// start whatever the scan from 00 finds.
-    fn named_presets(&self, at: (u8, u8)) -> Vec<u8> {
+    /// start whatever the scan from 00 finds, and reserved from the doors
+    /// (`~B`).
+    pub fn named_presets(&self, at: (u8, u8)) -> Vec<u8> {
         let park = self.rules(at).and_then(|r| r.park).map(|p| p.preset);
         let tours = self
             .config
@@ -289,7 +290,10 @@ impl Governor {
                 TourTarget::Preset(n) => Some(n),
                 TourTarget::Position(_) => None,
             });
-        park.into_iter().chain(tours).collect()
+        let mut named: Vec<u8> = park.into_iter().chain(tours).collect();
+        named.sort_unstable();
+        named.dedup();
+        named
     }
 
     /// The port's line rate changed.

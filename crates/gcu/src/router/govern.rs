@@ -263,12 +263,8 @@ impl Router {
             }
             GcuCommand::Rules(port, device) => {
                 let rules = self.governor.rules((port, device));
-                Some(encode_rules(
-                    port,
-                    device,
-                    rules.into_iter().flat_map(rule_items),
-                    &mut buf,
-                ))
+                let reserved = self.governor.named_presets((port, device));
+                Some(encode_rules(port, device, rule_items(rules, &reserved), &mut buf))
             }
             GcuCommand::WindowReports => match self.window_reports_on(link) {
                 Some(on) => {
@@ -363,21 +359,30 @@ fn clip(name: &[u8]) -> &[u8] {
     &name[..name.len().min(sagebrush_protocol::gcu::NAME_MAX)]
 }
 
-/// A gimbal's limits and zones as `~B` answers them: limits first, then
-/// the zones (as many as the payload holds). Spans are within ±327.67°
-/// (the configuration's bounds); one beyond is clamped.
-fn rule_items(rules: &crate::GimbalRules) -> impl Iterator<Item = RuleItem> + '_ {
+/// A gimbal's limits and zones as `~B` answers them: limits first, the
+/// presets park and its tours recall (`reserved`), then the zones (as many
+/// as the payload holds). Spans are within ±327.67° (the configuration's
+/// bounds); one beyond is clamped.
+fn rule_items<'a>(rules: Option<&'a crate::GimbalRules>, reserved: &'a [u8]) -> impl Iterator<Item = RuleItem> + 'a {
     fn span(s: &crate::Span) -> [i16; 2] {
         let clamp = |v: i32| v.clamp(i32::from(i16::MIN), i32::from(i16::MAX)) as i16;
         [clamp(s.lo), clamp(s.hi)]
     }
     let limits = [
-        rules.pan_limits.as_ref().map(|s| RuleItem::PanLimits(span(s))),
-        rules.tilt_limits.as_ref().map(|s| RuleItem::TiltLimits(span(s))),
+        rules
+            .and_then(|r| r.pan_limits.as_ref())
+            .map(|s| RuleItem::PanLimits(span(s))),
+        rules
+            .and_then(|r| r.tilt_limits.as_ref())
+            .map(|s| RuleItem::TiltLimits(span(s))),
     ];
-    let zones = rules.keep_out.iter().map(|z| RuleItem::KeepOut {
-        pan: span(&z.pan),
-        tilt: span(&z.tilt),
-    });
-    limits.into_iter().flatten().chain(zones)
+    let zones = rules
+        .into_iter()
+        .flat_map(|r| r.keep_out.iter())
+        .map(|z| RuleItem::KeepOut {
+            pan: span(&z.pan),
+            tilt: span(&z.tilt),
+        });
+    let reserved = reserved.iter().map(|&n| RuleItem::Reserved(n));
+    limits.into_iter().flatten().chain(reserved).chain(zones)
 }
