@@ -8,6 +8,11 @@
 //! functions, methods of `impl` blocks and provided methods of traits, at
 //! any nesting. Tables declared by macro have no function bodies and so
 //! are excepted naturally. The failure names every offender.
+//!
+//! And the router core's rooms import in one direction (issue 48): no
+//! circle among the modules of `crates/gcu/src`, read on the syntax tree
+//! (`crate::module` in paths and `use` trees, test code left out); the
+//! failure names the circle and the file of each import in it.
 
 use std::path::{Path, PathBuf};
 
@@ -156,5 +161,153 @@ fn the_measure_counts_a_function_from_signature_to_closing_brace() {
     assert_eq!(
         functions.found,
         vec![("three".to_owned(), 4, 3), ("one".to_owned(), 9, 1)]
+    );
+}
+
+/// The top-level modules of `crates/gcu/src` each file's non-test code
+/// names (`crate::NAME`), with the file that names it.
+#[derive(Default)]
+struct CrateImports {
+    found: Vec<String>,
+}
+
+impl<'ast> Visit<'ast> for CrateImports {
+    fn visit_item_mod(&mut self, m: &'ast syn::ItemMod) {
+        if !test_only(&m.attrs) {
+            syn::visit::visit_item_mod(self, m);
+        }
+    }
+
+    fn visit_item_fn(&mut self, f: &'ast syn::ItemFn) {
+        if !test_only(&f.attrs) {
+            syn::visit::visit_item_fn(self, f);
+        }
+    }
+
+    fn visit_path(&mut self, p: &'ast syn::Path) {
+        let mut segments = p.segments.iter();
+        if let (Some(first), Some(second)) = (segments.next(), segments.next()) {
+            if first.ident == "crate" {
+                self.found.push(second.ident.to_string());
+            }
+        }
+        syn::visit::visit_path(self, p);
+    }
+
+    fn visit_use_path(&mut self, u: &'ast syn::UsePath) {
+        if u.ident == "crate" {
+            let mut names = Vec::new();
+            use_names(&u.tree, &mut names);
+            self.found.extend(names);
+        }
+        syn::visit::visit_use_path(self, u);
+    }
+}
+
+/// The first names of a `use` tree (`crate::{a::X, b}`: `a`, `b`).
+fn use_names(tree: &syn::UseTree, out: &mut Vec<String>) {
+    match tree {
+        syn::UseTree::Path(p) => out.push(p.ident.to_string()),
+        syn::UseTree::Name(n) => out.push(n.ident.to_string()),
+        syn::UseTree::Rename(r) => out.push(r.ident.to_string()),
+        syn::UseTree::Group(g) => g.items.iter().for_each(|t| use_names(t, out)),
+        syn::UseTree::Glob(_) => {}
+    }
+}
+
+/// The circles of a directed graph (each found once, from its least node).
+fn circles(graph: &std::collections::BTreeMap<String, std::collections::BTreeSet<String>>) -> Vec<Vec<String>> {
+    fn walk(
+        graph: &std::collections::BTreeMap<String, std::collections::BTreeSet<String>>,
+        start: &str,
+        path: &mut Vec<String>,
+        found: &mut Vec<Vec<String>>,
+    ) {
+        let Some(last) = path.last().cloned() else { return };
+        for next in graph.get(&last).into_iter().flatten() {
+            if next == start {
+                found.push(path.clone());
+            } else if next.as_str() > start && !path.contains(next) {
+                path.push(next.clone());
+                walk(graph, start, path, found);
+                path.pop();
+            }
+        }
+    }
+    let mut found = Vec::new();
+    for start in graph.keys() {
+        walk(graph, start, &mut vec![start.clone()], &mut found);
+    }
+    found
+}
+
+#[test]
+fn the_router_cores_modules_import_no_circle() {
+    use std::collections::{BTreeMap, BTreeSet};
+    let src = Path::new(ROOT).join("crates/gcu/src");
+    let mut files = Vec::new();
+    sources(&src, &mut files);
+    let module_of = |path: &Path| -> String {
+        let rel = path.strip_prefix(&src).expect("under src");
+        let first = rel.components().next().expect("a component");
+        first.as_os_str().to_string_lossy().trim_end_matches(".rs").to_owned()
+    };
+    let modules: BTreeSet<String> = files.iter().map(|f| module_of(f)).filter(|m| m != "lib").collect();
+    assert!(modules.len() > 10, "{modules:?}");
+    let mut graph: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    let mut by_whom: BTreeMap<(String, String), String> = BTreeMap::new();
+    for file in &files {
+        let from = module_of(file);
+        if from == "lib" {
+            continue;
+        }
+        let text = std::fs::read_to_string(file).expect("source");
+        let tree = syn::parse_file(&text).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+        let mut imports = CrateImports::default();
+        imports.visit_file(&tree);
+        for to in imports.found {
+            if to != from && modules.contains(&to) {
+                graph.entry(from.clone()).or_default().insert(to.clone());
+                by_whom.entry((from.clone(), to)).or_insert_with(|| relative(file));
+            }
+        }
+    }
+    let found = circles(&graph);
+    let named: Vec<String> = found
+        .iter()
+        .map(|c| {
+            let steps: Vec<String> = c
+                .iter()
+                .zip(c.iter().cycle().skip(1))
+                .map(|(a, b)| format!("{a} -> {b} ({})", by_whom[&(a.clone(), b.clone())]))
+                .collect();
+            steps.join(", ")
+        })
+        .collect();
+    assert!(
+        named.is_empty(),
+        "import circles in crates/gcu/src:\n{}",
+        named.join("\n")
+    );
+}
+
+/// The circle finder finds a circle and names it from its least node.
+#[test]
+fn the_circle_finder_finds_circles_and_nothing_else() {
+    let graph = |edges: &[(&str, &str)]| {
+        let mut g: std::collections::BTreeMap<String, std::collections::BTreeSet<String>> = Default::default();
+        for (a, b) in edges {
+            g.entry(a.to_string()).or_default().insert(b.to_string());
+        }
+        g
+    };
+    assert!(circles(&graph(&[("a", "b"), ("b", "c"), ("a", "c")])).is_empty());
+    assert_eq!(
+        circles(&graph(&[
+            ("config", "govern"),
+            ("govern", "config"),
+            ("govern", "types")
+        ])),
+        [vec!["config".to_string(), "govern".to_string()]]
     );
 }

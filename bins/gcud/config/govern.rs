@@ -328,8 +328,8 @@ pub(super) fn validate(
         tours,
         tours_min_priority: control.tours_min_priority.as_ref().map(Int::get),
     };
-    let port_configs: Vec<_> = ports.iter().map(|p| p.router.clone()).collect();
-    match governance.validate(&port_configs) {
+    let port_ids: Vec<u8> = ports.iter().map(|p| p.router.id).collect();
+    match governance.validate(&port_ids) {
         Ok(()) => Ok(governance),
         Err(e) => Err(placed(c, &places, e.to_string())),
     }

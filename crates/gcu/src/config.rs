@@ -360,7 +360,10 @@ impl RouterConfig {
         if let Some(&group) = self.static_routes.keys().find(|&&g| g == self.group || g == WILDCARD) {
             return Err(ConfigError::StaticRoute(group));
         }
-        self.governance.validate(&self.ports)
+        let ports: Vec<u8> = self.ports.iter().map(|p| p.id).collect();
+        self.governance
+            .validate(&ports)
+            .map_err(|e| ConfigError::Governance(e.0))
     }
 }
 

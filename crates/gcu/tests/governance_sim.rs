@@ -148,7 +148,7 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
         device: 1,
         steps,
     });
-    if governance.validate(&[rig::port(bps)]).is_err() {
+    if governance.validate(&[PORT]).is_err() {
         governance.tours.clear();
     }
     if trace {

@@ -26,6 +26,7 @@ use sagebrush_protocol::{Address, Describes, MountEffect, Position, WILDCARD};
 
 pub use control::Holder;
 pub use sagebrush_protocol::TourState;
+pub use validate::GovernanceError;
 
 use crate::command::CommandFacts;
 use crate::types::{CommandId, DropReason, StopCause};

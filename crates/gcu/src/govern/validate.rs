@@ -5,18 +5,28 @@
 
 use super::rules::{Governance, Span, TourTarget};
 use super::travel::{axes, check_goto};
-use crate::config::{ConfigError, PortConfig};
+
+/// Why a governance configuration is refused, in words naming the gimbal
+/// or tour (the configuration reports it at its place in the file).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct GovernanceError(pub String);
+
+impl std::fmt::Display for GovernanceError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
 
 impl Governance {
-    /// Checks what the governance relies on: gimbals on configured ports,
-    /// each once, spans the right way round, tours with unique names and
-    /// steps, and tour steps (positions) inside the limits, with no path
-    /// between two of them entering a zone.
-    pub fn validate(&self, ports: &[PortConfig]) -> Result<(), ConfigError> {
-        let bad = |what: String| Err(ConfigError::Governance(what));
+    /// Checks what the governance relies on: gimbals on configured ports
+    /// (`ports`: their ids), each once, spans the right way round, tours
+    /// with unique names and steps, and tour steps (positions) inside the
+    /// limits, with no path between two of them entering a zone.
+    pub fn validate(&self, ports: &[u8]) -> Result<(), GovernanceError> {
+        let bad = |what: String| Err(GovernanceError(what));
         for (i, g) in self.gimbals.iter().enumerate() {
             let name = format!("gimbal {}.{}", g.port, g.device);
-            if !ports.iter().any(|p| p.id == g.port) || g.device == 0 || g.device == sagebrush_protocol::WILDCARD {
+            if !ports.contains(&g.port) || g.device == 0 || g.device == sagebrush_protocol::WILDCARD {
                 return bad(format!("{name}: no such port, or device not 1..=254"));
             }
             if self.gimbals[..i]
@@ -45,7 +55,7 @@ impl Governance {
             if t.steps.is_empty() {
                 return bad(format!("tour {}: no steps", t.name));
             }
-            if !ports.iter().any(|p| p.id == t.port) {
+            if !ports.contains(&t.port) {
                 return bad(format!("tour {}: no port {}", t.name, t.port));
             }
             let Some(rules) = self.gimbals.iter().find(|g| (g.port, g.device) == (t.port, t.device)) else {
