@@ -1,10 +1,16 @@
 //! Seeded simulation of the governance (ARCHITECTURE "Governance"): per
 //! seed, a GCU with one bus of one or two simulated gimbals (random line
 //! rate, top rate and acceleration, travel limits, keep-out zones, a tour,
-//! a park), two or three client links of random priorities (names shared
-//! or not) and a random stream of their commands: gotos (inside, past a
-//! limit, into zones), preset recalls and stores, slews, speed changes,
-//! stops, queries, releases, tour starts and stops, connections dropped.
+//! a park, sometimes `allow = ["*mp"]`), two or three client links of
+//! random priorities (names shared or not) and a random stream of what a
+//! client can send, drawn from the protocol crate's command table: every
+//! row (fixed rows, the samples of the rows with arguments, and random
+//! arguments for gotos, presets, speeds, rates and accelerations), the rev
+//! 1.9 names with random bytes, commands no row takes, preset queries, the
+//! everyday jog (a speed, then a slew at once), to a gimbal or through a
+//! wildcard; releases, tour starts and stops, connections dropped, stop
+//! frames lost on the bus, and gcud restarted (a new router core, the bus
+//! as it was) while the gimbals move.
 //!
 //! Checked throughout:
 //! - every control decision agrees with the holder gcud shows: a command
@@ -13,26 +19,44 @@
 //!   holds it (a command waiting for what gcud must learn first is decided
 //!   later), and a refused command never reaches the port's queue;
 //! - the gimbals, sampled every 2 ms on the bus side, never pass a travel
-//!   limit or enter a keep-out zone by more than [`MARGIN`];
-//! - every command gets exactly one outcome (an ACK or one report).
+//!   limit or enter a keep-out zone by more than [`MARGIN`] (but after a
+//!   command its `allow` let through, whose bounds are its operator's);
+//! - every command gets exactly one outcome (an ACK or one report);
+//! - nothing the table marks unbounded, identity or dynamics reaches a
+//!   governed gimbal's bus (its own address or a wildcard) unless its
+//!   `allow` names it;
+//! - a speed then a slew at once is never refused for what gcud did not
+//!   know (position, rate) while the gimbal answers;
+//! - after a restart, a gimbal found moving is stopped: it stands still
+//!   within [`FOUND_STOP_MS`] (the margin is not asked of a motion no gcud
+//!   followed; the rule test says how far it runs).
 //!
 //! - `cargo test -p sagebrush-gcu --release --test governance_sim`: 10,000 seeds.
 //! - `GOV_SIM_SEEDS=100000 GOV_SIM_START=0 ...`: more.
 //! - `GOV_SIM_SEED=1234 ... -- --nocapture`: one seed, with its trace.
+//! - `GOV_SIM_ALL=1 ... -- --nocapture`: every failing seed, one line each.
+//! - `GOV_SIM_FAULTS=1 ...`: with stop frames lost on the bus and gcud
+//!   restarted mid-motion (not yet held: see ARCHITECTURE "Governance").
 
 mod rig;
 
 use rig::{G, Got, PORT, Rig, pos};
 use sagebrush_gcu::{
-    CommandOutcome, GimbalRules, Governance, LinkId, Park, RouterEvent, Span, TourConfig, TourStep, TourTarget, Zone,
+    CommandOutcome, DropReason, GimbalRules, Governance, Input, LinkConfig, LinkId, LinkKind, Park, Router,
+    RouterConfig, RouterEvent, SourceFilter, Span, TourConfig, TourStep, TourTarget, Zone,
 };
-use sagebrush_protocol::{Address, Axis, Command, GcuCommand, Speed, Undelivered};
+use sagebrush_protocol::dissector::ARGUMENT_SAMPLES;
+use sagebrush_protocol::{
+    Acceleration, Address, Axis, Command, Extended, GcuCommand, MountEffect, Rate, Speed, Undelivered,
+};
 use sagebrush_sim::GimbalConfig;
 
 /// How far past a limit or into a zone a gimbal may come (hundredths of a degree).
 const MARGIN: i32 = 50;
 /// Simulated time per seed.
 const RUN_MS: u64 = 20_000;
+/// After a restart, a gimbal found moving stands still within this long.
+const FOUND_STOP_MS: u64 = 3000;
 
 /// SplitMix64.
 struct Rng(u64);
@@ -77,6 +101,9 @@ struct Summary {
     takeovers: u64,
     tours_run: u64,
     samples: u64,
+    restarts: u64,
+    jogs: u64,
+    lost_stops: u64,
 }
 
 fn rules(rng: &mut Rng, device: u8) -> GimbalRules {
@@ -102,6 +129,9 @@ fn rules(rng: &mut Rng, device: u8) -> GimbalRules {
             tilt: Span::new(lo, lo + rng.range(500, 6000) as i32),
         });
     }
+    if rng.chance(100) {
+        r.allow = vec!["*mp".into()];
+    }
     if rng.chance(300) {
         r.park = Some(Park {
             preset: rng.range(0, 3) as u8,
@@ -111,7 +141,80 @@ fn rules(rng: &mut Rng, device: u8) -> GimbalRules {
     r
 }
 
+/// A command drawn from what a client can send (the protocol crate's
+/// table, module documentation), to gimbal `device` or through a wildcard.
+/// Identity rows (`#NN`, `Cn`) only where a governance must refuse them
+/// (`dest` names a `governed` gimbal): let through, they would re-address
+/// or re-rate the simulated bus itself.
+fn draw(rng: &mut Rng, device: u8, governed: &[u8]) -> (Vec<u8>, Address) {
+    let dest = match rng.range(0, 19) {
+        0 => Address::new(G, PORT, 255),
+        1 => Address::new(G, 255, device),
+        2 => Address::new(G, 255, 255),
+        _ => Address::new(G, PORT, device),
+    };
+    let encoded = |command: Command<'_>| {
+        let mut buf = [0u8; 32];
+        command.encode(&mut buf).map(<[u8]>::to_vec).unwrap_or_default()
+    };
+    let axis = |rng: &mut Rng| rng.pick(&[Axis::Pan, Axis::Tilt]);
+    let payload = match rng.range(0, 99) {
+        0..=17 => encoded(Command::GoTo(pos(
+            rng.range(-180, 180) as f32,
+            rng.range(-90, 90) as f32,
+        ))),
+        18..=22 => encoded(Command::GoToPreset(rng.range(0, 3) as u8)),
+        23..=24 => encoded(Command::StorePreset(rng.range(0, 3) as u8)),
+        25..=27 => encoded(Command::QueryPreset(rng.range(0, 5) as u8)),
+        28..=41 => encoded(rng.pick(&[Command::PanLeft, Command::PanRight, Command::TiltUp, Command::TiltDown])),
+        42..=46 => encoded(Command::SetSpeed(
+            axis(rng),
+            Speed::new(rng.range(0, 15) as u8).unwrap(),
+        )),
+        47..=48 => encoded(Command::SetRate(axis(rng), Rate(rng.range(300, 15000) as u16))),
+        49..=50 => encoded(Command::SetAcceleration(
+            axis(rng),
+            Acceleration(rng.range(1, 40000) as u16),
+        )),
+        51..=62 => encoded(rng.pick(&[Command::PanStop, Command::TiltStop, Command::StopMotion])),
+        63..=65 => encoded(Command::Home),
+        66..=75 => encoded(Command::QueryPosition),
+        76..=83 => Command::FIXED[rng.range(0, Command::FIXED.len() as i64 - 1) as usize]
+            .0
+            .to_vec(),
+        84..=89 => ARGUMENT_SAMPLES[rng.range(0, ARGUMENT_SAMPLES.len() as i64 - 1) as usize].to_vec(),
+        90..=94 => {
+            let ext = Extended::ALL[rng.range(0, Extended::ALL.len() as i64 - 1) as usize];
+            let mut p = ext.name().as_bytes().to_vec();
+            for _ in 0..rng.range(0, 6) {
+                p.push(rng.pick(b"0123456789.,-"));
+            }
+            p
+        }
+        _ => {
+            // What no row may take: printable bytes, a `~`/`!` first left out
+            // (GCU commands and reports are not a gimbal's).
+            let mut p = vec![rng.pick(b"QWXYJKMNOU#*")];
+            for _ in 0..rng.range(0, 7) {
+                p.push(rng.range(0x20, 0x7E) as u8);
+            }
+            p
+        }
+    };
+    let identity_refused = governed.iter().any(|&d| addresses(dest, d));
+    if !identity_refused && Command::parse(&payload).mount() == MountEffect::Identity {
+        return (b"P?".to_vec(), dest);
+    }
+    (payload, dest)
+}
+
+/// Whether `dest` names gimbal `device` of the port.
+fn addresses(dest: Address, device: u8) -> bool {
+    (dest.port == PORT || dest.port == 255) && (dest.device == device || dest.device == 255)
+}
+
 fn run(seed: u64, trace: bool) -> Result<Summary, String> {
+    let faults = std::env::var_os("GOV_SIM_FAULTS").is_some();
     let mut rng = Rng(seed ^ 0x60_5E_ED);
     let bps = rng.pick(&[9600u32, 19_200, 38_400, 115_200]);
     let devices: Vec<u8> = if rng.chance(500) { vec![1] } else { vec![1, 2] };
@@ -159,6 +262,12 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
     }
     let ruled = governance.gimbals.clone();
     let has_tour = !governance.tours.is_empty();
+    let restart_governance = governance.clone();
+    let governed: Vec<u8> = devices
+        .iter()
+        .copied()
+        .filter(|&d| ruled.iter().any(|g| g.device == d) || (d == 1 && has_tour))
+        .collect();
     let mut r = Rig::new(bps, gimbals, |c| c.governance = governance);
     let names = ["alpha", "bravo", "alpha"];
     let mut clients: Vec<Client> = (0..rng.range(2, 3) as usize)
@@ -185,13 +294,40 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
     }
     let mut s = Summary::default();
     let mut violation: Option<String> = None;
-    let check = |r: &Rig, violation: &mut Option<String>, samples: &mut u64| {
+    // Gimbals found moving at a restart, and when they must stand still by.
+    let mut pending: Vec<(u8, u64)> = Vec::new();
+    // Gimbals an allowed unbounded command moved (`allow`: its bounds are
+    // its operator's from then on), and how far the bus log was read.
+    let mut operators: (Vec<u8>, usize) = (Vec::new(), 0);
+    let check = |r: &Rig,
+                 violation: &mut Option<String>,
+                 samples: &mut u64,
+                 pending: &mut Vec<(u8, u64)>,
+                 operators: &mut (Vec<u8>, usize)| {
         *samples += 1;
+        for (_, dest, payload) in &r.bus_log[operators.1..] {
+            if Command::parse(payload).mount().is_ungoverned() {
+                operators
+                    .0
+                    .extend(ruled.iter().map(|g| g.device).filter(|&d| addresses(*dest, d)));
+            }
+        }
+        operators.1 = r.bus_log.len();
+        pending.retain(|&(d, _)| r.moving(d));
+        if let (Some(&(d, by)), None) = (pending.iter().find(|&&(_, by)| r.now > by), violation.as_ref()) {
+            *violation = Some(format!(
+                "t={}: gimbal {d} found moving at a restart still moves ({by})",
+                r.now
+            ));
+        }
         if trace && r.now % 20 == 0 {
             let at: Vec<_> = r.bus.gimbals().map(|g| g.position()).collect();
             println!("{} positions {at:?}", r.now);
         }
         for rules in &ruled {
+            if pending.iter().any(|&(d, _)| d == rules.device) || operators.0.contains(&rules.device) {
+                continue;
+            }
             let p = r.position(rules.device);
             let mut bad = None;
             for (axis, limits) in [rules.pan_limits, rules.tilt_limits].into_iter().enumerate() {
@@ -215,8 +351,42 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
             }
         }
     };
-    r.run_with(2000, 2, |r| check(r, &mut violation, &mut s.samples));
+    r.run_with(2000, 2, |r| {
+        check(r, &mut violation, &mut s.samples, &mut pending, &mut operators)
+    });
     while r.now < RUN_MS && violation.is_none() {
+        if faults && rng.chance(8) {
+            // gcud restarted: a new router core, the bus as it was (its
+            // gimbals may be moving), every client connected again.
+            let mut config = RouterConfig::new(G);
+            config.ports = vec![rig::port(bps)];
+            config.governance = restart_governance.clone();
+            r.router = Router::new(config).expect("router");
+            for &d in &governed {
+                if r.moving(d) {
+                    pending.push((d, r.now + FOUND_STOP_MS));
+                }
+            }
+            r.input(Input::PortOpened { port: PORT });
+            for c in &mut clients {
+                r.got(c.link);
+                let mut config = LinkConfig::new(LinkKind::Client, SourceFilter::Any);
+                config.name = Some(std::sync::Arc::from(c.name));
+                config.priority = c.priority;
+                r.input(Input::LinkUp { link: c.link, config });
+                c.up = true;
+                c.outcomes = 0;
+                c.since_event = r.events.len();
+            }
+            s.restarts += 1;
+        }
+        if faults && rng.chance(50) {
+            // The bus loses the next stop frame of this kind once.
+            r.lose
+                .push([&b"PS"[..], b"TS", b"PT"][rng.range(0, 2) as usize].to_vec());
+            s.lost_stops += 1;
+        }
+        let mut jog: Option<Vec<u8>> = None;
         let i = rng.range(0, clients.len() as i64 - 1) as usize;
         let device = rng.pick(&devices);
         let c = clients[i].clone();
@@ -245,51 +415,74 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
                 let mut buf = [0u8; 16];
                 let n = GcuCommand::Release(PORT, device).encode(&mut buf).unwrap_or(0);
                 (buf[..n].to_vec(), Address::new(G, 0, 0), false)
-            } else {
-                let command = match roll {
-                    12..=29 => Command::GoTo(pos(rng.range(-180, 180) as f32, rng.range(-90, 90) as f32)),
-                    30..=34 => Command::GoToPreset(rng.range(0, 3) as u8),
-                    35..=37 => Command::StorePreset(rng.range(0, 3) as u8),
-                    38..=55 => rng.pick(&[Command::PanLeft, Command::PanRight, Command::TiltUp, Command::TiltDown]),
-                    56..=60 => Command::SetSpeed(
-                        rng.pick(&[Axis::Pan, Axis::Tilt]),
-                        Speed::new(rng.range(0, 15) as u8).unwrap(),
-                    ),
-                    61..=75 => rng.pick(&[Command::PanStop, Command::TiltStop, Command::StopMotion]),
-                    76..=80 => Command::Home,
-                    _ => Command::QueryPosition,
-                };
-                let changes = !command.is_stop() && command != Command::QueryPosition;
+            } else if roll < 17 {
+                // The everyday jog: a speed, then (below) a slew at once.
+                let axis = rng.pick(&[Axis::Pan, Axis::Tilt]);
                 let mut buf = [0u8; 16];
-                let n = command.encode(&mut buf).map(<[u8]>::len).unwrap_or(0);
-                (buf[..n].to_vec(), Address::new(G, PORT, device), changes)
+                let speed = Command::SetSpeed(axis, Speed::new(rng.range(0, 15) as u8).unwrap());
+                let n = speed.encode(&mut buf).map(<[u8]>::len).unwrap_or(0);
+                let slew = match (axis, rng.chance(500)) {
+                    (Axis::Pan, true) => Command::PanRight,
+                    (Axis::Pan, false) => Command::PanLeft,
+                    (Axis::Tilt, true) => Command::TiltUp,
+                    (Axis::Tilt, false) => Command::TiltDown,
+                };
+                let mut slew_buf = [0u8; 4];
+                jog = slew.encode(&mut slew_buf).ok().map(<[u8]>::to_vec);
+                (buf[..n].to_vec(), Address::new(G, PORT, device), true)
+            } else {
+                let (payload, dest) = draw(&mut rng, device, &governed);
+                let changes = Command::parse(&payload).mount().changes();
+                (payload, dest, changes)
             };
             let release = dest.port == 0 && payload.get(1) == Some(&b'R');
-            // Who holds the gimbal as the router shows it (`/status`), before the command.
+            // Who holds the gimbals the command names as the router shows
+            // it (`/status`), before the command: one held by another link
+            // of equal or higher priority refuses it.
             let now = r.now;
-            let held = r
+            let named = |d: u8| match dest.port {
+                0 => d == device,
+                _ => addresses(dest, d),
+            };
+            let held: Vec<sagebrush_gcu::Holder> = r
                 .router
                 .control()
                 .into_iter()
-                .find(|g| (g.port, g.device) == (PORT, device))
-                .and_then(|g| g.holder);
-            let refused_by_model = match &held {
-                Some(sagebrush_gcu::Holder::Link { name, priority }) if name != c.name => match release {
+                .filter(|g| g.port == PORT && named(g.device))
+                .filter_map(|g| g.holder)
+                .collect();
+            let refused_by_model = held.iter().any(|h| match h {
+                sagebrush_gcu::Holder::Link { name, priority } if name != c.name => match release {
                     true => c.priority <= *priority,
                     false => changes && c.priority <= *priority,
                 },
                 _ => false,
-            };
+            });
             let mark = r.events.len();
             r.send_payload(c.link, dest, &payload);
             s.commands += 1;
             let got = r.got(c.link);
-            let refusal = got.iter().find_map(|g| match g {
-                Got::Report(Some(u)) => Some(*u),
+            clients[i].outcomes += got.iter().filter(|g| matches!(g, Got::Ack | Got::Report(_))).count() as u64;
+            // This command's own fate, by its id (what `got` holds may be
+            // an earlier command's, decided after waiting to learn).
+            let this = r.events[mark..].iter().find_map(|(_, e)| match e {
+                RouterEvent::Accepted { id, origin, .. } if origin.link() == Some(c.link) => Some(*id),
                 _ => None,
             });
-            let decided = got.iter().any(|g| matches!(g, Got::Ack | Got::Report(_)));
-            clients[i].outcomes += got.iter().filter(|g| matches!(g, Got::Ack | Got::Report(_))).count() as u64;
+            let refusal = r.events[mark..].iter().find_map(|(_, e)| match e {
+                RouterEvent::Finished {
+                    id,
+                    outcome: CommandOutcome::Dropped(d),
+                } if Some(*id) == this => Some(d.undelivered()),
+                _ => None,
+            });
+            let decided = refusal.is_some()
+                || r.events[mark..].iter().any(|(_, e)| match e {
+                    RouterEvent::Queued { id, .. }
+                    | RouterEvent::Finished { id, .. }
+                    | RouterEvent::Delivered { id } => Some(*id) == this,
+                    _ => false,
+                });
             let refused = refusal == Some(Undelivered::NotInControl);
             // A command waiting for what gcud must learn (its position,
             // its rate after a speed change) is decided later: only a
@@ -328,19 +521,81 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
                 break;
             }
         }
-        let wait = rng.range(5, 600) as u64;
-        r.run_with(wait, 2, |r| check(r, &mut violation, &mut s.samples));
+        // The jog's slew, at once after its speed: never refused for what
+        // gcud did not know while the gimbal answers (it waits instead).
+        let mut jog_slew = None;
+        if let (Some(slew), true) = (jog, clients[i].up) {
+            let mark = r.events.len();
+            r.send_payload(clients[i].link, Address::new(G, PORT, device), &slew);
+            let link = clients[i].link;
+            jog_slew = r.events[mark..].iter().find_map(|(_, e)| match e {
+                RouterEvent::Accepted { id, origin, .. } if origin.link() == Some(link) => Some((*id, mark)),
+                _ => None,
+            });
+            let got = r.got(link);
+            clients[i].outcomes += got.iter().filter(|g| matches!(g, Got::Ack | Got::Report(_))).count() as u64;
+            s.jogs += 1;
+        }
+        // A jog's slew is decided within 3/4 of the delivery time-out: wait that long.
+        let wait = rng.range(if jog_slew.is_some() { 700 } else { 5 }, 700) as u64;
+        r.run_with(wait, 2, |r| {
+            check(r, &mut violation, &mut s.samples, &mut pending, &mut operators)
+        });
+        if let Some((id, mark)) = jog_slew {
+            let unknown = r.events[mark..].iter().any(|(_, e)| {
+                matches!(e, RouterEvent::Finished { id: f, outcome: CommandOutcome::Dropped(DropReason::PositionUnknown | DropReason::RateUnknown) } if *f == id)
+            });
+            // (After an unbounded command its `allow` let through, gcud
+            // cannot tell where the gimbal goes until it stands still; and
+            // while a gimbal initialises (`IX`, Table 9's long result) only
+            // stops use the bus, so no gimbal of it answers a query.)
+            let initialising = r
+                .bus_log
+                .iter()
+                .any(|(t, _, p)| Command::parse(p) == Command::Initialize && t + 10_000 >= r.now);
+            if unknown && violation.is_none() && !operators.0.contains(&device) && !initialising {
+                violation = Some(format!(
+                    "t={}: a jog's slew to device {device} was refused for what gcud did not know",
+                    r.now
+                ));
+            }
+        }
         for c in &mut clients {
             let got = r.got(c.link);
             c.outcomes += got.iter().filter(|g| matches!(g, Got::Ack | Got::Report(_))).count() as u64;
         }
     }
     // Drain: everything ends, every command has its one outcome.
-    r.run_with(10_000, 2, |r| check(r, &mut violation, &mut s.samples));
+    r.run_with(10_000, 2, |r| {
+        check(r, &mut violation, &mut s.samples, &mut pending, &mut operators)
+    });
+    // Nothing gcud cannot bound reached a governed gimbal, but what its `allow` names.
+    for (t, dest, payload) in &r.bus_log {
+        let command = Command::parse(payload);
+        if !command.mount().is_ungoverned() || violation.is_some() {
+            continue;
+        }
+        for &d in governed.iter().filter(|&&d| addresses(*dest, d)) {
+            let allowed = ruled.iter().find(|g| g.device == d).is_some_and(|g| {
+                g.allow
+                    .iter()
+                    .any(|a| a == command.mnemonic() || a == command.script_name())
+            });
+            if !allowed {
+                violation = Some(format!(
+                    "t={t}: {:?} to {dest} reached governed gimbal {d}",
+                    String::from_utf8_lossy(payload)
+                ));
+            }
+        }
+    }
     if let Some(v) = violation {
         if trace {
             for (t, e) in &r.events {
                 println!("{t} {e}");
+            }
+            for (t, dest, payload) in &r.bus_log {
+                println!("{t} bus {dest} {}", String::from_utf8_lossy(payload));
             }
         }
         return Err(v);
@@ -424,11 +679,19 @@ fn governance_holds_over_seeded_runs() {
                 total.takeovers += s.takeovers;
                 total.tours_run += s.tours_run;
                 total.samples += s.samples;
+                total.restarts += s.restarts;
+                total.jogs += s.jogs;
+                total.lost_stops += s.lost_stops;
             }
             Err(e) => failures.push((*seed, e.clone())),
         }
     }
     println!("{count} seeds from {start}: {total:?}");
+    if std::env::var_os("GOV_SIM_ALL").is_some() {
+        for (seed, e) in &failures {
+            println!("seed {seed}: {e}");
+        }
+    }
     if let Some((seed, e)) = failures.first() {
         panic!(
             "{} seeds failed; first {seed}: {e}\nreplay: GOV_SIM_SEED={seed} cargo test -p sagebrush-gcu --release --test governance_sim -- --nocapture",
@@ -442,4 +705,8 @@ fn governance_holds_over_seeded_runs() {
         total.boundary_stops > 0 && total.takeovers > 0 && total.tours_run > 0,
         "{total:?}"
     );
+    assert!(total.jogs > 0, "{total:?}");
+    if std::env::var_os("GOV_SIM_FAULTS").is_some() {
+        assert!(total.restarts > 0 && total.lost_stops > 0, "{total:?}");
+    }
 }

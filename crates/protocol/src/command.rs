@@ -792,7 +792,7 @@ command_table! {
             mnemonic: "VMn",
             answer: Answer::Ack,
             motion: Motion::Other,
-            mount: MountEffect::Setting,
+            mount: MountEffect::Dynamics,
             parse: {
                 [b'V', b'M', d] => match d {
                     b'0' => Self::SetVectorMode(false),

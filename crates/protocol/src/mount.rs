@@ -58,11 +58,13 @@ pub enum MountEffect {
     /// or its line rate (`Cn`).
     Identity,
     /// Changes the gimbal's own limits or dynamics (`LS`, `LC`, rate gains,
-    /// the rev 1.9 gains, limits, loop mode and user parameters).
+    /// the rev 1.9 gains, limits, loop mode and user parameters, and vector
+    /// mode `VMn`: a vector move scales an axis' rate and acceleration down
+    /// so that both arrive together, so a goto begun while that axis moves
+    /// brakes more slowly than the gimbal's acceleration says).
     Dynamics,
     /// Changes a setting that leaves the mount's travel bounded: the lens,
-    /// camera power, relays, the auxiliary ports, vector mode (a vector move
-    /// stays within the rectangle from start to target, 1.6).
+    /// camera power, relays, the auxiliary ports.
     Setting,
     /// Moves the mount where nobody can bound: `IX` (to its switches),
     /// `HP` (to the position `HA` saved), the rev 1.9 position and rate

@@ -18,6 +18,8 @@ impl Gimbal {
     /// acceleration is unknown, or when the stop that keeps it short of the
     /// first limit or zone ahead would be due before the slew is even on
     /// the bus.
+    /// `lead`: how long after now a stop may first go (the slew's own
+    /// exchange; a slew to device 255 holds the bus for its broadcast guard).
     pub fn check_slew(
         &self,
         now: u64,
@@ -25,11 +27,12 @@ impl Gimbal {
         axis: usize,
         dir: i32,
         line: Line,
+        lead: u64,
     ) -> Result<(), DropReason> {
         let since = self.slew_since(now, axis, dir);
         match self.stop_due(now, rules, axis, dir, since, line)? {
             None => Ok(()),
-            Some((Some(t), _)) if t >= now + line.exchange() => Ok(()),
+            Some((Some(t), _)) if t >= now + lead => Ok(()),
             Some((_, reason)) => Err(reason),
         }
     }
@@ -59,7 +62,8 @@ impl Gimbal {
         // The axis stood at the reading until the slew began; since then it
         // gained at most `a` per ms (it began no earlier than accepted).
         let from = reading.at.max(since);
-        let mut kinematics = Kinematics::of(v, a, from - since);
+        let up = self.accel_up(axis).unwrap_or(a);
+        let mut kinematics = Kinematics::of(v, up, a, from - since);
         // Never slower than the readings showed it moving.
         kinematics.u = kinematics
             .u
@@ -144,7 +148,11 @@ impl Gimbal {
         if !self.watched {
             return;
         }
-        if self.replan && !self.asking {
+        // Planned again at once, even with a query out: a change of rate or
+        // acceleration mid-slew may need its stop sooner than planned (the
+        // governance simulation: an `APnnnn` while a poll was out kept the
+        // old, later stop).
+        if self.replan {
             self.plan(now, line);
         }
         if std::mem::take(&mut self.stop_found) {

@@ -13,7 +13,8 @@ use super::Decision;
 use super::control::Who;
 use super::knowledge::{AxisMotion, Gimbal, Learning, Line, axis_index};
 use super::rules::GimbalRules;
-use super::travel::{axes, check_goto};
+use super::rules::Span;
+use super::travel::{axes, braking, check_goto};
 use crate::types::{CommandId, DropReason};
 
 impl Gimbal {
@@ -51,10 +52,11 @@ impl Gimbal {
     /// Whether a command of mount effect `effect` may go to this gimbal
     /// now as far as its limits and zones go: `Err` refuses it, or holds it
     /// until gcud learnt what it needs (asked here).
-    pub fn check(&mut self, now: u64, effect: MountEffect, line: Line) -> Result<(), Decision> {
+    /// `broadcast`: sent to device 255 (it holds the bus for its broadcast guard).
+    pub fn check(&mut self, now: u64, effect: MountEffect, line: Line, broadcast: bool) -> Result<(), Decision> {
         let judged = match self.rules.as_ref().filter(|r| r.bounds_travel()) {
             None => return Ok(()),
-            Some(rules) => self.judge(now, rules, effect, line),
+            Some(rules) => self.judge(now, rules, effect, line, broadcast),
         };
         if let Err(Decision::Learn(why)) = judged {
             self.ask(why, effect);
@@ -62,7 +64,14 @@ impl Gimbal {
         judged
     }
 
-    fn judge(&self, now: u64, rules: &GimbalRules, effect: MountEffect, line: Line) -> Result<(), Decision> {
+    fn judge(
+        &self,
+        now: u64,
+        rules: &GimbalRules,
+        effect: MountEffect,
+        line: Line,
+        broadcast: bool,
+    ) -> Result<(), Decision> {
         let goto = |target: [i32; 2]| match check_goto(rules, self.region(now), target) {
             Ok(()) => Ok(()),
             Err(DropReason::PositionUnknown) => Err(Decision::Learn(DropReason::PositionUnknown)),
@@ -80,7 +89,12 @@ impl Gimbal {
                     // A speed change before it has not ended: its rate is not known yet.
                     return Err(Decision::Learn(DropReason::RateUnknown));
                 }
-                match self.check_slew(now, rules, axis_index(axis), if positive { 1 } else { -1 }, line) {
+                let lead = if broadcast {
+                    line.broadcast_hold()
+                } else {
+                    line.exchange()
+                };
+                match self.check_slew(now, rules, axis_index(axis), if positive { 1 } else { -1 }, line, lead) {
                     Ok(()) => Ok(()),
                     Err(reason @ (DropReason::PositionUnknown | DropReason::RateUnknown)) => {
                         Err(Decision::Learn(reason))
@@ -130,8 +144,14 @@ impl Gimbal {
         accel: Option<u32>,
         line: Line,
     ) -> Result<(), Decision> {
-        let AxisMotion::Slew { dir, since } = self.axes[axis] else {
-            return Ok(());
+        let (dir, since) = match self.axes[axis] {
+            AxisMotion::Slew { dir, since } => (dir, since),
+            AxisMotion::Goto { target, .. } => return self.check_goto_change(now, rules, axis, target, rate, accel),
+            AxisMotion::Settling => {
+                let at = self.position.map_or(0, |r| axes(r.position)[axis]);
+                return self.check_goto_change(now, rules, axis, at, rate, accel);
+            }
+            AxisMotion::Still | AxisMotion::Unknown => return Ok(()),
         };
         if rate.is_none() && accel.is_none() {
             return Err(Decision::Refuse(DropReason::RateUnknown));
@@ -144,6 +164,45 @@ impl Gimbal {
             Ok(Some((_, reason))) => Err(Decision::Refuse(reason)),
             Err(reason) => Err(Decision::Refuse(reason)),
         }
+    }
+
+    /// A change of `axis`' rate or acceleration while it goes to `target`
+    /// (or brakes there): with the faster rate and the lower acceleration
+    /// it may overshoot by its braking distance, which must stay within
+    /// the limits and out of the zones (the governance simulation: `AP0100`
+    /// mid-goto ran 29 degrees past the target and the limit); unknown, the
+    /// change is refused.
+    fn check_goto_change(
+        &self,
+        now: u64,
+        rules: &GimbalRules,
+        axis: usize,
+        target: i32,
+        rate: Option<u32>,
+        accel: Option<u32>,
+    ) -> Result<(), Decision> {
+        let (Some(v), Some(a), Some(region)) = (self.rate(axis), self.accel(axis), self.region(now)) else {
+            return Err(Decision::Refuse(DropReason::RateUnknown));
+        };
+        let v = rate.map_or(v, |r| r.max(v));
+        let a = accel.map_or(a, |n| n.min(a));
+        let reach = braking(v, a);
+        let mut wide = region;
+        let path = region[axis].join(&Span::at(target));
+        wide[axis] = Span::new(path.lo - reach, path.hi + reach);
+        let limits = if axis == 0 { rules.pan_limits } else { rules.tilt_limits };
+        if limits.is_some_and(|l| !(l.contains(wide[axis].lo) && l.contains(wide[axis].hi))) {
+            return Err(Decision::Refuse(DropReason::TravelLimit));
+        }
+        let meets = |z: &super::rules::Zone| z.pan.meets(&wide[0]) && z.tilt.meets(&wide[1]);
+        if rules
+            .keep_out
+            .iter()
+            .any(|z| meets(z) && !(z.pan.meets(&region[0]) && z.tilt.meets(&region[1])))
+        {
+            return Err(Decision::Refuse(DropReason::KeepOut));
+        }
+        Ok(())
     }
 
     /// `axis` now runs at `rate` and accelerates at `accel` (those given):

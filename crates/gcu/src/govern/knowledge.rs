@@ -108,8 +108,9 @@ pub(crate) struct Gimbal {
     pub(super) slew_began_with: [Option<(u32, u32)>; 2],
     /// Readings in a row each axis did not change.
     pub(super) unchanged: [u8; 2],
-    /// A goto that replaced a followed slew, not yet on the bus: its
-    /// command (once known) and target; the slew's stop stays planned.
+    /// A goto that replaces a followed slew, not yet on the bus: its
+    /// command (once known) and target; the slew is followed (its stop
+    /// planned) until the goto began.
     pub(super) guard: Option<(Option<CommandId>, [i32; 2])>,
     /// How fast each axis moved between the last two readings, per second:
     /// its mean (a `HO` may run faster than the rate `R?` answers), and the
@@ -251,6 +252,18 @@ impl Gimbal {
         })
     }
 
+    /// The most the axis may speed up with: while it slews, no less than
+    /// when the slew began (an acceleration lowered mid-slew brakes at the
+    /// new, but it gained speed at the old).
+    pub(super) fn accel_up(&self, axis: usize) -> Option<u32> {
+        let configured = self.rules.as_ref().and_then(|r| r.acceleration);
+        let now = configured.or(self.accels).map(|a| a[axis].max(1))?;
+        Some(match (self.axes[axis], self.slew_began_with[axis]) {
+            (AxisMotion::Slew { .. }, Some((_, accel))) => now.max(accel),
+            _ => now,
+        })
+    }
+
     /// Where it may be now, per axis; `None` when unknown.
     pub fn region(&self, now: u64) -> Option<Region> {
         let reading = self.position?;
@@ -287,6 +300,17 @@ impl Gimbal {
     }
 
     pub fn going(&mut self, now: u64, target: [i32; 2]) {
+        // A slew this goto replaces is still followed, its stop planned,
+        // until the goto is on the bus: queued behind other work, or given up
+        // before it began (a stop overtook it), it must not leave the slew
+        // running unfollowed (the governance simulation: a wildcard goto
+        // superseded before the bus, the pan slew it was to replace ran on
+        // past the limit).
+        if self.axes.iter().any(|a| matches!(a, AxisMotion::Slew { .. })) {
+            self.guard = Some((None, target));
+            return;
+        }
+        self.guard = None;
         self.axes = [
             AxisMotion::Goto {
                 target: target[0],
@@ -297,14 +321,7 @@ impl Gimbal {
                 moving: self.axes[1] != AxisMotion::Still,
             },
         ];
-        // A slew this goto replaces keeps its planned stop until the goto is
-        // on the bus: queued behind other work, it must not leave the slew
-        // running past its boundary (the goto then runs from rest).
-        let slewing = self.stop_at.iter().any(Option::is_some);
-        self.guard = slewing.then_some((None, target));
-        if !slewing {
-            self.stop_at = [None; 2];
-        }
+        self.stop_at = [None; 2];
         self.poll_at = Some(now + MOTION_POLL);
         self.moved_at = now;
     }
@@ -323,7 +340,8 @@ impl Gimbal {
         }
     }
 
-    /// Command `id` began on the bus: a goto's guard is lifted.
+    /// Command `id` began on the bus: a goto's guard is lifted, and the
+    /// slew it replaces is a goto from here on.
     pub fn started(&mut self, now: u64, id: CommandId) {
         if let Some((Some(goto), target)) = self.guard {
             if goto == id {
@@ -335,6 +353,7 @@ impl Gimbal {
                     moving: moving[axis],
                 });
                 self.poll_at = Some(now + MOTION_POLL);
+                self.moved_at = now;
             }
         }
     }
@@ -524,7 +543,7 @@ impl Gimbal {
             || !self.ask_presets.is_empty()
             || self.scan.is_some();
         let learn = (learning && !self.asking).then(|| self.retry_at.unwrap_or(0));
-        let replan = (self.replan && !self.asking).then_some(0);
+        let replan = self.replan.then_some(0);
         stops.chain(poll).chain(learn).chain(replan).min()
     }
 }
@@ -548,9 +567,17 @@ pub(crate) struct Line {
     pub nic_window: u64,
     /// How long the port waits for an ACK before it sends a frame again (1.4.2).
     pub ack_timeout: u64,
+    /// How long a command to device 255 holds the bus after it is written.
+    pub broadcast_guard: u64,
 }
 
 impl Line {
+    /// How long a slew to device 255 holds the bus: its frame and the
+    /// broadcast guard, before any stop may go.
+    pub fn broadcast_hold(&self) -> u64 {
+        wire_ms(HEADER_LEN + 3, self.bps) + self.broadcast_guard
+    }
+
     /// One `P?` exchange: the query, the ACK, the result and a device's turnaround.
     pub fn exchange(&self) -> u64 {
         let bps = self.bps;
@@ -590,6 +617,7 @@ mod tests {
             bps: 115_200,
             nic_window: 31,
             ack_timeout: 12,
+            broadcast_guard: 40,
         }
     }
 

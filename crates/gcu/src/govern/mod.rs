@@ -241,6 +241,7 @@ impl Governor {
             bps: 9600,
             nic_window: 35,
             ack_timeout: 78,
+            broadcast_guard: 100,
         })
     }
 
@@ -369,7 +370,7 @@ impl Governor {
                 // Governed, its port not open yet: nothing is known of it.
                 return Decision::Refuse(DropReason::PositionUnknown);
             };
-            if let Err(decision) = g.check(now, effect, line) {
+            if let Err(decision) = g.check(now, effect, line, dest.device == WILDCARD) {
                 return decision;
             }
         }

@@ -144,37 +144,43 @@ pub(crate) fn distance_in(ms: u64, rate: u32) -> i32 {
 }
 
 /// A slew's motion, in hundredths of a degree and milliseconds: its
-/// speed `u` when read (per ms), its top speed `v` and acceleration `a`
-/// (per ms squared). The gimbal accelerates to `v` and brakes at `a`.
+/// speed `u` when read (per ms), its top speed `v`, the acceleration `up`
+/// it may speed up with and the one `a` it brakes with (per ms squared;
+/// apart when the acceleration changed mid-slew: the worst of each). The
+/// gimbal accelerates to `v` and brakes at `a`.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Kinematics {
     pub u: f64,
     pub v: f64,
+    pub up: f64,
     pub a: f64,
 }
 
 impl Kinematics {
-    /// From a rate (per second) and acceleration (per second squared),
-    /// `elapsed` ms after the slew began from rest: its speed then is at
-    /// most `a * elapsed` (what it may have gained), capped at the rate.
-    pub fn of(rate: u32, accel: u32, elapsed: u64) -> Self {
+    /// From a rate (per second) and the accelerations it speeds up and
+    /// brakes with (per second squared), `elapsed` ms after the slew began
+    /// from rest: its speed then is at most `up * elapsed` (what it may have
+    /// gained), capped at the rate.
+    pub fn of(rate: u32, up: u32, accel: u32, elapsed: u64) -> Self {
         let v = f64::from(rate.max(1)) / 1000.0;
+        let up = f64::from(up.max(accel).max(1)) / 1_000_000.0;
         let a = f64::from(accel.max(1)) / 1_000_000.0;
         Self {
-            u: (a * elapsed as f64).min(v),
+            u: (up * elapsed as f64).min(v),
             v,
+            up,
             a,
         }
     }
 
     /// How far it comes to rest from the reading when the stop reaches it `dt` ms later.
     pub fn rest(&self, dt: f64) -> f64 {
-        let Self { u, v, a } = *self;
-        let (run, w) = if u + a * dt <= v {
-            (u * dt + 0.5 * a * dt * dt, u + a * dt)
+        let Self { u, v, up, a } = *self;
+        let (run, w) = if u + up * dt <= v {
+            (u * dt + 0.5 * up * dt * dt, u + up * dt)
         } else {
-            let t1 = (v - u) / a;
-            (u * t1 + 0.5 * a * t1 * t1 + v * (dt - t1), v)
+            let t1 = (v - u) / up;
+            (u * t1 + 0.5 * up * t1 * t1 + v * (dt - t1), v)
         };
         run + w * w / (2.0 * a)
     }
@@ -300,7 +306,7 @@ mod tests {
         // 60 deg/s, 120 deg/s^2: 15 degrees of braking at top speed.
         assert_eq!(braking(6000, 12000), 1500);
         assert_eq!(distance_in(500, 6000), 3000);
-        let at_top = Kinematics::of(6000, 12000, 10_000);
+        let at_top = Kinematics::of(6000, 12000, 12000, 10_000);
         assert!((at_top.rest(0.0) - 1500.0).abs() < 1e-6);
         // 20 degrees of room: 5 - 0.25 degrees at 60 deg/s take 79 ms.
         let t = at_top.latest_stop(2000).unwrap();
@@ -309,7 +315,7 @@ mod tests {
         assert_eq!(at_top.latest_stop(1500), None, "cannot rest a quarter degree short");
         // From rest, 90 degrees toward a limit at 120 deg/s: accelerate to
         // the middle, then brake; not at top speed all the way.
-        let from_rest = Kinematics::of(12000, 12000, 0);
+        let from_rest = Kinematics::of(12000, 12000, 12000, 0);
         let t = from_rest.latest_stop(9000).unwrap();
         assert!((from_rest.rest(t) - 8975.0).abs() < 0.01);
         assert!((t - 864.8).abs() < 0.1, "{t}");

@@ -124,7 +124,8 @@ impl Port {
         let axis_stop = stop.facts.row;
         let undone = self.queue.remove_where(|j| {
             let to = j.frame.frame().dest.device;
-            let same = device == WILDCARD || to == device;
+            // A command to device 255 moves this device too.
+            let same = device == WILDCARD || to == device || to == WILDCARD;
             let slew_of = j.facts.stopped_by.map(|s| s.row());
             let mount_slew = matches!(slew_of, Some(Row::PanStop | Row::TiltStop));
             same && !j.facts.stop && (slew_of == Some(axis_stop) || (both && (mount_slew || j.facts.goes_to())))
@@ -134,7 +135,7 @@ impl Port {
         }
     }
 
-    /// Queued jobs for `device` that `pick` names are given up unsent
+    /// Queued jobs for `device` (or every device) that `pick` names are given up unsent
     /// (`reason` tells their origins): a take-over, or a stop at a
     /// boundary, must not be undone by a motion still waiting behind it.
     pub fn cancel_for_device(
@@ -144,9 +145,11 @@ impl Port {
         reason: DropReason,
         out: &mut Vec<PortOut>,
     ) {
-        let cancel = self
-            .queue
-            .remove_where(|j| !j.facts.stop && j.frame.frame().dest.device == device && pick(j));
+        // A command to device 255 reaches this device too (the governance
+        // simulation: a `TD` to 5.255.255 queued behind a boundary stop ran
+        // after it, and the gimbal went on past its limit).
+        let to_it = |j: &Job| matches!(j.frame.frame().dest.device, d if d == device || d == WILDCARD);
+        let cancel = self.queue.remove_where(|j| !j.facts.stop && to_it(j) && pick(j));
         for job in cancel {
             self.drop_job(job, reason, out);
         }
@@ -164,10 +167,32 @@ impl Port {
 
     /// Whether the job that goes next must wait for the reservation: the
     /// bus is kept free for a stop the governance will send at `reserved.0`,
-    /// so no work starts that would still hold it then (a stop may).
+    /// so no work starts that would still hold it then (a stop may). A
+    /// command to device 255 holds the bus for its broadcast guard, longer
+    /// than the short exchange the reservation allows for (the governance
+    /// simulation: a `PL` to `5.1.255` kept a boundary stop 120 ms late).
     pub(super) fn held_for_reserved_stop(&self, now: u64) -> bool {
-        let front_is_stop = self.queue.front().is_some_and(|j| j.facts.stop);
-        self.reserved.is_some_and(|(at, busy)| now + busy > at) && !front_is_stop
+        let Some((at, busy)) = self.reserved else { return false };
+        let front = self.queue.front();
+        let broadcast = |j: &Job| j.frame.frame().dest.device == WILDCARD;
+        // A stop goes, but for one to device 255: it would hold the bus for
+        // its guard past the reserved stop (a client's `TS` to 5.1.255 kept
+        // a boundary `PS` 300 ms late in the governance simulation).
+        if front.is_some_and(|j| j.facts.stop && !broadcast(j)) {
+            return false;
+        }
+        let next = match front {
+            Some(j) if j.facts.stop => Some(j),
+            _ => self.next_pick().and_then(|i| self.queue.iter().nth(i)),
+        };
+        let holds = match next {
+            Some(j) if broadcast(j) => {
+                let frame = sagebrush_protocol::link::wire_ms(j.frame.as_bytes().len(), self.stats.bps);
+                busy.max(frame + self.policy.broadcast_guard)
+            }
+            _ => busy,
+        };
+        now + holds > at
     }
 
     /// The origin link went down: queued motions it started must not run

@@ -25,6 +25,7 @@ impl Router {
                 bps: p.stats.bps,
                 nic_window: p.config.nic_window,
                 ack_timeout: p.config.ack_timeout,
+                broadcast_guard: p.config.broadcast_guard,
             };
             self.governor.port_state(port, open.then_some(line));
             out.push(Action::Event(RouterEvent::PortState { port, open }));
