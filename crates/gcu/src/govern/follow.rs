@@ -110,7 +110,11 @@ impl Gimbal {
         let exchange = line.exchange();
         for axis in 0..2 {
             let AxisMotion::Slew { dir, since } = self.axes[axis] else {
-                if self.guard.is_none() {
+                // A slew a link stopped keeps its planned stop until it is
+                // seen still: that link's stop may be lost (one to device
+                // 255 is never confirmed); a second stop is harmless.
+                let settling = matches!(self.axes[axis], AxisMotion::Settling { .. });
+                if self.guard.is_none() && !settling {
                     self.stop_at[axis] = None;
                 }
                 continue;
@@ -172,7 +176,7 @@ impl Gimbal {
                 continue;
             };
             self.stop_at[axis] = None;
-            self.axes[axis] = AxisMotion::Settling;
+            self.axes[axis] = AxisMotion::Settling { since: now };
             stats.boundary_stops += 1;
             let _ = at;
             let command = if axis == 0 { Command::PanStop } else { Command::TiltStop };

@@ -147,7 +147,7 @@ impl Gimbal {
         let (dir, since) = match self.axes[axis] {
             AxisMotion::Slew { dir, since } => (dir, since),
             AxisMotion::Goto { target, .. } => return self.check_goto_change(now, rules, axis, target, rate, accel),
-            AxisMotion::Settling => {
+            AxisMotion::Settling { .. } => {
                 let at = self.position.map_or(0, |r| axes(r.position)[axis]);
                 return self.check_goto_change(now, rules, axis, at, rate, accel);
             }

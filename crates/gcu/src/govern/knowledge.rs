@@ -52,8 +52,8 @@ pub(crate) enum AxisMotion {
     /// Going to this target; `moving`: the axis was not still when it
     /// began (it may first run on the other way, by its braking distance).
     Goto { target: i32, moving: bool },
-    /// Braking after a stop.
-    Settling,
+    /// Braking after a stop sent at tick `since`.
+    Settling { since: u64 },
     /// Moving, no one knows where.
     Unknown,
 }
@@ -226,6 +226,21 @@ impl Gimbal {
         }
     }
 
+    /// Whether the stop of an axis told to stop at `since` was lost, by
+    /// the reading at `at`: past the stop's latency it does not brake (its
+    /// mean speed since the last reading is no lower than the one before,
+    /// `mean_before`), or it still moves after braking from top speed.
+    fn lost_stop(&self, axis: usize, since: u64, at: u64, mean_before: u32, line: Line) -> bool {
+        let (Some(v), Some(a)) = (self.rate(axis), self.accel(axis)) else {
+            return false;
+        };
+        let received = since + line.latency() + SETTLE_SPAN;
+        let mean = self.seen_rate[axis].0;
+        let not_braking = at > received && mean > SAME as u32 * 10 && mean * 20 >= mean_before * 19;
+        let braking_ms = u64::from(v) * 1000 / u64::from(a.max(1));
+        not_braking || at > received + braking_ms
+    }
+
     pub fn may_be_moving(&self) -> bool {
         self.axes.iter().any(|a| *a != AxisMotion::Still)
     }
@@ -289,7 +304,7 @@ impl Gimbal {
                     let back = if since == 0 { braking(v, a) } else { 0 };
                     Span::at(p[axis] - dir * back).join(&Span::at(p[axis] + dir * run))
                 }
-                AxisMotion::Settling => {
+                AxisMotion::Settling { .. } => {
                     let reach = braking(self.rate(axis)?, self.accel(axis)?);
                     Span::new(p[axis] - reach, p[axis] + reach)
                 }
@@ -377,8 +392,8 @@ impl Gimbal {
     pub fn stopping(&mut self, now: u64, pan: bool, tilt: bool) {
         for (axis, stops) in [pan, tilt].into_iter().enumerate() {
             if stops && self.axes[axis] != AxisMotion::Still {
-                self.axes[axis] = AxisMotion::Settling;
-                self.stop_at[axis] = None;
+                // Its planned stop stays until it is seen still (module `follow`).
+                self.axes[axis] = AxisMotion::Settling { since: now };
             }
         }
         if self.may_be_moving() {
@@ -405,6 +420,7 @@ impl Gimbal {
         let at = now.saturating_sub(wire_ms(HEADER_LEN + 10, line.bps));
         let before = self.position.map(|r| (r.at, axes(r.position)));
         let p = axes(position);
+        let mean_before = self.seen_rate.map(|(mean, _)| mean);
         for axis in 0..2 {
             // The mean speed since the last reading, plus what the axis may
             // have gained meanwhile, bounds its speed now.
@@ -439,7 +455,7 @@ impl Gimbal {
                 self.found = false;
                 if (0..2).any(|axis| (b[axis] - p[axis]).abs() > SAME) {
                     self.stop_found = true;
-                    self.axes = [AxisMotion::Settling; 2];
+                    self.axes = [AxisMotion::Settling { since: now }; 2];
                 } else {
                     self.axes = [AxisMotion::Still; 2];
                 }
@@ -466,9 +482,23 @@ impl Gimbal {
                 AxisMotion::Goto { .. } | AxisMotion::Unknown if self.unchanged[axis] >= STILL_POLLS => {
                     AxisMotion::Still
                 }
-                AxisMotion::Settling if unchanged => AxisMotion::Still,
+                AxisMotion::Settling { .. } if unchanged => AxisMotion::Still,
+                // Still moving long after its stop could have braked it: the
+                // stop was lost (a stop to device 255 is never confirmed), so
+                // it is followed as a slew again and gets a stop of its own.
+                AxisMotion::Settling { since }
+                    if before.is_some() && self.lost_stop(axis, since, at, mean_before[axis], line) =>
+                {
+                    let dir = before.map_or(0, |b| (p[axis] - b[axis]).signum());
+                    AxisMotion::Slew { dir, since: 0 }
+                }
                 other => other,
             };
+        }
+        for axis in 0..2 {
+            if self.axes[axis] == AxisMotion::Still {
+                self.stop_at[axis] = None;
+            }
         }
         self.replan = self.axes.iter().any(|a| matches!(a, AxisMotion::Slew { .. }));
         self.poll_at = self.may_be_moving().then_some(now + MOTION_POLL);

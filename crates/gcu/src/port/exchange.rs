@@ -97,10 +97,19 @@ pub(super) enum Backlog {
 
 impl Port {
     pub(super) fn start_next(&mut self, now: u64, out: &mut Vec<PortOut>) {
-        if self.settle_until.is_some_and(|t| now < t) {
+        // The quiet after an unanswered or repeated exchange keeps other
+        // work off the bus, but not a stop: a boundary stop held 500 ms
+        // behind a lost frame let the gimbal run on past its limit (the
+        // governance simulation); a stop executed twice, or acknowledged by
+        // a late ACK, stops all the same.
+        let stop_next = self.queue.front().is_some_and(|j| j.facts.stop);
+        let settling = self.settle_until.is_some_and(|t| now < t);
+        if settling && !stop_next {
             return;
         }
-        self.settle_until = None;
+        if !settling {
+            self.settle_until = None;
+        }
         if let Some(until) = self.drained_at() {
             if now < until {
                 return;
@@ -122,6 +131,9 @@ impl Port {
                 break;
             }
             if self.held_for_reserved_stop(now) {
+                break;
+            }
+            if self.settle_until.is_some_and(|t| now < t) && !self.queue.front().is_some_and(|j| j.facts.stop) {
                 break;
             }
             let Some(job) = self.next_job() else { break };
