@@ -760,3 +760,51 @@ fn tours_and_release_answer_by_priority() {
     assert_eq!(out.code, 23, "an equal priority cannot free the holder: {out:?}");
     assert_eq!(s.control()["holder"]["name"], "operators", "{}", s.gcud.status());
 }
+
+/// The demo as shipped (its listeners on ports of their own): a goto of the
+/// roof gimbal 5.2.1 the moment gcud is ready is carried out, and the
+/// everyday jog (`slew right --speed 5`: `SP5` then `PR`) slews it and
+/// rests short of its keep-out zone (pan 100..130), where the gimbal itself
+/// answers it is.
+#[test]
+fn on_the_demo_a_goto_at_once_runs_and_a_jog_stops_short_of_the_roof_gimbals_zone() {
+    let demo = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/demo.toml")).expect("demo");
+    let config = demo
+        .replace("127.0.0.1:4001", "127.0.0.1:0")
+        .replace("127.0.0.1:4002", "127.0.0.1:0")
+        .replace("127.0.0.1:9187", "127.0.0.1:0");
+    let gcud = Gcud::start(&config);
+    let clients = gcud.clients();
+    let roof = |args: &[&str]| {
+        let mut full = vec!["--tcp", clients.as_str(), "--to", "5.2.1"];
+        full.extend_from_slice(args);
+        support::gimbalctl(&full)
+    };
+    let out = roof(&["goto", "80", "0", "--wait"]);
+    assert_eq!(out.code, 0, "a goto the moment gcud is ready: {out:?}\n{}", gcud.log());
+    let jog = [
+        "--tcp",
+        clients.as_str(),
+        "--to",
+        "5.2.1",
+        "slew",
+        "right",
+        "--speed",
+        "5",
+        "--hold",
+    ];
+    let mut child = support::cli::spawn_ctl(&jog);
+    let stdin = child.stdin.take().expect("stdin");
+    let (pan, tilt) = gcud.settled_position("5.2.1");
+    drop(stdin);
+    let out = support::cli::wait_output(child);
+    assert_eq!(out.code, 0, "the jog was carried out: {out:?}\n{}", gcud.log());
+    eprintln!("demo jog right at speed 5: rests at pan {pan} (zone from 100)");
+    assert!(tilt.abs() < 0.05, "{tilt}");
+    assert!(pan > 85.0, "it slewed toward the zone: {pan}");
+    assert!(pan <= 100.5, "into the zone: {pan}\n{}", gcud.log());
+    assert!(
+        gcud.received("5.2.1").iter().any(|(_, p)| p == "SP5"),
+        "the speed reached the gimbal"
+    );
+}

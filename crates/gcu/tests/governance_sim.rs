@@ -27,9 +27,10 @@
 //!   `allow` names it;
 //! - a speed then a slew at once is never refused for what gcud did not
 //!   know (position, rate) while the gimbal answers;
-//! - after a restart, a gimbal found moving is stopped: it stands still
-//!   within [`FOUND_STOP_MS`] (the margin is not asked of a motion no gcud
-//!   followed; the rule test says how far it runs).
+//! - after a restart, a gimbal found moving is stopped: gcud sends its
+//!   stop (or it stands still) within [`FOUND_STOP_MS`] (the margin is
+//!   not asked of a motion no gcud followed until it stands still; the
+//!   rule test says how far it runs).
 //!
 //! - `cargo test -p sagebrush-gcu --release --test governance_sim`: 10,000 seeds.
 //! - `GOV_SIM_SEEDS=100000 GOV_SIM_START=0 ...`: more.
@@ -299,14 +300,15 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
     let mut s = Summary::default();
     let mut violation: Option<String> = None;
     // Gimbals found moving at a restart, and when they must stand still by.
-    let mut pending: Vec<(u8, u64)> = Vec::new();
+    // (device, deadline, the router event index of the restart).
+    let mut pending: Vec<(u8, u64, usize)> = Vec::new();
     // Gimbals an allowed unbounded command moved (`allow`: its bounds are
     // its operator's from then on), and how far the bus log was read.
     let mut operators: (Vec<u8>, usize) = (Vec::new(), 0);
     let check = |r: &Rig,
                  violation: &mut Option<String>,
                  samples: &mut u64,
-                 pending: &mut Vec<(u8, u64)>,
+                 pending: &mut Vec<(u8, u64, usize)>,
                  operators: &mut (Vec<u8>, usize)| {
         *samples += 1;
         for (_, dest, payload) in &r.bus_log[operators.1..] {
@@ -317,10 +319,27 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
             }
         }
         operators.1 = r.bus_log.len();
-        pending.retain(|&(d, _)| r.moving(d));
-        if let (Some(&(d, by)), None) = (pending.iter().find(|&&(_, by)| r.now > by), violation.as_ref()) {
+        // Found moving at a restart: stopped by gcud (`FoundMoving`), or
+        // still; the margin is not asked of it until it stands still.
+        let stopped = |d: u8, since: usize| {
+            r.events[since..].iter().any(|(_, e)| {
+                matches!(e, RouterEvent::IssuedStop { dest, cause: sagebrush_gcu::StopCause::FoundMoving, .. } if dest.device == d)
+            })
+        };
+        // (Or a link took control of it since: its motion is the link's now.)
+        let taken = |d: u8| {
+            r.router
+                .control()
+                .iter()
+                .any(|g| g.device == d && matches!(g.holder, Some(sagebrush_gcu::Holder::Link { .. })))
+        };
+        pending.retain(|&(d, _, _)| r.moving(d) && !taken(d));
+        if let (Some(&(d, by, _)), None) = (
+            pending.iter().find(|&&(d, by, since)| r.now > by && !stopped(d, since)),
+            violation.as_ref(),
+        ) {
             *violation = Some(format!(
-                "t={}: gimbal {d} found moving at a restart still moves ({by})",
+                "t={}: gimbal {d} found moving at a restart is not stopped ({by})",
                 r.now
             ));
         }
@@ -329,7 +348,7 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
             println!("{} positions {at:?}", r.now);
         }
         for rules in &ruled {
-            if pending.iter().any(|&(d, _)| d == rules.device) || operators.0.contains(&rules.device) {
+            if pending.iter().any(|&(d, _, _)| d == rules.device) || operators.0.contains(&rules.device) {
                 continue;
             }
             let p = r.position(rules.device);
@@ -368,7 +387,7 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
             r.router = Router::new(config).expect("router");
             for &d in &governed {
                 if r.moving(d) {
-                    pending.push((d, r.now + FOUND_STOP_MS));
+                    pending.push((d, r.now + FOUND_STOP_MS, r.events.len()));
                 }
             }
             r.input(Input::PortOpened { port: PORT });

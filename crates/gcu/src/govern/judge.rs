@@ -77,7 +77,14 @@ impl Gimbal {
             Err(DropReason::PositionUnknown) => Err(Decision::Learn(DropReason::PositionUnknown)),
             Err(reason) => Err(Decision::Refuse(reason)),
         };
+        // Moving no one knows where (found so after a start, or after an
+        // unbounded command): a goto waits until gcud saw where it is, even
+        // with limits alone (its overshoot is not known either).
+        let unknown = self.axes.contains(&AxisMotion::Unknown);
         match effect {
+            MountEffect::GoTo(_) | MountEffect::RecallPreset(_) if unknown => {
+                Err(Decision::Learn(DropReason::PositionUnknown))
+            }
             MountEffect::GoTo(p) => goto(axes(p)),
             MountEffect::RecallPreset(n) => match self.presets.get(&n) {
                 Some(p) => goto(axes(*p)),
