@@ -6,7 +6,7 @@
 
 use std::time::Duration;
 
-use sagebrush_protocol::{Address, Command, LensPosition, Position, Reply, ResultKind, Speed, Undelivered};
+use sagebrush_protocol::{Address, Command, LensPosition, Position, Reply, Speed, Undelivered};
 use tokio::time::Instant;
 use tracing::warn;
 
@@ -92,10 +92,11 @@ pub struct GimbalConnection {
     control: ControlSeen,
 }
 
-/// Whether gcud takes control for `command` (sagebrush-gcu's `govern`:
-/// everything but queries and stops).
+/// Whether gcud takes control for `command`: its row of the protocol
+/// crate's table says it moves or changes the gimbal (the one classifier
+/// gcud's governance decides by, module `mount`).
 fn takes_control(command: &Command<'_>) -> bool {
-    !command.is_stop() && command.result_kind() == ResultKind::None
+    command.mount().changes()
 }
 
 impl GimbalConnection {
