@@ -134,7 +134,7 @@ T.report_codes = {
     [0x0F] = { name = "keep_out", meaning = "its path may enter a keep-out zone" },
     [0x10] = { name = "position_unknown", meaning = "the gimbal's position is unknown and it has limits or zones" },
     [0x11] = { name = "superseded", meaning = "a stop for the same gimbal overtook it before it reached the bus" },
-    [0x12] = { name = "ungoverned", meaning = "the gimbal has limits, zones, park or a tour, and the command moves or changes it where gcud cannot bound it (its [[gimbal]] entry may allow it by name)" },
+    [0x12] = { name = "ungoverned", meaning = "the gimbal has limits, zones, park or a tour, and the command moves or changes it where gcud cannot bound it (the allow list of its gimbal entry may name it)" },
     [0x13] = { name = "stops_limited", meaning = "a stop from a link below the gimbal's holder, sooner than one second after its last" },
     [0x14] = { name = "rate_unknown", meaning = "a speed change whose rate gcud does not know, while the gimbal slews toward a limit or zone" },
     [0x15] = { name = "preset_unknown", meaning = "the gimbal did not say where the preset lies, and it has limits or zones" },

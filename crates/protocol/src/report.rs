@@ -75,7 +75,7 @@ crate::code_table! {
         PositionUnknown,
         /// a stop for the same gimbal overtook it before it reached the bus
         Superseded,
-        /// the gimbal has limits, zones, park or a tour, and the command moves or changes it where gcud cannot bound it (its [[gimbal]] entry may allow it by name)
+        /// the gimbal has limits, zones, park or a tour, and the command moves or changes it where gcud cannot bound it (the allow list of its gimbal entry may name it)
         Ungoverned,
         /// a stop from a link below the gimbal's holder, sooner than one second after its last
         StopsLimited,
