@@ -808,3 +808,22 @@ fn on_the_demo_a_goto_at_once_runs_and_a_jog_stops_short_of_the_roof_gimbals_zon
         "the speed reached the gimbal"
     );
 }
+
+/// Control lasts while the holder holds: a held slew (`gimbalctl slew
+/// --hold`, which renews gcud's motion lease with `P?`) keeps the operators'
+/// control long past `hold_ms`, so the clients are refused (exit 23); their
+/// stops, below the holder, pass one a second (more: exit 29).
+#[test]
+fn a_held_slew_keeps_control_past_hold_ms_and_stops_from_below_are_limited() {
+    let s = Stack::start(&["--max-rate", "5", "--rate", "5", "--accel", "20"], 1000, "");
+    let (child, stdin) = s.hold(&s.operators, &["slew", "right"]);
+    s.eventually("the held slew on the bus", || s.bus().iter().any(|(_, p)| p == "PR"));
+    std::thread::sleep(Duration::from_millis(2500));
+    let out = s.ctl(&s.clients, &["--to", GIMBAL, "goto", "-10", "0"]);
+    assert_eq!(out.code, 23, "2.5 s into a held slew, past hold_ms (1 s): {out:?}\n{}", s.logs());
+    let codes: Vec<i32> = (0..6).map(|_| s.ctl(&s.clients, &["--to", GIMBAL, "stop"]).code).collect();
+    assert!(codes.contains(&29), "stops from below limited: {codes:?}");
+    assert!(codes.iter().filter(|&&c| c == 0).count() <= 2, "{codes:?}");
+    drop(stdin);
+    assert_eq!(support::cli::wait_output(child).code, 0);
+}
