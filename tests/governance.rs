@@ -820,8 +820,15 @@ fn a_held_slew_keeps_control_past_hold_ms_and_stops_from_below_are_limited() {
     s.eventually("the held slew on the bus", || s.bus().iter().any(|(_, p)| p == "PR"));
     std::thread::sleep(Duration::from_millis(2500));
     let out = s.ctl(&s.clients, &["--to", GIMBAL, "goto", "-10", "0"]);
-    assert_eq!(out.code, 23, "2.5 s into a held slew, past hold_ms (1 s): {out:?}\n{}", s.logs());
-    let codes: Vec<i32> = (0..6).map(|_| s.ctl(&s.clients, &["--to", GIMBAL, "stop"]).code).collect();
+    assert_eq!(
+        out.code,
+        23,
+        "2.5 s into a held slew, past hold_ms (1 s): {out:?}\n{}",
+        s.logs()
+    );
+    let codes: Vec<i32> = (0..6)
+        .map(|_| s.ctl(&s.clients, &["--to", GIMBAL, "stop"]).code)
+        .collect();
     assert!(codes.contains(&29), "stops from below limited: {codes:?}");
     assert!(codes.iter().filter(|&&c| c == 0).count() <= 2, "{codes:?}");
     drop(stdin);
