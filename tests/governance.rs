@@ -834,3 +834,40 @@ fn a_held_slew_keeps_control_past_hold_ms_and_stops_from_below_are_limited() {
     drop(stdin);
     assert_eq!(support::cli::wait_output(child).code, 0);
 }
+
+/// An acceleration lowered mid-slew (`AP0001`, to the gimbal and through
+/// the wildcards) would brake the gimbal too slowly to stop short: gcud
+/// refuses it (exit 24), never on the bus, and the slew rests short of the
+/// limit; a wildcard `SPF` before a slew is learnt before the slew, which
+/// stops short too (the gimbal's own answers).
+#[test]
+fn a_slower_acceleration_mid_slew_and_a_wildcard_speed_before_one_cannot_take_the_gimbal_past_its_limit() {
+    let s = Stack::start(&["--max-rate", "5", "--rate", "2", "--accel", "20"], 10_000, NEAR);
+    s.ok(&s.operators, &["goto", "0", "0", "--wait"]);
+    let (child, stdin) = s.hold(&s.operators, &["slew", "right"]);
+    s.eventually("the slew on the bus", || s.bus().iter().any(|(_, p)| p == "PR"));
+    for to in [GIMBAL, "5.1.255", "5.255.255"] {
+        let out = s.ctl(&s.operators, &["--to", to, "raw", "AP0001"]);
+        if to == GIMBAL {
+            assert_eq!(out.code, 24, "AP0001 mid-slew: {out:?}\n{}", s.logs());
+        }
+    }
+    let (pan, _) = s.bus_position();
+    drop(stdin);
+    assert_eq!(support::cli::wait_output(child).code, 0);
+    assert!(!s.bus().iter().any(|(_, p)| p == "AP0001"), "{:?}", s.bus());
+    assert!(pan <= 10.5 && pan > 5.0, "rests at {pan} (limit 10)\n{}", s.logs());
+    // A wildcard SPF (2 to 5 deg/s), then a slew at once toward the zone.
+    s.ok(&s.operators, &["goto", "0", "0", "--wait"]);
+    let out = s.ctl(&s.operators, &["--to", "5.255.255", "raw", "SPF"]);
+    assert_eq!(out.code, 0, "{out:?}");
+    let lefts = |s: &Stack| s.bus().iter().filter(|(_, p)| p == "PL").count();
+    let before = lefts(&s);
+    let (child, stdin) = s.hold(&s.operators, &["slew", "left"]);
+    s.eventually("the slew on the bus", || lefts(&s) > before);
+    let (pan, _) = s.bus_position();
+    drop(stdin);
+    assert_eq!(support::cli::wait_output(child).code, 0);
+    eprintln!("after a wildcard SPF: rests at pan {pan} (zone from -10)");
+    assert!(pan >= -10.5 && pan < -5.0, "{pan}\n{}", s.logs());
+}
