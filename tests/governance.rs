@@ -750,6 +750,12 @@ fn tours_and_release_answer_by_priority() {
     let out = s.ctl(&s.clients, &["tour", "start", "round"]);
     assert_eq!(out.code, 32, "{out:?}");
     assert_eq!(s.tour("round")["state"], "stopped", "{}", s.gcud.status());
+    std::thread::sleep(Duration::from_millis(500));
+    assert!(
+        tour_gotos(&s).is_empty(),
+        "no tour goto reached the gimbal: {:?}",
+        s.bus()
+    );
     let out = s.ctl(&s.operators, &["tour", "start", "round"]);
     assert_eq!(out.code, 0, "{out:?}");
     let out = s.ctl(&s.clients, &["tour", "stop", "round"]);
@@ -826,11 +832,16 @@ fn a_held_slew_keeps_control_past_hold_ms_and_stops_from_below_are_limited() {
         "2.5 s into a held slew, past hold_ms (1 s): {out:?}\n{}",
         s.logs()
     );
+    let stops = |s: &Stack| s.bus().iter().filter(|(source, p)| *source == 0 && p == "PT").count();
+    let before = stops(&s);
     let codes: Vec<i32> = (0..6)
         .map(|_| s.ctl(&s.clients, &["--to", GIMBAL, "stop"]).code)
         .collect();
     assert!(codes.contains(&29), "stops from below limited: {codes:?}");
     assert!(codes.iter().filter(|&&c| c == 0).count() <= 2, "{codes:?}");
+    // On the wire: as many of the clients' stops as were let through, no more.
+    let passed = codes.iter().filter(|&&c| c == 0).count();
+    assert_eq!(stops(&s) - before, passed, "{:?}", s.bus());
     drop(stdin);
     assert_eq!(support::cli::wait_output(child).code, 0);
 }

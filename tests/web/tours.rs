@@ -3,6 +3,18 @@
 
 use super::*;
 
+/// gimbal-web with one gimbal, mast-1 (5.1.1), in front of a stand-in gcud
+/// at `gcud`: the door and its page's URL.
+fn web_before(gcud: &str) -> (Door, String) {
+    let mut web = Door::new("gimbal-web", env!("CARGO_BIN_EXE_gimbal-web"));
+    web.start(&format!(
+        "gcud = \"{gcud}\"\nlisten = \"127.0.0.1:0\"\nsource_group = {DOOR_GROUP}\n{USERS}\
+         [[gimbal]]\nname = \"mast-1\"\naddress = \"5.1.1\"\n"
+    ));
+    let url = format!("http://127.0.0.1:{}/", web.port("page listening"));
+    (web, url)
+}
+
 /// gcud's tours on the page (issue 34): listed with their state, started
 /// and stopped through gcud's `~T+` and `~T-` by an administrator (with
 /// the page's CSRF token), never by a user or an operator. gcud here is a stand-in
@@ -51,13 +63,7 @@ fn tours_are_listed_and_an_administrator_starts_and_stops_them_through_gcud() {
             _ => Answer::Nic,
         }
     });
-    let mut web = Door::new("gimbal-web", env!("CARGO_BIN_EXE_gimbal-web"));
-    web.start(&format!(
-        "gcud = \"{}\"\nlisten = \"127.0.0.1:0\"\nsource_group = {DOOR_GROUP}\n{USERS}\
-         [[gimbal]]\nname = \"mast-1\"\naddress = \"5.1.1\"\n",
-        gcud.addr
-    ));
-    let url = format!("http://127.0.0.1:{}/", web.port("page listening"));
+    let (web, url) = web_before(&gcud.addr);
     let log = || web.log();
     // A user sees the tours and may not start one.
     let mut viewer = Browser::start();
@@ -237,13 +243,7 @@ fn presets_saved_from_the_page_skip_the_presets_gcud_reserves() {
         [b'S', _, _] => Answer::Ack,
         _ => Answer::Nic,
     });
-    let mut web = Door::new("gimbal-web", env!("CARGO_BIN_EXE_gimbal-web"));
-    web.start(&format!(
-        "gcud = \"{}\"\nlisten = \"127.0.0.1:0\"\nsource_group = {DOOR_GROUP}\n{USERS}\
-         [[gimbal]]\nname = \"mast-1\"\naddress = \"5.1.1\"\n",
-        gcud.addr
-    ));
-    let url = format!("http://127.0.0.1:{}/", web.port("page listening"));
+    let (web, url) = web_before(&gcud.addr);
     let log = || web.log();
     let mut b = Browser::start();
     b.call(json!({ "op": "open", "url": url }), log);

@@ -303,22 +303,20 @@ fn named_preset(device: &Device, n: u8) -> Result<u8, Fault> {
 /// given, or "preset N"; stored on the gimbal (`Snn`), then named.
 async fn set_preset(device: &Device, token: Option<u8>, label: Option<String>) -> Result<u8, Fault> {
     let name = &device.gimbal.config.name;
-    // Never a preset gcud's park or tours recall (`~B` says which).
-    let reserved = device.gimbal.rules().await.map(|r| r.reserved).unwrap_or_default();
+    // A number picked here is never one gcud's park or tours recall (`~B`
+    // says which); one the client names is its own choice (storing the park
+    // preset is how an operator moves the park position).
     let n = match token {
-        Some(n) if reserved.contains(&n) => {
-            return Err(Fault::invalid_arg(
-                "ter:InvalidPresetName",
-                format!("preset {n} is gcud's (its park or a tour recalls it): choose another"),
-            ));
-        }
         Some(n) => n,
-        None => device.presets.free(name, &reserved).ok_or_else(|| {
-            Fault::receiver(
-                &["ter:Action", "ter:TooManyPresets"],
-                "all 256 presets have names or are gcud's",
-            )
-        })?,
+        None => {
+            let reserved = device.gimbal.rules().await.map(|r| r.reserved).unwrap_or_default();
+            device.presets.free(name, &reserved).ok_or_else(|| {
+                Fault::receiver(
+                    &["ter:Action", "ter:TooManyPresets"],
+                    "all 256 presets have names or are gcud's",
+                )
+            })?
+        }
     };
     let label = label.unwrap_or_else(|| format!("preset {n}"));
     if label.chars().count() > presets::MAX_NAME {

@@ -947,28 +947,49 @@ fn rules_name_the_presets_park_and_tours_reserve() {
         let mut rules = GimbalRules::new(PORT, 1);
         rules.park = Some(Park { preset: 2, after: 1000 });
         g.gimbals.push(rules);
-        g.tours.push(TourConfig {
-            name: "t".into(),
+        let preset_tour = |name: &str, device: u8, preset: u8| TourConfig {
+            name: name.into(),
             port: PORT,
-            device: 1,
+            device,
             steps: vec![TourStep {
-                to: TourTarget::Preset(3),
+                to: TourTarget::Preset(preset),
                 dwell: 100,
             }],
-        });
-        g.tours.push(TourConfig {
-            name: "u".into(),
-            port: PORT,
-            device: 9,
-            steps: vec![TourStep {
-                to: TourTarget::Preset(7),
-                dwell: 100,
-            }],
-        });
+        };
+        g.tours.push(preset_tour("t", 1, 3));
+        g.tours.push(preset_tour("u", 9, 7));
     });
     assert_eq!(
         rules_of(&mut r, 1),
         Some((PORT, 1, vec![RuleItem::Reserved(2), RuleItem::Reserved(3)]))
     );
     assert_eq!(rules_of(&mut r, 9), Some((PORT, 9, vec![RuleItem::Reserved(7)])));
+}
+
+/// A command waiting for what gcud must learn first is given up when gcud
+/// shuts down (let through after the shutdown's stops, its slew would run
+/// on with nobody to stop it) and when its link goes down: nothing of it
+/// reaches the bus.
+#[test]
+fn a_waiting_slew_is_given_up_at_shutdown_and_when_its_link_goes_down() {
+    for shutdown in [true, false] {
+        let mut r = Rig::new(115_200, vec![gimbal(1)], |c| bounded(&mut c.governance));
+        r.client(ONE, "vms", 50);
+        r.send(ONE, 1, &Command::PanRight);
+        r.run(1);
+        assert_eq!(outcome(&r.got(ONE)), None, "it waits while gcud learns");
+        if shutdown {
+            r.input(sagebrush_gcu::Input::Shutdown);
+            assert_eq!(outcome(&r.got(ONE)), Some(Err(Some(Undelivered::ShuttingDown))));
+        } else {
+            r.drop_link(ONE);
+        }
+        r.run(3000);
+        assert!(
+            !r.bus_commands_since(0).contains(&"PR".to_string()),
+            "shutdown {shutdown}: {:?}",
+            r.bus_commands_since(0)
+        );
+        assert!(!r.moving(1));
+    }
 }

@@ -160,6 +160,8 @@ impl Router {
             self.unknown_inputs += 1;
             return;
         };
+        let its_own = |_: &super::waiting::Waiting, origin: Option<Origin>| origin.and_then(|o| o.link()) == Some(link);
+        self.give_up_waiting(now, its_own, DropReason::OriginGone, out);
         for item in l.shut_down() {
             self.dropped_on_link(now, link, &item, DropReason::LinkDown, out);
         }
@@ -199,6 +201,7 @@ impl Router {
             return;
         }
         self.stopping = true;
+        self.give_up_waiting(now, |_, _| true, DropReason::ShuttingDown, out);
         let stops = self.deadman.take_all();
         self.stop_motions(now, stops, StopCause::Shutdown, out);
     }

@@ -109,6 +109,10 @@ impl Router {
                 continue;
             };
             let Origin::Link { link, .. } = origin else { continue };
+            if self.stopping {
+                self.refuse(now, w.id, DropReason::ShuttingDown, out);
+                continue;
+            }
             if !self.links.contains_key(&link) {
                 self.refuse(now, w.id, DropReason::OriginGone, out);
                 continue;
@@ -142,6 +146,30 @@ impl Router {
         kept.append(&mut self.waiting);
         self.waiting = kept;
         self.deciding = false;
+    }
+
+    /// What waits and `gives_up` names is given up with `reason`: all of it
+    /// at shutdown (a slew let through after the shutdown's stops would run
+    /// on), a link's own when it goes down (its dead-man owns nothing yet).
+    pub(super) fn give_up_waiting(
+        &mut self,
+        now: u64,
+        gives_up: impl Fn(&Waiting, Option<Origin>) -> bool,
+        reason: DropReason,
+        out: &mut Outbox,
+    ) {
+        let mut undone = Vec::new();
+        self.waiting.retain(|w| {
+            let origin = self.in_flight.get(&w.id).map(|c| c.origin);
+            let gone = gives_up(w, origin);
+            if gone {
+                undone.push(w.id);
+            }
+            !gone
+        });
+        for id in undone {
+            self.refuse(now, id, reason, out);
+        }
     }
 
     /// When a waiting command falls due to be refused.
