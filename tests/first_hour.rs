@@ -461,11 +461,10 @@ fn gimbalctl_calls_add_no_info_lines_to_the_daemons_log() {
     for to in ["5.1.1", "5.2.1"] {
         support::eventually("the demo's gimbals to answer", || ctl(&["--to", to, "id"]).code == 0);
     }
-    // The roof gimbal has a keep-out zone: gcud refuses its gotos (exit 26)
-    // until it has read where the gimbal is and that it stands still.
-    support::eventually("gcud to know where the roof gimbal is", || {
-        ctl(&["--to", "5.2.1", "goto", "0", "0", "--wait"]).code == 0
-    });
+    // The roof gimbal has a keep-out zone: its goto waits while gcud reads
+    // where the gimbal is and that it stands still, then runs.
+    let out = ctl(&["--to", "5.2.1", "goto", "0", "0", "--wait"]);
+    assert_eq!(out.code, 0, "{out:?}");
     let info = |log: &str| -> Vec<String> {
         log.lines()
             .filter(|l| l.contains(" INFO "))

@@ -971,3 +971,31 @@ fn tokens_agree_and_set_configuration_sets_the_default_timeout() {
     support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "PS");
     assert!(stack.log().contains("move time-out"), "{}", stack.log());
 }
+
+/// A ContinuousMove through onvif-zeep-async on a governed gimbal right
+/// after gcud starts (issue 48: the door's session sends a speed, then the
+/// direction, and gcud refused the direction for not knowing the rate):
+/// gcud learns what it needs, the gimbal moves, and gcud's own stop keeps
+/// it short of its keep-out zone (where it rests, read on the bus).
+#[test]
+fn a_continuous_move_on_a_governed_gimbal_moves_it_and_stops_short_of_its_zone() {
+    if !clients_available() {
+        return;
+    }
+    let rules = "[[gimbal]]\naddress = \"5.1.1\"\npan_limits_deg = [-170.0, 170.0]\n\
+                 [[gimbal.keep_out]]\npan_deg = [30.0, 60.0]\ntilt_deg = [-30.0, 10.0]\n";
+    let stack = Stack::with(support::door::start_governed_gcud_with(rules));
+    // x = 0.5: speed 7 of 15, 60 °/s; 10 s would carry it far past the zone.
+    let moved = stack.client(
+        "continuous",
+        stack.mast,
+        OPERATOR,
+        json!({ "x": 0.5, "y": 0.0, "timeout_s": 10.0 }),
+    );
+    assert_eq!(moved["ok"], true, "{moved}\n{}", stack.log());
+    support::door::wait_for_stop(&stack.gcud, MAST, support::door::GCUD_GROUP, "PS");
+    let (pan, _) = stack.gcud.settled_position(MAST);
+    eprintln!("ContinuousMove toward the zone: rests at pan {pan} (zone from 30)");
+    assert!(pan > 10.0, "it moved: {pan}");
+    assert!(pan <= 30.5, "into the zone: {pan}\n{}", stack.gcud.log());
+}

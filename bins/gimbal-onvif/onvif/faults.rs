@@ -30,13 +30,18 @@ pub fn gimbal(e: CommandError) -> Fault {
 ///   ter:UnreachablePosition` (PTZ: "the requested position is not
 ///   reachable");
 /// - the gimbal's position unknown to gcud while it has limits or zones:
-///   `env:Receiver ter:Action ter:PositionUnknown`.
+///   `env:Receiver ter:Action ter:PositionUnknown`;
+/// - any other of gcud's refusals (a command it cannot bound, a rate or
+///   preset it could not learn, stops limited, not permitted):
+///   `env:Receiver ter:Action ter:Refused`, gcud's reason in words (it
+///   was named "not in control" whatever it was).
 fn refusal(rule: Undelivered, reason: String) -> Fault {
     match rule {
+        Undelivered::NotInControl => Fault::receiver(&["ter:Action", "ter:NotInControl"], reason),
         Undelivered::TravelLimit => Fault::sender(&["ter:InvalidArgVal", "ter:InvalidPosition"], reason),
         Undelivered::KeepOut => Fault::sender(&["ter:InvalidArgVal", "ter:UnreachablePosition"], reason),
         Undelivered::PositionUnknown => Fault::receiver(&["ter:Action", "ter:PositionUnknown"], reason),
-        _ => Fault::receiver(&["ter:Action", "ter:NotInControl"], reason),
+        _ => Fault::receiver(&["ter:Action", "ter:Refused"], reason),
     }
 }
 
@@ -80,6 +85,8 @@ mod tests {
         assert_eq!(f.subcodes, ["ter:InvalidArgVal", "ter:UnreachablePosition"]);
         let f = refused(Undelivered::PositionUnknown, "where?");
         assert_eq!(f.subcodes, ["ter:Action", "ter:PositionUnknown"]);
+        let f = refused(Undelivered::RateUnknown, "which rate?");
+        assert_eq!(f.subcodes, ["ter:Action", "ter:Refused"], "not named a control refusal");
         // A failure to deliver stays one.
         let f = gimbal(CommandError::Undelivered(Undelivered::DeviceSilent, "silent".into()));
         assert_eq!(f.subcodes, ["ter:Action", "ter:NotDelivered"]);
