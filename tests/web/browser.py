@@ -211,7 +211,9 @@ def handle(req):
         return {"zones": zones, "limits": limits}
     if op == "fetch":
         # A request from the signed-in page itself (its cookie), with or
-        # without the page's CSRF token.
+        # without the page's CSRF token: once the page knows who signed in
+        # (a fetch right after signing in raced the page's own /api/me).
+        WebDriverWait(d, WAIT_S).until(lambda d: d.execute_script("return typeof me !== 'undefined' && me !== null"))
         return d.execute_async_script(
             """
             const [path, body, withToken, done] = arguments;
