@@ -70,6 +70,10 @@ pub struct Cli {
     /// Presets implemented (1..=256); higher numbers answer NIC.
     #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u16).range(1..=256))]
     pub presets: u16,
+    /// A preset never stored (`Snn`) answers NIC to its query and recall
+    /// (as some units do); by default every implemented preset starts at home.
+    #[arg(long)]
+    pub unset_presets_nic: bool,
     /// Fastest rate (proportional speed F), degrees per second.
     #[arg(long, default_value_t = 120.0)]
     pub max_rate: f64,
@@ -169,6 +173,7 @@ impl Cli {
                 init_ms: self.init_ms,
                 start_initialized: !self.uninitialized,
                 presets: self.presets,
+                unset_presets_nic: self.unset_presets_nic,
                 max_rate: centi("--max-rate", self.max_rate)?,
                 rate: centi("--rate", self.rate)?,
                 accel: centi("--accel", self.accel)?,

@@ -26,6 +26,11 @@ pub struct GimbalConfig {
     pub start_initialized: bool,
     /// Presets implemented, 1..=256 (numbers `00` .. `presets-1`); the rest answer NIC (1.6.1).
     pub presets: u16,
+    /// Whether a preset never stored (`Snn`) answers NIC to its query and
+    /// recall, as some units do (issue 48: a gimbal that answers NIC for
+    /// preset 00 while another is stored); otherwise every implemented
+    /// preset starts at home.
+    pub unset_presets_nic: bool,
     /// Fastest rate, hundredths of a degree per second: proportional speed F (Table 11).
     pub max_rate: u16,
     /// Initial discrete rate of both axes (Table 12).
@@ -59,6 +64,7 @@ impl Default for GimbalConfig {
             init_ms: 3000,
             start_initialized: true,
             presets: 64,
+            unset_presets_nic: false,
             max_rate: 12000,
             rate: 6000,
             accel: 12000,

@@ -154,6 +154,35 @@ fn presets_store_recall_and_unimplemented_range() {
     assert_eq!(line.send(b"S10"), [Answer::Ack, Answer::Nic]);
 }
 
+/// `unset_presets_nic`: a preset never stored answers NIC to its query and
+/// recall (preset 00 among them) until `Snn` stores it.
+#[test]
+fn unset_presets_answer_nic_until_stored_when_configured() {
+    let mut line = Line::one(GimbalConfig {
+        presets: 16,
+        unset_presets_nic: true,
+        ..GimbalConfig::default()
+    });
+    for payload in [&b"P?00"[..], b"S?03", b"P03"] {
+        assert_eq!(
+            line.send(payload),
+            [Answer::Ack, Answer::Nic],
+            "{}",
+            String::from_utf8_lossy(payload)
+        );
+    }
+    line.done(b"P03E80000"); // 10.00, 0
+    line.run(2000);
+    line.done(b"S03");
+    line.done(b"HO");
+    line.run(2000);
+    assert_eq!(line.reply(b"P?03"), "03E80000");
+    assert_eq!(line.send(b"P?00"), [Answer::Ack, Answer::Nic], "00 still unset");
+    line.done(b"P03");
+    line.run(2000);
+    assert_eq!(line.position(), pos(1000, 0));
+}
+
 #[test]
 fn slew_runs_until_its_stop_and_direction_follows_table11() {
     let mut line = Line::one(GimbalConfig::default());

@@ -230,21 +230,20 @@ impl Gimbal {
                 self.stop_axis(AxisName::Tilt);
                 Response::Done
             }
-            C::GoToPreset(n) => match self.preset_index(n) {
-                Some(i) => {
-                    let target = self.presets[i];
+            C::GoToPreset(n) => match self.preset_index(n).and_then(|i| self.presets[i]) {
+                Some(target) => {
                     self.move_to(target);
                     Response::Done
                 }
                 None => Response::Nic,
             },
-            C::QueryPreset(n) | C::QueryStoredPreset(n) => match self.preset_index(n) {
-                Some(i) => Response::Reply(Reply::Position(self.presets[i])),
+            C::QueryPreset(n) | C::QueryStoredPreset(n) => match self.preset_index(n).and_then(|i| self.presets[i]) {
+                Some(place) => Response::Reply(Reply::Position(place)),
                 None => Response::Nic,
             },
             C::StorePreset(n) => match self.preset_index(n) {
                 Some(i) => {
-                    self.presets[i] = self.position();
+                    self.presets[i] = Some(self.position());
                     Response::Done
                 }
                 None => Response::Nic,

@@ -74,7 +74,9 @@ pub struct Gimbal {
     initialized: bool,
     init: Init,
     errors: ErrorCodes,
-    presets: Vec<Position>,
+    /// Each implemented preset's place; `None` until stored when the
+    /// configuration's `unset_presets_nic` says so (it then answers NIC).
+    presets: Vec<Option<Position>>,
     halt_position: Option<Position>,
     halt_lens: Option<LensPosition>,
     limits: Limits,
@@ -116,7 +118,7 @@ impl Gimbal {
             initialized,
             init: Init::Idle,
             errors: ErrorCodes::default(),
-            presets: vec![Position::default(); usize::from(config.presets)],
+            presets: vec![(!config.unset_presets_nic).then(Position::default); usize::from(config.presets)],
             halt_position: None,
             halt_lens: None,
             limits: Limits {
