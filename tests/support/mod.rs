@@ -23,6 +23,7 @@ pub mod cli;
 pub mod door;
 pub mod fake_gcud;
 pub mod gcud;
+pub mod relay;
 
 /// The programs the Debian package installs, each with its unit
 /// `config/NAME.service` running `/usr/bin/NAME` on `/etc/NAME/NAME.toml`
