@@ -107,3 +107,32 @@ fn an_explicit_id_takes_control_from_its_holder_as_qgroundcontrol_does() {
     let r = stack.gcs("pitchyaw", GCS, json!({ "pitch": 0.0, "yaw": -15.0 }));
     assert_eq!(r["result"], DENIED, "the former holder: {r}");
 }
+
+/// A MAVLink rate on a governed gimbal (issue 48: the door's session sends a
+/// speed, then the direction, and the governed gimbal did not move):
+/// MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW with a yaw rate of 60 °/s toward the
+/// gimbal's keep-out zone (pan 60..90) is accepted, the gimbal moves, and
+/// gcud's own stop keeps it short of the zone (where it rests, read on the
+/// bus). The door's lease (20 s) would carry it far past.
+#[test]
+fn a_rate_on_a_governed_gimbal_moves_it_and_stops_short_of_its_zone() {
+    if !client_available() {
+        return;
+    }
+    let rules = "[[gimbal]]\naddress = \"5.1.1\"\npan_limits_deg = [-170.0, 170.0]\n\
+                 [[gimbal.keep_out]]\npan_deg = [60.0, 90.0]\ntilt_deg = [-30.0, 10.0]\n";
+    let stack = Stack::start_on(support::door::start_governed_gcud_with(rules), 20_000, "");
+    let r = stack.gcs("pitchyaw", GCS, json!({ "yaw_rate": 60.0 }));
+    assert_eq!(r["result"], ACCEPTED, "{r}\n{}", stack.log());
+    support::door::wait_for_stop(&stack.gcud, MAST, support::door::GCUD_GROUP, "PS");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    eprintln!("MAVLink yaw rate toward the zone: rests at pan {pan} (zone from 60)");
+    let received = stack.gcud.received(MAST);
+    assert!(
+        received.iter().any(|(source, p)| *source == DOOR_GROUP && p == "PR"),
+        "the door's slew reached the gimbal: {received:?}"
+    );
+    assert!(pan > 30.0, "it moved: {pan}");
+    assert!(tilt.abs() < 0.05, "{tilt}");
+    assert!(pan <= 60.5, "into the zone: {pan}\n{}", stack.gcud.log());
+}

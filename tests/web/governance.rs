@@ -220,3 +220,32 @@ fn release_is_the_administrators_and_gcud_refuses_it_under_a_higher_link() {
     );
     eprintln!("refused release: {reason}");
 }
+
+/// A held "Pan left" on a governed gimbal (issue 48: the page's session
+/// sends a speed, then the direction, and gcud refused the direction, 409)
+/// moves mast-1 toward its keep-out zone (pan -90..-60), and gcud's own
+/// stop keeps it short of the zone while the button is still held (where it
+/// rests, read on the bus); the release then sends the page's stop.
+#[test]
+fn a_held_pan_toward_the_zone_moves_the_governed_gimbal_and_stops_short_of_it() {
+    if !browser_available() {
+        return;
+    }
+    let rules = "[[gimbal]]\naddress = \"5.1.1\"\npan_limits_deg = [-170.0, 170.0]\n\
+                 [[gimbal.keep_out]]\npan_deg = [-90.0, -60.0]\ntilt_deg = [-30.0, 10.0]\n";
+    let stack = Stack::start_on(support::door::start_governed_gcud_with(rules));
+    let mut b = stack.browser("op", "op-secret");
+    stack.call(&mut b, json!({ "op": "hold", "card": "mast-1", "button": "Pan left" }));
+    eventually("the page's slew on the bus (not refused)", || {
+        door_frames(&stack.gcud, MAST).contains(&"PL".to_owned())
+    });
+    support::door::wait_for_stop(&stack.gcud, MAST, support::door::GCUD_GROUP, "PS");
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    stack.call(&mut b, json!({ "op": "release" }));
+    eprintln!("held Pan left toward the zone: rests at pan {pan} (zone from -60)");
+    assert!(pan < -30.0, "it moved: {pan}");
+    assert!(tilt.abs() < 0.05, "{tilt}");
+    assert!(pan >= -60.5, "into the zone: {pan}\n{}", stack.gcud.log());
+    bus_stop_time(&stack.gcud, MAST, "PS");
+    support::door::assert_still(&stack.gcud, MAST, (pan, tilt), "after the release");
+}
