@@ -209,6 +209,43 @@ fn draw(rng: &mut Rng, device: u8, governed: &[u8]) -> (Vec<u8>, Address) {
     (payload, dest)
 }
 
+/// Gimbals found moving at a restart, and where such a motion came to
+/// rest (no gcud followed it from its start: the margin holds from there,
+/// no deeper past a limit or into a zone, until it is back inside).
+#[derive(Default)]
+struct Found {
+    /// (device, by when it stands still, the router event index of the
+    /// restart, how far the found motion took each axis).
+    moving: Vec<(u8, u64, usize, [i32; 2])>,
+    rests: Vec<(u8, [i32; 2])>,
+}
+
+/// How `p` is past a limit or inside a zone by more than `margin`.
+fn outside(rules: &GimbalRules, p: [i32; 2], margin: i32) -> Option<String> {
+    let mut bad = None;
+    for (axis, limits) in [rules.pan_limits, rules.tilt_limits].into_iter().enumerate() {
+        if let Some(l) = limits {
+            if p[axis] < l.lo - margin || p[axis] > l.hi + margin {
+                bad = Some(format!("axis {axis} at {} past its limits {l:?}", p[axis]));
+            }
+        }
+    }
+    for z in &rules.keep_out {
+        if zone_depth(z, p) > margin {
+            bad = Some(format!("{p:?} inside zone {z:?}"));
+        }
+    }
+    bad
+}
+
+/// How deep `p` is inside zone `z` (negative: outside).
+fn zone_depth(z: &Zone, p: [i32; 2]) -> i32 {
+    (p[0] - z.pan.lo)
+        .min(z.pan.hi - p[0])
+        .min(p[1] - z.tilt.lo)
+        .min(z.tilt.hi - p[1])
+}
+
 /// Whether `dest` names gimbal `device` of the port.
 fn addresses(dest: Address, device: u8) -> bool {
     (dest.port == PORT || dest.port == 255) && (dest.device == device || dest.device == 255)
@@ -301,14 +338,14 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
     let mut violation: Option<String> = None;
     // Gimbals found moving at a restart, and when they must stand still by.
     // (device, deadline, the router event index of the restart).
-    let mut pending: Vec<(u8, u64, usize)> = Vec::new();
+    let mut found = Found::default();
     // Gimbals an allowed unbounded command moved (`allow`: its bounds are
     // its operator's from then on), and how far the bus log was read.
     let mut operators: (Vec<u8>, usize) = (Vec::new(), 0);
     let check = |r: &Rig,
                  violation: &mut Option<String>,
                  samples: &mut u64,
-                 pending: &mut Vec<(u8, u64, usize)>,
+                 found: &mut Found,
                  operators: &mut (Vec<u8>, usize)| {
         *samples += 1;
         for (_, dest, payload) in &r.bus_log[operators.1..] {
@@ -326,16 +363,41 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
                 matches!(e, RouterEvent::IssuedStop { dest, cause: sagebrush_gcu::StopCause::FoundMoving, .. } if dest.device == d)
             })
         };
-        // (Or a link took control of it since: its motion is the link's now.)
-        let taken = |d: u8| {
-            r.router
-                .control()
+        // The axes moved since, by a link or a tour: that motion is gcud's to bound.
+        let taken = |d: u8, since: u64| {
+            let mut axes = [false; 2];
+            for (_, _, payload) in r
+                .bus_log
                 .iter()
-                .any(|g| g.device == d && matches!(g.holder, Some(sagebrush_gcu::Holder::Link { .. })))
+                .filter(|(t, dest, _)| *t >= since && addresses(*dest, d))
+            {
+                match Command::parse(payload).mount() {
+                    MountEffect::GoTo(_) | MountEffect::RecallPreset(_) => axes = [true; 2],
+                    MountEffect::Slew { axis, .. } => axes[axis as usize] = true,
+                    _ => {}
+                }
+            }
+            axes
         };
-        pending.retain(|&(d, _, _)| r.moving(d) && !taken(d));
-        if let (Some(&(d, by, _)), None) = (
-            pending.iter().find(|&&(d, by, since)| r.now > by && !stopped(d, since)),
+        for (d, by, _, reach) in &mut found.moving {
+            // The found motion's reach, on the axes no command moved since.
+            let taken = taken(*d, *by - FOUND_STOP_MS);
+            let p = r.position(*d);
+            for axis in (0..2).filter(|&axis| !taken[axis]) {
+                reach[axis] = p[axis];
+            }
+        }
+        found.moving.retain(|&(d, _, _, reach)| {
+            if r.moving(d) {
+                return true;
+            }
+            found.rests.push((d, reach));
+            false
+        });
+        if let (Some(&(d, by, _, _)), None) = (
+            found.moving.iter().find(|&&(d, by, since, _)| {
+                r.now > by && !stopped(d, since) && taken(d, by - FOUND_STOP_MS) == [false; 2]
+            }),
             violation.as_ref(),
         ) {
             *violation = Some(format!(
@@ -348,25 +410,37 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
             println!("{} positions {at:?}", r.now);
         }
         for rules in &ruled {
-            if pending.iter().any(|&(d, _, _)| d == rules.device) || operators.0.contains(&rules.device) {
+            if operators.0.contains(&rules.device) {
                 continue;
             }
             let p = r.position(rules.device);
-            let mut bad = None;
-            for (axis, limits) in [rules.pan_limits, rules.tilt_limits].into_iter().enumerate() {
-                if let Some(l) = limits {
-                    if p[axis] < l.lo - MARGIN || p[axis] > l.hi + MARGIN {
-                        bad = Some(format!("axis {axis} at {} past its limits {l:?}", p[axis]));
-                    }
-                }
+            let moving = found
+                .moving
+                .iter()
+                .find(|&&(d, ..)| d == rules.device)
+                .map(|&(.., reach)| reach);
+            let rest = moving.or_else(|| found.rests.iter().find(|(d, _)| *d == rules.device).map(|&(_, at)| at));
+            if moving.is_none() && rest.is_some() && outside(rules, p, 0).is_none() {
+                // Back inside its bounds: nothing excused any longer.
+                found.rests.retain(|(d, _)| *d != rules.device);
             }
-            for z in &rules.keep_out {
-                let depth = [
-                    (p[0] - z.pan.lo).min(z.pan.hi - p[0]),
-                    (p[1] - z.tilt.lo).min(z.tilt.hi - p[1]),
-                ];
-                if depth[0] > MARGIN && depth[1] > MARGIN {
-                    bad = Some(format!("{p:?} inside zone {z:?}"));
+            let mut bad = outside(rules, p, MARGIN);
+            if let (Some(_), Some(rest)) = (&bad, rest) {
+                // A motion found moving at a restart (no gcud followed it
+                // from its start) is excused as far as it went by itself:
+                // nothing takes the gimbal deeper than that.
+                let deeper = (0..2).any(|axis| {
+                    let bounds = [rules.pan_limits, rules.tilt_limits][axis];
+                    bounds.is_some_and(|l| {
+                        (p[axis] < l.lo - MARGIN && p[axis] < rest[axis] - MARGIN)
+                            || (p[axis] > l.hi + MARGIN && p[axis] > rest[axis] + MARGIN)
+                    })
+                }) || rules
+                    .keep_out
+                    .iter()
+                    .any(|z| zone_depth(z, p) > zone_depth(z, rest).max(0) + MARGIN);
+                if !deeper {
+                    bad = None;
                 }
             }
             if let (Some(b), None) = (bad, violation.as_ref()) {
@@ -375,7 +449,7 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
         }
     };
     r.run_with(2000, 2, |r| {
-        check(r, &mut violation, &mut s.samples, &mut pending, &mut operators)
+        check(r, &mut violation, &mut s.samples, &mut found, &mut operators)
     });
     while r.now < RUN_MS && violation.is_none() {
         if restarts && rng.chance(8) {
@@ -387,7 +461,9 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
             r.router = Router::new(config).expect("router");
             for &d in &governed {
                 if r.moving(d) {
-                    pending.push((d, r.now + FOUND_STOP_MS, r.events.len()));
+                    found
+                        .moving
+                        .push((d, r.now + FOUND_STOP_MS, r.events.len(), r.position(d)));
                 }
             }
             r.input(Input::PortOpened { port: PORT });
@@ -564,7 +640,7 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
         // A jog's slew is decided within 3/4 of the delivery time-out: wait that long.
         let wait = rng.range(if jog_slew.is_some() { 700 } else { 5 }, 700) as u64;
         r.run_with(wait, 2, |r| {
-            check(r, &mut violation, &mut s.samples, &mut pending, &mut operators)
+            check(r, &mut violation, &mut s.samples, &mut found, &mut operators)
         });
         if let Some((id, mark)) = jog_slew {
             let unknown = r.events[mark..].iter().any(|(_, e)| {
@@ -595,7 +671,7 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
     }
     // Drain: everything ends, every command has its one outcome.
     r.run_with(10_000, 2, |r| {
-        check(r, &mut violation, &mut s.samples, &mut pending, &mut operators)
+        check(r, &mut violation, &mut s.samples, &mut found, &mut operators)
     });
     // Nothing gcud cannot bound reached a governed gimbal, but what its `allow` names.
     for (t, dest, payload) in &r.bus_log {
@@ -624,6 +700,9 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
             }
             for (t, dest, payload) in &r.bus_log {
                 println!("{t} bus {dest} {}", String::from_utf8_lossy(payload));
+            }
+            for (t, bytes) in &r.lost {
+                println!("{t} lost {}", String::from_utf8_lossy(bytes));
             }
         }
         return Err(v);

@@ -158,7 +158,13 @@ impl Gimbal {
                 let at = self.position.map_or(0, |r| axes(r.position)[axis]);
                 return self.check_goto_change(now, rules, axis, at, rate, accel);
             }
-            AxisMotion::Still | AxisMotion::Unknown => return Ok(()),
+            AxisMotion::Still => return Ok(()),
+            // Moving no one knows how (found so after a start): a slower
+            // acceleration or a faster rate may carry it further than the
+            // stop gcud owes it; decided once it was seen (the governance
+            // simulation: an `APnnnn` just after a restart, before the
+            // found-moving stop, ran the slew 0.5 degree past the limit).
+            AxisMotion::Unknown => return Err(Decision::Learn(DropReason::PositionUnknown)),
         };
         if rate.is_none() && accel.is_none() {
             return Err(Decision::Refuse(DropReason::RateUnknown));
@@ -256,6 +262,17 @@ impl Gimbal {
     /// A command of mount effect `effect` was let through as `id`: its
     /// motion noted, and what it changes, to be learnt again when it ends.
     pub fn accepted(&mut self, now: u64, id: CommandId, effect: MountEffect) -> Option<Learning> {
+        if matches!(
+            effect,
+            MountEffect::GoTo(_)
+                | MountEffect::RecallPreset(_)
+                | MountEffect::Slew { .. }
+                | MountEffect::Halt
+                | MountEffect::Identity
+        ) {
+            // A motion noted after it: the one before it is not what to restore.
+            self.unknown_by = None;
+        }
         match effect {
             MountEffect::GoTo(p) => {
                 self.going(now, axes(p));
@@ -266,11 +283,13 @@ impl Gimbal {
                     self.going(now, axes(p));
                     self.goto_is(id);
                 }
-                None => self.unknown_motion(now),
+                None => self.unknown_motion(now, Some(id)),
             },
-            MountEffect::Slew { axis, positive } => self.slewing(now, axis_index(axis), if positive { 1 } else { -1 }),
+            MountEffect::Slew { axis, positive } => {
+                self.slewing(now, axis_index(axis), if positive { 1 } else { -1 }, id)
+            }
             MountEffect::Halt => self.stopping(now, true, true),
-            MountEffect::Unbounded => self.unknown_motion(now),
+            MountEffect::Unbounded => self.unknown_motion(now, Some(id)),
             MountEffect::StorePreset(n) => {
                 self.stored(n);
                 return Some(Learning::Preset(n));

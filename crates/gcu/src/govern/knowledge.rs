@@ -110,8 +110,9 @@ pub(crate) struct Gimbal {
     pub(super) unchanged: [u8; 2],
     /// A goto that replaces a followed slew, not yet on the bus: its
     /// command (once known) and target; the slew is followed (its stop
-    /// planned) until the goto began.
-    pub(super) guard: Option<(Option<CommandId>, [i32; 2])>,
+    /// planned) until the goto began. An axis whose target is `None` was
+    /// given a slew after the goto (on the bus after it): it stays a slew.
+    pub(super) guard: Option<(Option<CommandId>, [Option<i32>; 2])>,
     /// How fast each axis moved between the last two readings, per second:
     /// its mean (a `HO` may run faster than the rate `R?` answers), and the
     /// most it may have reached at the last one.
@@ -134,6 +135,18 @@ pub(crate) struct Gimbal {
     pub(super) found: bool,
     /// A stop is owed for a gimbal found moving.
     pub(super) stop_found: bool,
+    /// A command that moves it no one knows where, not yet on the bus, and
+    /// the motion noted before it: given up before the bus (a take-over
+    /// drops the old holder's queue), it moved nothing, and that motion is
+    /// restored (the governance simulation: a refused `*mp` left a jog
+    /// waiting for the gimbal to be seen still).
+    pub(super) unknown_by: Option<(CommandId, [AxisMotion; 2])>,
+    /// A slew of each axis the other way than it slews, not yet on the
+    /// bus: its command and direction. The slew it reverses is followed
+    /// (its stop planned) until it began (the governance simulation: a
+    /// `TU` held in the port's quiet after a lost frame was taken for
+    /// begun, and the `TD` before it ran past the limit unstopped).
+    pub(super) reversing: [Option<(CommandId, i32)>; 2],
 }
 
 impl Gimbal {
@@ -321,8 +334,9 @@ impl Gimbal {
         // running unfollowed (the governance simulation: a wildcard goto
         // superseded before the bus, the pan slew it was to replace ran on
         // past the limit).
-        if self.axes.iter().any(|a| matches!(a, AxisMotion::Slew { .. })) {
-            self.guard = Some((None, target));
+        let slews = self.axes.iter().any(|a| matches!(a, AxisMotion::Slew { .. }));
+        if slews || self.reversing.iter().any(Option::is_some) {
+            self.guard = Some((None, target.map(Some)));
             return;
         }
         self.guard = None;
@@ -348,32 +362,66 @@ impl Gimbal {
         }
     }
 
-    /// Command `id` ended: a goto that never began (given up) lifts its guard.
+    /// Command `id` ended: a goto that never began (given up) lifts its
+    /// guard; a motion to an unknown place that never began moved nothing.
     pub fn ended(&mut self, id: CommandId) {
+        for reversing in &mut self.reversing {
+            reversing.take_if(|(r, _)| *r == id);
+        }
         if self.guard.is_some_and(|(g, _)| g == Some(id)) {
             self.guard = None;
+        }
+        if let Some((_, before)) = self.unknown_by.take_if(|(u, _)| *u == id) {
+            // (An axis a stop reached since stays as the stop left it.)
+            for (axis, before) in before.into_iter().enumerate() {
+                if self.axes[axis] == AxisMotion::Unknown {
+                    self.axes[axis] = before;
+                }
+            }
+            self.replan = true;
         }
     }
 
     /// Command `id` began on the bus: a goto's guard is lifted, and the
     /// slew it replaces is a goto from here on.
     pub fn started(&mut self, now: u64, id: CommandId) {
+        self.unknown_by.take_if(|(u, _)| *u == id);
+        for axis in 0..2 {
+            if let Some((_, dir)) = self.reversing[axis].take_if(|(r, _)| *r == id) {
+                self.began_slew(now, axis, dir);
+            }
+        }
         if let Some((Some(goto), target)) = self.guard {
             if goto == id {
                 self.guard = None;
-                self.stop_at = [None; 2];
-                let moving = self.axes.map(|a| a != AxisMotion::Still);
-                self.axes = [0, 1].map(|axis| AxisMotion::Goto {
-                    target: target[axis],
-                    moving: moving[axis],
-                });
+                for (axis, target) in target.into_iter().enumerate() {
+                    if let Some(target) = target {
+                        let moving = self.axes[axis] != AxisMotion::Still;
+                        self.axes[axis] = AxisMotion::Goto { target, moving };
+                        self.stop_at[axis] = None;
+                    }
+                }
+                self.replan = true;
                 self.poll_at = Some(now + MOTION_POLL);
                 self.moved_at = now;
             }
         }
     }
 
-    pub fn slewing(&mut self, now: u64, axis: usize, dir: i32) {
+    pub fn slewing(&mut self, now: u64, axis: usize, dir: i32, id: CommandId) {
+        if let Some((_, target)) = self.guard.as_mut() {
+            target[axis] = None;
+        }
+        if matches!(self.axes[axis], AxisMotion::Slew { dir: d, .. } if d != dir) {
+            self.reversing[axis] = Some((id, dir));
+            return;
+        }
+        self.reversing[axis] = None;
+        self.began_slew(now, axis, dir);
+    }
+
+    /// A slew of `axis` in `dir` is on its way to the bus (or began there).
+    fn began_slew(&mut self, now: u64, axis: usize, dir: i32) {
         let since = self.slew_since(now, axis, dir);
         // Checked before: both are known (or it was refused).
         self.slew_began_with[axis] = self.rate(axis).zip(self.accel(axis));
@@ -382,7 +430,10 @@ impl Gimbal {
         self.poll_at = Some(now);
     }
 
-    pub fn unknown_motion(&mut self, now: u64) {
+    /// Command `by` (when a link's) moves it no one knows where.
+    pub fn unknown_motion(&mut self, now: u64, by: Option<CommandId>) {
+        self.reversing = [None; 2];
+        self.unknown_by = by.map(|id| (id, self.axes));
         self.axes = [AxisMotion::Unknown; 2];
         self.stop_at = [None; 2];
         self.poll_at = Some(now + MOTION_POLL);
@@ -453,7 +504,12 @@ impl Gimbal {
             // begun before gcud was, with nobody left to stop it).
             if let Some(b) = before {
                 self.found = false;
-                if (0..2).any(|axis| (b[axis] - p[axis]).abs() > SAME) {
+                // Any change at all: a motion crawling at its slowest step
+                // moves less than [`SAME`] between two readings (the
+                // governance simulation: a park recall at step 0 found
+                // after a restart was taken for still and ran on). A stop
+                // to a gimbal that stands still does nothing.
+                if (0..2).any(|axis| b[axis] != p[axis]) {
                     self.stop_found = true;
                     self.axes = [AxisMotion::Settling { since: now }; 2];
                 } else {

@@ -201,7 +201,7 @@ impl Governor {
                 };
                 match target {
                     Some(t) => g.going(now, t),
-                    None => g.unknown_motion(now),
+                    None => g.unknown_motion(now, None),
                 }
                 g.moved = true;
                 self.orders.push(Order {
@@ -301,7 +301,7 @@ impl Governor {
             }
             match target {
                 Some(t) => g.going(now, t),
-                None => g.unknown_motion(now),
+                None => g.unknown_motion(now, None),
             }
             g.holder = Some(Held {
                 who: Who::Park,

@@ -120,7 +120,17 @@ pub(crate) fn room_ahead(
     }
     for zone in &rules.keep_out {
         let (near, cross) = (zone_span(zone, axis), zone_span(zone, 1 - axis));
-        if !cross.meets(&other) || near.contains(at) {
+        if !cross.meets(&other) {
+            continue;
+        }
+        if near.contains(at) {
+            // Inside it (found so after a restart, or within the margin):
+            // out by the nearer edge only, never deeper (the governance
+            // simulation: a pan slew from 1.5 degrees inside ran on into it).
+            let outward = if at - near.lo <= near.hi - at { -1 } else { 1 };
+            if dir != outward {
+                consider(0, DropReason::KeepOut);
+            }
             continue;
         }
         match dir > 0 {
