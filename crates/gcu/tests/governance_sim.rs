@@ -28,16 +28,17 @@
 //! - a speed then a slew at once is never refused for what gcud did not
 //!   know (position, rate) while the gimbal answers;
 //! - after a restart, a gimbal found moving is stopped: gcud sends its
-//!   stop (or it stands still) within [`FOUND_STOP_MS`] (the margin is
-//!   not asked of a motion no gcud followed until it stands still; the
-//!   rule test says how far it runs).
+//!   stop (or it stands still) within [`FOUND_STOP_MS`]; the margin is
+//!   asked of such a motion (no gcud followed it from its start) from as
+//!   far as it went by itself: nothing takes the gimbal deeper past a
+//!   limit or into a zone than that, until it is back inside.
 //!
 //! - `cargo test -p sagebrush-gcu --release --test governance_sim`: 10,000 seeds.
 //! - `GOV_SIM_SEEDS=100000 GOV_SIM_START=0 ...`: more.
 //! - `GOV_SIM_SEED=1234 ... -- --nocapture`: one seed, with its trace.
 //! - `GOV_SIM_ALL=1 ... -- --nocapture`: every failing seed, one line each.
-//! - `GOV_SIM_FAULTS=1 ...`: with stop frames lost on the bus and gcud
-//!   restarted mid-motion (not yet held: see ARCHITECTURE "Governance").
+//! - `GOV_SIM_FAULTS=0 ...`: without lost stop frames and restarts
+//!   (`stops` or `restarts`: that fault alone).
 
 mod rig;
 
@@ -215,9 +216,20 @@ fn draw(rng: &mut Rng, device: u8, governed: &[u8]) -> (Vec<u8>, Address) {
 #[derive(Default)]
 struct Found {
     /// (device, by when it stands still, the router event index of the
-    /// restart, how far the found motion took each axis).
-    moving: Vec<(u8, u64, usize, [i32; 2])>,
+    /// restart, how far the found motion took each axis, the way each
+    /// axis ran then: the sign of its speed, 0 once it turned).
+    moving: Vec<(u8, u64, usize, [i32; 2], [f64; 2])>,
     rests: Vec<(u8, [i32; 2])>,
+}
+
+/// Whether gimbal `d`'s pan or tilt moves (its lens is not the governance's).
+fn axes_moving(r: &Rig, d: u8) -> bool {
+    r.bus.gimbal(d).is_some_and(|g| g.velocities() != [0.0; 2])
+}
+
+/// The way an axis moving at `v` runs: -1, 0 or 1.
+fn way_of(v: f64) -> f64 {
+    if v == 0.0 { 0.0 } else { v.signum() }
 }
 
 /// How `p` is past a limit or inside a zone by more than `margin`.
@@ -252,7 +264,9 @@ fn addresses(dest: Address, device: u8) -> bool {
 }
 
 fn run(seed: u64, trace: bool) -> Result<Summary, String> {
-    let faults = std::env::var("GOV_SIM_FAULTS").unwrap_or_default();
+    // Every fault unless named otherwise: `GOV_SIM_FAULTS=0` (none),
+    // `stops` or `restarts` (that one alone).
+    let faults = std::env::var("GOV_SIM_FAULTS").unwrap_or_else(|_| "1".into());
     let (lose_stops, restarts) = (
         faults == "1" || faults.contains("stops"),
         faults == "1" || faults.contains("restarts"),
@@ -379,23 +393,31 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
             }
             axes
         };
-        for (d, by, _, reach) in &mut found.moving {
-            // The found motion's reach, on the axes no command moved since.
+        for (d, by, _, reach, way) in &mut found.moving {
+            // The found motion's reach: on the axes no command moved since,
+            // and on the others while they still run on the way it went
+            // (braking from it before a command's turn takes hold).
             let taken = taken(*d, *by - FOUND_STOP_MS);
             let p = r.position(*d);
-            for axis in (0..2).filter(|&axis| !taken[axis]) {
-                reach[axis] = p[axis];
+            let v = r.bus.gimbal(*d).expect("gimbal").velocities();
+            for axis in 0..2 {
+                if taken[axis] && way_of(v[axis]) != way[axis] {
+                    way[axis] = 0.0;
+                }
+                if !taken[axis] || way[axis] != 0.0 {
+                    reach[axis] = p[axis];
+                }
             }
         }
-        found.moving.retain(|&(d, _, _, reach)| {
-            if r.moving(d) {
+        found.moving.retain(|&(d, _, _, reach, _)| {
+            if axes_moving(r, d) {
                 return true;
             }
             found.rests.push((d, reach));
             false
         });
-        if let (Some(&(d, by, _, _)), None) = (
-            found.moving.iter().find(|&&(d, by, since, _)| {
+        if let (Some(&(d, by, ..)), None) = (
+            found.moving.iter().find(|&&(d, by, since, ..)| {
                 r.now > by && !stopped(d, since) && taken(d, by - FOUND_STOP_MS) == [false; 2]
             }),
             violation.as_ref(),
@@ -418,7 +440,7 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
                 .moving
                 .iter()
                 .find(|&&(d, ..)| d == rules.device)
-                .map(|&(.., reach)| reach);
+                .map(|&(.., reach, _)| reach);
             let rest = moving.or_else(|| found.rests.iter().find(|(d, _)| *d == rules.device).map(|&(_, at)| at));
             if moving.is_none() && rest.is_some() && outside(rules, p, 0).is_none() {
                 // Back inside its bounds: nothing excused any longer.
@@ -459,11 +481,18 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
             config.ports = vec![rig::port(bps)];
             config.governance = restart_governance.clone();
             r.router = Router::new(config).expect("router");
+            r.reopened();
             for &d in &governed {
-                if r.moving(d) {
-                    found
-                        .moving
-                        .push((d, r.now + FOUND_STOP_MS, r.events.len(), r.position(d)));
+                // (A restart before it ended: this one is found from here.)
+                found.moving.retain(|&(f, ..)| f != d);
+                if axes_moving(&r, d) {
+                    found.moving.push((
+                        d,
+                        r.now + FOUND_STOP_MS,
+                        r.events.len(),
+                        r.position(d),
+                        r.bus.gimbal(d).expect("gimbal").velocities().map(way_of),
+                    ));
                 }
             }
             r.input(Input::PortOpened { port: PORT });
@@ -657,7 +686,15 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
             // (Nor while the bus keeps quiet after a lost frame: late answers
             // of its exchange may still come, and only stops go.)
             let quiet = r.lost.iter().any(|(t, _)| t + 1000 >= r.now.saturating_sub(wait));
-            if unknown && violation.is_none() && !operators.0.contains(&device) && !initialising && !quiet {
+            // (Nor when another client's broadcast held the bus for its guard
+            // meanwhile: at 9600 bit/s that is 40 % of the delivery time-out
+            // the wait is bounded by, before the speed change could even
+            // reach the gimbal.)
+            let held = r
+                .bus_log
+                .iter()
+                .any(|(t, dest, _)| (dest.port == 255 || dest.device == 255) && *t + 400 >= r.now.saturating_sub(wait));
+            if unknown && violation.is_none() && !operators.0.contains(&device) && !initialising && !quiet && !held {
                 violation = Some(format!(
                     "t={}: a jog's slew to device {device} was refused for what gcud did not know",
                     r.now
@@ -813,7 +850,14 @@ fn governance_holds_over_seeded_runs() {
         "{total:?}"
     );
     assert!(total.jogs > 0, "{total:?}");
-    if std::env::var_os("GOV_SIM_FAULTS").is_some() {
-        assert!(total.restarts > 0 && total.lost_stops > 0, "{total:?}");
+    // The faults were drawn (a run too short to draw them proves nothing of them).
+    let faults = std::env::var("GOV_SIM_FAULTS").unwrap_or_else(|_| "1".into());
+    if count >= 100 {
+        if faults == "1" || faults.contains("stops") {
+            assert!(total.lost_stops > 0, "{total:?}");
+        }
+        if faults == "1" || faults.contains("restarts") {
+            assert!(total.restarts > 0, "{total:?}");
+        }
     }
 }

@@ -262,6 +262,14 @@ impl Rig {
         }
     }
 
+    /// gcud's port was closed and opened again (gcud restarted): what the
+    /// gimbals were still sending to the old process is gone (gcud clears
+    /// a serial port's buffers when it opens it, and a restart outlasts any
+    /// exchange).
+    pub fn reopened(&mut self) {
+        self.wire.retain(|(_, to_router, _)| to_router.is_none());
+    }
+
     /// The gimbal's position on the bus side, hundredths of a degree.
     pub fn position(&self, device: u8) -> [i32; 2] {
         let p: Position = self.bus.gimbal(device).expect("gimbal").position();

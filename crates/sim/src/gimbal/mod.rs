@@ -160,6 +160,12 @@ impl Gimbal {
         }
     }
 
+    /// How fast each axis (pan, tilt) moves, hundredths of a degree per
+    /// millisecond (signed).
+    pub fn velocities(&self) -> [f64; 2] {
+        [self.pan.velocity(), self.tilt.velocity()]
+    }
+
     /// Whether either axis or a lens function is moving.
     pub fn is_moving(&self) -> bool {
         self.pan.is_moving() || self.tilt.is_moving() || self.zoom.is_moving() || self.focus.is_moving()
