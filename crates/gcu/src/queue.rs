@@ -80,6 +80,13 @@ impl<T: Queued> StopFirstQueue<T> {
             .find(|queued| queued.is_stop() && queued.same_frame(item))
     }
 
+    /// Takes the waiting stop identical to `item` out of the queue, if any.
+    pub fn take_same_stop(&mut self, item: &T) -> Option<T> {
+        let first = self.first_waiting();
+        let at = (first..self.items.len()).find(|&i| self.items[i].is_stop() && self.items[i].same_frame(item))?;
+        self.items.remove(at)
+    }
+
     /// Queues `item`: an urgent stop behind the waiting urgent ones and
     /// ahead of everything else, a stop behind the waiting stops and ahead
     /// of all work, work at the end. The caller checked [`Self::has_room`].

@@ -57,6 +57,8 @@ use sagebrush_sim::GimbalConfig;
 const MARGIN: i32 = 50;
 /// Simulated time per seed.
 const RUN_MS: u64 = 20_000;
+/// How long gcud is down when it restarts.
+const RESTART_MS: u64 = 100;
 /// After a restart, a gimbal found moving stands still within this long.
 const FOUND_STOP_MS: u64 = 3000;
 
@@ -372,10 +374,12 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
         operators.1 = r.bus_log.len();
         // Found moving at a restart: stopped by gcud (`FoundMoving`), or
         // still; the margin is not asked of it until it stands still.
+        // (Stopped: found so, or followed and stopped short of a boundary;
+        // a stop sent, it may brake a long time at a low acceleration.)
         let stopped = |d: u8, since: usize| {
-            r.events[since..].iter().any(|(_, e)| {
-                matches!(e, RouterEvent::IssuedStop { dest, cause: sagebrush_gcu::StopCause::FoundMoving, .. } if dest.device == d)
-            })
+            r.events[since..]
+                .iter()
+                .any(|(_, e)| matches!(e, RouterEvent::IssuedStop { dest, .. } if dest.device == d))
         };
         // The axes moved since, by a link or a tour: that motion is gcud's to bound.
         let taken = |d: u8, since: u64| {
@@ -480,21 +484,25 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
             let mut config = RouterConfig::new(G);
             config.ports = vec![rig::port(bps)];
             config.governance = restart_governance.clone();
-            r.router = Router::new(config).expect("router");
-            r.reopened();
             for &d in &governed {
                 // (A restart before it ended: this one is found from here.)
                 found.moving.retain(|&(f, ..)| f != d);
                 if axes_moving(&r, d) {
                     found.moving.push((
                         d,
-                        r.now + FOUND_STOP_MS,
+                        r.now + RESTART_MS + FOUND_STOP_MS,
                         r.events.len(),
                         r.position(d),
                         r.bus.gimbal(d).expect("gimbal").velocities().map(way_of),
                     ));
                 }
             }
+            // Down for a moment: what was on the wire ends meanwhile, and
+            // what moves runs on unfollowed.
+            r.down_for(RESTART_MS, 2, |r| {
+                check(r, &mut violation, &mut s.samples, &mut found, &mut operators)
+            });
+            r.router = Router::new(config).expect("router");
             r.input(Input::PortOpened { port: PORT });
             for c in &mut clients {
                 r.got(c.link);

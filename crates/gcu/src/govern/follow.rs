@@ -114,7 +114,7 @@ impl Gimbal {
                 // seen still: that link's stop may be lost (one to device
                 // 255 is never confirmed); a second stop is harmless.
                 let settling = matches!(self.axes[axis], AxisMotion::Settling { .. });
-                if self.guard.is_none() && !settling {
+                if self.guard.is_none() && !settling && self.unknown_by.is_none() {
                     self.stop_at[axis] = None;
                 }
                 continue;
@@ -176,7 +176,9 @@ impl Gimbal {
                 continue;
             };
             self.stop_at[axis] = None;
-            self.axes[axis] = AxisMotion::Settling { since: now };
+            if self.axes[axis] != AxisMotion::Unknown {
+                self.axes[axis] = AxisMotion::Settling { since: now };
+            }
             stats.boundary_stops += 1;
             let _ = at;
             let command = if axis == 0 { Command::PanStop } else { Command::TiltStop };

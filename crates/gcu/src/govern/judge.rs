@@ -72,7 +72,11 @@ impl Gimbal {
         line: Line,
         broadcast: bool,
     ) -> Result<(), Decision> {
-        let goto = |target: [i32; 2]| match check_goto(rules, self.region(now), target) {
+        // From where it may be when the goto begins: queued, it may wait up
+        // to the delivery time-out while a slew runs on (the governance
+        // simulation: a goto decided from where a slew was, sent 240 ms
+        // later, crossed a zone's corner).
+        let goto = |target: [i32; 2]| match check_goto(rules, self.region(now + line.queue_wait), target) {
             Ok(()) => Ok(()),
             Err(DropReason::PositionUnknown) => Err(Decision::Learn(DropReason::PositionUnknown)),
             Err(reason) => Err(Decision::Refuse(reason)),

@@ -385,7 +385,9 @@ impl Gimbal {
     /// Command `id` began on the bus: a goto's guard is lifted, and the
     /// slew it replaces is a goto from here on.
     pub fn started(&mut self, now: u64, id: CommandId) {
-        self.unknown_by.take_if(|(u, _)| *u == id);
+        if self.unknown_by.take_if(|(u, _)| *u == id).is_some() {
+            self.stop_at = [None; 2];
+        }
         for axis in 0..2 {
             if let Some((_, dir)) = self.reversing[axis].take_if(|(r, _)| *r == id) {
                 self.began_slew(now, axis, dir);
@@ -435,7 +437,13 @@ impl Gimbal {
         self.reversing = [None; 2];
         self.unknown_by = by.map(|id| (id, self.axes));
         self.axes = [AxisMotion::Unknown; 2];
-        self.stop_at = [None; 2];
+        // A link's command keeps the stops planned for what moves until it
+        // is on the bus (the governance simulation: an allowed `*mp` queued
+        // behind other work dropped a slew's boundary stop, and the slew
+        // ran past the limit before the `*mp` was sent).
+        if by.is_none() {
+            self.stop_at = [None; 2];
+        }
         self.poll_at = Some(now + MOTION_POLL);
         self.moved_at = now;
     }
@@ -655,6 +663,9 @@ pub(crate) struct Line {
     pub ack_timeout: u64,
     /// How long a command to device 255 holds the bus after it is written.
     pub broadcast_guard: u64,
+    /// The longest a queued command waits for the bus before it is given
+    /// up (the delivery time-out): a goto decided now may begin that late.
+    pub queue_wait: u64,
 }
 
 impl Line {
@@ -704,6 +715,7 @@ mod tests {
             nic_window: 31,
             ack_timeout: 12,
             broadcast_guard: 40,
+            queue_wait: 800,
         }
     }
 

@@ -242,6 +242,7 @@ impl Governor {
             nic_window: 35,
             ack_timeout: 78,
             broadcast_guard: 100,
+            queue_wait: crate::LinkSettings::DELIVERY_TIMEOUT_MS,
         })
     }
 

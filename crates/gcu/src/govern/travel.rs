@@ -52,14 +52,27 @@ pub(crate) fn check_goto(rules: &GimbalRules, from: Option<Region>, target: [i32
         return Err(DropReason::PositionUnknown);
     };
     let path = [from[0].join(&Span::at(target[0])), from[1].join(&Span::at(target[1]))];
-    match rules
-        .keep_out
-        .iter()
-        .any(|z| z.pan.meets(&path[0]) && z.tilt.meets(&path[1]) && !leaves(z, from, target))
-    {
-        true => Err(DropReason::KeepOut),
-        false => Ok(()),
+    let crossed = |z: &&Zone| z.pan.meets(&path[0]) && z.tilt.meets(&path[1]) && !leaves(z, from, target);
+    match rules.keep_out.iter().find(crossed) {
+        // Where it may be now reaches into the zone but is not all in it
+        // (still moving, or braking): whether it is in, and may leave it,
+        // is known once it stands still (the governance simulation: a goto
+        // accepted as leaving a zone the braking gimbal never entered
+        // crossed its corner).
+        Some(z) if meets(z, from) && !within(z, from) => Err(DropReason::PositionUnknown),
+        Some(_) => Err(DropReason::KeepOut),
+        None => Ok(()),
     }
+}
+
+/// Whether region `r` reaches into zone `z`.
+fn meets(z: &Zone, r: Region) -> bool {
+    z.pan.meets(&r[0]) && z.tilt.meets(&r[1])
+}
+
+/// Whether region `r` lies all within zone `z`.
+fn within(z: &Zone, r: Region) -> bool {
+    z.pan.contains(r[0].lo) && z.pan.contains(r[0].hi) && z.tilt.contains(r[1].lo) && z.tilt.contains(r[1].hi)
 }
 
 /// How deep into `zone` (its distance to the nearest edge) the deepest
@@ -88,8 +101,7 @@ fn shallowest(span: Span, zone: Span) -> i32 {
 /// path is found axis by axis).
 fn leaves(zone: &Zone, from: Region, target: [i32; 2]) -> bool {
     let inside = zone.pan.contains(target[0]) && zone.tilt.contains(target[1]);
-    let started_in = zone.pan.meets(&from[0]) && zone.tilt.meets(&from[1]);
-    if inside || !started_in {
+    if inside || !within(zone, from) {
         return false;
     }
     let path = [from[0].join(&Span::at(target[0])), from[1].join(&Span::at(target[1]))];

@@ -61,6 +61,17 @@ impl Port {
         }
         if job.facts.stop {
             self.cancel_undone_by(&job, out);
+            // An urgent stop identical to one waiting takes its place
+            // ahead of the other stops (the governance simulation: a
+            // boundary `PS` merged into a client's, queued behind a
+            // broadcast's guard, came 330 ms late).
+            if job.urgent {
+                if let Some(queued) = self.queue.take_same_stop(&job) {
+                    self.stats.line.drops.add(DropReason::DuplicateStop);
+                    job.merged.push(queued.id);
+                    job.merged.extend(queued.merged);
+                }
+            }
             if let Some(queued) = self.queue.same_stop_mut(&job) {
                 self.stats.line.drops.add(DropReason::DuplicateStop);
                 queued.merged.push(job.id);

@@ -26,6 +26,7 @@ impl Router {
                 nic_window: p.config.nic_window,
                 ack_timeout: p.config.ack_timeout,
                 broadcast_guard: p.config.broadcast_guard,
+                queue_wait: self.settings.delivery_timeout,
             };
             self.governor.port_state(port, open.then_some(line));
             out.push(Action::Event(RouterEvent::PortState { port, open }));

@@ -37,6 +37,8 @@ pub struct Rig {
     pub bps: u32,
     /// Bytes on their way, by arrival tick: to the bus (`None`) or the router.
     wire: Vec<(u64, Option<()>, Vec<u8>)>,
+    /// gcud is down ([`Rig::down_for`]).
+    down: bool,
     pub received: BTreeMap<LinkId, Vec<Got>>,
     framers: BTreeMap<LinkId, Framer>,
     /// Every router event, with its tick.
@@ -76,6 +78,7 @@ impl Rig {
             now: 0,
             bps,
             wire: Vec::new(),
+            down: false,
             received: BTreeMap::new(),
             framers: BTreeMap::new(),
             events: Vec::new(),
@@ -206,7 +209,9 @@ impl Rig {
                 self.wire.push((at, Some(()), o.bytes));
             }
             self.deliver();
-            self.input(Input::Tick);
+            if !self.down {
+                self.input(Input::Tick);
+            }
             each(self);
         }
     }
@@ -230,6 +235,7 @@ impl Rig {
             };
             let (_, to_router, bytes) = self.wire.remove(i);
             match to_router {
+                Some(()) if self.down => {}
                 Some(()) => self.input(Input::Bytes {
                     line: LineId::Port(PORT),
                     bytes: &bytes,
@@ -262,11 +268,14 @@ impl Rig {
         }
     }
 
-    /// gcud's port was closed and opened again (gcud restarted): what the
-    /// gimbals were still sending to the old process is gone (gcud clears
-    /// a serial port's buffers when it opens it, and a restart outlasts any
-    /// exchange).
-    pub fn reopened(&mut self) {
+    /// gcud is down for `ms` (a restart): the bus runs on, what the
+    /// gimbals send meanwhile is lost (gcud clears a serial port's buffers
+    /// when it opens it), nothing goes to the bus but what was written
+    /// before. `each` as in [`Rig::run_with`].
+    pub fn down_for(&mut self, ms: u64, step: u64, each: impl FnMut(&Rig)) {
+        self.down = true;
+        self.run_with(ms, step, each);
+        self.down = false;
         self.wire.retain(|(_, to_router, _)| to_router.is_none());
     }
 
