@@ -215,12 +215,14 @@ fn draw(rng: &mut Rng, device: u8, governed: &[u8]) -> (Vec<u8>, Address) {
 /// Gimbals found moving at a restart, and where such a motion came to
 /// rest (no gcud followed it from its start: the margin holds from there,
 /// no deeper past a limit or into a zone, until it is back inside).
+/// A motion found at a restart: (device, by when it stands still, the
+/// router event index of the restart, how far the found motion took each
+/// axis, the way each axis ran then: the sign of its speed, 0 once it turned).
+type FoundMotion = (u8, u64, usize, [i32; 2], [f64; 2]);
+
 #[derive(Default)]
 struct Found {
-    /// (device, by when it stands still, the router event index of the
-    /// restart, how far the found motion took each axis, the way each
-    /// axis ran then: the sign of its speed, 0 once it turned).
-    moving: Vec<(u8, u64, usize, [i32; 2], [f64; 2])>,
+    moving: Vec<FoundMotion>,
     rests: Vec<(u8, [i32; 2])>,
 }
 
