@@ -433,7 +433,7 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
                 r.now
             ));
         }
-        if trace && r.now % 20 == 0 {
+        if trace && (r.now % 20 == 0 || std::env::var_os("GOV_ALL_POS").is_some()) {
             let at: Vec<_> = r.bus.gimbals().map(|g| g.position()).collect();
             println!("{} positions {at:?}", r.now);
         }
@@ -704,7 +704,25 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
                 .bus_log
                 .iter()
                 .any(|(t, dest, _)| (dest.port == 255 || dest.device == 255) && *t + 400 >= r.now.saturating_sub(wait));
-            if unknown && violation.is_none() && !operators.0.contains(&device) && !initialising && !quiet && !held {
+            // (Nor when it waited behind another command for that gimbal
+            // that itself waited to learn: decisions keep the order the
+            // gimbal must see, and the delivery time-out bounds them all.)
+            let learning = |f: sagebrush_gcu::CommandId| {
+                r.events[mark..].iter().any(|(_, e)| {
+                    matches!(e, RouterEvent::Finished { id, outcome: CommandOutcome::Dropped(DropReason::PositionUnknown | DropReason::RateUnknown | DropReason::PresetUnknown) } if *id == f)
+                })
+            };
+            let behind = r.events[..mark].iter().rev().take(400).any(|(_, e)| {
+                matches!(e, RouterEvent::Accepted { id: other, dest, .. } if *other != id && addresses(*dest, device) && learning(*other))
+            });
+            if unknown
+                && violation.is_none()
+                && !operators.0.contains(&device)
+                && !initialising
+                && !quiet
+                && !held
+                && !behind
+            {
                 violation = Some(format!(
                     "t={}: a jog's slew to device {device} was refused for what gcud did not know",
                     r.now

@@ -152,6 +152,7 @@ impl Gimbal {
         if !self.watched {
             return;
         }
+        self.stop_latency = line.latency();
         // Planned again at once, even with a query out: a change of rate or
         // acceleration mid-slew may need its stop sooner than planned (the
         // governance simulation: an `APnnnn` while a poll was out kept the
@@ -171,17 +172,23 @@ impl Gimbal {
             });
             self.poll_at = Some(now + MOTION_POLL / 2);
         }
-        for axis in 0..2 {
-            let Some((at, boundary)) = self.stop_at[axis].filter(|&(t, _)| t <= now) else {
-                continue;
-            };
-            self.stop_at[axis] = None;
-            if self.axes[axis] != AxisMotion::Unknown {
-                self.axes[axis] = AxisMotion::Settling { since: now };
+        let due = [0, 1].map(|axis| self.stop_at[axis].filter(|&(t, _)| t <= now).map(|(_, why)| why));
+        let command = match due {
+            // Both at once: one frame (`PS` then `TS` kept the tilt's stop
+            // one exchange late in the governance simulation).
+            [Some(_), Some(_)] => Some(Command::StopMotion),
+            [Some(_), None] => Some(Command::PanStop),
+            [None, Some(_)] => Some(Command::TiltStop),
+            [None, None] => None,
+        };
+        if let (Some(command), Some(boundary)) = (command, due[0].or(due[1])) {
+            for axis in (0..2).filter(|&axis| due[axis].is_some()) {
+                self.stop_at[axis] = None;
+                if self.axes[axis] != AxisMotion::Unknown {
+                    self.axes[axis] = AxisMotion::Settling { since: now };
+                }
+                stats.boundary_stops += 1;
             }
-            stats.boundary_stops += 1;
-            let _ = at;
-            let command = if axis == 0 { Command::PanStop } else { Command::TiltStop };
             events.push(RouterEvent::BoundaryStop {
                 port,
                 device,

@@ -85,6 +85,13 @@ impl Gimbal {
         // unbounded command): a goto waits until gcud saw where it is, even
         // with limits alone (its overshoot is not known either).
         let unknown = self.axes.contains(&AxisMotion::Unknown);
+        // How long after now a stop may first go: after this command's own
+        // exchange, or a broadcast's guard.
+        let lead = if broadcast {
+            line.broadcast_hold()
+        } else {
+            line.exchange()
+        };
         match effect {
             MountEffect::GoTo(_) | MountEffect::RecallPreset(_) if unknown => {
                 Err(Decision::Learn(DropReason::PositionUnknown))
@@ -100,11 +107,6 @@ impl Gimbal {
                     // A speed change before it has not ended: its rate is not known yet.
                     return Err(Decision::Learn(DropReason::RateUnknown));
                 }
-                let lead = if broadcast {
-                    line.broadcast_hold()
-                } else {
-                    line.exchange()
-                };
                 match self.check_slew(now, rules, axis_index(axis), if positive { 1 } else { -1 }, line, lead) {
                     Ok(()) => Ok(()),
                     Err(reason @ (DropReason::PositionUnknown | DropReason::RateUnknown)) => {
@@ -118,7 +120,7 @@ impl Gimbal {
                     NewSpeed::Rate(r) => Some(u32::from(r.0)),
                     NewSpeed::Step(step) => self.step_bound(axis_index(axis), step.get()),
                 };
-                self.check_change(now, rules, axis_index(axis), rate, None, line)
+                self.check_change(now, rules, axis_index(axis), rate, None, line, lead)
             }
             MountEffect::Acceleration { axis, acceleration } => self.check_change(
                 now,
@@ -127,6 +129,7 @@ impl Gimbal {
                 None,
                 Some(u32::from(acceleration.0)),
                 line,
+                lead,
             ),
             _ => Ok(()),
         }
@@ -145,7 +148,11 @@ impl Gimbal {
     /// A change of `axis`' rate or acceleration while it slews: the stop
     /// is planned again with the worst of old and new (the faster rate, the
     /// lower acceleration); refused when that stop would come too late, or
-    /// when the new rate is not known.
+    /// when the new rate is not known. `lead`: how long after now the stop
+    /// may first go (a change to device 255 holds the bus for its guard:
+    /// the governance simulation, an `AP` to 5.1.255 kept a boundary stop
+    /// 80 ms late).
+    #[allow(clippy::too_many_arguments)]
     fn check_change(
         &self,
         now: u64,
@@ -154,6 +161,7 @@ impl Gimbal {
         rate: Option<u32>,
         accel: Option<u32>,
         line: Line,
+        lead: u64,
     ) -> Result<(), Decision> {
         let (dir, since) = match self.axes[axis] {
             AxisMotion::Slew { dir, since } => (dir, since),
@@ -177,7 +185,7 @@ impl Gimbal {
         trial.changed(axis, rate, accel);
         match trial.stop_due(now, rules, axis, dir, since, line) {
             Ok(None) => Ok(()),
-            Ok(Some((Some(t), _))) if t >= now => Ok(()),
+            Ok(Some((Some(t), _))) if t >= now + lead => Ok(()),
             Ok(Some((_, reason))) => Err(Decision::Refuse(reason)),
             Err(reason) => Err(Decision::Refuse(reason)),
         }

@@ -147,6 +147,9 @@ pub(crate) struct Gimbal {
     /// `TU` held in the port's quiet after a lost frame was taken for
     /// begun, and the `TD` before it ran past the limit unstopped).
     pub(super) reversing: [Option<(CommandId, i32)>; 2],
+    /// From a stop sent to the gimbal reading it, its frame lost once (its
+    /// port's [`Line::latency`], as of the last [`Gimbal::follow`]).
+    pub(super) stop_latency: u64,
 }
 
 impl Gimbal {
@@ -317,8 +320,15 @@ impl Gimbal {
                     let back = if since == 0 { braking(v, a) } else { 0 };
                     Span::at(p[axis] - dir * back).join(&Span::at(p[axis] + dir * run))
                 }
-                AxisMotion::Settling { .. } => {
-                    let reach = braking(self.rate(axis)?, self.accel(axis)?);
+                AxisMotion::Settling { since } => {
+                    // Told to stop at `since`: it may run on until that stop
+                    // has surely reached it (its frame lost once), then
+                    // brake (the governance simulation: a tilt slew judged
+                    // from a reading before a lost boundary stop took the
+                    // pan for 15 degrees short of where it came to rest).
+                    let (v, a) = (self.rate(axis)?, self.accel(axis)?);
+                    let run = distance_in((since + self.stop_latency).saturating_sub(reading.at), v);
+                    let reach = run + braking(v, a);
                     Span::new(p[axis] - reach, p[axis] + reach)
                 }
                 AxisMotion::Unknown => return None,

@@ -62,6 +62,7 @@ impl Router {
         if facts.stop {
             self.supersede_waiting(now, dest, facts, out);
         } else if facts.mount.changes() {
+            self.outrank_waiting(now, dest, &who, out);
             if let Some(why) = self.waiting_for(dest) {
                 return Governed::Waits(why);
             }
@@ -118,8 +119,18 @@ impl Router {
         };
         if let Some(reason) = order.cancel_slews {
             let (device, stop) = (order.device, order.command);
+            // (A `PT` ends the slews of both axes.)
+            let both = stop == Command::StopMotion;
             self.with_port(now, order.port, out, |p, _, po| {
-                p.cancel_for_device(device, |j| j.facts.stopped_by == Some(stop), reason, po)
+                p.cancel_for_device(
+                    device,
+                    |j| {
+                        j.facts.stopped_by == Some(stop)
+                            || (both && matches!(j.facts.stopped_by, Some(Command::PanStop | Command::TiltStop)))
+                    },
+                    reason,
+                    po,
+                )
             });
         }
         let command = ReadCommand::built(&order.command, frame);

@@ -12,6 +12,7 @@ use sagebrush_protocol::{Address, MountEffect, WILDCARD};
 
 use crate::command::CommandFacts;
 use crate::config::LinkKind;
+use crate::govern::LinkIdentity;
 use crate::outbox::Outbox;
 use crate::types::{CommandId, DropReason, Origin};
 
@@ -89,6 +90,30 @@ impl Router {
         for id in undone {
             self.waiting.retain(|w| w.id != id);
             self.refuse(now, id, DropReason::Superseded, out);
+        }
+    }
+
+    /// A change for `dest` from `who` gives up what waits for the same
+    /// gimbal from links it outranks: it would take control from them
+    /// once decided, so they never get it (refused `NotInControl`), and it
+    /// does not wait behind them (the governance simulation: a jog of the
+    /// highest link waited behind a lower link's goto and was refused for
+    /// want of time to learn the rate).
+    pub(super) fn outrank_waiting(&mut self, now: u64, dest: Address, who: &LinkIdentity, out: &mut Outbox) {
+        let outranked: Vec<CommandId> = self
+            .waiting
+            .iter()
+            .filter(|w| overlap(w.dest, dest))
+            .filter(|w| {
+                let link = self.in_flight.get(&w.id).and_then(|c| c.origin.link());
+                link.and_then(|l| self.links.get(&l))
+                    .is_some_and(|l| l.config.priority < who.priority)
+            })
+            .map(|w| w.id)
+            .collect();
+        for id in outranked {
+            self.waiting.retain(|w| w.id != id);
+            self.refuse(now, id, DropReason::NotInControl, out);
         }
     }
 
