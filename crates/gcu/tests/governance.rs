@@ -993,3 +993,129 @@ fn a_waiting_slew_is_given_up_at_shutdown_and_when_its_link_goes_down() {
         assert!(!r.moving(1));
     }
 }
+
+/// A gimbal inside a zone (drawn around it by a reload, or found there
+/// after a restart) may slew out of it by the zone's nearer edge only: a
+/// slew toward its middle or its far edge is refused (`0D`) and never
+/// reaches the bus.
+#[test]
+fn a_slew_inside_a_zone_may_only_leave_it_by_its_nearer_edge() {
+    let mut r = rig(|g| {
+        let mut rules = GimbalRules::new(PORT, 1);
+        // Around home (0, 0): its pan edge at -10 is the nearer one.
+        rules.keep_out.push(Zone {
+            pan: Span::new(-1000, 3000),
+            tilt: Span::new(-2000, 2000),
+        });
+        g.gimbals.push(rules);
+    });
+    let before = r.now;
+    r.send(ONE, 1, &Command::PanRight);
+    r.run(100);
+    assert_eq!(outcome(&r.got(ONE)), Some(Err(Some(Undelivered::KeepOut))));
+    assert!(!r.bus_commands_since(before).contains(&"PR".to_string()));
+    assert!(!r.moving(1));
+    r.send(ONE, 1, &Command::PanLeft);
+    r.run(3000);
+    assert_eq!(outcome(&r.got(ONE)), Some(Ok(())));
+    assert!(r.position(1)[0] < -1000, "out by the nearer edge: {:?}", r.position(1));
+}
+
+/// After a restart, while gcud does not yet know how a gimbal it found
+/// moves, a slower acceleration waits until gcud saw it (and stopped it):
+/// let through at once, it made the found motion brake too late.
+#[test]
+fn an_acceleration_change_waits_while_gcud_does_not_know_how_the_gimbal_moves() {
+    let mut r = rig(bounded);
+    r.input(sagebrush_gcu::Input::PortLost { port: PORT });
+    // A slew that outlived the GCU that started it.
+    let frame = FrameBuf::build(Address::new(G, PORT, 1), G, |b| {
+        Command::PanRight.encode(b).map(<[u8]>::len)
+    })
+    .unwrap();
+    r.bus.receive(frame.as_bytes(), r.now);
+    r.run(200);
+    let before = r.now;
+    r.input(sagebrush_gcu::Input::PortOpened { port: PORT });
+    r.send(
+        ONE,
+        1,
+        &Command::SetAcceleration(sagebrush_protocol::Axis::Pan, sagebrush_protocol::Acceleration(2000)),
+    );
+    let mut farthest = i32::MIN;
+    r.run_with(8000, 2, |r| farthest = farthest.max(r.position(1)[0]));
+    let seen = r.bus_commands_since(before);
+    let stop = seen.iter().position(|c| c == "PT");
+    let change = seen.iter().position(|c| c == "AP07D0");
+    assert!(stop.is_some() && stop < change.or(Some(usize::MAX)), "{seen:?}");
+    assert!(farthest < 9000, "{farthest}: stopped before the limit");
+}
+
+/// A change from a link that outranks the one whose command waits for
+/// what gcud must learn does not wait behind it: the lower link's command
+/// is refused (`NotInControl`: it would have lost control at once).
+#[test]
+fn a_higher_links_change_gives_up_a_lower_links_waiting_command() {
+    let mut r = Rig::new(115_200, vec![gimbal(1)], |c| bounded(&mut c.governance));
+    r.client(ONE, "vms", 50);
+    r.client(TWO, "ops", 80);
+    // Right after start: the position is not known yet, the goto waits.
+    r.send(ONE, 1, &Command::GoTo(pos(10.0, 0.0)));
+    r.run(1);
+    assert_eq!(outcome(&r.got(ONE)), None, "it waits while gcud learns");
+    r.send(TWO, 1, &Command::PanLeft);
+    r.run(1);
+    assert_eq!(outcome(&r.got(ONE)), Some(Err(Some(Undelivered::NotInControl))));
+    r.run(3000);
+    assert_eq!(outcome(&r.got(TWO)), Some(Ok(())));
+    let seen = r.bus_commands_since(0);
+    assert!(seen.contains(&"PL".to_string()), "{seen:?}");
+    assert!(
+        !seen.iter().any(|c| c.len() == 9 && c.starts_with('P')),
+        "no goto: {seen:?}"
+    );
+}
+
+/// A change of speed or acceleration sent to device 255 holds the bus for
+/// its broadcast guard: refused mid-slew when the slew's boundary stop
+/// falls due inside that guard (the stop could not go), let through when
+/// it is sent to the gimbal itself.
+#[test]
+fn a_broadcast_change_mid_slew_leaves_the_boundary_stop_its_guard() {
+    let start = |r: &mut Rig| {
+        r.send(ONE, 1, &Command::PanRight);
+        r.run(1);
+    };
+    // When the boundary stop falls due, in a run left alone.
+    let mut r = Rig::new(9600, vec![gimbal(1)], |c| bounded(&mut c.governance));
+    r.client(ONE, "vms", 50);
+    r.run(3000);
+    start(&mut r);
+    r.run(20_000);
+    let due = r
+        .events
+        .iter()
+        .find(|(_, e)| matches!(e, RouterEvent::BoundaryStop { .. }))
+        .map(|(t, _)| *t)
+        .expect("a boundary stop");
+    let change = Command::SetRate(sagebrush_protocol::Axis::Pan, sagebrush_protocol::Rate(1));
+    let mut buf = [0u8; 16];
+    let payload = change.encode(&mut buf).unwrap().to_vec();
+    for (device, refused) in [(255, true), (1, false)] {
+        let mut r = Rig::new(9600, vec![gimbal(1)], |c| bounded(&mut c.governance));
+        r.client(ONE, "vms", 50);
+        r.run(3000);
+        start(&mut r);
+        // Sent 150 ms before the stop is due: a broadcast holds the bus longer.
+        r.run(due - 150 - r.now);
+        r.send_payload(ONE, Address::new(G, PORT, device), &payload);
+        let mut farthest = i32::MIN;
+        r.run_with(10_000, 2, |r| farthest = farthest.max(r.position(1)[0]));
+        let got = outcome(&r.got(ONE));
+        match refused {
+            true => assert_eq!(got, Some(Err(Some(Undelivered::TravelLimit))), "to device {device}"),
+            false => assert_eq!(got, Some(Ok(())), "to device {device}"),
+        }
+        assert!(farthest <= 9050, "to device {device}: {farthest}");
+    }
+}
