@@ -1119,3 +1119,38 @@ fn a_broadcast_change_mid_slew_leaves_the_boundary_stop_its_guard() {
         assert!(farthest <= 9050, "to device {device}: {farthest}");
     }
 }
+
+/// Park recalls a preset whose place gcud must know (the gimbal has
+/// limits or zones); when gcud's question about it went unanswered at
+/// start, gcud asks again and park waits for the answer: it is neither
+/// refused for good nor sent blind.
+#[test]
+fn park_waits_for_its_presets_place_when_the_answer_was_lost() {
+    let mut r = Rig::new(115_200, vec![gimbal(1)], |c| {
+        c.governance.hold = HOLD;
+        bounded(&mut c.governance);
+        c.governance.gimbals[0].park = Some(Park { preset: 3, after: 1000 });
+    });
+    // gcud's questions about preset 3 go unanswered until after park fell due.
+    for _ in 0..16 {
+        r.lose.push(b"P?03".to_vec());
+    }
+    r.client(ONE, "vms", 50);
+    r.run(3000);
+    r.send(ONE, 1, &Command::GoTo(pos(10.0, 0.0)));
+    r.run(HOLD + 1000 + 20_000);
+    let lost: Vec<u64> = r.lost.iter().map(|(t, _)| *t).collect();
+    assert!(lost.len() == 16 && lost[15] > 3000 + HOLD + 1000, "{lost:?}");
+    assert!(
+        r.bus_commands_since(0).contains(&"P03".to_string()),
+        "{:?}",
+        r.bus_commands_since(0)
+    );
+    assert_eq!(r.position(1), [0, 0], "parked at preset 3 (home)");
+    assert!(
+        !r.events
+            .iter()
+            .any(|(_, e)| matches!(e, RouterEvent::Park { refused: Some(_), .. })),
+        "never refused"
+    );
+}

@@ -465,10 +465,16 @@ impl Governor {
         g.answered(now, describes, reply, line);
     }
 
-    /// Command `id` ended: an own query that got no answer is tried again
-    /// later; a change from a link is learnt again. Whether it was an own
-    /// query (what waits for knowledge may be decided again).
-    pub fn on_finished(&mut self, now: u64, id: CommandId, answered: bool) -> bool {
+    /// Command `id` ended with `outcome`: an own query that got no answer
+    /// is tried again later (one answered NIC is not: the gimbal says it
+    /// has none); a change from a link is learnt again. Whether it was an
+    /// own query (what waits for knowledge may be decided again).
+    pub fn on_finished(&mut self, now: u64, id: CommandId, outcome: crate::types::CommandOutcome) -> bool {
+        let answered = match outcome {
+            crate::types::CommandOutcome::Result => Some(true),
+            crate::types::CommandOutcome::Nic => Some(false),
+            _ => None,
+        };
         for g in self.gimbals.values_mut() {
             g.ended(id);
         }

@@ -198,7 +198,7 @@ impl Router {
     /// what waits for knowledge.
     pub(super) fn govern_finished(&mut self, id: CommandId, outcome: CommandOutcome, out: &mut Outbox) {
         let now = self.last_now;
-        if self.governor.on_finished(now, id, outcome == CommandOutcome::Result) {
+        if self.governor.on_finished(now, id, outcome) {
             self.decide_waiting(now, out);
         }
     }
