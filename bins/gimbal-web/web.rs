@@ -144,7 +144,7 @@ fn control_json(control: Option<&Control>) -> Value {
     let Some(c) = control else { return Value::Null };
     let (kind, name, priority) = match &c.holder {
         Controller::Nobody => ("nobody", None, None),
-        Controller::Link { name, priority } => ("link", Some(name.as_str()), Some(*priority)),
+        Controller::Link { name, priority, .. } => ("link", Some(name.as_str()), Some(*priority)),
         Controller::Tour(name) => ("tour", Some(name.as_str()), None),
         Controller::Park => ("park", None, None),
     };

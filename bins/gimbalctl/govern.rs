@@ -97,9 +97,11 @@ pub async fn holder(g: &Global, gimbal: Address) -> Result<Option<String>, CtlEr
     let (_, _, reply) = ControllerReply::parse(&payload).ok_or_else(bad)?;
     Ok(match reply {
         ControllerReply::Nobody => None,
-        ControllerReply::Link { priority, name } => {
-            Some(format!("link {} (priority {priority})", String::from_utf8_lossy(name)))
-        }
+        ControllerReply::Link { priority, name, yours } => Some(format!(
+            "link {} (priority {priority}{})",
+            String::from_utf8_lossy(name),
+            if yours { ", this connection's" } else { "" }
+        )),
         ControllerReply::Tour(name) => Some(format!("tour {}", String::from_utf8_lossy(name))),
         ControllerReply::Park => Some("park".to_owned()),
     })

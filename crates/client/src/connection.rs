@@ -66,9 +66,6 @@ const HOLDER_FRESH: Duration = Duration::from_millis(200);
 struct ControlSeen {
     /// The last answer, and when.
     holder: Option<(Controller, Instant)>,
-    /// The name gcud gives this connection's link: the holder it named
-    /// right after a command of ours that takes control went through.
-    own: Option<String>,
     /// gcud answered `~C` NIC: not asked again before this.
     unsupported_until: Option<Instant>,
 }
@@ -125,8 +122,6 @@ impl GimbalConnection {
                     .map_err(|_| unreachable(format!("no connection within {} s", CONNECT_TIMEOUT.as_secs())))?
                     .map_err(|e| unreachable(e.to_string()))?,
             );
-            // A new connection may be another link to gcud.
-            self.control.own = None;
             // gcud's port waits the NIC window after each ACK: it tells this
             // connection when it passed, so the master does not wait it again
             // (an older gcud answers NIC; then its own window bounds the wait).
@@ -203,11 +198,10 @@ impl GimbalConnection {
     ) -> Result<Option<Vec<u8>>, CommandError> {
         match self.failed(sent) {
             Ok(ex) => {
-                if takes_control(command) && self.control.own.is_none() {
-                    // Who gcud says holds the gimbal now is this link.
-                    if let Ok(Controller::Link { name, .. }) = self.controller().await {
-                        self.control.own = Some(name);
-                    }
+                let ours = matches!(self.control.holder, Some((Controller::Link { yours: true, .. }, _)));
+                if takes_control(command) && !ours {
+                    // This link holds it now, as gcud's `~C` tells.
+                    let _ = self.controller().await;
                 }
                 Ok(ex.result.map(|f| f.frame().payload().to_vec()))
             }
@@ -222,14 +216,6 @@ impl GimbalConnection {
                     Some(h) => Some(h),
                     None => self.controller().await.ok(),
                 };
-                if holder
-                    .as_ref()
-                    .and_then(Controller::link)
-                    .is_some_and(|h| Some(h) == self.control.own.as_deref())
-                {
-                    // Not this link after all (learnt before a take-over).
-                    self.control.own = None;
-                }
                 let why = match holder {
                     // Named: "refused by gcud: PR to 5.1.1: link operators (priority 80) controls the gimbal".
                     Some(holder) if holder != Controller::Nobody => {
@@ -287,7 +273,7 @@ impl GimbalConnection {
     /// gcud's control of this gimbal as it last answered `~C`, if it did.
     pub fn control(&self) -> Option<Control> {
         let (holder, _) = self.control.holder.as_ref()?;
-        let ours = holder.link().is_some() && holder.link() == self.control.own.as_deref();
+        let ours = matches!(holder, Controller::Link { yours: true, .. });
         Some(Control {
             holder: holder.clone(),
             ours,

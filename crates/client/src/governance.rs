@@ -30,8 +30,9 @@ use crate::client::{Client, CommandError};
 pub enum Controller {
     /// Nobody: the next link that commands it takes control.
     Nobody,
-    /// A configured gcud link (every connection of one listener is one link).
-    Link { name: String, priority: u8 },
+    /// A configured gcud link (every connection of one listener is one
+    /// link); `yours`: the link of the connection that asked.
+    Link { name: String, priority: u8, yours: bool },
     /// gcud's tour of this name (below every link).
     Tour(String),
     /// gcud's park (below every link).
@@ -42,7 +43,7 @@ impl fmt::Display for Controller {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Controller::Nobody => f.write_str("nobody"),
-            Controller::Link { name, priority } => write!(f, "link {name} (priority {priority})"),
+            Controller::Link { name, priority, .. } => write!(f, "link {name} (priority {priority})"),
             Controller::Tour(name) => write!(f, "tour {name}"),
             Controller::Park => f.write_str("park"),
         }
@@ -56,9 +57,10 @@ impl Controller {
         match ControllerReply::parse(payload) {
             Some((p, d, reply)) if (p, d) == (port, device) => Ok(match reply {
                 ControllerReply::Nobody => Controller::Nobody,
-                ControllerReply::Link { priority, name } => Controller::Link {
+                ControllerReply::Link { priority, name, yours } => Controller::Link {
                     name: text(name),
                     priority,
+                    yours,
                 },
                 ControllerReply::Tour(name) => Controller::Tour(text(name)),
                 ControllerReply::Park => Controller::Park,
@@ -315,12 +317,14 @@ mod tests {
         let n = ControllerReply::Link {
             priority: 80,
             name: b"operators",
+            yours: false,
         }
         .encode(1, 2, &mut buf)
         .unwrap();
         let link = Controller::Link {
             name: "operators".into(),
             priority: 80,
+            yours: false,
         };
         assert_eq!(
             GcuRequest::Controller(1, 2).answer(Some(&buf[..n])),

@@ -23,6 +23,7 @@ use fake_gcud::*;
 const OPERATORS: ControllerReply<'static> = ControllerReply::Link {
     priority: 80,
     name: b"operators",
+    yours: false,
 };
 
 #[tokio::test]
@@ -46,7 +47,8 @@ async fn a_refusal_for_control_is_typed_and_names_the_holder() {
         control.holder,
         Controller::Link {
             name: "operators".into(),
-            priority: 80
+            priority: 80,
+            yours: false,
         }
     );
     assert!(!control.ours);
@@ -78,6 +80,7 @@ async fn a_move_refused_for_control_sends_no_stop_and_is_not_reported_moving() {
             b"~C0101" => controller(ControllerReply::Link {
                 priority: 50,
                 name: b"doors",
+                yours: true,
             }),
             b"P?" => at_zero(),
             b"PS" | b"TS" => Answer::Ack,
@@ -182,6 +185,7 @@ async fn a_move_refused_by_a_limit_stops_what_this_door_had_moving() {
         b"~C0101" => controller(ControllerReply::Link {
             priority: 50,
             name: b"doors",
+            yours: true,
         }),
         b"P?" => at_zero(),
         b"TU" => Answer::Report(Undelivered::KeepOut),

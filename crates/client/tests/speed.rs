@@ -19,10 +19,12 @@ use fake_gcud::*;
 const DOORS: ControllerReply<'static> = ControllerReply::Link {
     priority: 50,
     name: b"doors",
+    yours: true,
 };
 const OPERATORS: ControllerReply<'static> = ControllerReply::Link {
     priority: 80,
     name: b"operators",
+    yours: false,
 };
 
 /// gcud naming the doors' link as the holder, the gimbal at zero, every

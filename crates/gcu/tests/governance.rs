@@ -171,26 +171,29 @@ fn release_is_allowed_from_the_holders_priority_or_higher() {
     };
     assert_eq!(release(&mut r, ONE), Some(Err(Some(Undelivered::NotInControl))));
     assert!(holder(&r).is_some());
-    // `~C` names the holder.
-    let mut buf = [0u8; 16];
-    let n = GcuCommand::Controller(PORT, 1).encode(&mut buf).unwrap();
-    r.send_payload(ONE, Address::new(G, 0, 0), &buf[..n]);
-    r.run(20);
-    let got = r.got(ONE);
-    let frame = got
-        .iter()
-        .find_map(|g| if let Got::Frame(p) = g { Some(p.clone()) } else { None });
-    assert_eq!(
-        frame.as_deref().and_then(ControllerReply::parse),
-        Some((
-            PORT,
-            1,
-            ControllerReply::Link {
-                priority: 80,
-                name: b"ops"
-            }
-        ))
-    );
+    // `~C` names the holder, and tells the holder's own link it is its.
+    for (link, yours) in [(ONE, false), (TWO, true)] {
+        let mut buf = [0u8; 16];
+        let n = GcuCommand::Controller(PORT, 1).encode(&mut buf).unwrap();
+        r.send_payload(link, Address::new(G, 0, 0), &buf[..n]);
+        r.run(20);
+        let got = r.got(link);
+        let frame = got
+            .iter()
+            .find_map(|g| if let Got::Frame(p) = g { Some(p.clone()) } else { None });
+        assert_eq!(
+            frame.as_deref().and_then(ControllerReply::parse),
+            Some((
+                PORT,
+                1,
+                ControllerReply::Link {
+                    priority: 80,
+                    name: b"ops",
+                    yours,
+                }
+            ))
+        );
+    }
     assert_eq!(release(&mut r, TWO), Some(Ok(())));
     assert_eq!(holder(&r), None);
     r.send(ONE, 1, &Command::Home);

@@ -8,7 +8,8 @@
 //! ```text
 //! ~R PPDD        release control of local gimbal PP.DD   ACK, or a delivery report (not in control)
 //! ~C PPDD        who controls it                         result ~C PPDD then '-' (nobody),
-//!                                                        'L' PR name (a link of priority PR), 'T' name (a tour), 'K' (park)
+//!                                                        'L' PR name (a link of priority PR; 'Y' when it is the
+//!                                                        asking link), 'T' name (a tour), 'K' (park)
 //! ~T+name        start a tour                            result ~T S [holder]: S = 'R' running,
 //! ~T-name        stop a tour                                     'W' waiting for the holder named, 'S' stopped
 //! ~T?            list the tours                          result ~L name=S,name=S,...   (as many as fit)
@@ -142,6 +143,10 @@ pub enum ControllerReply<'a> {
         priority: u8,
         /// The link's configured name.
         name: &'a [u8],
+        /// The link that asked holds it (`Y` in place of `L`): a client
+        /// tells its own link's control from another's without knowing
+        /// the name gcud gives its link.
+        yours: bool,
     },
     /// The named tour (gcud's own, lowest priority).
     Tour(&'a [u8]),
@@ -158,8 +163,8 @@ impl<'a> ControllerReply<'a> {
         w.hex(device)?;
         match *self {
             ControllerReply::Nobody => w.put(b"-")?,
-            ControllerReply::Link { priority, name } => {
-                w.put(b"L")?;
+            ControllerReply::Link { priority, name, yours } => {
+                w.put(if yours { b"Y" } else { b"L" })?;
                 w.hex(priority)?;
                 w.put(name)?;
             }
@@ -178,9 +183,10 @@ impl<'a> ControllerReply<'a> {
         let (p, d) = address(rest.get(..4)?)?;
         let reply = match rest.get(4..)? {
             [b'-'] => ControllerReply::Nobody,
-            [b'L', h, l, name @ ..] if valid_name(name) => ControllerReply::Link {
+            [which @ (b'L' | b'Y'), h, l, name @ ..] if valid_name(name) => ControllerReply::Link {
                 priority: (hex_value(*h)? << 4) | hex_value(*l)?,
                 name,
+                yours: *which == b'Y',
             },
             [b'T', name @ ..] if valid_name(name) => ControllerReply::Tour(name),
             [b'K'] => ControllerReply::Park,
@@ -499,6 +505,12 @@ mod tests {
             ControllerReply::Link {
                 priority: 80,
                 name: b"operators",
+                yours: false,
+            },
+            ControllerReply::Link {
+                priority: 50,
+                name: b"doors",
+                yours: true,
             },
             ControllerReply::Tour(b"perimeter"),
             ControllerReply::Park,

@@ -253,6 +253,7 @@ impl Router {
                         ControllerReply::Link {
                             priority: *priority,
                             name: clip(name.as_bytes()),
+                            yours: self.identity(link).is_some_and(|me| *me.key == *name),
                         }
                     }
                     Some(Holder::Tour(n)) => ControllerReply::Tour(clip(n.as_bytes())),
