@@ -67,7 +67,7 @@ fn log_event(event: &RouterEvent, links: &LinkBook, throttle: &mut Throttle) {
     let name = |link: &LinkId| links.name(*link);
     // Events about a link name it as configured, with its peer.
     let context = match event {
-        RouterEvent::LinkState { link, .. } | RouterEvent::IssuedStop { link, .. } => links
+        RouterEvent::LinkState { link, .. } | RouterEvent::IssuedStop { link: Some(link), .. } => links
             .live
             .get(link)
             .map_or_else(String::new, |l| format!(" ({} {})", l.name, l.peer)),
@@ -90,7 +90,9 @@ fn log_event(event: &RouterEvent, links: &LinkBook, throttle: &mut Throttle) {
                     origin.link().as_ref().map_or_else(String::new, name),
                 ),
                 RouterEvent::Finished { outcome, .. } => (format!("finished {outcome:?}"), String::new()),
-                RouterEvent::IssuedStop { link, .. } => ("stop".to_owned(), name(link)),
+                RouterEvent::IssuedStop { link, .. } => {
+                    ("stop".to_owned(), link.as_ref().map_or_else(String::new, name))
+                }
                 RouterEvent::DeviceState { port, device, .. } => {
                     ("device silent".to_owned(), format!("{port}.{device}"))
                 }

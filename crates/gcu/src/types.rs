@@ -126,10 +126,11 @@ pub enum RouterEvent {
     },
     /// A port's line rate was switched after a `C0`..`C7` change.
     RateSwitched { port: u8, bps: u32 },
-    /// The GCU issued `stop` for a continuous motion of `link`, for `cause`
-    /// (ARCHITECTURE "Safety"); said for each round it is sent.
+    /// The GCU issued `stop` for a continuous motion of `link` (`None`:
+    /// the governance's own stop, a boundary's or of a gimbal found
+    /// moving), for `cause` (ARCHITECTURE "Safety"); said for each round.
     IssuedStop {
-        link: LinkId,
+        link: Option<LinkId>,
         dest: Address,
         stop: &'static str,
         cause: StopCause,
@@ -298,14 +299,18 @@ impl fmt::Display for RouterEvent {
                 dest,
                 stop,
                 cause,
-            } => match cause {
-                StopCause::DeadMan => write!(f, "{link} down: dead-man {stop} to {dest}"),
-                StopCause::Lease => write!(f, "{link}: motion lease over, {stop} to {dest}"),
-                StopCause::Shutdown => write!(f, "shutting down: {stop} to {dest} (a motion of {link})"),
-                StopCause::TakeOver => write!(f, "control taken over: {stop} to {dest}"),
-                StopCause::Boundary => write!(f, "{stop} to {dest}: a limit or keep-out zone is near"),
-                StopCause::Tour => write!(f, "tour stopped: {stop} to {dest}"),
-                StopCause::FoundMoving => write!(f, "{stop} to {dest}: found moving with nobody to stop it"),
+            } => match (cause, link) {
+                (StopCause::DeadMan, Some(link)) => write!(f, "{link} down: dead-man {stop} to {dest}"),
+                (StopCause::Lease, Some(link)) => write!(f, "{link}: motion lease over, {stop} to {dest}"),
+                (StopCause::Shutdown, Some(link)) => {
+                    write!(f, "shutting down: {stop} to {dest} (a motion of {link})")
+                }
+                (StopCause::DeadMan | StopCause::Lease, None) => write!(f, "{stop} to {dest}"),
+                (StopCause::Shutdown, None) => write!(f, "shutting down: {stop} to {dest}"),
+                (StopCause::TakeOver, _) => write!(f, "control taken over: {stop} to {dest}"),
+                (StopCause::Boundary, _) => write!(f, "{stop} to {dest}: a limit or keep-out zone is near"),
+                (StopCause::Tour, _) => write!(f, "tour stopped: {stop} to {dest}"),
+                (StopCause::FoundMoving, _) => write!(f, "{stop} to {dest}: found moving with nobody to stop it"),
             },
             RouterEvent::LinkState { link, up, .. } => write!(f, "{link} {}", if *up { "up" } else { "down" }),
             RouterEvent::PortState { port, open } => write!(f, "port {port} {}", if *open { "opened" } else { "lost" }),

@@ -103,6 +103,20 @@ pub(crate) enum Purpose {
 pub(crate) struct Verdict {
     /// Gimbals taken over from another holder: their motions are stopped first.
     pub taken_over: Vec<(u8, u8)>,
+    /// What the command changes, per gimbal it reaches, to be learnt again
+    /// when it ends (kept in its [`CommandNote`]).
+    pub relearn: Vec<((u8, u8), Learning)>,
+}
+
+/// What the governor keeps of a command while it is in flight, in the
+/// router's one in-flight record of it (no side map by command id): an
+/// own command's gimbal and purpose, and what a link's change makes it
+/// learn again. Given back with the command's end
+/// ([`Governor::on_finished`]).
+#[derive(Debug, Default)]
+pub(crate) struct CommandNote {
+    pub own: Option<((u8, u8), Purpose)>,
+    pub relearn: Vec<((u8, u8), Learning)>,
 }
 
 /// What the governor decides of a command from a link.
@@ -145,11 +159,6 @@ pub(crate) struct Governor {
     config: Governance,
     gimbals: BTreeMap<(u8, u8), Gimbal>,
     tours: Vec<TourRun>,
-    /// The governor's own commands in flight, and what they are for.
-    own: BTreeMap<CommandId, ((u8, u8), Purpose)>,
-    /// Commands from links that change speeds or presets, per gimbal they
-    /// reach: learnt again when they end.
-    relearn: BTreeMap<(CommandId, (u8, u8)), Learning>,
     /// Ports open, with their line's timing (the follower's latency).
     ports: BTreeMap<u8, Line>,
     orders: Vec<Order>,
@@ -179,8 +188,6 @@ impl Governor {
             config: Governance::default(),
             gimbals: BTreeMap::new(),
             tours: Vec::new(),
-            own: BTreeMap::new(),
-            relearn: BTreeMap::new(),
             ports: BTreeMap::new(),
             orders: Vec::new(),
             events: Vec::new(),
@@ -405,7 +412,7 @@ impl Governor {
             g.moved = true;
             if let Some(learning) = g.accepted(now, id, effect) {
                 if watched {
-                    self.relearn.insert((id, at), learning);
+                    verdict.relearn.push((at, learning));
                 }
             }
         }
@@ -469,7 +476,13 @@ impl Governor {
     /// is tried again later (one answered NIC is not: the gimbal says it
     /// has none); a change from a link is learnt again. Whether it was an
     /// own query (what waits for knowledge may be decided again).
-    pub fn on_finished(&mut self, now: u64, id: CommandId, outcome: crate::types::CommandOutcome) -> bool {
+    pub fn on_finished(
+        &mut self,
+        now: u64,
+        id: CommandId,
+        outcome: crate::types::CommandOutcome,
+        note: CommandNote,
+    ) -> bool {
         let answered = match outcome {
             crate::types::CommandOutcome::Result => Some(true),
             crate::types::CommandOutcome::Nic => Some(false),
@@ -479,14 +492,13 @@ impl Governor {
             g.ended(id);
         }
         let mut own_query = false;
-        if let Some((at, purpose)) = self.own.remove(&id) {
+        if let Some((at, purpose)) = note.own {
             own_query = purpose != Purpose::Motion;
             if let Some(g) = self.gimbals.get_mut(&at) {
                 g.query_ended(now, purpose, answered);
             }
         }
-        while let Some((&(_, at), &learning)) = self.relearn.range((id, (0, 0))..=(id, (u8::MAX, u8::MAX))).next() {
-            self.relearn.remove(&(id, at));
+        for (at, learning) in note.relearn {
             if let Some(g) = self.gimbals.get_mut(&at) {
                 g.learn(learning);
             }
@@ -494,9 +506,9 @@ impl Governor {
         own_query
     }
 
-    /// The router dispatched order `purpose` as command `id`.
+    /// The router dispatches order `purpose` as command `id` (its
+    /// [`CommandNote`] names the gimbal and the purpose).
     pub fn sent(&mut self, id: CommandId, at: (u8, u8), purpose: Purpose) {
-        self.own.insert(id, (at, purpose));
         if purpose == Purpose::Motion {
             if let Some(g) = self.gimbals.get_mut(&at) {
                 g.goto_is(id);

@@ -26,8 +26,9 @@ impl Router {
     /// A command accepted from `origin` (a link of `kind`, or the router
     /// itself), read once: gives it the next command id and its in-flight
     /// record, and returns the id. A stop the GCU issued itself carries
-    /// its round in the record before routing, since the command may end
-    /// inside this call.
+    /// its round, and a command of the governance's own its note, in the
+    /// record before routing, since the command may end inside this call.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn dispatch(
         &mut self,
         now: u64,
@@ -35,6 +36,7 @@ impl Router {
         kind: Option<LinkKind>,
         command: ReadCommand,
         issued_stop: Option<IssuedStop>,
+        note: crate::govern::CommandNote,
         out: &mut Outbox,
     ) -> CommandId {
         let id = self.next_command_id();
@@ -54,6 +56,7 @@ impl Router {
                 spread: None,
                 issued_stop,
                 finished: false,
+                note,
             },
         );
         self.route_command(now, Accepted { id, origin, command }, kind, out);

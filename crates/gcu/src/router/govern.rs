@@ -81,6 +81,11 @@ impl Router {
             Decision::Refuse(reason) => return Governed::Refused(reason),
             Decision::Learn(why) => return Governed::Waits(why),
         };
+        if !verdict.relearn.is_empty() {
+            if let Some(c) = self.in_flight.get_mut(&id) {
+                c.note.relearn = verdict.relearn;
+            }
+        }
         for (port, device) in verdict.taken_over {
             // The holder's motions stop before the new command is queued,
             // and what it queued that moves (a tour's goto too) is given up.
@@ -142,14 +147,18 @@ impl Router {
                 now,
                 command,
                 IssuedStop {
-                    link: LinkId(0),
+                    link: None,
                     cause,
                     round: 1,
                 },
                 out,
             ),
             None => {
-                self.dispatch(now, Origin::Internal, None, command, None, out);
+                let note = crate::govern::CommandNote {
+                    own: Some(((order.port, order.device), order.purpose)),
+                    relearn: Vec::new(),
+                };
+                self.dispatch(now, Origin::Internal, None, command, None, note, out);
             }
         }
     }
@@ -198,7 +207,12 @@ impl Router {
     /// what waits for knowledge.
     pub(super) fn govern_finished(&mut self, id: CommandId, outcome: CommandOutcome, out: &mut Outbox) {
         let now = self.last_now;
-        if self.governor.on_finished(now, id, outcome) {
+        let note = self
+            .in_flight
+            .get_mut(&id)
+            .map(|c| std::mem::take(&mut c.note))
+            .unwrap_or_default();
+        if self.governor.on_finished(now, id, outcome, note) {
             self.decide_waiting(now, out);
         }
     }

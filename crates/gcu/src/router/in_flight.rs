@@ -142,6 +142,8 @@ pub(super) struct InFlight {
     /// A group-255 command also flooded to other GCUs: delivered when
     /// delivered anywhere.
     pub(super) spread: Option<Spread>,
+    /// What the governance keeps of it until it ends (module `govern`).
+    pub(super) note: crate::govern::CommandNote,
 }
 
 impl InFlight {
@@ -219,8 +221,9 @@ impl Delivery {
 /// A stop the GCU issued itself (ARCHITECTURE "Safety").
 #[derive(Clone, Copy, Debug)]
 pub(super) struct IssuedStop {
-    /// The link whose motion it ends.
-    pub(super) link: LinkId,
+    /// The link whose motion it ends (`None`: the governance's own stop of
+    /// whatever moves, a boundary's or a gimbal found moving).
+    pub(super) link: Option<LinkId>,
     pub(super) cause: crate::types::StopCause,
     /// Which round of sending it this is, from 1 (at most `DEAD_MAN_ROUNDS`).
     pub(super) round: u8,

@@ -222,7 +222,16 @@ impl Router {
                 continue;
             };
             let stop = ReadCommand::built(&stop, frame);
-            self.send_stop(now, stop, IssuedStop { link, cause, round: 1 }, out);
+            self.send_stop(
+                now,
+                stop,
+                IssuedStop {
+                    link: Some(link),
+                    cause,
+                    round: 1,
+                },
+                out,
+            );
         }
     }
 
@@ -254,6 +263,6 @@ impl Router {
             stop: name,
             cause,
         }));
-        self.dispatch(now, Origin::Internal, None, stop, Some(issued), out);
+        self.dispatch(now, Origin::Internal, None, stop, Some(issued), Default::default(), out);
     }
 }

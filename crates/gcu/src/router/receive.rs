@@ -151,6 +151,14 @@ impl Router {
         }
         self.routes.learn(source, link, kind);
         let command = ReadCommand::read(frame);
-        self.dispatch(now, Origin::Link { link, source }, Some(kind), command, None, out);
+        self.dispatch(
+            now,
+            Origin::Link { link, source },
+            Some(kind),
+            command,
+            None,
+            Default::default(),
+            out,
+        );
     }
 }
