@@ -14,6 +14,7 @@ mod control;
 mod follow;
 mod judge;
 mod knowledge;
+mod noting;
 pub mod rules;
 mod tour;
 mod travel;
