@@ -454,3 +454,58 @@ fn check_refuses_one_serial_device_configured_twice() {
         assert!(stderr.contains(place) && stderr.contains(first), "{config}\n{stderr}");
     }
 }
+
+/// Issue 49: one listener's clients cannot lock another listener out. 32
+/// connections to the clients' listener, each sending a stray byte every
+/// 0.4 s (never idle long enough to be evicted), fill `max_connections`;
+/// an operator on the operators' listener still connects and stops the
+/// gimbal the clients' slew moves (its stop on the bus side).
+#[test]
+fn one_listeners_busy_connections_never_lock_another_listener_out() {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let gcud = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\n[limits]\nmax_connections = 32\n[[port]]\nid = 1\nsimulate = [1]\n\
+         {CLIENTS}[[link]]\nname = \"operators\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n\
+         priority = 80\n{METRICS_LOOPBACK}"
+    ));
+    let operators = gcud.address("listening link=operators");
+    // A slew from the clients' listener, for the operator to stop.
+    let slew = gcud.ctl(&["--to", "5.1.1", "slew", "right"]);
+    assert_eq!(slew.code, 0, "{slew:?}");
+    let flood: Vec<TcpStream> = (0..32)
+        .map(|_| TcpStream::connect(gcud.clients()).expect("connect"))
+        .collect();
+    eventually("the clients' 32 connections to fill the table", || {
+        gcud.metric("gcud_connections_open") >= 32
+    });
+    let done = Arc::new(AtomicBool::new(false));
+    let busy = {
+        let done = Arc::clone(&done);
+        let mut streams = flood;
+        std::thread::spawn(move || {
+            // Bounded: the test ends long before this.
+            for _ in 0..600 {
+                if done.load(Ordering::Relaxed) {
+                    break;
+                }
+                for s in &mut streams {
+                    let _ = s.write_all(b"x");
+                }
+                std::thread::sleep(Duration::from_millis(400));
+            }
+        })
+    };
+    std::thread::sleep(Duration::from_millis(1500));
+    let stop = support::gimbalctl(&["--tcp", &operators, "--to", "5.1.1", "stop"]);
+    done.store(true, Ordering::Relaxed);
+    busy.join().expect("the busy clients");
+    assert_eq!(stop.code, 0, "the operator's stop: {stop:?}\ngcud log:\n{}", gcud.log());
+    let bus: Vec<String> = gcud.received("5.1.1").into_iter().map(|(_, p)| p).collect();
+    let slewed = bus.iter().position(|p| p == "PR").expect("the slew on the bus");
+    assert!(
+        bus[slewed..].iter().any(|p| p == "PS" || p == "PT"),
+        "the operator's stop on the bus after the slew: {bus:?}"
+    );
+    assert!(gcud.metric("gcud_connections_closed_total{why=\"evicted\"}") >= 1);
+}

@@ -324,6 +324,14 @@ pub async fn accept_loop(
     let mut open = tokio::task::JoinSet::new();
     let mut throttle = Throttle::default();
     let place = format!("link {}", link.name);
+    // Each listener keeps its share of [limits] max_connections (module
+    // `admission`): keyed by its link's name.
+    let listener_key = {
+        use std::hash::{Hash, Hasher};
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        link.name.hash(&mut h);
+        h.finish()
+    };
     loop {
         let (stream, peer) = tokio::select! {
             accepted = accept(&listener, &place, &mut throttle) => accepted,
@@ -335,7 +343,7 @@ pub async fn accept_loop(
             }
             continue;
         }
-        let admitted = match Admitted::admit(&connections, peer.ip()) {
+        let admitted = match Admitted::admit_on(&connections, listener_key, peer.ip()) {
             Ok((admitted, evicted)) => {
                 if let Some(victim) = evicted {
                     warn!(link = %link.name, peer = %victim, newcomer = %peer, "connection evicted: idle the longest at limits.max_connections (logged once a minute per peer)");

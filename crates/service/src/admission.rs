@@ -7,6 +7,15 @@
 //!   connection idle the longest is evicted for the newcomer (one idle for
 //!   at least [`MIN_IDLE_TO_EVICT`]); only when every connection is busy is
 //!   the newcomer refused;
+//! - a share per listener: of the listeners holding connections (and the
+//!   newcomer's), each keeps [`reserve`] slots the others may not take, so
+//!   a listener may hold at most the total less the others' reserves; a
+//!   newcomer on a listener at its share takes its own listener's idlest
+//!   slot or is refused, and one on a listener below its reserve, the
+//!   total full and nothing idle, evicts the longest-quiet connection of a
+//!   listener over its share, busy or not (gcud: 32 connections to the
+//!   clients' listener, each sending a stray byte every 0.4 s, refused
+//!   every operator; issue 49);
 //! - a per-peer cap ([`Limits::max_per_peer`]): a newcomer from a peer at
 //!   its cap is refused; with [`Limits::cap_loopback`] false it applies to
 //!   peers off this machine only (gcud's default: every local client is the
@@ -60,6 +69,8 @@ pub struct AdmissionStats {
 #[derive(Debug)]
 struct Conn {
     peer: IpAddr,
+    /// The listener that accepted it (a program with one listener: 0).
+    listener: u64,
     last_active: Instant,
     close: Arc<Notify>,
 }
@@ -105,8 +116,13 @@ impl Connections {
         self.table.lock().unwrap_or_else(PoisonError::into_inner)
     }
 
-    /// A newcomer from `peer` at `now`.
+    /// A newcomer from `peer` at `now` (a program with one listener).
     pub fn admit(&self, peer: IpAddr, now: Instant) -> Admission {
+        self.admit_on(0, peer, now)
+    }
+
+    /// A newcomer from `peer` on `listener` at `now`.
+    pub fn admit_on(&self, listener: u64, peer: IpAddr, now: Instant) -> Admission {
         let mut t = self.table();
         let of_peer = t.open.values().filter(|c| c.peer == peer).count();
         let capped = self.limits.cap_loopback || !peer.is_loopback();
@@ -119,14 +135,44 @@ impl Connections {
             };
         }
         let mut evicted = None;
-        if t.open.len() >= self.limits.max_total {
-            let idlest = t
-                .open
-                .iter()
-                .filter(|(_, c)| now.duration_since(c.last_active) >= MIN_IDLE_TO_EVICT)
-                .min_by_key(|(_, c)| c.last_active)
-                .map(|(&k, _)| k);
-            match idlest.and_then(|k| t.open.remove(&k)) {
+        let (held, share) = shares(&t, self.limits.max_total, listener);
+        let idle_enough = |c: &Conn| now.duration_since(c.last_active) >= MIN_IDLE_TO_EVICT;
+        let at_share = held.get(&listener).copied().unwrap_or(0) >= share;
+        if at_share || t.open.len() >= self.limits.max_total {
+            // At its listener's share: only its own listener's idlest slot;
+            // else the idlest anywhere, or, below its reserve, the
+            // longest-quiet slot of a listener over its share.
+            let starved = held.get(&listener).copied().unwrap_or(0) < reserve(self.limits.max_total, held.len());
+            let idlest = |pick: &dyn Fn(&Conn) -> bool| {
+                t.open
+                    .iter()
+                    .filter(|(_, c)| pick(c))
+                    .min_by_key(|(_, c)| c.last_active)
+                    .map(|(&k, _)| k)
+            };
+            let at_share = at_share && held.len() > 1;
+            let victim = match at_share {
+                true => idlest(&|c| c.listener == listener && idle_enough(c)),
+                false => idlest(&|c| idle_enough(c)).or_else(|| {
+                    starved
+                        .then(|| {
+                            idlest(&|c| {
+                                held.get(&c.listener)
+                                    .is_some_and(|&n| n > share_of(self.limits.max_total, held.len()))
+                            })
+                        })
+                        .flatten()
+                }),
+            };
+            if victim.is_none() && at_share && held.len() > 1 {
+                t.stats.refused_total_cap += 1;
+                let log = should_log(&mut t, peer, now);
+                return Admission::Refused {
+                    why: "this listener's share of limits.max_connections reached and its connections are busy",
+                    log,
+                };
+            }
+            match victim.and_then(|k| t.open.remove(&k)) {
                 Some(victim) => {
                     victim.close.notify_one();
                     t.stats.evicted += 1;
@@ -147,6 +193,7 @@ impl Connections {
         let close = Arc::new(Notify::new());
         let conn = Conn {
             peer,
+            listener,
             last_active: now,
             close: close.clone(),
         };
@@ -196,6 +243,31 @@ impl Connections {
     }
 }
 
+/// The slots each listener keeps from the others, of `total`, with
+/// `listeners` holding connections: a quarter of an even split, at least one.
+pub fn reserve(total: usize, listeners: usize) -> usize {
+    (total / (4 * listeners.max(1))).max(1)
+}
+
+/// The most one of `listeners` listeners may hold of `total`: the total less
+/// the others' reserves (at least its own reserve).
+fn share_of(total: usize, listeners: usize) -> usize {
+    let r = reserve(total, listeners);
+    total.saturating_sub(r * listeners.saturating_sub(1)).max(r)
+}
+
+/// Connections held per listener (the newcomer's `listener` counted among
+/// them), and the share each may hold.
+fn shares(t: &Table, total: usize, listener: u64) -> (HashMap<u64, usize>, usize) {
+    let mut held: HashMap<u64, usize> = HashMap::new();
+    held.insert(listener, 0);
+    for c in t.open.values() {
+        *held.entry(c.listener).or_default() += 1;
+    }
+    let share = share_of(total, held.len());
+    (held, share)
+}
+
 /// Why an admitted connection must close.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Ending {
@@ -231,7 +303,17 @@ impl Admitted {
     /// peer of a connection evicted for it (when that eviction should be
     /// logged); or why it is refused and whether to log that.
     pub fn admit(table: &Arc<Connections>, peer: IpAddr) -> Result<(Self, Option<IpAddr>), (&'static str, bool)> {
-        match table.admit(peer, Instant::now()) {
+        Self::admit_on(table, 0, peer)
+    }
+
+    /// As [`Admitted::admit`], on `listener` of a program with several
+    /// (each keeps its share of the table, [`reserve`]).
+    pub fn admit_on(
+        table: &Arc<Connections>,
+        listener: u64,
+        peer: IpAddr,
+    ) -> Result<(Self, Option<IpAddr>), (&'static str, bool)> {
+        match table.admit_on(listener, peer, Instant::now()) {
             Admission::Admitted { key, close, evicted } => Ok((
                 Self {
                     table: Arc::clone(table),
@@ -408,6 +490,32 @@ mod tests {
         close.notified().await;
         let s = c.stats();
         assert_eq!((s.open, s.evicted, s.refused_total_cap), (2, 1, 1));
+    }
+
+    #[tokio::test]
+    async fn one_listeners_busy_connections_never_take_another_listeners_reserve() {
+        let c = table(8, 8);
+        let t0 = Instant::now();
+        // Alone, a listener may fill the table (every connection busy).
+        for i in 0..8 {
+            assert!(matches!(c.admit_on(1, ip(i), t0), Admission::Admitted { .. }), "{i}");
+        }
+        // A newcomer on another listener: one of the first's busy ones goes.
+        let Admission::Admitted { evicted, .. } = c.admit_on(2, ip(100), t0) else {
+            panic!("the other listener's reserve")
+        };
+        assert!(evicted.is_some_and(|p| p != ip(100)));
+        // The first is at its share now (8 less the other's reserve of 1):
+        // refused while its connections are busy, not taken from the other.
+        assert!(matches!(c.admit_on(1, ip(50), t0), Admission::Refused { .. }));
+        // Its idle one makes room for its own newcomer only.
+        let later = t0 + Duration::from_secs(5);
+        let Admission::Admitted { evicted, .. } = c.admit_on(1, ip(51), later) else {
+            panic!("its own idlest")
+        };
+        assert!(evicted.is_some_and(|p| p != ip(100)), "{evicted:?}");
+        let s = c.stats();
+        assert_eq!((s.open, s.evicted, s.refused_total_cap), (8, 2, 1));
     }
 
     #[tokio::test]
