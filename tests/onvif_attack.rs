@@ -608,6 +608,12 @@ fn hostile_preset_names_and_host_headers_never_make_ill_formed_xml() {
     let control = http.post(&signed(&set("gate&#x1B;[31m")));
     assert_schema_valid("SetPreset with a control character", &control.body);
     assert!(control.fault("ter:InvalidPresetName"), "{}", control.body);
+    // A right-to-left override makes "gate\u{202E}2etag" read as another
+    // name on an operator's screen: refused too (issue 49).
+    let bidi = http.post(&signed(&set("gate&#x202E;2etag")));
+    assert_schema_valid("SetPreset with a bidi override", &bidi.body);
+    assert!(bidi.fault("ter:InvalidPresetName"), "{}", bidi.body);
+    assert!(bidi.body.contains("U+202E"), "{}", bidi.body);
     let markup = http.post(&signed(&set("&lt;/tt:Name&gt;&lt;x&gt; &amp; &quot;q&quot;")));
     assert_eq!(markup.status, 200, "{}", markup.body);
     let presets = http.post(&signed(&format!(

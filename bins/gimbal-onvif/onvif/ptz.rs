@@ -325,10 +325,13 @@ async fn set_preset(device: &Device, token: Option<u8>, label: Option<String>) -
             format!("PresetName longer than {} characters", presets::MAX_NAME),
         ));
     }
-    if let Some(bad) = label.chars().find(|&c| c.is_control() || !soap::xml_char(c)) {
+    if let Some(bad) = presets::hidden_char(&label).or_else(|| label.chars().find(|&c| !soap::xml_char(c))) {
         return Err(Fault::invalid_arg(
             "ter:InvalidPresetName",
-            format!("PresetName holds the control character U+{:04X}", u32::from(bad)),
+            format!(
+                "PresetName holds U+{:04X} (a control or invisible formatting character)",
+                u32::from(bad)
+            ),
         ));
     }
     if device.presets.list(name).iter().any(|(m, l)| *l == label && *m != n) {

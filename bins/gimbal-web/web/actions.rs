@@ -137,10 +137,16 @@ async fn preset_save(State(w): Shared, headers: HeaderMap, bytes: axum::body::By
     let (_, b): (_, SaveBody) = w.post(&headers, &bytes, (Role::Operator, "save presets"), "{gimbal, name}")?;
     let g = w.gimbal(b.gimbal)?;
     let name = b.name.trim();
-    if name.is_empty() || name.chars().count() > presets::MAX_NAME || name.chars().any(char::is_control) {
+    if name.is_empty() || name.chars().count() > presets::MAX_NAME {
         return Err(bad(format!(
-            "expected a preset name of 1 to {} characters without control characters",
+            "expected a preset name of 1 to {} characters",
             presets::MAX_NAME
+        )));
+    }
+    if let Some(c) = presets::hidden_char(name) {
+        return Err(bad(format!(
+            "a preset name may not hold U+{:04X} (a control or invisible formatting character)",
+            u32::from(c)
         )));
     }
     let list = w.presets.list(&g.config.name);

@@ -26,6 +26,26 @@ pub struct Presets {
 /// the web page's button names it).
 pub const MAX_NAME: usize = 64;
 
+/// The first character of `name` a preset name may not hold: a control
+/// character, or one that changes how the text around it shows without
+/// showing itself (Unicode bidirectional controls, which can make a name
+/// read as another on an operator's screen, zero-width characters, the
+/// byte-order mark). Refused by the doors (issue 49).
+pub fn hidden_char(name: &str) -> Option<char> {
+    name.chars().find(|&c| {
+        c.is_control()
+            || matches!(
+                c,
+                '\u{061C}'
+                    | '\u{180E}'
+                    | '\u{200B}'..='\u{200F}'
+                    | '\u{202A}'..='\u{202E}'
+                    | '\u{2060}'..='\u{2069}'
+                    | '\u{FEFF}'
+            )
+    })
+}
+
 impl Presets {
     /// Loads `file` when it exists (without a file, names last until exit).
     pub fn load(file: Option<PathBuf>) -> Result<Self, String> {
@@ -88,6 +108,20 @@ impl Presets {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn names_may_not_hide_characters() {
+        assert_eq!(hidden_char("gate 2"), None);
+        assert_eq!(hidden_char("Tor Süd"), None);
+        assert_eq!(
+            hidden_char("gate\u{202E}2etag"),
+            Some('\u{202E}'),
+            "right-to-left override"
+        );
+        assert_eq!(hidden_char("ga\u{200B}te"), Some('\u{200B}'), "zero-width space");
+        assert_eq!(hidden_char("\u{2066}x"), Some('\u{2066}'), "isolate");
+        assert_eq!(hidden_char("a\tb"), Some('\t'));
+    }
 
     #[test]
     fn names_survive_a_reload_and_numbers_are_reused() {
