@@ -3,8 +3,11 @@
 //! random token in the session cookie (HttpOnly, SameSite=Strict); its
 //! own random CSRF token, which only the page's script can read (from
 //! `/api/session`), must come in the `X-CSRF-Token` header of every POST.
-//! Sign-ins are bounded: at most `max_sign_ins` (the oldest goes first),
-//! each for `sign_in` from when it opened.
+//! Sign-ins are bounded: at most `max_sign_ins`, split evenly between the
+//! configured users (at least one each), each for `sign_in` from when it
+//! opened; a user's new sign-in past its share ends that user's oldest,
+//! never another's (issue 49: a viewer's 256 sign-ins ended every other
+//! session, the administrator's included).
 
 use std::collections::HashMap;
 use std::sync::Mutex;
@@ -101,8 +104,13 @@ impl Auth {
         let key = token()?;
         let mut open = self.open.lock().unwrap_or_else(|p| p.into_inner());
         open.retain(|_, e| now.duration_since(e.opened) < self.lasts);
-        while open.len() >= self.max {
-            let oldest = open.iter().min_by_key(|(_, e)| e.opened).map(|(k, _)| k.clone());
+        let share = (self.max / self.users.len().max(1)).max(1);
+        loop {
+            let mine = open.iter().filter(|(_, e)| e.who.user == who.user);
+            if mine.clone().count() < share {
+                break;
+            }
+            let oldest = mine.min_by_key(|(_, e)| e.opened).map(|(k, _)| k.clone());
             match oldest {
                 Some(k) => open.remove(&k),
                 None => break,
@@ -209,6 +217,26 @@ mod tests {
         assert!(a.who(Some(&header), now + Duration::from_secs(61)).is_err());
         a.sign_out(&key);
         assert!(a.who(Some(&header), now).is_err());
+    }
+
+    #[test]
+    fn a_users_sign_ins_end_only_that_users_oldest() {
+        // 4 sign-ins, 2 users: 2 each.
+        let a = auth(4);
+        let t = Instant::now();
+        let (op, _) = a.sign_in("op", "op-pw", t).unwrap();
+        let viewer: Vec<String> = (1..=256)
+            .map(|i| {
+                a.sign_in("viewer", "viewer-pw", t + Duration::from_millis(i))
+                    .unwrap()
+                    .0
+            })
+            .collect();
+        let at = t + Duration::from_secs(1);
+        let alive = |k: &str| a.who(Some(&format!("{COOKIE}={k}")), at).is_ok();
+        assert!(alive(&op), "another user's sign-ins never end the operator's");
+        assert_eq!(viewer.iter().filter(|k| alive(k)).count(), 2, "the viewer's share");
+        assert!(alive(&viewer[255]) && alive(&viewer[254]), "its newest two");
     }
 
     #[test]
