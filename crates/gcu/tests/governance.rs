@@ -919,19 +919,26 @@ fn a_governed_gimbal_cannot_be_readdressed_out_of_its_rules() {
     assert_eq!(r.position(1), [0, 0], "gimbal 1 never answered to 7");
 }
 
-/// gcud back after a crash (here: its port reopened) finds the gimbal
-/// slewing with nobody to stop it: it stops it.
-#[test]
-fn a_gimbal_found_moving_after_a_restart_is_stopped() {
+/// A rig with `bounded` rules whose port was lost while gimbal 1 began a
+/// pan slew no GCU follows (one that outlived the GCU that started it),
+/// 200 ms before: the port is to be opened again.
+fn found_slewing() -> Rig {
     let mut r = rig(bounded);
     r.input(sagebrush_gcu::Input::PortLost { port: PORT });
-    // A slew that outlived the GCU that started it.
     let frame = FrameBuf::build(Address::new(G, PORT, 1), G, |b| {
         Command::PanRight.encode(b).map(<[u8]>::len)
     })
     .unwrap();
     r.bus.receive(frame.as_bytes(), r.now);
     r.run(200);
+    r
+}
+
+/// gcud back after a crash (here: its port reopened) finds the gimbal
+/// slewing with nobody to stop it: it stops it.
+#[test]
+fn a_gimbal_found_moving_after_a_restart_is_stopped() {
+    let mut r = found_slewing();
     assert!(r.moving(1));
     r.input(sagebrush_gcu::Input::PortOpened { port: PORT });
     let mut farthest = i32::MIN;
@@ -1029,15 +1036,7 @@ fn a_slew_inside_a_zone_may_only_leave_it_by_its_nearer_edge() {
 /// let through at once, it made the found motion brake too late.
 #[test]
 fn an_acceleration_change_waits_while_gcud_does_not_know_how_the_gimbal_moves() {
-    let mut r = rig(bounded);
-    r.input(sagebrush_gcu::Input::PortLost { port: PORT });
-    // A slew that outlived the GCU that started it.
-    let frame = FrameBuf::build(Address::new(G, PORT, 1), G, |b| {
-        Command::PanRight.encode(b).map(<[u8]>::len)
-    })
-    .unwrap();
-    r.bus.receive(frame.as_bytes(), r.now);
-    r.run(200);
+    let mut r = found_slewing();
     let before = r.now;
     r.input(sagebrush_gcu::Input::PortOpened { port: PORT });
     r.send(
