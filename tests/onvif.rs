@@ -376,6 +376,18 @@ fn presets_round_trip_and_their_names_survive_a_restart() {
     let stored = stack.gcud.settled_position(MAST);
     let set = stack.client("set_preset", stack.mast, OPERATOR, json!({ "name": "gate" }));
     let token = set["ok"].as_str().unwrap_or_else(|| panic!("{set}")).to_owned();
+    // A name that reads as another on an operator's screen (a right-to-left
+    // override) is refused through the same client (issue 49).
+    let hidden = stack.client(
+        "set_preset",
+        stack.mast,
+        OPERATOR,
+        json!({ "name": "gate\u{202E}2etag" }),
+    );
+    assert!(
+        fault_subcodes(&hidden).iter().any(|s| s.ends_with("InvalidPresetName")),
+        "{hidden}"
+    );
     let r = stack.client("absolute", stack.mast, OPERATOR, json!({ "x": 0.0, "y": 0.0 }));
     assert_eq!(r["ok"], true, "{r}");
     assert_eq!(stack.gcud.settled_position(MAST), (0.0, 0.0));

@@ -346,7 +346,7 @@ pub async fn accept_loop(
         let admitted = match Admitted::admit_on(&connections, listener_key, peer.ip()) {
             Ok((admitted, evicted)) => {
                 if let Some(victim) = evicted {
-                    warn!(link = %link.name, peer = %victim, newcomer = %peer, "connection evicted: idle the longest at limits.max_connections (logged once a minute per peer)");
+                    warn!(link = %link.name, peer = %victim, newcomer = %peer, "connection evicted at limits.max_connections: idle the longest, or the quietest of a listener over its share (logged once a minute per peer)");
                 }
                 admitted
             }

@@ -8,7 +8,7 @@
 //!   at least [`MIN_IDLE_TO_EVICT`]); only when every connection is busy is
 //!   the newcomer refused;
 //! - a share per listener: of the listeners holding connections (and the
-//!   newcomer's), each keeps [`reserve`] slots the others may not take, so
+//!   newcomer's), each keeps a reserve (`reserve`) the others may not take, so
 //!   a listener may hold at most the total less the others' reserves; a
 //!   newcomer on a listener at its share takes its own listener's idlest
 //!   slot or is refused, and one on a listener below its reserve, the
@@ -135,14 +135,13 @@ impl Connections {
             };
         }
         let mut evicted = None;
-        let (held, share) = shares(&t, self.limits.max_total, listener);
-        let idle_enough = |c: &Conn| now.duration_since(c.last_active) >= MIN_IDLE_TO_EVICT;
-        let at_share = held.get(&listener).copied().unwrap_or(0) >= share;
-        if at_share || t.open.len() >= self.limits.max_total {
-            // At its listener's share: only its own listener's idlest slot;
-            // else the idlest anywhere, or, below its reserve, the
-            // longest-quiet slot of a listener over its share.
-            let starved = held.get(&listener).copied().unwrap_or(0) < reserve(self.limits.max_total, held.len());
+        let total = self.limits.max_total;
+        let (held, share) = shares(&t, total, listener);
+        let mine = held.get(&listener).copied().unwrap_or(0);
+        // (One listener alone: its share is the whole table.)
+        let at_share = held.len() > 1 && mine >= share;
+        if at_share || t.open.len() >= total {
+            let idle_enough = |c: &Conn| now.duration_since(c.last_active) >= MIN_IDLE_TO_EVICT;
             let idlest = |pick: &dyn Fn(&Conn) -> bool| {
                 t.open
                     .iter()
@@ -150,21 +149,16 @@ impl Connections {
                     .min_by_key(|(_, c)| c.last_active)
                     .map(|(&k, _)| k)
             };
-            let at_share = at_share && held.len() > 1;
+            // At its share: its own listener's idlest slot only; else the
+            // idlest anywhere, or, below its reserve, the longest-quiet slot
+            // of a listener over its share.
+            let over_share = |c: &Conn| held.get(&c.listener).is_some_and(|&n| n > share);
+            let starved = mine < reserve(total, held.len());
             let victim = match at_share {
                 true => idlest(&|c| c.listener == listener && idle_enough(c)),
-                false => idlest(&|c| idle_enough(c)).or_else(|| {
-                    starved
-                        .then(|| {
-                            idlest(&|c| {
-                                held.get(&c.listener)
-                                    .is_some_and(|&n| n > share_of(self.limits.max_total, held.len()))
-                            })
-                        })
-                        .flatten()
-                }),
+                false => idlest(&idle_enough).or_else(|| starved.then(|| idlest(&over_share)).flatten()),
             };
-            if victim.is_none() && at_share && held.len() > 1 {
+            if victim.is_none() && at_share {
                 t.stats.refused_total_cap += 1;
                 let log = should_log(&mut t, peer, now);
                 return Admission::Refused {
@@ -245,7 +239,7 @@ impl Connections {
 
 /// The slots each listener keeps from the others, of `total`, with
 /// `listeners` holding connections: a quarter of an even split, at least one.
-pub fn reserve(total: usize, listeners: usize) -> usize {
+fn reserve(total: usize, listeners: usize) -> usize {
     (total / (4 * listeners.max(1))).max(1)
 }
 
@@ -281,7 +275,9 @@ impl Ending {
     /// The reason in words, naming the limit.
     pub fn reason(self) -> &'static str {
         match self {
-            Self::Evicted => "evicted for a newcomer (idle the longest at the connection cap)",
+            Self::Evicted => {
+                "evicted for a newcomer at the connection cap (idle the longest, or the quietest of a listener over its share)"
+            }
             Self::Idle => "idle (nothing moved for the idle time-out)",
         }
     }
@@ -307,7 +303,7 @@ impl Admitted {
     }
 
     /// As [`Admitted::admit`], on `listener` of a program with several
-    /// (each keeps its share of the table, [`reserve`]).
+    /// (each keeps its share of the table, module documentation).
     pub fn admit_on(
         table: &Arc<Connections>,
         listener: u64,

@@ -14,7 +14,7 @@ use super::control::Who;
 use super::knowledge::{AxisMotion, Gimbal, Learning, Line, axis_index};
 use super::rules::GimbalRules;
 use super::rules::Span;
-use super::travel::{axes, braking, check_goto};
+use super::travel::{axes, braking, check_goto, limits, meets};
 use crate::types::{CommandId, DropReason};
 
 impl Gimbal {
@@ -215,16 +215,10 @@ impl Gimbal {
         let mut wide = region;
         let path = region[axis].join(&Span::at(target));
         wide[axis] = Span::new(path.lo - reach, path.hi + reach);
-        let limits = if axis == 0 { rules.pan_limits } else { rules.tilt_limits };
-        if limits.is_some_and(|l| !(l.contains(wide[axis].lo) && l.contains(wide[axis].hi))) {
+        if limits(rules, axis).is_some_and(|l| !(l.contains(wide[axis].lo) && l.contains(wide[axis].hi))) {
             return Err(Decision::Refuse(DropReason::TravelLimit));
         }
-        let meets = |z: &super::rules::Zone| z.pan.meets(&wide[0]) && z.tilt.meets(&wide[1]);
-        if rules
-            .keep_out
-            .iter()
-            .any(|z| meets(z) && !(z.pan.meets(&region[0]) && z.tilt.meets(&region[1])))
-        {
+        if rules.keep_out.iter().any(|z| meets(z, wide) && !meets(z, region)) {
             return Err(Decision::Refuse(DropReason::KeepOut));
         }
         Ok(())

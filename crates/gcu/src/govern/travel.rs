@@ -26,7 +26,7 @@ pub(crate) fn axes(p: Position) -> [i32; 2] {
 /// Where a gimbal may be, per axis.
 pub(crate) type Region = [Span; 2];
 
-fn limits(rules: &GimbalRules, axis: AxisIndex) -> Option<Span> {
+pub(super) fn limits(rules: &GimbalRules, axis: AxisIndex) -> Option<Span> {
     if axis == 0 { rules.pan_limits } else { rules.tilt_limits }
 }
 
@@ -66,7 +66,7 @@ pub(crate) fn check_goto(rules: &GimbalRules, from: Option<Region>, target: [i32
 }
 
 /// Whether region `r` reaches into zone `z`.
-fn meets(z: &Zone, r: Region) -> bool {
+pub(super) fn meets(z: &Zone, r: Region) -> bool {
     z.pan.meets(&r[0]) && z.tilt.meets(&r[1])
 }
 

@@ -100,21 +100,19 @@ impl Router {
     /// highest link waited behind a lower link's goto and was refused for
     /// want of time to learn the rate).
     pub(super) fn outrank_waiting(&mut self, now: u64, dest: Address, who: &LinkIdentity, out: &mut Outbox) {
-        let outranked: Vec<CommandId> = self
-            .waiting
-            .iter()
-            .filter(|w| overlap(w.dest, dest))
-            .filter(|w| {
-                let link = self.in_flight.get(&w.id).and_then(|c| c.origin.link());
-                link.and_then(|l| self.links.get(&l))
-                    .is_some_and(|l| l.config.priority < who.priority)
-            })
-            .map(|w| w.id)
-            .collect();
-        for id in outranked {
-            self.waiting.retain(|w| w.id != id);
-            self.refuse(now, id, DropReason::NotInControl, out);
+        if self.waiting.is_empty() {
+            return;
         }
+        let below: Vec<crate::types::LinkId> = self
+            .links
+            .iter()
+            .filter(|(_, l)| l.config.priority < who.priority)
+            .map(|(&id, _)| id)
+            .collect();
+        let outranked = |w: &Waiting, origin: Option<Origin>| {
+            overlap(w.dest, dest) && origin.and_then(|o| o.link()).is_some_and(|l| below.contains(&l))
+        };
+        self.give_up_waiting(now, outranked, DropReason::NotInControl, out);
     }
 
     /// Decides again what waits, in order: let through, refused, or still
