@@ -24,7 +24,7 @@ use tokio::sync::{mpsc, oneshot};
 use crate::admission::{Admitted, Connections, Ending};
 use tracing::{debug, info, warn};
 
-use crate::config::{Link, LinkTransport, Port, PortTransport};
+use crate::config::{Link, LinkTls, LinkTransport, Port, PortTransport};
 use sagebrush_host::throttle::Throttle;
 
 /// What the line tasks tell the router task: a line is open (the router
@@ -43,6 +43,9 @@ pub enum IoEvent {
         /// The configured link's name.
         link: String,
         peer: String,
+        /// The subject CN of its TLS client certificate (a listener with
+        /// `client_ca`): the principal it claims to be.
+        principal: Option<String>,
         stream: Box<dyn LineStream>,
         tap: Tap,
         admission: Option<(Arc<Connections>, u64)>,
@@ -133,6 +136,40 @@ impl AsyncWrite for DeviceServer {
 
 /// An accepted or dialled link connection: no line rate.
 impl LineStream for TcpStream {}
+
+/// How long an accepted connection may take to finish its TLS handshake.
+const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// A link connection over TLS (either end; module `sagebrush_host::tls`).
+struct TlsLink(sagebrush_host::tls::TlsStream<TcpStream>);
+
+impl std::fmt::Debug for TlsLink {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("TlsLink")
+    }
+}
+
+impl LineStream for TlsLink {}
+
+impl AsyncRead for TlsLink {
+    fn poll_read(self: Pin<&mut Self>, cx: &mut Context<'_>, buf: &mut ReadBuf<'_>) -> Poll<io::Result<()>> {
+        Pin::new(&mut self.get_mut().0).poll_read(cx, buf)
+    }
+}
+
+impl AsyncWrite for TlsLink {
+    fn poll_write(self: Pin<&mut Self>, cx: &mut Context<'_>, buf: &[u8]) -> Poll<io::Result<usize>> {
+        Pin::new(&mut self.get_mut().0).poll_write(cx, buf)
+    }
+
+    fn poll_flush(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        Pin::new(&mut self.get_mut().0).poll_flush(cx)
+    }
+
+    fn poll_shutdown(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        Pin::new(&mut self.get_mut().0).poll_shutdown(cx)
+    }
+}
 
 impl LineStream for tokio::io::DuplexStream {}
 
@@ -239,10 +276,12 @@ static NEXT_LINK_ID: AtomicU32 = AtomicU32::new(FIRST_ACCEPTED_ID);
 /// Hands one link connection to the router task and waits until it ends
 /// (an accepted one also ends when evicted or idle too long: the router
 /// task is asked to close it).
+#[allow(clippy::too_many_arguments)]
 async fn serve_link<S: LineStream + 'static>(
     id: LinkId,
     link: String,
     peer: String,
+    principal: Option<String>,
     stream: S,
     events: &mpsc::Sender<IoEvent>,
     admitted: Option<Admitted>,
@@ -253,6 +292,7 @@ async fn serve_link<S: LineStream + 'static>(
         id,
         link,
         peer: peer.clone(),
+        principal,
         stream: Box::new(stream),
         tap,
         admission: admitted.as_ref().map(Admitted::entry),
@@ -295,14 +335,42 @@ pub async fn run_link(id: LinkId, link: Link, events: mpsc::Sender<IoEvent>, cap
                 open_serial(&path.to_string_lossy(), *baud).map(SerialOrTcp::Serial)
             }
         };
-        match opened {
-            Ok(stream) => {
+        let tap = || capture.tap(format!("link {} {peer}", link.name), capture_role(link.kind));
+        let name = link.name.clone();
+        match (opened, &link.tls) {
+            (Ok(SerialOrTcp::Tcp(tcp)), Some(LinkTls::Client { ca, identity })) => {
+                let identity = identity.as_ref().map(|(c, k)| (c.as_path(), k.as_path()));
+                let tls = match sagebrush_host::tls::connector(ca, identity) {
+                    Ok(connector) => sagebrush_host::tls::connect(&connector, &peer, tcp).await,
+                    Err(e) => Err(io::Error::other(e.to_string())),
+                };
+                match tls {
+                    Ok(stream) => {
+                        backoff.reset();
+                        info!(link = %link.name, %peer, "link connected (TLS)");
+                        serve_link(
+                            id,
+                            name,
+                            peer.clone(),
+                            None,
+                            TlsLink(stream.into()),
+                            &events,
+                            None,
+                            tap(),
+                        )
+                        .await;
+                    }
+                    Err(e) => {
+                        warn!(link = %link.name, %peer, error = %e, "TLS handshake failed; retrying with backoff")
+                    }
+                }
+            }
+            (Ok(stream), _) => {
                 backoff.reset();
                 info!(link = %link.name, %peer, "link connected");
-                let tap = capture.tap(format!("link {} {peer}", link.name), capture_role(link.kind));
-                serve_link(id, link.name.clone(), peer.clone(), stream, &events, None, tap).await;
+                serve_link(id, name, peer.clone(), None, stream, &events, None, tap()).await;
             }
-            Err(e) => warn!(link = %link.name, %peer, error = %e, "cannot connect; retrying with backoff"),
+            (Err(e), _) => warn!(link = %link.name, %peer, error = %e, "cannot connect; retrying with backoff"),
         }
         if events.is_closed() {
             return;
@@ -324,6 +392,20 @@ pub async fn accept_loop(
     let mut open = tokio::task::JoinSet::new();
     let mut throttle = Throttle::default();
     let place = format!("link {}", link.name);
+    let tls = match &link.tls {
+        Some(LinkTls::Server { cert, key, client_ca }) => {
+            match sagebrush_host::tls::acceptor(cert, key, client_ca.as_deref()) {
+                Ok(acceptor) => Some(acceptor),
+                Err(e) => {
+                    // Checked when the configuration was read: a file changed since.
+                    tracing::error!(link = %link.name, error = %e, "TLS cannot be set up: no connection is accepted");
+                    return;
+                }
+            }
+        }
+        _ => None,
+    };
+    let handshakes = Arc::new(std::sync::Mutex::new(Throttle::default()));
     // Each listener keeps its share of [limits] max_connections (module
     // `admission`): keyed by its link's name.
     let listener_key = {
@@ -364,9 +446,33 @@ pub async fn accept_loop(
         let events = events.clone();
         let name = link.name.clone();
         let tap = capture.tap(format!("link {name} {peer}"), capture_role(link.kind));
+        let tls = tls.clone();
+        let handshakes = handshakes.clone();
         open.spawn(async move {
             let id = LinkId(NEXT_LINK_ID.fetch_add(1, Ordering::Relaxed));
-            serve_link(id, name, peer.to_string(), stream, &events, Some(admitted), tap).await;
+            let Some(acceptor) = tls else {
+                return serve_link(id, name, peer.to_string(), None, stream, &events, Some(admitted), tap).await;
+            };
+            // The admission slot is held through the handshake, which is
+            // bounded: a half-open or silent peer cannot keep it.
+            let shaken = tokio::time::timeout(HANDSHAKE_TIMEOUT, acceptor.accept(stream)).await;
+            let stream = match shaken {
+                Ok(Ok(stream)) => stream,
+                failed => {
+                    let why = match failed {
+                        Ok(Err(e)) => e.to_string(),
+                        _ => format!("no handshake within {} s", HANDSHAKE_TIMEOUT.as_secs()),
+                    };
+                    let line = || format!("link {name}: TLS handshake with {peer} failed");
+                    let now = tokio::time::Instant::now();
+                    if handshakes.lock().is_ok_and(|mut t| t.allow("tls", &peer.ip().to_string(), line, now)) {
+                        warn!(link = %name, %peer, error = %why, "connection refused: TLS handshake failed (a plain client, no client certificate, or one from another CA); logged at most {} times in {} s per peer", sagebrush_host::throttle::BURST, sagebrush_host::throttle::WINDOW.as_secs());
+                    }
+                    return;
+                }
+            };
+            let principal = sagebrush_host::tls::peer_common_name(stream.get_ref().1.peer_certificates());
+            serve_link(id, name, peer.to_string(), principal, TlsLink(stream.into()), &events, Some(admitted), tap).await;
         });
     }
 }

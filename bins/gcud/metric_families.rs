@@ -551,6 +551,9 @@ pub fn render(snapshot: &Snapshot) -> String {
         .iter()
         .filter_map(|g| {
             let holder = match g.holder.as_ref()? {
+                Holder::Link {
+                    name, via: Some(via), ..
+                } => format!("{name} via {via}"),
                 Holder::Link { name, .. } | Holder::Tour(name) => name.clone(),
                 Holder::Park => "park".to_owned(),
             };

@@ -359,6 +359,7 @@ pub mod fixture {
                     holder: Some(Holder::Link {
                         name: "operators".to_owned(),
                         priority: 80,
+                        via: None,
                     }),
                     lapses_at: Some(125_000),
                     position: Some((
@@ -405,6 +406,7 @@ pub mod fixture {
                     waiting_for: Some(Holder::Link {
                         name: "operators".to_owned(),
                         priority: 80,
+                        via: None,
                     }),
                 },
             ],

@@ -31,25 +31,31 @@ pub struct HolderSeen {
     pub name: Option<String>,
     /// A link's priority; null for gcud's own tours and park (below every link).
     pub priority: Option<u8>,
+    /// The tool or link a principal's commands came through ("alice" via
+    /// "gimbal-web"); null for a link without principals.
+    pub via: Option<String>,
 }
 
 impl HolderSeen {
     fn of(holder: &Holder) -> Self {
         match holder {
-            Holder::Link { name, priority } => Self {
+            Holder::Link { name, priority, via } => Self {
                 kind: "link",
                 name: Some(name.clone()),
                 priority: Some(*priority),
+                via: via.clone(),
             },
             Holder::Tour(name) => Self {
                 kind: "tour",
                 name: Some(name.clone()),
                 priority: None,
+                via: None,
             },
             Holder::Park => Self {
                 kind: "park",
                 name: None,
                 priority: None,
+                via: None,
             },
         }
     }

@@ -62,12 +62,14 @@ mod tests {
         let ops = Controller::Link {
             name: "operators".into(),
             priority: 80,
+            via: None,
             yours: false,
         };
         assert_eq!(holder_text(&ops), "link operators (priority 80) controls the gimbal");
         let long = Controller::Link {
             name: "é".repeat(32),
             priority: 80,
+            via: None,
             yours: false,
         };
         let text = holder_text(&long);

@@ -159,6 +159,7 @@ mod tests {
         let ops = Controller::Link {
             name: "operators".into(),
             priority: 80,
+            via: None,
             yours: false,
         };
         assert_eq!(seen(ops.clone(), false).held_elsewhere(), Some(&ops));

@@ -267,7 +267,10 @@ fn position(p: &Value, now: f64) -> String {
 /// `tour perimeter`, `park`, `nobody`.
 fn holder(h: &Value) -> String {
     match (h["kind"].as_str(), h["name"].as_str()) {
-        (Some("link"), Some(name)) => format!("link {name} (priority {})", h["priority"]),
+        (Some("link"), Some(name)) => match h["via"].as_str() {
+            Some(via) => format!("{name} via {via} (priority {})", h["priority"]),
+            None => format!("link {name} (priority {})", h["priority"]),
+        },
         (Some("tour"), Some(name)) => format!("tour {name}"),
         (Some(kind), _) => kind.to_owned(),
         (None, _) => "nobody".to_owned(),

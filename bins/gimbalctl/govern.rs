@@ -97,11 +97,20 @@ pub async fn holder(g: &Global, gimbal: Address) -> Result<Option<String>, CtlEr
     let (_, _, reply) = ControllerReply::parse(&payload).ok_or_else(bad)?;
     Ok(match reply {
         ControllerReply::Nobody => None,
-        ControllerReply::Link { priority, name, yours } => Some(format!(
-            "link {} (priority {priority}{})",
-            String::from_utf8_lossy(name),
-            if yours { ", this connection's" } else { "" }
-        )),
+        ControllerReply::Link {
+            priority,
+            name,
+            via,
+            yours,
+        } => {
+            let name = String::from_utf8_lossy(name);
+            let who = match via.is_empty() {
+                true => format!("link {name}"),
+                false => format!("{name} via {}", String::from_utf8_lossy(via)),
+            };
+            let yours = if yours { ", this connection's" } else { "" };
+            Some(format!("{who} (priority {priority}{yours})"))
+        }
         ControllerReply::Tour(name) => Some(format!("tour {}", String::from_utf8_lossy(name))),
         ControllerReply::Park => Some("park".to_owned()),
     })

@@ -15,6 +15,7 @@ mod progress;
 mod request;
 mod scan;
 mod session;
+mod tls_init;
 mod watch;
 
 use std::process::ExitCode;
@@ -65,6 +66,7 @@ fn main() -> ExitCode {
         }
         Cmd::Decode { hex } => codec::decode(hex, as_json),
         Cmd::GcudStatus { http } => gcud_status::run(http, as_json),
+        Cmd::Tls(cli::TlsCmd::Init { dir, host, principal }) => tls_init::run(dir, host, principal),
         _ => match tokio::runtime::Builder::new_current_thread().enable_all().build() {
             Ok(rt) => {
                 let r = rt.block_on(run_to_the_end_of_the_capture(&cli));

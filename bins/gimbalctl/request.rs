@@ -139,6 +139,7 @@ pub fn request<'a>(cmd: &Cmd, data: &'a [u8]) -> Result<Option<Request<'a>>, Ctl
         Cmd::Watch { .. }
         | Cmd::Scan(_)
         | Cmd::GcudStatus { .. }
+        | Cmd::Tls(_)
         | Cmd::Encode { .. }
         | Cmd::Decode { .. }
         | Cmd::Release

@@ -7,6 +7,7 @@ use sagebrush_client::master::Exchange;
 use sagebrush_client::{Client, CommandError};
 use sagebrush_host::capture::{Capture, CaptureSwitch, Role, Tapped, capture_to};
 use sagebrush_host::timing;
+use sagebrush_host::tls::Endpoint;
 use sagebrush_host::transport::{self, SerialOrTcp};
 use std::time::Duration;
 
@@ -36,6 +37,21 @@ pub struct Session {
 /// command to itself at once, and a device server (`--tcp` without
 /// `--direct`) never does, which should not cost a whole ACK time-out.
 const WINDOW_ASK_MS: u64 = 250;
+
+/// `--tcp` with `--tls-ca`, `--tls-cert` and `--tls-key`: gcud's endpoint.
+fn endpoint(g: &Global) -> Result<Endpoint, CtlError> {
+    let addr = g.tcp.as_deref().unwrap_or_default();
+    let files = g.tls_ca.as_ref().map(|ca| sagebrush_host::tls::ClientFiles {
+        ca: ca.clone(),
+        identity: g.tls_cert.clone().zip(g.tls_key.clone()),
+    });
+    if files.is_none() && (g.tls_cert.is_some() || g.tls_key.is_some()) {
+        return Err(CtlError::Usage(
+            "--tls-cert and --tls-key need --tls-ca (the CA of gcud's certificate) and --tcp tls://HOST:PORT".into(),
+        ));
+    }
+    Endpoint::parse(addr, files).map_err(|e| CtlError::Usage(format!("--tcp {e}")))
+}
 
 /// What came in after an exchange ended (`Session::linger`).
 #[derive(Debug, Default)]
@@ -73,7 +89,15 @@ impl Session {
                 timing::serial_policy(g.baud),
             ),
             (None, Some(addr)) => (
-                SerialOrTcp::Tcp(transport::connect_tcp(addr).await.map_err(refused_hint)?),
+                match endpoint(g)? {
+                    Endpoint { tls: None, .. } => {
+                        SerialOrTcp::Tcp(transport::connect_tcp(addr).await.map_err(refused_hint)?)
+                    }
+                    tls => match tls.connect().await.map_err(refused_hint)? {
+                        sagebrush_host::tls::Stream::Tls(stream) => SerialOrTcp::Tls(stream),
+                        sagebrush_host::tls::Stream::Plain(tcp) => SerialOrTcp::Tcp(tcp),
+                    },
+                },
                 timing::tcp_policy(),
             ),
             (None, None) => {
@@ -99,7 +123,7 @@ impl Session {
             policy.long_result_timeout = t;
         }
         let described = line.describe();
-        let over_tcp = matches!(line, SerialOrTcp::Tcp(_));
+        let over_tcp = !matches!(line, SerialOrTcp::Serial(_));
         tracing::debug!(line = %described, ?policy, "connected");
         let tap = match &capture {
             Some((switch, _)) => switch.tap(format!("gimbalctl {described}"), Role::Master),

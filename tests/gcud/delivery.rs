@@ -311,7 +311,7 @@ fn a_door_waits_gcuds_nic_window_not_its_own_too() {
         .build()
         .expect("runtime");
     runtime.block_on(async {
-        let mut c = GimbalConnection::new(&gcud.clients(), 0, Address::new(5, 1, 1), own_window);
+        let mut c = GimbalConnection::new(gcud.clients(), 0, Address::new(5, 1, 1), own_window);
         // The connection opens (and asks `~W`) with its first command.
         c.position().await.expect("P?");
         for _ in 0..3 {
@@ -353,7 +353,7 @@ fn a_speed_and_its_direction_go_with_no_window_between_on_a_full_duplex_port() {
             .build()
             .expect("runtime");
         runtime.block_on(async {
-            let mut c = GimbalConnection::new(&gcud.clients(), 0, Address::new(5, 1, 1), Duration::from_secs(3));
+            let mut c = GimbalConnection::new(gcud.clients(), 0, Address::new(5, 1, 1), Duration::from_secs(3));
             c.position().await.expect("P?");
             for speed in [3, 9, 5] {
                 let sp = Cmd::SetSpeed(Axis::Pan, Speed::new(speed).unwrap());

@@ -327,6 +327,7 @@ pub(super) fn validate(
         gimbals,
         tours,
         tours_min_priority: control.tours_min_priority.as_ref().map(Int::get),
+        principals: Vec::new(),
     };
     let port_ids: Vec<u8> = ports.iter().map(|p| p.router.id).collect();
     match governance.validate(&port_ids) {

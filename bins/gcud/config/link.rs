@@ -90,6 +90,9 @@ pub(super) struct LinkSection {
     /// controls it (`~B`, `~C`); default: on a loopback listener only
     /// (keep-out zones may mark privacy areas).
     may_read_rules: Option<bool>,
+    /// TLS (ARCHITECTURE "Principals"): `{ cert, key, client_ca }` on a
+    /// listener, `{ ca, cert, key }` on a `connect` link.
+    tls: Option<Spanned<super::principal::TlsSection>>,
 }
 
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -113,6 +116,9 @@ pub struct Link {
     pub priority: u8,
     /// May ask `~B` and `~C` (ARCHITECTURE "GCU commands on port 0").
     pub may_read_rules: bool,
+    /// Encrypted, and on a listener with `client_ca` each connection's
+    /// principal named by its client certificate.
+    pub tls: Option<super::principal::LinkTls>,
 }
 
 impl Link {
@@ -130,6 +136,15 @@ impl Link {
         lc.priority = self.priority;
         lc.may_read_rules = self.may_read_rules;
         lc
+    }
+
+    /// Whether each connection must name a configured principal by its
+    /// client certificate (a TLS listener with `client_ca`).
+    pub fn requires_principal(&self) -> bool {
+        matches!(
+            self.tls,
+            Some(super::principal::LinkTls::Server { client_ca: Some(_), .. })
+        )
     }
 
     /// Whether `other` is this link but for its priority (a reload applies
@@ -229,6 +244,11 @@ pub(super) fn validate(
             None if kind == LinkKind::Client => Some(vec![sagebrush_protocol::MCU_GROUP, group]),
             None => None,
         };
+        let tls = l
+            .tls
+            .as_ref()
+            .map(|t| super::principal::link_tls(c, t, &transport, &key))
+            .transpose()?;
         if let (LinkTransport::Listen(addr), Some(listen)) = (&transport, &l.listen) {
             let place = checks.listener(c, *addr, listen.span(), &format!("{key}.listen"));
             if !addr.ip().is_loopback() {
@@ -236,6 +256,19 @@ pub(super) fn validate(
                     "{place}: listens on {addr}, not on loopback: reachable from other machines \
                      (allow_peers: {allow_peers})"
                 ));
+                match &tls {
+                    None => checks.warnings.push(format!(
+                        "{place}: plain TCP off loopback: whoever reaches {addr} is link {name:?} \
+                         (priority {}) and reads its traffic; configure `tls = {{ cert, key, client_ca }}`",
+                        l.priority.get()
+                    )),
+                    Some(super::principal::LinkTls::Server { client_ca: None, .. }) => checks.warnings.push(format!(
+                        "{place}: tls without `client_ca`: encrypted, but whoever reaches {addr} is \
+                         link {name:?} (priority {})",
+                        l.priority.get()
+                    )),
+                    Some(_) => {}
+                }
             }
         }
         let on_loopback = matches!(transport, LinkTransport::Listen(addr) if addr.ip().is_loopback());
@@ -249,6 +282,7 @@ pub(super) fn validate(
             motion_lease_ms: l.motion_lease_ms.as_ref().map(Millis::get),
             priority: l.priority.get(),
             may_read_rules,
+            tls,
         });
     }
     Ok(links)

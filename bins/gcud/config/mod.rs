@@ -22,6 +22,7 @@ mod log;
 mod metrics;
 mod net;
 mod port;
+mod principal;
 mod route;
 
 use std::net::SocketAddr;
@@ -42,6 +43,7 @@ pub use log::LogSection;
 pub use metrics::Metrics;
 pub use net::PeerAllowList;
 pub use port::{Port, PortTransport};
+pub use principal::LinkTls;
 pub use route::Routes;
 pub use sagebrush_service::config_file::ConfigError;
 
@@ -72,6 +74,8 @@ struct ConfigFile {
     gimbals: Vec<govern::GimbalSection>,
     #[serde(default, rename = "tour")]
     tours: Vec<govern::TourSection>,
+    #[serde(default, rename = "principal")]
+    principals: Vec<principal::PrincipalSection>,
 }
 
 /// The validated configuration, by section.
@@ -260,6 +264,7 @@ fn validate(c: &Source<'_>, raw: ConfigFile) -> Result<Config, ConfigError> {
     )?;
     let capture = raw.capture.as_ref().map(|cap| cap.validate(c)).transpose()?;
     let mut governance = govern::validate(c, &raw.control, &raw.gimbals, &raw.tours, raw.gcu.group.get(), &ports)?;
+    governance.principals = principal::validate(c, &raw.principals, &links)?;
     // Tours are started and stopped by the highest links unless `[control]` says otherwise.
     governance.tours_min_priority = governance
         .tours_min_priority

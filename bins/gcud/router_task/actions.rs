@@ -2,7 +2,7 @@
 //! writes queued on their lines, line rate switches, router events logged
 //! (throttled), a departed link's counters kept under its configured name.
 
-use sagebrush_gcu::{Action, Level, LinkId, Outbox, Place, RouterEvent};
+use sagebrush_gcu::{Action, DropReason, Level, LinkId, Outbox, Place, RouterEvent};
 use sagebrush_host::throttle::Throttle;
 use tokio::time::Instant;
 use tracing::{debug, error, info, warn};
@@ -61,9 +61,46 @@ pub(super) fn execute(actions: &mut Outbox, lines: &mut Lines, links: &mut LinkB
     }
 }
 
+/// The audit line of a command that moves or changes a gimbal
+/// (ARCHITECTURE "Principals"): who (the principal, the tool or link it
+/// came through, the door's user gcud does not know), the gimbal, the
+/// command and the governance's decision; at INFO under the target
+/// `gcud::audit`, each field its own in the JSON format. A principal's
+/// lines are throttled like warnings (module `throttle`): a jog's stream of
+/// commands is summarised, never lost from the count.
+fn audit(
+    actor: &sagebrush_gcu::Actor,
+    frame: &sagebrush_protocol::FrameBuf,
+    refused: Option<DropReason>,
+    throttle: &mut Throttle,
+) {
+    let frame = frame.frame();
+    let command = String::from_utf8_lossy(frame.payload());
+    let line = || format!("audit: {actor}: {command} to {}", frame.dest);
+    if !throttle.allow("audit", &actor.name, line, Instant::now()) {
+        return;
+    }
+    let outcome = refused.map_or("accepted", |r| r.undelivered().name());
+    info!(
+        target: "gcud::audit",
+        principal = %actor.name,
+        via = actor.via.as_deref().unwrap_or(""),
+        for_user = actor.for_user.as_deref().unwrap_or(""),
+        gimbal = %frame.dest,
+        command = %command,
+        outcome,
+        "{actor}: {command} to {} {}",
+        frame.dest,
+        refused.map_or_else(|| "accepted".to_owned(), |r| format!("refused: {}", r.undelivered().describe()))
+    );
+}
+
 /// Logs a router event; repeated warnings of one kind from one place are
 /// throttled (module `throttle`).
 fn log_event(event: &RouterEvent, links: &LinkBook, throttle: &mut Throttle) {
+    if let RouterEvent::Motion { actor, frame, refused } = event {
+        return audit(actor, frame, *refused, throttle);
+    }
     let name = |link: &LinkId| links.name(*link);
     // Events about a link name it as configured, with its peer.
     let context = match event {

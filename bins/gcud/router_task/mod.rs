@@ -243,6 +243,7 @@ impl Daemon {
                 id,
                 link,
                 peer,
+                principal,
                 stream,
                 tap,
                 admission,
@@ -255,6 +256,16 @@ impl Daemon {
                     return false;
                 }
                 let mut lc = configured.router();
+                if configured.requires_principal() {
+                    let known = principal
+                        .as_deref()
+                        .and_then(|cn| self.config.governance.principals.iter().find(|p| &*p.name == cn));
+                    let Some(known) = known else {
+                        warn!(link = %link, %peer, cn = principal.as_deref().unwrap_or(""), "connection refused: its client certificate's CN names no [[principal]]");
+                        return true; // dropping the stream closes it
+                    };
+                    lc.principal = Some(known.clone());
+                }
                 if matches!(configured.transport, LinkTransport::Listen(_)) {
                     // Routes naming the listener reach this connection.
                     lc.listener = Some(self.links.ids.of(&configured.name));

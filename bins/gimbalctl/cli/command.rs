@@ -317,6 +317,9 @@ Examples:
         #[arg(long, env = "GIMBALCTL_HTTP", default_value = GCUD_HTTP, value_name = "HOST:PORT", value_parser = parse_host_port)]
         http: String,
     },
+    /// Write a private CA and the certificates a site needs to switch TLS on (no I/O but the files).
+    #[command(subcommand)]
+    Tls(TlsCmd),
     /// Print the frame for PAYLOAD as hex bytes (no I/O; needs --to).
     #[command(after_help = examples!(gimbalctl "encode --to 5.1.12 --from 2 'P?'     # F8 05 01 0C 02 02 50 3F A5"))]
     Encode {
@@ -375,6 +378,7 @@ impl Cmd {
             Cmd::Watch { .. } => "watch",
             Cmd::Scan(_) => "scan",
             Cmd::GcudStatus { .. } => "gcud-status",
+            Cmd::Tls(TlsCmd::Init { .. }) => "tls init",
             Cmd::Release => "release",
             Cmd::Tour(TourCmd::List) => "tour list",
             Cmd::Tour(TourCmd::Start { .. }) => "tour start",

@@ -75,6 +75,43 @@ pub enum TourCmd {
     },
 }
 
+#[derive(Debug, Subcommand)]
+#[command(defer = true)]
+pub enum TlsCmd {
+    /// Write a private CA, gcud's certificate and one client certificate per principal into DIR.
+    #[command(after_help = "\
+Writes DIR/ca.crt (the CA: gcud's `client_ca`, and every client's --tls-ca or `ca`), DIR/ca.key \
+(keep it offline: it signs new principals), DIR/gcud.crt and DIR/gcud.key (gcud's `cert` and `key`, \
+valid for every --host), and DIR/NAME.crt with DIR/NAME.key for each principal (the certificate's \
+subject CN is NAME: add a [[principal]] of that name to gcud.toml). Keys are written 0600; existing \
+files are never overwritten (run it again with another DIR, or with new principals only).
+
+Examples:
+  gimbalctl tls init --dir /etc/gcud/tls --host gcu-north.example --host 10.0.0.5 \\
+      --principal gimbal-web --principal gimbal-onvif --principal gimbal-mavlink --principal alice
+  gimbalctl --tcp tls://10.0.0.5:4443 --tls-ca /etc/gcud/tls/ca.crt \\
+      --tls-cert /etc/gcud/tls/alice.crt --tls-key /etc/gcud/tls/alice.key --to 5.1.1 position")]
+    Init {
+        /// Where the files go (made if missing).
+        #[arg(long, value_name = "DIR")]
+        dir: std::path::PathBuf,
+        /// A name or address gcud is reached by (its certificate's subject alternative names); 127.0.0.1 and localhost always.
+        #[arg(long, value_name = "NAME")]
+        host: Vec<String>,
+        /// A person or tool to write a client certificate for (1..=32 of A-Z a-z 0-9 _ -).
+        #[arg(long, value_name = "NAME", value_parser = parse_principal_name)]
+        principal: Vec<String>,
+    },
+}
+
+/// A principal's name, as gcud's `[[principal]] name` and a certificate's CN.
+fn parse_principal_name(text: &str) -> Result<String, String> {
+    match sagebrush_protocol::gcu::valid_name(text.as_bytes()) {
+        true => Ok(text.to_owned()),
+        false => Err(format!("{text:?}: a principal's name is 1..=32 of A-Z a-z 0-9 _ -")),
+    }
+}
+
 /// A tour's name as GCU commands carry it.
 fn parse_tour_name(text: &str) -> Result<String, String> {
     match sagebrush_protocol::gcu::valid_name(text.as_bytes()) {

@@ -119,9 +119,38 @@ pub struct Global {
     /// Line rate of --serial in bit/s: 1200, 2400, 4800, 9600, 19200, 38400, 57600 or 115200.
     #[arg(long, global = true, default_value_t = 9600, value_parser = parse_baud, help_heading = "Connection (global)")]
     pub baud: u32,
-    /// A GCU daemon's client address HOST:PORT, e.g. 127.0.0.1:4001 (this program is a client like the MCU); with --direct a device server's.
-    #[arg(long, global = true, env = "GIMBALCTL_TCP", value_name = "HOST:PORT", value_parser = parse_host_port, help_heading = "Connection (global)")]
+    /// A GCU daemon's client address HOST:PORT, e.g. 127.0.0.1:4001 (this program is a client like the MCU), or tls://HOST:PORT with --tls-ca (and --tls-cert, --tls-key: your principal at gcud); with --direct a device server's.
+    #[arg(long, global = true, env = "GIMBALCTL_TCP", value_name = "HOST:PORT", value_parser = parse_gcud, help_heading = "Connection (global)")]
     pub tcp: Option<String>,
+    /// With --tcp tls://HOST:PORT: the CA that signed gcud's certificate (PEM).
+    #[arg(
+        long,
+        global = true,
+        env = "GIMBALCTL_TLS_CA",
+        value_name = "FILE",
+        help_heading = "Connection (global)"
+    )]
+    pub tls_ca: Option<std::path::PathBuf>,
+    /// With --tcp tls://HOST:PORT: your client certificate (PEM); its subject CN is your principal at gcud.
+    #[arg(
+        long,
+        global = true,
+        env = "GIMBALCTL_TLS_CERT",
+        value_name = "FILE",
+        requires = "tls_key",
+        help_heading = "Connection (global)"
+    )]
+    pub tls_cert: Option<std::path::PathBuf>,
+    /// With --tls-cert: its private key (PEM).
+    #[arg(
+        long,
+        global = true,
+        env = "GIMBALCTL_TLS_KEY",
+        value_name = "FILE",
+        requires = "tls_cert",
+        help_heading = "Connection (global)"
+    )]
+    pub tls_key: Option<std::path::PathBuf>,
     /// --tcp leads to a bus, not gcud (a device server such as ser2net, gimbalsim --tcp): this program is its master, asks gcud nothing (no ~W) and `scan` sweeps --bus.
     #[arg(long, global = true, help_heading = "Connection (global)")]
     pub direct: bool,

@@ -33,6 +33,14 @@ pub fn parse_host_port(text: &str) -> Result<String, String> {
     sagebrush_service::endpoint::host_port_arg(text)
 }
 
+/// `--tcp`: `HOST:PORT`, or `tls://HOST:PORT` for gcud over TLS.
+pub fn parse_gcud(text: &str) -> Result<String, String> {
+    match text.strip_prefix(sagebrush_host::tls::TLS_SCHEME) {
+        Some(addr) => parse_host_port(addr).map(|_| text.to_owned()),
+        None => parse_host_port(text),
+    }
+}
+
 pub(super) fn parse_angle(what: &str, text: &str) -> Result<f64, String> {
     let v: f64 = text
         .parse()

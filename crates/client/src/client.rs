@@ -4,14 +4,13 @@
 //! ARCHITECTURE "Delivery contract" for gcud's delivery reports).
 
 use sagebrush_host::hex::payload_text;
-use sagebrush_host::{timing, transport};
+use sagebrush_host::timing;
 use sagebrush_protocol::link::TransactionPolicy;
 use sagebrush_protocol::{
     Address, Command, FrameBuf, MAX_PAYLOAD, Outcome, Position, Reply, ResultKind, ResultTimeout, TxFailure,
     Undelivered,
 };
 use tokio::io::{AsyncRead, AsyncWrite};
-use tokio::net::TcpStream;
 
 use crate::master::{Exchange, Master};
 
@@ -85,18 +84,18 @@ pub struct Client<S> {
 }
 
 /// A client of gcud's client listener.
-pub type GcudClient = Client<TcpStream>;
+pub type GcudClient = Client<sagebrush_host::tls::Stream>;
 
 impl GcudClient {
-    /// Connects to gcud's client listener at `addr` (`host:port`), with
-    /// the TCP time-outs of a link (1.4.2 over TCP, `timing::tcp_policy`)
-    /// changed by `tune`.
+    /// Connects to gcud's client listener at `gcud` (plain TCP or TLS),
+    /// with the TCP time-outs of a link (1.4.2 over TCP,
+    /// `timing::tcp_policy`) changed by `tune`.
     pub async fn connect(
-        addr: &str,
+        gcud: &sagebrush_host::tls::Endpoint,
         from: u8,
         tune: impl FnOnce(&mut TransactionPolicy),
     ) -> Result<Self, CommandError> {
-        let stream = transport::connect_tcp(addr).await?;
+        let stream = gcud.connect().await?;
         let mut policy = timing::tcp_policy();
         tune(&mut policy);
         Ok(Self::new(stream, policy, from))

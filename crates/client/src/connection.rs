@@ -82,7 +82,7 @@ pub struct Control {
 #[derive(Debug)]
 pub struct GimbalConnection {
     pub address: Address,
-    gcud: String,
+    gcud: sagebrush_host::tls::Endpoint,
     from: u8,
     nic_window_ms: u64,
     client: Option<GcudClient>,
@@ -99,10 +99,15 @@ fn takes_control(command: &Command<'_>) -> bool {
 impl GimbalConnection {
     /// Commands go out as source group `from`; a NIC may come up to
     /// `nic_window` after gcud's ACK (1.4.2).
-    pub fn new(gcud: &str, from: u8, address: Address, nic_window: Duration) -> Self {
+    pub fn new(
+        gcud: impl Into<sagebrush_host::tls::Endpoint>,
+        from: u8,
+        address: Address,
+        nic_window: Duration,
+    ) -> Self {
         Self {
             address,
-            gcud: gcud.to_owned(),
+            gcud: gcud.into(),
             from,
             nic_window_ms: nic_window.as_millis() as u64,
             client: None,

@@ -30,9 +30,16 @@ use crate::client::{Client, CommandError};
 pub enum Controller {
     /// Nobody: the next link that commands it takes control.
     Nobody,
-    /// A configured gcud link (every connection of one listener is one
-    /// link); `yours`: the link of the connection that asked.
-    Link { name: String, priority: u8, yours: bool },
+    /// A principal gcud knows (`via`: the tool or link its commands came
+    /// through), or a configured link without principals (every connection
+    /// of one listener is one link; `via` `None`); `yours`: the asking
+    /// connection's own.
+    Link {
+        name: String,
+        priority: u8,
+        via: Option<String>,
+        yours: bool,
+    },
     /// gcud's tour of this name (below every link).
     Tour(String),
     /// gcud's park (below every link).
@@ -43,7 +50,18 @@ impl fmt::Display for Controller {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Controller::Nobody => f.write_str("nobody"),
-            Controller::Link { name, priority, .. } => write!(f, "link {name} (priority {priority})"),
+            Controller::Link {
+                name,
+                priority,
+                via: None,
+                ..
+            } => write!(f, "link {name} (priority {priority})"),
+            Controller::Link {
+                name,
+                priority,
+                via: Some(via),
+                ..
+            } => write!(f, "{name} via {via} (priority {priority})"),
             Controller::Tour(name) => write!(f, "tour {name}"),
             Controller::Park => f.write_str("park"),
         }
@@ -57,9 +75,15 @@ impl Controller {
         match ControllerReply::parse(payload) {
             Some((p, d, reply)) if (p, d) == (port, device) => Ok(match reply {
                 ControllerReply::Nobody => Controller::Nobody,
-                ControllerReply::Link { priority, name, yours } => Controller::Link {
+                ControllerReply::Link {
+                    priority,
+                    name,
+                    via,
+                    yours,
+                } => Controller::Link {
                     name: text(name),
                     priority,
+                    via: (!via.is_empty()).then(|| text(via)),
                     yours,
                 },
                 ControllerReply::Tour(name) => Controller::Tour(text(name)),
@@ -317,6 +341,7 @@ mod tests {
         let n = ControllerReply::Link {
             priority: 80,
             name: b"operators",
+            via: b"",
             yours: false,
         }
         .encode(1, 2, &mut buf)
@@ -324,6 +349,7 @@ mod tests {
         let link = Controller::Link {
             name: "operators".into(),
             priority: 80,
+            via: None,
             yours: false,
         };
         assert_eq!(

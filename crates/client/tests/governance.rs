@@ -23,6 +23,7 @@ use fake_gcud::*;
 const OPERATORS: ControllerReply<'static> = ControllerReply::Link {
     priority: 80,
     name: b"operators",
+    via: b"",
     yours: false,
 };
 
@@ -48,6 +49,7 @@ async fn a_refusal_for_control_is_typed_and_names_the_holder() {
         Controller::Link {
             name: "operators".into(),
             priority: 80,
+            via: None,
             yours: false,
         }
     );
@@ -80,6 +82,7 @@ async fn a_move_refused_for_control_sends_no_stop_and_is_not_reported_moving() {
             b"~C0101" => controller(ControllerReply::Link {
                 priority: 50,
                 name: b"doors",
+                via: b"",
                 yours: true,
             }),
             b"P?" => at_zero(),
@@ -185,6 +188,7 @@ async fn a_move_refused_by_a_limit_stops_what_this_door_had_moving() {
         b"~C0101" => controller(ControllerReply::Link {
             priority: 50,
             name: b"doors",
+            via: b"",
             yours: true,
         }),
         b"P?" => at_zero(),

@@ -19,11 +19,13 @@ use fake_gcud::*;
 const DOORS: ControllerReply<'static> = ControllerReply::Link {
     priority: 50,
     name: b"doors",
+    via: b"",
     yours: true,
 };
 const OPERATORS: ControllerReply<'static> = ControllerReply::Link {
     priority: 80,
     name: b"operators",
+    via: b"",
     yours: false,
 };
 

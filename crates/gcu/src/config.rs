@@ -75,6 +75,10 @@ pub struct LinkConfig {
     /// It may ask a gimbal's rules and who controls it (`~B`, `~C`):
     /// keep-out zones may mark privacy areas.
     pub may_read_rules: bool,
+    /// The principal this connection authenticated as (gcud: the subject
+    /// CN of its TLS client certificate). `None`: the link is its own
+    /// principal (ARCHITECTURE "Principals").
+    pub principal: Option<crate::govern::Principal>,
 }
 
 impl LinkConfig {
@@ -89,6 +93,7 @@ impl LinkConfig {
             name: None,
             priority: crate::govern::rules::DEFAULT_PRIORITY,
             may_read_rules: true,
+            principal: None,
         }
     }
 }

@@ -153,7 +153,7 @@ pub use govern::rules::{
     DEFAULT_PRIORITY, GimbalRules, Governance, HOLD_MS, MAX_PRIORITY, Park, Span, TourConfig, TourStep, TourTarget,
     Zone,
 };
-pub use govern::{GimbalControl, GovernStats, GovernanceError, Holder, TourState, TourStatus};
+pub use govern::{Actor, GimbalControl, GovernStats, GovernanceError, Holder, Principal, TourState, TourStatus};
 pub use outbox::Outbox;
 pub use router::Router;
 pub use stats::{

@@ -84,6 +84,9 @@ pub(crate) struct Link {
     /// This connection asked for end-of-window reports (`~W`; router
     /// module `window`): it lives and dies with the connection.
     pub window_reports: bool,
+    /// The user this connection's door acts for now (`~U`; module
+    /// `govern::principal`): its next commands are that user's.
+    pub acting: Option<crate::govern::Actor>,
 }
 
 impl Link {
@@ -99,6 +102,7 @@ impl Link {
             tx: Transmitter::new(policy),
             stats,
             window_reports: false,
+            acting: None,
         }
     }
 

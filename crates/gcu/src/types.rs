@@ -168,6 +168,15 @@ pub enum RouterEvent {
         command: &'static str,
         failure: Undelivered,
     },
+    /// A command from a link that moves or changes a gimbal was let
+    /// through by the governance (`refused` `None`) or refused: the audit
+    /// line (ARCHITECTURE "Principals"), naming who sent it.
+    Motion {
+        actor: crate::govern::Actor,
+        /// Boxed: a motion's event is rare beside the frames routed.
+        frame: Box<sagebrush_protocol::FrameBuf>,
+        refused: Option<DropReason>,
+    },
     /// Control of a gimbal changed hands (`holder` `None`: it lapsed or was released).
     Control {
         port: u8,
@@ -258,6 +267,8 @@ impl RouterEvent {
             } => Level::Info,
             RouterEvent::Control { .. } => Level::Debug,
             RouterEvent::Tour { .. } | RouterEvent::Park { .. } => Level::Info,
+            // Who moved a gimbal is the daemon's to answer afterwards.
+            RouterEvent::Motion { .. } => Level::Info,
             RouterEvent::BoundaryStop { .. } => Level::Info,
             RouterEvent::DeviceState { online: false, .. } => Level::Warn,
             RouterEvent::DeviceState { first: false, .. } => Level::Info,
@@ -294,6 +305,15 @@ impl fmt::Display for RouterEvent {
                 source,
             } => write!(f, "dropped frame for {dest} from group {source} at {at}: {reason:?}"),
             RouterEvent::RateSwitched { port, bps } => write!(f, "port {port} switched to {bps} bps"),
+            RouterEvent::Motion { actor, frame, refused } => {
+                let frame = frame.frame();
+                let command = String::from_utf8_lossy(frame.payload());
+                write!(f, "{actor}: {command} to {}", frame.dest)?;
+                match refused {
+                    None => f.write_str(" accepted"),
+                    Some(reason) => write!(f, " refused: {}", reason.undelivered().describe()),
+                }
+            }
             RouterEvent::IssuedStop {
                 link,
                 dest,
@@ -532,6 +552,7 @@ mod tests {
         let link = |name: &str| crate::Holder::Link {
             name: name.to_owned(),
             priority: 50,
+            via: None,
         };
         let control = |holder: Option<crate::Holder>, from: Option<crate::Holder>| RouterEvent::Control {
             port: 1,

@@ -58,7 +58,8 @@ fn a_lower_link_is_refused_while_a_higher_one_holds_control_but_its_stops_and_qu
         holder(&r),
         Some(Holder::Link {
             name: "ops".into(),
-            priority: 80
+            priority: 80,
+            via: None,
         })
     );
     let before = r.now;
@@ -120,7 +121,8 @@ fn control_lapses_hold_after_the_holders_last_command_and_a_dropped_connection_k
         holder(&r),
         Some(Holder::Link {
             name: "vms".into(),
-            priority: 50
+            priority: 50,
+            via: None,
         })
     );
 }
@@ -146,7 +148,8 @@ fn a_higher_link_takes_over_and_the_bus_sees_the_stop_before_its_motion() {
         holder(&r),
         Some(Holder::Link {
             name: "ops".into(),
-            priority: 80
+            priority: 80,
+            via: None,
         })
     );
     assert_eq!(r.router.governance_stats().takeovers, 1);
@@ -189,6 +192,7 @@ fn release_is_allowed_from_the_holders_priority_or_higher() {
                 ControllerReply::Link {
                     priority: 80,
                     name: b"ops",
+                    via: b"",
                     yours,
                 }
             ))
@@ -458,7 +462,8 @@ fn reload_applies_changed_rules_as_a_difference() {
         holder(&r),
         Some(Holder::Link {
             name: "ops".into(),
-            priority: 80
+            priority: 80,
+            via: None,
         }),
         "control kept"
     );

@@ -592,7 +592,7 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
                 .filter_map(|g| g.holder)
                 .collect();
             let refused_by_model = held.iter().any(|h| match h {
-                sagebrush_gcu::Holder::Link { name, priority } if name != c.name => match release {
+                sagebrush_gcu::Holder::Link { name, priority, .. } if name != c.name => match release {
                     true => c.priority <= *priority,
                     false => changes && c.priority <= *priority,
                 },

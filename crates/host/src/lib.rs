@@ -24,4 +24,5 @@ pub mod sim_line;
 pub mod stdio;
 pub mod throttle;
 pub mod timing;
+pub mod tls;
 pub mod transport;

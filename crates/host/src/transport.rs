@@ -95,6 +95,8 @@ pub fn tune_tcp(stream: &TcpStream) -> io::Result<()> {
 pub enum SerialOrTcp {
     Serial(SerialStream),
     Tcp(TcpStream),
+    /// gcud's client listener over TLS (module `tls`).
+    Tls(Box<crate::tls::client::TlsStream<TcpStream>>),
 }
 
 impl SerialOrTcp {
@@ -106,6 +108,10 @@ impl SerialOrTcp {
                 Ok(a) => format!("tcp {a}"),
                 Err(_) => "tcp".into(),
             },
+            SerialOrTcp::Tls(t) => match t.get_ref().0.peer_addr() {
+                Ok(a) => format!("tls {a}"),
+                Err(_) => "tls".into(),
+            },
         }
     }
 }
@@ -115,6 +121,7 @@ impl AsyncRead for SerialOrTcp {
         match self.get_mut() {
             SerialOrTcp::Serial(s) => Pin::new(s).poll_read(cx, buf),
             SerialOrTcp::Tcp(t) => Pin::new(t).poll_read(cx, buf),
+            SerialOrTcp::Tls(t) => Pin::new(t.as_mut()).poll_read(cx, buf),
         }
     }
 }
@@ -124,6 +131,7 @@ impl AsyncWrite for SerialOrTcp {
         match self.get_mut() {
             SerialOrTcp::Serial(s) => Pin::new(s).poll_write(cx, buf),
             SerialOrTcp::Tcp(t) => Pin::new(t).poll_write(cx, buf),
+            SerialOrTcp::Tls(t) => Pin::new(t.as_mut()).poll_write(cx, buf),
         }
     }
 
@@ -131,6 +139,7 @@ impl AsyncWrite for SerialOrTcp {
         match self.get_mut() {
             SerialOrTcp::Serial(s) => Pin::new(s).poll_flush(cx),
             SerialOrTcp::Tcp(t) => Pin::new(t).poll_flush(cx),
+            SerialOrTcp::Tls(t) => Pin::new(t.as_mut()).poll_flush(cx),
         }
     }
 
@@ -138,6 +147,7 @@ impl AsyncWrite for SerialOrTcp {
         match self.get_mut() {
             SerialOrTcp::Serial(s) => Pin::new(s).poll_shutdown(cx),
             SerialOrTcp::Tcp(t) => Pin::new(t).poll_shutdown(cx),
+            SerialOrTcp::Tls(t) => Pin::new(t.as_mut()).poll_shutdown(cx),
         }
     }
 }

@@ -8,8 +8,9 @@
 //! ```text
 //! ~R PPDD        release control of local gimbal PP.DD   ACK, or a delivery report (not in control)
 //! ~C PPDD        who controls it                         result ~C PPDD then '-' (nobody),
-//!                                                        'L' PR name (a link of priority PR; 'Y' when it is the
-//!                                                        asking link), 'T' name (a tour), 'K' (park)
+//!                                                        'L' PR name ['/' via] (a principal or link of priority PR,
+//!                                                        and the tool or link it came through; 'Y' when it is
+//!                                                        the asking connection's), 'T' name (a tour), 'K' (park)
 //! ~T+name        start a tour                            result ~T S [holder]: S = 'R' running,
 //! ~T-name        stop a tour                                     'W' waiting for the holder named, 'S' stopped
 //! ~T?            list the tours                          result ~L name=S,name=S,...   (as many as fit)
@@ -18,6 +19,9 @@
 //!                                                        'Z' panlo panhi tiltlo tilthi (a keep-out zone)
 //! ~W             end-of-window reports on this link      result ~W= ([`WINDOW_REPORTS_ON`]); NIC where
 //!                                                        the GCU does not send them (1.4.2's NIC window)
+//! ~U name        this connection's next commands act     ACK; a delivery report `16` (not permitted) from a
+//! ~U             for user `name` (`~U` alone: for the    connection whose principal may not act for users
+//!                door itself), ARCHITECTURE "Principals"
 //! ```
 //! `PP`, `DD` and `PR` are two upper-case hex digits; names are 1..=32
 //! bytes of `A-Z a-z 0-9 _ -`. An unknown tour is answered NIC; `~C` of a
@@ -69,6 +73,9 @@ pub enum GcuCommand<'a> {
     /// no answer (1.4.2: no NIC within the window, no result), send the
     /// delivery report `00` once the GCU's own window passed.
     WindowReports,
+    /// `~U name`: the connection's next commands act for this user of the
+    /// door (`None`, `~U` alone: for the door itself).
+    ActFor(Option<&'a [u8]>),
 }
 
 impl<'a> GcuCommand<'a> {
@@ -87,6 +94,8 @@ impl<'a> GcuCommand<'a> {
             [GCU_MARK, b'T', b'?'] => Some(GcuCommand::TourList),
             [GCU_MARK, b'B', rest @ ..] => address(rest).map(|(p, d)| GcuCommand::Rules(p, d)),
             [GCU_MARK, b'W'] => Some(GcuCommand::WindowReports),
+            [GCU_MARK, b'U'] => Some(GcuCommand::ActFor(None)),
+            [GCU_MARK, b'U', name @ ..] if valid_name(name) => Some(GcuCommand::ActFor(Some(name))),
             _ => None,
         }
     }
@@ -116,6 +125,12 @@ impl<'a> GcuCommand<'a> {
             }
             GcuCommand::TourList => w.put(b"T?")?,
             GcuCommand::WindowReports => w.put(b"W")?,
+            GcuCommand::ActFor(name) => {
+                w.put(b"U")?;
+                if let Some(name) = name {
+                    w.put(name)?;
+                }
+            }
             GcuCommand::Rules(p, d) => {
                 w.put(b"B")?;
                 w.hex(p)?;
@@ -125,9 +140,9 @@ impl<'a> GcuCommand<'a> {
         Some(w.len)
     }
 
-    /// Whether a result frame follows the ACK (every command but `~R`).
+    /// Whether a result frame follows the ACK (every command but `~R` and `~U`).
     pub fn has_result(&self) -> bool {
-        !matches!(self, GcuCommand::Release(..))
+        !matches!(self, GcuCommand::Release(..) | GcuCommand::ActFor(_))
     }
 }
 
@@ -137,12 +152,16 @@ impl<'a> GcuCommand<'a> {
 pub enum ControllerReply<'a> {
     /// Nobody holds control.
     Nobody,
-    /// A configured link of this priority and name.
+    /// A principal (or, on a link without principals, the configured
+    /// link) of this priority and name.
     Link {
-        /// The link's priority, 0..=100.
+        /// Its priority, 0..=100.
         priority: u8,
-        /// The link's configured name.
+        /// The principal's name, or the link's.
         name: &'a [u8],
+        /// The tool or link the principal's commands came through (empty:
+        /// a link without principals).
+        via: &'a [u8],
         /// The link that asked holds it (`Y` in place of `L`): a client
         /// tells its own link's control from another's without knowing
         /// the name gcud gives its link.
@@ -163,10 +182,19 @@ impl<'a> ControllerReply<'a> {
         w.hex(device)?;
         match *self {
             ControllerReply::Nobody => w.put(b"-")?,
-            ControllerReply::Link { priority, name, yours } => {
+            ControllerReply::Link {
+                priority,
+                name,
+                via,
+                yours,
+            } => {
                 w.put(if yours { b"Y" } else { b"L" })?;
                 w.hex(priority)?;
                 w.put(name)?;
+                if !via.is_empty() {
+                    w.put(b"/")?;
+                    w.put(via)?;
+                }
             }
             ControllerReply::Tour(name) => {
                 w.put(b"T")?;
@@ -183,11 +211,21 @@ impl<'a> ControllerReply<'a> {
         let (p, d) = address(rest.get(..4)?)?;
         let reply = match rest.get(4..)? {
             [b'-'] => ControllerReply::Nobody,
-            [which @ (b'L' | b'Y'), h, l, name @ ..] if valid_name(name) => ControllerReply::Link {
-                priority: (hex_value(*h)? << 4) | hex_value(*l)?,
-                name,
-                yours: *which == b'Y',
-            },
+            [which @ (b'L' | b'Y'), h, l, named @ ..] => {
+                let (name, via) = match named.iter().position(|&b| b == b'/') {
+                    Some(at) => (&named[..at], &named[at + 1..]),
+                    None => (named, &[][..]),
+                };
+                if !valid_name(name) || !(via.is_empty() || valid_name(via)) {
+                    return None;
+                }
+                ControllerReply::Link {
+                    priority: (hex_value(*h)? << 4) | hex_value(*l)?,
+                    name,
+                    via,
+                    yours: *which == b'Y',
+                }
+            }
             [b'T', name @ ..] if valid_name(name) => ControllerReply::Tour(name),
             [b'K'] => ControllerReply::Park,
             _ => return None,
@@ -467,6 +505,8 @@ mod tests {
             GcuCommand::TourList,
             GcuCommand::Rules(2, 0xFE),
             GcuCommand::WindowReports,
+            GcuCommand::ActFor(Some(b"alice")),
+            GcuCommand::ActFor(None),
         ] {
             let (buf, n) = encoded(c);
             assert_eq!(GcuCommand::parse(&buf[..n]), Some(c));
@@ -487,6 +527,8 @@ mod tests {
             b"~B01",
             b"~B0101=",
             b"~B0101P",
+            b"~Ua b",
+            b"~U/alice",
         ] {
             assert_eq!(GcuCommand::parse(bad), None, "{bad:?}");
         }
@@ -505,12 +547,20 @@ mod tests {
             ControllerReply::Link {
                 priority: 80,
                 name: b"operators",
+                via: b"",
                 yours: false,
             },
             ControllerReply::Link {
                 priority: 50,
                 name: b"doors",
+                via: b"",
                 yours: true,
+            },
+            ControllerReply::Link {
+                priority: 80,
+                name: b"alice",
+                via: b"gimbal-web",
+                yours: false,
             },
             ControllerReply::Tour(b"perimeter"),
             ControllerReply::Park,

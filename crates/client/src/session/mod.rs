@@ -97,8 +97,8 @@ const STOP_ATTEMPTS_ANSWERED: u32 = 2;
 /// A door's way to gcud, shared by the sessions of all its gimbals.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GcudLink {
-    /// gcud's client listener, `host:port`.
-    pub gcud: String,
+    /// gcud's client listener: `host:port`, or `tls://host:port` with its files.
+    pub gcud: sagebrush_host::tls::Endpoint,
     /// The source group of the commands.
     pub from: u8,
     /// How long after gcud's ACK a NIC may come (1.4.2).
@@ -106,8 +106,12 @@ pub struct GcudLink {
 }
 
 impl GcudLink {
-    pub fn new(gcud: String, from: u8, nic_window: Duration) -> Self {
-        Self { gcud, from, nic_window }
+    pub fn new(gcud: impl Into<sagebrush_host::tls::Endpoint>, from: u8, nic_window: Duration) -> Self {
+        Self {
+            gcud: gcud.into(),
+            from,
+            nic_window,
+        }
     }
 }
 
@@ -144,7 +148,7 @@ impl GimbalSession {
     /// The task ends after [`GimbalSession::shutdown`].
     pub fn start(config: SessionConfig, reach: Arc<GcudReachability>) -> Arc<Self> {
         let link = &config.link;
-        let connection = GimbalConnection::new(&link.gcud, link.from, config.address, link.nic_window);
+        let connection = GimbalConnection::new(link.gcud.clone(), link.from, config.address, link.nic_window);
         let session = Arc::new(Self {
             config,
             state: Mutex::new(State::default()),

@@ -9,8 +9,14 @@ use std::sync::Arc;
 /// Who holds a gimbal, as `/status` and the GCU command `~C` show it.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Holder {
-    /// A configured link (its name, or `link-N` for a link with none).
-    Link { name: String, priority: u8 },
+    /// A principal, or a configured link without principals (its name,
+    /// or `link-N` for a link with none); `via`: the tool or link a
+    /// principal's commands came through (module `principal`).
+    Link {
+        name: String,
+        priority: u8,
+        via: Option<String>,
+    },
     /// gcud's tour of this name.
     Tour(String),
     /// gcud's park.
@@ -20,7 +26,16 @@ pub enum Holder {
 impl std::fmt::Display for Holder {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            Holder::Link { name, priority } => write!(f, "link {name} (priority {priority})"),
+            Holder::Link {
+                name,
+                priority,
+                via: None,
+            } => write!(f, "link {name} (priority {priority})"),
+            Holder::Link {
+                name,
+                priority,
+                via: Some(via),
+            } => write!(f, "{name} via {via} (priority {priority})"),
             Holder::Tour(name) => write!(f, "tour {name}"),
             Holder::Park => f.write_str("park"),
         }
@@ -33,6 +48,7 @@ pub(crate) enum Who {
     Link {
         key: Arc<str>,
         priority: u8,
+        via: Option<Arc<str>>,
     },
     /// The tour of this name.
     Tour(Arc<str>),
@@ -40,9 +56,22 @@ pub(crate) enum Who {
 }
 
 impl Who {
-    /// The same controller (one configured link, whatever its connection).
+    /// The same controller (one principal whatever its tool, one
+    /// configured link whatever its connection).
     pub fn same(&self, other: &Who) -> bool {
-        self == other
+        match (self, other) {
+            (Who::Link { key: mine, .. }, Who::Link { key: theirs, .. }) => mine == theirs,
+            _ => self == other,
+        }
+    }
+
+    /// The governor's holder for `actor`.
+    pub fn of(actor: &super::Actor) -> Self {
+        Who::Link {
+            key: actor.name.clone(),
+            priority: actor.priority,
+            via: actor.via.clone(),
+        }
     }
 
     /// Whether `self` takes control from `other`: a link of higher
@@ -57,9 +86,10 @@ impl Who {
 
     pub fn view(&self) -> Holder {
         match self {
-            Who::Link { key, priority } => Holder::Link {
+            Who::Link { key, priority, via } => Holder::Link {
                 name: key.to_string(),
                 priority: *priority,
+                via: via.as_deref().map(str::to_string),
             },
             Who::Tour(name) => Holder::Tour(name.to_string()),
             Who::Park => Holder::Park,
@@ -89,6 +119,7 @@ mod tests {
         Who::Link {
             key: Arc::from(name),
             priority,
+            via: None,
         }
     }
 

@@ -15,17 +15,18 @@ mod follow;
 mod judge;
 mod knowledge;
 mod noting;
+pub mod principal;
 pub mod rules;
 mod tour;
 mod travel;
 mod validate;
 
 use std::collections::BTreeMap;
-use std::sync::Arc;
 
 use sagebrush_protocol::{Address, Describes, MountEffect, Position, WILDCARD};
 
 pub use control::Holder;
+pub use principal::{Actor, Principal};
 pub use sagebrush_protocol::TourState;
 pub use validate::GovernanceError;
 
@@ -64,14 +65,6 @@ pub struct TourStatus {
     pub step: usize,
     /// Whom it waits for, when waiting.
     pub waiting_for: Option<Holder>,
-}
-
-/// Who a link is to the governor: its configured name (every connection
-/// accepted on one listener is the same link) and priority.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub(crate) struct LinkIdentity {
-    pub key: Arc<str>,
-    pub priority: u8,
 }
 
 /// A command the governor issues itself, for the router to dispatch.
@@ -238,6 +231,11 @@ impl Governor {
         self.config.tours_min_priority
     }
 
+    /// The principal gcud knows by `name` (`[[principal]]`).
+    pub fn principal(&self, name: &[u8]) -> Option<&Principal> {
+        self.config.principals.iter().find(|p| p.name.as_bytes() == name)
+    }
+
     /// The rules of gimbal `at` (port, device), if it has any.
     pub fn rules(&self, at: (u8, u8)) -> Option<&GimbalRules> {
         self.config.gimbals.iter().find(|r| (r.port, r.device) == at)
@@ -329,7 +327,7 @@ impl Governor {
         &mut self,
         now: u64,
         id: CommandId,
-        who: &LinkIdentity,
+        who: &Actor,
         dest: Address,
         facts: &CommandFacts,
         known_devices: &[(u8, u8)],
@@ -343,17 +341,14 @@ impl Governor {
         if let MountEffect::Reads(_) = effect {
             if dest.port != WILDCARD && dest.device != WILDCARD {
                 if let Some(g) = self.gimbals.get_mut(&(dest.port, dest.device)) {
-                    g.renewed(now, hold, &who.key);
+                    g.renewed(now, hold, &who.name);
                 }
             }
             return Decision::Pass(Verdict::default());
         }
         let targets = self.targets(dest, known_devices);
         let targets = targets.as_slice();
-        let me = Who::Link {
-            key: who.key.clone(),
-            priority: who.priority,
-        };
+        let me = Who::of(who);
         if let MountEffect::Stop { pan, tilt } = effect {
             return self.on_stop(now, &me, targets, pan, tilt);
         }
@@ -608,14 +603,14 @@ impl Governor {
     /// `who` releases `at` (`~R`): allowed from the holder's link or one of
     /// higher priority (an equal one could free a holder it cannot take
     /// over from, and take control with its next command).
-    pub fn release(&mut self, now: u64, who: &LinkIdentity, at: (u8, u8)) -> Result<(), DropReason> {
+    pub fn release(&mut self, now: u64, who: &Actor, at: (u8, u8)) -> Result<(), DropReason> {
         let hold = self.config.hold;
         let Some(g) = self.gimbals.get_mut(&at) else {
             return Ok(());
         };
         let Some(h) = g.held(now, hold) else { return Ok(()) };
         let allowed = match &h.who {
-            Who::Link { key, priority } => *key == who.key || who.priority > *priority,
+            Who::Link { key, priority, .. } => *key == who.name || who.priority > *priority,
             Who::Tour(_) | Who::Park => true,
         };
         if !allowed {
@@ -678,7 +673,7 @@ impl Governor {
     pub fn set_priority(&mut self, name: &str, priority: u8) {
         for g in self.gimbals.values_mut() {
             if let Some(Held {
-                who: Who::Link { key, priority: p },
+                who: Who::Link { key, priority: p, .. },
                 ..
             }) = g.holder.as_mut()
             {

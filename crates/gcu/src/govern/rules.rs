@@ -25,6 +25,9 @@ pub struct Governance {
     /// The lowest link priority that may start or stop a tour (`~T`);
     /// `None`: any link (gcud sets the highest of its links' priorities).
     pub tours_min_priority: Option<u8>,
+    /// The persons and tools gcud knows (`[[principal]]`): a door's user
+    /// of this name is governed as it (ARCHITECTURE "Principals").
+    pub principals: Vec<super::Principal>,
 }
 
 impl Default for Governance {
@@ -34,6 +37,7 @@ impl Default for Governance {
             gimbals: Vec::new(),
             tours: Vec::new(),
             tours_min_priority: None,
+            principals: Vec::new(),
         }
     }
 }

@@ -44,6 +44,7 @@ impl Router {
             id,
             InFlight {
                 origin,
+                who: origin.link().and_then(|link| self.identity(link)),
                 command: command.clone(),
                 delivery: origin.link().map(|_| match kind {
                     Some(LinkKind::Client) => Delivery::Client {
@@ -99,9 +100,26 @@ impl Router {
         let Some(c) = self.in_flight.get(&id) else { return };
         let f = c.command.frame.frame();
         let (dest, source) = (f.dest, f.source);
+        self.audit(id, Some(reason), out);
         self.drop_frame(reason, Place::Router, dest, source, out);
         self.finish(id, CommandOutcome::Dropped(reason), out);
         self.resolve(now, id, Err(reason.undelivered()), self.group, out);
+    }
+
+    /// The audit line of command `id` from a link, when it moves or
+    /// changes a gimbal (not a query): who sent it, and whether the
+    /// governance let it through or refused it (`refused`).
+    pub(super) fn audit(&self, id: CommandId, refused: Option<DropReason>, out: &mut Outbox) {
+        let Some(c) = self.in_flight.get(&id) else { return };
+        let Some(actor) = c.who.clone() else { return };
+        if matches!(c.command.facts.mount, sagebrush_protocol::MountEffect::Reads(_)) {
+            return;
+        }
+        out.push(Action::Event(RouterEvent::Motion {
+            actor,
+            frame: Box::new(c.command.frame.clone()),
+            refused,
+        }));
     }
 
     /// Routes command `id` that the governance let through (or that it

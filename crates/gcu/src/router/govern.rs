@@ -14,7 +14,7 @@ use sagebrush_protocol::{Address, Command, Describes, Frame, FrameBuf, GcuComman
 
 use crate::boundary::Action;
 use crate::command::ReadCommand;
-use crate::govern::{Decision, Holder, LinkIdentity, Order};
+use crate::govern::{Actor, Decision, Holder, Order};
 use crate::outbox::Outbox;
 use crate::types::{CommandId, CommandOutcome, DropReason, LinkId, Origin, Place, StopCause};
 
@@ -33,13 +33,43 @@ pub(super) enum Governed {
 }
 
 impl Router {
-    /// Who `link` is to the governor: its configured link, or itself.
-    fn identity(&self, link: LinkId) -> Option<LinkIdentity> {
-        let config = &self.links.get(&link)?.config;
-        Some(LinkIdentity {
-            key: config.name.clone().unwrap_or_else(|| Arc::from("")),
-            priority: config.priority,
-        })
+    /// Who `link`'s next command is from (module `govern::principal`):
+    /// the user its door acts for, its principal, or the link itself.
+    pub(super) fn identity(&self, link: LinkId) -> Option<Actor> {
+        let l = self.links.get(&link)?;
+        if let Some(acting) = &l.acting {
+            return Some(acting.clone());
+        }
+        let config = &l.config;
+        let name = config.name.clone().unwrap_or_else(|| Arc::from(""));
+        Some(Actor::of_connection(&name, config.priority, config.principal.as_ref()))
+    }
+
+    /// `~U`: `link`'s next commands act for `user` (`None`: for the door
+    /// itself). Only a principal that `acts_for_users` may say so.
+    fn act_for(&mut self, link: LinkId, user: Option<&[u8]>) -> Result<(), DropReason> {
+        let Some(l) = self.links.get(&link) else {
+            return Err(DropReason::OriginGone);
+        };
+        if !l.config.principal.as_ref().is_some_and(|p| p.acts_for_users) {
+            return Err(DropReason::NotPermitted);
+        }
+        let acting = match user {
+            None => None,
+            Some(user) => {
+                let door = Actor::of_connection(
+                    &l.config.name.clone().unwrap_or_else(|| Arc::from("")),
+                    l.config.priority,
+                    l.config.principal.as_ref(),
+                );
+                let name: Arc<str> = Arc::from(String::from_utf8_lossy(user));
+                Some(door.acting_for(&name, self.governor.principal(user)))
+            }
+        };
+        if let Some(l) = self.links.get_mut(&link) {
+            l.acting = acting;
+        }
+        Ok(())
     }
 
     /// Puts command `id` from `link` for a local gimbal to the governor. A
@@ -56,7 +86,7 @@ impl Router {
     ) -> Governed {
         let facts = &command.facts;
         let dest = command.frame.frame().dest;
-        let Some(who) = self.identity(link) else {
+        let Some(who) = self.in_flight.get(&id).and_then(|c| c.who.clone()) else {
             return Governed::Pass;
         };
         if facts.stop {
@@ -81,6 +111,7 @@ impl Router {
             Decision::Refuse(reason) => return Governed::Refused(reason),
             Decision::Learn(why) => return Governed::Waits(why),
         };
+        self.audit(id, None, out);
         if !verdict.relearn.is_empty() {
             if let Some(c) = self.in_flight.get_mut(&id) {
                 c.note.relearn = verdict.relearn;
@@ -257,19 +288,27 @@ impl Router {
                     }
                 };
             }
+            GcuCommand::ActFor(user) => {
+                let outcome = self.act_for(link, user);
+                if let Err(reason) = outcome {
+                    self.drop_frame(reason, Place::Router, frame.dest, frame.source, out);
+                }
+                self.resolve(now, id, outcome.map_err(|r| r.undelivered()), self.group, out);
+                return match outcome {
+                    Ok(()) => CommandOutcome::Completed,
+                    Err(reason) => CommandOutcome::Dropped(reason),
+                };
+            }
             GcuCommand::Controller(port, device) => {
                 let holder = self.governor.holder(now, (port, device));
-                let (name, reply);
-                reply = match &holder {
+                let reply = match &holder {
                     None => ControllerReply::Nobody,
-                    Some(Holder::Link { name: n, priority }) => {
-                        name = n.clone();
-                        ControllerReply::Link {
-                            priority: *priority,
-                            name: clip(name.as_bytes()),
-                            yours: self.identity(link).is_some_and(|me| *me.key == *name),
-                        }
-                    }
+                    Some(Holder::Link { name, priority, via }) => ControllerReply::Link {
+                        priority: *priority,
+                        name: clip(name.as_bytes()),
+                        via: via.as_deref().map_or(&[][..], |v| clip(v.as_bytes())),
+                        yours: self.identity(link).is_some_and(|me| *me.name == **name),
+                    },
                     Some(Holder::Tour(n)) => ControllerReply::Tour(clip(n.as_bytes())),
                     Some(Holder::Park) => ControllerReply::Park,
                 };
@@ -341,7 +380,7 @@ impl Router {
                 .tours_min_priority()
                 .is_none_or(|least| config.priority >= least),
             GcuCommand::Rules(..) | GcuCommand::Controller(..) => config.may_read_rules,
-            GcuCommand::Release(..) | GcuCommand::WindowReports | GcuCommand::TourList => true,
+            GcuCommand::Release(..) | GcuCommand::WindowReports | GcuCommand::TourList | GcuCommand::ActFor(_) => true,
         }
     }
 

@@ -12,7 +12,7 @@ use sagebrush_protocol::{Address, MountEffect, WILDCARD};
 
 use crate::command::CommandFacts;
 use crate::config::LinkKind;
-use crate::govern::LinkIdentity;
+use crate::govern::Actor;
 use crate::outbox::Outbox;
 use crate::types::{CommandId, DropReason, Origin};
 
@@ -99,19 +99,21 @@ impl Router {
     /// does not wait behind them (the governance simulation: a jog of the
     /// highest link waited behind a lower link's goto and was refused for
     /// want of time to learn the rate).
-    pub(super) fn outrank_waiting(&mut self, now: u64, dest: Address, who: &LinkIdentity, out: &mut Outbox) {
+    pub(super) fn outrank_waiting(&mut self, now: u64, dest: Address, who: &Actor, out: &mut Outbox) {
         if self.waiting.is_empty() {
             return;
         }
-        let below: Vec<crate::types::LinkId> = self
-            .links
+        let below: Vec<CommandId> = self
+            .waiting
             .iter()
-            .filter(|(_, l)| l.config.priority < who.priority)
-            .map(|(&id, _)| id)
+            .filter(|w| overlap(w.dest, dest))
+            .filter(|w| {
+                let sender = self.in_flight.get(&w.id).and_then(|c| c.who.as_ref());
+                sender.is_some_and(|s| s.priority < who.priority)
+            })
+            .map(|w| w.id)
             .collect();
-        let outranked = |w: &Waiting, origin: Option<Origin>| {
-            overlap(w.dest, dest) && origin.and_then(|o| o.link()).is_some_and(|l| below.contains(&l))
-        };
+        let outranked = |w: &Waiting, _: Option<Origin>| below.contains(&w.id);
         self.give_up_waiting(now, outranked, DropReason::NotInControl, out);
     }
 
