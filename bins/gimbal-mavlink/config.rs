@@ -11,10 +11,12 @@ use std::time::Duration;
 
 use sagebrush_protocol::Address;
 use sagebrush_service::config_file::{self, ConfigError, Int, Millis, Source};
+use sagebrush_service::endpoint::{Host, HostPort};
 use serde::Deserialize;
 use toml::Spanned;
 
 use crate::earth::Place;
+use crate::signing::Key;
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -42,6 +44,18 @@ struct ConfigFile {
     endpoints: Vec<EndpointSection>,
     #[serde(default, rename = "gimbal")]
     gimbals: Vec<GimbalSection>,
+    signing: Option<SigningSection>,
+}
+
+/// `[signing]`: MAVLink 2 message signing.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SigningSection {
+    /// The 32-byte secret key as 64 hexadecimal digits (`signing::Key`).
+    key_file: Spanned<String>,
+    /// The link id of the frames this door signs.
+    #[serde(default)]
+    link_id: Int<u8, 0, 255>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -101,6 +115,13 @@ pub struct Gimbal {
     pub mount_heading_deg: Option<f64>,
 }
 
+/// `[signing]`: the key, and the link id this door signs with.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SigningKey {
+    pub key: Key,
+    pub link_id: u8,
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct Config {
     /// gcud, this door's source group and NIC window.
@@ -120,6 +141,11 @@ pub struct Config {
     /// warns of one absent now).
     pub serial_places: Vec<(PathBuf, String)>,
     pub gimbals: Vec<Gimbal>,
+    /// Signing on: only frames signed with this key are read.
+    pub signing: Option<SigningKey>,
+    /// What `--check` warns of in the file itself: an endpoint off
+    /// loopback without signing, a key file others may read.
+    pub notes: Vec<String>,
 }
 
 impl Gimbal {
@@ -144,7 +170,12 @@ impl sagebrush_service::door::Checked for Config {
     }
 
     fn warnings(&self) -> Vec<String> {
-        config_file::absent_serial_devices(&self.serial_places, "gimbal-mavlink")
+        let mut warnings = self.notes.clone();
+        warnings.extend(config_file::absent_serial_devices(
+            &self.serial_places,
+            "gimbal-mavlink",
+        ));
+        warnings
     }
 }
 
@@ -165,6 +196,10 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         None => Duration::from_millis(200),
     };
     let (endpoints, serial_places) = endpoints(&c, &raw.endpoints)?;
+    let (signing, mut notes) = signing(&c, raw.signing.as_ref())?;
+    if signing.is_none() {
+        notes.extend(unsigned_off_loopback(&c, &raw.endpoints));
+    }
     let mut gimbals: Vec<Gimbal> = Vec::new();
     for (i, g) in raw.gimbals.iter().enumerate() {
         let key = format!("gimbal[{i}]");
@@ -225,7 +260,67 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         endpoints,
         serial_places,
         gimbals,
+        signing,
+        notes,
     })
+}
+
+/// `[signing]`: the key read from `key_file` (its place named in every
+/// error, its text never quoted), and a warning when others may read it.
+fn signing(c: &Source, raw: Option<&SigningSection>) -> Result<(Option<SigningKey>, Vec<String>), ConfigError> {
+    let Some(raw) = raw else {
+        return Ok((None, Vec::new()));
+    };
+    let path = raw.key_file.get_ref();
+    let at = |message: String| c.at(raw.key_file.span(), "signing.key_file", format!("{path}: {message}"));
+    let text = config_file::read(Path::new(path)).map_err(|e| at(e.message))?;
+    let key = Key::parse(&text).map_err(at)?;
+    let mut notes = Vec::new();
+    if let Ok(meta) = std::fs::metadata(path) {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = meta.permissions().mode() & 0o777;
+        if mode & 0o077 != 0 {
+            notes.push(format!(
+                "{}: {path} may be read by others than its owner (mode {mode:03o}): chmod 600 it, or hand it over with systemd's LoadCredential",
+                c.place(raw.key_file.span(), "signing.key_file")
+            ));
+        }
+    }
+    let link_id = raw.link_id.get();
+    Ok((Some(SigningKey { key, link_id }), notes))
+}
+
+/// `--check`'s warnings without `[signing]`: each endpoint that listens or
+/// connects off loopback (not 127.0.0.0/8, ::1 or localhost), where anyone
+/// who reaches it may command the gimbals.
+fn unsigned_off_loopback(c: &Source, sections: &[EndpointSection]) -> Vec<String> {
+    let mut notes = Vec::new();
+    for (i, e) in sections.iter().enumerate() {
+        let given = [
+            ("udp_listen", &e.udp_listen),
+            ("tcp_listen", &e.tcp_listen),
+            ("udp", &e.udp),
+            ("tcp", &e.tcp),
+        ];
+        for (kind, value) in given {
+            let Some(value) = value else { continue };
+            let text = value.get_ref();
+            let loopback = match kind {
+                "udp_listen" | "tcp_listen" => text.parse::<SocketAddr>().is_ok_and(|a| a.ip().is_loopback()),
+                _ => text.parse::<HostPort>().is_ok_and(|h| match h.host {
+                    Host::Ip(ip) => ip.is_loopback(),
+                    Host::Name(name) => name.eq_ignore_ascii_case("localhost"),
+                }),
+            };
+            if !loopback {
+                notes.push(format!(
+                    "{}: {text} is off loopback and [signing] is not set: whoever reaches it may move the gimbals; set [signing] key_file, or use 127.0.0.1",
+                    c.place(value.span(), &format!("endpoint[{i}].{kind}"))
+                ));
+            }
+        }
+    }
+    notes
 }
 
 /// Each serial endpoint's device and its place in the file.

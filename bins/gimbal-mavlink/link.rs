@@ -7,7 +7,8 @@
 //! address takes the slot of the one silent the longest, and only if that
 //! one has been silent for [`PEER_IDLE`]: a flood of fresh source ports
 //! cannot push out a ground station that is heard (its heartbeats), its
-//! datagrams are dropped and counted (`udp_refused`).
+//! datagrams are dropped and counted (`udp_refused`). With signing on, only
+//! a datagram with a frame signed with the key takes or keeps a slot.
 
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -21,9 +22,10 @@ use tracing::{debug, warn};
 use crate::config::Endpoint;
 use crate::control::Sender;
 use crate::net::{Net, Peer, Screened};
+use crate::signing::Signing;
 use crate::stats::{Stats, may_warn};
 use crate::stream::Streams;
-use crate::wire::decode_datagram;
+use crate::wire;
 
 /// The most peers a listening endpoint answers.
 pub const MAX_PEERS: usize = 16;
@@ -101,8 +103,9 @@ pub struct Outbox {
 }
 
 impl Outbox {
-    /// Binds every UDP endpoint (the TCP ones are `stream`'s).
-    pub async fn bind(system_id: u8, endpoints: &[Endpoint]) -> Result<Arc<Self>, String> {
+    /// Binds every UDP endpoint (the TCP ones are `stream`'s); signs and
+    /// checks with `signing` when given.
+    pub async fn bind(system_id: u8, endpoints: &[Endpoint], signing: Option<Signing>) -> Result<Arc<Self>, String> {
         let mut ports = Vec::new();
         for (i, e) in endpoints.iter().enumerate() {
             let (bind, fixed) = match e {
@@ -138,7 +141,7 @@ impl Outbox {
                 peers: Mutex::default(),
             });
         }
-        let net = Arc::new(Net::new(system_id));
+        let net = Arc::new(Net::new(system_id, signing));
         Ok(Arc::new(Self {
             started: Instant::now(),
             ports,
@@ -227,9 +230,17 @@ impl Outbox {
                     continue;
                 }
             };
-            let frames = decode_datagram(&buf[..n]);
-            if frames.is_empty() {
+            let mut intact = false;
+            let frames: Vec<&[u8]> = wire::frames(&buf[..n])
+                .inspect(|_| intact = true)
+                .filter(|frame| self.net.admits(frame, &from, &stats))
+                .collect();
+            if !intact {
                 stats.damaged(&from, n);
+                continue;
+            }
+            if frames.is_empty() {
+                // Refused for their signatures (counted, logged): no slot.
                 continue;
             }
             let admitted = match port.fixed {
@@ -253,8 +264,8 @@ impl Outbox {
                 port: index,
                 addr: from,
             };
-            for decoded in frames {
-                match self.net.screen(decoded, peer, &from, &stats) {
+            for frame in frames {
+                match self.net.screen(wire::decode(frame), peer, &from, &stats) {
                     Screened::Handle(header, message) => handle(header, message),
                     Screened::Answer(bytes) => self.send_to(peer, &bytes).await,
                     Screened::Drop => {}

@@ -20,6 +20,7 @@ mod motion;
 mod net;
 mod rates;
 mod reaim;
+mod signing;
 mod stats;
 mod status;
 mod stream;
@@ -46,7 +47,14 @@ fn main() -> ExitCode {
 
 async fn run(config: config::Config) -> Result<(), String> {
     let signals = sagebrush_service::door::Signals::install()?;
-    let outbox = Outbox::bind(config.system_id, &config.endpoints).await?;
+    let signing = (config.signing.clone()).map(|s| signing::Signing::new(s.key, s.link_id));
+    if let Some(s) = &config.signing {
+        info!(
+            link_id = s.link_id,
+            "MAVLink 2 signing on: only frames signed with the key are read"
+        );
+    }
+    let outbox = Outbox::bind(config.system_id, &config.endpoints, signing).await?;
     let stats = Arc::new(Stats::default());
     let mut handles = Vec::new();
     let mut gimbal_tasks = Vec::new();

@@ -5,7 +5,9 @@
 //! MAV_RESULT_UNSUPPORTED, control given to a component never heard
 //! MAV_RESULT_DENIED), and where a message goes: an answer (a COMMAND_ACK,
 //! a requested message) to the peer the asker was heard on, nowhere else;
-//! periodic status to every peer.
+//! periodic status to every peer. With `[signing]`, only frames signed
+//! with the key are read ([`Net::admits`], `signing`), and every frame sent
+//! is signed.
 
 use std::collections::HashMap;
 use std::fmt;
@@ -18,10 +20,11 @@ use mavlink::{MavHeader, Message};
 use tracing::warn;
 
 use crate::control::{self, Heard, Sender};
+use crate::signing::Signing;
 use crate::stats::{Stats, may_warn};
 #[cfg(test)]
 use crate::wire::COMMAND_LONG_ID;
-use crate::wire::{COMMAND_ACK_ID, Decoded, V2_MAGIC};
+use crate::wire::{COMMAND_ACK_ID, Decoded, SIGNED, V2_MAGIC};
 
 /// Where a message was heard, and where an answer goes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -59,16 +62,41 @@ pub struct Net {
     /// Per component, the asker of the MAV_CMD_REQUEST_MESSAGE it just
     /// accepted: the information message that follows goes to it alone.
     requested: Mutex<HashMap<u8, Sender>>,
+    /// The key, when signing is on.
+    signing: Option<Signing>,
 }
 
 impl Net {
-    pub fn new(system_id: u8) -> Self {
+    pub fn new(system_id: u8, signing: Option<Signing>) -> Self {
         Self {
             system_id,
             own: Mutex::default(),
             sequence: Mutex::default(),
             heard: Mutex::default(),
             requested: Mutex::default(),
+            signing,
+        }
+    }
+
+    /// Whether signing is on: only frames signed with the key are read.
+    pub fn signed(&self) -> bool {
+        self.signing.is_some()
+    }
+
+    /// Whether an intact `frame` heard from `from` may be read: any, or
+    /// with signing on one signed with the key and newer than its stream's
+    /// last (a refusal is counted and logged, `signing`). Asked before
+    /// anything else reads the frame.
+    pub fn admits(&self, frame: &[u8], from: &dyn fmt::Display, stats: &Stats) -> bool {
+        let Some(signing) = &self.signing else {
+            return true;
+        };
+        match signing.check(frame) {
+            Ok(()) => true,
+            Err(refusal) => {
+                signing.refused(refusal, frame, from, stats);
+                false
+            }
         }
     }
 
@@ -112,7 +140,7 @@ impl Net {
             sequence: self.next_sequence(component),
         };
         let mut bytes = Vec::with_capacity(64);
-        match mavlink::write_v2_msg(&mut bytes, header, message) {
+        match mavlink::write_v2_msg_signed(&mut bytes, header, message, self.signing.as_ref().map(Signing::data)) {
             Ok(_) => Some(bytes),
             Err(e) => {
                 warn!(message = message.message_name(), error = %e, "cannot encode");
@@ -122,14 +150,15 @@ impl Net {
     }
 
     /// A MAVLink 2 frame of message `id` with `payload` (trailing zeros
-    /// dropped, as MAVLink 2 sends them), from `component`.
+    /// dropped, as MAVLink 2 sends them), from `component`; signed when
+    /// signing is on.
     fn raw_frame(&self, component: u8, id: u32, payload: &[u8]) -> Vec<u8> {
         let len = payload.iter().rposition(|&b| b != 0).map_or(1, |i| i + 1);
         let id = id.to_le_bytes();
         let mut f = vec![
             V2_MAGIC,
             len as u8,
-            0,
+            if self.signed() { SIGNED } else { 0 },
             0,
             self.next_sequence(component),
             self.system_id,
@@ -141,6 +170,9 @@ impl Net {
         f.extend_from_slice(&payload[..len]);
         let crc = mavlink::calculate_crc(&f[1..], MavMessage::extra_crc(COMMAND_ACK_ID));
         f.extend_from_slice(&crc.to_le_bytes());
+        if let Some(signing) = &self.signing {
+            signing.sign(&mut f);
+        }
         f
     }
 
@@ -280,7 +312,7 @@ mod tests {
     }
 
     fn net() -> Net {
-        let net = Net::new(1);
+        let net = Net::new(1, None);
         net.set_components([154]);
         net
     }

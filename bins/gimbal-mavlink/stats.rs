@@ -44,6 +44,11 @@ pub struct Stats {
     pub tcp_evicted: AtomicU64,
     pub tcp_idle_closed: AtomicU64,
     pub tcp_refused: AtomicU64,
+    /// With signing on (`signing`): frames refused unsigned, signed with
+    /// another key, or with a timestamp not newer than their stream's.
+    pub unsigned: AtomicU64,
+    pub bad_signature: AtomicU64,
+    pub stale_signature: AtomicU64,
 }
 
 /// The process's throttle: logging is process-wide, and so is its limit
@@ -80,6 +85,13 @@ fn flush(t: &mut Throttle, now: Instant) {
     }
 }
 
+/// The address part of a peer's name (`IP:PORT`, or a serial device):
+/// where a peer's warnings are counted, whatever its source port.
+pub fn peer_ip(peer: &str) -> &str {
+    peer.parse::<std::net::SocketAddr>()
+        .map_or(peer, |_| peer.rsplit_once(':').map_or(peer, |(ip, _)| ip))
+}
+
 impl Stats {
     pub fn count(counter: &AtomicU64) -> u64 {
         counter.fetch_add(1, Ordering::Relaxed) + 1
@@ -100,7 +112,7 @@ impl Stats {
         format!(
             "received={} damaged={} damaged_bytes={} ignored={} refused={} denied={} failed={} busy={} \
              unsupported={} udp_refused={} tcp_evicted={} tcp_idle_closed={} tcp_refused={} \
-             warnings_suppressed={}",
+             unsigned={} bad_signature={} stale_signature={} warnings_suppressed={}",
             g(&self.received),
             g(&self.damaged),
             g(&self.damaged_bytes),
@@ -114,6 +126,9 @@ impl Stats {
             g(&self.tcp_evicted),
             g(&self.tcp_idle_closed),
             g(&self.tcp_refused),
+            g(&self.unsigned),
+            g(&self.bad_signature),
+            g(&self.stale_signature),
             SUPPRESSED.load(Ordering::Relaxed),
         )
     }

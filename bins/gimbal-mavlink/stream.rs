@@ -7,7 +7,10 @@
 //! own flow control holds the peer back), so a connection never holds
 //! more than that buffer and its write queue, and nothing is left when it
 //! closes. The bytes around intact frames (damaged frames, noise) are
-//! counted as `damaged`, one count per run between frames.
+//! counted as `damaged`, one count per run between frames. With signing
+//! on, a frame not signed with the key is refused before it is read, and
+//! only a frame that passes keeps an accepted connection from idling
+//! (a peer without the key is evicted as an idle one).
 //!
 //! Every message this program sends to everyone goes to every connection
 //! through a bounded queue: a peer that does not read loses messages, it
@@ -40,7 +43,7 @@ use tokio_serial::SerialPortBuilderExt;
 use tracing::{debug, info, warn};
 
 use crate::net::{Net, Peer, Screened};
-use crate::stats::{Stats, may_warn};
+use crate::stats::{Stats, may_warn, peer_ip};
 use crate::wire::{self, MAX_FRAME, Scan};
 
 /// What is done with each intact message that comes in.
@@ -185,9 +188,8 @@ async fn serve<S>(
             Ok(0) | Err(_) => break End::Closed,
             Ok(n) => n,
         };
-        if let Some(k) = key {
-            streams.admission.touch(k, Instant::now());
-        }
+        // Any bytes keep a connection busy; with signing, a frame signed with the key.
+        let mut busy = !streams.net.signed();
         len += n;
         let mut at = 0;
         loop {
@@ -198,13 +200,16 @@ async fn serve<S>(
                         stats.damaged(&peer, run);
                         run = 0;
                     }
-                    let decoded = wire::decode(&buf[at + skip..at + skip + frame]);
-                    match streams.net.screen(decoded, Peer::Stream(id), &peer, &stats) {
-                        Screened::Handle(header, message) => handler(header, message),
-                        Screened::Answer(bytes) => {
-                            let _ = answers.try_send(bytes.into());
+                    let bytes = &buf[at + skip..at + skip + frame];
+                    if streams.net.admits(bytes, &peer, &stats) {
+                        busy = true;
+                        match streams.net.screen(wire::decode(bytes), Peer::Stream(id), &peer, &stats) {
+                            Screened::Handle(header, message) => handler(header, message),
+                            Screened::Answer(bytes) => {
+                                let _ = answers.try_send(bytes.into());
+                            }
+                            Screened::Drop => {}
                         }
-                        Screened::Drop => {}
                     }
                     at += skip + frame;
                 }
@@ -214,6 +219,9 @@ async fn serve<S>(
                     break;
                 }
             }
+        }
+        if let (Some(k), true) = (key, busy) {
+            streams.admission.touch(k, Instant::now());
         }
         // What is left may be the head of a frame: shorter than one.
         debug_assert!(len - at < MAX_FRAME);
@@ -250,12 +258,6 @@ async fn serve<S>(
             }
         }
     }
-}
-
-/// The address part of a peer's name (`IP:PORT`, or a serial device).
-fn peer_ip(peer: &str) -> &str {
-    peer.parse::<SocketAddr>()
-        .map_or(peer, |_| peer.rsplit_once(':').map_or(peer, |(ip, _)| ip))
 }
 
 /// `tcp_listen`: accepts connections for ever, as the admission table admits them.
@@ -361,7 +363,7 @@ mod tests {
 
     #[tokio::test]
     async fn a_connection_holds_one_buffer_and_leaves_nothing_when_it_closes() {
-        let streams = Arc::new(Streams::new(Arc::new(Net::new(1))));
+        let streams = Arc::new(Streams::new(Arc::new(Net::new(1, None))));
         let stats = Arc::new(Stats::default());
         let (mut ours, theirs) = tokio::io::duplex(1024);
         let handled = Arc::new(AtomicU64::new(0));

@@ -14,7 +14,7 @@ pub const V2_MAGIC: u8 = 0xFD;
 /// The longest frame (MAVLink 2, 255 bytes of payload, signed).
 pub const MAX_FRAME: usize = 12 + 255 + 13;
 /// The one incompatibility flag MAVLink 2 defines.
-const SIGNED: u8 = 0x01;
+pub const SIGNED: u8 = 0x01;
 const COMMAND_INT_ID: u32 = 75;
 pub const COMMAND_LONG_ID: u32 = 76;
 pub const COMMAND_ACK_ID: u32 = 77;
@@ -135,15 +135,23 @@ pub fn decode(frame: &[u8]) -> Decoded {
     }
 }
 
-/// The intact frames of a datagram, read, and whether it held any.
-pub fn decode_datagram(datagram: &[u8]) -> Vec<Decoded> {
-    let mut out = Vec::new();
+/// The intact frames of a datagram, in order.
+pub fn frames(datagram: &[u8]) -> impl Iterator<Item = &[u8]> {
     let mut at = 0;
-    while let Scan::Frame { skip, len } = scan(&datagram[at..]) {
-        out.push(decode(&datagram[at + skip..at + skip + len]));
-        at += skip + len;
-    }
-    out
+    std::iter::from_fn(move || match scan(&datagram[at..]) {
+        Scan::Frame { skip, len } => {
+            let frame = &datagram[at + skip..at + skip + len];
+            at += skip + len;
+            Some(frame)
+        }
+        Scan::Partial { .. } => None,
+    })
+}
+
+/// The intact frames of a datagram, read.
+#[cfg(test)]
+pub fn decode_datagram(datagram: &[u8]) -> Vec<Decoded> {
+    frames(datagram).map(decode).collect()
 }
 
 /// `message` as a MAVLink 2 frame.

@@ -66,6 +66,8 @@ fn the_shipped_configuration_documents_every_key_and_passes_check() {
         "mount_longitude_deg",
         "mount_altitude_m",
         "mount_heading_deg",
+        "key_file",
+        "link_id",
     ] {
         assert!(
             text.lines()
@@ -75,6 +77,40 @@ fn the_shipped_configuration_documents_every_key_and_passes_check() {
     }
     let out = support::door::check(env!("CARGO_BIN_EXE_gimbal-mavlink"), &path);
     assert_eq!(out.status.code(), Some(0), "{out:?}");
+    assert!(out.stderr.is_empty(), "on loopback, no warning: {out:?}");
+}
+
+#[test]
+fn check_warns_of_an_endpoint_off_loopback_without_signing() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("m.toml");
+    let open = mavlink_config("127.0.0.1:4001", 1000, "")
+        .replace("udp_listen = \"127.0.0.1:0\"", "udp_listen = \"0.0.0.0:0\"");
+    std::fs::write(&path, &open).expect("write");
+    let out = support::door::check(env!("CARGO_BIN_EXE_gimbal-mavlink"), &path);
+    assert_eq!(out.status.code(), Some(0), "a warning, not an error: {out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("m.toml:5:14: endpoint[0].udp_listen: 0.0.0.0:0 is off loopback and [signing] is not set"),
+        "{err}"
+    );
+    // Signed with a key only its owner reads: no warning.
+    let key = dir.path().join("mavlink.key");
+    std::fs::write(
+        &key,
+        "00112233445566778899aabbccddeeff00112233445566778899aabbccddeeff\n",
+    )
+    .expect("write");
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&key, std::fs::Permissions::from_mode(0o600)).expect("chmod");
+    std::fs::write(
+        &path,
+        format!("{open}[signing]\nkey_file = {:?}\n", key.display().to_string()),
+    )
+    .expect("write");
+    let out = support::door::check(env!("CARGO_BIN_EXE_gimbal-mavlink"), &path);
+    assert_eq!(out.status.code(), Some(0), "{out:?}");
+    assert!(out.stderr.is_empty(), "{out:?}");
 }
 
 #[test]

@@ -1,8 +1,9 @@
 //! End-to-end tests of `gimbal-mavlink` (issues 25, 33): the real gcud with
 //! simulated gimbal buses, the real gimbal-mavlink in front of it, driven by
 //! a third-party MAVLink library from PyPI (pymavlink) through
-//! `tests/mavlink/gcs.py`, one module per concern (`basics`, `control`,
-//! `commands`, `earth`, `robust`, `config`). What the gimbal did is read on the bus side, with
+//! `tests/mavlink/gcs.py` (`signed.py` when it signs), one module per
+//! concern (`basics`, `control`, `commands`, `earth`, `robust`, `config`,
+//! `signing`). What the gimbal did is read on the bus side, with
 //! `gimbalctl position` through gcud and the frames the simulated gimbal
 //! received (their source group tells gimbal-mavlink's own stops from gcud's
 //! dead-man), never from gimbal-mavlink's own account. Everything is on
@@ -21,6 +22,7 @@ mod config;
 mod control;
 mod earth;
 mod robust;
+mod signing;
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;

@@ -105,3 +105,88 @@ fn the_mount_place_takes_all_three_keys_and_a_heading_is_per_gimbal() {
     );
     assert!(err(&mast.replace("270.0", "400.0")).contains("gimbal[0].mount_heading_deg: expected degrees"));
 }
+
+const KEY: &str = "3a1f5c0e9b7d2468ace013579bdf2468ace013579bdf2468ace013579bdf2468";
+
+/// GOOD with `[signing]` on the key file `key` (its text), `extra` keys in the section.
+fn signed(key: &str, extra: &str) -> (tempfile::TempDir, Result<Config, ConfigError>) {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("mavlink.key");
+    std::fs::write(&path, key).unwrap();
+    std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let text = format!("{GOOD}[signing]\nkey_file = {:?}\n{extra}", path.display().to_string());
+    let parsed = parse(Path::new("m.toml"), &text);
+    (dir, parsed)
+}
+
+#[test]
+fn signing_takes_a_key_file_of_64_hex_digits_and_names_its_place() {
+    let (_dir, c) = signed(&format!("{KEY}\n"), "link_id = 7\n");
+    let c = c.unwrap();
+    let s = c.signing.expect("signing on");
+    assert_eq!((s.key, s.link_id), (Key::parse(KEY).unwrap(), 7));
+    assert!(c.notes.is_empty(), "signed, its key file private: {:?}", c.notes);
+    let (_dir, c) = signed(KEY, "");
+    assert_eq!(c.unwrap().signing.unwrap().link_id, 0, "link_id's default");
+    let (_dir, e) = signed("secret passphrase", "");
+    let e = e.unwrap_err().to_string();
+    assert!(e.starts_with("m.toml:12:12: signing.key_file: "), "{e}");
+    assert!(
+        e.contains("expected 64 hexadecimal digits") && !e.contains("passphrase"),
+        "{e}"
+    );
+    let (_dir, e) = signed(KEY, "link_id = 256\n");
+    assert!(
+        e.unwrap_err()
+            .to_string()
+            .starts_with("m.toml:13:11: signing.link_id: expected")
+    );
+    let absent = format!("{GOOD}[signing]\nkey_file = \"/no/such/mavlink.key\"\n");
+    assert!(
+        err(&absent).starts_with("m.toml:12:12: signing.key_file: /no/such/mavlink.key: cannot read"),
+        "{}",
+        err(&absent)
+    );
+    assert!(err(&format!("{GOOD}[signing]\n")).contains("key_file"));
+}
+
+#[test]
+fn check_warns_of_endpoints_off_loopback_without_signing_and_of_a_key_others_may_read() {
+    let notes = |endpoint: &str| {
+        let text = GOOD.replace("udp_listen = \"0.0.0.0:14560\"", endpoint);
+        parse(Path::new("m.toml"), &text).unwrap().notes
+    };
+    let open = notes("udp_listen = \"0.0.0.0:14560\"");
+    assert_eq!(open.len(), 1, "{open:?}");
+    assert!(
+        open[0]
+            .starts_with("m.toml:5:14: endpoint[0].udp_listen: 0.0.0.0:14560 is off loopback and [signing] is not set"),
+        "{open:?}"
+    );
+    for (endpoint, warned) in [
+        ("udp_listen = \"127.0.0.1:14560\"", false),
+        ("udp_listen = \"127.3.2.1:14560\"", false),
+        ("tcp_listen = \"[::1]:5760\"", false),
+        ("tcp_listen = \"192.168.1.2:5760\"", true),
+        ("udp = \"localhost:14550\"", false),
+        ("udp = \"192.168.1.10:14550\"", true),
+        ("tcp = \"gcs.example:5760\"", true),
+        ("serial = \"/dev/ttyUSB0\"", false),
+    ] {
+        assert_eq!(!notes(endpoint).is_empty(), warned, "{endpoint}");
+    }
+    // Signed: no warning for the endpoint; a key file others may read is one.
+    let (dir, c) = signed(KEY, "");
+    assert!(c.unwrap().notes.is_empty());
+    use std::os::unix::fs::PermissionsExt;
+    let key = dir.path().join("mavlink.key");
+    std::fs::set_permissions(&key, std::fs::Permissions::from_mode(0o644)).unwrap();
+    let text = format!("{GOOD}[signing]\nkey_file = {:?}\n", key.display().to_string());
+    let notes = parse(Path::new("m.toml"), &text).unwrap().notes;
+    assert_eq!(notes.len(), 1, "{notes:?}");
+    assert!(
+        notes[0].contains("may be read by others than its owner (mode 644)"),
+        "{notes:?}"
+    );
+}
