@@ -18,6 +18,10 @@
 //!   A move lasts the hold lease unless renewed by the page while the
 //!   button or key is held. Those handlers are in [`actions`].
 //!
+//! Sign-in attempts are limited by their failures per account and client
+//! address ([`crate::guard`]); the client's address is the peer's, or a
+//! trusted proxy's `X-Forwarded-For` ([`crate::forwarded`]).
+//!
 //! What gcud decides (ARCHITECTURE "Front doors") is shown, never decided
 //! here: each gimbal's state carries who controls it (gcud's `~C`, kept by
 //! its session) and gcud's limits and keep-out zones of it (`~B`, asked
@@ -47,7 +51,7 @@ use sagebrush_client::connection::Control;
 use sagebrush_client::governance::{Controller, Rules, Tour, degrees, tour_state_name};
 use sagebrush_client::presets::Presets;
 use sagebrush_client::session::{GimbalSession, Motion};
-use sagebrush_service::rate::{KeyedBuckets, LogGate};
+use sagebrush_service::rate::LogGate;
 use sagebrush_service::{BoundedListener, Peer};
 use serde::Deserialize;
 use serde_json::{Value, json};
@@ -56,6 +60,7 @@ use tracing::{info, warn};
 
 use crate::auth::{Auth, CSRF_HEADER, Refused, SignedIn};
 use crate::config::{self, Role};
+use crate::guard::Guard;
 
 mod actions;
 
@@ -65,13 +70,8 @@ pub const MAX_BODY: usize = 4096;
 pub const PUSH: Duration = Duration::from_millis(100);
 /// Otherwise at least this often (which also keeps the connection live).
 pub const QUIET: Duration = Duration::from_secs(1);
-/// Sign-in attempts a peer may make: this many a second, after a burst of [`SIGN_IN_BURST`].
-const SIGN_INS_PER_S: f64 = 0.5;
-const SIGN_IN_BURST: f64 = 10.0;
-/// Failed sign-ins from one peer are logged at most this often.
+/// Failed sign-ins at one account are logged at most this often.
 const FAILED_LOG_EVERY: Duration = Duration::from_secs(10);
-/// Peers remembered for those.
-const PEERS: usize = 1024;
 
 const INDEX: &str = include_str!("page/index.html");
 const APP_JS: &str = include_str!("page/app.js");
@@ -102,8 +102,11 @@ struct Web {
     presets: Arc<Presets>,
     lease: Duration,
     secure_cookie: bool,
-    sign_ins: Mutex<KeyedBuckets<IpAddr>>,
-    failed: Mutex<LogGate<IpAddr>>,
+    /// The reverse proxies whose `X-Forwarded-For` is believed.
+    trusted_proxies: Vec<IpAddr>,
+    guard: Mutex<Guard>,
+    /// Failed sign-ins logged per account (`None`: a name that is none).
+    failed: Mutex<LogGate<Option<usize>>>,
 }
 
 type Shared = State<Arc<Web>>;
@@ -363,36 +366,33 @@ struct SignIn {
 async fn sign_in(
     State(w): Shared,
     Extension(Peer(peer)): Extension<Peer>,
+    headers: HeaderMap,
     body: Result<axum::Json<SignIn>, axum::extract::rejection::JsonRejection>,
 ) -> Result<Response, Failure> {
     let axum::Json(body) = body.map_err(|e| bad(format!("expected JSON {{\"user\", \"password\"}}: {e}")))?;
     let now = Instant::now();
-    if !w
-        .sign_ins
-        .lock()
-        .unwrap_or_else(|p| p.into_inner())
-        .take(&peer.ip(), now)
-    {
+    let client = crate::forwarded::client(peer.ip(), &headers, &w.trusted_proxies);
+    let account = w.auth.account(&body.user);
+    let guard = || w.guard.lock().unwrap_or_else(|p| p.into_inner());
+    if !guard().may_try(account, client, now) {
         return Err(Failure(
             StatusCode::TOO_MANY_REQUESTS,
-            "too many sign-in attempts from this address: wait a few seconds".to_owned(),
+            "too many failed sign-ins for this user from this address: wait a few seconds".to_owned(),
         ));
     }
     let (key, who) = match w.auth.sign_in(&body.user, &body.password, now) {
         Ok(ok) => ok,
         Err(why) => {
-            if let Some(held_back) = w
-                .failed
-                .lock()
-                .unwrap_or_else(|p| p.into_inner())
-                .allow(&peer.ip(), now)
-            {
-                warn!(%peer, user = ?body.user, held_back, "failed sign-in (logged at most once in {} s per peer; held_back: failed sign-ins from it since the last line)", FAILED_LOG_EVERY.as_secs());
+            guard().failed(account, client, now);
+            let gate = w.failed.lock().unwrap_or_else(|p| p.into_inner()).allow(&account, now);
+            if let Some(held_back) = gate {
+                warn!(%client, %peer, user = ?body.user, held_back, "failed sign-in (logged at most once in {} s per user; held_back: failed sign-ins at that user since the last line)", FAILED_LOG_EVERY.as_secs());
             }
             return Err(Failure(StatusCode::UNAUTHORIZED, why));
         }
     };
-    info!(%peer, user = %who.user, role = who.role.name(), "signed in");
+    guard().succeeded(account, client);
+    info!(%client, %peer, user = %who.user, role = who.role.name(), "signed in");
     let cookie = format!(
         "{}={key}; Path=/; HttpOnly; SameSite=Strict{}",
         crate::auth::COOKIE,
@@ -501,8 +501,9 @@ pub async fn bind(
         presets,
         lease: config.hold_lease,
         secure_cookie: config.secure_cookie,
-        sign_ins: Mutex::new(KeyedBuckets::new(SIGN_INS_PER_S, SIGN_IN_BURST, PEERS)),
-        failed: Mutex::new(LogGate::new(FAILED_LOG_EVERY, PEERS)),
+        trusted_proxies: config.trusted_proxies.clone(),
+        guard: Mutex::new(Guard::new(config.users.len(), crate::guard::PAIRS, Instant::now())),
+        failed: Mutex::new(LogGate::new(FAILED_LOG_EVERY, config.users.len() + 1)),
     });
     let app = Router::new()
         .route("/", get(|| page(INDEX, "text/html; charset=utf-8")))
