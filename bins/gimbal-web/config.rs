@@ -36,6 +36,8 @@ struct ConfigFile {
     #[serde(default)]
     max_sign_ins: Int<usize, 1, 100_000, 256>,
     #[serde(default)]
+    max_streams_per_user: Int<usize, 1, 100_000, 32>,
+    #[serde(default)]
     secure_cookie: bool,
     #[serde(default)]
     http: HttpSection,
@@ -78,6 +80,9 @@ pub struct Config {
     pub sign_in: Duration,
     /// Sign-ins kept at once (the oldest goes first).
     pub max_sign_ins: usize,
+    /// Live-update streams (open pages) of one user at once (a user's new
+    /// one past it ends that user's oldest).
+    pub max_streams_per_user: usize,
     /// The reverse proxies whose `X-Forwarded-For` names the client.
     pub trusted_proxies: Vec<IpAddr>,
     /// The session cookie carries `Secure` (gimbal-web behind HTTPS).
@@ -134,6 +139,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         poll: raw.poll_ms.duration(),
         sign_in: Duration::from_secs(raw.sign_in_hours.get() * 3600),
         max_sign_ins: raw.max_sign_ins.get(),
+        max_streams_per_user: raw.max_streams_per_user.get(),
         trusted_proxies: c.trusted_proxies(&raw.http)?,
         secure_cookie: raw.secure_cookie,
         http: raw.http.bounds(),
@@ -173,6 +179,7 @@ pan_deg = [-170.0, 170.0]
         assert_eq!(c.hold_lease, Duration::from_millis(300));
         assert_eq!(c.poll, Duration::from_millis(100));
         assert_eq!(c.listen, "0.0.0.0:8080".parse::<SocketAddr>().unwrap());
+        assert_eq!(c.max_streams_per_user, 32);
         assert!(c.trusted_proxies.is_empty());
     }
 

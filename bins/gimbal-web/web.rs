@@ -9,7 +9,7 @@
 //!   cookie; `POST /api/sign-out`.
 //! - `GET /api/session`: who is signed in, the CSRF token, the lease and
 //!   the gimbals; `GET /api/events`: server-sent events, every gimbal's
-//!   state each [`PUSH`] while one moves or changed, else each [`QUIET`].
+//!   state when it changed, rendered once for all streams ([`events`]).
 //! - `POST /api/move`, `/api/stop`, `/api/home`, `/api/goto`,
 //!   `/api/preset/save`, `/api/preset/go`, `/api/tour`, `/api/release`:
 //!   with the `X-CSRF-Token` header, by role (issue 34): a user views, an
@@ -35,7 +35,6 @@
 //! undelivered command; the page shows it on the card (as text, never as
 //! markup).
 
-use std::convert::Infallible;
 use std::net::{IpAddr, SocketAddr};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -43,7 +42,6 @@ use std::time::Duration;
 use axum::Router;
 use axum::extract::{DefaultBodyLimit, Extension, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
-use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use sagebrush_client::CommandError;
@@ -63,12 +61,11 @@ use crate::config::{self, Role};
 use crate::guard::Guard;
 
 mod actions;
+mod events;
 
 /// The largest request body (the API's JSON is a few dozen bytes).
 pub const MAX_BODY: usize = 4096;
-/// While a gimbal moves (or its state changed), the pages get its state this often.
-pub const PUSH: Duration = Duration::from_millis(100);
-/// Otherwise at least this often (which also keeps the connection live).
+/// gcud's tours and the gimbals' rules are asked this often.
 pub const QUIET: Duration = Duration::from_secs(1);
 /// Failed sign-ins at one account are logged at most this often.
 const FAILED_LOG_EVERY: Duration = Duration::from_secs(10);
@@ -107,6 +104,11 @@ struct Web {
     guard: Mutex<Guard>,
     /// Failed sign-ins logged per account (`None`: a name that is none).
     failed: Mutex<LogGate<Option<usize>>>,
+    /// Every gimbal's state as last rendered, shared by the event streams.
+    snapshot: events::Snapshot,
+    streams: Arc<events::Streams>,
+    /// `[http] idle_timeout_ms`: the streams' keep-alive comes well within it.
+    idle_timeout: Duration,
 }
 
 type Shared = State<Arc<Web>>;
@@ -222,8 +224,7 @@ impl Web {
     }
 
     /// Every gimbal's state, as the page shows it.
-    fn state(&self) -> (Value, bool) {
-        let mut busy = false;
+    fn state(&self) -> Value {
         let rules = self.rules.lock().unwrap_or_else(|p| p.into_inner()).clone();
         let gimbals: Vec<Value> = self
             .gimbals
@@ -237,7 +238,6 @@ impl Web {
                     Motion::Moving => "moving",
                     Motion::Unknown => "unknown",
                 };
-                busy |= motion != "idle";
                 let presets: Vec<Value> = self
                     .presets
                     .list(&g.config.name)
@@ -256,7 +256,7 @@ impl Web {
                 })
             })
             .collect();
-        (json!({ "gimbals": gimbals, "tours": self.tours_json() }), busy)
+        json!({ "gimbals": gimbals, "tours": self.tours_json() })
     }
 
     /// gcud's tours for the page: `{name, state}` each, and why some are
@@ -449,32 +449,6 @@ async fn session(State(w): Shared, headers: HeaderMap) -> Result<Response, Failu
     })))
 }
 
-async fn events(State(w): Shared, headers: HeaderMap) -> Result<Response, Failure> {
-    w.who(&headers)?;
-    let stream = futures_util::stream::unfold((w, None::<String>, None::<Instant>), |(w, last, sent)| async move {
-        loop {
-            let (state, busy) = w.state();
-            let text = state.to_string();
-            let now = Instant::now();
-            let due = match sent {
-                None => true,
-                Some(t) => busy || last.as_deref() != Some(text.as_str()) || now.duration_since(t) >= QUIET,
-            };
-            if due {
-                let event = Event::default().data(text.clone());
-                return Some((Ok::<_, Infallible>(event), (w, Some(text), Some(now))));
-            }
-            tokio::time::sleep(PUSH).await;
-        }
-    });
-    // Paced: after each event, the next is at least PUSH later.
-    let paced = futures_util::StreamExt::then(stream, |e| async move {
-        tokio::time::sleep(PUSH).await;
-        e
-    });
-    Ok((no_store(), Sse::new(paced).keep_alive(KeepAlive::default())).into_response())
-}
-
 /// The JSON body of a POST, with a clear error naming what was expected.
 fn body<T: serde::de::DeserializeOwned>(bytes: &[u8], expected: &str) -> Result<T, Failure> {
     serde_json::from_slice(bytes).map_err(|e| bad(format!("expected JSON {expected}: {e}")))
@@ -504,6 +478,9 @@ pub async fn bind(
         trusted_proxies: config.trusted_proxies.clone(),
         guard: Mutex::new(Guard::new(config.users.len(), crate::guard::PAIRS, Instant::now())),
         failed: Mutex::new(LogGate::new(FAILED_LOG_EVERY, config.users.len() + 1)),
+        snapshot: events::snapshot(),
+        streams: events::Streams::new(config.max_streams_per_user),
+        idle_timeout: config.http.idle_timeout,
     });
     let app = Router::new()
         .route("/", get(|| page(INDEX, "text/html; charset=utf-8")))
@@ -512,7 +489,7 @@ pub async fn bind(
         .route("/api/sign-in", post(sign_in))
         .route("/api/sign-out", post(sign_out))
         .route("/api/session", get(session))
-        .route("/api/events", get(events))
+        .merge(events::routes())
         .merge(actions::routes())
         .fallback(not_found)
         .layer(DefaultBodyLimit::max(MAX_BODY))
@@ -524,8 +501,10 @@ pub async fn bind(
     Ok((local, async move {
         // gcud's tours, asked every QUIET beside the page (no bus time),
         // and apart (an unreachable gcud delays neither) the gimbals'
-        // rules (asked of gcud every RULES_REFRESH).
+        // rules (asked of gcud every RULES_REFRESH); the pages' snapshot
+        // rendered every events::PUSH.
         let rules_web = Arc::clone(&web);
+        let render = events::render(Arc::clone(&web));
         let ask = async move {
             loop {
                 web.refresh_tours().await;
@@ -542,6 +521,7 @@ pub async fn bind(
             () = serve => {}
             () = ask => {}
             () = rules => {}
+            () = render => {}
         }
     }))
 }

@@ -1,10 +1,13 @@
-//! gimbal-web's sign-in cannot be turned against its users (issue 49),
-//! end to end over plain HTTP (no browser): the real gimbal-web in front of gcud and its simulated buses, behind a "proxy"
+//! gimbal-web's sign-in and live updates cannot be turned against its
+//! users (issue 49), end to end over plain HTTP (no browser): the real
+//! gimbal-web in front of gcud and its simulated buses, behind a "proxy"
 //! that is the test itself on 127.0.0.1 (`[http] trusted_proxy`), naming
 //! its clients in `X-Forwarded-For`.
 
 use super::access::raw;
 use super::*;
+
+use std::net::TcpStream;
 
 /// The stack with `http` as its `[http]` section.
 fn stack_with(http: &str) -> Stack {
@@ -28,6 +31,20 @@ fn sign_in(stack: &Stack, user: &str, password: &str, client: Option<&str>) -> (
         headers.push(("X-Forwarded-For", c));
     }
     raw(&stack.url, "POST", "/api/sign-in", &headers, &body)
+}
+
+/// The session cookie of a sign-in's answer.
+fn cookie_of(answer: &str) -> String {
+    let line = answer
+        .lines()
+        .find(|l| l.to_ascii_lowercase().starts_with("set-cookie:"))
+        .unwrap_or_else(|| panic!("no cookie in {answer}"));
+    line["set-cookie:".len()..]
+        .trim()
+        .split(';')
+        .next()
+        .unwrap_or_default()
+        .to_owned()
 }
 
 const PROXY: &str = "trusted_proxy = \"127.0.0.1\"\n";
@@ -95,4 +112,137 @@ fn a_flood_from_many_addresses_never_refuses_a_fresh_address() {
         status, 401,
         "a fresh address's wrong password is checked, not refused:\n{answer}"
     );
+}
+
+/// One `GET /api/events` stream, its head read; non-blocking after it.
+struct EventStream {
+    socket: TcpStream,
+    text: String,
+    closed: bool,
+}
+
+impl EventStream {
+    fn open(stack: &Stack, cookie: &str) -> Self {
+        let addr = stack.url.trim_start_matches("http://").trim_end_matches('/');
+        let mut socket = TcpStream::connect(addr).expect("connect to gimbal-web");
+        write!(
+            socket,
+            "GET /api/events HTTP/1.1\r\nHost: {addr}\r\nCookie: {cookie}\r\nConnection: close\r\n\r\n"
+        )
+        .expect("request");
+        socket.set_read_timeout(Some(HANG_GUARD)).expect("timeout");
+        let mut head = Vec::new();
+        let mut byte = [0u8; 1];
+        while !head.ends_with(b"\r\n\r\n") {
+            assert_eq!(
+                socket.read(&mut byte).expect("the answer's head"),
+                1,
+                "closed: {head:?}"
+            );
+            head.push(byte[0]);
+        }
+        let head = String::from_utf8_lossy(&head).into_owned();
+        assert!(head.starts_with("HTTP/1.1 200"), "{head}");
+        socket.set_nonblocking(true).expect("non-blocking");
+        Self {
+            socket,
+            text: String::new(),
+            closed: false,
+        }
+    }
+
+    /// Reads what came; the bytes read.
+    fn drain(&mut self) -> usize {
+        let mut buf = [0u8; 16384];
+        let mut total = 0;
+        while !self.closed {
+            match self.socket.read(&mut buf) {
+                Ok(0) => self.closed = true,
+                Ok(n) => {
+                    total += n;
+                    if self.text.len() < 1 << 16 {
+                        self.text.push_str(&String::from_utf8_lossy(&buf[..n]));
+                    }
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => break,
+                Err(_) => self.closed = true,
+            }
+        }
+        total
+    }
+}
+
+/// A process's CPU time so far (user and system, /proc/PID/stat; Linux's
+/// USER_HZ is 100) and its resident set (VmRSS), in bytes.
+fn cpu_and_rss(pid: u32) -> (f64, u64) {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).expect("stat");
+    let fields: Vec<&str> = stat
+        .rsplit(") ")
+        .next()
+        .unwrap_or_default()
+        .split_whitespace()
+        .collect();
+    let ticks: u64 = fields[11].parse::<u64>().unwrap_or(0) + fields[12].parse::<u64>().unwrap_or(0);
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).expect("status");
+    let rss_kb: u64 = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))
+        .and_then(|v| v.split_whitespace().next()?.parse().ok())
+        .unwrap_or(0);
+    (ticks as f64 / 100.0, rss_kb * 1024)
+}
+
+/// Issue 49: a viewer's 512 event streams cost the door 1.2-1.7
+/// CPU-seconds a second, 126 MB and up to 75 MB/s of pushes, every stream
+/// re-rendering every gimbal every 100 ms. Now: under a tenth of a core
+/// while the gimbals are idle (CPU time consumed, over 5 s), and the
+/// viewer's streams past its cap end its own oldest, not the admin's.
+#[test]
+fn a_viewers_512_event_streams_cost_little_and_end_only_the_viewers_oldest() {
+    let stack = stack_with("max_connections = 2048\nmax_connections_per_peer = 2048\n");
+    let admin = cookie_of(&sign_in(&stack, "admin", "admin-secret", None).1);
+    let viewer = cookie_of(&sign_in(&stack, "viewer", "viewer-secret", None).1);
+    let mut admins = EventStream::open(&stack, &admin);
+    let mut streams: Vec<EventStream> = (0..512).map(|_| EventStream::open(&stack, &viewer)).collect();
+    let drain_for = |d: Duration, streams: &mut [EventStream], admins: &mut EventStream| {
+        let until = Instant::now() + d;
+        let mut bytes = 0;
+        while Instant::now() < until {
+            bytes += streams.iter_mut().map(EventStream::drain).sum::<usize>() + admins.drain();
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        bytes
+    };
+    drain_for(Duration::from_secs(2), &mut streams, &mut admins);
+    let pid = stack.web.pid();
+    let (cpu0, _) = cpu_and_rss(pid);
+    let t0 = Instant::now();
+    let bytes = drain_for(Duration::from_secs(5), &mut streams, &mut admins);
+    let (cpu1, rss) = cpu_and_rss(pid);
+    let secs = t0.elapsed().as_secs_f64();
+    let core = (cpu1 - cpu0) / secs;
+    let open = streams.iter().filter(|s| !s.closed).count();
+    eprintln!(
+        "512 streams of a viewer, idle gimbals: {core:.3} of a core ({:.2} CPU-s in {secs:.1} s), \
+         RSS {:.1} MB, {:.1} kB/s pushed, {open} of the viewer's streams open",
+        cpu1 - cpu0,
+        rss as f64 / 1e6,
+        bytes as f64 / secs / 1e3
+    );
+    assert!(!admins.closed, "the admin's stream stays open:\n{}", admins.text);
+    assert!(
+        admins.text.contains("data: {"),
+        "the admin's stream has the state: {}",
+        admins.text
+    );
+    assert!(streams[0].closed, "the viewer's oldest stream ended");
+    assert!(
+        streams[0].text.contains("event: ended"),
+        "and says why: {}",
+        streams[0].text
+    );
+    assert!(!streams[511].closed, "the viewer's newest stream stays");
+    assert!(open <= 32, "at most the cap of the viewer's streams stay: {open}");
+    assert!(core < 0.1, "gimbal-web used {core:.3} of a core for idle streams");
+    assert!(rss < 100_000_000, "gimbal-web's resident set: {rss} bytes");
 }
