@@ -185,6 +185,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             answers_per_source_per_s: raw.discovery.answers_per_source_per_s.get(),
         }),
     };
+    c.no_trusted_proxy(&raw.http, "gimbal-onvif")?;
     let http = raw.http.bounds();
     let state_file = c.state_file(raw.state_file.as_ref())?;
     let users = c.users(&raw.users)?;

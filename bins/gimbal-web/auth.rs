@@ -85,6 +85,11 @@ impl Auth {
         }
     }
 
+    /// The index of configured account `user`, if it is one.
+    pub fn account(&self, user: &str) -> Option<usize> {
+        self.users.iter().position(|u| same(u.name.as_bytes(), user.as_bytes()))
+    }
+
     /// Checks `user` and `password`; on success opens a sign-in and
     /// returns its token (for the cookie) and what it may do.
     pub fn sign_in(&self, user: &str, password: &str, now: Instant) -> Result<(String, SignedIn), String> {

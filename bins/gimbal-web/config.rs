@@ -5,7 +5,7 @@
 //! [`sagebrush_service::config_file`] as the other doors'.
 
 use sagebrush_client::session::GcudLink;
-use std::net::SocketAddr;
+use std::net::{IpAddr, SocketAddr};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -38,6 +38,8 @@ struct ConfigFile {
     sign_in_hours: Int<u64, 1, 720, 12>,
     #[serde(default)]
     max_sign_ins: Int<usize, 1, 100_000, 256>,
+    #[serde(default)]
+    max_streams_per_user: Int<usize, 1, 100_000, 32>,
     #[serde(default)]
     secure_cookie: bool,
     #[serde(default)]
@@ -81,6 +83,11 @@ pub struct Config {
     pub sign_in: Duration,
     /// Sign-ins kept at once (the oldest goes first).
     pub max_sign_ins: usize,
+    /// Live-update streams (open pages) of one user at once (a user's new
+    /// one past it ends that user's oldest).
+    pub max_streams_per_user: usize,
+    /// The reverse proxies whose `X-Forwarded-For` names the client.
+    pub trusted_proxies: Vec<IpAddr>,
     /// The session cookie carries `Secure` (gimbal-web behind HTTPS).
     pub secure_cookie: bool,
     pub http: HttpBounds,
@@ -135,6 +142,8 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         poll: raw.poll_ms.duration(),
         sign_in: Duration::from_secs(raw.sign_in_hours.get() * 3600),
         max_sign_ins: raw.max_sign_ins.get(),
+        max_streams_per_user: raw.max_streams_per_user.get(),
+        trusted_proxies: c.trusted_proxies(&raw.http)?,
         secure_cookie: raw.secure_cookie,
         http: raw.http.bounds(),
         users,
@@ -173,6 +182,18 @@ pan_deg = [-170.0, 170.0]
         assert_eq!(c.hold_lease, Duration::from_millis(300));
         assert_eq!(c.poll, Duration::from_millis(100));
         assert_eq!(c.listen, "0.0.0.0:8080".parse::<SocketAddr>().unwrap());
+        assert_eq!(c.max_streams_per_user, 32);
+        assert!(c.trusted_proxies.is_empty());
+    }
+
+    #[test]
+    fn a_trusted_proxy_is_an_address_or_a_list() {
+        let with = |v: &str| GOOD.replace("[[user]]", &format!("[http]\ntrusted_proxy = {v}\n[[user]]"));
+        let one = parse(Path::new("w.toml"), &with("\"127.0.0.1\"")).unwrap();
+        assert_eq!(one.trusted_proxies, vec!["127.0.0.1".parse::<IpAddr>().unwrap()]);
+        let two = parse(Path::new("w.toml"), &with("[\"10.0.0.2\", \"::ffff:10.0.0.3\"]")).unwrap();
+        assert_eq!(two.trusted_proxies[1], "10.0.0.3".parse::<IpAddr>().unwrap());
+        assert!(err(&with("\"proxy.lan\"")).contains("http.trusted_proxy: expected an IP address"));
     }
 
     #[test]

@@ -7,6 +7,8 @@
 
 mod auth;
 mod config;
+mod forwarded;
+mod guard;
 mod web;
 
 use std::process::ExitCode;

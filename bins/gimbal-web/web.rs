@@ -9,7 +9,7 @@
 //!   cookie; `POST /api/sign-out`.
 //! - `GET /api/session`: who is signed in, the CSRF token, the lease and
 //!   the gimbals; `GET /api/events`: server-sent events, every gimbal's
-//!   state each [`PUSH`] while one moves or changed, else each [`QUIET`].
+//!   state when it changed, rendered once for all streams ([`events`]).
 //! - `POST /api/move`, `/api/stop`, `/api/home`, `/api/goto`,
 //!   `/api/preset/save`, `/api/preset/go`, `/api/tour`, `/api/release`:
 //!   with the `X-CSRF-Token` header, by role (issue 34): a user views, an
@@ -17,6 +17,10 @@
 //!   an administrator also starts and stops tours and releases a gimbal.
 //!   A move lasts the hold lease unless renewed by the page while the
 //!   button or key is held. Those handlers are in [`actions`].
+//!
+//! Sign-in attempts are limited by their failures per account and client
+//! address ([`crate::guard`]); the client's address is the peer's, or a
+//! trusted proxy's `X-Forwarded-For` ([`crate::forwarded`]).
 //!
 //! What gcud decides (ARCHITECTURE "Front doors") is shown, never decided
 //! here: each gimbal's state carries who controls it (gcud's `~C`, kept by
@@ -31,7 +35,6 @@
 //! undelivered command; the page shows it on the card (as text, never as
 //! markup).
 
-use std::convert::Infallible;
 use std::net::{IpAddr, SocketAddr};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -39,7 +42,6 @@ use std::time::Duration;
 use axum::Router;
 use axum::extract::{DefaultBodyLimit, Extension, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
-use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use sagebrush_client::CommandError;
@@ -47,7 +49,7 @@ use sagebrush_client::connection::Control;
 use sagebrush_client::governance::{Controller, Rules, Tour, degrees, tour_state_name};
 use sagebrush_client::presets::Presets;
 use sagebrush_client::session::{GimbalSession, Motion};
-use sagebrush_service::rate::{KeyedBuckets, LogGate};
+use sagebrush_service::rate::LogGate;
 use sagebrush_service::{BoundedListener, Peer};
 use serde::Deserialize;
 use serde_json::{Value, json};
@@ -56,22 +58,17 @@ use tracing::{info, warn};
 
 use crate::auth::{Auth, CSRF_HEADER, Refused, SignedIn};
 use crate::config::{self, Role};
+use crate::guard::Guard;
 
 mod actions;
+mod events;
 
 /// The largest request body (the API's JSON is a few dozen bytes).
 pub const MAX_BODY: usize = 4096;
-/// While a gimbal moves (or its state changed), the pages get its state this often.
-pub const PUSH: Duration = Duration::from_millis(100);
-/// Otherwise at least this often (which also keeps the connection live).
+/// gcud's tours and the gimbals' rules are asked this often.
 pub const QUIET: Duration = Duration::from_secs(1);
-/// Sign-in attempts a peer may make: this many a second, after a burst of [`SIGN_IN_BURST`].
-const SIGN_INS_PER_S: f64 = 0.5;
-const SIGN_IN_BURST: f64 = 10.0;
-/// Failed sign-ins from one peer are logged at most this often.
+/// Failed sign-ins at one account are logged at most this often.
 const FAILED_LOG_EVERY: Duration = Duration::from_secs(10);
-/// Peers remembered for those.
-const PEERS: usize = 1024;
 
 const INDEX: &str = include_str!("page/index.html");
 const APP_JS: &str = include_str!("page/app.js");
@@ -102,8 +99,16 @@ struct Web {
     presets: Arc<Presets>,
     lease: Duration,
     secure_cookie: bool,
-    sign_ins: Mutex<KeyedBuckets<IpAddr>>,
-    failed: Mutex<LogGate<IpAddr>>,
+    /// The reverse proxies whose `X-Forwarded-For` is believed.
+    trusted_proxies: Vec<IpAddr>,
+    guard: Mutex<Guard>,
+    /// Failed sign-ins logged per account (`None`: a name that is none).
+    failed: Mutex<LogGate<Option<usize>>>,
+    /// Every gimbal's state as last rendered, shared by the event streams.
+    snapshot: events::Snapshot,
+    streams: Arc<events::Streams>,
+    /// `[http] idle_timeout_ms`: the streams' keep-alive comes well within it.
+    idle_timeout: Duration,
 }
 
 type Shared = State<Arc<Web>>;
@@ -219,8 +224,7 @@ impl Web {
     }
 
     /// Every gimbal's state, as the page shows it.
-    fn state(&self) -> (Value, bool) {
-        let mut busy = false;
+    fn state(&self) -> Value {
         let rules = self.rules.lock().unwrap_or_else(|p| p.into_inner()).clone();
         let gimbals: Vec<Value> = self
             .gimbals
@@ -234,7 +238,6 @@ impl Web {
                     Motion::Moving => "moving",
                     Motion::Unknown => "unknown",
                 };
-                busy |= motion != "idle";
                 let presets: Vec<Value> = self
                     .presets
                     .list(&g.config.name)
@@ -253,7 +256,7 @@ impl Web {
                 })
             })
             .collect();
-        (json!({ "gimbals": gimbals, "tours": self.tours_json() }), busy)
+        json!({ "gimbals": gimbals, "tours": self.tours_json() })
     }
 
     /// gcud's tours for the page: `{name, state}` each, and why some are
@@ -363,36 +366,33 @@ struct SignIn {
 async fn sign_in(
     State(w): Shared,
     Extension(Peer(peer)): Extension<Peer>,
+    headers: HeaderMap,
     body: Result<axum::Json<SignIn>, axum::extract::rejection::JsonRejection>,
 ) -> Result<Response, Failure> {
     let axum::Json(body) = body.map_err(|e| bad(format!("expected JSON {{\"user\", \"password\"}}: {e}")))?;
     let now = Instant::now();
-    if !w
-        .sign_ins
-        .lock()
-        .unwrap_or_else(|p| p.into_inner())
-        .take(&peer.ip(), now)
-    {
+    let client = crate::forwarded::client(peer.ip(), &headers, &w.trusted_proxies);
+    let account = w.auth.account(&body.user);
+    let guard = || w.guard.lock().unwrap_or_else(|p| p.into_inner());
+    if !guard().may_try(account, client, now) {
         return Err(Failure(
             StatusCode::TOO_MANY_REQUESTS,
-            "too many sign-in attempts from this address: wait a few seconds".to_owned(),
+            "too many failed sign-ins for this user from this address: wait a few seconds".to_owned(),
         ));
     }
     let (key, who) = match w.auth.sign_in(&body.user, &body.password, now) {
         Ok(ok) => ok,
         Err(why) => {
-            if let Some(held_back) = w
-                .failed
-                .lock()
-                .unwrap_or_else(|p| p.into_inner())
-                .allow(&peer.ip(), now)
-            {
-                warn!(%peer, user = ?body.user, held_back, "failed sign-in (logged at most once in {} s per peer; held_back: failed sign-ins from it since the last line)", FAILED_LOG_EVERY.as_secs());
+            guard().failed(account, client, now);
+            let gate = w.failed.lock().unwrap_or_else(|p| p.into_inner()).allow(&account, now);
+            if let Some(held_back) = gate {
+                warn!(%client, %peer, user = ?body.user, held_back, "failed sign-in (logged at most once in {} s per user; held_back: failed sign-ins at that user since the last line)", FAILED_LOG_EVERY.as_secs());
             }
             return Err(Failure(StatusCode::UNAUTHORIZED, why));
         }
     };
-    info!(%peer, user = %who.user, role = who.role.name(), "signed in");
+    guard().succeeded(account, client);
+    info!(%client, %peer, user = %who.user, role = who.role.name(), "signed in");
     let cookie = format!(
         "{}={key}; Path=/; HttpOnly; SameSite=Strict{}",
         crate::auth::COOKIE,
@@ -449,32 +449,6 @@ async fn session(State(w): Shared, headers: HeaderMap) -> Result<Response, Failu
     })))
 }
 
-async fn events(State(w): Shared, headers: HeaderMap) -> Result<Response, Failure> {
-    w.who(&headers)?;
-    let stream = futures_util::stream::unfold((w, None::<String>, None::<Instant>), |(w, last, sent)| async move {
-        loop {
-            let (state, busy) = w.state();
-            let text = state.to_string();
-            let now = Instant::now();
-            let due = match sent {
-                None => true,
-                Some(t) => busy || last.as_deref() != Some(text.as_str()) || now.duration_since(t) >= QUIET,
-            };
-            if due {
-                let event = Event::default().data(text.clone());
-                return Some((Ok::<_, Infallible>(event), (w, Some(text), Some(now))));
-            }
-            tokio::time::sleep(PUSH).await;
-        }
-    });
-    // Paced: after each event, the next is at least PUSH later.
-    let paced = futures_util::StreamExt::then(stream, |e| async move {
-        tokio::time::sleep(PUSH).await;
-        e
-    });
-    Ok((no_store(), Sse::new(paced).keep_alive(KeepAlive::default())).into_response())
-}
-
 /// The JSON body of a POST, with a clear error naming what was expected.
 fn body<T: serde::de::DeserializeOwned>(bytes: &[u8], expected: &str) -> Result<T, Failure> {
     serde_json::from_slice(bytes).map_err(|e| bad(format!("expected JSON {expected}: {e}")))
@@ -501,8 +475,12 @@ pub async fn bind(
         presets,
         lease: config.hold_lease,
         secure_cookie: config.secure_cookie,
-        sign_ins: Mutex::new(KeyedBuckets::new(SIGN_INS_PER_S, SIGN_IN_BURST, PEERS)),
-        failed: Mutex::new(LogGate::new(FAILED_LOG_EVERY, PEERS)),
+        trusted_proxies: config.trusted_proxies.clone(),
+        guard: Mutex::new(Guard::new(config.users.len(), crate::guard::PAIRS, Instant::now())),
+        failed: Mutex::new(LogGate::new(FAILED_LOG_EVERY, config.users.len() + 1)),
+        snapshot: events::snapshot(),
+        streams: events::Streams::new(config.max_streams_per_user),
+        idle_timeout: config.http.idle_timeout,
     });
     let app = Router::new()
         .route("/", get(|| page(INDEX, "text/html; charset=utf-8")))
@@ -511,7 +489,7 @@ pub async fn bind(
         .route("/api/sign-in", post(sign_in))
         .route("/api/sign-out", post(sign_out))
         .route("/api/session", get(session))
-        .route("/api/events", get(events))
+        .merge(events::routes())
         .merge(actions::routes())
         .fallback(not_found)
         .layer(DefaultBodyLimit::max(MAX_BODY))
@@ -523,8 +501,10 @@ pub async fn bind(
     Ok((local, async move {
         // gcud's tours, asked every QUIET beside the page (no bus time),
         // and apart (an unreachable gcud delays neither) the gimbals'
-        // rules (asked of gcud every RULES_REFRESH).
+        // rules (asked of gcud every RULES_REFRESH); the pages' snapshot
+        // rendered every events::PUSH.
         let rules_web = Arc::clone(&web);
+        let render = events::render(Arc::clone(&web));
         let ask = async move {
             loop {
                 web.refresh_tours().await;
@@ -541,6 +521,7 @@ pub async fn bind(
             () = serve => {}
             () = ask => {}
             () = rules => {}
+            () = render => {}
         }
     }))
 }

@@ -4,7 +4,7 @@
 use super::*;
 
 /// A raw HTTP/1.1 request to gimbal-web: the status code and the whole answer.
-fn raw(url: &str, method: &str, path: &str, headers: &[(&str, &str)], body: &str) -> (u16, String) {
+pub(super) fn raw(url: &str, method: &str, path: &str, headers: &[(&str, &str)], body: &str) -> (u16, String) {
     let addr = url.trim_start_matches("http://").trim_end_matches('/');
     let mut s = std::net::TcpStream::connect(addr).expect("connect to gimbal-web");
     s.set_read_timeout(Some(HANG_GUARD)).expect("timeout");

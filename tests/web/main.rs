@@ -11,6 +11,7 @@
 mod support;
 
 mod access;
+mod attack;
 mod governance;
 mod motion;
 mod tours;

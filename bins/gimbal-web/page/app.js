@@ -342,6 +342,15 @@ function listen() {
     render(state);
     renderTours(state.tours);
   };
+  events.addEventListener('ended', (e) => {
+    // The same user opened more pages than gimbal-web keeps live: this
+    // one, the oldest, stops (reconnecting would end another of them).
+    events.close();
+    release();
+    const link = byId('link');
+    link.textContent = `Live updates stopped (${e.data}); reload the page to resume.`;
+    link.hidden = false;
+  });
   events.onerror = () => {
     // The connection dropped: nothing held may go on.
     release();

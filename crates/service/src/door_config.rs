@@ -5,6 +5,7 @@
 //! [`crate::config_file`] does, and `[http]`, the bounds of the door's
 //! listener on the LAN ([`crate::http`]).
 
+use std::net::IpAddr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Duration;
@@ -213,6 +214,9 @@ pub struct HttpSection {
     body_timeout_ms: Millis<100, 600_000, 10_000>,
     #[serde(default)]
     idle_timeout_ms: Millis<1000, 3_600_000, 60_000>,
+    /// The reverse proxy (or proxies) whose `X-Forwarded-For` names the
+    /// client: an IP address or a list of them (gimbal-web only).
+    trusted_proxy: Option<Spanned<toml::Value>>,
 }
 
 impl HttpSection {
@@ -224,6 +228,43 @@ impl HttpSection {
             header_timeout: self.header_timeout_ms.duration(),
             body_timeout: self.body_timeout_ms.duration(),
             idle_timeout: self.idle_timeout_ms.duration(),
+        }
+    }
+}
+
+impl Source<'_> {
+    /// `[http] trusted_proxy`: one IP address or a list of them (an
+    /// IPv4-mapped IPv6 address is its IPv4 one); none when absent.
+    pub fn trusted_proxies(&self, http: &HttpSection) -> Result<Vec<IpAddr>, ConfigError> {
+        let Some(v) = &http.trusted_proxy else {
+            return Ok(Vec::new());
+        };
+        let expected = "expected an IP address or a list of them, e.g. \"127.0.0.1\" or [\"10.0.0.2\", \"::1\"]";
+        let items: Vec<&toml::Value> = match v.get_ref() {
+            toml::Value::Array(a) => a.iter().collect(),
+            one => vec![one],
+        };
+        items
+            .into_iter()
+            .map(|item| {
+                item.as_str()
+                    .and_then(|s| s.trim().parse::<IpAddr>().ok())
+                    .map(|ip| ip.to_canonical())
+                    .ok_or_else(|| self.at(v.span(), "http.trusted_proxy", expected))
+            })
+            .collect()
+    }
+
+    /// Refuses `[http] trusted_proxy` in a door that does not read
+    /// `X-Forwarded-For` (it would be believed to, and is not).
+    pub fn no_trusted_proxy(&self, http: &HttpSection, door: &str) -> Result<(), ConfigError> {
+        match &http.trusted_proxy {
+            Some(v) => Err(self.at(
+                v.span(),
+                "http.trusted_proxy",
+                format!("{door} does not read X-Forwarded-For: remove it"),
+            )),
+            None => Ok(()),
         }
     }
 }
