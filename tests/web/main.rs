@@ -14,6 +14,7 @@ mod access;
 mod attack;
 mod governance;
 mod motion;
+mod principals;
 mod tours;
 
 use std::io::{BufRead, BufReader, Read, Write};

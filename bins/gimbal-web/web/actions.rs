@@ -73,6 +73,7 @@ async fn do_move(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes)
             zoom: None,
         };
         g.session
+            .acting_for(Some(&who.user))
             .velocity(velocity, Some(w.lease), &format!("web {}", who.user))
             .await
             .map_err(failed)?;
@@ -92,8 +93,9 @@ async fn stop(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) ->
 }
 
 async fn home(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    let (_, b): (_, GimbalBody) = w.post(&headers, &bytes, (Role::Operator, "move"), "{gimbal}")?;
-    w.gimbal(b.gimbal)?.session.home().await.map_err(failed)?;
+    let (who, b): (_, GimbalBody) = w.post(&headers, &bytes, (Role::Operator, "move"), "{gimbal}")?;
+    let g = w.gimbal(b.gimbal)?;
+    g.session.acting_for(Some(&who.user)).home().await.map_err(failed)?;
     Ok(answer(json!({})))
 }
 
@@ -105,7 +107,7 @@ struct GoToBody {
 }
 
 async fn go_to(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    let (_, b): (_, GoToBody) = w.post(
+    let (who, b): (_, GoToBody) = w.post(
         &headers,
         &bytes,
         (Role::Operator, "move"),
@@ -121,6 +123,7 @@ async fn go_to(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -
     }
     let angle = |d: f64| Angle::from_degrees(d as f32).map_err(|e| bad(e.to_string()));
     g.session
+        .acting_for(Some(&who.user))
         .go_to(Position::new(angle(b.pan)?, angle(b.tilt)?))
         .await
         .map_err(failed)?;
@@ -134,7 +137,7 @@ struct SaveBody {
 }
 
 async fn preset_save(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    let (_, b): (_, SaveBody) = w.post(&headers, &bytes, (Role::Operator, "save presets"), "{gimbal, name}")?;
+    let (who, b): (_, SaveBody) = w.post(&headers, &bytes, (Role::Operator, "save presets"), "{gimbal, name}")?;
     let g = w.gimbal(b.gimbal)?;
     let name = b.name.trim();
     if name.is_empty() || name.chars().count() > presets::MAX_NAME {
@@ -162,7 +165,11 @@ async fn preset_save(State(w): Shared, headers: HeaderMap, bytes: axum::body::By
             ))
         })?,
     };
-    g.session.send(Command::StorePreset(n)).await.map_err(failed)?;
+    g.session
+        .acting_for(Some(&who.user))
+        .send(Command::StorePreset(n))
+        .await
+        .map_err(failed)?;
     w.presets
         .set(&g.config.name, n, Some(name))
         .map_err(|e| Failure(StatusCode::INTERNAL_SERVER_ERROR, e))?;
@@ -200,7 +207,7 @@ async fn tour(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) ->
 async fn release(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
     let (who, b): (_, GimbalBody) = w.post(&headers, &bytes, (Role::Administrator, "release a gimbal"), "{gimbal}")?;
     let g = w.gimbal(b.gimbal)?;
-    g.session.release().await.map_err(failed)?;
+    g.session.acting_for(Some(&who.user)).release().await.map_err(failed)?;
     info!(user = %who.user, gimbal = %g.config.name, "released");
     Ok(answer(json!({ "released": true })))
 }
@@ -212,8 +219,12 @@ struct PresetBody {
 }
 
 async fn preset_go(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -> Result<Response, Failure> {
-    let (_, b): (_, PresetBody) = w.post(&headers, &bytes, (Role::Operator, "recall presets"), "{gimbal, n}")?;
+    let (who, b): (_, PresetBody) = w.post(&headers, &bytes, (Role::Operator, "recall presets"), "{gimbal, n}")?;
     let g = w.gimbal(b.gimbal)?;
-    g.session.go_to_preset(b.n).await.map_err(failed)?;
+    g.session
+        .acting_for(Some(&who.user))
+        .go_to_preset(b.n)
+        .await
+        .map_err(failed)?;
     Ok(answer(json!({})))
 }

@@ -87,6 +87,13 @@ pub struct GimbalConnection {
     nic_window_ms: u64,
     client: Option<GcudClient>,
     control: ControlSeen,
+    /// The user gcud takes this connection's commands for (`~U`), as last
+    /// told on this connection (`None`: the door itself, as every new
+    /// connection starts).
+    acting: Option<String>,
+    /// gcud refused `~U` on this connection (its principal may not act
+    /// for users): not asked again until the next connection.
+    acting_refused: bool,
 }
 
 /// Whether gcud takes control for `command`: its row of the protocol
@@ -112,6 +119,33 @@ impl GimbalConnection {
             nic_window_ms: nic_window.as_millis() as u64,
             client: None,
             control: ControlSeen::default(),
+            acting: None,
+            acting_refused: false,
+        }
+    }
+
+    /// The next commands act for `user`, one of the door's users (`None`:
+    /// the door itself): `~U` when that changes on this connection
+    /// (ARCHITECTURE "Principals"). Only over TLS, where the door is a
+    /// principal gcud may let act for users; a gcud that refuses it is
+    /// not asked again on this connection, and the commands go as the
+    /// door's (said once).
+    pub async fn act_for(&mut self, user: Option<&str>) {
+        if self.gcud.tls.is_none() {
+            return;
+        }
+        // A name gcud could not know as a principal: the door's own.
+        let user = user.filter(|u| sagebrush_protocol::gcu::valid_name(u.as_bytes()));
+        if self.client().await.is_err() || self.acting_refused || self.acting.as_deref() == user {
+            return;
+        }
+        let asked = self.gcu(&GcuRequest::ActFor(user.map(str::to_owned))).await;
+        match asked {
+            Ok(_) => self.acting = user.map(str::to_owned),
+            Err(e) => {
+                self.acting_refused = true;
+                warn!(gcud = %self.gcud, error = %e, "gcud does not let this door act for its users: their commands go as the door's");
+            }
         }
     }
 
@@ -121,6 +155,8 @@ impl GimbalConnection {
             let nic_window = self.nic_window_ms;
             let connect = GcudClient::connect(&self.gcud, self.from, |p| p.nic_window = nic_window);
             let unreachable = |e: String| CommandError::Io(format!("gcud at {} cannot be reached: {e}", self.gcud));
+            self.acting = None;
+            self.acting_refused = false;
             self.client = Some(
                 tokio::time::timeout(CONNECT_TIMEOUT, connect)
                     .await

@@ -192,6 +192,9 @@ pub enum GcuRequest {
     Rules(u8, u8),
     /// `~W`: end-of-window reports on this connection.
     WindowReports,
+    /// `~U name`: the connection's next commands act for this user of the
+    /// door (`None`: for the door itself; ARCHITECTURE "Principals").
+    ActFor(Option<String>),
 }
 
 /// The answer to a [`GcuRequest`].
@@ -204,6 +207,8 @@ pub enum GcuAnswer {
     Rules(Rules),
     /// gcud will report the end of each NIC window on this connection.
     WindowReports,
+    /// gcud takes the connection's next commands as the user's.
+    Acting,
 }
 
 impl GcuRequest {
@@ -223,6 +228,16 @@ impl GcuRequest {
             GcuRequest::TourList => GcuCommand::TourList,
             GcuRequest::Rules(p, d) => GcuCommand::Rules(*p, *d),
             GcuRequest::WindowReports => GcuCommand::WindowReports,
+            GcuRequest::ActFor(user) => {
+                if let Some(user) = user {
+                    if !valid_name(user.as_bytes()) {
+                        return Err(CommandError::Usage(format!(
+                            "user name {user:?}: gcud knows principals by 1 to 32 of A-Z a-z 0-9 _ -"
+                        )));
+                    }
+                }
+                GcuCommand::ActFor(user.as_deref().map(str::as_bytes))
+            }
             GcuRequest::TourStart(name) => {
                 named(name)?;
                 GcuCommand::TourStart(name.as_bytes())
@@ -257,12 +272,14 @@ impl GcuRequest {
         };
         let payload = match (self, result) {
             (GcuRequest::Release(..), _) => return Ok(GcuAnswer::Released),
+            (GcuRequest::ActFor(_), _) => return Ok(GcuAnswer::Acting),
             (_, Some(p)) => p,
             (_, None) => return Err(CommandError::NoResult(format!("gcud sent no result for {self:?}"))),
         };
         match self {
             GcuRequest::Controller(p, d) => Controller::from_result(payload, *p, *d).map(GcuAnswer::Controller),
             GcuRequest::Release(..) => Ok(GcuAnswer::Released),
+            GcuRequest::ActFor(_) => Ok(GcuAnswer::Acting),
             GcuRequest::Rules(p, d) => Rules::from_result(payload, *p, *d).map(GcuAnswer::Rules),
             GcuRequest::WindowReports if payload == WINDOW_REPORTS_ON => Ok(GcuAnswer::WindowReports),
             GcuRequest::WindowReports => Err(bad("~W", payload)),
@@ -296,6 +313,8 @@ impl GcuRequest {
             GcuRequest::TourList => "~T? (the tours)".to_owned(),
             GcuRequest::Rules(p, d) => format!("~B{p:02X}{d:02X} (the rules of {p}.{d})"),
             GcuRequest::WindowReports => "~W (end-of-window reports)".to_owned(),
+            GcuRequest::ActFor(Some(user)) => format!("~U{user} (act for user {user})"),
+            GcuRequest::ActFor(None) => "~U (act for the door itself)".to_owned(),
             GcuRequest::TourStart(name) => format!("~T+{name} (start tour {name})"),
             GcuRequest::TourStop(name) => format!("~T-{name} (stop tour {name})"),
         }

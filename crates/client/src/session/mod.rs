@@ -177,8 +177,7 @@ impl GimbalSession {
     /// [`Drive::Stop`] is a stop, owed at once. Returns once the velocity
     /// is in force or superseded by a newer one or a stop.
     pub async fn velocity(&self, velocity: Velocity, run: Option<Duration>, owner: &str) -> Result<(), CommandError> {
-        let rx = self.post_velocity(velocity, run, owner);
-        rx.await.unwrap_or_else(|_| Err(closed()))
+        self.acting_for(None).velocity(velocity, run, owner).await
     }
 
     /// [`GimbalSession::velocity`] without waiting: the receiver tells
@@ -188,6 +187,26 @@ impl GimbalSession {
         velocity: Velocity,
         run: Option<Duration>,
         owner: &str,
+    ) -> oneshot::Receiver<Result<(), CommandError>> {
+        self.acting_for(None).post_velocity(velocity, run, owner)
+    }
+
+    /// The session acting for `user`, one of the door's users: gcud
+    /// governs what is posted through it as that user's (ARCHITECTURE
+    /// "Principals"; `None`: the door's own).
+    pub fn acting_for(&self, user: Option<&str>) -> ForUser<'_> {
+        ForUser {
+            session: self,
+            user: user.map(Arc::from),
+        }
+    }
+
+    fn velocity_by(
+        &self,
+        velocity: Velocity,
+        run: Option<Duration>,
+        owner: &str,
+        by: Option<Arc<str>>,
     ) -> oneshot::Receiver<Result<(), CommandError>> {
         let (tx, rx) = oneshot::channel();
         let now = Instant::now();
@@ -243,6 +262,7 @@ impl GimbalSession {
                 s.wish = Some(Pending {
                     what: merged,
                     asked: now,
+                    by,
                     replies: replies.1,
                 });
                 if moves.pan.is_some() || moves.tilt.is_some() {
@@ -287,7 +307,7 @@ impl GimbalSession {
         rx.await.unwrap_or_else(|_| Err(closed()))
     }
 
-    async fn place(&self, place: Place) -> Result<(), CommandError> {
+    async fn place(&self, place: Place, by: Option<Arc<str>>) -> Result<(), CommandError> {
         let (tx, rx) = oneshot::channel();
         {
             let mut s = self.state();
@@ -304,6 +324,7 @@ impl GimbalSession {
             s.place = Some(Pending {
                 what: place,
                 asked: Instant::now(),
+                by,
                 replies: vec![tx],
             });
         }
@@ -313,37 +334,32 @@ impl GimbalSession {
 
     /// `GO` (Table 15).
     pub async fn go_to(&self, target: Position) -> Result<(), CommandError> {
-        self.place(Place::GoTo(target)).await
+        self.acting_for(None).go_to(target).await
     }
 
     /// `Pnn` (Table 11).
     pub async fn go_to_preset(&self, n: u8) -> Result<(), CommandError> {
-        self.place(Place::Preset(n)).await
+        self.acting_for(None).go_to_preset(n).await
     }
 
     /// `HO`.
     pub async fn home(&self) -> Result<(), CommandError> {
-        self.place(Place::Home).await
+        self.acting_for(None).home().await
     }
 
     /// Any other command (a query, `SVnn`, `V`): its result payload, if it
     /// has one. At most [`QUEUE`] wait; more are refused.
     pub async fn send(&self, command: Command<'static>) -> Result<Option<Vec<u8>>, CommandError> {
-        let (tx, rx) = oneshot::channel();
-        self.enqueue(Queued::Bus(command, tx), command.mnemonic())?;
-        rx.await.unwrap_or_else(|_| Err(closed()))
+        self.acting_for(None).send(command).await
     }
 
     /// A GCU command to gcud (module `governance`), in the queue with the
     /// other commands: answered by gcud itself, no bus time.
     pub async fn gcu(&self, request: GcuRequest) -> Result<GcuAnswer, CommandError> {
-        let (tx, rx) = oneshot::channel();
-        let what = format!("{request:?}");
-        self.enqueue(Queued::Gcu(request, tx), &what)?;
-        rx.await.unwrap_or_else(|_| Err(closed()))
+        self.acting_for(None).gcu(request).await
     }
 
-    fn enqueue(&self, queued: Queued, what: &str) -> Result<(), CommandError> {
+    fn enqueue(&self, queued: Queued, what: &str, by: Option<Arc<str>>) -> Result<(), CommandError> {
         {
             let mut s = self.state();
             if s.queue.len() >= QUEUE {
@@ -352,7 +368,7 @@ impl GimbalSession {
                     QUEUE, self.config.name,
                 )));
             }
-            s.queue.push_back((queued, Instant::now()));
+            s.queue.push_back((queued, Instant::now(), by));
         }
         self.wake.notify_one();
         Ok(())
@@ -392,11 +408,7 @@ impl GimbalSession {
     /// `~R`: releases control of the gimbal; gcud refuses it
     /// ([`CommandError::Refused`]) when a link of higher priority holds it.
     pub async fn release(&self) -> Result<(), CommandError> {
-        let a = self.config.address;
-        match self.gcu(GcuRequest::Release(a.port, a.device)).await? {
-            GcuAnswer::Released => Ok(()),
-            other => Err(CommandError::BadReply(format!("~R answered {other:?}"))),
-        }
+        self.acting_for(None).release().await
     }
 
     /// `~B`: gcud's limits and zones of the gimbal, asked at most every
@@ -453,5 +465,76 @@ impl GimbalSession {
         }
         self.state().closing = true;
         self.wake.notify_one();
+    }
+}
+
+/// A gimbal session acting for one of the door's users
+/// ([`GimbalSession::acting_for`]): what is posted through it goes to gcud
+/// as that user's (`~U`, ARCHITECTURE "Principals"), on the session's one
+/// connection. Newest wins as ever: a velocity or goto of another user
+/// replaces this one's, and is sent as that user's.
+#[derive(Debug)]
+pub struct ForUser<'a> {
+    session: &'a GimbalSession,
+    user: Option<Arc<str>>,
+}
+
+impl ForUser<'_> {
+    /// [`GimbalSession::velocity`], for this user.
+    pub async fn velocity(&self, velocity: Velocity, run: Option<Duration>, owner: &str) -> Result<(), CommandError> {
+        let rx = self.post_velocity(velocity, run, owner);
+        rx.await.unwrap_or_else(|_| Err(closed()))
+    }
+
+    /// [`GimbalSession::post_velocity`], for this user.
+    pub fn post_velocity(
+        &self,
+        velocity: Velocity,
+        run: Option<Duration>,
+        owner: &str,
+    ) -> oneshot::Receiver<Result<(), CommandError>> {
+        self.session.velocity_by(velocity, run, owner, self.user.clone())
+    }
+
+    /// `GO` (Table 15), for this user.
+    pub async fn go_to(&self, target: Position) -> Result<(), CommandError> {
+        self.session.place(Place::GoTo(target), self.user.clone()).await
+    }
+
+    /// `Pnn` (Table 11), for this user.
+    pub async fn go_to_preset(&self, n: u8) -> Result<(), CommandError> {
+        self.session.place(Place::Preset(n), self.user.clone()).await
+    }
+
+    /// `HO`, for this user.
+    pub async fn home(&self) -> Result<(), CommandError> {
+        self.session.place(Place::Home, self.user.clone()).await
+    }
+
+    /// [`GimbalSession::send`], for this user.
+    pub async fn send(&self, command: Command<'static>) -> Result<Option<Vec<u8>>, CommandError> {
+        let (tx, rx) = oneshot::channel();
+        self.session
+            .enqueue(Queued::Bus(command, tx), command.mnemonic(), self.user.clone())?;
+        rx.await.unwrap_or_else(|_| Err(closed()))
+    }
+
+    /// [`GimbalSession::gcu`], for this user.
+    pub async fn gcu(&self, request: GcuRequest) -> Result<GcuAnswer, CommandError> {
+        let (tx, rx) = oneshot::channel();
+        let what = format!("{request:?}");
+        self.session
+            .enqueue(Queued::Gcu(request, tx), &what, self.user.clone())?;
+        rx.await.unwrap_or_else(|_| Err(closed()))
+    }
+
+    /// `~R`, for this user: gcud releases the gimbal when this user (or
+    /// one it outranks) holds it.
+    pub async fn release(&self) -> Result<(), CommandError> {
+        let a = self.session.config.address;
+        match self.gcu(GcuRequest::Release(a.port, a.device)).await? {
+            GcuAnswer::Released => Ok(()),
+            other => Err(CommandError::BadReply(format!("~R answered {other:?}"))),
+        }
     }
 }

@@ -96,6 +96,8 @@ impl Place {
 pub(super) struct Pending<T> {
     pub(super) what: T,
     pub(super) asked: Instant,
+    /// The door's user it is for (ARCHITECTURE "Principals"; `None`: the door itself).
+    pub(super) by: Option<Arc<str>>,
     pub(super) replies: Vec<Reply>,
 }
 
@@ -116,7 +118,7 @@ pub(super) struct State {
     pub(super) stop_retry_at: Option<Instant>,
     pub(super) wish: Option<Pending<Velocity>>,
     pub(super) place: Option<Pending<Place>>,
-    pub(super) queue: VecDeque<(Queued, Instant)>,
+    pub(super) queue: VecDeque<(Queued, Instant, Option<Arc<str>>)>,
     pub(super) status: Status,
     pub(super) identity: Option<Identity>,
     /// The task ends once the owed stops are sent.
@@ -238,8 +240,8 @@ impl State {
         if self.place.as_ref().is_some_and(|p| stale(p.asked)) {
             answer(self.place.take().expect("checked").replies, Err(error()));
         }
-        while self.queue.front().is_some_and(|(_, asked)| stale(*asked)) {
-            let (queued, _) = self.queue.pop_front().expect("checked");
+        while self.queue.front().is_some_and(|(_, asked, _)| stale(*asked)) {
+            let (queued, _, _) = self.queue.pop_front().expect("checked");
             queued.fail(error());
         }
     }

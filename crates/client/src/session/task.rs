@@ -49,8 +49,16 @@ impl Applied {
 }
 
 impl GimbalSession {
-    /// The next step, decided under the lock.
-    pub(super) fn next(&self, now: Instant, next_poll: Instant) -> Step {
+    /// The next step, decided under the lock, and the door's user it is
+    /// for (a drive, a positioning move or a queued command; module
+    /// documentation of [`super::ForUser`]).
+    pub(super) fn next(&self, now: Instant, next_poll: Instant) -> (Step, Option<Arc<str>>) {
+        let mut by = None;
+        let step = self.next_step(now, next_poll, &mut by);
+        (step, by)
+    }
+
+    fn next_step(&self, now: Instant, next_poll: Instant, by: &mut Option<Arc<str>>) -> Step {
         let mut s = self.state();
         s.expire(now, &self.config.name);
         s.drop_stale(now);
@@ -71,6 +79,7 @@ impl GimbalSession {
         }
         if let Some(w) = &s.wish {
             let v = w.what;
+            by.clone_from(&w.by);
             if let Some(step) = pan_tilt_step(Axis::Pan, v.pan, s.pan)
                 .or_else(|| pan_tilt_step(Axis::Tilt, v.tilt, s.tilt))
                 .or_else(|| zoom_step(v.zoom, s.zoom))
@@ -88,9 +97,11 @@ impl GimbalSession {
             }
         }
         if let Some(p) = &s.place {
+            by.clone_from(&p.by);
             return Step::Place(p.what);
         }
-        if let Some((queued, _)) = s.queue.pop_front() {
+        if let Some((queued, _, user)) = s.queue.pop_front() {
+            *by = user;
             return Step::Query(queued);
         }
         let due = if s.moving().any() {
@@ -111,7 +122,11 @@ impl GimbalSession {
             // What the connection last learnt of gcud's control (a poll, a refusal).
             self.control_seen(connection.control());
             let now = Instant::now();
-            match self.next(now, next_poll) {
+            let (step, by) = self.next(now, next_poll);
+            if matches!(step, Step::Drive(..) | Step::Place(_) | Step::Query(_)) {
+                connection.act_for(by.as_deref()).await;
+            }
+            match step {
                 Step::End => return,
                 Step::Wait(until) => {
                     let sleep = tokio::time::sleep_until(until.unwrap_or(now + UNREACHABLE_POLL));
