@@ -24,7 +24,7 @@ struct ConfigFile {
     gcud: Spanned<String>,
     /// With `gcud = "tls://HOST:PORT"`: `{ ca, cert, key }`, the CA of
     /// gcud's certificate and this door's own (its principal at gcud).
-    gcud_tls: Option<Spanned<config_file::GcudTlsSection>>,
+    gcud_tls: Option<Spanned<sagebrush_service::door_config::GcudTlsSection>>,
     system_id: Int<u8, 1, 255>,
     /// The source group gcud sees (0: the MCU).
     #[serde(default)]
@@ -183,7 +183,7 @@ impl sagebrush_service::door::Checked for Config {
 pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let c = Source::new(file, text);
     let raw: ConfigFile = c.deserialize()?;
-    let gcud = c.gcud_endpoint(&raw.gcud, raw.gcud_tls.as_ref())?;
+    let gcud = sagebrush_service::door_config::gcud_endpoint(&c, &raw.gcud, raw.gcud_tls.as_ref())?;
     let attitude_period = match &raw.attitude_rate_hz {
         Some(v) if (0.2..=50.0).contains(v.get_ref()) => Duration::from_secs_f64(1.0 / v.get_ref()),
         Some(v) => {

@@ -23,7 +23,7 @@ struct ConfigFile {
     gcud: Spanned<String>,
     /// With `gcud = "tls://HOST:PORT"`: `{ ca, cert, key }`, the CA of
     /// gcud's certificate and this door's own (its principal at gcud).
-    gcud_tls: Option<Spanned<sagebrush_service::config_file::GcudTlsSection>>,
+    gcud_tls: Option<Spanned<sagebrush_service::door_config::GcudTlsSection>>,
     listen: Spanned<String>,
     #[serde(default)]
     source_group: Int<u8, 0, 254>,
@@ -114,7 +114,7 @@ impl sagebrush_service::door::Checked for Config {
 pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let c = Source::new(file, text);
     let raw: ConfigFile = c.deserialize()?;
-    let gcud = c.gcud_endpoint(&raw.gcud, raw.gcud_tls.as_ref())?;
+    let gcud = sagebrush_service::door_config::gcud_endpoint(&c, &raw.gcud, raw.gcud_tls.as_ref())?;
     let listen = c.listen_address(&raw.listen, "listen")?;
     let users = c.users(&raw.users)?;
     let state_file = c.state_file(raw.state_file.as_ref())?;

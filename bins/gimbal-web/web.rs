@@ -147,16 +147,19 @@ fn failed(e: CommandError) -> Failure {
 /// said (a gcud that governs nothing).
 fn control_json(control: Option<&Control>) -> Value {
     let Some(c) = control else { return Value::Null };
-    let (kind, name, priority) = match &c.holder {
-        Controller::Nobody => ("nobody", None, None),
-        Controller::Link { name, priority, .. } => ("link", Some(name.as_str()), Some(*priority)),
-        Controller::Tour(name) => ("tour", Some(name.as_str()), None),
-        Controller::Park => ("park", None, None),
+    let (kind, name, priority, via) = match &c.holder {
+        Controller::Nobody => ("nobody", None, None, None),
+        Controller::Link {
+            name, priority, via, ..
+        } => ("link", Some(name.as_str()), Some(*priority), via.as_deref()),
+        Controller::Tour(name) => ("tour", Some(name.as_str()), None, None),
+        Controller::Park => ("park", None, None, None),
     };
     json!({
         "kind": kind,
         "name": name,
         "priority": priority,
+        "via": via,
         "text": c.holder.to_string(),
         "ours": c.ours,
     })

@@ -256,18 +256,8 @@ pub(super) fn validate(
                     "{place}: listens on {addr}, not on loopback: reachable from other machines \
                      (allow_peers: {allow_peers})"
                 ));
-                match &tls {
-                    None => checks.warnings.push(format!(
-                        "{place}: plain TCP off loopback: whoever reaches {addr} is link {name:?} \
-                         (priority {}) and reads its traffic; configure `tls = {{ cert, key, client_ca }}`",
-                        l.priority.get()
-                    )),
-                    Some(super::principal::LinkTls::Server { client_ca: None, .. }) => checks.warnings.push(format!(
-                        "{place}: tls without `client_ca`: encrypted, but whoever reaches {addr} is \
-                         link {name:?} (priority {})",
-                        l.priority.get()
-                    )),
-                    Some(_) => {}
+                if let Some(warning) = super::principal::open_listener(tls.as_ref(), *addr, &name, l.priority.get()) {
+                    checks.warnings.push(format!("{place}: {warning}"));
                 }
             }
         }

@@ -116,6 +116,26 @@ pub(super) fn link_tls(
     Ok(tls)
 }
 
+/// The warning for a listener off loopback at `addr` (link `name` of
+/// `priority`) that anyone who reaches it may use as that link.
+pub(super) fn open_listener(
+    tls: Option<&LinkTls>,
+    addr: std::net::SocketAddr,
+    name: &str,
+    priority: u8,
+) -> Option<String> {
+    match tls {
+        None => Some(format!(
+            "plain TCP off loopback: whoever reaches {addr} is link {name:?} (priority {priority}) and reads \
+             its traffic; configure `tls = {{ cert, key, client_ca }}`"
+        )),
+        Some(LinkTls::Server { client_ca: None, .. }) => Some(format!(
+            "tls without `client_ca`: encrypted, but whoever reaches {addr} is link {name:?} (priority {priority})"
+        )),
+        Some(_) => None,
+    }
+}
+
 /// Every `[[principal]]`: names unique, valid in GCU commands, and apart
 /// from every link's (a link without principals is a controller by its name).
 pub(super) fn validate(

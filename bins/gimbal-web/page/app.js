@@ -278,13 +278,18 @@ function showControl(card, c) {
     return;
   }
   let text;
+  // gcud names a principal with its tool ("alice via gimbal-web"): yours
+  // when it is the user signed in here; a link without principals is
+  // this page's when gcud says it is the door's own.
+  const yours = c.kind === 'link' && (c.via ? me && c.name === me.user : c.ours);
   if (c.kind === 'nobody') text = 'Nobody controls it: the next command takes control';
-  else if (c.ours) text = `Controlled through this page's gcud link: ${c.text}`;
+  else if (yours && c.via) text = `Controlled by you through ${c.via} (priority ${c.priority})`;
+  else if (yours) text = `Controlled through this page's gcud link: ${c.text}`;
   else if (c.kind === 'tour') text = `On gcud's ${c.text}: any operator's command takes it over`;
   else if (c.kind === 'park') text = 'Parked by gcud: any operator\'s command takes it over';
   else text = `Controlled by ${c.text}: commands from here are refused until it lets go`;
   card.control.textContent = text;
-  card.control.classList.toggle('elsewhere', c.kind === 'link' && !c.ours);
+  card.control.classList.toggle('elsewhere', c.kind === 'link' && !yours);
   card.control.hidden = false;
 }
 

@@ -78,7 +78,7 @@ pub struct LinkConfig {
     /// The principal this connection authenticated as (gcud: the subject
     /// CN of its TLS client certificate). `None`: the link is its own
     /// principal (ARCHITECTURE "Principals").
-    pub principal: Option<crate::govern::Principal>,
+    pub principal: Option<crate::principal::Principal>,
 }
 
 impl LinkConfig {

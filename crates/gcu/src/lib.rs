@@ -140,6 +140,7 @@ mod line;
 mod link;
 mod outbox;
 mod port;
+mod principal;
 mod queue;
 mod reverse;
 mod router;
@@ -153,8 +154,9 @@ pub use govern::rules::{
     DEFAULT_PRIORITY, GimbalRules, Governance, HOLD_MS, MAX_PRIORITY, Park, Span, TourConfig, TourStep, TourTarget,
     Zone,
 };
-pub use govern::{Actor, GimbalControl, GovernStats, GovernanceError, Holder, Principal, TourState, TourStatus};
+pub use govern::{GimbalControl, GovernStats, GovernanceError, Holder, TourState, TourStatus};
 pub use outbox::Outbox;
+pub use principal::{Actor, Principal};
 pub use router::Router;
 pub use stats::{
     DeviceError, DeviceStats, DropCounts, LineStats, LinkStats, PortStats, RouterStats, Stats, UndeliveredCounts,

@@ -85,8 +85,8 @@ pub(crate) struct Link {
     /// module `window`): it lives and dies with the connection.
     pub window_reports: bool,
     /// The user this connection's door acts for now (`~U`; module
-    /// `govern::principal`): its next commands are that user's.
-    pub acting: Option<crate::govern::Actor>,
+    /// `principal`): its next commands are that user's.
+    pub acting: Option<crate::principal::Actor>,
 }
 
 impl Link {

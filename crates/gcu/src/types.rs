@@ -172,7 +172,7 @@ pub enum RouterEvent {
     /// through by the governance (`refused` `None`) or refused: the audit
     /// line (ARCHITECTURE "Principals"), naming who sent it.
     Motion {
-        actor: crate::govern::Actor,
+        actor: crate::principal::Actor,
         /// Boxed: a motion's event is rare beside the frames routed.
         frame: Box<sagebrush_protocol::FrameBuf>,
         refused: Option<DropReason>,
@@ -282,6 +282,22 @@ impl RouterEvent {
     }
 }
 
+/// The audit line's words: who, the command, the gimbal, the decision.
+fn audit_line(
+    f: &mut fmt::Formatter<'_>,
+    actor: &crate::principal::Actor,
+    frame: &sagebrush_protocol::FrameBuf,
+    refused: Option<DropReason>,
+) -> fmt::Result {
+    let frame = frame.frame();
+    let command = String::from_utf8_lossy(frame.payload());
+    write!(f, "{actor}: {command} to {}", frame.dest)?;
+    match refused {
+        None => f.write_str(" accepted"),
+        Some(reason) => write!(f, " refused: {}", reason.undelivered().describe()),
+    }
+}
+
 impl fmt::Display for RouterEvent {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
@@ -305,15 +321,7 @@ impl fmt::Display for RouterEvent {
                 source,
             } => write!(f, "dropped frame for {dest} from group {source} at {at}: {reason:?}"),
             RouterEvent::RateSwitched { port, bps } => write!(f, "port {port} switched to {bps} bps"),
-            RouterEvent::Motion { actor, frame, refused } => {
-                let frame = frame.frame();
-                let command = String::from_utf8_lossy(frame.payload());
-                write!(f, "{actor}: {command} to {}", frame.dest)?;
-                match refused {
-                    None => f.write_str(" accepted"),
-                    Some(reason) => write!(f, " refused: {}", reason.undelivered().describe()),
-                }
-            }
+            RouterEvent::Motion { actor, frame, refused } => audit_line(f, actor, frame, *refused),
             RouterEvent::IssuedStop {
                 link,
                 dest,

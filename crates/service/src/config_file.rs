@@ -26,16 +26,6 @@ use toml::Spanned;
 
 use crate::endpoint;
 
-/// A door's `gcud_tls = { ca, cert, key }`, as written
-/// ([`Source::gcud_endpoint`]).
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct GcudTlsSection {
-    ca: String,
-    cert: Option<String>,
-    key: Option<String>,
-}
-
 /// A configuration error with its place in the file.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ConfigError {
@@ -128,41 +118,6 @@ impl<'a> Source<'a> {
     /// gcud's client listener, `HOST:PORT` (`gcud`).
     pub fn gcud_address(&self, v: &Spanned<String>) -> Result<String, ConfigError> {
         self.host_port(v, "gcud", " of gcud's client listener")
-    }
-
-    /// A door's way to gcud: `gcud = "HOST:PORT"`, or `"tls://HOST:PORT"`
-    /// with `gcud_tls = { ca, cert, key }` (the CA of gcud's certificate,
-    /// the door's own certificate and key: its principal at gcud). The
-    /// files are read now, so that an error names them.
-    pub fn gcud_endpoint(
-        &self,
-        v: &Spanned<String>,
-        tls: Option<&Spanned<GcudTlsSection>>,
-    ) -> Result<sagebrush_host::tls::Endpoint, ConfigError> {
-        let text = v.get_ref();
-        let plain = text.strip_prefix(sagebrush_host::tls::TLS_SCHEME).unwrap_or(text);
-        let checked = Spanned::new(v.span(), plain.to_owned());
-        self.gcud_address(&checked)?;
-        let files = match tls {
-            None => None,
-            Some(t) => {
-                let raw = t.get_ref();
-                let identity = match (&raw.cert, &raw.key) {
-                    (Some(c), Some(k)) => Some((PathBuf::from(c), PathBuf::from(k))),
-                    (None, None) => None,
-                    _ => return Err(self.at(t.span(), "gcud_tls", "expected `cert` and `key` together")),
-                };
-                let files = sagebrush_host::tls::ClientFiles {
-                    ca: PathBuf::from(&raw.ca),
-                    identity,
-                };
-                let identity = files.identity.as_ref().map(|(c, k)| (c.as_path(), k.as_path()));
-                sagebrush_host::tls::connector(&files.ca, identity)
-                    .map_err(|e| self.at(t.span(), "gcud_tls", e.to_string()))?;
-                Some(files)
-            }
-        };
-        sagebrush_host::tls::Endpoint::parse(text, files).map_err(|e| self.at(v.span(), "gcud", e))
     }
 
     /// A place to connect to, `HOST:PORT` ([`endpoint::HostPort`]), as

@@ -15,7 +15,6 @@ mod follow;
 mod judge;
 mod knowledge;
 mod noting;
-pub mod principal;
 pub mod rules;
 mod tour;
 mod travel;
@@ -25,8 +24,8 @@ use std::collections::BTreeMap;
 
 use sagebrush_protocol::{Address, Describes, MountEffect, Position, WILDCARD};
 
+pub use crate::principal::{Actor, Principal};
 pub use control::Holder;
-pub use principal::{Actor, Principal};
 pub use sagebrush_protocol::TourState;
 pub use validate::GovernanceError;
 

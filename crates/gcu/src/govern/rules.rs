@@ -27,7 +27,7 @@ pub struct Governance {
     pub tours_min_priority: Option<u8>,
     /// The persons and tools gcud knows (`[[principal]]`): a door's user
     /// of this name is governed as it (ARCHITECTURE "Principals").
-    pub principals: Vec<super::Principal>,
+    pub principals: Vec<crate::principal::Principal>,
 }
 
 impl Default for Governance {

@@ -33,7 +33,7 @@ pub(super) enum Governed {
 }
 
 impl Router {
-    /// Who `link`'s next command is from (module `govern::principal`):
+    /// Who `link`'s next command is from (module `principal`):
     /// the user its door acts for, its principal, or the link itself.
     pub(super) fn identity(&self, link: LinkId) -> Option<Actor> {
         let l = self.links.get(&link)?;

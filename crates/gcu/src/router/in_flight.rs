@@ -122,7 +122,7 @@ pub(super) struct InFlight {
     pub(super) origin: Origin,
     /// Who sent it, as its link said when it was accepted (a door may act
     /// for another user by the time a waiting command is decided).
-    pub(super) who: Option<crate::govern::Actor>,
+    pub(super) who: Option<crate::principal::Actor>,
     /// The command frame as accepted (a report names its checksum; a
     /// client's retransmission is byte-identical) and its facts, read then.
     pub(super) command: ReadCommand,

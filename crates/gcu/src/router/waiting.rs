@@ -12,8 +12,8 @@ use sagebrush_protocol::{Address, MountEffect, WILDCARD};
 
 use crate::command::CommandFacts;
 use crate::config::LinkKind;
-use crate::govern::Actor;
 use crate::outbox::Outbox;
+use crate::principal::Actor;
 use crate::types::{CommandId, DropReason, Origin};
 
 use super::Router;
