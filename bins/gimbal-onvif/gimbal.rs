@@ -116,10 +116,13 @@ impl Gimbal {
         self.session.status()
     }
 
-    /// ONVIF's MoveStatus of the pan/tilt: IDLE, MOVING, or UNKNOWN while
-    /// a stop is owed that gcud could not be reached for.
-    pub fn move_status(&self) -> &'static str {
-        match self.session.status().motion {
+    /// ONVIF's MoveStatus of the pan/tilt: MOVING from the moment a move
+    /// is accepted until the bus shows it ended (the session's motion
+    /// truth, ARCHITECTURE "Front doors"), IDLE after a refused move or
+    /// once another controller took the gimbal (GetStatus's Error names
+    /// it), UNKNOWN while a stop is owed that gcud could not be reached for.
+    pub fn move_status(status: &Status) -> &'static str {
+        match status.motion {
             Motion::Idle => "IDLE",
             Motion::Moving => "MOVING",
             Motion::Unknown => "UNKNOWN",

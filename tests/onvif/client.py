@@ -190,6 +190,10 @@ async def step(name, host, port, user, password, args):
                 # What GetStatus says right after a refused move.
                 result["status"] = status_of(await ptz.GetStatus({"ProfileToken": token}))
             return result
+        if name == "absolute_truth":
+            return await absolute_truth(ptz, token, args)
+        if name == "takeover":
+            return await takeover(ptz, token, args)
         if name == "stop":
             return await attempt(ptz.Stop({"ProfileToken": token,
                                            "PanTilt": args.get("pan_tilt", True),
@@ -231,6 +235,46 @@ async def step(name, host, port, user, password, args):
         raise SystemExit(f"unknown step {name}")
     finally:
         await cam.close()
+
+
+async def absolute_truth(ptz, token, args):
+    """Frigate's autotracker's loop (issue 49): an AbsoluteMove to each of
+    `args["targets"]`, GetStatus at once after it returned OK, then GetStatus
+    every 50 ms until IDLE: per move, the first reading and the first IDLE
+    one."""
+    moves = []
+    for x, y in args["targets"]:
+        await ptz.AbsoluteMove({"ProfileToken": token, "Position": {"PanTilt": {"x": x, "y": y}}})
+        first = status_of(await ptz.GetStatus({"ProfileToken": token}))
+        deadline = time.monotonic() + 30.0
+        idle = None
+        while time.monotonic() < deadline:
+            s = status_of(await ptz.GetStatus({"ProfileToken": token}))
+            if s["moving"] == "IDLE":
+                idle = s
+                break
+            await asyncio.sleep(0.05)
+        moves.append({"target": [x, y], "first": first, "idle": idle})
+    return {"moves": moves}
+
+
+async def takeover(ptz, token, args):
+    """A ContinuousMove, GetStatus; then one line on stdout ("ready") and
+    a wait for one line on stdin (the test's: another controller took the
+    gimbal just now); then GetStatus every 50 ms for `args["watch_s"]`:
+    each reading with the time it was asked, in seconds after that line."""
+    await ptz.ContinuousMove({"ProfileToken": token, "Velocity": {"PanTilt": {"x": args["x"], "y": 0.0}}})
+    before = status_of(await ptz.GetStatus({"ProfileToken": token}))
+    print(json.dumps({"ready": True, "status": before}), flush=True)
+    await asyncio.get_running_loop().run_in_executor(None, sys.stdin.readline)
+    t0 = time.monotonic()
+    readings = []
+    while time.monotonic() - t0 < args["watch_s"]:
+        asked = time.monotonic() - t0
+        s = status_of(await ptz.GetStatus({"ProfileToken": token}))
+        readings.append({"t": asked, **s})
+        await asyncio.sleep(0.05)
+    return {"before": before, "readings": readings}
 
 
 async def tokens(media, ptz, profiles):

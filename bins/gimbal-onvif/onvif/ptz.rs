@@ -127,7 +127,12 @@ impl Request {
                 set_configuration(device, set)?;
                 Response::Done("SetConfigurationResponse")
             }
-            Self::GetStatus => Response::Status(g.status(), g.move_status(), now),
+            Self::GetStatus => {
+                // One reading: the MoveStatus and the Error agree.
+                let status = g.status();
+                let moving = crate::gimbal::Gimbal::move_status(&status);
+                Response::Status(status, moving, now)
+            }
             Self::ContinuousMove(c) => {
                 let zoom = zoom_arg(device, c.zoom)?;
                 if c.pan.is_none() && c.tilt.is_none() && zoom.is_none() {

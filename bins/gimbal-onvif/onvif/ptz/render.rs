@@ -92,11 +92,15 @@ fn status(g: &config::Gimbal, s: &sagebrush_client::session::Status, moving: &st
         })
         .unwrap_or_default();
     let zoom_moving = zoomed(g, &format!("<tt:Zoom>{moving}</tt:Zoom>"));
-    let error = s
-        .error
-        .as_ref()
-        .map(|e| format!("<tt:Error>{}</tt:Error>", esc(e)))
-        .unwrap_or_default();
+    // Why the last poll failed, and who took the gimbal from this door
+    // (tt:PTZStatus/Error, one string).
+    let taken = s.taken_by.as_ref().map(|c| format!("{c} controls the gimbal"));
+    let errors: Vec<&str> = s.error.iter().chain(taken.iter()).map(String::as_str).collect();
+    let error = if errors.is_empty() {
+        String::new()
+    } else {
+        format!("<tt:Error>{}</tt:Error>", esc(&errors.join("; ")))
+    };
     format!(
         "<tptz:GetStatusResponse><tptz:PTZStatus>{position}<tt:MoveStatus><tt:PanTilt>{moving}</tt:PanTilt>\
          {zoom_moving}</tt:MoveStatus>{error}<tt:UtcTime>{now}</tt:UtcTime></tptz:PTZStatus></tptz:GetStatusResponse>"

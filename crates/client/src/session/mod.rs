@@ -36,7 +36,9 @@
 //! surface, what a door posts; `types.rs` the public vocabulary (drives,
 //! velocities, axes, motion, status, gcud's reachability); `state.rs` what
 //! the session has been asked and what is in force, shared under one lock;
-//! `task.rs` the task that owns the connection and decides the next step.
+//! `task.rs` the task that owns the connection and decides the next step;
+//! `travel.rs` when the session's motion ended, as the bus shows it (a
+//! positioning move's end on the polls, a take-over by another controller).
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicU8, Ordering};
@@ -54,6 +56,7 @@ use crate::governance::{Controller, GcuAnswer, GcuRequest, Rules, Tour, TourOutc
 
 mod state;
 mod task;
+mod travel;
 mod types;
 
 use state::{Pending, Place, Queued, State, answer};
@@ -168,6 +171,7 @@ impl GimbalSession {
         let s = self.state();
         Status {
             motion: s.motion(),
+            taken_by: s.taken_by(),
             ..s.status.clone()
         }
     }
@@ -449,7 +453,7 @@ impl GimbalSession {
         let axes = {
             let s = self.state();
             let m = s.moving();
-            let changing = s.status.changing || s.place.is_some();
+            let changing = s.status.changing || s.place.is_some() || s.travel.is_some();
             Axes {
                 pan: m.pan || changing,
                 tilt: m.tilt || changing,

@@ -3,6 +3,7 @@
 //! pending velocity and positioning move, the short queue and its
 //! staleness (ARCHITECTURE "Front doors": stops first, bounded work).
 
+use super::travel::Travel;
 use super::*;
 
 pub(super) type Reply = oneshot::Sender<Result<(), CommandError>>;
@@ -130,6 +131,12 @@ pub(super) struct State {
     pub(super) wish_stops: Axes,
     /// gcud's rules of the gimbal, when last asked ([`GimbalSession::rules`]).
     pub(super) rules: Option<(Instant, Rules)>,
+    /// A positioning move gcud accepted, until the polls show it ended
+    /// (module `travel`).
+    pub(super) travel: Option<Travel>,
+    /// The last motion was ended or refused because another controller
+    /// holds the gimbal ([`Status::taken_by`]).
+    pub(super) taken: bool,
 }
 
 impl State {
@@ -145,10 +152,20 @@ impl State {
         }
     }
 
+    /// The session's motion, as the bus shows it: from the moment a move
+    /// is asked (accepted, once its caller is answered) until the polls
+    /// show it ended or a stop is confirmed (module `travel`); never a
+    /// motion of another controller.
     pub(super) fn motion(&self) -> Motion {
         if self.stops_owed.any() && self.stop_failures > 0 {
             Motion::Unknown
-        } else if self.moving().any() || self.place.is_some() || self.status.changing || self.stops_owed.any() {
+        } else if self.moving().any()
+            || self.place.is_some()
+            || self.travel.is_some()
+            || self.stops_owed.any()
+            // The gimbal moving under another controller is not this session's motion.
+            || (self.status.changing && self.another_holder().is_none())
+        {
             Motion::Moving
         } else {
             Motion::Idle

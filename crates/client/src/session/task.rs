@@ -4,6 +4,7 @@
 //! out and its outcome recorded (ARCHITECTURE "Front doors").
 
 use super::state::InForce;
+use super::travel::Travel;
 use super::*;
 use sagebrush_protocol::ResultKind;
 
@@ -104,7 +105,7 @@ impl GimbalSession {
             *by = user;
             return Step::Query(queued);
         }
-        let due = if s.moving().any() {
+        let due = if s.moving().any() || s.travel.is_some() {
             next_poll.min(now + REFRESH)
         } else {
             next_poll
@@ -162,6 +163,13 @@ impl GimbalSession {
                     let mut s = self.state();
                     // The gimbal's own motion: what it does to the speeds is its own.
                     s.forget_speeds();
+                    if sent.is_ok() {
+                        // A motion from its acceptance until the polls show it ended.
+                        s.travel = Some(Travel::new(place, s.status.position, Instant::now()));
+                        s.taken = false;
+                    } else if matches!(&sent, Err(e) if e.refusal() == Some(Undelivered::NotInControl)) {
+                        s.taken = true;
+                    }
                     if let Some(p) = s.place.take() {
                         if sent.is_ok() {
                             // The gimbal goes there instead of slewing.
@@ -199,7 +207,10 @@ impl GimbalSession {
                     self.reached(&reading);
                     let failed = reading.is_err();
                     self.polled(reading);
-                    if !failed && asked_control.is_none_or(|t: Instant| t.elapsed() >= CONTROL_POLL) {
+                    // While a motion of its own is in force, with every poll:
+                    // a take-over ends it (gcud stopped it), shown at once.
+                    let own_motion = self.state().own_motion();
+                    if !failed && (own_motion || asked_control.is_none_or(|t: Instant| t.elapsed() >= CONTROL_POLL)) {
                         asked_control = Some(Instant::now());
                         // Unknown while it fails (a gcud that governs nothing answers NIC).
                         let _ = connection.controller().await;
@@ -225,6 +236,10 @@ impl GimbalSession {
             s.forget_speeds();
         }
         s.status.control = control;
+        if s.taken_over() {
+            let holder = s.another_holder().map(ToString::to_string).unwrap_or_default();
+            info!(gimbal = %self.config.name, %holder, "another controller took the gimbal: gcud stopped the motion asked here");
+        }
     }
 
     /// Records what became of an owed stop: confirmed, refused by the
@@ -239,6 +254,10 @@ impl GimbalSession {
             Ok(_) => {
                 s.stops_owed = s.stops_owed.without(axes);
                 s.stop_retry_at = None;
+                if axes.pan || axes.tilt {
+                    // A confirmed stop ends a positioning move under way.
+                    s.travel = None;
+                }
                 if axes.pan {
                     s.pan.drive = Drive::Stop;
                 }
@@ -252,6 +271,10 @@ impl GimbalSession {
                     s.stop_failures = 0;
                     let replies = std::mem::take(&mut s.stop_replies);
                     answer(replies, Ok(()));
+                    if !s.moving().any() && s.travel.is_none() {
+                        // Confirmed on the bus: it stands, whatever the last poll saw.
+                        s.status.changing = false;
+                    }
                 }
                 if !s.moving().any() {
                     s.deadline = None;
@@ -309,6 +332,7 @@ impl GimbalSession {
         match sent {
             Ok(_) => {
                 s.last_refusal = None;
+                s.taken = false;
                 // A speed command's ACK starts the time its speed is believed.
                 let set_now = matches!(command, Command::SetSpeed(..) | Command::ZoomSpeed(_));
                 let now = Instant::now();
@@ -333,6 +357,8 @@ impl GimbalSession {
                     s.pan = InForce::default();
                     s.tilt = InForce::default();
                     s.zoom = InForce::default();
+                    s.travel = None;
+                    s.taken = true;
                 } else {
                     // Never leave an axis moving that the caller was told failed.
                     let ours = Axes {
@@ -375,6 +401,7 @@ impl GimbalSession {
                 st.position = Some(p);
                 st.lens = lens;
                 st.error = None;
+                s.travel_polled(p, Instant::now());
             }
             Err(e) => {
                 st.changing = false;

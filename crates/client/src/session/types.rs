@@ -141,6 +141,10 @@ pub struct Status {
     /// or naming the holder of a refusal); `None` while unknown (a gcud
     /// that governs nothing answers NIC).
     pub control: Option<Control>,
+    /// The controller that took the gimbal from this session (gcud stopped
+    /// the session's motion when it took control) or refused its last
+    /// move, while gcud names it as the holder.
+    pub taken_by: Option<Controller>,
 }
 
 /// Whether gcud can be reached, shared by a door's sessions so that the
