@@ -192,8 +192,8 @@ fn the_doors_check_exits_quietly_on_a_closed_stdout() {
         ),
     ] {
         let (status, stderr) = with_closed_stdout(bin, &["--check", "--config", config]);
-        // The shipped gimbal-onvif serves the LAN with the demo passwords:
-        // --check warns of them (tests/packaging.rs), which is no complaint.
+        // A shipped door moved off loopback warns of its demo passwords
+        // (tests/packaging.rs), which is no complaint.
         let stderr: String = stderr.lines().filter(|l| !l.contains("demo password")).collect();
         assert_quiet(&format!("{name} --check"), status, 0, &stderr);
     }
