@@ -38,6 +38,11 @@ struct Stack {
     mast: u16,
     absent: u16,
     discovery: u16,
+    /// What the configuration adds at its end (`[http] tls`).
+    tail: String,
+    /// The host the clients reach the devices at: `127.0.0.1`, or
+    /// `https://127.0.0.1` in HTTPS.
+    host: &'static str,
 }
 
 fn onvif_config(gcud: &str, state: &Path) -> String {
@@ -89,13 +94,28 @@ impl Stack {
         Self::with(support::door::start_governed_gcud())
     }
 
+    /// In HTTPS: `[http] tls = "self-signed"`.
+    fn start_https() -> Self {
+        Self::with_tail(
+            support::door::start_gcud(),
+            "[http]\ntls = \"self-signed\"\n",
+            "https://127.0.0.1",
+        )
+    }
+
     fn with(gcud: Gcud) -> Self {
+        Self::with_tail(gcud, "", "127.0.0.1")
+    }
+
+    fn with_tail(gcud: Gcud, tail: &str, host: &'static str) -> Self {
         let mut stack = Self {
             onvif: Door::new("gimbal-onvif", env!("CARGO_BIN_EXE_gimbal-onvif")),
             gcud,
             mast: 0,
             absent: 0,
             discovery: 0,
+            tail: tail.to_owned(),
+            host,
         };
         stack.spawn_onvif();
         stack
@@ -110,7 +130,8 @@ impl Stack {
     fn spawn_onvif(&mut self) {
         let state = self.onvif.dir.path().join("presets.toml");
         let config = onvif_config(&self.gcud.clients(), &state);
-        self.onvif.start(&format!("source_group = {DOOR_GROUP}\n{config}"));
+        self.onvif
+            .start(&format!("source_group = {DOOR_GROUP}\n{config}{}", self.tail));
         self.mast = self.onvif.port("gimbal=mast-1 addr=");
         self.absent = self.onvif.port("gimbal=absent addr=");
         self.discovery = self.onvif.port("WS-Discovery listening");
@@ -118,11 +139,12 @@ impl Stack {
 
     /// Runs one step of the third-party client against the device on `port`.
     fn client(&self, step: &str, port: u16, user: (&str, &str), args: Value) -> Value {
+        let host = if step == "discover" { "127.0.0.1" } else { self.host };
         let (port, args) = (port.to_string(), args.to_string());
         support::door::python_step(
             "tests/onvif/client.py",
             step,
-            &["127.0.0.1", &port, user.0, user.1, &args],
+            &[host, &port, user.0, user.1, &args],
             || self.log(),
         )
     }
@@ -668,6 +690,7 @@ fn the_shipped_configuration_documents_every_key_and_passes_check() {
         "zoom",
         "fov_deg",
         "fov_tele_deg",
+        "tls",
     ] {
         assert!(
             text.lines()
@@ -1010,4 +1033,58 @@ fn a_continuous_move_on_a_governed_gimbal_moves_it_and_stops_short_of_its_zone()
     eprintln!("ContinuousMove toward the zone: rests at pan {pan} (zone from 30)");
     assert!(pan > 10.0, "it moved: {pan}");
     assert!(pan <= 30.5, "into the zone: {pan}\n{}", stack.gcud.log());
+}
+
+/// In HTTPS (issue 49, `[http] tls = "self-signed"`): onvif-zeep-async
+/// reaches the device at https:// and follows its XAddrs, which say https
+/// (GetCapabilities, GetServices, WS-Discovery's ProbeMatch); a client
+/// trusting only the kept certificate verifies it for 127.0.0.1; a
+/// ContinuousMove reaches the bus; plain HTTP to the port gets a 400.
+#[test]
+fn over_https_the_xaddrs_say_https_and_a_move_reaches_the_bus() {
+    if !clients_available() {
+        return;
+    }
+    let stack = Stack::start_https();
+    let cert = stack.onvif.dir.path().join("gimbal-onvif-self-signed.crt");
+    let base = format!("https://127.0.0.1:{}/onvif/", stack.mast);
+    let x = stack.client("xaddrs", stack.mast, ADMIN, json!({ "cert": cert }));
+    assert_eq!(x["verified"], 200, "{x}\n{}", stack.log());
+    for list in ["capabilities", "services", "followed"] {
+        let addrs = x[list].as_array().unwrap_or_else(|| panic!("{list}: {x}"));
+        assert!(!addrs.is_empty(), "{x}");
+        for a in addrs {
+            assert!(
+                a.as_str().is_some_and(|a| a.starts_with(&base)),
+                "{list}: {a} is not under {base}"
+            );
+        }
+    }
+    let found = stack.client("discover", stack.discovery, ("-", "-"), json!({ "expect": 2 }));
+    for m in found["matches"].as_array().expect("matches") {
+        let xaddr = m["xaddrs"][0].as_str().unwrap_or_default();
+        assert!(xaddr.starts_with("https://127.0.0.1:"), "{found}");
+    }
+    let from = stack.bus_position();
+    let moved = stack.client(
+        "continuous",
+        stack.mast,
+        OPERATOR,
+        json!({ "x": 0.5, "y": 0.0, "timeout_s": 1.5 }),
+    );
+    assert_eq!(moved["ok"], true, "{moved}");
+    stack.wait_moving(from);
+    let stopped = stack.client("stop", stack.mast, OPERATOR, json!({}));
+    assert!(stopped.get("ok").is_some(), "{stopped}");
+    let addr = format!("127.0.0.1:{}", stack.mast);
+    let plain = support::door::plain_raw(
+        &addr,
+        &format!(
+            "POST /onvif/device_service HTTP/1.1\r\nHost: {addr}\r\nContent-Type: application/soap+xml\r\nContent-Length: 2\r\n\r\n<x"
+        ),
+    );
+    assert!(
+        plain.starts_with("HTTP/1.1 400") && plain.contains("https://"),
+        "{plain:?}"
+    );
 }

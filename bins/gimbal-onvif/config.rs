@@ -14,6 +14,7 @@ use sagebrush_service::config_file::{ConfigError, Int, Millis, Source};
 pub use sagebrush_service::door_config::HttpBounds;
 use sagebrush_service::door_config::{HttpSection, UserSection};
 pub use sagebrush_service::door_config::{Role, User};
+pub use sagebrush_service::door_tls::DoorTls;
 use sagebrush_service::endpoint::listeners_clash;
 use serde::Deserialize;
 use toml::Spanned;
@@ -92,6 +93,8 @@ pub struct Gimbal {
     pub stream_uri: Option<String>,
     /// The bounds of the HTTP listeners (`[http]`, the same for every gimbal).
     pub http: HttpBounds,
+    /// Served in HTTPS (`[http] tls`): its XAddrs say https.
+    pub https: bool,
     /// The travel ONVIF's generic space [-1, 1] maps onto, degrees.
     pub pan_deg: (f64, f64),
     pub tilt_deg: (f64, f64),
@@ -151,6 +154,8 @@ pub struct Config {
     /// How often each gimbal's position is asked (`P?`) for GetStatus.
     pub poll: Duration,
     pub discovery: Option<DiscoveryConfig>,
+    /// `[http] tls`: every gimbal's device in HTTPS.
+    pub tls: Option<DoorTls>,
     pub users: Users,
     pub gimbals: Vec<Gimbal>,
 }
@@ -165,7 +170,12 @@ impl sagebrush_service::door::Checked for Config {
 
     fn warnings(&self) -> Vec<String> {
         let listeners: Vec<SocketAddr> = self.gimbals.iter().map(|g| g.listen).collect();
-        sagebrush_service::door_config::demo_password_warnings(&self.users.list, &listeners)
+        let mut w = sagebrush_service::door_config::demo_password_warnings(&self.users.list, &listeners);
+        w.extend(sagebrush_service::door_tls::plain_http_warnings(
+            &listeners,
+            self.tls.is_some(),
+        ));
+        w
     }
 }
 
@@ -234,6 +244,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             pan_deg,
             tilt_deg,
             http,
+            https: false,
             zoom,
             fov_deg,
             fov_tele_deg,
@@ -242,12 +253,18 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     if gimbals.is_empty() {
         return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
     }
+    let listens: Vec<SocketAddr> = gimbals.iter().map(|g| g.listen).collect();
+    let tls = c.door_tls(&raw.http, "gimbal-onvif", state_file.as_deref(), &listens)?;
+    for g in &mut gimbals {
+        g.https = tls.is_some();
+    }
     Ok(Config {
         link: GcudLink::new(gcud, raw.source_group.get(), raw.nic_window_ms.duration()),
         state_file,
         max_move: raw.max_move_ms.duration(),
         poll: raw.poll_ms.duration(),
         discovery,
+        tls,
         users: Users {
             list: users,
             bounds: AuthBounds {

@@ -164,10 +164,11 @@ impl Discovery {
         let host = SocketAddr::new(ip, g.listen.port());
         format!(
             "<a:EndpointReference><a:Address>{}</a:Address></a:EndpointReference><d:Types>{TYPES}</d:Types>\
-             <d:Scopes>{}</d:Scopes><d:XAddrs>http://{host}/onvif/device_service</d:XAddrs>\
+             <d:Scopes>{}</d:Scopes><d:XAddrs>{}://{host}/onvif/device_service</d:XAddrs>\
              <d:MetadataVersion>1</d:MetadataVersion>",
             urn(&format!("gimbal-onvif {}", g.name)),
-            esc(&scopes(g).join(" "))
+            esc(&scopes(g).join(" ")),
+            if g.https { "https" } else { "http" }
         )
     }
 

@@ -4,7 +4,8 @@
 //! parameter or a SOAPAction header, says what is asked; any Content-Type,
 //! parameters included, is read as the envelope it carries, and the answer
 //! goes back as that envelope's SOAP version's type). The connections go
-//! through the bounded listener (crate `sagebrush-service`, `[http]`): one
+//! through the bounded listener (crate `sagebrush-service`, `[http]`; in
+//! HTTPS with `[http] tls`, every XAddr then saying https): one
 //! admission table for every gimbal's device (a total cap that evicts the
 //! longest-idle connection for a newcomer, a per-peer cap that holds for
 //! loopback peers too), header, body and idle time-outs, bounded buffers;
@@ -43,6 +44,8 @@ const LOGGED_PEERS: usize = 1024;
 struct Served {
     device: Device,
     permits: Arc<Semaphore>,
+    /// "https" with `[http] tls`, else "http": the service addresses' scheme.
+    scheme: &'static str,
     failed_logins: Arc<Mutex<LogGate<IpAddr>>>,
 }
 
@@ -91,6 +94,7 @@ async fn soap(
         .unwrap_or(&local_host);
     let target = uri.path_and_query().map_or(uri.path(), |p| p.as_str());
     let origin = Origin {
+        scheme: s.scheme,
         host,
         local: local.ip(),
         uri: target,
@@ -133,6 +137,7 @@ pub async fn bind(
     listen: SocketAddr,
     device: Device,
     table: Arc<Connections>,
+    tls: Option<sagebrush_host::tls::TlsAcceptor>,
 ) -> std::io::Result<(SocketAddr, impl Future<Output = std::io::Result<()>>)> {
     let listener = tokio::net::TcpListener::bind(listen).await?;
     let local = listener.local_addr()?;
@@ -141,6 +146,7 @@ pub async fn bind(
     let served = Served {
         device,
         permits: Arc::new(Semaphore::new(MAX_CONCURRENT)),
+        scheme: if tls.is_some() { "https" } else { "http" },
         failed_logins: Arc::new(Mutex::new(LogGate::new(FAILED_LOGIN_LOG_EVERY, LOGGED_PEERS))),
     };
     let app = Router::new()
@@ -151,9 +157,10 @@ pub async fn bind(
         .with_state(served);
     let limits = bounds.limits();
     let listener = BoundedListener::new(listener, table, format!("gimbal {device_name}"));
-    info!(gimbal = %device_name, addr = %local, "ONVIF device listening");
+    let scheme = if tls.is_some() { "https" } else { "http" };
+    info!(gimbal = %device_name, addr = %local, scheme, "ONVIF device listening");
     Ok((local, async move {
-        sagebrush_service::serve_http(listener, limits, app).await;
+        sagebrush_service::serve_http(listener, limits, tls, app).await;
         Ok(())
     }))
 }

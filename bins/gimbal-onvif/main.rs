@@ -36,19 +36,19 @@ async fn run(config: config::Config) -> Result<(), String> {
     let reach = Arc::new(sagebrush_client::session::GcudReachability::default());
     // One admission table for every gimbal's device: the caps are for all.
     let table = config.gimbals.first().map(|g| g.http.table());
+    let tls = config.tls.as_ref().map(|t| t.acceptor()).transpose()?;
     for g in &config.gimbals {
         let gimbal = gimbal::Gimbal::new(g.clone(), &config, Arc::clone(&reach));
         let device = onvif::Device::new(Arc::clone(&gimbal), Arc::clone(&auth), Arc::clone(&presets));
-        let (bound, server) = http::bind(g.listen, device, Arc::clone(table.as_ref().expect("a gimbal")))
-            .await
-            .map_err(|e| {
-                format!(
-                    "gimbal[{}] {}: cannot listen on {}: {e}",
-                    gimbals.len(),
-                    g.name,
-                    g.listen
-                )
-            })?;
+        let table = Arc::clone(table.as_ref().expect("a gimbal"));
+        let (bound, server) = http::bind(g.listen, device, table, tls.clone()).await.map_err(|e| {
+            format!(
+                "gimbal[{}] {}: cannot listen on {}: {e}",
+                gimbals.len(),
+                g.name,
+                g.listen
+            )
+        })?;
         // Discovery announces where each device really listens (port 0 in tests).
         served.push(config::Gimbal {
             listen: bound,

@@ -37,6 +37,9 @@ pub const REQUEST_TIMEOUT: Duration = Duration::from_secs(30);
 /// Where a request came in: what the answer may say about it.
 #[derive(Debug, Clone, Copy)]
 pub struct Origin<'a> {
+    /// "https" or "http": how the client reached the device, for the
+    /// service addresses.
+    pub scheme: &'a str,
     /// The host (and port) the client reached, for the service addresses:
     /// its Host header when that is a well-formed host, else the address
     /// the connection was accepted on (module `http` decides).

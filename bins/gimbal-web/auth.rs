@@ -1,6 +1,7 @@
 //! Sign-in for the page: a user's name and password (checked in constant
 //! time for equal lengths) open a sign-in, kept in memory and named by a
-//! random token in the session cookie (HttpOnly, SameSite=Strict); its
+//! random token in the session cookie (HttpOnly, SameSite=Strict, and
+//! Secure over HTTPS: `[http] tls`, or `secure_cookie` behind a proxy); its
 //! own random CSRF token, which only the page's script can read (from
 //! `/api/session`), must come in the `X-CSRF-Token` header of every POST.
 //! Sign-ins are bounded: at most `max_sign_ins`, split evenly between the

@@ -13,6 +13,7 @@ use sagebrush_protocol::Address;
 use sagebrush_service::config_file::{ConfigError, Int, Millis, Source};
 use sagebrush_service::door_config::{HttpBounds, HttpSection, UserSection};
 pub use sagebrush_service::door_config::{Role, User};
+use sagebrush_service::door_tls::DoorTls;
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -88,8 +89,11 @@ pub struct Config {
     pub max_streams_per_user: usize,
     /// The reverse proxies whose `X-Forwarded-For` names the client.
     pub trusted_proxies: Vec<IpAddr>,
-    /// The session cookie carries `Secure` (gimbal-web behind HTTPS).
+    /// The session cookie carries `Secure` (gimbal-web behind an HTTPS
+    /// proxy; always with `tls`).
     pub secure_cookie: bool,
+    /// `[http] tls`: the page in HTTPS.
+    pub tls: Option<DoorTls>,
     pub http: HttpBounds,
     pub users: Vec<User>,
     pub gimbals: Vec<Gimbal>,
@@ -106,7 +110,12 @@ impl sagebrush_service::door::Checked for Config {
     }
 
     fn warnings(&self) -> Vec<String> {
-        sagebrush_service::door_config::demo_password_warnings(&self.users, &[self.listen])
+        let mut w = sagebrush_service::door_config::demo_password_warnings(&self.users, &[self.listen]);
+        w.extend(sagebrush_service::door_tls::plain_http_warnings(
+            &[self.listen],
+            self.tls.is_some(),
+        ));
+        w
     }
 }
 
@@ -118,6 +127,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let listen = c.listen_address(&raw.listen, "listen")?;
     let users = c.users(&raw.users)?;
     let state_file = c.state_file(raw.state_file.as_ref())?;
+    let tls = c.door_tls(&raw.http, "gimbal-web", state_file.as_deref(), &[listen])?;
     let mut gimbals: Vec<Gimbal> = Vec::new();
     for (i, g) in raw.gimbals.iter().enumerate() {
         let key = format!("gimbal[{i}]");
@@ -144,7 +154,8 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         max_sign_ins: raw.max_sign_ins.get(),
         max_streams_per_user: raw.max_streams_per_user.get(),
         trusted_proxies: c.trusted_proxies(&raw.http)?,
-        secure_cookie: raw.secure_cookie,
+        secure_cookie: raw.secure_cookie || tls.is_some(),
+        tls,
         http: raw.http.bounds(),
         users,
         gimbals,

@@ -53,7 +53,8 @@ async fn run(config: config::Config) -> Result<(), String> {
         })
         .collect();
     let sessions: Vec<_> = gimbals.iter().map(|g| Arc::clone(&g.session)).collect();
-    let (addr, server) = web::bind(&config, gimbals, presets)
+    let tls = config.tls.as_ref().map(|t| t.acceptor()).transpose()?;
+    let (addr, server) = web::bind(&config, gimbals, presets, tls)
         .await
         .map_err(|e| format!("listen {}: cannot listen: {e}", config.listen))?;
     let server = tokio::spawn(server);

@@ -421,7 +421,11 @@ async fn sign_out(State(w): Shared, headers: HeaderMap) -> Result<Response, Fail
     {
         w.auth.sign_out(key);
     }
-    let gone = format!("{}=; Path=/; HttpOnly; SameSite=Strict; Max-Age=0", crate::auth::COOKIE);
+    let gone = format!(
+        "{}=; Path=/; HttpOnly; SameSite=Strict; Max-Age=0{}",
+        crate::auth::COOKIE,
+        if w.secure_cookie { "; Secure" } else { "" }
+    );
     let mut response = answer(json!({}));
     if let Ok(v) = HeaderValue::from_str(&gone) {
         response.headers_mut().insert(header::SET_COOKIE, v);
@@ -467,6 +471,7 @@ pub async fn bind(
     config: &config::Config,
     gimbals: Vec<Gimbal>,
     presets: Arc<Presets>,
+    tls: Option<sagebrush_host::tls::TlsAcceptor>,
 ) -> std::io::Result<(SocketAddr, impl Future<Output = ()> + use<>)> {
     let listener = tokio::net::TcpListener::bind(config.listen).await?;
     let local = listener.local_addr()?;
@@ -499,8 +504,9 @@ pub async fn bind(
         .with_state(Arc::clone(&web));
     let listener = BoundedListener::new(listener, config.http.table(), "gimbal-web");
     let limits = config.http.limits();
-    info!(addr = %local, "page listening");
-    let serve = sagebrush_service::serve_http(listener, limits, app);
+    let scheme = if tls.is_some() { "https" } else { "http" };
+    info!(addr = %local, scheme, "page listening");
+    let serve = sagebrush_service::serve_http(listener, limits, tls, app);
     Ok((local, async move {
         // gcud's tours, asked every QUIET beside the page (no bus time),
         // and apart (an unreachable gcud delays neither) the gimbals'

@@ -2,6 +2,9 @@
 
 Usage: python3 client.py STEP HOST PORT USER PASSWORD [ARGS_JSON]
 
+HOST may be https://IP: onvif-zeep-async then speaks HTTPS to the device
+(it verifies no certificate), and follows the XAddrs the device gives.
+
 Each STEP talks to one gimbal's ONVIF device through onvif-zeep-async
 (the library Home Assistant's ONVIF integration uses) or, for discovery,
 through WSDiscovery's message layer (the package Home Assistant uses for
@@ -152,6 +155,8 @@ async def step(name, host, port, user, password, args):
             }
         if name == "status":
             return status_of(await ptz.GetStatus({"ProfileToken": token}))
+        if name == "xaddrs":
+            return await xaddrs(cam, host, port, args)
         if name == "relative_spaces":
             # What Frigate's autotracker checks before it can be switched on:
             # the FOV space among the node's and the options' relative spaces,
@@ -275,6 +280,32 @@ async def takeover(ptz, token, args):
         readings.append({"t": asked, **s})
         await asyncio.sleep(0.05)
     return {"before": before, "readings": readings}
+
+
+async def xaddrs(cam, host, port, args):
+    """The service addresses the device gives (GetCapabilities,
+    GetServices, and those onvif-zeep-async follows), and
+    GetSystemDateAndTime posted with httpx trusting only the certificate
+    in `args["cert"]` (the door's self-signed one: its names must hold
+    the address)."""
+    import ssl
+    import httpx
+    dev = await cam.create_devicemgmt_service()
+    caps = await dev.GetCapabilities({"Category": "All"})
+    services = await dev.GetServices({"IncludeCapability": False})
+    trusted = ssl.create_default_context(cafile=args["cert"])
+    ip = host.split("://")[-1]
+    body = ('<?xml version="1.0"?><s:Envelope xmlns:s="http://www.w3.org/2003/05/soap-envelope"><s:Body>'
+            '<GetSystemDateAndTime xmlns="http://www.onvif.org/ver10/device/wsdl"/></s:Body></s:Envelope>')
+    async with httpx.AsyncClient(timeout=30, verify=trusted) as http:
+        r = await http.post(f"https://{ip}:{port}/onvif/device_service", content=body.encode(),
+                            headers={"Content-Type": "application/soap+xml"})
+    return {
+        "capabilities": [caps.Device.XAddr, caps.Media.XAddr, caps.PTZ.XAddr],
+        "services": [s.XAddr for s in services],
+        "followed": sorted(cam.xaddrs.values()),
+        "verified": answer_of(r)["status"],
+    }
 
 
 async def tokens(media, ptz, profiles):

@@ -416,3 +416,38 @@ pub fn assert_unit_has(name: &str, lines: &[&str]) {
         assert!(unit.lines().any(|l| l.trim() == *line), "the unit lacks {line:?}");
     }
 }
+
+/// A request of raw HTTP/1.1 (`request`, head and body) over TLS to
+/// `addr` (`IP:PORT`), trusting only the certificate in `ca` (a door's
+/// self-signed one: its names must hold the address): the whole answer.
+pub fn https_raw(addr: &str, ca: &Path, request: &str) -> String {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .expect("runtime");
+    runtime.block_on(async {
+        let connector = sagebrush_host::tls::connector(ca, None).expect("trust the certificate");
+        let tcp = tokio::net::TcpStream::connect(addr).await.expect("connect");
+        let mut tls = tokio::time::timeout(HANG_GUARD, sagebrush_host::tls::connect(&connector, addr, tcp))
+            .await
+            .expect("a TLS handshake in time")
+            .unwrap_or_else(|e| panic!("TLS with {addr}, trusting {}: {e}", ca.display()));
+        tls.write_all(request.as_bytes()).await.expect("request");
+        let mut answer = Vec::new();
+        let _ = tokio::time::timeout(HANG_GUARD, tls.read_to_end(&mut answer)).await;
+        String::from_utf8_lossy(&answer).into_owned()
+    })
+}
+
+/// A request of raw HTTP/1.1 in plain TCP to `addr`: the whole answer
+/// (empty when the connection closed without one).
+pub fn plain_raw(addr: &str, request: &str) -> String {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(addr).expect("connect");
+    s.set_read_timeout(Some(HANG_GUARD)).expect("timeout");
+    let _ = s.write_all(request.as_bytes());
+    let mut answer = Vec::new();
+    let _ = s.read_to_end(&mut answer);
+    String::from_utf8_lossy(&answer).into_owned()
+}

@@ -4,6 +4,9 @@ Selenium through chromedriver. Reads one JSON request a line on stdin,
 answers one JSON line on stdout ({"ok": ...} or {"error": ...}), so that
 the Rust test holds a button, reads the bus, then releases.
 
+With --accept-insecure-certs the browser accepts a certificate it does
+not trust (a door's self-signed one), as WebDriver's acceptInsecureCerts.
+
 Controls are found as a user (and a screen reader) finds them: by their
 role and accessible name (the page's accessibility contract), never by CSS
 classes.
@@ -28,6 +31,10 @@ WAIT_S = 20
 
 def start():
     options = webdriver.ChromeOptions()
+    if "--accept-insecure-certs" in sys.argv[1:]:
+        # The door's self-signed certificate (tests/web/https.rs), as a
+        # user accepts it once.
+        options.accept_insecure_certs = True
     options.binary_location = os.environ.get("CHROMIUM", "/usr/bin/chromium")
     for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
                 "--window-size=1280,900", "--no-first-run", "--disable-extensions",

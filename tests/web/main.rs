@@ -13,6 +13,7 @@ mod support;
 mod access;
 mod attack;
 mod governance;
+mod https;
 mod motion;
 mod principals;
 mod tours;
@@ -68,9 +69,15 @@ impl Browser {
     const QUIT: Duration = Duration::from_secs(15);
 
     fn start() -> Self {
+        Self::launch(&[])
+    }
+
+    /// [`Browser::start`] with the script's `args` (`--accept-insecure-certs`).
+    fn launch(args: &[&str]) -> Self {
         let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/browser.py");
         let mut child = Command::new(support::door::python())
             .arg(script)
+            .args(args)
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())

@@ -32,7 +32,8 @@ pub enum Response {
     DateAndTime(OffsetDateTime),
     ServiceCapabilities,
     Information(Identity),
-    /// The service addresses on `host` (the Host the client reached).
+    /// The service addresses at `host`: `SCHEME://HOST` (the scheme and
+    /// the Host the client reached).
     Capabilities {
         host: String,
     },
@@ -65,7 +66,7 @@ impl Request {
     }
 
     pub async fn run(self, device: &Device, origin: &Origin<'_>, now: OffsetDateTime) -> Result<Response, Fault> {
-        let host = || origin.host.to_owned();
+        let host = || format!("{}://{}", origin.scheme, origin.host);
         Ok(match self {
             Self::GetSystemDateAndTime => Response::DateAndTime(now),
             Self::GetServiceCapabilities => Response::ServiceCapabilities,
@@ -81,9 +82,9 @@ impl Request {
     }
 }
 
-/// A service's address on `host`.
-fn url(host: &str, service: &str) -> String {
-    esc(&format!("http://{host}/onvif/{service}")).into_owned()
+/// A service's address at `base` (`SCHEME://HOST[:PORT]`).
+fn url(base: &str, service: &str) -> String {
+    esc(&format!("{base}/onvif/{service}")).into_owned()
 }
 
 /// A locally administered MAC address of its own for this gimbal's

@@ -141,6 +141,7 @@ mod tests {
             listen: "127.0.0.1:0".parse().unwrap(),
             stream_uri: None,
             http: sagebrush_service::door_config::HttpSection::default().bounds(),
+            https: false,
             pan_deg: (-180.0, 180.0),
             tilt_deg: (-90.0, 90.0),
             zoom: tele.is_some(),

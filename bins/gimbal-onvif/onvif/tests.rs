@@ -48,6 +48,7 @@ fn signed(body: &str, nonce: u64) -> String {
 }
 
 const ORIGIN: Origin<'static> = Origin {
+    scheme: "http",
     host: "h:1",
     local: std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST),
     uri: "/onvif/device_service",

@@ -262,6 +262,8 @@ pub struct HttpSection {
     /// The reverse proxy (or proxies) whose `X-Forwarded-For` names the
     /// client: an IP address or a list of them (gimbal-web only).
     trusted_proxy: Option<Spanned<toml::Value>>,
+    /// HTTPS: `"self-signed"` or `{ cert, key }` ([`crate::door_tls`]).
+    pub(crate) tls: Option<Spanned<toml::Value>>,
 }
 
 impl HttpSection {
@@ -336,9 +338,11 @@ impl HttpBounds {
         })
     }
 
-    /// The HTTP time-outs of these bounds (buffers at the listener's defaults).
+    /// The HTTP time-outs of these bounds (buffers at the listener's
+    /// defaults; a TLS handshake within the header time-out).
     pub fn limits(&self) -> HttpLimits {
         HttpLimits {
+            handshake_timeout: self.header_timeout,
             header_timeout: self.header_timeout,
             body_timeout: self.body_timeout,
             ..HttpLimits::default()

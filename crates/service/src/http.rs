@@ -14,6 +14,12 @@
 //!   this one is a deadline;
 //! - the table's idle time-out: a connection on which no byte moves either
 //!   way for that long is closed (a client that stops reading its answer);
+//! - with TLS ([`crate::door_tls`]), a handshake time-out: the handshake
+//!   must be done within [`HttpLimits::handshake_timeout`] of the
+//!   connection opening, inside its admission slot (a half-open client
+//!   holds a slot that long at most, and counts against the caps); a
+//!   client speaking plain HTTP there gets a 400 naming https, and the
+//!   connection closes;
 //! - bounded buffers: hyper's read buffer at [`HttpLimits::max_buf`], at
 //!   most [`HttpLimits::max_headers`] headers (the body limit is the
 //!   application's, e.g. axum's `DefaultBodyLimit`).
@@ -36,7 +42,9 @@ use tokio::net::{TcpListener, TcpStream};
 use tower::ServiceExt;
 use tracing::{debug, warn};
 
-use crate::admission::{Admitted, Connections};
+use sagebrush_host::tls::TlsAcceptor;
+
+use crate::admission::{Admitted, Connections, Tracked};
 use crate::rate::LogGate;
 
 type BoxError = Box<dyn StdError + Send + Sync>;
@@ -127,11 +135,15 @@ pub struct HttpLimits {
     /// hyper's read buffer, bytes (at least 8192: hyper's floor).
     pub max_buf: usize,
     pub max_headers: usize,
+    /// With TLS: the handshake must be done within this of the connection
+    /// opening (inside its admission slot).
+    pub handshake_timeout: Duration,
 }
 
 impl Default for HttpLimits {
     fn default() -> Self {
         Self {
+            handshake_timeout: Duration::from_secs(5),
             header_timeout: Duration::from_secs(5),
             body_timeout: Duration::from_secs(10),
             max_buf: 64 * 1024,
@@ -205,9 +217,10 @@ impl BoundedListener {
     }
 }
 
-/// Serves `service` on every connection `listener` admits, until this
-/// future is dropped (the connections end with it).
-pub async fn serve_http<S, B>(mut listener: BoundedListener, limits: HttpLimits, service: S)
+/// Serves `service` on every connection `listener` admits, in HTTPS with
+/// `tls` (else plain HTTP), until this future is dropped (the connections
+/// end with it).
+pub async fn serve_http<S, B>(mut listener: BoundedListener, limits: HttpLimits, tls: Option<TlsAcceptor>, service: S)
 where
     S: tower::Service<Request<RequestBody>, Response = Response<B>, Error = Infallible> + Clone + Send + 'static,
     S::Future: Send + 'static,
@@ -223,47 +236,157 @@ where
         };
         let service = service.clone();
         let place = listener.place.clone();
-        open.spawn(serve_connection(stream, peer, admitted, limits, service, place));
+        let tls = tls.clone();
+        open.spawn(async move {
+            let mut conn = Connection {
+                peer,
+                local: stream.local_addr().ok(),
+                admitted,
+                limits,
+                place,
+            };
+            match tls {
+                None => {
+                    let io = conn.admitted.track(stream);
+                    conn.serve(io, service).await;
+                }
+                Some(acceptor) => {
+                    if let Some(io) = conn.handshake(stream, &acceptor).await {
+                        conn.serve(io, service).await;
+                    }
+                }
+            }
+        });
     }
 }
 
-async fn serve_connection<S, B>(
-    stream: TcpStream,
+/// The first byte of a TLS connection: a handshake record.
+const TLS_HANDSHAKE_RECORD: u8 = 0x16;
+
+/// One admitted connection being served.
+struct Connection {
     peer: SocketAddr,
-    mut admitted: Admitted,
+    local: Option<SocketAddr>,
+    admitted: Admitted,
     limits: HttpLimits,
-    service: S,
     place: String,
-) where
-    S: tower::Service<Request<RequestBody>, Response = Response<B>, Error = Infallible> + Clone + Send + 'static,
-    S::Future: Send + 'static,
-    B: Body + Send + 'static,
-    B::Data: Send,
-    B::Error: Into<BoxError>,
-{
-    let local = stream.local_addr().ok();
-    let body_timeout = limits.body_timeout;
-    let per_request = service_fn(move |mut request: Request<Incoming>| {
-        request.extensions_mut().insert(Peer(peer));
-        if let Some(local) = local {
-            request.extensions_mut().insert(Local(local));
-        }
-        let request = request.map(|body| RequestBody::new(body_timeout, body));
-        service.clone().oneshot(request)
-    });
-    let mut http = hyper::server::conn::http1::Builder::new();
-    http.timer(TokioTimer::new())
-        .header_read_timeout(limits.header_timeout)
-        .max_buf_size(limits.max_buf.max(8192))
-        .max_headers(limits.max_headers);
-    let connection = http.serve_connection(TokioIo::new(admitted.track(stream)), per_request);
-    tokio::select! {
-        ended = connection => {
-            if let Err(e) = ended {
-                debug!(%place, %peer, error = %e, "HTTP connection ended");
+}
+
+impl Connection {
+    /// The TLS handshake, within [`HttpLimits::handshake_timeout`] of the
+    /// connection opening and inside its admission slot (a half-open or
+    /// silent client holds it that long at most; one evicted or idle is
+    /// closed as any other). A client that speaks plain HTTP gets a 400
+    /// saying to use https, then the connection closes.
+    async fn handshake(
+        &mut self,
+        stream: TcpStream,
+        acceptor: &TlsAcceptor,
+    ) -> Option<sagebrush_host::tls::server::TlsStream<Tracked<TcpStream>>> {
+        let deadline = tokio::time::Instant::now() + self.limits.handshake_timeout;
+        let (peer, place) = (self.peer, self.place.clone());
+        let mut first = [0u8; 1];
+        let peeked = tokio::select! {
+            peeked = tokio::time::timeout_at(deadline, stream.peek(&mut first)) => peeked,
+            ending = self.admitted.ended() => {
+                debug!(%place, %peer, reason = ending.reason(), "connection closed before its TLS handshake");
+                return None;
+            }
+        };
+        match peeked {
+            Ok(Ok(1)) if first[0] == TLS_HANDSHAKE_RECORD => {}
+            Ok(Ok(1)) => {
+                debug!(%place, %peer, "plain HTTP on the HTTPS port: answered 400");
+                let _ = tokio::time::timeout_at(deadline, refuse_plain(stream, self.local)).await;
+                return None;
+            }
+            Ok(_) => return None,
+            Err(_) => {
+                debug!(%place, %peer, "no TLS handshake within {} ms: closed", self.limits.handshake_timeout.as_millis());
+                return None;
             }
         }
-        ending = admitted.ended() => debug!(%place, %peer, reason = ending.reason(), "HTTP connection closed"),
+        let io = self.admitted.track(stream);
+        let shaken = tokio::select! {
+            shaken = tokio::time::timeout_at(deadline, acceptor.accept(io)) => shaken,
+            ending = self.admitted.ended() => {
+                debug!(%place, %peer, reason = ending.reason(), "connection closed during its TLS handshake");
+                return None;
+            }
+        };
+        match shaken {
+            Ok(Ok(tls)) => Some(tls),
+            Ok(Err(e)) => {
+                debug!(%place, %peer, error = %e, "TLS handshake failed");
+                None
+            }
+            Err(_) => {
+                debug!(%place, %peer, "TLS handshake not done within {} ms: closed", self.limits.handshake_timeout.as_millis());
+                None
+            }
+        }
+    }
+
+    /// Serves HTTP/1.1 on `io` until it ends or the table ends it.
+    async fn serve<I, S, B>(&mut self, io: I, service: S)
+    where
+        I: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin + Send + 'static,
+        S: tower::Service<Request<RequestBody>, Response = Response<B>, Error = Infallible> + Clone + Send + 'static,
+        S::Future: Send + 'static,
+        B: Body + Send + 'static,
+        B::Data: Send,
+        B::Error: Into<BoxError>,
+    {
+        let (peer, local, limits) = (self.peer, self.local, self.limits);
+        let body_timeout = limits.body_timeout;
+        let per_request = service_fn(move |mut request: Request<Incoming>| {
+            request.extensions_mut().insert(Peer(peer));
+            if let Some(local) = local {
+                request.extensions_mut().insert(Local(local));
+            }
+            let request = request.map(|body| RequestBody::new(body_timeout, body));
+            service.clone().oneshot(request)
+        });
+        let mut http = hyper::server::conn::http1::Builder::new();
+        http.timer(TokioTimer::new())
+            .header_read_timeout(limits.header_timeout)
+            .max_buf_size(limits.max_buf.max(8192))
+            .max_headers(limits.max_headers);
+        let connection = http.serve_connection(TokioIo::new(io), per_request);
+        let place = &self.place;
+        tokio::select! {
+            ended = connection => {
+                if let Err(e) = ended {
+                    debug!(%place, %peer, error = %e, "HTTP connection ended");
+                }
+            }
+            ending = self.admitted.ended() => debug!(%place, %peer, reason = ending.reason(), "HTTP connection closed"),
+        }
+    }
+}
+
+/// Answers a plain HTTP request on the HTTPS port with a 400 that says so,
+/// reads what the client sent (closing with unread bytes would reset the
+/// connection before the client reads the answer), and closes.
+async fn refuse_plain(mut stream: TcpStream, local: Option<SocketAddr>) {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let port = local.map_or(String::new(), |l| format!(":{}", l.port()));
+    let body = format!("This port speaks HTTPS: use https://HOST{port}/\n");
+    let answer = format!(
+        "HTTP/1.1 400 Bad Request\r\ncontent-type: text/plain; charset=utf-8\r\ncontent-length: {}\r\nconnection: close\r\n\r\n{body}",
+        body.len()
+    );
+    let mut buf = [0u8; 4096];
+    let _ = stream.read(&mut buf).await;
+    if stream.write_all(answer.as_bytes()).await.is_ok() {
+        let _ = stream.shutdown().await;
+        let mut drained = 0;
+        while drained < 64 * 1024 {
+            match stream.read(&mut buf).await {
+                Ok(0) | Err(_) => break,
+                Ok(n) => drained += n,
+            }
+        }
     }
 }
 
@@ -294,6 +417,7 @@ mod tests {
         tokio::spawn(serve_http(
             BoundedListener::new(listener, table, "test"),
             limits,
+            None,
             service,
         ));
         addr

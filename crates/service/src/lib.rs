@@ -6,6 +6,8 @@
 //!   its file:line:column with its key and what was expected.
 //! - [`door_config`]: the pieces every door with users shares: `[[user]]`,
 //!   the preset state file, `[http]`.
+//! - [`door_tls`]: HTTPS at the doors, `[http] tls` (the site's
+//!   certificate or a self-signed one the door makes and keeps).
 //! - [`door`]: a front door's start-up (`--check`, exit codes, runtime).
 //! - [`endpoint`]: the one parser of `HOST:PORT` and of `IP:PORT` to
 //!   listen on, for configuration files and command lines alike.
@@ -28,6 +30,7 @@ pub mod admission;
 pub mod config_file;
 pub mod door;
 pub mod door_config;
+pub mod door_tls;
 pub mod endpoint;
 pub mod http;
 pub mod rate;
