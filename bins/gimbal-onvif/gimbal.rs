@@ -68,9 +68,10 @@ impl Gimbal {
         })
     }
 
-    /// Sends `command` (a preset to store) after the motions and stops.
-    pub async fn send(&self, command: &Command<'static>) -> Result<Option<Vec<u8>>, CommandError> {
-        self.session.send(*command).await
+    /// Sends `command` (a preset to store) after the motions and stops,
+    /// for ONVIF user `by` (ARCHITECTURE "Principals").
+    pub async fn send(&self, command: &Command<'static>, by: &str) -> Result<Option<Vec<u8>>, CommandError> {
+        self.session.acting_for(Some(by)).send(*command).await
     }
 
     /// `P?` now.
@@ -92,11 +93,11 @@ impl Gimbal {
     }
 
     /// `V`: the lens to zoom `x` (0..=1 of its range), focus where it is.
-    pub async fn zoom_to(&self, x: f64) -> Result<(), CommandError> {
+    pub async fn zoom_to(&self, x: f64, by: &str) -> Result<(), CommandError> {
         let focus = self.lens().await?.focus;
         let zoom =
             U12::new((x.clamp(0.0, 1.0) * ZOOM_MAX).round() as u16).map_err(|e| CommandError::Usage(e.to_string()))?;
-        self.send(&Command::LensGoTo(LensPosition { zoom, focus }))
+        self.send(&Command::LensGoTo(LensPosition { zoom, focus }), by)
             .await
             .map(drop)
     }
@@ -130,19 +131,22 @@ impl Gimbal {
     }
 
     /// `GO` to a position in degrees (Table 15).
-    pub async fn go_to(&self, pan: f64, tilt: f64) -> Result<(), CommandError> {
+    pub async fn go_to(&self, pan: f64, tilt: f64, by: &str) -> Result<(), CommandError> {
         let angle = |deg: f64| Angle::from_degrees(deg as f32).map_err(|e| CommandError::Usage(e.to_string()));
-        self.session.go_to(Position::new(angle(pan)?, angle(tilt)?)).await
+        self.session
+            .acting_for(Some(by))
+            .go_to(Position::new(angle(pan)?, angle(tilt)?))
+            .await
     }
 
     /// `Pnn`: to a preset the gimbal stored (Table 11).
-    pub async fn go_to_preset(&self, n: u8) -> Result<(), CommandError> {
-        self.session.go_to_preset(n).await
+    pub async fn go_to_preset(&self, n: u8, by: &str) -> Result<(), CommandError> {
+        self.session.acting_for(Some(by)).go_to_preset(n).await
     }
 
     /// `HO`: to the fixed home position.
-    pub async fn go_home(&self) -> Result<(), CommandError> {
-        self.session.home().await
+    pub async fn go_home(&self, by: &str) -> Result<(), CommandError> {
+        self.session.acting_for(Some(by)).home().await
     }
 
     /// The longest a continuous move runs.
@@ -161,13 +165,17 @@ impl Gimbal {
         tilt: Option<f64>,
         zoom: Option<f64>,
         timeout: Option<Duration>,
+        by: &str,
     ) -> Result<(), CommandError> {
         let velocity = Velocity {
             pan: pan.map(|v| Drive::signed(v, speed_of)),
             tilt: tilt.map(|v| Drive::signed(v, speed_of)),
             zoom: zoom.map(|v| Drive::signed(v, lens_speed_of)),
         };
-        self.session.velocity(velocity, timeout, "ONVIF ContinuousMove").await
+        self.session
+            .acting_for(Some(by))
+            .velocity(velocity, timeout, "ONVIF ContinuousMove")
+            .await
     }
 
     /// Stop: the pan/tilt motors (`PS` and `TS`) and the zoom (`ZS`), sent

@@ -144,7 +144,7 @@ impl Device {
             NS_DEVICE => device::Request::parse(op)?.run(self, origin, now).await?.render(g),
             NS_MEDIA => media::Request::parse(op)?.run(self)?.render(g),
             _ => ptz::Request::parse(op)?
-                .run(self, now)
+                .run(self, now, &user.0)
                 .await?
                 .render(g, self.gimbal.max_move()),
         })

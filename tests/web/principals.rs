@@ -1,10 +1,12 @@
-//! gimbal-web's users are principals at gcud (issue 49, ARCHITECTURE
-//! "Principals"): the door connects to gcud over TLS with its own client
-//! certificate (principal `gimbal-web`, which `acts_for_users`), and says
-//! for which of its signed-in users each command is (`~U`). gcud governs
-//! each user by its own `[[principal]]` priority: the higher takes over,
-//! the lower is refused naming the holder and the tool, and the audit
-//! lines name each. Plain HTTP to the door (no browser).
+//! The doors' users are principals at gcud (issue 49, ARCHITECTURE
+//! "Principals"): gimbal-web and gimbal-onvif connect to gcud over TLS,
+//! each with its own client certificate (principals `gimbal-web` and
+//! `gimbal-onvif`, which `acts_for_users`), and say for which of their
+//! users each command is (`~U`). gcud governs each user by its own
+//! `[[principal]]` priority across both doors: the higher takes over, the
+//! lower is refused naming the holder and the tool, and the audit lines
+//! name each. Plain HTTP to gimbal-web (no browser), onvif-zeep-async to
+//! gimbal-onvif.
 
 use super::access::raw;
 use super::*;
@@ -54,7 +56,8 @@ fn post(stack: &Stack, who: &Signed, path: &str, body: Value) -> (u16, String) {
 
 /// gcud's buses (as [`start_gcud`]'s) with a TLS listener `doors`
 /// requiring client certificates of the CA in `pki`; gcud knows the door
-/// (90, acting for users) and two of its users, `op` (50) and `admin` (80).
+/// and gimbal-onvif (90, acting for users), two users of gimbal-web, `op`
+/// (50) and `admin` (80), and one of gimbal-onvif, `carol` (60).
 fn tls_gcud(pki: &Path) -> Gcud {
     let p = pki.display();
     Gcud::start(&format!(
@@ -65,6 +68,8 @@ fn tls_gcud(pki: &Path) -> Gcud {
          allow_source_groups = [0, {DOOR_GROUP}]\n\
          tls = {{ cert = \"{p}/gcud.crt\", key = \"{p}/gcud.key\", client_ca = \"{p}/ca.crt\" }}\n\
          [[principal]]\nname = \"gimbal-web\"\npriority = 90\nacts_for_users = true\n\
+         [[principal]]\nname = \"gimbal-onvif\"\npriority = 90\nacts_for_users = true\n\
+         [[principal]]\nname = \"carol\"\npriority = 60\n\
          [[principal]]\nname = \"op\"\npriority = 50\n\
          [[principal]]\nname = \"admin\"\npriority = 80\n",
         group = support::door::GCUD_GROUP,
@@ -76,6 +81,9 @@ fn tls_gcud(pki: &Path) -> Gcud {
 fn the_doors_users_arbitrate_at_gcud_as_themselves_and_the_audit_names_each() {
     let dir = tempfile::tempdir().expect("temp dir");
     let pki = dir.path().join("tls");
+    if !support::door::onvif_client_available() {
+        return;
+    }
     let made = support::gimbalctl(&[
         "tls",
         "init",
@@ -83,6 +91,8 @@ fn the_doors_users_arbitrate_at_gcud_as_themselves_and_the_audit_names_each() {
         pki.to_str().unwrap(),
         "--principal",
         "gimbal-web",
+        "--principal",
+        "gimbal-onvif",
     ]);
     assert_eq!(made.code, 0, "{made:?}");
     let gcud = tls_gcud(&pki);
@@ -97,6 +107,18 @@ fn the_doors_users_arbitrate_at_gcud_as_themselves_and_the_audit_names_each() {
             state.display()
         )
     });
+    let onvif = onvif_door(&doors, &pki);
+    let onvif_port = onvif.port("gimbal=mast-1 addr=").to_string();
+    // carol's AbsoluteMove to `pan` degrees (generic x = pan / 180).
+    let carol = |pan: f64| {
+        let args = json!({ "x": pan / 180.0, "y": 0.0 }).to_string();
+        support::door::python_step(
+            "tests/onvif/client.py",
+            "absolute",
+            &["127.0.0.1", &onvif_port, "carol", "carol-secret", &args],
+            || onvif.log(),
+        )
+    };
     let op = sign_in(&stack, "op", "op-secret");
     let admin = sign_in(&stack, "admin", "admin-secret");
     let goto = |who: &Signed, pan: f64| {
@@ -111,9 +133,26 @@ fn the_doors_users_arbitrate_at_gcud_as_themselves_and_the_audit_names_each() {
     let (status, answer) = goto(&op, 20.0);
     assert_eq!(status, 200, "op moves the free gimbal: {answer}\n{}", stack.gcud.log());
     eventually("mast-1 at op's 20°", || stack.gcud.position(MAST).0 == 20.0);
+    let moved = carol(-18.0);
+    assert!(
+        moved.get("ok").is_some(),
+        "carol (60) through ONVIF takes over from op: {moved}"
+    );
+    eventually("mast-1 at carol's -18°", || stack.gcud.position(MAST).0 == -18.0);
+    let (status, answer) = goto(&op, 30.0);
+    assert_ne!(status, 200, "op is refused while carol holds: {answer}");
+    assert!(
+        answer.contains("carol via gimbal-onvif"),
+        "the refusal names the holder and its tool: {answer}"
+    );
     let (status, answer) = goto(&admin, -20.0);
-    assert_eq!(status, 200, "admin (80) takes over from op (50): {answer}");
+    assert_eq!(status, 200, "admin (80) takes over from carol (60): {answer}");
     eventually("mast-1 at admin's -20°", || stack.gcud.position(MAST).0 == -20.0);
+    let refused = carol(36.0);
+    assert!(
+        refused.get("ok").is_none(),
+        "carol is refused while admin holds: {refused}"
+    );
     let (status, answer) = goto(&op, 30.0);
     assert_ne!(status, 200, "op is refused while admin holds: {answer}");
     assert!(
@@ -123,15 +162,40 @@ fn the_doors_users_arbitrate_at_gcud_as_themselves_and_the_audit_names_each() {
     assert_eq!(
         stack.gcud.settled_position(MAST).0,
         -20.0,
-        "op's refused goto moved nothing"
+        "the refused moves moved nothing"
     );
 
     let log = stack.gcud.log();
-    for (who, outcome) in [("op", "accepted"), ("admin", "accepted"), ("op", "refused")] {
+    for (who, outcome) in [
+        ("op", "accepted"),
+        ("carol", "accepted"),
+        ("op", "refused"),
+        ("admin", "accepted"),
+        ("carol", "refused"),
+    ] {
+        let tool = if who == "carol" { "gimbal-onvif" } else { "gimbal-web" };
         assert!(
             log.lines()
-                .any(|l| l.contains(&format!("{who} via gimbal-web: P")) && l.contains(outcome)),
+                .any(|l| l.contains(&format!("{who} via {tool}: P")) && l.contains(outcome)),
             "no audit line of {who}'s {outcome} goto:\n{log}"
         );
     }
+}
+
+/// gimbal-onvif in front of gcud's TLS listener `doors`, with its own
+/// certificate from `pki` and one ONVIF user, carol.
+fn onvif_door(doors: &str, pki: &Path) -> Door {
+    let mut onvif = Door::new("gimbal-onvif", env!("CARGO_BIN_EXE_gimbal-onvif"));
+    let state = onvif.dir.path().join("presets.toml");
+    let p = pki.display();
+    onvif.start(&format!(
+        "gcud = \"tls://{doors}\"\n\
+         gcud_tls = {{ ca = \"{p}/ca.crt\", cert = \"{p}/gimbal-onvif.crt\", key = \"{p}/gimbal-onvif.key\" }}\n\
+         source_group = {DOOR_GROUP}\nstate_file = \"{}\"\n[discovery]\nenabled = false\n\
+         [[user]]\nname = \"carol\"\npassword = \"carol-secret\"\nrole = \"operator\"\n\
+         [[gimbal]]\nname = \"mast-1\"\naddress = \"{MAST}\"\nlisten = \"127.0.0.1:0\"\n\
+         pan_deg = [-180.0, 180.0]\ntilt_deg = [-90.0, 90.0]\n",
+        state.display()
+    ));
+    onvif
 }

@@ -112,7 +112,9 @@ impl Request {
     }
 
     /// Carries the request out on `device`'s gimbal.
-    pub async fn run(self, device: &Device, now: OffsetDateTime) -> Result<Response, Fault> {
+    /// `user`: the ONVIF user it is for, whom gcud governs it as
+    /// (ARCHITECTURE "Principals").
+    pub async fn run(self, device: &Device, now: OffsetDateTime, user: &str) -> Result<Response, Fault> {
         let g = &device.gimbal;
         let name = &g.config.name;
         Ok(match self {
@@ -145,7 +147,7 @@ impl Request {
                 // (the session's own maximum, `max_move_ms`, unless set).
                 let default = device.settings().timeout;
                 let timeout = c.timeout.or((default < g.max_move()).then_some(default));
-                g.continuous(c.pan, c.tilt, zoom, timeout)
+                g.continuous(c.pan, c.tilt, zoom, timeout, user)
                     .await
                     .map_err(faults::gimbal)?;
                 Response::Done("ContinuousMoveResponse")
@@ -163,15 +165,15 @@ impl Request {
                         crate::gimbal::to_degrees(x, g.config.pan_deg),
                         crate::gimbal::to_degrees(y, g.config.tilt_deg),
                     );
-                    g.go_to(pan, tilt).await.map_err(faults::gimbal)?;
+                    g.go_to(pan, tilt, user).await.map_err(faults::gimbal)?;
                 }
                 if let Some(z) = zoom {
-                    g.zoom_to(z).await.map_err(faults::gimbal)?;
+                    g.zoom_to(z, user).await.map_err(faults::gimbal)?;
                 }
                 Response::Done("AbsoluteMoveResponse")
             }
             Self::RelativeMove { space, by } => {
-                relative_move(device, space.as_deref(), by).await?;
+                relative_move(device, space.as_deref(), by, user).await?;
                 Response::Done("RelativeMoveResponse")
             }
             Self::Stop { pan_tilt, zoom } => {
@@ -179,9 +181,13 @@ impl Request {
                 Response::Done("StopResponse")
             }
             Self::GetPresets => Response::Presets(device.presets.list(name)),
-            Self::SetPreset { token, name: label } => Response::PresetToken(set_preset(device, token, label).await?),
+            Self::SetPreset { token, name: label } => {
+                Response::PresetToken(set_preset(device, token, label, user).await?)
+            }
             Self::GotoPreset(n) => {
-                g.go_to_preset(named_preset(device, n)?).await.map_err(faults::gimbal)?;
+                g.go_to_preset(named_preset(device, n)?, user)
+                    .await
+                    .map_err(faults::gimbal)?;
                 Response::Done("GotoPresetResponse")
             }
             Self::RemovePreset(n) => {
@@ -192,7 +198,7 @@ impl Request {
                 Response::Done("RemovePresetResponse")
             }
             Self::GotoHomePosition => {
-                g.go_home().await.map_err(faults::gimbal)?;
+                g.go_home(user).await.map_err(faults::gimbal)?;
                 Response::Done("GotoHomePositionResponse")
             }
             Self::SetHomePosition => {
@@ -249,7 +255,7 @@ fn set_configuration(device: &Device, set: SetConfiguration) -> Result<(), Fault
 /// node does not offer is refused, never read as another. In the FOV space
 /// the field of view is the lens's at its zoom now (`V?`) when the tele
 /// end is configured.
-async fn relative_move(device: &Device, space: Option<&str>, by: (f64, f64)) -> Result<(), Fault> {
+async fn relative_move(device: &Device, space: Option<&str>, by: (f64, f64), user: &str) -> Result<(), Fault> {
     let g = &device.gimbal;
     let space = match space {
         None => device.settings().relative,
@@ -271,7 +277,7 @@ async fn relative_move(device: &Device, space: Option<&str>, by: (f64, f64)) -> 
     let at = g.position().await.map_err(faults::gimbal)?;
     let from = (f64::from(at.pan.degrees()), f64::from(at.tilt.degrees()));
     let (pan, tilt) = spaces::relative_target(&g.config, space, fov, from, by);
-    g.go_to(pan, tilt).await.map_err(faults::gimbal)
+    g.go_to(pan, tilt, user).await.map_err(faults::gimbal)
 }
 
 /// A zoom argument: refused unless the gimbal has a lens (a zero
@@ -306,7 +312,7 @@ fn named_preset(device: &Device, n: u8) -> Result<u8, Fault> {
 
 /// SetPreset: the preset given, or the first without a name; the name
 /// given, or "preset N"; stored on the gimbal (`Snn`), then named.
-async fn set_preset(device: &Device, token: Option<u8>, label: Option<String>) -> Result<u8, Fault> {
+async fn set_preset(device: &Device, token: Option<u8>, label: Option<String>, user: &str) -> Result<u8, Fault> {
     let name = &device.gimbal.config.name;
     // A number picked here is never one gcud's park or tours recall (`~B`
     // says which); one the client names is its own choice (storing the park
@@ -347,7 +353,7 @@ async fn set_preset(device: &Device, token: Option<u8>, label: Option<String>) -
     }
     device
         .gimbal
-        .send(&Command::StorePreset(n))
+        .send(&Command::StorePreset(n), user)
         .await
         .map_err(faults::gimbal)?;
     device.presets.set(name, n, Some(&label)).map_err(faults::state)?;
