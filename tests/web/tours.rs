@@ -173,7 +173,7 @@ fn screenshot_of_the_demo_page() {
         .expect("config/gimbal-web.toml");
     let stack = Stack::with(gcud, |clients, state| {
         shipped
-            .replace("gcud = \"127.0.0.1:4001\"", &format!("gcud = \"{clients}\""))
+            .replace("gcud = \"127.0.0.1:4005\"", &format!("gcud = \"{clients}\""))
             .replace("listen = \"127.0.0.1:8080\"", "listen = \"127.0.0.1:0\"")
             .replace(
                 "#state_file = \"/var/lib/gimbal-web/presets.toml\"",
