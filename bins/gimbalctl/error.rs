@@ -134,14 +134,36 @@ impl fmt::Display for CtlError {
 
 impl From<std::io::Error> for CtlError {
     fn from(e: std::io::Error) -> Self {
-        CtlError::Io(e.to_string())
+        CtlError::Io(tls_hint(e.to_string()))
     }
+}
+
+/// What a TLS failure with gcud means to its operator (rustls's words
+/// name the protocol's event, not the configuration to change).
+fn tls_hint(message: String) -> String {
+    let hint = if message.contains("close_notify") {
+        "gcud closed the TLS connection: its log says why (is your certificate's CN a \
+         [[principal]] of its configuration?)"
+    } else if message.contains("CertificateRequired") {
+        "gcud requires a client certificate: give --tls-cert and --tls-key (or GIMBALCTL_TLS_CERT, GIMBALCTL_TLS_KEY)"
+    } else if message.contains("UnknownIssuer") || message.contains("BadSignature") {
+        "gcud's certificate is not signed by the CA of --tls-ca"
+    } else if message.contains("UnknownCA") || message.contains("DecryptError") {
+        "gcud does not trust your certificate: it is not signed by gcud's client_ca"
+    } else if message.contains("NotValidForName") {
+        "gcud's certificate does not name the host of --tcp (gimbalctl tls init --host)"
+    } else {
+        return message;
+    };
+    // rustls's own words, without the link to its manual.
+    let words = message.split(": https://").next().unwrap_or(&message);
+    format!("{hint} ({words})")
 }
 
 impl From<CommandError> for CtlError {
     fn from(e: CommandError) -> Self {
         match e {
-            CommandError::Io(m) => CtlError::Io(m),
+            CommandError::Io(m) => CtlError::Io(tls_hint(m)),
             CommandError::Usage(m) => CtlError::Usage(m),
             CommandError::Nak(m) => CtlError::Nak(m),
             CommandError::NoAck(m) => CtlError::NoAck(m),
@@ -166,6 +188,19 @@ impl From<CommandError> for CtlError {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_tls_failure_says_what_to_change() {
+        let closed =
+            tls_hint("peer closed connection without sending TLS close_notify: https://docs.rs/rustls/x".into());
+        assert!(
+            closed.contains("[[principal]]") && !closed.contains("https://"),
+            "{closed}"
+        );
+        let required = tls_hint("received fatal alert: CertificateRequired".into());
+        assert!(required.contains("--tls-cert"), "{required}");
+        assert_eq!(tls_hint("Connection reset by peer".into()), "Connection reset by peer");
+    }
 
     #[test]
     fn every_report_row_has_its_own_exit_code_apart_from_the_others() {
