@@ -135,6 +135,12 @@ impl Link {
         lc.name = Some(std::sync::Arc::from(self.name.as_str()));
         lc.priority = self.priority;
         lc.may_read_rules = self.may_read_rules;
+        // A link that authenticates at the next GCU tells it whose each
+        // forwarded command is (ARCHITECTURE "Principals").
+        lc.sends_principals = matches!(
+            self.tls,
+            Some(super::principal::LinkTls::Client { identity: Some(_), .. })
+        );
         lc
     }
 

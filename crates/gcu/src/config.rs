@@ -79,6 +79,11 @@ pub struct LinkConfig {
     /// CN of its TLS client certificate). `None`: the link is its own
     /// principal (ARCHITECTURE "Principals").
     pub principal: Option<crate::principal::Principal>,
+    /// A link to another GCU that knows who this GCU's commands are from
+    /// (gcud: a `connect` link that authenticates with its own
+    /// certificate): each forwarded command's principal goes ahead of it
+    /// as `~P` whenever it changes (ARCHITECTURE "Principals").
+    pub sends_principals: bool,
 }
 
 impl LinkConfig {
@@ -94,6 +99,7 @@ impl LinkConfig {
             priority: crate::govern::rules::DEFAULT_PRIORITY,
             may_read_rules: true,
             principal: None,
+            sends_principals: false,
         }
     }
 }

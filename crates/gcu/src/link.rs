@@ -87,6 +87,9 @@ pub(crate) struct Link {
     /// The user this connection's door acts for now (`~U`; module
     /// `principal`): its next commands are that user's.
     pub acting: Option<crate::principal::Actor>,
+    /// The principal and priority this GCU last said its commands on this
+    /// link are from (`~P`, [`crate::LinkConfig::sends_principals`]).
+    pub principal_sent: Option<(std::sync::Arc<str>, u8)>,
 }
 
 impl Link {
@@ -103,6 +106,7 @@ impl Link {
             stats,
             window_reports: false,
             acting: None,
+            principal_sent: None,
         }
     }
 

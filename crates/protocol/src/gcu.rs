@@ -22,6 +22,9 @@
 //! ~U name        this connection's next commands act     ACK; a delivery report `16` (not permitted) from a
 //! ~U             for user `name` (`~U` alone: for the    connection whose principal may not act for users
 //!                door itself), ARCHITECTURE "Principals"
+//! ~P PR name     (between GCUs) this link's next          ACK; the report 16 as for ~U
+//!                commands are principal `name`'s, of
+//!                priority PR as the sending GCU governs it
 //! ```
 //! `PP`, `DD` and `PR` are two upper-case hex digits; names are 1..=32
 //! bytes of `A-Z a-z 0-9 _ -`. An unknown tour is answered NIC; `~C` of a
@@ -76,6 +79,9 @@ pub enum GcuCommand<'a> {
     /// `~U name`: the connection's next commands act for this user of the
     /// door (`None`, `~U` alone: for the door itself).
     ActFor(Option<&'a [u8]>),
+    /// `~P PR name`: between GCUs, the link's next commands are those of
+    /// principal `name`, of priority `PR` as the sending GCU governs it.
+    Principal(u8, &'a [u8]),
 }
 
 impl<'a> GcuCommand<'a> {
@@ -96,6 +102,9 @@ impl<'a> GcuCommand<'a> {
             [GCU_MARK, b'W'] => Some(GcuCommand::WindowReports),
             [GCU_MARK, b'U'] => Some(GcuCommand::ActFor(None)),
             [GCU_MARK, b'U', name @ ..] if valid_name(name) => Some(GcuCommand::ActFor(Some(name))),
+            [GCU_MARK, b'P', h, l, name @ ..] if valid_name(name) => {
+                Some(GcuCommand::Principal((hex_value(*h)? << 4) | hex_value(*l)?, name))
+            }
             _ => None,
         }
     }
@@ -131,6 +140,11 @@ impl<'a> GcuCommand<'a> {
                     w.put(name)?;
                 }
             }
+            GcuCommand::Principal(priority, name) => {
+                w.put(b"P")?;
+                w.hex(priority)?;
+                w.put(name)?;
+            }
             GcuCommand::Rules(p, d) => {
                 w.put(b"B")?;
                 w.hex(p)?;
@@ -142,7 +156,10 @@ impl<'a> GcuCommand<'a> {
 
     /// Whether a result frame follows the ACK (every command but `~R` and `~U`).
     pub fn has_result(&self) -> bool {
-        !matches!(self, GcuCommand::Release(..) | GcuCommand::ActFor(_))
+        !matches!(
+            self,
+            GcuCommand::Release(..) | GcuCommand::ActFor(_) | GcuCommand::Principal(..)
+        )
     }
 }
 
@@ -507,6 +524,7 @@ mod tests {
             GcuCommand::WindowReports,
             GcuCommand::ActFor(Some(b"alice")),
             GcuCommand::ActFor(None),
+            GcuCommand::Principal(80, b"operators"),
         ] {
             let (buf, n) = encoded(c);
             assert_eq!(GcuCommand::parse(&buf[..n]), Some(c));

@@ -37,6 +37,9 @@ impl Router {
             }
         });
         let settles = origin.link().map(|_| id);
+        if let Ok(next) = route {
+            self.principal_ahead(now, next, id, dest.group, out);
+        }
         let outcome =
             match route.and_then(|next| self.forward(now, next, &command, (origin, settles), out).map(|()| next)) {
                 Ok(next) => CommandOutcome::Forwarded(next),
@@ -48,6 +51,42 @@ impl Router {
         }
         // A forwarded command's delivery is settled by the next GCU's report.
         self.finish(id, outcome, out);
+    }
+
+    /// Before command `id` goes to GCU `group` on `link`: its principal,
+    /// `~P PR name`, when `link` sends principals and it is not the one
+    /// last said there (ARCHITECTURE "Principals"). The GCU's own command:
+    /// the next GCU's report settles its reverse-path entry, and nobody
+    /// waits for it.
+    fn principal_ahead(&mut self, now: u64, link: LinkId, id: CommandId, group: u8, out: &mut Outbox) {
+        let Some(actor) = self.in_flight.get(&id).and_then(|c| c.who.clone()) else {
+            return;
+        };
+        let Some(l) = self.links.get(&link).filter(|l| l.config.sends_principals) else {
+            return;
+        };
+        if l.principal_sent
+            .as_ref()
+            .is_some_and(|(n, p)| *n == actor.name && *p == actor.priority)
+        {
+            return;
+        }
+        let said = sagebrush_protocol::GcuCommand::Principal(actor.priority, actor.name.as_bytes());
+        let dest = sagebrush_protocol::Address::new(group, 0, 0);
+        let encode = |buf: &mut [u8]| {
+            let capacity = buf.len();
+            said.encode(buf)
+                .ok_or(sagebrush_protocol::EncodeError::BufferTooSmall { needed: 40, capacity })
+        };
+        let Ok(frame) = FrameBuf::build(dest, self.group, encode) else {
+            return;
+        };
+        let command = ReadCommand::read(frame);
+        if self.forward(now, link, &command, (Origin::Internal, None), out).is_ok() {
+            if let Some(l) = self.links.get_mut(&link) {
+                l.principal_sent = Some((actor.name, actor.priority));
+            }
+        }
     }
 
     /// Forwards `command` on `link` with a reverse-path entry: `back` is where

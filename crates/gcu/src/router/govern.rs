@@ -47,7 +47,33 @@ impl Router {
 
     /// `~U`: `link`'s next commands act for `user` (`None`: for the door
     /// itself). Only a principal that `acts_for_users` may say so.
-    fn act_for(&mut self, link: LinkId, user: Option<&[u8]>) -> Result<(), DropReason> {
+    /// `~U` or `~P` from `link` (`who`: the user or principal named and
+    /// `~P`'s priority): acknowledged, or refused `16` when the link may
+    /// not say so.
+    fn acting_said(
+        &mut self,
+        now: u64,
+        id: CommandId,
+        link: LinkId,
+        frame: &Frame<'_>,
+        who: (Option<&[u8]>, Option<u8>),
+        out: &mut Outbox,
+    ) -> CommandOutcome {
+        let outcome = self.act_for(link, who.0, who.1);
+        if let Err(reason) = outcome {
+            self.drop_frame(reason, Place::Router, frame.dest, frame.source, out);
+        }
+        self.resolve(now, id, outcome.map_err(|r| r.undelivered()), self.group, out);
+        match outcome {
+            Ok(()) => CommandOutcome::Completed,
+            Err(reason) => CommandOutcome::Dropped(reason),
+        }
+    }
+
+    /// `claimed`: `~P`'s priority, as the GCU that sent it governs the
+    /// principal (ARCHITECTURE "Principals", between GCUs), capped by the
+    /// sending GCU's own.
+    fn act_for(&mut self, link: LinkId, user: Option<&[u8]>, claimed: Option<u8>) -> Result<(), DropReason> {
         let Some(l) = self.links.get(&link) else {
             return Err(DropReason::OriginGone);
         };
@@ -63,7 +89,15 @@ impl Router {
                     l.config.principal.as_ref(),
                 );
                 let name: Arc<str> = Arc::from(String::from_utf8_lossy(user));
-                Some(door.acting_for(&name, self.governor.principal(user)))
+                Some(match claimed {
+                    Some(priority) => Actor {
+                        name,
+                        priority: priority.min(door.priority),
+                        via: Some(door.name.clone()),
+                        for_user: None,
+                    },
+                    None => door.acting_for(&name, self.governor.principal(user)),
+                })
             }
         };
         if let Some(l) = self.links.get_mut(&link) {
@@ -288,16 +322,9 @@ impl Router {
                     }
                 };
             }
-            GcuCommand::ActFor(user) => {
-                let outcome = self.act_for(link, user);
-                if let Err(reason) = outcome {
-                    self.drop_frame(reason, Place::Router, frame.dest, frame.source, out);
-                }
-                self.resolve(now, id, outcome.map_err(|r| r.undelivered()), self.group, out);
-                return match outcome {
-                    Ok(()) => CommandOutcome::Completed,
-                    Err(reason) => CommandOutcome::Dropped(reason),
-                };
+            GcuCommand::ActFor(user) => return self.acting_said(now, id, link, frame, (user, None), out),
+            GcuCommand::Principal(priority, name) => {
+                return self.acting_said(now, id, link, frame, (Some(name), Some(priority)), out);
             }
             GcuCommand::Controller(port, device) => {
                 let holder = self.governor.holder(now, (port, device));
@@ -380,7 +407,11 @@ impl Router {
                 .tours_min_priority()
                 .is_none_or(|least| config.priority >= least),
             GcuCommand::Rules(..) | GcuCommand::Controller(..) => config.may_read_rules,
-            GcuCommand::Release(..) | GcuCommand::WindowReports | GcuCommand::TourList | GcuCommand::ActFor(_) => true,
+            GcuCommand::Release(..)
+            | GcuCommand::WindowReports
+            | GcuCommand::TourList
+            | GcuCommand::ActFor(_)
+            | GcuCommand::Principal(..) => true,
         }
     }
 
