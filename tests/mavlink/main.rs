@@ -23,6 +23,7 @@ mod control;
 mod earth;
 mod robust;
 mod signing;
+mod tls;
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
