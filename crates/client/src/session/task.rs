@@ -415,7 +415,7 @@ impl GimbalSession {
     pub(super) fn reached<T>(&self, result: &Result<T, CommandError>) {
         match result {
             Err(e @ CommandError::Io(_)) => {
-                self.reach.down(&self.config.link.gcud.to_string(), e);
+                self.reach.down(&self.config.link.gcud, e);
                 // The connection is gone: gcud's dead-man stopped what it
                 // started, unless gcud itself is gone; either way owe the stops.
                 let mut s = self.state();
@@ -426,7 +426,7 @@ impl GimbalSession {
                 // The next connection may find gcud or the gimbal restarted.
                 s.forget_speeds();
             }
-            _ => self.reach.up(&self.config.link.gcud.to_string()),
+            _ => self.reach.up(&self.config.link.gcud),
         }
     }
 }

@@ -157,15 +157,17 @@ pub(super) const REACH_UP: u8 = 1;
 pub(super) const REACH_DOWN: u8 = 2;
 
 impl GcudReachability {
-    pub(super) fn up(&self, gcud: &str) {
+    /// gcud at `gcud` answered (formatted only when this is news: this
+    /// runs after every command).
+    pub(super) fn up(&self, gcud: &sagebrush_host::tls::Endpoint) {
         if self.0.swap(REACH_UP, Ordering::Relaxed) == REACH_DOWN {
-            info!(gcud, "gcud can be reached again");
+            info!(%gcud, "gcud can be reached again");
         }
     }
 
-    pub(super) fn down(&self, gcud: &str, error: &CommandError) {
+    pub(super) fn down(&self, gcud: &sagebrush_host::tls::Endpoint, error: &CommandError) {
         if self.0.swap(REACH_DOWN, Ordering::Relaxed) != REACH_DOWN {
-            warn!(gcud, %error, "gcud cannot be reached: stops are kept owed and sent first when it is back");
+            warn!(%gcud, %error, "gcud cannot be reached: stops are kept owed and sent first when it is back");
         }
     }
 }
