@@ -6,7 +6,7 @@
 
 mod rig;
 
-use rig::{G, Got, ONE, PORT, Rig, THREE, TWO, gimbal, outcome, pos};
+use rig::{G, Got, ONE, PORT, Rig, THREE, TWO, gimbal, holder, outcome, pos};
 use sagebrush_gcu::{
     GimbalRules, Governance, Holder, Park, RouterEvent, Span, TourConfig, TourState, TourStep, TourTarget, Zone,
 };
@@ -38,14 +38,6 @@ fn bounded(g: &mut Governance) {
         tilt: Span::new(-3000, 1000),
     });
     g.gimbals.push(rules);
-}
-
-fn holder(r: &Rig) -> Option<Holder> {
-    r.router
-        .control()
-        .into_iter()
-        .find(|c| (c.port, c.device) == (PORT, 1))?
-        .holder
 }
 
 #[test]

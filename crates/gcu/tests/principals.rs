@@ -7,7 +7,7 @@ mod rig;
 
 use std::sync::Arc;
 
-use rig::{G, Got, ONE, PORT, Rig, THREE, TWO, gimbal, outcome, pos};
+use rig::{G, Got, ONE, PORT, Rig, THREE, TWO, gimbal, holder, outcome, pos};
 use sagebrush_gcu::{Holder, Input, LinkConfig, LinkKind, Principal, RouterEvent, SourceFilter};
 use sagebrush_protocol::gcu::ControllerReply;
 use sagebrush_protocol::{Address, Command, GcuCommand, Undelivered};
@@ -56,14 +56,6 @@ fn goto(r: &mut Rig, link: sagebrush_gcu::LinkId, pan: f32) -> Option<Result<(),
     r.send(link, 1, &Command::GoTo(pos(pan, 0.0)));
     r.run(50);
     outcome(&r.got(link))
-}
-
-fn holder(r: &Rig) -> Option<Holder> {
-    r.router
-        .control()
-        .into_iter()
-        .find(|c| (c.port, c.device) == (PORT, 1))?
-        .holder
 }
 
 fn audit(r: &Rig) -> Vec<String> {

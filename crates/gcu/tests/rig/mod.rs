@@ -300,6 +300,15 @@ impl Rig {
 }
 
 /// A gimbal at `device` with default physics (60 deg/s, 120 deg/s^2, 64 presets).
+/// Who holds gimbal [`PORT`].1, as the router's control view says.
+pub fn holder(r: &Rig) -> Option<sagebrush_gcu::Holder> {
+    r.router
+        .control()
+        .into_iter()
+        .find(|c| (c.port, c.device) == (PORT, 1))?
+        .holder
+}
+
 pub fn gimbal(device: u8) -> GimbalConfig {
     GimbalConfig::at(device)
 }
