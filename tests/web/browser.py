@@ -187,6 +187,24 @@ def handle(req):
         r = region(d, req["card"])
         WebDriverWait(d, WAIT_S).until(lambda _: all(w in r.text for w in req["contains"]))
         return r.text
+    if op == "buttons":
+        # The names of the buttons a card shows now.
+        card = region(d, req["card"])
+        return [e.accessible_name for e in card.find_elements(By.TAG_NAME, "button") if e.is_displayed()]
+    if op == "speed_step":
+        # Steps the card's Speed slider with the arrow keys (`steps`, + right)
+        # and returns what the page shows beside it.
+        card = region(d, req["card"])
+        slider = field(card, "Speed")
+        key = Keys.ARROW_RIGHT if req["steps"] > 0 else Keys.ARROW_LEFT
+        for _ in range(abs(req["steps"])):
+            slider.send_keys(key)
+        return card.find_element(By.CSS_SELECTOR, "output").text
+    if op == "wait_no_alert":
+        # Waits until the card's alert is empty again (up to `seconds`).
+        card = region(d, req["card"])
+        WebDriverWait(d, req["seconds"]).until(lambda _: alert_text(card) == "")
+        return True
     if op == "wait_alert":
         card = region(d, req["card"])
         WebDriverWait(d, WAIT_S).until(lambda _: alert_text(card) != "")

@@ -41,12 +41,79 @@ async function api(path, body, keepalive) {
   return answer;
 }
 
+// A refusal or failure stays on its card with the time it came, until
+// the gimbal's state (online, motion, who controls it) has changed since
+// and it has been shown for at least REFUSAL_SHOWN_MS.
+const REFUSAL_SHOWN_MS = 5000;
+
+function stateKey(s) {
+  return s ? JSON.stringify([s.online, s.motion, s.control]) : '';
+}
+
 function showError(i, text) {
-  if (cards[i]) cards[i].error.textContent = text;
+  const card = cards[i];
+  if (!card) return;
+  const when = document.createElement('span');
+  when.className = 'when';
+  when.textContent = ` (${new Date().toLocaleTimeString([], { hour12: false })})`;
+  card.error.replaceChildren(document.createTextNode(text), when);
+  card.errorKey = stateKey(card.last);
+  card.errorAt = Date.now();
+  clearTimeout(card.errorTimer);
+  card.errorTimer = setTimeout(() => clearStaleError(card), REFUSAL_SHOWN_MS + 50);
 }
 
 function clearError(i) {
-  if (cards[i]) cards[i].error.textContent = '';
+  if (cards[i]) {
+    cards[i].error.replaceChildren();
+    cards[i].errorKey = null;
+  }
+}
+
+function clearStaleError(card) {
+  if (card.errorKey === null || card.errorKey === undefined) return;
+  if (Date.now() - card.errorAt < REFUSAL_SHOWN_MS) return;
+  if (stateKey(card.last) !== card.errorKey) {
+    card.error.replaceChildren();
+    card.errorKey = null;
+  }
+}
+
+// Grid spacing of the map in degrees: the finest of these that draws at
+// most 12 lines across the pan travel.
+function gridStep(span) {
+  return [5, 10, 15, 30, 45, 90, 180].find((step) => span / step <= 12) || 360;
+}
+
+// The map's grid, axis labels and scale (the SVG stretches, so its words
+// are page text around it): pan grows to the right (clockwise seen from
+// above), tilt upward, as gcud's degrees.
+function drawScale(card, q) {
+  const [p0, p1] = card.g.pan_deg;
+  const [t0, t1] = card.g.tilt_deg;
+  const step = gridStep(p1 - p0);
+  const grid = q('.grid');
+  for (let p = Math.ceil(p0 / step) * step; p <= p1; p += step) {
+    if (p === 0) continue;
+    const line = document.createElementNS('http://www.w3.org/2000/svg', 'line');
+    svg(line, { x1: p, x2: p, y1: -t1, y2: -t0 });
+    grid.appendChild(line);
+  }
+  for (let t = Math.ceil(t0 / step) * step; t <= t1; t += step) {
+    if (t === 0) continue;
+    const line = document.createElementNS('http://www.w3.org/2000/svg', 'line');
+    svg(line, { x1: p0, x2: p1, y1: -t, y2: -t });
+    grid.appendChild(line);
+  }
+  q('.map-tilt-hi').textContent = `↑ tilt ${t1}° (up)`;
+  q('.map-tilt-lo').textContent = `↓ tilt ${t0}° (down)`;
+  q('.map-pan-lo').textContent = `← pan ${p0}° (left)`;
+  q('.map-pan-hi').textContent = `pan ${p1}° (right) →`;
+  q('.map-key').textContent = `grid every ${step}°, lines through 0°`;
+  q('.picture').setAttribute(
+    'aria-description',
+    `pan ${p0}° to ${p1}° left to right, tilt ${t0}° to ${t1}° bottom to top, grid every ${step}°`,
+  );
 }
 
 function act(i, path, body) {
@@ -115,6 +182,11 @@ function buildCard(g, i) {
     presetName: q('.preset-name'),
     presetList: q('.preset-list'),
     presetsShown: '',
+    release: q('.release'),
+    last: null,
+    errorKey: null,
+    errorAt: 0,
+    errorTimer: null,
     g,
   };
   card.name.textContent = `${g.name} (${g.address})`;
@@ -126,10 +198,19 @@ function buildCard(g, i) {
   svg(q('.tilt-zero'), { x1: p0, x2: p1, y1: 0, y2: 0 });
   svg(card.dot, { r: (p1 - p0) / 60, cx: 0, cy: 0 });
   card.dot.style.display = 'none';
+  drawScale(card, q);
+  const speedValue = q('.speed-value');
+  const showSpeed = () => {
+    speedValue.textContent = `${Math.round(Number(card.speed.value) * 100)} %`;
+  };
+  card.speed.addEventListener('input', showSpeed);
+  showSpeed();
   const operator = me.role !== 'user';
   for (const b of node.querySelectorAll('button, input.preset-name, input.speed')) b.disabled = !operator;
   const admin = me.role === 'administrator';
-  q('.release').disabled = !admin;
+  // Release (gcud's ~R) applies where this page controls the gimbal: it
+  // shows there only, for an administrator (showControl).
+  card.release.hidden = true;
   if (admin) {
     // ~R through gcud: refused (its words) while a higher link holds the gimbal.
     q('.release').addEventListener('click', () => {
@@ -198,6 +279,8 @@ function render(state) {
   state.gimbals.forEach((s, i) => {
     const card = cards[i];
     if (!card) return;
+    card.last = s;
+    clearStaleError(card);
     if (s.pan !== null && s.tilt !== null) {
       card.position.textContent = `Pan ${s.pan.toFixed(2)}° Tilt ${s.tilt.toFixed(2)}°`;
       svg(card.dot, { cx: s.pan, cy: -s.tilt });
@@ -275,21 +358,26 @@ function showRules(card, r) {
 function showControl(card, c) {
   if (!c) {
     card.control.hidden = true;
+    card.release.hidden = true;
     return;
   }
+  const viewer = !me || me.role === 'user';
   let text;
   // gcud names a principal with its tool ("alice via gimbal-web"): yours
   // when it is the user signed in here; a link without principals is
   // this page's when gcud says it is the door's own.
   const yours = c.kind === 'link' && (c.via ? me && c.name === me.user : c.ours);
-  if (c.kind === 'nobody') text = 'Nobody controls it: the next command takes control';
+  if (viewer) text = c.kind === 'nobody' ? 'Nobody controls it' : `Controlled by ${c.text}`;
+  else if (c.kind === 'nobody') text = 'Nobody controls it: the next command takes control';
   else if (yours && c.via) text = `Controlled by you through ${c.via} (priority ${c.priority})`;
   else if (yours) text = `Controlled through this page's gcud link: ${c.text}`;
   else if (c.kind === 'tour') text = `On gcud's ${c.text}: any operator's command takes it over`;
   else if (c.kind === 'park') text = 'Parked by gcud: any operator\'s command takes it over';
   else text = `Controlled by ${c.text}: commands from here are refused until it lets go`;
+  if (viewer) text += '. You are signed in to view: your role cannot command it.';
   card.control.textContent = text;
   card.control.classList.toggle('elsewhere', c.kind === 'link' && !yours);
+  card.release.hidden = !(yours && me.role === 'administrator');
   card.control.hidden = false;
 }
 
