@@ -91,15 +91,19 @@ fn the_dashboard_queries_only_metrics_that_gcud_exports() {
     let mut gcud = support::spawn_gcud(
         dir.path(),
         "[gcu]\ngroup = 5\n[metrics]\nlisten = \"127.0.0.1:0\"\n[[port]]\nid = 1\nsimulate = [1]\n\
-         [[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n",
+         [[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n\
+         [[gimbal]]\naddress = \"5.1.1\"\npan_limits_deg = [-170.0, 170.0]\n\
+         [[tour]]\nname = \"round\"\naddress = \"5.1.1\"\n\
+         steps = [{ pan_deg = 0.0, tilt_deg = 0.0, dwell_s = 5 }, { pan_deg = 10.0, tilt_deg = 0.0, dwell_s = 5 }]\n",
     );
     let log = dir.path().join("gcud.log");
     let address = |what: &str| support::addr_field(&support::wait_for_log_line(&log, what));
     let (clients, metrics) = (address("listening link=clients"), address("metrics at /metrics"));
-    // One exchange, so that the per-device families have samples too.
-    for query in ["position", "lens"] {
-        let out = support::gimbalctl(&["--tcp", &clients, "--to", "5.1.1", query]);
-        assert_eq!(out.code, 0, "{query}: {out:?}");
+    // Exchanges, so that the per-device families have samples too, and a
+    // goto, so that the governed gimbal has a holder (the governance panels).
+    for args in [&["position"][..], &["lens"], &["goto", "5", "0"]] {
+        let out = support::gimbalctl(&[&["--tcp", &clients, "--to", "5.1.1"][..], args].concat());
+        assert_eq!(out.code, 0, "{args:?}: {out:?}");
     }
     let scrape = support::http_get(&metrics, "/metrics");
     support::terminate(&mut gcud);
