@@ -14,6 +14,7 @@ use sagebrush_service::config_file::{ConfigError, Int, Millis, Source};
 pub use sagebrush_service::door_config::HttpBounds;
 use sagebrush_service::door_config::{HttpSection, UserSection};
 pub use sagebrush_service::door_config::{Role, User};
+use sagebrush_service::door_metrics::MetricsSection;
 pub use sagebrush_service::door_tls::DoorTls;
 use sagebrush_service::endpoint::listeners_clash;
 use serde::Deserialize;
@@ -41,6 +42,7 @@ struct ConfigFile {
     discovery: DiscoverySection,
     #[serde(default)]
     http: HttpSection,
+    metrics: Option<MetricsSection>,
     #[serde(default)]
     auth: AuthSection,
     #[serde(default, rename = "user")]
@@ -156,6 +158,8 @@ pub struct Config {
     pub discovery: Option<DiscoveryConfig>,
     /// `[http] tls`: every gimbal's device in HTTPS.
     pub tls: Option<DoorTls>,
+    /// `[metrics] listen`: the door's own metrics (none when absent).
+    pub metrics: Option<SocketAddr>,
     pub users: Users,
     pub gimbals: Vec<Gimbal>,
 }
@@ -265,6 +269,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         poll: raw.poll_ms.duration(),
         discovery,
         tls,
+        metrics: c.metrics_listen(raw.metrics.as_ref())?,
         users: Users {
             list: users,
             bounds: AuthBounds {

@@ -36,10 +36,25 @@ async fn run(config: config::Config) -> Result<(), String> {
     let reach = Arc::new(sagebrush_client::session::GcudReachability::default());
     // One admission table for every gimbal's device: the caps are for all.
     let table = config.gimbals.first().map(|g| g.http.table());
+    let metrics = sagebrush_service::door_metrics::DoorMetrics::start(
+        "gimbal-onvif",
+        sagebrush_client::outcomes::families(),
+        config.metrics,
+    )
+    .await?;
+    // Its clients: the connections open to its devices (ONVIF keeps no session).
+    if let Some(table) = table.clone() {
+        metrics.count_sessions(move || usize::try_from(table.stats().open).unwrap_or(usize::MAX));
+    }
     let tls = config.tls.as_ref().map(|t| t.acceptor()).transpose()?;
     for g in &config.gimbals {
         let gimbal = gimbal::Gimbal::new(g.clone(), &config, Arc::clone(&reach));
-        let device = onvif::Device::new(Arc::clone(&gimbal), Arc::clone(&auth), Arc::clone(&presets));
+        let device = onvif::Device::new(
+            Arc::clone(&gimbal),
+            Arc::clone(&auth),
+            Arc::clone(&presets),
+            Arc::clone(&metrics),
+        );
         let table = Arc::clone(table.as_ref().expect("a gimbal"));
         let (bound, server) = http::bind(g.listen, device, table, tls.clone()).await.map_err(|e| {
             format!(

@@ -13,6 +13,7 @@ use sagebrush_protocol::Address;
 use sagebrush_service::config_file::{ConfigError, Int, Millis, Source};
 use sagebrush_service::door_config::{HttpBounds, HttpSection, UserSection};
 pub use sagebrush_service::door_config::{Role, User};
+use sagebrush_service::door_metrics::MetricsSection;
 use sagebrush_service::door_tls::DoorTls;
 use serde::Deserialize;
 use toml::Spanned;
@@ -45,6 +46,7 @@ struct ConfigFile {
     secure_cookie: bool,
     #[serde(default)]
     http: HttpSection,
+    metrics: Option<MetricsSection>,
     #[serde(default, rename = "user")]
     users: Vec<UserSection>,
     #[serde(default, rename = "gimbal")]
@@ -95,6 +97,8 @@ pub struct Config {
     /// `[http] tls`: the page in HTTPS.
     pub tls: Option<DoorTls>,
     pub http: HttpBounds,
+    /// `[metrics] listen`: the door's own metrics (none when absent).
+    pub metrics: Option<SocketAddr>,
     pub users: Vec<User>,
     pub gimbals: Vec<Gimbal>,
 }
@@ -157,6 +161,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         secure_cookie: raw.secure_cookie || tls.is_some(),
         tls,
         http: raw.http.bounds(),
+        metrics: c.metrics_listen(raw.metrics.as_ref())?,
         users,
         gimbals,
     })

@@ -29,6 +29,12 @@ fn main() -> ExitCode {
 async fn run(config: config::Config) -> Result<(), String> {
     let presets = Arc::new(sagebrush_client::presets::Presets::load(config.state_file.clone())?);
     let signals = sagebrush_service::door::Signals::install()?;
+    let metrics = sagebrush_service::door_metrics::DoorMetrics::start(
+        "gimbal-web",
+        sagebrush_client::outcomes::families(),
+        config.metrics,
+    )
+    .await?;
     let reach = Arc::new(GcudReachability::default());
     let gimbals: Vec<web::Gimbal> = config
         .gimbals
@@ -54,7 +60,7 @@ async fn run(config: config::Config) -> Result<(), String> {
         .collect();
     let sessions: Vec<_> = gimbals.iter().map(|g| Arc::clone(&g.session)).collect();
     let tls = config.tls.as_ref().map(|t| t.acceptor()).transpose()?;
-    let (addr, server) = web::bind(&config, gimbals, presets, tls)
+    let (addr, server) = web::bind(&config, gimbals, presets, tls, metrics)
         .await
         .map_err(|e| format!("listen {}: cannot listen: {e}", config.listen))?;
     let server = tokio::spawn(server);

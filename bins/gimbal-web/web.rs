@@ -49,6 +49,7 @@ use sagebrush_client::connection::Control;
 use sagebrush_client::governance::{Controller, Rules, Tour, degrees, tour_state_name};
 use sagebrush_client::presets::Presets;
 use sagebrush_client::session::{GimbalSession, Motion};
+use sagebrush_service::door_metrics::DoorMetrics;
 use sagebrush_service::rate::LogGate;
 use sagebrush_service::{BoundedListener, Peer};
 use serde::Deserialize;
@@ -109,6 +110,8 @@ struct Web {
     streams: Arc<events::Streams>,
     /// `[http] idle_timeout_ms`: the streams' keep-alive comes well within it.
     idle_timeout: Duration,
+    /// `[metrics]`: requests by route, live pages.
+    metrics: Arc<DoorMetrics>,
 }
 
 type Shared = State<Arc<Web>>;
@@ -461,6 +464,15 @@ fn body<T: serde::de::DeserializeOwned>(bytes: &[u8], expected: &str) -> Result<
     serde_json::from_slice(bytes).map_err(|e| bad(format!("expected JSON {expected}: {e}")))
 }
 
+/// Counts each request of a route by its path (the door's metrics: a
+/// route, so the label's values are the routes', never a client's path).
+async fn counted(State(w): Shared, request: axum::extract::Request, next: axum::middleware::Next) -> Response {
+    if let Some(path) = request.extensions().get::<axum::extract::MatchedPath>() {
+        w.metrics.request(path.as_str());
+    }
+    next.run(request).await
+}
+
 async fn not_found() -> Failure {
     Failure(StatusCode::NOT_FOUND, "no such page".to_owned())
 }
@@ -472,6 +484,7 @@ pub async fn bind(
     gimbals: Vec<Gimbal>,
     presets: Arc<Presets>,
     tls: Option<sagebrush_host::tls::TlsAcceptor>,
+    metrics: Arc<DoorMetrics>,
 ) -> std::io::Result<(SocketAddr, impl Future<Output = ()> + use<>)> {
     let listener = tokio::net::TcpListener::bind(config.listen).await?;
     let local = listener.local_addr()?;
@@ -489,7 +502,10 @@ pub async fn bind(
         snapshot: events::snapshot(),
         streams: events::Streams::new(config.max_streams_per_user),
         idle_timeout: config.http.idle_timeout,
+        metrics,
     });
+    let streams = Arc::clone(&web.streams);
+    web.metrics.count_sessions(move || streams.len());
     let app = Router::new()
         .route("/", get(|| page(INDEX, "text/html; charset=utf-8")))
         .route("/app.js", get(|| page(APP_JS, "text/javascript; charset=utf-8")))
@@ -499,6 +515,7 @@ pub async fn bind(
         .route("/api/session", get(session))
         .merge(events::routes())
         .merge(actions::routes())
+        .route_layer(axum::middleware::from_fn_with_state(Arc::clone(&web), counted))
         .fallback(not_found)
         .layer(DefaultBodyLimit::max(MAX_BODY))
         .with_state(Arc::clone(&web));

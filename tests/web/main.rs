@@ -14,7 +14,9 @@ mod access;
 mod attack;
 mod governance;
 mod https;
+mod metrics;
 mod motion;
+mod page;
 mod principals;
 mod tours;
 

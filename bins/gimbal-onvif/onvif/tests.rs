@@ -27,6 +27,7 @@ listen = "127.0.0.1:0"
         Gimbal::new(config.gimbals[0].clone(), &config, Default::default()),
         Arc::new(Authenticator::new(config.users.clone())),
         Arc::new(Presets::load(None).unwrap()),
+        DoorMetrics::new("gimbal-onvif", Vec::new()),
     )
 }
 

@@ -119,9 +119,8 @@ impl Streams {
         (ticket, ended)
     }
 
-    /// Streams open now (all users).
-    #[cfg(test)]
-    fn len(&self) -> usize {
+    /// Streams open now (all users): the pages live.
+    pub(super) fn len(&self) -> usize {
         self.open.lock().unwrap_or_else(|p| p.into_inner()).1.len()
     }
 }

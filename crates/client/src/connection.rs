@@ -237,6 +237,17 @@ impl GimbalConnection {
         command: &Command<'_>,
         sent: Result<crate::master::Exchange, CommandError>,
     ) -> Result<Option<Vec<u8>>, CommandError> {
+        let settled = self.settled_as_told(command, sent).await;
+        crate::outcomes::COUNTS.record(&settled);
+        settled
+    }
+
+    /// [`GimbalConnection::settled`]'s result, before it is counted.
+    async fn settled_as_told(
+        &mut self,
+        command: &Command<'_>,
+        sent: Result<crate::master::Exchange, CommandError>,
+    ) -> Result<Option<Vec<u8>>, CommandError> {
         match self.failed(sent) {
             Ok(ex) => {
                 let ours = matches!(self.control.holder, Some((Controller::Link { yours: true, .. }, _)));

@@ -13,6 +13,8 @@
 //! - [`session`]: one gimbal as every front door drives it: the motion
 //!   as one object with its deadline, stops first and owed until the bus
 //!   confirms them, velocities coalesced, one cached poll.
+//! - [`outcomes`]: what became of this process's commands, counted for
+//!   a door's metrics.
 //! - [`governance`]: what gcud decides about its gimbals, asked of it
 //!   (who controls a gimbal, release, tours): the GCU commands of port 0.
 //!
@@ -24,6 +26,7 @@ pub mod codec;
 pub mod connection;
 pub mod governance;
 pub mod master;
+pub mod outcomes;
 pub mod presets;
 pub mod session;
 

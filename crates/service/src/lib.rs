@@ -6,6 +6,7 @@
 //!   its file:line:column with its key and what was expected.
 //! - [`door_config`]: the pieces every door with users shares: `[[user]]`,
 //!   the preset state file, `[http]`.
+//! - [`door_metrics`]: a door's own metrics, `[metrics] listen`.
 //! - [`door_tls`]: HTTPS at the doors, `[http] tls` (the site's
 //!   certificate or a self-signed one the door makes and keeps).
 //! - [`door`]: a front door's start-up (`--check`, exit codes, runtime).
@@ -30,6 +31,7 @@ pub mod admission;
 pub mod config_file;
 pub mod door;
 pub mod door_config;
+pub mod door_metrics;
 pub mod door_tls;
 pub mod endpoint;
 pub mod http;
