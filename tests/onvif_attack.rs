@@ -575,9 +575,18 @@ fn discovery_answers_a_flood_at_its_rate_only_and_never_a_malformed_probe() {
             "a malformed or foreign probe was answered: {bad}"
         );
     }
+    // The good probe's answer may be slow on a busy machine: waited for as
+    // long as a hang, and it must relate to this probe (a late answer to
+    // one of the bad ones above would name theirs).
     s.send(probe(5, NS_DISCOVERY).as_bytes()).expect("send");
+    s.set_read_timeout(Some(support::HANG_GUARD)).expect("timeout");
     let n = s.recv(&mut buf).expect("a well-formed probe is answered");
-    assert_well_formed("ProbeMatches", &String::from_utf8_lossy(&buf[..n]));
+    let answer = String::from_utf8_lossy(&buf[..n]);
+    assert_well_formed("ProbeMatches", &answer);
+    assert!(
+        answer.contains(">uuid:5<"),
+        "the answer relates to the good probe: {answer}"
+    );
 }
 
 #[test]
