@@ -182,7 +182,7 @@ fn systemd_analyze_present() -> bool {
         return true;
     }
     let missing = "systemd-analyze not found: the unit is not checked. Install it with \
-                   `sudo apt-get install -y systemd` (.ci/run does)";
+                   `sudo apt-get install -y systemd` (./test.sh does)";
     support::tool_missing(missing);
     false
 }

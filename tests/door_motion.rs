@@ -259,11 +259,12 @@ fn gcud_killed_during_a_move_gets_the_owed_stop_first_when_it_returns() {
     support::wait_for_log_line(&door.log_path(), "gcud can be reached again");
     let (pan, _) = gcud.settled_position(MAST);
     let stopped_after = back.elapsed();
-    // Without the owed stop it slews on to the end of travel (180°).
-    assert!(
-        pan > 0.0 && pan < 150.0,
-        "stopped soon after gcud returned, short of the end: pan {pan}"
-    );
+    // Without the owed stop it slews on to the end of travel (180°): it
+    // rests where the door's PS put it, by the gimbal's own clock.
+    let log = sim.log();
+    let moving = support::door::seconds_moving(&log, MAST, "PR", DOOR_GROUP, "PS");
+    let dps = support::door::speed_on_bus(&log, MAST, "PR");
+    support::door::assert_rests_where_stopped(pan, dps, moving, 180.0, "the owed stop");
     support::door::assert_still(&gcud, MAST, (pan, 0.0), "after the owed stop");
     eprintln!("stopped {} ms after gcud started again", stopped_after.as_millis());
     drop(sim);
@@ -301,12 +302,13 @@ fn a_door_frozen_mid_move_is_stopped_by_the_lease_of_the_demo_configuration() {
     nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGSTOP).expect("SIGSTOP");
     let (pan, _) = gcud.settled_position(MAST);
     nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGCONT).expect("SIGCONT");
-    assert!(
-        pan > 0.0 && pan < 100.0,
-        "gcud's lease (1.5 s at 30 °/s) stopped it well short of the end: pan {pan}"
-    );
-    // gcud stopped it itself (group 5), for the lease.
+    // gcud stopped it itself (group 5), for the lease, and the gimbal
+    // rests where that PS put it, by the bus's clock.
     support::door::wait_for_stop(&gcud, MAST, support::door::GCUD_GROUP, "PS");
+    let log = gcud.log();
+    let moving = support::door::seconds_moving(&log, MAST, "PR", support::door::GCUD_GROUP, "PS");
+    let dps = support::door::speed_on_bus(&log, MAST, "PR");
+    support::door::assert_rests_where_stopped(pan, dps, moving, 180.0, "gcud's lease stop");
     assert!(gcud.log().contains("lease"), "{}", gcud.log());
 }
 

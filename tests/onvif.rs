@@ -294,11 +294,13 @@ fn continuous_move_with_a_timeout_stops_by_itself() {
         json!({ "x": 0.5, "y": 0.0, "timeout_s": 1.0 }),
     );
     assert_eq!(moved["ok"], true, "{moved}");
+    // Stopped by the door's PS, where that PS put it by the bus's clock.
+    support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "PS");
     let (pan, tilt) = stack.gcud.settled_position(MAST);
-    assert!(
-        pan > 20.0 && pan < 150.0,
-        "pan right by about 1 s at 60 °/s, then stopped short of the end: {pan}"
-    );
+    let log = stack.gcud.log();
+    let moving = support::door::seconds_moving(&log, MAST, "PR", DOOR_GROUP, "PS");
+    let dps = support::door::speed_on_bus(&log, MAST, "PR");
+    support::door::assert_rests_where_stopped(pan, dps, moving, 180.0, "the 1 s Timeout's stop");
     assert_eq!(tilt, 0.0);
     // On the bus: gimbal-onvif's own PS after the PR, none from gcud.
     support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "PS");
@@ -629,8 +631,13 @@ fn sigterm_stops_what_gimbal_onvif_started() {
     stack.wait_moving((0.0, 0.0));
     let status = stack.onvif.signal(nix::sys::signal::Signal::SIGTERM);
     assert!(status.success(), "{status}\n{}", stack.log());
+    // Where gimbal-onvif's TS put it (30 °/s), by the bus's clock.
+    support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "TS");
     let (_, tilt) = stack.gcud.settled_position(MAST);
-    assert!(tilt > 0.0 && tilt < 85.0, "stopped short of the tilt end: {tilt}");
+    let log = stack.gcud.log();
+    let moving = support::door::seconds_moving(&log, MAST, "TU", DOOR_GROUP, "TS");
+    let dps = support::door::speed_on_bus(&log, MAST, "TU");
+    support::door::assert_rests_where_stopped(tilt, dps, moving, 90.0, "gimbal-onvif's stop at SIGTERM");
     // gimbal-onvif stopped it itself, on the bus: its TS after the TU, and
     // nothing from gcud's group (its dead-man) once its connection closed.
     support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "TS");
@@ -1001,9 +1008,12 @@ fn tokens_agree_and_set_configuration_sets_the_default_timeout() {
     // of the end of travel that max_move_ms (20 s) would allow.
     let r = stack.client("continuous", stack.mast, OPERATOR, json!({ "x": 0.25, "y": 0.0 }));
     assert_eq!(r["ok"], true, "{r}");
-    let (pan, _) = stack.gcud.settled_position(MAST);
-    assert!(pan > 20.0 && pan < 150.0, "stopped by the default timeout: {pan}");
     support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "PS");
+    let (pan, _) = stack.gcud.settled_position(MAST);
+    let log = stack.gcud.log();
+    let moving = support::door::seconds_moving(&log, MAST, "PR", DOOR_GROUP, "PS");
+    let dps = support::door::speed_on_bus(&log, MAST, "PR");
+    support::door::assert_rests_where_stopped(pan, dps, moving, 180.0, "the default timeout's stop");
     assert!(stack.log().contains("move time-out"), "{}", stack.log());
 }
 

@@ -128,7 +128,7 @@ fn the_package_holds_programs_unit_rule_and_configuration_files() {
     let probe = Command::new("cargo").args(["deb", "--version"]).output();
     if !probe.is_ok_and(|o| o.status.success()) {
         let missing = "cargo-deb not found: the Debian package is not built nor checked. Install it with \
-                       `cargo install cargo-deb --locked` (.ci/run does)";
+                       `cargo install cargo-deb --locked` (./test.sh does)";
         support::tool_missing(missing);
         return;
     }

@@ -297,7 +297,8 @@ fn a_silent_connection_is_closed_and_its_slew_stopped() {
 /// End of the NIC window (ARCHITECTURE "Delivery contract"): the doors'
 /// connection asks gcud for end-of-window reports, and a command without a
 /// result then ends when gcud's port window passed (35 ms by default), not
-/// after the connection's own (here 1 s), a NIC still ending as NIC.
+/// after the connection's own (here 30 s, so that a busy machine never
+/// comes near the bound, half of it), a NIC still ending as NIC.
 #[test]
 fn a_door_waits_gcuds_nic_window_not_its_own_too() {
     use sagebrush_client::{CommandError, GimbalConnection};
@@ -305,7 +306,7 @@ fn a_door_waits_gcuds_nic_window_not_its_own_too() {
     let sim = Sim::pty(&["--device", "1"]);
     let gcud = Gcud::start(&format!("[gcu]\ngroup = 5\n{CLIENTS}{}", port_entry(1, &sim)));
     gcud.wait_for_log("port open port=1");
-    let own_window = Duration::from_secs(1);
+    let own_window = Duration::from_secs(30);
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -320,7 +321,7 @@ fn a_door_waits_gcuds_nic_window_not_its_own_too() {
                 .await
                 .expect("SP7");
             let took = began.elapsed();
-            assert!(took < own_window / 4, "gcud's window, not its own as well: {took:?}");
+            assert!(took < own_window / 2, "gcud's window, not its own as well: {took:?}");
         }
         // A command the gimbal does not apply: still a NIC (gimbalsim answers
         // `FA`, auto focus, NIC without a lens).

@@ -119,19 +119,27 @@ fn a_rate_moves_the_gimbal_and_stops_when_not_refreshed() {
         GCS,
         json!({ "yaw_rate": 30.0, "count": 5, "every_s": 0.2 }),
     );
-    let (pan, tilt) = stack.gcud.settled_position(MAST);
-    assert!(pan > 10.0 && pan < 150.0, "moved right, then stopped: {pan}");
-    assert_eq!(tilt, 0.0);
-    // On the bus: gimbal-mavlink's own PS after the PR, none from gcud.
+    // On the bus: gimbal-mavlink's own PS after the PR, none from gcud;
+    // the gimbal rests where that PS put it, by the bus's clock.
     support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "PS");
     support::door::assert_no_stop_from_gcud(&stack.gcud, MAST);
+    let (pan, tilt) = stack.gcud.settled_position(MAST);
+    let log = stack.gcud.log();
+    let moving = support::door::seconds_moving(&log, MAST, "PR", DOOR_GROUP, "PS");
+    let dps = support::door::speed_on_bus(&log, MAST, "PR");
+    support::door::assert_rests_where_stopped(pan, dps, moving, 180.0, "the lease's stop");
+    assert_eq!(tilt, 0.0);
     assert!(stack.log().contains("move time-out: stopping"), "{}", stack.log());
     assert_still(&stack, (pan, tilt), "after the lease");
     // Pitch rate down through the command.
     let r = stack.gcs("pitchyaw", GCS, json!({ "pitch_rate": -30.0 }));
     assert_eq!(r["result"], ACCEPTED, "{r}");
+    support::door::wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "TS");
     let (_, tilt) = stack.gcud.settled_position(MAST);
-    assert!(tilt < -5.0 && tilt > -80.0, "tilted down, then stopped: {tilt}");
+    let log = stack.gcud.log();
+    let moving = support::door::seconds_moving(&log, MAST, "TD", DOOR_GROUP, "TS");
+    let dps = support::door::speed_on_bus(&log, MAST, "TD");
+    support::door::assert_rests_where_stopped(tilt, dps, moving, 90.0, "tilted down, then the lease's stop");
 }
 
 #[test]

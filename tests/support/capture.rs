@@ -102,7 +102,7 @@ pub fn require_tshark() {
     assert!(
         found,
         "tshark is not installed: the capture tests decode with it. Install it with \
-         `sudo DEBIAN_FRONTEND=noninteractive apt-get install -y tshark` (.ci/run does)"
+         `sudo DEBIAN_FRONTEND=noninteractive apt-get install -y tshark` (./test.sh does)"
     );
 }
 

@@ -50,7 +50,7 @@ fn browser_available() -> bool {
     if missing.is_empty() {
         return true;
     }
-    let msg = format!("{missing:?} missing (apt-get install chromium chromium-driver; .ci/run installs them)");
+    let msg = format!("{missing:?} missing (apt-get install chromium chromium-driver; ./test.sh installs them)");
     if std::env::var("CI").is_ok_and(|v| v == "true") {
         panic!("{msg}");
     }

@@ -1,0 +1,274 @@
+#!/usr/bin/env bash
+# ./demo.sh: everything running at once on this machine (README.md, "Quick
+# start"): gcud on config/demo.toml with its three simulated gimbals, and
+# every front door in DOORS below on all three, each over its own link of
+# gcud (so gcud governs each as its own controller), all on 127.0.0.1.
+# Prints what to open; Ctrl-C (SIGINT) or SIGTERM stops every program it
+# started, and it exits once they are all gone.
+#
+#   ./demo.sh                   build (cargo build --release), then run
+#   ./demo.sh --port-base 14000 every port moved by 14000 - 4000
+#   ./demo.sh --no-build        run what target/release holds
+#   ./demo.sh --bin-dir DIR     run the programs in DIR (implies --no-build)
+#   ./demo.sh --run-dir DIR     keep the configurations and logs in DIR
+#                               (default: a temporary folder, removed at exit)
+#
+# Ports: config/demo.toml's (clients 4001, operators 4002, a link per door
+# 4003.., metrics 9187) and the doors' below (web 8080, ONVIF 8081..8083,
+# WS-Discovery 3702, MAVLink 14560), all moved together by --port-base
+# (4000 is as written): one number, no file to edit.
+#
+# Exit status: 0 stopped by a signal; 1 a program would not start or died
+# (its log's end is printed); 2 bad arguments or the build failed.
+#
+# Why a script: it is glue (build, write small configurations, start,
+# print, stop), and the programs it runs are the build's, which a binary
+# of the workspace could not build before itself.
+set -uo pipefail
+cd "$(dirname "$0")"
+
+base=4000 build=1 bin_dir="" run_dir="" keep_run_dir=0
+usage() { sed -n '2,/^set -uo/p' "$0" | sed '$d;s/^# \{0,1\}//'; }
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --port-base) base=${2:-}; shift ;;
+    --no-build) build=0 ;;
+    --bin-dir) bin_dir=${2:-}; build=0; shift ;;
+    --run-dir) run_dir=${2:-}; keep_run_dir=1; shift ;;
+    -h | --help) usage; exit 0 ;;
+    *) echo "demo.sh: unknown argument $1 (--help)" >&2; exit 2 ;;
+  esac
+  shift
+done
+case "$base" in
+  '' | *[!0-9]*) echo "demo.sh: --port-base takes a number, not '$base'" >&2; exit 2 ;;
+esac
+shift_by=$((base - 4000))
+# The highest port the demo uses is MAVLink's (14560).
+if [ $((3702 + shift_by)) -lt 1024 ] || [ $((14560 + shift_by)) -gt 65535 ]; then
+  echo "demo.sh: --port-base $base puts ports outside 1024..65535 (try 4000..54000)" >&2
+  exit 2
+fi
+
+# A port of the demo, moved by --port-base.
+port() { echo $(($1 + shift_by)); }
+
+# --- the front doors ----------------------------------------------------------
+# One entry per door, in the order started: its name (its binary, and the
+# name of its [[link]] in config/demo.toml) in DOORS, a function
+# config_NAME that prints its configuration (its gcud link is $link; its
+# own ports through `port`), and a function open_NAME that prints what a
+# user opens. A door whose link config/demo.toml lacks gets one.
+DOORS=(gimbal-onvif gimbal-mavlink gimbal-web)
+
+# The demo's gimbals: name, address, travel limits.
+GIMBALS=("mast-1 5.1.1" "mast-2 5.1.2" "roof 5.2.1")
+
+config_gimbal_onvif() {
+  cat <<EOF
+gcud = "$link"
+state_file = "$run_dir/gimbal-onvif-presets.toml"
+[discovery]
+enabled = true
+listen = "127.0.0.1:$(port 3702)"
+[[user]]
+name = "admin"
+password = "change-me-admin"
+role = "administrator"
+[[user]]
+name = "vms"
+password = "change-me"
+role = "operator"
+EOF
+  local i=0 g
+  for g in "${GIMBALS[@]}"; do
+    set -- $g
+    printf '[[gimbal]]\nname = "%s"\naddress = "%s"\nlisten = "127.0.0.1:%s"\n' "$1" "$2" "$(port $((8081 + i)))"
+    i=$((i + 1))
+  done
+}
+open_gimbal_onvif() {
+  local i=0 g
+  echo "ONVIF PTZ cameras (a VMS, ONVIF Device Manager; users admin / change-me-admin, vms / change-me):"
+  for g in "${GIMBALS[@]}"; do
+    set -- $g
+    echo "  $1 ($2): http://127.0.0.1:$(port $((8081 + i)))/onvif/device_service"
+    i=$((i + 1))
+  done
+  echo "  WS-Discovery answers unicast probes at 127.0.0.1:$(port 3702)"
+}
+
+config_gimbal_mavlink() {
+  cat <<EOF
+gcud = "$link"
+system_id = 1
+[[endpoint]]
+udp_listen = "127.0.0.1:$(port 14560)"
+EOF
+  local ids=(154 171 172) i=0 g
+  for g in "${GIMBALS[@]}"; do
+    set -- $g
+    printf '[[gimbal]]\nname = "%s"\naddress = "%s"\ncomponent_id = %s\n' "$1" "$2" "${ids[$i]}"
+    i=$((i + 1))
+  done
+}
+open_gimbal_mavlink() {
+  echo "MAVLink gimbal managers (system 1; components 154 mast-1, 171 mast-2, 172 roof):"
+  echo "  UDP 127.0.0.1:$(port 14560), e.g. mavproxy.py --master=udpout:127.0.0.1:$(port 14560)"
+}
+
+config_gimbal_web() {
+  cat <<EOF
+gcud = "$link"
+listen = "127.0.0.1:$(port 8080)"
+[[user]]
+name = "admin"
+password = "change-me"
+role = "administrator"
+[[user]]
+name = "viewer"
+password = "change-me-too"
+role = "user"
+EOF
+  local g
+  for g in "${GIMBALS[@]}"; do
+    set -- $g
+    printf '[[gimbal]]\nname = "%s"\naddress = "%s"\n' "$1" "$2"
+  done
+}
+open_gimbal_web() {
+  echo "The web page: http://127.0.0.1:$(port 8080)/ (admin / change-me, viewer / change-me-too)"
+}
+
+# --- build ----------------------------------------------------------------------
+
+target=${CARGO_TARGET_DIR:-target}
+[ -n "$bin_dir" ] || bin_dir="$target/release"
+if [ "$build" = 1 ]; then
+  bins=(--bin gcud --bin gimbalctl)
+  for door in "${DOORS[@]}"; do bins+=(--bin "$door"); done
+  echo "demo.sh: cargo build --release ${bins[*]}"
+  cargo build --release "${bins[@]}" || { echo "demo.sh: the build failed (above)" >&2; exit 2; }
+fi
+bin_dir=$(cd "$bin_dir" 2>/dev/null && pwd) || { echo "demo.sh: no folder $bin_dir" >&2; exit 2; }
+for program in gcud gimbalctl "${DOORS[@]}"; do
+  [ -x "$bin_dir/$program" ] || { echo "demo.sh: $bin_dir/$program is missing (run without --no-build)" >&2; exit 2; }
+done
+
+# --- run ------------------------------------------------------------------------
+
+if [ -z "$run_dir" ]; then
+  run_dir=$(mktemp -d "${TMPDIR:-/tmp}/sagebrush-demo.XXXXXX") || exit 2
+else
+  mkdir -p "$run_dir" || exit 2
+  run_dir=$(cd "$run_dir" && pwd)
+fi
+
+pids=() names=()
+stop_all() {
+  trap '' INT TERM
+  local pid
+  for pid in "${pids[@]}"; do kill -TERM "$pid" 2>/dev/null; done
+  # gcud and the doors stop what they started on the bus, then exit: a
+  # program still there after 10 s is killed.
+  for _ in $(seq 100); do
+    local alive=0
+    for pid in "${pids[@]}"; do kill -0 "$pid" 2>/dev/null && alive=1; done
+    [ "$alive" = 0 ] && break
+    sleep 0.1
+  done
+  for pid in "${pids[@]}"; do kill -KILL "$pid" 2>/dev/null; done
+  wait 2>/dev/null
+  [ "$keep_run_dir" = 1 ] || rm -rf "$run_dir"
+}
+fail() {
+  echo "demo.sh: $*" >&2
+  stop_all
+  exit 1
+}
+
+# The programs exit with the demo even when it is killed outright
+# (SIGKILL): setpriv gives each a parent-death signal.
+pdeathsig=()
+command -v setpriv >/dev/null && setpriv --help 2>&1 | grep -q pdeathsig && pdeathsig=(setpriv --pdeathsig TERM --)
+
+# start NAME ARGS...: runs $bin_dir/NAME ARGS with its log in $run_dir/NAME.log
+# and waits for its "NAME ready" line.
+start() {
+  local name=$1
+  shift
+  RUST_LOG=${RUST_LOG:-info} "${pdeathsig[@]}" "$bin_dir/$name" "$@" >"$run_dir/$name.log" 2>&1 &
+  pids+=($!) names+=("$name")
+  local pid=$!
+  for _ in $(seq 600); do
+    grep -q "$name ready" "$run_dir/$name.log" 2>/dev/null && return 0
+    kill -0 "$pid" 2>/dev/null || fail "$name exited at start; the end of its log:
+$(tail -n 15 "$run_dir/$name.log")"
+    sleep 0.1
+  done
+  fail "$name did not say it was ready within 60 s; the end of its log:
+$(tail -n 15 "$run_dir/$name.log")"
+}
+trap 'echo; echo "demo.sh: stopping"; stop_all; exit 0' INT TERM
+
+# gcud: config/demo.toml with its ports moved, and a link for any door it lacks.
+gcud_config="$run_dir/gcud.toml"
+awk -v by="$shift_by" '{
+  while (match($0, /127\.0\.0\.1:[0-9]+/)) {
+    out = out substr($0, 1, RSTART - 1) "127.0.0.1:" (substr($0, RSTART + 10, RLENGTH - 10) + by)
+    $0 = substr($0, RSTART + RLENGTH)
+  }
+  print out $0; out = ""
+}' config/demo.toml >"$gcud_config"
+# The listen address of gcud's link NAME in the configuration.
+link_of() {
+  awk -v want="name = \"$1\"" '
+    /^\[/ { in_link = ($0 == "[[link]]"); named = 0 }
+    in_link && index($0, want) == 1 { named = 1 }
+    in_link && named && /^listen = / { gsub(/^listen = "|".*$/, ""); print; exit }
+  ' "$gcud_config"
+}
+i=0
+for door in "${DOORS[@]}"; do
+  if [ -z "$(link_of "$door")" ]; then
+    printf '\n[[link]]\nname = "%s"\nrole = "client"\nlisten = "127.0.0.1:%s"\nmotion_lease_ms = 1500\n' \
+      "$door" "$(port $((4003 + i)))" >>"$gcud_config"
+  fi
+  i=$((i + 1))
+done
+start gcud --config "$gcud_config"
+
+for door in "${DOORS[@]}"; do
+  link=$(link_of "$door")
+  "config_${door//-/_}" >"$run_dir/$door.toml"
+  start "$door" --config "$run_dir/$door.toml"
+done
+
+ctl="$bin_dir/gimbalctl"
+[ "$bin_dir" = "$PWD/target/release" ] && ctl="target/release/gimbalctl"
+cat <<EOF
+
+The Sagebrush demo is running: gcud (GCU 5; gimbals 5.1.1 and 5.1.2 on bus 1, 5.2.1 the roof on bus 2)
+and ${DOORS[*]}, all on 127.0.0.1.
+EOF
+for door in "${DOORS[@]}"; do "open_${door//-/_}"; done
+cat <<EOF
+gcud: clients 127.0.0.1:$(port 4001), operators 127.0.0.1:$(port 4002) (priority 80), metrics http://127.0.0.1:$(port 9187)/metrics
+  $ctl --tcp 127.0.0.1:$(port 4001) --to 5.1.1 goto 45 -10 --wait
+  $ctl --tcp 127.0.0.1:$(port 4001) --to 5.1.1 position
+  $ctl gcud-status --http 127.0.0.1:$(port 9187)
+  $ctl --tcp 127.0.0.1:$(port 4002) tour start roof-round
+Logs and configurations: $run_dir
+Ctrl-C stops everything.
+EOF
+
+# Until a signal, or until one of the programs dies.
+while :; do
+  wait -n
+  for j in "${!pids[@]}"; do
+    if ! kill -0 "${pids[$j]}" 2>/dev/null; then
+      fail "${names[$j]} exited; the end of its log:
+$(tail -n 15 "$run_dir/${names[$j]}.log")"
+    fi
+  done
+done
