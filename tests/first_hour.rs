@@ -190,6 +190,11 @@ fn the_doors_check_exits_quietly_on_a_closed_stdout() {
             env!("CARGO_BIN_EXE_gimbal-web"),
             concat!(env!("CARGO_MANIFEST_DIR"), "/config/gimbal-web.toml"),
         ),
+        (
+            "gimbal-mqtt",
+            env!("CARGO_BIN_EXE_gimbal-mqtt"),
+            concat!(env!("CARGO_MANIFEST_DIR"), "/config/gimbal-mqtt.toml"),
+        ),
     ] {
         let (status, stderr) = with_closed_stdout(bin, &["--check", "--config", config]);
         // A shipped door moved off loopback warns of its demo passwords

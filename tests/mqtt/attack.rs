@@ -74,7 +74,11 @@ fn malformed_and_huge_payloads_are_answered_with_a_reason() {
         .iter()
         .filter_map(|m| m["payload"]["reason"].as_str())
         .collect();
-    assert_eq!(reasons, ["payload of 100000 bytes, at most 4096: not read"], "{results}");
+    assert_eq!(
+        reasons,
+        ["payload of 100000 bytes, at most 4096: not read"],
+        "{results}"
+    );
     assert!(!site.door.log().contains("lost the broker"), "{}", site.logs());
     assert!(site.door_motions(MAST).is_empty(), "{:?}", site.door_frames(MAST));
     let r = site.command(&broker, "mast", r#"{"goto": {"pan_deg": 4.0, "tilt_deg": 0.0}}"#);

@@ -38,7 +38,10 @@ fn a_stopped_door_says_offline_and_stops_what_it_started() {
     support::door::wait_moving(&site.gcud, MAST, (0.0, 0.0));
     let status = site.door.signal(nix::sys::signal::Signal::SIGTERM);
     assert!(status.success(), "{status:?}\n{}", site.logs());
-    assert_eq!(broker.step("retained", &["sagebrush/north/status"], || site.logs())["message"], "offline");
+    assert_eq!(
+        broker.step("retained", &["sagebrush/north/status"], || site.logs())["message"],
+        "offline"
+    );
     support::door::wait_for_stop(&site.gcud, MAST, DOOR_GROUP, "PS");
 }
 
@@ -50,9 +53,18 @@ fn a_restarted_broker_gets_everything_again_and_nothing_runs_late() {
     // persistence off: the restarted broker knew no retained message; the
     // door connected again and published its status and states anew.
     site.wait_online(&broker);
-    eventually("the gate's state again", || site.state(&broker, "gate")["online"] == true);
-    let discovered = broker.step("retained", &["homeassistant/button/sagebrush_north_mast/stop/config"], || site.logs());
-    assert_eq!(discovered["message"]["payload_press"], "{\"stop\": true}", "{discovered}");
+    eventually("the gate's state again", || {
+        site.state(&broker, "gate")["online"] == true
+    });
+    let discovered = broker.step(
+        "retained",
+        &["homeassistant/button/sagebrush_north_mast/stop/config"],
+        || site.logs(),
+    );
+    assert_eq!(
+        discovered["message"]["payload_press"], "{\"stop\": true}",
+        "{discovered}"
+    );
     let r = site.command(&broker, "mast", r#"{"goto": {"pan_deg": 5.0, "tilt_deg": 5.0}}"#);
     assert_eq!(r["ok"], true, "{r}");
     wait_at(&site.gcud, MAST, 5.0, 5.0);
@@ -69,8 +81,16 @@ fn a_command_published_while_the_door_was_cut_off_never_runs() {
     assert_eq!(r["arrived"], true, "no last will after the cut: {r}");
     // Published while the door is away: live (QoS 1) and retained.
     let cmd = format!("{}/cmd", site.base("mast"));
-    broker.step("publish", &[&cmd, r#"{"goto": {"pan_deg": 40.0, "tilt_deg": 0.0}}"#], || site.logs());
-    broker.step("publish", &[&cmd, r#"{"goto": {"pan_deg": -40.0, "tilt_deg": 0.0}}"#, "retain"], || site.logs());
+    broker.step(
+        "publish",
+        &[&cmd, r#"{"goto": {"pan_deg": 40.0, "tilt_deg": 0.0}}"#],
+        || site.logs(),
+    );
+    broker.step(
+        "publish",
+        &[&cmd, r#"{"goto": {"pan_deg": -40.0, "tilt_deg": 0.0}}"#, "retain"],
+        || site.logs(),
+    );
     std::thread::sleep(Duration::from_millis(500));
     uplink.restore();
     eventually("the door back online", || {
@@ -90,7 +110,11 @@ fn a_command_published_while_the_door_was_cut_off_never_runs() {
 fn a_retained_command_on_the_broker_never_runs_at_start() {
     let Some(broker) = Broker::start() else { return };
     let cmd = "sagebrush/north/mast/cmd";
-    broker.step("publish", &[cmd, r#"{"goto": {"pan_deg": 30.0, "tilt_deg": 0.0}}"#, "retain"], String::new);
+    broker.step(
+        "publish",
+        &[cmd, r#"{"goto": {"pan_deg": 30.0, "tilt_deg": 0.0}}"#, "retain"],
+        String::new,
+    );
     let results = std::thread::scope(|s| {
         let watch = s.spawn(|| broker.step("collect", &["sagebrush/north/mast/result", "8"], String::new));
         std::thread::sleep(Duration::from_millis(1500));

@@ -47,9 +47,14 @@ fn two_sites_on_one_broker_stay_apart_and_a_cut_site_keeps_working() {
     // North's uplink is cut: the broker says north offline (its will) and
     // south online; north's own tools still drive north's gimbals.
     uplink.cut();
-    let r = broker.step("wait_for", &["sagebrush/north/status", "offline", "30"], || north.logs());
+    let r = broker.step("wait_for", &["sagebrush/north/status", "offline", "30"], || {
+        north.logs()
+    });
     assert_eq!(r["arrived"], true, "{r}");
-    assert_eq!(broker.step("retained", &["sagebrush/south/status"], || south.logs())["message"], "online");
+    assert_eq!(
+        broker.step("retained", &["sagebrush/south/status"], || south.logs())["message"],
+        "online"
+    );
     let out = support::door::operators_ctl(&north.gcud, &["--to", MAST, "goto", "-20", "10"]);
     assert_eq!(out.code, 0, "gimbalctl at the cut site: {out:?}");
     wait_at(&north.gcud, MAST, -20.0, 10.0);
