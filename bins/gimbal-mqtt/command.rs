@@ -118,7 +118,9 @@ pub fn parse(payload: &[u8], max_slew: Duration) -> Request {
             )),
         };
     }
-    let p: Payload = match serde_json::from_slice(payload) {
+    // The error names the key at fault (`preset.recall: invalid value ...`).
+    let read = serde_path_to_error::deserialize(&mut serde_json::Deserializer::from_slice(payload));
+    let p: Payload = match read {
         Ok(p) => p,
         Err(e) => {
             // The id of a message that is JSON but not a command is still echoed.
@@ -298,7 +300,7 @@ mod tests {
         assert!(err(r#"{"slew": {"pan": 2}}"#).starts_with("slew.pan: 2 is not"));
         assert!(err(r#"{"slew": {"pan": 0.5, "lease_ms": 60000}}"#).contains("expected 1..=5000"));
         assert!(err(r#"{"goto": {"pan_deg": 1e9}}"#).contains("no angle"));
-        assert!(err(r#"{"preset": {"recall": 300}}"#).contains("preset"));
+        assert!(err(r#"{"preset": {"recall": 300}}"#).starts_with("not a command: preset.recall: invalid value"));
         assert!(err(r#"{"preset": {}}"#).starts_with("preset: expected"));
         let huge = vec![b' '; MAX_PAYLOAD + 1];
         assert_eq!(
