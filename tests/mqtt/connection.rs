@@ -135,3 +135,78 @@ fn a_retained_command_on_the_broker_never_runs_at_start() {
         "{reasons:?}"
     );
 }
+
+#[test]
+fn mqtt_3_1_1_works_and_a_packet_over_the_limit_costs_a_reconnection() {
+    let Some(broker) = Broker::start() else { return };
+    let site = Site::start_with(&broker, "north", "", "version = \"3.1.1\"");
+    let r = site.command(&broker, "mast", r#"{"goto": {"pan_deg": 8.0, "tilt_deg": 2.0}}"#);
+    assert_eq!(r["ok"], true, "{r}");
+    wait_at(&site.gcud, MAST, 8.0, 2.0);
+    // 3.1.1 has no Maximum Packet Size: the door closes the connection
+    // before reading a packet over 256 KiB, and connects again.
+    broker.step("huge", &[&format!("{}/cmd", site.base("mast")), "400000"], || {
+        site.logs()
+    });
+    support::wait_for_log_line(&site.door.log_path(), "lost the broker");
+    site.wait_online(&broker);
+    assert!(site.door_motions(MAST).iter().filter(|p| is_goto(p)).count() == 1);
+    let r = site.command(&broker, "mast", r#"{"home": true}"#);
+    assert_eq!(r["ok"], true, "{r}");
+    wait_at(&site.gcud, MAST, 0.0, 0.0);
+}
+
+#[test]
+fn over_mqtts_with_a_client_certificate() {
+    let certs = tempfile::tempdir().expect("temp dir");
+    let out = support::gimbalctl(&[
+        "tls",
+        "init",
+        "--dir",
+        certs.path().to_str().expect("path"),
+        "--principal",
+        "door",
+    ]);
+    assert_eq!(out.code, 0, "{out:?}");
+    let file = |name: &str| certs.path().join(name).display().to_string();
+    // gcud's certificate (127.0.0.1 among its names) serves as the broker's.
+    let tls_port = std::net::TcpListener::bind("127.0.0.1:0")
+        .expect("a free port")
+        .local_addr()
+        .expect("port")
+        .port();
+    let tls = format!(
+        "listener {tls_port} 127.0.0.1\ncafile {}\ncertfile {}\nkeyfile {}\nrequire_certificate true\n",
+        file("ca.crt"),
+        file("gcud.crt"),
+        file("gcud.key")
+    );
+    let Some(broker) = Broker::start_with(&tls) else { return };
+    let gcud = support::door::start_governed_gcud();
+    let url = format!("mqtts://127.0.0.1:{tls_port}");
+    let keys = format!(
+        "ca = \"{}\"\nclient_cert = \"{}\"\nclient_key = \"{}\"",
+        file("ca.crt"),
+        file("door.crt"),
+        file("door.key")
+    );
+    let mut door = Door::new("gimbal-mqtt", env!("CARGO_BIN_EXE_gimbal-mqtt"));
+    door.start(&door_config(&gcud, &url, "north", "", &keys));
+    support::wait_for_log_line(&door.log_path(), "connected to the broker");
+    // Commanded through the broker's plain listener, moved on the bus.
+    let site = Site {
+        gcud,
+        door,
+        name: "north".to_owned(),
+    };
+    site.wait_online(&broker);
+    let r = site.command(&broker, "mast", r#"{"goto": {"pan_deg": 9.0, "tilt_deg": 0.0}}"#);
+    assert_eq!(r["ok"], true, "{r}");
+    wait_at(&site.gcud, MAST, 9.0, 0.0);
+    // Without its certificate the broker refuses the door, which says so.
+    let mut refused = Door::new("gimbal-mqtt", env!("CARGO_BIN_EXE_gimbal-mqtt"));
+    let ca_only = format!("ca = \"{}\"\nclient_id = \"other\"", file("ca.crt"));
+    refused.start(&door_config(&site.gcud, &url, "south", "", &ca_only));
+    support::wait_for_log_line(&refused.log_path(), "cannot connect to the broker");
+    assert!(!refused.log().contains("connected to the broker"), "{}", refused.log());
+}

@@ -55,6 +55,12 @@ impl Broker {
     /// A broker, or `None` when mosquitto or paho-mqtt is missing and
     /// skipping was asked for.
     pub fn start() -> Option<Self> {
+        Self::start_with("")
+    }
+
+    /// A broker with the mosquitto.conf lines `tls` after its plain
+    /// listener (a second listener, with TLS).
+    pub fn start_with(tls: &str) -> Option<Self> {
         let bin = mosquitto()?;
         if !python_client_available("paho.mqtt.client", "paho-mqtt") {
             return None;
@@ -67,8 +73,8 @@ impl Broker {
         std::fs::write(
             &config,
             format!(
-                "listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n\
-                 log_dest file {}\nlog_type all\n",
+                "allow_anonymous true\npersistence false\nlog_dest file {}\nlog_type all\nuser root\n\
+                 listener {port} 127.0.0.1\n{tls}\n",
                 dir.path().join("mosquitto.log").display()
             ),
         )
