@@ -103,6 +103,7 @@ fn a_refused_command_gets_gcuds_reason_and_never_reaches_the_bus() {
     );
     assert_eq!(r["ok"], false, "{r}");
     let reason = r["reason"].as_str().unwrap_or_default();
+    eprintln!("the refusal: {reason}");
     assert!(reason.contains(OPERATORS_HOLDER), "{reason}");
     assert_door_sent_only_queries(&site.gcud, MAST);
     // The state names the holder.
