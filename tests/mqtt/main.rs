@@ -13,6 +13,7 @@ mod attack;
 mod commands;
 mod connection;
 mod figures;
+mod principals;
 mod sites;
 
 use std::net::TcpStream;
