@@ -210,3 +210,24 @@ fn over_mqtts_with_a_client_certificate() {
     support::wait_for_log_line(&refused.log_path(), "cannot connect to the broker");
     assert!(!refused.log().contains("connected to the broker"), "{}", refused.log());
 }
+
+#[test]
+fn home_assistant_back_online_gets_the_discovery_again() {
+    let Some(broker) = Broker::start() else { return };
+    let site = Site::start(&broker, "north");
+    let config = "homeassistant/number/sagebrush_north_mast/pan/config";
+    eventually("the pan number's discovery", || {
+        broker.step("retained", &[config], || site.logs())["message"]["command_topic"] == "sagebrush/north/mast/cmd"
+    });
+    // A Home Assistant that lost its entities (the retained config
+    // cleared), then announces itself.
+    broker.step("publish", &[config, "", "retain"], || site.logs());
+    assert_eq!(
+        broker.step("retained", &[config], || site.logs())["message"],
+        Value::Null
+    );
+    broker.step("publish", &["homeassistant/status", "online"], || site.logs());
+    eventually("the discovery published again", || {
+        broker.step("retained", &[config], || site.logs())["message"]["command_topic"] == "sagebrush/north/mast/cmd"
+    });
+}
