@@ -33,6 +33,9 @@ struct Posting {
     replies: Vec<Replier>,
 }
 
+/// A posting under way: the session's answer to come, and who waits for it.
+type Under = Option<(oneshot::Receiver<Result<(), CommandError>>, Vec<Replier>)>;
+
 #[derive(Debug, Default)]
 struct Slot {
     drive: Option<Posting>,
@@ -123,7 +126,6 @@ impl Desk {
     /// Posts the slots' drives and stops to `session` as they come, each
     /// drive for `lease`, until the task is aborted.
     pub async fn run(self: Arc<Self>, session: Arc<GimbalSession>, lease: Duration, stats: Arc<Stats>) {
-        type Under = Option<(oneshot::Receiver<Result<(), CommandError>>, Vec<Replier>)>;
         let (mut drive, mut stop): (Under, Under) = (None, None);
         async fn outcome(u: &mut Under) -> Result<(), CommandError> {
             match u {
@@ -158,12 +160,7 @@ impl Desk {
     }
 }
 
-fn finish(
-    under: Option<(oneshot::Receiver<Result<(), CommandError>>, Vec<Replier>)>,
-    r: Result<(), CommandError>,
-    session: &GimbalSession,
-    stats: &Stats,
-) {
+fn finish(under: Under, r: Result<(), CommandError>, session: &GimbalSession, stats: &Stats) {
     let Some((_, replies)) = under else { return };
     match r {
         Ok(()) => replies.iter().for_each(|c| c.send(&visca::completion())),

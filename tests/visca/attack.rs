@@ -78,7 +78,7 @@ fn malformed_datagrams_are_answered_or_dropped_and_the_door_goes_on() {
     answers_position(&mut c);
     let counters = stack.door.log();
     assert!(!counters.contains("panicked"), "{counters}");
-    let sent = stack.from_door();
+    let sent = stack.door_frames();
     assert!(
         !sent.iter().any(|p| ["PL", "PR", "TU", "TD"].contains(&p.as_str())),
         "{sent:?}"

@@ -12,7 +12,7 @@ use support::eventually;
 
 /// The gimbal speed (`SPn`, 0..=15, Table 11) the door last set on the bus.
 fn last_pan_speed(stack: &Stack) -> u8 {
-    let sent = stack.from_door();
+    let sent = stack.door_frames();
     let p = sent
         .iter()
         .rev()
@@ -37,7 +37,7 @@ fn a_drive_moves_the_right_way_at_a_speed_growing_with_the_request_and_a_stop_st
         let r = stack.step("pantilt", &[&pan.to_string(), "0"]);
         assert_eq!(r["ok"], true, "{r}");
         wait_moving(&stack.gcud, MAST, from);
-        let sent = stack.from_door();
+        let sent = stack.door_frames();
         assert!(sent.iter().any(|p| p == stop), "VISCA pan speed {pan}: {sent:?}");
         speeds.push(last_pan_speed(&stack));
         let now = stack.position();
@@ -58,7 +58,11 @@ fn a_drive_moves_the_right_way_at_a_speed_growing_with_the_request_and_a_stop_st
     let from = stack.position();
     assert_eq!(stack.step("pantilt", &["0", "10"])["ok"], true);
     wait_moving(&stack.gcud, MAST, from);
-    assert!(stack.from_door().iter().any(|p| p == "TD"), "{:?}", stack.from_door());
+    assert!(
+        stack.door_frames().iter().any(|p| p == "TD"),
+        "{:?}",
+        stack.door_frames()
+    );
     assert!(stack.position().1 < from.1);
     assert_eq!(stack.step("stop", &[])["ok"], true);
     wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "TS");
@@ -85,7 +89,7 @@ fn positions_and_presets_arrive_and_the_position_inquiry_reads_them() {
         "{read}"
     );
     assert_eq!(stack.step("save", &["7"])["ok"], true);
-    eventually("preset 7 stored", || stack.from_door().iter().any(|p| p == "S07"));
+    eventually("preset 7 stored", || stack.door_frames().iter().any(|p| p == "S07"));
     assert_eq!(stack.step("relative", &["100", "0"])["ok"], true);
     eventually("the gimbal at 37.5°", || {
         stack.gcud.settled_position(MAST) == (37.5, -15.0)
@@ -96,7 +100,7 @@ fn positions_and_presets_arrive_and_the_position_inquiry_reads_them() {
     eventually("the gimbal at preset 7", || {
         stack.gcud.settled_position(MAST) == (30.0, -15.0)
     });
-    let sent = stack.from_door();
+    let sent = stack.door_frames();
     assert!(
         sent.iter().any(|p| p == "HO") && sent.iter().any(|p| p == "P07"),
         "{sent:?}"
@@ -220,7 +224,7 @@ fn the_npm_visca_over_ip_package_drives_over_tcp_and_raw_udp() {
             .collect();
         assert_eq!(types, vec![0x40, 0x50], "{step}: {r}");
     }
-    let sent = stack.from_door();
+    let sent = stack.door_frames();
     let (pl, ps) = (
         sent.iter().position(|p| p == "PL").expect("PL on the bus"),
         sent.iter().position(|p| p == "PS").expect("PS on the bus"),

@@ -79,7 +79,7 @@ impl Stack {
     }
 
     /// What the mast gimbal received from the door (payloads, in order).
-    fn from_door(&self) -> Vec<String> {
+    fn door_frames(&self) -> Vec<String> {
         self.gcud
             .received(MAST)
             .into_iter()

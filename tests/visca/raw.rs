@@ -130,7 +130,7 @@ fn an_old_drive_arriving_after_its_stop_is_refused_and_moves_nothing() {
     let (kind, seq, payload) = c.recv();
     assert_eq!((kind, seq, payload), (0x0201, old, vec![0x0F, 0x01]));
     assert_still(&stack.gcud, MAST, at, "an old drive");
-    let sent = stack.from_door();
+    let sent = stack.door_frames();
     let last = sent.iter().rev().find(|p| ["PL", "PR", "PS"].contains(&p.as_str()));
     assert_eq!(last.map(String::as_str), Some("PS"), "{sent:?}");
     assert!(
@@ -192,11 +192,11 @@ fn a_second_client_address_driving_against_the_first_is_refused_by_gcud() {
     let from = stack.position();
     assert_eq!(director.command(&hex(LEFT)), vec![hex("90 41 FF"), hex("90 51 FF")]);
     wait_moving(&stack.gcud, MAST, from);
-    let before = stack.from_door().len();
+    let before = stack.door_frames().len();
     let started = Instant::now();
     assert_eq!(guest.command(&hex(RIGHT)), vec![hex("90 41 FF"), hex("90 61 41 FF")]);
     eprintln!("the guest's refusal came {:?} after its drive", started.elapsed());
-    let after: Vec<String> = stack.from_door().split_off(before);
+    let after: Vec<String> = stack.door_frames().split_off(before);
     assert!(
         !after.iter().any(|p| p == "PR"),
         "the guest's drive reached the bus: {after:?}"
