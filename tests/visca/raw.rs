@@ -61,6 +61,21 @@ impl Raw {
         (kind, sequence, buf[8..n].to_vec())
     }
 
+    /// The VISCA reply to `sequence` within `wait`, if one comes (other
+    /// datagrams are skipped).
+    pub fn reply_to(&self, sequence: u32, wait: Duration) -> Option<Vec<u8>> {
+        self.socket.set_read_timeout(Some(wait)).expect("timeout");
+        let mut buf = [0u8; 64];
+        let got = loop {
+            let Ok(n) = self.socket.recv(&mut buf) else { break None };
+            if n > 8 && buf[..2] == [0x01, 0x11] && buf[4..8] == sequence.to_be_bytes() {
+                break Some(buf[8..n].to_vec());
+            }
+        };
+        self.socket.set_read_timeout(Some(HANG_GUARD)).expect("timeout");
+        got
+    }
+
     /// Sends command `payload` and reads its replies up to the Completion
     /// or error: every reply's payload, each checked to echo the number.
     pub fn command(&mut self, payload: &[u8]) -> Vec<Vec<u8>> {
