@@ -10,8 +10,8 @@
 //! and tilt up positive, as Sagebrush's Table 15); pan speeds `01`..`18`
 //! and tilt speeds `01`..`14` are fractions of the fastest, onto the
 //! gimbal's proportional speeds 0..=15 (Table 11); zoom positions
-//! `0000`..`4000` onto the lens's 0..=4095 (Table 17); lens speeds 0..=7
-//! onto 0..=9 (Table 16).
+//! `0000`..`4000` onto the lens's 0..=4095, four VISCA steps a lens step
+//! (Table 17); lens speeds 0..=7 onto 0..=9 (Table 16).
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -32,8 +32,9 @@ use crate::visca::{self, Command, Inquiry, LensDrive, MemoryOp, Message, Way};
 /// Commands (other than drives) waiting for the worker; more are answered
 /// "command buffer full".
 pub const QUEUE: usize = 8;
-/// VISCA's zoom range (CAM_Zoom direct, wide to optical tele).
-const VISCA_ZOOM_MAX: f64 = 16384.0;
+/// VISCA zoom steps (CAM_Zoom direct, `0000` wide to `4000` optical tele)
+/// per step of the lens's 0..=4095 (Table 17).
+const ZOOM_STEP: u32 = 4;
 
 /// A command for the worker.
 #[derive(Debug)]
@@ -169,7 +170,7 @@ impl Camera {
     fn inquiry(&self, q: Inquiry) -> Vec<u8> {
         let status = self.session.status();
         let lens = status.lens.filter(|_| self.config.lens);
-        let zoom = |l: LensPosition| (f64::from(l.zoom.get()) * VISCA_ZOOM_MAX / 4095.0).round() as u32;
+        let zoom = |l: LensPosition| u32::from(l.zoom.get()) * ZOOM_STEP;
         match q {
             Inquiry::Power => visca::answer(&[0x02]),
             Inquiry::MaxSpeed => visca::answer(&[visca::PAN_SPEED_MAX, visca::TILT_SPEED_MAX]),
@@ -265,7 +266,7 @@ impl Camera {
                     .status()
                     .lens
                     .map_or(U12::new(0).expect("in range"), |l| l.focus);
-                let zoom = (f64::from(z).min(VISCA_ZOOM_MAX) * 4095.0 / VISCA_ZOOM_MAX).round() as u16;
+                let zoom = (u32::from(z) / ZOOM_STEP).min(u32::from(U12::MAX)) as u16;
                 let zoom = U12::new(zoom).map_err(|e| CommandError::Usage(e.to_string()))?;
                 s.send(Bus::LensGoTo(LensPosition { zoom, focus })).await.map(drop)
             }

@@ -233,3 +233,55 @@ fn a_second_client_address_driving_against_the_first_is_refused_by_gcud() {
         "gcud's audit names the guest's refused drive:\n{audit}"
     );
 }
+
+/// With `lens = true`: CAM_Zoom tele runs `ZI` until the zoom stop's `ZS`,
+/// zoom direct goes to its place (`0x2000` of `0x4000`: the middle of the
+/// lens's 0..=4095) and the zoom inquiry reads it back; CAM_Focus far at
+/// speed 5 sets the focus speed then `FF`, its stop `FS`. Raw VISCA over
+/// TCP, each ACKed then completed; read on the bus side.
+#[test]
+fn a_lens_zooms_and_focuses_over_tcp() {
+    use std::io::{Read, Write};
+    let gcud = support::door::start_gcud();
+    let text =
+        config(&gcud.clients(), 5000, "").replace("reuse_address = true\n", "reuse_address = true\nlens = true\n");
+    let stack = Stack::start_configured(gcud, &text);
+    let zoom = || {
+        let out = stack.gcud.ctl(&["--json", "--to", MAST, "lens"]);
+        assert_eq!(out.code, 0, "{out:?}");
+        out.json()["result"]["zoom"].as_u64().expect("zoom")
+    };
+    let mut s = std::net::TcpStream::connect(("127.0.0.1", stack.tcp)).expect("connect");
+    s.set_read_timeout(Some(HANG_GUARD)).expect("timeout");
+    let mut ask = |message: &str, replies: usize| {
+        s.write_all(&hex(message)).expect("write");
+        let mut got = Vec::new();
+        while got.iter().filter(|b| **b == 0xFF).count() < replies {
+            let mut buf = [0u8; 64];
+            let n = s.read(&mut buf).expect("read");
+            assert!(n > 0, "closed");
+            got.extend_from_slice(&buf[..n]);
+        }
+        got
+    };
+    assert_eq!(ask("81 01 04 07 25 FF", 2), hex("90 41 FF 90 51 FF"));
+    support::eventually("ZI on the bus", || stack.door_frames().iter().any(|p| p == "ZI"));
+    assert_eq!(ask("81 01 04 07 00 FF", 2), hex("90 41 FF 90 51 FF"));
+    wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "ZS");
+    assert_eq!(ask("81 01 04 47 02 00 00 00 FF", 2), hex("90 41 FF 90 51 FF"));
+    support::eventually("the zoom at 2048", || zoom() == 2048);
+    support::eventually("the zoom inquiry reads 0x2000", || {
+        ask("81 09 04 47 FF", 1) == hex("90 50 02 00 00 00 FF")
+    });
+    assert_eq!(ask("81 01 04 08 25 FF", 2), hex("90 41 FF 90 51 FF"));
+    assert_eq!(ask("81 01 04 08 00 FF", 2), hex("90 41 FF 90 51 FF"));
+    let sent = stack.door_frames();
+    let ff = sent.iter().position(|p| p == "FF").expect("FF on the bus");
+    assert!(
+        sent[..ff]
+            .iter()
+            .any(|p| p.starts_with('F') && p.len() == 2 && p != "FF"),
+        "a focus speed first: {sent:?}"
+    );
+    assert!(sent[ff..].iter().any(|p| p == "FS"), "{sent:?}");
+}
