@@ -285,3 +285,20 @@ fn a_lens_zooms_and_focuses_over_tcp() {
     );
     assert!(sent[ff..].iter().any(|p| p == "FS"), "{sent:?}");
 }
+
+/// SIGTERM while a drive runs: the door stops the gimbal itself (its own
+/// `PS`, not gcud's dead-man) and exits 0.
+#[test]
+fn sigterm_stops_the_drive_then_the_door_exits() {
+    let mut stack = Stack::start();
+    let mut c = Raw::new("127.0.0.3", stack.port);
+    c.reset();
+    let from = stack.position();
+    assert_eq!(c.command(&hex(LEFT)), vec![hex("90 41 FF"), hex("90 51 FF")]);
+    wait_moving(&stack.gcud, MAST, from);
+    let status = stack.door.signal(nix::sys::signal::Signal::SIGTERM);
+    assert!(status.success(), "{status:?}\n{}", stack.door.log());
+    wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "PS");
+    support::door::assert_no_stop_from_gcud(&stack.gcud, MAST);
+    assert!(stack.door.log().contains("counters="), "{}", stack.door.log());
+}
