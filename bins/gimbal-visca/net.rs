@@ -41,11 +41,23 @@ const TCP_QUEUE: usize = 32;
 /// older than the last one from its source address and port is answered
 /// "abnormality in the sequence number" and not carried out (a delayed
 /// drive must not undo the stop after it); RESET starts a client's
-/// address afresh. Equal numbers are carried out (clients that never
-/// count).
+/// address afresh. An equal number is carried out again (clients that
+/// never count repeat their drives so), except a RelativePosition whose
+/// bytes are the last ones too: a retransmission, answered but not moved
+/// twice.
 #[derive(Debug, Default)]
 pub struct Sequences {
-    seen: HashMap<SocketAddr, (u32, Instant)>,
+    seen: HashMap<SocketAddr, (u32, Instant, Vec<u8>)>,
+}
+
+/// How a datagram's sequence number compares with its source's last.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Seen {
+    Fresh,
+    /// The last one again, with the same bytes.
+    Repeat,
+    /// Older than the last one.
+    Old,
 }
 
 impl Sequences {
@@ -54,20 +66,24 @@ impl Sequences {
         self.seen.retain(|a, _| a.ip() != ip);
     }
 
-    /// Whether `sequence` from `from` is not older than its last one; notes it.
-    pub fn accept(&mut self, from: SocketAddr, sequence: u32, now: Instant) -> bool {
-        if let Some(&(last, at)) = self.seen.get(&from) {
-            let older = sequence != last && last.wrapping_sub(sequence) < 1 << 31;
-            if older && now.duration_since(at) < FORGET {
-                return false;
+    /// How `sequence` with `payload` from `from` compares; notes it unless old.
+    pub fn accept(&mut self, from: SocketAddr, sequence: u32, payload: &[u8], now: Instant) -> Seen {
+        let mut seen = Seen::Fresh;
+        if let Some((last, at, bytes)) = self.seen.get(&from) {
+            if now.duration_since(*at) < FORGET {
+                if *last == sequence && bytes == payload {
+                    seen = Seen::Repeat;
+                } else if sequence != *last && last.wrapping_sub(sequence) < 1 << 31 {
+                    return Seen::Old;
+                }
             }
         } else if self.seen.len() >= SOURCES {
-            if let Some(oldest) = self.seen.iter().min_by_key(|(_, (_, at))| *at).map(|(a, _)| *a) {
+            if let Some(oldest) = self.seen.iter().min_by_key(|(_, (_, at, _))| *at).map(|(a, _)| *a) {
                 self.seen.remove(&oldest);
             }
         }
-        self.seen.insert(from, (sequence, now));
-        true
+        self.seen.insert(from, (sequence, now, payload.to_vec()));
+        seen
     }
 }
 
@@ -155,7 +171,8 @@ pub async fn serve_udp(socket: Arc<UdpSocket>, camera: Arc<Camera>, clients: Arc
                     control_reply(sequence, &control::ACK);
                 }
                 payload_type::COMMAND | payload_type::INQUIRY => {
-                    if !sequences.accept(from, sequence, Instant::now()) {
+                    let seen = sequences.accept(from, sequence, payload, Instant::now());
+                    if seen == Seen::Old {
                         let total = Stats::count(&camera.stats.out_of_sequence);
                         if may_warn("VISCA over IP sequence number out of order", &from.ip()) {
                             warn!(gimbal = %camera.config.name, %from, sequence, total, "sequence number older than the last: not carried out, answered abnormality in the sequence number");
@@ -171,6 +188,16 @@ pub async fn serve_udp(socket: Arc<UdpSocket>, camera: Arc<Camera>, clients: Arc
                         peer: from,
                         user,
                     };
+                    let relative = matches!(
+                        visca::parse(payload),
+                        Ok(visca::Message::Command(visca::Command::Relative { .. }))
+                    );
+                    if seen == Seen::Repeat && relative {
+                        // A retransmission: answered again, not moved twice.
+                        replier.send(&visca::ack());
+                        replier.send(&visca::completion());
+                        continue;
+                    }
                     message(&camera, payload, replier);
                 }
                 _ => {
@@ -262,4 +289,52 @@ async fn connection(
         });
     }
     writer.abort();
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn old_numbers_are_refused_repeats_told_and_reset_starts_afresh() {
+        let mut q = Sequences::default();
+        let (a, b): (SocketAddr, SocketAddr) = ("127.0.0.3:5000".parse().unwrap(), "127.0.0.3:5001".parse().unwrap());
+        let now = Instant::now();
+        assert_eq!(q.accept(a, 10, b"x", now), Seen::Fresh);
+        assert_eq!(q.accept(a, 11, b"y", now), Seen::Fresh);
+        assert_eq!(q.accept(a, 10, b"x", now), Seen::Old);
+        assert_eq!(q.accept(a, 11, b"y", now), Seen::Repeat);
+        assert_eq!(
+            q.accept(a, 11, b"z", now),
+            Seen::Fresh,
+            "the same number, other bytes: carried out"
+        );
+        assert_eq!(q.accept(b, 1, b"x", now), Seen::Fresh, "each source port its own");
+        assert_eq!(
+            q.accept(a, 3, b"x", now + FORGET),
+            Seen::Fresh,
+            "a client silent long enough starts afresh"
+        );
+        assert_eq!(q.accept(a, 2, b"x", now + FORGET), Seen::Old);
+        q.reset(a.ip());
+        assert_eq!(q.accept(a, 1, b"x", now + FORGET), Seen::Fresh);
+        assert_eq!(q.accept(a, 0, b"x", now + FORGET), Seen::Old);
+        assert_eq!(
+            q.accept(a, u32::MAX, b"x", now + FORGET),
+            Seen::Old,
+            "just below 0, wrapped"
+        );
+        assert_eq!(q.accept(a, 5, b"x", now + FORGET), Seen::Fresh);
+    }
+
+    #[test]
+    fn the_sources_kept_are_bounded() {
+        let mut q = Sequences::default();
+        let now = Instant::now();
+        for port in 0..1000u16 {
+            let from = SocketAddr::from(([127, 0, 0, 3], port));
+            q.accept(from, 1, b"x", now + Duration::from_millis(u64::from(port)));
+        }
+        assert_eq!(q.seen.len(), SOURCES);
+    }
 }

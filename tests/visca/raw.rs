@@ -302,3 +302,22 @@ fn sigterm_stops_the_drive_then_the_door_exits() {
     support::door::assert_no_stop_from_gcud(&stack.gcud, MAST);
     assert!(stack.door.log().contains("counters="), "{}", stack.door.log());
 }
+
+/// A RelativePosition sent again with the same sequence number (a
+/// retransmission: the reply was lost) is answered again but moves the
+/// gimbal once; a new number moves it again.
+#[test]
+fn a_retransmitted_relative_move_moves_once() {
+    let stack = Stack::start();
+    let mut c = Raw::new("127.0.0.3", stack.port);
+    c.reset();
+    let relative = hex("81 01 06 03 18 14 00 00 06 04 00 00 00 00 FF"); // +100 steps of pan: 7.5°
+    assert_eq!(c.command(&relative), vec![hex("90 41 FF"), hex("90 51 FF")]);
+    support::eventually("7.5°", || stack.gcud.settled_position(MAST) == (7.5, 0.0));
+    c.send_raw(&datagram(0x0100, c.sequence, &relative));
+    assert_eq!(c.reply_to(c.sequence, HANG_GUARD), Some(hex("90 41 FF")));
+    assert_eq!(c.reply_to(c.sequence, HANG_GUARD), Some(hex("90 51 FF")));
+    assert_still(&stack.gcud, MAST, (7.5, 0.0), "a retransmitted relative move");
+    assert_eq!(c.command(&relative), vec![hex("90 41 FF"), hex("90 51 FF")]);
+    support::eventually("15°", || stack.gcud.settled_position(MAST) == (15.0, 0.0));
+}
