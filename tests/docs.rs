@@ -333,6 +333,7 @@ fn direction_texts() -> Vec<(String, String)> {
         ("gimbal-mavlink", env!("CARGO_BIN_EXE_gimbal-mavlink")),
         ("gimbal-web", env!("CARGO_BIN_EXE_gimbal-web")),
         ("gimbal-mqtt", env!("CARGO_BIN_EXE_gimbal-mqtt")),
+        ("gimbal-visca", env!("CARGO_BIN_EXE_gimbal-visca")),
         ("gimbalsim", env!("CARGO_BIN_EXE_gimbalsim")),
     ] {
         help_texts(bin, exe, &mut Vec::new(), &mut texts);

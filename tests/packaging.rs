@@ -171,17 +171,20 @@ fn the_package_holds_programs_unit_rule_and_configuration_files() {
         "/usr/bin/gimbal-mavlink",
         "/usr/bin/gimbal-web",
         "/usr/bin/gimbal-mqtt",
+        "/usr/bin/gimbal-visca",
         "/usr/bin/gimbalsim",
         "/usr/lib/systemd/system/gcud.service",
         "/usr/lib/systemd/system/gimbal-onvif.service",
         "/usr/lib/systemd/system/gimbal-mavlink.service",
         "/usr/lib/systemd/system/gimbal-web.service",
         "/usr/lib/systemd/system/gimbal-mqtt.service",
+        "/usr/lib/systemd/system/gimbal-visca.service",
         "/etc/gcud/gcud.toml",
         "/etc/gimbal-onvif/gimbal-onvif.toml",
         "/etc/gimbal-mavlink/gimbal-mavlink.toml",
         "/etc/gimbal-web/gimbal-web.toml",
         "/etc/gimbal-mqtt/gimbal-mqtt.toml",
+        "/etc/gimbal-visca/gimbal-visca.toml",
         "/etc/udev/rules.d/99-sagebrush-gimbal.rules",
         "/usr/share/man/man1/gcud.1.gz",
         "/usr/share/man/man1/gimbalctl.1.gz",
@@ -189,6 +192,7 @@ fn the_package_holds_programs_unit_rule_and_configuration_files() {
         "/usr/share/man/man1/gimbal-mavlink.1.gz",
         "/usr/share/man/man1/gimbal-web.1.gz",
         "/usr/share/man/man1/gimbal-mqtt.1.gz",
+        "/usr/share/man/man1/gimbal-visca.1.gz",
         "/usr/share/man/man1/gimbalsim.1.gz",
         "/usr/share/doc/sagebrush/wiring.md",
         "/usr/share/doc/sagebrush/fleet.md",
@@ -238,6 +242,7 @@ fn the_package_holds_programs_unit_rule_and_configuration_files() {
         ("gimbal-mavlink", false),
         ("gimbal-web", false),
         ("gimbal-mqtt", false),
+        ("gimbal-visca", false),
     ] {
         let config = tree.join(format!("etc/{door}/{door}.toml"));
         let out = Command::new(tree.join(format!("usr/bin/{door}")))
@@ -261,6 +266,7 @@ fn the_package_holds_programs_unit_rule_and_configuration_files() {
         "gimbal-mavlink",
         "gimbal-web",
         "gimbal-mqtt",
+        "gimbal-visca",
         "gimbalsim",
     ] {
         let page = tree.join(format!("usr/share/man/man1/{program}.1.gz"));

@@ -29,7 +29,14 @@ pub mod relay;
 /// `config/NAME.service` running `/usr/bin/NAME` on `/etc/NAME/NAME.toml`
 /// (`tests/packaging.rs` checks this list against Cargo.toml's
 /// systemd-units; `tests/deployment.rs` verifies each unit).
-pub const PACKAGED_UNITS: [&str; 5] = ["gcud", "gimbal-onvif", "gimbal-mavlink", "gimbal-web", "gimbal-mqtt"];
+pub const PACKAGED_UNITS: [&str; 6] = [
+    "gcud",
+    "gimbal-onvif",
+    "gimbal-mavlink",
+    "gimbal-web",
+    "gimbal-mqtt",
+    "gimbal-visca",
+];
 
 /// The environment variable that lets a test whose third-party tool is
 /// missing (a door's Python client, tshark, cargo-deb, systemd-analyze)

@@ -1,0 +1,112 @@
+//! `gimbal-visca`: each configured gimbal behind gcud as a VISCA camera
+//! (issue 50), for live production controllers (OBS's obs-ptz, Bitfocus
+//! Companion's Sony VISCA and PTZOptics modules, vMix, joysticks): Sony
+//! VISCA over IP on its own UDP port, and raw VISCA over TCP on its own
+//! port when configured. Every command goes to gcud's client listener
+//! over that gimbal's own session, so gcud stays the only master of the
+//! buses, decides who controls each gimbal, and its dead-man stops what
+//! this program started if it dies.
+
+mod camera;
+mod config;
+mod framing;
+mod motion;
+mod net;
+mod reply;
+mod stats;
+mod visca;
+
+use std::process::ExitCode;
+use std::sync::Arc;
+
+use sagebrush_client::session::{GcudReachability, GimbalSession, SessionConfig};
+use sagebrush_service::{Connections, Limits};
+use tracing::info;
+
+use crate::stats::Stats;
+
+fn main() -> ExitCode {
+    sagebrush_service::door::main(
+        "gimbal-visca",
+        "VISCA cameras (Sony VISCA over IP on UDP, raw VISCA over TCP) for the gimbals behind gcud.",
+        config::parse,
+        run,
+    )
+}
+
+/// A UDP socket on `addr`, with SO_REUSEADDR when asked (a client on the
+/// same host that binds the camera's port on every address).
+fn udp_socket(addr: std::net::SocketAddr, reuse: bool) -> std::io::Result<tokio::net::UdpSocket> {
+    let domain = if addr.is_ipv4() {
+        socket2::Domain::IPV4
+    } else {
+        socket2::Domain::IPV6
+    };
+    let socket = socket2::Socket::new(domain, socket2::Type::DGRAM, Some(socket2::Protocol::UDP))?;
+    socket.set_reuse_address(reuse)?;
+    socket.set_nonblocking(true)?;
+    socket.bind(&addr.into())?;
+    tokio::net::UdpSocket::from_std(socket.into())
+}
+
+async fn run(config: config::Config) -> Result<(), String> {
+    let signals = sagebrush_service::door::Signals::install()?;
+    let stats = Arc::new(Stats::default());
+    let reach = Arc::new(GcudReachability::default());
+    let clients = Arc::new(config.clients.clone());
+    let lease = camera::lease(&config);
+    let mut tasks = tokio::task::JoinSet::new();
+    let mut sessions = Vec::new();
+    for g in &config.gimbals {
+        let session = GimbalSession::start(
+            SessionConfig {
+                link: config.link.clone(),
+                address: g.address,
+                poll: config.poll,
+                lens: g.lens,
+                max_move: lease.max(config::MAX_MOVE),
+                name: g.name.clone(),
+            },
+            Arc::clone(&reach),
+        );
+        sessions.push(Arc::clone(&session));
+        let (cam, jobs) = camera::Camera::new(g.clone(), session, Arc::clone(&stats));
+        let udp =
+            udp_socket(g.udp, g.reuse_address).map_err(|e| format!("gimbal {} visca_udp {}: {e}", g.name, g.udp))?;
+        let bound = udp.local_addr().map_err(|e| e.to_string())?;
+        info!(gimbal = %g.name, addr = %bound, "VISCA over IP (UDP) bound");
+        tasks.spawn(net::serve_udp(Arc::new(udp), Arc::clone(&cam), Arc::clone(&clients)));
+        if let Some(t) = g.tcp {
+            let listener = tokio::net::TcpListener::bind(t)
+                .await
+                .map_err(|e| format!("gimbal {} visca_tcp {t}: {e}", g.name))?;
+            let bound = listener.local_addr().map_err(|e| e.to_string())?;
+            info!(gimbal = %g.name, addr = %bound, "raw VISCA over TCP listening");
+            let table = Connections::new(Limits {
+                max_total: net::MAX_CONNECTIONS,
+                max_per_peer: net::MAX_PER_PEER,
+                cap_loopback: false,
+                idle_timeout: net::IDLE_TIMEOUT,
+            });
+            tasks.spawn(net::serve_tcp(listener, Arc::clone(&cam), Arc::clone(&clients), table));
+        }
+        tasks.spawn(Arc::clone(&cam.desk).run(Arc::clone(&cam.session), lease, Arc::clone(&stats)));
+        tasks.spawn(Arc::clone(&cam).work(jobs));
+    }
+    tasks.spawn(async {
+        loop {
+            tokio::time::sleep(sagebrush_host::throttle::WINDOW).await;
+            stats::flush_warnings();
+        }
+    });
+    info!(gimbals = sessions.len(), gcud = %config.link.gcud, lease_ms = config.lease.map(|l| l.as_millis() as u64), "gimbal-visca ready");
+    let signal = signals.ready_then_wait().await;
+    info!(signal, "stopping: the drives this service started are stopped");
+    tasks.abort_all();
+    while tasks.join_next().await.is_some() {}
+    for s in &sessions {
+        s.shutdown().await;
+    }
+    info!(counters = %stats.summary(), "stopped");
+    Ok(())
+}
