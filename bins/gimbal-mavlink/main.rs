@@ -5,27 +5,12 @@
 //! only master of the buses and its dead-man stops what this program
 //! started if it dies.
 
-mod aim;
-mod answers;
-mod command;
 mod config;
-mod control;
 mod earth;
-mod frames;
-mod gimbal;
-mod handle;
-mod inbox;
-mod link;
-mod motion;
-mod net;
-mod rates;
-mod reaim;
-mod signing;
+mod manager;
+mod routing;
 mod stats;
-mod status;
-mod stream;
-mod vehicle;
-mod wire;
+mod transport;
 
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -33,8 +18,12 @@ use std::sync::Arc;
 use mavlink::dialects::common::MavMessage;
 use tracing::{info, warn};
 
-use crate::link::Outbox;
+use crate::earth::vehicle;
+use crate::manager::{gimbal, reaim, status};
+use crate::routing::{answers, handle, inbox};
 use crate::stats::Stats;
+use crate::transport::link::Outbox;
+use crate::transport::{signing, stream};
 
 fn main() -> ExitCode {
     sagebrush_service::door::main(

@@ -42,9 +42,9 @@ use tokio::time::Instant;
 use tokio_serial::SerialPortBuilderExt;
 use tracing::{debug, info, warn};
 
-use crate::net::{Net, Peer, Screened};
 use crate::stats::{Stats, may_warn, peer_ip};
-use crate::wire::{self, MAX_FRAME, Scan};
+use crate::transport::net::{Net, Peer, Screened};
+use crate::transport::wire::{self, MAX_FRAME, Scan};
 
 /// What is done with each intact message that comes in.
 pub type Handler = Arc<dyn Fn(MavHeader, MavMessage) + Send + Sync>;

@@ -21,14 +21,14 @@ use tokio::task::JoinSet;
 use tokio::time::Instant;
 use tracing::{info, warn};
 
-use crate::aim::{Aim, Target};
-use crate::answers::{ack, refusal_text, statustext};
 use crate::config::{self, Config};
-use crate::control::{Control, Refused, Sender};
-use crate::handle::{Handle, Job, Shared, Work};
-use crate::link::Outbox;
-use crate::motion::{self, Plan};
+use crate::earth::aim::{Aim, Target};
+use crate::manager::motion::{self, Plan};
+use crate::routing::answers::{ack, refusal_text, statustext};
+use crate::routing::control::{Control, Refused, Sender};
+use crate::routing::handle::{Handle, Job, Shared, Work};
 use crate::stats::{Stats, may_warn};
+use crate::transport::link::Outbox;
 
 /// Requests waiting for one gimbal's task; it takes each at once (motions
 /// are posted to the session, never awaited), so the queue fills only if
