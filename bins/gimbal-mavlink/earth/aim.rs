@@ -21,8 +21,8 @@ use mavlink::dialects::common::GimbalManagerFlags;
 use crate::config::Gimbal;
 use crate::earth::geometry::{self, Place};
 use crate::earth::vehicle::Vehicle;
-use crate::manager::motion::Request;
 use crate::routing::control::Sender;
+use crate::routing::motion::Request;
 
 /// How often an aim is recomputed, at most.
 pub const REAIM_EVERY: Duration = Duration::from_millis(500);

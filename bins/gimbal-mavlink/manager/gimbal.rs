@@ -23,10 +23,10 @@ use tracing::{info, warn};
 
 use crate::config::{self, Config};
 use crate::earth::aim::{Aim, Target};
-use crate::manager::motion::{self, Plan};
 use crate::routing::answers::{ack, refusal_text, statustext};
 use crate::routing::control::{Control, Refused, Sender};
 use crate::routing::handle::{Handle, Job, Shared, Work};
+use crate::routing::motion::{self, Plan};
 use crate::stats::{Stats, may_warn};
 use crate::transport::link::Outbox;
 

@@ -8,8 +8,8 @@ use tracing::{info, warn};
 
 use crate::earth::aim::{REAIM_EVERY, Target, moved};
 use crate::earth::vehicle::Vehicle;
-use crate::manager::motion::Request;
 use crate::routing::handle::{Handle, Job, Work};
+use crate::routing::motion::Request;
 
 /// Re-aims the aims in force for ever (the module's rules).
 pub async fn run(handles: Vec<Handle>, vehicle: Arc<Vehicle>) {

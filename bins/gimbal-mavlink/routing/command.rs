@@ -10,10 +10,10 @@ use crate::earth::aim::Aim;
 use crate::earth::aim::in_mount_frame;
 use crate::earth::geometry::Place;
 use crate::earth::vehicle::Vehicle;
-use crate::manager::motion::Request;
-use crate::manager::rates::{self, Rate};
 use crate::routing::control::Sender;
 use crate::routing::handle::{Handle, Job, Route, Work};
+use crate::routing::motion::Request;
+use crate::routing::rates::{self, Rate};
 use crate::stats::may_warn;
 
 /// A request that moves nothing (NaN: not used).

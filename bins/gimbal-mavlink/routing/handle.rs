@@ -14,9 +14,9 @@ use tokio::sync::mpsc;
 
 use crate::config;
 use crate::earth::aim::{Aim, Target};
-use crate::manager::motion;
-use crate::manager::rates::{self, Rate, Rates};
 use crate::routing::control::{Control, Sender};
+use crate::routing::motion;
+use crate::routing::rates::{self, Rate, Rates};
 
 /// What the emitter reports.
 #[derive(Clone, Debug, Default)]

@@ -29,9 +29,9 @@ use crate::config::Gimbal;
 use crate::earth::aim::in_mount_frame;
 use crate::earth::frames;
 use crate::earth::vehicle::Vehicle;
-use crate::manager::motion::Request;
 use crate::routing::command::Command;
 use crate::routing::handle::{Handle, Job, Route, Work};
+use crate::routing::motion::Request;
 use crate::stats::Stats;
 
 /// The gimbals addressed by `target_system`/`target_component`: the one
