@@ -150,9 +150,10 @@ impl Outbox {
         }))
     }
 
-    /// Where each endpoint is bound.
-    pub fn local_addrs(&self) -> Vec<SocketAddr> {
-        self.ports.iter().filter_map(|p| p.socket.local_addr().ok()).collect()
+    /// The address UDP endpoint `port` (the `port`th UDP endpoint
+    /// configured) is bound to.
+    pub fn local_addr(&self, port: usize) -> Option<SocketAddr> {
+        self.ports.get(port).and_then(|p| p.socket.local_addr().ok())
     }
 
     /// Milliseconds since start (`time_boot_ms`).
