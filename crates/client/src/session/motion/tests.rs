@@ -80,19 +80,19 @@ fn a_stop_alone_is_owed_at_once_and_ends_what_it_names() {
 fn a_zero_beside_a_move_is_owed_only_once_that_move_is_in_force() {
     let mut m = MotionState::default();
     let t0 = Instant::now();
-    let _ = post(&mut m, pan(Drive::Forward(speed(3))), t0);
+    let _reply = post(&mut m, pan(Drive::Forward(speed(3))), t0);
     let both = Velocity {
         pan: Some(Drive::Stop),
         tilt: Some(Drive::Forward(speed(4))),
         zoom: None,
     };
-    let _ = post(&mut m, both, t0);
+    let _reply = post(&mut m, both, t0);
     assert_eq!(m.stops_owed, Axes::default(), "a move gcud refuses must stop nothing");
     assert_eq!(m.wish_stops, PAN);
     let w = m.wish.as_ref().unwrap();
     assert_eq!((w.what.pan, w.what.tilt), (None, Some(Drive::Forward(speed(4)))));
     // Moving pan again takes back its zero (newest wins).
-    let _ = post(&mut m, pan(Drive::Back(speed(2))), t0);
+    let _reply = post(&mut m, pan(Drive::Back(speed(2))), t0);
     assert_eq!(m.wish_stops, Axes::default());
 }
 
@@ -105,7 +105,7 @@ fn a_positioning_move_supersedes_the_pan_and_tilt_asked_before_it() {
         tilt: Some(Drive::Stop),
         zoom: Some(Drive::Forward(LensSpeed::new(2).unwrap())),
     };
-    let _ = post(&mut m, slew, t0);
+    let _reply = post(&mut m, slew, t0);
     let mut first = place(&mut m, t0);
     let _second = place(&mut m, t0);
     let w = m.wish.as_ref().unwrap();
