@@ -16,6 +16,7 @@ use sagebrush_gcu::{LinkId, LinkKind};
 use sagebrush_host::capture::{CaptureSwitch, Role, Tap};
 
 use crate::lines::{Ended, LineStream};
+use sagebrush_host::backoff::Backoff;
 use sagebrush_host::transport::{LATENCY_TIMER_WARN_MS, SerialOrTcp, connect_tcp, latency_timer_ms, open_serial};
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio::net::{TcpListener, TcpStream};
@@ -55,29 +56,6 @@ pub enum IoEvent {
     CloseLink { id: LinkId, reason: &'static str },
     /// A metrics scrape wants a snapshot of the counters (rendered off the router task).
     Scrape(oneshot::Sender<crate::snapshot::Snapshot>),
-}
-
-/// Exponential backoff: 250 ms doubling to 10 s.
-#[derive(Debug)]
-pub struct Backoff(Duration);
-
-impl Backoff {
-    const FIRST: Duration = Duration::from_millis(250);
-    const MAX: Duration = Duration::from_secs(10);
-
-    pub fn new() -> Self {
-        Self(Self::FIRST)
-    }
-
-    pub fn reset(&mut self) {
-        self.0 = Self::FIRST;
-    }
-
-    pub fn next_delay(&mut self) -> Duration {
-        let d = self.0;
-        self.0 = (self.0 * 2).min(Self::MAX);
-        d
-    }
 }
 
 impl LineStream for tokio_serial::SerialStream {

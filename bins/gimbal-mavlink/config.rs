@@ -15,8 +15,8 @@ use sagebrush_service::endpoint::{Host, HostPort};
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::earth::Place;
-use crate::signing::Key;
+use crate::earth::geometry::Place;
+use crate::transport::signing::Key;
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -5,27 +5,12 @@
 //! only master of the buses and its dead-man stops what this program
 //! started if it dies.
 
-mod aim;
-mod answers;
-mod command;
 mod config;
-mod control;
 mod earth;
-mod frames;
-mod gimbal;
-mod handle;
-mod inbox;
-mod link;
-mod motion;
-mod net;
-mod rates;
-mod reaim;
-mod signing;
+mod manager;
+mod routing;
 mod stats;
-mod status;
-mod stream;
-mod vehicle;
-mod wire;
+mod transport;
 
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -33,8 +18,12 @@ use std::sync::Arc;
 use mavlink::dialects::common::MavMessage;
 use tracing::{info, warn};
 
-use crate::link::Outbox;
+use crate::earth::vehicle;
+use crate::manager::{gimbal, reaim, status};
+use crate::routing::{answers, handle, inbox};
 use crate::stats::Stats;
+use crate::transport::link::Outbox;
+use crate::transport::{signing, stream};
 
 fn main() -> ExitCode {
     sagebrush_service::door::main(
@@ -113,30 +102,7 @@ async fn run(config: config::Config) -> Result<(), String> {
             }
         })
     };
-    for (index, addr) in outbox.local_addrs().into_iter().enumerate() {
-        info!(endpoint = index, %addr, "MAVLink UDP endpoint bound");
-        tasks.spawn(Arc::clone(&outbox).receive(index, Arc::clone(&stats), Arc::clone(&handler)));
-    }
-    for (i, endpoint) in config.endpoints.iter().enumerate() {
-        let (streams, stats, handler) = (Arc::clone(&outbox.streams), Arc::clone(&stats), Arc::clone(&handler));
-        match endpoint {
-            config::Endpoint::TcpListen(addr) => {
-                let listener = tokio::net::TcpListener::bind(addr)
-                    .await
-                    .map_err(|e| format!("endpoint[{i}] tcp_listen {addr}: {e}"))?;
-                let bound = listener.local_addr().map_err(|e| e.to_string())?;
-                info!(endpoint = i, addr = %bound, "MAVLink TCP endpoint listening");
-                tasks.spawn(stream::listen(listener, streams, stats, handler));
-            }
-            config::Endpoint::Tcp(to) => {
-                tasks.spawn(stream::connect(to.clone(), streams, stats, handler));
-            }
-            config::Endpoint::Serial { path, baud } => {
-                tasks.spawn(stream::serial(path.clone(), *baud, streams, stats, handler));
-            }
-            config::Endpoint::UdpListen(_) | config::Endpoint::Udp(_) => {}
-        }
-    }
+    transport::endpoints::start(&config.endpoints, &outbox, &stats, &handler, &mut tasks).await?;
     info!(gimbals = handles.len(), gcud = %config.link.gcud, system_id = config.system_id, "gimbal-mavlink ready");
     let signal = signals.ready_then_wait().await;
     info!(signal, "stopping: the slews this service started are stopped");

@@ -10,7 +10,7 @@ use std::time::Duration;
 use sagebrush_client::connection::proportional_speed;
 use sagebrush_client::session::{Axes, Drive, GcudReachability, GimbalSession, Motion, SessionConfig, Velocity};
 use sagebrush_client::{CommandError, Identity};
-use sagebrush_protocol::{Angle, Command, LensPosition, LensSpeed, Position, Reply, Speed, U12};
+use sagebrush_protocol::{Command, LensPosition, LensSpeed, Position, Reply, Speed, U12};
 
 use crate::config;
 
@@ -74,10 +74,9 @@ impl Gimbal {
         self.session.acting_for(Some(by)).send(*command).await
     }
 
-    /// `P?` now.
+    /// Where the gimbal points now (the session's poll).
     pub async fn position(&self) -> Result<Position, CommandError> {
-        let payload = self.session.send(Command::QueryPosition).await?.unwrap_or_default();
-        sagebrush_client::client::expect_position(&Command::QueryPosition, &payload)
+        self.session.position().await
     }
 
     /// `V?`: the lens's zoom and focus (Table 17).
@@ -132,10 +131,9 @@ impl Gimbal {
 
     /// `GO` to a position in degrees (Table 15).
     pub async fn go_to(&self, pan: f64, tilt: f64, by: &str) -> Result<(), CommandError> {
-        let angle = |deg: f64| Angle::from_degrees(deg as f32).map_err(|e| CommandError::Usage(e.to_string()));
         self.session
             .acting_for(Some(by))
-            .go_to(Position::new(angle(pan)?, angle(tilt)?))
+            .go_to_degrees(Some(pan), Some(tilt))
             .await
     }
 

@@ -4,8 +4,9 @@
 //! holder named when gcud refuses a command because another link controls
 //! the gimbal.
 
+use sagebrush_client::governance::Controller;
 use sagebrush_host::hex::payload_text;
-use sagebrush_protocol::gcu::{ControllerReply, parse_tour_list, parse_tour_reply};
+use sagebrush_protocol::gcu::{parse_tour_list, parse_tour_reply};
 use sagebrush_protocol::{Address, Command, GcuCommand, MAX_PAYLOAD, TourState, Undelivered, WILDCARD};
 use serde_json::{Value, json};
 
@@ -94,25 +95,16 @@ pub async fn holder(g: &Global, gimbal: Address) -> Result<Option<String>, CtlEr
     let payload = exchange(g, gimbal.group, GcuCommand::Controller(gimbal.port, gimbal.device)).await?;
     let payload = payload.unwrap_or_default();
     let bad = || CtlError::BadReply(format!("answer to ~C: {:?}", String::from_utf8_lossy(&payload)));
-    let (_, _, reply) = ControllerReply::parse(&payload).ok_or_else(bad)?;
-    Ok(match reply {
-        ControllerReply::Nobody => None,
-        ControllerReply::Link {
-            priority,
-            name,
-            via,
-            yours,
-        } => {
-            let name = String::from_utf8_lossy(name);
-            let who = match via.is_empty() {
-                true => format!("link {name}"),
-                false => format!("{name} via {}", String::from_utf8_lossy(via)),
-            };
-            let yours = if yours { ", this connection's" } else { "" };
-            Some(format!("{who} (priority {priority}{yours})"))
+    // The client crate's reading of `~C` and its words for the holder.
+    let holder = Controller::from_result(&payload, gimbal.port, gimbal.device).map_err(|_| bad())?;
+    Ok(match holder {
+        Controller::Nobody => None,
+        Controller::Link { yours: true, .. } => {
+            let text = holder.to_string();
+            let open = text.strip_suffix(')').unwrap_or(&text);
+            Some(format!("{open}, this connection's)"))
         }
-        ControllerReply::Tour(name) => Some(format!("tour {}", String::from_utf8_lossy(name))),
-        ControllerReply::Park => Some("park".to_owned()),
+        other => Some(other.to_string()),
     })
 }
 

@@ -16,7 +16,7 @@ use sagebrush_client::connection::proportional_speed;
 use sagebrush_client::governance::tour_state_name;
 use sagebrush_client::presets;
 use sagebrush_client::session::{Axes, Drive, Velocity};
-use sagebrush_protocol::{Angle, Command, Position};
+use sagebrush_protocol::Command;
 use serde::Deserialize;
 use serde_json::json;
 use tracing::info;
@@ -121,10 +121,9 @@ async fn go_to(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -
             b.pan, b.tilt, g.config.name, g.config.pan_deg, g.config.tilt_deg
         )));
     }
-    let angle = |d: f64| Angle::from_degrees(d as f32).map_err(|e| bad(e.to_string()));
     g.session
         .acting_for(Some(&who.user))
-        .go_to(Position::new(angle(b.pan)?, angle(b.tilt)?))
+        .go_to_degrees(Some(b.pan), Some(b.tilt))
         .await
         .map_err(failed)?;
     Ok(answer(json!({})))

@@ -159,6 +159,7 @@ pub use outbox::Outbox;
 pub use principal::{Actor, Principal};
 pub use router::Router;
 pub use stats::{
-    DeviceError, DeviceStats, DropCounts, LineStats, LinkStats, PortStats, RouterStats, Stats, UndeliveredCounts,
+    Counted, Counts, DeviceError, DeviceStats, DropCounts, LineStats, LinkStats, PortStats, RouterStats, Stats,
+    UndeliveredCounts,
 };
 pub use types::{CommandId, CommandOutcome, DropReason, Level, LineId, LinkId, Origin, Place, RouterEvent, StopCause};

@@ -3,36 +3,75 @@
 //! to export as it likes.
 
 use std::collections::BTreeMap;
+use std::marker::PhantomData;
 
 use crate::config::LinkKind;
 use sagebrush_protocol::{LensPosition, Position, Undelivered};
 
 use crate::types::{CommandOutcome, DropReason, LinkId};
 
-/// Drops counted by reason.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct DropCounts([u64; DropReason::ALL.len()]);
-
-impl DropCounts {
-    /// Counts given per reason.
-    pub fn from_fn(mut count: impl FnMut(DropReason) -> u64) -> Self {
-        Self(DropReason::ALL.map(&mut count))
+/// A kind of thing counted by [`Counts`]: a code table's rows, each
+/// counted in its own slot.
+pub trait Counted: Copy + PartialEq + 'static {
+    /// Every kind, in table order.
+    const ALL: &'static [Self];
+    /// The kind's slot: its place in [`Counted::ALL`].
+    fn slot(self) -> usize {
+        Self::ALL.iter().position(|&k| k == self).expect("every kind is in ALL")
     }
-    pub fn get(&self, reason: DropReason) -> u64 {
-        self.0[reason.index()]
+}
+
+impl Counted for DropReason {
+    const ALL: &'static [Self] = &DropReason::ALL;
+    fn slot(self) -> usize {
+        self.index()
+    }
+}
+
+impl Counted for Undelivered {
+    const ALL: &'static [Self] = &Undelivered::ALL;
+}
+
+/// Counts by kind (every one of the `N` kinds of `K`, zeros included).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Counts<K, const N: usize>([u64; N], PhantomData<K>);
+
+/// Drops counted by reason.
+pub type DropCounts = Counts<DropReason, { DropReason::ALL.len() }>;
+/// Undelivered commands counted by [`Undelivered`] kind.
+pub type UndeliveredCounts = Counts<Undelivered, { Undelivered::ALL.len() }>;
+
+impl<K: Counted, const N: usize> Default for Counts<K, N> {
+    fn default() -> Self {
+        const { assert!(N == K::ALL.len(), "one slot per kind") };
+        Self([0; N], PhantomData)
+    }
+}
+
+impl<K: Counted, const N: usize> Counts<K, N> {
+    /// Counts given per kind.
+    pub fn from_fn(mut count: impl FnMut(K) -> u64) -> Self {
+        let mut counts = Self::default();
+        for &k in K::ALL {
+            counts.0[k.slot()] = count(k);
+        }
+        counts
+    }
+    pub fn get(&self, kind: K) -> u64 {
+        self.0[kind.slot()]
     }
     pub fn total(&self) -> u64 {
         self.0.iter().sum()
     }
-    /// Every reason with its count (zeros included).
-    pub fn iter(&self) -> impl Iterator<Item = (DropReason, u64)> + '_ {
-        DropReason::ALL.iter().map(|&r| (r, self.get(r)))
+    /// Every kind with its count (zeros included).
+    pub fn iter(&self) -> impl Iterator<Item = (K, u64)> + '_ {
+        K::ALL.iter().map(|&k| (k, self.get(k)))
     }
-    pub(crate) fn add(&mut self, reason: DropReason) {
-        self.0[reason.index()] += 1;
+    pub(crate) fn add(&mut self, kind: K) {
+        self.0[kind.slot()] += 1;
     }
     /// Adds another set of counts to these.
-    pub fn absorb(&mut self, other: &DropCounts) {
+    pub fn absorb(&mut self, other: &Self) {
         for (mine, theirs) in self.0.iter_mut().zip(other.0) {
             *mine += theirs;
         }
@@ -268,35 +307,6 @@ pub struct RouterStats {
     pub in_progress: u64,
 }
 
-/// Undelivered commands counted by [`Undelivered`] kind.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct UndeliveredCounts([u64; Undelivered::ALL.len()]);
-
-impl UndeliveredCounts {
-    /// Counts given per kind.
-    pub fn from_fn(mut count: impl FnMut(Undelivered) -> u64) -> Self {
-        Self(Undelivered::ALL.map(&mut count))
-    }
-    pub fn get(&self, kind: Undelivered) -> u64 {
-        Undelivered::ALL
-            .iter()
-            .position(|&k| k == kind)
-            .map_or(0, |i| self.0[i])
-    }
-    pub fn total(&self) -> u64 {
-        self.0.iter().sum()
-    }
-    /// Every kind with its count (zeros included).
-    pub fn iter(&self) -> impl Iterator<Item = (Undelivered, u64)> + '_ {
-        Undelivered::ALL.iter().map(|&k| (k, self.get(k)))
-    }
-    pub(crate) fn add(&mut self, kind: Undelivered) {
-        if let Some(i) = Undelivered::ALL.iter().position(|&k| k == kind) {
-            self.0[i] += 1;
-        }
-    }
-}
-
 impl RouterStats {
     pub(crate) fn count(&mut self, outcome: CommandOutcome) {
         match outcome {
@@ -329,4 +339,35 @@ pub struct Stats {
     pub ports: BTreeMap<u8, PortStats>,
     pub links: BTreeMap<LinkId, LinkStats>,
     pub devices: BTreeMap<(u8, u8), DeviceStats>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_of_either_kind_count_each_in_its_own_slot() {
+        let mut drops = DropCounts::default();
+        drops.add(DropReason::KeepOut);
+        drops.add(DropReason::KeepOut);
+        drops.add(DropReason::NotPermitted);
+        assert_eq!(drops.get(DropReason::KeepOut), 2);
+        assert_eq!(drops.get(DropReason::NotPermitted), 1);
+        assert_eq!(drops.total(), 3);
+        let mut both = DropCounts::from_fn(|r| u64::from(r == DropReason::NoRoute));
+        both.absorb(&drops);
+        assert_eq!(both.iter().filter(|(_, n)| *n > 0).count(), 3);
+        // Codes that are not slots (Undelivered's start past zero) still count apart.
+        let mut undelivered = UndeliveredCounts::default();
+        for (i, &kind) in Undelivered::ALL.iter().enumerate() {
+            for _ in 0..=i {
+                undelivered.add(kind);
+            }
+        }
+        let seen: Vec<u64> = undelivered.iter().map(|(_, n)| n).collect();
+        let expected: Vec<u64> = (1..=Undelivered::ALL.len() as u64).collect();
+        assert_eq!(seen, expected);
+        let by_code = UndeliveredCounts::from_fn(|k| u64::from(k.code()));
+        assert!(Undelivered::ALL.iter().all(|&k| by_code.get(k) == u64::from(k.code())));
+    }
 }

@@ -1,6 +1,7 @@
 //! Host-side code shared by `gcud`, `gimbalctl` and `gimbalsim` (the
 //! master side of an exchange, and the gcud client, are `sagebrush-client`):
 //!
+//! - [`backoff`]: the back-off of every line opened again after a failure.
 //! - [`logging`]: `tracing` set-up (stderr, `RUST_LOG`-style filters, JSON).
 //! - [`transport`]: serial ports (tokio-serial) and TCP links as byte
 //!   streams ([`transport::SerialOrTcp`]), with errors that name the device.
@@ -14,6 +15,7 @@
 //! - [`capture`]: pcapng capture of bus and link traffic for Wireshark
 //!   (`docs/capture.md`, `tools/wireshark/sagebrush.lua`).
 
+pub mod backoff;
 pub mod capture;
 pub mod hex;
 pub mod logging;

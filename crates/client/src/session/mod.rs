@@ -45,7 +45,7 @@ use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::Duration;
 
-use sagebrush_protocol::{Address, Axis, Command, LensPosition, LensSpeed, Position, Speed, Undelivered};
+use sagebrush_protocol::{Address, Angle, Axis, Command, LensPosition, LensSpeed, Position, Speed, Undelivered};
 use tokio::sync::{Notify, oneshot};
 use tokio::time::Instant;
 use tracing::{info, warn};
@@ -54,12 +54,14 @@ use crate::client::CommandError;
 use crate::connection::{Control, GimbalConnection, Identity, UNREACHABLE_POLL};
 use crate::governance::{Controller, GcuAnswer, GcuRequest, Rules, Tour, TourOutcome};
 
+mod motion;
 mod state;
 mod task;
 mod travel;
 mod types;
 
-use state::{Pending, Place, Queued, State, answer};
+use motion::Place;
+use state::{Queued, State};
 use task::closed;
 pub use types::{Axes, Drive, GcudReachability, Motion, Status, Velocity};
 
@@ -81,7 +83,7 @@ pub const RULES_REFRESH: Duration = Duration::from_secs(30);
 /// (then set again before the next slew at it): what the session cannot
 /// observe, a gimbal that restarted between two polls or a speed set by a
 /// master that bypasses gcud, is corrected within it. Everything it can
-/// observe forgets the speeds at once (`State::forget_speeds`): a new
+/// observe forgets the speeds at once (`MotionState::forget_speeds`): a new
 /// connection, any error or refusal, any command but the session's own
 /// slews, speeds, stops and queries, a poll the gimbal did not answer, and
 /// gcud naming another holder of the gimbal in `~C` (a holder that came
@@ -132,6 +134,9 @@ pub struct SessionConfig {
     pub name: String,
 }
 
+/// What became of a posted velocity ([`GimbalSession::post_velocity`]).
+pub type Outcome = oneshot::Receiver<Result<(), CommandError>>;
+
 /// One gimbal's session; see the module's documentation.
 pub struct GimbalSession {
     pub config: SessionConfig,
@@ -170,10 +175,33 @@ impl GimbalSession {
     pub fn status(&self) -> Status {
         let s = self.state();
         Status {
-            motion: s.motion(),
+            motion: s.motion_shown(),
             taken_by: s.taken_by(),
             ..s.status.clone()
         }
+    }
+
+    /// A fresh poll (`P?`, and `V?` with a lens): the session's own poll,
+    /// taken at once (after the owed stops, the motions and the queue) and
+    /// shared by every reader waiting then, so that a door asks the gimbal
+    /// through its session, never beside it. Fails as the poll failed, or
+    /// once [`STALE`] passed without one.
+    pub async fn poll(&self) -> Result<(Position, Option<LensPosition>), CommandError> {
+        let (tx, rx) = oneshot::channel();
+        {
+            let mut s = self.state();
+            if s.closing {
+                return Err(closed());
+            }
+            s.readers.push((Instant::now(), tx));
+        }
+        self.wake.notify_one();
+        rx.await.unwrap_or_else(|_| Err(closed()))
+    }
+
+    /// Where the gimbal points now: [`GimbalSession::poll`]'s position.
+    pub async fn position(&self) -> Result<Position, CommandError> {
+        self.poll().await.map(|(position, _)| position)
     }
 
     /// Sets `velocity` for `run` (at most `max_move`; the motion's new
@@ -186,12 +214,7 @@ impl GimbalSession {
 
     /// [`GimbalSession::velocity`] without waiting: the receiver tells
     /// the outcome.
-    pub fn post_velocity(
-        &self,
-        velocity: Velocity,
-        run: Option<Duration>,
-        owner: &str,
-    ) -> oneshot::Receiver<Result<(), CommandError>> {
+    pub fn post_velocity(&self, velocity: Velocity, run: Option<Duration>, owner: &str) -> Outcome {
         self.acting_for(None).post_velocity(velocity, run, owner)
     }
 
@@ -205,91 +228,6 @@ impl GimbalSession {
         }
     }
 
-    fn velocity_by(
-        &self,
-        velocity: Velocity,
-        run: Option<Duration>,
-        owner: &str,
-        by: Option<Arc<str>>,
-    ) -> oneshot::Receiver<Result<(), CommandError>> {
-        let (tx, rx) = oneshot::channel();
-        let now = Instant::now();
-        {
-            let mut s = self.state();
-            let stops = Axes {
-                pan: velocity.pan == Some(Drive::Stop),
-                tilt: velocity.tilt == Some(Drive::Stop),
-                zoom: velocity.zoom == Some(Drive::Stop),
-            };
-            let moves = Velocity {
-                pan: velocity.pan.filter(|d| *d != Drive::Stop),
-                tilt: velocity.tilt.filter(|d| *d != Drive::Stop),
-                zoom: velocity.zoom.filter(|d| *d != Drive::Stop),
-            };
-            let moved = Axes {
-                pan: moves.pan.is_some(),
-                tilt: moves.tilt.is_some(),
-                zoom: moves.zoom.is_some(),
-            };
-            if !moved.any() {
-                if stops.any() {
-                    s.owe_stop(stops);
-                }
-            } else if stops.any() {
-                // A zero beside a move is part of that move: that axis stops
-                // once the move is in force, and not at all when gcud refuses
-                // the move for control (a refused request changes nothing:
-                // the holder's motion is not this door's to stop).
-                if let Some(w) = &mut s.wish {
-                    w.what.pan = w.what.pan.filter(|_| !stops.pan);
-                    w.what.tilt = w.what.tilt.filter(|_| !stops.tilt);
-                    w.what.zoom = w.what.zoom.filter(|_| !stops.zoom);
-                }
-                s.wish_stops = s.wish_stops.or(stops);
-                if stops.pan || stops.tilt {
-                    if let Some(p) = s.place.take() {
-                        answer(p.replies, Ok(()));
-                    }
-                }
-            }
-            // Newest wins: an axis moved now is no longer to be stopped.
-            s.wish_stops = s.wish_stops.without(moved);
-            if moves != Velocity::default() {
-                // Newest wins, per axis; the replaced callers learn the newest's outcome.
-                let mut replies = s.wish.take().map(|w| (w.what, w.replies)).unwrap_or_default();
-                let merged = Velocity {
-                    pan: moves.pan.or(replies.0.pan),
-                    tilt: moves.tilt.or(replies.0.tilt),
-                    zoom: moves.zoom.or(replies.0.zoom),
-                };
-                replies.1.push(tx);
-                s.wish = Some(Pending {
-                    what: merged,
-                    asked: now,
-                    by,
-                    replies: replies.1,
-                });
-                if moves.pan.is_some() || moves.tilt.is_some() {
-                    if let Some(p) = s.place.take() {
-                        answer(p.replies, Ok(()));
-                    }
-                }
-            } else {
-                s.stop_replies.push(tx);
-            }
-            if moves != Velocity::default() {
-                // The motion is renewed: its new deadline covers every axis still moving.
-                let run = run.unwrap_or(self.config.max_move).min(self.config.max_move);
-                s.deadline = Some(now + run);
-                s.owner = owner.to_owned();
-            } else if !s.moving().any() {
-                s.deadline = None;
-            }
-        }
-        self.wake.notify_one();
-        rx
-    }
-
     /// Stops `axes`; done once the bus confirms each stop. After
     /// [`STOP_ATTEMPTS_ANSWERED`] failed attempts the caller is told, and
     /// the stop stays owed until confirmed.
@@ -299,39 +237,14 @@ impl GimbalSession {
             return Ok(());
         }
         let (tx, rx) = oneshot::channel();
-        {
-            let mut s = self.state();
-            s.owe_stop(axes);
-            s.stop_replies.push(tx);
-            if !s.moving().any() {
-                s.deadline = None;
-            }
-        }
+        self.state().motion.stop(axes, tx);
         self.wake.notify_one();
         rx.await.unwrap_or_else(|_| Err(closed()))
     }
 
     async fn place(&self, place: Place, by: Option<Arc<str>>) -> Result<(), CommandError> {
         let (tx, rx) = oneshot::channel();
-        {
-            let mut s = self.state();
-            if let Some(old) = s.place.take() {
-                answer(old.replies, Ok(()));
-            }
-            // A positioning move supersedes the pan/tilt slew on the gimbal.
-            if let Some(w) = &mut s.wish {
-                w.what.pan = None;
-                w.what.tilt = None;
-            }
-            s.wish_stops.pan = false;
-            s.wish_stops.tilt = false;
-            s.place = Some(Pending {
-                what: place,
-                asked: Instant::now(),
-                by,
-                replies: vec![tx],
-            });
-        }
+        self.state().motion.place(place, by, Instant::now(), tx);
         self.wake.notify_one();
         rx.await.unwrap_or_else(|_| Err(closed()))
     }
@@ -339,6 +252,11 @@ impl GimbalSession {
     /// `GO` (Table 15).
     pub async fn go_to(&self, target: Position) -> Result<(), CommandError> {
         self.acting_for(None).go_to(target).await
+    }
+
+    /// `GO` to degrees (Table 15): [`ForUser::go_to_degrees`], for the door itself.
+    pub async fn go_to_degrees(&self, pan: Option<f64>, tilt: Option<f64>) -> Result<(), CommandError> {
+        self.acting_for(None).go_to_degrees(pan, tilt).await
     }
 
     /// `Pnn` (Table 11).
@@ -452,15 +370,16 @@ impl GimbalSession {
     pub async fn shutdown(&self) {
         let axes = {
             let s = self.state();
-            let m = s.moving();
-            let changing = s.status.changing || s.place.is_some() || s.travel.is_some();
+            let m = &s.motion;
+            let moving = m.moving();
+            let changing = s.status.changing || m.place.is_some() || m.travel.is_some();
             Axes {
-                pan: m.pan || changing,
-                tilt: m.tilt || changing,
-                zoom: m.zoom,
+                pan: moving.pan || changing,
+                tilt: moving.tilt || changing,
+                zoom: moving.zoom,
             }
-            .or(s.stops_owed)
-            .or(s.wish_stops)
+            .or(m.stops_owed)
+            .or(m.wish_stops)
         };
         if axes.any() {
             if let Err(e) = self.stop(axes).await {
@@ -490,19 +409,37 @@ impl ForUser<'_> {
         rx.await.unwrap_or_else(|_| Err(closed()))
     }
 
-    /// [`GimbalSession::post_velocity`], for this user.
-    pub fn post_velocity(
-        &self,
-        velocity: Velocity,
-        run: Option<Duration>,
-        owner: &str,
-    ) -> oneshot::Receiver<Result<(), CommandError>> {
-        self.session.velocity_by(velocity, run, owner, self.user.clone())
+    /// [`GimbalSession::post_velocity`], for this user: the motion's rule
+    /// (module `motion`) takes it, its run at most `max_move`.
+    pub fn post_velocity(&self, velocity: Velocity, run: Option<Duration>, owner: &str) -> Outcome {
+        let (tx, rx) = oneshot::channel();
+        let max = self.session.config.max_move;
+        let run = run.map_or(max, |r| r.min(max));
+        (self.session.state().motion).post(velocity, run, owner, self.user.clone(), Instant::now(), tx);
+        self.session.wake.notify_one();
+        rx
     }
 
     /// `GO` (Table 15), for this user.
     pub async fn go_to(&self, target: Position) -> Result<(), CommandError> {
         self.session.place(Place::GoTo(target), self.user.clone()).await
+    }
+
+    /// `GO` to `pan` and `tilt` in degrees (Table 15), for this user: an
+    /// axis left `None` keeps its angle, read with the session's poll
+    /// ([`GimbalSession::position`]). An angle the protocol cannot carry
+    /// (hundredths of a degree in 16 bits) is [`CommandError::Usage`].
+    pub async fn go_to_degrees(&self, pan: Option<f64>, tilt: Option<f64>) -> Result<(), CommandError> {
+        let now = match (pan, tilt) {
+            (Some(_), Some(_)) => Position::default(),
+            _ => self.session.position().await?,
+        };
+        let angle = |degrees: Option<f64>, current: Angle| match degrees {
+            Some(d) => Angle::from_degrees(d as f32).map_err(|e| CommandError::Usage(e.to_string())),
+            None => Ok(current),
+        };
+        self.go_to(Position::new(angle(pan, now.pan)?, angle(tilt, now.tilt)?))
+            .await
     }
 
     /// `Pnn` (Table 11), for this user.

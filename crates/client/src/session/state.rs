@@ -1,14 +1,17 @@
 //! What a gimbal session has been asked and what it has told the gimbal,
-//! under the session's one lock: the axes in force, the owed stops, the
-//! pending velocity and positioning move, the short queue and its
-//! staleness (ARCHITECTURE "Front doors": stops first, bounded work).
+//! under the session's one lock: the motion (module `motion`: the axes in
+//! force, the owed stops, the pending velocity and positioning move), the
+//! short queue and its staleness, the status and what gcud said of control
+//! (ARCHITECTURE "Front doors": stops first, bounded work).
 
-use super::travel::Travel;
+use super::motion::MotionState;
 use super::*;
 
-pub(super) type Reply = oneshot::Sender<Result<(), CommandError>>;
 pub(super) type Answer = oneshot::Sender<Result<Option<Vec<u8>>, CommandError>>;
 pub(super) type GcuReply = oneshot::Sender<Result<GcuAnswer, CommandError>>;
+/// A reader of the next poll ([`GimbalSession::poll`]).
+pub(super) type Reading = Result<(Position, Option<LensPosition>), CommandError>;
+pub(super) type PollReply = oneshot::Sender<Reading>;
 
 /// A request waiting in the queue: a command to the gimbal, or one to gcud.
 pub(super) enum Queued {
@@ -25,144 +28,36 @@ impl Queued {
     }
 }
 
-/// One side of the gimbal, as far as the session has told it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) struct InForce<S> {
-    /// The speed last set (`SPn`, `STn`, `Zn`), while the session may
-    /// believe the gimbal still has it ([`State::forget_speeds`]): a
-    /// direction command at that speed is then sent without it.
-    pub(super) speed: Option<S>,
-    /// When the gimbal acknowledged that speed ([`SPEED_KEPT`]).
-    pub(super) speed_at: Option<Instant>,
-    /// The slew started last and not stopped since.
-    pub(super) drive: Drive<S>,
-}
-
-impl<S> Default for InForce<S> {
-    fn default() -> Self {
-        Self {
-            speed: None,
-            speed_at: None,
-            drive: Drive::Stop,
-        }
-    }
-}
-
-impl<S: PartialEq> InForce<S> {
-    /// The speed is no longer believed (the slew in force stays as it is).
-    fn forget_speed(&mut self) {
-        self.speed = None;
-        self.speed_at = None;
-    }
-
-    /// This, after its drive command was acknowledged at `now`, in place
-    /// of `before`: a speed command (`set`) starts the time its speed is
-    /// believed; a direction keeps the time of the speed it runs at (set
-    /// by the command chained before it, whose ack this one did not see).
-    pub(super) fn speed_set(mut self, set: bool, now: Instant, before: &Self) -> Self {
-        if set {
-            self.speed_at = Some(now);
-        } else if self.speed == before.speed {
-            self.speed_at = before.speed_at;
-        }
-        self
-    }
-
-    /// Forgets the speed once it was set [`SPEED_KEPT`] ago or longer.
-    fn age_speed(&mut self, now: Instant) {
-        if self.speed_at.is_none_or(|at| now.duration_since(at) >= SPEED_KEPT) {
-            self.forget_speed();
-        }
-    }
-}
-
-/// A positioning move: supersedes a pan/tilt slew on the gimbal itself.
-#[derive(Clone, Copy, Debug)]
-pub(super) enum Place {
-    GoTo(Position),
-    Preset(u8),
-    Home,
-}
-
-impl Place {
-    pub(super) fn command(self) -> Command<'static> {
-        match self {
-            Place::GoTo(p) => Command::GoTo(p),
-            Place::Preset(n) => Command::GoToPreset(n),
-            Place::Home => Command::Home,
-        }
-    }
-}
-
-pub(super) struct Pending<T> {
-    pub(super) what: T,
-    pub(super) asked: Instant,
-    /// The door's user it is for (ARCHITECTURE "Principals"; `None`: the door itself).
-    pub(super) by: Option<Arc<str>>,
-    pub(super) replies: Vec<Reply>,
-}
-
 #[derive(Default)]
 pub(super) struct State {
-    pub(super) pan: InForce<Speed>,
-    pub(super) tilt: InForce<Speed>,
-    pub(super) zoom: InForce<LensSpeed>,
-    /// The motion's deadline, while anything moves or is about to.
-    pub(super) deadline: Option<Instant>,
-    /// Who owns the motion, for the logs.
-    pub(super) owner: String,
-    pub(super) stops_owed: Axes,
-    /// Failed attempts at the owed stops since the last confirmed one.
-    pub(super) stop_failures: u32,
-    pub(super) stop_replies: Vec<Reply>,
-    /// The next time an owed stop may be tried again.
-    pub(super) stop_retry_at: Option<Instant>,
-    pub(super) wish: Option<Pending<Velocity>>,
-    pub(super) place: Option<Pending<Place>>,
+    /// The session's motion, one object with the rule that edits it.
+    pub(super) motion: MotionState,
     pub(super) queue: VecDeque<(Queued, Instant, Option<Arc<str>>)>,
+    /// Readers waiting for the next poll, and since when.
+    pub(super) readers: Vec<(Instant, PollReply)>,
     pub(super) status: Status,
     pub(super) identity: Option<Identity>,
     /// The task ends once the owed stops are sent.
     pub(super) closing: bool,
     /// The rule gcud refused the last drive command by (logged once).
     pub(super) last_refusal: Option<Undelivered>,
-    /// Axes set to zero beside a pending move ([`GimbalSession::post_velocity`]):
-    /// owed once that move is in force.
-    pub(super) wish_stops: Axes,
     /// gcud's rules of the gimbal, when last asked ([`GimbalSession::rules`]).
     pub(super) rules: Option<(Instant, Rules)>,
-    /// A positioning move gcud accepted, until the polls show it ended
-    /// (module `travel`).
-    pub(super) travel: Option<Travel>,
     /// The last motion was ended or refused because another controller
     /// holds the gimbal ([`Status::taken_by`]).
     pub(super) taken: bool,
 }
 
 impl State {
-    /// The axes slewing or about to.
-    pub(super) fn moving(&self) -> Axes {
-        let (w_pan, w_tilt, w_zoom) = self.wish.as_ref().map_or((false, false, false), |w| {
-            (moves(w.what.pan), moves(w.what.tilt), moves(w.what.zoom))
-        });
-        Axes {
-            pan: self.pan.drive != Drive::Stop || w_pan,
-            tilt: self.tilt.drive != Drive::Stop || w_tilt,
-            zoom: self.zoom.drive != Drive::Stop || w_zoom,
-        }
-    }
-
     /// The session's motion, as the bus shows it: from the moment a move
     /// is asked (accepted, once its caller is answered) until the polls
     /// show it ended or a stop is confirmed (module `travel`); never a
     /// motion of another controller.
-    pub(super) fn motion(&self) -> Motion {
-        if self.stops_owed.any() && self.stop_failures > 0 {
+    pub(super) fn motion_shown(&self) -> Motion {
+        let m = &self.motion;
+        if m.stops_owed.any() && m.stop_failures > 0 {
             Motion::Unknown
-        } else if self.moving().any()
-            || self.place.is_some()
-            || self.travel.is_some()
-            || self.stops_owed.any()
+        } else if m.any()
             // The gimbal moving under another controller is not this session's motion.
             || (self.status.changing && self.another_holder().is_none())
         {
@@ -172,105 +67,67 @@ impl State {
         }
     }
 
-    /// Owes the stops of `axes`: pending velocities of those axes are
-    /// dropped (they came before the stop).
-    pub(super) fn owe_stop(&mut self, axes: Axes) {
-        self.stops_owed = self.stops_owed.or(axes);
-        self.wish_stops = self.wish_stops.without(axes);
-        if let Some(w) = &mut self.wish {
-            if axes.pan {
-                w.what.pan = None;
-            }
-            if axes.tilt {
-                w.what.tilt = None;
-            }
-            if axes.zoom {
-                w.what.zoom = None;
-            }
-            if w.what == Velocity::default() {
-                let w = self.wish.take().expect("checked");
-                answer(w.replies, Ok(()));
-                // The zeros beside the move it ended are owed with it.
-                self.stops_owed = self.stops_owed.or(std::mem::take(&mut self.wish_stops));
-            }
-        }
-        if axes.pan || axes.tilt {
-            if let Some(p) = self.place.take() {
-                answer(p.replies, Ok(()));
-            }
-        }
+    /// Another controller than the session's link holds the gimbal, as
+    /// gcud last named it (a link, a tour, park).
+    pub(super) fn another_holder(&self) -> Option<&Controller> {
+        self.status
+            .control
+            .as_ref()
+            .filter(|c| !c.ours && c.holder != Controller::Nobody)
+            .map(|c| &c.holder)
     }
 
-    /// What the session believes of the speeds set on the gimbal is
-    /// forgotten: the next slew of each axis sets its speed again
-    /// ([`SPEED_KEPT`] says when).
-    pub(super) fn forget_speeds(&mut self) {
-        self.pan.forget_speed();
-        self.tilt.forget_speed();
-        self.zoom.forget_speed();
+    /// The controller that ended or refused the session's last motion,
+    /// while gcud names it as the holder ([`Status::taken_by`]).
+    pub(super) fn taken_by(&self) -> Option<Controller> {
+        self.taken.then(|| self.another_holder().cloned()).flatten()
     }
 
-    /// Forgets the speeds set [`SPEED_KEPT`] ago or longer.
-    pub(super) fn age_speeds(&mut self, now: Instant) {
-        self.pan.age_speed(now);
-        self.tilt.age_speed(now);
-        self.zoom.age_speed(now);
-    }
-
-    /// The deadline has passed: the stops of whatever moves are owed.
-    pub(super) fn expire(&mut self, now: Instant, name: &str) {
-        if self.deadline.is_some_and(|d| d <= now) {
-            self.deadline = None;
-            let moving = self.moving().or(std::mem::take(&mut self.wish_stops));
-            if let Some(w) = self.wish.take() {
-                // Its time ran out before it could be carried out (a stop owed first).
-                answer(
-                    w.replies,
-                    Err(CommandError::Io(
-                        "the move's time ran out before it could start".to_owned(),
-                    )),
-                );
-            }
-            if moving.any() {
-                info!(gimbal = name, owner = %self.owner, "move time-out: stopping");
-                self.owe_stop(moving);
-            }
+    /// gcud names another holder of the gimbal: whatever the session had
+    /// in force was stopped by gcud when that controller took control (not
+    /// this session's to stop, and no longer its motion); what was set
+    /// here (speeds too) is set again next time. Returns whether a motion
+    /// of the session's ended so.
+    pub(super) fn taken_over(&mut self) -> bool {
+        if self.another_holder().is_none() || !self.motion.own() {
+            return false;
         }
+        self.motion.drop_in_force();
+        self.taken = true;
+        self.motion.settle_deadline();
+        true
     }
 
     /// Drops what waited past [`STALE`].
     pub(super) fn drop_stale(&mut self, now: Instant) {
-        let stale = |asked: Instant| now.duration_since(asked) >= STALE;
         let error = || {
             CommandError::Io(format!(
                 "not sent within {} s: gcud or the bus is unavailable",
                 STALE.as_secs()
             ))
         };
-        if self.wish.as_ref().is_some_and(|w| stale(w.asked)) {
-            answer(self.wish.take().expect("checked").replies, Err(error()));
-            let stops = std::mem::take(&mut self.wish_stops);
-            if stops.any() {
-                self.owe_stop(stops);
-            }
-        }
-        if self.place.as_ref().is_some_and(|p| stale(p.asked)) {
-            answer(self.place.take().expect("checked").replies, Err(error()));
-        }
-        while self.queue.front().is_some_and(|(_, asked, _)| stale(*asked)) {
+        self.motion.drop_stale(now, error);
+        while self
+            .queue
+            .front()
+            .is_some_and(|(_, asked, _)| now.duration_since(*asked) >= STALE)
+        {
             let (queued, _, _) = self.queue.pop_front().expect("checked");
             queued.fail(error());
         }
+        let (stale, fresh) = std::mem::take(&mut self.readers)
+            .into_iter()
+            .partition(|(asked, _)| now.duration_since(*asked) >= STALE);
+        self.readers = fresh;
+        for (_, reader) in stale {
+            let _ = reader.send(Err(error()));
+        }
     }
-}
 
-/// Whether `d` asks an axis to slew.
-pub(super) fn moves<S>(d: Option<Drive<S>>) -> bool {
-    matches!(d, Some(Drive::Forward(_) | Drive::Back(_)))
-}
-
-pub(super) fn answer(replies: Vec<Reply>, result: Result<(), CommandError>) {
-    for r in replies {
-        let _ = r.send(result.clone());
+    /// A poll read `reading`: every reader waiting for it is told.
+    pub(super) fn answer_readers(&mut self, reading: &Reading) {
+        for (_, reader) in self.readers.drain(..) {
+            let _ = reader.send(reading.clone());
+        }
     }
 }

@@ -3,7 +3,7 @@
 //! velocity, the positioning move, the queue, the poll), each step carried
 //! out and its outcome recorded (ARCHITECTURE "Front doors").
 
-use super::state::InForce;
+use super::motion::{InForce, answer};
 use super::travel::Travel;
 use super::*;
 use sagebrush_protocol::ResultKind;
@@ -61,43 +61,43 @@ impl GimbalSession {
 
     fn next_step(&self, now: Instant, next_poll: Instant, by: &mut Option<Arc<str>>) -> Step {
         let mut s = self.state();
-        s.expire(now, &self.config.name);
+        s.motion.expire(now, &self.config.name);
         s.drop_stale(now);
-        s.age_speeds(now);
-        if s.closing && s.stop_failures >= STOP_ATTEMPTS_ANSWERED {
+        s.motion.age_speeds(now);
+        if s.closing && s.motion.stop_failures >= STOP_ATTEMPTS_ANSWERED {
             // Stopping the program: the stop was tried and reported.
             return Step::End;
         }
-        if s.stops_owed.any() {
-            if s.stop_retry_at.is_some_and(|t| t > now) {
-                return Step::Wait(s.stop_retry_at);
+        if s.motion.stops_owed.any() {
+            if s.motion.stop_retry_at.is_some_and(|t| t > now) {
+                return Step::Wait(s.motion.stop_retry_at);
             }
-            let (command, axes) = s.stops_owed.first().expect("owed");
+            let (command, axes) = s.motion.stops_owed.first().expect("owed");
             return Step::Stop(command, axes);
         }
         if s.closing {
             return Step::End;
         }
-        if let Some(w) = &s.wish {
+        if let Some(w) = &s.motion.wish {
             let v = w.what;
             by.clone_from(&w.by);
-            if let Some(step) = pan_tilt_step(Axis::Pan, v.pan, s.pan)
-                .or_else(|| pan_tilt_step(Axis::Tilt, v.tilt, s.tilt))
-                .or_else(|| zoom_step(v.zoom, s.zoom))
+            if let Some(step) = pan_tilt_step(Axis::Pan, v.pan, s.motion.pan)
+                .or_else(|| pan_tilt_step(Axis::Tilt, v.tilt, s.motion.tilt))
+                .or_else(|| zoom_step(v.zoom, s.motion.zoom))
             {
                 return step;
             }
             // Everything asked is in force; then the zeros beside it.
-            let w = s.wish.take().expect("checked");
+            let w = s.motion.wish.take().expect("checked");
             answer(w.replies, Ok(()));
-            let stops = std::mem::take(&mut s.wish_stops);
+            let stops = std::mem::take(&mut s.motion.wish_stops);
             if stops.any() {
-                s.owe_stop(stops);
-                let (command, axes) = s.stops_owed.first().expect("owed");
+                s.motion.owe_stop(stops);
+                let (command, axes) = s.motion.stops_owed.first().expect("owed");
                 return Step::Stop(command, axes);
             }
         }
-        if let Some(p) = &s.place {
+        if let Some(p) = &s.motion.place {
             by.clone_from(&p.by);
             return Step::Place(p.what);
         }
@@ -105,7 +105,11 @@ impl GimbalSession {
             *by = user;
             return Step::Query(queued);
         }
-        let due = if s.moving().any() || s.travel.is_some() {
+        if !s.readers.is_empty() {
+            // A reader waits for a fresh poll: this one is the session's too.
+            return Step::Poll;
+        }
+        let due = if s.motion.moving().any() || s.motion.travel.is_some() {
             next_poll.min(now + REFRESH)
         } else {
             next_poll
@@ -113,7 +117,7 @@ impl GimbalSession {
         if due <= now {
             return Step::Poll;
         }
-        Step::Wait(Some(s.deadline.map_or(due, |d| d.min(due))))
+        Step::Wait(Some(s.motion.deadline.map_or(due, |d| d.min(due))))
     }
 
     pub(super) async fn run(self: Arc<Self>, mut connection: GimbalConnection) {
@@ -128,7 +132,11 @@ impl GimbalSession {
                 connection.act_for(by.as_deref()).await;
             }
             match step {
-                Step::End => return,
+                Step::End => {
+                    // Readers still waiting are told the session ended.
+                    self.state().readers.clear();
+                    return;
+                }
                 Step::Wait(until) => {
                     let sleep = tokio::time::sleep_until(until.unwrap_or(now + UNREACHABLE_POLL));
                     tokio::select! {
@@ -148,7 +156,7 @@ impl GimbalSession {
                 }
                 Step::Drive(speed, applied, Some((direction, then))) => {
                     // A stop owed by now goes before the direction.
-                    let go_on = || !self.state().stops_owed.any();
+                    let go_on = || !self.state().motion.stops_owed.any();
                     let (sent, then_sent) = connection.send_chained(&speed, &direction, &go_on).await;
                     self.reached(&sent);
                     self.drive_sent(&speed, applied, sent);
@@ -162,22 +170,20 @@ impl GimbalSession {
                     self.reached(&sent);
                     let mut s = self.state();
                     // The gimbal's own motion: what it does to the speeds is its own.
-                    s.forget_speeds();
+                    s.motion.forget_speeds();
                     if sent.is_ok() {
                         // A motion from its acceptance until the polls show it ended.
-                        s.travel = Some(Travel::new(place, s.status.position, Instant::now()));
+                        s.motion.travel = Some(Travel::new(place.target(), s.status.position, Instant::now()));
                         s.taken = false;
                     } else if matches!(&sent, Err(e) if e.refusal() == Some(Undelivered::NotInControl)) {
                         s.taken = true;
                     }
-                    if let Some(p) = s.place.take() {
+                    if let Some(p) = s.motion.place.take() {
                         if sent.is_ok() {
                             // The gimbal goes there instead of slewing.
-                            s.pan.drive = Drive::Stop;
-                            s.tilt.drive = Drive::Stop;
-                            if !s.moving().any() {
-                                s.deadline = None;
-                            }
+                            s.motion.pan.drive = Drive::Stop;
+                            s.motion.tilt.drive = Drive::Stop;
+                            s.motion.settle_deadline();
                         }
                         answer(p.replies, sent.map(drop));
                     }
@@ -187,7 +193,7 @@ impl GimbalSession {
                     self.reached(&sent);
                     if command.result_kind() == ResultKind::None || sent.is_err() {
                         // Not a query (it may set what a speed does), or it failed.
-                        self.state().forget_speeds();
+                        self.state().motion.forget_speeds();
                     }
                     let _ = reply.send(sent);
                 }
@@ -209,7 +215,7 @@ impl GimbalSession {
                     self.polled(reading);
                     // While a motion of its own is in force, with every poll:
                     // a take-over ends it (gcud stopped it), shown at once.
-                    let own_motion = self.state().own_motion();
+                    let own_motion = self.state().motion.own();
                     if !failed && (own_motion || asked_control.is_none_or(|t: Instant| t.elapsed() >= CONTROL_POLL)) {
                         asked_control = Some(Instant::now());
                         // Unknown while it fails (a gcud that governs nothing answers NIC).
@@ -233,7 +239,7 @@ impl GimbalSession {
             .as_ref()
             .is_some_and(|c| !c.ours && c.holder != Controller::Nobody);
         if another && control != s.status.control {
-            s.forget_speeds();
+            s.motion.forget_speeds();
         }
         s.status.control = control;
         if s.taken_over() {
@@ -248,73 +254,57 @@ impl GimbalSession {
     fn stop_sent(&self, command: &Command<'static>, axes: Axes, sent: Result<Option<Vec<u8>>, CommandError>) {
         let mut s = self.state();
         if sent.is_err() {
-            s.forget_speeds();
+            s.motion.forget_speeds();
         }
         match sent {
             Ok(_) => {
-                s.stops_owed = s.stops_owed.without(axes);
-                s.stop_retry_at = None;
-                if axes.pan || axes.tilt {
-                    // A confirmed stop ends a positioning move under way.
-                    s.travel = None;
-                }
-                if axes.pan {
-                    s.pan.drive = Drive::Stop;
-                }
-                if axes.tilt {
-                    s.tilt.drive = Drive::Stop;
-                }
-                if axes.zoom {
-                    s.zoom.drive = Drive::Stop;
-                }
-                if !s.stops_owed.any() {
-                    s.stop_failures = 0;
-                    let replies = std::mem::take(&mut s.stop_replies);
+                s.motion.stop_confirmed(axes);
+                if !s.motion.stops_owed.any() {
+                    s.motion.stop_failures = 0;
+                    let replies = std::mem::take(&mut s.motion.stop_replies);
                     answer(replies, Ok(()));
-                    if !s.moving().any() && s.travel.is_none() {
+                    if !s.motion.moving().any() && s.motion.travel.is_none() {
                         // Confirmed on the bus: it stands, whatever the last poll saw.
                         s.status.changing = false;
                     }
                 }
-                if !s.moving().any() {
-                    s.deadline = None;
-                }
+                s.motion.settle_deadline();
             }
             Err(CommandError::Nic(e)) => {
                 // The gimbal cannot apply it (a zoom stop without a lens): nothing to retry.
                 warn!(gimbal = %self.config.name, error = %e, "{} refused by the gimbal", command.mnemonic());
-                s.stops_owed = s.stops_owed.without(axes);
-                if !s.stops_owed.any() {
-                    let replies = std::mem::take(&mut s.stop_replies);
+                s.motion.stops_owed = s.motion.stops_owed.without(axes);
+                if !s.motion.stops_owed.any() {
+                    let replies = std::mem::take(&mut s.motion.stop_replies);
                     answer(replies, Err(CommandError::Nic(e)));
                 }
             }
-            Err(e) if !matches!(e, CommandError::Io(_)) && s.stop_failures + 1 >= STOP_ATTEMPTS_ANSWERED => {
+            Err(e) if !matches!(e, CommandError::Io(_)) && s.motion.stop_failures + 1 >= STOP_ATTEMPTS_ANSWERED => {
                 // gcud answered, the gimbal did not confirm (absent,
                 // noise): tried again once; owing it for ever would
                 // hold every other command of this gimbal.
                 warn!(gimbal = %self.config.name, error = %e, "{} not confirmed after {STOP_ATTEMPTS_ANSWERED} attempts: given up", command.mnemonic());
-                s.stops_owed = s.stops_owed.without(axes);
-                s.stop_failures = 0;
-                s.stop_retry_at = None;
-                if !s.stops_owed.any() {
-                    let replies = std::mem::take(&mut s.stop_replies);
+                s.motion.stops_owed = s.motion.stops_owed.without(axes);
+                s.motion.stop_failures = 0;
+                s.motion.stop_retry_at = None;
+                if !s.motion.stops_owed.any() {
+                    let replies = std::mem::take(&mut s.motion.stop_replies);
                     answer(replies, Err(e));
                 }
             }
             Err(e) => {
-                s.stop_failures += 1;
+                s.motion.stop_failures += 1;
                 let retry = if matches!(e, CommandError::Io(_)) {
                     STOP_RETRY
                 } else {
-                    (STOP_RETRY * s.stop_failures).min(UNREACHABLE_POLL)
+                    (STOP_RETRY * s.motion.stop_failures).min(UNREACHABLE_POLL)
                 };
-                s.stop_retry_at = Some(Instant::now() + retry);
-                if s.stop_failures.is_power_of_two() {
-                    warn!(gimbal = %self.config.name, error = %e, attempt = s.stop_failures, "{} not confirmed: kept owed, sent again", command.mnemonic());
+                s.motion.stop_retry_at = Some(Instant::now() + retry);
+                if s.motion.stop_failures.is_power_of_two() {
+                    warn!(gimbal = %self.config.name, error = %e, attempt = s.motion.stop_failures, "{} not confirmed: kept owed, sent again", command.mnemonic());
                 }
-                if s.stop_failures >= STOP_ATTEMPTS_ANSWERED {
-                    let replies = std::mem::take(&mut s.stop_replies);
+                if s.motion.stop_failures >= STOP_ATTEMPTS_ANSWERED {
+                    let replies = std::mem::take(&mut s.motion.stop_replies);
                     answer(replies, Err(e));
                 }
             }
@@ -327,7 +317,7 @@ impl GimbalSession {
         let mut s = self.state();
         if sent.is_err() {
             // Any error or refusal: the speed set may not be what the gimbal has.
-            s.forget_speeds();
+            s.motion.forget_speeds();
         }
         match sent {
             Ok(_) => {
@@ -337,43 +327,33 @@ impl GimbalSession {
                 let set_now = matches!(command, Command::SetSpeed(..) | Command::ZoomSpeed(_));
                 let now = Instant::now();
                 match applied {
-                    Applied::Pan(a) => s.pan = a.speed_set(set_now, now, &s.pan),
-                    Applied::Tilt(a) => s.tilt = a.speed_set(set_now, now, &s.tilt),
-                    Applied::Zoom(a) => s.zoom = a.speed_set(set_now, now, &s.zoom),
+                    Applied::Pan(a) => s.motion.pan = a.speed_set(set_now, now, &s.motion.pan),
+                    Applied::Tilt(a) => s.motion.tilt = a.speed_set(set_now, now, &s.motion.tilt),
+                    Applied::Zoom(a) => s.motion.zoom = a.speed_set(set_now, now, &s.motion.zoom),
                 }
             }
             Err(e) if e.refusal().is_some() => {
                 // gcud refused it by its rules: nothing reached
                 // the bus, the axis did not start.
-                if let Some(w) = s.wish.take() {
+                if let Some(w) = s.motion.wish.take() {
                     answer(w.replies, Err(e.clone()));
                 }
-                let zeros = std::mem::take(&mut s.wish_stops);
+                let zeros = std::mem::take(&mut s.motion.wish_stops);
                 if e.refusal() == Some(Undelivered::NotInControl) {
                     // Another link holds the gimbal: its motion is
                     // not this door's to stop, and gcud stopped
                     // ours when that link took control. What was
                     // set here (speeds too) is set again next time.
-                    s.pan = InForce::default();
-                    s.tilt = InForce::default();
-                    s.zoom = InForce::default();
-                    s.travel = None;
+                    s.motion.drop_in_force();
                     s.taken = true;
                 } else {
                     // Never leave an axis moving that the caller was told failed.
-                    let ours = Axes {
-                        pan: s.pan.drive != Drive::Stop,
-                        tilt: s.tilt.drive != Drive::Stop,
-                        zoom: s.zoom.drive != Drive::Stop,
-                    }
-                    .or(zeros);
+                    let ours = s.motion.in_force().or(zeros);
                     if ours.any() {
-                        s.owe_stop(ours);
+                        s.motion.owe_stop(ours);
                     }
                 }
-                if !s.moving().any() {
-                    s.deadline = None;
-                }
+                s.motion.settle_deadline();
                 if s.last_refusal != e.refusal() {
                     s.last_refusal = e.refusal();
                     info!(gimbal = %self.config.name, error = %e, "{} refused by gcud (logged once until something is accepted or refused otherwise)", command.mnemonic());
@@ -381,11 +361,11 @@ impl GimbalSession {
             }
             Err(e) => {
                 // Never leave an axis moving that the caller was told failed.
-                let axes = s.moving().or(std::mem::take(&mut s.wish_stops));
-                if let Some(w) = s.wish.take() {
+                let axes = s.motion.moving().or(std::mem::take(&mut s.motion.wish_stops));
+                if let Some(w) = s.motion.wish.take() {
                     answer(w.replies, Err(e.clone()));
                 }
-                s.owe_stop(axes.or(applied.axes()));
+                s.motion.owe_stop(axes.or(applied.axes()));
                 warn!(gimbal = %self.config.name, error = %e, "{} failed: stopping the motion", command.mnemonic());
             }
         }
@@ -394,6 +374,7 @@ impl GimbalSession {
     /// Records a poll's reading, or its error, in the status.
     fn polled(&self, reading: Result<(Position, Option<LensPosition>), CommandError>) {
         let mut s = self.state();
+        s.answer_readers(&reading);
         let st = &mut s.status;
         match reading {
             Ok((p, lens)) => {
@@ -401,13 +382,13 @@ impl GimbalSession {
                 st.position = Some(p);
                 st.lens = lens;
                 st.error = None;
-                s.travel_polled(p, Instant::now());
+                s.motion.travel_polled(p, Instant::now());
             }
             Err(e) => {
                 st.changing = false;
                 st.error = Some(e.to_string());
                 // The gimbal did not answer: it may have restarted since.
-                s.forget_speeds();
+                s.motion.forget_speeds();
             }
         }
     }
@@ -419,12 +400,12 @@ impl GimbalSession {
                 // The connection is gone: gcud's dead-man stopped what it
                 // started, unless gcud itself is gone; either way owe the stops.
                 let mut s = self.state();
-                let moving = s.moving();
+                let moving = s.motion.moving();
                 if moving.any() {
-                    s.stops_owed = s.stops_owed.or(moving);
+                    s.motion.stops_owed = s.motion.stops_owed.or(moving);
                 }
                 // The next connection may find gcud or the gimbal restarted.
-                s.forget_speeds();
+                s.motion.forget_speeds();
             }
             _ => self.reach.up(&self.config.link.gcud),
         }

@@ -7,7 +7,6 @@
 //! when that controller took control), which the door shows as that
 //! controller, never as a motion of its own.
 
-use super::state::InForce;
 use super::*;
 
 /// An accepted positioning move the polls never saw start (a preset where
@@ -30,12 +29,9 @@ pub(super) struct Travel {
 }
 
 impl Travel {
-    /// `place`, accepted at `now` with the gimbal last read at `from`.
-    pub(super) fn new(place: Place, from: Option<Position>, now: Instant) -> Self {
-        let to = match place {
-            Place::GoTo(p) => Some(p),
-            Place::Preset(_) | Place::Home => None,
-        };
+    /// A move to `to` (a goto's target; `None`: a preset or home),
+    /// accepted at `now` with the gimbal last read at `from`.
+    pub(super) fn new(to: Option<Position>, from: Option<Position>, now: Instant) -> Self {
         Self {
             to,
             accepted: now,
@@ -47,66 +43,11 @@ impl Travel {
     /// Whether the poll reading `p` at `now` shows the move ended: the
     /// gimbal at its target, or standing still since the last poll once it
     /// moved or [`START_WITHIN`] passed.
-    fn ended(&mut self, p: Position, now: Instant) -> bool {
+    pub(super) fn ended(&mut self, p: Position, now: Instant) -> bool {
         let still = self.last == Some(p);
         self.moved |= !still;
         self.last = Some(p);
         self.to == Some(p) || (still && (self.moved || now.duration_since(self.accepted) >= START_WITHIN))
-    }
-}
-
-impl State {
-    /// A motion of the session's in force on the gimbal: a slew gcud
-    /// accepted, or a positioning move not yet seen to end.
-    pub(super) fn own_motion(&self) -> bool {
-        self.pan.drive != Drive::Stop
-            || self.tilt.drive != Drive::Stop
-            || self.zoom.drive != Drive::Stop
-            || self.travel.is_some()
-    }
-
-    /// Another controller than the session's link holds the gimbal, as
-    /// gcud last named it (a link, a tour, park).
-    pub(super) fn another_holder(&self) -> Option<&Controller> {
-        self.status
-            .control
-            .as_ref()
-            .filter(|c| !c.ours && c.holder != Controller::Nobody)
-            .map(|c| &c.holder)
-    }
-
-    /// The controller that ended or refused the session's last motion,
-    /// while gcud names it as the holder ([`Status::taken_by`]).
-    pub(super) fn taken_by(&self) -> Option<Controller> {
-        self.taken.then(|| self.another_holder().cloned()).flatten()
-    }
-
-    /// A poll read the gimbal at `p`: the positioning move under way ends
-    /// when the reading shows it.
-    pub(super) fn travel_polled(&mut self, p: Position, now: Instant) {
-        if self.travel.as_mut().is_some_and(|t| t.ended(p, now)) {
-            self.travel = None;
-        }
-    }
-
-    /// gcud names another holder of the gimbal: whatever the session had
-    /// in force was stopped by gcud when that controller took control (not
-    /// this session's to stop, and no longer its motion); what was set
-    /// here (speeds too) is set again next time. Returns whether a motion
-    /// of the session's ended so.
-    pub(super) fn taken_over(&mut self) -> bool {
-        if self.another_holder().is_none() || !self.own_motion() {
-            return false;
-        }
-        self.pan = InForce::default();
-        self.tilt = InForce::default();
-        self.zoom = InForce::default();
-        self.travel = None;
-        self.taken = true;
-        if !self.moving().any() {
-            self.deadline = None;
-        }
-        true
     }
 }
 
@@ -122,12 +63,12 @@ mod tests {
     #[test]
     fn a_goto_ends_at_its_target_a_preset_once_still_after_moving() {
         let t0 = Instant::now();
-        let mut goto = Travel::new(Place::GoTo(at(500)), Some(at(0)), t0);
+        let mut goto = Travel::new(Some(at(500)), Some(at(0)), t0);
         assert!(!goto.ended(at(0), t0), "not started yet: still a motion");
         assert!(!goto.ended(at(200), t0));
         assert!(goto.ended(at(500), t0), "at its target");
 
-        let mut preset = Travel::new(Place::Preset(3), Some(at(0)), t0);
+        let mut preset = Travel::new(None, Some(at(0)), t0);
         assert!(
             !preset.ended(at(0), t0),
             "not started within START_WITHIN: still a motion"
@@ -135,7 +76,7 @@ mod tests {
         assert!(!preset.ended(at(300), t0));
         assert!(preset.ended(at(300), t0), "still after it moved");
 
-        let mut there = Travel::new(Place::Preset(3), Some(at(0)), t0);
+        let mut there = Travel::new(None, Some(at(0)), t0);
         assert!(!there.ended(at(0), t0 + START_WITHIN / 2));
         assert!(
             there.ended(at(0), t0 + START_WITHIN),

@@ -24,7 +24,7 @@ use mavlink::MavHeader;
 use mavlink::dialects::common::MavMessage;
 
 use crate::config::Gimbal;
-use crate::earth::Place;
+use crate::earth::geometry::Place;
 
 /// How old an ATTITUDE or GLOBAL_POSITION_INT may be and still be used.
 pub const STALE: Duration = Duration::from_secs(2);

@@ -15,20 +15,20 @@ use mavlink::dialects::common::{
 };
 use sagebrush_client::session::{Drive, GcudReachability, GimbalSession, SessionConfig, Velocity};
 use sagebrush_client::{CommandError, Identity};
-use sagebrush_protocol::{Angle, Command, Position, Undelivered};
+use sagebrush_protocol::Undelivered;
 use tokio::sync::mpsc;
 use tokio::task::JoinSet;
 use tokio::time::Instant;
 use tracing::{info, warn};
 
-use crate::aim::{Aim, Target};
-use crate::answers::{ack, refusal_text, statustext};
 use crate::config::{self, Config};
-use crate::control::{Control, Refused, Sender};
-use crate::handle::{Handle, Job, Shared, Work};
-use crate::link::Outbox;
-use crate::motion::{self, Plan};
+use crate::earth::aim::{Aim, Target};
+use crate::routing::answers::{ack, refusal_text, statustext};
+use crate::routing::control::{Control, Refused, Sender};
+use crate::routing::handle::{Handle, Job, Shared, Work};
+use crate::routing::motion::{self, Plan};
 use crate::stats::{Stats, may_warn};
+use crate::transport::link::Outbox;
 
 /// Requests waiting for one gimbal's task; it takes each at once (motions
 /// are posted to the session, never awaited), so the queue fills only if
@@ -324,29 +324,11 @@ impl Task {
                 (_, Some(outcome)) => outcome
                     .await
                     .unwrap_or_else(|_| Err(CommandError::Io("session ended".into()))),
-                (Plan::GoTo { pan, tilt }, None) => go_to(&session, pan, tilt).await,
+                (Plan::GoTo { pan, tilt }, None) => session.go_to_degrees(pan, tilt).await,
                 _ => Ok(()),
             }
         }
     }
-}
-
-/// `GO` there; an axis with `None` keeps its angle (read with `P?`).
-async fn go_to(session: &GimbalSession, pan: Option<f64>, tilt: Option<f64>) -> Result<(), CommandError> {
-    let now = match (pan, tilt) {
-        (Some(_), Some(_)) => Position::default(),
-        _ => {
-            let payload = session.send(Command::QueryPosition).await?.unwrap_or_default();
-            sagebrush_client::client::expect_position(&Command::QueryPosition, &payload)?
-        }
-    };
-    let angle = |deg: Option<f64>, current: Angle| match deg {
-        Some(d) => Angle::from_degrees(d as f32).map_err(|e| CommandError::Usage(e.to_string())),
-        None => Ok(current),
-    };
-    session
-        .go_to(Position::new(angle(pan, now.pan)?, angle(tilt, now.tilt)?))
-        .await
 }
 
 /// The information message `id`, or the result that says why not.

@@ -12,11 +12,11 @@ use sagebrush_client::session::GimbalSession;
 use sagebrush_protocol::Position;
 use tokio::sync::mpsc;
 
-use crate::aim::{Aim, Target};
 use crate::config;
-use crate::control::{Control, Sender};
-use crate::motion;
-use crate::rates::{self, Rate, Rates};
+use crate::earth::aim::{Aim, Target};
+use crate::routing::control::{Control, Sender};
+use crate::routing::motion;
+use crate::routing::rates::{self, Rate, Rates};
 
 /// What the emitter reports.
 #[derive(Clone, Debug, Default)]

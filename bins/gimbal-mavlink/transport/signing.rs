@@ -32,7 +32,7 @@ use tokio::time::Instant;
 use tracing::warn;
 
 use crate::stats::{Stats, may_warn, peer_ip};
-use crate::wire::{SIGNED, V2_MAGIC};
+use crate::transport::wire::{SIGNED, V2_MAGIC};
 
 /// A peer's refusals are logged at most once in this long.
 pub const LOG_EVERY: Duration = Duration::from_secs(10);
@@ -208,7 +208,7 @@ fn raw(frame: &[u8]) -> MAVLinkV2MessageRaw {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::wire::{encode, header};
+    use crate::transport::wire::{encode, header};
     use mavlink::Message;
     use mavlink::dialects::common::{COMMAND_LONG_DATA, HEARTBEAT_DATA, MavCmd, MavMessage};
 

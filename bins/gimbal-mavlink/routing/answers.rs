@@ -6,7 +6,7 @@ use mavlink::dialects::common::{COMMAND_ACK_DATA, MavCmd, MavMessage, MavResult,
 use sagebrush_client::governance::Controller;
 use sagebrush_protocol::Undelivered;
 
-use crate::control::Sender;
+use crate::routing::control::Sender;
 
 /// COMMAND_ACK of `command` to `to`: the one answer builder for every refusal and result.
 pub fn ack(command: MavCmd, result: MavResult, to: Sender) -> MavMessage {

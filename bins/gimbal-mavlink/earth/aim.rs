@@ -19,10 +19,10 @@ use std::time::Duration;
 use mavlink::dialects::common::GimbalManagerFlags;
 
 use crate::config::Gimbal;
-use crate::control::Sender;
-use crate::earth::{self, Place};
-use crate::motion::Request;
-use crate::vehicle::Vehicle;
+use crate::earth::geometry::{self, Place};
+use crate::earth::vehicle::Vehicle;
+use crate::routing::control::Sender;
+use crate::routing::motion::Request;
 
 /// How often an aim is recomputed, at most.
 pub const REAIM_EVERY: Duration = Duration::from_millis(500);
@@ -59,13 +59,13 @@ impl Aim {
             Aim::Yaw { earth_deg, tilt_deg } => (earth_deg, tilt_deg.unwrap_or(f32::NAN)),
             Aim::Place(place) => {
                 let mount = vehicle.position().ok_or(NO_POSITION)?.place;
-                let (bearing, elevation) = earth::look_at(mount, place);
+                let (bearing, elevation) = geometry::look_at(mount, place);
                 (bearing, elevation as f32)
             }
         };
         Ok(Request {
             tilt_deg,
-            pan_deg: earth::mount_yaw(earth_deg, heading.deg, g.pan_deg) as f32,
+            pan_deg: geometry::mount_yaw(earth_deg, heading.deg, g.pan_deg) as f32,
             tilt_dps: f32::NAN,
             pan_dps: f32::NAN,
         })
@@ -102,7 +102,7 @@ fn uses_yaw(request: &Request) -> bool {
 
 /// `request` (its yaw in the frame `flags` say) relative to the mount of
 /// `g`, and the aim it holds: an earth-frame yaw is the yaw minus the
-/// heading, wrapped into the travel (`earth::mount_yaw`), held as an aim;
+/// heading, wrapped into the travel (`geometry::mount_yaw`), held as an aim;
 /// an earth-frame yaw rate has the vehicle's yaw rate taken off. Refused
 /// where the heading is not known.
 pub fn in_mount_frame(
@@ -129,7 +129,7 @@ pub fn in_mount_frame(
         earth_deg: f64::from(request.pan_deg),
         tilt_deg: (!request.tilt_deg.is_nan()).then_some(request.tilt_deg),
     };
-    let pan_deg = earth::mount_yaw(f64::from(request.pan_deg), heading.deg, g.pan_deg) as f32;
+    let pan_deg = geometry::mount_yaw(f64::from(request.pan_deg), heading.deg, g.pan_deg) as f32;
     Ok((Request { pan_deg, ..request }, Some(held)))
 }
 

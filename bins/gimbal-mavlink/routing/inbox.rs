@@ -25,14 +25,14 @@ use mavlink::dialects::common::{MavMessage, MavResult};
 use mavlink::{MavHeader, Message};
 use tracing::debug;
 
-use crate::aim::in_mount_frame;
-use crate::command::Command;
 use crate::config::Gimbal;
-use crate::frames;
-use crate::handle::{Handle, Job, Route, Work};
-use crate::motion::Request;
+use crate::earth::aim::in_mount_frame;
+use crate::earth::frames;
+use crate::earth::vehicle::Vehicle;
+use crate::routing::command::Command;
+use crate::routing::handle::{Handle, Job, Route, Work};
+use crate::routing::motion::Request;
 use crate::stats::Stats;
-use crate::vehicle::Vehicle;
 
 /// The gimbals addressed by `target_system`/`target_component`: the one
 /// with that component id; for component 0, the one `device_id` names,
@@ -191,7 +191,7 @@ pub fn route(
         Some(c) => {
             let to = (c.target_system, c.target_component, c.device_id());
             for_each(handles, system_id, to, &|i| {
-                crate::command::route(&handles[i], i, vehicle, from, &c)
+                crate::routing::command::route(&handles[i], i, vehicle, from, &c)
             })
         }
         None => {
@@ -224,7 +224,7 @@ pub fn count(route: &Route, stats: &Stats) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::aim::{self, Aim};
+    use crate::earth::aim::{self, Aim};
     use mavlink::dialects::common::GimbalManagerFlags;
 
     fn gimbal(mount_heading_deg: Option<f64>) -> Gimbal {

@@ -19,12 +19,12 @@ use mavlink::dialects::common::{MavCmd, MavMessage, MavResult};
 use mavlink::{MavHeader, Message};
 use tracing::warn;
 
-use crate::control::{self, Heard, Sender};
-use crate::signing::Signing;
+use crate::routing::control::{self, Heard, Sender};
 use crate::stats::{Stats, may_warn};
+use crate::transport::signing::Signing;
 #[cfg(test)]
-use crate::wire::COMMAND_LONG_ID;
-use crate::wire::{COMMAND_ACK_ID, Decoded, SIGNED, V2_MAGIC};
+use crate::transport::wire::COMMAND_LONG_ID;
+use crate::transport::wire::{COMMAND_ACK_ID, Decoded, SIGNED, V2_MAGIC};
 
 /// Where a message was heard, and where an answer goes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -226,7 +226,7 @@ impl Net {
                         if may_warn("control given to a component never heard", from) {
                             warn!(%from, ?sender, ?unheard, component, "control given to a component never heard: MAV_RESULT_DENIED");
                         }
-                        let ack = crate::answers::ack(
+                        let ack = crate::routing::answers::ack(
                             MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE,
                             MavResult::MAV_RESULT_DENIED,
                             sender,
@@ -245,7 +245,7 @@ impl Net {
     /// For a MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE to one of our components
     /// that gives control to components never heard: that component and them.
     fn control_to_unheard(&self, sender: Sender, message: &MavMessage) -> Option<(u8, Vec<Sender>)> {
-        let c = crate::command::Command::of(message)?;
+        let c = crate::routing::command::Command::of(message)?;
         if c.command != MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE {
             return None;
         }
@@ -286,7 +286,7 @@ impl Net {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::wire::{Scan, decode_datagram, encode, header, scan};
+    use crate::transport::wire::{Scan, decode_datagram, encode, header, scan};
     use mavlink::dialects::common::{COMMAND_LONG_DATA, HEARTBEAT_DATA};
 
     const GCS: Sender = (255, 190);
@@ -404,7 +404,7 @@ mod tests {
     #[test]
     fn answers_go_to_the_asker_status_to_everyone() {
         let net = net();
-        let ack = |command, result| crate::answers::ack(command, result, GCS);
+        let ack = |command, result| crate::routing::answers::ack(command, result, GCS);
         assert_eq!(
             net.addressee(
                 154,
@@ -438,7 +438,8 @@ mod tests {
             net.addressee(154, &MavMessage::HEARTBEAT(HEARTBEAT_DATA::default())),
             None
         );
-        let to_zero = crate::answers::ack(MavCmd::MAV_CMD_DO_SET_SERVO, MavResult::MAV_RESULT_UNSUPPORTED, (0, 0));
+        let to_zero =
+            crate::routing::answers::ack(MavCmd::MAV_CMD_DO_SET_SERVO, MavResult::MAV_RESULT_UNSUPPORTED, (0, 0));
         assert_eq!(
             net.addressee(154, &to_zero),
             Some((0, 0)),

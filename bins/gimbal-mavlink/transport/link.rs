@@ -20,12 +20,12 @@ use tokio::net::UdpSocket;
 use tracing::{debug, warn};
 
 use crate::config::Endpoint;
-use crate::control::Sender;
-use crate::net::{Net, Peer, Screened};
-use crate::signing::Signing;
+use crate::routing::control::Sender;
 use crate::stats::{Stats, may_warn};
-use crate::stream::Streams;
-use crate::wire;
+use crate::transport::net::{Net, Peer, Screened};
+use crate::transport::signing::Signing;
+use crate::transport::stream::Streams;
+use crate::transport::wire;
 
 /// The most peers a listening endpoint answers.
 pub const MAX_PEERS: usize = 16;
@@ -150,9 +150,10 @@ impl Outbox {
         }))
     }
 
-    /// Where each endpoint is bound.
-    pub fn local_addrs(&self) -> Vec<SocketAddr> {
-        self.ports.iter().filter_map(|p| p.socket.local_addr().ok()).collect()
+    /// The address UDP endpoint `port` (the `port`th UDP endpoint
+    /// configured) is bound to.
+    pub fn local_addr(&self, port: usize) -> Option<SocketAddr> {
+        self.ports.get(port).and_then(|p| p.socket.local_addr().ok())
     }
 
     /// Milliseconds since start (`time_boot_ms`).
@@ -219,7 +220,7 @@ impl Outbox {
 
     /// Receives on endpoint `index` for ever, handing each intact message
     /// to `handle` (after [`Net::screen`]).
-    pub async fn receive(self: Arc<Self>, index: usize, stats: Arc<Stats>, handle: crate::stream::Handler) {
+    pub async fn receive(self: Arc<Self>, index: usize, stats: Arc<Stats>, handle: crate::transport::stream::Handler) {
         let port = &self.ports[index];
         let mut buf = vec![0u8; 65_536];
         loop {

@@ -6,15 +6,15 @@
 use mavlink::dialects::common::{MavCmd, MavFrame, MavMessage, MavResult};
 use tracing::warn;
 
-use crate::aim::Aim;
-use crate::aim::in_mount_frame;
-use crate::control::Sender;
-use crate::earth::Place;
-use crate::handle::{Handle, Job, Route, Work};
-use crate::motion::Request;
-use crate::rates::{self, Rate};
+use crate::earth::aim::Aim;
+use crate::earth::aim::in_mount_frame;
+use crate::earth::geometry::Place;
+use crate::earth::vehicle::Vehicle;
+use crate::routing::control::Sender;
+use crate::routing::handle::{Handle, Job, Route, Work};
+use crate::routing::motion::Request;
+use crate::routing::rates::{self, Rate};
 use crate::stats::may_warn;
-use crate::vehicle::Vehicle;
 
 /// A request that moves nothing (NaN: not used).
 /// A command as COMMAND_LONG or COMMAND_INT carries it.

@@ -6,10 +6,10 @@ use std::sync::Arc;
 
 use tracing::{info, warn};
 
-use crate::aim::{REAIM_EVERY, Target, moved};
-use crate::handle::{Handle, Job, Work};
-use crate::motion::Request;
-use crate::vehicle::Vehicle;
+use crate::earth::aim::{REAIM_EVERY, Target, moved};
+use crate::earth::vehicle::Vehicle;
+use crate::routing::handle::{Handle, Job, Work};
+use crate::routing::motion::Request;
 
 /// Re-aims the aims in force for ever (the module's rules).
 pub async fn run(handles: Vec<Handle>, vehicle: Arc<Vehicle>) {

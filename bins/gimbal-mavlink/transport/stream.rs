@@ -34,17 +34,18 @@ use std::time::Duration;
 
 use mavlink::MavHeader;
 use mavlink::dialects::common::MavMessage;
+use sagebrush_host::backoff::Backoff;
+use sagebrush_host::transport::{connect_tcp, open_serial};
 use sagebrush_service::{Admission, Connections, Limits};
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
-use tokio::net::{TcpListener, TcpStream};
+use tokio::net::TcpListener;
 use tokio::sync::{Notify, mpsc};
 use tokio::time::Instant;
-use tokio_serial::SerialPortBuilderExt;
 use tracing::{debug, info, warn};
 
-use crate::net::{Net, Peer, Screened};
 use crate::stats::{Stats, may_warn, peer_ip};
-use crate::wire::{self, MAX_FRAME, Scan};
+use crate::transport::net::{Net, Peer, Screened};
+use crate::transport::wire::{self, MAX_FRAME, Scan};
 
 /// What is done with each intact message that comes in.
 pub type Handler = Arc<dyn Fn(MavHeader, MavMessage) + Send + Sync>;
@@ -61,8 +62,6 @@ pub const IDLE_TIMEOUT: Duration = Duration::from_secs(30);
 pub const BUFFER: usize = 8192;
 /// Messages waiting to be written to one connection.
 const QUEUE: usize = 256;
-/// How long a `tcp` or `serial` endpoint waits before connecting or opening again.
-pub const RECONNECT: Duration = Duration::from_secs(2);
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|p| p.into_inner())
@@ -296,16 +295,18 @@ pub async fn listen(listener: TcpListener, streams: Arc<Streams>, stats: Arc<Sta
     }
 }
 
-/// `tcp`: keeps a connection to `to` open, connecting again after [`RECONNECT`].
+/// `tcp`: keeps a connection to `to` open, connecting again after the
+/// shared back-off (`sagebrush_host::backoff`, gcud's own).
 pub async fn connect(to: String, streams: Arc<Streams>, stats: Arc<Stats>, handler: Handler) {
+    let mut backoff = Backoff::new();
     loop {
-        match TcpStream::connect(&to).await {
+        match connect_tcp(&to).await {
             Ok(stream) => {
+                backoff.reset();
                 let peer = stream
                     .peer_addr()
                     .unwrap_or_else(|_| SocketAddr::from(([0, 0, 0, 0], 0)));
                 info!(%peer, "MAVLink TCP connected");
-                let _ = stream.set_nodelay(true);
                 serve(
                     stream,
                     None,
@@ -318,24 +319,27 @@ pub async fn connect(to: String, streams: Arc<Streams>, stats: Arc<Stats>, handl
             }
             Err(e) => {
                 if may_warn("MAVLink TCP connection failed", &to) {
-                    warn!(to = %to, error = %e, "MAVLink TCP connection failed");
+                    warn!(to = %to, error = %e, "MAVLink TCP connection failed; retrying with backoff");
                 }
             }
         }
-        tokio::time::sleep(RECONNECT).await;
+        tokio::time::sleep(backoff.next_delay()).await;
     }
 }
 
-/// `serial`: keeps `path` open at `baud`, opening it again after
-/// [`RECONNECT`] when it closes or is not there (an adapter plugged in
+/// `serial`: keeps `path` open at `baud` (8N1, as gcud opens its buses:
+/// `sagebrush_host::transport::open_serial`), opening it again after the
+/// shared back-off when it closes or is not there (an adapter plugged in
 /// later). The first failure in a row is a warning, the rest are debug.
 pub async fn serial(path: PathBuf, baud: u32, streams: Arc<Streams>, stats: Arc<Stats>, handler: Handler) {
     let name = path.display().to_string();
     let mut failed = false;
+    let mut backoff = Backoff::new();
     loop {
-        match tokio_serial::new(name.as_str(), baud).open_native_async() {
+        match open_serial(&name, baud) {
             Ok(port) => {
                 failed = false;
+                backoff.reset();
                 info!(path = %name, baud, "MAVLink serial line open");
                 serve(
                     port,
@@ -349,11 +353,11 @@ pub async fn serial(path: PathBuf, baud: u32, streams: Arc<Streams>, stats: Arc<
             }
             Err(e) if !failed => {
                 failed = true;
-                warn!(path = %name, baud, error = %e, "cannot open the MAVLink serial line; trying again every 2 s");
+                warn!(path = %name, baud, error = %e, "cannot open the MAVLink serial line; retrying with backoff");
             }
             Err(e) => debug!(path = %name, error = %e, "cannot open the MAVLink serial line"),
         }
-        tokio::time::sleep(RECONNECT).await;
+        tokio::time::sleep(backoff.next_delay()).await;
     }
 }
 

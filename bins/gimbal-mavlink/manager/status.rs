@@ -22,13 +22,13 @@ use sagebrush_client::governance::Controller;
 use tokio::time::{Instant, MissedTickBehavior};
 use tracing::info;
 
-use crate::answers::{holder_text, statustext};
-use crate::control::Sender;
-use crate::frames;
-use crate::handle::Handle;
-use crate::link::Outbox;
+use crate::earth::frames;
+use crate::earth::vehicle::{Heading, Vehicle};
+use crate::routing::answers::{holder_text, statustext};
+use crate::routing::control::Sender;
+use crate::routing::handle::Handle;
 use crate::stats;
-use crate::vehicle::{Heading, Vehicle};
+use crate::transport::link::Outbox;
 
 pub const HEARTBEAT: Duration = Duration::from_secs(1);
 pub const MANAGER_STATUS: Duration = Duration::from_millis(200);

@@ -1,0 +1,101 @@
+//! A door reads where its gimbal points through the session's own poll
+//! (`GimbalSession::position`: readers waiting at once share one `P?`,
+//! taken then, not at the next poll period) and moves it there in degrees
+//! (`go_to_degrees`: an axis left out keeps the angle that poll read).
+//! gcud is the loopback stand-in of `fake_gcud`.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicI16, Ordering};
+use std::time::Duration;
+
+use sagebrush_client::CommandError;
+use sagebrush_client::session::{GcudLink, GcudReachability, GimbalSession, SessionConfig};
+use sagebrush_protocol::{Angle, Command, Position, Reply};
+
+mod fake_gcud;
+
+use fake_gcud::*;
+
+/// gcud answering `P?` with pan `pan` (hundredths of a degree, changed by
+/// the test) and tilt 5°, everything else ACKed.
+async fn gcud_at(pan: Arc<AtomicI16>) -> FakeGcud {
+    FakeGcud::start(move |p| match p {
+        b"P?" => {
+            let at = Position::new(Angle(pan.load(Ordering::Relaxed)), Angle(500));
+            let mut buf = [0u8; 32];
+            let n = Reply::Position(at).encode(&mut buf).unwrap().len();
+            Answer::Result(buf[..n].to_vec())
+        }
+        _ => Answer::Ack,
+    })
+    .await
+}
+
+/// A session that polls on its own only once a minute: any other `P?` is a reader's.
+fn slow_poll(gcud: &str) -> Arc<GimbalSession> {
+    GimbalSession::start(
+        SessionConfig {
+            link: GcudLink::new(gcud.to_owned(), 7, Duration::from_millis(20)),
+            address: GIMBAL,
+            poll: Duration::from_secs(60),
+            lens: false,
+            max_move: Duration::from_secs(10),
+            name: "mast-1".to_owned(),
+        },
+        Arc::new(GcudReachability::default()),
+    )
+}
+
+fn polls(gcud: &FakeGcud) -> usize {
+    gcud.got().iter().filter(|p| *p == "P?").count()
+}
+
+#[tokio::test]
+async fn readers_share_one_fresh_poll_and_send_no_query_of_their_own() {
+    let pan = Arc::new(AtomicI16::new(1234));
+    let gcud = gcud_at(Arc::clone(&pan)).await;
+    let s = slow_poll(&gcud.addr);
+    until("the session's first poll", || polls(&gcud) == 1).await;
+    // The gimbal moved since that poll: a reader sees where it is now.
+    pan.store(-4500, Ordering::Relaxed);
+    let (a, b, c) = tokio::time::timeout(GUARD, async { tokio::join!(s.position(), s.position(), s.position()) })
+        .await
+        .expect("answered by a poll taken at once, not at the next period");
+    for read in [a, b, c] {
+        assert_eq!(read.unwrap().pan, Angle(-4500));
+    }
+    assert_eq!(polls(&gcud), 2, "three readers, one poll: {:?}", gcud.got());
+    assert_eq!(
+        s.status().position.map(|p| p.pan),
+        Some(Angle(-4500)),
+        "it is the session's poll too"
+    );
+    s.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_goto_in_degrees_keeps_the_axis_left_out_where_the_poll_read_it() {
+    let gcud = gcud_at(Arc::new(AtomicI16::new(1000))).await;
+    let s = slow_poll(&gcud.addr);
+    s.go_to_degrees(None, Some(-20.0)).await.unwrap();
+    let mut buf = [0u8; 32];
+    let want = Command::GoTo(Position::new(Angle(1000), Angle(-2000)));
+    let want = String::from_utf8_lossy(want.encode(&mut buf).unwrap()).into_owned();
+    let got = gcud.got();
+    assert!(
+        got.contains(&want),
+        "pan kept at 10°, tilt to -20°: {want:?} in {got:?}"
+    );
+    let gotos = |g: &FakeGcud| {
+        g.got()
+            .iter()
+            .filter(|p| p.len() == want.len() && p.starts_with('P'))
+            .count()
+    };
+    assert_eq!(gotos(&gcud), 1, "{got:?}");
+
+    let beyond = s.acting_for(Some("ops")).go_to_degrees(Some(400.0), Some(0.0)).await;
+    assert!(matches!(beyond, Err(CommandError::Usage(_))), "{beyond:?}");
+    assert_eq!(gotos(&gcud), 1, "nothing sent: {:?}", gcud.got());
+    s.shutdown().await;
+}
