@@ -443,6 +443,7 @@ fn gimbalctl_calls_add_no_info_lines_to_the_daemons_log() {
         .replace("127.0.0.1:4003", "127.0.0.1:0")
         .replace("127.0.0.1:4004", "127.0.0.1:0")
         .replace("127.0.0.1:4005", "127.0.0.1:0")
+        .replace("127.0.0.1:4008", "127.0.0.1:0")
         .replace("127.0.0.1:9187", "127.0.0.1:0");
     let dir = tempfile::tempdir().unwrap();
     /// Stops gcud however the test ends.
