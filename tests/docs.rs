@@ -332,6 +332,7 @@ fn direction_texts() -> Vec<(String, String)> {
         ("gimbal-onvif", env!("CARGO_BIN_EXE_gimbal-onvif")),
         ("gimbal-mavlink", env!("CARGO_BIN_EXE_gimbal-mavlink")),
         ("gimbal-web", env!("CARGO_BIN_EXE_gimbal-web")),
+        ("gimbal-pelco", env!("CARGO_BIN_EXE_gimbal-pelco")),
         ("gimbalsim", env!("CARGO_BIN_EXE_gimbalsim")),
     ] {
         help_texts(bin, exe, &mut Vec::new(), &mut texts);

@@ -170,21 +170,25 @@ fn the_package_holds_programs_unit_rule_and_configuration_files() {
         "/usr/bin/gimbal-onvif",
         "/usr/bin/gimbal-mavlink",
         "/usr/bin/gimbal-web",
+        "/usr/bin/gimbal-pelco",
         "/usr/bin/gimbalsim",
         "/usr/lib/systemd/system/gcud.service",
         "/usr/lib/systemd/system/gimbal-onvif.service",
         "/usr/lib/systemd/system/gimbal-mavlink.service",
         "/usr/lib/systemd/system/gimbal-web.service",
+        "/usr/lib/systemd/system/gimbal-pelco.service",
         "/etc/gcud/gcud.toml",
         "/etc/gimbal-onvif/gimbal-onvif.toml",
         "/etc/gimbal-mavlink/gimbal-mavlink.toml",
         "/etc/gimbal-web/gimbal-web.toml",
+        "/etc/gimbal-pelco/gimbal-pelco.toml",
         "/etc/udev/rules.d/99-sagebrush-gimbal.rules",
         "/usr/share/man/man1/gcud.1.gz",
         "/usr/share/man/man1/gimbalctl.1.gz",
         "/usr/share/man/man1/gimbal-onvif.1.gz",
         "/usr/share/man/man1/gimbal-mavlink.1.gz",
         "/usr/share/man/man1/gimbal-web.1.gz",
+        "/usr/share/man/man1/gimbal-pelco.1.gz",
         "/usr/share/man/man1/gimbalsim.1.gz",
         "/usr/share/doc/sagebrush/wiring.md",
     ] {
@@ -232,6 +236,7 @@ fn the_package_holds_programs_unit_rule_and_configuration_files() {
         ("gimbal-onvif", false),
         ("gimbal-mavlink", false),
         ("gimbal-web", false),
+        ("gimbal-pelco", false),
     ] {
         let config = tree.join(format!("etc/{door}/{door}.toml"));
         let out = Command::new(tree.join(format!("usr/bin/{door}")))
@@ -254,6 +259,7 @@ fn the_package_holds_programs_unit_rule_and_configuration_files() {
         "gimbal-onvif",
         "gimbal-mavlink",
         "gimbal-web",
+        "gimbal-pelco",
         "gimbalsim",
     ] {
         let page = tree.join(format!("usr/share/man/man1/{program}.1.gz"));

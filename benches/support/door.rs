@@ -216,7 +216,10 @@ pub fn spawn(bin: &str, args: &[&str], log: &std::path::Path) -> Proc {
     Proc(
         Command::new(bin)
             .args(args)
-            .env("RUST_LOG", "warn,gimbal_onvif=info,gimbal_mavlink=info,gcud=info")
+            .env(
+                "RUST_LOG",
+                "warn,gimbal_onvif=info,gimbal_mavlink=info,gimbal_pelco=info,gcud=info",
+            )
             .stdout(Stdio::null())
             .stderr(std::fs::File::create(log).expect("log"))
             .spawn()

@@ -210,7 +210,7 @@ mod tests {
         assert_eq!(d([0, 0x05, 0, 5]), Request::ClearPreset(5));
         assert_eq!(d([0, 0x07, 0, 5]), Request::GoToPreset(5));
         assert_eq!(d([0, 0x4B, 0x23, 0x28]), Request::PanTo(9000));
-        assert_eq!(d([0, 0x4D, 0x88, 0x90]), Request::TiltTo(35_000));
+        assert_eq!(d([0, 0x4D, 0x88, 0xB8]), Request::TiltTo(35_000));
         assert_eq!(d([0, 0x51, 0, 0]), Request::QueryPan);
         assert_eq!(d([0, 0x53, 0, 0]), Request::QueryTilt);
         assert_eq!(d([0, 0x0F, 0, 0]), Request::Unsupported(0x0F));

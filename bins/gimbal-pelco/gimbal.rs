@@ -45,6 +45,10 @@ pub struct Gimbal {
     cleared: Mutex<BTreeSet<u8>>,
     /// Absolute moves one at a time, each reading the last one's aim.
     aim: tokio::sync::Mutex<Option<Aim>>,
+    /// The keyboard whose velocity the session holds (newest wins there:
+    /// a keyboard whose velocity another's replaced is told the other's
+    /// outcome, which is not its own).
+    driver: Mutex<Option<Arc<str>>>,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -69,7 +73,20 @@ impl Gimbal {
             session,
             cleared: Mutex::default(),
             aim: tokio::sync::Mutex::new(None),
+            driver: Mutex::default(),
         })
+    }
+
+    /// The gimbal's pan and tilt in degrees for a keyboard's query: the
+    /// session's last poll (at most `poll_ms` old, 250 ms while this door
+    /// moves it) when that poll succeeded, so the answer comes within a
+    /// keyboard's patience (`pyptzcontroller` waits 0.5 s); else `P?` now.
+    pub async fn polled_position(&self) -> Result<(f64, f64), CommandError> {
+        let status = self.session.status();
+        match (status.position, status.error) {
+            (Some(p), None) => Ok((f64::from(p.pan.degrees()), f64::from(p.tilt.degrees()))),
+            _ => self.position().await,
+        }
     }
 
     /// `P?` now: the gimbal's pan and tilt in degrees.
@@ -84,6 +101,16 @@ impl Gimbal {
         self.session.acting_for(principal).send(Command::StorePreset(n)).await?;
         lock(&self.cleared).remove(&n);
         Ok(())
+    }
+
+    /// Keyboard `who` posted the newest velocity.
+    pub fn set_driver(&self, who: &Arc<str>) {
+        *lock(&self.driver) = Some(Arc::clone(who));
+    }
+
+    /// Whether the newest velocity is keyboard `who`'s.
+    pub fn is_driver(&self, who: &Arc<str>) -> bool {
+        lock(&self.driver).as_ref().is_some_and(|d| Arc::ptr_eq(d, who))
     }
 
     /// Forgets preset `n` for the keyboards (`05`).

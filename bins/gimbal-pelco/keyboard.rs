@@ -17,8 +17,9 @@
 //!   be.
 //! - **Presets, absolute moves and queries** wait for gcud in tasks of
 //!   their own, at most [`BUSY`] per keyboard; more are dropped (logged).
-//!   Position queries are answered `59`/`5B` from a fresh `P?`, nothing
-//!   before it (no general response).
+//!   Position queries are answered `59`/`5B` from the session's last
+//!   poll (a fresh `P?` when it failed), nothing before it (no general
+//!   response).
 //! - gcud's refusals are logged at INFO in words, at most once per
 //!   [`REFUSAL_LOG_EVERY`] per keyboard and gimbal unless the reason changes.
 
@@ -258,6 +259,7 @@ impl Keyboard {
             Some(self.door.run),
             &self.who,
         );
+        gimbal.set_driver(&self.who);
         // Whether gcud took it is watched aside, when there is room.
         let Ok(permit) = Arc::clone(&self.busy).try_acquire_owned() else {
             return;
@@ -265,7 +267,10 @@ impl Keyboard {
         let watcher = self.watcher(gimbal);
         tokio::spawn(async move {
             let result = outcome.await.unwrap_or(Ok(()));
-            watcher.outcome("the drive", result);
+            // Replaced by another keyboard's velocity: its outcome is not ours.
+            if watcher.gimbal.is_driver(&watcher.who) {
+                watcher.outcome("the drive", result);
+            }
             drop(permit);
         });
     }
@@ -309,7 +314,7 @@ impl Keyboard {
                 ),
                 Request::QueryPan | Request::QueryTilt => {
                     let tilt = request == Request::QueryTilt;
-                    let answered = g.position().await.map(|(pan, t)| {
+                    let answered = g.polled_position().await.map(|(pan, t)| {
                         let h = if tilt {
                             command::tilt_hundredths(t)
                         } else {
@@ -332,6 +337,7 @@ impl Keyboard {
     fn watcher(&self, gimbal: &Arc<Gimbal>) -> Watcher {
         Watcher {
             who: Arc::clone(&self.who),
+            principal: self.door.principal.clone(),
             gimbal: Arc::clone(gimbal),
             state: Arc::clone(&self.state),
             stats: Arc::clone(&self.door.stats),
@@ -342,6 +348,7 @@ impl Keyboard {
 /// Logs what became of a keyboard's request.
 struct Watcher {
     who: Arc<str>,
+    principal: Option<String>,
     gimbal: Arc<Gimbal>,
     state: Arc<Mutex<HashMap<u8, PerGimbal>>>,
     stats: Arc<Stats>,
@@ -370,7 +377,8 @@ impl Watcher {
                 log
             };
             if log {
-                info!(keyboard = %self.who, gimbal = %name, "gcud refused {what} of {name} for {}: {reason}", self.who);
+                let principal = self.principal.as_deref().unwrap_or("the door's own");
+                info!(keyboard = %self.who, gimbal = %name, principal, "gcud refused {what} of {name} for {} (principal {principal}): {reason}", self.who);
             }
         } else if may_log("failed", &self.who).is_some() {
             warn!(keyboard = %self.who, gimbal = %name, error = %e, "{what} failed");

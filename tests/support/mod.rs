@@ -29,7 +29,7 @@ pub mod relay;
 /// `config/NAME.service` running `/usr/bin/NAME` on `/etc/NAME/NAME.toml`
 /// (`tests/packaging.rs` checks this list against Cargo.toml's
 /// systemd-units; `tests/deployment.rs` verifies each unit).
-pub const PACKAGED_UNITS: [&str; 4] = ["gcud", "gimbal-onvif", "gimbal-mavlink", "gimbal-web"];
+pub const PACKAGED_UNITS: [&str; 5] = ["gcud", "gimbal-onvif", "gimbal-mavlink", "gimbal-web", "gimbal-pelco"];
 
 /// The environment variable that lets a test whose third-party tool is
 /// missing (a door's Python client, tshark, cargo-deb, systemd-analyze)

@@ -134,7 +134,7 @@ proptest! {
         pelco_p in any::<bool>(),
     ) {
         let protocol = if pelco_p { Protocol::P } else { Protocol::D };
-        let whole = parse_all(protocol, &[&bytes]);
+        let whole = joined(parse_all(protocol, &[&bytes]));
         prop_assert_eq!(&joined(parse_all(protocol, &split(&bytes, &cuts))), &whole);
         let mut next = 0u64;
         for f in &whole {

@@ -51,10 +51,10 @@ fn a_good_file_and_its_defaults() {
 fn errors_name_the_file_line_key_and_what_was_expected() {
     assert_eq!(
         err(&GOOD.replace("\"pelco-p\"", "\"pelco-x\"")),
-        "p.toml:11:12: input[1].protocol: expected \"pelco-d\" or \"pelco-p\", found \"pelco-x\""
+        "p.toml:9:12: input[1].protocol: expected \"pelco-d\" or \"pelco-p\", found \"pelco-x\""
     );
     assert!(
-        err(&GOOD.replace("baud = 4800", "baud = 4801")).starts_with("p.toml:7:8: input[0].baud: expected"),
+        err(&GOOD.replace("baud = 4800", "baud = 4801")).starts_with("p.toml:5:8: input[0].baud: expected"),
         "{}",
         err(&GOOD.replace("baud = 4800", "baud = 4801"))
     );
@@ -63,7 +63,7 @@ fn errors_name_the_file_line_key_and_what_was_expected() {
         "protocol = \"pelco-p\"\nudp_listen = \"127.0.0.1:4101\"",
     );
     assert!(
-        err(&both).starts_with("p.toml:9:1: input[1]: expected exactly one of serial, tcp_listen or udp_listen"),
+        err(&both).starts_with("p.toml:7:1: input[1]: expected exactly one of serial, tcp_listen or udp_listen"),
         "{}",
         err(&both)
     );
@@ -72,11 +72,11 @@ fn errors_name_the_file_line_key_and_what_was_expected() {
     let twice = format!("{GOOD}[[gimbal]]\nname = \"mast-2\"\naddress = \"5.1.2\"\npelco_address = 1\n");
     assert_eq!(
         err(&twice),
-        "p.toml:20:17: gimbal[1].pelco_address: expected an address of its own: 1 is mast-1's"
+        "p.toml:18:17: gimbal[1].pelco_address: expected an address of its own: 1 is mast-1's"
     );
     assert!(
         err(&GOOD.replace("pelco_address = 1", "pelco_address = 0"))
-            .starts_with("p.toml:16:17: gimbal[0].pelco_address")
+            .starts_with("p.toml:14:17: gimbal[0].pelco_address")
     );
     assert!(
         err(&GOOD.replace("tcp_listen = \"127.0.0.1:4100\"", "tcp_listen = \"4100\"")).contains("input[1].tcp_listen")
