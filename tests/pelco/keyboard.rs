@@ -129,7 +129,12 @@ fn presets_absolute_positions_and_position_queries() {
     // 340 degrees is the gimbal's -20; pyptzcontroller's tilt -5 is 5 down.
     stack.keyboard("move_to", &["340", "-5"]);
     let (pan, tilt) = stack.settled();
-    assert!((pan + 20.0).abs() < 0.2 && (tilt + 5.0).abs() < 0.2, "at {pan}, {tilt}");
+    assert!(
+        (pan + 20.0).abs() < 0.2 && (tilt + 5.0).abs() < 0.2,
+        "at {pan}, {tilt}; the bus had {:?}\ndoor log:\n{}",
+        stack.door_frames(),
+        stack.door.log()
+    );
     let asked = stack.keyboard("position", &[]);
     assert!(
         (asked["pan"].as_f64().unwrap() - 340.0).abs() < 0.02 && (asked["tilt"].as_f64().unwrap() + 5.0).abs() < 0.02,

@@ -44,12 +44,15 @@ struct Stack {
 }
 
 /// The door's configuration in front of `gcud` with `lease_ms`, its serial
-/// input on `serial`; `extra`: more top-level keys.
+/// input on `serial`; `extra`: more top-level keys. A drive may run ten
+/// minutes (`max_move_ms`): only the lease or a stop ends it within a
+/// test's hang guard.
 fn door_config(gcud: &str, lease_ms: u64, serial: &str, extra: &str) -> String {
     format!(
         r#"gcud = "{gcud}"
 source_group = {DOOR_GROUP}
 motion_lease_ms = {lease_ms}
+max_move_ms = 600000
 poll_ms = 200
 {extra}
 [[input]]

@@ -157,6 +157,27 @@ proptest! {
         prop_assert_eq!(next, bytes.len() as u64);
     }
 
+    /// A frame cut short costs only its own bytes: the intact frame that
+    /// follows it is found where it starts.
+    #[test]
+    fn a_frame_cut_short_never_hides_the_next(
+        d in proptest::collection::vec(frame(Protocol::D), 2..3),
+        p in proptest::collection::vec(frame(Protocol::P), 2..3),
+        cut in 1usize..7,
+        pelco_p in any::<bool>(),
+    ) {
+        let (protocol, sent) = if pelco_p { (Protocol::P, p) } else { (Protocol::D, d) };
+        let mut stream = sent[0][..cut].to_vec();
+        stream.extend_from_slice(&sent[1]);
+        // The head and the next frame's first bytes may by chance make an
+        // intact frame (1 in 256): that is a frame, not a lost one.
+        prop_assume!(!protocol.intact(&stream[..protocol.frame_len()]));
+        let found = frames(&parse_all(protocol, &[&stream]));
+        prop_assert_eq!(found.len(), 1, "{:?}", found);
+        prop_assert_eq!(found[0].0, cut as u64);
+        prop_assert_eq!(&found[0].1.body[..], &sent[1][2..6]);
+    }
+
     /// Frames behind any garbage: every frame after the first is found at
     /// its offset (garbage may borrow the first one's head for a false
     /// frame, never more than a frame's length of it).
