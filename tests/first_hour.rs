@@ -190,6 +190,11 @@ fn the_doors_check_exits_quietly_on_a_closed_stdout() {
             env!("CARGO_BIN_EXE_gimbal-web"),
             concat!(env!("CARGO_MANIFEST_DIR"), "/config/gimbal-web.toml"),
         ),
+        (
+            "gimbal-pelco",
+            env!("CARGO_BIN_EXE_gimbal-pelco"),
+            concat!(env!("CARGO_MANIFEST_DIR"), "/config/gimbal-pelco.toml"),
+        ),
     ] {
         let (status, stderr) = with_closed_stdout(bin, &["--check", "--config", config]);
         // A shipped door moved off loopback warns of its demo passwords
@@ -537,6 +542,7 @@ fn gimbalctl_calls_add_no_info_lines_to_the_daemons_log() {
         "listening link=gimbal-onvif",
         "listening link=gimbal-mavlink",
         "listening link=gimbal-web",
+        "listening link=gimbal-pelco",
         "metrics at /metrics",
         "gcud ready",
         "port open port=",
