@@ -16,7 +16,7 @@ if [ "$build" = 1 ]; then
   cargo build --release --locked --bins >&2
 fi
 mkdir -p target/man
-for program in gcud gimbalctl gimbal-onvif gimbal-mavlink gimbal-web gimbal-mqtt gimbal-visca gimbalsim; do
+for program in gcud gimbalctl gimbal-onvif gimbal-mavlink gimbal-web gimbal-mqtt gimbal-visca gimbal-pelco gimbalsim; do
   "target/release/$program" --generate-man-page > "target/man/$program.1"
   gzip -9nf "target/man/$program.1"
 done

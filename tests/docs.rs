@@ -334,6 +334,7 @@ fn direction_texts() -> Vec<(String, String)> {
         ("gimbal-web", env!("CARGO_BIN_EXE_gimbal-web")),
         ("gimbal-mqtt", env!("CARGO_BIN_EXE_gimbal-mqtt")),
         ("gimbal-visca", env!("CARGO_BIN_EXE_gimbal-visca")),
+        ("gimbal-pelco", env!("CARGO_BIN_EXE_gimbal-pelco")),
         ("gimbalsim", env!("CARGO_BIN_EXE_gimbalsim")),
     ] {
         help_texts(bin, exe, &mut Vec::new(), &mut texts);

@@ -284,6 +284,7 @@ fn a_door_frozen_mid_move_is_stopped_by_the_lease_of_the_demo_configuration() {
         .replace("127.0.0.1:4004", "127.0.0.1:0")
         .replace("127.0.0.1:4005", "127.0.0.1:0")
         .replace("127.0.0.1:4006", "127.0.0.1:0")
+        .replace("127.0.0.1:4008", "127.0.0.1:0")
         .replace("127.0.0.1:9187", "127.0.0.1:0");
     let gcud = Gcud::start(&config);
     let mut door = Door::new("gimbal-onvif", env!("CARGO_BIN_EXE_gimbal-onvif"));

@@ -195,6 +195,11 @@ fn the_doors_check_exits_quietly_on_a_closed_stdout() {
             env!("CARGO_BIN_EXE_gimbal-mqtt"),
             concat!(env!("CARGO_MANIFEST_DIR"), "/config/gimbal-mqtt.toml"),
         ),
+        (
+            "gimbal-pelco",
+            env!("CARGO_BIN_EXE_gimbal-pelco"),
+            concat!(env!("CARGO_MANIFEST_DIR"), "/config/gimbal-pelco.toml"),
+        ),
     ] {
         let (status, stderr) = with_closed_stdout(bin, &["--check", "--config", config]);
         // A shipped door moved off loopback warns of its demo passwords
@@ -449,6 +454,7 @@ fn gimbalctl_calls_add_no_info_lines_to_the_daemons_log() {
         .replace("127.0.0.1:4004", "127.0.0.1:0")
         .replace("127.0.0.1:4005", "127.0.0.1:0")
         .replace("127.0.0.1:4006", "127.0.0.1:0")
+        .replace("127.0.0.1:4008", "127.0.0.1:0")
         .replace("127.0.0.1:9187", "127.0.0.1:0");
     let dir = tempfile::tempdir().unwrap();
     /// Stops gcud however the test ends.
@@ -543,6 +549,7 @@ fn gimbalctl_calls_add_no_info_lines_to_the_daemons_log() {
         "listening link=gimbal-mavlink",
         "listening link=gimbal-web",
         "listening link=gimbal-mqtt",
+        "listening link=gimbal-pelco",
         "metrics at /metrics",
         "gcud ready",
         "port open port=",

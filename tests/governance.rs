@@ -972,6 +972,7 @@ fn on_the_demo_a_goto_at_once_runs_and_a_jog_stops_short_of_the_roof_gimbals_zon
         .replace("127.0.0.1:4004", "127.0.0.1:0")
         .replace("127.0.0.1:4005", "127.0.0.1:0")
         .replace("127.0.0.1:4006", "127.0.0.1:0")
+        .replace("127.0.0.1:4008", "127.0.0.1:0")
         .replace("127.0.0.1:9187", "127.0.0.1:0");
     let gcud = Gcud::start(&config);
     let clients = gcud.clients();

@@ -172,6 +172,7 @@ fn the_package_holds_programs_unit_rule_and_configuration_files() {
         "/usr/bin/gimbal-web",
         "/usr/bin/gimbal-mqtt",
         "/usr/bin/gimbal-visca",
+        "/usr/bin/gimbal-pelco",
         "/usr/bin/gimbalsim",
         "/usr/lib/systemd/system/gcud.service",
         "/usr/lib/systemd/system/gimbal-onvif.service",
@@ -179,12 +180,14 @@ fn the_package_holds_programs_unit_rule_and_configuration_files() {
         "/usr/lib/systemd/system/gimbal-web.service",
         "/usr/lib/systemd/system/gimbal-mqtt.service",
         "/usr/lib/systemd/system/gimbal-visca.service",
+        "/usr/lib/systemd/system/gimbal-pelco.service",
         "/etc/gcud/gcud.toml",
         "/etc/gimbal-onvif/gimbal-onvif.toml",
         "/etc/gimbal-mavlink/gimbal-mavlink.toml",
         "/etc/gimbal-web/gimbal-web.toml",
         "/etc/gimbal-mqtt/gimbal-mqtt.toml",
         "/etc/gimbal-visca/gimbal-visca.toml",
+        "/etc/gimbal-pelco/gimbal-pelco.toml",
         "/etc/udev/rules.d/99-sagebrush-gimbal.rules",
         "/usr/share/man/man1/gcud.1.gz",
         "/usr/share/man/man1/gimbalctl.1.gz",
@@ -193,6 +196,7 @@ fn the_package_holds_programs_unit_rule_and_configuration_files() {
         "/usr/share/man/man1/gimbal-web.1.gz",
         "/usr/share/man/man1/gimbal-mqtt.1.gz",
         "/usr/share/man/man1/gimbal-visca.1.gz",
+        "/usr/share/man/man1/gimbal-pelco.1.gz",
         "/usr/share/man/man1/gimbalsim.1.gz",
         "/usr/share/doc/sagebrush/wiring.md",
         "/usr/share/doc/sagebrush/fleet.md",
@@ -243,6 +247,7 @@ fn the_package_holds_programs_unit_rule_and_configuration_files() {
         ("gimbal-web", false),
         ("gimbal-mqtt", false),
         ("gimbal-visca", false),
+        ("gimbal-pelco", false),
     ] {
         let config = tree.join(format!("etc/{door}/{door}.toml"));
         let out = Command::new(tree.join(format!("usr/bin/{door}")))
@@ -267,6 +272,7 @@ fn the_package_holds_programs_unit_rule_and_configuration_files() {
         "gimbal-web",
         "gimbal-mqtt",
         "gimbal-visca",
+        "gimbal-pelco",
         "gimbalsim",
     ] {
         let page = tree.join(format!("usr/share/man/man1/{program}.1.gz"));

@@ -218,7 +218,7 @@ pub fn spawn(bin: &str, args: &[&str], log: &std::path::Path) -> Proc {
             .args(args)
             .env(
                 "RUST_LOG",
-                "warn,gimbal_onvif=info,gimbal_mavlink=info,gimbal_visca=info,gcud=info",
+                "warn,gimbal_onvif=info,gimbal_mavlink=info,gimbal_visca=info,gimbal_pelco=info,gcud=info",
             )
             .stdout(Stdio::null())
             .stderr(std::fs::File::create(log).expect("log"))

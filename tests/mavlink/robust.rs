@@ -120,39 +120,12 @@ fn bytes_without_an_intact_frame_on_tcp_are_counted_to_the_byte() {
     assert!(counter("ignored") >= 1, "PARAM_REQUEST_LIST: {summary}");
 }
 
-/// Two pseudo-terminals whose masters are joined, as a null-modem cable:
-/// what is written to one slave is read from the other.
-struct NullModem {
-    ends: (PathBuf, PathBuf),
-    _relay: tokio::runtime::Runtime,
-}
-
-impl NullModem {
-    fn new() -> Self {
-        let relay = tokio::runtime::Builder::new_multi_thread()
-            .worker_threads(1)
-            .enable_all()
-            .build()
-            .expect("runtime");
-        let ends = relay.block_on(async {
-            let mut a = sagebrush_host::pty::PtyMaster::open().expect("pty");
-            let mut b = sagebrush_host::pty::PtyMaster::open().expect("pty");
-            let ends = (a.slave_path().to_owned(), b.slave_path().to_owned());
-            tokio::spawn(async move {
-                let _ = tokio::io::copy_bidirectional(&mut a, &mut b).await;
-            });
-            ends
-        });
-        Self { ends, _relay: relay }
-    }
-}
-
 #[test]
 fn a_ground_station_on_a_serial_line_points_the_gimbal() {
     if !client_available() {
         return;
     }
-    let cable = NullModem::new();
+    let cable = support::door::NullModem::new();
     let stack = Stack::start_with(
         1000,
         &format!("[[endpoint]]\nserial = \"{}\"\nbaud = 115200", cable.ends.0.display()),
@@ -175,7 +148,7 @@ fn a_serial_line_plugged_in_while_tcp_peers_fill_their_limit_still_opens() {
     if !client_available() {
         return;
     }
-    let cable = NullModem::new();
+    let cable = support::door::NullModem::new();
     // The radio's device node appears only after the TCP peers connected.
     let plug = tempfile::tempdir().expect("temp dir");
     let radio = plug.path().join("radio");

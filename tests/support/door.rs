@@ -517,3 +517,36 @@ pub fn plain_raw(addr: &str, request: &str) -> String {
     let _ = s.read_to_end(&mut answer);
     String::from_utf8_lossy(&answer).into_owned()
 }
+
+/// Two pseudo-terminals whose masters are joined, as a null-modem cable:
+/// what is written to one slave is read from the other.
+pub struct NullModem {
+    pub ends: (PathBuf, PathBuf),
+    _relay: tokio::runtime::Runtime,
+}
+
+impl NullModem {
+    pub fn new() -> Self {
+        let relay = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(1)
+            .enable_all()
+            .build()
+            .expect("runtime");
+        let ends = relay.block_on(async {
+            let mut a = sagebrush_host::pty::PtyMaster::open().expect("pty");
+            let mut b = sagebrush_host::pty::PtyMaster::open().expect("pty");
+            let ends = (a.slave_path().to_owned(), b.slave_path().to_owned());
+            tokio::spawn(async move {
+                let _ = tokio::io::copy_bidirectional(&mut a, &mut b).await;
+            });
+            ends
+        });
+        Self { ends, _relay: relay }
+    }
+}
+
+impl Default for NullModem {
+    fn default() -> Self {
+        Self::new()
+    }
+}

@@ -29,13 +29,14 @@ pub mod relay;
 /// `config/NAME.service` running `/usr/bin/NAME` on `/etc/NAME/NAME.toml`
 /// (`tests/packaging.rs` checks this list against Cargo.toml's
 /// systemd-units; `tests/deployment.rs` verifies each unit).
-pub const PACKAGED_UNITS: [&str; 6] = [
+pub const PACKAGED_UNITS: [&str; 7] = [
     "gcud",
     "gimbal-onvif",
     "gimbal-mavlink",
     "gimbal-web",
     "gimbal-mqtt",
     "gimbal-visca",
+    "gimbal-pelco",
 ];
 
 /// The environment variable that lets a test whose third-party tool is
