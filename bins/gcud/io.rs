@@ -156,7 +156,7 @@ impl LineStream for SerialOrTcp {}
 async fn open_port(port: &Port, baud: u32) -> io::Result<Box<dyn LineStream>> {
     Ok(match &port.transport {
         PortTransport::Serial(path) => {
-            let line = open_serial(&path.to_string_lossy(), baud)?;
+            let line = crate::serial::SerialLine::open(&path.to_string_lossy(), baud)?;
             if let Some(ms) = latency_timer_ms(path, std::path::Path::new("/sys")) {
                 if ms > LATENCY_TIMER_WARN_MS {
                     warn!(

@@ -5,12 +5,12 @@
 //! `io` open the lines, reconnect them and watch admission; they hand each
 //! open stream over and wait to hear how it ended.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 use std::io;
-use std::ops::Bound;
 use std::pin::Pin;
-use std::sync::Arc;
-use std::task::{Context, Poll};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::task::{Context, Poll, Wake, Waker};
 use std::time::Duration;
 
 pub use sagebrush_gcu::LineId;
@@ -76,10 +76,68 @@ pub enum Refused {
     Closed,
 }
 
+/// The lines that may have bytes to read, in the order they were
+/// signalled: each line's reads register a waker of its own, which notes
+/// the line here and wakes the router task, so that a turn polls the lines
+/// signalled since, not every open line (ARCHITECTURE "Scale").
+#[derive(Debug, Default)]
+struct Ready {
+    queue: Mutex<ReadyQueue>,
+}
+
+#[derive(Debug, Default)]
+struct ReadyQueue {
+    lines: VecDeque<LineId>,
+    /// The router task's waker, taken by the first line signalled.
+    task: Option<Waker>,
+}
+
+impl Ready {
+    fn lock(&self) -> std::sync::MutexGuard<'_, ReadyQueue> {
+        self.queue.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+}
+
+/// One line's waker: queues the line once until it is polled again.
+#[derive(Debug)]
+struct LineWake {
+    id: LineId,
+    queued: AtomicBool,
+    ready: Arc<Ready>,
+}
+
+impl LineWake {
+    /// Queues the line unless it is queued; the router task's waker if
+    /// it is to be woken (`wake`).
+    fn queue(&self, wake: bool) -> Option<Waker> {
+        if self.queued.swap(true, Ordering::AcqRel) {
+            return None;
+        }
+        let mut queue = self.ready.lock();
+        queue.lines.push_back(self.id);
+        if wake { queue.task.take() } else { None }
+    }
+}
+
+impl Wake for LineWake {
+    fn wake(self: Arc<Self>) {
+        self.wake_by_ref();
+    }
+
+    fn wake_by_ref(self: &Arc<Self>) {
+        if let Some(task) = self.queue(true) {
+            task.wake();
+        }
+    }
+}
+
 /// An open line.
 #[derive(Debug)]
 struct Line {
     stream: Box<dyn LineStream>,
+    /// What the stream wakes when it has bytes (module doc of [`Ready`]).
+    wake: Arc<LineWake>,
+    waker: Waker,
     tap: Tap,
     /// Written bytes not yet taken by the stream; its capacity is kept.
     pending: Vec<u8>,
@@ -102,8 +160,9 @@ impl Line {
 
     /// Reads into `buf` if the line has bytes or ended: the byte count, or
     /// why it ended; `None` while it has nothing (the task is woken then).
-    fn poll_read(&mut self, cx: &mut Context<'_>, buf: &mut [u8]) -> Option<Result<usize, String>> {
+    fn poll_read(&mut self, buf: &mut [u8]) -> Option<Result<usize, String>> {
         let mut read = ReadBuf::new(buf);
+        let cx = &mut Context::from_waker(&self.waker);
         match Pin::new(&mut self.stream).poll_read(cx, &mut read) {
             Poll::Pending => None,
             Poll::Ready(Ok(())) if read.filled().is_empty() => Some(Err("closed by peer".to_owned())),
@@ -120,24 +179,34 @@ impl Line {
     }
 
     /// Writes what is pending until done or the stream would block (the
-    /// task is woken when it can take more).
-    fn flush(&mut self, cx: &mut Context<'_>) -> Result<(), String> {
+    /// line is signalled when it can take more: every wake of a line, read
+    /// or write, is its own, which a TLS stream's reads inside a write
+    /// need).
+    fn flush(&mut self) -> Result<(), String> {
+        let Self {
+            stream,
+            waker,
+            pending,
+            tap,
+            ..
+        } = self;
+        let cx = &mut Context::from_waker(waker);
         let mut written = 0;
         let result = loop {
-            if written == self.pending.len() {
+            if written == pending.len() {
                 break Ok(());
             }
-            match Pin::new(&mut self.stream).poll_write(cx, &self.pending[written..]) {
+            match Pin::new(&mut *stream).poll_write(cx, &pending[written..]) {
                 Poll::Ready(Ok(0)) => break Err("write failed: the line takes no more bytes".to_owned()),
                 Poll::Ready(Ok(n)) => {
-                    self.tap.outbound(&self.pending[written..written + n]);
+                    tap.outbound(&pending[written..written + n]);
                     written += n;
                 }
                 Poll::Ready(Err(e)) => break Err(format!("write failed: {e}")),
                 Poll::Pending => break Ok(()),
             }
         };
-        self.pending.drain(..written);
+        pending.drain(..written);
         result
     }
 }
@@ -148,8 +217,8 @@ pub struct Lines {
     open: BTreeMap<LineId, Line>,
     /// Where reads land; handed to the router core as they are.
     buf: Box<[u8; 4096]>,
-    /// Where the next read poll starts, so that every line gets its turn.
-    next: Option<LineId>,
+    /// The lines signalled, polled in turn.
+    ready: Arc<Ready>,
     /// The lines with bytes pending, in the order they were queued: the
     /// writes of one turn leave in the order the router core asked for
     /// them (a device's result goes to its client before the device's ACK
@@ -171,7 +240,7 @@ impl Lines {
         Self {
             open: BTreeMap::new(),
             buf: Box::new([0; 4096]),
-            next: None,
+            ready: Arc::default(),
             queued: Vec::new(),
             failed: Vec::new(),
             held_acks: Vec::new(),
@@ -189,8 +258,17 @@ impl Lines {
         admission: Option<(Arc<Connections>, u64)>,
         owner: oneshot::Sender<Ended>,
     ) {
+        let wake = Arc::new(LineWake {
+            id,
+            queued: AtomicBool::new(false),
+            ready: self.ready.clone(),
+        });
+        // Polled at the next turn, which registers its waker.
+        let _ = wake.queue(false);
         let line = Line {
             stream,
+            waker: Waker::from(wake.clone()),
+            wake,
             tap,
             pending: Vec::new(),
             baud,
@@ -288,6 +366,7 @@ impl Lines {
     /// closed (reported by [`Lines::poll_next`]). Whether nothing is left
     /// pending.
     pub fn flush(&mut self, cx: &mut Context<'_>) -> bool {
+        self.wake_on_lines(cx);
         if !self.held_acks.is_empty() {
             self.release_held_acks(Some(Instant::now()));
         }
@@ -298,7 +377,7 @@ impl Lines {
             let Some(line) = open.get_mut(id) else {
                 return false; // closed since
             };
-            match line.flush(cx) {
+            match line.flush() {
                 Ok(()) => !line.pending.is_empty(),
                 Err(reason) => {
                     line.tell_owner(reason);
@@ -311,36 +390,45 @@ impl Lines {
         queued.is_empty()
     }
 
-    /// Writes what is pending, then the next read or closed line, each line
-    /// in turn.
+    /// The lines' signals wake the task polling with `cx`.
+    fn wake_on_lines(&self, cx: &Context<'_>) {
+        let mut queue = self.ready.lock();
+        if !queue.task.as_ref().is_some_and(|t| t.will_wake(cx.waker())) {
+            queue.task = Some(cx.waker().clone());
+        }
+    }
+
+    /// Writes what is pending, then the next read or closed line: the
+    /// lines signalled since they were last polled, in the order they
+    /// were signalled (a line read goes to the back, as it may have more).
     pub fn poll_next(&mut self, cx: &mut Context<'_>) -> Poll<LineEvent> {
         self.flush(cx);
         if let Some(id) = self.failed.pop() {
             return Poll::Ready(LineEvent::Closed(id));
         }
-        let first = self.next.take().unwrap_or(LineId::Port(0));
-        let Self { open, buf, .. } = self;
-        let mut poll = |(&id, line): (&LineId, &mut Line)| line.poll_read(cx, &mut buf[..]).map(|r| (id, r));
-        let ready = match open.range_mut(first..).find_map(&mut poll) {
-            Some(ready) => Some(ready),
-            None => open.range_mut(..first).find_map(&mut poll),
-        };
-        match ready {
-            None => Poll::Pending,
-            Some((id, Ok(n))) => {
-                // The line after this one reads first next time.
-                self.next = self
-                    .open
-                    .range((Bound::Excluded(id), Bound::Unbounded))
-                    .next()
-                    .map(|(&id, _)| id);
-                Poll::Ready(LineEvent::Read(id, n))
-            }
-            Some((id, Err(reason))) => {
-                self.close(id, &reason);
-                Poll::Ready(LineEvent::Closed(id))
+        let mut budget = self.ready.lock().lines.len();
+        while budget > 0 {
+            budget -= 1;
+            let Some(id) = self.ready.lock().lines.pop_front() else {
+                break;
+            };
+            let Some(line) = self.open.get_mut(&id) else {
+                continue; // closed since
+            };
+            line.wake.queued.store(false, Ordering::Release);
+            match line.poll_read(&mut self.buf[..]) {
+                None => {}
+                Some(Ok(n)) => {
+                    let _ = line.wake.queue(false);
+                    return Poll::Ready(LineEvent::Read(id, n));
+                }
+                Some(Err(reason)) => {
+                    self.close(id, &reason);
+                    return Poll::Ready(LineEvent::Closed(id));
+                }
             }
         }
+        Poll::Pending
     }
 
     /// The bytes of the last [`LineEvent::Read`].
@@ -438,7 +526,7 @@ mod tests {
     const PORT: LineId = LineId::Port(1);
 
     fn flush(lines: &mut Lines) -> bool {
-        lines.flush(&mut Context::from_waker(std::task::Waker::noop()))
+        lines.flush(&mut Context::from_waker(Waker::noop()))
     }
 
     #[test]
@@ -491,7 +579,7 @@ mod tests {
         assert_eq!(lines.next_held_ack(), None);
         // At shutdown a held ACK goes at once.
         lines.write(PORT, &[ACK]).unwrap();
-        let mut cx = Context::from_waker(std::task::Waker::noop());
+        let mut cx = Context::from_waker(Waker::noop());
         assert!(lines.poll_drained(&mut cx).is_ready());
         assert_eq!(log.lock().unwrap()[1], (PORT, vec![ACK]));
         // A line closed with its ACK held leaves nothing held.

@@ -13,6 +13,7 @@ mod metric_families;
 mod openmetrics;
 mod reload;
 mod router_task;
+mod serial;
 #[cfg(feature = "sim")]
 mod simulated;
 mod snapshot;

@@ -146,6 +146,7 @@ mod reverse;
 mod router;
 mod routing;
 mod stats;
+mod timed;
 mod types;
 
 pub use boundary::{Action, Input};

@@ -267,7 +267,16 @@ fn addresses(dest: Address, device: u8) -> bool {
     (dest.port == PORT || dest.port == 255) && (dest.device == device || dest.device == 255)
 }
 
-fn run(seed: u64, trace: bool) -> Result<Summary, String> {
+/// The crowd's link: a low-priority client slewing [`CROWD_SLEWING`]
+/// gimbals at once in a crowded run.
+const CROWD: LinkId = LinkId(9);
+/// Gimbals the crowd slews at once (a quarter of the spec's 254).
+const CROWD_SLEWING: u8 = 64;
+
+/// One seeded run; `crowd`: that many gimbals on the bus (1..=254), every
+/// one governed, at 115200 bit/s, and [`CROWD_SLEWING`] of them slewed at
+/// once twice by one more client (issue 52) besides the drawn stream.
+fn run(seed: u64, trace: bool, crowd: Option<u8>) -> Result<Summary, String> {
     // Every fault unless named otherwise: `GOV_SIM_FAULTS=0` (none),
     // `stops` or `restarts` (that one alone).
     let faults = std::env::var("GOV_SIM_FAULTS").unwrap_or_else(|_| "1".into());
@@ -276,8 +285,12 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
         faults == "1" || faults.contains("restarts"),
     );
     let mut rng = Rng(seed ^ 0x60_5E_ED);
-    let bps = rng.pick(&[9600u32, 19_200, 38_400, 115_200]);
-    let devices: Vec<u8> = if rng.chance(500) { vec![1] } else { vec![1, 2] };
+    let mut bps = rng.pick(&[9600u32, 19_200, 38_400, 115_200]);
+    let mut devices: Vec<u8> = if rng.chance(500) { vec![1] } else { vec![1, 2] };
+    if let Some(n) = crowd {
+        bps = 115_200;
+        devices = (1..=n).collect();
+    }
     let hold = rng.range(300, 4000) as u64;
     let gimbals: Vec<GimbalConfig> = devices
         .iter()
@@ -294,7 +307,7 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
         ..Governance::default()
     };
     for &d in &devices {
-        if rng.chance(800) {
+        if rng.chance(800) || crowd.is_some() {
             governance.gimbals.push(rules(&mut rng, d));
         }
     }
@@ -479,7 +492,21 @@ fn run(seed: u64, trace: bool) -> Result<Summary, String> {
     r.run_with(2000, 2, |r| {
         check(r, &mut violation, &mut s.samples, &mut found, &mut operators)
     });
+    // The crowd's two waves: left, then right (the gimbals' limits stop them).
+    let mut waves = [5000u64, 12_000].into_iter().peekable();
     while r.now < RUN_MS && violation.is_none() {
+        if crowd.is_some() && waves.next_if(|&at| r.now >= at).is_some() {
+            r.client(CROWD, "crowd", 0);
+            let slew = if r.now < 12_000 {
+                Command::PanLeft
+            } else {
+                Command::PanRight
+            };
+            for d in 3..3 + CROWD_SLEWING.min(devices.len().saturating_sub(2) as u8) {
+                r.send(CROWD, d, &slew);
+            }
+            r.got(CROWD);
+        }
         if restarts && rng.chance(8) {
             // gcud restarted: a new router core, the bus as it was (its
             // gimbals may be moving), every client connected again.
@@ -819,7 +846,7 @@ fn env_u64(name: &str) -> Option<u64> {
 #[test]
 fn governance_holds_over_seeded_runs() {
     if let Some(seed) = env_u64("GOV_SIM_SEED") {
-        let result = run(seed, true);
+        let result = run(seed, true, None);
         assert!(result.is_ok(), "seed {seed}: {result:?}");
         return;
     }
@@ -832,7 +859,7 @@ fn governance_holds_over_seeded_runs() {
                 scope.spawn(move || {
                     (start..start + count)
                         .filter(|seed| seed % threads == w)
-                        .map(|seed| (seed, run(seed, false)))
+                        .map(|seed| (seed, run(seed, false, None)))
                         .collect::<Vec<_>>()
                 })
             })
@@ -888,4 +915,38 @@ fn governance_holds_over_seeded_runs() {
             assert!(total.restarts > 0, "{total:?}");
         }
     }
+}
+
+/// The spec's largest bus (1.3: up to 254 devices on a port), every gimbal
+/// governed, 64 slewing at once: the margins hold on a few seeds
+/// (`GOV_SIM_CROWD_SEEDS`, default 3; `GOV_SIM_SEED` replays one with
+/// its trace).
+#[test]
+fn governance_holds_with_254_gimbals_on_a_bus() {
+    if let Some(seed) = env_u64("GOV_SIM_SEED") {
+        let result = run(seed, true, Some(254));
+        assert!(result.is_ok(), "seed {seed}: {result:?}");
+        return;
+    }
+    let count = env_u64("GOV_SIM_CROWD_SEEDS").unwrap_or(3);
+    let results: Vec<(u64, Result<Summary, String>)> = std::thread::scope(|scope| {
+        let runs: Vec<_> = (0..count)
+            .map(|seed| scope.spawn(move || (seed, run(seed, false, Some(254)))))
+            .collect();
+        runs.into_iter().map(|r| r.join().expect("run")).collect()
+    });
+    let mut stops = 0;
+    for (seed, result) in results {
+        match result {
+            Ok(s) => {
+                println!("254 gimbals, seed {seed}: {s:?}");
+                stops += s.boundary_stops;
+            }
+            Err(e) => panic!(
+                "254 gimbals, seed {seed}: {e}\nreplay: GOV_SIM_SEED={seed} cargo test -p sagebrush-gcu --release \
+                 --test governance_sim governance_holds_with_254 -- --nocapture"
+            ),
+        }
+    }
+    assert!(stops > 0, "the crowd's slews met their limits");
 }

@@ -546,6 +546,16 @@ impl Governor {
         orders
     }
 
+    /// The ports with a stop planned for one of their gimbals, in order,
+    /// each once, appended to `out`.
+    pub fn ports_with_planned_stops(&self, out: &mut Vec<u8>) {
+        for (&(port, _), g) in &self.gimbals {
+            if g.stop_planned().is_some() && out.last() != Some(&port) {
+                out.push(port);
+            }
+        }
+    }
+
     /// The earliest stop planned on `port` and how long a short exchange
     /// holds its bus (the port keeps the bus free for it).
     pub fn reservation(&self, port: u8) -> Option<(u64, u64)> {

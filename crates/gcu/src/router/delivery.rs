@@ -79,10 +79,12 @@ impl Router {
     /// is never written: the client may be waiting for its next command's.
     pub(super) fn deliver_overdue(&mut self, now: u64, id: CommandId, out: &mut Outbox) {
         let mut cancelled = false;
-        let ports: Vec<u8> = self.ports.keys().copied().collect();
-        for port in ports {
+        // Each port found afresh after the last, with no list (no allocation).
+        let mut after = None;
+        while let Some(port) = self.ports.range(super::after_key(after)).next().map(|(&id, _)| id) {
+            after = Some(port);
             let mut po = self.port_scratch.pop().unwrap_or_default();
-            if let Some(p) = self.ports.get_mut(&port) {
+            if let Some(mut p) = self.ports.get_mut(&port) {
                 cancelled |= p.cancel_queued(id, DropReason::Expired, &mut po);
             }
             self.port_outs(now, port, po, out);

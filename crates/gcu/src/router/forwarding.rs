@@ -83,7 +83,7 @@ impl Router {
         };
         let command = ReadCommand::read(frame);
         if self.forward(now, link, &command, (Origin::Internal, None), out).is_ok() {
-            if let Some(l) = self.links.get_mut(&link) {
+            if let Some(mut l) = self.links.get_mut(&link) {
                 l.principal_sent = Some((actor.name, actor.priority));
             }
         }

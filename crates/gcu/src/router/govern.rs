@@ -100,7 +100,7 @@ impl Router {
                 })
             }
         };
-        if let Some(l) = self.links.get_mut(&link) {
+        if let Some(mut l) = self.links.get_mut(&link) {
             l.acting = acting;
         }
         Ok(())
@@ -243,13 +243,26 @@ impl Router {
                 self.issue(now, order, out);
             }
         }
-        // Each port found afresh after the last, with no list.
-        let mut after = None;
-        while let Some(port) = self.ports.range(super::after_key(after)).next().map(|(&id, _)| id) {
-            after = Some(port);
+        // The ports whose reservation may change: those with a stop planned
+        // and those reserved until now, in order (every other port has
+        // none and had none: reserving it would change nothing).
+        let mut ports = std::mem::take(&mut self.reserve_scratch);
+        ports.clear();
+        self.governor.ports_with_planned_stops(&mut ports);
+        ports.append(&mut self.reserved_ports);
+        ports.sort_unstable();
+        ports.dedup();
+        for &port in &ports {
+            if !self.ports.contains_key(&port) {
+                continue;
+            }
             let reserved = self.governor.reservation(port);
+            if reserved.is_some() {
+                self.reserved_ports.push(port);
+            }
             self.with_port(now, port, out, |p, now, po| p.reserve(now, reserved, po));
         }
+        self.reserve_scratch = ports;
     }
 
     /// A result of command `id` from `port`: what the governor learns from
@@ -441,11 +454,11 @@ impl Router {
     /// A reload changed configured link `name`'s priority: its live
     /// connections take it at once.
     pub fn set_link_priority(&mut self, name: &str, priority: u8) {
-        for link in self.links.values_mut() {
+        self.links.for_each_mut(|_, link| {
             if link.config.name.as_deref() == Some(name) {
                 link.config.priority = priority;
             }
-        }
+        });
         self.governor.set_priority(name, priority);
     }
 }

@@ -67,10 +67,10 @@ impl Router {
         self.governor.reconfigure(now, config.governance.clone());
         self.routes
             .set_configured(config.static_routes, config.default_upstream);
-        for (&id, port) in &mut self.ports {
+        self.ports.for_each_mut(|&id, port| {
             let same = config.ports.iter().any(|p| p.id == id && *p == port.config);
             port.closing = !same || reopen.contains(&id);
-        }
+        });
         self.replacements = config
             .ports
             .into_iter()

@@ -47,6 +47,7 @@ use crate::port::{Port, PortOut};
 use crate::reverse::ReversePath;
 use crate::routing::RoutingTable;
 use crate::stats::{RouterStats, Stats};
+use crate::timed::{Deadline, Timed};
 use crate::types::{CommandId, DropReason, LineId, LinkId, Origin, Place, RouterEvent};
 
 use in_flight::{Delivery, InFlight};
@@ -62,8 +63,9 @@ pub struct Router {
     /// In force: the reverse path's answer time-outs raised to what the
     /// configured ports may take ([`LinkSettings::with_answer_time_for`]).
     in_force: LinkSettings,
-    ports: BTreeMap<u8, Port>,
-    links: BTreeMap<LinkId, Link>,
+    /// Their deadlines indexed: a turn walks the due ones only.
+    ports: Timed<u8, Port>,
+    links: Timed<LinkId, Link>,
     routes: RoutingTable,
     reverse: ReversePath,
     deadman: DeadMan,
@@ -87,6 +89,10 @@ pub struct Router {
     received_scratch: Vec<Vec<Received>>,
     /// Commands whose forward expired unreported, reused likewise.
     expired_scratch: Vec<CommandId>,
+    /// Ports a governor's stop reserves the bus of ([`Port::reserve`]),
+    /// and a scratch vector for the ports whose reservation may change.
+    reserved_ports: Vec<u8>,
+    reserve_scratch: Vec<u8>,
     last_now: u64,
     stats: RouterStats,
     unknown_inputs: u64,
@@ -102,7 +108,7 @@ impl Router {
         Ok(Self {
             group: config.group,
             ports: config.ports.iter().map(|p| (p.id, Port::new(p))).collect(),
-            links: BTreeMap::new(),
+            links: Timed::new(),
             routes: RoutingTable::new(config.static_routes, config.default_upstream),
             reverse: ReversePath::new(
                 config.links.max_pending,
@@ -120,6 +126,8 @@ impl Router {
             link_scratch: Vec::new(),
             received_scratch: Vec::new(),
             expired_scratch: Vec::new(),
+            reserved_ports: Vec::new(),
+            reserve_scratch: Vec::new(),
             last_now: 0,
             stats: RouterStats::default(),
             unknown_inputs: 0,
@@ -176,10 +184,10 @@ impl Router {
 
     /// When the router next needs [`Input::Tick`], if anything is pending.
     pub fn next_deadline(&self) -> Option<u64> {
-        let ports = self.ports.values().filter_map(Port::next_deadline);
-        let links = self.links.values().filter_map(Link::next_deadline);
-        ports
-            .chain(links)
+        self.ports
+            .earliest()
+            .into_iter()
+            .chain(self.links.earliest())
             .chain(self.reverse.next_deadline())
             .chain(self.deadman.next_deadline())
             .chain(self.governor.next_deadline())
@@ -233,12 +241,13 @@ impl Router {
     }
 
     fn with_port(&mut self, now: u64, port: u8, out: &mut Outbox, f: impl FnOnce(&mut Port, u64, &mut Vec<PortOut>)) {
-        let Some(p) = self.ports.get_mut(&port) else {
+        let Some(mut p) = self.ports.get_mut(&port) else {
             self.unknown_inputs += 1;
             return;
         };
         let mut po = self.port_scratch.pop().unwrap_or_default();
-        f(p, now, &mut po);
+        f(&mut p, now, &mut po);
+        drop(p);
         self.port_outs(now, port, po, out);
     }
 
@@ -252,9 +261,10 @@ impl Router {
         out: &mut Outbox,
         f: impl FnOnce(&mut Link, &mut Vec<LinkOut>) -> T,
     ) -> Option<T> {
-        let l = self.links.get_mut(&link)?;
+        let mut l = self.links.get_mut(&link)?;
         let mut lo = self.link_scratch.pop().unwrap_or_default();
-        let done = f(l, &mut lo);
+        let done = f(&mut l, &mut lo);
+        drop(l);
         self.link_outs(now, link, lo, out);
         Some(done)
     }
@@ -283,37 +293,27 @@ impl Router {
         for id in expired.drain(..) {
             self.resolve(now, id, Err(Undelivered::NotConfirmed), self.group, out);
         }
-        self.expired_scratch = expired;
-        let overdue: Vec<CommandId> = self
+        let overdue = self
             .in_flight
             .iter()
             .filter(|(_, c)| c.delivery.and_then(Delivery::deadline).is_some_and(|t| now >= t))
-            .map(|(&id, _)| id)
-            .collect();
-        for id in overdue {
+            .map(|(&id, _)| id);
+        expired.extend(overdue);
+        for id in expired.drain(..) {
             self.deliver_overdue(now, id, out);
         }
+        self.expired_scratch = expired;
         self.stop_expired_leases(now, out);
-        let due = |d: Option<u64>| d.is_some_and(|t| t <= now);
         // The next due port or link after the last one polled: found afresh
-        // each time (polling one may change the others), with no list.
+        // each time (polling one may change the others), from the index of
+        // their deadlines.
         let mut after = None;
-        while let Some(port) = self
-            .ports
-            .range(after_key(after))
-            .find(|(_, p)| due(p.next_deadline()))
-            .map(|(&id, _)| id)
-        {
+        while let Some(port) = self.ports.next_due(now, after) {
             self.with_port(now, port, out, |p, now, po| p.poll(now, po));
             after = Some(port);
         }
         let mut after = None;
-        while let Some(link) = self
-            .links
-            .range(after_key(after))
-            .find(|(_, l)| due(l.next_deadline()))
-            .map(|(&id, _)| id)
-        {
+        while let Some(link) = self.links.next_due(now, after) {
             after = Some(link);
             self.with_link_receiving(now, link, out, |l, lo, received| l.poll(now, lo, received));
         }
@@ -417,4 +417,16 @@ impl Router {
 /// that is walked while it may change, without collecting its keys.
 fn after_key<K: Copy>(after: Option<K>) -> (Bound<K>, Bound<K>) {
     (after.map_or(Bound::Unbounded, Bound::Excluded), Bound::Unbounded)
+}
+
+impl Deadline for Port {
+    fn next_deadline(&self) -> Option<u64> {
+        Port::next_deadline(self)
+    }
+}
+
+impl Deadline for Link {
+    fn next_deadline(&self) -> Option<u64> {
+        Link::next_deadline(self)
+    }
 }

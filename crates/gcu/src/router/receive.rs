@@ -37,7 +37,7 @@ impl Router {
             // A client answers no command: its `?` is a byte in the wrong
             // direction, counted as stray, not a dropped frame.
             Received::Nic if self.links.get(&link).is_some_and(|l| l.config.kind == LinkKind::Client) => {
-                if let Some(l) = self.links.get_mut(&link) {
+                if let Some(mut l) = self.links.get_mut(&link) {
                     l.stats.line.stray_bytes += 1;
                 }
             }
@@ -69,7 +69,7 @@ impl Router {
     /// it is delivered (a repeat of it meanwhile is its retransmission, not
     /// a new command), or answered with a report instead.
     fn on_link_frame(&mut self, now: u64, link: LinkId, frame: FrameBuf, out: &mut Outbox) {
-        let Some(l) = self.links.get_mut(&link) else { return };
+        let Some(l) = self.links.get(&link) else { return };
         let kind = l.config.kind;
         let client = kind == LinkKind::Client;
         let f = frame.frame();
@@ -79,7 +79,9 @@ impl Router {
         // link to another GCU never may (a loop or a spoof).
         let own_group = source == self.group && !client;
         if source == WILDCARD || own_group || !l.config.allowed_sources.allows(source) {
-            l.stats.line.drops.add(DropReason::SourceNotAllowed);
+            if let Some(mut l) = self.links.get_mut(&link) {
+                l.stats.line.drops.add(DropReason::SourceNotAllowed);
+            }
             if !client {
                 self.ack(now, link, out);
             }
@@ -141,7 +143,7 @@ impl Router {
                 .any(|c| c.delivery.is_some() && c.origin.link() == Some(link) && c.command.frame == frame)
                 || self.report_on_its_way(link, &f);
             if repeat {
-                if let Some(l) = self.links.get_mut(&link) {
+                if let Some(mut l) = self.links.get_mut(&link) {
                     l.stats.repeats += 1;
                 }
                 return;

@@ -30,7 +30,7 @@ impl Router {
     /// end-of-window reports (a client link on a lossless medium), which
     /// it then gets; `None` (answered NIC) otherwise.
     pub(super) fn window_reports_on(&mut self, link: LinkId) -> Option<&'static [u8]> {
-        let l = self.links.get_mut(&link)?;
+        let mut l = self.links.get_mut(&link)?;
         if l.config.kind != LinkKind::Client || !l.config.lossless {
             return None;
         }
