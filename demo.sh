@@ -14,8 +14,11 @@
 #                               (default: a temporary folder, removed at exit)
 #
 # Ports: config/demo.toml's (clients 4001, operators 4002, a link per door
-# 4003.., metrics 9187) and the doors' below (web 8080, ONVIF 8081..8083,
-# WS-Discovery 3702, MAVLink 14560), all moved together by --port-base
+# 4003..4008, metrics 9187; a door it has no link for gets 4010 + its place
+# in DOORS) and the doors' below (web 8080, ONVIF 8081..8083, WS-Discovery
+# 3702, MAVLink 14560, VISCA over IP udp 5381..5383 (52381 is
+# VISCA's own) and raw tcp 5678..5680, Pelco-D
+# tcp 4100), all moved together by --port-base
 # (4000 is as written): one number, no file to edit.
 #
 # Exit status: 0 stopped by a signal; 1 a program would not start or died
@@ -58,8 +61,9 @@ port() { echo $(($1 + shift_by)); }
 # name of its [[link]] in config/demo.toml) in DOORS, a function
 # config_NAME that prints its configuration (its gcud link is $link; its
 # own ports through `port`), and a function open_NAME that prints what a
-# user opens. A door whose link config/demo.toml lacks gets one.
-DOORS=(gimbal-onvif gimbal-mavlink gimbal-web)
+# user opens. A door whose link config/demo.toml lacks gets one (4010 + its
+# place in DOORS).
+DOORS=(gimbal-onvif gimbal-mavlink gimbal-web gimbal-visca gimbal-pelco)
 
 # The demo's gimbals: name, address, travel limits.
 GIMBALS=("mast-1 5.1.1" "mast-2 5.1.2" "roof 5.2.1")
@@ -138,6 +142,44 @@ EOF
 }
 open_gimbal_web() {
   echo "The web page: http://127.0.0.1:$(port 8080)/ (admin / change-me, viewer / change-me-too)"
+}
+
+config_gimbal_visca() {
+  echo "gcud = \"$link\""
+  local i=0 g
+  for g in "${GIMBALS[@]}"; do
+    set -- $g
+    printf '[[gimbal]]\nname = "%s"\naddress = "%s"\nvisca_udp = "127.0.0.1:%s"\nvisca_tcp = "127.0.0.1:%s"\n' \
+      "$1" "$2" "$(port $((5381 + i)))" "$(port $((5678 + i)))"
+    i=$((i + 1))
+  done
+}
+open_gimbal_visca() {
+  local i=0 g
+  echo "VISCA cameras (OBS obs-ptz, Bitfocus Companion, vMix; camera address 1):"
+  for g in "${GIMBALS[@]}"; do
+    set -- $g
+    echo "  $1 ($2): VISCA over IP udp 127.0.0.1:$(port $((5381 + i))), raw VISCA tcp 127.0.0.1:$(port $((5678 + i)))"
+    i=$((i + 1))
+  done
+}
+
+config_gimbal_pelco() {
+  cat <<EOF
+gcud = "$link"
+[[input]]
+tcp_listen = "127.0.0.1:$(port 4100)"
+protocol = "pelco-d"
+EOF
+  local i=1 g
+  for g in "${GIMBALS[@]}"; do
+    set -- $g
+    printf '[[gimbal]]\nname = "%s"\naddress = "%s"\npelco_address = %s\n' "$1" "$2" "$i"
+    i=$((i + 1))
+  done
+}
+open_gimbal_pelco() {
+  echo "Pelco-D keyboards (a DVR through a serial server): tcp 127.0.0.1:$(port 4100), cameras 1 mast-1, 2 mast-2, 3 roof"
 }
 
 # --- build ----------------------------------------------------------------------
@@ -232,7 +274,7 @@ i=0
 for door in "${DOORS[@]}"; do
   if [ -z "$(link_of "$door")" ]; then
     printf '\n[[link]]\nname = "%s"\nrole = "client"\nlisten = "127.0.0.1:%s"\nmotion_lease_ms = 1500\n' \
-      "$door" "$(port $((4003 + i)))" >>"$gcud_config"
+      "$door" "$(port $((4010 + i)))" >>"$gcud_config"
   fi
   i=$((i + 1))
 done
