@@ -33,11 +33,13 @@ macro_rules! examples {
 
 mod command;
 mod families;
+mod manual;
 mod parse;
 mod values;
 
 pub use command::Cmd;
 pub use families::*;
+pub use manual::manual;
 pub use parse::parse;
 pub use values::*;
 
