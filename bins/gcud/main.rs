@@ -9,6 +9,7 @@ mod descriptors;
 mod http;
 mod io;
 mod lines;
+mod manual;
 mod metric_families;
 mod openmetrics;
 mod reload;
@@ -32,7 +33,7 @@ use sagebrush_service::door::{EXIT_CONFIG, EXIT_START};
     about = "Sagebrush GCU router daemon (gimbal protocol rev 1.9)"
 )]
 struct Args {
-    /// Configuration file (TOML); see config/gcud.toml for every option.
+    /// Configuration file (TOML): /etc/gcud/gcud.toml as packaged (config/gcud.toml in the source tree) documents every option.
     #[arg(long, short = 'c', value_name = "FILE")]
     config: PathBuf,
     /// Validate the configuration and exit: 0 valid, 2 invalid.
@@ -52,8 +53,8 @@ struct Args {
 static HEAP: &stats_alloc::StatsAlloc<std::alloc::System> = &stats_alloc::INSTRUMENTED_SYSTEM;
 
 fn main() -> ExitCode {
-    if sagebrush_host::man::print_if_asked(Args::command) {
-        return ExitCode::SUCCESS;
+    if let Some(code) = sagebrush_host::man::generate_if_asked(Args::command, manual::manual) {
+        return code;
     }
     let args = Args::parse();
     let config = match config::load(&args.config) {

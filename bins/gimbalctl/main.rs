@@ -33,8 +33,8 @@ use crate::request::Request;
 use crate::session::Session;
 
 fn main() -> ExitCode {
-    if sagebrush_host::man::print_if_asked(Cli::command) {
-        return ExitCode::SUCCESS;
+    if let Some(code) = sagebrush_host::man::generate_if_asked(Cli::command, cli::manual) {
+        return code;
     }
     let cli = match cli::parse(std::env::args_os().collect()) {
         Ok(cli) => cli,

@@ -3,6 +3,7 @@
 //! is `sagebrush-sim`; this binary only does I/O around it.
 
 mod cli;
+mod manual;
 mod run;
 
 use std::process::ExitCode;
@@ -10,8 +11,8 @@ use std::process::ExitCode;
 use clap::{CommandFactory, Parser};
 
 fn main() -> ExitCode {
-    if sagebrush_host::man::print_if_asked(cli::Cli::command) {
-        return ExitCode::SUCCESS;
+    if let Some(code) = sagebrush_host::man::generate_if_asked(cli::Cli::command, manual::manual) {
+        return code;
     }
     let cli = cli::Cli::parse();
     if let Err(e) = sagebrush_host::logging::init(&cli.log, cli.log_json) {

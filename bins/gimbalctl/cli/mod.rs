@@ -33,11 +33,13 @@ macro_rules! examples {
 
 mod command;
 mod families;
+mod manual;
 mod parse;
 mod values;
 
 pub use command::Cmd;
 pub use families::*;
+pub use manual::manual;
 pub use parse::parse;
 pub use values::*;
 
@@ -198,7 +200,10 @@ pub struct Global {
     pub init_timeout: Option<u64>,
 }
 
-/// `--wait` and its time-out, shared by every positioning command.
+// `--wait` and its time-out, shared by every positioning command. A plain
+// comment, not a doc comment: clap takes a flattened struct's doc comment as
+// the `about` of every subcommand that flattens it (`gimbalctl help goto`
+// would show it instead of goto's own line); tests/cli_texts.rs checks.
 #[derive(Debug, Clone, Copy, Args)]
 pub struct WaitArgs {
     /// Poll until the motion ends; exit 20 if it stopped short of the target, 21 if still moving at --wait-timeout.
@@ -209,7 +214,7 @@ pub struct WaitArgs {
     pub wait_timeout: u64,
 }
 
-/// `--for` / `--hold` of continuous motions.
+// `--for` / `--hold` of continuous motions (a plain comment, as above).
 #[derive(Debug, Clone, Copy, Args)]
 pub struct JogArgs {
     /// Move for DURATION (e.g. 2s, 2sec, 500ms, 1m; 1ms..=1h), then send the stop and confirm it.

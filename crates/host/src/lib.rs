@@ -10,7 +10,8 @@
 //! - [`timing`]: time-outs derived from the line rate (1.4.2).
 //! - [`sim_line`]: a simulated bus served on a byte stream.
 //! - [`hex`]: hex text of wire bytes, as `gimbalctl encode/decode` use it.
-//! - [`man`]: manual pages from each program's clap definition.
+//! - [`man`]: manual pages and shell completions from each program's clap
+//!   definition.
 //! - [`stdio`]: stdout/stderr writes that end quietly on a closed pipe.
 //! - [`capture`]: pcapng capture of bus and link traffic for Wireshark
 //!   (`docs/capture.md`, `tools/wireshark/sagebrush.lua`).

@@ -12,6 +12,8 @@ use std::process::ExitCode;
 
 use clap::{CommandFactory, FromArgMatches, Parser};
 
+use sagebrush_host::man::{ExitStatus, Manual, logging_environment};
+
 use crate::config_file::{self, ConfigError};
 
 /// Exit code of a configuration error (`--check` or start-up), for gcud
@@ -57,6 +59,81 @@ fn command(name: &'static str, about: &'static str) -> clap::Command {
         })
 }
 
+/// What every door's manual page says beyond its command line
+/// (`sagebrush_host::man`): a new door gets its page, with these sections,
+/// from [`main`] alone.
+fn manual(name: &str) -> Manual {
+    let mut environment = logging_environment();
+    environment.extend([
+        (
+            "STATE_DIRECTORY".to_owned(),
+            format!(
+                "Set by systemd for a unit with StateDirectory=: where {name} keeps presets.toml (unless \
+                 state_file says otherwise) and a self-signed certificate."
+            ),
+        ),
+        (
+            "NOTIFY_SOCKET".to_owned(),
+            format!("Set by systemd (Type=notify): {name} reports READY once it listens, and STOPPING."),
+        ),
+    ]);
+    Manual {
+        files: vec![
+            (
+                format!("/etc/{name}/{name}.toml"),
+                format!(
+                    "The configuration as packaged (--config), listening on loopback; every key is documented \
+                     in it. Read at start only: systemctl restart {name} applies an edit; {name} --check \
+                     --config /etc/{name}/{name}.toml checks it."
+                ),
+            ),
+            (
+                format!("/usr/lib/systemd/system/{name}.service"),
+                format!("The unit, installed but not enabled: systemctl enable --now {name} (after gcud)."),
+            ),
+            (
+                format!("/var/lib/{name}/"),
+                format!(
+                    "The unit's state directory when it has one ($STATE_DIRECTORY): presets.toml, the preset \
+                     names; {name}-self-signed.crt and .key for [http] tls = \"self-signed\"."
+                ),
+            ),
+        ],
+        signals: vec![
+            (
+                "SIGTERM, SIGINT".to_owned(),
+                format!("Stop: {name} tells systemd STOPPING, closes its listeners and exits 0."),
+            ),
+            (
+                "SIGHUP".to_owned(),
+                format!(
+                    "Logged and otherwise ignored: {name} reads its configuration only at start (systemctl \
+                     restart {name})."
+                ),
+            ),
+            (
+                "SIGUSR1".to_owned(),
+                "Not handled: the process ends at once (the default action).".to_owned(),
+            ),
+        ],
+        exit_status: ExitStatus::Codes(vec![
+            (
+                "0".to_owned(),
+                "Stopped by SIGTERM or SIGINT; --check: the configuration is valid.".to_owned(),
+            ),
+            (
+                EXIT_START.to_string(),
+                "Could not start: an address in use, a state file that cannot be written.".to_owned(),
+            ),
+            (
+                EXIT_CONFIG.to_string(),
+                "The configuration is invalid: file:line:column, the key and what was expected.".to_owned(),
+            ),
+        ]),
+        environment,
+    }
+}
+
 /// Runs the door `name` (described by `about` in its `--help`): reads its
 /// command line, then reads the configuration file, which `parse`
 /// validates (`--check` says what a valid one holds, and warns), and `run`
@@ -71,8 +148,8 @@ where
     C: Checked,
     Fut: Future<Output = Result<(), String>>,
 {
-    if sagebrush_host::man::print_if_asked(|| command(name, about)) {
-        return ExitCode::SUCCESS;
+    if let Some(code) = sagebrush_host::man::generate_if_asked(|| command(name, about), || manual(name)) {
+        return code;
     }
     let matches = command(name, about).get_matches();
     let args = Args::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
@@ -118,11 +195,14 @@ where
 
 /// SIGTERM and SIGINT, caught from before the door binds anything (so a
 /// signal during start-up is not lost), and systemd's READY and STOPPING
-/// around the wait for them.
+/// around the wait for them. SIGHUP, which a daemon's operator sends to
+/// reload, is logged and ignored (a door reads its configuration only at
+/// start) rather than ending the door.
 #[derive(Debug)]
 pub struct Signals {
     term: tokio::signal::unix::Signal,
     int: tokio::signal::unix::Signal,
+    hup: tokio::signal::unix::Signal,
 }
 
 impl Signals {
@@ -132,6 +212,7 @@ impl Signals {
         Ok(Self {
             term: signal(SignalKind::terminate()).map_err(|e| e.to_string())?,
             int: signal(SignalKind::interrupt()).map_err(|e| e.to_string())?,
+            hup: signal(SignalKind::hangup()).map_err(|e| e.to_string())?,
         })
     }
 
@@ -139,9 +220,14 @@ impl Signals {
     /// systemd it is stopping, and names the signal.
     pub async fn ready_then_wait(mut self) -> &'static str {
         let _ = sd_notify::notify(&[sd_notify::NotifyState::Ready]);
-        let signal = tokio::select! {
-            _ = self.term.recv() => "SIGTERM",
-            _ = self.int.recv() => "SIGINT",
+        let signal = loop {
+            tokio::select! {
+                _ = self.term.recv() => break "SIGTERM",
+                _ = self.int.recv() => break "SIGINT",
+                _ = self.hup.recv() => tracing::warn!(
+                    "SIGHUP ignored: the configuration is read only at start; restart the door to apply an edit"
+                ),
+            }
         };
         let _ = sd_notify::notify(&[sd_notify::NotifyState::Stopping]);
         signal
