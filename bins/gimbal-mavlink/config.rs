@@ -45,6 +45,7 @@ struct ConfigFile {
     #[serde(default, rename = "gimbal")]
     gimbals: Vec<GimbalSection>,
     signing: Option<SigningSection>,
+    metrics: Option<sagebrush_service::door_metrics::MetricsSection>,
 }
 
 /// `[signing]`: MAVLink 2 message signing.
@@ -146,6 +147,8 @@ pub struct Config {
     /// What `--check` warns of in the file itself: an endpoint off
     /// loopback without signing, a key file others may read.
     pub notes: Vec<String>,
+    /// `[metrics] listen`: the door's own metrics (none when absent).
+    pub metrics: Option<SocketAddr>,
 }
 
 impl Gimbal {
@@ -262,6 +265,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         gimbals,
         signing,
         notes,
+        metrics: c.metrics_listen(raw.metrics.as_ref())?,
     })
 }
 

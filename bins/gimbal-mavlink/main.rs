@@ -15,6 +15,7 @@ mod transport;
 use std::process::ExitCode;
 use std::sync::Arc;
 
+use mavlink::Message;
 use mavlink::dialects::common::MavMessage;
 use tracing::{info, warn};
 
@@ -34,6 +35,10 @@ fn main() -> ExitCode {
     )
 }
 
+/// A ground station or vehicle heard this recently is live (the door's
+/// metrics' sessions): a MAVLink component sends HEARTBEAT every second.
+const LIVE: std::time::Duration = std::time::Duration::from_secs(5);
+
 async fn run(config: config::Config) -> Result<(), String> {
     let signals = sagebrush_service::door::Signals::install()?;
     let signing = (config.signing.clone()).map(|s| signing::Signing::new(s.key, s.link_id));
@@ -44,6 +49,14 @@ async fn run(config: config::Config) -> Result<(), String> {
         );
     }
     let outbox = Outbox::bind(config.system_id, &config.endpoints, signing).await?;
+    let metrics = sagebrush_service::door_metrics::DoorMetrics::start(
+        "gimbal-mavlink",
+        sagebrush_client::outcomes::families(),
+        config.metrics,
+    )
+    .await?;
+    let net = Arc::clone(&outbox.net);
+    metrics.count_sessions(move || net.live(LIVE));
     let stats = Arc::new(Stats::default());
     let mut handles = Vec::new();
     let mut gimbal_tasks = Vec::new();
@@ -77,7 +90,12 @@ async fn run(config: config::Config) -> Result<(), String> {
         let vehicle = Arc::clone(&vehicle);
         Arc::new(move |header, message| {
             vehicle.hear(header, &message);
-            for route in inbox::route(&handles, system_id, &vehicle, header, &message) {
+            let routes = inbox::route(&handles, system_id, &vehicle, header, &message);
+            if routes.iter().any(|r| !matches!(r, handle::Route::Ignore)) {
+                // A message for this door, by its name (the dialect's: a bounded set).
+                metrics.request(message.message_name());
+            }
+            for route in routes {
                 inbox::count(&route, &stats);
                 match route {
                     handle::Route::Gimbal(i, job) => {

@@ -21,6 +21,7 @@ mod commands;
 mod config;
 mod control;
 mod earth;
+mod metrics;
 mod robust;
 mod signing;
 mod tls;

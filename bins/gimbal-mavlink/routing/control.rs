@@ -253,6 +253,15 @@ impl<P: Copy + PartialEq> Heard<P> {
             .any(|e| e.who == who && now.saturating_duration_since(e.last) < within)
     }
 
+    /// How many components were heard within `within` before `now` on a
+    /// peer still there (the ground stations and vehicles live now).
+    pub fn live(&self, within: Duration, now: Instant) -> usize {
+        self.entries
+            .iter()
+            .filter(|e| e.peer.is_some() && now.saturating_duration_since(e.last) < within)
+            .count()
+    }
+
     #[cfg(test)]
     pub fn len(&self) -> usize {
         self.entries.len()

@@ -105,6 +105,11 @@ impl Net {
         *lock(&self.own) = components.into_iter().collect();
     }
 
+    /// How many components were heard within `within` on a peer still there.
+    pub fn live(&self, within: Duration) -> usize {
+        lock(&self.heard).live(within, Instant::now())
+    }
+
     /// Whether `who` was heard within `within`.
     pub fn heard_within(&self, who: Sender, within: Duration) -> bool {
         lock(&self.heard).heard_within(who, within, Instant::now())
