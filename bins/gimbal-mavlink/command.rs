@@ -8,7 +8,7 @@ use tracing::warn;
 
 use crate::aim::Aim;
 use crate::aim::in_mount_frame;
-use crate::control::Sender;
+use crate::control::{Sender, named};
 use crate::earth::Place;
 use crate::handle::{Handle, Job, Route, Work};
 use crate::motion::Request;
@@ -100,8 +100,13 @@ pub fn route(h: &Handle, i: usize, vehicle: &Vehicle, from: Sender, c: &Command)
         Route::Gimbal(i, Job { from, work })
     };
     let refuse = |kind: &'static str, why: &str| {
-        if may_warn(kind, &format_args!("{from:?}")) {
-            warn!(command = ?c.command, ?from, component, "{why}: MAV_RESULT_DENIED");
+        if may_warn(kind, &named(from)) {
+            warn!(
+                command = mav_cmd_name(c.command),
+                from = named(from),
+                component,
+                "{why}: MAV_RESULT_DENIED"
+            );
         }
         Route::Answer(component, c.command, MavResult::MAV_RESULT_DENIED)
     };
@@ -188,8 +193,12 @@ pub fn route(h: &Handle, i: usize, vehicle: &Vehicle, from: Sender, c: &Command)
             None => Route::Answer(component, c.command, MavResult::MAV_RESULT_DENIED),
         },
         other => {
-            if may_warn("command not supported", &format_args!("{from:?}")) {
-                warn!(command = ?other, ?from, "command not supported");
+            if may_warn("command not supported", &named(from)) {
+                warn!(
+                    command = mav_cmd_name(other),
+                    from = named(from),
+                    "command not supported"
+                );
             }
             Route::Answer(component, other, MavResult::MAV_RESULT_UNSUPPORTED)
         }
@@ -269,4 +278,11 @@ fn roi_place(c: &Command, vehicle: &Vehicle) -> Result<Place, &'static str> {
     } else {
         Err("not a place on earth")
     }
+}
+
+/// A command's MAVLink name for a log line (`MAV_CMD_DO_SET_ROI_NONE`): the
+/// generated dialect names each variant as the XML does and has no name
+/// table, so its unit variant's `Debug` form is that name, never a struct.
+fn mav_cmd_name(command: MavCmd) -> String {
+    format!("{command:?}")
 }

@@ -49,6 +49,17 @@ use std::time::{Duration, Instant};
 /// A MAVLink system and component id.
 pub type Sender = (u8, u8);
 
+/// A sender in a log line: `1/190` (system id / component id, as
+/// MAVLink's tools write it).
+pub fn named(sender: Sender) -> String {
+    format!("{}/{}", sender.0, sender.1)
+}
+
+/// A control owner in a log line: [`named`], or `none`.
+pub fn owner_named(owner: Option<Sender>) -> String {
+    owner.map_or_else(|| "none".to_owned(), named)
+}
+
 /// The control owners of one gimbal.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Control {
