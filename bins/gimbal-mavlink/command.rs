@@ -8,7 +8,7 @@ use tracing::warn;
 
 use crate::aim::Aim;
 use crate::aim::in_mount_frame;
-use crate::control::{Sender, named};
+use crate::control::{Sender, sender_name};
 use crate::earth::Place;
 use crate::handle::{Handle, Job, Route, Work};
 use crate::motion::Request;
@@ -100,10 +100,10 @@ pub fn route(h: &Handle, i: usize, vehicle: &Vehicle, from: Sender, c: &Command)
         Route::Gimbal(i, Job { from, work })
     };
     let refuse = |kind: &'static str, why: &str| {
-        if may_warn(kind, &named(from)) {
+        if may_warn(kind, &sender_name(from)) {
             warn!(
                 command = mav_cmd_name(c.command),
-                from = named(from),
+                from = sender_name(from),
                 component,
                 "{why}: MAV_RESULT_DENIED"
             );
@@ -193,10 +193,10 @@ pub fn route(h: &Handle, i: usize, vehicle: &Vehicle, from: Sender, c: &Command)
             None => Route::Answer(component, c.command, MavResult::MAV_RESULT_DENIED),
         },
         other => {
-            if may_warn("command not supported", &named(from)) {
+            if may_warn("command not supported", &sender_name(from)) {
                 warn!(
                     command = mav_cmd_name(other),
-                    from = named(from),
+                    from = sender_name(from),
                     "command not supported"
                 );
             }

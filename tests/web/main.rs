@@ -17,6 +17,7 @@ mod https;
 mod motion;
 mod principals;
 mod tours;
+mod words;
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::Path;
