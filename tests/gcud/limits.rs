@@ -110,7 +110,10 @@ fn a_spewing_bus_is_counted_exactly_and_logged_briefly() {
     });
     let log = gcud.log();
     // The drop in words (issue 53: no Debug form such as `Unsolicited`).
-    let lines = log.lines().filter(|l| l.contains("a frame nobody was waiting for")).count();
+    let lines = log
+        .lines()
+        .filter(|l| l.contains("a frame nobody was waiting for"))
+        .count();
     assert!(
         (1..=12).contains(&lines),
         "{lines} log lines for 10000 stray frames (a burst and a summary, not none):\n{log}"

@@ -45,7 +45,10 @@ fn preset_store_recall_and_query() {
     let out = sim.ctl1(&["preset", "recall", "16"]);
     assert_eq!(out.code, 5, "{out:?}");
     // The command in words (issue 53), not its payload `P10`.
-    assert!(out.stderr.contains("NIC") && out.stderr.contains("go to preset 16"), "{out:?}");
+    assert!(
+        out.stderr.contains("NIC") && out.stderr.contains("go to preset 16"),
+        "{out:?}"
+    );
 }
 
 /// The stops the gimbal itself received, in order (its log of the wire).
