@@ -518,8 +518,8 @@ fn gimbalctl_calls_add_no_info_lines_to_the_daemons_log() {
     assert!(
         audit
             .iter()
-            .any(|l| l.contains("link clients: P") && l.contains("to 5.2.1 accepted"))
-            && audit.iter().any(|l| l.contains("to 5.1.2 accepted")),
+            .any(|l| l.contains("link clients: go to pan ") && l.contains("for 5.2.1: accepted"))
+            && audit.iter().any(|l| l.contains("for 5.1.2: accepted")),
         "an audit line per motion: {audit:#?}"
     );
     // A silent address and a scan's probes are their clients' to report,
@@ -572,18 +572,26 @@ fn gimbalctl_calls_add_no_info_lines_to_the_daemons_log() {
     assert!(log.contains("shutting down") && log.contains("SIGHUP"), "{log}");
 }
 
-/// A failure names the command once: `P?`, not `P? (P?)`; a command whose
-/// spec row is a template keeps it beside what was sent (`SP8 (SPn)`).
+/// A failure names the command once and in words, its arguments in their
+/// units (issue 53): `read current position`, `pan speed 8 of 15`, never
+/// the payload or its template (`SP8 (SPn)`).
 #[test]
 fn an_error_names_the_command_once() {
     let gcud = support::cli::DemoGcud::start();
     let out = gcud.ctl(&["--to", "5.1.9", "position"]);
     assert_eq!(out.code, 8, "{out:?}");
-    assert!(out.stderr.contains("not delivered: P? to 5.1.9"), "{out:?}");
-    assert!(!out.stderr.contains("P? (P?)"), "{out:?}");
+    assert!(
+        out.stderr.contains("not delivered: read current position for 5.1.9"),
+        "{out:?}"
+    );
+    assert!(!out.stderr.contains("P?"), "{out:?}");
     let out = gcud.ctl(&["--to", "5.1.9", "speed", "pan", "8"]);
     assert_eq!(out.code, 8, "{out:?}");
-    assert!(out.stderr.contains("not delivered: SP8 (SPn) to 5.1.9"), "{out:?}");
+    assert!(
+        out.stderr.contains("not delivered: pan speed 8 of 15 for 5.1.9"),
+        "{out:?}"
+    );
+    assert!(!out.stderr.contains("SP8") && !out.stderr.contains("SPn"), "{out:?}");
 }
 
 /// A scan that nothing answers exits 4 (documented in `gimbalctl --help`),

@@ -78,12 +78,12 @@ fn a_hubs_client_cannot_move_a_field_gimbal_the_hubs_operators_hold() {
     let log = field.log();
     assert!(
         log.lines()
-            .any(|l| l.contains("operators via hub: P") && l.contains("accepted")),
+            .any(|l| l.contains("operators via hub: go to pan ") && l.contains("accepted")),
         "the field's audit names the hub's operators:\n{log}"
     );
     assert!(
         log.lines()
-            .any(|l| l.contains("clients via hub: PF448") && l.contains("refused")),
+            .any(|l| l.contains("clients via hub: go to pan -30.00°") && l.contains("refused")),
         "the field's audit names the hub's client, refused:\n{log}"
     );
 }

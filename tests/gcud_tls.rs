@@ -387,7 +387,7 @@ fn openssl_s_client_verifies_as_alice_and_is_refused_without_a_certificate() {
         text.contains("CONNECTED(") && text.contains("Verification: OK"),
         "{text}"
     );
-    let audit = format!("alice via operators: {} to 5.1.1 accepted", goto_payload(31.0));
+    let audit = format!("alice via operators: {} for 5.1.1: accepted", goto(31.0).in_words());
     assert!(s.count(&audit) == 1, "{audit:?} in:\n{}", s.gcud.log());
     assert_eq!(s.count(HANDSHAKE_FAILED), 0, "{}", s.gcud.log());
 
@@ -413,9 +413,10 @@ fn alice_drives_the_gimbal_over_tls_and_bob_is_refused_while_she_holds() {
     assert_eq!(alice.code, 0, "{alice:?}\n{}", s.gcud.log());
     let payload = goto_payload(21.0);
     assert!(s.bus().contains(&payload), "{:?}", s.bus());
-    let accepted = s
-        .gcud
-        .wait_for_log(&format!("alice via operators: {payload} to 5.1.1 accepted"));
+    let accepted = s.gcud.wait_for_log(&format!(
+        "alice via operators: {} for 5.1.1: accepted",
+        goto(21.0).in_words()
+    ));
     assert!(
         accepted.contains("principal=alice") && accepted.contains("via=\"operators\""),
         "{accepted}"
@@ -427,9 +428,10 @@ fn alice_drives_the_gimbal_over_tls_and_bob_is_refused_while_she_holds() {
         bob.stderr.contains("held by alice via operators (priority 80)"),
         "{bob:?}"
     );
-    let refused = s
-        .gcud
-        .wait_for_log(&format!("bob via operators: {} to 5.1.1 refused: ", goto_payload(22.0)));
+    let refused = s.gcud.wait_for_log(&format!(
+        "bob via operators: {} for 5.1.1: refused, ",
+        goto(22.0).in_words()
+    ));
     assert!(
         refused.contains("principal=bob") && refused.contains("outcome="),
         "{refused}"

@@ -494,7 +494,11 @@ fn a_wrong_password_and_the_user_role_are_refused_and_nothing_moves() {
     );
     assert_eq!(fault_subcodes(&viewer), ["NotAuthorized"], "{viewer}");
     assert!(
-        viewer["fault"]["message"].as_str().unwrap().contains("Operator"),
+        // The role as the configuration names it (issue 53: not its Debug form `Operator`).
+        viewer["fault"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("the operator role"),
         "{viewer}"
     );
     let viewer_abs = stack.client("absolute", stack.mast, VIEWER, json!({ "x": 0.5, "y": 0.5 }));

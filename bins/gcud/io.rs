@@ -238,7 +238,10 @@ fn describe(t: &PortTransport) -> String {
     match t {
         PortTransport::Serial(p) => p.display().to_string(),
         PortTransport::Tcp(a) => format!("tcp {a}"),
-        PortTransport::Simulated(d) => format!("simulated devices {d:?}"),
+        PortTransport::Simulated(d) => {
+            let ids: Vec<String> = d.iter().map(u8::to_string).collect();
+            format!("simulated devices {}", ids.join(", "))
+        }
     }
 }
 

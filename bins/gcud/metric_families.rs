@@ -340,6 +340,14 @@ const LINK: &[Column<LinkTotals>] = &[
     ),
 ];
 
+/// The position the device last answered, while it is still there: none
+/// once a motion went to it (its registry's `moved`, set by a broadcast
+/// `HO` as by a goto to it), so that a scrape never shows a place the
+/// gimbal has left as where it is.
+fn still_there(d: &DeviceStats) -> Option<(u64, sagebrush_protocol::Position)> {
+    d.position.filter(|_| d.moved.is_none())
+}
+
 /// A device of the router core's registry; labelled `port` and `device`.
 const DEVICE: &[Column<DeviceStats>] = &[
     field!(counter "device_" commands, "Transactions addressed to the device."),
@@ -361,26 +369,34 @@ const DEVICE: &[Column<DeviceStats>] = &[
     one(
         Descriptor::gauge(
             "device_position_pan",
-            "Pan the device last answered to P? (Table 15), degrees.",
+            "Pan the device last answered to P? (Table 15), degrees; absent once a motion went to it (a broadcast HO included) until it answers P? again.",
         )
         .in_unit(Unit::Degrees),
-        |d, _| d.position.map(|(_, p)| Value::Real(degrees(p.pan))),
+        |d, _| still_there(d).map(|(_, p)| Value::Real(degrees(p.pan))),
     ),
     one(
         Descriptor::gauge(
             "device_position_tilt",
-            "Tilt the device last answered to P? (Table 15), degrees.",
+            "Tilt the device last answered to P? (Table 15), degrees; absent once a motion went to it (a broadcast HO included) until it answers P? again.",
         )
         .in_unit(Unit::Degrees),
-        |d, _| d.position.map(|(_, p)| Value::Real(degrees(p.tilt))),
+        |d, _| still_there(d).map(|(_, p)| Value::Real(degrees(p.tilt))),
     ),
     one(
         Descriptor::gauge(
             "device_position_timestamp",
-            "When the device last answered P?, seconds since the Unix epoch.",
+            "When the device last answered P?, seconds since the Unix epoch; absent with the position.",
         )
         .in_unit(Unit::Seconds),
-        |d, s| d.position.map(|(t, _)| Value::Real(s.unix_seconds(t))),
+        |d, s| still_there(d).map(|(t, _)| Value::Real(s.unix_seconds(t))),
+    ),
+    one(
+        Descriptor::gauge(
+            "device_moved_timestamp",
+            "When a motion went to the device after its last P? answer (its position then unknown until the next), seconds since the Unix epoch.",
+        )
+        .in_unit(Unit::Seconds),
+        |d, s| d.moved.map(|t| Value::Real(s.unix_seconds(t))),
     ),
     one(
         Descriptor::gauge(

@@ -72,6 +72,10 @@ pub struct Snapshot {
     /// Every configured tour.
     pub tours: Vec<TourStatus>,
     pub governance: GovernStats,
+    /// The gimbals the configuration names, as (port, device)
+    /// ([`crate::config::Config::configured_devices`]): `/status` lists
+    /// each, heard from or not.
+    pub configured: std::collections::BTreeSet<(u8, u8)>,
 }
 
 /// The process's heap, as the global allocator counts it.
@@ -156,6 +160,7 @@ impl Snapshot {
             control: state.router.control(),
             tours: state.router.tours(),
             governance: state.router.governance_stats(),
+            configured: Default::default(),
         }
     }
 
@@ -417,6 +422,8 @@ pub mod fixture {
                 parks: next(),
                 found_moving: next(),
             },
+            // Configured: one heard from (1.3), one not yet (2.4).
+            configured: [(1, 3), (2, 4)].into_iter().collect(),
         }
     }
 }

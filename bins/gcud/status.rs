@@ -7,7 +7,7 @@
 //! epoch. Built from the same [`Snapshot`] as `/metrics`; the README
 //! documents the shape.
 
-use sagebrush_gcu::{Holder, TourState};
+use sagebrush_gcu::{DeviceStats, Holder, TourState};
 use serde::Serialize;
 
 use crate::snapshot::{Snapshot, VERSION, degrees};
@@ -183,6 +183,20 @@ pub struct Link {
     pub last_seen_unix: Option<f64>,
 }
 
+/// The devices of `port`: every one the router's registry holds, and every
+/// one the configuration names that it does not hold yet (not yet heard:
+/// offline, never seen, nothing known), in device order.
+fn devices_of(s: &Snapshot, port: u8) -> impl Iterator<Item = (u8, DeviceStats)> + '_ {
+    let heard = s.stats.devices.range((port, 0)..=(port, u8::MAX));
+    let known: std::collections::BTreeMap<u8, DeviceStats> = s
+        .configured
+        .range((port, 0)..=(port, u8::MAX))
+        .map(|&(_, device)| (device, DeviceStats::default()))
+        .chain(heard.map(|(&(_, device), d)| (device, *d)))
+        .collect();
+    known.into_iter()
+}
+
 impl Status {
     pub fn of(s: &Snapshot) -> Self {
         let stats = &s.stats;
@@ -200,10 +214,8 @@ impl Status {
                 timeouts: p.line.timeouts,
                 bad_checksums: p.line.bad_checksums,
                 last_seen_unix: p.line.last_seen.map(|t| s.unix_seconds(t)),
-                devices: stats
-                    .devices
-                    .range((port, 0)..=(port, u8::MAX))
-                    .map(|(&(_, device), d)| Device {
+                devices: devices_of(s, port)
+                    .map(|(device, d)| Device {
                         device,
                         address: format!("{}.{port}.{device}", s.group),
                         online: d.online,

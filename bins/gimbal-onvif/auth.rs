@@ -331,8 +331,10 @@ pub fn require(user: &(String, Role), needed: Role, operation: &str) -> Result<(
         Ok(())
     } else {
         Err(not_authorized(format!(
-            "user {:?} ({:?}) may not {operation}: it needs the {:?} role",
-            user.0, user.1, needed
+            "user {:?} ({}) may not {operation}: it needs the {} role",
+            user.0,
+            user.1.name(),
+            needed.name()
         )))
     }
 }

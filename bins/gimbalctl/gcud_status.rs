@@ -88,6 +88,16 @@ fn ago(at: &Value, now: f64) -> String {
     }
 }
 
+/// A device's ONLINE cell: `not yet heard` for a configured gimbal that
+/// has not answered since gcud started (offline, never seen).
+fn online(d: &Value) -> &'static str {
+    match (d["online"].as_bool(), &d["last_seen_unix"]) {
+        (Some(true), _) => "yes",
+        (_, Value::Null) => "not yet heard",
+        _ => "no",
+    }
+}
+
 fn yes(v: &Value) -> &'static str {
     if v.as_bool() == Some(true) { "yes" } else { "no" }
 }
@@ -174,7 +184,7 @@ fn text(s: &Value, now: f64) -> String {
             };
             vec![
                 d["address"].as_str().unwrap_or("?").to_owned(),
-                yes(&d["online"]).to_owned(),
+                online(d).to_owned(),
                 ago(&d["last_seen_unix"], now),
                 position(&d["position"], now),
                 lens,

@@ -124,7 +124,15 @@ impl Session {
         }
         let described = line.describe();
         let over_tcp = !matches!(line, SerialOrTcp::Serial(_));
-        tracing::debug!(line = %described, ?policy, "connected");
+        tracing::debug!(
+            line = %described,
+            ack_timeout_ms = policy.retry.ack_timeout,
+            retries = policy.retry.retries,
+            result_timeout_ms = policy.result_timeout,
+            long_result_timeout_ms = policy.long_result_timeout,
+            nic_window_ms = policy.nic_window,
+            "connected"
+        );
         let tap = match &capture {
             Some((switch, _)) => switch.tap(format!("gimbalctl {described}"), Role::Master),
             None => CaptureSwitch::new().tap(described.clone(), Role::Master),
@@ -248,7 +256,13 @@ impl Drop for Session {
     fn drop(&mut self) {
         if let Some(capture) = self.capture.take() {
             let stats = capture.stop(Duration::from_secs(2));
-            tracing::debug!(?stats, "capture stopped");
+            tracing::debug!(
+                records = stats.records,
+                bytes_written = stats.bytes_written,
+                dropped = stats.dropped,
+                stopped = stats.stopped.as_deref().unwrap_or("no"),
+                "capture stopped"
+            );
         }
     }
 }

@@ -74,7 +74,7 @@ pub async fn run(cli: Cli, config: BusConfig) -> Result<(), String> {
             .map_err(|e| format!("cannot listen on {addr}: {e}"))?;
         let local = listener.local_addr().map_err(|e| e.to_string())?;
         announce(&local.to_string());
-        info!(%local, devices = ?addresses, "gimbalsim listening");
+        info!(%local, devices = addresses.join(", "), "gimbalsim listening");
         loop {
             let accepted = tokio::select! {
                 a = listener.accept() => a,
@@ -94,7 +94,12 @@ pub async fn run(cli: Cli, config: BusConfig) -> Result<(), String> {
         let port = transport::open_serial(path, cli.baud).map_err(|e| e.to_string())?;
         let mut port = Tapped::new(port, switch.tap(format!("gimbalsim serial {path}"), Role::Responder));
         announce(path);
-        info!(path, baud = cli.baud, devices = ?addresses, "gimbalsim on serial device");
+        info!(
+            path,
+            baud = cli.baud,
+            devices = addresses.join(", "),
+            "gimbalsim on serial device"
+        );
         let mut set_rate = |p: &mut Tapped<tokio_serial::SerialStream>, bps: u32| transport::set_baud(p.get_mut(), bps);
         match serve(&mut bus, &mut port, &mut line, &mut set_rate, &mut shutdown).await {
             Ok(End::Eof) => Err(format!("serial device {path} closed")),
@@ -111,7 +116,7 @@ pub async fn run(cli: Cli, config: BusConfig) -> Result<(), String> {
             None => None,
         };
         announce(&path.display().to_string());
-        info!(path = %path.display(), devices = ?addresses, "gimbalsim on pseudo-terminal");
+        info!(path = %path.display(), devices = addresses.join(", "), "gimbalsim on pseudo-terminal");
         match serve(&mut bus, &mut pty, &mut line, &mut |_, _| Ok(()), &mut shutdown).await {
             Ok(End::Eof) => Err("the pseudo-terminal closed".into()),
             Ok(End::Shutdown) => Ok(()),

@@ -98,9 +98,21 @@ fn status_metrics_and_health_show_the_devices_gcud_has_seen() {
     // Issue 24: an address that never answered (nobody at 5.1.9) leaves
     // nothing behind; a device that answered once and then went silent
     // stays, offline (crates/gcu/tests/rules/, the device registry).
+    // Issue 53: a configured gimbal (5.1.2, simulated) is listed from the
+    // start, not yet heard from: offline, never seen.
     assert!(
-        devices.iter().all(|d| d["device"] != 9 && d["device"] != 2),
-        "only devices that answered: {port}"
+        devices.iter().all(|d| d["device"] != 9),
+        "only devices that answered or are configured: {port}"
+    );
+    let two = device(2);
+    assert_eq!(
+        (
+            two["online"].as_bool(),
+            two["last_seen_unix"].is_null(),
+            two["commands"].as_u64()
+        ),
+        (Some(false), true, Some(0)),
+        "5.1.2, configured, not yet heard: {two}"
     );
     assert_eq!(status["links"][0]["link"], "clients");
 

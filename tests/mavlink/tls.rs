@@ -51,7 +51,7 @@ fn the_door_drives_the_gimbal_over_tls_as_its_own_principal() {
     let log = stack.gcud.log();
     assert!(
         log.lines()
-            .any(|l| l.contains("gimbal-mavlink via doors: P") && l.contains("accepted")),
+            .any(|l| l.contains("gimbal-mavlink via doors: go to pan ") && l.contains("accepted")),
         "gcud's audit names the door:\n{log}"
     );
 }

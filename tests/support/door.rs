@@ -172,10 +172,13 @@ impl Door {
 }
 
 impl Drop for Door {
+    /// Stops the door; then its whole log must be words, no Rust `Debug`
+    /// form ([`super::check_debug_forms_on_drop`], issue 53).
     fn drop(&mut self) {
         if let Some(child) = &mut self.child {
             super::terminate(child);
         }
+        super::check_debug_forms_on_drop(&format!("{}'s log", self.name), &self.log());
     }
 }
 

@@ -128,8 +128,11 @@ impl Gcud {
 }
 
 impl Drop for Gcud {
+    /// Stops gcud; then its whole log must be words, no Rust `Debug`
+    /// form ([`super::check_debug_forms_on_drop`], issue 53).
     fn drop(&mut self) {
         let _ = super::terminate(&mut self.child);
+        super::check_debug_forms_on_drop("gcud's log", &self.log());
     }
 }
 

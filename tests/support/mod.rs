@@ -213,11 +213,19 @@ fn finish(mut cmd: Command) -> Output {
         }
     }
     let out = child.wait_with_output().expect("gimbalctl output");
-    Output {
+    checked_output(out)
+}
+
+/// A gimbalctl run's output, whose words hold no Rust `Debug` form
+/// ([`assert_no_debug_forms`], issue 53).
+fn checked_output(out: std::process::Output) -> Output {
+    let out = Output {
         code: out.status.code().unwrap_or(-1),
         stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
         stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
-    }
+    };
+    assert_no_debug_forms("gimbalctl's output", &format!("{}\n{}", out.stdout, out.stderr));
+    out
 }
 
 /// `gimbalctl ARGS` with no transport from the environment (encode, decode,
@@ -247,11 +255,7 @@ pub fn gimbalctl_stdin(args: &[&str], input: &str) -> Output {
         .write_all(input.as_bytes())
         .expect("write stdin");
     let out = child.wait_with_output().expect("gimbalctl output");
-    Output {
-        code: out.status.code().unwrap_or(-1),
-        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
-    }
+    checked_output(out)
 }
 
 /// A running `gimbalsim`, stopped (SIGTERM) on drop.
@@ -433,8 +437,11 @@ impl Sim {
 }
 
 impl Drop for Sim {
+    /// Stops gimbalsim; then its whole log must be words, no Rust `Debug`
+    /// form ([`check_debug_forms_on_drop`], issue 53).
     fn drop(&mut self) {
         self.terminate();
+        check_debug_forms_on_drop("gimbalsim's log", &self.log());
     }
 }
 
@@ -457,6 +464,70 @@ pub fn terminate(child: &mut Child) -> Option<std::process::ExitStatus> {
         let _ = child.wait();
     }
     None
+}
+
+/// The lines of `text` (a program's log or output) that hold a Rust
+/// `Debug` form, which an operator must not have to decode (issue 53): a
+/// struct with its fields (`Address { group: 5, ..`), an `Option` or a
+/// `Result` (`Some(`, `None`, `Ok(`, `Err(`). The programs write words:
+/// `5.2.1`, `refused by GCU 5 for 5.2.1: ...`, `1/190`.
+pub fn debug_forms(text: &str) -> Vec<&str> {
+    text.lines().filter(|line| holds_debug_form(line)).collect()
+}
+
+fn holds_debug_form(line: &str) -> bool {
+    let ident = |c: char| c.is_ascii_alphanumeric() || c == '_';
+    // `word` at `i`, not inside a longer name (`Some(` ends in its own
+    // delimiter; `None` must end there).
+    let word_at = |i: usize, word: &str| {
+        line[i..].starts_with(word)
+            && !line[..i].ends_with(ident)
+            && (word.ends_with('(') || !line[i + word.len()..].starts_with(ident))
+    };
+    let mut at = 0;
+    while let Some(offset) = line[at..].find(|c: char| c.is_ascii_uppercase()) {
+        let i = at + offset;
+        if ["Some(", "Ok(", "Err("].iter().any(|w| word_at(i, w)) || word_at(i, "None") {
+            return true;
+        }
+        // `Type { field: ` or `Type { .. }`: a struct's Debug form.
+        let name_len = line[i..].find(|c: char| !ident(c)).unwrap_or(line.len() - i);
+        if !line[..i].ends_with(ident) {
+            let rest = &line[i + name_len..];
+            if let Some(fields) = rest.strip_prefix(" { ") {
+                let field_len = fields.find(|c: char| !ident(c)).unwrap_or(fields.len());
+                let field = &fields[..field_len];
+                if fields.starts_with("..")
+                    || (!field.is_empty()
+                        && field.starts_with(|c: char| c.is_ascii_lowercase() || c == '_')
+                        && fields[field_len..].starts_with(": "))
+                {
+                    return true;
+                }
+            }
+        }
+        at = i + name_len.max(1);
+    }
+    false
+}
+
+/// Fails when `text` (`what`: a program's log or output) holds a Rust
+/// `Debug` form ([`debug_forms`]), naming each line.
+pub fn assert_no_debug_forms(what: &str, text: &str) {
+    let found = debug_forms(text);
+    assert!(
+        found.is_empty(),
+        "{what} shows Rust Debug forms an operator must decode (issue 53; write words, Display):\n{}",
+        found.join("\n")
+    );
+}
+
+/// [`assert_no_debug_forms`] from a `Drop`: not while the test already
+/// fails (its own message stays the one shown).
+pub fn check_debug_forms_on_drop(what: &str, text: &str) {
+    if !std::thread::panicking() {
+        assert_no_debug_forms(what, text);
+    }
 }
 
 /// Polls `condition` (which may sleep) until it holds; panics only after

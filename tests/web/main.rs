@@ -19,6 +19,7 @@ mod motion;
 mod page;
 mod principals;
 mod tours;
+mod words;
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::Path;

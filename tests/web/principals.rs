@@ -12,12 +12,12 @@ use super::access::raw;
 use super::*;
 
 /// A signed-in user: its session cookie and CSRF token.
-struct Signed {
+pub(super) struct Signed {
     cookie: String,
     csrf: String,
 }
 
-fn sign_in(stack: &Stack, user: &str, password: &str) -> Signed {
+pub(super) fn sign_in(stack: &Stack, user: &str, password: &str) -> Signed {
     let body = json!({ "user": user, "password": password }).to_string();
     let (status, answer) = raw(
         &stack.url,
@@ -40,7 +40,7 @@ fn sign_in(stack: &Stack, user: &str, password: &str) -> Signed {
     Signed { cookie, csrf }
 }
 
-fn post(stack: &Stack, who: &Signed, path: &str, body: Value) -> (u16, String) {
+pub(super) fn post(stack: &Stack, who: &Signed, path: &str, body: Value) -> (u16, String) {
     raw(
         &stack.url,
         "POST",
@@ -176,7 +176,7 @@ fn the_doors_users_arbitrate_at_gcud_as_themselves_and_the_audit_names_each() {
         let tool = if who == "carol" { "gimbal-onvif" } else { "gimbal-web" };
         assert!(
             log.lines()
-                .any(|l| l.contains(&format!("{who} via {tool}: P")) && l.contains(outcome)),
+                .any(|l| l.contains(&format!("{who} via {tool}: go to pan ")) && l.contains(outcome)),
             "no audit line of {who}'s {outcome} goto:\n{log}"
         );
     }

@@ -127,6 +127,20 @@ impl Config {
         rc
     }
 
+    /// Every gimbal the file names, as (port, device): the devices of a
+    /// `simulate` port, each `[[gimbal]]` and each `[[tour]]`'s. `/status`
+    /// lists them from the start, before they answer (ARCHITECTURE
+    /// "Device registry and status").
+    pub fn configured_devices(&self) -> std::collections::BTreeSet<(u8, u8)> {
+        let simulated = self.ports.iter().flat_map(|p| match &p.transport {
+            PortTransport::Simulated(ids) => ids.iter().map(|&d| (p.id, d)).collect(),
+            _ => Vec::new(),
+        });
+        let governed = self.governance.gimbals.iter().map(|g| (g.port, g.device));
+        let toured = self.governance.tours.iter().map(|t| (t.port, t.device));
+        simulated.chain(governed).chain(toured).collect()
+    }
+
     /// `--check` only: tries to bind each listen address (port 0 is never
     /// taken) and returns a warning for each that cannot be bound now. Not
     /// an error: the address may be free by the time gcud starts (and a

@@ -101,6 +101,7 @@ fn renders_a_router_snapshot() {
         control: Vec::new(),
         tours: Vec::new(),
         governance: Default::default(),
+        configured: Default::default(),
     };
     let text = render(&snapshot);
     assert!(text.contains("gcud_uptime_ms 42"), "{text}");

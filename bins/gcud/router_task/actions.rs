@@ -34,7 +34,13 @@ fn write_refused(line: LineId, refused: Refused, links: &LinkBook, throttle: &mu
 /// Carries out the router's actions in order: writes are queued on their
 /// lines straight from the Outbox's buffer. A link gone leaves its counters
 /// with its configured link and nothing else behind.
-pub(super) fn execute(actions: &mut Outbox, lines: &mut Lines, links: &mut LinkBook, throttle: &mut Throttle) {
+pub(super) fn execute(
+    actions: &mut Outbox,
+    lines: &mut Lines,
+    links: &mut LinkBook,
+    throttle: &mut Throttle,
+    group: u8,
+) {
     let mut gone = Vec::new();
     for action in actions.actions() {
         match action {
@@ -47,7 +53,7 @@ pub(super) fn execute(actions: &mut Outbox, lines: &mut Lines, links: &mut LinkB
                 Ok(()) => info!(port, baud = bps, "line rate switched"),
                 Err(reason) => error!(port, bps, %reason, "port lost: cannot switch its line rate; reopening"),
             },
-            Action::Event(event) => log_event(event, links, throttle),
+            Action::Event(event) => log_event(event, links, throttle, group),
             Action::LinkGone { link, stats } => {
                 links.depart(*link, stats);
                 // Named in the logs of the actions after this one.
@@ -76,7 +82,9 @@ fn audit(
 ) {
     let frame = frame.frame();
     let command = String::from_utf8_lossy(frame.payload());
-    let line = || format!("audit: {actor}: {command} to {}", frame.dest);
+    let words = sagebrush_protocol::Command::parse(frame.payload());
+    let words = words.in_words();
+    let line = || format!("audit: {actor}: {words} for {}", frame.dest);
     if !throttle.allow("audit", &actor.name, line, Instant::now()) {
         return;
     }
@@ -89,18 +97,19 @@ fn audit(
         gimbal = %frame.dest,
         command = %command,
         outcome,
-        "{actor}: {command} to {} {}",
+        "{actor}: {words} for {}: {}",
         frame.dest,
-        refused.map_or_else(|| "accepted".to_owned(), |r| format!("refused: {}", r.undelivered().describe()))
+        refused.map_or_else(|| "accepted".to_owned(), |r| format!("refused, {}", r.undelivered().describe()))
     );
 }
 
 /// Logs a router event; repeated warnings of one kind from one place are
 /// throttled (module `throttle`).
-fn log_event(event: &RouterEvent, links: &LinkBook, throttle: &mut Throttle) {
+fn log_event(event: &RouterEvent, links: &LinkBook, throttle: &mut Throttle, group: u8) {
     if let RouterEvent::Motion { actor, frame, refused } = event {
         return audit(actor, frame, *refused, throttle);
     }
+    let text = event.in_group(group);
     let name = |link: &LinkId| links.name(*link);
     // Events about a link name it as configured, with its peer.
     let context = match event {
@@ -111,8 +120,8 @@ fn log_event(event: &RouterEvent, links: &LinkBook, throttle: &mut Throttle) {
         _ => String::new(),
     };
     match event.level() {
-        Level::Debug => debug!("{event}{context}"),
-        Level::Info => info!("{event}{context}"),
+        Level::Debug => debug!("{text}{context}"),
+        Level::Info => info!("{text}{context}"),
         Level::Warn => {
             let (kind, place) = match event {
                 RouterEvent::Dropped { reason, at, .. } => (
@@ -126,17 +135,18 @@ fn log_event(event: &RouterEvent, links: &LinkBook, throttle: &mut Throttle) {
                     format!("undelivered {}", failure.name()),
                     origin.link().as_ref().map_or_else(String::new, name),
                 ),
-                RouterEvent::Finished { outcome, .. } => (format!("finished {outcome:?}"), String::new()),
+                RouterEvent::Finished { outcome, .. } => (format!("finished {}", outcome.name()), String::new()),
                 RouterEvent::IssuedStop { link, .. } => {
                     ("stop".to_owned(), link.as_ref().map_or_else(String::new, name))
                 }
                 RouterEvent::DeviceState { port, device, .. } => {
-                    ("device silent".to_owned(), format!("{port}.{device}"))
+                    ("device silent".to_owned(), format!("{group}.{port}.{device}"))
                 }
-                other => (format!("{:?}", std::mem::discriminant(other)), String::new()),
+                // Each other kind of warning, throttled as one.
+                _ => ("other".to_owned(), String::new()),
             };
-            if throttle.allow(&kind, &place, || format!("{event}{context}"), Instant::now()) {
-                warn!("{event}{context}");
+            if throttle.allow(&kind, &place, || format!("{text}{context}"), Instant::now()) {
+                warn!("{text}{context}");
             }
         }
     }

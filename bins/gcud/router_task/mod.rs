@@ -304,6 +304,7 @@ impl Daemon {
         s.started_unix_ms = self.started_unix_ms;
         s.shutting_down = self.stopping.is_some();
         s.capture = self.tasks.capture.current().map(|c| c.stats());
+        s.configured = config.configured_devices();
         s
     }
 
@@ -386,7 +387,14 @@ impl Daemon {
     /// from this task, and what a line cannot take yet is written when it
     /// can (`Lines::poll_next`).
     async fn carry_out(&mut self) {
-        execute(&mut self.actions, &mut self.lines, &mut self.links, &mut self.throttle);
+        let group = self.router.group();
+        execute(
+            &mut self.actions,
+            &mut self.lines,
+            &mut self.links,
+            &mut self.throttle,
+            group,
+        );
         std::future::poll_fn(|cx| {
             self.lines.flush(cx);
             std::task::Poll::Ready(())

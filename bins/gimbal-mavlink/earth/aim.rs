@@ -51,6 +51,23 @@ pub struct Target {
     pub from: Sender,
 }
 
+impl std::fmt::Display for Aim {
+    /// The aim in words, for a log line.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Aim::Yaw {
+                earth_deg,
+                tilt_deg: None,
+            } => write!(f, "yaw {earth_deg:.2}° from north"),
+            Aim::Yaw {
+                earth_deg,
+                tilt_deg: Some(tilt),
+            } => write!(f, "yaw {earth_deg:.2}° from north, tilt {tilt:.2}°"),
+            Aim::Place(p) => write!(f, "look at {:.6}°, {:.6}°, {:.1} m", p.lat_deg, p.lon_deg, p.alt_m),
+        }
+    }
+}
+
 impl Aim {
     /// The mount-relative request for this aim on `g` now.
     pub fn request(&self, g: &Gimbal, vehicle: &Vehicle) -> Result<Request, &'static str> {

@@ -27,7 +27,7 @@ pub async fn run(handles: Vec<Handle>, vehicle: Arc<Vehicle>) {
             let request = match target.aim.request(&h.config, &vehicle) {
                 Ok(r) => r,
                 Err(why) => {
-                    warn!(gimbal = %h.config.name, aim = ?target.aim, why, "earth-frame aim lapsed: the gimbal stays where it points");
+                    warn!(gimbal = %h.config.name, aim = %target.aim, why, "earth-frame aim lapsed: the gimbal stays where it points");
                     h.clear_aim(target);
                     *last = None;
                     continue;

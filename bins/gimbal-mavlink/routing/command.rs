@@ -10,7 +10,7 @@ use crate::earth::aim::Aim;
 use crate::earth::aim::in_mount_frame;
 use crate::earth::geometry::Place;
 use crate::earth::vehicle::Vehicle;
-use crate::routing::control::Sender;
+use crate::routing::control::{Sender, sender_name};
 use crate::routing::handle::{Handle, Job, Route, Work};
 use crate::routing::motion::Request;
 use crate::routing::rates::{self, Rate};
@@ -100,8 +100,13 @@ pub fn route(h: &Handle, i: usize, vehicle: &Vehicle, from: Sender, c: &Command)
         Route::Gimbal(i, Job { from, work })
     };
     let refuse = |kind: &'static str, why: &str| {
-        if may_warn(kind, &format_args!("{from:?}")) {
-            warn!(command = ?c.command, ?from, component, "{why}: MAV_RESULT_DENIED");
+        if may_warn(kind, &sender_name(from)) {
+            warn!(
+                command = mav_cmd_name(c.command),
+                from = sender_name(from),
+                component,
+                "{why}: MAV_RESULT_DENIED"
+            );
         }
         Route::Answer(component, c.command, MavResult::MAV_RESULT_DENIED)
     };
@@ -188,8 +193,12 @@ pub fn route(h: &Handle, i: usize, vehicle: &Vehicle, from: Sender, c: &Command)
             None => Route::Answer(component, c.command, MavResult::MAV_RESULT_DENIED),
         },
         other => {
-            if may_warn("command not supported", &format_args!("{from:?}")) {
-                warn!(command = ?other, ?from, "command not supported");
+            if may_warn("command not supported", &sender_name(from)) {
+                warn!(
+                    command = mav_cmd_name(other),
+                    from = sender_name(from),
+                    "command not supported"
+                );
             }
             Route::Answer(component, other, MavResult::MAV_RESULT_UNSUPPORTED)
         }
@@ -269,4 +278,11 @@ fn roi_place(c: &Command, vehicle: &Vehicle) -> Result<Place, &'static str> {
     } else {
         Err("not a place on earth")
     }
+}
+
+/// A command's MAVLink name for a log line (`MAV_CMD_DO_SET_ROI_NONE`): the
+/// generated dialect names each variant as the XML does and has no name
+/// table, so its unit variant's `Debug` form is that name, never a struct.
+fn mav_cmd_name(command: MavCmd) -> String {
+    format!("{command:?}")
 }

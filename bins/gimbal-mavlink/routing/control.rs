@@ -49,6 +49,22 @@ use std::time::{Duration, Instant};
 /// A MAVLink system and component id.
 pub type Sender = (u8, u8);
 
+/// A sender in a log line: `1/190` (system id / component id, as
+/// MAVLink's tools write it).
+pub fn sender_name(sender: Sender) -> String {
+    format!("{}/{}", sender.0, sender.1)
+}
+
+/// A control owner in a log line: [`sender_name`], or `none`.
+pub fn owner_name(owner: Option<Sender>) -> String {
+    owner.map_or_else(|| "none".to_owned(), sender_name)
+}
+
+/// Senders in a log line: `1/190, 1/191`.
+pub fn senders_name(senders: &[Sender]) -> String {
+    senders.iter().map(|&s| sender_name(s)).collect::<Vec<_>>().join(", ")
+}
+
 /// The control owners of one gimbal.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Control {

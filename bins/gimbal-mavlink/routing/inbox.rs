@@ -195,7 +195,11 @@ pub fn route(
             })
         }
         None => {
-            debug!(message = message.message_name(), ?from, "not handled: ignored");
+            debug!(
+                message = message.message_name(),
+                from = crate::control::sender_name(from),
+                "not handled: ignored"
+            );
             vec![Route::Ignore]
         }
     }

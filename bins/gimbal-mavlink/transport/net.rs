@@ -219,7 +219,7 @@ impl Net {
                 };
                 Stats::count(&stats.unsupported);
                 if may_warn("command not supported", from) {
-                    warn!(%from, ?sender, command, component, "command id unknown to the dialect: MAV_RESULT_UNSUPPORTED");
+                    warn!(%from, sender = control::sender_name(sender), command, component, "command id unknown to the dialect: MAV_RESULT_UNSUPPORTED");
                 }
                 Screened::Answer(self.unsupported(component, command, sender))
             }
@@ -229,7 +229,7 @@ impl Net {
                     Some((component, unheard)) => {
                         Stats::count(&stats.refused);
                         if may_warn("control given to a component never heard", from) {
-                            warn!(%from, ?sender, ?unheard, component, "control given to a component never heard: MAV_RESULT_DENIED");
+                            warn!(%from, sender = control::sender_name(sender), unheard = control::senders_name(&unheard), component, "control given to a component never heard: MAV_RESULT_DENIED");
                         }
                         let ack = crate::routing::answers::ack(
                             MavCmd::MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE,

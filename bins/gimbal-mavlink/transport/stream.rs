@@ -266,7 +266,11 @@ pub async fn listen(listener: TcpListener, streams: Arc<Streams>, stats: Arc<Sta
             Ok((stream, peer)) => match streams.admission.admit(peer.ip(), Instant::now()) {
                 Admission::Admitted { key, close, evicted } => {
                     if may_warn("MAVLink TCP connection accepted", &peer.ip()) {
-                        info!(%peer, ?evicted, "MAVLink TCP connection accepted");
+                        info!(
+                            %peer,
+                            evicted = evicted.map_or_else(|| "none".to_owned(), |ip| ip.to_string()),
+                            "MAVLink TCP connection accepted"
+                        );
                     }
                     let _ = stream.set_nodelay(true);
                     tokio::spawn(serve(

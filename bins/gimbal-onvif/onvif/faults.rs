@@ -67,7 +67,7 @@ mod tests {
         let refused = |rule: Undelivered, why: &str| gimbal(CommandError::Refused(rule, why.to_owned()));
         let f = refused(
             Undelivered::NotInControl,
-            "refused by gcud: PR to 5.1.1: link operators (priority 80) controls the gimbal",
+            "refused by gcud: pan right (CCW) until PS for 5.1.1: link operators (priority 80) controls the gimbal",
         );
         assert_eq!(
             (f.sender, f.subcodes.as_slice()),

@@ -117,8 +117,14 @@ async fn go_to(State(w): Shared, headers: HeaderMap, bytes: axum::body::Bytes) -
     let within = |v: f64, (low, high): (f64, f64)| v.is_finite() && v >= low && v <= high;
     if !within(b.pan, g.config.pan_deg) || !within(b.tilt, g.config.tilt_deg) {
         return Err(bad(format!(
-            "pan {} tilt {} is outside the travel of {}: pan {:?}, tilt {:?}",
-            b.pan, b.tilt, g.config.name, g.config.pan_deg, g.config.tilt_deg
+            "pan {}° tilt {}° is outside the travel of {}: pan {}°..{}°, tilt {}°..{}°",
+            b.pan,
+            b.tilt,
+            g.config.name,
+            g.config.pan_deg.0,
+            g.config.pan_deg.1,
+            g.config.tilt_deg.0,
+            g.config.tilt_deg.1
         )));
     }
     g.session

@@ -3,7 +3,6 @@
 //! into a [`CommandError`] that says what happened (1.4.2, 1.4.3, and
 //! ARCHITECTURE "Delivery contract" for gcud's delivery reports).
 
-use sagebrush_host::hex::payload_text;
 use sagebrush_host::timing;
 use sagebrush_protocol::link::TransactionPolicy;
 use sagebrush_protocol::{
@@ -124,7 +123,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Client<S> {
         command: &Command<'_>,
         payload: &[u8],
     ) -> Result<Exchange, CommandError> {
-        let what = command_named(payload, command);
+        let what = command_named(command);
         self.exchange_expecting(to, payload, command.result_kind(), &what).await
     }
 
@@ -157,7 +156,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Client<S> {
             let payload = encode(c)?;
             let frame =
                 FrameBuf::new(to, self.from, &payload).map_err(|e| CommandError::Usage(format!("payload: {e}")))?;
-            Ok((frame, command_named(&payload, c)))
+            Ok((frame, command_named(c)))
         };
         let ((a, a_what), (b, b_what)) = match (framed(first), framed(second)) {
             (Ok(a), Ok(b)) => (a, b),
@@ -191,7 +190,7 @@ impl<S: AsyncRead + AsyncWrite + Unpin> Client<S> {
             Some(frame) => Ok(frame.frame().payload().to_vec()),
             None => Err(CommandError::NoResult(format!(
                 "{to} sent no result for {}",
-                command.mnemonic()
+                command.in_words()
             ))),
         }
     }
@@ -223,13 +222,13 @@ fn judge(
         if failure.is_refusal() {
             return Err(CommandError::Refused(
                 failure,
-                format!("refused by gcud: {what} to {to}: {}", failure.describe()),
+                format!("refused by gcud: {what} for {to}: {}", failure.describe()),
             ));
         }
         return Err(CommandError::Undelivered(
             failure,
             format!(
-                "not delivered: {what} to {to}: {} (reported by GCU {})",
+                "not delivered: {what} for {to}: {} (reported by GCU {})",
                 failure.describe(),
                 report.at_group
             ),
@@ -262,14 +261,11 @@ fn judge(
     }
 }
 
-/// How an error names a command: as sent (`P?`), once; with its spec row's
-/// mnemonic when that says more (`SP8 (SPn)`).
-fn command_named(payload: &[u8], command: &Command<'_>) -> String {
-    let sent = payload_text(payload);
-    match command.mnemonic() {
-        m if m == sent || m.is_empty() => sent,
-        m => format!("{sent} ({m})"),
-    }
+/// How an error names a command: in words, its arguments in their units
+/// (`go to pan 115.00° tilt 0.00°`, `pan speed 8 of 15`: the protocol
+/// crate's [`Command::in_words`]), never a payload to decode.
+fn command_named(command: &Command<'_>) -> String {
+    command.in_words().to_string()
 }
 
 /// `payload`, the result of `command`, as a Table 15 position.

@@ -269,7 +269,7 @@ impl GimbalConnection {
                     None => self.controller().await.ok(),
                 };
                 let why = match holder {
-                    // Named: "refused by gcud: PR to 5.1.1: link operators (priority 80) controls the gimbal".
+                    // Named: "refused by gcud: pan right (CCW) until PS for 5.1.1: link operators (priority 80) controls the gimbal".
                     Some(holder) if holder != Controller::Nobody => {
                         let rule = Undelivered::NotInControl.describe();
                         let named = format!("{holder} controls the gimbal");
@@ -335,7 +335,7 @@ impl GimbalConnection {
     /// A query's result payload.
     pub async fn query(&mut self, command: &Command<'_>) -> Result<Vec<u8>, CommandError> {
         self.send(command).await?.ok_or_else(|| {
-            CommandError::NoResult(format!("{} sent no result for {}", self.address, command.mnemonic()))
+            CommandError::NoResult(format!("{} sent no result for {}", self.address, command.in_words()))
         })
     }
 
@@ -364,7 +364,7 @@ impl GimbalConnection {
         let mut failed = None;
         for stop in stops {
             if let Err(first) = self.send(stop).await {
-                warn!(gimbal = %self.address, error = %first, "{} not confirmed: sending it again", stop.mnemonic());
+                warn!(gimbal = %self.address, error = %first, "{} not confirmed: sending it again", stop.in_words());
                 if let Err(e) = self.send(stop).await {
                     failed.get_or_insert(e);
                 }

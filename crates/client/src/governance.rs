@@ -153,11 +153,7 @@ impl Rules {
 
 /// A tour's state in words (JSON, pages): `running`, `waiting`, `stopped`.
 pub fn tour_state_name(state: TourState) -> &'static str {
-    match state {
-        TourState::Running => "running",
-        TourState::Waiting => "waiting",
-        TourState::Stopped => "stopped",
-    }
+    state.name()
 }
 
 /// One of gcud's tours, as `~T?` lists it.

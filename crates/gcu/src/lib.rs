@@ -135,6 +135,7 @@ mod by_id;
 mod command;
 mod config;
 mod deadman;
+mod event_text;
 mod govern;
 mod line;
 mod link;
@@ -151,6 +152,7 @@ mod types;
 
 pub use boundary::{Action, Input};
 pub use config::{ConfigError, LinkConfig, LinkKind, LinkSettings, PortConfig, RouterConfig, SourceFilter};
+pub use event_text::EventText;
 pub use govern::rules::{
     DEFAULT_PRIORITY, GimbalRules, Governance, HOLD_MS, MAX_PRIORITY, Park, Span, TourConfig, TourStep, TourTarget,
     Zone,

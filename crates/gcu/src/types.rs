@@ -195,7 +195,10 @@ pub enum RouterEvent {
     Tour {
         name: String,
         state: sagebrush_protocol::TourState,
+        /// The step it is on, counted from 0.
         step: usize,
+        /// How many steps it has.
+        steps: usize,
         refused: Option<DropReason>,
     },
     /// Park recalled its preset (or could not: `refused`).
@@ -273,148 +276,19 @@ impl RouterEvent {
             RouterEvent::DeviceState { online: false, .. } => Level::Warn,
             RouterEvent::DeviceState { first: false, .. } => Level::Info,
             RouterEvent::DeviceState { .. } => Level::Debug,
+            // gcud's governance at work (a take-over, a tour stopped, a
+            // slew stopped short of a boundary) is routine: INFO. A stop for
+            // a link that went down, a lease that ran out or a gimbal found
+            // moving is trouble: a warning.
+            RouterEvent::IssuedStop {
+                cause: StopCause::TakeOver | StopCause::Tour | StopCause::Boundary,
+                ..
+            } => Level::Info,
             RouterEvent::Dropped { .. } | RouterEvent::IssuedStop { .. } => Level::Warn,
             RouterEvent::LinkState { accepted: true, .. } => Level::Debug,
             RouterEvent::RateSwitched { .. } | RouterEvent::LinkState { .. } | RouterEvent::PortState { .. } => {
                 Level::Info
             }
-        }
-    }
-}
-
-/// The audit line's words: who, the command, the gimbal, the decision.
-fn audit_line(
-    f: &mut fmt::Formatter<'_>,
-    actor: &crate::principal::Actor,
-    frame: &sagebrush_protocol::FrameBuf,
-    refused: Option<DropReason>,
-) -> fmt::Result {
-    let frame = frame.frame();
-    let command = String::from_utf8_lossy(frame.payload());
-    write!(f, "{actor}: {command} to {}", frame.dest)?;
-    match refused {
-        None => f.write_str(" accepted"),
-        Some(reason) => write!(f, " refused: {}", reason.undelivered().describe()),
-    }
-}
-
-impl fmt::Display for RouterEvent {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            RouterEvent::Accepted {
-                id,
-                origin,
-                dest,
-                command,
-            } => write!(f, "command {} {command} for {dest} accepted from {origin:?}", id.0),
-            RouterEvent::Queued { id, port, stop } => {
-                write!(f, "command {} queued on port {port} (stop: {stop})", id.0)
-            }
-            RouterEvent::Started { id, port, stop } => {
-                write!(f, "command {} started on port {port} (stop: {stop})", id.0)
-            }
-            RouterEvent::Finished { id, outcome } => write!(f, "command {} finished: {outcome:?}", id.0),
-            RouterEvent::Dropped {
-                reason,
-                at,
-                dest,
-                source,
-            } => write!(f, "dropped frame for {dest} from group {source} at {at}: {reason:?}"),
-            RouterEvent::RateSwitched { port, bps } => write!(f, "port {port} switched to {bps} bps"),
-            RouterEvent::Motion { actor, frame, refused } => audit_line(f, actor, frame, *refused),
-            RouterEvent::IssuedStop {
-                link,
-                dest,
-                stop,
-                cause,
-            } => match (cause, link) {
-                (StopCause::DeadMan, Some(link)) => write!(f, "{link} down: dead-man {stop} to {dest}"),
-                (StopCause::Lease, Some(link)) => write!(f, "{link}: motion lease over, {stop} to {dest}"),
-                (StopCause::Shutdown, Some(link)) => {
-                    write!(f, "shutting down: {stop} to {dest} (a motion of {link})")
-                }
-                (StopCause::DeadMan | StopCause::Lease, None) => write!(f, "{stop} to {dest}"),
-                (StopCause::Shutdown, None) => write!(f, "shutting down: {stop} to {dest}"),
-                (StopCause::TakeOver, _) => write!(f, "control taken over: {stop} to {dest}"),
-                (StopCause::Boundary, _) => write!(f, "{stop} to {dest}: a limit or keep-out zone is near"),
-                (StopCause::Tour, _) => write!(f, "tour stopped: {stop} to {dest}"),
-                (StopCause::FoundMoving, _) => write!(f, "{stop} to {dest}: found moving with nobody to stop it"),
-            },
-            RouterEvent::LinkState { link, up, .. } => write!(f, "{link} {}", if *up { "up" } else { "down" }),
-            RouterEvent::PortState { port, open } => write!(f, "port {port} {}", if *open { "opened" } else { "lost" }),
-            RouterEvent::DeviceState {
-                port,
-                device,
-                online,
-                first,
-            } => match (online, first) {
-                (false, _) => write!(f, "port {port} device {device} went silent: no ACK after all retries"),
-                (true, true) => write!(f, "port {port} device {device} answers"),
-                (true, false) => write!(f, "port {port} device {device} answers again"),
-            },
-            RouterEvent::Delivered { id } => write!(f, "command {} delivered", id.0),
-            RouterEvent::Undelivered {
-                id,
-                origin,
-                dest,
-                command,
-                failure,
-            } => write!(
-                f,
-                "command {} {command} for {dest} from {origin} not delivered: {}",
-                id.0,
-                failure.describe()
-            ),
-            RouterEvent::Control {
-                port,
-                device,
-                holder,
-                from,
-            } => match (holder, from) {
-                (Some(h), Some(old)) => write!(f, "gimbal {port}.{device}: {h} took control from {old}"),
-                (Some(h), None) => write!(f, "gimbal {port}.{device}: {h} has control"),
-                (None, Some(old)) => write!(f, "gimbal {port}.{device}: control of {old} ended"),
-                (None, None) => write!(f, "gimbal {port}.{device}: nobody has control"),
-            },
-            RouterEvent::BoundaryStop {
-                port,
-                device,
-                stop,
-                boundary,
-            } => write!(
-                f,
-                "gimbal {port}.{device}: {stop} sent, stopping short of a {}",
-                match boundary {
-                    DropReason::KeepOut => "keep-out zone",
-                    _ => "travel limit",
-                }
-            ),
-            RouterEvent::Tour {
-                name,
-                state,
-                step,
-                refused,
-            } => match refused {
-                Some(reason) => write!(
-                    f,
-                    "tour {name} stopped: step {step} refused ({})",
-                    reason.undelivered().describe()
-                ),
-                None => write!(f, "tour {name}: {state:?} (step {step})"),
-            },
-            RouterEvent::Park {
-                port,
-                device,
-                preset,
-                refused,
-            } => match refused {
-                Some(reason) => write!(
-                    f,
-                    "gimbal {port}.{device}: park to preset {preset} refused ({})",
-                    reason.undelivered().describe()
-                ),
-                None => write!(f, "gimbal {port}.{device}: parking at preset {preset}"),
-            },
         }
     }
 }
@@ -440,6 +314,35 @@ pub enum CommandOutcome {
     Forwarded(LinkId),
     /// Not executed.
     Dropped(DropReason),
+}
+
+impl fmt::Display for CommandOutcome {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CommandOutcome::Result => f.write_str("answered"),
+            CommandOutcome::Nic => f.write_str("answered NIC"),
+            CommandOutcome::Completed => f.write_str("completed"),
+            CommandOutcome::NoResult => f.write_str("acknowledged, but no result came in time"),
+            CommandOutcome::Unreachable => f.write_str("unreachable: no ACK after all retries"),
+            CommandOutcome::Forwarded(link) => write!(f, "forwarded on {link}"),
+            CommandOutcome::Dropped(reason) => write!(f, "dropped: {}", reason.describe()),
+        }
+    }
+}
+
+impl CommandOutcome {
+    /// A short name, for the log's throttle and the metrics.
+    pub fn name(&self) -> &'static str {
+        match self {
+            CommandOutcome::Result => "result",
+            CommandOutcome::Nic => "nic",
+            CommandOutcome::Completed => "completed",
+            CommandOutcome::NoResult => "no_result",
+            CommandOutcome::Unreachable => "unreachable",
+            CommandOutcome::Forwarded(_) => "forwarded",
+            CommandOutcome::Dropped(reason) => reason.name(),
+        }
+    }
 }
 
 sagebrush_protocol::code_table! {

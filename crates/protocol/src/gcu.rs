@@ -263,7 +263,23 @@ pub enum TourState {
     Stopped,
 }
 
+impl core::fmt::Display for TourState {
+    /// [`TourState::name`].
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 impl TourState {
+    /// The state in a word, as `gimbalctl` and the logs say it.
+    pub const fn name(self) -> &'static str {
+        match self {
+            TourState::Running => "running",
+            TourState::Waiting => "waiting",
+            TourState::Stopped => "stopped",
+        }
+    }
+
     /// The state's letter.
     pub const fn letter(self) -> u8 {
         match self {

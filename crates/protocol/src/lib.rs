@@ -24,6 +24,7 @@ pub mod mount;
 pub mod reply;
 pub mod report;
 pub mod units;
+pub mod words;
 
 pub use address::{Address, AddressParseError, CONTROL_UNIT, LINK_PORT, MCU_GROUP, WILDCARD};
 pub use command::{AuxBytes, Command, CommandError, Extended, ResultKind, ResultTimeout, Row};
@@ -41,6 +42,7 @@ pub use units::{
     Acceleration, Angle, AuxConfig, AuxPort, AuxReadLen, Axis, DataRate, DeviceId, DigitalZoom, LensPosition,
     LensSpeed, Limits, NotAProtocolRate, Parity, Position, RangeError, Rate, RateGain, Relay, Speed, U12,
 };
+pub use words::InWords;
 
 /// Why an encoder could not write.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]

@@ -228,7 +228,7 @@ fn keep_self_signed(cert: &Path, key: &Path, required: &[String], extra: &[Strin
     let (cert_pem, key_pem) = make_self_signed(required, extra)?;
     write_file(key, &key_pem, 0o600)?;
     write_file(cert, &cert_pem, 0o644)?;
-    info!(cert = %cert.display(), key = %key.display(), names = ?[required, extra].concat(), "HTTPS: a self-signed certificate made and kept");
+    info!(cert = %cert.display(), key = %key.display(), names = [required, extra].concat().join(", "), "HTTPS: a self-signed certificate made and kept");
     Ok(())
 }
 

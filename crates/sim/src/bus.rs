@@ -475,7 +475,10 @@ fn log_outgoing(out: &Outgoing) {
                 payload = %String::from_utf8_lossy(frame.payload()).escape_debug(),
                 "tx result"
             ),
-            Err(_) => debug!(bytes = ?bytes, "tx damaged bytes"),
+            Err(_) => {
+                let hex: String = bytes.iter().map(|b| format!("{b:02X}")).collect();
+                debug!(bytes = %hex, "tx damaged bytes")
+            }
         },
     }
     if let Some(rate) = out.switch_to {

@@ -187,9 +187,10 @@ fn set_configuration(op: &Element) -> Result<SetConfiguration, Fault> {
             (&["YRange", "Max"][..], max),
         ] {
             if let Some(v) = number(p).filter(|v| *v != Some(want)) {
+                let found = v.map_or_else(|| "(not a number)".to_owned(), |n| n.to_string());
                 return Err(Fault::invalid_arg(
                     "ter:ConfigModify",
-                    format!("{}/{} {v:?} cannot be set: it is {want}", path.join("/"), p.join("/")),
+                    format!("{}/{} {found} cannot be set: it is {want}", path.join("/"), p.join("/")),
                 ));
             }
         }

@@ -272,7 +272,7 @@ impl GimbalSession {
             }
             Err(CommandError::Nic(e)) => {
                 // The gimbal cannot apply it (a zoom stop without a lens): nothing to retry.
-                warn!(gimbal = %self.config.name, error = %e, "{} refused by the gimbal", command.mnemonic());
+                warn!(gimbal = %self.config.name, error = %e, "{} refused by the gimbal", command.in_words());
                 s.motion.stops_owed = s.motion.stops_owed.without(axes);
                 if !s.motion.stops_owed.any() {
                     let replies = std::mem::take(&mut s.motion.stop_replies);
@@ -283,7 +283,7 @@ impl GimbalSession {
                 // gcud answered, the gimbal did not confirm (absent,
                 // noise): tried again once; owing it for ever would
                 // hold every other command of this gimbal.
-                warn!(gimbal = %self.config.name, error = %e, "{} not confirmed after {STOP_ATTEMPTS_ANSWERED} attempts: given up", command.mnemonic());
+                warn!(gimbal = %self.config.name, error = %e, "{} not confirmed after {STOP_ATTEMPTS_ANSWERED} attempts: given up", command.in_words());
                 s.motion.stops_owed = s.motion.stops_owed.without(axes);
                 s.motion.stop_failures = 0;
                 s.motion.stop_retry_at = None;
@@ -301,7 +301,7 @@ impl GimbalSession {
                 };
                 s.motion.stop_retry_at = Some(Instant::now() + retry);
                 if s.motion.stop_failures.is_power_of_two() {
-                    warn!(gimbal = %self.config.name, error = %e, attempt = s.motion.stop_failures, "{} not confirmed: kept owed, sent again", command.mnemonic());
+                    warn!(gimbal = %self.config.name, error = %e, attempt = s.motion.stop_failures, "{} not confirmed: kept owed, sent again", command.in_words());
                 }
                 if s.motion.stop_failures >= STOP_ATTEMPTS_ANSWERED {
                     let replies = std::mem::take(&mut s.motion.stop_replies);
@@ -356,7 +356,7 @@ impl GimbalSession {
                 s.motion.settle_deadline();
                 if s.last_refusal != e.refusal() {
                     s.last_refusal = e.refusal();
-                    info!(gimbal = %self.config.name, error = %e, "{} refused by gcud (logged once until something is accepted or refused otherwise)", command.mnemonic());
+                    info!(gimbal = %self.config.name, "{e} (logged once until something is accepted or refused otherwise)");
                 }
             }
             Err(e) => {
@@ -366,7 +366,7 @@ impl GimbalSession {
                     answer(w.replies, Err(e.clone()));
                 }
                 s.motion.owe_stop(axes.or(applied.axes()));
-                warn!(gimbal = %self.config.name, error = %e, "{} failed: stopping the motion", command.mnemonic());
+                warn!(gimbal = %self.config.name, error = %e, "{} failed: stopping the motion", command.in_words());
             }
         }
     }

@@ -103,6 +103,7 @@ impl Governor {
             name: t.config.name.clone(),
             state: t.state,
             step: t.step,
+            steps: t.config.steps.len(),
             refused,
         });
     }

@@ -54,7 +54,7 @@ use sagebrush_protocol::{TransactionStep, TxFailure, Undelivered, WILDCARD};
 
 use crate::line::LineReceiver;
 use crate::outbox::Wire;
-use crate::types::{CommandOutcome, DropReason, RouterEvent};
+use crate::types::{CommandOutcome, DropReason, Origin, RouterEvent};
 
 use super::{Job, Port, PortOut};
 
@@ -286,7 +286,10 @@ impl Port {
                 CommandOutcome::Result
             }
             Outcome::Nic => {
-                if let Some(d) = self.device(device) {
+                // gcud's own queries (a preset it asks for a park or a
+                // tour) may meet a device that lacks the row: no error of
+                // the device's (module `registry`).
+                if let Some(d) = self.device(device).filter(|_| r.job.origin != Origin::Internal) {
                     d.nics += 1;
                 }
                 CommandOutcome::Nic

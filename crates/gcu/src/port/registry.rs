@@ -3,7 +3,8 @@
 //! ("Routing semantics").
 //!
 //! - The registry holds, per device, whether it answers, its last error and
-//!   the position or lens position it answered to `P?` or `V?`.
+//!   the position or lens position it answered to `P?` or `V?`. A NIC to
+//!   gcud's own query (a preset it asks for) is no error of the device's.
 //! - A `C0`..`C7` rate change acknowledged by every device of the port
 //!   (configured list, or the devices that answered since the port opened),
 //!   or broadcast to device 255, switches the port's own line rate.
@@ -12,7 +13,7 @@
 use sagebrush_protocol::{DataRate, FrameBuf, Outcome, Reply, TxFailure, WILDCARD};
 
 use crate::stats::{DeviceError, DeviceStats};
-use crate::types::RouterEvent;
+use crate::types::{Origin, RouterEvent};
 
 use super::{Job, Port, PortOut};
 
@@ -51,6 +52,10 @@ impl Port {
             Outcome::Failed(TxFailure::NoAck) => Some(DeviceError::Silent),
             Outcome::Failed(TxFailure::Nak) => Some(DeviceError::Nak),
             Outcome::NoResult => Some(DeviceError::NoResult),
+            // A NIC to gcud's own query (the presets it asks for a park
+            // or a tour) says the device lacks that row, not that it
+            // failed anyone: never its last error.
+            Outcome::Nic if job.origin == Origin::Internal => None,
             Outcome::Nic => Some(DeviceError::Nic),
             Outcome::Result | Outcome::Acknowledged => None,
         };
