@@ -9,7 +9,8 @@
 # 1. Installs what the tests need when it is missing (nothing when all is
 #    there): Debian packages with apt-get (as root, or through sudo),
 #    tshark's debconf question answered; the Python clients of
-#    tests/requirements.txt in .venv; the npm packages of every
+#    tests/requirements.txt in .venv; Home Assistant core in its own
+#    tests/ha/.venv (tests/ha/install.sh); the npm packages of every
 #    tests/**/package.json (npm ci); cargo-deb.
 # 2. Builds the tests once and runs them all (`cargo test --workspace
 #    --release --no-fail-fast`, CI=true: a missing tool fails its test):
@@ -98,6 +99,14 @@ install_venv() {
     || die ".venv/bin/pip install -r tests/requirements.txt failed"
 }
 
+# Home Assistant core (tests/mqtt/home_assistant.rs) pins its own
+# dependencies, at odds with .venv's clients: its own venv, made once.
+install_home_assistant() {
+  [ -f tests/ha/.venv/complete ] && return 0
+  say "tests/ha/install.sh (Home Assistant core in tests/ha/.venv)"
+  bash tests/ha/install.sh || die "tests/ha/install.sh failed"
+}
+
 install_npm() {
   local manifest dir
   for manifest in $(package_jsons); do
@@ -115,6 +124,7 @@ install_npm() {
 if [ "$install" = 1 ]; then
   install_apt
   install_venv
+  install_home_assistant
   install_npm
   if ! command -v cargo-deb >/dev/null; then
     say "cargo install cargo-deb --locked"

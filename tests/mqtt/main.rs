@@ -5,6 +5,8 @@
 //! gcud with its simulated buses and the real gimbal-mqtt. What a gimbal
 //! did is read on the bus side (the simulated gimbals' `rx frame` record
 //! in gcud's log, `gimbalctl position`), never in the door's account.
+//! Home Assistant core is a client too (`home_assistant`, its own venv
+//! made by tests/ha/install.sh).
 
 #[path = "../support/mod.rs"]
 mod support;
@@ -13,6 +15,7 @@ mod attack;
 mod commands;
 mod connection;
 mod figures;
+mod home_assistant;
 mod principals;
 mod sites;
 
