@@ -112,7 +112,7 @@ async fn run(config: config::Config) -> Result<(), String> {
                     }
                     handle::Route::Refused(i, why) => {
                         if stats::may_warn("request refused", &handles[i].config.name) {
-                            warn!(gimbal = %handles[i].config.name, from = control::sender_name((header.system_id, header.component_id)), why, "request refused");
+                            warn!(gimbal = %handles[i].config.name, from = crate::routing::control::sender_name((header.system_id, header.component_id)), why, "request refused");
                         }
                     }
                     handle::Route::Ignore => {}

@@ -169,9 +169,9 @@ impl Task {
                     Ok(control) => {
                         info!(
                             gimbal = %self.config.name,
-                            from = crate::control::sender_name(from),
-                            primary = crate::control::owner_name(control.primary),
-                            secondary = crate::control::owner_name(control.secondary),
+                            from = crate::routing::control::sender_name(from),
+                            primary = crate::routing::control::owner_name(control.primary),
+                            secondary = crate::routing::control::owner_name(control.secondary),
                             "control configured"
                         );
                         MavResult::MAV_RESULT_ACCEPTED
@@ -291,7 +291,7 @@ impl Task {
         if !self.control().allows(from) {
             Stats::count(&self.stats.denied);
             if may_warn("not in control: denied", &self.config.name) {
-                warn!(gimbal = %self.config.name, from = crate::control::sender_name(from), "not in control: denied");
+                warn!(gimbal = %self.config.name, from = crate::routing::control::sender_name(from), "not in control: denied");
             }
             return None;
         }
@@ -300,7 +300,7 @@ impl Task {
             Err(e) => {
                 Stats::count(&self.stats.refused);
                 if may_warn("request refused", &self.config.name) {
-                    warn!(gimbal = %self.config.name, from = crate::control::sender_name(from), error = %e, "request refused");
+                    warn!(gimbal = %self.config.name, from = crate::routing::control::sender_name(from), error = %e, "request refused");
                 }
                 None
             }

@@ -125,7 +125,7 @@ fn lapse(h: &Handle, after: Duration, heard_within: impl Fn(Sender) -> bool) {
         .control
         .lapse(heard_within);
     for owner in lapsed {
-        info!(gimbal = %h.config.name, owner = crate::control::sender_name(owner), lapse_ms = after.as_millis() as u64, "control lapsed: its owner was not heard");
+        info!(gimbal = %h.config.name, owner = crate::routing::control::sender_name(owner), lapse_ms = after.as_millis() as u64, "control lapsed: its owner was not heard");
     }
 }
 

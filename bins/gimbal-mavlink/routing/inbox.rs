@@ -197,7 +197,7 @@ pub fn route(
         None => {
             debug!(
                 message = message.message_name(),
-                from = crate::control::sender_name(from),
+                from = crate::routing::control::sender_name(from),
                 "not handled: ignored"
             );
             vec![Route::Ignore]

@@ -194,7 +194,7 @@ impl Outbox {
     pub async fn answer(&self, component_id: u8, message: &MavMessage, to: Sender) {
         let Some(peer) = lock(&self.net.heard).peer(to) else {
             debug!(
-                to = crate::control::sender_name(to),
+                to = crate::routing::control::sender_name(to),
                 message = message.message_name(),
                 "answer to a component not heard: not sent"
             );

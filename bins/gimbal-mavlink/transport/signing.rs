@@ -183,7 +183,7 @@ impl Signing {
         } else {
             ((frame[3], frame[4]), u32::from(frame[5]))
         };
-        warn!(%from, sender = crate::control::sender_name(sender), message_id, why = refusal.why(), total, held_back, "MAVLink message refused: signing is on");
+        warn!(%from, sender = crate::routing::control::sender_name(sender), message_id, why = refusal.why(), total, held_back, "MAVLink message refused: signing is on");
     }
 
     /// Signs `frame`, a MAVLink 2 frame written by hand with the signed
