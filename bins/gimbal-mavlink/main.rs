@@ -21,7 +21,7 @@ use tracing::{info, warn};
 
 use crate::earth::vehicle;
 use crate::manager::{gimbal, reaim, status};
-use crate::routing::{answers, handle, inbox};
+use crate::routing::{answers, control, handle, inbox};
 use crate::stats::Stats;
 use crate::transport::link::Outbox;
 use crate::transport::{signing, stream};
@@ -112,7 +112,7 @@ async fn run(config: config::Config) -> Result<(), String> {
                     }
                     handle::Route::Refused(i, why) => {
                         if stats::may_warn("request refused", &handles[i].config.name) {
-                            warn!(gimbal = %handles[i].config.name, from = crate::routing::control::sender_name((header.system_id, header.component_id)), why, "request refused");
+                            warn!(gimbal = %handles[i].config.name, from = control::sender_name((header.system_id, header.component_id)), why, "request refused");
                         }
                     }
                     handle::Route::Ignore => {}
