@@ -52,7 +52,7 @@ fn the_broker_s_commands_go_as_the_user_the_door_names() {
     let log = site.gcud.log();
     assert!(
         log.lines()
-            .any(|l| l.contains("control-room via gimbal-mqtt: P") && l.contains("accepted")),
+            .any(|l| l.contains("control-room via gimbal-mqtt: go to pan 11.00°") && l.contains("accepted")),
         "no audit line of control-room's goto:\n{log}"
     );
     eventually("the state to name the user and the tool", || {

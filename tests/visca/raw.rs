@@ -227,9 +227,9 @@ fn a_second_client_address_driving_against_the_first_is_refused_by_gcud() {
     wait_for_stop(&stack.gcud, MAST, DOOR_GROUP, "PS");
     let audit = stack.gcud.log();
     assert!(
-        audit
-            .lines()
-            .any(|l| l.contains("guest via gimbal-visca: PR") && l.contains("refused")),
+        audit.lines().any(|l| l.contains("guest via gimbal-visca: pan right")
+            && l.contains("command=PR")
+            && l.contains("refused")),
         "gcud's audit names the guest's refused drive:\n{audit}"
     );
 }
