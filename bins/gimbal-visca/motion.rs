@@ -16,7 +16,7 @@ use std::time::Duration;
 use sagebrush_client::CommandError;
 use sagebrush_client::session::{Drive, GimbalSession, Velocity};
 use tokio::sync::{Notify, oneshot};
-use tracing::warn;
+use tracing::info;
 
 use crate::reply::Replier;
 use crate::stats::{Stats, may_warn};
@@ -166,9 +166,10 @@ fn finish(under: Under, r: Result<(), CommandError>, session: &GimbalSession, st
         Ok(()) => replies.iter().for_each(|c| c.send(&visca::completion())),
         Err(e) => {
             let total = Stats::count(&stats.not_executed);
-            let peer = replies.last().map(|r| r.peer);
+            let peer = replies.last().map_or_else(|| "-".to_owned(), |r| r.peer.to_string());
             if may_warn("drive not executed", &session.config.name) {
-                warn!(gimbal = %session.config.name, from = ?peer, total, reason = %e, "drive not executed: answered 90 61 41 FF");
+                // gcud's decision (another controller, a limit): routine, in words.
+                info!(gimbal = %session.config.name, from = %peer, total, reason = %e, "drive not executed: answered 90 61 41 FF");
             }
             replies.iter().for_each(|c| c.send(&visca::not_executable()));
         }
