@@ -6,10 +6,7 @@
 
 use std::fmt::Display;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{LazyLock, Mutex};
 
-use sagebrush_host::throttle::{Throttle, WINDOW};
-use tokio::time::Instant;
 use tracing::warn;
 
 /// What came in, by fate.
@@ -51,39 +48,7 @@ pub struct Stats {
     pub stale_signature: AtomicU64,
 }
 
-/// The process's throttle: logging is process-wide, and so is its limit
-/// (every receiver, the router and the status task share it).
-static THROTTLE: LazyLock<Mutex<Throttle>> = LazyLock::new(Mutex::default);
-/// Warnings not written.
-static SUPPRESSED: AtomicU64 = AtomicU64::new(0);
-
-/// Whether a warning of `kind` about `place` (an address, a gimbal) may be
-/// written now: [`BURST`] per [`WINDOW`], the rest counted and summed up
-/// once the window ends. Use as `if may_warn(KIND, &place) { warn!(...) }`.
-pub fn may_warn(kind: &'static str, place: &dyn Display) -> bool {
-    let now = Instant::now();
-    let mut t = THROTTLE.lock().unwrap_or_else(|p| p.into_inner());
-    flush(&mut t, now);
-    let place = place.to_string();
-    let allowed = t.allow(kind, &place, || format!("{kind} ({place})"), now);
-    if !allowed {
-        SUPPRESSED.fetch_add(1, Ordering::Relaxed);
-    }
-    allowed
-}
-
-/// Writes the summaries of the windows that ended (called periodically,
-/// so that the last one of a flood is not held back).
-pub fn flush_warnings() {
-    flush(&mut THROTTLE.lock().unwrap_or_else(|p| p.into_inner()), Instant::now());
-}
-
-/// Writes the summary of each window that ended by `now`.
-fn flush(t: &mut Throttle, now: Instant) {
-    for summary in t.summaries(now) {
-        warn!(window_s = WINDOW.as_secs(), "{summary}, not logged");
-    }
-}
+pub use sagebrush_host::throttle::{flush_warnings, may_warn};
 
 /// The address part of a peer's name (`IP:PORT`, or a serial device):
 /// where a peer's warnings are counted, whatever its source port.
@@ -129,7 +94,7 @@ impl Stats {
             g(&self.unsigned),
             g(&self.bad_signature),
             g(&self.stale_signature),
-            SUPPRESSED.load(Ordering::Relaxed),
+            sagebrush_host::throttle::suppressed(),
         )
     }
 }

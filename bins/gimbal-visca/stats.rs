@@ -2,13 +2,7 @@
 //! that survive a flood (`sagebrush_host::throttle`, gcud's own: a few
 //! lines of one kind from one place per window, the rest summed up).
 
-use std::fmt::Display;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{LazyLock, Mutex};
-
-use sagebrush_host::throttle::{Throttle, WINDOW};
-use tokio::time::Instant;
-use tracing::warn;
 
 /// What came in, by fate.
 #[derive(Debug, Default)]
@@ -29,33 +23,7 @@ pub struct Stats {
     pub tcp_refused: AtomicU64,
 }
 
-static THROTTLE: LazyLock<Mutex<Throttle>> = LazyLock::new(Mutex::default);
-static SUPPRESSED: AtomicU64 = AtomicU64::new(0);
-
-/// Whether a warning of `kind` about `place` may be written now; the rest
-/// are counted and summed up once the window ends.
-pub fn may_warn(kind: &'static str, place: &dyn Display) -> bool {
-    let now = Instant::now();
-    let mut t = THROTTLE.lock().unwrap_or_else(|p| p.into_inner());
-    flush(&mut t, now);
-    let place = place.to_string();
-    let allowed = t.allow(kind, &place, || format!("{kind} ({place})"), now);
-    if !allowed {
-        SUPPRESSED.fetch_add(1, Ordering::Relaxed);
-    }
-    allowed
-}
-
-/// Writes the summaries of the windows that ended.
-pub fn flush_warnings() {
-    flush(&mut THROTTLE.lock().unwrap_or_else(|p| p.into_inner()), Instant::now());
-}
-
-fn flush(t: &mut Throttle, now: Instant) {
-    for summary in t.summaries(now) {
-        warn!(window_s = WINDOW.as_secs(), "{summary}, not logged");
-    }
-}
+pub use sagebrush_host::throttle::{flush_warnings, may_warn};
 
 impl Stats {
     pub fn count(counter: &AtomicU64) -> u64 {
@@ -73,7 +41,7 @@ impl Stats {
             g(&self.not_executed),
             g(&self.busy),
             g(&self.tcp_refused),
-            SUPPRESSED.load(Ordering::Relaxed),
+            sagebrush_host::throttle::suppressed(),
         )
     }
 }

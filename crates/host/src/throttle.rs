@@ -81,6 +81,46 @@ impl Throttle {
     }
 }
 
+/// The process's throttle, for a program whose warnings come from many
+/// tasks (a door's receivers, router and status task share it): logging
+/// is process-wide, and so is its limit.
+static PROCESS: std::sync::LazyLock<std::sync::Mutex<Throttle>> = std::sync::LazyLock::new(Default::default);
+/// Warnings the process's throttle did not write.
+static SUPPRESSED: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
+/// Whether a warning of `kind` about `place` (an address, a gimbal) may be
+/// written now by the process's throttle: [`BURST`] per [`WINDOW`], the
+/// rest counted and summed up once the window ends. Use as
+/// `if may_warn(KIND, &place) { warn!(...) }`.
+pub fn may_warn(kind: &'static str, place: &dyn std::fmt::Display) -> bool {
+    let now = Instant::now();
+    let mut t = PROCESS.lock().unwrap_or_else(|p| p.into_inner());
+    flush(&mut t, now);
+    let place = place.to_string();
+    let allowed = t.allow(kind, &place, || format!("{kind} ({place})"), now);
+    if !allowed {
+        SUPPRESSED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    }
+    allowed
+}
+
+/// Writes the summaries of the process's windows that ended (called
+/// periodically, so that the last one of a flood is not held back).
+pub fn flush_warnings() {
+    flush(&mut PROCESS.lock().unwrap_or_else(|p| p.into_inner()), Instant::now());
+}
+
+/// Warnings the process's throttle has not written so far.
+pub fn suppressed() -> u64 {
+    SUPPRESSED.load(std::sync::atomic::Ordering::Relaxed)
+}
+
+fn flush(t: &mut Throttle, now: Instant) {
+    for summary in t.summaries(now) {
+        tracing::warn!(window_s = WINDOW.as_secs(), "{summary}, not logged");
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
