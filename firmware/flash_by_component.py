@@ -26,7 +26,7 @@ COMPONENTS = [
     ("reply encoding (reply.rs, reply/shapes.rs)", r"protocol/src/reply(\.rs|/shapes\.rs)"),
     ("frame and hex (frame.rs, hex.rs, units.rs)", r"protocol/src/(frame|hex|units|address)\.rs"),
     ("memcpy/memset (compiler_builtins)", r"compiler[-_]builtins"),
-    ("main loop and board (main.rs, common.rs, board.rs, cortex-m, PAC)", r"firmware/src/(main|common|board)\.rs|cortex-m|lm3s6965"),
+    ("main loop and board (main.rs, serve.rs, common.rs, board.rs, cortex-m, PAC)", r"firmware/src/(main|serve|common|board)\.rs|cortex-m|lm3s6965"),
     ("other core (slices, integers, iterators)", r"/core/src/"),
 ]
 

@@ -13,14 +13,14 @@
 mod board;
 mod common;
 mod gimbal;
+mod serve;
 
 use core::mem::MaybeUninit;
 
 use cortex_m_rt::entry;
-use sagebrush_protocol::{DeviceEndpoint, EndpointConfig};
+use sagebrush_protocol::DeviceEndpoint;
 
-use board::Clock;
-use common::{ADDRESS, RX_CAPACITY, SILENCE_MS, init};
+use common::{RX_CAPACITY, init};
 use gimbal::Gimbal;
 
 #[entry]
@@ -31,27 +31,6 @@ fn main() -> ! {
     // here, so that their initial values take no flash (.data would).
     static mut ENDPOINT: MaybeUninit<DeviceEndpoint<RX_CAPACITY>> = MaybeUninit::uninit();
     static mut GIMBAL: MaybeUninit<Gimbal> = MaybeUninit::uninit();
-    let endpoint = init(ENDPOINT, || DeviceEndpoint::new(EndpointConfig::single(ADDRESS)));
     let gimbal = init(GIMBAL, Gimbal::new);
-
-    let uart = common::start();
-    let mut clock = Clock::default();
-    let mut last_rx = 0;
-    // One output closure for both entry points, so that the endpoint's
-    // event handling is instantiated once.
-    let mut send = |bytes: &[u8]| uart.write(bytes);
-
-    loop {
-        let now = clock.now();
-        let n = uart.read_into(endpoint.spare_capacity_mut());
-        if n > 0 {
-            last_rx = now;
-            endpoint.commit(n, now, gimbal, &mut send);
-        } else if endpoint.framer().buffered() > 0 && now.saturating_sub(last_rx) >= SILENCE_MS {
-            endpoint.line_idle(now, gimbal, &mut send);
-        }
-        gimbal.advance(now);
-
-        common::sleep(&uart);
-    }
+    serve::serve(ENDPOINT, gimbal)
 }

@@ -12,16 +12,18 @@ mod board;
 mod common;
 #[path = "../gimbal.rs"]
 mod gimbal;
+#[path = "../serve.rs"]
+mod serve;
 
 use core::mem::MaybeUninit;
 
 use cortex_m_rt::entry;
 use defmt_rtt as _;
-use sagebrush_protocol::{Command, DeviceEndpoint, DeviceHandler, EndpointConfig, ReplyTo, Response, Row};
+use sagebrush_protocol::{Command, DeviceEndpoint, DeviceHandler, ReplyTo, Response, Row};
 
-use board::Clock;
-use common::{ADDRESS, RX_CAPACITY, SILENCE_MS};
+use common::RX_CAPACITY;
 use gimbal::Gimbal;
+use serve::Moving;
 
 /// The gimbal, each command and response logged.
 struct Logged<'a>(&'a mut Gimbal);
@@ -39,27 +41,16 @@ impl DeviceHandler for Logged<'_> {
     }
 }
 
+impl Moving for Logged<'_> {
+    fn advance(&mut self, now: u64) {
+        self.0.advance(now);
+    }
+}
+
 #[entry]
 fn main() -> ! {
     static mut ENDPOINT: MaybeUninit<DeviceEndpoint<RX_CAPACITY>> = MaybeUninit::uninit();
     static mut GIMBAL: MaybeUninit<Gimbal> = MaybeUninit::uninit();
-    let endpoint = common::init(ENDPOINT, || DeviceEndpoint::new(EndpointConfig::single(ADDRESS)));
     let gimbal = common::init(GIMBAL, Gimbal::new);
-    let uart = common::start();
-    let mut clock = Clock::default();
-    let mut last_rx = 0;
-    let mut send = |bytes: &[u8]| uart.write(bytes);
-
-    loop {
-        let now = clock.now();
-        let n = uart.read_into(endpoint.spare_capacity_mut());
-        if n > 0 {
-            last_rx = now;
-            endpoint.commit(n, now, &mut Logged(gimbal), &mut send);
-        } else if endpoint.framer().buffered() > 0 && now.saturating_sub(last_rx) >= SILENCE_MS {
-            endpoint.line_idle(now, &mut Logged(gimbal), &mut send);
-        }
-        gimbal.advance(now);
-        common::sleep(&uart);
-    }
+    serve::serve(ENDPOINT, &mut Logged(gimbal))
 }
