@@ -96,6 +96,11 @@ impl LineReceiver {
         }
     }
 
+    /// Partial frames abandoned on silence so far (the framer's count).
+    pub fn abandoned(&self) -> u64 {
+        self.framer.stats().abandoned
+    }
+
     /// Drops everything buffered (line lost, rate switched).
     pub fn reset(&mut self) {
         self.framer.reset();

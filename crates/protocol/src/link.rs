@@ -413,6 +413,13 @@ impl Transaction {
         }
     }
 
+    /// Whether the command was acknowledged and its result is awaited: a
+    /// frame cut short now is that result damaged (1.4.2: NAK it, and the
+    /// device sends it again).
+    pub fn awaiting_result(&self) -> bool {
+        matches!(self.phase, Phase::AwaitResult { .. })
+    }
+
     /// Whether the ACK has been received (or was not awaited).
     pub fn acknowledged(&self) -> bool {
         !matches!(

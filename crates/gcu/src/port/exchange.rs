@@ -480,6 +480,19 @@ impl Port {
         }));
     }
 
+    /// A frame began and the line fell silent before its end (a device
+    /// stalled mid-frame, a USB adapter's latency): while the exchange on
+    /// the bus awaits its result, that was the result, damaged, and is
+    /// NAKed as a bad checksum is (1.4.2), so that the device sends it
+    /// again instead of the exchange running out with the device's answer
+    /// lost. At any other time the bytes were noise and go unanswered.
+    fn on_cut_short(&mut self, out: &mut Vec<PortOut>) {
+        if self.active.as_ref().is_some_and(|r| r.txn.awaiting_result()) {
+            self.stats.line.naks_sent += 1;
+            self.write(Wire::Nak, out);
+        }
+    }
+
     /// When the bus will have been quiet long enough after answers heard
     /// with a backlog, if it is draining one.
     pub(super) fn drained_at(&self) -> Option<u64> {
@@ -510,9 +523,13 @@ impl Port {
 
     /// Time passed.
     pub fn poll(&mut self, now: u64, out: &mut Vec<PortOut>) {
+        let abandoned = self.line.abandoned();
         self.line.poll(now);
         while let Some(event) = self.line.next_event(now, &mut &[][..], &mut self.stats.line) {
             self.on_event(now, event, out);
+        }
+        if self.line.abandoned() > abandoned {
+            self.on_cut_short(out);
         }
         self.poll_window(now, out);
         if self

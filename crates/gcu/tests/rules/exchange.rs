@@ -140,6 +140,36 @@ fn bad_checksum_result_is_naked_on_the_port_and_retransmission_accepted() {
     assert_eq!(finished(&a), vec![CommandOutcome::Result]);
 }
 
+/// A result cut short by silence (a device stalled mid-frame: QEMU's UART
+/// under load, a USB adapter's latency) is the result damaged: NAKed, so
+/// the device sends it again, where the exchange used to run out with the
+/// device's answer lost. Noise cut short when no result is awaited goes
+/// unanswered.
+#[test]
+fn a_result_cut_short_by_silence_is_naked_and_its_resend_accepted() {
+    let mut h = H::new(&[1]);
+    h.link(CLIENT, &frame((G, 1, 3), 2, b"P?"));
+    h.port(1, &[ACK]);
+    let result = frame((2, 1, 3), G, b"00640000");
+    let a = h.port(1, &result[..7]);
+    assert!(port_writes(&a, 1).is_empty(), "{a:?}");
+    let a = h.wait(6);
+    assert_eq!(port_writes(&a, 1), vec![vec![NAK]], "silence past idle_timeout: {a:?}");
+    assert!(finished(&a).is_empty());
+    // The rest of the cut frame is noise; the resent whole one is taken.
+    h.port(1, &result[7..]);
+    let a = h.port(1, &result);
+    assert_eq!(finished(&a), vec![CommandOutcome::Result]);
+    assert_eq!(h.r.stats().ports[&1].line.naks_sent, 1);
+
+    // Between exchanges the same cut bytes are noise, never answered.
+    let a = h.port(1, &result[..7]);
+    assert!(port_writes(&a, 1).is_empty());
+    let a = h.wait(6);
+    assert!(port_writes(&a, 1).is_empty(), "{a:?}");
+    assert_eq!(h.r.stats().ports[&1].line.naks_sent, 1);
+}
+
 #[test]
 fn nic_is_relayed_as_a_bare_question_mark() {
     let mut h = H::new(&[1]);
