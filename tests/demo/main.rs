@@ -229,6 +229,20 @@ impl Demo {
         serde_json::from_str(body).unwrap_or_else(|e| panic!("gcud's /status is not JSON ({e}): {text}"))
     }
 
+    /// Polls `condition` until it holds, bounded by the hang guard; gives
+    /// up with `what` and the programs' logs.
+    fn wait(&self, what: &str, mut condition: impl FnMut() -> bool) {
+        let started = Instant::now();
+        while !condition() {
+            assert!(
+                started.elapsed() < HANG_GUARD,
+                "gave up waiting for {what}\n{}",
+                self.logs()
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
     /// Where gimbal `address` is, by gimbalctl through gcud's printed client link.
     fn position(&self, address: &str) -> (f64, f64) {
         let out = support::gimbalctl(&["--tcp", &self.clients(), "--json", "--to", address, "position"]);
@@ -243,7 +257,7 @@ impl Demo {
     /// Where gimbal `address` comes to rest: two readings 150 ms apart agree.
     fn settled(&self, address: &str) -> (f64, f64) {
         let mut last = self.position(address);
-        eventually(&format!("{address} to stop moving"), || {
+        self.wait(&format!("{address} to stop moving"), || {
             std::thread::sleep(Duration::from_millis(150));
             let now = self.position(address);
             let still = now == last;
@@ -264,7 +278,7 @@ impl Demo {
                 .find(|l| l.contains(&asked) && l.contains(&outcome))
                 .map(str::to_owned)
         };
-        eventually(&format!("gcud to accept \"{command}\" of {door} to {address}"), || {
+        self.wait(&format!("gcud to accept \"{command}\" of {door} to {address}"), || {
             find().is_some()
         });
         find().expect("the line")
