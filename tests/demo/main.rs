@@ -231,16 +231,8 @@ impl Demo {
 
     /// Polls `condition` until it holds, bounded by the hang guard; gives
     /// up with `what` and the programs' logs.
-    fn wait(&self, what: &str, mut condition: impl FnMut() -> bool) {
-        let started = Instant::now();
-        while !condition() {
-            assert!(
-                started.elapsed() < HANG_GUARD,
-                "gave up waiting for {what}\n{}",
-                self.logs()
-            );
-            std::thread::sleep(Duration::from_millis(20));
-        }
+    fn wait(&self, what: &str, condition: impl FnMut() -> bool) {
+        support::eventually_with(what, condition, || self.logs());
     }
 
     /// Where gimbal `address` is, by gimbalctl through gcud's printed client link.

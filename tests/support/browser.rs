@@ -45,9 +45,15 @@ impl Browser {
 
     /// The script started, its browser ready.
     pub fn start() -> Self {
+        Self::launch(&[])
+    }
+
+    /// [`Browser::start`] with the script's `args` (`--accept-insecure-certs`).
+    pub fn launch(args: &[&str]) -> Self {
         let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/browser.py");
         let mut child = Command::new(super::door::python())
             .arg(script)
+            .args(args)
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())

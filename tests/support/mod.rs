@@ -542,3 +542,15 @@ pub fn eventually(what: &str, mut condition: impl FnMut() -> bool) {
         std::thread::sleep(Duration::from_millis(20));
     }
 }
+
+/// [`eventually`], giving up with `context()` (the programs' logs) after
+/// `what` in the failure message.
+pub fn eventually_with(what: &str, mut condition: impl FnMut() -> bool, context: impl FnOnce() -> String) {
+    let started = Instant::now();
+    while !condition() {
+        if started.elapsed() > HANG_GUARD {
+            panic!("gave up waiting for {what}\n{}", context());
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
