@@ -2,7 +2,8 @@
 # ./demo.sh: everything running at once on this machine (README.md, "Quick
 # start"): gcud on config/demo.toml with its three simulated gimbals, and
 # every front door in DOORS below on all three, each over its own link of
-# gcud (so gcud governs each as its own controller), all on 127.0.0.1.
+# gcud (so gcud governs each as its own controller), all on loopback
+# (127.0.0.1; VISCA over IP on 127.0.0.2, VISCA_HOST below).
 # Prints what to open; Ctrl-C (SIGINT) or SIGTERM stops every program it
 # started, and it exits once they are all gone.
 #
@@ -16,10 +17,9 @@
 # Ports: config/demo.toml's (clients 4001, operators 4002, a link per door
 # 4003..4008, metrics 9187; a door it has no link for gets 4010 + its place
 # in DOORS) and the doors' below (web 8080, ONVIF 8081..8083, WS-Discovery
-# 3702, MAVLink 14560, VISCA over IP udp 5381..5383 (52381 is
-# VISCA's own) and raw tcp 5678..5680, Pelco-D
-# tcp 4100), all moved together by --port-base
-# (4000 is as written): one number, no file to edit.
+# 3702, MAVLink 14560, VISCA over IP udp 5381..5383 (52381 is VISCA's
+# own) and raw tcp 5678..5680, Pelco-D tcp 4100), all moved together by
+# --port-base (4000 is as written): one number, no file to edit.
 #
 # Exit status: 0 stopped by a signal; 1 a program would not start or died
 # (its log's end is printed); 2 bad arguments or the build failed.
@@ -57,18 +57,62 @@ fi
 port() { echo $(($1 + shift_by)); }
 
 # --- the front doors ----------------------------------------------------------
-# One entry per door, in the order started: its name (its binary, and the
-# name of its [[link]] in config/demo.toml) in DOORS, a function
-# config_NAME that prints its configuration (its gcud link is $link; its
-# own ports through `port`), and a function open_NAME that prints what a
-# user opens. A door whose link config/demo.toml lacks gets one (4010 + its
-# place in DOORS).
+# The doors, in the order started: each its binary, and the name of its
+# [[link]] in config/demo.toml (a door whose link that file lacks gets one:
+# 4010 + its place here). Each has a function settings_NAME that prints
+# its configuration's own keys (its gcud link is $link; its ports through
+# `port`), a case in gimbal_keys for its [[gimbal]] tables, and a function
+# open_NAME that prints what a user opens; door_config writes the whole.
 DOORS=(gimbal-onvif gimbal-mavlink gimbal-web gimbal-visca gimbal-pelco)
 
-# The demo's gimbals: name, address, travel limits.
+# The demo's gimbals: name, address.
 GIMBALS=("mast-1 5.1.1" "mast-2 5.1.2" "roof 5.2.1")
+# Their MAVLink gimbal managers' component ids, in the same order.
+MAVLINK_COMPONENTS=(154 171 172)
+# VISCA over IP's cameras listen on a loopback address of their own: a
+# client on this host that binds the camera's port on every address (the
+# Python visca-over-ip package does) then fits beside them
+# (config/gimbal-visca.toml, reuse_address).
+VISCA_HOST=127.0.0.2
 
-config_gimbal_onvif() {
+# each_gimbal FUNCTION [ARG...]: runs FUNCTION ARG... NAME ADDRESS PLACE
+# for each of the demo's gimbals, PLACE its place in GIMBALS (0 first).
+each_gimbal() {
+  local place=0 gimbal
+  for gimbal in "${GIMBALS[@]}"; do
+    "$@" $gimbal "$place"
+    place=$((place + 1))
+  done
+}
+
+# door_config DOOR: DOOR's configuration: its own keys, then a [[gimbal]]
+# table for each of the demo's gimbals.
+door_config() {
+  "settings_${1//-/_}"
+  each_gimbal gimbal_table "$1"
+}
+
+# gimbal_table DOOR NAME ADDRESS PLACE: DOOR's [[gimbal]] table for a gimbal.
+gimbal_table() {
+  printf '[[gimbal]]\nname = "%s"\naddress = "%s"\n' "$2" "$3"
+  gimbal_keys "$1" "$4"
+}
+
+# gimbal_keys DOOR PLACE: the keys of DOOR's [[gimbal]] table for the
+# gimbal at PLACE in GIMBALS, after its name and address.
+gimbal_keys() {
+  case $1 in
+    gimbal-onvif) echo "listen = \"$(onvif_listen "$2")\"" ;;
+    gimbal-mavlink) echo "component_id = ${MAVLINK_COMPONENTS[$2]}" ;;
+    gimbal-visca) printf 'visca_udp = "%s"\nvisca_tcp = "%s"\nreuse_address = true\n' "$(visca_udp "$2")" "$(visca_tcp "$2")" ;;
+    gimbal-pelco) echo "pelco_address = $(($2 + 1))" ;;
+  esac
+}
+onvif_listen() { echo "127.0.0.1:$(port $((8081 + $1)))"; }
+visca_udp() { echo "$VISCA_HOST:$(port $((5381 + $1)))"; }
+visca_tcp() { echo "127.0.0.1:$(port $((5678 + $1)))"; }
+
+settings_gimbal_onvif() {
   cat <<EOF
 gcud = "$link"
 state_file = "$run_dir/gimbal-onvif-presets.toml"
@@ -84,44 +128,16 @@ name = "vms"
 password = "change-me"
 role = "operator"
 EOF
-  local i=0 g
-  for g in "${GIMBALS[@]}"; do
-    set -- $g
-    printf '[[gimbal]]\nname = "%s"\naddress = "%s"\nlisten = "127.0.0.1:%s"\n' "$1" "$2" "$(port $((8081 + i)))"
-    i=$((i + 1))
-  done
 }
-open_gimbal_onvif() {
-  local i=0 g
-  echo "ONVIF PTZ cameras (a VMS, ONVIF Device Manager; users admin / change-me-admin, vms / change-me):"
-  for g in "${GIMBALS[@]}"; do
-    set -- $g
-    echo "  $1 ($2): http://127.0.0.1:$(port $((8081 + i)))/onvif/device_service"
-    i=$((i + 1))
-  done
-  echo "  WS-Discovery answers unicast probes at 127.0.0.1:$(port 3702)"
-}
-
-config_gimbal_mavlink() {
+settings_gimbal_mavlink() {
   cat <<EOF
 gcud = "$link"
 system_id = 1
 [[endpoint]]
 udp_listen = "127.0.0.1:$(port 14560)"
 EOF
-  local ids=(154 171 172) i=0 g
-  for g in "${GIMBALS[@]}"; do
-    set -- $g
-    printf '[[gimbal]]\nname = "%s"\naddress = "%s"\ncomponent_id = %s\n' "$1" "$2" "${ids[$i]}"
-    i=$((i + 1))
-  done
 }
-open_gimbal_mavlink() {
-  echo "MAVLink gimbal managers (system 1; components 154 mast-1, 171 mast-2, 172 roof):"
-  echo "  UDP 127.0.0.1:$(port 14560), e.g. mavproxy.py --master=udpout:127.0.0.1:$(port 14560)"
-}
-
-config_gimbal_web() {
+settings_gimbal_web() {
   cat <<EOF
 gcud = "$link"
 listen = "127.0.0.1:$(port 8080)"
@@ -134,52 +150,43 @@ name = "viewer"
 password = "change-me-too"
 role = "user"
 EOF
-  local g
-  for g in "${GIMBALS[@]}"; do
-    set -- $g
-    printf '[[gimbal]]\nname = "%s"\naddress = "%s"\n' "$1" "$2"
-  done
 }
-open_gimbal_web() {
-  echo "The web page: http://127.0.0.1:$(port 8080)/ (admin / change-me, viewer / change-me-too)"
-}
-
-config_gimbal_visca() {
-  echo "gcud = \"$link\""
-  local i=0 g
-  for g in "${GIMBALS[@]}"; do
-    set -- $g
-    printf '[[gimbal]]\nname = "%s"\naddress = "%s"\nvisca_udp = "127.0.0.1:%s"\nvisca_tcp = "127.0.0.1:%s"\n' \
-      "$1" "$2" "$(port $((5381 + i)))" "$(port $((5678 + i)))"
-    i=$((i + 1))
-  done
-}
-open_gimbal_visca() {
-  local i=0 g
-  echo "VISCA cameras (OBS obs-ptz, Bitfocus Companion, vMix; camera address 1):"
-  for g in "${GIMBALS[@]}"; do
-    set -- $g
-    echo "  $1 ($2): VISCA over IP udp 127.0.0.1:$(port $((5381 + i))), raw VISCA tcp 127.0.0.1:$(port $((5678 + i)))"
-    i=$((i + 1))
-  done
-}
-
-config_gimbal_pelco() {
+settings_gimbal_visca() { echo "gcud = \"$link\""; }
+settings_gimbal_pelco() {
   cat <<EOF
 gcud = "$link"
 [[input]]
 tcp_listen = "127.0.0.1:$(port 4100)"
 protocol = "pelco-d"
 EOF
-  local i=1 g
-  for g in "${GIMBALS[@]}"; do
-    set -- $g
-    printf '[[gimbal]]\nname = "%s"\naddress = "%s"\npelco_address = %s\n' "$1" "$2" "$i"
-    i=$((i + 1))
-  done
+}
+
+# What each door's open_NAME prints for one gimbal (NAME ADDRESS PLACE).
+onvif_line() { echo "  $1 ($2): http://$(onvif_listen "$3")/onvif/device_service"; }
+mavlink_component() { echo "${MAVLINK_COMPONENTS[$3]} $1"; }
+visca_line() { echo "  $1 ($2): VISCA over IP udp $(visca_udp "$3"), raw VISCA tcp $(visca_tcp "$3")"; }
+pelco_camera() { echo "$(($3 + 1)) $1"; }
+# joined FUNCTION: what each_gimbal FUNCTION prints, joined by ", ".
+joined() { each_gimbal "$1" | awk 'NR > 1 { printf ", " } { printf "%s", $0 }'; }
+
+open_gimbal_onvif() {
+  echo "ONVIF PTZ cameras (a VMS, ONVIF Device Manager; users admin / change-me-admin, vms / change-me):"
+  each_gimbal onvif_line
+  echo "  WS-Discovery answers unicast probes at 127.0.0.1:$(port 3702)"
+}
+open_gimbal_mavlink() {
+  echo "MAVLink gimbal managers (system 1; components $(joined mavlink_component)):"
+  echo "  UDP 127.0.0.1:$(port 14560), e.g. mavproxy.py --master=udpout:127.0.0.1:$(port 14560)"
+}
+open_gimbal_web() {
+  echo "The web page: http://127.0.0.1:$(port 8080)/ (admin / change-me, viewer / change-me-too)"
+}
+open_gimbal_visca() {
+  echo "VISCA cameras (OBS obs-ptz, Bitfocus Companion, vMix; camera address 1):"
+  each_gimbal visca_line
 }
 open_gimbal_pelco() {
-  echo "Pelco-D keyboards (a DVR through a serial server): tcp 127.0.0.1:$(port 4100), cameras 1 mast-1, 2 mast-2, 3 roof"
+  echo "Pelco-D keyboards (a DVR through a serial server): tcp 127.0.0.1:$(port 4100), cameras $(joined pelco_camera)"
 }
 
 # --- build ----------------------------------------------------------------------
@@ -282,7 +289,7 @@ start gcud --config "$gcud_config"
 
 for door in "${DOORS[@]}"; do
   link=$(link_of "$door")
-  "config_${door//-/_}" >"$run_dir/$door.toml"
+  door_config "$door" >"$run_dir/$door.toml"
   start "$door" --config "$run_dir/$door.toml"
 done
 
@@ -291,7 +298,7 @@ ctl="$bin_dir/gimbalctl"
 cat <<EOF
 
 The Sagebrush demo is running: gcud (GCU 5; gimbals 5.1.1 and 5.1.2 on bus 1, 5.2.1 the roof on bus 2)
-and ${DOORS[*]}, all on 127.0.0.1.
+and ${DOORS[*]}, all on loopback (127.0.0.1; VISCA over IP on $VISCA_HOST).
 EOF
 for door in "${DOORS[@]}"; do "open_${door//-/_}"; done
 cat <<EOF

@@ -9,6 +9,7 @@
 
 #![allow(dead_code)]
 
+pub mod browser;
 pub mod capture;
 
 use std::io::{BufRead, BufReader};
@@ -537,6 +538,18 @@ pub fn eventually(what: &str, mut condition: impl FnMut() -> bool) {
     while !condition() {
         if started.elapsed() > HANG_GUARD {
             panic!("gave up waiting for {what}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// [`eventually`], giving up with `context()` (the programs' logs) after
+/// `what` in the failure message.
+pub fn eventually_with(what: &str, mut condition: impl FnMut() -> bool, context: impl FnOnce() -> String) {
+    let started = Instant::now();
+    while !condition() {
+        if started.elapsed() > HANG_GUARD {
+            panic!("gave up waiting for {what}\n{}", context());
         }
         std::thread::sleep(Duration::from_millis(20));
     }

@@ -2,19 +2,30 @@
 //! launcher, started as a user starts it (its own process group, as a
 //! terminal's foreground job), on the binaries this test was built with
 //! (`--bin-dir`) and with its ports moved (`--port-base`) clear of a demo
-//! a developer may be running.
+//! a developer may be running. One module per concern:
 //!
-//! - The README's quick start: every line of its "Move a gimbal" block,
-//!   run in order against the demo, exits as the README says ("(exit N)",
+//! - `quick_start`: every line of the README's "Move a gimbal" block, run
+//!   in order against the demo, exits as the README says ("(exit N)",
 //!   else 0).
-//! - The launcher: every address it prints answers (the web page and its
+//! - `launcher`: every address it prints answers (the web page and its
 //!   sign-in, each ONVIF camera through the ONVIF client, each MAVLink
 //!   gimbal manager's heartbeat through pymavlink, each gimbalctl line it
-//!   prints), each door is its own link of gcud, and Ctrl-C (SIGINT to the
-//!   process group) stops every program it started and removes its folder;
-//!   so does a SIGTERM to the launcher alone.
+//!   prints), every door it starts is its own connected link of gcud, and
+//!   Ctrl-C (SIGINT to the process group) stops every program it started
+//!   and removes its folder; so does a SIGTERM to the launcher alone.
+//! - `clients`: the doors' own third-party clients at the addresses it
+//!   prints move the demo's gimbals: a real browser (chromium) on the web
+//!   page with the printed login, the PyPI `visca-over-ip` camera client,
+//!   the PyPI `pyptzcontroller` keyboard through a serial server; each
+//!   move read on the bus side (gimbalctl through gcud) and in gcud's
+//!   record of who asked.
 
+#[path = "../support/mod.rs"]
 mod support;
+
+mod clients;
+mod launcher;
+mod quick_start;
 
 use std::io::Read;
 use std::os::unix::process::CommandExt;
@@ -25,8 +36,8 @@ use std::time::{Duration, Instant};
 
 use nix::sys::signal::{Signal, killpg};
 use nix::unistd::Pid;
-use serde_json::json;
-use support::HANG_GUARD;
+use serde_json::{Value, json};
+use support::{HANG_GUARD, eventually};
 
 /// The checkout (the tests run in it).
 fn root() -> &'static Path {
@@ -189,10 +200,108 @@ impl Demo {
     /// After the launcher exited: nothing it started is left, its folder
     /// is gone, gcud's port is free.
     fn assert_nothing_left(&self) {
-        support::eventually("no process of the demo left", || self.leftovers().is_empty());
+        eventually("no process of the demo left", || self.leftovers().is_empty());
         let left: Vec<_> = std::fs::read_dir(self.tmp.path()).expect("tmp").flatten().collect();
         assert!(left.is_empty(), "the launcher left {left:?}");
         std::net::TcpListener::bind(format!("127.0.0.1:{}", self.port(4001))).expect("gcud's port is free again");
+    }
+
+    /// The log of `program` (`gcud`, a door) in the launcher's folder.
+    fn log(&self, program: &str) -> String {
+        let dirs = std::fs::read_dir(self.tmp.path()).into_iter().flatten().flatten();
+        dirs.filter_map(|dir| std::fs::read_to_string(dir.path().join(format!("{program}.log"))).ok())
+            .collect()
+    }
+
+    /// gcud's client link, as printed ("gcud: clients 127.0.0.1:PORT").
+    fn clients(&self) -> String {
+        format!("127.0.0.1:{}", number_after(&self.printed(), "clients 127.0.0.1:"))
+    }
+
+    /// gcud's `/status` (JSON) from the metrics address it printed.
+    fn status(&self) -> Value {
+        let metrics = format!(
+            "127.0.0.1:{}",
+            number_after(&self.printed(), "metrics http://127.0.0.1:")
+        );
+        let text = support::http_get(&metrics, "/status");
+        let body = text.split_once("\r\n\r\n").map_or("", |(_, b)| b);
+        serde_json::from_str(body).unwrap_or_else(|e| panic!("gcud's /status is not JSON ({e}): {text}"))
+    }
+
+    /// Polls `condition` until it holds, bounded by the hang guard; gives
+    /// up with `what` and the programs' logs.
+    fn wait(&self, what: &str, condition: impl FnMut() -> bool) {
+        support::eventually_with(what, condition, || self.logs());
+    }
+
+    /// Where gimbal `address` is, by gimbalctl through gcud's printed client link.
+    fn position(&self, address: &str) -> (f64, f64) {
+        let out = support::gimbalctl(&["--tcp", &self.clients(), "--json", "--to", address, "position"]);
+        assert_eq!(out.code, 0, "position of {address}: {out:?}\n{}", self.logs());
+        let r = &out.json()["result"];
+        (
+            r["pan_deg"].as_f64().expect("pan"),
+            r["tilt_deg"].as_f64().expect("tilt"),
+        )
+    }
+
+    /// Where gimbal `address` comes to rest: two readings 150 ms apart agree.
+    fn settled(&self, address: &str) -> (f64, f64) {
+        let mut last = self.position(address);
+        self.wait(&format!("{address} to stop moving"), || {
+            std::thread::sleep(Duration::from_millis(150));
+            let now = self.position(address);
+            let still = now == last;
+            last = now;
+            still
+        });
+        last
+    }
+
+    /// Waits until gcud's log records `command` (its words, as "pan
+    /// right") of link `door` to gimbal `address` accepted (its audit
+    /// line: "link DOOR: COMMAND ... for ADDRESS: accepted"); that line.
+    fn wait_accepted(&self, door: &str, command: &str, address: &str) -> String {
+        let (asked, outcome) = (format!("link {door}: {command}"), format!(" for {address}: accepted"));
+        let find = || {
+            let log = self.log("gcud");
+            log.lines()
+                .find(|l| l.contains(&asked) && l.contains(&outcome))
+                .map(str::to_owned)
+        };
+        self.wait(&format!("gcud to accept \"{command}\" of {door} to {address}"), || {
+            find().is_some()
+        });
+        find().expect("the line")
+    }
+
+    /// The demo's gimbals as it prints them (its ONVIF cameras' lines,
+    /// "  NAME (ADDRESS): http://..."): `(name, address)`.
+    fn gimbals(&self) -> Vec<(String, String)> {
+        let printed = self.printed();
+        let gimbals: Vec<(String, String)> = printed
+            .lines()
+            .filter(|l| l.contains("/onvif/device_service"))
+            .filter_map(|l| {
+                let (name, rest) = l.trim().split_once(" (")?;
+                Some((name.to_owned(), rest.split_once("):")?.0.to_owned()))
+            })
+            .collect();
+        assert!(gimbals.len() >= 3, "the demo's three gimbals in:\n{printed}");
+        gimbals
+    }
+
+    /// The doors it started, as it prints them ("and DOOR DOOR ..., all on").
+    fn doors(&self) -> Vec<String> {
+        let printed = self.printed();
+        let line = line_with(&printed, ", all on ");
+        let names = line
+            .trim_start_matches("and ")
+            .split_once(", all on ")
+            .expect("the doors")
+            .0;
+        names.split_whitespace().map(str::to_owned).collect()
     }
 
     /// The logs of the programs, for a failure's message.
@@ -263,92 +372,6 @@ fn shell(line: &str, env: &[(&str, String)]) -> (i32, String) {
     (status.code().unwrap_or(-1), out)
 }
 
-/// Every `127.0.0.1:PORT` in `text` moved by `shift`.
-fn shift_ports(text: &str, shift: u16) -> String {
-    let marker = "127.0.0.1:";
-    let mut out = String::new();
-    let mut rest = text;
-    while let Some(at) = rest.find(marker) {
-        let after = &rest[at + marker.len()..];
-        let digits = after.len() - after.trim_start_matches(|c: char| c.is_ascii_digit()).len();
-        let port: u16 = after[..digits].parse().expect("a port");
-        out += &format!("{}{marker}{}", &rest[..at], port + shift);
-        rest = &after[digits..];
-    }
-    out + rest
-}
-
-/// The README's quick start: the shell lines of its code blocks, in order.
-fn quick_start_lines() -> Vec<String> {
-    let readme = std::fs::read_to_string(root().join("README.md")).expect("README.md");
-    let start = readme
-        .find("\n## Quick start")
-        .expect("README.md has a \"Quick start\" section");
-    let section = &readme[start + 1..];
-    let section = &section[..section[3..].find("\n## ").map_or(section.len(), |e| e + 3)];
-    let mut lines = Vec::new();
-    let mut in_block = false;
-    for line in section.lines() {
-        if line.starts_with("```") {
-            in_block = line == "```sh";
-            continue;
-        }
-        if in_block && !line.trim().is_empty() {
-            lines.push(line.to_owned());
-        }
-    }
-    lines
-}
-
-/// A README line's command (its `# comment` cut off) and the exit code
-/// the comment shows, "(exit N)", else 0.
-fn command_and_code(line: &str) -> (String, i32) {
-    let (command, comment) = line.split_once(" # ").unwrap_or((line, ""));
-    let code = comment
-        .split_once("(exit ")
-        .and_then(|(_, r)| r.split_once(')'))
-        .map_or(0, |(n, _)| n.parse().expect("an exit code"));
-    (command.trim().to_owned(), code)
-}
-
-#[test]
-fn the_quick_start_lines_run_in_order_exit_as_the_readme_shows() {
-    let lines = quick_start_lines();
-    let after_demo = lines
-        .iter()
-        .position(|l| l.starts_with("./demo.sh"))
-        .expect("the quick start runs ./demo.sh");
-    let test_line = lines
-        .iter()
-        .position(|l| l.starts_with("./test.sh"))
-        .expect("the quick start runs ./test.sh");
-    let moves = &lines[after_demo + 1..test_line];
-    assert!(moves.len() >= 5, "the lines between ./demo.sh and ./test.sh: {moves:?}");
-    let demo = Demo::start(0);
-    // `cargo run --release --bin X --` is the program this test was built
-    // with (cargo may not run inside cargo test); gcud-status's default
-    // address moves with the ports.
-    let env = [("GIMBALCTL_HTTP", format!("127.0.0.1:{}", demo.port(9187)))];
-    for line in moves {
-        let (command, want) = command_and_code(line);
-        let command = shift_ports(&command, demo.shift).replace(
-            "cargo run --release --bin gimbalctl --",
-            env!("CARGO_BIN_EXE_gimbalctl"),
-        );
-        assert!(
-            !command.contains("cargo "),
-            "a quick-start line this test cannot run: {line}"
-        );
-        let (code, out) = shell(&command, &env);
-        assert_eq!(
-            code,
-            want,
-            "README.md's quick-start line\n  {line}\nexits {code}, the README shows {want}:\n{out}\n{}",
-            demo.logs()
-        );
-    }
-}
-
 /// The number after `prefix` in `text`.
 fn number_after(text: &str, prefix: &str) -> u16 {
     let at = text.find(prefix).unwrap_or_else(|| panic!("no {prefix:?} in:\n{text}")) + prefix.len();
@@ -378,118 +401,4 @@ fn logins(line: &str) -> Vec<(String, String)> {
         .filter_map(|pair| pair.split_once(" / "))
         .map(|(u, p)| (u.trim().to_owned(), p.trim().to_owned()))
         .collect()
-}
-
-#[test]
-fn the_demo_launcher_prints_addresses_that_answer_and_ctrl_c_leaves_nothing_behind() {
-    let mut demo = Demo::start(1);
-    let printed = demo.printed();
-    let logs = || demo.logs();
-
-    // The web page, and a sign-in with the login it prints.
-    let web = line_with(&printed, "The web page: http://127.0.0.1:");
-    let port = number_after(web, "http://127.0.0.1:");
-    assert_eq!(port, demo.port(8080), "{web}");
-    let page = support::door::plain_raw(
-        &format!("127.0.0.1:{port}"),
-        "GET / HTTP/1.1\r\nHost: demo\r\nConnection: close\r\n\r\n",
-    );
-    assert!(page.starts_with("HTTP/1.1 200") && page.contains("<html"), "{page}");
-    let (user, password) = logins(web).into_iter().next().expect("a login");
-    let body = json!({ "user": user, "password": password }).to_string();
-    let signed = support::door::plain_raw(
-        &format!("127.0.0.1:{port}"),
-        &format!(
-            "POST /api/sign-in HTTP/1.1\r\nHost: demo\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
-            body.len()
-        ),
-    );
-    assert!(
-        signed.starts_with("HTTP/1.1 200"),
-        "sign-in as {user}: {signed}\n{}",
-        logs()
-    );
-
-    // Each ONVIF camera, through the ONVIF client, as an operator it prints.
-    let onvif_users = logins(line_with(&printed, "ONVIF PTZ cameras"));
-    let (user, password) = onvif_users.iter().find(|(u, _)| u == "vms").expect("the vms login");
-    if support::door::onvif_client_available() {
-        for (n, address) in ["5.1.1", "5.1.2", "5.2.1"].iter().enumerate() {
-            let line = line_with(&printed, &format!("({address}): http://127.0.0.1:"));
-            let port = number_after(line, "http://127.0.0.1:");
-            assert_eq!(port, demo.port(8081 + n as u16), "{line}");
-            let info = support::door::python_step(
-                "tests/onvif/client.py",
-                "info",
-                &["127.0.0.1", &port.to_string(), user, password, "{}"],
-                logs,
-            );
-            assert_eq!(info["device"]["ok"]["Manufacturer"], "Sagebrush", "{address}: {info}");
-        }
-    }
-
-    // Each MAVLink gimbal manager's heartbeat, through pymavlink.
-    let mavlink = line_with(&printed, "UDP 127.0.0.1:");
-    let port = number_after(mavlink, "UDP 127.0.0.1:");
-    assert_eq!(port, demo.port(14560), "{mavlink}");
-    if support::door::mavlink_client_available() {
-        let components = line_with(&printed, "MAVLink gimbal managers");
-        for name in ["mast-1", "mast-2", "roof"] {
-            let id: u16 = components
-                .split(", ")
-                .find(|c| c.ends_with(name) || c.trim_end_matches("):").ends_with(name))
-                .and_then(|c| c.split_whitespace().rev().nth(1)?.parse().ok())
-                .unwrap_or_else(|| panic!("no component for {name} in {components}"));
-            let beat = support::door::python_step(
-                "tests/mavlink/gcs.py",
-                "heartbeat",
-                &[&port.to_string(), "255", "190", &json!({ "component": id }).to_string()],
-                logs,
-            );
-            assert_eq!(beat["heartbeat"]["type"], 26, "{name} (component {id}): {beat}");
-        }
-    }
-
-    // Each gimbalctl line it prints, as printed.
-    let ctl_lines: Vec<&str> = printed.lines().filter(|l| l.contains("gimbalctl ")).collect();
-    assert!(ctl_lines.len() >= 3, "{printed}");
-    for line in ctl_lines {
-        let (code, out) = shell(line.trim(), &[]);
-        assert_eq!(code, 0, "the printed line `{}`: {out}\n{}", line.trim(), logs());
-    }
-
-    // Each door on its own link of gcud, connected.
-    let metrics = format!("127.0.0.1:{}", demo.port(9187));
-    let status: serde_json::Value = {
-        let text = support::http_get(&metrics, "/status");
-        serde_json::from_str(text.split_once("\r\n\r\n").expect("a body").1).expect("JSON")
-    };
-    for door in ["gimbal-onvif", "gimbal-mavlink", "gimbal-web"] {
-        let link = status["links"]
-            .as_array()
-            .expect("links")
-            .iter()
-            .find(|l| l["link"] == door)
-            .unwrap_or_else(|| panic!("no link {door} in {status}"));
-        assert!(link["connections"].as_u64() > Some(0), "{door}: {link}");
-    }
-
-    // Ctrl-C: every program stops, the folder goes, the ports are free.
-    let programs = demo.leftovers();
-    assert!(programs.len() >= 5, "the launcher and its four programs: {programs:?}");
-    let status = demo.signal(Signal::SIGINT, true);
-    assert_eq!(status.code(), Some(0), "{status}\n{}", demo.printed());
-    demo.assert_nothing_left();
-}
-
-/// SIGTERM to the launcher alone (a supervisor's stop, `kill PID`): the
-/// programs get no signal of their own, the launcher stops each.
-#[test]
-fn sigterm_to_the_launcher_alone_stops_every_program_it_started() {
-    let mut demo = Demo::start(2);
-    let programs = demo.leftovers();
-    assert!(programs.len() >= 5, "the launcher and its four programs: {programs:?}");
-    let status = demo.signal(Signal::SIGTERM, false);
-    assert_eq!(status.code(), Some(0), "{status}\n{}", demo.printed());
-    demo.assert_nothing_left();
 }
