@@ -99,3 +99,33 @@ async fn a_goto_in_degrees_keeps_the_axis_left_out_where_the_poll_read_it() {
     assert_eq!(gotos(&gcud), 1, "nothing sent: {:?}", gcud.got());
     s.shutdown().await;
 }
+
+/// A goto asked while the one before it is on its way to gcud goes after
+/// it: it was taken for that one's, answered with its result and never
+/// sent (gimbal-pelco's absolute pan, then tilt 55 ms later, lost the tilt
+/// under load).
+#[tokio::test]
+async fn a_goto_asked_while_one_is_on_its_way_is_sent_after_it() {
+    let first = Arc::new(std::sync::atomic::AtomicBool::new(true));
+    let gcud = FakeGcud::start(move |p| match p {
+        [b'P', rest @ ..] if rest.len() == 8 && first.swap(false, Ordering::Relaxed) => {
+            Answer::After(Duration::from_millis(300), Box::new(Answer::Ack))
+        }
+        b"P?" => at_zero(),
+        _ => Answer::Ack,
+    })
+    .await;
+    let s = slow_poll(&gcud.addr);
+    let gotos = |gcud: &FakeGcud| -> Vec<String> { gcud.got().into_iter().filter(|p| p.len() == 9).collect() };
+    let pan = {
+        let s = Arc::clone(&s);
+        tokio::spawn(async move { s.go_to_degrees(Some(30.0), Some(0.0)).await })
+    };
+    until("the first goto at gcud", || gotos(&gcud).len() == 1).await;
+    let tilt = tokio::time::timeout(GUARD, s.go_to_degrees(Some(30.0), Some(10.0)))
+        .await
+        .expect("the second goto answered");
+    assert!(tilt.is_ok(), "{tilt:?}");
+    assert!(pan.await.expect("joined").is_ok());
+    assert_eq!(gotos(&gcud), ["P0BB80000", "P0BB803E8"], "{:?}", gcud.got());
+}

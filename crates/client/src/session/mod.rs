@@ -372,7 +372,7 @@ impl GimbalSession {
             let s = self.state();
             let m = &s.motion;
             let moving = m.moving();
-            let changing = s.status.changing || m.place.is_some() || m.travel.is_some();
+            let changing = s.status.changing || m.place.is_some() || m.placing || m.travel.is_some();
             Axes {
                 pan: moving.pan || changing,
                 tilt: moving.tilt || changing,

@@ -118,6 +118,8 @@ pub(super) struct MotionState {
     /// owed once that move is in force.
     pub(super) wish_stops: Axes,
     pub(super) place: Option<Pending<Place>>,
+    /// A positioning move taken from `place` is on its way to gcud.
+    pub(super) placing: bool,
     /// A positioning move gcud accepted, until the polls show it ended
     /// (module `travel`).
     pub(super) travel: Option<Travel>,
@@ -153,7 +155,7 @@ impl MotionState {
 
     /// Anything asked, under way or owed: the session's motion.
     pub(super) fn any(&self) -> bool {
-        self.moving().any() || self.place.is_some() || self.travel.is_some() || self.stops_owed.any()
+        self.moving().any() || self.place.is_some() || self.placing || self.travel.is_some() || self.stops_owed.any()
     }
 
     /// The deadline ends once nothing moves or is about to.

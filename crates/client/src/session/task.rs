@@ -3,7 +3,7 @@
 //! velocity, the positioning move, the queue, the poll), each step carried
 //! out and its outcome recorded (ARCHITECTURE "Front doors").
 
-use super::motion::{InForce, answer};
+use super::motion::{InForce, Reply, answer};
 use super::travel::Travel;
 use super::*;
 use sagebrush_protocol::ResultKind;
@@ -15,7 +15,9 @@ pub(super) enum Step {
     /// speed, the direction command that takes it, chained to it
     /// ([`GimbalConnection::send_chained`]).
     Drive(Command<'static>, Applied, Option<(Command<'static>, Applied)>),
-    Place(Place),
+    /// A positioning move taken out of the motion state (a newer one
+    /// waits there meanwhile), and its callers.
+    Place(Place, Vec<Reply>),
     Query(Queued),
     Poll,
     Wait(Option<Instant>),
@@ -97,9 +99,10 @@ impl GimbalSession {
                 return Step::Stop(command, axes);
             }
         }
-        if let Some(p) = &s.motion.place {
-            by.clone_from(&p.by);
-            return Step::Place(p.what);
+        if let Some(p) = s.motion.place.take() {
+            *by = p.by;
+            s.motion.placing = true;
+            return Step::Place(p.what, p.replies);
         }
         if let Some((queued, _, user)) = s.queue.pop_front() {
             *by = user;
@@ -128,7 +131,7 @@ impl GimbalSession {
             self.control_seen(connection.control());
             let now = Instant::now();
             let (step, by) = self.next(now, next_poll);
-            if matches!(step, Step::Drive(..) | Step::Place(_) | Step::Query(_)) {
+            if matches!(step, Step::Drive(..) | Step::Place(..) | Step::Query(_)) {
                 connection.act_for(by.as_deref()).await;
             }
             match step {
@@ -165,10 +168,11 @@ impl GimbalSession {
                         self.drive_sent(&direction, then, then_sent);
                     }
                 }
-                Step::Place(place) => {
+                Step::Place(place, replies) => {
                     let sent = connection.send(&place.command()).await;
                     self.reached(&sent);
                     let mut s = self.state();
+                    s.motion.placing = false;
                     // The gimbal's own motion: what it does to the speeds is its own.
                     s.motion.forget_speeds();
                     if sent.is_ok() {
@@ -178,15 +182,17 @@ impl GimbalSession {
                     } else if matches!(&sent, Err(e) if e.refusal() == Some(Undelivered::NotInControl)) {
                         s.taken = true;
                     }
-                    if let Some(p) = s.motion.place.take() {
-                        if sent.is_ok() {
-                            // The gimbal goes there instead of slewing.
-                            s.motion.pan.drive = Drive::Stop;
-                            s.motion.tilt.drive = Drive::Stop;
-                            s.motion.settle_deadline();
-                        }
-                        answer(p.replies, sent.map(drop));
+                    if sent.is_ok() {
+                        // The gimbal goes there instead of slewing.
+                        s.motion.pan.drive = Drive::Stop;
+                        s.motion.tilt.drive = Drive::Stop;
+                        s.motion.settle_deadline();
                     }
+                    // Its own callers: a move asked while it was on its way
+                    // waits in `place`, sent next (it was taken for this
+                    // one's and answered with its result: the pan, then tilt
+                    // of a Pelco keyboard's absolute pair lost the tilt).
+                    answer(replies, sent.map(drop));
                 }
                 Step::Query(Queued::Bus(command, reply)) => {
                     let sent = connection.send(&command).await;

@@ -30,6 +30,8 @@ pub enum Answer {
     Result(Vec<u8>),
     Report(Undelivered),
     Nic,
+    /// The answer, sent this much later (a command gcud takes a while on).
+    After(Duration, Box<Answer>),
 }
 
 pub type Script = Arc<dyn Fn(&[u8]) -> Answer + Send + Sync>;
@@ -93,7 +95,12 @@ pub async fn serve(mut stream: tokio::net::TcpStream, script: Script, got: Arc<M
                 .unwrap()
                 .push(String::from_utf8_lossy(f.payload()).into_owned());
             let mut out = Vec::new();
-            match script(f.payload()) {
+            let mut answer = script(f.payload());
+            while let Answer::After(wait, then) = answer {
+                tokio::time::sleep(wait).await;
+                answer = *then;
+            }
+            match answer {
                 Answer::Ack => {
                     out.push(ACK);
                     if window_reports {
@@ -107,6 +114,7 @@ pub async fn serve(mut stream: tokio::net::TcpStream, script: Script, got: Arc<M
                 }
                 Answer::Report(failure) => out.extend_from_slice(&report(&f, Some(failure))),
                 Answer::Nic => out.extend_from_slice(&[ACK, NIC]),
+                Answer::After(..) => unreachable!("waited for above"),
             }
             if stream.write_all(&out).await.is_err() {
                 return;
