@@ -240,13 +240,19 @@ fail() {
 # (SIGKILL): setpriv gives each a parent-death signal.
 pdeathsig=()
 command -v setpriv >/dev/null && setpriv --help 2>&1 | grep -q pdeathsig && pdeathsig=(setpriv --pdeathsig TERM --)
+# Each program in a session of its own, so that Ctrl-C (SIGINT to the
+# terminal's foreground group) reaches the launcher alone, which stops them
+# in turn: had they got it too, one could exit before the launcher's trap
+# ran, and the launcher report it as a program that died (seen under load).
+own_session=()
+command -v setsid >/dev/null && own_session=(setsid)
 
 # start NAME ARGS...: runs $bin_dir/NAME ARGS with its log in $run_dir/NAME.log
 # and waits for its "NAME ready" line.
 start() {
   local name=$1
   shift
-  RUST_LOG=${RUST_LOG:-info} "${pdeathsig[@]}" "$bin_dir/$name" "$@" >"$run_dir/$name.log" 2>&1 &
+  RUST_LOG=${RUST_LOG:-info} "${pdeathsig[@]}" "${own_session[@]}" "$bin_dir/$name" "$@" >"$run_dir/$name.log" 2>&1 &
   pids+=($!) names+=("$name")
   local pid=$!
   for _ in $(seq 600); do
