@@ -50,7 +50,7 @@ command -v cargo >/dev/null || die "cargo not found: install Rust first (README.
 # The Debian packages the tests use, by the command that shows each is there.
 apt_wanted() {
   command -v cc >/dev/null || echo build-essential
-  command -v curl >/dev/null || echo curl                        # tests/demo.rs runs the quick start's curl line
+  command -v curl >/dev/null || echo curl                        # tests/demo/ runs the quick start's curl line
   command -v tshark >/dev/null || echo tshark                    # tests/capture.rs, tests/dissector.rs
   command -v systemd-analyze >/dev/null || echo systemd          # tests/deployment.rs
   command -v chromium >/dev/null || echo chromium                # tests/web/ (Selenium)
