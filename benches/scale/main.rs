@@ -26,13 +26,15 @@
 //!
 //! `SCALE_SECONDS` a measured window (default 5, after a 1 s warm-up),
 //! `SCALE_SECTIONS` which of relay,line,idle,governed run (default all),
-//! `GCUD_BENCH_GCUD=PATH` another gcud build in gcud's place.
+//! `GCUD_BENCH_GCUD=PATH` another gcud build in gcud's place,
+//! `GCUD_BENCH_BEFORE=PATH` another build measured beside it in the same
+//! run (sections 1 and 2: a "before" row after gcud's, and its ratio).
 
 use std::time::{Duration, Instant};
 
 use clients::{Clients, Script, Target};
 use devices::{Devices, Model};
-use procs::{Usage, spawn_gcud};
+use procs::{Usage, before_bin, gcud_bin, spawn_gcud};
 use sagebrush_protocol::Address;
 
 mod clients;
@@ -186,11 +188,12 @@ fn socat_window(devices: &Devices) -> Window {
     w
 }
 
-/// gcud on every line of `devices` at `baud`, `per_port` clients a port.
-fn gcud_window(devices: &Devices, baud: u32, per_port: usize) -> Window {
+/// gcud (the build `bin`) on every line of `devices` at `baud`, `per_port`
+/// clients a port.
+fn gcud_window(bin: &str, devices: &Devices, baud: u32, per_port: usize) -> Window {
     let dir = tempfile::tempdir().expect("temp dir");
     let metrics = procs::free_addr();
-    let (gcud, addr) = spawn_gcud(&gcud_config(&devices.paths, baud, &metrics, ""), &dir);
+    let (gcud, addr) = spawn_gcud(bin, &gcud_config(&devices.paths, baud, &metrics, ""), &dir);
     std::thread::sleep(Duration::from_millis(500));
     let addrs = vec![addr; devices.paths.len()];
     Window::measure(devices, targets(&addrs, per_port, true), &[gcud.0.id()], Some(&metrics))
@@ -206,7 +209,7 @@ fn relay(sizes: &[usize], socat: bool) {
         if let Some(s) = &s {
             println!("    socat x{n:<3} {}", s.figures());
         }
-        let g = gcud_window(&devices, 115_200, 1);
+        let g = gcud_window(&gcud_bin(), &devices, 115_200, 1);
         println!("    gcud        {}", g.figures());
         if let Some(s) = &s {
             println!(
@@ -215,7 +218,28 @@ fn relay(sizes: &[usize], socat: bool) {
                 g.rate() / s.rate()
             );
         }
+        if let Some(bin) = before_bin() {
+            let b = gcud_window(&bin, &devices, 115_200, 1);
+            println!("    before      {}", b.figures());
+            compare(&g, &b, s.as_ref());
+        }
     }
+}
+
+/// The ratios of gcud's row to the build before it and to socat's.
+fn compare(g: &Window, before: &Window, socat: Option<&Window>) {
+    let mut text = format!(
+        "    CPU per transaction: gcud / before {:.2}",
+        g.cpu_per_10k() / before.cpu_per_10k()
+    );
+    if let Some(s) = socat {
+        text += &format!(
+            ", gcud / socat {:.2}, before / socat {:.2}",
+            g.cpu_per_10k() / s.cpu_per_10k(),
+            before.cpu_per_10k() / s.cpu_per_10k()
+        );
+    }
+    println!("{text}");
 }
 
 /// Each bus's share of its line limit: min, median, max.
@@ -238,21 +262,29 @@ fn line_rate(sizes: &[usize], rates: &[usize], socat_sizes: &[usize], socat: boo
         for &n in sizes {
             let devices = Devices::start(n, Some(baud), |_| Model::instant());
             println!("  {baud} bit/s, {n} ports ({})", procs::load());
-            if socat && socat_sizes.contains(&n) {
-                let s = socat_window(&devices);
-                let (lo, mid, hi, all) = shares(&s, baud);
+            let s = (socat && socat_sizes.contains(&n)).then(|| socat_window(&devices));
+            if let Some(s) = &s {
+                let (lo, mid, hi, all) = shares(s, baud);
                 println!(
                     "    socat x{n:<3} share {lo:.3}/{mid:.3}/{hi:.3} all {all:.3}  {}",
                     s.figures()
                 );
             }
-            let g = gcud_window(&devices, baud, 2);
-            let (lo, mid, hi, all) = shares(&g, baud);
-            println!(
-                "    gcud        share {lo:.3}/{mid:.3}/{hi:.3} all {all:.3}  {}  RSS {:.0} KiB/port",
-                g.figures(),
-                g.usage.rss_kib as f64 / n as f64
-            );
+            let row = |name: &str, w: &Window| {
+                let (lo, mid, hi, all) = shares(w, baud);
+                println!(
+                    "    {name:<11} share {lo:.3}/{mid:.3}/{hi:.3} all {all:.3}  {}  RSS {:.0} KiB/port",
+                    w.figures(),
+                    w.usage.rss_kib as f64 / n as f64
+                );
+            };
+            let g = gcud_window(&gcud_bin(), &devices, baud, 2);
+            row("gcud", &g);
+            if let Some(bin) = before_bin() {
+                let b = gcud_window(&bin, &devices, baud, 2);
+                row("before", &b);
+                compare(&g, &b, s.as_ref());
+            }
         }
     }
 }
@@ -262,7 +294,7 @@ fn idle() {
     let devices = Devices::start(254, Some(9600), |_| Model::instant());
     let dir = tempfile::tempdir().expect("temp dir");
     let metrics = procs::free_addr();
-    let (gcud, _) = spawn_gcud(&gcud_config(&devices.paths, 9600, &metrics, ""), &dir);
+    let (gcud, _) = spawn_gcud(&gcud_bin(), &gcud_config(&devices.paths, 9600, &metrics, ""), &dir);
     std::thread::sleep(Duration::from_secs(2));
     let before = Usage::of(&[gcud.0.id()]);
     let started = Instant::now();
@@ -292,7 +324,7 @@ fn governed() {
     }
     let dir = tempfile::tempdir().expect("temp dir");
     let metrics = procs::free_addr();
-    let (gcud, addr) = spawn_gcud(&gcud_config(&devices.paths, 9600, &metrics, &rules), &dir);
+    let (gcud, addr) = spawn_gcud(&gcud_bin(), &gcud_config(&devices.paths, 9600, &metrics, &rules), &dir);
     // Every followed gimbal is read at start: let that settle.
     std::thread::sleep(Duration::from_secs(3));
     let polls = |m: &str| procs::counter(m, "gcud_governance_follow_polls_total");

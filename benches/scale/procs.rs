@@ -9,13 +9,23 @@ use std::time::{Duration, Instant};
 
 use super::support::Proc;
 
-/// gcud (or `GCUD_BENCH_GCUD`) with `config`, once it is ready; its client
+/// The gcud build measured: `GCUD_BENCH_GCUD`, or this workspace's.
+pub fn gcud_bin() -> String {
+    std::env::var("GCUD_BENCH_GCUD").unwrap_or_else(|_| env!("CARGO_BIN_EXE_gcud").to_owned())
+}
+
+/// Another gcud build measured beside it in the same run
+/// (`GCUD_BENCH_BEFORE`), if any.
+pub fn before_bin() -> Option<String> {
+    std::env::var("GCUD_BENCH_BEFORE").ok().filter(|b| !b.is_empty())
+}
+
+/// gcud (the build `bin`) with `config`, once it is ready; its client
 /// listener's address.
-pub fn spawn_gcud(config: &str, dir: &tempfile::TempDir) -> (Proc, String) {
+pub fn spawn_gcud(bin: &str, config: &str, dir: &tempfile::TempDir) -> (Proc, String) {
     let path = dir.path().join("gcud.toml");
     std::fs::write(&path, config).expect("config");
     let log_path = dir.path().join("gcud.log");
-    let bin = std::env::var("GCUD_BENCH_GCUD").unwrap_or_else(|_| env!("CARGO_BIN_EXE_gcud").to_owned());
     let child = Proc(
         Command::new(bin)
             .arg("--config")
@@ -103,12 +113,14 @@ pub fn spawn_socats(ptys: &[String]) -> Vec<(Proc, String)> {
     relays.into_iter().map(|(p, a, _)| (p, a)).collect()
 }
 
-/// What processes spent: CPU (utime + stime, clock ticks), context
-/// switches (voluntary and not, over their live threads), and resident
-/// memory (KiB).
+/// What processes spent: CPU (nanoseconds on a core, summed over their
+/// live threads from `/proc/PID/task/TID/schedstat`: `utime + stime` in
+/// clock ticks rounds each process to 10 ms, as much as 8 socat relays
+/// spend in a paced window), context switches (voluntary and not, over
+/// their live threads), and resident memory (KiB).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Usage {
-    pub ticks: u64,
+    pub cpu_ns: u64,
     pub switches: u64,
     pub rss_kib: u64,
 }
@@ -117,10 +129,6 @@ impl Usage {
     pub fn of(pids: &[u32]) -> Self {
         let mut total = Self::default();
         for &pid in pids {
-            let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
-            let fields: Vec<&str> = stat.rsplit(')').next().unwrap_or_default().split_whitespace().collect();
-            let field = |i: usize| fields.get(i).and_then(|f| f.parse::<u64>().ok()).unwrap_or(0);
-            total.ticks += field(11) + field(12);
             let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
             total.rss_kib += status
                 .lines()
@@ -132,6 +140,12 @@ impl Usage {
                 .flatten()
                 .flatten()
             {
+                let schedstat = std::fs::read_to_string(task.path().join("schedstat")).unwrap_or_default();
+                total.cpu_ns += schedstat
+                    .split_whitespace()
+                    .next()
+                    .and_then(|ns| ns.parse::<u64>().ok())
+                    .unwrap_or(0);
                 let status = std::fs::read_to_string(task.path().join("status")).unwrap_or_default();
                 total.switches += status
                     .lines()
@@ -146,15 +160,15 @@ impl Usage {
     /// CPU and switches since `before`; the resident memory now.
     pub fn since(self, before: Self) -> Self {
         Self {
-            ticks: self.ticks - before.ticks,
-            switches: self.switches - before.switches,
+            cpu_ns: self.cpu_ns.saturating_sub(before.cpu_ns),
+            switches: self.switches.saturating_sub(before.switches),
             rss_kib: self.rss_kib,
         }
     }
 
-    /// CPU seconds (USER_HZ is 100 on Linux).
+    /// CPU seconds.
     pub fn cpu_seconds(self) -> f64 {
-        self.ticks as f64 / 100.0
+        self.cpu_ns as f64 / 1e9
     }
 }
 

@@ -46,11 +46,9 @@ impl Queued for Outgoing {
     }
 }
 
-/// What a link asks the router to do or know.
-#[expect(
-    clippy::large_enum_variant,
-    reason = "a frame to write is held inline, without an allocation of its own, on its short way to the Outbox"
-)]
+/// What a link asks the router to do or know; a frame to write, or one
+/// given up, is held inline, without an allocation of its own, on its
+/// short way to the Outbox.
 #[derive(Debug)]
 pub(crate) enum LinkOut {
     Write(Wire),
@@ -58,8 +56,9 @@ pub(crate) enum LinkOut {
     FirstSent(u64),
     /// ... and again: the next GCU may execute it twice.
     Resent(u64),
-    /// The frame was given up.
-    Failed(Box<Outgoing>, DropReason),
+    /// The frame was given up (by value: a `Box` here was an allocation
+    /// per frame a link gave up, ARCHITECTURE "Scale").
+    Failed(Outgoing, DropReason),
 }
 
 /// What arrived on a link for the router to route.
@@ -208,7 +207,7 @@ impl Link {
                 if let Some(item) = self.queue.pop_front() {
                     self.stats.failed += 1;
                     self.stats.line.drops.add(DropReason::LinkNoAck);
-                    out.push(LinkOut::Failed(Box::new(item), DropReason::LinkNoAck));
+                    out.push(LinkOut::Failed(item, DropReason::LinkNoAck));
                 }
                 self.note_queue();
             }
