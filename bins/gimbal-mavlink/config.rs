@@ -21,16 +21,7 @@ use crate::transport::signing::Key;
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ConfigFile {
-    gcud: Spanned<String>,
-    /// With `gcud = "tls://HOST:PORT"`: `{ ca, cert, key }`, the CA of
-    /// gcud's certificate and this door's own (its principal at gcud).
-    gcud_tls: Option<Spanned<sagebrush_service::door_config::GcudTlsSection>>,
     system_id: Int<u8, 1, 255>,
-    /// The source group gcud sees (0: the MCU).
-    #[serde(default)]
-    source_group: Int<u8, 0, 254>,
-    #[serde(default)]
-    nic_window_ms: Millis<10, 1000, 100>,
     attitude_rate_hz: Option<Spanned<f64>>,
     #[serde(default)]
     lease_ms: Millis<100, 60_000, 1000>,
@@ -45,7 +36,6 @@ struct ConfigFile {
     #[serde(default, rename = "gimbal")]
     gimbals: Vec<GimbalSection>,
     signing: Option<SigningSection>,
-    metrics: Option<sagebrush_service::door_metrics::MetricsSection>,
 }
 
 /// `[signing]`: MAVLink 2 message signing.
@@ -168,6 +158,10 @@ impl Gimbal {
 }
 
 impl sagebrush_service::door::Checked for Config {
+    fn metrics(&self) -> Option<SocketAddr> {
+        self.metrics
+    }
+
     fn summary(&self) -> String {
         format!("{} gimbal(s), {} endpoint(s)", self.gimbals.len(), self.endpoints.len())
     }
@@ -185,8 +179,7 @@ impl sagebrush_service::door::Checked for Config {
 /// Parses and validates configuration `text` read from `file`.
 pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let c = Source::new(file, text);
-    let raw: ConfigFile = c.deserialize()?;
-    let gcud = sagebrush_service::door_config::gcud_endpoint(&c, &raw.gcud, raw.gcud_tls.as_ref())?;
+    let (keys, raw) = c.door_file::<ConfigFile, { sagebrush_service::door_link::NO_POLL }>()?;
     let attitude_period = match &raw.attitude_rate_hz {
         Some(v) if (0.2..=50.0).contains(v.get_ref()) => Duration::from_secs_f64(1.0 / v.get_ref()),
         Some(v) => {
@@ -254,7 +247,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     }
     let mount = mount_place(&c, &raw)?;
     Ok(Config {
-        link: GcudLink::new(gcud, raw.source_group.get(), raw.nic_window_ms.duration()),
+        link: GcudLink::from(&keys),
         mount,
         system_id: raw.system_id.get(),
         attitude_period,
@@ -265,7 +258,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         gimbals,
         signing,
         notes,
-        metrics: c.metrics_listen(raw.metrics.as_ref())?,
+        metrics: keys.metrics,
     })
 }
 

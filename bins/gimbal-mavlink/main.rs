@@ -17,6 +17,7 @@ use std::sync::Arc;
 
 use mavlink::Message;
 use mavlink::dialects::common::MavMessage;
+use sagebrush_service::door::{Door, Started};
 use tracing::{info, warn};
 
 use crate::earth::vehicle;
@@ -26,21 +27,23 @@ use crate::stats::Stats;
 use crate::transport::link::Outbox;
 use crate::transport::{signing, stream};
 
+/// This door, to the start-up every door shares.
+const DOOR: Door = Door {
+    name: "gimbal-mavlink",
+    about: "MAVLink Gimbal Protocol v2 (gimbal manager and device) for the gimbals behind gcud.",
+    families: sagebrush_client::outcomes::families,
+};
+
 fn main() -> ExitCode {
-    sagebrush_service::door::main(
-        "gimbal-mavlink",
-        "MAVLink Gimbal Protocol v2 (gimbal manager and device) for the gimbals behind gcud.",
-        config::parse,
-        run,
-    )
+    sagebrush_service::door::main(DOOR, config::parse, run)
 }
 
 /// A ground station or vehicle heard this recently is live (the door's
 /// metrics' sessions): a MAVLink component sends HEARTBEAT every second.
 const LIVE: std::time::Duration = std::time::Duration::from_secs(5);
 
-async fn run(config: config::Config) -> Result<(), String> {
-    let signals = sagebrush_service::door::Signals::install()?;
+async fn run(config: config::Config, door: Started) -> Result<(), String> {
+    let Started { metrics, signals } = door;
     let signing = (config.signing.clone()).map(|s| signing::Signing::new(s.key, s.link_id));
     if let Some(s) = &config.signing {
         info!(
@@ -49,12 +52,6 @@ async fn run(config: config::Config) -> Result<(), String> {
         );
     }
     let outbox = Outbox::bind(config.system_id, &config.endpoints, signing).await?;
-    let metrics = sagebrush_service::door_metrics::DoorMetrics::start(
-        "gimbal-mavlink",
-        sagebrush_client::outcomes::families(),
-        config.metrics,
-    )
-    .await?;
     let net = Arc::clone(&outbox.net);
     metrics.count_sessions(move || net.live(LIVE));
     let stats = Arc::new(Stats::default());

@@ -4,6 +4,7 @@
 //! what was expected (`--check` prints it and exits 2), through
 //! [`sagebrush_service::config_file`] as the other doors'.
 
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -17,21 +18,12 @@ use toml::Spanned;
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ConfigFile {
-    gcud: Spanned<String>,
-    /// With `gcud = "tls://HOST:PORT"`: `{ ca, cert, key }`.
-    gcud_tls: Option<Spanned<sagebrush_service::door_config::GcudTlsSection>>,
     site: Spanned<String>,
     #[serde(default)]
     prefix: Option<Spanned<String>>,
     #[serde(default)]
     discovery_prefix: Option<Spanned<String>>,
     user: Option<Spanned<String>>,
-    #[serde(default)]
-    source_group: Int<u8, 0, 254>,
-    #[serde(default)]
-    poll_ms: Millis<20, 10_000, 100>,
-    #[serde(default)]
-    nic_window_ms: Millis<10, 1000, 100>,
     #[serde(default)]
     max_slew_ms: Millis<100, 60_000, 5000>,
     broker: BrokerSection,
@@ -124,10 +116,16 @@ pub struct Config {
     pub poll: Duration,
     pub max_slew: Duration,
     pub broker: Broker,
+    /// `[metrics] listen`: the door's own metrics (none when absent).
+    pub metrics: Option<SocketAddr>,
     pub gimbals: Vec<Gimbal>,
 }
 
 impl sagebrush_service::door::Checked for Config {
+    fn metrics(&self) -> Option<SocketAddr> {
+        self.metrics
+    }
+
     fn summary(&self) -> String {
         format!(
             "site {}, {} gimbal(s), broker {}",
@@ -195,8 +193,7 @@ fn topic_prefix(c: &Source<'_>, v: Option<&Spanned<String>>, key: &str, default:
 /// Parses and validates configuration `text` read from `file`.
 pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let c = Source::new(file, text);
-    let raw: ConfigFile = c.deserialize()?;
-    let gcud = sagebrush_service::door_config::gcud_endpoint(&c, &raw.gcud, raw.gcud_tls.as_ref())?;
+    let (keys, raw) = c.door_file::<ConfigFile, 100>()?;
     let site = segment(&c, &raw.site, "site")?;
     let prefix = topic_prefix(&c, raw.prefix.as_ref(), "prefix", "sagebrush")?;
     if prefix.is_empty() {
@@ -257,14 +254,15 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
     }
     Ok(Config {
-        link: GcudLink::new(gcud, raw.source_group.get(), raw.nic_window_ms.duration()),
+        link: GcudLink::from(&keys),
         site,
         prefix,
         discovery_prefix: (!discovery.is_empty()).then_some(discovery),
         user,
-        poll: raw.poll_ms.duration(),
+        poll: keys.poll,
         max_slew: raw.max_slew_ms.duration(),
         broker,
+        metrics: keys.metrics,
         gimbals,
     })
 }

@@ -21,22 +21,25 @@ use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 use sagebrush_client::session::{GcudReachability, GimbalSession, SessionConfig};
+use sagebrush_service::door::{Door, Started};
 use tracing::info;
 
 /// How long a stopping door waits for the broker to take its `offline`.
 const GOODBYE: Duration = Duration::from_secs(3);
 
+/// This door, to the start-up every door shares.
+const DOOR: Door = Door {
+    name: "gimbal-mqtt",
+    about: "The gimbals behind gcud on an MQTT broker: state, commands, Home Assistant discovery.",
+    families: sagebrush_client::outcomes::families,
+};
+
 fn main() -> ExitCode {
-    sagebrush_service::door::main(
-        "gimbal-mqtt",
-        "The gimbals behind gcud on an MQTT broker: state, commands, Home Assistant discovery.",
-        config::parse,
-        run,
-    )
+    sagebrush_service::door::main(DOOR, config::parse, run)
 }
 
-async fn run(config: config::Config) -> Result<(), String> {
-    let signals = sagebrush_service::door::Signals::install()?;
+async fn run(config: config::Config, door: Started) -> Result<(), String> {
+    let Started { metrics, signals } = door;
     let config = Arc::new(config);
     let topics = topics::Topics::new(&config);
     let (client, events) = broker::connect(&config.broker, &topics.status(), "offline")?;
@@ -56,10 +59,27 @@ async fn run(config: config::Config) -> Result<(), String> {
                 },
                 Arc::clone(&reach),
             );
-            gimbal::Gimbal::start(g.clone(), session, topics.result(&g.name), &config, client.clone())
+            gimbal::Gimbal::start(
+                g.clone(),
+                session,
+                topics.result(&g.name),
+                &config,
+                client.clone(),
+                Arc::clone(&metrics),
+            )
         })
         .collect();
-    let link = link::Link::new(Arc::clone(&config), topics.clone(), client.clone(), gimbals.clone());
+    let link = link::Link::new(
+        Arc::clone(&config),
+        topics.clone(),
+        client.clone(),
+        gimbals.clone(),
+        Arc::clone(&metrics),
+    );
+    // Its client is the broker: one session while connected to it (the
+    // tools behind the broker are the broker's to count).
+    let connected = Arc::clone(&link.connected);
+    metrics.count_sessions(move || usize::from(connected.load(Ordering::SeqCst)));
     let states = tokio::spawn(state::publish(
         gimbals.clone(),
         config.gimbals.iter().map(|g| topics.state(&g.name)).collect(),

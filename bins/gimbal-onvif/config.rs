@@ -14,7 +14,6 @@ use sagebrush_service::config_file::{ConfigError, Int, Millis, Source};
 pub use sagebrush_service::door_config::HttpBounds;
 use sagebrush_service::door_config::{HttpSection, UserSection};
 pub use sagebrush_service::door_config::{Role, User};
-use sagebrush_service::door_metrics::MetricsSection;
 pub use sagebrush_service::door_tls::DoorTls;
 use sagebrush_service::endpoint::listeners_clash;
 use serde::Deserialize;
@@ -24,25 +23,13 @@ use toml::Spanned;
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ConfigFile {
-    gcud: Spanned<String>,
-    /// With `gcud = "tls://HOST:PORT"`: `{ ca, cert, key }`, the CA of
-    /// gcud's certificate and this door's own (its principal at gcud).
-    gcud_tls: Option<Spanned<sagebrush_service::door_config::GcudTlsSection>>,
-    /// The source group gcud sees (0: the MCU).
-    #[serde(default)]
-    source_group: Int<u8, 0, 254>,
     state_file: Option<Spanned<String>>,
     #[serde(default)]
     max_move_ms: Millis<100, 600_000, 10_000>,
     #[serde(default)]
-    poll_ms: Millis<20, 10_000, 200>,
-    #[serde(default)]
-    nic_window_ms: Millis<10, 1000, 100>,
-    #[serde(default)]
     discovery: DiscoverySection,
     #[serde(default)]
     http: HttpSection,
-    metrics: Option<MetricsSection>,
     #[serde(default)]
     auth: AuthSection,
     #[serde(default, rename = "user")]
@@ -168,6 +155,10 @@ pub struct Config {
 pub const DISCOVERY_DEFAULT: &str = "0.0.0.0:3702";
 
 impl sagebrush_service::door::Checked for Config {
+    fn metrics(&self) -> Option<SocketAddr> {
+        self.metrics
+    }
+
     fn summary(&self) -> String {
         format!("{} gimbal(s), {} user(s)", self.gimbals.len(), self.users.list.len())
     }
@@ -186,8 +177,7 @@ impl sagebrush_service::door::Checked for Config {
 /// Parses and validates configuration `text` read from `file`.
 pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let c = Source::new(file, text);
-    let raw: ConfigFile = c.deserialize()?;
-    let gcud = sagebrush_service::door_config::gcud_endpoint(&c, &raw.gcud, raw.gcud_tls.as_ref())?;
+    let (keys, raw) = c.door_file::<ConfigFile, 200>()?;
     let discovery = match raw.discovery.enabled.as_ref().map(|e| *e.get_ref()) {
         Some(false) => None,
         _ => Some(DiscoveryConfig {
@@ -263,13 +253,13 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         g.https = tls.is_some();
     }
     Ok(Config {
-        link: GcudLink::new(gcud, raw.source_group.get(), raw.nic_window_ms.duration()),
+        link: GcudLink::from(&keys),
         state_file,
         max_move: raw.max_move_ms.duration(),
-        poll: raw.poll_ms.duration(),
+        poll: keys.poll,
         discovery,
         tls,
-        metrics: c.metrics_listen(raw.metrics.as_ref())?,
+        metrics: keys.metrics,
         users: Users {
             list: users,
             bounds: AuthBounds {

@@ -15,33 +15,30 @@ mod soap;
 use std::process::ExitCode;
 use std::sync::Arc;
 
+use sagebrush_service::door::{Door, Started};
 use tracing::{error, info};
 
+/// This door, to the start-up every door shares.
+const DOOR: Door = Door {
+    name: "gimbal-onvif",
+    about: "ONVIF PTZ (Device, Media, PTZ) and WS-Discovery for the gimbals behind gcud.",
+    families: sagebrush_client::outcomes::families,
+};
+
 fn main() -> ExitCode {
-    sagebrush_service::door::main(
-        "gimbal-onvif",
-        "ONVIF PTZ (Device, Media, PTZ) and WS-Discovery for the gimbals behind gcud.",
-        config::parse,
-        run,
-    )
+    sagebrush_service::door::main(DOOR, config::parse, run)
 }
 
-async fn run(config: config::Config) -> Result<(), String> {
+async fn run(config: config::Config, door: Started) -> Result<(), String> {
+    let Started { metrics, signals } = door;
     let presets = Arc::new(sagebrush_client::presets::Presets::load(config.state_file.clone())?);
     let auth = Arc::new(auth::Authenticator::new(config.users.clone()));
-    let signals = sagebrush_service::door::Signals::install()?;
     let mut gimbals = Vec::new();
     let mut served = Vec::new();
     let mut tasks = tokio::task::JoinSet::new();
     let reach = Arc::new(sagebrush_client::session::GcudReachability::default());
     // One admission table for every gimbal's device: the caps are for all.
     let table = config.gimbals.first().map(|g| g.http.table());
-    let metrics = sagebrush_service::door_metrics::DoorMetrics::start(
-        "gimbal-onvif",
-        sagebrush_client::outcomes::families(),
-        config.metrics,
-    )
-    .await?;
     // Its clients: the connections open to its devices (ONVIF keeps no session).
     if let Some(table) = table.clone() {
         metrics.count_sessions(move || usize::try_from(table.stats().open).unwrap_or(usize::MAX));

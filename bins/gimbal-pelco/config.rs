@@ -20,15 +20,6 @@ use crate::codec::Protocol;
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ConfigFile {
-    gcud: Spanned<String>,
-    /// With `gcud = "tls://HOST:PORT"`: `{ ca, cert, key }`.
-    gcud_tls: Option<Spanned<sagebrush_service::door_config::GcudTlsSection>>,
-    #[serde(default)]
-    source_group: Int<u8, 0, 254>,
-    #[serde(default)]
-    nic_window_ms: Millis<10, 1000, 100>,
-    #[serde(default)]
-    poll_ms: Millis<20, 10_000, 1000>,
     /// 0: off.
     #[serde(default)]
     motion_lease_ms: Int<u64, 0, 60_000, 1000>,
@@ -129,12 +120,18 @@ pub struct Config {
     pub max_move: Duration,
     pub limits: Limits,
     pub inputs: Vec<Input>,
+    /// `[metrics] listen`: the door's own metrics (none when absent).
+    pub metrics: Option<SocketAddr>,
     pub gimbals: Vec<Gimbal>,
     /// Each serial input's device and its place in the file (`--check`).
     pub serial_places: Vec<(PathBuf, String)>,
 }
 
 impl sagebrush_service::door::Checked for Config {
+    fn metrics(&self) -> Option<SocketAddr> {
+        self.metrics
+    }
+
     fn summary(&self) -> String {
         format!("{} input(s), {} gimbal(s)", self.inputs.len(), self.gimbals.len())
     }
@@ -158,8 +155,7 @@ impl sagebrush_service::door::Checked for Config {
 /// Parses and validates configuration `text` read from `file`.
 pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let c = Source::new(file, text);
-    let raw: ConfigFile = c.deserialize()?;
-    let gcud = sagebrush_service::door_config::gcud_endpoint(&c, &raw.gcud, raw.gcud_tls.as_ref())?;
+    let (keys, raw) = c.door_file::<ConfigFile, 1000>()?;
     let (inputs, serial_places) = inputs(&c, &raw.inputs)?;
     let mut gimbals: Vec<Gimbal> = Vec::new();
     for (i, g) in raw.gimbals.iter().enumerate() {
@@ -196,8 +192,8 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         ms => Some(Duration::from_millis(ms)),
     };
     Ok(Config {
-        link: GcudLink::new(gcud, raw.source_group.get(), raw.nic_window_ms.duration()),
-        poll: raw.poll_ms.duration(),
+        link: GcudLink::from(&keys),
+        poll: keys.poll,
         lease,
         max_move: raw.max_move_ms.duration(),
         limits: Limits {
@@ -207,6 +203,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             udp_sources: raw.limits.udp_sources.get(),
         },
         inputs,
+        metrics: keys.metrics,
         gimbals,
         serial_places,
     })

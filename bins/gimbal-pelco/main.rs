@@ -16,22 +16,25 @@ mod stats;
 use std::process::ExitCode;
 use std::sync::Arc;
 
+use sagebrush_service::door::{Door, Started};
 use tracing::info;
 
 use crate::config::Transport;
 use crate::stats::Stats;
 
+/// This door, to the start-up every door shares.
+const DOOR: Door = Door {
+    name: "gimbal-pelco",
+    about: "Pelco-D and Pelco-P (CCTV keyboards, DVRs; serial, TCP, UDP) for the gimbals behind gcud.",
+    families: sagebrush_client::outcomes::families,
+};
+
 fn main() -> ExitCode {
-    sagebrush_service::door::main(
-        "gimbal-pelco",
-        "Pelco-D and Pelco-P (CCTV keyboards, DVRs; serial, TCP, UDP) for the gimbals behind gcud.",
-        config::parse,
-        run,
-    )
+    sagebrush_service::door::main(DOOR, config::parse, run)
 }
 
-async fn run(config: config::Config) -> Result<(), String> {
-    let signals = sagebrush_service::door::Signals::install()?;
+async fn run(config: config::Config, door: Started) -> Result<(), String> {
+    let Started { metrics, signals } = door;
     let reach = Arc::new(sagebrush_client::session::GcudReachability::default());
     let stats = Arc::new(Stats::default());
     let gimbals: Vec<Arc<gimbal::Gimbal>> = config
@@ -47,9 +50,13 @@ async fn run(config: config::Config) -> Result<(), String> {
         cap_loopback: true,
         idle_timeout: config.limits.idle_timeout,
     });
+    let sessions = Arc::new(keyboard::Sessions::new(config.limits.udp_sources));
+    let live = Arc::clone(&sessions);
+    metrics.count_sessions(move || live.live());
     let mut tasks = tokio::task::JoinSet::new();
     for input in &config.inputs {
-        let door = keyboard::Door::new(input, &gimbals, run, Arc::clone(&stats));
+        let counted = (Arc::clone(&metrics), Arc::clone(&sessions));
+        let door = keyboard::Door::new(input, &gimbals, run, Arc::clone(&stats), counted);
         match &input.transport {
             Transport::Serial { path, baud } => {
                 tasks.spawn(inputs::serial(path.clone(), *baud, door));

@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use sagebrush_client::session::GcudLink;
 use sagebrush_protocol::Address;
-use sagebrush_service::config_file::{ConfigError, Int, Millis, Source};
+use sagebrush_service::config_file::{ConfigError, Millis, Source};
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -18,14 +18,6 @@ use toml::Spanned;
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ConfigFile {
-    gcud: Spanned<String>,
-    gcud_tls: Option<Spanned<sagebrush_service::door_config::GcudTlsSection>>,
-    #[serde(default)]
-    source_group: Int<u8, 0, 254>,
-    #[serde(default)]
-    poll_ms: Millis<20, 10_000, 100>,
-    #[serde(default)]
-    nic_window_ms: Millis<10, 1000, 100>,
     #[serde(default)]
     motion_lease_ms: Millis<0, 600_000, 5000>,
     #[serde(default, rename = "client")]
@@ -82,6 +74,8 @@ pub struct Config {
     pub lease: Option<Duration>,
     /// Client IP addresses the door acts for as a named user at gcud.
     pub clients: Vec<(IpAddr, String)>,
+    /// `[metrics] listen`: the door's own metrics (none when absent).
+    pub metrics: Option<SocketAddr>,
     pub gimbals: Vec<Gimbal>,
 }
 
@@ -93,6 +87,10 @@ pub const MAX_MOVE: Duration = Duration::from_secs(3600);
 pub const DEGREES_PER_STEP: f64 = 0.075;
 
 impl sagebrush_service::door::Checked for Config {
+    fn metrics(&self) -> Option<SocketAddr> {
+        self.metrics
+    }
+
     fn summary(&self) -> String {
         let ports: Vec<String> = self
             .gimbals
@@ -126,8 +124,7 @@ fn user_name(name: &str) -> bool {
 /// Parses and validates configuration `text` read from `file`.
 pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let c = Source::new(file, text);
-    let raw: ConfigFile = c.deserialize()?;
-    let gcud = sagebrush_service::door_config::gcud_endpoint(&c, &raw.gcud, raw.gcud_tls.as_ref())?;
+    let (keys, raw) = c.door_file::<ConfigFile, 100>()?;
     let mut clients: Vec<(IpAddr, String)> = Vec::new();
     for (i, cl) in raw.clients.iter().enumerate() {
         let key = format!("client[{i}]");
@@ -209,10 +206,11 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     }
     let lease = raw.motion_lease_ms.duration();
     Ok(Config {
-        link: GcudLink::new(gcud, raw.source_group.get(), raw.nic_window_ms.duration()),
-        poll: raw.poll_ms.duration(),
+        link: GcudLink::from(&keys),
+        poll: keys.poll,
         lease: (!lease.is_zero()).then_some(lease),
         clients,
+        metrics: keys.metrics,
         gimbals,
     })
 }

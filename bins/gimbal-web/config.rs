@@ -13,7 +13,6 @@ use sagebrush_protocol::Address;
 use sagebrush_service::config_file::{ConfigError, Int, Millis, Source};
 use sagebrush_service::door_config::{HttpBounds, HttpSection, UserSection};
 pub use sagebrush_service::door_config::{Role, User};
-use sagebrush_service::door_metrics::MetricsSection;
 use sagebrush_service::door_tls::DoorTls;
 use serde::Deserialize;
 use toml::Spanned;
@@ -22,20 +21,10 @@ use toml::Spanned;
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ConfigFile {
-    gcud: Spanned<String>,
-    /// With `gcud = "tls://HOST:PORT"`: `{ ca, cert, key }`, the CA of
-    /// gcud's certificate and this door's own (its principal at gcud).
-    gcud_tls: Option<Spanned<sagebrush_service::door_config::GcudTlsSection>>,
     listen: Spanned<String>,
-    #[serde(default)]
-    source_group: Int<u8, 0, 254>,
     state_file: Option<Spanned<String>>,
     #[serde(default)]
     hold_lease_ms: Millis<100, 2000, 300>,
-    #[serde(default)]
-    poll_ms: Millis<20, 10_000, 100>,
-    #[serde(default)]
-    nic_window_ms: Millis<10, 1000, 100>,
     #[serde(default)]
     sign_in_hours: Int<u64, 1, 720, 12>,
     #[serde(default)]
@@ -46,7 +35,6 @@ struct ConfigFile {
     secure_cookie: bool,
     #[serde(default)]
     http: HttpSection,
-    metrics: Option<MetricsSection>,
     #[serde(default, rename = "user")]
     users: Vec<UserSection>,
     #[serde(default, rename = "gimbal")]
@@ -104,6 +92,10 @@ pub struct Config {
 }
 
 impl sagebrush_service::door::Checked for Config {
+    fn metrics(&self) -> Option<SocketAddr> {
+        self.metrics
+    }
+
     fn summary(&self) -> String {
         format!(
             "{} gimbal(s), {} user(s), page on {}",
@@ -126,8 +118,7 @@ impl sagebrush_service::door::Checked for Config {
 /// Parses and validates configuration `text` read from `file`.
 pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let c = Source::new(file, text);
-    let raw: ConfigFile = c.deserialize()?;
-    let gcud = sagebrush_service::door_config::gcud_endpoint(&c, &raw.gcud, raw.gcud_tls.as_ref())?;
+    let (keys, raw) = c.door_file::<ConfigFile, 100>()?;
     let listen = c.listen_address(&raw.listen, "listen")?;
     let users = c.users(&raw.users)?;
     let state_file = c.state_file(raw.state_file.as_ref())?;
@@ -149,11 +140,11 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
     }
     Ok(Config {
-        link: GcudLink::new(gcud, raw.source_group.get(), raw.nic_window_ms.duration()),
+        link: GcudLink::from(&keys),
         listen,
         state_file,
         hold_lease: raw.hold_lease_ms.duration(),
-        poll: raw.poll_ms.duration(),
+        poll: keys.poll,
         sign_in: Duration::from_secs(raw.sign_in_hours.get() * 3600),
         max_sign_ins: raw.max_sign_ins.get(),
         max_streams_per_user: raw.max_streams_per_user.get(),
@@ -161,7 +152,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         secure_cookie: raw.secure_cookie || tls.is_some(),
         tls,
         http: raw.http.bounds(),
-        metrics: c.metrics_listen(raw.metrics.as_ref())?,
+        metrics: keys.metrics,
         users,
         gimbals,
     })

@@ -15,26 +15,23 @@ use std::process::ExitCode;
 use std::sync::Arc;
 
 use sagebrush_client::session::{GcudReachability, GimbalSession, SessionConfig};
+use sagebrush_service::door::{Door, Started};
 use tracing::info;
 
+/// This door, to the start-up every door shares.
+const DOOR: Door = Door {
+    name: "gimbal-web",
+    about: "A web page to drive the gimbals behind gcud: live position, hold-to-move, presets.",
+    families: sagebrush_client::outcomes::families,
+};
+
 fn main() -> ExitCode {
-    sagebrush_service::door::main(
-        "gimbal-web",
-        "A web page to drive the gimbals behind gcud: live position, hold-to-move, presets.",
-        config::parse,
-        run,
-    )
+    sagebrush_service::door::main(DOOR, config::parse, run)
 }
 
-async fn run(config: config::Config) -> Result<(), String> {
+async fn run(config: config::Config, door: Started) -> Result<(), String> {
+    let Started { metrics, signals } = door;
     let presets = Arc::new(sagebrush_client::presets::Presets::load(config.state_file.clone())?);
-    let signals = sagebrush_service::door::Signals::install()?;
-    let metrics = sagebrush_service::door_metrics::DoorMetrics::start(
-        "gimbal-web",
-        sagebrush_client::outcomes::families(),
-        config.metrics,
-    )
-    .await?;
     let reach = Arc::new(GcudReachability::default());
     let gimbals: Vec<web::Gimbal> = config
         .gimbals

@@ -1,20 +1,25 @@
 //! What a front door's `main` does (ARCHITECTURE "Layers",
-//! `sagebrush-service`): read its command line (`--config FILE`, `--check`,
-//! the same for every door), load the configuration
-//! (exit 2 with file:line:column on an error, as gcud), answer `--check`,
-//! start logging and a two-thread runtime, and run the door (exit 1 when it
-//! fails to start). Output goes through `sagebrush_host`'s quiet printing,
-//! so a closed stdout or stderr is no panic.
+//! `sagebrush-service`), once for every door: read its command line
+//! (`--config FILE`, `--check`, the same for every door), load the
+//! configuration (exit 2 with file:line:column on an error, as gcud),
+//! answer `--check`, start logging and a two-thread runtime, catch the
+//! signals that stop it, start its metrics (`[metrics] listen`,
+//! [`crate::door_metrics`]), and run the door (exit 1 when it fails to
+//! start). Output goes through `sagebrush_host`'s quiet printing, so a
+//! closed stdout or stderr is no panic.
 
 use std::future::Future;
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::Arc;
 
 use clap::{CommandFactory, FromArgMatches, Parser};
 
 use sagebrush_host::man::{ExitStatus, Manual, logging_environment};
 
 use crate::config_file::{self, ConfigError};
+use crate::door_metrics::{CountFamily, DoorMetrics};
 
 /// Exit code of a configuration error (`--check` or start-up), for gcud
 /// and every door.
@@ -34,10 +39,14 @@ struct Args {
     check: bool,
 }
 
-/// What `--check` says of a door's valid configuration.
+/// What the start-up reads of a door's valid configuration, and what
+/// `--check` says of it.
 pub trait Checked {
     /// What it holds, in a few words.
     fn summary(&self) -> String;
+
+    /// `[metrics] listen` ([`crate::door_link::DoorLink::metrics`]).
+    fn metrics(&self) -> Option<SocketAddr>;
 
     /// What is absent now but may be there at start, each at its place
     /// (a serial device plugged in later): warnings, not errors.
@@ -134,20 +143,41 @@ fn manual(name: &str) -> Manual {
     }
 }
 
-/// Runs the door `name` (described by `about` in its `--help`): reads its
-/// command line, then reads the configuration file, which `parse`
-/// validates (`--check` says what a valid one holds, and warns), and `run`
-/// serves until the door stops.
+/// A front door, as its start-up knows it.
+#[derive(Debug, Clone, Copy)]
+pub struct Door {
+    /// Its program's name.
+    pub name: &'static str,
+    /// What it does, in its `--help`.
+    pub about: &'static str,
+    /// The families its metrics add to its requests and sessions
+    /// (`sagebrush_client::outcomes::families`).
+    pub families: fn() -> Vec<CountFamily>,
+}
+
+/// What a door's `run` is given by its start-up.
+#[derive(Debug)]
+pub struct Started {
+    /// Its metrics, served when the configuration asks (`[metrics] listen`).
+    pub metrics: Arc<DoorMetrics>,
+    /// SIGTERM and SIGINT, caught since before it binds anything.
+    pub signals: Signals,
+}
+
+/// Runs `door`: reads its command line, then reads the configuration
+/// file, which `parse` validates (`--check` says what a valid one holds,
+/// and warns), catches the signals, starts its metrics, and `run` serves
+/// until the door stops.
 pub fn main<C, Fut>(
-    name: &'static str,
-    about: &'static str,
+    door: Door,
     parse: impl FnOnce(&Path, &str) -> Result<C, ConfigError>,
-    run: impl FnOnce(C) -> Fut,
+    run: impl FnOnce(C, Started) -> Fut,
 ) -> ExitCode
 where
     C: Checked,
     Fut: Future<Output = Result<(), String>>,
 {
+    let Door { name, about, families } = door;
     if let Some(code) = sagebrush_host::man::generate_if_asked(|| command(name, about), || manual(name)) {
         return code;
     }
@@ -183,7 +213,12 @@ where
             return ExitCode::from(EXIT_START);
         }
     };
-    match runtime.block_on(run(config)) {
+    let start = async {
+        let signals = Signals::install()?;
+        let metrics = DoorMetrics::start(name, families(), config.metrics()).await?;
+        run(config, Started { metrics, signals }).await
+    };
+    match runtime.block_on(start) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             tracing::error!("{e}");

@@ -18,51 +18,6 @@ use toml::Spanned;
 use crate::config_file::Int;
 use crate::config_file::{ConfigError, Millis, Source};
 
-/// A door's `gcud_tls = { ca, cert, key }`, as written
-/// ([`gcud_endpoint`]).
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct GcudTlsSection {
-    ca: String,
-    cert: Option<String>,
-    key: Option<String>,
-}
-
-/// A door's way to gcud: `gcud = "HOST:PORT"`, or `"tls://HOST:PORT"`
-/// with `gcud_tls = { ca, cert, key }` (the CA of gcud's certificate,
-/// the door's own certificate and key: its principal at gcud). The
-/// files are read now, so that an error names them.
-pub fn gcud_endpoint(
-    c: &Source<'_>,
-    v: &Spanned<String>,
-    tls: Option<&Spanned<GcudTlsSection>>,
-) -> Result<sagebrush_host::tls::Endpoint, ConfigError> {
-    let text = v.get_ref();
-    let plain = text.strip_prefix(sagebrush_host::tls::TLS_SCHEME).unwrap_or(text);
-    let checked = Spanned::new(v.span(), plain.to_owned());
-    c.gcud_address(&checked)?;
-    let files = match tls {
-        None => None,
-        Some(t) => {
-            let raw = t.get_ref();
-            let identity = match (&raw.cert, &raw.key) {
-                (Some(c), Some(k)) => Some((PathBuf::from(c), PathBuf::from(k))),
-                (None, None) => None,
-                _ => return Err(c.at(t.span(), "gcud_tls", "expected `cert` and `key` together")),
-            };
-            let files = sagebrush_host::tls::ClientFiles {
-                ca: PathBuf::from(&raw.ca),
-                identity,
-            };
-            let identity = files.identity.as_ref().map(|(c, k)| (c.as_path(), k.as_path()));
-            sagebrush_host::tls::connector(&files.ca, identity)
-                .map_err(|e| c.at(t.span(), "gcud_tls", e.to_string()))?;
-            Some(files)
-        }
-    };
-    sagebrush_host::tls::Endpoint::parse(text, files).map_err(|e| c.at(v.span(), "gcud", e))
-}
-
 /// One `[[user]]` table, as written.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
