@@ -137,8 +137,6 @@ pub struct Config {
     /// What `--check` warns of in the file itself: an endpoint off
     /// loopback without signing, a key file others may read.
     pub notes: Vec<String>,
-    /// `[metrics] listen`: the door's own metrics (none when absent).
-    pub metrics: Option<SocketAddr>,
 }
 
 impl Gimbal {
@@ -158,10 +156,6 @@ impl Gimbal {
 }
 
 impl sagebrush_service::door::Checked for Config {
-    fn metrics(&self) -> Option<SocketAddr> {
-        self.metrics
-    }
-
     fn summary(&self) -> String {
         format!("{} gimbal(s), {} endpoint(s)", self.gimbals.len(), self.endpoints.len())
     }
@@ -196,13 +190,11 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     if signing.is_none() {
         notes.extend(unsigned_off_loopback(&c, &raw.endpoints));
     }
-    let mut gimbals: Vec<Gimbal> = Vec::new();
-    for (i, g) in raw.gimbals.iter().enumerate() {
-        let key = format!("gimbal[{i}]");
-        let name = c.gimbal_name(&g.name, &key, gimbals.iter().map(|x| x.name.as_str()))?;
+    let gimbals = c.gimbals(&raw.gimbals, |g, key, before: &[Gimbal]| {
+        let name = c.gimbal_name(&g.name, key, before.iter().map(|x| x.name.as_str()))?;
         let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
         let component_id = g.component_id.get();
-        if gimbals.iter().any(|x| x.component_id == component_id) {
+        if before.iter().any(|x| x.component_id == component_id) {
             return Err(c.at(
                 g.component_id.span(),
                 format!("{key}.component_id"),
@@ -232,7 +224,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             }
             None => None,
         };
-        gimbals.push(Gimbal {
+        Ok(Gimbal {
             name,
             address,
             component_id,
@@ -240,11 +232,8 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             tilt_deg,
             max_rate_dps,
             mount_heading_deg,
-        });
-    }
-    if gimbals.is_empty() {
-        return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
-    }
+        })
+    })?;
     let mount = mount_place(&c, &raw)?;
     Ok(Config {
         link: GcudLink::from(&keys),
@@ -258,7 +247,6 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         gimbals,
         signing,
         notes,
-        metrics: keys.metrics,
     })
 }
 

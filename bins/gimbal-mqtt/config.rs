@@ -4,7 +4,6 @@
 //! what was expected (`--check` prints it and exits 2), through
 //! [`sagebrush_service::config_file`] as the other doors'.
 
-use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -116,16 +115,10 @@ pub struct Config {
     pub poll: Duration,
     pub max_slew: Duration,
     pub broker: Broker,
-    /// `[metrics] listen`: the door's own metrics (none when absent).
-    pub metrics: Option<SocketAddr>,
     pub gimbals: Vec<Gimbal>,
 }
 
 impl sagebrush_service::door::Checked for Config {
-    fn metrics(&self) -> Option<SocketAddr> {
-        self.metrics
-    }
-
     fn summary(&self) -> String {
         format!(
             "site {}, {} gimbal(s), broker {}",
@@ -215,14 +208,12 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         u => u.as_ref().map(|u| u.get_ref().clone()),
     };
     let broker = broker(&c, &raw.broker, &site)?;
-    let mut gimbals: Vec<Gimbal> = Vec::new();
-    for (i, g) in raw.gimbals.iter().enumerate() {
-        let key = format!("gimbal[{i}]");
+    let gimbals = c.gimbals(&raw.gimbals, |g, key, before: &[Gimbal]| {
         let name = segment(&c, &g.name, &format!("{key}.name"))?;
         let name = c.gimbal_name(
             &Spanned::new(g.name.span(), name),
-            &key,
-            gimbals.iter().map(|x| x.name.as_str()),
+            key,
+            before.iter().map(|x| x.name.as_str()),
         )?;
         let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
         let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), &key)?;
@@ -242,17 +233,14 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
                 }
             }
         };
-        gimbals.push(Gimbal {
+        Ok(Gimbal {
             name,
             address,
             pan_deg,
             tilt_deg,
             presets,
-        });
-    }
-    if gimbals.is_empty() {
-        return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
-    }
+        })
+    })?;
     Ok(Config {
         link: GcudLink::from(&keys),
         site,
@@ -262,7 +250,6 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         poll: keys.poll,
         max_slew: raw.max_slew_ms.duration(),
         broker,
-        metrics: keys.metrics,
         gimbals,
     })
 }

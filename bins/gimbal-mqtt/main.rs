@@ -20,45 +20,32 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 
-use sagebrush_client::session::{GcudReachability, GimbalSession, SessionConfig};
-use sagebrush_service::door::{Door, Started};
+use sagebrush_client::door::DoorSessions;
+use sagebrush_service::door::Started;
 use tracing::info;
 
 /// How long a stopping door waits for the broker to take its `offline`.
 const GOODBYE: Duration = Duration::from_secs(3);
 
-/// This door, to the start-up every door shares.
-const DOOR: Door = Door {
-    name: "gimbal-mqtt",
-    about: "The gimbals behind gcud on an MQTT broker: state, commands, Home Assistant discovery.",
-    families: sagebrush_client::outcomes::families,
-};
-
 fn main() -> ExitCode {
-    sagebrush_service::door::main(DOOR, config::parse, run)
+    sagebrush_client::door::main(
+        "gimbal-mqtt",
+        "The gimbals behind gcud on an MQTT broker: state, commands, Home Assistant discovery.",
+        config::parse,
+        run,
+    )
 }
 
-async fn run(config: config::Config, door: Started) -> Result<(), String> {
-    let Started { metrics, signals } = door;
+async fn run(config: config::Config, Started { metrics, signals }: Started) -> Result<(), String> {
     let config = Arc::new(config);
     let topics = topics::Topics::new(&config);
     let (client, events) = broker::connect(&config.broker, &topics.status(), "offline")?;
-    let reach = Arc::new(GcudReachability::default());
+    let door_sessions = DoorSessions::new(&config.link, config.poll);
     let gimbals: Vec<Arc<gimbal::Gimbal>> = config
         .gimbals
         .iter()
         .map(|g| {
-            let session = GimbalSession::start(
-                SessionConfig {
-                    link: config.link.clone(),
-                    address: g.address,
-                    poll: config.poll,
-                    lens: false,
-                    max_move: config.max_slew,
-                    name: g.name.clone(),
-                },
-                Arc::clone(&reach),
-            );
+            let session = door_sessions.start(&g.name, g.address, false, config.max_slew);
             gimbal::Gimbal::start(
                 g.clone(),
                 session,

@@ -145,8 +145,6 @@ pub struct Config {
     pub discovery: Option<DiscoveryConfig>,
     /// `[http] tls`: every gimbal's device in HTTPS.
     pub tls: Option<DoorTls>,
-    /// `[metrics] listen`: the door's own metrics (none when absent).
-    pub metrics: Option<SocketAddr>,
     pub users: Users,
     pub gimbals: Vec<Gimbal>,
 }
@@ -155,10 +153,6 @@ pub struct Config {
 pub const DISCOVERY_DEFAULT: &str = "0.0.0.0:3702";
 
 impl sagebrush_service::door::Checked for Config {
-    fn metrics(&self) -> Option<SocketAddr> {
-        self.metrics
-    }
-
     fn summary(&self) -> String {
         format!("{} gimbal(s), {} user(s)", self.gimbals.len(), self.users.list.len())
     }
@@ -193,13 +187,11 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let http = raw.http.bounds();
     let state_file = c.state_file(raw.state_file.as_ref())?;
     let users = c.users(&raw.users)?;
-    let mut gimbals: Vec<Gimbal> = Vec::new();
-    for (i, g) in raw.gimbals.iter().enumerate() {
-        let key = format!("gimbal[{i}]");
-        let name = c.gimbal_name(&g.name, &key, gimbals.iter().map(|x| x.name.as_str()))?;
+    let mut gimbals = c.gimbals(&raw.gimbals, |g, key, before: &[Gimbal]| {
+        let name = c.gimbal_name(&g.name, key, before.iter().map(|x| x.name.as_str()))?;
         let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
         let listen = c.listen_address(&g.listen, &format!("{key}.listen"))?;
-        if gimbals.iter().any(|x| listeners_clash(&x.listen, &listen)) {
+        if before.iter().any(|x| listeners_clash(&x.listen, &listen)) {
             return Err(c.at(
                 g.listen.span(),
                 format!("{key}.listen"),
@@ -230,7 +222,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
                 ));
             }
         }
-        gimbals.push(Gimbal {
+        Ok(Gimbal {
             name,
             address,
             listen,
@@ -242,11 +234,8 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             zoom,
             fov_deg,
             fov_tele_deg,
-        });
-    }
-    if gimbals.is_empty() {
-        return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
-    }
+        })
+    })?;
     let listens: Vec<SocketAddr> = gimbals.iter().map(|g| g.listen).collect();
     let tls = c.door_tls(&raw.http, "gimbal-onvif", state_file.as_deref(), &listens)?;
     for g in &mut gimbals {
@@ -259,7 +248,6 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         poll: keys.poll,
         discovery,
         tls,
-        metrics: keys.metrics,
         users: Users {
             list: users,
             bounds: AuthBounds {

@@ -15,28 +15,25 @@ mod soap;
 use std::process::ExitCode;
 use std::sync::Arc;
 
-use sagebrush_service::door::{Door, Started};
+use sagebrush_service::door::Started;
 use tracing::{error, info};
 
-/// This door, to the start-up every door shares.
-const DOOR: Door = Door {
-    name: "gimbal-onvif",
-    about: "ONVIF PTZ (Device, Media, PTZ) and WS-Discovery for the gimbals behind gcud.",
-    families: sagebrush_client::outcomes::families,
-};
-
 fn main() -> ExitCode {
-    sagebrush_service::door::main(DOOR, config::parse, run)
+    sagebrush_client::door::main(
+        "gimbal-onvif",
+        "ONVIF PTZ (Device, Media, PTZ) and WS-Discovery for the gimbals behind gcud.",
+        config::parse,
+        run,
+    )
 }
 
-async fn run(config: config::Config, door: Started) -> Result<(), String> {
-    let Started { metrics, signals } = door;
+async fn run(config: config::Config, Started { metrics, signals }: Started) -> Result<(), String> {
     let presets = Arc::new(sagebrush_client::presets::Presets::load(config.state_file.clone())?);
     let auth = Arc::new(auth::Authenticator::new(config.users.clone()));
     let mut gimbals = Vec::new();
     let mut served = Vec::new();
     let mut tasks = tokio::task::JoinSet::new();
-    let reach = Arc::new(sagebrush_client::session::GcudReachability::default());
+    let sessions = sagebrush_client::door::DoorSessions::new(&config.link, config.poll);
     // One admission table for every gimbal's device: the caps are for all.
     let table = config.gimbals.first().map(|g| g.http.table());
     // Its clients: the connections open to its devices (ONVIF keeps no session).
@@ -45,7 +42,7 @@ async fn run(config: config::Config, door: Started) -> Result<(), String> {
     }
     let tls = config.tls.as_ref().map(|t| t.acceptor()).transpose()?;
     for g in &config.gimbals {
-        let gimbal = gimbal::Gimbal::new(g.clone(), &config, Arc::clone(&reach));
+        let gimbal = gimbal::Gimbal::new(g.clone(), &config, &sessions);
         let device = onvif::Device::new(
             Arc::clone(&gimbal),
             Arc::clone(&auth),

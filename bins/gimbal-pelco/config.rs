@@ -120,18 +120,12 @@ pub struct Config {
     pub max_move: Duration,
     pub limits: Limits,
     pub inputs: Vec<Input>,
-    /// `[metrics] listen`: the door's own metrics (none when absent).
-    pub metrics: Option<SocketAddr>,
     pub gimbals: Vec<Gimbal>,
     /// Each serial input's device and its place in the file (`--check`).
     pub serial_places: Vec<(PathBuf, String)>,
 }
 
 impl sagebrush_service::door::Checked for Config {
-    fn metrics(&self) -> Option<SocketAddr> {
-        self.metrics
-    }
-
     fn summary(&self) -> String {
         format!("{} input(s), {} gimbal(s)", self.inputs.len(), self.gimbals.len())
     }
@@ -157,29 +151,24 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let c = Source::new(file, text);
     let (keys, raw) = c.door_file::<ConfigFile, 1000>()?;
     let (inputs, serial_places) = inputs(&c, &raw.inputs)?;
-    let mut gimbals: Vec<Gimbal> = Vec::new();
-    for (i, g) in raw.gimbals.iter().enumerate() {
-        let key = format!("gimbal[{i}]");
-        let name = c.gimbal_name(&g.name, &key, gimbals.iter().map(|x| x.name.as_str()))?;
+    let gimbals = c.gimbals(&raw.gimbals, |g, key, before: &[Gimbal]| {
+        let name = c.gimbal_name(&g.name, key, before.iter().map(|x| x.name.as_str()))?;
         let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
         let pelco_address = g.pelco_address.get();
-        if let Some(other) = gimbals.iter().find(|x| x.pelco_address == pelco_address) {
+        if let Some(other) = before.iter().find(|x| x.pelco_address == pelco_address) {
             return Err(c.at(
                 g.pelco_address.span(),
                 format!("{key}.pelco_address"),
                 format!("expected an address of its own: {pelco_address} is {}'s", other.name),
             ));
         }
-        gimbals.push(Gimbal {
+        Ok(Gimbal {
             name,
             address,
             pelco_address,
             zoom: g.zoom.as_ref().is_some_and(|z| *z.get_ref()),
-        });
-    }
-    if gimbals.is_empty() {
-        return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
-    }
+        })
+    })?;
     let lease = match raw.motion_lease_ms.get() {
         0 => None,
         ms if ms < 100 => {
@@ -203,7 +192,6 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             udp_sources: raw.limits.udp_sources.get(),
         },
         inputs,
-        metrics: keys.metrics,
         gimbals,
         serial_places,
     })

@@ -74,8 +74,6 @@ pub struct Config {
     pub lease: Option<Duration>,
     /// Client IP addresses the door acts for as a named user at gcud.
     pub clients: Vec<(IpAddr, String)>,
-    /// `[metrics] listen`: the door's own metrics (none when absent).
-    pub metrics: Option<SocketAddr>,
     pub gimbals: Vec<Gimbal>,
 }
 
@@ -87,10 +85,6 @@ pub const MAX_MOVE: Duration = Duration::from_secs(3600);
 pub const DEGREES_PER_STEP: f64 = 0.075;
 
 impl sagebrush_service::door::Checked for Config {
-    fn metrics(&self) -> Option<SocketAddr> {
-        self.metrics
-    }
-
     fn summary(&self) -> String {
         let ports: Vec<String> = self
             .gimbals
@@ -151,10 +145,8 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         }
         clients.push((ip, cl.user.get_ref().clone()));
     }
-    let mut gimbals: Vec<Gimbal> = Vec::new();
-    for (i, g) in raw.gimbals.iter().enumerate() {
-        let key = format!("gimbal[{i}]");
-        let name = c.gimbal_name(&g.name, &key, gimbals.iter().map(|x| x.name.as_str()))?;
+    let gimbals = c.gimbals(&raw.gimbals, |g, key, before: &[Gimbal]| {
+        let name = c.gimbal_name(&g.name, key, before.iter().map(|x| x.name.as_str()))?;
         let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
         let udp = c.listen_address(&g.visca_udp, &format!("{key}.visca_udp"))?;
         let tcp = match &g.visca_tcp {
@@ -162,7 +154,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             None => None,
         };
         let taken = |a: SocketAddr, tcp: bool| {
-            a.port() != 0 && gimbals.iter().any(|x| if tcp { x.tcp == Some(a) } else { x.udp == a })
+            a.port() != 0 && before.iter().any(|x| if tcp { x.tcp == Some(a) } else { x.udp == a })
         };
         if taken(udp, false) {
             return Err(c.at(
@@ -191,7 +183,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
                 ));
             }
         };
-        gimbals.push(Gimbal {
+        Ok(Gimbal {
             name,
             address,
             udp,
@@ -199,18 +191,14 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             reuse_address: g.reuse_address,
             degrees_per_step,
             lens: g.lens,
-        });
-    }
-    if gimbals.is_empty() {
-        return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
-    }
+        })
+    })?;
     let lease = raw.motion_lease_ms.duration();
     Ok(Config {
         link: GcudLink::from(&keys),
         poll: keys.poll,
         lease: (!lease.is_zero()).then_some(lease),
         clients,
-        metrics: keys.metrics,
         gimbals,
     })
 }

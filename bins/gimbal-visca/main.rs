@@ -19,23 +19,21 @@ mod visca;
 use std::process::ExitCode;
 use std::sync::Arc;
 
-use sagebrush_client::session::{GcudReachability, GimbalSession, SessionConfig};
-use sagebrush_service::door::{Door, Started};
+use sagebrush_client::door::DoorSessions;
+use sagebrush_service::door::Started;
 use sagebrush_service::door_metrics::HeardLately;
 use sagebrush_service::{Connections, Limits};
 use tracing::info;
 
 use crate::stats::Stats;
 
-/// This door, to the start-up every door shares.
-const DOOR: Door = Door {
-    name: "gimbal-visca",
-    about: "VISCA cameras (Sony VISCA over IP on UDP, raw VISCA over TCP) for the gimbals behind gcud.",
-    families: sagebrush_client::outcomes::families,
-};
-
 fn main() -> ExitCode {
-    sagebrush_service::door::main(DOOR, config::parse, run)
+    sagebrush_client::door::main(
+        "gimbal-visca",
+        "VISCA cameras (Sony VISCA over IP on UDP, raw VISCA over TCP) for the gimbals behind gcud.",
+        config::parse,
+        run,
+    )
 }
 
 /// A UDP socket on `addr`, with SO_REUSEADDR when asked (a client on the
@@ -53,10 +51,9 @@ fn udp_socket(addr: std::net::SocketAddr, reuse: bool) -> std::io::Result<tokio:
     tokio::net::UdpSocket::from_std(socket.into())
 }
 
-async fn run(config: config::Config, door: Started) -> Result<(), String> {
-    let Started { metrics, signals } = door;
+async fn run(config: config::Config, Started { metrics, signals }: Started) -> Result<(), String> {
     let stats = Arc::new(Stats::default());
-    let reach = Arc::new(GcudReachability::default());
+    let door_sessions = DoorSessions::new(&config.link, config.poll);
     let clients = Arc::new(config.clients.clone());
     let lease = camera::lease(&config);
     let mut tasks = tokio::task::JoinSet::new();
@@ -65,17 +62,7 @@ async fn run(config: config::Config, door: Started) -> Result<(), String> {
     // A controller asks its camera's position every second or so.
     let heard = Arc::new(HeardLately::new(4 * net::SOURCES, net::FORGET));
     for g in &config.gimbals {
-        let session = GimbalSession::start(
-            SessionConfig {
-                link: config.link.clone(),
-                address: g.address,
-                poll: config.poll,
-                lens: g.lens,
-                max_move: lease.max(config::MAX_MOVE),
-                name: g.name.clone(),
-            },
-            Arc::clone(&reach),
-        );
+        let session = door_sessions.start(&g.name, g.address, g.lens, lease.max(config::MAX_MOVE));
         sessions.push(Arc::clone(&session));
         let (cam, jobs) = camera::Camera::new(g.clone(), session, Arc::clone(&stats), Arc::clone(&metrics));
         let udp =

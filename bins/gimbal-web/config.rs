@@ -85,17 +85,11 @@ pub struct Config {
     /// `[http] tls`: the page in HTTPS.
     pub tls: Option<DoorTls>,
     pub http: HttpBounds,
-    /// `[metrics] listen`: the door's own metrics (none when absent).
-    pub metrics: Option<SocketAddr>,
     pub users: Vec<User>,
     pub gimbals: Vec<Gimbal>,
 }
 
 impl sagebrush_service::door::Checked for Config {
-    fn metrics(&self) -> Option<SocketAddr> {
-        self.metrics
-    }
-
     fn summary(&self) -> String {
         format!(
             "{} gimbal(s), {} user(s), page on {}",
@@ -123,22 +117,17 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let users = c.users(&raw.users)?;
     let state_file = c.state_file(raw.state_file.as_ref())?;
     let tls = c.door_tls(&raw.http, "gimbal-web", state_file.as_deref(), &[listen])?;
-    let mut gimbals: Vec<Gimbal> = Vec::new();
-    for (i, g) in raw.gimbals.iter().enumerate() {
-        let key = format!("gimbal[{i}]");
-        let name = c.gimbal_name(&g.name, &key, gimbals.iter().map(|x| x.name.as_str()))?;
+    let gimbals = c.gimbals(&raw.gimbals, |g, key, before: &[Gimbal]| {
+        let name = c.gimbal_name(&g.name, key, before.iter().map(|x| x.name.as_str()))?;
         let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
         let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), &key)?;
-        gimbals.push(Gimbal {
+        Ok(Gimbal {
             name,
             address,
             pan_deg,
             tilt_deg,
-        });
-    }
-    if gimbals.is_empty() {
-        return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
-    }
+        })
+    })?;
     Ok(Config {
         link: GcudLink::from(&keys),
         listen,
@@ -152,7 +141,6 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         secure_cookie: raw.secure_cookie || tls.is_some(),
         tls,
         http: raw.http.bounds(),
-        metrics: keys.metrics,
         users,
         gimbals,
     })

@@ -14,41 +14,28 @@ mod web;
 use std::process::ExitCode;
 use std::sync::Arc;
 
-use sagebrush_client::session::{GcudReachability, GimbalSession, SessionConfig};
-use sagebrush_service::door::{Door, Started};
+use sagebrush_client::door::DoorSessions;
+use sagebrush_service::door::Started;
 use tracing::info;
 
-/// This door, to the start-up every door shares.
-const DOOR: Door = Door {
-    name: "gimbal-web",
-    about: "A web page to drive the gimbals behind gcud: live position, hold-to-move, presets.",
-    families: sagebrush_client::outcomes::families,
-};
-
 fn main() -> ExitCode {
-    sagebrush_service::door::main(DOOR, config::parse, run)
+    sagebrush_client::door::main(
+        "gimbal-web",
+        "A web page to drive the gimbals behind gcud: live position, hold-to-move, presets.",
+        config::parse,
+        run,
+    )
 }
 
-async fn run(config: config::Config, door: Started) -> Result<(), String> {
-    let Started { metrics, signals } = door;
+async fn run(config: config::Config, Started { metrics, signals }: Started) -> Result<(), String> {
     let presets = Arc::new(sagebrush_client::presets::Presets::load(config.state_file.clone())?);
-    let reach = Arc::new(GcudReachability::default());
+    let door_sessions = DoorSessions::new(&config.link, config.poll);
     let gimbals: Vec<web::Gimbal> = config
         .gimbals
         .iter()
         .map(|g| {
-            let session = GimbalSession::start(
-                SessionConfig {
-                    link: config.link.clone(),
-                    address: g.address,
-                    poll: config.poll,
-                    lens: false,
-                    // A held move runs while the page renews it, never longer.
-                    max_move: config.hold_lease,
-                    name: g.name.clone(),
-                },
-                Arc::clone(&reach),
-            );
+            let session = // A held move runs while the page renews it, never longer.
+                    door_sessions.start(&g.name, g.address, false, config.hold_lease);
             web::Gimbal {
                 config: g.clone(),
                 session,

@@ -9,7 +9,6 @@
 //! closed stdout or stderr is no panic.
 
 use std::future::Future;
-use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -39,14 +38,10 @@ struct Args {
     check: bool,
 }
 
-/// What the start-up reads of a door's valid configuration, and what
-/// `--check` says of it.
+/// What `--check` says of a door's valid configuration.
 pub trait Checked {
     /// What it holds, in a few words.
     fn summary(&self) -> String;
-
-    /// `[metrics] listen` ([`crate::door_link::DoorLink::metrics`]).
-    fn metrics(&self) -> Option<SocketAddr>;
 
     /// What is absent now but may be there at start, each at its place
     /// (a serial device plugged in later): warnings, not errors.
@@ -184,7 +179,11 @@ where
     let matches = command(name, about).get_matches();
     let args = Args::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     let (file, check) = (args.config.as_path(), args.check);
-    let config = match config_file::read(file).and_then(|text| parse(file, &text)) {
+    // `[metrics]` is the start-up's: read beside the door's own parse,
+    // which checked it (`crate::door_link`).
+    let parsed = config_file::read(file)
+        .and_then(|text| Ok((parse(file, &text)?, crate::door_link::metrics_listen(file, &text)?)));
+    let (config, metrics_listen) = match parsed {
         Ok(c) => c,
         Err(e) => {
             sagebrush_host::errln!("{name}: {e}");
@@ -215,7 +214,7 @@ where
     };
     let start = async {
         let signals = Signals::install()?;
-        let metrics = DoorMetrics::start(name, families(), config.metrics()).await?;
+        let metrics = DoorMetrics::start(name, families(), metrics_listen).await?;
         run(config, Started { metrics, signals }).await
     };
     match runtime.block_on(start) {

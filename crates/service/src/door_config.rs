@@ -1,5 +1,6 @@
-//! The configuration pieces every front door with users shares
-//! (gimbal-onvif, gimbal-web): the `[[user]]` tables with their roles and
+//! The configuration pieces the front doors share: every door's
+//! `[[gimbal]]` tables (at least one); for the doors with users
+//! (gimbal-onvif, gimbal-web) the `[[user]]` tables with their roles and
 //! passwords (inline or in a file beside the configuration), the state
 //! file the door keeps its preset names in, each validated at its place as
 //! [`crate::config_file`] does, and `[http]`, the bounds of the door's
@@ -80,6 +81,24 @@ pub fn demo_password_warnings(users: &[User], listeners: &[std::net::SocketAddr]
 }
 
 impl Source<'_> {
+    /// The `[[gimbal]]` tables, each read by `each` with its key
+    /// (`gimbal[i]`) and the gimbals read before it; at least one.
+    pub fn gimbals<S, G>(
+        &self,
+        sections: &[S],
+        mut each: impl FnMut(&S, &str, &[G]) -> Result<G, ConfigError>,
+    ) -> Result<Vec<G>, ConfigError> {
+        let mut gimbals = Vec::with_capacity(sections.len());
+        for (i, section) in sections.iter().enumerate() {
+            let gimbal = each(section, &format!("gimbal[{i}]"), &gimbals)?;
+            gimbals.push(gimbal);
+        }
+        if gimbals.is_empty() {
+            return Err(self.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
+        }
+        Ok(gimbals)
+    }
+
     /// The `[[user]]` tables: each name given once, exactly one of
     /// `password` or `password_file` (its text without the final line
     /// break), not empty, and a role; at least one user.

@@ -2,7 +2,8 @@
 //! its way to gcud (`gcud`, `gcud_tls`), the source group of its commands
 //! (`source_group`), how often its sessions poll (`poll_ms`, where the
 //! door polls), gcud's NIC window (`nic_window_ms`, 1.4.2) and its own
-//! metrics (`[metrics] listen`, [`crate::door_metrics`]).
+//! metrics (`[metrics] listen`, [`crate::door_metrics`]: checked here,
+//! served by the start-up, [`metrics_listen`]).
 //!
 //! A door's file is read as [`DoorFile`]: these keys into [`LinkKeys`],
 //! every other key into the door's own struct, which keeps
@@ -119,8 +120,6 @@ pub struct DoorLink {
     pub nic_window: Duration,
     /// `poll_ms`, or the door's default (zero for a door without it).
     pub poll: Duration,
-    /// `[metrics] listen`: the door's own metrics (none when absent).
-    pub metrics: Option<SocketAddr>,
 }
 
 impl<const POLL_MS: i64> LinkKeys<POLL_MS> {
@@ -157,14 +156,29 @@ impl<const POLL_MS: i64> LinkKeys<POLL_MS> {
         };
         let gcud = gcud_endpoint(c, gcud, self.gcud_tls.as_ref())?;
         let default_poll = Duration::from_millis(POLL_MS.unsigned_abs());
-        Ok(DoorLink {
+        let link = DoorLink {
             gcud,
             source_group: self.source_group.get(),
             nic_window: self.nic_window_ms.duration(),
             poll: self.poll_ms.as_ref().map_or(default_poll, Millis::duration),
-            metrics: c.metrics_listen(self.metrics.as_ref())?,
-        })
+        };
+        // Checked here, at its place; served by the start-up ([`metrics_listen`]).
+        c.metrics_listen(self.metrics.as_ref())?;
+        Ok(link)
     }
+}
+
+/// `[metrics] listen` of a door's file (none when absent), read alone:
+/// the door's start-up serves the metrics (`crate::door::main`) after
+/// the door's own parse checked the key with the others.
+pub fn metrics_listen(file: &std::path::Path, text: &str) -> Result<Option<SocketAddr>, ConfigError> {
+    #[derive(Deserialize)]
+    struct Metrics {
+        metrics: Option<MetricsSection>,
+    }
+    let c = Source::new(file, text);
+    let read: Metrics = c.deserialize()?;
+    c.metrics_listen(read.metrics.as_ref())
 }
 
 impl Source<'_> {
@@ -346,10 +360,13 @@ mod tests {
         assert_eq!(link.source_group, 7);
         assert_eq!(link.poll, Duration::from_millis(200));
         assert_eq!(link.nic_window, Duration::from_millis(100));
-        assert_eq!(link.metrics, Some("127.0.0.1:9100".parse().unwrap()));
+        let text = "gcud = \"127.0.0.1:4001\"\n[metrics]\nlisten = \"127.0.0.1:9100\"\n";
+        assert_eq!(
+            metrics_listen(Path::new("d.toml"), text).unwrap(),
+            Some("127.0.0.1:9100".parse().unwrap())
+        );
         let (link, _) = parse::<200>("gcud = \"127.0.0.1:4001\"\npoll_ms = 50\nname = \"a\"\n").unwrap();
         assert_eq!(link.poll, Duration::from_millis(50));
-        assert_eq!(link.metrics, None);
     }
 
     #[test]
