@@ -201,7 +201,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
                 "expected a component id of its own (MAV_COMP_ID_GIMBAL 154, GIMBAL2..6 171..175)",
             ));
         }
-        let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), &key)?;
+        let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), key)?;
         let max_rate_dps = match &g.max_rate_dps {
             Some(v) if *v.get_ref() > 0.0 && *v.get_ref() <= 655.35 => *v.get_ref(),
             Some(v) => {

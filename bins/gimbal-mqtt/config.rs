@@ -216,7 +216,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             before.iter().map(|x| x.name.as_str()),
         )?;
         let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
-        let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), &key)?;
+        let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), key)?;
         let presets = match &g.presets {
             None => (1..=8).collect(),
             Some(p) => {

@@ -208,7 +208,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             }
             s => s.as_ref().map(|s| s.get_ref().clone()),
         };
-        let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), &key)?;
+        let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), key)?;
         let fov_deg = field_of_view(&c, g.fov_deg.as_ref(), &format!("{key}.fov_deg"))?;
         let fov_tele_deg = field_of_view(&c, g.fov_tele_deg.as_ref(), &format!("{key}.fov_tele_deg"))?;
         let zoom = g.zoom.as_ref().is_some_and(|z| *z.get_ref());

@@ -120,7 +120,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let gimbals = c.gimbals(&raw.gimbals, |g, key, before: &[Gimbal]| {
         let name = c.gimbal_name(&g.name, key, before.iter().map(|x| x.name.as_str()))?;
         let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
-        let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), &key)?;
+        let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), key)?;
         Ok(Gimbal {
             name,
             address,
