@@ -28,12 +28,11 @@ use crate::transport::link::Outbox;
 use crate::transport::{signing, stream};
 
 fn main() -> ExitCode {
-    sagebrush_client::door::main(
+    let door = sagebrush_client::door::with_outcomes(
         "gimbal-mavlink",
         "MAVLink Gimbal Protocol v2 (gimbal manager and device) for the gimbals behind gcud.",
-        config::parse,
-        run,
-    )
+    );
+    sagebrush_service::door::main(door, config::parse, run)
 }
 
 /// A ground station or vehicle heard this recently is live (the door's

@@ -28,12 +28,11 @@ use tracing::info;
 const GOODBYE: Duration = Duration::from_secs(3);
 
 fn main() -> ExitCode {
-    sagebrush_client::door::main(
+    let door = sagebrush_client::door::with_outcomes(
         "gimbal-mqtt",
         "The gimbals behind gcud on an MQTT broker: state, commands, Home Assistant discovery.",
-        config::parse,
-        run,
-    )
+    );
+    sagebrush_service::door::main(door, config::parse, run)
 }
 
 async fn run(config: config::Config, Started { metrics, signals }: Started) -> Result<(), String> {

@@ -19,12 +19,11 @@ use sagebrush_service::door::Started;
 use tracing::{error, info};
 
 fn main() -> ExitCode {
-    sagebrush_client::door::main(
+    let door = sagebrush_client::door::with_outcomes(
         "gimbal-onvif",
         "ONVIF PTZ (Device, Media, PTZ) and WS-Discovery for the gimbals behind gcud.",
-        config::parse,
-        run,
-    )
+    );
+    sagebrush_service::door::main(door, config::parse, run)
 }
 
 async fn run(config: config::Config, Started { metrics, signals }: Started) -> Result<(), String> {

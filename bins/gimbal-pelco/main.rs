@@ -23,12 +23,11 @@ use crate::config::Transport;
 use crate::stats::Stats;
 
 fn main() -> ExitCode {
-    sagebrush_client::door::main(
+    let door = sagebrush_client::door::with_outcomes(
         "gimbal-pelco",
         "Pelco-D and Pelco-P (CCTV keyboards, DVRs; serial, TCP, UDP) for the gimbals behind gcud.",
-        config::parse,
-        run,
-    )
+    );
+    sagebrush_service::door::main(door, config::parse, run)
 }
 
 async fn run(config: config::Config, Started { metrics, signals }: Started) -> Result<(), String> {

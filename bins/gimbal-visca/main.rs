@@ -28,12 +28,11 @@ use tracing::info;
 use crate::stats::Stats;
 
 fn main() -> ExitCode {
-    sagebrush_client::door::main(
+    let door = sagebrush_client::door::with_outcomes(
         "gimbal-visca",
         "VISCA cameras (Sony VISCA over IP on UDP, raw VISCA over TCP) for the gimbals behind gcud.",
-        config::parse,
-        run,
-    )
+    );
+    sagebrush_service::door::main(door, config::parse, run)
 }
 
 /// A UDP socket on `addr`, with SO_REUSEADDR when asked (a client on the

@@ -19,12 +19,11 @@ use sagebrush_service::door::Started;
 use tracing::info;
 
 fn main() -> ExitCode {
-    sagebrush_client::door::main(
+    let door = sagebrush_client::door::with_outcomes(
         "gimbal-web",
         "A web page to drive the gimbals behind gcud: live position, hold-to-move, presets.",
-        config::parse,
-        run,
-    )
+    );
+    sagebrush_service::door::main(door, config::parse, run)
 }
 
 async fn run(config: config::Config, Started { metrics, signals }: Started) -> Result<(), String> {

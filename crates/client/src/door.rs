@@ -1,40 +1,26 @@
-//! A front door's start with this crate (ARCHITECTURE "Front doors"): its
-//! `main`, the start-up every door shares
-//! ([`sagebrush_service::door::main`]) with this crate's outcome counts
+//! A front door's start with this crate (ARCHITECTURE "Front doors"): the
+//! door as the start-up every door shares sees it
+//! ([`sagebrush_service::door::main`]), with this crate's outcome counts
 //! ([`crate::outcomes::families`]) as its metrics' families, and
 //! [`DoorSessions`], the sessions of its gimbals over its one link to gcud.
 
-use std::future::Future;
-use std::path::Path;
-use std::process::ExitCode;
 use std::sync::Arc;
 use std::time::Duration;
 
 use sagebrush_protocol::Address;
-use sagebrush_service::config_file::ConfigError;
-use sagebrush_service::door::{Checked, Door, Started};
+use sagebrush_service::door::Door;
 
 use crate::session::{GcudLink, GcudReachability, GimbalSession, SessionConfig};
 
-/// Runs door `name` (`about`: what it does, in its `--help`): its
-/// configuration read by `parse`, then `run` until it stops
-/// ([`sagebrush_service::door::main`]).
-pub fn main<C, Fut>(
-    name: &'static str,
-    about: &'static str,
-    parse: impl FnOnce(&Path, &str) -> Result<C, ConfigError>,
-    run: impl FnOnce(C, Started) -> Fut,
-) -> ExitCode
-where
-    C: Checked,
-    Fut: Future<Output = Result<(), String>>,
-{
-    let door = Door {
+/// Door `name` (`about`: what it does, in its `--help`) for the start-up
+/// every door shares ([`sagebrush_service::door::main`]), its metrics
+/// counting this crate's outcomes.
+pub fn with_outcomes(name: &'static str, about: &'static str) -> Door {
+    Door {
         name,
         about,
         families: crate::outcomes::families,
-    };
-    sagebrush_service::door::main(door, parse, run)
+    }
 }
 
 /// The sessions of a door's gimbals: one link to gcud, one poll period,

@@ -15,8 +15,8 @@
 //!   confirms them, velocities coalesced, one cached poll.
 //! - [`outcomes`]: what became of this process's commands, counted for
 //!   a door's metrics.
-//! - [`door`]: a front door's `main` (the shared start-up with these
-//!   counts) and the sessions of its gimbals over its one link.
+//! - [`door`]: a front door for the shared start-up (its metrics counting
+//!   these outcomes) and the sessions of its gimbals over its one link.
 //! - [`governance`]: what gcud decides about its gimbals, asked of it
 //!   (who controls a gimbal, release, tours): the GCU commands of port 0.
 //!
