@@ -21,16 +21,7 @@ use crate::transport::signing::Key;
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ConfigFile {
-    gcud: Spanned<String>,
-    /// With `gcud = "tls://HOST:PORT"`: `{ ca, cert, key }`, the CA of
-    /// gcud's certificate and this door's own (its principal at gcud).
-    gcud_tls: Option<Spanned<sagebrush_service::door_config::GcudTlsSection>>,
     system_id: Int<u8, 1, 255>,
-    /// The source group gcud sees (0: the MCU).
-    #[serde(default)]
-    source_group: Int<u8, 0, 254>,
-    #[serde(default)]
-    nic_window_ms: Millis<10, 1000, 100>,
     attitude_rate_hz: Option<Spanned<f64>>,
     #[serde(default)]
     lease_ms: Millis<100, 60_000, 1000>,
@@ -45,7 +36,6 @@ struct ConfigFile {
     #[serde(default, rename = "gimbal")]
     gimbals: Vec<GimbalSection>,
     signing: Option<SigningSection>,
-    metrics: Option<sagebrush_service::door_metrics::MetricsSection>,
 }
 
 /// `[signing]`: MAVLink 2 message signing.
@@ -147,8 +137,6 @@ pub struct Config {
     /// What `--check` warns of in the file itself: an endpoint off
     /// loopback without signing, a key file others may read.
     pub notes: Vec<String>,
-    /// `[metrics] listen`: the door's own metrics (none when absent).
-    pub metrics: Option<SocketAddr>,
 }
 
 impl Gimbal {
@@ -185,8 +173,7 @@ impl sagebrush_service::door::Checked for Config {
 /// Parses and validates configuration `text` read from `file`.
 pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let c = Source::new(file, text);
-    let raw: ConfigFile = c.deserialize()?;
-    let gcud = sagebrush_service::door_config::gcud_endpoint(&c, &raw.gcud, raw.gcud_tls.as_ref())?;
+    let (keys, raw) = c.door_file::<ConfigFile, { sagebrush_service::door_link::NO_POLL }>()?;
     let attitude_period = match &raw.attitude_rate_hz {
         Some(v) if (0.2..=50.0).contains(v.get_ref()) => Duration::from_secs_f64(1.0 / v.get_ref()),
         Some(v) => {
@@ -203,20 +190,18 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     if signing.is_none() {
         notes.extend(unsigned_off_loopback(&c, &raw.endpoints));
     }
-    let mut gimbals: Vec<Gimbal> = Vec::new();
-    for (i, g) in raw.gimbals.iter().enumerate() {
-        let key = format!("gimbal[{i}]");
-        let name = c.gimbal_name(&g.name, &key, gimbals.iter().map(|x| x.name.as_str()))?;
+    let gimbals = c.gimbals(&raw.gimbals, |g, key, before: &[Gimbal]| {
+        let name = c.gimbal_name(&g.name, key, before.iter().map(|x| x.name.as_str()))?;
         let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
         let component_id = g.component_id.get();
-        if gimbals.iter().any(|x| x.component_id == component_id) {
+        if before.iter().any(|x| x.component_id == component_id) {
             return Err(c.at(
                 g.component_id.span(),
                 format!("{key}.component_id"),
                 "expected a component id of its own (MAV_COMP_ID_GIMBAL 154, GIMBAL2..6 171..175)",
             ));
         }
-        let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), &key)?;
+        let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), key)?;
         let max_rate_dps = match &g.max_rate_dps {
             Some(v) if *v.get_ref() > 0.0 && *v.get_ref() <= 655.35 => *v.get_ref(),
             Some(v) => {
@@ -239,7 +224,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             }
             None => None,
         };
-        gimbals.push(Gimbal {
+        Ok(Gimbal {
             name,
             address,
             component_id,
@@ -247,14 +232,11 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             tilt_deg,
             max_rate_dps,
             mount_heading_deg,
-        });
-    }
-    if gimbals.is_empty() {
-        return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
-    }
+        })
+    })?;
     let mount = mount_place(&c, &raw)?;
     Ok(Config {
-        link: GcudLink::new(gcud, raw.source_group.get(), raw.nic_window_ms.duration()),
+        link: GcudLink::from(&keys),
         mount,
         system_id: raw.system_id.get(),
         attitude_period,
@@ -265,7 +247,6 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         gimbals,
         signing,
         notes,
-        metrics: c.metrics_listen(raw.metrics.as_ref())?,
     })
 }
 

@@ -17,6 +17,7 @@ use std::sync::Arc;
 
 use mavlink::Message;
 use mavlink::dialects::common::MavMessage;
+use sagebrush_service::door::Started;
 use tracing::{info, warn};
 
 use crate::earth::vehicle;
@@ -27,20 +28,18 @@ use crate::transport::link::Outbox;
 use crate::transport::{signing, stream};
 
 fn main() -> ExitCode {
-    sagebrush_service::door::main(
+    let door = sagebrush_client::door::with_outcomes(
         "gimbal-mavlink",
         "MAVLink Gimbal Protocol v2 (gimbal manager and device) for the gimbals behind gcud.",
-        config::parse,
-        run,
-    )
+    );
+    sagebrush_service::door::main(door, config::parse, run)
 }
 
 /// A ground station or vehicle heard this recently is live (the door's
 /// metrics' sessions): a MAVLink component sends HEARTBEAT every second.
 const LIVE: std::time::Duration = std::time::Duration::from_secs(5);
 
-async fn run(config: config::Config) -> Result<(), String> {
-    let signals = sagebrush_service::door::Signals::install()?;
+async fn run(config: config::Config, Started { metrics, signals }: Started) -> Result<(), String> {
     let signing = (config.signing.clone()).map(|s| signing::Signing::new(s.key, s.link_id));
     if let Some(s) = &config.signing {
         info!(
@@ -49,20 +48,15 @@ async fn run(config: config::Config) -> Result<(), String> {
         );
     }
     let outbox = Outbox::bind(config.system_id, &config.endpoints, signing).await?;
-    let metrics = sagebrush_service::door_metrics::DoorMetrics::start(
-        "gimbal-mavlink",
-        sagebrush_client::outcomes::families(),
-        config.metrics,
-    )
-    .await?;
     let net = Arc::clone(&outbox.net);
     metrics.count_sessions(move || net.live(LIVE));
     let stats = Arc::new(Stats::default());
     let mut handles = Vec::new();
     let mut gimbal_tasks = Vec::new();
-    let reach = Arc::new(sagebrush_client::session::GcudReachability::default());
+    // Each gimbal's session polls at the attitude period.
+    let sessions = sagebrush_client::door::DoorSessions::new(&config.link, config.attitude_period);
     for g in &config.gimbals {
-        let (handle, join) = gimbal::spawn(g, &config, Arc::clone(&outbox), Arc::clone(&stats), Arc::clone(&reach));
+        let (handle, join) = gimbal::spawn(g, &config, Arc::clone(&outbox), Arc::clone(&stats), &sessions);
         handles.push(handle);
         gimbal_tasks.push(join);
     }

@@ -51,6 +51,17 @@ impl Command {
             Command::Release => "release",
         }
     }
+
+    /// Its kind in the door's metrics (`requests_total{kind}`): its name,
+    /// one word (beside `malformed`, a message not read as a command,
+    /// `retained` and `no_such_gimbal`, counted where they are refused).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Command::PresetRecall(_) => "preset_recall",
+            Command::PresetStore(_) => "preset_store",
+            other => other.name(),
+        }
+    }
 }
 
 /// A parsed message: its `id` (JSON `null` when it has none or it could

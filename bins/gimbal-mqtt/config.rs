@@ -17,21 +17,12 @@ use toml::Spanned;
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ConfigFile {
-    gcud: Spanned<String>,
-    /// With `gcud = "tls://HOST:PORT"`: `{ ca, cert, key }`.
-    gcud_tls: Option<Spanned<sagebrush_service::door_config::GcudTlsSection>>,
     site: Spanned<String>,
     #[serde(default)]
     prefix: Option<Spanned<String>>,
     #[serde(default)]
     discovery_prefix: Option<Spanned<String>>,
     user: Option<Spanned<String>>,
-    #[serde(default)]
-    source_group: Int<u8, 0, 254>,
-    #[serde(default)]
-    poll_ms: Millis<20, 10_000, 100>,
-    #[serde(default)]
-    nic_window_ms: Millis<10, 1000, 100>,
     #[serde(default)]
     max_slew_ms: Millis<100, 60_000, 5000>,
     broker: BrokerSection,
@@ -195,8 +186,7 @@ fn topic_prefix(c: &Source<'_>, v: Option<&Spanned<String>>, key: &str, default:
 /// Parses and validates configuration `text` read from `file`.
 pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let c = Source::new(file, text);
-    let raw: ConfigFile = c.deserialize()?;
-    let gcud = sagebrush_service::door_config::gcud_endpoint(&c, &raw.gcud, raw.gcud_tls.as_ref())?;
+    let (keys, raw) = c.door_file::<ConfigFile, 100>()?;
     let site = segment(&c, &raw.site, "site")?;
     let prefix = topic_prefix(&c, raw.prefix.as_ref(), "prefix", "sagebrush")?;
     if prefix.is_empty() {
@@ -218,17 +208,15 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         u => u.as_ref().map(|u| u.get_ref().clone()),
     };
     let broker = broker(&c, &raw.broker, &site)?;
-    let mut gimbals: Vec<Gimbal> = Vec::new();
-    for (i, g) in raw.gimbals.iter().enumerate() {
-        let key = format!("gimbal[{i}]");
+    let gimbals = c.gimbals(&raw.gimbals, |g, key, before: &[Gimbal]| {
         let name = segment(&c, &g.name, &format!("{key}.name"))?;
         let name = c.gimbal_name(
             &Spanned::new(g.name.span(), name),
-            &key,
-            gimbals.iter().map(|x| x.name.as_str()),
+            key,
+            before.iter().map(|x| x.name.as_str()),
         )?;
         let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
-        let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), &key)?;
+        let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), key)?;
         let presets = match &g.presets {
             None => (1..=8).collect(),
             Some(p) => {
@@ -245,24 +233,21 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
                 }
             }
         };
-        gimbals.push(Gimbal {
+        Ok(Gimbal {
             name,
             address,
             pan_deg,
             tilt_deg,
             presets,
-        });
-    }
-    if gimbals.is_empty() {
-        return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
-    }
+        })
+    })?;
     Ok(Config {
-        link: GcudLink::new(gcud, raw.source_group.get(), raw.nic_window_ms.duration()),
+        link: GcudLink::from(&keys),
         site,
         prefix,
         discovery_prefix: (!discovery.is_empty()).then_some(discovery),
         user,
-        poll: raw.poll_ms.duration(),
+        poll: keys.poll,
         max_slew: raw.max_slew_ms.duration(),
         broker,
         gimbals,

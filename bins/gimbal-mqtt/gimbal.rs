@@ -20,6 +20,7 @@ use sagebrush_client::CommandError;
 use sagebrush_client::connection::proportional_speed;
 use sagebrush_client::session::{Axes, Drive, GimbalSession, Velocity};
 use sagebrush_protocol::{Angle, Command as Wire, Position};
+use sagebrush_service::door_metrics::DoorMetrics;
 use serde_json::Value;
 use tokio::sync::{Semaphore, mpsc};
 use tokio::time::Instant;
@@ -62,6 +63,8 @@ pub struct Gimbal {
     cuts: AtomicU64,
     stops_running: Arc<Semaphore>,
     client: Client,
+    /// The door's metrics: each command counted by its kind.
+    metrics: Arc<DoorMetrics>,
 }
 
 impl std::fmt::Debug for Job {
@@ -78,6 +81,7 @@ impl Gimbal {
         result_topic: String,
         door: &crate::config::Config,
         client: Client,
+        metrics: Arc<DoorMetrics>,
     ) -> Arc<Self> {
         let (queue, jobs) = mpsc::channel(QUEUE);
         let g = Arc::new(Self {
@@ -91,6 +95,7 @@ impl Gimbal {
             cuts: AtomicU64::new(0),
             stops_running: Arc::new(Semaphore::new(STOPS)),
             client,
+            metrics,
         });
         tokio::spawn(Arc::clone(&g).work(jobs));
         g
@@ -108,6 +113,8 @@ impl Gimbal {
     /// could not be published (the requests to the broker are full).
     pub fn on_message(self: &Arc<Self>, payload: &[u8]) -> bool {
         let request = command::parse(payload, self.max_slew);
+        self.metrics
+            .request(request.command.as_ref().map_or("malformed", Command::kind));
         let command = match request.command {
             Ok(c) => c,
             Err(why) => return self.answer(&request.id, false, &why),

@@ -11,6 +11,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
 
+use sagebrush_service::door_metrics::DoorMetrics;
 use tokio::sync::watch;
 use tokio::task::JoinHandle;
 use tokio::time::Instant;
@@ -32,6 +33,9 @@ pub struct Link {
     pub client: Client,
     pub gimbals: Vec<Arc<Gimbal>>,
     by_name: HashMap<String, usize>,
+    /// The door's metrics: a retained command and one for no gimbal
+    /// counted here (the others by their gimbal).
+    metrics: Arc<DoorMetrics>,
     /// The broker is connected now.
     pub connected: Arc<AtomicBool>,
     /// Counts connections: the state publisher republishes on a change.
@@ -44,7 +48,13 @@ pub struct Link {
 }
 
 impl Link {
-    pub fn new(config: Arc<Config>, topics: Topics, client: Client, gimbals: Vec<Arc<Gimbal>>) -> Arc<Self> {
+    pub fn new(
+        config: Arc<Config>,
+        topics: Topics,
+        client: Client,
+        gimbals: Vec<Arc<Gimbal>>,
+        metrics: Arc<DoorMetrics>,
+    ) -> Arc<Self> {
         let by_name = gimbals
             .iter()
             .enumerate()
@@ -56,6 +66,7 @@ impl Link {
             client,
             gimbals,
             by_name,
+            metrics,
             connected: Arc::new(AtomicBool::new(false)),
             connections: watch::Sender::new(0),
             closing: AtomicBool::new(false),
@@ -147,21 +158,27 @@ impl Link {
         let answered = match self.by_name.get(name).map(|i| &self.gimbals[*i]) {
             // A command kept on the broker is never run: it was published
             // for a moment that has passed.
-            Some(g) if retain => g.answer(
-                &serde_json::Value::Null,
-                false,
-                "a retained command is never run: publish commands without the retain flag",
-            ),
-            Some(g) => g.on_message(payload),
-            None => self.client.try_publish(
-                self.topics.result(name),
-                false,
-                crate::command::result(
+            Some(g) if retain => {
+                self.metrics.request("retained");
+                g.answer(
                     &serde_json::Value::Null,
                     false,
-                    &format!("site {} has no gimbal named {name:?}", self.config.site),
-                ),
-            ),
+                    "a retained command is never run: publish commands without the retain flag",
+                )
+            }
+            Some(g) => g.on_message(payload),
+            None => {
+                self.metrics.request("no_such_gimbal");
+                self.client.try_publish(
+                    self.topics.result(name),
+                    false,
+                    crate::command::result(
+                        &serde_json::Value::Null,
+                        false,
+                        &format!("site {} has no gimbal named {name:?}", self.config.site),
+                    ),
+                )
+            }
         };
         if !answered {
             self.unanswered.fetch_add(1, Ordering::Relaxed);

@@ -20,46 +20,52 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 
-use sagebrush_client::session::{GcudReachability, GimbalSession, SessionConfig};
+use sagebrush_client::door::DoorSessions;
+use sagebrush_service::door::Started;
 use tracing::info;
 
 /// How long a stopping door waits for the broker to take its `offline`.
 const GOODBYE: Duration = Duration::from_secs(3);
 
 fn main() -> ExitCode {
-    sagebrush_service::door::main(
+    let door = sagebrush_client::door::with_outcomes(
         "gimbal-mqtt",
         "The gimbals behind gcud on an MQTT broker: state, commands, Home Assistant discovery.",
-        config::parse,
-        run,
-    )
+    );
+    sagebrush_service::door::main(door, config::parse, run)
 }
 
-async fn run(config: config::Config) -> Result<(), String> {
-    let signals = sagebrush_service::door::Signals::install()?;
+async fn run(config: config::Config, Started { metrics, signals }: Started) -> Result<(), String> {
     let config = Arc::new(config);
     let topics = topics::Topics::new(&config);
     let (client, events) = broker::connect(&config.broker, &topics.status(), "offline")?;
-    let reach = Arc::new(GcudReachability::default());
+    let door_sessions = DoorSessions::new(&config.link, config.poll);
     let gimbals: Vec<Arc<gimbal::Gimbal>> = config
         .gimbals
         .iter()
         .map(|g| {
-            let session = GimbalSession::start(
-                SessionConfig {
-                    link: config.link.clone(),
-                    address: g.address,
-                    poll: config.poll,
-                    lens: false,
-                    max_move: config.max_slew,
-                    name: g.name.clone(),
-                },
-                Arc::clone(&reach),
-            );
-            gimbal::Gimbal::start(g.clone(), session, topics.result(&g.name), &config, client.clone())
+            let session = door_sessions.start(&g.name, g.address, false, config.max_slew);
+            gimbal::Gimbal::start(
+                g.clone(),
+                session,
+                topics.result(&g.name),
+                &config,
+                client.clone(),
+                Arc::clone(&metrics),
+            )
         })
         .collect();
-    let link = link::Link::new(Arc::clone(&config), topics.clone(), client.clone(), gimbals.clone());
+    let link = link::Link::new(
+        Arc::clone(&config),
+        topics.clone(),
+        client.clone(),
+        gimbals.clone(),
+        Arc::clone(&metrics),
+    );
+    // Its client is the broker: one session while connected to it (the
+    // tools behind the broker are the broker's to count).
+    let connected = Arc::clone(&link.connected);
+    metrics.count_sessions(move || usize::from(connected.load(Ordering::SeqCst)));
     let states = tokio::spawn(state::publish(
         gimbals.clone(),
         config.gimbals.iter().map(|g| topics.state(&g.name)).collect(),

@@ -14,7 +14,6 @@ use sagebrush_service::config_file::{ConfigError, Int, Millis, Source};
 pub use sagebrush_service::door_config::HttpBounds;
 use sagebrush_service::door_config::{HttpSection, UserSection};
 pub use sagebrush_service::door_config::{Role, User};
-use sagebrush_service::door_metrics::MetricsSection;
 pub use sagebrush_service::door_tls::DoorTls;
 use sagebrush_service::endpoint::listeners_clash;
 use serde::Deserialize;
@@ -24,25 +23,13 @@ use toml::Spanned;
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ConfigFile {
-    gcud: Spanned<String>,
-    /// With `gcud = "tls://HOST:PORT"`: `{ ca, cert, key }`, the CA of
-    /// gcud's certificate and this door's own (its principal at gcud).
-    gcud_tls: Option<Spanned<sagebrush_service::door_config::GcudTlsSection>>,
-    /// The source group gcud sees (0: the MCU).
-    #[serde(default)]
-    source_group: Int<u8, 0, 254>,
     state_file: Option<Spanned<String>>,
     #[serde(default)]
     max_move_ms: Millis<100, 600_000, 10_000>,
     #[serde(default)]
-    poll_ms: Millis<20, 10_000, 200>,
-    #[serde(default)]
-    nic_window_ms: Millis<10, 1000, 100>,
-    #[serde(default)]
     discovery: DiscoverySection,
     #[serde(default)]
     http: HttpSection,
-    metrics: Option<MetricsSection>,
     #[serde(default)]
     auth: AuthSection,
     #[serde(default, rename = "user")]
@@ -158,8 +145,6 @@ pub struct Config {
     pub discovery: Option<DiscoveryConfig>,
     /// `[http] tls`: every gimbal's device in HTTPS.
     pub tls: Option<DoorTls>,
-    /// `[metrics] listen`: the door's own metrics (none when absent).
-    pub metrics: Option<SocketAddr>,
     pub users: Users,
     pub gimbals: Vec<Gimbal>,
 }
@@ -186,8 +171,7 @@ impl sagebrush_service::door::Checked for Config {
 /// Parses and validates configuration `text` read from `file`.
 pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let c = Source::new(file, text);
-    let raw: ConfigFile = c.deserialize()?;
-    let gcud = sagebrush_service::door_config::gcud_endpoint(&c, &raw.gcud, raw.gcud_tls.as_ref())?;
+    let (keys, raw) = c.door_file::<ConfigFile, 200>()?;
     let discovery = match raw.discovery.enabled.as_ref().map(|e| *e.get_ref()) {
         Some(false) => None,
         _ => Some(DiscoveryConfig {
@@ -203,13 +187,11 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let http = raw.http.bounds();
     let state_file = c.state_file(raw.state_file.as_ref())?;
     let users = c.users(&raw.users)?;
-    let mut gimbals: Vec<Gimbal> = Vec::new();
-    for (i, g) in raw.gimbals.iter().enumerate() {
-        let key = format!("gimbal[{i}]");
-        let name = c.gimbal_name(&g.name, &key, gimbals.iter().map(|x| x.name.as_str()))?;
+    let mut gimbals = c.gimbals(&raw.gimbals, |g, key, before: &[Gimbal]| {
+        let name = c.gimbal_name(&g.name, key, before.iter().map(|x| x.name.as_str()))?;
         let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
         let listen = c.listen_address(&g.listen, &format!("{key}.listen"))?;
-        if gimbals.iter().any(|x| listeners_clash(&x.listen, &listen)) {
+        if before.iter().any(|x| listeners_clash(&x.listen, &listen)) {
             return Err(c.at(
                 g.listen.span(),
                 format!("{key}.listen"),
@@ -226,7 +208,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             }
             s => s.as_ref().map(|s| s.get_ref().clone()),
         };
-        let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), &key)?;
+        let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), key)?;
         let fov_deg = field_of_view(&c, g.fov_deg.as_ref(), &format!("{key}.fov_deg"))?;
         let fov_tele_deg = field_of_view(&c, g.fov_tele_deg.as_ref(), &format!("{key}.fov_tele_deg"))?;
         let zoom = g.zoom.as_ref().is_some_and(|z| *z.get_ref());
@@ -240,7 +222,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
                 ));
             }
         }
-        gimbals.push(Gimbal {
+        Ok(Gimbal {
             name,
             address,
             listen,
@@ -252,24 +234,20 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             zoom,
             fov_deg,
             fov_tele_deg,
-        });
-    }
-    if gimbals.is_empty() {
-        return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
-    }
+        })
+    })?;
     let listens: Vec<SocketAddr> = gimbals.iter().map(|g| g.listen).collect();
     let tls = c.door_tls(&raw.http, "gimbal-onvif", state_file.as_deref(), &listens)?;
     for g in &mut gimbals {
         g.https = tls.is_some();
     }
     Ok(Config {
-        link: GcudLink::new(gcud, raw.source_group.get(), raw.nic_window_ms.duration()),
+        link: GcudLink::from(&keys),
         state_file,
         max_move: raw.max_move_ms.duration(),
-        poll: raw.poll_ms.duration(),
+        poll: keys.poll,
         discovery,
         tls,
-        metrics: c.metrics_listen(raw.metrics.as_ref())?,
         users: Users {
             list: users,
             bounds: AuthBounds {

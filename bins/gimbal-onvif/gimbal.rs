@@ -8,7 +8,8 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use sagebrush_client::connection::proportional_speed;
-use sagebrush_client::session::{Axes, Drive, GcudReachability, GimbalSession, Motion, SessionConfig, Velocity};
+use sagebrush_client::door::DoorSessions;
+use sagebrush_client::session::{Axes, Drive, GimbalSession, Motion, Velocity};
 use sagebrush_client::{CommandError, Identity};
 use sagebrush_protocol::{Command, LensPosition, LensSpeed, Position, Reply, Speed, U12};
 
@@ -49,18 +50,8 @@ pub fn to_generic(degrees: f64, travel: (f64, f64)) -> f64 {
 impl Gimbal {
     /// The gimbal and its session (started here; `reach` is shared by
     /// every gimbal of this door).
-    pub fn new(config: config::Gimbal, link: &config::Config, reach: Arc<GcudReachability>) -> Arc<Self> {
-        let session = GimbalSession::start(
-            SessionConfig {
-                link: link.link.clone(),
-                address: config.address,
-                poll: link.poll,
-                lens: config.zoom,
-                max_move: link.max_move,
-                name: config.name.clone(),
-            },
-            reach,
-        );
+    pub fn new(config: config::Gimbal, link: &config::Config, sessions: &DoorSessions) -> Arc<Self> {
+        let session = sessions.start(&config.name, config.address, config.zoom, link.max_move);
         Arc::new(Self {
             config,
             max_move: link.max_move,

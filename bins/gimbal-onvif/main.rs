@@ -15,40 +15,33 @@ mod soap;
 use std::process::ExitCode;
 use std::sync::Arc;
 
+use sagebrush_service::door::Started;
 use tracing::{error, info};
 
 fn main() -> ExitCode {
-    sagebrush_service::door::main(
+    let door = sagebrush_client::door::with_outcomes(
         "gimbal-onvif",
         "ONVIF PTZ (Device, Media, PTZ) and WS-Discovery for the gimbals behind gcud.",
-        config::parse,
-        run,
-    )
+    );
+    sagebrush_service::door::main(door, config::parse, run)
 }
 
-async fn run(config: config::Config) -> Result<(), String> {
+async fn run(config: config::Config, Started { metrics, signals }: Started) -> Result<(), String> {
     let presets = Arc::new(sagebrush_client::presets::Presets::load(config.state_file.clone())?);
     let auth = Arc::new(auth::Authenticator::new(config.users.clone()));
-    let signals = sagebrush_service::door::Signals::install()?;
     let mut gimbals = Vec::new();
     let mut served = Vec::new();
     let mut tasks = tokio::task::JoinSet::new();
-    let reach = Arc::new(sagebrush_client::session::GcudReachability::default());
+    let sessions = sagebrush_client::door::DoorSessions::new(&config.link, config.poll);
     // One admission table for every gimbal's device: the caps are for all.
     let table = config.gimbals.first().map(|g| g.http.table());
-    let metrics = sagebrush_service::door_metrics::DoorMetrics::start(
-        "gimbal-onvif",
-        sagebrush_client::outcomes::families(),
-        config.metrics,
-    )
-    .await?;
     // Its clients: the connections open to its devices (ONVIF keeps no session).
     if let Some(table) = table.clone() {
         metrics.count_sessions(move || usize::try_from(table.stats().open).unwrap_or(usize::MAX));
     }
     let tls = config.tls.as_ref().map(|t| t.acceptor()).transpose()?;
     for g in &config.gimbals {
-        let gimbal = gimbal::Gimbal::new(g.clone(), &config, Arc::clone(&reach));
+        let gimbal = gimbal::Gimbal::new(g.clone(), &config, &sessions);
         let device = onvif::Device::new(
             Arc::clone(&gimbal),
             Arc::clone(&auth),

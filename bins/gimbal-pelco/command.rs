@@ -74,6 +74,26 @@ impl Request {
         zoom: None,
     };
 
+    /// Its kind in the door's metrics (`requests_total{kind}`): `drive`,
+    /// `stop`, `preset` (set, clear, go to), `absolute` (pan or tilt
+    /// position), `query` (pan or tilt), `lens` (zoom speed), or `other`
+    /// (an extended command the door does not carry out).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Request::Motion {
+                pan: None,
+                tilt: None,
+                zoom: None,
+            } => "stop",
+            Request::Motion { .. } => "drive",
+            Request::SetPreset(_) | Request::ClearPreset(_) | Request::GoToPreset(_) => "preset",
+            Request::PanTo(_) | Request::TiltTo(_) => "absolute",
+            Request::QueryPan | Request::QueryTilt => "query",
+            Request::ZoomSpeed(_) => "lens",
+            Request::Unsupported(_) => "other",
+        }
+    }
+
     /// The request of `frame`, read by `protocol`'s table.
     pub fn of(protocol: Protocol, frame: &Frame) -> Request {
         let [_, command, a, b] = frame.body;

@@ -20,15 +20,6 @@ use crate::codec::Protocol;
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ConfigFile {
-    gcud: Spanned<String>,
-    /// With `gcud = "tls://HOST:PORT"`: `{ ca, cert, key }`.
-    gcud_tls: Option<Spanned<sagebrush_service::door_config::GcudTlsSection>>,
-    #[serde(default)]
-    source_group: Int<u8, 0, 254>,
-    #[serde(default)]
-    nic_window_ms: Millis<10, 1000, 100>,
-    #[serde(default)]
-    poll_ms: Millis<20, 10_000, 1000>,
     /// 0: off.
     #[serde(default)]
     motion_lease_ms: Int<u64, 0, 60_000, 1000>,
@@ -158,32 +149,26 @@ impl sagebrush_service::door::Checked for Config {
 /// Parses and validates configuration `text` read from `file`.
 pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let c = Source::new(file, text);
-    let raw: ConfigFile = c.deserialize()?;
-    let gcud = sagebrush_service::door_config::gcud_endpoint(&c, &raw.gcud, raw.gcud_tls.as_ref())?;
+    let (keys, raw) = c.door_file::<ConfigFile, 1000>()?;
     let (inputs, serial_places) = inputs(&c, &raw.inputs)?;
-    let mut gimbals: Vec<Gimbal> = Vec::new();
-    for (i, g) in raw.gimbals.iter().enumerate() {
-        let key = format!("gimbal[{i}]");
-        let name = c.gimbal_name(&g.name, &key, gimbals.iter().map(|x| x.name.as_str()))?;
+    let gimbals = c.gimbals(&raw.gimbals, |g, key, before: &[Gimbal]| {
+        let name = c.gimbal_name(&g.name, key, before.iter().map(|x| x.name.as_str()))?;
         let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
         let pelco_address = g.pelco_address.get();
-        if let Some(other) = gimbals.iter().find(|x| x.pelco_address == pelco_address) {
+        if let Some(other) = before.iter().find(|x| x.pelco_address == pelco_address) {
             return Err(c.at(
                 g.pelco_address.span(),
                 format!("{key}.pelco_address"),
                 format!("expected an address of its own: {pelco_address} is {}'s", other.name),
             ));
         }
-        gimbals.push(Gimbal {
+        Ok(Gimbal {
             name,
             address,
             pelco_address,
             zoom: g.zoom.as_ref().is_some_and(|z| *z.get_ref()),
-        });
-    }
-    if gimbals.is_empty() {
-        return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
-    }
+        })
+    })?;
     let lease = match raw.motion_lease_ms.get() {
         0 => None,
         ms if ms < 100 => {
@@ -196,8 +181,8 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         ms => Some(Duration::from_millis(ms)),
     };
     Ok(Config {
-        link: GcudLink::new(gcud, raw.source_group.get(), raw.nic_window_ms.duration()),
-        poll: raw.poll_ms.duration(),
+        link: GcudLink::from(&keys),
+        poll: keys.poll,
         lease,
         max_move: raw.max_move_ms.duration(),
         limits: Limits {

@@ -9,7 +9,8 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 use sagebrush_client::CommandError;
-use sagebrush_client::session::{GcudReachability, GimbalSession, Motion, SessionConfig};
+use sagebrush_client::door::DoorSessions;
+use sagebrush_client::session::{GimbalSession, Motion};
 use sagebrush_protocol::{Angle, Command, Position};
 
 use crate::config;
@@ -56,18 +57,8 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 }
 
 impl Gimbal {
-    pub fn new(config: config::Gimbal, door: &config::Config, reach: Arc<GcudReachability>) -> Arc<Self> {
-        let session = GimbalSession::start(
-            SessionConfig {
-                link: door.link.clone(),
-                address: config.address,
-                poll: door.poll,
-                lens: config.zoom,
-                max_move: door.max_move,
-                name: config.name.clone(),
-            },
-            reach,
-        );
+    pub fn new(config: config::Gimbal, door: &config::Config, sessions: &DoorSessions) -> Arc<Self> {
+        let session = sessions.start(&config.name, config.address, config.zoom, door.max_move);
         Arc::new(Self {
             config,
             session,

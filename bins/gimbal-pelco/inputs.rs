@@ -19,6 +19,7 @@ use std::future::Future;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 use sagebrush_service::{BoundedListener, Connections};
@@ -82,6 +83,7 @@ where
         let _ = tx.try_send(bytes);
     });
     let keyboard = Keyboard::new(Arc::clone(&door), &peer, replies);
+    door.sessions.streams.fetch_add(1, Ordering::Relaxed);
     let mut parser = Parser::new(door.protocol);
     let mut buf = [0u8; READ];
     tokio::pin!(end);
@@ -102,6 +104,7 @@ where
         }
     });
     writer.abort();
+    door.sessions.streams.fetch_sub(1, Ordering::Relaxed);
     if may_log("ended", &keyboard.who).is_some() {
         info!(keyboard = %keyboard.who, bytes = parser.offset(), "{why}");
     }
@@ -203,6 +206,7 @@ pub async fn udp(addr: SocketAddr, door: Arc<Door>, max_sources: usize) -> Resul
                 }
             });
             source.heard = Instant::now();
+            door.sessions.udp.note(from);
             carry_out(&mut source.parser, &buf[..n], &source.keyboard, &door.stats);
         }
     })

@@ -26,6 +26,7 @@
 use std::collections::HashMap;
 use std::future::Future;
 use std::pin::Pin;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::task::{Context, Poll, Waker};
 use std::time::{Duration, Instant};
@@ -34,6 +35,7 @@ use sagebrush_client::CommandError;
 use sagebrush_client::connection::proportional_speed;
 use sagebrush_client::session::{Drive, Velocity};
 use sagebrush_protocol::{LensSpeed, Speed};
+use sagebrush_service::door_metrics::{DoorMetrics, HeardLately};
 use tokio::sync::Semaphore;
 use tracing::{debug, info, warn};
 
@@ -59,11 +61,50 @@ pub struct Door {
     /// A drive's lease (or the longest drive, with the lease off).
     pub run: Duration,
     pub stats: Arc<Stats>,
+    /// The door's metrics: each frame for a gimbal counted by its kind.
+    pub metrics: Arc<DoorMetrics>,
+    /// The door's keyboards live now (every input's).
+    pub sessions: Arc<Sessions>,
+}
+
+/// The keyboards live now, for the door's metrics: a serial line open, a
+/// TCP connection, a UDP source heard within [`UDP_LIVE`].
+#[derive(Debug)]
+pub struct Sessions {
+    /// Serial lines open and TCP connections.
+    pub streams: AtomicUsize,
+    pub udp: HeardLately,
+}
+
+/// A UDP keyboard counts as live this long after its last datagram (a
+/// keyboard repeats its frame while a key is held, and sends nothing
+/// when idle).
+pub const UDP_LIVE: Duration = Duration::from_secs(10);
+
+impl Sessions {
+    /// `udp_sources`: the UDP keyboards kept at most (`[limits]`).
+    pub fn new(udp_sources: usize) -> Self {
+        Self {
+            streams: AtomicUsize::new(0),
+            udp: HeardLately::new(udp_sources, UDP_LIVE),
+        }
+    }
+
+    pub fn live(&self) -> usize {
+        self.streams.load(Ordering::Relaxed) + self.udp.live()
+    }
 }
 
 impl Door {
-    pub fn new(input: &crate::config::Input, gimbals: &[Arc<Gimbal>], run: Duration, stats: Arc<Stats>) -> Arc<Self> {
+    pub fn new(
+        input: &crate::config::Input,
+        gimbals: &[Arc<Gimbal>],
+        run: Duration,
+        stats: Arc<Stats>,
+        metrics: (Arc<DoorMetrics>, Arc<Sessions>),
+    ) -> Arc<Self> {
         let protocol = input.protocol;
+        let (metrics, sessions) = metrics;
         Arc::new(Self {
             gimbals: gimbals
                 .iter()
@@ -74,6 +115,8 @@ impl Door {
             input: input.name.clone(),
             run,
             stats,
+            metrics,
+            sessions,
         })
     }
 }
@@ -195,6 +238,7 @@ impl Keyboard {
             return;
         };
         let request = Request::of(self.door.protocol, frame);
+        self.door.metrics.request(request.kind());
         debug!(keyboard = %self.who, gimbal = %gimbal.config.name, ?request, "frame");
         match request {
             Request::Motion { pan, tilt, zoom } => self.motion(gimbal, pan, tilt, zoom),

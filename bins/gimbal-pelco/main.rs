@@ -16,28 +16,27 @@ mod stats;
 use std::process::ExitCode;
 use std::sync::Arc;
 
+use sagebrush_service::door::Started;
 use tracing::info;
 
 use crate::config::Transport;
 use crate::stats::Stats;
 
 fn main() -> ExitCode {
-    sagebrush_service::door::main(
+    let door = sagebrush_client::door::with_outcomes(
         "gimbal-pelco",
         "Pelco-D and Pelco-P (CCTV keyboards, DVRs; serial, TCP, UDP) for the gimbals behind gcud.",
-        config::parse,
-        run,
-    )
+    );
+    sagebrush_service::door::main(door, config::parse, run)
 }
 
-async fn run(config: config::Config) -> Result<(), String> {
-    let signals = sagebrush_service::door::Signals::install()?;
-    let reach = Arc::new(sagebrush_client::session::GcudReachability::default());
+async fn run(config: config::Config, Started { metrics, signals }: Started) -> Result<(), String> {
+    let sessions = sagebrush_client::door::DoorSessions::new(&config.link, config.poll);
     let stats = Arc::new(Stats::default());
     let gimbals: Vec<Arc<gimbal::Gimbal>> = config
         .gimbals
         .iter()
-        .map(|g| gimbal::Gimbal::new(g.clone(), &config, Arc::clone(&reach)))
+        .map(|g| gimbal::Gimbal::new(g.clone(), &config, &sessions))
         .collect();
     let run = config.lease.unwrap_or(config.max_move);
     // One admission table for every TCP input: the caps are for all.
@@ -47,9 +46,13 @@ async fn run(config: config::Config) -> Result<(), String> {
         cap_loopback: true,
         idle_timeout: config.limits.idle_timeout,
     });
+    let keyboards = Arc::new(keyboard::Sessions::new(config.limits.udp_sources));
+    let live = Arc::clone(&keyboards);
+    metrics.count_sessions(move || live.live());
     let mut tasks = tokio::task::JoinSet::new();
     for input in &config.inputs {
-        let door = keyboard::Door::new(input, &gimbals, run, Arc::clone(&stats));
+        let counted = (Arc::clone(&metrics), Arc::clone(&keyboards));
+        let door = keyboard::Door::new(input, &gimbals, run, Arc::clone(&stats), counted);
         match &input.transport {
             Transport::Serial { path, baud } => {
                 tasks.spawn(inputs::serial(path.clone(), *baud, door));

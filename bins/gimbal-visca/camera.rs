@@ -20,6 +20,7 @@ use sagebrush_client::CommandError;
 use sagebrush_client::connection::proportional_speed;
 use sagebrush_client::session::{Drive, GimbalSession, Velocity};
 use sagebrush_protocol::{Angle, Command as Bus, LensPosition, LensSpeed, Position, U12};
+use sagebrush_service::door_metrics::DoorMetrics;
 use tokio::sync::mpsc;
 use tracing::warn;
 
@@ -50,6 +51,8 @@ pub struct Camera {
     pub desk: Arc<Desk>,
     jobs: mpsc::Sender<Job>,
     pub stats: Arc<Stats>,
+    /// The door's metrics: each message counted by its kind.
+    pub metrics: Arc<DoorMetrics>,
 }
 
 /// The gimbal's proportional speed for VISCA speed `v` of at most `max`.
@@ -83,7 +86,12 @@ pub fn drive_velocity(pan_speed: u8, tilt_speed: u8, pan: Way, tilt: Way) -> Vel
 }
 
 impl Camera {
-    pub fn new(config: Gimbal, session: Arc<GimbalSession>, stats: Arc<Stats>) -> (Arc<Self>, mpsc::Receiver<Job>) {
+    pub fn new(
+        config: Gimbal,
+        session: Arc<GimbalSession>,
+        stats: Arc<Stats>,
+        metrics: Arc<DoorMetrics>,
+    ) -> (Arc<Self>, mpsc::Receiver<Job>) {
         let (jobs, rx) = mpsc::channel(QUEUE);
         let camera = Arc::new(Self {
             config,
@@ -91,6 +99,7 @@ impl Camera {
             desk: Arc::new(Desk::default()),
             jobs,
             stats,
+            metrics,
         });
         (camera, rx)
     }
@@ -98,6 +107,7 @@ impl Camera {
     /// Answers or carries out `message` from `replier`.
     pub fn handle(&self, message: Message, replier: Replier) {
         Stats::count(&self.stats.received);
+        self.metrics.request(message.kind());
         let command = match message {
             Message::Inquiry(q) => return replier.send(&self.inquiry(q)),
             Message::Command(c) => c,

@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use sagebrush_client::session::GcudLink;
 use sagebrush_protocol::Address;
-use sagebrush_service::config_file::{ConfigError, Int, Millis, Source};
+use sagebrush_service::config_file::{ConfigError, Millis, Source};
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -18,14 +18,6 @@ use toml::Spanned;
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ConfigFile {
-    gcud: Spanned<String>,
-    gcud_tls: Option<Spanned<sagebrush_service::door_config::GcudTlsSection>>,
-    #[serde(default)]
-    source_group: Int<u8, 0, 254>,
-    #[serde(default)]
-    poll_ms: Millis<20, 10_000, 100>,
-    #[serde(default)]
-    nic_window_ms: Millis<10, 1000, 100>,
     #[serde(default)]
     motion_lease_ms: Millis<0, 600_000, 5000>,
     #[serde(default, rename = "client")]
@@ -126,8 +118,7 @@ fn user_name(name: &str) -> bool {
 /// Parses and validates configuration `text` read from `file`.
 pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let c = Source::new(file, text);
-    let raw: ConfigFile = c.deserialize()?;
-    let gcud = sagebrush_service::door_config::gcud_endpoint(&c, &raw.gcud, raw.gcud_tls.as_ref())?;
+    let (keys, raw) = c.door_file::<ConfigFile, 100>()?;
     let mut clients: Vec<(IpAddr, String)> = Vec::new();
     for (i, cl) in raw.clients.iter().enumerate() {
         let key = format!("client[{i}]");
@@ -154,10 +145,8 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         }
         clients.push((ip, cl.user.get_ref().clone()));
     }
-    let mut gimbals: Vec<Gimbal> = Vec::new();
-    for (i, g) in raw.gimbals.iter().enumerate() {
-        let key = format!("gimbal[{i}]");
-        let name = c.gimbal_name(&g.name, &key, gimbals.iter().map(|x| x.name.as_str()))?;
+    let gimbals = c.gimbals(&raw.gimbals, |g, key, before: &[Gimbal]| {
+        let name = c.gimbal_name(&g.name, key, before.iter().map(|x| x.name.as_str()))?;
         let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
         let udp = c.listen_address(&g.visca_udp, &format!("{key}.visca_udp"))?;
         let tcp = match &g.visca_tcp {
@@ -165,7 +154,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             None => None,
         };
         let taken = |a: SocketAddr, tcp: bool| {
-            a.port() != 0 && gimbals.iter().any(|x| if tcp { x.tcp == Some(a) } else { x.udp == a })
+            a.port() != 0 && before.iter().any(|x| if tcp { x.tcp == Some(a) } else { x.udp == a })
         };
         if taken(udp, false) {
             return Err(c.at(
@@ -194,7 +183,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
                 ));
             }
         };
-        gimbals.push(Gimbal {
+        Ok(Gimbal {
             name,
             address,
             udp,
@@ -202,15 +191,12 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
             reuse_address: g.reuse_address,
             degrees_per_step,
             lens: g.lens,
-        });
-    }
-    if gimbals.is_empty() {
-        return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
-    }
+        })
+    })?;
     let lease = raw.motion_lease_ms.duration();
     Ok(Config {
-        link: GcudLink::new(gcud, raw.source_group.get(), raw.nic_window_ms.duration()),
-        poll: raw.poll_ms.duration(),
+        link: GcudLink::from(&keys),
+        poll: keys.poll,
         lease: (!lease.is_zero()).then_some(lease),
         clients,
         gimbals,
@@ -218,66 +204,4 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    const GOOD: &str = r#"
-gcud = "127.0.0.1:4001"
-[[gimbal]]
-name = "mast-1"
-address = "5.1.1"
-visca_udp = "127.0.0.1:52381"
-visca_tcp = "127.0.0.1:5678"
-"#;
-
-    fn err(text: &str) -> String {
-        parse(Path::new("v.toml"), text).unwrap_err().to_string()
-    }
-
-    #[test]
-    fn a_good_file_and_its_defaults() {
-        let c = parse(Path::new("v.toml"), GOOD).unwrap();
-        let g = &c.gimbals[0];
-        assert_eq!(g.address, Address::new(5, 1, 1));
-        assert_eq!(g.udp, "127.0.0.1:52381".parse::<SocketAddr>().unwrap());
-        assert_eq!(g.tcp, Some("127.0.0.1:5678".parse().unwrap()));
-        assert_eq!(g.degrees_per_step, DEGREES_PER_STEP);
-        assert!(!g.reuse_address && !g.lens);
-        assert_eq!(c.lease, Some(Duration::from_millis(5000)));
-        let off = parse(
-            Path::new("v.toml"),
-            &GOOD.replace("gcud =", "motion_lease_ms = 0\ngcud ="),
-        )
-        .unwrap();
-        assert_eq!(off.lease, None);
-    }
-
-    #[test]
-    fn errors_name_the_place_and_what_was_expected() {
-        assert_eq!(
-            err(&GOOD.replace("\"127.0.0.1:5678\"", "\"5678\"")),
-            "v.toml:7:13: gimbal[0].visca_tcp: expected IP:PORT: \"5678\" has no port"
-        );
-        let two =
-            format!("{GOOD}[[gimbal]]\nname = \"mast-2\"\naddress = \"5.2.1\"\nvisca_udp = \"127.0.0.1:52381\"\n");
-        assert!(err(&two).contains("gimbal[1].visca_udp: expected an address no other gimbal uses"));
-        assert!(
-            err(&GOOD.replace(
-                "[[gimbal]]",
-                "[[client]]\naddress = \"10.0.0.x\"\nuser = \"a\"\n[[gimbal]]"
-            ))
-            .contains("client[0].address")
-        );
-        assert!(
-            err(&GOOD.replace(
-                "[[gimbal]]",
-                "[[client]]\naddress = \"10.0.0.2\"\nuser = \"a b\"\n[[gimbal]]"
-            ))
-            .contains("client[0].user")
-        );
-        assert!(
-            err(&GOOD.replace("visca_tcp", "degrees_per_step = 2.0\nvisca_tcp")).contains("gimbal[0].degrees_per_step")
-        );
-        assert!(err(&GOOD.replace("visca_udp", "udp")).contains("unknown field `udp`"));
-    }
-}
+mod tests;

@@ -19,19 +19,20 @@ mod visca;
 use std::process::ExitCode;
 use std::sync::Arc;
 
-use sagebrush_client::session::{GcudReachability, GimbalSession, SessionConfig};
+use sagebrush_client::door::DoorSessions;
+use sagebrush_service::door::Started;
+use sagebrush_service::door_metrics::HeardLately;
 use sagebrush_service::{Connections, Limits};
 use tracing::info;
 
 use crate::stats::Stats;
 
 fn main() -> ExitCode {
-    sagebrush_service::door::main(
+    let door = sagebrush_client::door::with_outcomes(
         "gimbal-visca",
         "VISCA cameras (Sony VISCA over IP on UDP, raw VISCA over TCP) for the gimbals behind gcud.",
-        config::parse,
-        run,
-    )
+    );
+    sagebrush_service::door::main(door, config::parse, run)
 }
 
 /// A UDP socket on `addr`, with SO_REUSEADDR when asked (a client on the
@@ -49,33 +50,30 @@ fn udp_socket(addr: std::net::SocketAddr, reuse: bool) -> std::io::Result<tokio:
     tokio::net::UdpSocket::from_std(socket.into())
 }
 
-async fn run(config: config::Config) -> Result<(), String> {
-    let signals = sagebrush_service::door::Signals::install()?;
+async fn run(config: config::Config, Started { metrics, signals }: Started) -> Result<(), String> {
     let stats = Arc::new(Stats::default());
-    let reach = Arc::new(GcudReachability::default());
+    let door_sessions = DoorSessions::new(&config.link, config.poll);
     let clients = Arc::new(config.clients.clone());
     let lease = camera::lease(&config);
     let mut tasks = tokio::task::JoinSet::new();
     let mut sessions = Vec::new();
+    let mut tables = Vec::new();
+    // A controller asks its camera's position every second or so.
+    let heard = Arc::new(HeardLately::new(4 * net::SOURCES, net::FORGET));
     for g in &config.gimbals {
-        let session = GimbalSession::start(
-            SessionConfig {
-                link: config.link.clone(),
-                address: g.address,
-                poll: config.poll,
-                lens: g.lens,
-                max_move: lease.max(config::MAX_MOVE),
-                name: g.name.clone(),
-            },
-            Arc::clone(&reach),
-        );
+        let session = door_sessions.start(&g.name, g.address, g.lens, lease.max(config::MAX_MOVE));
         sessions.push(Arc::clone(&session));
-        let (cam, jobs) = camera::Camera::new(g.clone(), session, Arc::clone(&stats));
+        let (cam, jobs) = camera::Camera::new(g.clone(), session, Arc::clone(&stats), Arc::clone(&metrics));
         let udp =
             udp_socket(g.udp, g.reuse_address).map_err(|e| format!("gimbal {} visca_udp {}: {e}", g.name, g.udp))?;
         let bound = udp.local_addr().map_err(|e| e.to_string())?;
         info!(gimbal = %g.name, addr = %bound, "VISCA over IP (UDP) bound");
-        tasks.spawn(net::serve_udp(Arc::new(udp), Arc::clone(&cam), Arc::clone(&clients)));
+        tasks.spawn(net::serve_udp(
+            Arc::new(udp),
+            Arc::clone(&cam),
+            Arc::clone(&clients),
+            Arc::clone(&heard),
+        ));
         if let Some(t) = g.tcp {
             let listener = tokio::net::TcpListener::bind(t)
                 .await
@@ -88,11 +86,17 @@ async fn run(config: config::Config) -> Result<(), String> {
                 cap_loopback: false,
                 idle_timeout: net::IDLE_TIMEOUT,
             });
+            tables.push(Arc::clone(&table));
             tasks.spawn(net::serve_tcp(listener, Arc::clone(&cam), Arc::clone(&clients), table));
         }
         tasks.spawn(Arc::clone(&cam.desk).run(Arc::clone(&cam.session), lease, Arc::clone(&stats)));
         tasks.spawn(Arc::clone(&cam).work(jobs));
     }
+    // Its clients: the UDP ones heard lately and the TCP connections open.
+    metrics.count_sessions(move || {
+        let open: u64 = tables.iter().map(|t| t.stats().open).sum();
+        heard.live() + usize::try_from(open).unwrap_or(usize::MAX)
+    });
     tasks.spawn(async {
         loop {
             tokio::time::sleep(sagebrush_host::throttle::WINDOW).await;

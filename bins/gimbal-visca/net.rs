@@ -11,6 +11,7 @@ use std::net::{IpAddr, SocketAddr};
 use std::sync::Arc;
 use std::time::Duration;
 
+use sagebrush_service::door_metrics::HeardLately;
 use sagebrush_service::{Admitted, Connections};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, UdpSocket};
@@ -108,14 +109,21 @@ fn message(camera: &Camera, bytes: &[u8], replier: Replier) {
             Stats::count(&camera.stats.malformed);
         }
         Err(visca::Error::Syntax) => {
+            camera.metrics.request(visca::OTHER);
             Stats::count(&camera.stats.syntax);
             replier.send(&visca::syntax_error());
         }
     }
 }
 
-/// Serves `socket` (VISCA over IP for `camera`) for ever.
-pub async fn serve_udp(socket: Arc<UdpSocket>, camera: Arc<Camera>, clients: Arc<Vec<(IpAddr, String)>>) {
+/// Serves `socket` (VISCA over IP for `camera`) for ever; each client is
+/// noted in `heard` (the door's metrics' sessions).
+pub async fn serve_udp(
+    socket: Arc<UdpSocket>,
+    camera: Arc<Camera>,
+    clients: Arc<Vec<(IpAddr, String)>>,
+    heard: Arc<HeardLately>,
+) {
     let mut buf = vec![0u8; 2048];
     let mut sequences = Sequences::default();
     loop {
@@ -133,6 +141,7 @@ pub async fn serve_udp(socket: Arc<UdpSocket>, camera: Arc<Camera>, clients: Arc
             let _ = socket.try_send_to(&framing::encode(payload_type::CONTROL_REPLY, sequence, payload), from);
         };
         let user = user_of(&clients, from.ip());
+        heard.note(from);
         match framing::parse(&buf[..n]) {
             Err(FrameError::Short(len)) => {
                 let total = Stats::count(&camera.stats.malformed);

@@ -119,6 +119,33 @@ pub enum Message {
 }
 
 /// Why a message was not taken.
+/// The kind of request a message not understood counts as (the door's
+/// metrics, `requests_total{kind}`).
+pub const OTHER: &str = "other";
+
+impl Message {
+    /// Its kind in the door's metrics: `drive`, `stop`, `absolute`,
+    /// `relative`, `home`, `preset`, `lens` (zoom and focus), `inquiry`,
+    /// or [`OTHER`] (IF_Clear, power, reset, and what is not understood).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Message::Inquiry(_) => "inquiry",
+            Message::Command(Command::Drive {
+                pan: Way::Stop,
+                tilt: Way::Stop,
+                ..
+            }) => "stop",
+            Message::Command(Command::Drive { .. }) => "drive",
+            Message::Command(Command::Absolute { .. }) => "absolute",
+            Message::Command(Command::Relative { .. }) => "relative",
+            Message::Command(Command::Home) => "home",
+            Message::Command(Command::Memory(..)) => "preset",
+            Message::Command(Command::Zoom(_) | Command::ZoomTo(_) | Command::Focus(_)) => "lens",
+            Message::Command(Command::IfClear | Command::Power(_) | Command::Reset) => OTHER,
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Error {
     /// Addressed to another camera (`82`..`87`): not answered.

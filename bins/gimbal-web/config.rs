@@ -13,7 +13,6 @@ use sagebrush_protocol::Address;
 use sagebrush_service::config_file::{ConfigError, Int, Millis, Source};
 use sagebrush_service::door_config::{HttpBounds, HttpSection, UserSection};
 pub use sagebrush_service::door_config::{Role, User};
-use sagebrush_service::door_metrics::MetricsSection;
 use sagebrush_service::door_tls::DoorTls;
 use serde::Deserialize;
 use toml::Spanned;
@@ -22,20 +21,10 @@ use toml::Spanned;
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ConfigFile {
-    gcud: Spanned<String>,
-    /// With `gcud = "tls://HOST:PORT"`: `{ ca, cert, key }`, the CA of
-    /// gcud's certificate and this door's own (its principal at gcud).
-    gcud_tls: Option<Spanned<sagebrush_service::door_config::GcudTlsSection>>,
     listen: Spanned<String>,
-    #[serde(default)]
-    source_group: Int<u8, 0, 254>,
     state_file: Option<Spanned<String>>,
     #[serde(default)]
     hold_lease_ms: Millis<100, 2000, 300>,
-    #[serde(default)]
-    poll_ms: Millis<20, 10_000, 100>,
-    #[serde(default)]
-    nic_window_ms: Millis<10, 1000, 100>,
     #[serde(default)]
     sign_in_hours: Int<u64, 1, 720, 12>,
     #[serde(default)]
@@ -46,7 +35,6 @@ struct ConfigFile {
     secure_cookie: bool,
     #[serde(default)]
     http: HttpSection,
-    metrics: Option<MetricsSection>,
     #[serde(default, rename = "user")]
     users: Vec<UserSection>,
     #[serde(default, rename = "gimbal")]
@@ -97,8 +85,6 @@ pub struct Config {
     /// `[http] tls`: the page in HTTPS.
     pub tls: Option<DoorTls>,
     pub http: HttpBounds,
-    /// `[metrics] listen`: the door's own metrics (none when absent).
-    pub metrics: Option<SocketAddr>,
     pub users: Vec<User>,
     pub gimbals: Vec<Gimbal>,
 }
@@ -126,34 +112,28 @@ impl sagebrush_service::door::Checked for Config {
 /// Parses and validates configuration `text` read from `file`.
 pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
     let c = Source::new(file, text);
-    let raw: ConfigFile = c.deserialize()?;
-    let gcud = sagebrush_service::door_config::gcud_endpoint(&c, &raw.gcud, raw.gcud_tls.as_ref())?;
+    let (keys, raw) = c.door_file::<ConfigFile, 100>()?;
     let listen = c.listen_address(&raw.listen, "listen")?;
     let users = c.users(&raw.users)?;
     let state_file = c.state_file(raw.state_file.as_ref())?;
     let tls = c.door_tls(&raw.http, "gimbal-web", state_file.as_deref(), &[listen])?;
-    let mut gimbals: Vec<Gimbal> = Vec::new();
-    for (i, g) in raw.gimbals.iter().enumerate() {
-        let key = format!("gimbal[{i}]");
-        let name = c.gimbal_name(&g.name, &key, gimbals.iter().map(|x| x.name.as_str()))?;
+    let gimbals = c.gimbals(&raw.gimbals, |g, key, before: &[Gimbal]| {
+        let name = c.gimbal_name(&g.name, key, before.iter().map(|x| x.name.as_str()))?;
         let address = c.gimbal_address(&g.address, &format!("{key}.address"))?;
-        let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), &key)?;
-        gimbals.push(Gimbal {
+        let (pan_deg, tilt_deg) = c.pan_tilt_travel(g.pan_deg.as_ref(), g.tilt_deg.as_ref(), key)?;
+        Ok(Gimbal {
             name,
             address,
             pan_deg,
             tilt_deg,
-        });
-    }
-    if gimbals.is_empty() {
-        return Err(c.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
-    }
+        })
+    })?;
     Ok(Config {
-        link: GcudLink::new(gcud, raw.source_group.get(), raw.nic_window_ms.duration()),
+        link: GcudLink::from(&keys),
         listen,
         state_file,
         hold_lease: raw.hold_lease_ms.duration(),
-        poll: raw.poll_ms.duration(),
+        poll: keys.poll,
         sign_in: Duration::from_secs(raw.sign_in_hours.get() * 3600),
         max_sign_ins: raw.max_sign_ins.get(),
         max_streams_per_user: raw.max_streams_per_user.get(),
@@ -161,75 +141,10 @@ pub fn parse(file: &Path, text: &str) -> Result<Config, ConfigError> {
         secure_cookie: raw.secure_cookie || tls.is_some(),
         tls,
         http: raw.http.bounds(),
-        metrics: c.metrics_listen(raw.metrics.as_ref())?,
         users,
         gimbals,
     })
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    const GOOD: &str = r#"
-gcud = "127.0.0.1:4001"
-listen = "0.0.0.0:8080"
-[[user]]
-name = "admin"
-password = "secret"
-role = "administrator"
-[[gimbal]]
-name = "mast-1"
-address = "5.1.1"
-pan_deg = [-170.0, 170.0]
-"#;
-
-    fn err(text: &str) -> String {
-        parse(Path::new("w.toml"), text).unwrap_err().to_string()
-    }
-
-    #[test]
-    fn a_good_file_and_its_defaults() {
-        let c = parse(Path::new("w.toml"), GOOD).unwrap();
-        assert_eq!(c.gimbals[0].address, Address::new(5, 1, 1));
-        assert_eq!(c.gimbals[0].pan_deg, (-170.0, 170.0));
-        assert_eq!(c.gimbals[0].tilt_deg, (-90.0, 90.0));
-        assert_eq!(c.users[0].role, Role::Administrator);
-        assert_eq!(c.hold_lease, Duration::from_millis(300));
-        assert_eq!(c.poll, Duration::from_millis(100));
-        assert_eq!(c.listen, "0.0.0.0:8080".parse::<SocketAddr>().unwrap());
-        assert_eq!(c.max_streams_per_user, 32);
-        assert!(c.trusted_proxies.is_empty());
-    }
-
-    #[test]
-    fn a_trusted_proxy_is_an_address_or_a_list() {
-        let with = |v: &str| GOOD.replace("[[user]]", &format!("[http]\ntrusted_proxy = {v}\n[[user]]"));
-        let one = parse(Path::new("w.toml"), &with("\"127.0.0.1\"")).unwrap();
-        assert_eq!(one.trusted_proxies, vec!["127.0.0.1".parse::<IpAddr>().unwrap()]);
-        let two = parse(Path::new("w.toml"), &with("[\"10.0.0.2\", \"::ffff:10.0.0.3\"]")).unwrap();
-        assert_eq!(two.trusted_proxies[1], "10.0.0.3".parse::<IpAddr>().unwrap());
-        assert!(err(&with("\"proxy.lan\"")).contains("http.trusted_proxy: expected an IP address"));
-    }
-
-    #[test]
-    fn errors_name_the_place_and_what_was_expected() {
-        assert_eq!(
-            err(&GOOD.replace("\"5.1.1\"", "\"5.1\"")),
-            "w.toml:10:11: gimbal[0].address: expected GROUP.PORT.DEVICE of one gimbal, e.g. \"5.1.1\""
-        );
-        assert_eq!(
-            err(&GOOD.replace("\"0.0.0.0:8080\"", "\"8080\"")),
-            "w.toml:3:10: listen: expected IP:PORT: \"8080\" has no port"
-        );
-        assert!(err(&GOOD.replace("administrator", "root")).starts_with("w.toml:7:8: user[0].role: expected"));
-        assert!(err(&GOOD.replace("gcud =", "hold_lease_ms = 5000\ngcud =")).contains("hold_lease_ms"));
-        assert!(
-            err(&GOOD.replace(
-                "[[gimbal]]\nname = \"mast-1\"\naddress = \"5.1.1\"\npan_deg = [-170.0, 170.0]\n",
-                ""
-            ))
-            .contains("expected at least one [[gimbal]]")
-        );
-    }
-}
+mod tests;

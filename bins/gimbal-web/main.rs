@@ -14,44 +14,27 @@ mod web;
 use std::process::ExitCode;
 use std::sync::Arc;
 
-use sagebrush_client::session::{GcudReachability, GimbalSession, SessionConfig};
+use sagebrush_client::door::DoorSessions;
+use sagebrush_service::door::Started;
 use tracing::info;
 
 fn main() -> ExitCode {
-    sagebrush_service::door::main(
+    let door = sagebrush_client::door::with_outcomes(
         "gimbal-web",
         "A web page to drive the gimbals behind gcud: live position, hold-to-move, presets.",
-        config::parse,
-        run,
-    )
+    );
+    sagebrush_service::door::main(door, config::parse, run)
 }
 
-async fn run(config: config::Config) -> Result<(), String> {
+async fn run(config: config::Config, Started { metrics, signals }: Started) -> Result<(), String> {
     let presets = Arc::new(sagebrush_client::presets::Presets::load(config.state_file.clone())?);
-    let signals = sagebrush_service::door::Signals::install()?;
-    let metrics = sagebrush_service::door_metrics::DoorMetrics::start(
-        "gimbal-web",
-        sagebrush_client::outcomes::families(),
-        config.metrics,
-    )
-    .await?;
-    let reach = Arc::new(GcudReachability::default());
+    let door_sessions = DoorSessions::new(&config.link, config.poll);
     let gimbals: Vec<web::Gimbal> = config
         .gimbals
         .iter()
         .map(|g| {
-            let session = GimbalSession::start(
-                SessionConfig {
-                    link: config.link.clone(),
-                    address: g.address,
-                    poll: config.poll,
-                    lens: false,
-                    // A held move runs while the page renews it, never longer.
-                    max_move: config.hold_lease,
-                    name: g.name.clone(),
-                },
-                Arc::clone(&reach),
-            );
+            let session = // A held move runs while the page renews it, never longer.
+                    door_sessions.start(&g.name, g.address, false, config.hold_lease);
             web::Gimbal {
                 config: g.clone(),
                 session,

@@ -16,6 +16,7 @@ mod commands;
 mod connection;
 mod figures;
 mod home_assistant;
+mod metrics;
 mod principals;
 mod sites;
 

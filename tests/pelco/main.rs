@@ -17,6 +17,7 @@ mod support;
 
 mod attack;
 mod keyboard;
+mod metrics;
 mod wire;
 
 use std::io::{Read, Write};

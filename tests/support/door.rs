@@ -553,3 +553,71 @@ impl Default for NullModem {
         Self::new()
     }
 }
+
+/// A door's own metrics (`[metrics] listen`, issue 53): its `/metrics` at
+/// `addr`, read by the series every door exports.
+pub struct DoorMetrics {
+    pub addr: String,
+    pub door: &'static str,
+}
+
+/// One scrape of a door's `/metrics` (the OpenMetrics text).
+pub struct Scrape {
+    pub text: String,
+    door: &'static str,
+}
+
+impl DoorMetrics {
+    /// The metrics of `door`, listening where its log says.
+    pub fn of(door: &Door) -> Self {
+        Self {
+            addr: format!("127.0.0.1:{}", door.port("metrics at /metrics")),
+            door: door.name,
+        }
+    }
+
+    pub fn scrape(&self) -> Scrape {
+        let text = super::http_get(&self.addr, "/metrics");
+        assert!(text.starts_with("HTTP/1.1 200"), "{text}");
+        Scrape { text, door: self.door }
+    }
+}
+
+impl Scrape {
+    /// The value of the sample `name{door="…",LABEL}`.
+    pub fn sample(&self, name: &str, label: &str) -> Option<f64> {
+        let series = match label {
+            "" => format!("sagebrush_door_{name}{{door=\"{}\"}}", self.door),
+            l => format!("sagebrush_door_{name}{{door=\"{}\",{l}}}", self.door),
+        };
+        self.text
+            .lines()
+            .find_map(|l| l.strip_prefix(&series)?.strip_prefix(' ')?.parse().ok())
+    }
+
+    /// The clients' requests of `kind`.
+    pub fn requests(&self, kind: &str) -> Option<f64> {
+        self.sample("requests_total", &format!("kind=\"{kind}\""))
+    }
+
+    /// gcud's refusals by `reason` (its rule).
+    pub fn refusals(&self, reason: &str) -> Option<f64> {
+        self.sample("refusals_total", &format!("reason=\"{reason}\""))
+    }
+
+    /// The door's commands on the bus by `outcome`.
+    pub fn outcomes(&self, outcome: &str) -> Option<f64> {
+        self.sample("bus_outcomes_total", &format!("outcome=\"{outcome}\""))
+    }
+
+    /// The door's clients live now.
+    pub fn sessions(&self) -> Option<f64> {
+        self.sample("sessions", "")
+    }
+}
+
+impl std::fmt::Display for Scrape {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.text)
+    }
+}

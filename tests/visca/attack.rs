@@ -9,7 +9,7 @@ use super::*;
 use support::door::{wait_for_stop, wait_moving};
 
 /// VmRSS of process `pid`, KiB.
-fn rss_kib(pid: u32) -> u64 {
+pub fn rss_kib(pid: u32) -> u64 {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).expect("status");
     status
         .lines()

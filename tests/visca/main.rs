@@ -18,6 +18,7 @@ mod support;
 
 mod attack;
 mod clients;
+mod metrics;
 mod raw;
 
 use serde_json::Value;

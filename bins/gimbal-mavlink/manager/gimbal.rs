@@ -13,7 +13,8 @@ use mavlink::dialects::common::{
     GIMBAL_DEVICE_INFORMATION_DATA, GIMBAL_MANAGER_INFORMATION_DATA, GimbalDeviceCapFlags, GimbalDeviceCapFlagsU16,
     GimbalManagerCapFlags, MavCmd, MavMessage, MavResult, MavSeverity,
 };
-use sagebrush_client::session::{Drive, GcudReachability, GimbalSession, SessionConfig, Velocity};
+use sagebrush_client::door::DoorSessions;
+use sagebrush_client::session::{Drive, GimbalSession, Velocity};
 use sagebrush_client::{CommandError, Identity};
 use sagebrush_protocol::Undelivered;
 use tokio::sync::mpsc;
@@ -61,22 +62,12 @@ pub fn spawn(
     config: &Config,
     outbox: Arc<Outbox>,
     stats: Arc<Stats>,
-    reach: Arc<GcudReachability>,
+    sessions: &DoorSessions,
 ) -> (Handle, tokio::task::JoinHandle<()>) {
     let (tx, rx) = mpsc::channel(QUEUE);
     let shared = Arc::new(Mutex::new(Shared::default()));
-    let session = GimbalSession::start(
-        SessionConfig {
-            link: config.link.clone(),
-            address: g.address,
-            poll: config.attitude_period,
-            lens: false,
-            // A rate runs no longer than its lease unless renewed.
-            max_move: config.lease,
-            name: g.name.clone(),
-        },
-        reach,
-    );
+    let session = // A rate runs no longer than its lease unless renewed.
+            sessions.start(&g.name, g.address, false, config.lease);
     let task = Task {
         config: g.clone(),
         session: Arc::clone(&session),

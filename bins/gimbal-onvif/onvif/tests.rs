@@ -24,7 +24,11 @@ listen = "127.0.0.1:0"
     // (the discard port) refuses, so every command fails at once.
     let _rt = rt.enter();
     Device::new(
-        Gimbal::new(config.gimbals[0].clone(), &config, Default::default()),
+        Gimbal::new(
+            config.gimbals[0].clone(),
+            &config,
+            &sagebrush_client::door::DoorSessions::new(&config.link, config.poll),
+        ),
         Arc::new(Authenticator::new(config.users.clone())),
         Arc::new(Presets::load(None).unwrap()),
         DoorMetrics::new("gimbal-onvif", Vec::new()),

@@ -15,6 +15,8 @@
 //!   confirms them, velocities coalesced, one cached poll.
 //! - [`outcomes`]: what became of this process's commands, counted for
 //!   a door's metrics.
+//! - [`door`]: a front door for the shared start-up (its metrics counting
+//!   these outcomes) and the sessions of its gimbals over its one link.
 //! - [`governance`]: what gcud decides about its gimbals, asked of it
 //!   (who controls a gimbal, release, tours): the GCU commands of port 0.
 //!
@@ -24,6 +26,7 @@
 pub mod client;
 pub mod codec;
 pub mod connection;
+pub mod door;
 pub mod governance;
 pub mod master;
 pub mod outcomes;

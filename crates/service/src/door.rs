@@ -1,20 +1,24 @@
 //! What a front door's `main` does (ARCHITECTURE "Layers",
-//! `sagebrush-service`): read its command line (`--config FILE`, `--check`,
-//! the same for every door), load the configuration
-//! (exit 2 with file:line:column on an error, as gcud), answer `--check`,
-//! start logging and a two-thread runtime, and run the door (exit 1 when it
-//! fails to start). Output goes through `sagebrush_host`'s quiet printing,
-//! so a closed stdout or stderr is no panic.
+//! `sagebrush-service`), once for every door: read its command line
+//! (`--config FILE`, `--check`, the same for every door), load the
+//! configuration (exit 2 with file:line:column on an error, as gcud),
+//! answer `--check`, start logging and a two-thread runtime, catch the
+//! signals that stop it, start its metrics (`[metrics] listen`,
+//! [`crate::door_metrics`]), and run the door (exit 1 when it fails to
+//! start). Output goes through `sagebrush_host`'s quiet printing, so a
+//! closed stdout or stderr is no panic.
 
 use std::future::Future;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::Arc;
 
 use clap::{CommandFactory, FromArgMatches, Parser};
 
 use sagebrush_host::man::{ExitStatus, Manual, logging_environment};
 
 use crate::config_file::{self, ConfigError};
+use crate::door_metrics::{CountFamily, DoorMetrics};
 
 /// Exit code of a configuration error (`--check` or start-up), for gcud
 /// and every door.
@@ -134,27 +138,52 @@ fn manual(name: &str) -> Manual {
     }
 }
 
-/// Runs the door `name` (described by `about` in its `--help`): reads its
-/// command line, then reads the configuration file, which `parse`
-/// validates (`--check` says what a valid one holds, and warns), and `run`
-/// serves until the door stops.
+/// A front door, as its start-up knows it.
+#[derive(Debug, Clone, Copy)]
+pub struct Door {
+    /// Its program's name.
+    pub name: &'static str,
+    /// What it does, in its `--help`.
+    pub about: &'static str,
+    /// The families its metrics add to its requests and sessions
+    /// (`sagebrush_client::outcomes::families`).
+    pub families: fn() -> Vec<CountFamily>,
+}
+
+/// What a door's `run` is given by its start-up.
+#[derive(Debug)]
+pub struct Started {
+    /// Its metrics, served when the configuration asks (`[metrics] listen`).
+    pub metrics: Arc<DoorMetrics>,
+    /// SIGTERM and SIGINT, caught since before it binds anything.
+    pub signals: Signals,
+}
+
+/// Runs `door`: reads its command line, then reads the configuration
+/// file, which `parse` validates (`--check` says what a valid one holds,
+/// and warns), catches the signals, starts its metrics, and `run` serves
+/// until the door stops.
 pub fn main<C, Fut>(
-    name: &'static str,
-    about: &'static str,
+    door: Door,
     parse: impl FnOnce(&Path, &str) -> Result<C, ConfigError>,
-    run: impl FnOnce(C) -> Fut,
+    run: impl FnOnce(C, Started) -> Fut,
 ) -> ExitCode
 where
     C: Checked,
     Fut: Future<Output = Result<(), String>>,
 {
+    let Door { name, about, families } = door;
     if let Some(code) = sagebrush_host::man::generate_if_asked(|| command(name, about), || manual(name)) {
         return code;
     }
     let matches = command(name, about).get_matches();
     let args = Args::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     let (file, check) = (args.config.as_path(), args.check);
-    let config = match config_file::read(file).and_then(|text| parse(file, &text)) {
+    // `[metrics]` is the start-up's: read beside the door's own parse,
+    // which checked it (`crate::door_link`).
+    let parsed = config_file::read(file)
+        .and_then(|text| Ok((parse(file, &text)?, crate::door_link::metrics_listen(file, &text)?)));
+    let (config, metrics_listen) = match parsed {
         Ok(c) => c,
         Err(e) => {
             sagebrush_host::errln!("{name}: {e}");
@@ -183,7 +212,12 @@ where
             return ExitCode::from(EXIT_START);
         }
     };
-    match runtime.block_on(run(config)) {
+    let start = async {
+        let signals = Signals::install()?;
+        let metrics = DoorMetrics::start(name, families(), metrics_listen).await?;
+        run(config, Started { metrics, signals }).await
+    };
+    match runtime.block_on(start) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             tracing::error!("{e}");

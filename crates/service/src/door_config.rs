@@ -1,5 +1,6 @@
-//! The configuration pieces every front door with users shares
-//! (gimbal-onvif, gimbal-web): the `[[user]]` tables with their roles and
+//! The configuration pieces the front doors share: every door's
+//! `[[gimbal]]` tables (at least one); for the doors with users
+//! (gimbal-onvif, gimbal-web) the `[[user]]` tables with their roles and
 //! passwords (inline or in a file beside the configuration), the state
 //! file the door keeps its preset names in, each validated at its place as
 //! [`crate::config_file`] does, and `[http]`, the bounds of the door's
@@ -17,51 +18,6 @@ use toml::Spanned;
 
 use crate::config_file::Int;
 use crate::config_file::{ConfigError, Millis, Source};
-
-/// A door's `gcud_tls = { ca, cert, key }`, as written
-/// ([`gcud_endpoint`]).
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct GcudTlsSection {
-    ca: String,
-    cert: Option<String>,
-    key: Option<String>,
-}
-
-/// A door's way to gcud: `gcud = "HOST:PORT"`, or `"tls://HOST:PORT"`
-/// with `gcud_tls = { ca, cert, key }` (the CA of gcud's certificate,
-/// the door's own certificate and key: its principal at gcud). The
-/// files are read now, so that an error names them.
-pub fn gcud_endpoint(
-    c: &Source<'_>,
-    v: &Spanned<String>,
-    tls: Option<&Spanned<GcudTlsSection>>,
-) -> Result<sagebrush_host::tls::Endpoint, ConfigError> {
-    let text = v.get_ref();
-    let plain = text.strip_prefix(sagebrush_host::tls::TLS_SCHEME).unwrap_or(text);
-    let checked = Spanned::new(v.span(), plain.to_owned());
-    c.gcud_address(&checked)?;
-    let files = match tls {
-        None => None,
-        Some(t) => {
-            let raw = t.get_ref();
-            let identity = match (&raw.cert, &raw.key) {
-                (Some(c), Some(k)) => Some((PathBuf::from(c), PathBuf::from(k))),
-                (None, None) => None,
-                _ => return Err(c.at(t.span(), "gcud_tls", "expected `cert` and `key` together")),
-            };
-            let files = sagebrush_host::tls::ClientFiles {
-                ca: PathBuf::from(&raw.ca),
-                identity,
-            };
-            let identity = files.identity.as_ref().map(|(c, k)| (c.as_path(), k.as_path()));
-            sagebrush_host::tls::connector(&files.ca, identity)
-                .map_err(|e| c.at(t.span(), "gcud_tls", e.to_string()))?;
-            Some(files)
-        }
-    };
-    sagebrush_host::tls::Endpoint::parse(text, files).map_err(|e| c.at(v.span(), "gcud", e))
-}
 
 /// One `[[user]]` table, as written.
 #[derive(Debug, Deserialize)]
@@ -125,6 +81,24 @@ pub fn demo_password_warnings(users: &[User], listeners: &[std::net::SocketAddr]
 }
 
 impl Source<'_> {
+    /// The `[[gimbal]]` tables, each read by `each` with its key
+    /// (`gimbal[i]`) and the gimbals read before it; at least one.
+    pub fn gimbals<S, G>(
+        &self,
+        sections: &[S],
+        mut each: impl FnMut(&S, &str, &[G]) -> Result<G, ConfigError>,
+    ) -> Result<Vec<G>, ConfigError> {
+        let mut gimbals = Vec::with_capacity(sections.len());
+        for (i, section) in sections.iter().enumerate() {
+            let gimbal = each(section, &format!("gimbal[{i}]"), &gimbals)?;
+            gimbals.push(gimbal);
+        }
+        if gimbals.is_empty() {
+            return Err(self.at(0..0, "gimbal", "expected at least one [[gimbal]]"));
+        }
+        Ok(gimbals)
+    }
+
     /// The `[[user]]` tables: each name given once, exactly one of
     /// `password` or `password_file` (its text without the final line
     /// break), not empty, and a role; at least one user.

@@ -196,6 +196,45 @@ impl DoorMetrics {
     }
 }
 
+/// The clients a door that serves datagrams heard lately, for its
+/// sessions (UDP has no connection to count): at most `max`, the one
+/// heard the longest ago forgotten first, so a flood of sources costs a
+/// bounded table.
+#[derive(Debug)]
+pub struct HeardLately {
+    at: std::sync::Mutex<std::collections::HashMap<SocketAddr, std::time::Instant>>,
+    max: usize,
+    within: std::time::Duration,
+}
+
+impl HeardLately {
+    /// A client counts while heard within `within`; `max` kept at most.
+    pub fn new(max: usize, within: std::time::Duration) -> Self {
+        Self {
+            at: std::sync::Mutex::default(),
+            max,
+            within,
+        }
+    }
+
+    /// `from` was heard now.
+    pub fn note(&self, from: SocketAddr) {
+        let mut at = self.at.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        if !at.contains_key(&from) && at.len() >= self.max {
+            if let Some(oldest) = at.iter().min_by_key(|(_, t)| **t).map(|(a, _)| *a) {
+                at.remove(&oldest);
+            }
+        }
+        at.insert(from, std::time::Instant::now());
+    }
+
+    /// The clients heard within the window.
+    pub fn live(&self) -> usize {
+        let at = self.at.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        at.values().filter(|t| t.elapsed() < self.within).count()
+    }
+}
+
 /// The sessions and the [`CountFamily`]s, read at each scrape.
 struct Counts {
     door: &'static str,
@@ -242,6 +281,17 @@ mod tests {
 
     fn outcomes() -> Vec<(&'static str, u64)> {
         vec![("delivered", 3), ("refused", 1)]
+    }
+
+    #[test]
+    fn the_clients_heard_lately_are_bounded_and_age_out() {
+        let heard = HeardLately::new(4, std::time::Duration::from_millis(200));
+        for port in 0..100u16 {
+            heard.note(SocketAddr::from(([127, 0, 0, 3], port)));
+        }
+        assert_eq!(heard.live(), 4);
+        std::thread::sleep(std::time::Duration::from_millis(250));
+        assert_eq!(heard.live(), 0);
     }
 
     #[test]

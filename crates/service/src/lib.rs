@@ -6,10 +6,14 @@
 //!   its file:line:column with its key and what was expected.
 //! - [`door_config`]: the pieces every door with users shares: `[[user]]`,
 //!   the preset state file, `[http]`.
+//! - [`door_link`]: the keys at the top of every door's file (`gcud`,
+//!   `gcud_tls`, `source_group`, `poll_ms`, `nic_window_ms`, `[metrics]`),
+//!   read beside the door's own in one pass.
 //! - [`door_metrics`]: a door's own metrics, `[metrics] listen`.
 //! - [`door_tls`]: HTTPS at the doors, `[http] tls` (the site's
 //!   certificate or a self-signed one the door makes and keeps).
-//! - [`door`]: a front door's start-up (`--check`, exit codes, runtime).
+//! - [`door`]: a front door's start-up (`--check`, exit codes, logging,
+//!   runtime, its metrics and the signals that stop it).
 //! - [`endpoint`]: the one parser of `HOST:PORT` and of `IP:PORT` to
 //!   listen on, for configuration files and command lines alike.
 //! - The bounded listener (ARCHITECTURE "Bounded and fair under load"):
@@ -31,6 +35,7 @@ pub mod admission;
 pub mod config_file;
 pub mod door;
 pub mod door_config;
+pub mod door_link;
 pub mod door_metrics;
 pub mod door_tls;
 pub mod endpoint;

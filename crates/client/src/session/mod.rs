@@ -120,6 +120,13 @@ impl GcudLink {
     }
 }
 
+impl From<&sagebrush_service::door_link::DoorLink> for GcudLink {
+    /// The link a door's shared keys describe.
+    fn from(keys: &sagebrush_service::door_link::DoorLink) -> Self {
+        Self::new(keys.gcud.clone(), keys.source_group, keys.nic_window)
+    }
+}
+
 /// Where a session's gimbal is and how it is driven.
 #[derive(Clone, Debug)]
 pub struct SessionConfig {
