@@ -85,7 +85,13 @@ impl Demo {
 
     fn try_start(shift: u16) -> Result<Self, String> {
         let tmp = tempfile::tempdir().expect("temp dir");
-        let mut child = Command::new(root().join("demo.sh"))
+        // SIGINT as a terminal leaves it: a suite started in the background
+        // without job control (`./test.sh &`, nohup) hands its children
+        // SIGINT ignored, which a shell can neither trap nor reset, and the
+        // launcher then never hears the Ctrl-C this test sends.
+        let mut child = Command::new("env")
+            .arg("--default-signal=INT")
+            .arg(root().join("demo.sh"))
             .arg("--bin-dir")
             .arg(bin_dir())
             .args(["--port-base", &(4000 + shift).to_string()])
