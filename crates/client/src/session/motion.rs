@@ -217,8 +217,19 @@ impl MotionState {
             self.settle_deadline();
             return;
         }
-        // Newest wins, per axis; the replaced callers learn the newest's outcome.
-        let (before, mut replies) = self.wish.take().map(|w| (w.what, w.replies)).unwrap_or_default();
+        // Newest wins, per axis, for one door user; the replaced callers
+        // learn the newest's outcome. Another user's pending move is not
+        // merged into this one (it would go to gcud under this user's name,
+        // and its caller learn this user's refusal: two Pelco keyboards) but
+        // superseded whole, its callers told it went as a superseded one is.
+        let (before, mut replies) = match self.wish.take() {
+            Some(w) if w.by == by => (w.what, w.replies),
+            Some(w) => {
+                answer(w.replies, Ok(()));
+                Default::default()
+            }
+            None => Default::default(),
+        };
         replies.push(reply);
         self.wish = Some(Pending {
             what: Velocity {

@@ -39,6 +39,33 @@ const TILT: Axes = Axes {
     zoom: false,
 };
 
+/// Two users of one door (two Pelco keyboards, two web users): the second's
+/// move supersedes the first's pending one whole, never merged into it, so
+/// that nothing of the first's goes to gcud under the second's name and
+/// the first does not hear the second's outcome.
+#[test]
+fn another_users_velocity_supersedes_a_pending_one_whole() {
+    let mut m = MotionState::default();
+    let t0 = Instant::now();
+    let (tx, mut desk) = oneshot::channel();
+    m.post(pan(Drive::Forward(speed(3))), RUN, "desk", Some("desk".into()), t0, tx);
+    let tilt = Velocity {
+        tilt: Some(Drive::Back(speed(5))),
+        ..Velocity::default()
+    };
+    let (tx, _dvr) = oneshot::channel();
+    m.post(tilt, RUN, "dvr", Some("dvr".into()), t0, tx);
+    let w = m.wish.as_ref().expect("one pending velocity");
+    assert_eq!(w.by.as_deref(), Some("dvr"));
+    assert_eq!(w.what.pan, None, "the desk's pan is not sent as the DVR's");
+    assert_eq!(w.what.tilt, Some(Drive::Back(speed(5))));
+    assert_eq!(w.replies.len(), 1, "only the DVR hears the DVR's outcome");
+    assert!(
+        matches!(desk.try_recv(), Ok(Ok(()))),
+        "the desk's superseded move is answered"
+    );
+}
+
 #[test]
 fn a_newer_velocity_wins_per_axis_and_its_deadline_covers_the_motion() {
     let mut m = MotionState::default();
