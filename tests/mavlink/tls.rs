@@ -15,15 +15,7 @@ fn the_door_drives_the_gimbal_over_tls_as_its_own_principal() {
     }
     let dir = tempfile::tempdir().expect("temp dir");
     let pki = dir.path().join("tls");
-    let made = support::gimbalctl(&[
-        "tls",
-        "init",
-        "--dir",
-        pki.to_str().unwrap(),
-        "--principal",
-        "gimbal-mavlink",
-    ]);
-    assert_eq!(made.code, 0, "{made:?}");
+    support::tls_init(&pki, &["gimbal-mavlink"]);
     let p = pki.display();
     let gcud = Gcud::start(&format!(
         "[gcu]\ngroup = {group}\n[[port]]\nid = 1\nsimulate = [1]\n[[port]]\nid = 2\nsimulate = [1]\n\

@@ -159,15 +159,7 @@ fn mqtt_3_1_1_works_and_a_packet_over_the_limit_costs_a_reconnection() {
 #[test]
 fn over_mqtts_with_a_client_certificate() {
     let certs = tempfile::tempdir().expect("temp dir");
-    let out = support::gimbalctl(&[
-        "tls",
-        "init",
-        "--dir",
-        certs.path().to_str().expect("path"),
-        "--principal",
-        "door",
-    ]);
-    assert_eq!(out.code, 0, "{out:?}");
+    support::tls_init(certs.path(), &["door"]);
     let file = |name: &str| certs.path().join(name).display().to_string();
     // gcud's certificate (127.0.0.1 among its names) serves as the broker's.
     let tls_port = std::net::TcpListener::bind("127.0.0.1:0")

@@ -11,15 +11,7 @@ fn the_broker_s_commands_go_as_the_user_the_door_names() {
     let Some(broker) = Broker::start() else { return };
     let dir = tempfile::tempdir().expect("temp dir");
     let pki = dir.path().join("tls");
-    let made = support::gimbalctl(&[
-        "tls",
-        "init",
-        "--dir",
-        pki.to_str().expect("path"),
-        "--principal",
-        "gimbal-mqtt",
-    ]);
-    assert_eq!(made.code, 0, "{made:?}");
+    support::tls_init(&pki, &["gimbal-mqtt"]);
     let p = pki.display();
     let gcud = Gcud::start(&format!(
         "[gcu]\ngroup = {group}\n[control]\nhold_ms = 60000\n\

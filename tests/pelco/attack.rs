@@ -120,15 +120,7 @@ fn tls_gcud(pki: &std::path::Path) -> Gcud {
 fn a_second_keyboard_driving_against_the_first_is_refused_by_gcud_and_logged_at_info() {
     let dir = tempfile::tempdir().expect("temp dir");
     let pki = dir.path().join("tls");
-    let made = support::gimbalctl(&[
-        "tls",
-        "init",
-        "--dir",
-        pki.to_str().unwrap(),
-        "--principal",
-        "gimbal-pelco",
-    ]);
-    assert_eq!(made.code, 0, "{made:?}");
+    support::tls_init(&pki, &["gimbal-pelco"]);
     let gcud = tls_gcud(&pki);
     let doors = gcud.address("listening link=doors");
     let p = pki.display();

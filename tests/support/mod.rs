@@ -171,6 +171,19 @@ pub fn gimbalctl_bin() -> &'static str {
     env!("CARGO_BIN_EXE_gimbalctl")
 }
 
+/// A certificate authority with gcud's certificate and one per principal
+/// in `dir` (`gimbalctl tls init`, as an operator makes them): `ca.crt`,
+/// `gcud.crt`/`.key` and `NAME.crt`/`.key`. Fails the test if it cannot.
+pub fn tls_init(dir: &Path, principals: &[&str]) {
+    let dir_arg = dir.to_str().expect("a UTF-8 path");
+    let mut args = vec!["tls", "init", "--dir", dir_arg];
+    for p in principals {
+        args.extend(["--principal", p]);
+    }
+    let made = gimbalctl(&args);
+    assert_eq!(made.code, 0, "gimbalctl {}: {made:?}", args.join(" "));
+}
+
 /// What a `gimbalctl` run printed and how it exited.
 #[derive(Debug)]
 pub struct Output {

@@ -160,15 +160,7 @@ fn an_old_drive_arriving_after_its_stop_is_refused_and_moves_nothing() {
 /// `director` with 127.0.0.3 and `guest` with 127.0.0.4.
 fn governed_stack(dir: &std::path::Path) -> Stack {
     let pki = dir.join("tls");
-    let made = support::gimbalctl(&[
-        "tls",
-        "init",
-        "--dir",
-        pki.to_str().unwrap(),
-        "--principal",
-        "gimbal-visca",
-    ]);
-    assert_eq!(made.code, 0, "{made:?}");
+    support::tls_init(&pki, &["gimbal-visca"]);
     let p = pki.display();
     let gcud = Gcud::start(&format!(
         "[gcu]\ngroup = {group}\n[control]\nhold_ms = 60000\n\

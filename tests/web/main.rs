@@ -1,6 +1,7 @@
 //! gimbal-web end to end (issue 34) in a real browser: Debian's chromium,
 //! headless, driven by Selenium (`tests/web/browser.py`, installed by
-//! `.ci/run`; under `CI=true` a missing browser fails), through real gcud
+//! `./test.sh`; a missing browser fails the test unless
+//! `SAGEBRUSH_SKIP_MISSING_TOOLS=1`; the driver is `support::browser`), through real gcud
 //! and its simulated buses. What a gimbal did is read on the bus side (the
 //! simulated gimbals' own `rx frame` record in gcud's log, with its
 //! timestamps, and `gimbalctl position`), never in gimbal-web's account.
@@ -21,14 +22,14 @@ mod principals;
 mod tours;
 mod words;
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::path::Path;
-use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use serde_json::{Value, json};
 
-use support::door::{DOOR_GROUP, Door, python_client_available, start_gcud, wait_moving};
+use support::browser::{Browser, browser_available};
+use support::door::{DOOR_GROUP, Door, start_gcud, wait_moving};
 use support::gcud::Gcud;
 use support::{HANG_GUARD, eventually};
 
@@ -37,98 +38,6 @@ const MAST: &str = "5.1.1";
 /// The longest from a release (or a closed page, a killed browser) to the
 /// stop on the bus: the issue's bound.
 const STOP_WITHIN_S: f64 = 0.5;
-
-/// Whether Selenium, chromium and chromedriver are installed; when not, the
-/// test is skipped, and under `CI=true` it fails.
-fn browser_available() -> bool {
-    if !python_client_available("selenium", "selenium") {
-        return false;
-    }
-    let missing: Vec<&str> = ["/usr/bin/chromium", "/usr/bin/chromedriver"]
-        .into_iter()
-        .filter(|p| !Path::new(p).exists())
-        .collect();
-    if missing.is_empty() {
-        return true;
-    }
-    let msg = format!("{missing:?} missing (apt-get install chromium chromium-driver; ./test.sh installs them)");
-    if std::env::var("CI").is_ok_and(|v| v == "true") {
-        panic!("{msg}");
-    }
-    eprintln!("SKIPPED: {msg}");
-    false
-}
-
-/// The browser: `tests/web/browser.py`, one JSON request a line.
-struct Browser {
-    child: Child,
-    /// Closed on drop: the script then quits the browser and exits.
-    stdin: Option<ChildStdin>,
-    stdout: BufReader<ChildStdout>,
-}
-
-impl Browser {
-    /// The longest the script may take to quit the browser when dropped.
-    const QUIT: Duration = Duration::from_secs(15);
-
-    fn start() -> Self {
-        Self::launch(&[])
-    }
-
-    /// [`Browser::start`] with the script's `args` (`--accept-insecure-certs`).
-    fn launch(args: &[&str]) -> Self {
-        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/browser.py");
-        let mut child = Command::new(support::door::python())
-            .arg(script)
-            .args(args)
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("run tests/web/browser.py");
-        let stdin = child.stdin.take();
-        let stdout = BufReader::new(child.stdout.take().expect("stdout"));
-        let mut b = Self { child, stdin, stdout };
-        assert_eq!(b.read(), json!({ "ok": "ready" }));
-        b
-    }
-
-    fn read(&mut self) -> Value {
-        let mut line = String::new();
-        self.stdout.read_line(&mut line).expect("read the browser's answer");
-        serde_json::from_str(&line).unwrap_or_else(|e| panic!("the browser's answer is not JSON ({e}): {line:?}"))
-    }
-
-    /// Runs `request`; its `ok` value (a failure fails the test with `log`).
-    fn call(&mut self, request: Value, log: impl FnOnce() -> String) -> Value {
-        let stdin = self.stdin.as_mut().expect("the browser's stdin is open until drop");
-        writeln!(stdin, "{request}").expect("write to the browser");
-        let answer = self.read();
-        match answer.get("ok") {
-            Some(ok) => ok.clone(),
-            None => panic!("{request}: {answer}\ngimbal-web log:\n{}", log()),
-        }
-    }
-}
-
-impl Drop for Browser {
-    /// Closes the script's stdin, so that it quits the browser (chromedriver
-    /// and every chromium process with it) and exits; kills it only when it
-    /// has not within [`Browser::QUIT`]. Killed at once, the script left
-    /// chromedriver and its browser running after the test, for good.
-    fn drop(&mut self) {
-        drop(self.stdin.take());
-        let until = Instant::now() + Self::QUIT;
-        while Instant::now() < until {
-            match self.child.try_wait() {
-                Ok(None) => std::thread::sleep(Duration::from_millis(50)),
-                Ok(Some(_)) | Err(_) => return,
-            }
-        }
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
 
 /// gcud with its simulated buses and gimbal-web in front of it.
 struct Stack {

@@ -84,17 +84,7 @@ fn the_doors_users_arbitrate_at_gcud_as_themselves_and_the_audit_names_each() {
     if !support::door::onvif_client_available() {
         return;
     }
-    let made = support::gimbalctl(&[
-        "tls",
-        "init",
-        "--dir",
-        pki.to_str().unwrap(),
-        "--principal",
-        "gimbal-web",
-        "--principal",
-        "gimbal-onvif",
-    ]);
-    assert_eq!(made.code, 0, "{made:?}");
+    support::tls_init(&pki, &["gimbal-web", "gimbal-onvif"]);
     let gcud = tls_gcud(&pki);
     let doors = gcud.address("listening link=doors");
     let p = pki.display();
