@@ -1,7 +1,11 @@
 //! One gimbal as a VISCA camera: what each message becomes for its gimbal
 //! session (`sagebrush_client::session`). Inquiries are answered at once
-//! from the session's poll (no bus time); drives go to the motion desk
-//! (`motion.rs`); every other command is ACKed, carried out in order by
+//! from the session's poll (no bus time); drives go straight to the
+//! session, whose motion rule coalesces them (newest wins per axis, for one
+//! user; a stop overtakes; at most 8 callers wait, the older told at once),
+//! each for the motion lease since VISCA drives have no time-out of their
+//! own, answered Completion once in force (or superseded) and `90 61 41 FF`
+//! with gcud's reason logged when refused; every other command is ACKed, carried out in order by
 //! the camera's worker from a short queue (full: "command buffer full"),
 //! then answered Completion or `90 61 41 FF` with gcud's reason logged.
 //! Anything not implemented is answered `90 60 02 FF` at once.
@@ -22,10 +26,9 @@ use sagebrush_client::session::{Drive, GimbalSession, Velocity};
 use sagebrush_protocol::{Angle, Command as Bus, LensPosition, LensSpeed, Position, U12};
 use sagebrush_service::door_metrics::DoorMetrics;
 use tokio::sync::mpsc;
-use tracing::warn;
+use tracing::{info, warn};
 
 use crate::config::Gimbal;
-use crate::motion::Desk;
 use crate::reply::Replier;
 use crate::stats::{Stats, may_warn};
 use crate::visca::{self, Command, Inquiry, LensDrive, MemoryOp, Message, Way};
@@ -48,7 +51,8 @@ pub struct Job {
 pub struct Camera {
     pub config: Gimbal,
     pub session: Arc<GimbalSession>,
-    pub desk: Arc<Desk>,
+    /// How long a drive runs unless its client repeats it.
+    lease: Duration,
     jobs: mpsc::Sender<Job>,
     pub stats: Arc<Stats>,
     /// The door's metrics: each message counted by its kind.
@@ -89,6 +93,7 @@ impl Camera {
     pub fn new(
         config: Gimbal,
         session: Arc<GimbalSession>,
+        lease: Duration,
         stats: Arc<Stats>,
         metrics: Arc<DoorMetrics>,
     ) -> (Arc<Self>, mpsc::Receiver<Job>) {
@@ -96,12 +101,39 @@ impl Camera {
         let camera = Arc::new(Self {
             config,
             session,
-            desk: Arc::new(Desk::default()),
+            lease,
             jobs,
             stats,
             metrics,
         });
         (camera, rx)
+    }
+
+    /// Posts a drive (or a stop: no axis moving) to the session for its
+    /// client's user; the client hears Completion once it is in force or
+    /// superseded, `90 61 41 FF` when gcud refuses it (its reason logged).
+    fn drive(&self, velocity: Velocity, replier: Replier) {
+        let outcome =
+            self.session
+                .acting_for(replier.user.as_deref())
+                .post_velocity(velocity, Some(self.lease), "visca");
+        let (name, stats) = (self.config.name.clone(), Arc::clone(&self.stats));
+        tokio::spawn(async move {
+            let result = outcome
+                .await
+                .unwrap_or_else(|_| Err(CommandError::Io("the gimbal's session ended".into())));
+            match result {
+                Ok(()) => replier.send(&visca::completion()),
+                Err(e) => {
+                    let total = Stats::count(&stats.not_executed);
+                    if may_warn("drive not executed", &name) {
+                        // gcud's decision (another controller, a limit): routine, in words.
+                        info!(gimbal = %name, from = %replier.peer, total, reason = %e, "drive not executed: answered 90 61 41 FF");
+                    }
+                    replier.send(&visca::not_executable());
+                }
+            }
+        });
     }
 
     /// Answers or carries out `message` from `replier`.
@@ -131,8 +163,7 @@ impl Camera {
                 tilt,
             } => {
                 replier.send(&visca::ack());
-                self.desk
-                    .post(drive_velocity(pan_speed, tilt_speed, pan, tilt), replier);
+                self.drive(drive_velocity(pan_speed, tilt_speed, pan, tilt), replier);
             }
             Command::Zoom(d) if lens => {
                 replier.send(&visca::ack());
@@ -145,7 +176,7 @@ impl Camera {
                     zoom: Some(zoom),
                     ..Velocity::default()
                 };
-                self.desk.post(velocity, replier);
+                self.drive(velocity, replier);
             }
             Command::Zoom(_) | Command::ZoomTo(_) | Command::Focus(_) if !lens => {
                 Stats::count(&self.stats.syntax);

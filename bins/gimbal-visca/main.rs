@@ -10,7 +10,6 @@
 mod camera;
 mod config;
 mod framing;
-mod motion;
 mod net;
 mod reply;
 mod stats;
@@ -63,7 +62,7 @@ async fn run(config: config::Config, Started { metrics, signals }: Started) -> R
     for g in &config.gimbals {
         let session = door_sessions.start(&g.name, g.address, g.lens, lease.max(config::MAX_MOVE));
         sessions.push(Arc::clone(&session));
-        let (cam, jobs) = camera::Camera::new(g.clone(), session, Arc::clone(&stats), Arc::clone(&metrics));
+        let (cam, jobs) = camera::Camera::new(g.clone(), session, lease, Arc::clone(&stats), Arc::clone(&metrics));
         let udp =
             udp_socket(g.udp, g.reuse_address).map_err(|e| format!("gimbal {} visca_udp {}: {e}", g.name, g.udp))?;
         let bound = udp.local_addr().map_err(|e| e.to_string())?;
@@ -89,7 +88,6 @@ async fn run(config: config::Config, Started { metrics, signals }: Started) -> R
             tables.push(Arc::clone(&table));
             tasks.spawn(net::serve_tcp(listener, Arc::clone(&cam), Arc::clone(&clients), table));
         }
-        tasks.spawn(Arc::clone(&cam.desk).run(Arc::clone(&cam.session), lease, Arc::clone(&stats)));
         tasks.spawn(Arc::clone(&cam).work(jobs));
     }
     // Its clients: the UDP ones heard lately and the TCP connections open.

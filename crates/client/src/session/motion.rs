@@ -12,6 +12,21 @@ use super::*;
 
 pub(super) type Reply = oneshot::Sender<Result<(), CommandError>>;
 
+/// Callers told of one pending move's (or the owed stops') outcome at most;
+/// older ones beyond are told at once that theirs went, as a superseded
+/// one is: a joystick's 20 Hz stream or a flood of one door's clients never
+/// grows a list (a VISCA door once kept its own bounded desk for it).
+pub(super) const WAITING: usize = 8;
+
+/// `replies` with `reply` added, the oldest beyond [`WAITING`] answered.
+fn wait_with(replies: &mut Vec<Reply>, reply: Reply) {
+    replies.push(reply);
+    if replies.len() > WAITING {
+        let older: Vec<Reply> = replies.drain(..replies.len() - WAITING).collect();
+        answer(older, Ok(()));
+    }
+}
+
 /// One side of the gimbal, as far as the session has told it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) struct InForce<S> {
@@ -213,7 +228,7 @@ impl MotionState {
         // Newest wins: an axis moved now is no longer to be stopped.
         self.wish_stops = self.wish_stops.without(moved);
         if !moved.any() {
-            self.stop_replies.push(reply);
+            wait_with(&mut self.stop_replies, reply);
             self.settle_deadline();
             return;
         }
@@ -230,7 +245,7 @@ impl MotionState {
             }
             None => Default::default(),
         };
-        replies.push(reply);
+        wait_with(&mut replies, reply);
         self.wish = Some(Pending {
             what: Velocity {
                 pan: moves.pan.or(before.pan),
@@ -252,7 +267,7 @@ impl MotionState {
     /// The stops of `axes`, `reply` told once the bus confirms them.
     pub(super) fn stop(&mut self, axes: Axes, reply: Reply) {
         self.owe_stop(axes);
-        self.stop_replies.push(reply);
+        wait_with(&mut self.stop_replies, reply);
         self.settle_deadline();
     }
 

@@ -66,6 +66,28 @@ fn another_users_velocity_supersedes_a_pending_one_whole() {
     );
 }
 
+/// A flood of one user's drives, and of stops: at most [`WAITING`] callers
+/// wait for an outcome; the older ones are told theirs went at once, so the
+/// lists never grow with the flood.
+#[test]
+fn the_callers_waiting_are_bounded_and_the_older_told_at_once() {
+    let mut m = MotionState::default();
+    let t0 = Instant::now();
+    let mut drives: Vec<_> = (0..100u8)
+        .map(|i| post(&mut m, pan(Drive::Back(speed(i % 16))), t0))
+        .collect();
+    let w = m.wish.as_ref().expect("one pending velocity");
+    assert_eq!(w.what.pan, Some(Drive::Back(speed(99 % 16))), "the newest wins");
+    assert_eq!(w.replies.len(), WAITING);
+    let told = drives.iter_mut().map(|r| r.try_recv()).filter(|r| matches!(r, Ok(Ok(())))).count();
+    assert_eq!(told, 100 - WAITING, "the superseded beyond the bound are answered");
+    let mut stops: Vec<_> = (0..50).map(|_| post(&mut m, pan(Drive::Stop), t0)).collect();
+    assert_eq!(m.stop_replies.len(), WAITING);
+    let told = stops.iter_mut().map(|r| r.try_recv()).filter(|r| matches!(r, Ok(Ok(())))).count();
+    assert_eq!(told, 50 - WAITING);
+    assert!(m.stops_owed.pan, "the stop itself is still owed");
+}
+
 #[test]
 fn a_newer_velocity_wins_per_axis_and_its_deadline_covers_the_motion() {
     let mut m = MotionState::default();
@@ -101,6 +123,25 @@ fn a_stop_alone_is_owed_at_once_and_ends_what_it_names() {
     );
     assert_eq!(m.stop_replies.len(), 1, "answered once the bus confirms the stop");
     assert_eq!(m.deadline, None, "nothing moves");
+}
+
+/// A zoom drive joins a pan drive waiting; a zoom stop then ends the zoom
+/// alone, the pan drive still waits (a VISCA camera's Pan-tiltDrive and
+/// CAM_Zoom, two streams of one controller).
+#[test]
+fn a_zoom_stop_leaves_a_pan_drive_waiting() {
+    let mut m = MotionState::default();
+    let t0 = Instant::now();
+    let _pan = post(&mut m, pan(Drive::Back(speed(9))), t0);
+    let zoom = |d| Velocity {
+        zoom: Some(d),
+        ..Velocity::default()
+    };
+    let _zoom = post(&mut m, zoom(Drive::Forward(LensSpeed::new(3).unwrap())), t0);
+    let _stop = post(&mut m, zoom(Drive::Stop), t0);
+    let w = m.wish.as_ref().expect("the pan drive still waits");
+    assert_eq!((w.what.pan, w.what.zoom), (Some(Drive::Back(speed(9))), None));
+    assert!(m.stops_owed.zoom && !m.stops_owed.pan, "{:?}", m.stops_owed);
 }
 
 #[test]
