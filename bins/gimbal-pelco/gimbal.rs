@@ -1,33 +1,18 @@
 //! One gimbal behind gcud as the keyboards call it (`pelco_address`): its
 //! session (`sagebrush_client::session`, which owns the connection to gcud,
 //! the motion with its lease, the stops first), the presets a keyboard
-//! cleared, and the aim of the absolute moves (`4B`/`4D`), each of which
-//! names one axis while the gimbal's `GO` takes both.
+//! cleared; the absolute moves (`4B`/`4D`) each name one axis, and the
+//! session's goto in degrees keeps the other.
 
 use std::collections::BTreeSet;
 use std::sync::{Arc, Mutex, MutexGuard};
-use std::time::{Duration, Instant};
 
 use sagebrush_client::CommandError;
 use sagebrush_client::door::DoorSessions;
-use sagebrush_client::session::{GimbalSession, Motion};
-use sagebrush_protocol::{Angle, Command, Position};
+use sagebrush_client::session::GimbalSession;
+use sagebrush_protocol::Command;
 
 use crate::config;
-
-/// The target of the last absolute move: the other axis of the next one
-/// aims there while the gimbal is on its way (a keyboard sends the pan
-/// then the tilt, 50 ms apart for `pyptzcontroller`).
-#[derive(Clone, Copy, Debug)]
-struct Aim {
-    pan: f64,
-    tilt: f64,
-    at: Instant,
-}
-
-/// An aim younger than this is kept even before the session reports the
-/// move under way (gcud not having acknowledged it yet).
-const AIM_FRESH: Duration = Duration::from_secs(1);
 
 /// Which axis an absolute move sets.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -44,8 +29,6 @@ pub struct Gimbal {
     /// sent until it is set again. The gimbal keeps its presets (rev 1.9
     /// has no command to forget one), so this lasts until the door restarts.
     cleared: Mutex<BTreeSet<u8>>,
-    /// Absolute moves one at a time, each reading the last one's aim.
-    aim: tokio::sync::Mutex<Option<Aim>>,
     /// The keyboard whose velocity the session holds (newest wins there:
     /// a keyboard whose velocity another's replaced is told the other's
     /// outcome, which is not its own).
@@ -63,7 +46,6 @@ impl Gimbal {
             config,
             session,
             cleared: Mutex::default(),
-            aim: tokio::sync::Mutex::new(None),
             driver: Mutex::default(),
         })
     }
@@ -113,35 +95,15 @@ impl Gimbal {
         lock(&self.cleared).contains(&n)
     }
 
-    /// `GO` with one axis at `to` and the other where the last absolute
-    /// move aimed it while that move is under way, else where the gimbal is.
+    /// `GO` with one axis at `to`: the session keeps the other where the
+    /// move asked before it aims while that one is asked or under way
+    /// (the keyboard's pan, then its tilt), else where the gimbal is, and
+    /// aims such gotos in the order they were asked.
     pub async fn go_to_axis(&self, to: AxisTo, principal: Option<&str>) -> Result<(), CommandError> {
-        let mut aim = self.aim.lock().await;
-        let moving = self.session.status().motion != Motion::Idle;
-        let (pan, tilt) = match *aim {
-            Some(a) if moving || a.at.elapsed() < AIM_FRESH => (a.pan, a.tilt),
-            _ => self.position().await?,
-        };
         let (pan, tilt) = match to {
-            AxisTo::Pan(p) => (p, tilt),
-            AxisTo::Tilt(t) => (pan, t),
+            AxisTo::Pan(p) => (Some(p), None),
+            AxisTo::Tilt(t) => (None, Some(t)),
         };
-        let angle = |deg: f64| Angle::from_degrees(deg as f32).map_err(|e| CommandError::Usage(e.to_string()));
-        let target = Position::new(angle(pan)?, angle(tilt)?);
-        *aim = Some(Aim {
-            pan,
-            tilt,
-            at: Instant::now(),
-        });
-        // Posted now (its first poll), waited for after the aim is released.
-        let session = Arc::clone(&self.session);
-        let principal = principal.map(str::to_owned);
-        let mut go = Box::pin(async move { session.acting_for(principal.as_deref()).go_to(target).await });
-        let first = crate::keyboard::poll_once(&mut go);
-        drop(aim);
-        match first {
-            Some(done) => done,
-            None => go.await,
-        }
+        self.session.acting_for(principal).go_to_degrees(pan, tilt).await
     }
 }

@@ -129,3 +129,59 @@ async fn a_goto_asked_while_one_is_on_its_way_is_sent_after_it() {
     assert!(pan.await.expect("joined").is_ok());
     assert_eq!(gotos(&gcud), ["P0BB80000", "P0BB803E8"], "{:?}", gcud.got());
 }
+
+/// A goto naming one axis while the goto before it is on its way keeps the
+/// other axis where that goto aims, not where a poll read the gimbal on its
+/// way (a Pelco keyboard's absolute pan, then its tilt: the rule was
+/// gimbal-pelco's own, now the session's for every door).
+#[tokio::test]
+async fn a_goto_of_one_axis_keeps_the_other_where_the_goto_before_it_aims() {
+    let first = Arc::new(std::sync::atomic::AtomicBool::new(true));
+    let gcud = FakeGcud::start(move |p| match p {
+        [b'P', rest @ ..] if rest.len() == 8 && first.swap(false, Ordering::Relaxed) => {
+            Answer::After(Duration::from_millis(300), Box::new(Answer::Ack))
+        }
+        b"P?" => at_zero(),
+        _ => Answer::Ack,
+    })
+    .await;
+    let s = slow_poll(&gcud.addr);
+    let gotos = |gcud: &FakeGcud| -> Vec<String> { gcud.got().into_iter().filter(|p| p.len() == 9).collect() };
+    let both = {
+        let s = Arc::clone(&s);
+        tokio::spawn(async move { s.go_to_degrees(Some(30.0), Some(10.0)).await })
+    };
+    until("the first goto at gcud", || gotos(&gcud).len() == 1).await;
+    let tilt = tokio::time::timeout(GUARD, s.go_to_degrees(None, Some(-5.0)))
+        .await
+        .expect("the tilt answered");
+    assert!(tilt.is_ok(), "{tilt:?}");
+    assert!(both.await.expect("joined").is_ok());
+    // Pan 30° (0BB8) kept from the first; the poll read pan 0.
+    assert_eq!(gotos(&gcud), ["P0BB803E8", "P0BB8FE0C"], "{:?}", gcud.got());
+}
+
+/// Two gotos of one axis each, asked at once at rest (a keyboard's pan and
+/// tilt, 50 ms apart): the second aims after the first is posted, so the
+/// gimbal is sent both angles, never the tilt alone with the pan read
+/// before the first.
+#[tokio::test]
+async fn gotos_of_one_axis_asked_at_once_are_aimed_in_order() {
+    let gcud = FakeGcud::start(|p| match p {
+        b"P?" => at_zero(),
+        _ => Answer::Ack,
+    })
+    .await;
+    let s = slow_poll(&gcud.addr);
+    until("the session's first poll", || polls(&gcud) == 1).await;
+    let (pan, tilt) = tokio::time::timeout(
+        GUARD,
+        // Polled in this order, each to its end.
+        async { tokio::join!(s.go_to_degrees(Some(30.0), None), s.go_to_degrees(None, Some(-5.0))) },
+    )
+    .await
+    .expect("both answered");
+    assert!(pan.is_ok() && tilt.is_ok(), "{pan:?} {tilt:?}");
+    let gotos: Vec<String> = gcud.got().into_iter().filter(|p| p.len() == 9).collect();
+    assert_eq!(gotos.last().map(String::as_str), Some("P0BB8FE0C"), "{gotos:?}");
+}

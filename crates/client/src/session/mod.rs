@@ -150,6 +150,9 @@ pub struct GimbalSession {
     state: Mutex<State>,
     wake: Notify,
     reach: Arc<GcudReachability>,
+    /// Held by a goto of one axis from its start until it is posted, so
+    /// that the next one aims after it (in the order they were asked).
+    aiming: tokio::sync::Mutex<()>,
 }
 
 impl std::fmt::Debug for GimbalSession {
@@ -169,6 +172,7 @@ impl GimbalSession {
             state: Mutex::new(State::default()),
             wake: Notify::new(),
             reach,
+            aiming: tokio::sync::Mutex::new(()),
         });
         tokio::spawn(Arc::clone(&session).run(connection));
         session
@@ -250,10 +254,15 @@ impl GimbalSession {
     }
 
     async fn place(&self, place: Place, by: Option<Arc<str>>) -> Result<(), CommandError> {
+        self.post_place(place, by).await.unwrap_or_else(|_| Err(closed()))
+    }
+
+    /// `place` asked now, for door user `by`; the receiver tells its outcome.
+    fn post_place(&self, place: Place, by: Option<Arc<str>>) -> Outcome {
         let (tx, rx) = oneshot::channel();
         self.state().motion.place(place, by, Instant::now(), tx);
         self.wake.notify_one();
-        rx.await.unwrap_or_else(|_| Err(closed()))
+        rx
     }
 
     /// `GO` (Table 15).
@@ -379,7 +388,7 @@ impl GimbalSession {
             let s = self.state();
             let m = &s.motion;
             let moving = m.moving();
-            let changing = s.status.changing || m.place.is_some() || m.placing || m.travel.is_some();
+            let changing = s.status.changing || m.place.is_some() || m.placing.is_some() || m.travel.is_some();
             Axes {
                 pan: moving.pan || changing,
                 tilt: moving.tilt || changing,
@@ -433,20 +442,29 @@ impl ForUser<'_> {
     }
 
     /// `GO` to `pan` and `tilt` in degrees (Table 15), for this user: an
-    /// axis left `None` keeps its angle, read with the session's poll
-    /// ([`GimbalSession::position`]). An angle the protocol cannot carry
-    /// (hundredths of a degree in 16 bits) is [`CommandError::Usage`].
+    /// axis left `None` keeps the angle the positioning move asked before
+    /// aims it at while that move is asked or under way (a keyboard's
+    /// absolute pan, then its tilt 50 ms later), else the angle read with
+    /// the session's poll ([`GimbalSession::position`]). An angle the
+    /// protocol cannot carry (hundredths of a degree in 16 bits) is
+    /// [`CommandError::Usage`].
     pub async fn go_to_degrees(&self, pan: Option<f64>, tilt: Option<f64>) -> Result<(), CommandError> {
-        let now = match (pan, tilt) {
-            (Some(_), Some(_)) => Position::default(),
+        let order = self.session.aiming.lock().await;
+        let aim = self.session.state().motion.aim();
+        let now = match (pan, tilt, aim) {
+            (Some(_), Some(_), _) => Position::default(),
+            (_, _, Some(aim)) => aim,
             _ => self.session.position().await?,
         };
         let angle = |degrees: Option<f64>, current: Angle| match degrees {
             Some(d) => Angle::from_degrees(d as f32).map_err(|e| CommandError::Usage(e.to_string())),
             None => Ok(current),
         };
-        self.go_to(Position::new(angle(pan, now.pan)?, angle(tilt, now.tilt)?))
-            .await
+        let target = Position::new(angle(pan, now.pan)?, angle(tilt, now.tilt)?);
+        let outcome = self.session.post_place(Place::GoTo(target), self.user.clone());
+        // Posted: the next goto of one axis aims after this one.
+        drop(order);
+        outcome.await.unwrap_or_else(|_| Err(closed()))
     }
 
     /// `Pnn` (Table 11), for this user.

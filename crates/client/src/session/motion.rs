@@ -133,8 +133,8 @@ pub(super) struct MotionState {
     /// owed once that move is in force.
     pub(super) wish_stops: Axes,
     pub(super) place: Option<Pending<Place>>,
-    /// A positioning move taken from `place` is on its way to gcud.
-    pub(super) placing: bool,
+    /// A positioning move taken from `place`, on its way to gcud.
+    pub(super) placing: Option<Place>,
     /// A positioning move gcud accepted, until the polls show it ended
     /// (module `travel`).
     pub(super) travel: Option<Travel>,
@@ -170,7 +170,24 @@ impl MotionState {
 
     /// Anything asked, under way or owed: the session's motion.
     pub(super) fn any(&self) -> bool {
-        self.moving().any() || self.place.is_some() || self.placing || self.travel.is_some() || self.stops_owed.any()
+        self.moving().any()
+            || self.place.is_some()
+            || self.placing.is_some()
+            || self.travel.is_some()
+            || self.stops_owed.any()
+    }
+
+    /// Where the newest positioning move aims the gimbal while it is asked,
+    /// on its way to gcud or under way (`None`: none, or a preset or home,
+    /// whose place the session does not know): the axis a goto leaves out
+    /// keeps this angle, not a poll taken mid-travel.
+    pub(super) fn aim(&self) -> Option<Position> {
+        match (&self.place, self.placing, &self.travel) {
+            (Some(p), _, _) => p.what.target(),
+            (None, Some(p), _) => p.target(),
+            (None, None, Some(t)) => t.to(),
+            (None, None, None) => None,
+        }
     }
 
     /// The deadline ends once nothing moves or is about to.

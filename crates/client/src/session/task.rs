@@ -101,7 +101,7 @@ impl GimbalSession {
         }
         if let Some(p) = s.motion.place.take() {
             *by = p.by;
-            s.motion.placing = true;
+            s.motion.placing = Some(p.what);
             return Step::Place(p.what, p.replies);
         }
         if let Some((queued, _, user)) = s.queue.pop_front() {
@@ -172,7 +172,7 @@ impl GimbalSession {
                     let sent = connection.send(&place.command()).await;
                     self.reached(&sent);
                     let mut s = self.state();
-                    s.motion.placing = false;
+                    s.motion.placing = None;
                     // The gimbal's own motion: what it does to the speeds is its own.
                     s.motion.forget_speeds();
                     if sent.is_ok() {

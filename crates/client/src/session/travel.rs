@@ -40,6 +40,11 @@ impl Travel {
         }
     }
 
+    /// Where it goes, when the command says (`GO`).
+    pub(super) fn to(&self) -> Option<Position> {
+        self.to
+    }
+
     /// Whether the poll reading `p` at `now` shows the move ended: the
     /// gimbal at its target, or standing still since the last poll once it
     /// moved or [`START_WITHIN`] passed.

@@ -79,11 +79,19 @@ fn the_callers_waiting_are_bounded_and_the_older_told_at_once() {
     let w = m.wish.as_ref().expect("one pending velocity");
     assert_eq!(w.what.pan, Some(Drive::Back(speed(99 % 16))), "the newest wins");
     assert_eq!(w.replies.len(), WAITING);
-    let told = drives.iter_mut().map(|r| r.try_recv()).filter(|r| matches!(r, Ok(Ok(())))).count();
+    let told = drives
+        .iter_mut()
+        .map(|r| r.try_recv())
+        .filter(|r| matches!(r, Ok(Ok(()))))
+        .count();
     assert_eq!(told, 100 - WAITING, "the superseded beyond the bound are answered");
     let mut stops: Vec<_> = (0..50).map(|_| post(&mut m, pan(Drive::Stop), t0)).collect();
     assert_eq!(m.stop_replies.len(), WAITING);
-    let told = stops.iter_mut().map(|r| r.try_recv()).filter(|r| matches!(r, Ok(Ok(())))).count();
+    let told = stops
+        .iter_mut()
+        .map(|r| r.try_recv())
+        .filter(|r| matches!(r, Ok(Ok(()))))
+        .count();
     assert_eq!(told, 50 - WAITING);
     assert!(m.stops_owed.pan, "the stop itself is still owed");
 }
