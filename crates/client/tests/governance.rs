@@ -215,6 +215,56 @@ async fn a_move_refused_by_a_limit_stops_what_this_door_had_moving() {
     s.shutdown().await;
 }
 
+/// Two users of one door (two Pelco keyboards on gimbal-pelco): gcud's
+/// refusal of the DVR's drive, which came back while the desk's newer drive
+/// waited, is the DVR's to hear; the desk's drive is sent after it (the
+/// desk was told the DVR's refusal, naming the desk itself as the holder).
+#[tokio::test]
+async fn a_refusal_of_one_users_drive_is_told_to_that_user_not_to_another_posting_meanwhile() {
+    let gcud = FakeGcud::start(|p| match p {
+        b"~C0101" => controller(ControllerReply::Nobody),
+        b"P?" => at_zero(),
+        b"PL" => Answer::After(
+            Duration::from_millis(300),
+            Box::new(Answer::Report(Undelivered::NotInControl)),
+        ),
+        _ => Answer::Ack,
+    })
+    .await;
+    let s = session(&gcud.addr);
+    s.acting_for(Some("desk"))
+        .velocity(pan_right(), None, "desk")
+        .await
+        .unwrap();
+    let left = Velocity {
+        pan: Some(Drive::Back(Speed::new(7).unwrap())),
+        ..Velocity::default()
+    };
+    let dvr = s.acting_for(Some("dvr")).post_velocity(left, None, "dvr");
+    until("the DVR's drive at gcud", || gcud.got().iter().any(|p| p == "PL")).await;
+    let desk = tokio::time::timeout(GUARD, s.acting_for(Some("desk")).velocity(pan_right(), None, "desk"))
+        .await
+        .expect("the desk answered");
+    assert!(desk.is_ok(), "the desk was told: {desk:?}");
+    let dvr = tokio::time::timeout(GUARD, dvr)
+        .await
+        .expect("the DVR answered")
+        .expect("told");
+    assert_eq!(
+        dvr.map_err(|e| e.refusal()),
+        Err(Some(Undelivered::NotInControl)),
+        "the DVR hears its own refusal"
+    );
+    let got = gcud.got();
+    let refused = got.iter().position(|p| p == "PL").expect("PL sent");
+    assert!(
+        got[refused..].iter().any(|p| p == "PR"),
+        "the desk's drive went after the DVR's: {got:?}"
+    );
+    s.stop(Axes::PAN_TILT).await.unwrap();
+    s.shutdown().await;
+}
+
 #[tokio::test]
 async fn tours_are_listed_started_and_stopped_through_gcud() {
     let gcud = FakeGcud::start(|p| {

@@ -129,6 +129,10 @@ pub(super) struct MotionState {
     /// The next time an owed stop may be tried again.
     pub(super) stop_retry_at: Option<Instant>,
     pub(super) wish: Option<Pending<Velocity>>,
+    /// A drive command of `wish` on its way to gcud: whose it is, and the
+    /// callers of that user's wish should another user's supersede it
+    /// meanwhile (they learn the outcome of what was sent for them).
+    pub(super) driving: Option<Pending<()>>,
     /// Axes set to zero beside a pending move ([`MotionState::post`]):
     /// owed once that move is in force.
     pub(super) wish_stops: Axes,
@@ -253,11 +257,16 @@ impl MotionState {
         // learn the newest's outcome. Another user's pending move is not
         // merged into this one (it would go to gcud under this user's name,
         // and its caller learn this user's refusal: two Pelco keyboards) but
-        // superseded whole, its callers told it went as a superseded one is.
+        // superseded whole, its callers told it went as a superseded one is,
+        // or, while its command is on its way, how that command went.
         let (before, mut replies) = match self.wish.take() {
             Some(w) if w.by == by => (w.what, w.replies),
             Some(w) => {
-                answer(w.replies, Ok(()));
+                match &mut self.driving {
+                    // Its command is on its way: they learn how that went.
+                    Some(d) if d.by == w.by => w.replies.into_iter().for_each(|r| wait_with(&mut d.replies, r)),
+                    _ => answer(w.replies, Ok(())),
+                }
                 Default::default()
             }
             None => Default::default(),

@@ -3,7 +3,7 @@
 //! velocity, the positioning move, the queue, the poll), each step carried
 //! out and its outcome recorded (ARCHITECTURE "Front doors").
 
-use super::motion::{InForce, Reply, answer};
+use super::motion::{InForce, Pending, Reply, answer};
 use super::travel::Travel;
 use super::*;
 use sagebrush_protocol::ResultKind;
@@ -87,6 +87,12 @@ impl GimbalSession {
                 .or_else(|| pan_tilt_step(Axis::Tilt, v.tilt, s.motion.tilt))
                 .or_else(|| zoom_step(v.zoom, s.motion.zoom))
             {
+                s.motion.driving = Some(Pending {
+                    what: (),
+                    asked: now,
+                    by: by.clone(),
+                    replies: Vec::new(),
+                });
                 return step;
             }
             // Everything asked is in force; then the zeros beside it.
@@ -155,18 +161,20 @@ impl GimbalSession {
                 Step::Drive(command, applied, None) => {
                     let sent = connection.send(&command).await;
                     self.reached(&sent);
-                    self.drive_sent(&command, applied, sent);
+                    let outcome = self.drive_sent(&command, applied, sent);
+                    self.driven(outcome);
                 }
                 Step::Drive(speed, applied, Some((direction, then))) => {
                     // A stop owed by now goes before the direction.
                     let go_on = || !self.state().motion.stops_owed.any();
                     let (sent, then_sent) = connection.send_chained(&speed, &direction, &go_on).await;
                     self.reached(&sent);
-                    self.drive_sent(&speed, applied, sent);
+                    let mut outcome = self.drive_sent(&speed, applied, sent);
                     if let Some(then_sent) = then_sent {
                         self.reached(&then_sent);
-                        self.drive_sent(&direction, then, then_sent);
+                        outcome = self.drive_sent(&direction, then, then_sent);
                     }
+                    self.driven(outcome);
                 }
                 Step::Place(place, replies) => {
                     let sent = connection.send(&place.command()).await;
@@ -319,12 +327,23 @@ impl GimbalSession {
 
     /// Records what became of a drive command: the axis in force, a
     /// refusal by gcud's rules, or a failure that owes the stops.
-    fn drive_sent(&self, command: &Command<'static>, applied: Applied, sent: Result<Option<Vec<u8>>, CommandError>) {
+    fn drive_sent(
+        &self,
+        command: &Command<'static>,
+        applied: Applied,
+        sent: Result<Option<Vec<u8>>, CommandError>,
+    ) -> Result<(), CommandError> {
         let mut s = self.state();
+        let outcome = sent.as_ref().map(drop).map_err(Clone::clone);
         if sent.is_err() {
             // Any error or refusal: the speed set may not be what the gimbal has.
             s.motion.forget_speeds();
         }
+        // The user it was sent for: another user's wish posted meanwhile
+        // is not refused with it (two Pelco keyboards: the desk was told
+        // the DVR's refusal, which named the desk as the holder).
+        let sender = s.motion.driving.as_ref().map(|d| d.by.clone());
+        let theirs = |w: &Pending<Velocity>| sender.as_ref().is_none_or(|by| *by == w.by);
         match sent {
             Ok(_) => {
                 s.last_refusal = None;
@@ -341,10 +360,15 @@ impl GimbalSession {
             Err(e) if e.refusal().is_some() => {
                 // gcud refused it by its rules: nothing reached
                 // the bus, the axis did not start.
-                if let Some(w) = s.motion.wish.take() {
+                if s.motion.wish.as_ref().is_some_and(theirs) {
+                    let w = s.motion.wish.take().expect("checked");
                     answer(w.replies, Err(e.clone()));
                 }
-                let zeros = std::mem::take(&mut s.motion.wish_stops);
+                let zeros = match &s.motion.wish {
+                    // Another user's, posted meanwhile: their zeros wait with it.
+                    Some(_) => Axes::default(),
+                    None => std::mem::take(&mut s.motion.wish_stops),
+                };
                 if e.refusal() == Some(Undelivered::NotInControl) {
                     // Another link holds the gimbal: its motion is
                     // not this door's to stop, and gcud stopped
@@ -374,6 +398,15 @@ impl GimbalSession {
                 s.motion.owe_stop(axes.or(applied.axes()));
                 warn!(gimbal = %self.config.name, error = %e, "{} failed: stopping the motion", command.in_words());
             }
+        }
+        outcome
+    }
+
+    /// A drive step ended with `outcome`: the callers of a wish another
+    /// user superseded while it was on its way learn it.
+    fn driven(&self, outcome: Result<(), CommandError>) {
+        if let Some(d) = self.state().motion.driving.take() {
+            answer(d.replies, outcome);
         }
     }
 
