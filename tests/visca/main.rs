@@ -48,8 +48,31 @@ struct Stack {
 fn config(gcud: &str, lease_ms: u64, extra: &str) -> String {
     format!(
         "gcud = \"{gcud}\"\nsource_group = {DOOR_GROUP}\npoll_ms = 50\nmotion_lease_ms = {lease_ms}\n{extra}\
-         [[gimbal]]\nname = \"mast-1\"\naddress = \"{MAST}\"\nvisca_udp = \"{HOST}:0\"\nvisca_tcp = \"127.0.0.1:0\"\nreuse_address = true\n"
+         [[gimbal]]\nname = \"mast-1\"\naddress = \"{MAST}\"\nvisca_udp = \"{HOST}:{port}\"\nvisca_tcp = \"127.0.0.1:0\"\nreuse_address = true\n",
+        port = camera_port(),
     )
+}
+
+/// A UDP port for the camera that no socket holds on any address, below
+/// the kernel's ephemeral range: the PyPI client binds the camera's port
+/// on every address at each step, and a port the door took on 127.0.0.2
+/// alone (`:0`) could be another program's ephemeral port on 127.0.0.1
+/// ("Address already in use" once in a few runs of a busy suite).
+fn camera_port() -> u16 {
+    use std::sync::atomic::{AtomicU32, Ordering};
+    static TAKEN: AtomicU32 = AtomicU32::new(0);
+    let ephemeral: u32 = std::fs::read_to_string("/proc/sys/net/ipv4/ip_local_port_range")
+        .ok()
+        .and_then(|r| r.split_whitespace().next()?.parse().ok())
+        .unwrap_or(32768);
+    let span = 8000;
+    let base = ephemeral.saturating_sub(span).max(1024);
+    // Test processes run side by side: each starts elsewhere in the span.
+    let start = std::process::id().wrapping_mul(7919) % span;
+    (0..span)
+        .map(|_| base + (start + TAKEN.fetch_add(1, Ordering::Relaxed)) % span)
+        .find(|&p| std::net::UdpSocket::bind(("0.0.0.0", p as u16)).is_ok())
+        .expect("a free UDP port below the ephemeral range") as u16
 }
 
 impl Stack {
