@@ -197,9 +197,8 @@ pub async fn serve(
 
 /// A refused connection, logged throttled per peer address.
 fn refused(throttle: &mut Throttle, peer: SocketAddr, why: &str) {
-    let place = peer.ip().to_string();
-    let line = || format!("metrics: connection from {peer} closed: {why}");
-    if throttle.allow(why, &place, line, tokio::time::Instant::now()) {
+    let line = format_args!("metrics: connection from {peer} closed: {why}");
+    if throttle.allow(&why, &peer.ip(), &line, tokio::time::Instant::now()) {
         warn!(%peer, "metrics: connection closed at accept: {why} (gcud_http_connections_refused_total counts them all)");
     }
 }

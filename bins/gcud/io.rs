@@ -444,9 +444,11 @@ pub async fn accept_loop(
                         Ok(Err(e)) => e.to_string(),
                         _ => format!("no handshake within {} s", HANDSHAKE_TIMEOUT.as_secs()),
                     };
-                    let line = || format!("link {name}: TLS handshake with {peer} failed");
                     let now = tokio::time::Instant::now();
-                    if handshakes.lock().is_ok_and(|mut t| t.allow("tls", &peer.ip().to_string(), line, now)) {
+                    let allow = |t: &mut Throttle| {
+                        t.allow(&"tls", &peer.ip(), &format_args!("link {name}: TLS handshake with {peer} failed"), now)
+                    };
+                    if handshakes.lock().is_ok_and(|mut t| allow(&mut t)) {
                         warn!(link = %name, %peer, error = %why, "connection refused: TLS handshake failed (a plain client, no client certificate, or one from another CA); logged at most {} times in {} s per peer", sagebrush_host::throttle::BURST, sagebrush_host::throttle::WINDOW.as_secs());
                     }
                     return;
@@ -481,8 +483,13 @@ pub async fn accept(listener: &TcpListener, place: &str, throttle: &mut Throttle
         match accepted {
             Some(Ok(connection)) => return connection,
             Some(Err(e)) => {
-                let line = || format!("{place}: accept failed: {e}");
-                if throttle.allow("accept failed", place, line, tokio::time::Instant::now()) {
+                let now = tokio::time::Instant::now();
+                if throttle.allow(
+                    &"accept failed",
+                    &place,
+                    &format_args!("{place}: accept failed: {e}"),
+                    now,
+                ) {
                     warn!(%place, error = %e, "accept failed; retrying (logged at most {} times in {} s)", sagebrush_host::throttle::BURST, sagebrush_host::throttle::WINDOW.as_secs());
                 }
                 tokio::time::sleep(ACCEPT_PAUSE).await;

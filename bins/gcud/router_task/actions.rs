@@ -2,28 +2,37 @@
 //! writes queued on their lines, line rate switches, router events logged
 //! (throttled), a departed link's counters kept under its configured name.
 
-use sagebrush_gcu::{Action, DropReason, Level, LinkId, Outbox, Place, RouterEvent};
+use std::fmt::Display;
+
+use sagebrush_gcu::{Action, DropReason, Level, Outbox, Place, RouterEvent};
 use sagebrush_host::throttle::Throttle;
 use tokio::time::Instant;
 use tracing::{debug, error, info, warn};
 
-use super::links::LinkBook;
+use super::links::{LinkBook, LinkInfo};
 use crate::lines::{LineId, Lines, Refused};
 
 /// A write a line did not take: logged, throttled per port or configured
 /// link, when the line is behind (its peer is not reading).
 fn write_refused(line: LineId, refused: Refused, links: &LinkBook, throttle: &mut Throttle) {
-    let (place, text) = match line {
-        LineId::Port(port) => (format!("port {port}"), "the port is not taking bytes"),
-        LineId::Link(link) => (links.name(link), "the peer is not reading"),
-    };
     match refused {
         Refused::Behind => {
-            let message = || match line {
-                LineId::Port(_) => format!("{place}: {text} (limit reached): bytes dropped"),
-                LineId::Link(link) => format!("{link} ({place}): {text} (limit reached): bytes dropped"),
+            let now = Instant::now();
+            let (allowed, text) = match line {
+                LineId::Port(port) => {
+                    let text = "the port is not taking bytes";
+                    let place = format_args!("port {port}");
+                    let line = format_args!("{place}: {text} (limit reached): bytes dropped");
+                    (throttle.allow(&"writer behind", &place, &line, now), text)
+                }
+                LineId::Link(link) => {
+                    let text = "the peer is not reading";
+                    let place = links.name(link);
+                    let line = format_args!("{link} ({place}): {text} (limit reached): bytes dropped");
+                    (throttle.allow(&"writer behind", &place, &line, now), text)
+                }
             };
-            if throttle.allow("writer behind", &place, message, Instant::now()) {
+            if allowed {
                 warn!(%line, "{text} (limit reached): bytes dropped");
             }
         }
@@ -84,8 +93,8 @@ fn audit(
     let command = String::from_utf8_lossy(frame.payload());
     let words = sagebrush_protocol::Command::parse(frame.payload());
     let words = words.in_words();
-    let line = || format!("audit: {actor}: {words} for {}", frame.dest);
-    if !throttle.allow("audit", &actor.name, line, Instant::now()) {
+    let line = format_args!("audit: {actor}: {words} for {}", frame.dest);
+    if !throttle.allow(&"audit", &actor.name, &line, Instant::now()) {
         return;
     }
     let outcome = refused.map_or("accepted", |r| r.undelivered().name());
@@ -110,44 +119,60 @@ fn log_event(event: &RouterEvent, links: &LinkBook, throttle: &mut Throttle, gro
         return audit(actor, frame, *refused, throttle);
     }
     let text = event.in_group(group);
-    let name = |link: &LinkId| links.name(*link);
     // Events about a link name it as configured, with its peer.
     let context = match event {
-        RouterEvent::LinkState { link, .. } | RouterEvent::IssuedStop { link: Some(link), .. } => links
-            .live
-            .get(link)
-            .map_or_else(String::new, |l| format!(" ({} {})", l.name, l.peer)),
-        _ => String::new(),
+        RouterEvent::LinkState { link, .. } | RouterEvent::IssuedStop { link: Some(link), .. } => links.live.get(link),
+        _ => None,
     };
+    let context = LinkContext(context);
     match event.level() {
         Level::Debug => debug!("{text}{context}"),
         Level::Info => info!("{text}{context}"),
         Level::Warn => {
-            let (kind, place) = match event {
-                RouterEvent::Dropped { reason, at, .. } => (
-                    format!("dropped {}", reason.name()),
+            // Kind and place written in place: a warning counted in an open
+            // window allocates nothing (module `throttle`).
+            let line = format_args!("{text}{context}");
+            let now = Instant::now();
+            let mut allow = |kind: &dyn Display, place: &dyn Display| throttle.allow(kind, place, &line, now);
+            let allowed = match event {
+                RouterEvent::Dropped { reason, at, .. } => {
+                    let kind = format_args!("dropped {}", reason.name());
                     match at {
-                        Place::Link(link) => name(link),
-                        other => other.to_string(),
-                    },
-                ),
-                RouterEvent::Undelivered { failure, origin, .. } => (
-                    format!("undelivered {}", failure.name()),
-                    origin.link().as_ref().map_or_else(String::new, name),
-                ),
-                RouterEvent::Finished { outcome, .. } => (format!("finished {}", outcome.name()), String::new()),
-                RouterEvent::IssuedStop { link, .. } => {
-                    ("stop".to_owned(), link.as_ref().map_or_else(String::new, name))
+                        Place::Link(link) => allow(&kind, &links.name(*link)),
+                        other => allow(&kind, other),
+                    }
                 }
+                RouterEvent::Undelivered { failure, origin, .. } => {
+                    let kind = format_args!("undelivered {}", failure.name());
+                    match origin.link() {
+                        Some(link) => allow(&kind, &links.name(link)),
+                        None => allow(&kind, &""),
+                    }
+                }
+                RouterEvent::Finished { outcome, .. } => allow(&format_args!("finished {}", outcome.name()), &""),
+                RouterEvent::IssuedStop { link: Some(link), .. } => allow(&"stop", &links.name(*link)),
+                RouterEvent::IssuedStop { link: None, .. } => allow(&"stop", &""),
                 RouterEvent::DeviceState { port, device, .. } => {
-                    ("device silent".to_owned(), format!("{group}.{port}.{device}"))
+                    allow(&"device silent", &format_args!("{group}.{port}.{device}"))
                 }
                 // Each other kind of warning, throttled as one.
-                _ => ("other".to_owned(), String::new()),
+                _ => allow(&"other", &""),
             };
-            if throttle.allow(&kind, &place, || format!("{text}{context}"), Instant::now()) {
+            if allowed {
                 warn!("{text}{context}");
             }
+        }
+    }
+}
+
+/// ` (name peer)` of the link an event is about, when it is live.
+struct LinkContext<'a>(Option<&'a LinkInfo>);
+
+impl Display for LinkContext<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.0 {
+            Some(l) => write!(f, " ({} {})", l.name, l.peer),
+            None => Ok(()),
         }
     }
 }

@@ -13,6 +13,21 @@ pub(super) struct LinkInfo {
     pub(super) peer: String,
 }
 
+/// A link as logs name it: see [`LinkBook::name`].
+pub(super) enum LinkName<'a> {
+    Named(&'a str),
+    Id(LinkId),
+}
+
+impl std::fmt::Display for LinkName<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            LinkName::Named(name) => f.write_str(name),
+            LinkName::Id(link) => link.fmt(f),
+        }
+    }
+}
+
 /// Stable ids of configured links, by name: kept across reconnects and
 /// reloads, so that routes keep pointing at the right link.
 #[derive(Debug, Default)]
@@ -35,11 +50,13 @@ pub(super) struct LinkBook {
 }
 
 impl LinkBook {
-    /// `link`'s configured name, else its id.
-    pub(super) fn name(&self, link: LinkId) -> String {
-        self.live
-            .get(&link)
-            .map_or_else(|| link.to_string(), |l| l.name.clone())
+    /// `link`'s configured name, else its id (written, never kept: a
+    /// throttled warning allocates nothing).
+    pub(super) fn name(&self, link: LinkId) -> LinkName<'_> {
+        match self.live.get(&link) {
+            Some(l) => LinkName::Named(&l.name),
+            None => LinkName::Id(link),
+        }
     }
 
     /// A live link's counters, kept with its configured link.

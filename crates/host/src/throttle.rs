@@ -6,6 +6,7 @@
 //! places of a kind share one window. The metrics keep the exact numbers.
 
 use std::collections::HashMap;
+use std::fmt::{Display, Write as _};
 use std::time::Duration;
 
 use tokio::time::Instant;
@@ -24,36 +25,51 @@ struct Window {
     start: Instant,
     written: u32,
     suppressed: u64,
-    /// The last suppressed line, quoted in the summary.
+    /// The last suppressed line, quoted in the summary (written in place).
     last: String,
 }
 
-/// Per (kind, place) windows.
+/// Per (kind, place) windows. A line counted in a window that is already
+/// open allocates nothing: its key is written into a buffer kept for it
+/// and the window's last line into its own (issue 52: a flood of failed
+/// deliveries cost gcud an allocation or more each).
 #[derive(Debug, Default)]
 pub struct Throttle {
-    windows: HashMap<(String, String), Window>,
+    /// Keyed by kind and place, written `kind\u{1f}place`.
+    windows: HashMap<String, Window>,
+    /// The key of the line asked about.
+    key: String,
 }
 
 impl Throttle {
     /// Whether a warning of `kind` at `place` may be written now; if not,
-    /// it is counted (with its text, for the summary).
-    pub fn allow(&mut self, kind: &str, place: &str, line: impl FnOnce() -> String, now: Instant) -> bool {
-        let mut key = (kind.to_owned(), place.to_owned());
-        if self.windows.len() >= MAX_KEYS - 1 && !self.windows.contains_key(&key) {
-            key.1 = OTHER_PLACES.to_owned();
+    /// it is counted (with its text `line`, for the summary).
+    pub fn allow(&mut self, kind: &dyn Display, place: &dyn Display, line: &dyn Display, now: Instant) -> bool {
+        self.key.clear();
+        let _ = write!(self.key, "{kind}\u{1f}{place}");
+        if !self.windows.contains_key(self.key.as_str()) {
+            if self.windows.len() >= MAX_KEYS - 1 {
+                self.key.clear();
+                let _ = write!(self.key, "{kind}\u{1f}{OTHER_PLACES}");
+            }
+            if !self.windows.contains_key(self.key.as_str()) {
+                let window = Window {
+                    start: now,
+                    written: 0,
+                    suppressed: 0,
+                    last: String::new(),
+                };
+                self.windows.insert(self.key.clone(), window);
+            }
         }
-        let w = self.windows.entry(key).or_insert_with(|| Window {
-            start: now,
-            written: 0,
-            suppressed: 0,
-            last: String::new(),
-        });
+        let w = self.windows.get_mut(self.key.as_str()).expect("inserted above");
         if w.written < BURST {
             w.written += 1;
             return true;
         }
         w.suppressed += 1;
-        w.last = line();
+        w.last.clear();
+        let _ = write!(w.last, "{line}");
         false
     }
 
@@ -92,12 +108,11 @@ static SUPPRESSED: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::
 /// written now by the process's throttle: [`BURST`] per [`WINDOW`], the
 /// rest counted and summed up once the window ends. Use as
 /// `if may_warn(KIND, &place) { warn!(...) }`.
-pub fn may_warn(kind: &'static str, place: &dyn std::fmt::Display) -> bool {
+pub fn may_warn(kind: &'static str, place: &dyn Display) -> bool {
     let now = Instant::now();
     let mut t = PROCESS.lock().unwrap_or_else(|p| p.into_inner());
     flush(&mut t, now);
-    let place = place.to_string();
-    let allowed = t.allow(kind, &place, || format!("{kind} ({place})"), now);
+    let allowed = t.allow(&kind, place, &format_args!("{kind} ({place})"), now);
     if !allowed {
         SUPPRESSED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     }
@@ -130,18 +145,15 @@ mod tests {
         let mut t = Throttle::default();
         let t0 = Instant::now();
         let written = (0..1000)
-            .filter(|i| t.allow("dropped unsolicited", "port 1", || format!("line {i}"), t0))
+            .filter(|i| t.allow(&"dropped unsolicited", &"port 1", &format_args!("line {i}"), t0))
             .count();
         assert_eq!(written, BURST as usize);
-        assert!(
-            t.allow("dropped unsolicited", "port 2", String::new, t0),
-            "another place"
-        );
+        assert!(t.allow(&"dropped unsolicited", &"port 2", &"", t0), "another place");
         assert!(t.summaries(t0 + WINDOW / 2).is_empty(), "the window is still open");
         let summaries = t.summaries(t0 + WINDOW);
         assert_eq!(summaries, vec!["line 999 (repeated 990 more times in 10 s)".to_owned()]);
         assert!(
-            t.allow("dropped unsolicited", "port 1", String::new, t0 + WINDOW),
+            t.allow(&"dropped unsolicited", &"port 1", &"", t0 + WINDOW),
             "a new window"
         );
     }
@@ -151,7 +163,7 @@ mod tests {
         let mut t = Throttle::default();
         let t0 = Instant::now();
         let written = (0..100_000)
-            .filter(|i| t.allow("refused", &format!("127.0.0.1:{i}"), String::new, t0))
+            .filter(|i| t.allow(&"refused", &format_args!("127.0.0.1:{i}"), &"", t0))
             .count();
         assert_eq!(
             written,
