@@ -78,6 +78,13 @@ pub(crate) struct Gimbal {
     pub rules: Option<GimbalRules>,
     pub holder: Option<Held>,
     pub position: Option<Reading>,
+    /// The reading the next one is compared with to tell whether it stands
+    /// still: the latest one at least [`SETTLE_SPAN`] older than the one
+    /// after it. Readings closer in time tell nothing, and were each
+    /// compared with the one just before, so that doors polling every 50 ms
+    /// kept a gimbal found at start unknown for good (gimbal-visca's goto
+    /// to the demo's roof refused "position unknown").
+    pub(super) anchor: Option<Reading>,
     pub axes: [AxisMotion; 2],
     pub rates: Option<[u32; 2]>,
     pub accels: Option<[u32; 2]>,
@@ -163,6 +170,7 @@ impl Gimbal {
     /// given another address): found again as if gcud had just started.
     pub fn forget(&mut self) {
         self.position = None;
+        self.anchor = None;
         self.axes = [AxisMotion::Unknown; 2];
         self.rates = None;
         self.accels = None;
@@ -364,12 +372,14 @@ impl Gimbal {
         }
         // Two readings close in time tell nothing of standing still, nor
         // one taken before the motion began (a goto queued behind other
-        // work is read again before the gimbal got going).
-        let since = self.moved_at;
-        let before = before
-            .filter(|&(t, _)| at >= t + SETTLE_SPAN && t >= since)
-            .map(|(_, b)| b);
+        // work is read again before the gimbal got going): compared with
+        // the anchor, which readings closer than that leave in place.
+        let anchor = self.anchor.filter(|r| r.at >= self.moved_at);
+        let before = anchor.filter(|r| at >= r.at + SETTLE_SPAN).map(|r| axes(r.position));
         self.position = Some(Reading { at, position });
+        if before.is_some() || anchor.is_none() {
+            self.anchor = self.position;
+        }
         self.need_position = false;
         if self.found && self.axes.contains(&AxisMotion::Unknown) {
             // Found after a start or a reopening: a second reading tells
@@ -597,6 +607,29 @@ mod tests {
             broadcast_guard: 40,
             queue_wait: 800,
         }
+    }
+
+    /// Found at start (or on a reopened port), a gimbal is known to stand
+    /// still from two readings [`SETTLE_SPAN`] apart however often doors
+    /// read it between them; and one that moves slowly is found moving.
+    #[test]
+    fn a_gimbal_found_is_known_still_or_moving_though_doors_read_it_every_50_ms() {
+        let mut g = Gimbal::default();
+        g.forget();
+        for t in (1000..=1150).step_by(50) {
+            g.read_position(t, at(0, 0), line());
+        }
+        assert_eq!(g.axes, [AxisMotion::Still; 2], "still");
+        let mut g = Gimbal::default();
+        g.forget();
+        for (n, t) in (1000..=1150).step_by(50).enumerate() {
+            g.read_position(t, at(n as i16, 0), line());
+        }
+        assert!(
+            matches!(g.axes[0], AxisMotion::Settling { .. }),
+            "found moving, stopped: {:?}",
+            g.axes
+        );
     }
 
     /// A tour waited 60 s (GOTO_PATIENCE) for a goto taken for stopped
