@@ -19,7 +19,7 @@ use std::time::Duration;
 use sagebrush_client::CommandError;
 use sagebrush_client::connection::proportional_speed;
 use sagebrush_client::session::{Axes, Drive, GimbalSession, Velocity};
-use sagebrush_protocol::{Angle, Command as Wire, Position};
+use sagebrush_protocol::Command as Wire;
 use sagebrush_service::door_metrics::DoorMetrics;
 use serde_json::Value;
 use tokio::sync::{Semaphore, mpsc};
@@ -205,19 +205,8 @@ impl Gimbal {
         let s = self.session.acting_for(self.user.as_deref());
         match *command {
             Command::GoTo { pan, tilt } => {
-                let here = self.session.status().position;
-                let axis = |v: Option<f64>, now: Option<Angle>, key: &str| match (v, now) {
-                    (Some(d), _) => Angle::from_degrees(d as f32).map_err(|e| CommandError::Usage(e.to_string())),
-                    (None, Some(a)) => Ok(a),
-                    (None, None) => Err(CommandError::Usage(format!(
-                        "goto: the gimbal's position is not known yet: give {key} too"
-                    ))),
-                };
-                let target = Position::new(
-                    axis(pan, here.map(|p| p.pan), "pan_deg")?,
-                    axis(tilt, here.map(|p| p.tilt), "tilt_deg")?,
-                );
-                s.go_to(target).await?;
+                // An axis left out keeps its angle (the session's rule).
+                let target = s.go_to_degrees(pan, tilt).await?;
                 Ok(format!(
                     "going to pan {:.2} tilt {:.2}",
                     target.pan.degrees(),

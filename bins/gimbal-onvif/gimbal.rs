@@ -126,6 +126,7 @@ impl Gimbal {
             .acting_for(Some(by))
             .go_to_degrees(Some(pan), Some(tilt))
             .await
+            .map(drop)
     }
 
     /// `Pnn`: to a preset the gimbal stored (Table 11).

@@ -104,6 +104,10 @@ impl Gimbal {
             AxisTo::Pan(p) => (Some(p), None),
             AxisTo::Tilt(t) => (None, Some(t)),
         };
-        self.session.acting_for(principal).go_to_degrees(pan, tilt).await
+        self.session
+            .acting_for(principal)
+            .go_to_degrees(pan, tilt)
+            .await
+            .map(drop)
     }
 }

@@ -278,16 +278,10 @@ impl Camera {
         match command {
             Command::Absolute { pan, tilt, .. } => s.go_to(self.position(f64::from(pan), f64::from(tilt))?).await,
             Command::Relative { pan, tilt, .. } => {
-                let at =
-                    self.session.status().position.ok_or_else(|| {
-                        CommandError::Io("the gimbal's position is not known: no relative move".into())
-                    })?;
                 let step = self.config.degrees_per_step;
-                let target = (
-                    f64::from(at.pan.degrees()) / step + f64::from(pan),
-                    f64::from(at.tilt.degrees()) / step + f64::from(tilt),
-                );
-                s.go_to(self.position(target.0, target.1)?).await
+                s.go_by_degrees(f64::from(pan) * step, f64::from(tilt) * step)
+                    .await
+                    .map(drop)
             }
             // The gimbal has no re-initialisation a door may start: Reset returns it home.
             Command::Home | Command::Reset => s.home().await,

@@ -321,7 +321,7 @@ impl Task {
                 (_, Some(outcome)) => outcome
                     .await
                     .unwrap_or_else(|_| Err(CommandError::Io("session ended".into()))),
-                (Plan::GoTo { pan, tilt }, None) => session.go_to_degrees(pan, tilt).await,
+                (Plan::GoTo { pan, tilt }, None) => session.go_to_degrees(pan, tilt).await.map(drop),
                 _ => Ok(()),
             }
         }

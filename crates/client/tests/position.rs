@@ -185,3 +185,40 @@ async fn gotos_of_one_axis_asked_at_once_are_aimed_in_order() {
     let gotos: Vec<String> = gcud.got().into_iter().filter(|p| p.len() == 9).collect();
     assert_eq!(gotos.last().map(String::as_str), Some("P0BB8FE0C"), "{gotos:?}");
 }
+
+/// A goto by degrees (VISCA's RelativePosition) goes from where a fresh
+/// poll reads the gimbal, not from the last poll (none yet right after a
+/// door started: it was refused), and two in a row add up: the second
+/// goes from where the first aims, not from where it is on its way.
+#[tokio::test]
+async fn gotos_by_degrees_go_from_a_fresh_reading_and_two_in_a_row_add_up() {
+    let pan = Arc::new(AtomicI16::new(1000));
+    let gcud = gcud_at(Arc::clone(&pan)).await;
+    let s = slow_poll(&gcud.addr);
+    until("the session's first poll", || polls(&gcud) == 1).await;
+    // Moved since that poll (another door): 20°, tilt 5°.
+    pan.store(2000, Ordering::Relaxed);
+    let first = s.acting_for(None).go_by_degrees(7.5, -1.0).await.unwrap();
+    assert_eq!(first, Position::new(Angle(2750), Angle(400)));
+    let door = s.acting_for(None);
+    let (a, b) = tokio::time::timeout(GUARD, async {
+        tokio::join!(door.go_by_degrees(10.0, 0.0), door.go_by_degrees(10.0, 0.0))
+    })
+    .await
+    .expect("both answered");
+    assert_eq!(a.unwrap(), Position::new(Angle(3750), Angle(400)));
+    assert_eq!(b.unwrap(), Position::new(Angle(4750), Angle(400)));
+    let gotos: Vec<String> = gcud.got().into_iter().filter(|p| p.len() == 9).collect();
+    // The middle one may be superseded by the last before it is sent.
+    assert_eq!(gotos.first().map(String::as_str), Some("P0ABE0190"), "{:?}", gcud.got());
+    assert_eq!(gotos.last().map(String::as_str), Some("P128E0190"), "{:?}", gcud.got());
+    assert!(
+        gotos
+            .iter()
+            .all(|g| ["P0ABE0190", "P0EA60190", "P128E0190"].contains(&g.as_str())),
+        "{gotos:?}"
+    );
+    let beyond = door.go_by_degrees(400.0, 0.0).await;
+    assert!(matches!(beyond, Err(CommandError::Usage(_))), "{beyond:?}");
+    s.shutdown().await;
+}

@@ -271,7 +271,7 @@ impl GimbalSession {
     }
 
     /// `GO` to degrees (Table 15): [`ForUser::go_to_degrees`], for the door itself.
-    pub async fn go_to_degrees(&self, pan: Option<f64>, tilt: Option<f64>) -> Result<(), CommandError> {
+    pub async fn go_to_degrees(&self, pan: Option<f64>, tilt: Option<f64>) -> Result<Position, CommandError> {
         self.acting_for(None).go_to_degrees(pan, tilt).await
     }
 
@@ -447,24 +447,55 @@ impl ForUser<'_> {
     /// absolute pan, then its tilt 50 ms later), else the angle read with
     /// the session's poll ([`GimbalSession::position`]). An angle the
     /// protocol cannot carry (hundredths of a degree in 16 bits) is
-    /// [`CommandError::Usage`].
-    pub async fn go_to_degrees(&self, pan: Option<f64>, tilt: Option<f64>) -> Result<(), CommandError> {
-        let order = self.session.aiming.lock().await;
-        let aim = self.session.state().motion.aim();
-        let now = match (pan, tilt, aim) {
-            (Some(_), Some(_), _) => Position::default(),
-            (_, _, Some(aim)) => aim,
-            _ => self.session.position().await?,
-        };
+    /// [`CommandError::Usage`]. Returns where it sent the gimbal.
+    pub async fn go_to_degrees(&self, pan: Option<f64>, tilt: Option<f64>) -> Result<Position, CommandError> {
         let angle = |degrees: Option<f64>, current: Angle| match degrees {
             Some(d) => Angle::from_degrees(d as f32).map_err(|e| CommandError::Usage(e.to_string())),
             None => Ok(current),
         };
-        let target = Position::new(angle(pan, now.pan)?, angle(tilt, now.tilt)?);
+        let from_here = pan.is_none() || tilt.is_none();
+        self.go_from_aim(from_here, |now| {
+            Ok(Position::new(angle(pan, now.pan)?, angle(tilt, now.tilt)?))
+        })
+        .await
+    }
+
+    /// `GO` by `pan` and `tilt` degrees (Table 15), for this user: from
+    /// where the positioning move asked before aims the gimbal while that
+    /// move is asked or under way (two relative moves in a row add up),
+    /// else from where a poll reads it now (never a poll from before the
+    /// door's first: a VISCA RelativePosition right after the door
+    /// started was refused). Returns where it sent the gimbal.
+    pub async fn go_by_degrees(&self, pan: f64, tilt: f64) -> Result<Position, CommandError> {
+        let angle = |now: Angle, by: f64| {
+            Angle::from_degrees((f64::from(now.degrees()) + by) as f32).map_err(|e| CommandError::Usage(e.to_string()))
+        };
+        self.go_from_aim(true, |now| {
+            Ok(Position::new(angle(now.pan, pan)?, angle(now.tilt, tilt)?))
+        })
+        .await
+    }
+
+    /// A goto to `target(from)`, `from` where `MotionState::aim` or a
+    /// fresh poll puts the gimbal when `from_here`; such gotos aimed in
+    /// the order asked (`aiming`).
+    async fn go_from_aim(
+        &self,
+        from_here: bool,
+        target: impl FnOnce(Position) -> Result<Position, CommandError>,
+    ) -> Result<Position, CommandError> {
+        let order = self.session.aiming.lock().await;
+        let aim = self.session.state().motion.aim();
+        let from = match (from_here, aim) {
+            (false, _) => Position::default(),
+            (true, Some(aim)) => aim,
+            (true, None) => self.session.position().await?,
+        };
+        let target = target(from)?;
         let outcome = self.session.post_place(Place::GoTo(target), self.user.clone());
-        // Posted: the next goto of one axis aims after this one.
+        // Posted: the next goto from here aims after this one.
         drop(order);
-        outcome.await.unwrap_or_else(|_| Err(closed()))
+        outcome.await.unwrap_or_else(|_| Err(closed())).map(|()| target)
     }
 
     /// `Pnn` (Table 11), for this user.
