@@ -621,9 +621,14 @@ fn a_scan_that_nothing_answers_exits_4() {
 /// running, not only "connection refused".
 #[test]
 fn a_refused_connection_asks_whether_gcud_runs() {
-    let free = TcpListener::bind("127.0.0.1:0").expect("bind");
-    let addr = free.local_addr().expect("addr").to_string();
-    drop(free);
+    // A port bound but not listening refuses connections, and no other
+    // program can take it meanwhile (a port freed for the test was at
+    // times another test's listener by then: "reset by peer").
+    let bound = socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None).expect("socket");
+    bound
+        .bind(&std::net::SocketAddr::from(([127, 0, 0, 1], 0)).into())
+        .expect("bind");
+    let addr = bound.local_addr().expect("addr").as_socket().expect("IPv4").to_string();
     let out = support::gimbalctl(&["--tcp", &addr, "--to", "5.1.1", "position"]);
     assert_ne!(out.code, 0, "{out:?}");
     assert!(out.stderr.contains("Connection refused"), "{out:?}");
