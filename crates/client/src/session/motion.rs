@@ -104,6 +104,14 @@ impl Place {
     }
 }
 
+/// A drive command on its way to gcud ([`MotionState::driving`]).
+pub(super) struct Driving {
+    /// The door's user it was sent for.
+    pub(super) by: Option<Arc<str>>,
+    /// Callers of that user's wish, superseded meanwhile by another user's.
+    pub(super) replies: Vec<Reply>,
+}
+
 pub(super) struct Pending<T> {
     pub(super) what: T,
     pub(super) asked: Instant,
@@ -132,7 +140,7 @@ pub(super) struct MotionState {
     /// A drive command of `wish` on its way to gcud: whose it is, and the
     /// callers of that user's wish should another user's supersede it
     /// meanwhile (they learn the outcome of what was sent for them).
-    pub(super) driving: Option<Pending<()>>,
+    pub(super) driving: Option<Driving>,
     /// Axes set to zero beside a pending move ([`MotionState::post`]):
     /// owed once that move is in force.
     pub(super) wish_stops: Axes,

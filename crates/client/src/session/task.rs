@@ -3,7 +3,7 @@
 //! velocity, the positioning move, the queue, the poll), each step carried
 //! out and its outcome recorded (ARCHITECTURE "Front doors").
 
-use super::motion::{InForce, Pending, Reply, answer};
+use super::motion::{Driving, InForce, Pending, Reply, answer};
 use super::travel::Travel;
 use super::*;
 use sagebrush_protocol::ResultKind;
@@ -87,9 +87,7 @@ impl GimbalSession {
                 .or_else(|| pan_tilt_step(Axis::Tilt, v.tilt, s.motion.tilt))
                 .or_else(|| zoom_step(v.zoom, s.motion.zoom))
             {
-                s.motion.driving = Some(Pending {
-                    what: (),
-                    asked: now,
+                s.motion.driving = Some(Driving {
                     by: by.clone(),
                     replies: Vec::new(),
                 });
