@@ -46,6 +46,27 @@ fn slow_poll(gcud: &str) -> Arc<GimbalSession> {
     )
 }
 
+/// gcud at 0, 0 that takes 300 ms over the first goto (`Pppppttt`), and
+/// a session on it that polls only once a minute.
+async fn first_goto_slow() -> (FakeGcud, Arc<GimbalSession>) {
+    let first = Arc::new(std::sync::atomic::AtomicBool::new(true));
+    let gcud = FakeGcud::start(move |p| match p {
+        [b'P', rest @ ..] if rest.len() == 8 && first.swap(false, Ordering::Relaxed) => {
+            Answer::After(Duration::from_millis(300), Box::new(Answer::Ack))
+        }
+        b"P?" => at_zero(),
+        _ => Answer::Ack,
+    })
+    .await;
+    let s = slow_poll(&gcud.addr);
+    (gcud, s)
+}
+
+/// The gotos (`Pppppttt`) gcud got, in order.
+fn gotos(gcud: &FakeGcud) -> Vec<String> {
+    gcud.got().into_iter().filter(|p| p.len() == 9).collect()
+}
+
 fn polls(gcud: &FakeGcud) -> usize {
     gcud.got().iter().filter(|p| *p == "P?").count()
 }
@@ -86,17 +107,11 @@ async fn a_goto_in_degrees_keeps_the_axis_left_out_where_the_poll_read_it() {
         got.contains(&want),
         "pan kept at 10°, tilt to -20°: {want:?} in {got:?}"
     );
-    let gotos = |g: &FakeGcud| {
-        g.got()
-            .iter()
-            .filter(|p| p.len() == want.len() && p.starts_with('P'))
-            .count()
-    };
-    assert_eq!(gotos(&gcud), 1, "{got:?}");
+    assert_eq!(gotos(&gcud).len(), 1, "{got:?}");
 
     let beyond = s.acting_for(Some("ops")).go_to_degrees(Some(400.0), Some(0.0)).await;
     assert!(matches!(beyond, Err(CommandError::Usage(_))), "{beyond:?}");
-    assert_eq!(gotos(&gcud), 1, "nothing sent: {:?}", gcud.got());
+    assert_eq!(gotos(&gcud).len(), 1, "nothing sent: {:?}", gcud.got());
     s.shutdown().await;
 }
 
@@ -106,17 +121,7 @@ async fn a_goto_in_degrees_keeps_the_axis_left_out_where_the_poll_read_it() {
 /// under load).
 #[tokio::test]
 async fn a_goto_asked_while_one_is_on_its_way_is_sent_after_it() {
-    let first = Arc::new(std::sync::atomic::AtomicBool::new(true));
-    let gcud = FakeGcud::start(move |p| match p {
-        [b'P', rest @ ..] if rest.len() == 8 && first.swap(false, Ordering::Relaxed) => {
-            Answer::After(Duration::from_millis(300), Box::new(Answer::Ack))
-        }
-        b"P?" => at_zero(),
-        _ => Answer::Ack,
-    })
-    .await;
-    let s = slow_poll(&gcud.addr);
-    let gotos = |gcud: &FakeGcud| -> Vec<String> { gcud.got().into_iter().filter(|p| p.len() == 9).collect() };
+    let (gcud, s) = first_goto_slow().await;
     let pan = {
         let s = Arc::clone(&s);
         tokio::spawn(async move { s.go_to_degrees(Some(30.0), Some(0.0)).await })
@@ -136,17 +141,7 @@ async fn a_goto_asked_while_one_is_on_its_way_is_sent_after_it() {
 /// gimbal-pelco's own, now the session's for every door).
 #[tokio::test]
 async fn a_goto_of_one_axis_keeps_the_other_where_the_goto_before_it_aims() {
-    let first = Arc::new(std::sync::atomic::AtomicBool::new(true));
-    let gcud = FakeGcud::start(move |p| match p {
-        [b'P', rest @ ..] if rest.len() == 8 && first.swap(false, Ordering::Relaxed) => {
-            Answer::After(Duration::from_millis(300), Box::new(Answer::Ack))
-        }
-        b"P?" => at_zero(),
-        _ => Answer::Ack,
-    })
-    .await;
-    let s = slow_poll(&gcud.addr);
-    let gotos = |gcud: &FakeGcud| -> Vec<String> { gcud.got().into_iter().filter(|p| p.len() == 9).collect() };
+    let (gcud, s) = first_goto_slow().await;
     let both = {
         let s = Arc::clone(&s);
         tokio::spawn(async move { s.go_to_degrees(Some(30.0), Some(10.0)).await })
@@ -182,7 +177,7 @@ async fn gotos_of_one_axis_asked_at_once_are_aimed_in_order() {
     .await
     .expect("both answered");
     assert!(pan.is_ok() && tilt.is_ok(), "{pan:?} {tilt:?}");
-    let gotos: Vec<String> = gcud.got().into_iter().filter(|p| p.len() == 9).collect();
+    let gotos = gotos(&gcud);
     assert_eq!(gotos.last().map(String::as_str), Some("P0BB8FE0C"), "{gotos:?}");
 }
 
@@ -208,7 +203,7 @@ async fn gotos_by_degrees_go_from_a_fresh_reading_and_two_in_a_row_add_up() {
     .expect("both answered");
     assert_eq!(a.unwrap(), Position::new(Angle(3750), Angle(400)));
     assert_eq!(b.unwrap(), Position::new(Angle(4750), Angle(400)));
-    let gotos: Vec<String> = gcud.got().into_iter().filter(|p| p.len() == 9).collect();
+    let gotos = gotos(&gcud);
     // The middle one may be superseded by the last before it is sent.
     assert_eq!(gotos.first().map(String::as_str), Some("P0ABE0190"), "{:?}", gcud.got());
     assert_eq!(gotos.last().map(String::as_str), Some("P128E0190"), "{:?}", gcud.got());
