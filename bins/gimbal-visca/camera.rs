@@ -5,9 +5,10 @@
 //! user; a stop overtakes; at most 8 callers wait, the older told at once),
 //! each for the motion lease since VISCA drives have no time-out of their
 //! own, answered Completion once in force (or superseded) and `90 61 41 FF`
-//! with gcud's reason logged when refused; every other command is ACKed, carried out in order by
-//! the camera's worker from a short queue (full: "command buffer full"),
-//! then answered Completion or `90 61 41 FF` with gcud's reason logged.
+//! with gcud's reason logged when refused; every other command is ACKed,
+//! carried out in order by the camera's worker from a short queue (full:
+//! "command buffer full"), then answered Completion or `90 61 41 FF` with
+//! gcud's reason logged.
 //! Anything not implemented is answered `90 60 02 FF` at once.
 //!
 //! Units: a VISCA position step is `degrees_per_step` degrees (pan right
@@ -23,7 +24,7 @@ use std::time::Duration;
 use sagebrush_client::CommandError;
 use sagebrush_client::connection::proportional_speed;
 use sagebrush_client::session::{Drive, GimbalSession, Velocity};
-use sagebrush_protocol::{Angle, Command as Bus, LensPosition, LensSpeed, Position, U12};
+use sagebrush_protocol::{Angle, Command as Bus, LensPosition, LensSpeed, U12};
 use sagebrush_service::door_metrics::DoorMetrics;
 use tokio::sync::mpsc;
 use tracing::{info, warn};
@@ -276,7 +277,13 @@ impl Camera {
     async fn carry_out(&self, command: Command, replier: &Replier) -> Result<(), CommandError> {
         let s = self.session.acting_for(replier.user.as_deref());
         match command {
-            Command::Absolute { pan, tilt, .. } => s.go_to(self.position(f64::from(pan), f64::from(tilt))?).await,
+            // VISCA's steps in degrees; the session's gotos in degrees do the rest.
+            Command::Absolute { pan, tilt, .. } => {
+                let step = self.config.degrees_per_step;
+                s.go_to_degrees(Some(f64::from(pan) * step), Some(f64::from(tilt) * step))
+                    .await
+                    .map(drop)
+            }
             Command::Relative { pan, tilt, .. } => {
                 let step = self.config.degrees_per_step;
                 s.go_by_degrees(f64::from(pan) * step, f64::from(tilt) * step)
@@ -318,16 +325,6 @@ impl Camera {
                 "{other:?} is not carried out by the worker"
             ))),
         }
-    }
-
-    /// The position `pan`, `tilt` VISCA steps from home.
-    fn position(&self, pan: f64, tilt: f64) -> Result<Position, CommandError> {
-        let step = self.config.degrees_per_step;
-        let angle = |steps: f64| {
-            Angle::from_degrees((steps * step) as f32)
-                .map_err(|e| CommandError::Usage(format!("{steps} steps of {step}°: {e}")))
-        };
-        Ok(Position::new(angle(pan)?, angle(tilt)?))
     }
 }
 
