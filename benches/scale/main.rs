@@ -18,6 +18,8 @@
 //!    (26 byte-times a `P?` transaction), the total against the buses' sum,
 //!    and the figures of 1. with resident memory per port; socat with one
 //!    client per port alongside at `SCALE_SOCAT_SIZES` (default 8,254);
+//!    gcud again with its ports' I/O on each of `SCALE_THREADS` (`[gcu]
+//!    threads`, default 1,2) and the ratio to one thread;
 //! 3. **idle**: 254 pty ports, no client: CPU and resident memory per port;
 //! 4. **governed**: 254 gimbals (`sagebrush-sim`, unpaced lines), each with
 //!    travel limits and a keep-out zone, 64 of them slewing (pan left, then
@@ -63,11 +65,12 @@ fn window() -> Duration {
     )
 }
 
-/// gcud's configuration: `ports` pty ports at `baud`, a client listener,
-/// metrics, room for every client; `extra` appended.
-fn gcud_config(paths: &[String], baud: u32, metrics: &str, extra: &str) -> String {
+/// gcud's configuration: `ports` pty ports at `baud`, the ports' I/O on
+/// `threads` (`[gcu] threads`), a client listener, metrics, room for every
+/// client; `extra` appended.
+fn gcud_config(paths: &[String], baud: u32, metrics: &str, threads: usize, extra: &str) -> String {
     let mut config = format!(
-        "[gcu]\ngroup = 5\n[metrics]\nlisten = \"{metrics}\"\n\
+        "[gcu]\ngroup = 5\nthreads = {threads}\n[metrics]\nlisten = \"{metrics}\"\n\
          [limits]\nmax_connections = 2048\nmax_connections_per_peer = 2048\n\
          [[link]]\nname = \"clients\"\nrole = \"client\"\nlisten = \"127.0.0.1:0\"\n"
     );
@@ -87,6 +90,8 @@ struct Window {
     latencies: Vec<u32>,
     allocations: Option<u64>,
     failed: u64,
+    /// The share of the machine's cores busy in the window (every process).
+    machine_busy: f64,
 }
 
 impl Window {
@@ -95,6 +100,7 @@ impl Window {
     fn measure(devices: &Devices, targets: Vec<Target>, pids: &[u32], metrics: Option<&str>) -> Self {
         let clients = Clients::start(targets);
         std::thread::sleep(Duration::from_secs(1));
+        let machine0 = procs::machine_ticks();
         let (usage0, allocs0, ports0, done0) = (
             Usage::of(pids),
             metrics.map(procs::allocations),
@@ -107,6 +113,8 @@ impl Window {
         std::thread::sleep(window());
         let usage = Usage::of(pids).since(usage0);
         let seconds = started.elapsed().as_secs_f64();
+        let machine = procs::machine_ticks();
+        let machine_busy = (machine.0 - machine0.0) as f64 / (machine.1 - machine0.1).max(1) as f64;
         let per_port: Vec<u64> = devices.counts().iter().zip(&ports0).map(|(a, b)| a - b).collect();
         let transactions: u64 = clients.counts().iter().zip(&done0).map(|(a, b)| a - b).sum();
         // A scrape's own allocations (its page grows with the clients'
@@ -126,6 +134,7 @@ impl Window {
             latencies,
             allocations,
             failed,
+            machine_busy,
         }
     }
 
@@ -135,6 +144,12 @@ impl Window {
 
     fn cpu_per_10k(&self) -> f64 {
         self.usage.cpu_seconds() / self.transactions.max(1) as f64 * 10_000.0
+    }
+
+    /// The busiest thread's CPU per 10k transactions: the throughput the
+    /// process reaches once that thread fills its core is 10k over it.
+    fn busiest_per_10k(&self) -> f64 {
+        self.usage.busiest_seconds() / self.transactions.max(1) as f64 * 10_000.0
     }
 
     fn percentile(&self, p: f64) -> f64 {
@@ -188,12 +203,12 @@ fn socat_window(devices: &Devices) -> Window {
     w
 }
 
-/// gcud (the build `bin`) on every line of `devices` at `baud`, `per_port`
-/// clients a port.
-fn gcud_window(bin: &str, devices: &Devices, baud: u32, per_port: usize) -> Window {
+/// gcud (the build `bin`) on every line of `devices` at `baud`, its ports'
+/// I/O on `threads`, `per_port` clients a port.
+fn gcud_window(bin: &str, devices: &Devices, baud: u32, threads: usize, per_port: usize) -> Window {
     let dir = tempfile::tempdir().expect("temp dir");
     let metrics = procs::free_addr();
-    let (gcud, addr) = spawn_gcud(bin, &gcud_config(&devices.paths, baud, &metrics, ""), &dir);
+    let (gcud, addr) = spawn_gcud(bin, &gcud_config(&devices.paths, baud, &metrics, threads, ""), &dir);
     std::thread::sleep(Duration::from_millis(500));
     let addrs = vec![addr; devices.paths.len()];
     Window::measure(devices, targets(&addrs, per_port, true), &[gcud.0.id()], Some(&metrics))
@@ -209,7 +224,7 @@ fn relay(sizes: &[usize], socat: bool) {
         if let Some(s) = &s {
             println!("    socat x{n:<3} {}", s.figures());
         }
-        let g = gcud_window(&gcud_bin(), &devices, 115_200, 1);
+        let g = gcud_window(&gcud_bin(), &devices, 115_200, 1, 1);
         println!("    gcud        {}", g.figures());
         if let Some(s) = &s {
             println!(
@@ -219,7 +234,7 @@ fn relay(sizes: &[usize], socat: bool) {
             );
         }
         if let Some(bin) = before_bin() {
-            let b = gcud_window(&bin, &devices, 115_200, 1);
+            let b = gcud_window(&bin, &devices, 115_200, 1, 1);
             println!("    before      {}", b.figures());
             compare(&g, &b, s.as_ref());
         }
@@ -252,7 +267,7 @@ fn shares(w: &Window, baud: u32) -> (f64, f64, f64, f64) {
 }
 
 /// 2. Lines timed at each rate, every queue full.
-fn line_rate(sizes: &[usize], rates: &[usize], socat_sizes: &[usize], socat: bool) {
+fn line_rate(sizes: &[usize], rates: &[usize], threads: &[usize], socat_sizes: &[usize], socat: bool) {
     println!(
         "2. line rate: pty lines timed at the rate, 2 clients per port keeping its queue full \
          (socat: one client per port); share of the line limit min/median/max, all buses together"
@@ -273,15 +288,29 @@ fn line_rate(sizes: &[usize], rates: &[usize], socat_sizes: &[usize], socat: boo
             let row = |name: &str, w: &Window| {
                 let (lo, mid, hi, all) = shares(w, baud);
                 println!(
-                    "    {name:<11} share {lo:.3}/{mid:.3}/{hi:.3} all {all:.3}  {}  RSS {:.0} KiB/port",
+                    "    {name:<11} share {lo:.3}/{mid:.3}/{hi:.3} all {all:.3}  {}  RSS {:.0} KiB/port  \
+                     busiest thread {:.3} s/10k  machine {:.0} % busy",
                     w.figures(),
-                    w.usage.rss_kib as f64 / n as f64
+                    w.usage.rss_kib as f64 / n as f64,
+                    w.busiest_per_10k(),
+                    w.machine_busy * 100.0
                 );
             };
-            let g = gcud_window(&gcud_bin(), &devices, baud, 2);
+            let g = gcud_window(&gcud_bin(), &devices, baud, 1, 2);
             row("gcud", &g);
+            for &threads in threads.iter().filter(|&&t| t > 1) {
+                let t = gcud_window(&gcud_bin(), &devices, baud, threads, 2);
+                row(&format!("threads={threads}"), &t);
+                println!(
+                    "    threads={threads} / 1: throughput {:.2}, CPU per transaction {:.2}, \
+                     throughput once the busiest thread fills its core {:.2}",
+                    t.rate() / g.rate(),
+                    t.cpu_per_10k() / g.cpu_per_10k(),
+                    g.busiest_per_10k() / t.busiest_per_10k()
+                );
+            }
             if let Some(bin) = before_bin() {
-                let b = gcud_window(&bin, &devices, baud, 2);
+                let b = gcud_window(&bin, &devices, baud, 1, 2);
                 row("before", &b);
                 compare(&g, &b, s.as_ref());
             }
@@ -294,7 +323,7 @@ fn idle() {
     let devices = Devices::start(254, Some(9600), |_| Model::instant());
     let dir = tempfile::tempdir().expect("temp dir");
     let metrics = procs::free_addr();
-    let (gcud, _) = spawn_gcud(&gcud_bin(), &gcud_config(&devices.paths, 9600, &metrics, ""), &dir);
+    let (gcud, _) = spawn_gcud(&gcud_bin(), &gcud_config(&devices.paths, 9600, &metrics, 1, ""), &dir);
     std::thread::sleep(Duration::from_secs(2));
     let before = Usage::of(&[gcud.0.id()]);
     let started = Instant::now();
@@ -324,7 +353,11 @@ fn governed() {
     }
     let dir = tempfile::tempdir().expect("temp dir");
     let metrics = procs::free_addr();
-    let (gcud, addr) = spawn_gcud(&gcud_bin(), &gcud_config(&devices.paths, 9600, &metrics, &rules), &dir);
+    let (gcud, addr) = spawn_gcud(
+        &gcud_bin(),
+        &gcud_config(&devices.paths, 9600, &metrics, 1, &rules),
+        &dir,
+    );
     // Every followed gimbal is read at start: let that settle.
     std::thread::sleep(Duration::from_secs(3));
     let polls = |m: &str| procs::counter(m, "gcud_governance_follow_polls_total");
@@ -377,7 +410,13 @@ fn main() {
     for section in sections.split(',') {
         match section.trim() {
             "relay" => relay(&env_list("SCALE_RELAY_SIZES", &[8, 254]), socat),
-            "line" => line_rate(&sizes, &env_list("SCALE_RATES", &[9600, 115_200]), &socat_sizes, socat),
+            "line" => line_rate(
+                &sizes,
+                &env_list("SCALE_RATES", &[9600, 115_200]),
+                &env_list("SCALE_THREADS", &[1, 2]),
+                &socat_sizes,
+                socat,
+            ),
             "idle" => idle(),
             "governed" => governed(),
             other => println!("unknown section {other:?} (relay, line, idle, governed)"),

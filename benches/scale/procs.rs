@@ -117,12 +117,16 @@ pub fn spawn_socats(ptys: &[String]) -> Vec<(Proc, String)> {
 /// live threads from `/proc/PID/task/TID/schedstat`: `utime + stime` in
 /// clock ticks rounds each process to 10 ms, as much as 8 socat relays
 /// spend in a paced window), context switches (voluntary and not, over
-/// their live threads), and resident memory (KiB).
-#[derive(Debug, Clone, Copy, Default)]
+/// their live threads), and resident memory (KiB); each thread's CPU, for
+/// the busiest one (which bounds a process's throughput once it fills its
+/// core).
+#[derive(Debug, Clone, Default)]
 pub struct Usage {
     pub cpu_ns: u64,
     pub switches: u64,
     pub rss_kib: u64,
+    /// CPU by thread id.
+    pub threads: Vec<(u64, u64)>,
 }
 
 impl Usage {
@@ -141,11 +145,14 @@ impl Usage {
                 .flatten()
             {
                 let schedstat = std::fs::read_to_string(task.path().join("schedstat")).unwrap_or_default();
-                total.cpu_ns += schedstat
+                let ns = schedstat
                     .split_whitespace()
                     .next()
                     .and_then(|ns| ns.parse::<u64>().ok())
                     .unwrap_or(0);
+                total.cpu_ns += ns;
+                let tid = task.file_name().to_string_lossy().parse().unwrap_or(0);
+                total.threads.push((tid, ns));
                 let status = std::fs::read_to_string(task.path().join("status")).unwrap_or_default();
                 total.switches += status
                     .lines()
@@ -159,17 +166,49 @@ impl Usage {
 
     /// CPU and switches since `before`; the resident memory now.
     pub fn since(self, before: Self) -> Self {
+        let threads = self
+            .threads
+            .iter()
+            .map(|&(tid, ns)| {
+                let was = before.threads.iter().find(|t| t.0 == tid).map_or(0, |t| t.1);
+                (tid, ns.saturating_sub(was))
+            })
+            .collect();
         Self {
             cpu_ns: self.cpu_ns.saturating_sub(before.cpu_ns),
             switches: self.switches.saturating_sub(before.switches),
             rss_kib: self.rss_kib,
+            threads,
         }
     }
 
     /// CPU seconds.
-    pub fn cpu_seconds(self) -> f64 {
+    pub fn cpu_seconds(&self) -> f64 {
         self.cpu_ns as f64 / 1e9
     }
+
+    /// CPU seconds of the busiest thread.
+    pub fn busiest_seconds(&self) -> f64 {
+        self.threads.iter().map(|t| t.1).max().unwrap_or(0) as f64 / 1e9
+    }
+}
+
+/// The machine's busy and total CPU time so far (`/proc/stat`, clock
+/// ticks): whether its cores were all taken in a window.
+pub fn machine_ticks() -> (u64, u64) {
+    let stat = std::fs::read_to_string("/proc/stat").unwrap_or_default();
+    let fields: Vec<u64> = stat
+        .lines()
+        .next()
+        .unwrap_or_default()
+        .split_whitespace()
+        .skip(1)
+        .filter_map(|f| f.parse().ok())
+        .collect();
+    let total: u64 = fields.iter().take(8).sum();
+    // idle and iowait
+    let idle = fields.get(3).copied().unwrap_or(0) + fields.get(4).copied().unwrap_or(0);
+    (total - idle, total)
 }
 
 fn metrics_text(addr: &str) -> String {

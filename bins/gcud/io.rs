@@ -15,7 +15,7 @@ use std::time::Duration;
 use sagebrush_gcu::{LinkId, LinkKind};
 use sagebrush_host::capture::{CaptureSwitch, Role, Tap};
 
-use crate::lines::{Ended, LineStream};
+use crate::lines::{Ended, LineRate, LineStream};
 use sagebrush_host::backoff::Backoff;
 use sagebrush_host::transport::{LATENCY_TIMER_WARN_MS, SerialOrTcp, connect_tcp, latency_timer_ms, open_serial};
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
@@ -65,17 +65,23 @@ impl LineStream for tokio_serial::SerialStream {
 }
 
 /// A port on a TCP device server (ser2net and the like): the server owns
-/// the serial line and its rate is configured there. The rate the port was
-/// opened at is remembered, so that only a change to another rate (after
-/// an acknowledged `C0..C7`, Table 4) is reported as not applied, not the
-/// router's setting of the rate it already has at every open.
+/// the serial line and its rate is configured there.
 #[derive(Debug)]
 struct DeviceServer {
     stream: TcpStream,
+    rate: ServerRate,
+}
+
+/// The rate a device server's port was opened at, remembered so that only
+/// a change to another rate (after an acknowledged `C0..C7`, Table 4) is
+/// reported as not applied, not the router's setting of the rate it
+/// already has at every open.
+#[derive(Debug, Clone)]
+struct ServerRate {
     baud: u32,
 }
 
-impl LineStream for DeviceServer {
+impl LineRate for ServerRate {
     fn set_baud(&mut self, baud: u32) -> io::Result<()> {
         if baud != self.baud {
             warn!(
@@ -86,9 +92,19 @@ impl LineStream for DeviceServer {
         }
         Ok(())
     }
+}
+
+impl LineStream for DeviceServer {
+    fn set_baud(&mut self, baud: u32) -> io::Result<()> {
+        self.rate.set_baud(baud)
+    }
 
     fn holds_lone_ack(&self) -> bool {
         true
+    }
+
+    fn rate(&self) -> io::Result<Box<dyn LineRate>> {
+        Ok(Box::new(self.rate.clone()))
     }
 }
 
@@ -172,7 +188,7 @@ async fn open_port(port: &Port, baud: u32) -> io::Result<Box<dyn LineStream>> {
         }
         PortTransport::Tcp(addr) => Box::new(DeviceServer {
             stream: connect_tcp(addr).await?,
-            baud,
+            rate: ServerRate { baud },
         }),
         #[cfg(feature = "sim")]
         PortTransport::Simulated(devices) => Box::new(crate::simulated::spawn(port.id, devices, baud)),
@@ -186,13 +202,25 @@ async fn open_port(port: &Port, baud: u32) -> io::Result<Box<dyn LineStream>> {
 }
 
 /// Keeps one port open for as long as the daemon runs; ends quietly (info)
-/// once the router lets go of it (shutdown).
-pub async fn run_port(port: Port, events: mpsc::Sender<IoEvent>, capture: Arc<CaptureSwitch>) {
+/// once the router lets go of it (shutdown). On a port thread (`relay`,
+/// module `shard`) the port is opened and served there, and the router
+/// task gets the relayed stream.
+pub async fn run_port(
+    port: Port,
+    events: mpsc::Sender<IoEvent>,
+    capture: Arc<CaptureSwitch>,
+    relay: Option<crate::shard::Relay>,
+) {
     let mut backoff = Backoff::new();
     let mut baud = port.baud();
     let mut last_error = String::new();
     loop {
-        match open_port(&port, baud).await {
+        let opened = open_port(&port, baud).await;
+        let opened = match &relay {
+            Some(relay) => opened.and_then(|stream| Ok(Box::new(relay.clone().wrap(stream)?) as Box<dyn LineStream>)),
+            None => opened,
+        };
+        match opened {
             Ok(stream) => {
                 backoff.reset();
                 last_error.clear();

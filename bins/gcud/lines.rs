@@ -35,6 +35,29 @@ pub trait LineStream: AsyncRead + AsyncWrite + Unpin + Send + std::fmt::Debug {
     fn holds_lone_ack(&self) -> bool {
         false
     }
+
+    /// The line's rate switch apart from its bytes, for a port whose bytes
+    /// a port thread moves (module `shard`): switched from the router
+    /// task's thread as [`LineStream::set_baud`] would. A line with no
+    /// rate of its own: a switch that does nothing.
+    fn rate(&self) -> io::Result<Box<dyn LineRate>> {
+        Ok(Box::new(NoRate))
+    }
+}
+
+/// A line's rate switch ([`LineStream::rate`]).
+pub trait LineRate: Send + std::fmt::Debug {
+    fn set_baud(&mut self, baud: u32) -> io::Result<()>;
+}
+
+/// The rate switch of a line without a rate (an in-memory pipe).
+#[derive(Debug)]
+struct NoRate;
+
+impl LineRate for NoRate {
+    fn set_baud(&mut self, _baud: u32) -> io::Result<()> {
+        Ok(())
+    }
 }
 
 /// How long gcud's ACK of a device's result may wait for the port's next

@@ -15,6 +15,7 @@ mod openmetrics;
 mod reload;
 mod router_task;
 mod serial;
+mod shard;
 #[cfg(feature = "sim")]
 mod simulated;
 mod snapshot;

@@ -233,7 +233,7 @@ mod tests {
     fn keys_needing_a_restart_are_named_from_the_sections() {
         let old = config("");
         let new = config(
-            "default_route = \"up\"\nshutdown_grace_ms = 100\n[limits]\nqueue_depth = 8\n\
+            "default_route = \"up\"\nshutdown_grace_ms = 100\nthreads = 2\n[limits]\nqueue_depth = 8\n\
              [link_timing]\nretries = 3\ndelivery_timeout_ms = 900\n[port_defaults]\nretries = 1\n",
         );
         let d = Diff::between(&old, &new);
@@ -241,6 +241,7 @@ mod tests {
             d.needs_restart,
             [
                 "gcu.shutdown_grace_ms",
+                "gcu.threads",
                 "limits.queue_depth",
                 "link_timing.delivery_timeout_ms"
             ]

@@ -26,7 +26,7 @@ use serialport::{SerialPort, TTYPort};
 use tokio::io::unix::AsyncFd;
 use tokio::io::{AsyncRead, AsyncWrite, Interest, ReadBuf};
 
-use crate::lines::LineStream;
+use crate::lines::{LineRate, LineStream};
 
 /// An open serial port: its bytes, and its control (line rate).
 pub struct SerialLine {
@@ -92,8 +92,23 @@ fn register(file: File, interest: Interest) -> io::Result<AsyncFd<File>> {
 
 impl LineStream for SerialLine {
     fn set_baud(&mut self, baud: u32) -> io::Result<()> {
-        self.control
-            .set_baud_rate(baud)
+        self.control.set_baud(baud)
+    }
+
+    /// A second handle of the port's control (its descriptor duplicated):
+    /// the line rate is the terminal's, whichever descriptor sets it.
+    fn rate(&self) -> io::Result<Box<dyn LineRate>> {
+        let control = self
+            .control
+            .try_clone_native()
+            .map_err(|e| io::Error::other(format!("serial port {}: {e}", self.control.name().unwrap_or_default())))?;
+        Ok(Box::new(control))
+    }
+}
+
+impl LineRate for TTYPort {
+    fn set_baud(&mut self, baud: u32) -> io::Result<()> {
+        self.set_baud_rate(baud)
             .map_err(|e| io::Error::other(format!("cannot switch the serial line to {baud} bit/s: {e}")))
     }
 }

@@ -247,3 +247,76 @@ fn a_client_speaking_as_another_gcu_never_poisons_its_route() {
     let out = gcu2.ctl(&["--from", "0", "--to", "5.1.1", "position"]);
     assert_eq!(out.code, 0, "and after the spoofer left: {out:?}");
 }
+
+/// `[gcu] threads = 3`: the ports' I/O on two threads of their own. Every
+/// port routes, a damaged line recovers, a rate switch reaches the port's
+/// terminal, and a port that vanishes comes back while the others go on.
+#[test]
+fn ports_on_threads_of_their_own_route_recover_and_switch_rate() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let link1: PathBuf = dir.path().join("bus1");
+    let link1_arg = link1.to_str().expect("utf-8 path").to_owned();
+    let first = Sim::pty(&["--link", &link1_arg]);
+    let bus2 = Sim::pty(&["--seed", "7", "--corrupt", "0.3", "--nak", "0.3", "--max-faults", "12"]);
+    let bus3 = Sim::pty(&["--device", "1,2"]);
+    let gcud = Gcud::start(&format!(
+        "[gcu]\ngroup = 5\nthreads = 3\n{CLIENTS}{METRICS}[[port]]\nid = 1\npath = \"{}\"\n{}{}",
+        link1.display(),
+        port_entry(2, &bus2),
+        port_entry(3, &bus3)
+    ));
+    for port in 1..=3 {
+        gcud.wait_for_log(&format!("port open port={port}"));
+    }
+    let mut threads: Vec<String> = std::fs::read_dir(format!("/proc/{}/task", gcud.child.id()))
+        .expect("gcud's threads")
+        .flatten()
+        .map(|t| {
+            std::fs::read_to_string(t.path().join("comm"))
+                .unwrap_or_default()
+                .trim()
+                .to_owned()
+        })
+        .filter(|name| name.starts_with("gcud-ports"))
+        .collect();
+    threads.sort();
+    assert_eq!(threads, ["gcud-ports-1", "gcud-ports-2"], "two port threads");
+    for (i, to) in ["5.1.1", "5.2.1", "5.3.1", "5.3.2"].into_iter().enumerate() {
+        let pan = 10.0 * (i as f64 + 1.0);
+        let out = gcud.ctl(&["--to", to, "goto", &pan.to_string(), "5", "--wait"]);
+        assert_eq!(out.code, 0, "{to}: {out:?}\n{}", gcud.log());
+        assert_eq!(gcud.position(to), (pan, 5.0), "{to}");
+    }
+    for _ in 0..8 {
+        let out = gcud.ctl(&["--to", "5.2.1", "position"]);
+        assert_eq!(out.code, 0, "the damaged line recovers: {out:?}\n{}", gcud.log());
+    }
+    assert!(
+        gcud.metric("gcud_port_bad_checksums_total{port=\"2\"}") > 0,
+        "damage was seen"
+    );
+
+    // A rate switch of port 3's bus (device 255: every gimbal on it),
+    // applied to its terminal from the router's thread.
+    let out = gcud.ctl(&["--to", "5.3.255", "data-rate", "19200"]);
+    assert_eq!(out.code, 0, "{out:?}\n{}", gcud.log());
+    gcud.wait_for_log("line rate switched port=3 baud=19200");
+    let out = gcud.ctl(&["--to", "5.3.2", "position"]);
+    assert_eq!(out.code, 0, "port 3 answers at its new rate: {out:?}\n{}", gcud.log());
+
+    first.stop();
+    eventually("gcud to notice port 1 is gone", || {
+        gcud.metric("gcud_port_open{port=\"1\"}") == 0
+    });
+    for to in ["5.2.1", "5.3.1"] {
+        let out = gcud.ctl(&["--to", to, "position"]);
+        assert_eq!(out.code, 0, "{to} keeps working while port 1 is away: {out:?}");
+    }
+    let _second = Sim::pty(&["--link", &link1_arg]);
+    eventually("port 1 to answer again", || {
+        gcud.ctl(&["--to", "5.1.1", "position"]).code == 0
+    });
+    let (status, log) = gcud.terminate();
+    assert!(status.is_some_and(|s| s.success()), "{log}");
+    assert!(log.contains("port closed: gcud stopping port=2"), "{log}");
+}

@@ -24,6 +24,10 @@ pub struct GcuSection {
     /// 0 (stop at once) to 10 minutes.
     #[serde(default)]
     pub shutdown_grace_ms: Millis<0, 600_000, 3000>,
+    /// Threads of the ports' I/O, the router task's counted (module
+    /// `shard`): 1 runs every line on the router task's thread.
+    #[serde(default)]
+    pub threads: Int<u8, 1, 64, 1>,
 }
 
 /// At most 20 printable ASCII characters, trailing spaces dropped (Table 6).

@@ -24,6 +24,7 @@ use crate::config::{Config, LinkTransport};
 use crate::io::IoEvent;
 use crate::lines::{LineEvent, LineId, Lines};
 use crate::reload::{Diff, Reread};
+use crate::shard::Shards;
 use crate::snapshot::{RouterState, Snapshot};
 
 mod actions;
@@ -55,6 +56,8 @@ pub enum StartError {
     },
     #[error("cannot install signal handlers: {0}")]
     Signals(std::io::Error),
+    #[error("cannot start the port threads ([gcu] threads): {0}")]
+    Threads(std::io::Error),
 }
 
 /// Runs the daemon until SIGTERM or SIGINT, then shuts down gracefully.
@@ -161,6 +164,7 @@ impl Daemon {
             links: BTreeMap::new(),
             listeners: BTreeMap::new(),
             capture: CaptureSwitch::new(),
+            shards: Shards::start(config.gcu.threads.get()).map_err(StartError::Threads)?,
         };
         // Opened off this task: a FIFO nobody reads yet holds up nothing.
         let capture = CaptureControl::spawn(tasks.capture.clone());
@@ -423,6 +427,7 @@ impl Daemon {
             }
         })
         .await;
+        self.tasks.shards.stop();
         capture.stop("gcud stopping").await;
     }
 }

@@ -15,6 +15,7 @@ use super::StartError;
 use crate::admission::Connections;
 use crate::config::{Link, LinkTransport, Port};
 use crate::io::{self, IoEvent};
+use crate::shard::Shards;
 
 /// The I/O tasks of the configured ports and links, so that a reload can
 /// close and open them one by one.
@@ -28,6 +29,8 @@ pub(super) struct Tasks {
     pub(super) listeners: BTreeMap<String, (std::net::SocketAddr, Arc<TcpListener>)>,
     /// `[capture]`: every port and link task taps its bytes here.
     pub(super) capture: Arc<CaptureSwitch>,
+    /// The port threads (`[gcu] threads`).
+    pub(super) shards: Shards,
 }
 
 impl Tasks {
@@ -87,8 +90,14 @@ impl Tasks {
         }
     }
 
+    /// Starts a port's task: on the port thread it is placed on (module
+    /// `shard`), else on the router task's.
     pub(super) fn start_port(&mut self, port: &Port) {
-        let task = tokio::spawn(io::run_port(port.clone(), self.events.clone(), self.capture.clone()));
+        let (events, capture) = (self.events.clone(), self.capture.clone());
+        let task = match self.shards.place(port.id) {
+            Some((thread, relay)) => thread.spawn(io::run_port(port.clone(), events, capture, Some(relay))),
+            None => tokio::spawn(io::run_port(port.clone(), events, capture, None)),
+        };
         if let Some(old) = self.ports.insert(port.id, task) {
             old.abort();
         }
