@@ -366,6 +366,11 @@ impl Daemon {
     /// Ports closing after a reload: closed once idle (their stops done) or
     /// when their grace ran out.
     fn close_reloaded_ports(&mut self) {
+        // At every turn: nothing to look at unless a reload closes ports
+        // (the router core's `closed_ports` walks every port).
+        if self.closing.is_empty() {
+            return;
+        }
         let t = self.now(Instant::now());
         let overdue: Vec<u8> = self
             .closing
