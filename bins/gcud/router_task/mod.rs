@@ -74,6 +74,7 @@ pub async fn run(config: Config, http_limits: crate::http::Limits) -> Result<(),
         group = d.config.gcu.group.get(),
         ports = d.config.ports.len(),
         links = d.config.links.len(),
+        threads = d.config.gcu.threads.get(),
         "gcud ready"
     );
     let mut turn = Turn::default();
