@@ -15,7 +15,7 @@ use std::time::Duration;
 use sagebrush_gcu::{LinkId, LinkKind};
 use sagebrush_host::capture::{CaptureSwitch, Role, Tap};
 
-use crate::lines::{Ended, LineRate, LineStream};
+use crate::lines::{Ended, LineRate, LineStream, NoRate, Rate};
 use sagebrush_host::backoff::Backoff;
 use sagebrush_host::transport::{LATENCY_TIMER_WARN_MS, SerialOrTcp, connect_tcp, latency_timer_ms, open_serial};
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
@@ -36,7 +36,7 @@ pub enum IoEvent {
         port: u8,
         stream: Box<dyn LineStream>,
         tap: Tap,
-        baud: u32,
+        rate: Rate,
         ended: oneshot::Sender<Ended>,
     },
     LinkOpened {
@@ -58,25 +58,18 @@ pub enum IoEvent {
     Scrape(oneshot::Sender<crate::snapshot::Snapshot>),
 }
 
-impl LineStream for tokio_serial::SerialStream {
-    fn set_baud(&mut self, baud: u32) -> io::Result<()> {
-        sagebrush_host::transport::set_baud(self, baud)
-    }
-}
-
 /// A port on a TCP device server (ser2net and the like): the server owns
-/// the serial line and its rate is configured there.
+/// the serial line and its rate is configured there ([`ServerRate`]).
 #[derive(Debug)]
 struct DeviceServer {
     stream: TcpStream,
-    rate: ServerRate,
 }
 
 /// The rate a device server's port was opened at, remembered so that only
 /// a change to another rate (after an acknowledged `C0..C7`, Table 4) is
 /// reported as not applied, not the router's setting of the rate it
 /// already has at every open.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 struct ServerRate {
     baud: u32,
 }
@@ -95,16 +88,8 @@ impl LineRate for ServerRate {
 }
 
 impl LineStream for DeviceServer {
-    fn set_baud(&mut self, baud: u32) -> io::Result<()> {
-        self.rate.set_baud(baud)
-    }
-
     fn holds_lone_ack(&self) -> bool {
         true
-    }
-
-    fn rate(&self) -> io::Result<Box<dyn LineRate>> {
-        Ok(Box::new(self.rate.clone()))
     }
 }
 
@@ -169,10 +154,13 @@ impl LineStream for tokio::io::DuplexStream {}
 
 impl LineStream for SerialOrTcp {}
 
-async fn open_port(port: &Port, baud: u32) -> io::Result<Box<dyn LineStream>> {
+/// A port opened: its bytes, and its rate switch.
+type Opened = (Box<dyn LineStream>, Box<dyn LineRate>);
+
+async fn open_port(port: &Port, baud: u32) -> io::Result<Opened> {
     Ok(match &port.transport {
         PortTransport::Serial(path) => {
-            let line = crate::serial::SerialLine::open(&path.to_string_lossy(), baud)?;
+            let (line, control) = crate::serial::SerialLine::open(&path.to_string_lossy(), baud)?;
             if let Some(ms) = latency_timer_ms(path, std::path::Path::new("/sys")) {
                 if ms > LATENCY_TIMER_WARN_MS {
                     warn!(
@@ -184,14 +172,19 @@ async fn open_port(port: &Port, baud: u32) -> io::Result<Box<dyn LineStream>> {
                     );
                 }
             }
-            Box::new(line)
+            (Box::new(line), Box::new(control))
         }
-        PortTransport::Tcp(addr) => Box::new(DeviceServer {
-            stream: connect_tcp(addr).await?,
-            rate: ServerRate { baud },
-        }),
+        PortTransport::Tcp(addr) => (
+            Box::new(DeviceServer {
+                stream: connect_tcp(addr).await?,
+            }),
+            Box::new(ServerRate { baud }),
+        ),
         #[cfg(feature = "sim")]
-        PortTransport::Simulated(devices) => Box::new(crate::simulated::spawn(port.id, devices, baud)),
+        PortTransport::Simulated(devices) => (
+            Box::new(crate::simulated::spawn(port.id, devices, baud)),
+            Box::new(NoRate),
+        ),
         #[cfg(not(feature = "sim"))]
         PortTransport::Simulated(_) => {
             return Err(io::Error::other(
@@ -215,13 +208,14 @@ pub async fn run_port(
     let mut baud = port.baud();
     let mut last_error = String::new();
     loop {
-        let opened = open_port(&port, baud).await;
-        let opened = match &relay {
-            Some(relay) => opened.and_then(|stream| Ok(Box::new(relay.clone().wrap(stream)?) as Box<dyn LineStream>)),
-            None => opened,
+        let opened = match (open_port(&port, baud).await, &relay) {
+            (Ok((stream, switch)), Some(relay)) => {
+                Ok((Box::new(relay.clone().wrap(stream)) as Box<dyn LineStream>, switch))
+            }
+            (opened, _) => opened,
         };
         match opened {
-            Ok(stream) => {
+            Ok((stream, switch)) => {
                 backoff.reset();
                 last_error.clear();
                 info!(port = port.id, transport = %describe(&port.transport), baud, "port open");
@@ -231,7 +225,7 @@ pub async fn run_port(
                     port: port.id,
                     stream,
                     tap,
-                    baud,
+                    rate: Rate { baud, switch },
                     ended,
                 };
                 if events.send(opened).await.is_err() {

@@ -22,41 +22,48 @@ use tokio::time::Instant;
 use crate::admission::Connections;
 use sagebrush_protocol::ACK;
 
-/// A line's byte stream, whichever its medium, with a line-rate switch
-/// where the medium has one.
+/// A line's byte stream, whichever its medium; its rate is switched apart
+/// ([`Rate`]).
 pub trait LineStream: AsyncRead + AsyncWrite + Unpin + Send + std::fmt::Debug {
-    fn set_baud(&mut self, _baud: u32) -> io::Result<()> {
-        Ok(())
-    }
-
     /// Whether a lone ACK written to the line waits up to [`ACK_HOLD`] for
     /// the line's next write to ride with it: on a TCP device server, where
     /// every write is a segment the server wakes for.
     fn holds_lone_ack(&self) -> bool {
         false
     }
-
-    /// The line's rate switch apart from its bytes, for a port whose bytes
-    /// a port thread moves (module `shard`): switched from the router
-    /// task's thread as [`LineStream::set_baud`] would. A line with no
-    /// rate of its own: a switch that does nothing.
-    fn rate(&self) -> io::Result<Box<dyn LineRate>> {
-        Ok(Box::new(NoRate))
-    }
 }
 
-/// A line's rate switch ([`LineStream::rate`]).
+/// A port's line-rate switch (Table 4 `C0..C7`), held by the router task
+/// apart from the port's bytes, which may move on a port thread (module
+/// `shard`): the rate is the line's, whichever handle sets it.
 pub trait LineRate: Send + std::fmt::Debug {
     fn set_baud(&mut self, baud: u32) -> io::Result<()>;
 }
 
-/// The rate switch of a line without a rate (an in-memory pipe).
+/// The switch of a line without a rate (a link, an in-memory pipe).
 #[derive(Debug)]
-struct NoRate;
+pub struct NoRate;
 
 impl LineRate for NoRate {
     fn set_baud(&mut self, _baud: u32) -> io::Result<()> {
         Ok(())
+    }
+}
+
+/// A line's rate: what it runs at, and its switch.
+#[derive(Debug)]
+pub struct Rate {
+    pub baud: u32,
+    pub switch: Box<dyn LineRate>,
+}
+
+impl Rate {
+    /// A link's: none.
+    pub fn none() -> Self {
+        Self {
+            baud: 0,
+            switch: Box::new(NoRate),
+        }
     }
 }
 
@@ -164,7 +171,7 @@ struct Line {
     tap: Tap,
     /// Written bytes not yet taken by the stream; its capacity is kept.
     pending: Vec<u8>,
-    baud: u32,
+    rate: Rate,
     /// An accepted connection's entry in the admission table, touched on reads.
     admission: Option<(Arc<Connections>, u64)>,
     owner: Option<oneshot::Sender<Ended>>,
@@ -176,7 +183,7 @@ impl Line {
         if let Some(owner) = self.owner.take() {
             let _ = owner.send(Ended {
                 reason,
-                baud: self.baud,
+                baud: self.rate.baud,
             });
         }
     }
@@ -277,7 +284,7 @@ impl Lines {
         id: LineId,
         stream: Box<dyn LineStream>,
         tap: Tap,
-        baud: u32,
+        rate: Rate,
         admission: Option<(Arc<Connections>, u64)>,
         owner: oneshot::Sender<Ended>,
     ) {
@@ -294,7 +301,7 @@ impl Lines {
             wake,
             tap,
             pending: Vec::new(),
-            baud,
+            rate,
             admission,
             owner: Some(owner),
         };
@@ -372,14 +379,14 @@ impl Lines {
     pub fn set_baud(&mut self, port: u8, baud: u32) -> Result<(), String> {
         let id = LineId::Port(port);
         let line = self.open.get_mut(&id).ok_or_else(|| "the port is closed".to_owned())?;
-        if let Err(e) = line.stream.set_baud(baud) {
+        if let Err(e) = line.rate.switch.set_baud(baud) {
             let reason = format!("cannot switch the line rate to {baud}: {e}");
             line.tell_owner(reason.clone());
             self.open.remove(&id);
             self.failed.push(id);
             return Err(reason);
         }
-        line.baud = baud;
+        line.rate.baud = baud;
         Ok(())
     }
 
@@ -537,7 +544,7 @@ mod tests {
                 id,
                 stream,
                 switch.tap(id.to_string(), Role::Master),
-                9600,
+                Rate::none(),
                 None,
                 oneshot::channel().0,
             );
@@ -618,5 +625,66 @@ mod tests {
         assert!(flush(&mut lines));
         assert_eq!(*log.lock().unwrap(), [(PORT, vec![ACK])]);
         assert_eq!(lines.next_held_ack(), None);
+    }
+
+    /// A switch that takes one rate and refuses the others.
+    #[derive(Debug)]
+    struct Takes(u32);
+
+    impl LineRate for Takes {
+        fn set_baud(&mut self, baud: u32) -> io::Result<()> {
+            match baud == self.0 {
+                true => Ok(()),
+                false => Err(io::Error::other("refused")),
+            }
+        }
+    }
+
+    /// A port's rate goes through its switch: a switch taken is the rate
+    /// the port's task reopens at; one refused closes the port, which its
+    /// task reopens at the rate it had.
+    #[test]
+    fn a_ports_rate_goes_through_its_switch_and_a_refused_one_closes_it_at_the_rate_it_had() {
+        let log = Log::default();
+        let mut lines = Lines::new();
+        let open = |lines: &mut Lines| {
+            let (owner, ended) = oneshot::channel();
+            let stream = Box::new(Recorder {
+                id: PORT,
+                log: log.clone(),
+                holds: false,
+            });
+            let rate = Rate {
+                baud: 9600,
+                switch: Box::new(Takes(19_200)),
+            };
+            lines.add(
+                PORT,
+                stream,
+                CaptureSwitch::new().tap("port 1".to_owned(), Role::Master),
+                rate,
+                None,
+                owner,
+            );
+            ended
+        };
+        let mut ended = open(&mut lines);
+        assert_eq!(lines.set_baud(1, 19_200), Ok(()));
+        lines.close(PORT, "test");
+        assert_eq!(
+            ended.try_recv().expect("told").baud,
+            19_200,
+            "reopened at the rate switched to"
+        );
+        let mut ended = open(&mut lines);
+        let refused = lines.set_baud(1, 38_400).expect_err("refused");
+        assert!(refused.contains("38400") && refused.contains("refused"), "{refused}");
+        let told = ended.try_recv().expect("told");
+        assert_eq!((told.baud, told.reason), (9600, refused), "reopened at the rate it had");
+        assert_eq!(
+            lines.poll_next(&mut Context::from_waker(Waker::noop())),
+            Poll::Ready(LineEvent::Closed(PORT)),
+            "reported closed"
+        );
     }
 }

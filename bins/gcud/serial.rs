@@ -28,29 +28,22 @@ use tokio::io::{AsyncRead, AsyncWrite, Interest, ReadBuf};
 
 use crate::lines::{LineRate, LineStream};
 
-/// An open serial port: its bytes, and its control (line rate).
+/// An open serial port's bytes; its rate is switched through the handle
+/// it was configured through ([`SerialLine::open`]).
+#[derive(Debug)]
 pub struct SerialLine {
     /// Registered for reading only (module doc).
     io: AsyncFd<File>,
     /// A second descriptor of the port registered for writability, while a
     /// write waits for room in the kernel's buffer.
     write_room: Option<AsyncFd<File>>,
-    /// The handle the port was configured through, kept to switch its rate
-    /// (Table 4 `C0..C7`); never read, never registered with the runtime.
-    control: TTYPort,
-}
-
-impl std::fmt::Debug for SerialLine {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("SerialLine")
-            .field("port", &self.control.name())
-            .finish()
-    }
 }
 
 impl SerialLine {
-    /// Opens `path` at `baud`; errors name the port.
-    pub fn open(path: &str, baud: u32) -> io::Result<Self> {
+    /// Opens `path` at `baud`: its bytes, and the handle it was configured
+    /// through, never read nor registered with the runtime, to switch its
+    /// rate (Table 4 `C0..C7`). Errors name the port.
+    pub fn open(path: &str, baud: u32) -> io::Result<(Self, TTYPort)> {
         let named = |e: &dyn std::fmt::Display| io::Error::other(format!("serial port {path}: {e}"));
         let mut control = serialport::new(path, baud)
             .data_bits(serialport::DataBits::Eight)
@@ -72,11 +65,7 @@ impl SerialLine {
             .clear(serialport::ClearBuffer::All)
             .map_err(|e| io::Error::other(format!("serial port {path}: cannot flush: {e}")))?;
         let io = register(file, Interest::READABLE).map_err(|e| named(&e))?;
-        Ok(Self {
-            io,
-            write_room: None,
-            control,
-        })
+        Ok((Self { io, write_room: None }, control))
     }
 }
 
@@ -90,21 +79,7 @@ fn register(file: File, interest: Interest) -> io::Result<AsyncFd<File>> {
     AsyncFd::with_interest(file, interest)
 }
 
-impl LineStream for SerialLine {
-    fn set_baud(&mut self, baud: u32) -> io::Result<()> {
-        self.control.set_baud(baud)
-    }
-
-    /// A second handle of the port's control (its descriptor duplicated):
-    /// the line rate is the terminal's, whichever descriptor sets it.
-    fn rate(&self) -> io::Result<Box<dyn LineRate>> {
-        let control = self
-            .control
-            .try_clone_native()
-            .map_err(|e| io::Error::other(format!("serial port {}: {e}", self.control.name().unwrap_or_default())))?;
-        Ok(Box::new(control))
-    }
-}
+impl LineStream for SerialLine {}
 
 impl LineRate for TTYPort {
     fn set_baud(&mut self, baud: u32) -> io::Result<()> {
@@ -209,7 +184,7 @@ mod tests {
     async fn a_write_that_finds_the_buffer_full_waits_for_room_then_goes_through() {
         let pty = nix::pty::openpty(None, None).expect("a pseudo-terminal");
         let path = std::fs::read_link(format!("/proc/self/fd/{}", pty.slave.as_raw_fd())).expect("its path");
-        let mut line = SerialLine::open(path.to_str().expect("a path"), 9600).expect("opened");
+        let (mut line, _control) = SerialLine::open(path.to_str().expect("a path"), 9600).expect("opened");
         let events = registered(line.io.as_raw_fd());
         assert!(
             !events.is_empty() && events.iter().all(|e| e & EPOLLOUT == 0),

@@ -21,7 +21,7 @@ use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio::runtime::Handle;
 use tokio::sync::{mpsc, oneshot};
 
-use crate::lines::{LineRate, LineStream, MAX_PENDING};
+use crate::lines::{LineStream, MAX_PENDING};
 
 /// How long a port thread waits, at shutdown, for its pumps to write what
 /// the router task handed them (the router task drains its lines into
@@ -115,8 +115,7 @@ impl Relay {
     /// Starts the pump of `stream` on the current (port) thread's runtime
     /// and returns the stream the router task reads and writes in its
     /// place.
-    pub fn wrap(self, stream: Box<dyn LineStream>) -> io::Result<Relayed> {
-        let rate = stream.rate()?;
+    pub fn wrap(self, stream: Box<dyn LineStream>) -> Relayed {
         let holds_lone_ack = stream.holds_lone_ack();
         let shared = Arc::new(Mutex::new(Buffers::default()));
         let mut pump = Pump {
@@ -129,11 +128,7 @@ impl Relay {
             _alive: self.alive,
         };
         tokio::spawn(std::future::poll_fn(move |cx| pump.poll(cx)));
-        Ok(Relayed {
-            shared,
-            rate,
-            holds_lone_ack,
-        })
+        Relayed { shared, holds_lone_ack }
     }
 }
 
@@ -177,21 +172,15 @@ fn register(slot: &mut Option<Waker>, waker: &Waker) {
 }
 
 /// A port's stream as the router task sees it when the port lives on a
-/// port thread: its bytes go through the pump's buffers; its rate is
-/// switched from the router task's thread at once (after an acknowledged
-/// `C0..C7`, Table 4), as on its own thread.
+/// port thread: its bytes go through the pump's buffers (its rate is
+/// switched by the router task as any port's, `lines::Rate`).
 #[derive(Debug)]
 pub struct Relayed {
     shared: Arc<Mutex<Buffers>>,
-    rate: Box<dyn LineRate>,
     holds_lone_ack: bool,
 }
 
 impl LineStream for Relayed {
-    fn set_baud(&mut self, baud: u32) -> io::Result<()> {
-        self.rate.set_baud(baud)
-    }
-
     fn holds_lone_ack(&self) -> bool {
         self.holds_lone_ack
     }
@@ -383,6 +372,7 @@ mod tests {
     use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
     use super::*;
+    use crate::lines::LineRate;
     use crate::serial::SerialLine;
 
     /// A pseudo-terminal: its device side (the master, read and written
@@ -396,19 +386,20 @@ mod tests {
     }
 
     /// A serial port opened on a port thread and relayed to this (the
-    /// router's) runtime, with the port threads that serve it.
-    async fn relayed(path: &str) -> (Relayed, Shards) {
+    /// router's) runtime, with its rate switch and the port threads that
+    /// serve it.
+    async fn relayed(path: &str) -> (Relayed, TTYPort, Shards) {
         let shards = Shards::start(2).expect("a port thread");
         let (thread, relay) = shards.place(1).expect("placed on the port thread");
         let path = path.to_owned();
-        let stream = thread
+        let (stream, control) = thread
             .spawn(async move {
-                let line = SerialLine::open(&path, 9600).expect("opened");
-                relay.wrap(Box::new(line)).expect("relayed")
+                let (line, control) = SerialLine::open(&path, 9600).expect("opened");
+                (relay.wrap(Box::new(line)), control)
             })
             .await
             .expect("the port thread runs");
-        (stream, shards)
+        (stream, control, shards)
     }
 
     /// A blocking read of `n` bytes from the device side, started now off
@@ -432,7 +423,7 @@ mod tests {
     #[tokio::test]
     async fn bytes_cross_both_ways_in_order_and_the_rate_switches_from_the_router_thread() {
         let (mut device, path) = pty();
-        let (mut line, shards) = relayed(&path).await;
+        let (mut line, mut control, shards) = relayed(&path).await;
         // Router to device: more than a buffer between them holds.
         let data: Vec<u8> = (0..200_000u32).map(|i| i as u8).collect();
         let reader = device_reads(&device, data.len());
@@ -453,18 +444,20 @@ mod tests {
             .expect("relayed in time")
             .expect("read");
         assert_eq!(&got, b"\x06result");
-        // The rate is the terminal's, switched from this thread at once.
+        // The rate is the terminal's, switched from this (the router's)
+        // thread through the handle the port was configured with, while
+        // the port's bytes move on its own thread.
         assert_eq!(device.baud_rate().expect("the rate"), 9600);
-        line.set_baud(19_200).expect("switched");
+        LineRate::set_baud(&mut control, 19_200).expect("switched");
         assert_eq!(device.baud_rate().expect("the rate"), 19_200);
-        drop(line);
+        drop((line, control));
         shards.stop();
     }
 
     #[tokio::test]
     async fn a_port_that_vanishes_ends_the_relayed_line_and_a_released_line_closes_the_port() {
         let (device, path) = pty();
-        let (mut line, shards) = relayed(&path).await;
+        let (mut line, _control, shards) = relayed(&path).await;
         drop(device);
         let mut buf = [0; 16];
         let read = tokio::time::timeout(Duration::from_secs(10), line.read(&mut buf))
@@ -477,8 +470,8 @@ mod tests {
         // Released by the router task: the pump ends and the port closes,
         // which the device side sees as its terminal hung up.
         let (device, path) = pty();
-        let (line, shards2) = relayed(&path).await;
-        drop(line);
+        let (line, control, shards2) = relayed(&path).await;
+        drop((line, control));
         let mut reader = device.try_clone_native().expect("device");
         let closed = tokio::task::spawn_blocking(move || {
             let mut buf = [0; 16];

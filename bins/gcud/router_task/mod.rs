@@ -22,7 +22,7 @@ use tracing::{error, info, warn};
 
 use crate::config::{Config, LinkTransport};
 use crate::io::IoEvent;
-use crate::lines::{LineEvent, LineId, Lines};
+use crate::lines::{LineEvent, LineId, Lines, Rate};
 use crate::reload::{Diff, Reread};
 use crate::shard::Shards;
 use crate::snapshot::{RouterState, Snapshot};
@@ -238,10 +238,10 @@ impl Daemon {
                 port,
                 stream,
                 tap,
-                baud,
+                rate,
                 ended,
             } => {
-                self.lines.add(LineId::Port(port), stream, tap, baud, None, ended);
+                self.lines.add(LineId::Port(port), stream, tap, rate, None, ended);
                 self.handle(t, Input::PortOpened { port });
             }
             IoEvent::LinkOpened {
@@ -275,7 +275,8 @@ impl Daemon {
                     // Routes naming the listener reach this connection.
                     lc.listener = Some(self.links.ids.of(&configured.name));
                 }
-                self.lines.add(LineId::Link(id), stream, tap, 0, admission, ended);
+                self.lines
+                    .add(LineId::Link(id), stream, tap, Rate::none(), admission, ended);
                 self.links.live.insert(id, LinkInfo { name: link, peer });
                 self.handle(t, Input::LinkUp { link: id, config: lc });
             }
